@@ -1,0 +1,78 @@
+# The two commands a new user runs: `make demo` and `make test`. Both install what is missing
+# (Debian packages as root, a .venv with the Python packages), build, and run.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+VPY := $(VENV)/bin/python
+VPIP := $(VPY) -m pip
+JOBS ?= $(shell nproc)
+
+# Debian 12 packages the C++ core and the Python dependencies need.
+APT_PACKAGES := libeigen3-dev libembree-dev libbullet-dev libgtest-dev libbenchmark-dev libusb-1.0-0
+# Build tools installed into the venv (no build isolation, so rebuilds are incremental).
+BUILD_TOOLS := "scikit-build-core>=0.10" "pybind11>=2.13" "cmake>=3.18" ninja
+
+SOURCES := $(shell find cpp bindings -type f \( -name '*.cpp' -o -name '*.h' -o -name CMakeLists.txt \)) \
+           CMakeLists.txt pyproject.toml
+CPP_BUILD := build/cpp
+SAN_BUILD := build/sanitize
+
+.PHONY: demo test test-cpp test-python bench sanitize deps stubs clean
+
+demo: $(VENV)/.installed
+	$(VPY) -m cufund.demo
+
+test: test-cpp test-python
+
+deps:
+	@missing=""; for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	if [ -n "$$missing" ]; then \
+	  echo "Installing Debian packages:$$missing"; \
+	  SUDO=""; [ "$$(id -u)" = 0 ] || SUDO=sudo; \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
+
+$(VENV)/.tools:
+	$(MAKE) deps
+	$(PYTHON) -m venv $(VENV)
+	$(VPIP) install -q --upgrade pip
+	$(VPIP) install -q $(BUILD_TOOLS)
+	touch $@
+
+# Rebuilds the extension whenever a C++ source, CMake file or pyproject.toml changes.
+$(VENV)/.installed: $(VENV)/.tools $(SOURCES)
+	$(MAKE) deps
+	CMAKE_BUILD_PARALLEL_LEVEL=$(JOBS) $(VPIP) install -q --no-build-isolation -e '.[test]'
+	touch $@
+
+$(CPP_BUILD)/build.ninja: $(VENV)/.tools CMakeLists.txt cpp/dynamics/CMakeLists.txt
+	$(MAKE) deps
+	$(VENV)/bin/cmake -S . -B $(CPP_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
+	  -DCMAKE_BUILD_TYPE=Release -DCUFUND_BUILD_TESTS=ON -DCUFUND_BUILD_BENCHMARKS=ON -DCUFUND_BUILD_PYTHON=OFF
+
+test-cpp: $(CPP_BUILD)/build.ninja
+	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS)
+	$(VENV)/bin/ctest --test-dir $(CPP_BUILD) --output-on-failure -j $(JOBS)
+
+test-python: $(VENV)/.installed
+	$(VPY) -m pytest -q
+
+sanitize: $(VENV)/.tools
+	$(MAKE) deps
+	$(VENV)/bin/cmake -S . -B $(SAN_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
+	  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCUFUND_BUILD_TESTS=ON -DCUFUND_SANITIZE=ON -DCUFUND_BUILD_PYTHON=OFF
+	$(VENV)/bin/cmake --build $(SAN_BUILD) -j $(JOBS)
+	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+	  $(VENV)/bin/ctest --test-dir $(SAN_BUILD) --output-on-failure -j $(JOBS)
+
+bench: $(VENV)/.installed $(CPP_BUILD)/build.ninja
+	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_dynamics
+	$(CPP_BUILD)/cpp/dynamics/bench_dynamics --benchmark_min_time=0.2s
+	$(VPY) benchmarks/bench_dynamics.py
+
+# Regenerates the checked-in type stubs from the compiled module (tests/test_stubs.py checks them).
+stubs: $(VENV)/.installed
+	$(VPY) -m pybind11_stubgen cufund._core -o python --numpy-array-use-type-var
+
+clean:
+	rm -rf build $(VENV) *.egg-info

@@ -1,0 +1,72 @@
+// N quadrotors with identical parameters, integrated together (paper §2.1, eqs. 2-5).
+//
+// State is structure-of-arrays: component c of field F for vehicle i lives at F(c)[i], so the
+// inner loop runs across vehicles in SIMD lanes and numpy sees each field as an (N, k) view
+// with strides (8, 8N). Every vehicle is integrated by the same scalar arithmetic
+// (no FMA contraction), so a batch of N equals N batches of one bit for bit, on any thread count.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "quadrotor_params.h"
+
+namespace cufund {
+
+enum class StepStatus : int {
+  kOk = 0,
+  kBadTimeStep = 1,          // dt not finite or <= 0
+  kNonFiniteCommand = 2,     // a commanded rotor speed is NaN or infinite
+};
+
+struct StepResult {
+  StepStatus status = StepStatus::kOk;
+  std::int64_t index = -1;   // flat index (vehicle * 4 + rotor) of the offending command
+};
+
+class QuadrotorBatch {
+ public:
+  // Field layout inside the state buffer, in units of N doubles.
+  enum Field : int {
+    kP = 0,          // position p_W [m], 3 rows
+    kV = 3,          // velocity v_W [m/s], 3 rows
+    kQ = 6,          // attitude q_WB [w, x, y, z], 4 rows
+    kW = 10,         // body rate w_B [rad/s], 3 rows
+    kRotor = 13,     // rotor speeds [rad/s], 4 rows
+    kWind = 17,      // wind velocity in world frame [m/s], 3 rows (held over a step)
+    kForceExt = 20,  // external force in world frame [N], 3 rows (held over a step)
+    kTorqueExt = 23, // external torque in body frame [N m], 3 rows (held over a step)
+    kRows = 26,
+  };
+
+  // params must have passed validate(); n >= 1.
+  QuadrotorBatch(const QuadrotorParams& params, std::size_t n);
+
+  std::size_t size() const { return n_; }
+  const QuadrotorParams& params() const { return params_; }
+  double time() const { return time_; }
+  void set_time(double t) { time_ = t; }
+
+  double* row(int r) { return state_.data() + static_cast<std::size_t>(r) * n_; }
+  const double* row(int r) const { return state_.data() + static_cast<std::size_t>(r) * n_; }
+
+  // Every vehicle at rest at p_W = (0, 0, 0), level, rotors stopped, no wind or disturbance.
+  void reset();
+
+  // Advances all vehicles by dt [s] holding rotor_speed_cmd (row-major (N, 4) [rad/s], clipped to the
+  // rotor-speed limits) constant, in ceil(dt / max_integration_step) equal RK4 sub-steps.
+  // nthreads <= 0: all available cores.
+  StepResult step(double dt, const double* rotor_speed_cmd, int nthreads = 0);
+
+  // Hover rotor speed [rad/s]: all four rotors carrying m g / 4.
+  double hover_rotor_speed() const;
+
+ private:
+  QuadrotorParams params_;
+  std::size_t n_;
+  double time_ = 0.0;
+  std::vector<double> state_;
+};
+
+}  // namespace cufund

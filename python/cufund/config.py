@@ -1,0 +1,52 @@
+"""Loading typed, frozen configuration dataclasses from plain dicts and YAML, with clear errors."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+
+T = TypeVar("T")
+
+
+class ConfigError(ValueError):
+    """A configuration value or key is wrong; the message names the field and what was expected."""
+
+
+def from_dict(cls: type[T], data: Any, where: str | None = None) -> T:
+    """Builds dataclass ``cls`` from a mapping, rejecting unknown keys by name.
+
+    Field conversion and validation are the dataclass's own (its ``__post_init__``); this only checks
+    that ``data`` is a mapping whose keys are fields of ``cls``.
+    """
+    where = where or cls.__name__
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where} must be a mapping of field names to values, got {type(data).__name__}")
+    names = [f.name for f in dataclasses.fields(cls) if f.init]  # type: ignore[arg-type]
+    unknown = sorted(set(data) - set(names))
+    if unknown:
+        raise ConfigError(f"unknown key {unknown[0]!r} in {where}; expected one of: {', '.join(names)}")
+    return cls(**data)
+
+
+def load_yaml(path: str | Path) -> Any:
+    """Parses a YAML file; a syntax error names the file and line."""
+    path = Path(path)
+    try:
+        with path.open("r", encoding="utf-8") as f:
+            return yaml.safe_load(f)
+    except yaml.YAMLError as e:
+        raise ConfigError(f"{path}: invalid YAML: {e}") from e
+
+
+def to_dict(obj: Any) -> dict[str, Any]:
+    """A dataclass as plain Python data (tuples become lists) suitable for ``yaml.safe_dump``."""
+
+    def plain(x: Any) -> Any:
+        if isinstance(x, (tuple, list)):
+            return [plain(v) for v in x]
+        return x
+
+    return {f.name: plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
