@@ -1,0 +1,12 @@
+"""Flight control (paper §2.3): PX4-style cascaded PID, the SE(3) geometric controller, control allocation."""
+
+from ..components import Controller
+from .allocation import AllocationSaturation, ControlAllocator
+from .attitude_control import AttitudeControlParams, AttitudeController
+from .position_control import PositionControlParams, PositionController
+from .rate_control import RateControlParams, RateController
+
+__all__ = [
+    "AllocationSaturation", "AttitudeControlParams", "AttitudeController", "ControlAllocator", "Controller",
+    "PositionControlParams", "PositionController", "RateControlParams", "RateController",
+]
