@@ -2,11 +2,14 @@
 
 from ..components import Controller
 from .allocation import AllocationSaturation, ControlAllocator
+from .flight_mode import ModeReferences as FlightModeReferences
+from .geometric_controller import GeometricControlParams, GeometricController
 from .attitude_control import AttitudeControlParams, AttitudeController
 from .position_control import PositionControlParams, PositionController
 from .rate_control import RateControlParams, RateController
 
 __all__ = [
     "AllocationSaturation", "AttitudeControlParams", "AttitudeController", "ControlAllocator", "Controller",
+    "GeometricControlParams", "GeometricController", "FlightModeReferences",
     "PositionControlParams", "PositionController", "RateControlParams", "RateController",
 ]

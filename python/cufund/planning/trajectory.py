@@ -32,8 +32,11 @@ class TrajectorySamples:
 
 @runtime_checkable
 class Trajectory(Protocol):
-    """A time-parameterised reference. Implement ``duration`` and ``sample``; before 0 and after ``duration``
-    a trajectory holds its end points at rest."""
+    """A time-parameterised reference from ``t_start`` for ``duration``. Before and after that span a trajectory
+    holds its end points at rest."""
+
+    t_start: float
+    """Start time [s]."""
 
     @property
     def duration(self) -> float:

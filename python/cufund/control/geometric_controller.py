@@ -1,0 +1,123 @@
+"""Nonlinear geometric tracking control on SE(3) (Lee, Leok & McClamroch, CDC 2010), in world ENU / body FLU.
+
+Position mode:  F = -k_x e_x - k_v e_v + m g e_3 + m a_d,   f = F . R e_3,   b_3d = F / |F|
+Attitude:       e_R = 1/2 vee(R_d^T R - R^T R_d),   e_W = W - R^T R_d W_d
+                M = -k_R e_R - k_W e_W + W x J W - J (hat(W) R^T R_d W_d - R^T R_d dW_d)
+with the desired body rate W_d from the jerk feed-forward (differential flatness; dW_d taken as zero).
+Velocity mode drops the position term; attitude mode tracks a given attitude and thrust. Gains are scaled by
+the mass (k_x, k_v) and the inertia (k_R, k_W), so they are accelerations per unit error.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..components import Bus, Controller
+from ..messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, ThrustTorqueSetpoint, Topics
+from ..params import QuadrotorParams
+from .allocation import ControlAllocator
+from .flight_mode import ModeReferences
+from .rotations import attitude_from_thrust_and_yaw, cross, quat_to_rotation, rotation_to_quat
+
+__all__ = ["GeometricControlParams", "GeometricController"]
+
+
+@dataclass(frozen=True)
+class GeometricControlParams:
+    """Gains of the SE(3) controller, as accelerations per unit error."""
+
+    k_x: float = 6.0
+    """Position gain [m/s^2 per m] (times the mass gives Lee's k_x)."""
+    k_v: float = 4.5
+    """Velocity gain [m/s^2 per m/s]."""
+    k_R: float = 150.0
+    """Attitude gain [rad/s^2 per rad] (times J gives Lee's k_R)."""
+    k_W: float = 22.0
+    """Body-rate gain [rad/s^2 per rad/s]."""
+    k_R_yaw: float = 40.0
+    """Attitude gain about body z [rad/s^2 per rad]."""
+    k_W_yaw: float = 10.0
+    """Body-rate gain about body z [rad/s^2 per rad/s]."""
+
+    def __post_init__(self) -> None:
+        for name, value in vars(self).items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise ValueError(f"GeometricControlParams.{name} must be a finite number >= 0, got {value!r}")
+            object.__setattr__(self, name, float(value))
+
+
+class GeometricController(Controller):
+    """The SE(3) controller as one component: references in (``Topics.TRAJECTORY_SETPOINT``, or
+    ``Topics.MANUAL_ATTITUDE_SETPOINT`` in attitude mode), rotor speeds out (``Topics.ACTUATOR_COMMAND``),
+    through the same prioritising :class:`ControlAllocator` as the cascaded PID. Mode switches hold the
+    references the vehicle had at the switch (see :class:`ModeReferences`); the controller has no integrator,
+    so its output is continuous across a switch."""
+
+    name = "geometric_controller"
+
+    def __init__(self, params: QuadrotorParams, gains: GeometricControlParams | None = None, rate_hz: float = 500.0,
+                 mode: FlightMode = FlightMode.POSITION) -> None:
+        self.params = params
+        self.gains = gains or GeometricControlParams()
+        self.rate_hz = rate_hz
+        self.refs = ModeReferences(mode)
+        self.allocator = ControlAllocator(params)
+        g = self.gains
+        self._J = params.inertia_matrix
+        self._kR = np.array([g.k_R, g.k_R, g.k_R_yaw])
+        self._kW = np.array([g.k_W, g.k_W, g.k_W_yaw])
+        self.last: AttitudeSetpoint | None = None
+
+    def reset(self) -> None:
+        self.refs.reset()
+        self.last = None
+
+    @property
+    def mode(self) -> FlightMode:
+        return self.refs.mode
+
+    def update(self, t: float, state: Odometry, bus: Bus) -> None:
+        g = self.gains
+        m, grav = self.params.mass, self.params.gravity
+        mode = self.refs.update(t, state, bus, self.last)
+        R = quat_to_rotation(state.q_WB)
+        W = state.w_B
+        W_d = np.zeros(3)
+        if mode is FlightMode.ATTITUDE:
+            att = self.refs.attitude(bus)
+            R_d = quat_to_rotation(att.q_WB)
+            f = m * grav if math.isnan(att.thrust) else att.thrust
+            W_d[2] = att.yaw_rate  # about body z of the desired attitude (approximately world z near level)
+            yaw_rate = att.yaw_rate
+        else:
+            sp = self.refs.trajectory(bus)
+            e_v = state.v_W - sp.v_W
+            F = -g.k_v * m * e_v + m * sp.a_W
+            F[2] += m * grav
+            if mode is FlightMode.POSITION:
+                F -= g.k_x * m * (state.p_W - sp.p_W)
+            nF = float(np.linalg.norm(F))
+            b3 = F / nF if nF > 1e-9 else np.array([0.0, 0.0, 1.0])
+            R_d = attitude_from_thrust_and_yaw(b3, sp.yaw)
+            f = float(F @ R[:, 2])
+            # desired body rate from the jerk (flatness): h = m / f_d (j - (b3 . j) b3)
+            if nF > 1e-9:
+                h = (m / nF) * (sp.j_W - float(b3 @ sp.j_W) * b3)
+                W_d = np.array([-float(h @ R_d[:, 1]), float(h @ R_d[:, 0]), sp.yaw_rate * R_d[2, 2]])
+            yaw_rate = sp.yaw_rate
+        RtRd = R.T @ R_d
+        E = RtRd.T - RtRd  # R_d^T R - R^T R_d
+        e_R = 0.5 * np.array([E[2, 1], E[0, 2], E[1, 0]])
+        W_d_B = RtRd @ W_d
+        e_W = W - W_d_B
+        JW = self._J @ W
+        M = self._J @ (-self._kR * e_R - self._kW * e_W) + cross(W, JW) - self._J @ cross(W, W_d_B)
+        speeds = self.allocator.rotor_speeds(max(f, 0.0), M)
+        self.last = AttitudeSetpoint(t, rotation_to_quat(R_d), max(f, 0.0), yaw_rate)
+        a = self.allocator.last_thrust_torque
+        bus.publish(Topics.ATTITUDE_SETPOINT, self.last)
+        bus.publish(Topics.THRUST_TORQUE_SETPOINT, ThrustTorqueSetpoint(t, float(a[0]), a[1:].copy()))
+        bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand(t, speeds))
