@@ -1,17 +1,41 @@
 """cufund: simulation and autonomy for micro aerial vehicles, with a fast C++ core."""
 
-from . import presets
+from . import control, messages, planning, presets
 from ._core import __version__
+from .components import Bus, Component, Controller, Estimator, Mapper, Planner, Sensor
 from .config import ConfigError
+from .messages import FlightMode, Topics
 from .params import QuadrotorParams
 from .quadrotor import Quadrotor, QuadrotorBatch, QuadrotorState
+from .scenario import ScenarioConfig, ScenarioRun, available_scenarios, load_scenario, run_scenario
+from .simulator import RunStatus, SimulationResult, Simulator
 
 __all__ = [
+    "Bus",
+    "Component",
     "ConfigError",
+    "Controller",
+    "Estimator",
+    "FlightMode",
+    "Mapper",
+    "Planner",
     "Quadrotor",
     "QuadrotorBatch",
     "QuadrotorParams",
     "QuadrotorState",
+    "RunStatus",
+    "ScenarioConfig",
+    "ScenarioRun",
+    "Sensor",
+    "SimulationResult",
+    "Simulator",
+    "Topics",
     "__version__",
+    "available_scenarios",
+    "control",
+    "load_scenario",
+    "messages",
+    "planning",
     "presets",
+    "run_scenario",
 ]

@@ -19,7 +19,7 @@ from ..components import Bus, Controller
 from ..messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, ThrustTorqueSetpoint, Topics
 from ..params import QuadrotorParams
 from .allocation import ControlAllocator
-from .flight_mode import ModeReferences
+from .flight_mode import BumplessTransfer, ModeReferences
 from .rotations import attitude_from_thrust_and_yaw, cross, quat_to_rotation, rotation_to_quat
 
 __all__ = ["GeometricControlParams", "GeometricController"]
@@ -53,8 +53,8 @@ class GeometricController(Controller):
     """The SE(3) controller as one component: references in (``Topics.TRAJECTORY_SETPOINT``, or
     ``Topics.MANUAL_ATTITUDE_SETPOINT`` in attitude mode), rotor speeds out (``Topics.ACTUATOR_COMMAND``),
     through the same prioritising :class:`ControlAllocator` as the cascaded PID. Mode switches hold the
-    references the vehicle had at the switch (see :class:`ModeReferences`); the controller has no integrator,
-    so its output is continuous across a switch."""
+    references the vehicle had at the switch (see :class:`ModeReferences`) and fade out the step between the
+    last and the new force command (:class:`BumplessTransfer`)."""
 
     name = "geometric_controller"
 
@@ -64,6 +64,7 @@ class GeometricController(Controller):
         self.gains = gains or GeometricControlParams()
         self.rate_hz = rate_hz
         self.refs = ModeReferences(mode)
+        self.transfer = BumplessTransfer()
         self.allocator = ControlAllocator(params)
         g = self.gains
         self._J = params.inertia_matrix
@@ -73,6 +74,7 @@ class GeometricController(Controller):
 
     def reset(self) -> None:
         self.refs.reset()
+        self.transfer.reset()
         self.last = None
 
     @property
@@ -93,12 +95,16 @@ class GeometricController(Controller):
             W_d[2] = att.yaw_rate  # about body z of the desired attitude (approximately world z near level)
             yaw_rate = att.yaw_rate
         else:
-            sp = self.refs.trajectory(bus)
+            sp = self.refs.trajectory(t, bus)
             e_v = state.v_W - sp.v_W
             F = -g.k_v * m * e_v + m * sp.a_W
             F[2] += m * grav
             if mode is FlightMode.POSITION:
                 F -= g.k_x * m * (state.p_W - sp.p_W)
+            if self.refs.switched and self.last is not None:
+                # the force last commanded continues and fades into the new one
+                self.transfer.start(t, self.last.thrust * quat_to_rotation(self.last.q_WB)[:, 2], F)
+            F = F + self.transfer.offset(t)
             nF = float(np.linalg.norm(F))
             b3 = F / nF if nF > 1e-9 else np.array([0.0, 0.0, 1.0])
             R_d = attitude_from_thrust_and_yaw(b3, sp.yaw)

@@ -11,7 +11,7 @@ import numpy as np
 from ..components import Bus, Controller
 from ..messages import AttitudeSetpoint, FlightMode, Odometry, Topics
 from ..params import QuadrotorParams
-from .flight_mode import ModeReferences
+from .flight_mode import BumplessTransfer, ModeReferences
 from .rotations import attitude_from_thrust_and_yaw, quat_to_rotation, rotation_to_quat
 
 __all__ = ["PositionControlParams", "PositionController"]
@@ -68,7 +68,8 @@ class PositionController(Controller):
     """Position and velocity modes: tracks ``Topics.TRAJECTORY_SETPOINT`` (position, velocity, acceleration and
     yaw-rate feed-forward) and publishes an :class:`AttitudeSetpoint` on ``Topics.ATTITUDE_SETPOINT``. In
     attitude mode it forwards ``Topics.MANUAL_ATTITUDE_SETPOINT``. Switching modes hands the velocity integrator
-    over so the commanded thrust vector does not jump (bumpless transfer).
+    over without a jump: references are held as described in :class:`ModeReferences`, and the step between the
+    last and the new acceleration command fades out (:class:`BumplessTransfer`).
 
     The thrust model uses the vehicle mass from ``params`` where PX4 uses its hover-thrust estimate.
     """
@@ -81,6 +82,7 @@ class PositionController(Controller):
         self.gains = gains or PositionControlParams()
         self.rate_hz = rate_hz
         self.refs = ModeReferences(mode)
+        self.transfer = BumplessTransfer()
         self.max_thrust = max_thrust if max_thrust is not None else 4.0 * params.k_f * params.rotor_speed_max ** 2
         g = self.gains
         self._kp = np.array([g.xy_p, g.xy_p, g.z_p])
@@ -91,12 +93,12 @@ class PositionController(Controller):
 
     def reset(self) -> None:
         self.refs.reset()
+        self.transfer.reset()
         self.vel_int = np.zeros(3)
         """Velocity integrator [m/s^2]."""
         self._v_prev: np.ndarray | None = None
         self._acc_filt = np.zeros(3)
         self.last: AttitudeSetpoint | None = None
-        self._bumpless = False
 
     @property
     def mode(self) -> FlightMode:
@@ -118,9 +120,8 @@ class PositionController(Controller):
             thrust = m * grav if math.isnan(att.thrust) else att.thrust
             self.last = AttitudeSetpoint(t, att.q_WB, thrust, att.yaw_rate)
             bus.publish(Topics.ATTITUDE_SETPOINT, self.last)
-            self._bumpless = True
             return
-        sp = self.refs.trajectory(bus)
+        sp = self.refs.trajectory(t, bus)
         if mode is FlightMode.POSITION:
             v_sp = self._kp * (sp.p_W - state.p_W) + sp.v_W
         else:
@@ -131,13 +132,11 @@ class PositionController(Controller):
         v_sp[2] = min(max(v_sp[2], -g.z_vel_max_dn), g.z_vel_max_up)
         v_err = v_sp - state.v_W
         acc_sp = self._kv * v_err + self.vel_int - self._kd * self._acc_filt + sp.a_W
-        if self._bumpless and self.last is not None:
-            # hand over: choose the integrator so the acceleration command equals the one last commanded
+        if self.refs.switched and self.last is not None:
+            # hand over: the acceleration last commanded (in any mode) continues and fades into the new one
             z_prev = quat_to_rotation(self.last.q_WB)[:, 2]
-            acc_prev = self.last.thrust / m * z_prev - np.array([0.0, 0.0, grav])
-            self.vel_int += acc_prev - acc_sp
-            acc_sp = acc_prev
-        self._bumpless = False
+            self.transfer.start(t, self.last.thrust / m * z_prev - np.array([0.0, 0.0, grav]), acc_sp)
+        acc_sp = acc_sp + self.transfer.offset(t)
         F, sat = self._thrust_vector(m * (acc_sp + np.array([0.0, 0.0, grav])))
         # integrate unless the thrust vector saturated in the direction the error pushes (anti-windup)
         push = self._ki * v_err * dt
