@@ -146,7 +146,7 @@ class ScenarioConfig:
         elif isinstance(self.vehicle, dict):
             try:
                 QuadrotorParams.from_dict(self.vehicle)
-            except ValueError as e:
+            except (TypeError, ValueError) as e:  # TypeError: a required field is missing
                 raise ConfigError(f"vehicle: {e}") from None
         else:
             raise ConfigError(f"vehicle must be a preset name or a mapping, got {type(self.vehicle).__name__}")

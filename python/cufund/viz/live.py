@@ -11,7 +11,7 @@ from ..components import Bus, Component
 from ..messages import Topics
 from ..params import QuadrotorParams
 from ..planning.trajectory import Trajectory
-from .meshcat_scene import FLOWN, PLANNED, SETPOINT, VEHICLE, draw_path, draw_vehicle, pose_matrix
+from .meshcat_scene import FLOWN, PLANNED, SETPOINT, VEHICLE, draw_path, draw_vehicle, import_meshcat, pose_matrix
 
 __all__ = ["LiveViewer"]
 
@@ -27,7 +27,7 @@ class LiveViewer(Component):
 
     def __init__(self, params: QuadrotorParams, planned: Trajectory | None = None, rate_hz: float = 25.0,
                  speed: float | None = 1.0, visualizer: Any = None) -> None:
-        import meshcat
+        meshcat = import_meshcat()
 
         self.rate_hz = rate_hz
         self.speed = speed

@@ -9,9 +9,23 @@ import numpy as np
 from ..control.rotations import quat_to_rotation
 from ..params import QuadrotorParams
 
-__all__ = ["draw_vehicle", "draw_path", "pose_matrix", "VEHICLE", "SETPOINT", "PLANNED", "FLOWN"]
+__all__ = ["draw_vehicle", "draw_path", "import_meshcat", "pose_matrix", "VEHICLE", "SETPOINT", "PLANNED", "FLOWN"]
 
 VEHICLE, SETPOINT, PLANNED, FLOWN = "vehicle", "setpoint", "planned", "flown"
+
+
+def import_meshcat() -> Any:
+    """``import meshcat``, silencing the DeprecationWarning its server module raises on import with pyzmq >= 17
+    (meshcat 0.3.2 imports ``zmq.eventloop.ioloop``; nothing of ours uses it)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="zmq.eventloop.ioloop is deprecated", category=DeprecationWarning)
+        import meshcat
+        import meshcat.animation  # noqa: F401
+        import meshcat.geometry  # noqa: F401
+        import meshcat.transformations  # noqa: F401
+    return meshcat
 
 
 def pose_matrix(p_W: np.ndarray, q_WB: np.ndarray) -> np.ndarray:
@@ -25,8 +39,8 @@ def pose_matrix(p_W: np.ndarray, q_WB: np.ndarray) -> np.ndarray:
 def draw_vehicle(vis: Any, params: QuadrotorParams) -> None:
     """A body box and one disc per rotor (counter-clockwise rotors blue, clockwise orange) under ``vehicle``,
     and a small sphere under ``setpoint``."""
-    import meshcat.geometry as g
-    import meshcat.transformations as tf
+    meshcat = import_meshcat()
+    g, tf = meshcat.geometry, meshcat.transformations
 
     d = params.arm_length
     body = vis[VEHICLE]
@@ -48,7 +62,7 @@ def draw_vehicle(vis: Any, params: QuadrotorParams) -> None:
 
 def draw_path(vis: Any, name: str, points_W: np.ndarray, color: int) -> None:
     """A polyline through ``points_W`` (N, 3) under ``name``."""
-    import meshcat.geometry as g
+    g = import_meshcat().geometry
 
     pts = np.ascontiguousarray(np.asarray(points_W, dtype=np.float32).T)
     vis[name].set_object(g.Line(g.PointsGeometry(pts), g.LineBasicMaterial(color=color, linewidth=2)))

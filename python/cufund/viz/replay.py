@@ -11,9 +11,9 @@ import numpy as np
 from ..params import QuadrotorParams
 from ..planning.trajectory import Trajectory
 from ..simulator import SimulationResult
-from .meshcat_scene import FLOWN, PLANNED, SETPOINT, VEHICLE, draw_path, draw_vehicle, pose_matrix
+from .meshcat_scene import FLOWN, PLANNED, SETPOINT, VEHICLE, draw_path, draw_vehicle, import_meshcat, pose_matrix
 
-__all__ = ["replay_html", "write_replay_html"]
+__all__ = ["replay_html", "viewer_page", "write_replay_html"]
 
 
 class _RecordingWindow:
@@ -31,8 +31,8 @@ class _RecordingWindow:
 def replay_html(result: SimulationResult, params: QuadrotorParams, planned: Trajectory | None = None,
                 fps: int = 30) -> str:
     """The HTML text of a replay of ``result`` (vehicle, flown path, and ``planned`` with its moving setpoint)."""
-    import meshcat
-    from meshcat.animation import Animation
+    meshcat = import_meshcat()
+    Animation = meshcat.animation.Animation
 
     window = _RecordingWindow()
     vis = meshcat.Visualizer(window=window)
@@ -52,11 +52,18 @@ def replay_html(result: SimulationResult, params: QuadrotorParams, planned: Traj
             if planned is not None:
                 frame[SETPOINT].set_transform(pose_matrix(sp[k], np.array([1.0, 0, 0, 0])))
     vis.set_animation(anim, play=True, repetitions=1)
-    viewer_js = (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text(encoding="utf-8")
-    commands = "\n".join(
+    # camera position in MeshCat's y-up camera frame (world x, z, -y): south-east of the square, above it
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [1.2, 2.0, 1.8])
+    return viewer_page(window.commands)
+
+
+def viewer_page(commands: list[bytes]) -> str:
+    """A standalone HTML page: MeshCat's viewer script inlined, then the encoded scene ``commands``."""
+    viewer_js = (Path(import_meshcat().__file__).parent / "viewer" / "dist" / "main.min.js").read_text(encoding="utf-8")
+    calls = "\n".join(
         'fetch("data:application/octet-binary;base64,{}").then(r => r.arrayBuffer())'
         ".then(b => viewer.handle_command_bytearray(new Uint8Array(b)));".format(base64.b64encode(c).decode())
-        for c in window.commands)
+        for c in commands)
     return f"""<!DOCTYPE html>
 <html>
 <head><meta charset="utf-8"><title>cufund replay</title>
@@ -66,7 +73,7 @@ def replay_html(result: SimulationResult, params: QuadrotorParams, planned: Traj
 <script>{viewer_js}</script>
 <script>
 var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
-{commands}
+{calls}
 </script>
 </body>
 </html>
