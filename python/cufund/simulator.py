@@ -205,7 +205,7 @@ class Simulator:
                                 topics=topics, message=message)
 
     def _check(self, row: np.ndarray) -> tuple[RunStatus, str] | None:
-        if not np.all(np.isfinite(row)):
+        if not math.isfinite(float(row.sum())):
             return RunStatus.DIVERGED, f"non-finite state at t = {row[0]:.3f} s"
         if abs(row[1]) > self.max_distance or abs(row[2]) > self.max_distance or abs(row[3]) > self.max_distance:
             return RunStatus.DIVERGED, f"vehicle left the {self.max_distance:g} m bounds at t = {row[0]:.3f} s"

@@ -63,11 +63,11 @@ class ControlAllocator:
         u_y = self._col_y * torque_B[2]
         # the largest k in [0, 1] with u + k u_y inside [u_min, u_max]
         k = 1.0
-        for i in range(4):
-            if u_y[i] > 0:
-                k = min(k, (self.u_max - u[i]) / u_y[i])
-            elif u_y[i] < 0:
-                k = min(k, (self.u_min - u[i]) / u_y[i])
+        for ui, yi in zip(u.tolist(), u_y.tolist()):
+            if yi > 0:
+                k = min(k, (self.u_max - ui) / yi)
+            elif yi < 0:
+                k = min(k, (self.u_min - ui) / yi)
         k = max(k, 0.0)
         u += k * u_y
         u = np.minimum(np.maximum(u, self.u_min), self.u_max)
@@ -75,6 +75,6 @@ class ControlAllocator:
         self.last_thrust_torque = achieved
         demanded = (thrust, torque_B[0], torque_B[1], torque_B[2])
         tol = 1e-9 * max(1.0, self.u_max)
-        signs = [0 if abs(d - a) <= tol else (1 if d > a else -1) for d, a in zip(demanded, achieved)]
+        signs = [0 if abs(d - a) <= tol else (1 if d > a else -1) for d, a in zip(demanded, achieved.tolist())]
         self.last_saturation = AllocationSaturation((signs[1], signs[2], signs[3]), signs[0])
         return np.sqrt(u / self.k_f)

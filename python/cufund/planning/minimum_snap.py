@@ -12,6 +12,7 @@ solution of one banded linear system (no QP): a degree-7 spline continuous to th
 
 from __future__ import annotations
 
+import bisect
 import math
 
 import numpy as np
@@ -20,6 +21,8 @@ from scipy.linalg import solve_banded
 from .trajectory import TrajectorySamples
 
 __all__ = ["MinimumSnapTrajectory", "min_derivative_spline", "allocate_segment_times"]
+
+_POWERS8 = np.arange(8.0)
 
 
 def _falling(j: np.ndarray, r: int) -> np.ndarray:
@@ -139,6 +142,7 @@ class MinimumSnapTrajectory:
         self.t_knots = self.t_start + np.concatenate([[0.0], np.cumsum(T)])
         self.coeffs = min_derivative_spline(self.waypoints_W, T, 4)  # (M, 8, 3)
         self.yaw_coeffs = min_derivative_spline(self.yaw_waypoints[:, None], T, 2)  # (M, 4, 1)
+        self._knots_list = self.t_knots.tolist()
         self._pos_tables = self._tables(self.coeffs)
         self._yaw_tables = self._tables(self.yaw_coeffs)
 
@@ -185,6 +189,8 @@ class MinimumSnapTrajectory:
         return i, np.clip((t - self.t_knots[i]) / self.durations[i], 0.0, 1.0)
 
     def sample(self, t: np.ndarray | float) -> TrajectorySamples:
+        if isinstance(t, (float, int)):
+            return self._sample_one(float(t))
         t = np.atleast_1d(np.asarray(t, dtype=float))
         i, s = self._locate(t)
         inside = ((t >= self.t_knots[0]) & (t <= self.t_knots[-1]))[:, None]
@@ -194,6 +200,18 @@ class MinimumSnapTrajectory:
         yaw = [np.einsum("nj,njd->nd", S4, self._yaw_tables[r][i])[:, 0] for r in range(2)]
         return TrajectorySamples(t=t, p_W=pos[0], v_W=np.where(inside, pos[1], 0.0), a_W=np.where(inside, pos[2], 0.0),
                                  j_W=np.where(inside, pos[3], 0.0), yaw=yaw[0], yaw_rate=np.where(inside[:, 0], yaw[1], 0.0))
+
+    def _sample_one(self, t: float) -> TrajectorySamples:
+        """The same as :meth:`sample` for one time, without the vectorised machinery (for per-tick setpoints)."""
+        knots = self._knots_list
+        i = min(max(bisect.bisect_right(knots, t) - 1, 0), len(knots) - 2)
+        s = min(max((t - knots[i]) / (knots[i + 1] - knots[i]), 0.0), 1.0)
+        S = s ** _POWERS8
+        pt, yt = self._pos_tables, self._yaw_tables
+        inside = 1.0 if knots[0] <= t <= knots[-1] else 0.0
+        return TrajectorySamples(t=np.array([t]), p_W=(S @ pt[0][i])[None], v_W=inside * (S @ pt[1][i])[None],
+                                 a_W=inside * (S @ pt[2][i])[None], j_W=inside * (S @ pt[3][i])[None],
+                                 yaw=S[:4] @ yt[0][i], yaw_rate=inside * (S[:4] @ yt[1][i]))
 
     def snap_cost(self) -> float:
         """``sum_i int |p''''(t)|^2 dt`` over all segments, exact [m^2/s^7]."""

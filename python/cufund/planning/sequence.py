@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import bisect
 from typing import Sequence
 
 import numpy as np
@@ -49,6 +50,7 @@ class TrajectorySequence:
             raise ValueError(f"parts must start in time order, got start times {starts}")
         self.parts = list(parts)
         self._starts = np.array(starts)
+        self._starts_list = starts
         self.t_start = starts[0]
 
     @property
@@ -61,6 +63,9 @@ class TrajectorySequence:
         return float(last.t_start + last.duration)  # type: ignore[attr-defined]
 
     def sample(self, t: np.ndarray | float) -> TrajectorySamples:
+        if isinstance(t, (float, int)):
+            i = max(bisect.bisect_right(self._starts_list, t) - 1, 0)
+            return self.parts[i].sample(t)
         t = np.atleast_1d(np.asarray(t, dtype=float))
         idx = np.clip(np.searchsorted(self._starts, t, side="right") - 1, 0, len(self.parts) - 1)
         if np.all(idx == idx[0]):
