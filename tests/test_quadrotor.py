@@ -180,3 +180,20 @@ def test_bad_wind_function_output_raises(crazyflie):
 def test_params_type_is_checked():
     with pytest.raises(TypeError, match="params must be a cufund.QuadrotorParams"):
         cufund.Quadrotor({"mass": 1.0})  # type: ignore[arg-type]
+
+
+def test_reported_accelerations_match_central_differences(crazyflie, rng):
+    """accel_W and alpha_B are the model's derivatives, not differences: check them against the latter."""
+    quad = cufund.Quadrotor(crazyflie)
+    quad.hover((0.0, 0.0, 2.0))
+    quad.state.w[:] = (1.0, -0.5, 0.3)
+    cmd = crazyflie.hover_rotor_speed * np.array([1.05, 0.97, 1.02, 0.99])
+    h = 1e-4
+    quad.step(0.05, cmd)
+    v0, w0 = quad.state.v.copy(), quad.state.w.copy()
+    quad.step(h, cmd)
+    a_mid, alpha_mid = quad.accel_W.copy(), quad.alpha_B.copy()
+    quad.step(h, cmd)
+    np.testing.assert_allclose(a_mid, (quad.state.v - v0) / (2 * h), rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(alpha_mid, (quad.state.w - w0) / (2 * h), rtol=1e-5, atol=1e-5)
+    assert np.linalg.norm(alpha_mid) > 1.0  # a real rotation is going on

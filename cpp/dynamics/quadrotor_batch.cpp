@@ -45,6 +45,22 @@ DynamicsConstants make_constants(const QuadrotorParams& p) {
 
 namespace {
 
+using Rows = double* __restrict[QuadrotorBatch::kRows];
+
+CUFUND_INLINE void load(const DynamicsConstants& c, const Rows& p, const double* __restrict cmd, std::size_t i,
+                        double* x, StepInputs& u) {
+  CUFUND_UNROLL
+  for (int j = 0; j < kStateSize; ++j) x[j] = p[j][i];
+  CUFUND_UNROLL
+  for (int k = 0; k < kNumRotors; ++k) u.omega_cmd[k] = std::min(std::max(cmd[4 * i + k], c.omega_min), c.omega_max);
+  CUFUND_UNROLL
+  for (int k = 0; k < 3; ++k) {
+    u.wind_W[k] = p[QuadrotorBatch::kWind + k][i];
+    u.force_W[k] = p[QuadrotorBatch::kForceExt + k][i];
+    u.torque_B[k] = p[QuadrotorBatch::kTorqueExt + k][i];
+  }
+}
+
 // Integrates vehicles [begin, end): the loop body is one vehicle, so the compiler maps vehicles to
 // SIMD lanes. Compiled for several instruction sets and picked at load time where the compiler can.
 template <bool kGround>
@@ -54,7 +70,7 @@ __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 void integrate_range(const DynamicsConstants& constants, double* __restrict state, std::size_t n, std::size_t begin,
                      std::size_t end, const double* __restrict cmd, double h, int substeps) {
   const DynamicsConstants c = constants;  // a local copy: provably not aliased by the state stores
-  double* __restrict p[QuadrotorBatch::kRows];
+  Rows p;
   CUFUND_UNROLL
   for (int r = 0; r < QuadrotorBatch::kRows; ++r) p[r] = state + r * n;
   for (int s = 0; s < substeps; ++s) {
@@ -63,22 +79,27 @@ void integrate_range(const DynamicsConstants& constants, double* __restrict stat
 #endif
     for (std::size_t i = begin; i < end; ++i) {
       double x[kStateSize];
-      CUFUND_UNROLL
-      for (int j = 0; j < kStateSize; ++j) x[j] = p[j][i];
       StepInputs u;
-      CUFUND_UNROLL
-      for (int k = 0; k < kNumRotors; ++k) {
-        u.omega_cmd[k] = std::min(std::max(cmd[4 * i + k], c.omega_min), c.omega_max);
-      }
-      CUFUND_UNROLL
-      for (int k = 0; k < 3; ++k) {
-        u.wind_W[k] = p[QuadrotorBatch::kWind + k][i];
-        u.force_W[k] = p[QuadrotorBatch::kForceExt + k][i];
-        u.torque_B[k] = p[QuadrotorBatch::kTorqueExt + k][i];
-      }
+      load(c, p, cmd, i, x, u);
       rk4_substep<kGround>(c, u, h, x);
       CUFUND_UNROLL
       for (int j = 0; j < kStateSize; ++j) p[j][i] = x[j];
+    }
+  }
+  // The true accelerations of the integrated model at the new state: what an IMU senses.
+#if defined(__GNUC__)
+#pragma GCC ivdep
+#endif
+  for (std::size_t i = begin; i < end; ++i) {
+    double x[kStateSize], dx[kStateSize];
+    StepInputs u;
+    load(c, p, cmd, i, x, u);
+    derivative<kGround>(c, x, u, dx);
+    const bool held = kGround && resting_on_ground(x);
+    CUFUND_UNROLL
+    for (int k = 0; k < 3; ++k) {
+      p[QuadrotorBatch::kAccel + k][i] = held ? 0.0 : dx[3 + k];
+      p[QuadrotorBatch::kAlpha + k][i] = held ? 0.0 : dx[10 + k];
     }
   }
 }

@@ -37,7 +37,9 @@ class QuadrotorBatch {
     kWind = 17,      // wind velocity in world frame [m/s], 3 rows (held over a step)
     kForceExt = 20,  // external force in world frame [N], 3 rows (held over a step)
     kTorqueExt = 23, // external torque in body frame [N m], 3 rows (held over a step)
-    kRows = 26,
+    kAccel = 26,     // acceleration a_W = dv_W/dt at the end of the last step [m/s^2], 3 rows (output)
+    kAlpha = 29,     // angular acceleration dw_B/dt at the end of the last step [rad/s^2], 3 rows (output)
+    kRows = 32,
   };
 
   // params must have passed validate(); n >= 1.

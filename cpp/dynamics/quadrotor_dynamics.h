@@ -139,6 +139,9 @@ CUFUND_INLINE void derivative(const DynamicsConstants& c, const double* x, const
   for (int i = 0; i < kNumRotors; ++i) dx[13 + i] = (u.omega_cmd[i] - om[i]) * c.inv_tau_m;
 }
 
+// On the ground and not climbing: the ground holds the vehicle (see rk4_substep).
+CUFUND_INLINE bool resting_on_ground(const double* x) { return std::max(x[2], x[5]) <= 0.0; }
+
 // One classical RK4 step of length h, then quaternion renormalisation and ground contact.
 template <bool kGround>
 CUFUND_INLINE void rk4_substep(const DynamicsConstants& c, const StepInputs& u, double h, double* x) {
@@ -166,7 +169,7 @@ CUFUND_INLINE void rk4_substep(const DynamicsConstants& c, const StepInputs& u, 
     // static friction holds it, the landing gear levels it (yaw kept), rotation stops.
     // Branch-free (one comparison per select), so the loop over vehicles stays vectorised.
     x[2] = std::max(x[2], 0.0);
-    const bool resting = std::max(x[2], x[5]) <= 0.0;
+    const bool resting = resting_on_ground(x);
     const double twist = x[6] * x[6] + x[9] * x[9];
     const bool has_twist = twist > 1e-24;
     const double tn = has_twist ? 1.0 / std::sqrt(twist) : 0.0;

@@ -35,6 +35,8 @@ TEST(QuadrotorBatch, FreeFallMatchesHalfGTSquared) {
   EXPECT_NEAR(b.row(B::kV + 2)[0], -g * t, 1e-11);
   EXPECT_EQ(b.row(B::kP)[0], 1.0);
   EXPECT_EQ(b.row(B::kP + 1)[0], -2.0);
+  EXPECT_EQ(vec(b, B::kAccel), Eigen::Vector3d(0, 0, -g));
+  EXPECT_EQ(vec(b, B::kAlpha), Eigen::Vector3d::Zero());
 }
 
 TEST(QuadrotorBatch, HoverAtAnalyticSpeedStaysWithinMicrometre) {
@@ -111,6 +113,8 @@ TEST(QuadrotorBatch, AngularAccelerationIsMixerMomentThroughInertia) {
     const Eigen::Vector3d alpha = vec(b, B::kW) / dt;
     const Eigen::Vector3d expected = p.inertia.inverse() * wrench.tail<3>();
     EXPECT_LT((alpha - expected).norm(), 1e-6 * expected.norm());
+    EXPECT_LT((vec(b, B::kAlpha) - expected).norm(), 1e-6 * expected.norm());
+    EXPECT_NEAR(b.row(B::kAccel + 2)[0], wrench(0) / p.mass, 1e-6 * wrench(0) / p.mass);
     EXPECT_NEAR(b.row(B::kV + 2)[0] / dt, wrench(0) / p.mass, 1e-6 * wrench(0) / p.mass);
   }
 }
@@ -150,6 +154,7 @@ TEST(QuadrotorBatch, GroundHoldsLandedVehicleAndAllowsTakeOff) {
   EXPECT_EQ(b.row(B::kP + 2)[0], 0.0);
   EXPECT_EQ(vec(b, B::kV).norm(), 0.0);
   EXPECT_EQ(vec(b, B::kW).norm(), 0.0);
+  EXPECT_EQ(vec(b, B::kAccel).norm(), 0.0);  // the ground holds it: nothing accelerates
   // Resting level (yaw kept): body z along world z.
   EXPECT_NEAR((attitude(b).toRotationMatrix().col(2) - Eigen::Vector3d::UnitZ()).norm(), 0.0, 1e-12);
   // Idle rotors below hover speed keep it down; above, it climbs.

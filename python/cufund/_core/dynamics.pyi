@@ -154,6 +154,16 @@ class QuadrotorBatch:
         Advance by dt [s] holding rotor_speed_cmd (N, 4) [rad/s]; nthreads 0 = all cores.
         """
     @property
+    def accel_W(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
+        """
+        Acceleration dv_W/dt at the end of the last step [m/s^2], (N, 3) view.
+        """
+    @property
+    def alpha_B(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
+        """
+        Angular acceleration dw_B/dt at the end of the last step [rad/s^2], (N, 3).
+        """
+    @property
     def force_ext_W(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
         """
         External force, world frame [N], (N, 3) view, held over a step.
