@@ -27,7 +27,7 @@ void raise_step_error(const StepResult& r, double dt, const py::array& cmd) {
       return;
     case StepStatus::kBadTimeStep: {
       std::ostringstream os;
-      os << "dt must be a finite number > 0 [s], got " << dt;
+      os << "dt must be a finite number > 0 [s] of at most 1e9 integration sub-steps, got " << dt;
       throw py::value_error(os.str());
     }
     case StepStatus::kNonFiniteCommand: {

@@ -6,9 +6,7 @@
 
 #include "quadrotor_dynamics.h"
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
+#include "thread_pool.h"
 
 namespace cufund {
 
@@ -123,7 +121,7 @@ double QuadrotorBatch::hover_rotor_speed() const {
 
 StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
   StepResult result;
-  if (!(std::isfinite(dt) && dt > 0.0)) {
+  if (!(std::isfinite(dt) && dt > 0.0 && dt / params_.max_integration_step <= 1e9)) {
     result.status = StepStatus::kBadTimeStep;
     return result;
   }
@@ -143,21 +141,16 @@ StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
   constexpr std::size_t kBlock = 256;
   const std::size_t nblocks = (n_ + kBlock - 1) / kBlock;
   double* state = state_.data();
-#ifdef _OPENMP
-  const int threads = nthreads > 0 ? nthreads : omp_get_max_threads();
-#pragma omp parallel for schedule(static) num_threads(threads) if (nblocks > 1 && threads > 1)
-#else
-  (void)nthreads;
-#endif
-  for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(nblocks); ++b) {
-    const std::size_t begin = static_cast<std::size_t>(b) * kBlock;
+  const bool ground = params_.ground_plane;
+  ThreadPool::instance().parallel_for(nblocks, nthreads, [&](std::size_t b) {
+    const std::size_t begin = b * kBlock;
     const std::size_t end = std::min(n_, begin + kBlock);
-    if (params_.ground_plane) {
+    if (ground) {
       integrate_range<true>(c, state, n_, begin, end, cmd, h, substeps);
     } else {
       integrate_range<false>(c, state, n_, begin, end, cmd, h, substeps);
     }
-  }
+  });
   time_ += dt;
   return result;
 }
