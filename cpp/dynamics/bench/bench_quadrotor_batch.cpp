@@ -4,18 +4,12 @@
 #include <vector>
 
 #include "quadrotor_batch.h"
+#include "tests/test_helpers.h"
 
 namespace {
 
 cufund::QuadrotorParams crazyflie() {
-  cufund::QuadrotorParams p;
-  p.mass = 0.03;
-  p.inertia << 1.43e-5, 0, 0, 0, 1.43e-5, 0, 0, 0, 2.89e-5;
-  p.arm_length = 0.043;
-  p.k_f = 2.3e-8;
-  p.c_m = 7.8e-10 / 2.3e-8;
-  p.tau_m = 0.072;
-  p.rotor_speed_max = 2500.0;
+  cufund::QuadrotorParams p = cufund::testing::small_quad();
   p.rotor_drag_xy = 10.2506e-07;
   p.rotor_drag_z = 7.553e-07;
   return p;
