@@ -154,7 +154,8 @@ def _mems(name: str, rate_hz: float, acc_nd_ug: float, gyro_nd_dps: float, acc_r
         accel_range=acc_range_g * G0, gyro_range=gyro_range_dps * DEG)
 
 
-#: Presets. White-noise densities, ranges and zero-offsets are the datasheets' typical values:
+#: Presets, at 200 Hz (an output data rate both parts offer, dividing the 1 kHz physics rate).
+#: White-noise densities, ranges and zero-offsets are the datasheets' typical values:
 #: Bosch BMI088 (BST-BMI088-DS001): accelerometer 175 ug/sqrt(Hz) (the datasheet's 160-190 by axis),
 #: +-24 g, offset 20 mg; gyroscope 0.014 deg/s/sqrt(Hz), +-2000 deg/s, offset 1 deg/s.
 #: TDK ICM-42688-P (DS-000347): accelerometer 70 ug/sqrt(Hz), +-16 g, offset +-20 mg; gyroscope
@@ -164,8 +165,8 @@ def _mems(name: str, rate_hz: float, acc_nd_ug: float, gyro_nd_dps: float, acc_r
 #: Allan-variance calibrations of these parts report and that PX4/Kalibr examples use; change them to
 #: your own Allan-fit numbers (``cufund allan`` shows how they appear).
 IMU_PRESETS = {
-    "bmi088": lambda: _mems("bmi088", 400.0, 175.0, 0.014, 4e-4, 2e-5, 24.0, 2000.0, 20.0, 1.0),
-    "icm42688p": lambda: _mems("icm42688p", 400.0, 70.0, 0.0028, 2e-4, 1e-5, 16.0, 2000.0, 20.0, 0.5),
+    "bmi088": lambda: _mems("bmi088", 200.0, 175.0, 0.014, 4e-4, 2e-5, 24.0, 2000.0, 20.0, 1.0),
+    "icm42688p": lambda: _mems("icm42688p", 200.0, 70.0, 0.0028, 2e-4, 1e-5, 16.0, 2000.0, 20.0, 0.5),
     "ideal": lambda: ImuParams(name="ideal"),
 }
 
