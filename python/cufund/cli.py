@@ -50,7 +50,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"cufund: {e}", file=sys.stderr)
         return 2
     out = args.out or Path("runs") / f"{cfg.name}-{cfg.controller.kind}-{time.strftime('%Y%m%d-%H%M%S')}"
-    extra = ()
+    extra: tuple = ()
+    viewer = None
     if args.viz:
         from .scenario import build_reference
         from .viz.live import LiveViewer
@@ -64,6 +65,13 @@ def main(argv: list[str] | None = None) -> int:
     write_run_folder(run, out, replay=not args.no_replay)
     print(json.dumps(run.metrics, indent=2))
     print(f"run folder: {out.resolve()}")
+    if args.viz and sys.stdin.isatty():
+        try:
+            input("The live view stays up until you press Enter (or Ctrl-C). ")
+        except (KeyboardInterrupt, EOFError):
+            pass
+    if viewer is not None:
+        viewer.close()
     return 0 if run.result.status.value == "completed" else 1
 
 

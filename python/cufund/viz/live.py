@@ -11,7 +11,7 @@ from ..components import Bus, Component
 from ..messages import Topics
 from ..params import QuadrotorParams
 from ..planning.trajectory import Trajectory
-from .meshcat_scene import FLOWN, PLANNED, SETPOINT, VEHICLE, draw_path, draw_vehicle, import_meshcat, pose_matrix
+from .meshcat_scene import FLOWN, PLANNED, SETPOINT, VEHICLE, draw_path, draw_vehicle, pose_matrix
 
 __all__ = ["LiveViewer"]
 
@@ -20,19 +20,22 @@ class LiveViewer(Component):
     """A component that draws the vehicle, the planned path, the flown path and the current setpoint in MeshCat
     at ``rate_hz``, pacing the simulation to ``speed`` times real time (None: as fast as it runs).
 
-    Starts meshcat's server (bound to 127.0.0.1) unless a ``visualizer`` is given; its URL is ``self.url``.
+    Starts a MeshCat server bound to 127.0.0.1 unless a ``visualizer`` is given; its URL is ``self.url``.
     """
 
     name = "live_viewer"
 
     def __init__(self, params: QuadrotorParams, planned: Trajectory | None = None, rate_hz: float = 25.0,
                  speed: float | None = 1.0, visualizer: Any = None) -> None:
-        meshcat = import_meshcat()
-
         self.rate_hz = rate_hz
         self.speed = speed
-        self.vis = visualizer if visualizer is not None else meshcat.Visualizer()
-        self.url = self.vis.url()
+        self.server = None
+        if visualizer is None:
+            from .meshcat_server import start_server
+
+            visualizer, self.server = start_server()
+        self.vis = visualizer
+        self.url: str | None = getattr(self.vis.window, "web_url", None)
         self.vis.delete()
         draw_vehicle(self.vis, params)
         if planned is not None:
@@ -41,6 +44,16 @@ class LiveViewer(Component):
         self._flown: list[np.ndarray] = []
         self._wall0: float | None = None
         self._t0 = 0.0
+
+    def close(self) -> None:
+        """Closes the connection and stops the server this viewer started."""
+        socket = getattr(self.vis.window, "zmq_socket", None)
+        if socket is not None:
+            socket.close()
+        if self.server is not None:
+            self.server.terminate()
+            self.server.wait(timeout=10)
+            self.server = None
 
     def reset(self) -> None:
         self._flown = []
