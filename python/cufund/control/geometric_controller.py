@@ -105,7 +105,7 @@ class GeometricController(Controller):
                 # the force last commanded continues and fades into the new one
                 self.transfer.start(t, self.last.thrust * quat_to_rotation(self.last.q_WB)[:, 2], F)
             F = F + self.transfer.offset(t)
-            nF = float(np.linalg.norm(F))
+            nF = math.sqrt(float(F @ F))
             b3 = F / nF if nF > 1e-9 else np.array([0.0, 0.0, 1.0])
             R_d = attitude_from_thrust_and_yaw(b3, sp.yaw)
             f = float(F @ R[:, 2])

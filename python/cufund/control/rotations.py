@@ -12,7 +12,9 @@ __all__ = ["cross", "quat_multiply", "quat_conjugate", "quat_to_rotation", "rota
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b for 3-vectors (np.cross is slow for single vectors)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -31,7 +33,7 @@ def quat_conjugate(q: np.ndarray) -> np.ndarray:
 
 def quat_to_rotation(q: np.ndarray) -> np.ndarray:
     """R (3, 3) of a unit quaternion."""
-    w, x, y, z = q
+    w, x, y, z = np.asarray(q, dtype=float).tolist()
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
@@ -39,19 +41,20 @@ def quat_to_rotation(q: np.ndarray) -> np.ndarray:
 
 def rotation_to_quat(R: np.ndarray) -> np.ndarray:
     """Unit quaternion with w >= 0 of a rotation matrix (Shepperd's method)."""
-    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    R = R.tolist()
+    tr = R[0][0] + R[1][1] + R[2][2]
     if tr > 0:
         s = 2.0 * math.sqrt(tr + 1.0)
-        q = np.array([0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s])
-    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
-        q = np.array([(R[2, 1] - R[1, 2]) / s, 0.25 * s, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s])
-    elif R[1, 1] > R[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
-        q = np.array([(R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, 0.25 * s, (R[1, 2] + R[2, 1]) / s])
+        q = np.array([0.25 * s, (R[2][1] - R[1][2]) / s, (R[0][2] - R[2][0]) / s, (R[1][0] - R[0][1]) / s])
+    elif R[0][0] > R[1][1] and R[0][0] > R[2][2]:
+        s = 2.0 * math.sqrt(1.0 + R[0][0] - R[1][1] - R[2][2])
+        q = np.array([(R[2][1] - R[1][2]) / s, 0.25 * s, (R[0][1] + R[1][0]) / s, (R[0][2] + R[2][0]) / s])
+    elif R[1][1] > R[2][2]:
+        s = 2.0 * math.sqrt(1.0 + R[1][1] - R[0][0] - R[2][2])
+        q = np.array([(R[0][2] - R[2][0]) / s, (R[0][1] + R[1][0]) / s, 0.25 * s, (R[1][2] + R[2][1]) / s])
     else:
-        s = 2.0 * math.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
-        q = np.array([(R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s])
+        s = 2.0 * math.sqrt(1.0 + R[2][2] - R[0][0] - R[1][1])
+        q = np.array([(R[1][0] - R[0][1]) / s, (R[0][2] + R[2][0]) / s, (R[1][2] + R[2][1]) / s, 0.25 * s])
     q /= np.linalg.norm(q)
     return q if q[0] >= 0 else -q
 
@@ -61,7 +64,7 @@ def quat_from_two_vectors(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     c = cross(u, v)
     d = float(np.dot(u, v))
     if d < -1.0 + 1e-6:  # opposite: any axis orthogonal to u
-        axis = cross(u, [1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else cross(u, [0.0, 1.0, 0.0])
+        axis = cross(u, np.array([1.0, 0.0, 0.0])) if abs(u[0]) < 0.9 else cross(u, np.array([0.0, 1.0, 0.0]))
         axis /= np.linalg.norm(axis)
         return np.array([0.0, axis[0], axis[1], axis[2]])
     q = np.array([1.0 + d, c[0], c[1], c[2]])
@@ -73,7 +76,7 @@ def attitude_from_thrust_and_yaw(z_B: np.ndarray, yaw: float) -> np.ndarray:
     ``bodyzToAttitude`` in ENU/FLU)."""
     y_c = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
     x_B = cross(y_c, z_B)
-    n = np.linalg.norm(x_B)
+    n = math.sqrt(float(x_B @ x_B))
     if n < 1e-6:  # thrust horizontal along y_c: any x orthogonal to z
         x_B = np.array([1.0, 0.0, 0.0]) if abs(z_B[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
         x_B = x_B - np.dot(x_B, z_B) * z_B
