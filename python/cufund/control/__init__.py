@@ -2,14 +2,14 @@
 
 from ..components import Controller
 from .allocation import AllocationSaturation, ControlAllocator
-from .flight_mode import ModeReferences as FlightModeReferences
-from .geometric_controller import GeometricControlParams, GeometricController
 from .attitude_control import AttitudeControlParams, AttitudeController
+from .flight_mode import BumplessTransfer, ModeReferences
+from .geometric_controller import GeometricControlParams, GeometricController
 from .position_control import PositionControlParams, PositionController
 from .rate_control import RateControlParams, RateController
 
 __all__ = [
-    "AllocationSaturation", "AttitudeControlParams", "AttitudeController", "ControlAllocator", "Controller",
-    "GeometricControlParams", "GeometricController", "FlightModeReferences",
+    "AllocationSaturation", "AttitudeControlParams", "AttitudeController", "BumplessTransfer", "ControlAllocator",
+    "Controller", "GeometricControlParams", "GeometricController", "ModeReferences",
     "PositionControlParams", "PositionController", "RateControlParams", "RateController",
 ]
