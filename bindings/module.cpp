@@ -7,4 +7,6 @@ PYBIND11_MODULE(_core, m) {
   m.attr("__version__") = CUFUND_VERSION;
   py::module_ dynamics = m.def_submodule("dynamics", "Quadrotor rigid-body dynamics (paper §2.1).");
   cufund::py_bind::define_dynamics(dynamics);
+  py::module_ control = m.def_submodule("control", "Control allocation and the SE(3) attitude law (paper §2.3).");
+  cufund::py_bind::define_control(control);
 }

@@ -5,7 +5,8 @@ Attitude:       e_R = 1/2 vee(R_d^T R - R^T R_d),   e_W = W - R^T R_d W_d
                 M = -k_R e_R - k_W e_W + W x J W - J (hat(W) R^T R_d W_d - R^T R_d dW_d)
 with the desired body rate W_d from the jerk feed-forward (differential flatness; dW_d taken as zero).
 Velocity mode drops the position term; attitude mode tracks a given attitude and thrust. Gains are scaled by
-the mass (k_x, k_v) and the inertia (k_R, k_W), so they are accelerations per unit error.
+the mass (k_x, k_v) and the inertia (k_R, k_W), so they are accelerations per unit error. The force law and the
+mode logic are here; the attitude law runs in C++ (``cpp/control/geometric_control.cpp``).
 """
 
 from __future__ import annotations
@@ -15,12 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _core
 from ..components import Bus, Controller
 from ..messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, ThrustTorqueSetpoint, Topics
 from ..params import QuadrotorParams
 from .allocation import ControlAllocator
 from .flight_mode import BumplessTransfer, ModeReferences
-from .rotations import attitude_from_thrust_and_yaw, cross, quat_to_rotation, rotation_to_quat
+from .rotations import quat_to_rotation
 
 __all__ = ["GeometricControlParams", "GeometricController"]
 
@@ -85,19 +87,15 @@ class GeometricController(Controller):
         g = self.gains
         m, grav = self.params.mass, self.params.gravity
         mode = self.refs.update(t, state, bus, self.last)
-        R = quat_to_rotation(state.q_WB)
-        W = state.w_B
-        W_d = np.zeros(3)
         if mode is FlightMode.ATTITUDE:
             att = self.refs.attitude(bus)
-            R_d = quat_to_rotation(att.q_WB)
             f = m * grav if math.isnan(att.thrust) else att.thrust
-            W_d[2] = att.yaw_rate  # about body z of the desired attitude (approximately world z near level)
+            thrust, M, q_d = _core.control.geometric_from_attitude(self._J, self._kR, self._kW, state.q_WB, state.w_B,
+                                                                   att.q_WB, f, att.yaw_rate)
             yaw_rate = att.yaw_rate
         else:
             sp = self.refs.trajectory(t, bus)
-            e_v = state.v_W - sp.v_W
-            F = -g.k_v * m * e_v + m * sp.a_W
+            F = m * (sp.a_W - g.k_v * (state.v_W - sp.v_W))
             F[2] += m * grav
             if mode is FlightMode.POSITION:
                 F -= g.k_x * m * (state.p_W - sp.p_W)
@@ -105,24 +103,11 @@ class GeometricController(Controller):
                 # the force last commanded continues and fades into the new one
                 self.transfer.start(t, self.last.thrust * quat_to_rotation(self.last.q_WB)[:, 2], F)
             F = F + self.transfer.offset(t)
-            nF = math.sqrt(float(F @ F))
-            b3 = F / nF if nF > 1e-9 else np.array([0.0, 0.0, 1.0])
-            R_d = attitude_from_thrust_and_yaw(b3, sp.yaw)
-            f = float(F @ R[:, 2])
-            # desired body rate from the jerk (flatness): h = m / f_d (j - (b3 . j) b3)
-            if nF > 1e-9:
-                h = (m / nF) * (sp.j_W - float(b3 @ sp.j_W) * b3)
-                W_d = np.array([-float(h @ R_d[:, 1]), float(h @ R_d[:, 0]), sp.yaw_rate * R_d[2, 2]])
+            thrust, M, q_d = _core.control.geometric_from_force(self._J, m, self._kR, self._kW, state.q_WB, state.w_B,
+                                                                F, sp.j_W, sp.yaw, sp.yaw_rate)
             yaw_rate = sp.yaw_rate
-        RtRd = R.T @ R_d
-        E = RtRd.T - RtRd  # R_d^T R - R^T R_d
-        e_R = 0.5 * np.array([E[2, 1], E[0, 2], E[1, 0]])
-        W_d_B = RtRd @ W_d
-        e_W = W - W_d_B
-        JW = self._J @ W
-        M = self._J @ (-self._kR * e_R - self._kW * e_W) + cross(W, JW) - self._J @ cross(W, W_d_B)
-        speeds = self.allocator.rotor_speeds(max(f, 0.0), M)
-        self.last = AttitudeSetpoint(t, rotation_to_quat(R_d), max(f, 0.0), yaw_rate)
+        speeds = self.allocator.rotor_speeds(thrust, M)
+        self.last = AttitudeSetpoint(t, q_d, thrust, yaw_rate)
         a = self.allocator.last_thrust_torque
         bus.publish(Topics.ATTITUDE_SETPOINT, self.last)
         bus.publish(Topics.THRUST_TORQUE_SETPOINT, ThrustTorqueSetpoint(t, float(a[0]), a[1:].copy()))

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from .. import _core
+
 __all__ = ["cross", "quat_multiply", "quat_conjugate", "quat_to_rotation", "rotation_to_quat", "quat_from_two_vectors",
            "attitude_from_thrust_and_yaw", "yaw_of"]
 
@@ -73,17 +75,8 @@ def quat_from_two_vectors(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def attitude_from_thrust_and_yaw(z_B: np.ndarray, yaw: float) -> np.ndarray:
     """R_WB whose body z is ``z_B`` (unit, world) and whose x axis points along ``yaw`` projected (PX4's
-    ``bodyzToAttitude`` in ENU/FLU)."""
-    y_c = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
-    x_B = cross(y_c, z_B)
-    n = math.sqrt(float(x_B @ x_B))
-    if n < 1e-6:  # thrust horizontal along y_c: any x orthogonal to z
-        x_B = np.array([1.0, 0.0, 0.0]) if abs(z_B[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
-        x_B = x_B - np.dot(x_B, z_B) * z_B
-        n = np.linalg.norm(x_B)
-    x_B = x_B / n
-    y_B = cross(z_B, x_B)
-    return np.column_stack([x_B, y_B, z_B])
+    ``bodyzToAttitude`` in ENU/FLU). Computed in C++, shared with the geometric controller."""
+    return _core.control.attitude_from_thrust_and_yaw(z_B, yaw)
 
 
 def yaw_of(q: np.ndarray) -> float:

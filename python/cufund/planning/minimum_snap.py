@@ -145,6 +145,9 @@ class MinimumSnapTrajectory:
         self._knots_list = self.t_knots.tolist()
         self._pos_tables = self._tables(self.coeffs)
         self._yaw_tables = self._tables(self.yaw_coeffs)
+        # per segment, derivatives 0..3 (position) and 0..1 (yaw) side by side: (M, r, 8, d) -> one matmul per sample
+        self._pos_stack = np.stack(self._pos_tables[:4], axis=1)
+        self._yaw_stack = np.stack(self._yaw_tables[:2], axis=1)
 
     def _dense_times(self, per_segment: int = 16) -> np.ndarray:
         s = np.linspace(0.0, 1.0, per_segment, endpoint=False)
@@ -207,11 +210,13 @@ class MinimumSnapTrajectory:
         i = min(max(bisect.bisect_right(knots, t) - 1, 0), len(knots) - 2)
         s = min(max((t - knots[i]) / (knots[i + 1] - knots[i]), 0.0), 1.0)
         S = s ** _POWERS8
-        pt, yt = self._pos_tables, self._yaw_tables
-        inside = 1.0 if knots[0] <= t <= knots[-1] else 0.0
-        return TrajectorySamples(t=np.array([t]), p_W=(S @ pt[0][i])[None], v_W=inside * (S @ pt[1][i])[None],
-                                 a_W=inside * (S @ pt[2][i])[None], j_W=inside * (S @ pt[3][i])[None],
-                                 yaw=S[:4] @ yt[0][i], yaw_rate=inside * (S[:4] @ yt[1][i]))
+        pos = S @ self._pos_stack[i]  # (4, 3): position, velocity, acceleration, jerk
+        yaw = S[:4] @ self._yaw_stack[i]  # (2, 1): yaw, yaw rate
+        if not knots[0] <= t <= knots[-1]:
+            pos[1:] = 0.0
+            yaw[1] = 0.0
+        return TrajectorySamples(t=np.array([t]), p_W=pos[0:1], v_W=pos[1:2], a_W=pos[2:3], j_W=pos[3:4],
+                                 yaw=yaw[0], yaw_rate=yaw[1])
 
     def snap_cost(self) -> float:
         """``sum_i int |p''''(t)|^2 dt`` over all segments, exact [m^2/s^7]."""
