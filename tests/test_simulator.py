@@ -146,3 +146,18 @@ def test_rejects_non_components():
     with pytest.raises(TypeError, match="Quadrotor"):
         Simulator("quad")
     assert isinstance(Odometry(0.0, np.zeros(3), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3)), Odometry)
+
+
+def test_recorder_histories_in_result():
+    from cufund.templates.recorder_template import MyRecorder
+
+    p = cufund.presets.cu_astro()
+    sim = Simulator(_quad(z=1.0))
+    sim.add(MyPlanner(radius=0.3))
+    sim.add(MyController(p))
+    sim.add(MyRecorder(rate_hz=50))
+    r = sim.run(1.0)
+    rec = r.recordings["setpoint_distance"]
+    assert rec["t"].shape == (50,) and rec["t"][1] == pytest.approx(0.02)
+    # the planner's first setpoint is where the vehicle starts, so the first distance is zero
+    assert rec["distance_m"][0] == pytest.approx(0.0, abs=1e-12) and rec["distance_m"].max() > 0.01

@@ -2,7 +2,7 @@
 
 from . import control, messages, planning, presets
 from ._core import __version__
-from .components import Bus, Component, Controller, Estimator, Mapper, Planner, Sensor
+from .components import Bus, Component, Controller, Estimator, Mapper, Planner, Recorder, Sensor
 from .config import ConfigError
 from .messages import FlightMode, Topics
 from .params import QuadrotorParams
@@ -23,6 +23,7 @@ __all__ = [
     "QuadrotorBatch",
     "QuadrotorParams",
     "QuadrotorState",
+    "Recorder",
     "RunStatus",
     "ScenarioConfig",
     "ScenarioRun",

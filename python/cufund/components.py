@@ -17,7 +17,7 @@ from typing import Any
 
 from .messages import Odometry, Topics
 
-__all__ = ["Bus", "Component", "Controller", "Estimator", "Mapper", "Planner", "Sensor"]
+__all__ = ["Bus", "Component", "Controller", "Estimator", "Mapper", "Planner", "Recorder", "Sensor"]
 
 
 class Bus:
@@ -125,3 +125,20 @@ class Mapper(Component):
 
     def step(self, t: float, bus: Bus) -> None:
         self.integrate(t, bus)
+
+
+class Recorder(Component):
+    """Keeps what it reads from the bus at its own rate; the simulator puts :meth:`histories` into
+    ``SimulationResult.recordings[name]``. (To keep every message of a topic, pass the topic to the simulator's
+    ``record_topics`` instead.)"""
+
+    @abstractmethod
+    def record(self, t: float, bus: Bus) -> None:
+        """Reads and stores."""
+
+    @abstractmethod
+    def histories(self) -> dict[str, Any]:
+        """What was recorded, as numpy arrays."""
+
+    def step(self, t: float, bus: Bus) -> None:
+        self.record(t, bus)

@@ -11,7 +11,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from .components import Bus, Component, Estimator, _StateUser
+from .components import Bus, Component, Estimator, Recorder, _StateUser
 from .messages import ActuatorCommand, Odometry, Topics
 from .quadrotor import Quadrotor
 
@@ -42,6 +42,8 @@ class SimulationResult:
     wall_time_s: float
     states: dict[str, np.ndarray]
     topics: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    recordings: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """``Recorder`` components' histories, by component name."""
     message: str = ""
     """Why the run ended, in words."""
 
@@ -201,8 +203,9 @@ class Simulator:
         states = {"t": h[:, 0], "p_W": h[:, 1:4], "v_W": h[:, 4:7], "q_WB": h[:, 7:11], "w_B": h[:, 11:14],
                   "rotor_speeds": h[:, 14:18]}
         topics = {topic: _stack(bus.recorded(topic)) for topic in self.record_topics}
+        recordings = {c.name: c.histories() for c in self.components if isinstance(c, Recorder)}
         return SimulationResult(status=status, sim_time_s=float(h[-1, 0] - t0), wall_time_s=wall, states=states,
-                                topics=topics, message=message)
+                                topics=topics, recordings=recordings, message=message)
 
     def _check(self, row: np.ndarray) -> tuple[RunStatus, str] | None:
         if not math.isfinite(float(row.sum())):
