@@ -196,3 +196,20 @@ def test_rotation_helpers_round_trip():
         q /= np.linalg.norm(q)
         q = q if q[0] >= 0 else -q
         np.testing.assert_allclose(rotation_to_quat(quat_to_rotation(q)), q, atol=1e-12)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_switch_out_of_a_tilted_attitude_is_smooth(kind):
+    """Attitude mode at 10 deg roll, then velocity mode: the commanded attitude fades from the tilt to what the
+    velocity loop wants instead of snapping back level."""
+    roll = math.radians(10)
+    thrust = PARAMS.mass * PARAMS.gravity / math.cos(roll)
+    events = [(0.0, Topics.FLIGHT_MODE, mode(FlightMode.ATTITUDE)),
+              (0.0, Topics.MANUAL_ATTITUDE_SETPOINT, att_sp(roll=roll, thrust=thrust), 1.0),
+              (1.0, Topics.FLIGHT_MODE, mode(FlightMode.VELOCITY))]
+    r = make_sim(kind, events).run(2.5)
+    dang, dthrust = _jumps(r, 1.0)
+    assert dang < 1.0 and dthrust < 0.3, (dang, dthrust)
+    # and the velocity loop then holds the velocity the vehicle had at the switch
+    t, v = r.states["t"], r.states["v_W"]
+    np.testing.assert_allclose(v[-1], v[np.searchsorted(t, 1.0)], atol=0.05)
