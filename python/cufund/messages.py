@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = [
-    "ActuatorCommand", "AttitudeSetpoint", "FlightMode", "FlightModeCommand", "Imu", "Odometry", "PointCloud",
+    "ActuatorCommand", "AirPressure", "AttitudeSetpoint", "FlightMode", "FlightModeCommand", "GpsFix", "Imu",
+    "MagneticField", "Odometry", "PointCloud",
     "RateSetpoint", "ThrustTorqueSetpoint", "TrajectorySetpoint", "Topics",
 ]
 
@@ -34,6 +35,9 @@ class Topics:
     ACTUATOR_COMMAND = "/actuator/command"
     FLIGHT_MODE = "/commander/flight_mode"
     IMU = "/sensors/imu"
+    MAGNETOMETER = "/sensors/magnetometer"
+    BAROMETER = "/sensors/barometer"
+    GPS = "/sensors/gps"
     POINT_CLOUD = "/sensors/point_cloud"
 
 
@@ -61,6 +65,11 @@ class Odometry:
     """Attitude, body to world, [w, x, y, z]."""
     w_B: np.ndarray
     """Body rate [rad/s], (3,)."""
+    a_W: np.ndarray | None = None
+    """Acceleration [m/s^2], (3,): set on ground truth (the model's true acceleration, which inertial sensors
+    read); None where the source does not know it."""
+    alpha_B: np.ndarray | None = None
+    """Angular acceleration [rad/s^2], (3,): set on ground truth, else None."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,6 +81,49 @@ class Imu:
     """Specific force (accelerometer) [m/s^2], (3,)."""
     w_B: np.ndarray
     """Angular rate (gyroscope) [rad/s], (3,)."""
+
+
+@dataclass(frozen=True, slots=True)
+class MagneticField:
+    """Magnetometer sample in the body frame."""
+
+    t: float
+    m_B: np.ndarray
+    """Magnetic flux density [T], (3,)."""
+
+
+@dataclass(frozen=True, slots=True)
+class AirPressure:
+    """Barometer sample."""
+
+    t: float
+    pressure_pa: float
+    """Static pressure [Pa]."""
+    altitude_m: float
+    """Height above the world origin from the pressure, by the standard atmosphere [m]."""
+    temperature_k: float
+    """Air temperature [K]."""
+
+
+@dataclass(frozen=True, slots=True)
+class GpsFix:
+    """One GNSS receiver output (like PX4's ``sensor_gps``)."""
+
+    t: float
+    """Measurement time [s] (the message arrives the receiver's latency later)."""
+    latitude_deg: float
+    longitude_deg: float
+    altitude_m: float
+    """WGS-84 ellipsoidal height [m]."""
+    v_W: np.ndarray
+    """Velocity, east-north-up [m/s], (3,)."""
+    fix_type: int
+    """0: no fix (position and velocity NaN), 3: 3-D fix."""
+    satellites: int
+    eph: float
+    """Horizontal position accuracy (1 sigma) the receiver claims [m]."""
+    epv: float
+    """Vertical position accuracy (1 sigma) [m]."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -19,9 +19,11 @@ from .messages import Topics
 from .params import QuadrotorParams
 from .planning import Hold, JerkLimitedMove, MinimumSnapTrajectory, TrajectoryFollower, TrajectorySequence
 from .quadrotor import Quadrotor
+from .sensors import (BAROMETER_PRESETS, GPS_PRESETS, IMU_PRESETS, BarometerParams, BarometerSensor, GpsParams,
+                      GpsSensor, ImuParams, ImuSensor, MagnetometerParams, MagnetometerSensor)
 from .simulator import SimulationResult, Simulator
 
-__all__ = ["ControllerConfig", "RatesConfig", "ScenarioConfig", "ScenarioRun", "TrajectoryConfig",
+__all__ = ["ControllerConfig", "RatesConfig", "ScenarioConfig", "ScenarioRun", "SensorsConfig", "TrajectoryConfig",
            "available_scenarios", "load_scenario", "run_scenario"]
 
 _PRESETS = {"crazyflie": presets.crazyflie, "iris": presets.iris, "cu_astro": presets.cu_astro}
@@ -122,6 +124,65 @@ class TrajectoryConfig:
             object.__setattr__(self, name, float(v))
 
 
+_SENSOR_KINDS = {
+    # name: (params class, presets, stream index of its seed)
+    "imu": (ImuParams, IMU_PRESETS, 0),
+    "magnetometer": (MagnetometerParams, {"default": MagnetometerParams}, 1),
+    "barometer": (BarometerParams, BAROMETER_PRESETS, 2),
+    "gps": (GpsParams, GPS_PRESETS, 3),
+}
+
+
+@dataclass(frozen=True)
+class SensorsConfig:
+    """Inertial and navigation sensors to attach: each null (none), a preset name, or a mapping of its
+    parameters (:class:`~cufund.sensors.ImuParams`, ``MagnetometerParams``, ``BarometerParams``, ``GpsParams``).
+    Each gets its own random stream, seeded from the scenario's seed and the sensor's kind."""
+
+    imu: Any = None
+    """e.g. ``icm42688p`` or ``bmi088``."""
+    magnetometer: Any = None
+    """``default`` or a mapping."""
+    barometer: Any = None
+    """e.g. ``ms5611``."""
+    gps: Any = None
+    """e.g. ``ublox_m8n`` or ``ublox_m9n``."""
+
+    def __post_init__(self) -> None:
+        for kind in _SENSOR_KINDS:
+            self.params(kind)  # validates
+
+    def params(self, kind: str) -> Any:
+        """The parameters of sensor ``kind``, or None when it is not attached."""
+        cls, known, _ = _SENSOR_KINDS[kind]
+        value = getattr(self, kind)
+        if value is None or isinstance(value, cls):
+            return value
+        if isinstance(value, str):
+            if value not in known:
+                raise ConfigError(f"sensors.{kind} must be one of {', '.join(known)} or a mapping, got {value!r}")
+            return known[value]()
+        try:
+            return from_dict(cls, value, f"sensors.{kind}")
+        except TypeError as e:
+            raise ConfigError(f"sensors.{kind}: {e}") from None
+
+    def components(self, seed: int, gravity: float) -> list[Any]:
+        """The attached sensors as simulator components, each with its own seed."""
+        out = []
+        for kind, (_, _, stream) in _SENSOR_KINDS.items():
+            params = self.params(kind)
+            if params is None:
+                continue
+            sensor_seed = int(np.random.SeedSequence([seed, stream]).generate_state(1)[0])
+            if kind == "imu":
+                out.append(ImuSensor(params, sensor_seed, gravity=gravity))
+            else:
+                out.append({"magnetometer": MagnetometerSensor, "barometer": BarometerSensor,
+                            "gps": GpsSensor}[kind](params, sensor_seed))
+        return out
+
+
 @dataclass(frozen=True)
 class ScenarioConfig:
     """A complete, reproducible run."""
@@ -132,11 +193,11 @@ class ScenarioConfig:
     controller: ControllerConfig = field(default_factory=ControllerConfig)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
     rates: RatesConfig = field(default_factory=RatesConfig)
+    sensors: SensorsConfig = field(default_factory=SensorsConfig)
     duration: float = 60.0
     """Longest simulated time [s]; the run ends earlier (completed) once the vehicle has landed."""
     seed: int = 0
-    """Seed of every random source (the built-in scenarios have no noise, so runs are exactly repeatable
-    whatever the seed)."""
+    """Seed of every random source (sensor noise); the same seed repeats a run bit for bit."""
 
     def __post_init__(self) -> None:
         if isinstance(self.vehicle, str):
@@ -153,6 +214,7 @@ class ScenarioConfig:
         object.__setattr__(self, "controller", _nested(ControllerConfig, self.controller, "controller"))
         object.__setattr__(self, "trajectory", _nested(TrajectoryConfig, self.trajectory, "trajectory"))
         object.__setattr__(self, "rates", _nested(RatesConfig, self.rates, "rates"))
+        object.__setattr__(self, "sensors", _nested(SensorsConfig, self.sensors, "sensors"))
         if isinstance(self.duration, bool) or not isinstance(self.duration, (int, float)) or not self.duration > 0:
             raise ConfigError(f"duration must be a number > 0 [s], got {self.duration!r}")
         object.__setattr__(self, "duration", float(self.duration))
@@ -244,8 +306,12 @@ def run_scenario(config: ScenarioConfig, progress: bool = False, extra_component
     quad = Quadrotor(params)
     w0 = np.asarray(config.trajectory.waypoints[0])
     quad.state.p[:] = (w0[0], w0[1], 0.0)  # on the ground below the first waypoint, rotors stopped
+    sensors = config.sensors.components(config.seed, params.gravity)
     sim = Simulator(quad, physics_rate_hz=rates.physics_hz,
-                    record_topics=(Topics.TRAJECTORY_SETPOINT, Topics.ATTITUDE_SETPOINT, Topics.ACTUATOR_COMMAND))
+                    record_topics=(Topics.TRAJECTORY_SETPOINT, Topics.ATTITUDE_SETPOINT, Topics.ACTUATOR_COMMAND,
+                                   *(sensor.topic for sensor in sensors)))
+    for sensor in sensors:  # sensors first: within a tick, they measure the state the controllers see
+        sim.add(sensor)
     sim.add(TrajectoryFollower(reference, rate_hz=rates.trajectory_hz))
     c = config.controller
     if c.kind == "pid":

@@ -70,7 +70,8 @@ class Simulator:
 
     The vehicle's rotor-speed input is the latest :class:`~cufund.messages.ActuatorCommand` on
     ``Topics.ACTUATOR_COMMAND`` (held over each physics step; before the first one, the rotor speeds at the
-    start of the run). Ground truth is published on ``Topics.GROUND_TRUTH`` at every tick where a component
+    start of the run). Ground truth (with the true accelerations of the last physics step, which inertial
+    sensors read) is published on ``Topics.GROUND_TRUTH`` at every tick where a component
     runs. Set the initial state through ``vehicle`` (e.g. ``vehicle.hover(p_W)``) before :meth:`run`.
 
     Args:
@@ -144,6 +145,7 @@ class Simulator:
             c.reset()
         quad = self.vehicle
         s = quad.state
+        accel_W, alpha_B = quad.accel_W, quad.alpha_B
         dt = 1.0 / self.physics_rate_hz
         n_steps = int(round(duration * self.physics_rate_hz))
         schedule = [(self._period(type(c).__name__, c.rate_hz), c.step) for c in self.components]
@@ -167,7 +169,8 @@ class Simulator:
                 for period, step in schedule:
                     if k % period == 0:
                         if truth is None:
-                            truth = Odometry(t, s.p.copy(), s.v.copy(), s.q.copy(), s.w.copy())
+                            truth = Odometry(t, s.p.copy(), s.v.copy(), s.q.copy(), s.w.copy(),
+                                             accel_W.copy(), alpha_B.copy())
                             bus.publish(ground_truth, truth)
                         step(t, bus)
             if k % rec_every == 0:
@@ -181,7 +184,8 @@ class Simulator:
                     break
                 if done is not None:
                     if truth is None:
-                        truth = Odometry(t, s.p.copy(), s.v.copy(), s.q.copy(), s.w.copy())
+                        truth = Odometry(t, s.p.copy(), s.v.copy(), s.q.copy(), s.w.copy(),
+                                         accel_W.copy(), alpha_B.copy())
                     if done(t, truth):
                         status, message = RunStatus.COMPLETED, "done condition met"
                         break
