@@ -7,4 +7,6 @@ PYBIND11_MODULE(_core, m) {
   m.attr("__version__") = CUFUND_VERSION;
   py::module_ dynamics = m.def_submodule("dynamics", "Quadrotor rigid-body dynamics (paper §2.1).");
   cufund::py_bind::define_dynamics(dynamics);
+  py::module_ lidar = m.def_submodule("lidar", "Embree ray casting for LiDAR and depth cameras (paper §2.2).");
+  cufund::py_bind::define_lidar(lidar);
 }

@@ -1,0 +1,235 @@
+#include "raycast_scene.h"
+
+#include <embree3/rtcore.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <stdexcept>
+#include <utility>
+
+namespace cufund::lidar {
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// Rays per OpenMP work item: large enough to amortise scheduling, small enough to balance two
+// threads when one half of a scan sees sky and the other walls.
+constexpr std::ptrdiff_t kChunk = 1024;
+
+inline void write_miss(const RayHits& out, std::size_t i) {
+  out.t_hit[i] = kInf;
+  if (out.geometry_ids) out.geometry_ids[i] = kInvalidId;
+  if (out.primitive_ids) out.primitive_ids[i] = kInvalidId;
+  if (out.primitive_uvs) out.primitive_uvs[2 * i] = out.primitive_uvs[2 * i + 1] = 0.0f;
+  if (out.normals) out.normals[3 * i] = out.normals[3 * i + 1] = out.normals[3 * i + 2] = 0.0f;
+}
+
+inline void write_hit(const RayHits& out, std::size_t i, float t, unsigned geom, unsigned prim, float u, float v,
+                      float nx, float ny, float nz) {
+  if (geom == RTC_INVALID_GEOMETRY_ID) {
+    write_miss(out, i);
+    return;
+  }
+  out.t_hit[i] = t;
+  if (out.geometry_ids) out.geometry_ids[i] = geom;
+  if (out.primitive_ids) out.primitive_ids[i] = prim;
+  if (out.primitive_uvs) {
+    out.primitive_uvs[2 * i] = u;
+    out.primitive_uvs[2 * i + 1] = v;
+  }
+  if (out.normals) {
+    // Embree's Ng is (v0-v1)x(v2-v0) = (v1-v0)x(v2-v0); normalise like Open3D.
+    const float len = std::sqrt(nx * nx + ny * ny + nz * nz);
+    const float s = len > 0.0f ? 1.0f / len : 0.0f;
+    out.normals[3 * i] = nx * s;
+    out.normals[3 * i + 1] = ny * s;
+    out.normals[3 * i + 2] = nz * s;
+  }
+}
+
+void cast_single(RTCScene scene, const float* rays, std::size_t begin, std::size_t end, const RayHits& out) {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  for (std::size_t i = begin; i < end; ++i) {
+    const float* r = rays + 6 * i;
+    RTCRayHit rh;
+    rh.ray.org_x = r[0];
+    rh.ray.org_y = r[1];
+    rh.ray.org_z = r[2];
+    rh.ray.dir_x = r[3];
+    rh.ray.dir_y = r[4];
+    rh.ray.dir_z = r[5];
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = kInf;
+    rh.ray.time = 0.0f;
+    rh.ray.mask = 0xFFFFFFFFu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene, &ctx, &rh);
+    write_hit(out, i, rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, rh.hit.Ng_x, rh.hit.Ng_y,
+              rh.hit.Ng_z);
+  }
+}
+
+void cast_packets8(RTCScene scene, const float* rays, std::size_t begin, std::size_t end, const RayHits& out) {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  alignas(32) int valid[8];
+  alignas(32) RTCRayHit8 rh;
+  for (std::size_t b = begin; b < end; b += 8) {
+    const int m = static_cast<int>(std::min<std::size_t>(8, end - b));
+    for (int k = 0; k < 8; ++k) {
+      const bool on = k < m;
+      valid[k] = on ? -1 : 0;
+      const float* r = rays + 6 * (b + (on ? k : 0));
+      rh.ray.org_x[k] = r[0];
+      rh.ray.org_y[k] = r[1];
+      rh.ray.org_z[k] = r[2];
+      rh.ray.dir_x[k] = r[3];
+      rh.ray.dir_y[k] = r[4];
+      rh.ray.dir_z[k] = r[5];
+      rh.ray.tnear[k] = 0.0f;
+      rh.ray.tfar[k] = kInf;
+      rh.ray.time[k] = 0.0f;
+      rh.ray.mask[k] = 0xFFFFFFFFu;
+      rh.ray.id[k] = 0;
+      rh.ray.flags[k] = 0;
+      rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect8(valid, scene, &ctx, &rh);
+    for (int k = 0; k < m; ++k) {
+      write_hit(out, b + k, rh.ray.tfar[k], rh.hit.geomID[k], rh.hit.primID[k], rh.hit.u[k], rh.hit.v[k],
+                rh.hit.Ng_x[k], rh.hit.Ng_y[k], rh.hit.Ng_z[k]);
+    }
+  }
+}
+
+// True when rays are mostly in runs sharing one origin (a sensor frame or an image), sampled cheaply.
+bool looks_coherent(const float* rays, std::size_t n) {
+  if (n < 64) return false;
+  const std::size_t step = std::max<std::size_t>(1, n / 256);
+  std::size_t same = 0, total = 0;
+  for (std::size_t i = 0; i + 1 < n; i += step, ++total) {
+    const float* a = rays + 6 * i;
+    const float* b = a + 6;
+    same += (a[0] == b[0] && a[1] == b[1] && a[2] == b[2]) ? 1 : 0;
+  }
+  return same * 2 > total;
+}
+
+}  // namespace
+
+struct RaycastScene::Impl {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  std::size_t geometries = 0;
+  std::size_t triangles = 0;
+  mutable std::mutex commit_mutex;
+  mutable bool dirty = true;
+
+  Impl() {
+    device = rtcNewDevice(nullptr);
+    if (!device) throw std::runtime_error("Embree: rtcNewDevice failed (error " +
+                                          std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) + ")");
+    scene = rtcNewScene(device);
+    // A better BVH costs build time once and pays back on every ray of every frame.
+    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+    // Watertight: a ray through a shared edge or vertex never slips between two triangles.
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+  }
+  ~Impl() {
+    if (scene) rtcReleaseScene(scene);
+    if (device) rtcReleaseDevice(device);
+  }
+  void commit() const {
+    std::lock_guard<std::mutex> lock(commit_mutex);
+    if (dirty) {
+      rtcCommitScene(scene);
+      dirty = false;
+    }
+  }
+};
+
+RaycastScene::RaycastScene() : impl_(std::make_unique<Impl>()) {}
+RaycastScene::~RaycastScene() = default;
+RaycastScene::RaycastScene(RaycastScene&&) noexcept = default;
+RaycastScene& RaycastScene::operator=(RaycastScene&&) noexcept = default;
+
+SceneResult RaycastScene::add_triangles(const float* vertices, std::size_t nv, const std::uint32_t* triangles,
+                                        std::size_t nt) {
+  if (nt == 0) return {SceneStatus::kNoTriangles, 0, kInvalidId};
+  for (std::size_t i = 0; i < 3 * nv; ++i) {
+    if (!std::isfinite(vertices[i])) return {SceneStatus::kNonFiniteVertex, i / 3, kInvalidId};
+  }
+  for (std::size_t i = 0; i < 3 * nt; ++i) {
+    if (triangles[i] >= nv) return {SceneStatus::kIndexOutOfRange, i / 3, kInvalidId};
+  }
+  RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* vb = static_cast<float*>(
+      rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv));
+  auto* ib = static_cast<std::uint32_t*>(
+      rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(std::uint32_t), nt));
+  std::copy(vertices, vertices + 3 * nv, vb);
+  std::copy(triangles, triangles + 3 * nt, ib);
+  rtcCommitGeometry(g);
+  const unsigned id = rtcAttachGeometry(impl_->scene, g);
+  rtcReleaseGeometry(g);
+  std::lock_guard<std::mutex> lock(impl_->commit_mutex);
+  impl_->dirty = true;
+  impl_->geometries += 1;
+  impl_->triangles += nt;
+  return {SceneStatus::kOk, 0, id};
+}
+
+SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayHits& out, int nthreads,
+                                    RayOrder order) const {
+  for (std::size_t i = 0; i < n; ++i) {
+    const float* r = rays + 6 * i;
+    if (!(std::isfinite(r[0]) && std::isfinite(r[1]) && std::isfinite(r[2]) && std::isfinite(r[3]) &&
+          std::isfinite(r[4]) && std::isfinite(r[5]))) {
+      return {SceneStatus::kNonFiniteRay, i, kInvalidId};
+    }
+    if (r[3] == 0.0f && r[4] == 0.0f && r[5] == 0.0f) return {SceneStatus::kZeroDirection, i, kInvalidId};
+  }
+  impl_->commit();
+  const bool coherent = order == RayOrder::kCoherent || (order == RayOrder::kAuto && looks_coherent(rays, n));
+  const int threads = nthreads > 0 ? nthreads : omp_get_num_procs();
+  const auto nn = static_cast<std::ptrdiff_t>(n);
+  RTCScene scene = impl_->scene;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) if (n > static_cast<std::size_t>(kChunk))
+  for (std::ptrdiff_t b = 0; b < nn; b += kChunk) {
+    const auto begin = static_cast<std::size_t>(b);
+    const std::size_t end = std::min(n, begin + static_cast<std::size_t>(kChunk));
+    if (coherent) {
+      cast_packets8(scene, rays, begin, end, out);
+    } else {
+      cast_single(scene, rays, begin, end, out);
+    }
+  }
+  return {};
+}
+
+std::size_t RaycastScene::num_geometries() const { return impl_->geometries; }
+std::size_t RaycastScene::num_triangles() const { return impl_->triangles; }
+
+std::string describe(SceneStatus status) {
+  switch (status) {
+    case SceneStatus::kOk: return "ok";
+    case SceneStatus::kNoTriangles: return "the mesh has no triangles";
+    case SceneStatus::kNonFiniteVertex: return "vertex is not finite";
+    case SceneStatus::kIndexOutOfRange: return "triangle references a vertex index out of range";
+    case SceneStatus::kNonFiniteRay: return "ray is not finite";
+    case SceneStatus::kZeroDirection: return "ray direction has zero length";
+  }
+  return "unknown";
+}
+
+}  // namespace cufund::lidar
