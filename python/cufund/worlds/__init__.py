@@ -1,0 +1,8 @@
+"""Worlds of triangle meshes for ray-traced sensors and collisions."""
+
+from . import primitives
+from .builtin import BUILTIN, load
+from .description import world_from_dict, world_from_yaml
+from .world import World, WorldObject
+
+__all__ = ["BUILTIN", "World", "WorldObject", "load", "primitives", "world_from_dict", "world_from_yaml"]
