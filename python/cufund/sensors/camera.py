@@ -159,7 +159,7 @@ class DepthCamera(_RayCamera):
         """(H, W) float32 depth image of ``target`` seen from body pose (p_W, q_WB)."""
         rays, _ = self._rays(p_W, q_WB)
         # direction z_O = 1, so the hit parameter is the depth along the optical axis
-        z = _scene_of(target).cast_rays(rays, nthreads=self.nthreads, coherent=True)["t_hit"].astype(np.float64)
+        z = _scene_of(target).cast_rays(rays, nthreads=self.nthreads)["t_hit"].astype(np.float64)
         if self.noise_coeff > 0:
             z = z + self._rng.standard_normal(z.shape) * self.noise_coeff * np.where(np.isfinite(z), z, 0.0) ** 2
         z[(z < self.depth_min) | (z > self.depth_max) | ~np.isfinite(z)] = np.nan
@@ -192,7 +192,7 @@ class RgbCamera(_RayCamera):
         if not isinstance(world, World):
             raise ValueError(f"world must be a cufund.World (it holds the colours), got {type(world).__name__}")
         rays, _ = self._rays(p_W, q_WB)
-        hit = world.raycast_scene.cast_rays(rays, nthreads=self.nthreads, coherent=True)
+        hit = world.raycast_scene.cast_rays(rays, nthreads=self.nthreads)
         ids = hit["geometry_ids"].astype(np.int64)
         miss = ids == _core.lidar.INVALID_ID
         albedo = world.colors()[np.where(miss, -1, ids)]

@@ -126,7 +126,7 @@ class Lidar:
         rays = np.empty((len(d_L), 6), np.float32)
         rays[:, :3] = p_WL
         rays[:, 3:] = d_W
-        hit = scene.cast_rays(rays, nthreads=p.nthreads, coherent=True)
+        hit = scene.cast_rays(rays, nthreads=p.nthreads)
         r_true = hit["t_hit"].astype(np.float64)
         valid = (r_true >= p.range_min) & (r_true <= p.range_max)
         # Noise and dropout are drawn for every ray so a frame's draws do not depend on the scene.
