@@ -269,8 +269,9 @@ class CsvPattern:
         start = (k * self.period) % span
         rel = tab[:, 0] - t0
         # rows falling into [start, start + period), wrapping around the table
-        shifted = np.mod(rel - start, span)
-        sel = np.nonzero(shifted < self.period)[0]
+        eps = 1e-9  # [s]: k * period need not be exact in floating point
+        shifted = np.maximum(np.mod(rel - start + eps, span) - eps, 0.0)
+        sel = np.nonzero(shifted < self.period - eps)[0]
         order = np.argsort(shifted[sel], kind="stable")
         sel = sel[order]
         az = np.deg2rad(tab[sel, 1])
