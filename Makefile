@@ -67,7 +67,7 @@ sanitize: $(VENV)/.tools
 
 bench: $(VENV)/.installed $(CPP_BUILD)/build.ninja
 	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_dynamics
-	$(CPP_BUILD)/cpp/dynamics/bench_dynamics --benchmark_min_time=0.2s
+	$(CPP_BUILD)/cpp/dynamics/bench_dynamics --benchmark_min_time=0.2
 	$(VPY) benchmarks/bench_dynamics.py
 
 # Regenerates the checked-in type stubs from the compiled module (tests/test_stubs.py checks them).

@@ -1,7 +1,8 @@
 #include "raycast_scene.h"
 
+#include "thread_pool.h"
+
 #include <embree3/rtcore.h>
-#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -16,9 +17,9 @@ namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
-// Rays per OpenMP work item: large enough to amortise scheduling, small enough to balance two
+// Rays per thread-pool work item: large enough to amortise scheduling, small enough to balance two
 // threads when one half of a scan sees sky and the other walls.
-constexpr std::ptrdiff_t kChunk = 1024;
+constexpr std::size_t kChunk = 1024;
 
 inline void write_miss(const RayHits& out, std::size_t i) {
   out.t_hit[i] = kInf;
@@ -201,18 +202,21 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
   }
   impl_->commit();
   const bool coherent = order == RayOrder::kCoherent || (order == RayOrder::kAuto && looks_coherent(rays, n));
-  const int threads = nthreads > 0 ? nthreads : omp_get_num_procs();
-  const auto nn = static_cast<std::ptrdiff_t>(n);
   RTCScene scene = impl_->scene;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) if (n > static_cast<std::size_t>(kChunk))
-  for (std::ptrdiff_t b = 0; b < nn; b += kChunk) {
-    const auto begin = static_cast<std::size_t>(b);
-    const std::size_t end = std::min(n, begin + static_cast<std::size_t>(kChunk));
+  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+  auto work = [&](std::size_t c) {
+    const std::size_t begin = c * kChunk;
+    const std::size_t end = std::min(n, begin + kChunk);
     if (coherent) {
       cast_packets8(scene, rays, begin, end, out);
     } else {
       cast_single(scene, rays, begin, end, out);
     }
+  };
+  if (chunks <= 1 || nthreads == 1) {
+    for (std::size_t c = 0; c < chunks; ++c) work(c);
+  } else {
+    ThreadPool::instance().parallel_for(chunks, nthreads, work);
   }
   return {};
 }

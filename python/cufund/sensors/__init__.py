@@ -1,17 +1,32 @@
-"""Ray-traced sensors: LiDARs (2-D, spinning 3-D, Livox) and pinhole depth / RGB cameras.
+"""Sensor models (paper §2.2).
 
-Sensors work standalone: give them a ``cufund.World`` (or a ``cufund.lidar.RaycastScene``) and a
-body pose (or ``pose_fn(t) -> (p_W, q_WB)``) and they return numpy records.
+Inertial and navigation sensors share one error model: white noise, bias random walk and a turn-on
+bias (:mod:`cufund.sensors.noise`), each sensor with its own seeded stream.
+
+Ray-traced sensors — LiDARs (2-D, spinning 3-D, Livox) and pinhole depth / RGB cameras — work
+standalone: give them a ``cufund.World`` (or a ``cufund.lidar.RaycastScene``) and a body pose (or
+``pose_fn(t) -> (p_W, q_WB)``) and they return numpy records.
 """
 
 from . import patterns
+from .allan import AllanFit, allan_deviation, fit_allan
+from .barometer import BAROMETER_PRESETS, BarometerModel, BarometerParams, isa_altitude, isa_pressure
 from .camera import CameraIntrinsics, DepthCamera, RgbCamera, d435_depth, d435_rgb, save_png
+from .geodesy import GeoPoint, enu_to_lla, lla_to_enu
+from .gps import GPS_PRESETS, GpsFix, GpsModel, GpsParams
+from .imu import IMU_PRESETS, ImuModel, ImuParams, imu_preset
 from .lidar import Lidar, LidarParams, PointCloud, mid360_params
+from .magnetometer import EarthField, MagnetometerModel, MagnetometerParams
+from .noise import ErrorProcess, NoiseSpec
 from .patterns import (CsvPattern, Mid360Pattern, PlanarPattern, RosettePattern, ScanPattern, ScanRays,
                        SpinningPattern)
 from .pose import Transform
 
 __all__ = [
+    "AllanFit", "BAROMETER_PRESETS", "BarometerModel", "BarometerParams", "EarthField", "ErrorProcess",
+    "GPS_PRESETS", "GeoPoint", "GpsFix", "GpsModel", "GpsParams", "IMU_PRESETS", "ImuModel", "ImuParams",
+    "MagnetometerModel", "MagnetometerParams", "NoiseSpec", "allan_deviation", "enu_to_lla", "fit_allan",
+    "imu_preset", "isa_altitude", "isa_pressure", "lla_to_enu",
     "CameraIntrinsics", "CsvPattern", "DepthCamera", "Lidar", "LidarParams", "Mid360Pattern", "PlanarPattern",
     "PointCloud", "RgbCamera", "RosettePattern", "ScanPattern", "ScanRays", "SpinningPattern", "Transform",
     "d435_depth", "d435_rgb", "mid360_params", "patterns", "save_png",

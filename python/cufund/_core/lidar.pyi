@@ -1,0 +1,44 @@
+"""
+Embree ray casting for LiDAR and depth cameras (paper §2.2).
+"""
+from __future__ import annotations
+import typing
+__all__: list[str] = ['INVALID_ID', 'RaycastScene']
+class RaycastScene:
+    """
+    A scene of triangle meshes that casts rays with Embree 3, shaped like Open3D's RaycastingScene.
+    
+    Add meshes with ``add_triangles``, then ``cast_rays``; the acceleration structure is (re)built on the
+    first cast after a change. Casting is multithreaded and releases the GIL.
+    """
+    INVALID_ID: typing.ClassVar[int] = 4294967295
+    def __init__(self) -> None:
+        ...
+    def add_triangles(self, vertices: typing.Any, triangles: typing.Any) -> int:
+        """
+        Adds a mesh and returns its geometry id (0, 1, 2, ... in order of addition).
+        
+        vertices: (V, 3) real [m]; triangles: (T, 3) integer vertex indices, T >= 1. The mesh is copied.
+        Degenerate (zero-area) triangles are kept but never hit.
+        """
+    def cast_rays(self, rays: typing.Any, nthreads: typing.SupportsInt | typing.SupportsIndex = 0, coherent: typing.Any = None) -> dict:
+        """
+        Casts rays and returns the first hit of each.
+        
+        rays: (..., 6) rows of (origin xyz, direction xyz), float32 preferred (others are converted); every
+        value finite and every direction non-zero, else ValueError naming the ray.
+        nthreads: 0 uses every core. coherent: None guesses from the rays (packets when consecutive rays
+        share an origin), True forces 8-wide packets, False single rays; results are the same either way.
+        
+        Returns a dict of arrays shaped like the leading dims of ``rays``:
+        ``t_hit`` float32 (inf on a miss; in units of the direction's length), ``geometry_ids`` and
+        ``primitive_ids`` uint32 (INVALID_ID on a miss), ``primitive_uvs`` float32 (..., 2) barycentrics,
+        ``primitive_normals`` float32 (..., 3) unit geometric normals (zero on a miss), also as ``normals``.
+        """
+    @property
+    def num_geometries(self) -> int:
+        ...
+    @property
+    def num_triangles(self) -> int:
+        ...
+INVALID_ID: int = 4294967295
