@@ -45,7 +45,7 @@ $(VENV)/.installed: $(VENV)/.tools $(SOURCES)
 	CMAKE_BUILD_PARALLEL_LEVEL=$(JOBS) $(VPIP) install -q --no-build-isolation -e '.[test]'
 	touch $@
 
-$(CPP_BUILD)/build.ninja: $(VENV)/.tools CMakeLists.txt cpp/dynamics/CMakeLists.txt
+$(CPP_BUILD)/build.ninja: $(VENV)/.tools CMakeLists.txt cpp/dynamics/CMakeLists.txt cpp/lidar/CMakeLists.txt
 	$(MAKE) deps
 	$(VENV)/bin/cmake -S . -B $(CPP_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
 	  -DCMAKE_BUILD_TYPE=Release -DCUFUND_BUILD_TESTS=ON -DCUFUND_BUILD_BENCHMARKS=ON -DCUFUND_BUILD_PYTHON=OFF
@@ -69,6 +69,9 @@ bench: $(VENV)/.installed $(CPP_BUILD)/build.ninja
 	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_dynamics
 	$(CPP_BUILD)/cpp/dynamics/bench_dynamics --benchmark_min_time=0.2
 	$(VPY) benchmarks/bench_dynamics.py
+	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_lidar
+	$(CPP_BUILD)/cpp/lidar/bench_lidar --benchmark_min_time=0.2
+	$(VPY) benchmarks/bench_lidar.py
 
 # Regenerates the checked-in type stubs from the compiled module (tests/test_stubs.py checks them).
 stubs: $(VENV)/.installed

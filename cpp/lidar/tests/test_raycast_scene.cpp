@@ -120,7 +120,7 @@ TEST(RaycastScene, PlaneRangesMatchAnalyticForManyRays) {
   }
 }
 
-TEST(RaycastScene, PacketAndSingleRayPathsAgreeBitForBit) {
+TEST(RaycastScene, PacketAndSingleRayPathsAgree) {
   RaycastScene scene;
   Mesh a = box(-3, -3, -1, 3, 3, 4);
   Mesh b = box(0.5f, 0.5f, 0, 1.5f, 2.5f, 1);
