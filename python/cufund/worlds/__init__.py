@@ -2,7 +2,8 @@
 
 from . import primitives
 from .builtin import BUILTIN, load
+from .collision import CollisionChecker, Contact
 from .description import world_from_dict, world_from_yaml
 from .world import World, WorldObject
 
-__all__ = ["BUILTIN", "World", "WorldObject", "load", "primitives", "world_from_dict", "world_from_yaml"]
+__all__ = ["BUILTIN", "CollisionChecker", "Contact", "World", "WorldObject", "load", "primitives", "world_from_dict", "world_from_yaml"]
