@@ -6,6 +6,7 @@
 
 #include "pybind_common.h"
 #include "raycast_scene.h"
+#include "scan_rays.h"
 
 namespace cufund::py_bind {
 namespace {
@@ -169,6 +170,42 @@ Returns a dict of arrays shaped like the leading dims of ``rays``:
 )doc")
       .def_property_readonly("num_geometries", &RaycastScene::num_geometries)
       .def_property_readonly("num_triangles", &RaycastScene::num_triangles);
+
+  m.def(
+      "scan_rays",
+      [](const py::handle& d_L, const py::handle& t, const py::handle& knot_t, const py::handle& knot_p,
+         const py::handle& knot_q) {
+        py::array d_arr = checked_array(d_L, "d_L");
+        if (d_arr.ndim() != 2 || d_arr.shape(1) != 3) {
+          throw py::value_error("d_L must have shape (N, 3), got " + shape_str(d_arr));
+        }
+        const py::ssize_t n = d_arr.shape(0);
+        auto d = as_float64(d_L, "d_L", {n, 3});
+        auto tt = as_float64(t, "t", {n});
+        py::array k_arr = checked_array(knot_t, "knot_t");
+        if (k_arr.ndim() != 1 || k_arr.shape(0) < 2) {
+          throw py::value_error("knot_t must have shape (K,) with K >= 2, got " + shape_str(k_arr));
+        }
+        const py::ssize_t k = k_arr.shape(0);
+        auto kt = as_float64(knot_t, "knot_t", {k});
+        auto kp = as_float64(knot_p, "knot_p", {k, 3});
+        auto kq = as_float64(knot_q, "knot_q", {k, 4});
+        for (py::ssize_t i = 0; i + 1 < k; ++i) {
+          if (!(kt.data()[i + 1] > kt.data()[i])) throw py::value_error("knot_t must be strictly increasing");
+        }
+        py::array_t<float> rays({n, py::ssize_t{6}});
+        {
+          py::gil_scoped_release release;
+          lidar::scan_rays(d.data(), tt.data(), static_cast<std::size_t>(n), kt.data(), kp.data(), kq.data(),
+                           static_cast<std::size_t>(k), rays.mutable_data());
+        }
+        return rays;
+      },
+      py::arg("d_L"), py::arg("t"), py::arg("knot_t"), py::arg("knot_p"), py::arg("knot_q"), R"doc(
+(N, 6) float32 rays of a moving sensor: ray i leaves from the sensor pose at time t[i], interpolated
+between pose knots (knot_t (K,) increasing [s], knot_p (K, 3) p_WL [m], knot_q (K, 4) q_WL [w, x, y, z]
+unit, consecutive signs aligned) linearly in position and by slerp in rotation, along R_WL d_L[i].
+)doc");
 }
 
 }  // namespace cufund::py_bind

@@ -190,3 +190,14 @@ def test_bad_pose_and_target_raise():
         lid.scan(wall_world(), lambda t: (np.zeros(3), np.zeros(3)), 0.0)
     with pytest.raises(ValueError, match="pattern must provide"):
         L.Lidar(object())
+
+
+def test_scan_rays_validates_knots():
+    d = np.array([[1.0, 0.0, 0.0]])
+    q = np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]])
+    with pytest.raises(ValueError, match="knot_t must be strictly increasing"):
+        cufund._core.lidar.scan_rays(d, [0.0], [0.0, 0.0], np.zeros((2, 3)), q)
+    with pytest.raises(ValueError, match=r"knot_q must have shape \(2, 4\)"):
+        cufund._core.lidar.scan_rays(d, [0.0], [0.0, 1.0], np.zeros((2, 3)), q[:, :3])
+    with pytest.raises(ValueError, match=r"knot_t must have shape \(K,\) with K >= 2"):
+        cufund._core.lidar.scan_rays(d, [0.0], [0.0], np.zeros((1, 3)), q[:1])

@@ -2,8 +2,10 @@
 Embree ray casting for LiDAR and depth cameras (paper §2.2).
 """
 from __future__ import annotations
+import numpy
+import numpy.typing
 import typing
-__all__: list[str] = ['INVALID_ID', 'RaycastScene']
+__all__: list[str] = ['INVALID_ID', 'RaycastScene', 'scan_rays']
 class RaycastScene:
     """
     A scene of triangle meshes that casts rays with Embree 3, shaped like Open3D's RaycastingScene.
@@ -41,4 +43,10 @@ class RaycastScene:
     @property
     def num_triangles(self) -> int:
         ...
+def scan_rays(d_L: typing.Any, t: typing.Any, knot_t: typing.Any, knot_p: typing.Any, knot_q: typing.Any) -> numpy.typing.NDArray[numpy.float32]:
+    """
+    (N, 6) float32 rays of a moving sensor: ray i leaves from the sensor pose at time t[i], interpolated
+    between pose knots (knot_t (K,) increasing [s], knot_p (K, 3) p_WL [m], knot_q (K, 4) q_WL [w, x, y, z]
+    unit, consecutive signs aligned) linearly in position and by slerp in rotation, along R_WL d_L[i].
+    """
 INVALID_ID: int = 4294967295

@@ -9,8 +9,8 @@ import numpy as np
 
 from .. import _core
 from ..worlds.world import World
-from .patterns import ScanPattern
-from .pose import PoseFn, Transform, interpolate_poses, sample_poses
+from .patterns import ScanPattern, ScanRays
+from .pose import PoseFn, Transform, sample_poses
 
 Target = Union[World, "_core.lidar.RaycastScene"]
 
@@ -99,10 +99,21 @@ class Lidar:
         self.T_BL = T_BL or Transform()
         self._rng = np.random.default_rng(self.params.seed)
         self._frame = 0
+        self._cached: tuple[ScanRays, np.ndarray] | None = None
 
     @property
     def period(self) -> float:
         return self.pattern.period
+
+    def _frame_rays(self, k: int) -> tuple[ScanRays, np.ndarray]:
+        """Frame k's rays and unit directions; patterns marked ``repetitive`` are computed once."""
+        if getattr(self.pattern, "repetitive", False):
+            if self._cached is None:
+                rays = self.pattern.frame(0)
+                self._cached = (rays, rays.directions())
+            return self._cached
+        rays = self.pattern.frame(k)
+        return rays, rays.directions()
 
     def scan(self, target: Target, pose_fn: PoseFn, t0: float, frame: int | None = None) -> PointCloud:
         if isinstance(target, World):
@@ -115,25 +126,24 @@ class Lidar:
             raise ValueError(f"t0 must be finite [s], got {t0}")
         k = self._frame if frame is None else int(frame)
         self._frame = k + 1
-        rays_L = self.pattern.frame(k)
-        d_L = rays_L.directions()
+        rays_L, d_L = self._frame_rays(k)
         t_abs = t0 + rays_L.t
         p = self.params
         knots = t0 + np.linspace(0.0, self.period, int(p.pose_samples))
         p_WL_k, q_WL_k = sample_poses(pose_fn, knots, self.T_BL)
-        p_WL, R_WL = interpolate_poses(knots, p_WL_k, q_WL_k, t_abs)
-        d_W = np.einsum("nij,nj->ni", R_WL, d_L)
-        rays = np.empty((len(d_L), 6), np.float32)
-        rays[:, :3] = p_WL
-        rays[:, 3:] = d_W
+        rays = _core.lidar.scan_rays(d_L, t_abs, knots, p_WL_k, q_WL_k)
+        p_WL, d_W = rays[:, :3], rays[:, 3:]
         hit = scene.cast_rays(rays, nthreads=p.nthreads)
         r_true = hit["t_hit"].astype(np.float64)
         valid = (r_true >= p.range_min) & (r_true <= p.range_max)
         # Noise and dropout are drawn for every ray so a frame's draws do not depend on the scene.
-        noise = self._rng.standard_normal(len(r_true)) * p.range_noise_std
-        keep = self._rng.random(len(r_true)) >= p.dropout
-        idx = np.nonzero(valid & keep)[0]
-        r_meas = np.maximum(r_true[idx] + noise[idx], 0.0)
+        if p.dropout > 0:
+            valid &= self._rng.random(len(r_true)) >= p.dropout
+        idx = np.nonzero(valid)[0]
+        r_meas = r_true[idx]
+        if p.range_noise_std > 0:
+            noise = self._rng.standard_normal(len(r_true)) * p.range_noise_std
+            r_meas = np.maximum(r_meas + noise[idx], 0.0)
         ids = hit["geometry_ids"][idx]
         cos_inc = np.abs(np.sum(hit["normals"][idx] * d_W[idx], axis=1))
         reflect = refl[ids] if refl is not None else 1.0

@@ -64,6 +64,9 @@ class PlanarPattern:
     rate: float = 40.0
     """Scans per second [Hz]; the mirror turns once per scan."""
 
+    repetitive: bool = dataclasses.field(default=True, init=False, repr=False)
+    """Every frame is the same (a LiDAR may cache it)."""
+
     def __post_init__(self) -> None:
         _check("fov", self.fov, 0.0, 2 * np.pi, "[rad]")
         _check("resolution", self.resolution, 0.0, self.fov, "[rad]")
@@ -90,6 +93,9 @@ class SpinningPattern:
     """Firings per revolution (horizontal resolution = 2π / columns)."""
     rate: float = 10.0
     """Revolutions per second [Hz]; one frame per revolution."""
+
+    repetitive: bool = dataclasses.field(default=True, init=False, repr=False)
+    """Every frame is the same (a LiDAR may cache it)."""
 
     def __post_init__(self) -> None:
         el = np.asarray(self.elevations, dtype=float)

@@ -82,23 +82,3 @@ def sample_poses(pose_fn: PoseFn, times: np.ndarray, T_BS: Transform) -> tuple[n
     q_WS = quat_mul(q_WB, np.array(T_BS.q))
     p_WS = p_WB + quat_to_matrix(q_WB) @ np.array(T_BS.t)
     return p_WS, q_WS
-
-
-def interpolate_poses(knots: np.ndarray, p: np.ndarray, q: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Positions (N, 3) by linear and rotations (N, 3, 3) by spherical interpolation between pose
-    knots at sorted times ``knots`` (K,), evaluated at ``t`` (N,) within [knots[0], knots[-1]]."""
-    if len(knots) == 1:
-        return np.repeat(p, len(t), 0), np.repeat(quat_to_matrix(q), len(t), 0)
-    i = np.clip(np.searchsorted(knots, t, side="right") - 1, 0, len(knots) - 2)
-    s = ((t - knots[i]) / (knots[i + 1] - knots[i]))[:, None]
-    pos = p[i] * (1 - s) + p[i + 1] * s
-    q0, q1 = q[i], q[i + 1]
-    dot = np.clip(np.sum(q0 * q1, 1), -1.0, 1.0)[:, None]
-    theta = np.arccos(dot)
-    sin = np.sin(theta)
-    small = sin[:, 0] < 1e-6
-    w0 = np.where(small[:, None], 1 - s, np.sin((1 - s) * theta) / np.where(small[:, None], 1.0, sin))
-    w1 = np.where(small[:, None], s, np.sin(s * theta) / np.where(small[:, None], 1.0, sin))
-    qi = w0 * q0 + w1 * q1
-    qi /= np.linalg.norm(qi, axis=1, keepdims=True)
-    return pos, quat_to_matrix(qi)
