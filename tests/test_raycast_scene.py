@@ -194,3 +194,17 @@ def test_degenerate_triangles_are_skipped_and_an_empty_scene_misses():
     out = scene.cast_rays(np.array([[0, 0, 0, 1, 0, 0]], np.float32))
     assert np.isinf(out["t_hit"][0])
     assert np.isinf(RaycastScene().cast_rays(np.array([[0, 0, 0, 1, 0, 0]], np.float32))["t_hit"][0])
+
+
+def test_tiled_packets_on_a_large_scene_agree_with_single_rays():
+    v, f = primitives.sphere(3.0, subdivisions=6)  # 81920 triangles: coherent rays get tiled
+    scene = _scene((v, f))
+    az = np.repeat(np.linspace(0, 2 * np.pi, 700, endpoint=False), 64)
+    el = np.tile(np.linspace(-0.6, 0.6, 64), 700)
+    d = np.column_stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    rays = np.column_stack([np.tile([0.3, -0.2, 0.1], (len(d), 1)), d]).astype(np.float32)
+    a = scene.cast_rays(rays)  # auto: tiled packets
+    b = scene.cast_rays(rays, coherent=False)
+    np.testing.assert_array_equal(a["primitive_ids"], b["primitive_ids"])
+    np.testing.assert_allclose(a["t_hit"], b["t_hit"], rtol=1e-6)
+    np.testing.assert_allclose(a["normals"], b["normals"], atol=1e-6)

@@ -37,7 +37,8 @@ struct RayHits {
 };
 
 enum class RayOrder {
-  kAuto,        // packets when consecutive rays share an origin, single rays otherwise
+  kAuto,        // packets when consecutive rays share an origin (regrouped into angular tiles of
+                //   8 on scenes of >= 50k triangles), single rays otherwise
   kIncoherent,  // single-ray traversal (random rays)
   kCoherent,    // 8-wide packets (sensor scans, image rows)
 };

@@ -29,8 +29,9 @@ class RaycastScene:
         
         rays: (..., 6) rows of (origin xyz, direction xyz), float32 preferred (others are converted); every
         value finite and every direction non-zero, else ValueError naming the ray.
-        nthreads: 0 uses every core. coherent: None guesses from the rays (packets when consecutive rays
-        share an origin), True forces 8-wide packets, False single rays; results are the same either way.
+        nthreads: 0 uses every core. coherent: None guesses from the rays (8-wide packets when consecutive
+        rays share an origin, regrouped into compact angular tiles on large scenes), True forces packets of
+        consecutive rays, False single rays; the results are the same either way.
         
         Returns a dict of arrays shaped like the leading dims of ``rays``:
         ``t_hit`` float32 (inf on a miss; in units of the direction's length), ``geometry_ids`` and
