@@ -303,16 +303,4 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
 std::size_t RaycastScene::num_geometries() const { return impl_->geometries; }
 std::size_t RaycastScene::num_triangles() const { return impl_->triangles; }
 
-std::string describe(SceneStatus status) {
-  switch (status) {
-    case SceneStatus::kOk: return "ok";
-    case SceneStatus::kNoTriangles: return "the mesh has no triangles";
-    case SceneStatus::kNonFiniteVertex: return "vertex is not finite";
-    case SceneStatus::kIndexOutOfRange: return "triangle references a vertex index out of range";
-    case SceneStatus::kNonFiniteRay: return "ray is not finite";
-    case SceneStatus::kZeroDirection: return "ray direction has zero length";
-  }
-  return "unknown";
-}
-
 }  // namespace cufund::lidar

@@ -5,7 +5,6 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
-#include <string>
 
 namespace cufund::lidar {
 
@@ -70,7 +69,5 @@ class RaycastScene {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
-
-std::string describe(SceneStatus status);
 
 }  // namespace cufund::lidar
