@@ -97,6 +97,15 @@ def test_png_round_trip(tmp_path):
     np.testing.assert_array_equal(mm, np.round(np.nan_to_num(depth.astype(np.float64) * 1000)).astype(np.uint16))
 
 
+def test_intrinsics_from_field_of_view_and_the_d435_presets():
+    K = CameraIntrinsics.from_fov(640, 480, np.deg2rad(90.0))
+    assert K.fx == pytest.approx(320.0) and K.fy == K.fx and (K.cx, K.cy) == (319.5, 239.5)
+    for K, (h, v) in ((cufund.sensors.d435_depth(), (79.5, 63.9)), (cufund.sensors.d435_rgb(), (55.0, 42.6))):
+        assert (K.width, K.height) == (640, 480)
+        assert 2 * np.degrees(np.arctan(K.width / 2 / K.fx)) == pytest.approx(h, abs=0.1)
+        assert 2 * np.degrees(np.arctan(K.height / 2 / K.fy)) == pytest.approx(v, abs=0.1)
+
+
 def test_bad_camera_input():
     with pytest.raises(ValueError, match="fx must be a finite number > 0"):
         CameraIntrinsics(10, 10, 0.0, 1.0, 5.0, 5.0)

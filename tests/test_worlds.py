@@ -83,6 +83,17 @@ def test_unknown_world_names_the_choices():
         cufund.worlds.load("moon")
 
 
+@pytest.mark.parametrize("ext", ["obj", "stl", "ply"])
+def test_mesh_files_load_in_every_format(tmp_path, ext):
+    trimesh = pytest.importorskip("trimesh")
+    trimesh.creation.box(extents=(1.0, 2.0, 3.0)).export(tmp_path / f"m.{ext}")
+    w = cufund.World()
+    obj = w.load_mesh(tmp_path / f"m.{ext}", position=(5.0, 0.0, 0.0), yaw=np.pi / 2, color=(0.1, 0.2, 0.3))
+    assert obj.label == "m" and len(obj.triangles) == 12
+    # Yawed 90°, the 2 m side lies along x: the near face is at x = 4.
+    assert cast(w, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0))[0] == pytest.approx(4.0, abs=1e-5)
+
+
 def test_yaml_world_with_mesh_file(tmp_path):
     trimesh = pytest.importorskip("trimesh")
     trimesh.creation.box(extents=(1.0, 1.0, 1.0)).export(tmp_path / "crate.obj")

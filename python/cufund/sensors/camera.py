@@ -96,12 +96,12 @@ class CameraIntrinsics:
 
 
 def d435_depth() -> CameraIntrinsics:
-    """RealSense D435-like depth stream at 640×480 (≈ 87° × 58° over the full sensor; 640×480 crop)."""
+    """RealSense D435-like depth stream at 640×480: fx = fy = 385 px, ≈ 79.5° × 63.9° field of view."""
     return CameraIntrinsics(640, 480, 385.0, 385.0, 319.5, 239.5)
 
 
 def d435_rgb() -> CameraIntrinsics:
-    """RealSense D435-like colour stream at 640×480 (≈ 69° × 42°)."""
+    """RealSense D435-like colour stream at 640×480: fx = fy = 615 px, ≈ 55.0° × 42.6° field of view."""
     return CameraIntrinsics(640, 480, 615.0, 615.0, 319.5, 239.5)
 
 
