@@ -1,4 +1,5 @@
-// Rays/s of RaycastScene on a tessellated sphere-in-a-box scene, random and scan-ordered rays.
+// Rays/s (wall clock, 2 threads) of RaycastScene on a UV sphere of about 10k / 100k / 1M triangles;
+// second argument 0: random rays, 1: a 64-channel spinning scan from the centre, column by column.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -62,12 +63,12 @@ void BM_CastRays(benchmark::State& state) {
   std::vector<std::uint32_t> gid(n), pid(n);
   RayHits out{t.data(), gid.data(), pid.data(), uv.data(), nrm.data()};
   for (auto _ : state) {
-    scene.cast_rays(rays.data(), n, out, 2, scan ? RayOrder::kCoherent : RayOrder::kIncoherent);
+    scene.cast_rays(rays.data(), n, out, 2, RayOrder::kAuto);
     benchmark::DoNotOptimize(t.data());
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * n));
 }
-BENCHMARK(BM_CastRays)->ArgsProduct({{10000, 100000, 1000000}, {0, 1}})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CastRays)->ArgsProduct({{10000, 100000, 1000000}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 
