@@ -201,3 +201,33 @@ def test_scan_rays_validates_knots():
         cufund._core.lidar.scan_rays(d, [0.0], [0.0, 1.0], np.zeros((2, 3)), q[:, :3])
     with pytest.raises(ValueError, match=r"knot_t must have shape \(K,\) with K >= 2"):
         cufund._core.lidar.scan_rays(d, [0.0], [0.0], np.zeros((1, 3)), q[:1])
+
+
+def test_lidar_component_publishes_distorted_frames_in_the_simulator():
+    quad = cufund.Quadrotor(cufund.presets.cu_astro())
+    quad.hover([0.0, 0.0, 1.0])
+    quad.state.v[:] = [1.0, 0.0, 0.0]  # coasting towards the wall at x = 10 m
+    sim = cufund.Simulator(quad, physics_rate_hz=1000, record_topics=())
+    T_BL = Transform((0.05, 0.0, 0.1))
+    comp = sim.add(cufund.sensors.LidarComponent(L.Lidar(L.mid360(), L.LidarParams(range_max=100.0), T_BL),
+                                                 wall_world(), rate_hz=200.0))
+    frames = []
+
+    class Grab(cufund.Component):
+        name, rate_hz = "grab", 200.0
+
+        def step(self, t, bus):
+            pc = bus.get(cufund.Topics.POINT_CLOUD)
+            if pc is not None and (not frames or frames[-1] is not pc):
+                frames.append(pc)
+
+    sim.add(Grab())
+    result = sim.run(0.5)
+    assert [f.frame for f in frames] == [0, 1, 2, 3]
+    x_of_t = lambda t: np.interp(t, result.states["t"], result.states["p_W"][:, 0])  # noqa: E731
+    for f in frames:
+        assert f.t.min() >= f.t0 and f.t.max() < f.t0 + 0.1
+        np.testing.assert_allclose(f.points_L[:, 0], 10.0 - x_of_t(f.t) - 0.05, atol=2e-3)
+    assert comp.topic == cufund.Topics.POINT_CLOUD
+    with pytest.raises(ValueError, match="multiple of the LiDAR frame rate"):
+        cufund.sensors.LidarComponent(L.Lidar(L.mid360()), wall_world(), rate_hz=15.0)

@@ -16,6 +16,7 @@ from .geodesy import GeoPoint, enu_to_lla, lla_to_enu
 from .gps import GPS_PRESETS, GpsFix, GpsModel, GpsParams
 from .imu import IMU_PRESETS, ImuModel, ImuParams, imu_preset
 from .lidar import Lidar, LidarParams, PointCloud, mid360_params
+from .lidar_component import LidarComponent
 from .magnetometer import EarthField, MagnetometerModel, MagnetometerParams
 from .noise import ErrorProcess, NoiseSpec
 from .patterns import (CsvPattern, Mid360Pattern, PlanarPattern, RosettePattern, ScanPattern, ScanRays,
@@ -27,7 +28,7 @@ __all__ = [
     "GPS_PRESETS", "GeoPoint", "GpsFix", "GpsModel", "GpsParams", "IMU_PRESETS", "ImuModel", "ImuParams",
     "MagnetometerModel", "MagnetometerParams", "NoiseSpec", "allan_deviation", "enu_to_lla", "fit_allan",
     "imu_preset", "isa_altitude", "isa_pressure", "lla_to_enu",
-    "CameraIntrinsics", "CsvPattern", "DepthCamera", "Lidar", "LidarParams", "Mid360Pattern", "PlanarPattern",
+    "CameraIntrinsics", "CsvPattern", "DepthCamera", "Lidar", "LidarComponent", "LidarParams", "Mid360Pattern", "PlanarPattern",
     "PointCloud", "RgbCamera", "RosettePattern", "ScanPattern", "ScanRays", "SpinningPattern", "Transform",
     "d435_depth", "d435_rgb", "mid360_params", "patterns", "save_png",
 ]
