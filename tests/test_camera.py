@@ -122,3 +122,18 @@ def test_bad_camera_input():
         RgbCamera(CameraIntrinsics(10, 10, 5.0, 5.0, 4.5, 4.5)).render(box_world().raycast_scene, (0, 0, 0), IDENTITY)
     with pytest.raises(ValueError, match="image must be"):
         save_png("/tmp/x.png", np.zeros((3, 3, 3), np.float32))
+
+
+def test_camera_component_publishes_images_at_its_rate():
+    quad = cufund.Quadrotor(cufund.presets.cu_astro())
+    quad.hover([0.0, 0.0, 0.0])
+    sim = cufund.Simulator(quad, physics_rate_hz=1000, record_topics=("/sensors/depth_image",))
+    K = CameraIntrinsics(32, 24, 20.0, 20.0, 15.5, 11.5)
+    sim.add(cufund.sensors.CameraComponent(DepthCamera(K), box_world(), rate_hz=50.0))
+    result = sim.run(0.1)
+    images = result.topics["/sensors/depth_image"]
+    np.testing.assert_allclose(images["t"], np.arange(5) * 0.02, atol=1e-12)
+    assert images["image"].shape == (5, 24, 32)
+    np.testing.assert_allclose(images["image"][:, 12, 16], 4.5, rtol=1e-5)  # hovering, box face 4.5 m ahead
+    with pytest.raises(ValueError, match="camera must be a DepthCamera or RgbCamera"):
+        cufund.sensors.CameraComponent(object(), box_world())

@@ -11,7 +11,8 @@ standalone: give them a ``cufund.World`` (or a ``cufund.lidar.RaycastScene``) an
 from . import patterns
 from .allan import AllanFit, allan_deviation, fit_allan
 from .barometer import BAROMETER_PRESETS, BarometerModel, BarometerParams, isa_altitude, isa_pressure
-from .camera import CameraIntrinsics, DepthCamera, RgbCamera, d435_depth, d435_rgb, save_png
+from .camera import CameraImage, CameraIntrinsics, DepthCamera, RgbCamera, d435_depth, d435_rgb, save_png
+from .camera_component import CameraComponent
 from .geodesy import GeoPoint, enu_to_lla, lla_to_enu
 from .gps import GPS_PRESETS, GpsFix, GpsModel, GpsParams
 from .imu import IMU_PRESETS, ImuModel, ImuParams, imu_preset
@@ -28,7 +29,7 @@ __all__ = [
     "GPS_PRESETS", "GeoPoint", "GpsFix", "GpsModel", "GpsParams", "IMU_PRESETS", "ImuModel", "ImuParams",
     "MagnetometerModel", "MagnetometerParams", "NoiseSpec", "allan_deviation", "enu_to_lla", "fit_allan",
     "imu_preset", "isa_altitude", "isa_pressure", "lla_to_enu",
-    "CameraIntrinsics", "CsvPattern", "DepthCamera", "Lidar", "LidarComponent", "LidarParams", "Mid360Pattern", "PlanarPattern",
+    "CameraComponent", "CameraImage", "CameraIntrinsics", "CsvPattern", "DepthCamera", "Lidar", "LidarComponent", "LidarParams", "Mid360Pattern", "PlanarPattern",
     "PointCloud", "RgbCamera", "RosettePattern", "ScanPattern", "ScanRays", "SpinningPattern", "Transform",
     "d435_depth", "d435_rgb", "mid360_params", "patterns", "save_png",
 ]

@@ -224,3 +224,17 @@ def save_png(path: str | Path, image: np.ndarray, depth_scale: float = 1000.0) -
     png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, bit_depth, color_type, 0, 0, 0))
     png += chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b"")
     Path(path).write_bytes(png)
+
+
+@dataclasses.dataclass(frozen=True)
+class CameraImage:
+    """One camera frame as published by :class:`CameraComponent`."""
+
+    t: float
+    """Capture time [s]."""
+    image: np.ndarray
+    """(H, W) float32 depth [m] (NaN = no return) or (H, W, 3) uint8 RGB."""
+    p_W: np.ndarray
+    """(3,) body position at capture [m]."""
+    q_WB: np.ndarray
+    """(4,) body attitude at capture [w, x, y, z] (the camera pose is this composed with its T_BC)."""
