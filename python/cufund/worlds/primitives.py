@@ -96,12 +96,11 @@ def tunnel_frame(width: float, height: float, depth: float, thickness: float) ->
     w, h = _positive("width", width), _positive("height", height)
     d, th = _positive("depth", depth), _positive("thickness", thickness)
     parts = []
-    ow, oh = w + 2 * th, h + 2 * th
+    ow = w + 2 * th  # outer width: the top and bottom bars span the posts
     for size, centre in [((d, ow, th), (0, 0, (h + th) / 2)), ((d, ow, th), (0, 0, -(h + th) / 2)),
                          ((d, th, h), (0, (w + th) / 2, 0)), ((d, th, h), (0, -(w + th) / 2, 0))]:
         v, f = box(size)
         parts.append((v + np.asarray(centre, float), f))
-    del oh
     return merge(parts)
 
 
