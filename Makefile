@@ -72,6 +72,9 @@ bench: $(VENV)/.installed $(CPP_BUILD)/build.ninja
 	$(CPP_BUILD)/cpp/dynamics/bench_dynamics --benchmark_min_time=0.2
 	$(VPY) benchmarks/bench_dynamics.py
 	$(VPY) benchmarks/bench_square.py
+	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_lidar
+	$(CPP_BUILD)/cpp/lidar/bench_lidar --benchmark_min_time=0.2
+	$(VPY) benchmarks/bench_lidar.py
 
 # Regenerates the checked-in type stubs from the compiled module (tests/test_stubs.py checks them).
 stubs: $(VENV)/.installed

@@ -1,6 +1,6 @@
 """cufund: simulation and autonomy for micro aerial vehicles, with a fast C++ core."""
 
-from . import control, messages, planning, presets
+from . import control, lidar, messages, planning, presets, sensors, worlds
 from ._core import __version__
 from .components import Bus, Component, Controller, Estimator, Mapper, Planner, Recorder, Sensor
 from .config import ConfigError
@@ -9,6 +9,7 @@ from .params import QuadrotorParams
 from .quadrotor import Quadrotor, QuadrotorBatch, QuadrotorState
 from .scenario import ScenarioConfig, ScenarioRun, available_scenarios, load_scenario, run_scenario
 from .simulator import RunStatus, SimulationResult, Simulator
+from .worlds import World
 
 __all__ = [
     "Bus",
@@ -31,12 +32,16 @@ __all__ = [
     "SimulationResult",
     "Simulator",
     "Topics",
+    "World",
     "__version__",
     "available_scenarios",
     "control",
+    "lidar",
     "load_scenario",
     "messages",
     "planning",
     "presets",
     "run_scenario",
+    "sensors",
+    "worlds",
 ]

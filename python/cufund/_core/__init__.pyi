@@ -4,5 +4,6 @@ cufund's compiled core. Import the public API from `cufund`, not from here.
 from __future__ import annotations
 from . import dynamics
 from . import control
-__all__: list[str] = ['control', 'dynamics']
+from . import lidar
+__all__: list[str] = ['control', 'dynamics', 'lidar']
 __version__: str = '0.1.0'
