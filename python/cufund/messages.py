@@ -128,13 +128,31 @@ class GpsFix:
 
 @dataclass(frozen=True, slots=True)
 class PointCloud:
-    """Points from a range sensor."""
+    """One LiDAR frame: the valid returns, each stamped with its own firing time (what
+    :class:`cufund.sensors.LidarComponent` publishes on ``Topics.POINT_CLOUD``)."""
 
-    t: float
-    points_S: np.ndarray
-    """Points in the sensor frame [m], (N, 3)."""
-    T_WS: np.ndarray
-    """Sensor pose in the world as a (4, 4) homogeneous transform at time ``t``."""
+    t0: float
+    """Frame start time [s]."""
+    t: np.ndarray
+    """(N,) firing time of each point [s] (absolute, t0 <= t < t0 + period)."""
+    points_L: np.ndarray
+    """(N, 3) float32 points in the LiDAR frame at their own firing time (what a driver reports:
+    motion-distorted when the sensor moves during the frame) [m]."""
+    points_W: np.ndarray
+    """(N, 3) float32 noise-free hit points in the world frame (ground truth) [m]."""
+    ranges: np.ndarray
+    """(N,) measured ranges, noise included [m]."""
+    intensity: np.ndarray
+    """(N,) reflectivity × |cos(incidence angle)| in [0, 1]."""
+    channel: np.ndarray
+    """(N,) laser channel (ring) index."""
+    object_ids: np.ndarray
+    """(N,) id of the world object hit (geometry id of the scene)."""
+    frame: int
+    """Frame index of the pattern."""
+
+    def __len__(self) -> int:
+        return len(self.t)
 
 
 @dataclass(frozen=True, slots=True)

@@ -8,6 +8,7 @@ from typing import Union
 import numpy as np
 
 from .. import _core
+from ..messages import PointCloud
 from ..worlds.world import World
 from .patterns import ScanPattern, ScanRays
 from .pose import PoseFn, Transform, sample_poses
@@ -52,34 +53,6 @@ class LidarParams:
 def mid360_params(**overrides: object) -> LidarParams:
     """Livox Mid-360 range model: 0.1–40 m, 2 cm noise (1σ, Livox spec at 10 m)."""
     return dataclasses.replace(LidarParams(range_min=0.1, range_max=40.0, range_noise_std=0.02), **overrides)
-
-
-@dataclasses.dataclass(frozen=True)
-class PointCloud:
-    """One LiDAR frame: the valid returns, each stamped with its own firing time."""
-
-    t0: float
-    """Frame start time [s]."""
-    t: np.ndarray
-    """(N,) firing time of each point [s] (absolute, t0 <= t < t0 + period)."""
-    points_L: np.ndarray
-    """(N, 3) float32 points in the LiDAR frame at their own firing time (what a driver reports:
-    motion-distorted when the sensor moves during the frame) [m]."""
-    points_W: np.ndarray
-    """(N, 3) float32 noise-free hit points in the world frame (ground truth) [m]."""
-    ranges: np.ndarray
-    """(N,) measured ranges, noise included [m]."""
-    intensity: np.ndarray
-    """(N,) reflectivity × |cos(incidence angle)| in [0, 1]."""
-    channel: np.ndarray
-    """(N,) laser channel (ring) index."""
-    object_ids: np.ndarray
-    """(N,) id of the world object hit (geometry id of the scene)."""
-    frame: int
-    """Frame index of the pattern."""
-
-    def __len__(self) -> int:
-        return len(self.t)
 
 
 class Lidar:
