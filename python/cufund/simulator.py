@@ -14,6 +14,7 @@ import numpy as np
 from .components import Bus, Component, Estimator, Recorder, _StateUser
 from .messages import ActuatorCommand, Odometry, Topics
 from .quadrotor import Quadrotor
+from .worlds.collision import CollisionChecker, Contact
 
 __all__ = ["RunStatus", "SimulationResult", "Simulator"]
 
@@ -26,7 +27,7 @@ class RunStatus(enum.Enum):
     TIMEOUT = "timeout"
     """The duration elapsed before the ``done`` condition held."""
     CRASHED = "crashed"
-    """The vehicle hit the ground too fast or landed upside down."""
+    """The vehicle hit the ground too fast, landed upside down, or collided with a world object."""
     DIVERGED = "diverged"
     """The state became non-finite or left physical bounds."""
 
@@ -46,6 +47,8 @@ class SimulationResult:
     """``Recorder`` components' histories, by component name."""
     message: str = ""
     """Why the run ended, in words."""
+    contact: Contact | None = None
+    """For a run that CRASHED into a world object: the contact (object, label, point, normal, depth)."""
 
     @property
     def real_time_factor(self) -> float:
@@ -79,10 +82,15 @@ class Simulator:
         physics_rate_hz: physics steps per second; every component rate must divide it.
         record_rate_hz: ground-truth sampling rate for the result (defaults to the physics rate).
         record_topics: topics whose every message is kept in the result.
+        collision: checks the vehicle against a world's meshes (build it with ``ignore_labels=("floor",
+            "ground")`` to leave landing to the dynamics' ground plane).
+        collision_rate_hz: how often the collision check runs (each check costs ~20 us; at 250 Hz a vehicle at
+            5 m/s moves 2 cm between checks).
     """
 
     def __init__(self, vehicle: Quadrotor, physics_rate_hz: float = 1000.0, record_rate_hz: float | None = None,
-                 record_topics: Iterable[str] = ()) -> None:
+                 record_topics: Iterable[str] = (), collision: CollisionChecker | None = None,
+                 collision_rate_hz: float = 250.0) -> None:
         if not isinstance(vehicle, Quadrotor):
             raise TypeError(f"vehicle must be a cufund.Quadrotor, got {type(vehicle).__name__}")
         if not (isinstance(physics_rate_hz, (int, float)) and math.isfinite(physics_rate_hz) and physics_rate_hz > 0):
@@ -91,6 +99,11 @@ class Simulator:
         self.physics_rate_hz = float(physics_rate_hz)
         self.record_period = self._period("record_rate_hz", record_rate_hz or physics_rate_hz)
         self.record_topics = tuple(record_topics)
+        if collision is not None and not isinstance(collision, CollisionChecker):
+            raise TypeError(f"collision must be a cufund.worlds.CollisionChecker, got {type(collision).__name__}")
+        self.collision = collision
+        """The vehicle's shape against a world: any penetration ends the run CRASHED with the contact."""
+        self.collision_period = self._period("collision_rate_hz", collision_rate_hz)
         self.components: list[Component] = []
         self.crash_speed = 1.0
         """Downward speed at ground contact above which a run counts as crashed [m/s]."""
@@ -153,7 +166,8 @@ class Simulator:
         t0 = quad.t
         cmd = s.rotor_speeds.copy()
         rec_every = self.record_period
-        n_rec = n_steps // rec_every + 1
+        collision, coll_every, contact = self.collision, self.collision_period, None
+        n_rec = n_steps // rec_every + 2  # + a row for the state at a collision
         hist = np.empty((n_rec, 18))
         n_written = 0
         status, message = (RunStatus.COMPLETED if done is None else RunStatus.TIMEOUT), "duration elapsed"
@@ -173,6 +187,17 @@ class Simulator:
                                              accel_W.copy(), alpha_B.copy())
                             bus.publish(ground_truth, truth)
                         step(t, bus)
+            if collision is not None and k % coll_every == 0:
+                hit = collision.check(s.p, s.q)
+                if hit is not None and hit.distance < 0.0:
+                    contact = hit
+                    status = RunStatus.CRASHED
+                    message = (f"collided with {hit.label!r} (object {hit.object_id}) at "
+                               f"({hit.point_W[0]:.3f}, {hit.point_W[1]:.3f}, {hit.point_W[2]:.3f}) m at t = {t:.3f} s")
+                    hist[n_written, 0] = t
+                    hist[n_written, 1:18] = np.concatenate([s.p, s.v, s.q, s.w, s.rotor_speeds])
+                    n_written += 1
+                    break
             if k % rec_every == 0:
                 row = hist[n_written]
                 row[0] = t
@@ -209,7 +234,7 @@ class Simulator:
         topics = {topic: _stack(bus.recorded(topic)) for topic in self.record_topics}
         recordings = {c.name: c.histories() for c in self.components if isinstance(c, Recorder)}
         return SimulationResult(status=status, sim_time_s=float(h[-1, 0] - t0), wall_time_s=wall, states=states,
-                                topics=topics, recordings=recordings, message=message)
+                                topics=topics, recordings=recordings, message=message, contact=contact)
 
     def _check(self, row: np.ndarray) -> tuple[RunStatus, str] | None:
         if not math.isfinite(float(row.sum())):

@@ -34,17 +34,24 @@ class CollisionChecker:
     """The vehicle as a box (``box_size`` = full edge lengths (x, y, z) [m] in the body frame, centred
     on the body origin) or a sphere (``radius`` [m]) against every mesh of ``world``.
 
-    Objects added to the world after construction are not seen; make a new checker.
+    Objects whose label is in ``ignore_labels`` are left out (e.g. ``("floor", "ground")`` where the
+    dynamics' own ground plane handles landing). Objects added to the world after construction are not
+    seen; make a new checker.
     """
 
-    def __init__(self, world: World, box_size: object | None = None, radius: float | None = None) -> None:
+    def __init__(self, world: World, box_size: object | None = None, radius: float | None = None,
+                 ignore_labels: tuple[str, ...] = ()) -> None:
         if (box_size is None) == (radius is None):
             raise ValueError("give exactly one vehicle shape: box_size (x, y, z) [m] or radius [m]")
         self._world = world
         self._labels = world.labels()
         self._cw = _core.dynamics.CollisionWorld()
-        for obj in world.objects:
+        self._object_ids: list[int] = []  # world object id of each mesh given to Bullet
+        for oid, obj in enumerate(world.objects):
+            if obj.label in ignore_labels:
+                continue
             self._cw.add_mesh(obj.vertices, obj.triangles)
+            self._object_ids.append(oid)
         if box_size is not None:
             size = np.asarray(box_size, dtype=float)
             if size.shape != (3,):
@@ -59,6 +66,6 @@ class CollisionChecker:
         c = self._cw.check(p_W, q_WB, margin)
         if c is None:
             return None
-        oid = int(c["object_id"])
+        oid = self._object_ids[int(c["object_id"])]
         return Contact(oid, self._labels[oid], np.asarray(c["point_W"]), np.asarray(c["normal_W"]),
                        float(c["distance"]))
