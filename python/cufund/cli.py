@@ -11,6 +11,7 @@ from pathlib import Path
 
 from .config import ConfigError
 from .scenario import available_scenarios, load_scenario, run_scenario
+from .sensors import allan_report
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -31,11 +32,21 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--viz", action="store_true", help="stream the run live to MeshCat (http on 127.0.0.1)")
     run.add_argument("--no-replay", action="store_true", help="skip replay.html")
     sub.add_parser("list", help="list the built-in scenarios")
+    allan = sub.add_parser("allan", help="simulate a static IMU and compare its Allan deviation with its noise model",
+                           description="Simulates a static IMU and writes imu.npz (raw samples), allan.png and "
+                                       "allan.json (fitted vs configured noise density and bias random walk, per axis).")
+    allan_report.add_arguments(allan)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if args.command == "allan":
+        try:
+            return allan_report.run(args)
+        except ValueError as e:
+            print(f"cufund: {e}", file=sys.stderr)
+            return 2
     if args.command == "list":
         for name, desc in available_scenarios().items():
             print(f"{name:<12} {desc}")

@@ -28,6 +28,11 @@ def from_dict(cls: type[T], data: Any, where: str | None = None) -> T:
     unknown = sorted(set(data) - set(names))
     if unknown:
         raise ConfigError(f"unknown key {unknown[0]!r} in {where}; expected one of: {', '.join(names)}")
+    required = [f.name for f in dataclasses.fields(cls)  # type: ignore[arg-type]
+                if f.init and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    missing = [name for name in required if name not in data]
+    if missing:
+        raise ConfigError(f"missing key {missing[0]!r} in {where}; required: {', '.join(required)}")
     return cls(**data)
 
 

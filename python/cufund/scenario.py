@@ -162,10 +162,7 @@ class SensorsConfig:
             if value not in known:
                 raise ConfigError(f"sensors.{kind} must be one of {', '.join(known)} or a mapping, got {value!r}")
             return known[value]()
-        try:
-            return from_dict(cls, value, f"sensors.{kind}")
-        except TypeError as e:
-            raise ConfigError(f"sensors.{kind}: {e}") from None
+        return from_dict(cls, value, f"sensors.{kind}")
 
     def components(self, seed: int, gravity: float) -> list[Any]:
         """The attached sensors as simulator components, each with its own seed."""
@@ -207,7 +204,7 @@ class ScenarioConfig:
         elif isinstance(self.vehicle, dict):
             try:
                 QuadrotorParams.from_dict(self.vehicle)
-            except (TypeError, ValueError) as e:  # TypeError: a required field is missing
+            except ValueError as e:
                 raise ConfigError(f"vehicle: {e}") from None
         else:
             raise ConfigError(f"vehicle must be a preset name or a mapping, got {type(self.vehicle).__name__}")
