@@ -4,7 +4,9 @@
    clock) vs RotorPy's ``Environment`` with its ``SE3Control``, same vehicle (the Crazyflie: cufund's preset
    has RotorPy's numbers), same reference (take-off, min-snap square, landing; fed to RotorPy through an
    adapter), same rates: physics 1 kHz, controller and setpoints 1 kHz (RotorPy runs its controller once per
-   simulator step). cufund at its default rates (controller 500 Hz, setpoints 250 Hz) is printed too.
+   simulator step; its Environment also samples its default IMU). cufund at its default rates (controller
+   500 Hz, setpoints 250 Hz), and at matched rates with the inertial and navigation sensors of the
+   ``square_sensors`` scenario attached, are printed too.
 2. Minimum-snap solve time for 5, 20 and 100 random waypoints: cufund's ``MinimumSnapTrajectory`` (automatic
    time allocation: two banded solves and a speed/acceleration check) vs RotorPy's ``MinSnap`` (its own time
    allocation and cvxopt QPs), and cufund given RotorPy's segment times (one solve).
@@ -33,6 +35,8 @@ def bench_real_time_factor() -> None:
     same = base.replace(rates=RatesConfig(physics_hz=1000, trajectory_hz=1000, geometric_hz=1000))
     ours_same = run_scenario(same)
     ours_default = run_scenario(base)
+    sensors = load_scenario("square_sensors").sensors  # ICM-42688-P IMU, magnetometer, MS5611, u-blox M8N
+    ours_sensors = run_scenario(same.replace(sensors=sensors))
     reference, _ = build_reference(base.trajectory)
 
     class Adapter:
@@ -57,7 +61,8 @@ def bench_real_time_factor() -> None:
     print("Square case study, Crazyflie, geometric/SE3 controller, physics 1 kHz")
     print(f"  RotorPy Environment   (control 1 kHz): {t_final:6.2f} s simulated in {wall:7.2f} s  RTF {rp_rtf:7.2f}"
           f"  (exit {res['exit'].value}; RMSE vs reference {np.sqrt(np.mean(p_err ** 2)):.4f} m)")
-    for label, run in (("cufund (control 1 kHz)      ", ours_same), ("cufund (control 500 Hz, default)", ours_default)):
+    for label, run in (("cufund (control 1 kHz)      ", ours_same), ("cufund (control 500 Hz, default)", ours_default),
+                       ("cufund (control 1 kHz) + IMU, magnetometer, barometer, GPS", ours_sensors)):
         m = run.metrics
         print(f"  {label}: {m['sim_time_s']:6.2f} s simulated in {m['wall_time_s']:7.2f} s  RTF {m['real_time_factor']:7.2f}"
               f"  -> {m['real_time_factor'] / rp_rtf:6.1f}x RotorPy  (status {m['status']}; min-snap RMSE "
