@@ -17,7 +17,7 @@ def test_square_is_listed_and_loads():
     ({"controller": {"kind": "lqr"}}, "controller.kind must be 'pid' or 'geometric'"),
     ({"controller": {"position": {"xy_pp": 1}}}, "unknown key 'xy_pp' in controller.position"),
     ({"controller": {"rate": {"roll_p": -1}}}, "RateControlParams.roll_p must be a finite number >= 0"),
-    ({"rates": {"physics_hz": 0}}, "rates.physics_hz must be a number > 0"),
+    ({"rates": {"physics_hz": 0}}, "rates.physics_hz must be a finite number > 0"),
     ({"trajectory": {"waypoints": [[0, 0, 1]]}}, "trajectory.waypoints must be a list of at least 2"),
     ({"trajectory": {"waypoints": [[0, 0, 1], [1, 0, 0]]}}, "above 0.1 m"),
     ({"trajectory": {"v_max": 0}}, "trajectory.v_max must be a number > 0"),

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from . import presets
-from .config import ConfigError, from_dict, load_yaml
+from .config import ConfigError, check_real_fields, from_dict, load_yaml
 from .control import (AttitudeControlParams, AttitudeController, GeometricControlParams, GeometricController,
                       PositionControlParams, PositionController, RateControlParams, RateController)
 from .messages import Topics
@@ -53,11 +53,7 @@ class RatesConfig:
     """Geometric controller."""
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise ConfigError(f"rates.{f.name} must be a number > 0 [Hz], got {v!r}")
-            object.__setattr__(self, f.name, float(v))
+        check_real_fields(self, "rates", positive=True, unit=" [Hz]")
 
 
 @dataclass(frozen=True)

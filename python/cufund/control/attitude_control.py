@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import check_real_fields
 from ..components import Bus, Controller
 from ..messages import AttitudeSetpoint, Odometry, RateSetpoint, Topics
 from .rotations import quat_conjugate, quat_from_two_vectors, quat_multiply, quat_to_rotation
@@ -32,10 +33,7 @@ class AttitudeControlParams:
     """(MC_YAWRATE_MAX)"""
 
     def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-                raise ValueError(f"AttitudeControlParams.{name} must be a finite number > 0, got {value!r}")
-            object.__setattr__(self, name, float(value))
+        check_real_fields(self, "AttitudeControlParams", positive=True)
 
 
 class AttitudeController(Controller):

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _core
+from ..config import check_real_fields
 from ..components import Bus, Controller
 from ..messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, ThrustTorqueSetpoint, Topics
 from ..params import QuadrotorParams
@@ -45,10 +46,7 @@ class GeometricControlParams:
     """Body-rate gain about body z [rad/s^2 per rad/s]."""
 
     def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise ValueError(f"GeometricControlParams.{name} must be a finite number >= 0, got {value!r}")
-            object.__setattr__(self, name, float(value))
+        check_real_fields(self, "GeometricControlParams")
 
 
 class GeometricController(Controller):

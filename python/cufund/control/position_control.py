@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import check_real_fields
 from ..components import Bus, Controller
 from ..messages import AttitudeSetpoint, FlightMode, Odometry, Topics
 from ..params import QuadrotorParams
@@ -54,10 +55,7 @@ class PositionControlParams:
     """Highest collective thrust as a fraction of the maximum (MPC_THR_MAX)."""
 
     def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise ValueError(f"PositionControlParams.{name} must be a finite number >= 0, got {value!r}")
-            object.__setattr__(self, name, float(value))
+        check_real_fields(self, "PositionControlParams")
         if not 0 < self.tilt_max < math.pi / 2:
             raise ValueError(f"PositionControlParams.tilt_max must be in (0, pi/2) rad, got {self.tilt_max}")
         if not 0 <= self.thr_min < self.thr_max <= 1:

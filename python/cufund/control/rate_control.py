@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import check_real_fields
 from ..components import Bus, Controller
 from ..messages import ActuatorCommand, Odometry, RateSetpoint, ThrustTorqueSetpoint, Topics
 from ..params import QuadrotorParams
@@ -49,10 +50,7 @@ class RateControlParams:
     """Low-pass cutoff of the rate derivative used by D [Hz] (IMU_DGYRO_CUTOFF)."""
 
     def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise ValueError(f"RateControlParams.{name} must be a finite number >= 0, got {value!r}")
-            object.__setattr__(self, name, float(value))
+        check_real_fields(self, "RateControlParams")
 
 
 class RateController(Controller):
