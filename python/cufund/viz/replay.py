@@ -52,8 +52,9 @@ def replay_html(result: SimulationResult, params: QuadrotorParams, planned: Traj
             if planned is not None:
                 frame[SETPOINT].set_transform(pose_matrix(sp[k], np.array([1.0, 0, 0, 0])))
     vis.set_animation(anim, play=True, repetitions=1)
-    # camera position in MeshCat's y-up camera frame (world x, z, -y): south-east of the square, above it
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [1.2, 2.0, 1.8])
+    # Camera position in MeshCat's y-up camera frame, (world x, world z, -world y): 3.5 m south-east of the
+    # origin and 3.5 m up, far enough that the square, the ground grid and the climb are all in view.
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [3.0, 3.5, 3.5])
     return viewer_page(window.commands)
 
 
