@@ -52,9 +52,9 @@ def replay_html(result: SimulationResult, params: QuadrotorParams, planned: Traj
             if planned is not None:
                 frame[SETPOINT].set_transform(pose_matrix(sp[k], np.array([1.0, 0, 0, 0])))
     vis.set_animation(anim, play=True, repetitions=1)
-    # Camera position in MeshCat's y-up camera frame, (world x, world z, -world y): 3.5 m south-east of the
-    # origin and 3.5 m up, far enough that the square, the ground grid and the climb are all in view.
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [3.0, 3.5, 3.5])
+    # Camera position in MeshCat's y-up camera frame, (world x, world z, -world y): 2.6 m south-east of the
+    # origin and 2.6 m up, far enough that the square, the ground grid and the climb are all in view.
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [2.0, 2.6, 2.6])
     return viewer_page(window.commands)
 
 
