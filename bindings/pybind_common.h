@@ -65,5 +65,6 @@ inline py::array soa_view(double* data, std::size_t n, int rows, py::handle owne
 }
 
 void define_dynamics(py::module_& m);
+void define_esdf(py::module_& m);
 
 }  // namespace cufund::py_bind

@@ -1,6 +1,6 @@
 """cufund: simulation and autonomy for micro aerial vehicles, with a fast C++ core."""
 
-from . import presets
+from . import esdf, presets
 from ._core import __version__
 from .config import ConfigError
 from .params import QuadrotorParams
@@ -13,5 +13,6 @@ __all__ = [
     "QuadrotorParams",
     "QuadrotorState",
     "__version__",
+    "esdf",
     "presets",
 ]
