@@ -14,7 +14,7 @@ EsdfMap::EsdfMap(const GridGeometry& geometry, const SensorModel& model, const E
   recompute();
 }
 
-const std::vector<std::int32_t>& EsdfMap::inside_squared() const {
+std::vector<std::int32_t> EsdfMap::inside_squared() const {
   return inside_ ? inside_->squared_distance() : outside_.squared_distance();
 }
 
@@ -60,10 +60,10 @@ double EsdfMap::voxel_distance(Index i) const {
   const double inf = std::numeric_limits<double>::infinity();
   const double h = grid_.geometry().resolution;
   if (inside_ && grid_.occupied(i)) {
-    const std::int32_t s = inside_->squared_distance()[static_cast<std::size_t>(i)];
+    const std::int32_t s = inside_->squared_distance_at(i);
     return s == IncrementalEdt::kNoSite ? -inf : -std::sqrt(static_cast<double>(s)) * h;
   }
-  const std::int32_t s = outside_.squared_distance()[static_cast<std::size_t>(i)];
+  const std::int32_t s = outside_.squared_distance_at(i);
   return s == IncrementalEdt::kNoSite ? inf : std::sqrt(static_cast<double>(s)) * h;
 }
 

@@ -44,8 +44,8 @@ class EsdfMap {
   // when the grid has no occupied voxel (-inf inside when it has no free one).
   double voxel_distance(Index i) const;
   // Squared distances [voxels^2] of the outside and inside transforms (IncrementalEdt::kNoSite: none).
-  const std::vector<std::int32_t>& outside_squared() const { return outside_.squared_distance(); }
-  const std::vector<std::int32_t>& inside_squared() const;
+  std::vector<std::int32_t> outside_squared() const { return outside_.squared_distance(); }
+  std::vector<std::int32_t> inside_squared() const;
 
   // Trilinear interpolation of the voxel-centre distances at n points p_W (n x 3): distance[k] [m] and,
   // if grad_W is not null, its exact gradient (n x 3) [m/m]. Points beyond the outermost voxel centres

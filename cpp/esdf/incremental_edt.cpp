@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include "edt.h"
 #include "edt_line.h"
@@ -16,36 +17,22 @@ inline double to_double(std::int32_t v) { return v == IncrementalEdt::kNoSite ? 
 // Lower envelopes of integer data are integers, exact in double for any grid that fits in memory.
 inline std::int32_t to_int(double v) { return v == kInf ? IncrementalEdt::kNoSite : static_cast<std::int32_t>(v); }
 
-// Per-thread line buffers.
-struct Scratch {
+// Full stage-2 passes run on groups of this many neighbouring lines along x, whose outputs share
+// cache lines (16 int32 = 64 bytes).
+constexpr Index kGroup = 16;
+// A stage falls back to a full pass when its changed positions exceed 1/kFullPassFactor of the grid.
+constexpr Index kFullPassFactor = 8;
+
+}  // namespace
+
+struct IncrementalEdt::Scratch {
   explicit Scratch(Index n)
-      : f(static_cast<std::size_t>(n)), d(static_cast<std::size_t>(n)), v(static_cast<std::size_t>(n)),
-        z(static_cast<std::size_t>(n + 1)) {}
+      : f(static_cast<std::size_t>(kGroup * n)), d(static_cast<std::size_t>(kGroup * n)),
+        v(static_cast<std::size_t>(n)), z(static_cast<std::size_t>(n + 1)) {}
   std::vector<double> f, d;
   std::vector<Index> v;
   std::vector<double> z;
 };
-
-// Merges per-thread lists into one sorted list without duplicates, using `flag` (all zero on entry
-// and on return) to deduplicate.
-std::vector<Index> merge_unique(std::vector<std::vector<Index>>& lists, std::vector<std::uint8_t>& flag) {
-  std::vector<Index> merged;
-  for (auto& list : lists) {
-    for (Index i : list) {
-      auto& f = flag[static_cast<std::size_t>(i)];
-      if (!f) {
-        f = 1;
-        merged.push_back(i);
-      }
-    }
-    list.clear();
-  }
-  for (Index i : merged) flag[static_cast<std::size_t>(i)] = 0;
-  std::sort(merged.begin(), merged.end());
-  return merged;
-}
-
-}  // namespace
 
 IncrementalEdt::IncrementalEdt(const std::array<Index, 3>& shape)
     : shape_(shape),
@@ -53,57 +40,192 @@ IncrementalEdt::IncrementalEdt(const std::array<Index, 3>& shape)
       g1_(static_cast<std::size_t>(size()), kNoSite),
       g2_(static_cast<std::size_t>(size()), kNoSite),
       g3_(static_cast<std::size_t>(size()), kNoSite),
-      column_flag_(static_cast<std::size_t>(shape[0] * shape[1]), 0),
-      y_flag_(static_cast<std::size_t>(shape[0] * shape[2]), 0),
-      x_flag_(static_cast<std::size_t>(shape[1] * shape[2]), 0) {}
+      merge_slot_(static_cast<std::size_t>(std::max({shape[0] * shape[1], shape[0] * shape[2], shape[1] * shape[2]})),
+                  -1) {}
 
-// Stage 1: column c = (ix, iy), squared distance to the nearest site along z.
-void IncrementalEdt::column(Index c, std::vector<double>& buf, std::vector<Index>* changed) {
-  const Index nz = shape_[2];
-  const Index base = c * nz;
-  squared_distance_to_sites_1d(sites_.data() + base, 1, nz, 1.0, buf.data());
+IncrementalEdt::LineView IncrementalEdt::view(int stage, Index line) {
+  const Index nx = shape_[0], ny = shape_[1], nz = shape_[2];
+  if (stage == 2) {  // input g1[ix][iz][:], output g2[iz][:][ix]
+    const Index iz = line / nx, ix = line % nx;
+    return {ny, g1_.data() + (ix * nz + iz) * ny, g2_.data() + iz * ny * nx + ix, nx};
+  }
+  return {nx, g2_.data() + line * nx, g3_.data() + line * nx, 1};  // g2[iz][iy][:] -> g3[iz][iy][:]
+}
+
+void IncrementalEdt::column(Index c, std::vector<double>& buf, std::vector<std::pair<Index, Index>>* changed) {
+  const Index nx = shape_[0], ny = shape_[1], nz = shape_[2];
+  const Index ix = c / ny, iy = c % ny;
+  squared_distance_to_sites_1d(sites_.data() + c * nz, 1, nz, 1.0, buf.data());
   for (Index q = 0; q < nz; ++q) {
     const std::int32_t nv = to_int(buf[static_cast<std::size_t>(q)]);
-    std::int32_t& old = g1_[static_cast<std::size_t>(base + q)];
+    std::int32_t& old = g1_[static_cast<std::size_t>((ix * nz + q) * ny + iy)];
     if (nv != old) {
       old = nv;
-      if (changed) changed->push_back((c / shape_[1]) * nz + q);  // y-line (ix, iz)
+      if (changed) changed->emplace_back(q * nx + ix, iy);  // stage-2 line (iz = q, ix), position iy
     }
   }
 }
 
-// Stage 2: y-line l = (ix, iz), lower envelope of stage 1 along y.
-void IncrementalEdt::y_line(Index l, std::vector<double>& f, std::vector<double>& d, std::vector<Index>& v,
-                            std::vector<double>& z, std::vector<Index>* changed) {
-  const Index ny = shape_[1], nz = shape_[2];
-  const Index ix = l / nz, iz = l % nz;
-  const Index base = ix * ny * nz + iz;
-  for (Index q = 0; q < ny; ++q) f[static_cast<std::size_t>(q)] = to_double(g1_[static_cast<std::size_t>(base + q * nz)]);
-  lower_envelope_1d(f.data(), d.data(), ny, 1.0, v.data(), z.data());
-  for (Index q = 0; q < ny; ++q) {
-    const std::int32_t nv = to_int(d[static_cast<std::size_t>(q)]);
-    std::int32_t& old = g2_[static_cast<std::size_t>(base + q * nz)];
-    if (nv != old) {
-      old = nv;
-      if (changed) changed->push_back(q * nz + iz);  // x-line (iy, iz)
+void IncrementalEdt::full_pass(int stage, int nthreads, Changes* changed, Index* n_changed) {
+  const Index nx = shape_[0], ny = shape_[1], nz = shape_[2];
+  const Index lines = stage == 2 ? nx * nz : ny * nz;
+  const Index group = stage == 2 ? kGroup : 1;
+  const Index groups = (lines + group - 1) / group;
+  const Index n = stage == 2 ? ny : nx;
+  Index total = 0;
+#pragma omp parallel num_threads(nthreads) reduction(+ : total)
+  {
+    Scratch s(n);
+    auto* out = changed ? &(*changed)[static_cast<std::size_t>(omp_get_thread_num())] : nullptr;
+#pragma omp for schedule(static)
+    for (Index g = 0; g < groups; ++g) {
+      const Index first = g * group, count = std::min(group, lines - first);
+      LineView v[kGroup];
+      for (Index j = 0; j < count; ++j) {
+        v[j] = view(stage, first + j);
+        double* f = s.f.data() + j * n;
+        for (Index q = 0; q < n; ++q) f[q] = to_double(v[j].in[q]);
+        lower_envelope_1d(f, s.d.data() + j * n, n, 1.0, s.v.data(), s.z.data());
+      }
+      for (Index q = 0; q < n; ++q) {  // q outer: a group writes whole cache lines
+        for (Index j = 0; j < count; ++j) {
+          const std::int32_t nv = to_int(s.d[static_cast<std::size_t>(j * n + q)]);
+          std::int32_t& o = v[j].out[q * v[j].out_stride];
+          if (o != nv) {
+            o = nv;
+            ++total;
+            if (out) {  // stage-3 line (iz, iy = q), position ix
+              const Index line = first + j;
+              out->emplace_back((line / nx) * ny + q, line % nx);
+            }
+          }
+        }
+      }
+    }
+  }
+  if (n_changed) *n_changed = total;
+}
+
+void IncrementalEdt::update_line(int stage, const LineWork& work, const std::vector<Index>& positions, Scratch& s,
+                                 std::vector<std::pair<Index, Index>>* changed, Index* n_changed) {
+  const Index nx = shape_[0], ny = shape_[1];
+  const LineView v = view(stage, work.line);
+  const Index n = v.n;
+  const auto old = [&](Index q) { return v.out[q * v.out_stride]; };
+  // q is in a window of p when (q - p)^2 <= old(q). Distances along a line are 1-Lipschitz, so going
+  // outwards from p, once q is out, every further q is out.
+  const auto within = [&](Index q, Index p) {
+    const std::int32_t g = old(q);
+    const Index d = q - p;
+    return g == kNoSite || d * d <= static_cast<Index>(g);
+  };
+  const Index* pos = positions.data() + work.begin;
+  const Index k = work.end - work.begin;
+  Index i = 0, prev_hi = -1;
+  while (i < k) {
+    // One output window [lo, hi]: grown left from the first changed position, right from the last,
+    // absorbing changed positions it reaches.
+    Index lo = pos[i];
+    while (lo > prev_hi + 1 && within(lo - 1, pos[i])) --lo;
+    Index hi = pos[i], last = pos[i];
+    ++i;
+    for (;;) {
+      while (hi < n - 1 && within(hi + 1, last)) ++hi;
+      if (i < k && pos[i] <= hi + 1) {
+        last = pos[i++];
+        hi = std::max(hi, last);
+        continue;
+      }
+      break;
+    }
+    prev_hi = hi;
+    // Input window: every site that can be nearest to some q in [lo, hi]. Start from the old
+    // distances (enough where distances only shrink: the nearest site is then within sqrt(old(q)))
+    // and widen until provably enough: a site outside [wlo, whi] is at least (q - wlo + 1) or
+    // (whi + 1 - q) away from q.
+    Index wlo = lo, whi = hi;
+    for (Index q = lo; q <= hi && (wlo > 0 || whi < n - 1); ++q) {
+      const std::int32_t g = old(q);
+      const Index r = g == kNoSite ? n : static_cast<Index>(std::ceil(std::sqrt(static_cast<double>(g))));
+      wlo = std::max(Index{0}, std::min(wlo, q - r));
+      whi = std::min(n - 1, std::max(whi, q + r));
+    }
+    for (;;) {
+      const Index m = whi - wlo + 1;
+      for (Index q = wlo; q <= whi; ++q) s.f[static_cast<std::size_t>(q - wlo)] = to_double(v.in[q]);
+      lower_envelope_1d(s.f.data(), s.d.data(), m, 1.0, s.v.data(), s.z.data());
+      bool exact = true;
+      for (Index q = lo; q <= hi && exact; ++q) {
+        const double r = s.d[static_cast<std::size_t>(q - wlo)];
+        const double left = static_cast<double>(q - wlo + 1), right = static_cast<double>(whi + 1 - q);
+        exact = !((wlo > 0 && r > left * left) || (whi < n - 1 && r > right * right));
+      }
+      if (!exact) {  // some distance grew: widen both sides by the window's length
+        wlo = std::max(Index{0}, wlo - m);
+        whi = std::min(n - 1, whi + m);
+        continue;
+      }
+      for (Index q = lo; q <= hi; ++q) {
+        const std::int32_t nv = to_int(s.d[static_cast<std::size_t>(q - wlo)]);
+        std::int32_t& o = v.out[q * v.out_stride];
+        if (o != nv) {
+          o = nv;
+          ++*n_changed;
+          if (changed) {  // stage-3 line (iz, iy = q), position ix
+            const Index iz = work.line / nx, ix = work.line % nx;
+            changed->emplace_back(iz * ny + q, ix);
+          }
+        }
+      }
+      break;
     }
   }
 }
 
-// Stage 3: x-line l = (iy, iz), lower envelope of stage 2 along x.
-void IncrementalEdt::x_line(Index l, std::vector<double>& f, std::vector<double>& d, std::vector<Index>& v,
-                            std::vector<double>& z, Index* changed) {
-  const Index nx = shape_[0], stride = shape_[1] * shape_[2];
-  for (Index q = 0; q < nx; ++q) f[static_cast<std::size_t>(q)] = to_double(g2_[static_cast<std::size_t>(l + q * stride)]);
-  lower_envelope_1d(f.data(), d.data(), nx, 1.0, v.data(), z.data());
-  for (Index q = 0; q < nx; ++q) {
-    const std::int32_t nv = to_int(d[static_cast<std::size_t>(q)]);
-    std::int32_t& old = g3_[static_cast<std::size_t>(l + q * stride)];
-    if (nv != old) {
-      old = nv;
-      ++*changed;
+IncrementalEdt::Work IncrementalEdt::merge(Changes& changes) {
+  Work w;
+  // Count per line, then bucket the positions by line.
+  for (const auto& list : changes) {
+    for (const auto& [line, pos] : list) {
+      Index& slot = merge_slot_[static_cast<std::size_t>(line)];
+      if (slot < 0) {
+        slot = static_cast<Index>(w.lines.size());
+        w.lines.push_back({line, 0, 0});
+      }
+      ++w.lines[static_cast<std::size_t>(slot)].end;
     }
   }
+  std::sort(w.lines.begin(), w.lines.end(), [](const LineWork& a, const LineWork& b) { return a.line < b.line; });
+  Index offset = 0;
+  for (std::size_t j = 0; j < w.lines.size(); ++j) {
+    LineWork& l = w.lines[j];
+    merge_slot_[static_cast<std::size_t>(l.line)] = static_cast<Index>(j);
+    l.begin = offset;
+    offset += l.end;
+    l.end = l.begin;  // fill cursor
+  }
+  w.positions.resize(static_cast<std::size_t>(offset));
+  for (auto& list : changes) {
+    for (const auto& [line, pos] : list) {
+      LineWork& l = w.lines[static_cast<std::size_t>(merge_slot_[static_cast<std::size_t>(line)])];
+      w.positions[static_cast<std::size_t>(l.end++)] = pos;
+    }
+    list.clear();
+  }
+  for (const LineWork& l : w.lines) merge_slot_[static_cast<std::size_t>(l.line)] = -1;
+  // Sort and deduplicate each line's positions in place (the compacted tail is left unused).
+  for (LineWork& l : w.lines) {
+    auto b = w.positions.begin() + l.begin, e = w.positions.begin() + l.end;
+    std::sort(b, e);
+    l.end = l.begin + (std::unique(b, e) - b);
+  }
+  return w;
+}
+
+std::vector<std::int32_t> IncrementalEdt::squared_distance() const {
+  std::vector<std::int32_t> out(static_cast<std::size_t>(size()));
+  for (Index i = 0; i < size(); ++i) out[static_cast<std::size_t>(i)] = squared_distance_at(i);
+  return out;
 }
 
 void IncrementalEdt::reset(const std::uint8_t* sites, int nthreads) {
@@ -114,27 +236,23 @@ void IncrementalEdt::reset(const std::uint8_t* sites, int nthreads) {
 void IncrementalEdt::recompute(int nthreads) {
   const int nt = resolve_threads(nthreads);
   const Index nx = shape_[0], ny = shape_[1], nz = shape_[2];
-  const Index longest = std::max({nx, ny, nz});
 #pragma omp parallel num_threads(nt)
   {
-    Scratch s(longest);
-    Index unused = 0;
+    std::vector<double> buf(static_cast<std::size_t>(nz));
 #pragma omp for schedule(static)
-    for (Index c = 0; c < nx * ny; ++c) column(c, s.f, nullptr);
-#pragma omp for schedule(static)
-    for (Index l = 0; l < nx * nz; ++l) y_line(l, s.f, s.d, s.v, s.z, nullptr);
-#pragma omp for schedule(static)
-    for (Index l = 0; l < ny * nz; ++l) x_line(l, s.f, s.d, s.v, s.z, &unused);
+    for (Index c = 0; c < nx * ny; ++c) column(c, buf, nullptr);
   }
+  full_pass(2, nt, nullptr, nullptr);
+  full_pass(3, nt, nullptr, nullptr);
 }
 
 IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, const std::vector<std::uint8_t>& value,
                                            int nthreads) {
   const int nt = resolve_threads(nthreads);
-  const Index nx = shape_[0], ny = shape_[1], nz = shape_[2];
-  const Index longest = std::max({nx, ny, nz});
+  const Index nz = shape_[2];
+  const Index longest = std::max({shape_[0], shape_[1], shape_[2]});
   IncrementalEdtStats stats;
-  std::vector<std::vector<Index>> lists(static_cast<std::size_t>(nt));
+  Changes changes(static_cast<std::size_t>(nt));
 
   // Apply the site changes; the columns holding a changed voxel are stage 1's work.
   for (std::size_t k = 0; k < index.size(); ++k) {
@@ -142,43 +260,46 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
     const std::uint8_t nv = value[k] ? 1 : 0;
     if (sites_[static_cast<std::size_t>(i)] != nv) {
       sites_[static_cast<std::size_t>(i)] = nv;
-      lists[0].push_back(i / nz);
+      changes[0].emplace_back(i / nz, i % nz);
     }
   }
   // A voxel toggled twice in one call is counted once per toggle; the stats are informative only.
-  stats.changed_sites = static_cast<Index>(lists[0].size());
-  const std::vector<Index> columns = merge_unique(lists, column_flag_);
-  stats.columns = static_cast<Index>(columns.size());
+  stats.changed_sites = static_cast<Index>(changes[0].size());
+  const Work columns = merge(changes);
+  stats.columns = static_cast<Index>(columns.lines.size());
 
-  const Index n_columns = static_cast<Index>(columns.size());
+  const Index n_columns = stats.columns;
 #pragma omp parallel num_threads(nt)
   {
     std::vector<double> buf(static_cast<std::size_t>(nz));
-    auto& out = lists[static_cast<std::size_t>(omp_get_thread_num())];
+    auto& out = changes[static_cast<std::size_t>(omp_get_thread_num())];
 #pragma omp for schedule(dynamic, 16)
-    for (Index k = 0; k < n_columns; ++k) column(columns[static_cast<std::size_t>(k)], buf, &out);
+    for (Index k = 0; k < n_columns; ++k) column(columns.lines[static_cast<std::size_t>(k)].line, buf, &out);
   }
-  const std::vector<Index> y_lines = merge_unique(lists, y_flag_);
-  stats.y_lines = static_cast<Index>(y_lines.size());
 
-  const Index n_y = static_cast<Index>(y_lines.size());
-#pragma omp parallel num_threads(nt)
-  {
-    Scratch s(longest);
-    auto& out = lists[static_cast<std::size_t>(omp_get_thread_num())];
-#pragma omp for schedule(dynamic, 16)
-    for (Index k = 0; k < n_y; ++k) y_line(y_lines[static_cast<std::size_t>(k)], s.f, s.d, s.v, s.z, &out);
-  }
-  const std::vector<Index> x_lines = merge_unique(lists, x_flag_);
-  stats.x_lines = static_cast<Index>(x_lines.size());
-
-  const Index n_x = static_cast<Index>(x_lines.size());
   Index changed = 0;
-#pragma omp parallel num_threads(nt) reduction(+ : changed)
-  {
-    Scratch s(longest);
-#pragma omp for schedule(dynamic, 16)
-    for (Index k = 0; k < n_x; ++k) x_line(x_lines[static_cast<std::size_t>(k)], s.f, s.d, s.v, s.z, &changed);
+  for (int stage = 2; stage <= 3; ++stage) {
+    const Work work = merge(changes);
+    (stage == 2 ? stats.y_lines : stats.x_lines) = static_cast<Index>(work.lines.size());
+    const Index n_lines = static_cast<Index>(work.lines.size());
+    Index stage_changed = 0;
+    // When much of the grid changed (e.g. the first scans), one full pass is cheaper than the windows
+    // (each changed position costs about a window of 2 * distance voxels).
+    if (static_cast<Index>(work.positions.size()) * kFullPassFactor > size()) {
+      full_pass(stage, nt, stage == 2 ? &changes : nullptr, &stage_changed);
+      if (stage == 3) changed = stage_changed;
+      continue;
+    }
+#pragma omp parallel num_threads(nt) reduction(+ : stage_changed)
+    {
+      Scratch s(longest);
+      auto* out = stage == 2 ? &changes[static_cast<std::size_t>(omp_get_thread_num())] : nullptr;
+#pragma omp for schedule(dynamic, 8)
+      for (Index k = 0; k < n_lines; ++k) {
+        update_line(stage, work.lines[static_cast<std::size_t>(k)], work.positions, s, out, &stage_changed);
+      }
+    }
+    if (stage == 3) changed = stage_changed;
   }
   stats.changed_distances = changed;
   return stats;

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <utility>
 #include <vector>
 
 namespace cufund::esdf {
@@ -43,21 +44,58 @@ class IncrementalEdt {
   // Indices must be in [0, size()); repeated indices take the last value.
   IncrementalEdtStats update(const std::vector<Index>& index, const std::vector<std::uint8_t>& value, int nthreads);
 
-  // Squared distance [voxels^2] from each voxel centre to the nearest site centre; kNoSite if none.
-  const std::vector<std::int32_t>& squared_distance() const { return g3_; }
+  // Squared distance [voxels^2] from voxel i = (ix * ny + iy) * nz + iz to the nearest site centre;
+  // kNoSite if there is none.
+  std::int32_t squared_distance_at(Index i) const {
+    const Index nx = shape_[0], ny = shape_[1], nz = shape_[2];
+    const Index ix = i / (ny * nz), iy = (i / nz) % ny, iz = i % nz;
+    return g3_[static_cast<std::size_t>((iz * ny + iy) * nx + ix)];
+  }
+  // All of them, in the grid's C order (a copy).
+  std::vector<std::int32_t> squared_distance() const;
 
  private:
-  // Stage computations for one line; each returns through `changed` the positions whose value changed.
-  void column(Index c, std::vector<double>& buf, std::vector<Index>* changed);
-  void y_line(Index l, std::vector<double>& f, std::vector<double>& d, std::vector<Index>& v,
-              std::vector<double>& z, std::vector<Index>* changed);
-  void x_line(Index l, std::vector<double>& f, std::vector<double>& d, std::vector<Index>& v,
-              std::vector<double>& z, Index* changed);
+  struct Scratch;
+  // Lines of a stage whose input changed, with the changed positions: line `line` changed at
+  // positions[begin..end) (sorted, distinct).
+  struct LineWork {
+    Index line, begin, end;
+  };
+  struct Work {
+    std::vector<LineWork> lines;  // sorted by line
+    std::vector<Index> positions;
+  };
+  using Changes = std::vector<std::vector<std::pair<Index, Index>>>;  // per thread: (line, position)
+
+  // Stage-2 line iz * nx + ix runs along y; stage-3 line iz * ny + iy runs along x.
+  struct LineView {
+    Index n;                 // length
+    const std::int32_t* in;  // input, contiguous
+    std::int32_t* out;       // output, stride out_stride
+    Index out_stride;
+  };
+  LineView view(int stage, Index line);
+
+  // Stage 1 for column c = ix * ny + iy; appends (stage-2 line, position iy) where g1 changed.
+  void column(Index c, std::vector<double>& buf, std::vector<std::pair<Index, Index>>* changed);
+  // Full stage-2/3 pass over all lines, in groups of neighbouring lines that share cache lines;
+  // records changes like update_line when `changed` / `n_changed` are given.
+  void full_pass(int stage, int nthreads, Changes* changed, Index* n_changed);
+  // Recomputes only the windows of one line whose output can change: positions q with
+  // (q - p)^2 <= old(q) for a changed input position p. Appends (next-stage line, position) where the
+  // output changed (stage 2) and counts changed voxels.
+  void update_line(int stage, const LineWork& work, const std::vector<Index>& positions, Scratch& s,
+                   std::vector<std::pair<Index, Index>>* changed, Index* n_changed);
+  // Merges per-thread (line, position) lists into per-line sorted positions.
+  Work merge(Changes& changes);
 
   std::array<Index, 3> shape_;
   std::vector<std::uint8_t> sites_;
+  // Stage outputs, each laid out so that the next stage reads its lines contiguously:
+  // g1 [ix][iz][iy] (y fastest), g2 and g3 [iz][iy][ix] (x fastest).
   std::vector<std::int32_t> g1_, g2_, g3_;
-  std::vector<std::uint8_t> column_flag_, y_flag_, x_flag_;  // dedup marks, all zero between updates
+  // Merge scratch, one entry per line of the largest stage: -1 / unused between updates.
+  std::vector<Index> merge_slot_;
 };
 
 }  // namespace cufund::esdf

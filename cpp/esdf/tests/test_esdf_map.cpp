@@ -43,7 +43,8 @@ TEST(OccupancyGrid, BeamMarksFreeAlongAndHitAtEnd) {
   const SensorModel m;
   EXPECT_EQ(grid.log_odds()[static_cast<std::size_t>(lin(g, 15, 5, 5))], m.log_odds_hit);
   for (Index i = 2; i < 20; ++i) {
-    if (i != 15) EXPECT_EQ(grid.log_odds()[static_cast<std::size_t>(lin(g, i, 5, 5))], m.log_odds_miss) << i;
+    if (i == 15) continue;
+    EXPECT_EQ(grid.log_odds()[static_cast<std::size_t>(lin(g, i, 5, 5))], m.log_odds_miss) << i;
   }
   EXPECT_EQ(grid.log_odds()[static_cast<std::size_t>(lin(g, 1, 5, 5))], 0.0f);
   EXPECT_EQ(grid.log_odds()[static_cast<std::size_t>(lin(g, 15, 6, 5))], 0.0f);
