@@ -27,7 +27,7 @@ void raise_step_error(const StepResult& r, double dt, const py::array& cmd) {
       return;
     case StepStatus::kBadTimeStep: {
       std::ostringstream os;
-      os << "dt must be a finite number > 0 [s], got " << dt;
+      os << "dt must be a finite number > 0 [s] of at most 1e9 integration sub-steps, got " << dt;
       throw py::value_error(os.str());
     }
     case StepStatus::kNonFiniteCommand: {
@@ -130,6 +130,8 @@ void define_dynamics(py::module_& m) {
       CUFUND_VIEW("wind_W", kWind, 3, "Wind velocity in world frame [m/s], (N, 3) view, held over a step.")
       CUFUND_VIEW("force_ext_W", kForceExt, 3, "External force, world frame [N], (N, 3) view, held over a step.")
       CUFUND_VIEW("torque_ext_B", kTorqueExt, 3, "External torque, body frame [N m], (N, 3) view, held over a step.")
+      CUFUND_VIEW("accel_W", kAccel, 3, "Acceleration dv_W/dt at the end of the last step [m/s^2], (N, 3) view.")
+      CUFUND_VIEW("alpha_B", kAlpha, 3, "Angular acceleration dw_B/dt at the end of the last step [rad/s^2], (N, 3).")
 #undef CUFUND_VIEW
       .def(
           "step",

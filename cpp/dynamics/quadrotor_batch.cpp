@@ -6,9 +6,7 @@
 
 #include "quadrotor_dynamics.h"
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
+#include "thread_pool.h"
 
 namespace cufund {
 
@@ -17,7 +15,9 @@ DynamicsConstants make_constants(const QuadrotorParams& p) {
   c.inv_mass = 1.0 / p.mass;
   c.gravity = p.gravity;
   const Eigen::Matrix3d J_inv = p.inertia.inverse();
+  CUFUND_UNROLL
   for (int i = 0; i < 3; ++i) {
+    CUFUND_UNROLL
     for (int j = 0; j < 3; ++j) {
       c.J[3 * i + j] = p.inertia(i, j);
       c.J_inv[3 * i + j] = J_inv(i, j);
@@ -28,44 +28,76 @@ DynamicsConstants make_constants(const QuadrotorParams& p) {
   c.omega_min = p.rotor_speed_min;
   c.omega_max = p.rotor_speed_max;
   const RotorGeometry g = rotor_geometry(p);
+  CUFUND_UNROLL
   for (int i = 0; i < kNumRotors; ++i) {
+    CUFUND_UNROLL
     for (int k = 0; k < 3; ++k) c.r[i][k] = g.position_B[i](k);
     c.yaw_moment[i] = -g.spin[i] * p.c_m;
   }
   c.kd_xy = p.rotor_drag_xy;
   c.kd_z = p.rotor_drag_z;
+  CUFUND_UNROLL
   for (int k = 0; k < 3; ++k) c.cd[k] = p.body_drag(k);
-  c.ground = p.ground_plane;
   return c;
 }
 
 namespace {
 
+using Rows = double* __restrict[QuadrotorBatch::kRows];
+
+CUFUND_INLINE void load(const DynamicsConstants& c, const Rows& p, const double* __restrict cmd, std::size_t i,
+                        double* x, StepInputs& u) {
+  CUFUND_UNROLL
+  for (int j = 0; j < kStateSize; ++j) x[j] = p[j][i];
+  CUFUND_UNROLL
+  for (int k = 0; k < kNumRotors; ++k) u.omega_cmd[k] = std::min(std::max(cmd[4 * i + k], c.omega_min), c.omega_max);
+  CUFUND_UNROLL
+  for (int k = 0; k < 3; ++k) {
+    u.wind_W[k] = p[QuadrotorBatch::kWind + k][i];
+    u.force_W[k] = p[QuadrotorBatch::kForceExt + k][i];
+    u.torque_B[k] = p[QuadrotorBatch::kTorqueExt + k][i];
+  }
+}
+
 // Integrates vehicles [begin, end): the loop body is one vehicle, so the compiler maps vehicles to
 // SIMD lanes. Compiled for several instruction sets and picked at load time where the compiler can.
+template <bool kGround>
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(CUFUND_NO_TARGET_CLONES)
 __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #endif
-void integrate_range(const DynamicsConstants& c, double* __restrict state, std::size_t n, std::size_t begin,
+void integrate_range(const DynamicsConstants& constants, double* __restrict state, std::size_t n, std::size_t begin,
                      std::size_t end, const double* __restrict cmd, double h, int substeps) {
+  const DynamicsConstants c = constants;  // a local copy: provably not aliased by the state stores
+  Rows p;
+  CUFUND_UNROLL
+  for (int r = 0; r < QuadrotorBatch::kRows; ++r) p[r] = state + r * n;
   for (int s = 0; s < substeps; ++s) {
 #if defined(__GNUC__)
 #pragma GCC ivdep
 #endif
     for (std::size_t i = begin; i < end; ++i) {
       double x[kStateSize];
-      for (int j = 0; j < kStateSize; ++j) x[j] = state[j * n + i];
       StepInputs u;
-      for (int k = 0; k < kNumRotors; ++k) {
-        u.omega_cmd[k] = std::min(std::max(cmd[4 * i + k], c.omega_min), c.omega_max);
-      }
-      for (int k = 0; k < 3; ++k) {
-        u.wind_W[k] = state[(QuadrotorBatch::kWind + k) * n + i];
-        u.force_W[k] = state[(QuadrotorBatch::kForceExt + k) * n + i];
-        u.torque_B[k] = state[(QuadrotorBatch::kTorqueExt + k) * n + i];
-      }
-      rk4_substep(c, u, h, x);
-      for (int j = 0; j < kStateSize; ++j) state[j * n + i] = x[j];
+      load(c, p, cmd, i, x, u);
+      rk4_substep<kGround>(c, u, h, x);
+      CUFUND_UNROLL
+      for (int j = 0; j < kStateSize; ++j) p[j][i] = x[j];
+    }
+  }
+  // The true accelerations of the integrated model at the new state: what an IMU senses.
+#if defined(__GNUC__)
+#pragma GCC ivdep
+#endif
+  for (std::size_t i = begin; i < end; ++i) {
+    double x[kStateSize], dx[kStateSize];
+    StepInputs u;
+    load(c, p, cmd, i, x, u);
+    derivative<kGround>(c, x, u, dx);
+    const bool held = kGround && resting_on_ground(x);
+    CUFUND_UNROLL
+    for (int k = 0; k < 3; ++k) {
+      p[QuadrotorBatch::kAccel + k][i] = held ? 0.0 : dx[3 + k];
+      p[QuadrotorBatch::kAlpha + k][i] = held ? 0.0 : dx[10 + k];
     }
   }
 }
@@ -89,7 +121,7 @@ double QuadrotorBatch::hover_rotor_speed() const {
 
 StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
   StepResult result;
-  if (!(std::isfinite(dt) && dt > 0.0)) {
+  if (!(std::isfinite(dt) && dt > 0.0 && dt / params_.max_integration_step <= 1e9)) {
     result.status = StepStatus::kBadTimeStep;
     return result;
   }
@@ -109,17 +141,16 @@ StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
   constexpr std::size_t kBlock = 256;
   const std::size_t nblocks = (n_ + kBlock - 1) / kBlock;
   double* state = state_.data();
-#ifdef _OPENMP
-  const int threads = nthreads > 0 ? nthreads : omp_get_max_threads();
-#pragma omp parallel for schedule(static) num_threads(threads) if (nblocks > 1 && threads > 1)
-#else
-  (void)nthreads;
-#endif
-  for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(nblocks); ++b) {
-    const std::size_t begin = static_cast<std::size_t>(b) * kBlock;
+  const bool ground = params_.ground_plane;
+  ThreadPool::instance().parallel_for(nblocks, nthreads, [&](std::size_t b) {
+    const std::size_t begin = b * kBlock;
     const std::size_t end = std::min(n_, begin + kBlock);
-    integrate_range(c, state, n_, begin, end, cmd, h, substeps);
-  }
+    if (ground) {
+      integrate_range<true>(c, state, n_, begin, end, cmd, h, substeps);
+    } else {
+      integrate_range<false>(c, state, n_, begin, end, cmd, h, substeps);
+    }
+  });
   time_ += dt;
   return result;
 }

@@ -16,7 +16,7 @@ namespace cufund {
 
 enum class StepStatus : int {
   kOk = 0,
-  kBadTimeStep = 1,          // dt not finite or <= 0
+  kBadTimeStep = 1,          // dt not finite, <= 0, or more than 1e9 integration sub-steps
   kNonFiniteCommand = 2,     // a commanded rotor speed is NaN or infinite
 };
 
@@ -37,7 +37,9 @@ class QuadrotorBatch {
     kWind = 17,      // wind velocity in world frame [m/s], 3 rows (held over a step)
     kForceExt = 20,  // external force in world frame [N], 3 rows (held over a step)
     kTorqueExt = 23, // external torque in body frame [N m], 3 rows (held over a step)
-    kRows = 26,
+    kAccel = 26,     // acceleration a_W = dv_W/dt at the end of the last step [m/s^2], 3 rows (output)
+    kAlpha = 29,     // angular acceleration dw_B/dt at the end of the last step [rad/s^2], 3 rows (output)
+    kRows = 32,
   };
 
   // params must have passed validate(); n >= 1.
@@ -56,7 +58,7 @@ class QuadrotorBatch {
 
   // Advances all vehicles by dt [s] holding rotor_speed_cmd (row-major (N, 4) [rad/s], clipped to the
   // rotor-speed limits) constant, in ceil(dt / max_integration_step) equal RK4 sub-steps.
-  // nthreads <= 0: all available cores.
+  // nthreads <= 0: all available cores (cufund::ThreadPool).
   StepResult step(double dt, const double* rotor_speed_cmd, int nthreads = 0);
 
   // Hover rotor speed [rad/s]: all four rotors carrying m g / 4.

@@ -2,6 +2,7 @@
 // sub-step, written per vehicle on plain doubles so that the batch loop vectorises across vehicles.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 
 #include "quadrotor_params.h"
@@ -10,6 +11,14 @@
 #define CUFUND_INLINE inline __attribute__((always_inline))
 #else
 #define CUFUND_INLINE inline
+#endif
+
+// Fixed-length loops are unrolled completely so that their arrays become registers and the
+// per-vehicle loop can vectorise across vehicles.
+#if defined(__GNUC__) && !defined(__clang__)
+#define CUFUND_UNROLL _Pragma("GCC unroll 32")
+#else
+#define CUFUND_UNROLL
 #endif
 
 namespace cufund {
@@ -24,7 +33,6 @@ struct DynamicsConstants {
   double yaw_moment[kNumRotors];  // -s_i * c_m: M_z contribution per newton of rotor thrust
   double kd_xy, kd_z;           // rotor drag
   double cd[3];                 // body drag
-  bool ground;
 };
 
 DynamicsConstants make_constants(const QuadrotorParams& params);
@@ -40,6 +48,8 @@ struct StepInputs {
   double torque_B[3];
 };
 
+// kGround: a rigid ground plane at z = 0 (a template parameter so the vehicle loop has no branch on it).
+template <bool kGround>
 CUFUND_INLINE void derivative(const DynamicsConstants& c, const double* x, const StepInputs& u, double* dx) {
   const double* p = x;
   const double* v = x + 3;
@@ -67,6 +77,8 @@ CUFUND_INLINE void derivative(const DynamicsConstants& c, const double* x, const
   double F1 = -speed * c.cd[1] * aB1;
   double F2 = -speed * c.cd[2] * aB2;
   double M0 = 0.0, M1 = 0.0, M2 = 0.0;
+
+  CUFUND_UNROLL
 
   for (int i = 0; i < kNumRotors; ++i) {
     const double rx = c.r[i][0], ry = c.r[i][1], rz = c.r[i][2];
@@ -97,7 +109,11 @@ CUFUND_INLINE void derivative(const DynamicsConstants& c, const double* x, const
   dx[4] = (R10 * F0 + R11 * F1 + R12 * F2 + u.force_W[1]) * c.inv_mass;
   double az = (R20 * F0 + R21 * F1 + R22 * F2 + u.force_W[2]) * c.inv_mass - c.gravity;
   // Ground reaction: at or below z = 0 the ground cancels any net downward force.
-  dx[5] = (c.ground && x[2] <= 0.0 && az < 0.0) ? 0.0 : az;
+  if constexpr (kGround) {
+    dx[5] = x[2] <= 0.0 ? std::max(az, 0.0) : az;
+  } else {
+    dx[5] = az;
+  }
 
   // q_dot = 1/2 q (x) (0, w_B)
   dx[6] = -0.5 * (qx * w[0] + qy * w[1] + qz * w[2]);
@@ -118,31 +134,42 @@ CUFUND_INLINE void derivative(const DynamicsConstants& c, const double* x, const
   dx[11] = Ji[3] * t0 + Ji[4] * t1 + Ji[5] * t2;
   dx[12] = Ji[6] * t0 + Ji[7] * t1 + Ji[8] * t2;
 
+  CUFUND_UNROLL
+
   for (int i = 0; i < kNumRotors; ++i) dx[13 + i] = (u.omega_cmd[i] - om[i]) * c.inv_tau_m;
 }
 
+// On the ground and not climbing: the ground holds the vehicle (see rk4_substep).
+CUFUND_INLINE bool resting_on_ground(const double* x) { return std::max(x[2], x[5]) <= 0.0; }
+
 // One classical RK4 step of length h, then quaternion renormalisation and ground contact.
+template <bool kGround>
 CUFUND_INLINE void rk4_substep(const DynamicsConstants& c, const StepInputs& u, double h, double* x) {
   double k1[kStateSize], k2[kStateSize], k3[kStateSize], k4[kStateSize], y[kStateSize];
-  derivative(c, x, u, k1);
+  derivative<kGround>(c, x, u, k1);
+  CUFUND_UNROLL
   for (int j = 0; j < kStateSize; ++j) y[j] = x[j] + 0.5 * h * k1[j];
-  derivative(c, y, u, k2);
+  derivative<kGround>(c, y, u, k2);
+  CUFUND_UNROLL
   for (int j = 0; j < kStateSize; ++j) y[j] = x[j] + 0.5 * h * k2[j];
-  derivative(c, y, u, k3);
+  derivative<kGround>(c, y, u, k3);
+  CUFUND_UNROLL
   for (int j = 0; j < kStateSize; ++j) y[j] = x[j] + h * k3[j];
-  derivative(c, y, u, k4);
+  derivative<kGround>(c, y, u, k4);
   const double h6 = h / 6.0;
+  CUFUND_UNROLL
   for (int j = 0; j < kStateSize; ++j) x[j] += h6 * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j]);
 
   const double qn = 1.0 / std::sqrt(x[6] * x[6] + x[7] * x[7] + x[8] * x[8] + x[9] * x[9]);
+  CUFUND_UNROLL
   for (int j = 6; j < 10; ++j) x[j] *= qn;
 
-  if (c.ground) {
+  if constexpr (kGround) {
     // Never below the ground; a vehicle that touches it and is not climbing rests there:
     // static friction holds it, the landing gear levels it (yaw kept), rotation stops.
-    const bool below = x[2] < 0.0;
-    x[2] = below ? 0.0 : x[2];
-    const bool resting = x[2] <= 0.0 && x[5] <= 0.0;
+    // Branch-free (one comparison per select), so the loop over vehicles stays vectorised.
+    x[2] = std::max(x[2], 0.0);
+    const bool resting = resting_on_ground(x);
     const double twist = x[6] * x[6] + x[9] * x[9];
     const bool has_twist = twist > 1e-24;
     const double tn = has_twist ? 1.0 / std::sqrt(twist) : 0.0;

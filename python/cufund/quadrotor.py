@@ -26,7 +26,9 @@ class QuadrotorBatch:
 
     State (views, shape (n, k), writable): ``p`` position p_W [m], ``v`` velocity v_W [m/s], ``q`` attitude
     q_WB [w, x, y, z], ``w`` body rate w_B [rad/s], ``rotor_speeds`` [rad/s] (PX4 numbering). Inputs held
-    over a step: ``wind_W`` [m/s], ``force_ext_W`` [N], ``torque_ext_B`` [N m].
+    over a step: ``wind_W`` [m/s], ``force_ext_W`` [N], ``torque_ext_B`` [N m]. Outputs of the last step:
+    ``accel_W`` [m/s^2] and ``alpha_B`` [rad/s^2], the model's true accelerations (zero while resting on
+    the ground), which inertial sensors read.
     """
 
     def __init__(self, params: QuadrotorParams, n: int, wind: WindField = None) -> None:
@@ -61,6 +63,10 @@ class QuadrotorBatch:
     wind_W = property(lambda self: self._core.wind_W, doc="Wind velocity, world frame [m/s], (n, 3) view.")
     force_ext_W = property(lambda self: self._core.force_ext_W, doc="External force, world [N], (n, 3) view.")
     torque_ext_B = property(lambda self: self._core.torque_ext_B, doc="External torque, body [N m], (n, 3) view.")
+    accel_W = property(lambda self: self._core.accel_W,
+                       doc="Acceleration dv_W/dt of the model at the end of the last step [m/s^2], (n, 3) view.")
+    alpha_B = property(lambda self: self._core.alpha_B,
+                       doc="Angular acceleration dw_B/dt at the end of the last step [rad/s^2], (n, 3) view.")
 
     def set_wind(self, wind: WindField) -> None:
         """Constant wind (array (3,) or (n, 3)) [m/s], a function ``wind(t, p_W)``, or None for still air."""
@@ -132,6 +138,8 @@ class Quadrotor:
     force_ext_W = property(lambda self: self._batch.force_ext_W[0], doc="External force, world [N], (3,) view.")
     torque_ext_B = property(lambda self: self._batch.torque_ext_B[0], doc="External torque, body [N m], (3,) view.")
     wind_W = property(lambda self: self._batch.wind_W[0], doc="Wind velocity, world [m/s], (3,) view.")
+    accel_W = property(lambda self: self._batch.accel_W[0], doc="dv_W/dt after the last step [m/s^2], (3,) view.")
+    alpha_B = property(lambda self: self._batch.alpha_B[0], doc="dw_B/dt after the last step [rad/s^2], (3,) view.")
 
     def set_wind(self, wind: WindField) -> None:
         """Constant wind (3,) [m/s], a function ``wind(t, p_W)``, or None."""

@@ -1,0 +1,51 @@
+// A process-wide pool for data-parallel loops that degrades gracefully on a busy machine.
+//
+// The calling thread works too, and chunks are claimed one at a time from a shared counter, so a
+// worker that the OS has not scheduled yet simply claims nothing: the caller never waits for a thread
+// that has not started (an OpenMP fork-join barrier does, which costs a whole scheduler time slice
+// per call when the cores are shared). Results must not depend on which thread ran which chunk.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace cufund {
+
+class ThreadPool {
+ public:
+  // The shared pool, with hardware_concurrency() - 1 workers, created on first use.
+  static ThreadPool& instance();
+
+  explicit ThreadPool(int workers);
+  ~ThreadPool();
+  ThreadPool(const ThreadPool&) = delete;
+  ThreadPool& operator=(const ThreadPool&) = delete;
+
+  // Calls fn(i) once for every i in [0, n) on at most `threads` threads, the caller included
+  // (threads <= 0: all). Returns when every call has returned. fn must not throw.
+  void parallel_for(std::size_t n, int threads, const std::function<void(std::size_t)>& fn);
+
+  int size() const { return static_cast<int>(workers_.size()) + 1; }
+
+ private:
+  void work();
+
+  std::vector<std::thread> workers_;
+  std::mutex submit_;  // one job at a time
+  std::mutex m_;
+  std::condition_variable wake_, done_;
+  std::uint64_t generation_ = 0;
+  bool open_ = false, stop_ = false;
+  const std::function<void(std::size_t)>* fn_ = nullptr;
+  std::size_t n_ = 0;
+  int max_workers_ = 0, entered_ = 0, active_ = 0;
+  std::atomic<std::size_t> next_{0};
+};
+
+}  // namespace cufund

@@ -1,0 +1,179 @@
+"""Inertial measurement unit: specific force and angular rate with the paper's error model (§2.2).
+
+The IMU reads the true accelerations of the integrated dynamics (``Quadrotor.accel_W``/``alpha_B``, not
+differences of states) at its mounting point: with lever arm ``p_BI`` (IMU position in body FLU) and
+mounting rotation ``q_BI`` (IMU frame to body),
+
+    f_B = R_WB^T (a_W + g e_z) + alpha_B x p_BI + w_B x (w_B x p_BI)     (specific force, body)
+    a_I = sat((1 + s_a) * (R_BI^T f_B) + b_a + n_a),   w_I = sat((1 + s_g) * (R_BI^T w_B) + b_g + n_g)
+
+A level IMU at rest reads +g on its z axis (FLU). Noise densities use Kalibr's and PX4's units:
+accelerometer m/s^2/sqrt(Hz) and random walk m/s^3/sqrt(Hz); gyroscope rad/s/sqrt(Hz) and rad/s^2/sqrt(Hz).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..config import ConfigError, from_dict
+from .noise import ErrorProcess, NoiseSpec
+
+__all__ = ["ImuParams", "ImuModel", "IMU_PRESETS", "imu_preset", "quat_to_rotation"]
+
+G0 = 9.80665
+DEG = math.pi / 180.0
+
+
+def quat_to_rotation(q: np.ndarray) -> np.ndarray:
+    """R (..., 3, 3) of unit quaternions q (..., 4) [w, x, y, z]."""
+    q = np.asarray(q, dtype=float)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def _vec(name: str, value: object, dim: int) -> tuple[float, ...]:
+    a = np.asarray(value, dtype=float)
+    if a.shape != (dim,) or not np.all(np.isfinite(a)):
+        raise ConfigError(f"{name} must be {dim} finite numbers, got {value!r}")
+    return tuple(float(x) for x in a)
+
+
+@dataclass(frozen=True)
+class ImuParams:
+    """An IMU part and its mounting. SI units; see the module docstring for the noise units."""
+
+    rate_hz: float = 200.0
+    """Output rate [Hz], 100-1000."""
+    accel: NoiseSpec = field(default_factory=NoiseSpec)
+    """Accelerometer errors [m/s^2/sqrt(Hz)], [m/s^3/sqrt(Hz)], turn-on bias [m/s^2]."""
+    gyro: NoiseSpec = field(default_factory=NoiseSpec)
+    """Gyroscope errors [rad/s/sqrt(Hz)], [rad/s^2/sqrt(Hz)], turn-on bias [rad/s]."""
+    accel_scale_factor: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Scale-factor error per axis (0.01 reads 1 % high)."""
+    gyro_scale_factor: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Scale-factor error per axis."""
+    accel_range: float = 16 * G0
+    """Saturation of each accelerometer axis [m/s^2]."""
+    gyro_range: float = 2000 * DEG
+    """Saturation of each gyroscope axis [rad/s]."""
+    p_BI: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """IMU position in the body frame (lever arm from the centre of mass) [m]."""
+    q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    """IMU frame to body frame rotation [w, x, y, z]."""
+    name: str = "ideal"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.rate_hz) and 100.0 <= self.rate_hz <= 1000.0):
+            raise ConfigError(f"rate_hz must be between 100 and 1000 [Hz], got {self.rate_hz!r}")
+        for f in ("accel", "gyro"):
+            v = getattr(self, f)
+            if isinstance(v, dict):
+                object.__setattr__(self, f, from_dict(NoiseSpec, v, f"ImuParams.{f}"))
+            elif not isinstance(v, NoiseSpec):
+                raise ConfigError(f"{f} must be a NoiseSpec or a mapping, got {type(v).__name__}")
+            getattr(self, f).per_axis(3)  # validates
+        for f in ("accel_scale_factor", "gyro_scale_factor", "p_BI"):
+            object.__setattr__(self, f, _vec(f, getattr(self, f), 3))
+        q = np.asarray(_vec("q_BI", self.q_BI, 4))
+        if abs(np.linalg.norm(q) - 1.0) > 1e-6:
+            raise ConfigError(f"q_BI must be a unit quaternion [w, x, y, z], got norm {np.linalg.norm(q)}")
+        for f in ("accel_range", "gyro_range"):
+            v = getattr(self, f)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"{f} must be a finite number > 0, got {v!r}")
+
+    @classmethod
+    def from_dict(cls, data: dict) -> ImuParams:
+        return from_dict(cls, data, "ImuParams")
+
+
+class ImuModel:
+    """Turns true motion into IMU samples, one at a time or as a whole record, from one seeded stream."""
+
+    def __init__(self, params: ImuParams, seed: int = 0, gravity: float = G0) -> None:
+        self.params = params
+        self.gravity = float(gravity)
+        self._errors = ErrorProcess([(params.accel, 3), (params.gyro, 3)], 1.0 / params.rate_hz, seed)
+        self._R_IB = quat_to_rotation(np.asarray(params.q_BI)).T
+        self._r = np.asarray(params.p_BI)
+        self._scale_a = 1.0 + np.asarray(params.accel_scale_factor)
+        self._scale_g = 1.0 + np.asarray(params.gyro_scale_factor)
+
+    def reset(self) -> None:
+        """Restarts the error stream (same seed: the same record again)."""
+        self._errors.reset()
+
+    @property
+    def bias(self) -> tuple[np.ndarray, np.ndarray]:
+        """Current total accelerometer and gyroscope biases [m/s^2], [rad/s] (turn-on + random walk)."""
+        b = self._errors.turn_on_bias + self._errors.bias
+        return b[:3].copy(), b[3:].copy()
+
+    def measure(self, q_WB: np.ndarray, w_B: np.ndarray, a_W: np.ndarray, alpha_B: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Samples for the true attitude q_WB (K, 4) [w, x, y, z], body rate w_B (K, 3) [rad/s], acceleration
+        a_W (K, 3) [m/s^2] and angular acceleration alpha_B (K, 3) [rad/s^2]; or one sample from (4,)/(3,).
+        Returns (accelerometer (K, 3) [m/s^2], gyroscope (K, 3) [rad/s]) in the IMU frame."""
+        single = np.ndim(q_WB) == 1
+        q, w, a, al = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q_WB, w_B, a_W, alpha_B))
+        k = q.shape[0]
+        for name, x, d in (("q_WB", q, 4), ("w_B", w, 3), ("a_W", a, 3), ("alpha_B", al, 3)):
+            if x.shape != (k, d):
+                raise ValueError(f"{name} must have shape ({k}, {d}), got {x.shape}")
+            if not np.all(np.isfinite(x)):
+                raise ValueError(f"{name} must be finite")
+        R_WB = quat_to_rotation(q)
+        f_B = np.einsum("kji,kj->ki", R_WB, a + np.array([0.0, 0.0, self.gravity]))
+        f_B += np.cross(al, self._r) + np.cross(w, np.cross(w, self._r))
+        e = self._errors.sample(k)
+        acc = np.clip(self._scale_a * (f_B @ self._R_IB.T) + e[:, :3], -self.params.accel_range,
+                      self.params.accel_range)
+        gyr = np.clip(self._scale_g * (w @ self._R_IB.T) + e[:, 3:], -self.params.gyro_range, self.params.gyro_range)
+        return (acc[0], gyr[0]) if single else (acc, gyr)
+
+    def measure_static(self, k: int, q_WB: np.ndarray = np.array([1.0, 0.0, 0.0, 0.0])) -> tuple[np.ndarray, np.ndarray]:
+        """``k`` samples of an IMU at rest with attitude ``q_WB`` (level by default)."""
+        q = np.broadcast_to(np.asarray(q_WB, dtype=float), (k, 4))
+        z = np.zeros((k, 3))
+        return self.measure(q, z, z, z)
+
+
+def _mems(name: str, rate_hz: float, acc_nd_ug: float, gyro_nd_dps: float, acc_rw: float, gyro_rw: float,
+          acc_range_g: float, gyro_range_dps: float, acc_bias_mg: float, gyro_bias_dps: float) -> ImuParams:
+    return ImuParams(
+        name=name, rate_hz=rate_hz,
+        accel=NoiseSpec(acc_nd_ug * 1e-6 * G0, acc_rw, acc_bias_mg * 1e-3 * G0),
+        gyro=NoiseSpec(gyro_nd_dps * DEG, gyro_rw, gyro_bias_dps * DEG),
+        accel_range=acc_range_g * G0, gyro_range=gyro_range_dps * DEG)
+
+
+#: Presets, at 200 Hz (an output data rate both parts offer, dividing the 1 kHz physics rate).
+#: White-noise densities, ranges and zero-offsets are the datasheets' typical values:
+#: Bosch BMI088 (BST-BMI088-DS001): accelerometer 175 ug/sqrt(Hz) (the datasheet's 160-190 by axis),
+#: +-24 g, offset 20 mg; gyroscope 0.014 deg/s/sqrt(Hz), +-2000 deg/s, offset 1 deg/s.
+#: TDK ICM-42688-P (DS-000347): accelerometer 70 ug/sqrt(Hz), +-16 g, offset +-20 mg; gyroscope
+#: 0.0028 deg/s/sqrt(Hz), +-2000 deg/s, offset +-0.5 deg/s.
+#: Datasheets do not give bias random walks; the values used (accelerometer 4e-4 m/s^3/sqrt(Hz),
+#: gyroscope 2e-5 rad/s^2/sqrt(Hz) for BMI088, half that for ICM-42688-P) are of the order that
+#: Allan-variance calibrations of these parts report and that PX4/Kalibr examples use; change them to
+#: your own Allan-fit numbers (``cufund allan`` shows how they appear).
+IMU_PRESETS = {
+    "bmi088": lambda: _mems("bmi088", 200.0, 175.0, 0.014, 4e-4, 2e-5, 24.0, 2000.0, 20.0, 1.0),
+    "icm42688p": lambda: _mems("icm42688p", 200.0, 70.0, 0.0028, 2e-4, 1e-5, 16.0, 2000.0, 20.0, 0.5),
+    "ideal": lambda: ImuParams(name="ideal"),
+}
+
+
+def imu_preset(name: str) -> ImuParams:
+    """An IMU preset by name: ``bmi088``, ``icm42688p`` or ``ideal``."""
+    try:
+        return IMU_PRESETS[name]()
+    except KeyError:
+        raise ConfigError(f"unknown IMU preset {name!r}; expected one of: {', '.join(IMU_PRESETS)}") from None

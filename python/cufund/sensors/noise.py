@@ -1,0 +1,101 @@
+"""The paper's sensor error model (§2.2): white noise + bias random walk + constant (turn-on) bias.
+
+For one channel sampled every ``dt`` seconds, with continuous-time densities in Kalibr's convention:
+
+    y_k = x_k + b_0 + b_k + n_k,   n_k ~ N(0, sigma_w^2 / dt),   b_{k+1} = b_k + N(0, sigma_b^2 dt)
+
+where ``sigma_w`` is the white-noise density [unit/sqrt(Hz)] and ``sigma_b`` the bias random walk
+[unit/s/sqrt(Hz)] — the two lines of an Allan-deviation plot, ``sigma_w / sqrt(tau)`` (read at tau = 1 s)
+and ``sigma_b * sqrt(tau / 3)``. ``b_0 ~ N(0, sigma_0^2)`` is drawn once per run (turn-on bias).
+
+Random numbers come from one seeded ``numpy.random.Generator`` per process and are drawn in a fixed order
+per sample, so a record is the same whether it is produced one sample at a time or in one call.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import ConfigError
+
+__all__ = ["NoiseSpec", "ErrorProcess"]
+
+
+def _nonneg_vector(name: str, value: object, dim: int) -> tuple[float, ...]:
+    a = np.broadcast_to(np.asarray(value, dtype=float), (dim,)) if np.ndim(value) == 0 else np.asarray(value, float)
+    if a.shape != (dim,) or not np.all(np.isfinite(a)) or np.any(a < 0):
+        raise ConfigError(f"{name} must be a finite number >= 0 or {dim} of them, got {value!r}")
+    return tuple(float(x) for x in a)
+
+
+@dataclass(frozen=True)
+class NoiseSpec:
+    """Error densities of one sensor quantity (per axis, or one number for all axes)."""
+
+    white_noise_density: float | tuple[float, ...] = 0.0
+    """sigma_w [unit/sqrt(Hz)] (e.g. rad/s/sqrt(Hz) for a gyroscope, Kalibr's *_noise_density)."""
+    bias_random_walk: float | tuple[float, ...] = 0.0
+    """sigma_b [unit/s/sqrt(Hz)] (e.g. rad/s^2/sqrt(Hz), Kalibr's *_random_walk)."""
+    turn_on_bias: float | tuple[float, ...] = 0.0
+    """Standard deviation of the constant bias drawn at the start of each run [unit]."""
+
+    def per_axis(self, dim: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return (np.array(_nonneg_vector("white_noise_density", self.white_noise_density, dim)),
+                np.array(_nonneg_vector("bias_random_walk", self.bias_random_walk, dim)),
+                np.array(_nonneg_vector("turn_on_bias", self.turn_on_bias, dim)))
+
+
+class ErrorProcess:
+    """Generates the additive error of several channels that share one sample clock and one seed.
+
+    ``specs`` lists (NoiseSpec, dim) groups, e.g. accelerometer (3) then gyroscope (3). Each sample draws,
+    in order, the white noise of every channel and then the random-walk increments of every channel.
+    """
+
+    _BLOCK = 1024
+
+    def __init__(self, specs: list[tuple[NoiseSpec, int]], dt: float, seed: int) -> None:
+        if not (np.isfinite(dt) and dt > 0):
+            raise ConfigError(f"sample period must be a finite number > 0 [s], got {dt!r}")
+        parts = [spec.per_axis(dim) for spec, dim in specs]
+        self.dim = sum(dim for _, dim in specs)
+        self.dt = float(dt)
+        self._sigma_white = np.concatenate([p[0] for p in parts]) / np.sqrt(dt)
+        self._sigma_walk = np.concatenate([p[1] for p in parts]) * np.sqrt(dt)
+        self._sigma_turn_on = np.concatenate([p[2] for p in parts])
+        self.seed = seed
+        self.reset()
+
+    def reset(self) -> None:
+        """Restarts the stream: new turn-on bias, random walk at zero, same seed -> same record."""
+        self._rng = np.random.default_rng(self.seed)
+        self.turn_on_bias = self._sigma_turn_on * self._rng.standard_normal(self.dim)
+        self.bias = np.zeros(self.dim)
+        """Current random-walk part of the bias."""
+        self._buffer = np.empty((0, 2 * self.dim))
+        self._used = 0
+
+    def _draw(self, k: int) -> np.ndarray:
+        out = np.empty((k, 2 * self.dim))
+        done = 0
+        while done < k:
+            if self._used == len(self._buffer):
+                self._buffer = self._rng.standard_normal((max(self._BLOCK, k - done), 2 * self.dim))
+                self._used = 0
+            take = min(k - done, len(self._buffer) - self._used)
+            out[done:done + take] = self._buffer[self._used:self._used + take]
+            self._used += take
+            done += take
+        return out
+
+    def sample(self, k: int = 1) -> np.ndarray:
+        """The errors of the next ``k`` samples, shape (k, dim): turn-on bias + walk + white noise."""
+        z = self._draw(k)
+        white = z[:, :self.dim] * self._sigma_white
+        # Sample i uses the walk before increment i (zero at reset). Summing from the carried bias keeps the
+        # left-to-right order of one-at-a-time sampling, so chunking does not change a single bit.
+        walk = np.cumsum(np.vstack([self.bias, z[:, self.dim:] * self._sigma_walk]), axis=0)
+        self.bias = walk[-1].copy()
+        return self.turn_on_bias + walk[:-1] + white
