@@ -1,12 +1,11 @@
 #include "edt.h"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <cmath>
 #include <vector>
 
 #include "edt_line.h"
+#include "parallel.h"
 
 namespace cufund::esdf {
 namespace {
@@ -32,12 +31,10 @@ struct LineScratch {
 template <typename T>
 void pass_contiguous(const std::uint8_t* sites, bool invert, Index lines, Index n, double spacing, bool take_sqrt,
                      int nthreads, T* out) {
-#pragma omp parallel num_threads(nthreads)
-  {
+  parallel_chunks(lines, chunk_size(lines, nthreads, 64), nthreads, [&](Index begin, Index end, Index) {
     std::vector<std::uint8_t> inv(invert ? static_cast<std::size_t>(n) : 0);
     std::vector<double> d(static_cast<std::size_t>(n));
-#pragma omp for schedule(static)
-    for (Index l = 0; l < lines; ++l) {
+    for (Index l = begin; l < end; ++l) {
       const std::uint8_t* s = sites + l * n;
       if (invert) {
         for (Index q = 0; q < n; ++q) inv[static_cast<std::size_t>(q)] = s[q] ? 0 : 1;
@@ -51,7 +48,7 @@ void pass_contiguous(const std::uint8_t* sites, bool invert, Index lines, Index 
         for (Index q = 0; q < n; ++q) o[q] = static_cast<T>(d[static_cast<std::size_t>(q)]);
       }
     }
-  }
+  });
 }
 
 // Lower-envelope pass along an axis of length n and stride `stride` (in elements), for a grid seen
@@ -60,11 +57,9 @@ template <typename T>
 void pass_strided(Index outer, Index n, Index inner, double spacing, bool take_sqrt, int nthreads, T* grid) {
   const Index blocks_per_outer = (inner + kBlock - 1) / kBlock;
   const Index tasks = outer * blocks_per_outer;
-#pragma omp parallel num_threads(nthreads)
-  {
+  parallel_chunks(tasks, chunk_size(tasks, nthreads, 1), nthreads, [&](Index begin, Index end, Index) {
     LineScratch s(n);
-#pragma omp for schedule(static)
-    for (Index t = 0; t < tasks; ++t) {
+    for (Index t = begin; t < end; ++t) {
       const Index o = t / blocks_per_outer;
       const Index i0 = (t % blocks_per_outer) * kBlock;
       const Index b = std::min(kBlock, inner - i0);
@@ -85,7 +80,7 @@ void pass_strided(Index outer, Index n, Index inner, double spacing, bool take_s
         }
       }
     }
-  }
+  });
 }
 
 template <typename T>
@@ -99,7 +94,7 @@ void unsigned_transform(const std::uint8_t* sites, bool invert, const std::array
 
 }  // namespace
 
-int resolve_threads(int nthreads) { return nthreads > 0 ? nthreads : std::max(1, omp_get_num_procs()); }
+int resolve_threads(int nthreads) { return nthreads > 0 ? nthreads : ThreadPool::instance().size(); }
 
 template <typename T>
 EdtStatus euclidean_distance_transform(const std::uint8_t* sites, const std::array<std::ptrdiff_t, 3>& shape,
@@ -116,8 +111,9 @@ EdtStatus euclidean_distance_transform(const std::uint8_t* sites, const std::arr
     const Index total = shape[0] * shape[1] * shape[2];
     std::vector<T> inside(static_cast<std::size_t>(total));
     unsigned_transform(sites, true, shape, options.voxel_size, nt, inside.data());
-#pragma omp parallel for num_threads(nt) schedule(static)
-    for (Index i = 0; i < total; ++i) out[i] -= inside[static_cast<std::size_t>(i)];
+    parallel_chunks(total, chunk_size(total, nt, 4096), nt, [&](Index begin, Index end, Index) {
+      for (Index i = begin; i < end; ++i) out[i] -= inside[static_cast<std::size_t>(i)];
+    });
   }
   return EdtStatus::kOk;
 }

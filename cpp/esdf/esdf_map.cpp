@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "edt.h"
+#include "parallel.h"
 
 namespace cufund::esdf {
 
@@ -71,8 +72,8 @@ void EsdfMap::query(const double* p_W, Index n, double* distance, double* grad_W
   const auto& g = grid_.geometry();
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const int nt = resolve_threads(options_.nthreads);
-#pragma omp parallel for num_threads(nt) schedule(static) if (n > 4096)
-  for (Index k = 0; k < n; ++k) {
+  parallel_chunks(n, chunk_size(n, nt, 2048), n > 4096 ? nt : 1, [&](Index begin, Index end, Index) {
+  for (Index k = begin; k < end; ++k) {
     const double* p = p_W + 3 * k;
     double* gk = grad_W ? grad_W + 3 * k : nullptr;
     if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
@@ -142,6 +143,7 @@ void EsdfMap::query(const double* p_W, Index n, double* distance, double* grad_W
       gk[2] = (dz0 + tx * (dz1 - dz0)) * dt[2];
     }
   }
+  });
 }
 
 }  // namespace cufund::esdf

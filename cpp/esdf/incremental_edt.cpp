@@ -1,12 +1,11 @@
 #include "incremental_edt.h"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <cmath>
 
 #include "edt.h"
 #include "edt_line.h"
+#include "parallel.h"
 
 namespace cufund::esdf {
 namespace {
@@ -72,13 +71,15 @@ void IncrementalEdt::full_pass(int stage, int nthreads, Changes* changed, Index*
   const Index group = stage == 2 ? kGroup : 1;
   const Index groups = (lines + group - 1) / group;
   const Index n = stage == 2 ? ny : nx;
-  Index total = 0;
-#pragma omp parallel num_threads(nthreads) reduction(+ : total)
-  {
+  const Index chunk = chunk_size(groups, nthreads, 4);
+  const Index chunks = (groups + chunk - 1) / chunk;
+  std::vector<Index> totals(static_cast<std::size_t>(chunks), 0);
+  if (changed && static_cast<Index>(changed->size()) < chunks) changed->resize(static_cast<std::size_t>(chunks));
+  parallel_chunks(groups, chunk, nthreads, [&](Index g_begin, Index g_end, Index c) {
     Scratch s(n);
-    auto* out = changed ? &(*changed)[static_cast<std::size_t>(omp_get_thread_num())] : nullptr;
-#pragma omp for schedule(static)
-    for (Index g = 0; g < groups; ++g) {
+    auto* out = changed ? &(*changed)[static_cast<std::size_t>(c)] : nullptr;
+    Index& total = totals[static_cast<std::size_t>(c)];
+    for (Index g = g_begin; g < g_end; ++g) {
       const Index first = g * group, count = std::min(group, lines - first);
       LineView v[kGroup];
       for (Index j = 0; j < count; ++j) {
@@ -102,7 +103,9 @@ void IncrementalEdt::full_pass(int stage, int nthreads, Changes* changed, Index*
         }
       }
     }
-  }
+  });
+  Index total = 0;
+  for (Index t : totals) total += t;
   if (n_changed) *n_changed = total;
 }
 
@@ -236,12 +239,10 @@ void IncrementalEdt::reset(const std::uint8_t* sites, int nthreads) {
 void IncrementalEdt::recompute(int nthreads) {
   const int nt = resolve_threads(nthreads);
   const Index nx = shape_[0], ny = shape_[1], nz = shape_[2];
-#pragma omp parallel num_threads(nt)
-  {
+  parallel_chunks(nx * ny, chunk_size(nx * ny, nt, 256), nt, [&](Index begin, Index end, Index) {
     std::vector<double> buf(static_cast<std::size_t>(nz));
-#pragma omp for schedule(static)
-    for (Index c = 0; c < nx * ny; ++c) column(c, buf, nullptr);
-  }
+    for (Index c = begin; c < end; ++c) column(c, buf, nullptr);
+  });
   full_pass(2, nt, nullptr, nullptr);
   full_pass(3, nt, nullptr, nullptr);
 }
@@ -252,7 +253,7 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
   const Index nz = shape_[2];
   const Index longest = std::max({shape_[0], shape_[1], shape_[2]});
   IncrementalEdtStats stats;
-  Changes changes(static_cast<std::size_t>(nt));
+  Changes changes(1);
 
   // Apply the site changes; the columns holding a changed voxel are stage 1's work.
   for (std::size_t k = 0; k < index.size(); ++k) {
@@ -269,12 +270,14 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
   stats.columns = static_cast<Index>(columns.lines.size());
 
   const Index n_columns = stats.columns;
-#pragma omp parallel num_threads(nt)
   {
-    std::vector<double> buf(static_cast<std::size_t>(nz));
-    auto& out = changes[static_cast<std::size_t>(omp_get_thread_num())];
-#pragma omp for schedule(dynamic, 16)
-    for (Index k = 0; k < n_columns; ++k) column(columns.lines[static_cast<std::size_t>(k)].line, buf, &out);
+    const Index chunk = chunk_size(n_columns, nt, 16);
+    changes.resize(static_cast<std::size_t>((n_columns + chunk - 1) / chunk));
+    parallel_chunks(n_columns, chunk, nt, [&](Index begin, Index end, Index c) {
+      std::vector<double> buf(static_cast<std::size_t>(nz));
+      auto& out = changes[static_cast<std::size_t>(c)];
+      for (Index k = begin; k < end; ++k) column(columns.lines[static_cast<std::size_t>(k)].line, buf, &out);
+    });
   }
 
   Index changed = 0;
@@ -290,15 +293,19 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
       if (stage == 3) changed = stage_changed;
       continue;
     }
-#pragma omp parallel num_threads(nt) reduction(+ : stage_changed)
-    {
+    const Index chunk = chunk_size(n_lines, nt, 8);
+    const Index chunks = (n_lines + chunk - 1) / chunk;
+    if (stage == 2) changes.resize(std::max(changes.size(), static_cast<std::size_t>(chunks)));
+    std::vector<Index> counts(static_cast<std::size_t>(chunks), 0);
+    parallel_chunks(n_lines, chunk, nt, [&](Index begin, Index end, Index c) {
       Scratch s(longest);
-      auto* out = stage == 2 ? &changes[static_cast<std::size_t>(omp_get_thread_num())] : nullptr;
-#pragma omp for schedule(dynamic, 8)
-      for (Index k = 0; k < n_lines; ++k) {
-        update_line(stage, work.lines[static_cast<std::size_t>(k)], work.positions, s, out, &stage_changed);
+      auto* out = stage == 2 ? &changes[static_cast<std::size_t>(c)] : nullptr;
+      for (Index k = begin; k < end; ++k) {
+        update_line(stage, work.lines[static_cast<std::size_t>(k)], work.positions, s, out,
+                    &counts[static_cast<std::size_t>(c)]);
       }
-    }
+    });
+    for (Index c : counts) stage_changed += c;
     if (stage == 3) changed = stage_changed;
   }
   stats.changed_distances = changed;

@@ -1,9 +1,11 @@
 // Exact Euclidean distance transform of a voxel grid that is kept up to date as sites appear and
-// disappear, touching only what changed. The separable transform is stored stage by stage (squared
-// distance along z, then over y-z planes, then over the whole grid); a change of sites recomputes the
-// z-columns that hold a changed voxel, then only the y-lines whose input changed, then only the
-// x-lines whose input changed. Every line is computed by the same routine as a full recompute, so the
-// result is bit-identical to one (the FIESTA idea of propagating only changes, made exact).
+// disappear, touching only what changed (the FIESTA idea of propagating changes, made exact). The
+// separable transform is stored stage by stage as integer squared voxel distances: along z (stage 1),
+// then over each x-slab (stage 2, along y), then over the grid (stage 3, along x). A change of sites
+// recomputes the z-columns holding a changed voxel; each later stage recomputes, on the lines whose
+// input changed, only the windows where the output can change (q with (q - p)^2 <= old(q) for a
+// changed input p), from an input window proven wide enough. Values are integers and every window is
+// computed exactly, so the result is identical to a full recompute, not merely close.
 #pragma once
 
 #include <array>
@@ -65,7 +67,7 @@ class IncrementalEdt {
     std::vector<LineWork> lines;  // sorted by line
     std::vector<Index> positions;
   };
-  using Changes = std::vector<std::vector<std::pair<Index, Index>>>;  // per thread: (line, position)
+  using Changes = std::vector<std::vector<std::pair<Index, Index>>>;  // per chunk of work: (line, position)
 
   // Stage-2 line iz * nx + ix runs along y; stage-3 line iz * ny + iy runs along x.
   struct LineView {
@@ -86,7 +88,7 @@ class IncrementalEdt {
   // output changed (stage 2) and counts changed voxels.
   void update_line(int stage, const LineWork& work, const std::vector<Index>& positions, Scratch& s,
                    std::vector<std::pair<Index, Index>>* changed, Index* n_changed);
-  // Merges per-thread (line, position) lists into per-line sorted positions.
+  // Merges per-chunk (line, position) lists into per-line sorted positions.
   Work merge(Changes& changes);
 
   std::array<Index, 3> shape_;
