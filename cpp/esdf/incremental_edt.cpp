@@ -31,6 +31,7 @@ struct IncrementalEdt::Scratch {
   std::vector<double> f, d;
   std::vector<Index> v;
   std::vector<double> z;
+  std::vector<std::pair<Index, Index>> windows;
 };
 
 IncrementalEdt::IncrementalEdt(const std::array<Index, 3>& shape)
@@ -51,7 +52,7 @@ IncrementalEdt::LineView IncrementalEdt::view(int stage, Index line) {
   return {nx, g2_.data() + line * nx, g3_.data() + line * nx, 1};  // g2[iz][iy][:] -> g3[iz][iy][:]
 }
 
-void IncrementalEdt::column(Index c, std::vector<double>& buf, std::vector<std::pair<Index, Index>>* changed) {
+void IncrementalEdt::column(Index c, std::vector<double>& buf, std::vector<Change>* changed) {
   const Index nx = shape_[0], ny = shape_[1], nz = shape_[2];
   const Index ix = c / ny, iy = c % ny;
   squared_distance_to_sites_1d(sites_.data() + c * nz, 1, nz, 1.0, buf.data());
@@ -59,8 +60,8 @@ void IncrementalEdt::column(Index c, std::vector<double>& buf, std::vector<std::
     const std::int32_t nv = to_int(buf[static_cast<std::size_t>(q)]);
     std::int32_t& old = g1_[static_cast<std::size_t>((ix * nz + q) * ny + iy)];
     if (nv != old) {
+      if (changed) changed->push_back({q * nx + ix, iy, std::min(old, nv)});  // stage-2 line (iz = q, ix)
       old = nv;
-      if (changed) changed->emplace_back(q * nx + ix, iy);  // stage-2 line (iz = q, ix), position iy
     }
   }
 }
@@ -93,12 +94,12 @@ void IncrementalEdt::full_pass(int stage, int nthreads, Changes* changed, Index*
           const std::int32_t nv = to_int(s.d[static_cast<std::size_t>(j * n + q)]);
           std::int32_t& o = v[j].out[q * v[j].out_stride];
           if (o != nv) {
-            o = nv;
             ++total;
             if (out) {  // stage-3 line (iz, iy = q), position ix
               const Index line = first + j;
-              out->emplace_back((line / nx) * ny + q, line % nx);
+              out->push_back({(line / nx) * ny + q, line % nx, std::min(o, nv)});
             }
+            o = nv;
           }
         }
       }
@@ -109,39 +110,48 @@ void IncrementalEdt::full_pass(int stage, int nthreads, Changes* changed, Index*
   if (n_changed) *n_changed = total;
 }
 
-void IncrementalEdt::update_line(int stage, const LineWork& work, const std::vector<Index>& positions, Scratch& s,
-                                 std::vector<std::pair<Index, Index>>* changed, Index* n_changed) {
+void IncrementalEdt::update_line(int stage, const LineWork& work, const std::vector<Position>& positions, Scratch& s,
+                                 std::vector<Change>* changed, Index* n_changed) {
   const Index nx = shape_[0], ny = shape_[1];
   const LineView v = view(stage, work.line);
   const Index n = v.n;
   const auto old = [&](Index q) { return v.out[q * v.out_stride]; };
-  // q is in a window of p when (q - p)^2 <= old(q). Distances along a line are 1-Lipschitz, so going
-  // outwards from p, once q is out, every further q is out.
-  const auto within = [&](Index q, Index p) {
-    const std::int32_t g = old(q);
-    const Index d = q - p;
-    return g == kNoSite || d * d <= static_cast<Index>(g);
-  };
-  const Index* pos = positions.data() + work.begin;
-  const Index k = work.end - work.begin;
-  Index i = 0, prev_hi = -1;
-  while (i < k) {
-    // One output window [lo, hi]: grown left from the first changed position, right from the last,
-    // absorbing changed positions it reaches.
-    Index lo = pos[i];
-    while (lo > prev_hi + 1 && within(lo - 1, pos[i])) --lo;
-    Index hi = pos[i], last = pos[i];
-    ++i;
-    for (;;) {
-      while (hi < n - 1 && within(hi + 1, last)) ++hi;
-      if (i < k && pos[i] <= hi + 1) {
-        last = pos[i++];
-        hi = std::max(hi, last);
-        continue;
+  // Output windows. q can change only if low(p) + (q - p)^2 <= old(q) for a changed p (else the old
+  // minimum came from an unchanged input and no changed input gets below it). Those q lie among the
+  // q with (q - p)^2 <= old(q), which are contiguous around p (distances along a line are
+  // 1-Lipschitz), so each walk outwards from p stops at the first q outside.
+  auto& windows = s.windows;
+  windows.clear();
+  for (Index k = work.begin; k < work.end; ++k) {
+    const Index p = positions[static_cast<std::size_t>(k)].pos;
+    const Index low = positions[static_cast<std::size_t>(k)].low;
+    Index a = n, b = -1;
+    const auto visit = [&](Index q) {  // false once q is outside the contiguous bound
+      const std::int32_t g = old(q);
+      const Index d2 = (q - p) * (q - p);
+      if (g == kNoSite) {
+        a = std::min(a, q);
+        b = std::max(b, q);
+        return true;
       }
-      break;
+      if (d2 > static_cast<Index>(g)) return false;
+      if (low + d2 <= static_cast<Index>(g)) {
+        a = std::min(a, q);
+        b = std::max(b, q);
+      }
+      return true;
+    };
+    for (Index q = p; q < n && visit(q); ++q) {
     }
-    prev_hi = hi;
+    for (Index q = p - 1; q >= 0 && visit(q); --q) {
+    }
+    if (a <= b) windows.emplace_back(a, b);
+  }
+  std::sort(windows.begin(), windows.end());
+  std::size_t w = 0;
+  while (w < windows.size()) {
+    Index lo = windows[w].first, hi = windows[w].second;
+    for (++w; w < windows.size() && windows[w].first <= hi + 1; ++w) hi = std::max(hi, windows[w].second);
     // Input window: every site that can be nearest to some q in [lo, hi]. Start from the old
     // distances (enough where distances only shrink: the nearest site is then within sqrt(old(q)))
     // and widen until provably enough: a site outside [wlo, whi] is at least (q - wlo + 1) or
@@ -172,12 +182,12 @@ void IncrementalEdt::update_line(int stage, const LineWork& work, const std::vec
         const std::int32_t nv = to_int(s.d[static_cast<std::size_t>(q - wlo)]);
         std::int32_t& o = v.out[q * v.out_stride];
         if (o != nv) {
-          o = nv;
           ++*n_changed;
           if (changed) {  // stage-3 line (iz, iy = q), position ix
             const Index iz = work.line / nx, ix = work.line % nx;
-            changed->emplace_back(iz * ny + q, ix);
+            changed->push_back({iz * ny + q, ix, std::min(o, nv)});
           }
+          o = nv;
         }
       }
       break;
@@ -189,11 +199,11 @@ IncrementalEdt::Work IncrementalEdt::merge(Changes& changes) {
   Work w;
   // Count per line, then bucket the positions by line.
   for (const auto& list : changes) {
-    for (const auto& [line, pos] : list) {
-      Index& slot = merge_slot_[static_cast<std::size_t>(line)];
+    for (const Change& c : list) {
+      Index& slot = merge_slot_[static_cast<std::size_t>(c.line)];
       if (slot < 0) {
         slot = static_cast<Index>(w.lines.size());
-        w.lines.push_back({line, 0, 0});
+        w.lines.push_back({c.line, 0, 0});
       }
       ++w.lines[static_cast<std::size_t>(slot)].end;
     }
@@ -209,18 +219,19 @@ IncrementalEdt::Work IncrementalEdt::merge(Changes& changes) {
   }
   w.positions.resize(static_cast<std::size_t>(offset));
   for (auto& list : changes) {
-    for (const auto& [line, pos] : list) {
-      LineWork& l = w.lines[static_cast<std::size_t>(merge_slot_[static_cast<std::size_t>(line)])];
-      w.positions[static_cast<std::size_t>(l.end++)] = pos;
+    for (const Change& c : list) {
+      LineWork& l = w.lines[static_cast<std::size_t>(merge_slot_[static_cast<std::size_t>(c.line)])];
+      w.positions[static_cast<std::size_t>(l.end++)] = {c.pos, c.low};
     }
     list.clear();
   }
   for (const LineWork& l : w.lines) merge_slot_[static_cast<std::size_t>(l.line)] = -1;
-  // Sort and deduplicate each line's positions in place (the compacted tail is left unused).
+  // Sort each line's positions; a repeated position keeps its lowest value (the compacted tail of a
+  // bucket is left unused).
   for (LineWork& l : w.lines) {
     auto b = w.positions.begin() + l.begin, e = w.positions.begin() + l.end;
-    std::sort(b, e);
-    l.end = l.begin + (std::unique(b, e) - b);
+    std::sort(b, e, [](const Position& x, const Position& y) { return x.pos < y.pos || (x.pos == y.pos && x.low < y.low); });
+    l.end = l.begin + (std::unique(b, e, [](const Position& x, const Position& y) { return x.pos == y.pos; }) - b);
   }
   return w;
 }
@@ -261,7 +272,7 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
     const std::uint8_t nv = value[k] ? 1 : 0;
     if (sites_[static_cast<std::size_t>(i)] != nv) {
       sites_[static_cast<std::size_t>(i)] = nv;
-      changes[0].emplace_back(i / nz, i % nz);
+      changes[0].push_back({i / nz, i % nz, 0});
     }
   }
   // A voxel toggled twice in one call is counted once per toggle; the stats are informative only.

@@ -3,8 +3,8 @@
 // separable transform is stored stage by stage as integer squared voxel distances: along z (stage 1),
 // then over each x-slab (stage 2, along y), then over the grid (stage 3, along x). A change of sites
 // recomputes the z-columns holding a changed voxel; each later stage recomputes, on the lines whose
-// input changed, only the windows where the output can change (q with (q - p)^2 <= old(q) for a
-// changed input p), from an input window proven wide enough. Values are integers and every window is
+// input changed, only the windows where the output can change (q with min(old, new input at p) +
+// (q - p)^2 <= old(q) for a changed input p), from an input window proven wide enough. Values are integers and every window is
 // computed exactly, so the result is identical to a full recompute, not merely close.
 #pragma once
 
@@ -63,11 +63,20 @@ class IncrementalEdt {
   struct LineWork {
     Index line, begin, end;
   };
+  // A changed input of the next stage: line, position and min(old value, new value).
+  struct Change {
+    Index line, pos;
+    std::int32_t low;
+  };
+  struct Position {
+    Index pos;
+    std::int32_t low;
+  };
   struct Work {
     std::vector<LineWork> lines;  // sorted by line
-    std::vector<Index> positions;
+    std::vector<Position> positions;
   };
-  using Changes = std::vector<std::vector<std::pair<Index, Index>>>;  // per chunk of work: (line, position)
+  using Changes = std::vector<std::vector<Change>>;  // per chunk of work
 
   // Stage-2 line iz * nx + ix runs along y; stage-3 line iz * ny + iy runs along x.
   struct LineView {
@@ -79,15 +88,15 @@ class IncrementalEdt {
   LineView view(int stage, Index line);
 
   // Stage 1 for column c = ix * ny + iy; appends (stage-2 line, position iy) where g1 changed.
-  void column(Index c, std::vector<double>& buf, std::vector<std::pair<Index, Index>>* changed);
+  void column(Index c, std::vector<double>& buf, std::vector<Change>* changed);
   // Full stage-2/3 pass over all lines, in groups of neighbouring lines that share cache lines;
   // records changes like update_line when `changed` / `n_changed` are given.
   void full_pass(int stage, int nthreads, Changes* changed, Index* n_changed);
   // Recomputes only the windows of one line whose output can change: positions q with
-  // (q - p)^2 <= old(q) for a changed input position p. Appends (next-stage line, position) where the
-  // output changed (stage 2) and counts changed voxels.
-  void update_line(int stage, const LineWork& work, const std::vector<Index>& positions, Scratch& s,
-                   std::vector<std::pair<Index, Index>>* changed, Index* n_changed);
+  // low(p) + (q - p)^2 <= old(q) for a changed input p, where low(p) = min(old, new input at p).
+  // Appends the changes of the output (stage 2) and counts changed voxels.
+  void update_line(int stage, const LineWork& work, const std::vector<Position>& positions, Scratch& s,
+                   std::vector<Change>* changed, Index* n_changed);
   // Merges per-chunk (line, position) lists into per-line sorted positions.
   Work merge(Changes& changes);
 

@@ -9,7 +9,24 @@ OccupancyGrid::OccupancyGrid(const GridGeometry& geometry, const SensorModel& mo
     : geometry_(geometry),
       model_(model),
       log_odds_(static_cast<std::size_t>(geometry.shape[0] * geometry.shape[1] * geometry.shape[2]), 0.0f),
-      mark_(log_odds_.size(), 0u) {}
+      hit_bits_((log_odds_.size() + 63) / 64, 0u),
+      free_bits_(hit_bits_.size(), 0u) {}
+
+namespace {
+inline bool test_and_set(std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
+  std::uint64_t& w = bits[static_cast<std::size_t>(i >> 6)];
+  const std::uint64_t b = std::uint64_t{1} << (i & 63);
+  const bool was = (w & b) != 0;
+  w |= b;
+  return was;
+}
+inline bool test(const std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
+  return (bits[static_cast<std::size_t>(i >> 6)] >> (i & 63)) & 1u;
+}
+inline void clear(std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
+  bits[static_cast<std::size_t>(i >> 6)] &= ~(std::uint64_t{1} << (i & 63));
+}
+}  // namespace
 
 template <typename Visit>
 void OccupancyGrid::traverse(const double* a_W, const double* b_W, bool skip_end, Visit&& visit) const {
@@ -88,12 +105,6 @@ ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* o
                                      std::vector<std::uint8_t>* flipped_state) {
   ScanStats stats;
   stats.points = n;
-  ++scan_;
-  if (scan_ >= 0x7fffffffu) {  // wrap the marks before 2 * scan + 1 overflows
-    std::fill(mark_.begin(), mark_.end(), 0u);
-    scan_ = 1;
-  }
-  const std::uint32_t free_mark = 2u * scan_, hit_mark = 2u * scan_ + 1u;
   const auto& g = geometry_;
   std::vector<Index> hits, frees;
 
@@ -136,23 +147,18 @@ ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* o
     use[static_cast<std::size_t>(k)] = hit ? 2 : 1;  // 2: beam with a hit end, 1: free beam
     if (hit) {
       const Index i = (ijk[0] * g.shape[1] + ijk[1]) * g.shape[2] + ijk[2];
-      if (mark_[static_cast<std::size_t>(i)] != hit_mark) {
-        mark_[static_cast<std::size_t>(i)] = hit_mark;
-        hits.push_back(i);
-      }
+      if (!test_and_set(hit_bits_, i)) hits.push_back(i);
     }
   }
   for (Index k = 0; k < n; ++k) {
     const std::uint8_t u = use[static_cast<std::size_t>(k)];
     if (!u) continue;
     traverse(origin_W, ends.data() + 3 * k, u == 2, [&](Index i) {
-      std::uint32_t& m = mark_[static_cast<std::size_t>(i)];
-      if (m < free_mark) {
-        m = free_mark;
-        frees.push_back(i);
-      }
+      if (!test(hit_bits_, i) && !test_and_set(free_bits_, i)) frees.push_back(i);
     });
   }
+  for (Index i : hits) clear(hit_bits_, i);
+  for (Index i : frees) clear(free_bits_, i);
   const std::size_t before = flipped->size();
   for (Index i : hits) apply(i, model_.log_odds_hit, true, flipped, flipped_state);
   for (Index i : frees) apply(i, model_.log_odds_miss, false, flipped, flipped_state);

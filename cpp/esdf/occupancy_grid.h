@@ -67,8 +67,9 @@ class OccupancyGrid {
   GridGeometry geometry_;
   SensorModel model_;
   std::vector<float> log_odds_;
-  std::vector<std::uint32_t> mark_;  // 2*scan: seen free this scan; 2*scan + 1: hit this scan
-  std::uint32_t scan_ = 0;
+  // Per-scan marks, one bit per voxel (small enough to stay in cache while beams are walked); all
+  // clear between scans.
+  std::vector<std::uint64_t> hit_bits_, free_bits_;
 };
 
 }  // namespace cufund::esdf
