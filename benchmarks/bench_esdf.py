@@ -72,24 +72,29 @@ def mid360_frame(rng, origin, lo, hi, n=20000, max_range=40.0):
     return origin + t_best[keep, None] * d[keep]
 
 
-def main():
-    rng = np.random.default_rng(0)
-    lo, hi = make_world(rng)
-    occ = world_occupancy(lo, hi)
+def full_edt(name, occ):
     free = ~occ  # the `edt` package and scipy measure the distance to the nearest zero
-    print(f"1) full EDT of a {SHAPE[0]}x{SHAPE[1]}x{SHAPE[2]} grid ({occ.mean():.1%} occupied), voxel {RES} m")
+    print(f"1) full EDT of a {SHAPE[0]}x{SHAPE[1]}x{SHAPE[2]} grid, {name} ({occ.mean():.1%} occupied), voxel {RES} m")
     t_edt = best_of(lambda: edt_pkg.edt(free, anisotropy=(RES,) * 3, parallel=THREADS))
     t_scipy = best_of(lambda: ndimage.distance_transform_edt(free, sampling=RES), repeat=2)
     t32 = best_of(lambda: esdf.edt(occ, voxel_size=RES, nthreads=THREADS, dtype=np.float32))
     t64 = best_of(lambda: esdf.edt(occ, voxel_size=RES, nthreads=THREADS))
     ref = ndimage.distance_transform_edt(free, sampling=RES)
     err = np.max(np.abs(esdf.edt(occ, voxel_size=RES) - ref))
-    print(f"   edt package (parallel={THREADS}, float32): {t_edt * 1e3:8.1f} ms")
-    print(f"   scipy distance_transform_edt (float64):    {t_scipy * 1e3:8.1f} ms")
-    print(f"   cufund.esdf.edt (nthreads={THREADS}, float32):   {t32 * 1e3:8.1f} ms   "
+    print(f"   edt package (parallel={THREADS}, float32):    {t_edt * 1e3:8.1f} ms")
+    print(f"   scipy distance_transform_edt (float64):  {t_scipy * 1e3:8.1f} ms")
+    print(f"   cufund.esdf.edt (nthreads={THREADS}, float32): {t32 * 1e3:8.1f} ms   "
           f"speed vs edt: {t_edt / t32:.2f}x   vs scipy: {t_scipy / t32:.1f}x")
-    print(f"   cufund.esdf.edt (nthreads={THREADS}, float64):   {t64 * 1e3:8.1f} ms   "
+    print(f"   cufund.esdf.edt (nthreads={THREADS}, float64): {t64 * 1e3:8.1f} ms   "
           f"speed vs edt: {t_edt / t64:.2f}x   vs scipy: {t_scipy / t64:.1f}x   max |diff| vs scipy: {err:.1e} m")
+
+
+def main():
+    rng = np.random.default_rng(0)
+    lo, hi = make_world(rng)
+    grids = (("box world", world_occupancy(lo, hi)), ("uniform random 1%", rng.random(SHAPE) < 0.01))
+    for name, occ in grids:
+        full_edt(name, occ)
 
     print("2) incremental update after one Mid-360 frame (~20000 beams, max range 40 m) vs full recompute")
     params = esdf.EsdfMapParams(resolution=RES, size=(40.0, 40.0, 6.0), origin_W=tuple(ORIGIN), max_range=40.0,

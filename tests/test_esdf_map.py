@@ -203,3 +203,11 @@ def test_params_from_dict_reject_unknown_keys_and_round_shape_up():
 
 def test_map_satisfies_the_distance_field_interface():
     assert isinstance(make_map(), esdf.DistanceField)
+
+
+def test_sensor_outside_the_map_marks_the_part_of_the_beam_inside():
+    m = make_map()  # x in [-1, 2]
+    s = m.insert_scan(np.array([[0.55, 0.05, 0.55]]), [-3.0, 0.05, 0.55])
+    assert (s.hit_voxels, s.outside, s.free_voxels) == (1, 0, 15)  # voxels x = 0..14 free, 15 hit
+    lo = m.log_odds()[:, 12, 7]
+    assert np.all(lo[:15] < 0) and lo[15] > 0 and np.all(lo[16:] == 0)
