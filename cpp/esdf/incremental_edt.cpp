@@ -117,33 +117,40 @@ void IncrementalEdt::update_line(int stage, const LineWork& work, const std::vec
   const Index n = v.n;
   const auto old = [&](Index q) { return v.out[q * v.out_stride]; };
   // Output windows. q can change only if low(p) + (q - p)^2 <= old(q) for a changed p (else the old
-  // minimum came from an unchanged input and no changed input gets below it). Those q lie among the
-  // q with (q - p)^2 <= old(q), which are contiguous around p (distances along a line are
-  // 1-Lipschitz), so each walk outwards from p stops at the first q outside.
+  // minimum came from an unchanged input and no changed input gets below it). For one p these q form
+  // an interval (where a parabola lies under a lower envelope of parabolas), inside the q with
+  // (q - p)^2 <= old(q), which are contiguous around p because D = sqrt(old) is 1-Lipschitz along a
+  // line. Walking away from p, the same Lipschitz bound skips q that provably fail.
   auto& windows = s.windows;
   windows.clear();
   for (Index k = work.begin; k < work.end; ++k) {
     const Index p = positions[static_cast<std::size_t>(k)].pos;
     const Index low = positions[static_cast<std::size_t>(k)].low;
     Index a = n, b = -1;
-    const auto visit = [&](Index q) {  // false once q is outside the contiguous bound
-      const std::int32_t g = old(q);
-      const Index d2 = (q - p) * (q - p);
-      if (g == kNoSite) {
-        a = std::min(a, q);
-        b = std::max(b, q);
-        return true;
+    bool p_in = false;
+    for (const Index dir : {Index{1}, Index{-1}}) {
+      if (dir < 0 && b >= a && !p_in) break;  // the interval lies right of p
+      bool found = false;
+      for (Index q = dir > 0 ? p : p - 1; q >= 0 && q < n;) {
+        const std::int32_t g = old(q);
+        const Index d = dir > 0 ? q - p : p - q;
+        if (g == kNoSite || low + d * d <= static_cast<Index>(g)) {
+          a = std::min(a, q);
+          b = std::max(b, q);
+          found = true;
+          if (q == p) p_in = true;
+          q += dir;
+          continue;
+        }
+        if (found || d * d > static_cast<Index>(g)) break;  // left the interval, or past the bound
+        // Here low + d^2 > old(q) = D^2 with d <= D. At d + j, old <= (D + j)^2, so the gap stays
+        // positive while j < gap / (2 (D - d)).
+        const double D = std::sqrt(static_cast<double>(g));
+        if (D <= static_cast<double>(d)) break;
+        const double gap = static_cast<double>(low + d * d - static_cast<Index>(g));
+        const Index skip = static_cast<Index>(std::floor(gap / (2.0 * (D - static_cast<double>(d))) - 1e-9));
+        q += dir * (std::max<Index>(skip, 0) + 1);
       }
-      if (d2 > static_cast<Index>(g)) return false;
-      if (low + d2 <= static_cast<Index>(g)) {
-        a = std::min(a, q);
-        b = std::max(b, q);
-      }
-      return true;
-    };
-    for (Index q = p; q < n && visit(q); ++q) {
-    }
-    for (Index q = p - 1; q >= 0 && visit(q); --q) {
     }
     if (a <= b) windows.emplace_back(a, b);
   }
