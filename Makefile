@@ -8,7 +8,8 @@ VPIP := $(VPY) -m pip
 JOBS ?= $(shell nproc)
 
 # Debian 12 packages the C++ core and the Python dependencies need.
-APT_PACKAGES := libeigen3-dev libembree-dev libbullet-dev libgtest-dev libbenchmark-dev libusb-1.0-0
+# chromium: headless browser that checks replay.html in tests/test_replay.py.
+APT_PACKAGES := libeigen3-dev libembree-dev libbullet-dev libgtest-dev libbenchmark-dev libusb-1.0-0 chromium
 # Build tools installed into the venv (no build isolation, so rebuilds are incremental).
 BUILD_TOOLS := "scikit-build-core>=0.10" "pybind11>=2.13" "cmake>=3.18" ninja
 
@@ -19,8 +20,9 @@ SAN_BUILD := build/sanitize
 
 .PHONY: demo test test-cpp test-python bench sanitize deps stubs clean
 
+# The paper's §3.1 case study; prints the metrics and where the run folder is.
 demo: $(VENV)/.installed
-	$(VPY) -m cufund.demo
+	$(VENV)/bin/cufund run square
 
 test: test-cpp test-python
 
@@ -69,6 +71,10 @@ bench: $(VENV)/.installed $(CPP_BUILD)/build.ninja
 	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_dynamics bench_esdf
 	$(CPP_BUILD)/cpp/dynamics/bench_dynamics --benchmark_min_time=0.2
 	$(VPY) benchmarks/bench_dynamics.py
+	$(VPY) benchmarks/bench_square.py
+	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_lidar
+	$(CPP_BUILD)/cpp/lidar/bench_lidar --benchmark_min_time=0.2
+	$(VPY) benchmarks/bench_lidar.py
 	$(CPP_BUILD)/cpp/esdf/bench_esdf --benchmark_min_time=0.2
 	$(VPY) benchmarks/bench_esdf.py
 

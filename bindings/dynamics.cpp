@@ -151,3 +151,100 @@ void define_dynamics(py::module_& m) {
 }
 
 }  // namespace cufund::py_bind
+
+// --- Collisions of the vehicle's shape with static world meshes (Bullet) -------------------------
+#include "collision_world.h"
+
+namespace cufund::py_bind {
+
+void define_collision(py::module_& m) {
+  py::class_<CollisionWorld>(m, "CollisionWorld", R"doc(
+Static world meshes and one vehicle shape (box or sphere) for collision checks with Bullet.
+Use cufund.worlds.CollisionChecker, which builds it from a cufund.World.
+)doc")
+      .def(py::init<>())
+      .def(
+          "add_mesh",
+          [](CollisionWorld& w, const py::handle& vertices, const py::handle& triangles) {
+            py::array v_arr = py::array::ensure(vertices);
+            if (!v_arr || v_arr.ndim() != 2 || v_arr.shape(1) != 3) {
+              throw py::value_error("vertices must have shape (V, 3), got " +
+                                    (v_arr ? shape_str(v_arr) : std::string("a non-array")));
+            }
+            auto v = as_float64(vertices, "vertices", {v_arr.shape(0), 3});
+            py::array t_arr = py::array::ensure(triangles);
+            if (!t_arr || t_arr.ndim() != 2 || t_arr.shape(1) != 3 || t_arr.shape(0) == 0 ||
+                (t_arr.dtype().kind() != 'i' && t_arr.dtype().kind() != 'u')) {
+              throw py::value_error("triangles must be an integer array of shape (T, 3) with T >= 1, got " +
+                                    (t_arr ? shape_str(t_arr) : std::string("a non-array")));
+            }
+            auto t64 = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(t_arr);
+            const auto nv = static_cast<std::int64_t>(v.shape(0));
+            std::vector<std::uint32_t> tri(static_cast<std::size_t>(t64.size()));
+            for (py::ssize_t i = 0; i < t64.size(); ++i) {
+              const std::int64_t k = t64.data()[i];
+              if (k < 0 || k >= nv) {
+                throw py::value_error("triangles must index vertices in [0, " + std::to_string(nv) + "), got " +
+                                      std::to_string(k) + " in triangle " + std::to_string(i / 3));
+              }
+              tri[static_cast<std::size_t>(i)] = static_cast<std::uint32_t>(k);
+            }
+            for (py::ssize_t i = 0; i < v.size(); ++i) {
+              if (!std::isfinite(v.data()[i])) throw py::value_error("vertices must be finite");
+            }
+            return w.add_mesh(v.data(), static_cast<std::size_t>(nv), tri.data(), tri.size() / 3);
+          },
+          py::arg("vertices"), py::arg("triangles"), "Adds a static mesh [m]; returns its object id (0, 1, ...).")
+      .def(
+          "set_vehicle_box",
+          [](CollisionWorld& w, const py::handle& half_extents) {
+            auto h = as_float64(half_extents, "half_extents", {3});
+            for (int k = 0; k < 3; ++k) {
+              if (!(std::isfinite(h.data()[k]) && h.data()[k] > 0)) {
+                throw py::value_error("half_extents must be 3 finite numbers > 0 [m]");
+              }
+            }
+            w.set_vehicle_box(h.data()[0], h.data()[1], h.data()[2]);
+          },
+          py::arg("half_extents"), "The vehicle is a box of half extents (hx, hy, hz) [m] about the body origin.")
+      .def(
+          "set_vehicle_sphere",
+          [](CollisionWorld& w, double radius) {
+            if (!(std::isfinite(radius) && radius > 0)) {
+              throw py::value_error("radius must be a finite number > 0 [m], got " + std::to_string(radius));
+            }
+            w.set_vehicle_sphere(radius);
+          },
+          py::arg("radius"), "The vehicle is a sphere of this radius [m] about the body origin.")
+      .def(
+          "check",
+          [](const CollisionWorld& w, const py::handle& p_W, const py::handle& q_WB, double margin) -> py::object {
+            auto p = as_float64(p_W, "p_W", {3});
+            auto q = as_float64(q_WB, "q_WB", {4});
+            double qn = 0;
+            for (int k = 0; k < 4; ++k) qn += q.data()[k] * q.data()[k];
+            for (int k = 0; k < 3; ++k) {
+              if (!std::isfinite(p.data()[k])) throw py::value_error("p_W must be finite [m]");
+            }
+            if (!(std::isfinite(qn) && qn > 1e-12)) throw py::value_error("q_WB must be a finite non-zero quaternion");
+            if (!(std::isfinite(margin) && margin >= 0)) throw py::value_error("margin must be a finite number >= 0 [m]");
+            double qu[4];
+            for (int k = 0; k < 4; ++k) qu[k] = q.data()[k] / std::sqrt(qn);
+            const Contact c = w.check(p.data(), qu, margin);
+            if (!c.hit) return py::none();
+            py::dict d;
+            d["object_id"] = c.object_id;
+            d["point_W"] = Eigen::Vector3d(c.point_W[0], c.point_W[1], c.point_W[2]);
+            d["normal_W"] = Eigen::Vector3d(c.normal_W[0], c.normal_W[1], c.normal_W[2]);
+            d["distance"] = c.distance;
+            return std::move(d);
+          },
+          py::arg("p_W"), py::arg("q_WB"), py::arg("margin") = 0.0, R"doc(
+The deepest contact of the vehicle at body pose (p_W [m], q_WB [w, x, y, z]) with any mesh whose
+signed distance is <= margin [m], as a dict (object_id, point_W on the mesh, normal_W from the mesh
+towards the vehicle, distance: negative = penetration), or None.
+)doc")
+      .def_property_readonly("num_objects", &CollisionWorld::num_objects);
+}
+
+}  // namespace cufund::py_bind

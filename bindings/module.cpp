@@ -7,6 +7,11 @@ PYBIND11_MODULE(_core, m) {
   m.attr("__version__") = CUFUND_VERSION;
   py::module_ dynamics = m.def_submodule("dynamics", "Quadrotor rigid-body dynamics (paper §2.1).");
   cufund::py_bind::define_dynamics(dynamics);
+  cufund::py_bind::define_collision(dynamics);
+  py::module_ control = m.def_submodule("control", "Control allocation and the SE(3) attitude law (paper §2.3).");
+  cufund::py_bind::define_control(control);
+  py::module_ lidar = m.def_submodule("lidar", "Embree ray casting for LiDAR and depth cameras (paper §2.2).");
+  cufund::py_bind::define_lidar(lidar);
   py::module_ esdf = m.def_submodule("esdf", "Occupancy mapping and exact Euclidean distance fields (paper §2.3).");
   cufund::py_bind::define_esdf(esdf);
 }

@@ -106,3 +106,11 @@ def test_non_physical_parameters_raise_naming_the_field(crazyflie, change, messa
 def test_params_are_frozen(crazyflie):
     with pytest.raises(dataclasses.FrozenInstanceError):
         crazyflie.mass = 2.0  # type: ignore[misc]
+
+
+def test_missing_yaml_key_is_named(tmp_path):
+    path = tmp_path / "q.yaml"
+    path.write_text("mass: 1.0\ninertia: [0.01, 0.01, 0.02]\narm_length: 0.2\nc_m: 0.02\ntau_m: 0.02\n"
+                    "rotor_speed_max: 1200\n")
+    with pytest.raises(cufund.ConfigError, match="missing key 'k_f' in QuadrotorParams"):
+        cufund.QuadrotorParams.from_yaml(path)

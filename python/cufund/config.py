@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -28,7 +29,24 @@ def from_dict(cls: type[T], data: Any, where: str | None = None) -> T:
     unknown = sorted(set(data) - set(names))
     if unknown:
         raise ConfigError(f"unknown key {unknown[0]!r} in {where}; expected one of: {', '.join(names)}")
+    required = [f.name for f in dataclasses.fields(cls)  # type: ignore[arg-type]
+                if f.init and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    missing = [name for name in required if name not in data]
+    if missing:
+        raise ConfigError(f"missing key {missing[0]!r} in {where}; required: {', '.join(required)}")
     return cls(**data)
+
+
+def check_real_fields(obj: Any, where: str, positive: bool = False, unit: str = "") -> None:
+    """Makes every field of the frozen dataclass ``obj`` a float, requiring a finite number >= 0 (> 0 when
+    ``positive``); the error names ``where.field``."""
+    bound = "> 0" if positive else ">= 0"
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        if (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                or v < 0 or (positive and v == 0)):
+            raise ConfigError(f"{where}.{f.name} must be a finite number {bound}{unit}, got {v!r}")
+        object.__setattr__(obj, f.name, float(v))
 
 
 def load_yaml(path: str | Path) -> Any:

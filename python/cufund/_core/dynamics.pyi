@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['QuadrotorBatch', 'QuadrotorParams', 'RotorLayout', 'allocation_matrix', 'allocation_matrix_inverse', 'rotor_positions', 'rotor_spins', 'validate_params']
+__all__: list[str] = ['CollisionWorld', 'QuadrotorBatch', 'QuadrotorParams', 'RotorLayout', 'allocation_matrix', 'allocation_matrix_inverse', 'rotor_positions', 'rotor_spins', 'validate_params']
 class RotorLayout:
     """
     Rotor arrangement and numbering (PX4 airframe reference).
@@ -220,6 +220,34 @@ class QuadrotorBatch:
         """
         Wind velocity in world frame [m/s], (N, 3) view, held over a step.
         """
+class CollisionWorld:
+    """
+    Static world meshes and one vehicle shape (box or sphere) for collision checks with Bullet.
+    Use cufund.worlds.CollisionChecker, which builds it from a cufund.World.
+    """
+    def __init__(self) -> None:
+        ...
+    def add_mesh(self, vertices: typing.Any, triangles: typing.Any) -> int:
+        """
+        Adds a static mesh [m]; returns its object id (0, 1, ...).
+        """
+    def check(self, p_W: typing.Any, q_WB: typing.Any, margin: typing.SupportsFloat | typing.SupportsIndex = 0.0) -> typing.Any:
+        """
+        The deepest contact of the vehicle at body pose (p_W [m], q_WB [w, x, y, z]) with any mesh whose
+        signed distance is <= margin [m], as a dict (object_id, point_W on the mesh, normal_W from the mesh
+        towards the vehicle, distance: negative = penetration), or None.
+        """
+    def set_vehicle_box(self, half_extents: typing.Any) -> None:
+        """
+        The vehicle is a box of half extents (hx, hy, hz) [m] about the body origin.
+        """
+    def set_vehicle_sphere(self, radius: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        """
+        The vehicle is a sphere of this radius [m] about the body origin.
+        """
+    @property
+    def num_objects(self) -> int:
+        ...
 def allocation_matrix(params: QuadrotorParams) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 4]"]:
     """
     A (4, 4): rotor thrusts [N] -> [f, M_x, M_y, M_z] in body FLU (paper eq. 1).

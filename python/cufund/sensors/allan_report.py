@@ -12,7 +12,7 @@ import numpy as np
 from .allan import allan_deviation, fit_allan
 from .imu import IMU_PRESETS, ImuModel, imu_preset
 
-__all__ = ["allan_report", "main"]
+__all__ = ["add_arguments", "allan_report", "run"]
 
 
 def allan_report(imu: str, duration_s: float, out: str | Path, seed: int = 0) -> dict:
@@ -99,11 +99,3 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="cufund allan", description=__doc__)
-    add_arguments(parser)
-    return run(parser.parse_args(argv))
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -12,10 +12,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..components import Sensor
 from ..config import ConfigError, from_dict
+from ..messages import AirPressure, Odometry, Topics
 from .noise import ErrorProcess, NoiseSpec
 
-__all__ = ["isa_pressure", "isa_altitude", "BarometerParams", "BarometerModel", "BAROMETER_PRESETS"]
+__all__ = ["isa_pressure", "isa_altitude", "BarometerParams", "BarometerModel", "BarometerSensor", "BAROMETER_PRESETS"]
 
 P0 = 101325.0  # [Pa]
 T0 = 288.15  # [K]
@@ -90,13 +92,41 @@ class BarometerModel:
 
     def measure(self, z_W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(pressure [Pa], altitude above home [m]) for heights z_W (K,) or a scalar."""
+        p = self.params
+        if np.ndim(z_W) == 0:  # the per-tick path, in scalar arithmetic
+            z0 = float(z_W)
+            if not math.isfinite(z0):
+                raise ValueError(f"z_W must be finite with shape () or (K,), got {z_W!r}")
+            h = p.home_altitude_m + z0
+            pressure = p.sea_level_pressure_pa * (1.0 - LAPSE * h / p.sea_level_temperature_k) ** EXPONENT
+            pressure += float(self._errors.sample_one()[0])
+            altitude = p.sea_level_temperature_k / LAPSE * (1.0 - (pressure / p.sea_level_pressure_pa) ** (1.0 / EXPONENT))
+            return pressure, altitude - p.home_altitude_m
         z = np.atleast_1d(np.asarray(z_W, dtype=float))
         if z.ndim != 1 or not np.all(np.isfinite(z)):
             raise ValueError(f"z_W must be finite with shape () or (K,), got {np.shape(z_W)}")
-        p = self.params
         pressure = isa_pressure(p.home_altitude_m + z, p.sea_level_pressure_pa, p.sea_level_temperature_k)
         pressure = pressure + self._errors.sample(z.shape[0])[:, 0]
         altitude = isa_altitude(pressure, p.sea_level_pressure_pa, p.sea_level_temperature_k) - p.home_altitude_m
-        if np.ndim(z_W) == 0:
-            return pressure[0], altitude[0]
         return pressure, altitude
+
+
+class BarometerSensor(Sensor):
+    """Publishes :class:`~cufund.messages.AirPressure` samples at the sensor's rate."""
+
+    name = "barometer"
+
+    def __init__(self, params: BarometerParams, seed: int = 0, topic: str = Topics.BAROMETER) -> None:
+        self.model = BarometerModel(params, seed)
+        self.rate_hz = params.rate_hz
+        self.topic = topic
+
+    def reset(self) -> None:
+        self.model.reset()
+
+    def measure(self, t: float, truth: Odometry) -> AirPressure:
+        z = float(truth.p_W[2])
+        pressure, altitude = self.model.measure(z)
+        p = self.model.params
+        temperature = p.sea_level_temperature_k - LAPSE * (p.home_altitude_m + z)
+        return AirPressure(t, pressure, altitude, temperature)

@@ -15,34 +15,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..components import Sensor
 from ..config import ConfigError, from_dict
+from ..messages import GpsFix, Odometry, Topics
 from .geodesy import GeoPoint, enu_to_lla
 from .noise import ErrorProcess, NoiseSpec
 
-__all__ = ["GpsParams", "GpsFix", "GpsModel", "GPS_PRESETS", "CEP_TO_SIGMA"]
+__all__ = ["GpsParams", "GpsFix", "GpsModel", "GpsSensor", "GPS_PRESETS", "CEP_TO_SIGMA"]
 
 CEP_TO_SIGMA = 1.0 / 1.1774  # circular error probable (50 %) of a 2-D Gaussian = 1.1774 sigma
-
-
-@dataclass(frozen=True)
-class GpsFix:
-    """One receiver output (like PX4's ``sensor_gps``)."""
-
-    t: float
-    """Measurement time [s] (the message arrives ``latency_s`` later)."""
-    latitude_deg: float
-    longitude_deg: float
-    altitude_m: float
-    """WGS-84 ellipsoidal height [m]."""
-    v_W: np.ndarray
-    """Velocity, east-north-up [m/s], (3,)."""
-    fix_type: int
-    """0: no fix, 3: 3-D fix."""
-    satellites: int
-    eph: float
-    """Horizontal position accuracy (1 sigma) the receiver claims [m]."""
-    epv: float
-    """Vertical position accuracy (1 sigma) [m]."""
 
 
 @dataclass(frozen=True)
@@ -149,3 +130,21 @@ class GpsModel:
         while self._pending and self._pending[0].t + p.latency_s <= t + 1e-9:
             ready = self._pending.popleft()
         return ready
+
+
+class GpsSensor(Sensor):
+    """Publishes :class:`~cufund.messages.GpsFix` es at the receiver's rate, each ``latency_s`` after its
+    measurement time (rounded to the receiver's period)."""
+
+    name = "gps"
+
+    def __init__(self, params: GpsParams, seed: int = 0, topic: str = Topics.GPS) -> None:
+        self.model = GpsModel(params, seed)
+        self.rate_hz = params.rate_hz
+        self.topic = topic
+
+    def reset(self) -> None:
+        self.model.reset()
+
+    def measure(self, t: float, truth: Odometry) -> GpsFix | None:
+        return self.model.measure(t, truth.p_W, truth.v_W)

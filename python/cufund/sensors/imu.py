@@ -18,10 +18,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..components import Sensor
 from ..config import ConfigError, from_dict
+from ..messages import Imu, Odometry, Topics
 from .noise import ErrorProcess, NoiseSpec
 
-__all__ = ["ImuParams", "ImuModel", "IMU_PRESETS", "imu_preset", "quat_to_rotation"]
+__all__ = ["ImuParams", "ImuModel", "ImuSensor", "IMU_PRESETS", "imu_preset", "quat_to_rotation"]
 
 G0 = 9.80665
 DEG = math.pi / 180.0
@@ -103,8 +105,11 @@ class ImuModel:
         self._errors = ErrorProcess([(params.accel, 3), (params.gyro, 3)], 1.0 / params.rate_hz, seed)
         self._R_IB = quat_to_rotation(np.asarray(params.q_BI)).T
         self._r = np.asarray(params.p_BI)
+        self._r_tuple = tuple(float(v) for v in params.p_BI)
         self._scale_a = 1.0 + np.asarray(params.accel_scale_factor)
         self._scale_g = 1.0 + np.asarray(params.gyro_scale_factor)
+        self._mounted = (tuple(params.q_BI) != (1.0, 0.0, 0.0, 0.0) or any(params.accel_scale_factor)
+                         or any(params.gyro_scale_factor))
 
     def reset(self) -> None:
         """Restarts the error stream (same seed: the same record again)."""
@@ -122,6 +127,8 @@ class ImuModel:
         a_W (K, 3) [m/s^2] and angular acceleration alpha_B (K, 3) [rad/s^2]; or one sample from (4,)/(3,).
         Returns (accelerometer (K, 3) [m/s^2], gyroscope (K, 3) [rad/s]) in the IMU frame."""
         single = np.ndim(q_WB) == 1
+        if single and np.shape(w_B) == (3,) and np.shape(a_W) == (3,) and np.shape(alpha_B) == (3,):
+            return self._measure_one(q_WB, w_B, a_W, alpha_B)
         q, w, a, al = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q_WB, w_B, a_W, alpha_B))
         k = q.shape[0]
         for name, x, d in (("q_WB", q, 4), ("w_B", w, 3), ("a_W", a, 3), ("alpha_B", al, 3)):
@@ -138,11 +145,68 @@ class ImuModel:
         gyr = np.clip(self._scale_g * (w @ self._R_IB.T) + e[:, 3:], -self.params.gyro_range, self.params.gyro_range)
         return (acc[0], gyr[0]) if single else (acc, gyr)
 
+    def _measure_one(self, q_WB: np.ndarray, w_B: np.ndarray, a_W: np.ndarray, alpha_B: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """One sample with scalar arithmetic: the simulator's per-tick path (the same model as the batch path,
+        equal to it within rounding)."""
+        qw, qx, qy, qz = (float(v) for v in q_WB)
+        wx, wy, wz = (float(v) for v in w_B)
+        ax, ay, az = float(a_W[0]), float(a_W[1]), float(a_W[2]) + self.gravity
+        bx, by, bz = (float(v) for v in alpha_B)
+        for name, values in (("q_WB", (qw, qx, qy, qz)), ("w_B", (wx, wy, wz)), ("a_W", (ax, ay, az)),
+                             ("alpha_B", (bx, by, bz))):
+            if not all(math.isfinite(v) for v in values):
+                raise ValueError(f"{name} must be finite")
+        # f_B = R_WB^T (a_W + g e_z): rows of R^T are the columns of R.
+        fx = (1 - 2 * (qy * qy + qz * qz)) * ax + 2 * (qx * qy + qw * qz) * ay + 2 * (qx * qz - qw * qy) * az
+        fy = 2 * (qx * qy - qw * qz) * ax + (1 - 2 * (qx * qx + qz * qz)) * ay + 2 * (qy * qz + qw * qx) * az
+        fz = 2 * (qx * qz + qw * qy) * ax + 2 * (qy * qz - qw * qx) * ay + (1 - 2 * (qx * qx + qy * qy)) * az
+        rx, ry, rz = self._r_tuple
+        if rx or ry or rz:
+            cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx  # w x r
+            fx += by * rz - bz * ry + wy * cz - wz * cy
+            fy += bz * rx - bx * rz + wz * cx - wx * cz
+            fz += bx * ry - by * rx + wx * cy - wy * cx
+        e = self._errors.sample_one()
+        if self._mounted:
+            f = self._scale_a * (self._R_IB @ np.array((fx, fy, fz))) + e[:3]
+            g = self._scale_g * (self._R_IB @ np.array((wx, wy, wz))) + e[3:]
+        else:  # IMU axes along the body's, no scale-factor error: skip the matrix products
+            f = np.array((fx + e[0], fy + e[1], fz + e[2]))
+            g = np.array((wx + e[3], wy + e[4], wz + e[5]))
+        ar, gr = self.params.accel_range, self.params.gyro_range
+        if max(abs(f[0]), abs(f[1]), abs(f[2])) > ar:
+            f = np.clip(f, -ar, ar)
+        if max(abs(g[0]), abs(g[1]), abs(g[2])) > gr:
+            g = np.clip(g, -gr, gr)
+        return f, g
+
     def measure_static(self, k: int, q_WB: np.ndarray = np.array([1.0, 0.0, 0.0, 0.0])) -> tuple[np.ndarray, np.ndarray]:
         """``k`` samples of an IMU at rest with attitude ``q_WB`` (level by default)."""
         q = np.broadcast_to(np.asarray(q_WB, dtype=float), (k, 4))
         z = np.zeros((k, 3))
         return self.measure(q, z, z, z)
+
+
+class ImuSensor(Sensor):
+    """Publishes :class:`~cufund.messages.Imu` samples (IMU frame) at the part's rate from ground truth's true
+    accelerations. ``gravity`` must be the vehicle's (``params.gravity``)."""
+
+    name = "imu"
+
+    def __init__(self, params: ImuParams, seed: int = 0, gravity: float = G0, topic: str = Topics.IMU) -> None:
+        self.model = ImuModel(params, seed, gravity)
+        self.rate_hz = params.rate_hz
+        self.topic = topic
+
+    def reset(self) -> None:
+        self.model.reset()
+
+    def measure(self, t: float, truth: Odometry) -> Imu:
+        if truth.a_W is None or truth.alpha_B is None:
+            raise ValueError("ImuSensor needs ground truth with accelerations (a_W, alpha_B), as the Simulator publishes")
+        a, w = self.model.measure(truth.q_WB, truth.w_B, truth.a_W, truth.alpha_B)
+        return Imu(t, a, w)
 
 
 def _mems(name: str, rate_hz: float, acc_nd_ug: float, gyro_nd_dps: float, acc_rw: float, gyro_rw: float,

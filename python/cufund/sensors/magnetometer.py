@@ -14,11 +14,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..components import Sensor
 from ..config import ConfigError, from_dict
+from ..messages import MagneticField, Odometry, Topics
 from .imu import quat_to_rotation
 from .noise import ErrorProcess, NoiseSpec
 
-__all__ = ["EarthField", "MagnetometerParams", "MagnetometerModel"]
+__all__ = ["EarthField", "MagnetometerParams", "MagnetometerModel", "MagnetometerSensor"]
 
 
 @dataclass(frozen=True)
@@ -88,15 +90,44 @@ class MagnetometerModel:
         self._S = np.asarray(params.soft_iron)
         self._h = np.asarray(params.hard_iron_T)
         self._B_W = params.earth.B_W
+        self._B_W_tuple = tuple(float(v) for v in self._B_W)
 
     def reset(self) -> None:
         self._errors.reset()
 
     def measure(self, q_WB: np.ndarray) -> np.ndarray:
         """(K, 3) or (3,) field samples [T] for attitudes (K, 4) or (4,)."""
+        if np.shape(q_WB) == (4,):
+            qw, qx, qy, qz = (float(v) for v in q_WB)
+            if not all(math.isfinite(v) for v in (qw, qx, qy, qz)):
+                raise ValueError("q_WB must be finite")
+            bx, by, bz = self._B_W_tuple
+            # R_WB^T B_W with scalar arithmetic (the per-tick path).
+            B_B = np.array((
+                (1 - 2 * (qy * qy + qz * qz)) * bx + 2 * (qx * qy + qw * qz) * by + 2 * (qx * qz - qw * qy) * bz,
+                2 * (qx * qy - qw * qz) * bx + (1 - 2 * (qx * qx + qz * qz)) * by + 2 * (qy * qz + qw * qx) * bz,
+                2 * (qx * qz + qw * qy) * bx + 2 * (qy * qz - qw * qx) * by + (1 - 2 * (qx * qx + qy * qy)) * bz))
+            return self._S @ B_B + self._h + self._errors.sample_one()
         q = np.atleast_2d(np.asarray(q_WB, dtype=float))
         if q.ndim != 2 or q.shape[1] != 4 or not np.all(np.isfinite(q)):
             raise ValueError(f"q_WB must be finite with shape (4,) or (K, 4), got {np.shape(q_WB)}")
         B_B = np.einsum("kji,j->ki", quat_to_rotation(q), self._B_W)
         m = B_B @ self._S.T + self._h + self._errors.sample(q.shape[0])
         return m[0] if np.ndim(q_WB) == 1 else m
+
+
+class MagnetometerSensor(Sensor):
+    """Publishes :class:`~cufund.messages.MagneticField` samples at the sensor's rate."""
+
+    name = "magnetometer"
+
+    def __init__(self, params: MagnetometerParams, seed: int = 0, topic: str = Topics.MAGNETOMETER) -> None:
+        self.model = MagnetometerModel(params, seed)
+        self.rate_hz = params.rate_hz
+        self.topic = topic
+
+    def reset(self) -> None:
+        self.model.reset()
+
+    def measure(self, t: float, truth: Odometry) -> MagneticField:
+        return MagneticField(t, self.model.measure(truth.q_WB))

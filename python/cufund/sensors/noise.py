@@ -72,30 +72,50 @@ class ErrorProcess:
         """Restarts the stream: new turn-on bias, random walk at zero, same seed -> same record."""
         self._rng = np.random.default_rng(self.seed)
         self.turn_on_bias = self._sigma_turn_on * self._rng.standard_normal(self.dim)
-        self.bias = np.zeros(self.dim)
-        """Current random-walk part of the bias."""
-        self._buffer = np.empty((0, 2 * self.dim))
+        self._walk_end = np.zeros(self.dim)  # the walk after the last computed sample
+        self._errors = np.empty((0, self.dim))  # computed but not yet handed out
+        self._walks = np.empty((0, self.dim))
         self._used = 0
+        self._bias = np.zeros(self.dim)
 
-    def _draw(self, k: int) -> np.ndarray:
-        out = np.empty((k, 2 * self.dim))
-        done = 0
-        while done < k:
-            if self._used == len(self._buffer):
-                self._buffer = self._rng.standard_normal((max(self._BLOCK, k - done), 2 * self.dim))
-                self._used = 0
-            take = min(k - done, len(self._buffer) - self._used)
-            out[done:done + take] = self._buffer[self._used:self._used + take]
-            self._used += take
-            done += take
-        return out
+    @property
+    def bias(self) -> np.ndarray:
+        """The random-walk part of the bias of the last sample handed out (zero before any)."""
+        return self._bias.copy()
+
+    def _compute(self, k: int) -> None:
+        """Computes the next ``k`` samples' errors into the buffer."""
+        z = self._rng.standard_normal((k, 2 * self.dim))
+        white = z[:, :self.dim] * self._sigma_white
+        # Sample i uses the walk before increment i (zero at reset). Summing from the carried walk keeps the
+        # left-to-right order of one-at-a-time sampling, so block sizes do not change a single bit.
+        walk = np.cumsum(np.vstack([self._walk_end, z[:, self.dim:] * self._sigma_walk]), axis=0)
+        self._walk_end = walk[-1].copy()
+        self._walks = walk[:-1]
+        self._errors = self.turn_on_bias + self._walks + white
+        self._used = 0
 
     def sample(self, k: int = 1) -> np.ndarray:
         """The errors of the next ``k`` samples, shape (k, dim): turn-on bias + walk + white noise."""
-        z = self._draw(k)
-        white = z[:, :self.dim] * self._sigma_white
-        # Sample i uses the walk before increment i (zero at reset). Summing from the carried bias keeps the
-        # left-to-right order of one-at-a-time sampling, so chunking does not change a single bit.
-        walk = np.cumsum(np.vstack([self.bias, z[:, self.dim:] * self._sigma_walk]), axis=0)
-        self.bias = walk[-1].copy()
-        return self.turn_on_bias + walk[:-1] + white
+        if self._used == len(self._errors) and k >= self._BLOCK:
+            self._compute(k)
+        parts = []
+        need = k
+        while need > 0:
+            if self._used == len(self._errors):
+                self._compute(self._BLOCK)
+            take = min(need, len(self._errors) - self._used)
+            parts.append(self._errors[self._used:self._used + take])
+            self._bias = self._walks[self._used + take - 1]
+            self._used += take
+            need -= take
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+    def sample_one(self) -> np.ndarray:
+        """The next sample's errors, shape (dim,) (a read-only view; cheap)."""
+        if self._used == len(self._errors):
+            self._compute(self._BLOCK)
+        row = self._errors[self._used]
+        self._bias = self._walks[self._used]
+        self._used += 1
+        return row

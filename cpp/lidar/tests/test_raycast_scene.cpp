@@ -1,0 +1,183 @@
+// RaycastScene against analytic geometry: an axis-aligned box and a plane, hit distances, normals,
+// ids, misses, packet and single-ray paths agreeing, and bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include "raycast_scene.h"
+
+namespace cufund::lidar {
+namespace {
+
+struct Mesh {
+  std::vector<float> v;
+  std::vector<std::uint32_t> t;
+};
+
+// Axis-aligned box [lo, hi], outward-facing triangles.
+Mesh box(float lx, float ly, float lz, float hx, float hy, float hz) {
+  Mesh m;
+  for (int i = 0; i < 8; ++i) {
+    m.v.push_back(i & 1 ? hx : lx);
+    m.v.push_back(i & 2 ? hy : ly);
+    m.v.push_back(i & 4 ? hz : lz);
+  }
+  m.t = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+  return m;
+}
+
+struct Result {
+  std::vector<float> t, uv, n;
+  std::vector<std::uint32_t> g, p;
+  explicit Result(std::size_t k) : t(k), uv(2 * k), n(3 * k), g(k), p(k) {}
+  RayHits hits() { return {t.data(), g.data(), p.data(), uv.data(), n.data()}; }
+};
+
+TEST(RaycastScene, BoxFacesAtAnalyticDistances) {
+  RaycastScene scene;
+  Mesh b = box(-1, -2, -3, 1, 2, 3);
+  ASSERT_EQ(scene.add_triangles(b.v.data(), 8, b.t.data(), 12).status, SceneStatus::kOk);
+  // From the centre towards +x, -y, +z, and a diagonal direction of length 2.
+  std::vector<float> rays = {0, 0, 0, 1, 0, 0, 0, 0, 0, 0, -1, 0, 0.2f, 0.3f, 0, 0, 0, 1, 0, 0, 0, 0, 0, 2};
+  Result r(4);
+  ASSERT_EQ(scene.cast_rays(rays.data(), 4, r.hits(), 1).status, SceneStatus::kOk);
+  EXPECT_FLOAT_EQ(r.t[0], 1.0f);
+  EXPECT_FLOAT_EQ(r.t[1], 2.0f);
+  EXPECT_FLOAT_EQ(r.t[2], 3.0f);
+  EXPECT_FLOAT_EQ(r.t[3], 1.5f);  // t is in units of |direction|
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(r.g[i], 0u);
+  // Outward normals (triangles wound counter-clockwise seen from outside).
+  EXPECT_NEAR(std::abs(r.n[0]), 1.0f, 1e-6f);
+  EXPECT_NEAR(std::abs(r.n[4]), 1.0f, 1e-6f);
+  EXPECT_NEAR(std::abs(r.n[8]), 1.0f, 1e-6f);
+}
+
+TEST(RaycastScene, MissIsInfinityAndInvalidIds) {
+  RaycastScene scene;
+  Mesh b = box(0, 0, 0, 1, 1, 1);
+  scene.add_triangles(b.v.data(), 8, b.t.data(), 12);
+  std::vector<float> rays = {5, 5, 5, 1, 0, 0};
+  Result r(1);
+  ASSERT_EQ(scene.cast_rays(rays.data(), 1, r.hits()).status, SceneStatus::kOk);
+  EXPECT_TRUE(std::isinf(r.t[0]));
+  EXPECT_EQ(r.g[0], kInvalidId);
+  EXPECT_EQ(r.p[0], kInvalidId);
+}
+
+TEST(RaycastScene, EmptySceneMissesEverything) {
+  RaycastScene scene;
+  std::vector<float> rays = {0, 0, 0, 1, 0, 0};
+  Result r(1);
+  ASSERT_EQ(scene.cast_rays(rays.data(), 1, r.hits()).status, SceneStatus::kOk);
+  EXPECT_TRUE(std::isinf(r.t[0]));
+}
+
+TEST(RaycastScene, GeometryIdsCountFromZeroAndNearestWins) {
+  RaycastScene scene;
+  Mesh far = box(4, -1, -1, 5, 1, 1);
+  Mesh near = box(2, -1, -1, 3, 1, 1);
+  EXPECT_EQ(scene.add_triangles(far.v.data(), 8, far.t.data(), 12).id, 0u);
+  EXPECT_EQ(scene.add_triangles(near.v.data(), 8, near.t.data(), 12).id, 1u);
+  std::vector<float> rays = {0, 0, 0, 1, 0, 0};
+  Result r(1);
+  scene.cast_rays(rays.data(), 1, r.hits());
+  EXPECT_EQ(r.g[0], 1u);
+  EXPECT_FLOAT_EQ(r.t[0], 2.0f);
+  EXPECT_EQ(scene.num_geometries(), 2u);
+  EXPECT_EQ(scene.num_triangles(), 24u);
+}
+
+TEST(RaycastScene, PlaneRangesMatchAnalyticForManyRays) {
+  // Ground plane z = 0 (two big triangles), rays from (0, 0, h) downwards at random angles:
+  // t = h / -dz exactly.
+  RaycastScene scene;
+  const float L = 1000.0f;
+  std::vector<float> v = {-L, -L, 0, L, -L, 0, L, L, 0, -L, L, 0};
+  std::vector<std::uint32_t> t = {0, 1, 2, 0, 2, 3};
+  scene.add_triangles(v.data(), 4, t.data(), 2);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> ang(0.0f, 6.2831853f), el(0.2f, 1.5f);
+  const std::size_t n = 5000;
+  const float h = 1.7f;
+  std::vector<float> rays(6 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const float a = ang(rng), e = el(rng);
+    float* r = &rays[6 * i];
+    r[0] = 0; r[1] = 0; r[2] = h;
+    r[3] = std::cos(e) * std::cos(a); r[4] = std::cos(e) * std::sin(a); r[5] = -std::sin(e);
+  }
+  for (RayOrder order : {RayOrder::kIncoherent, RayOrder::kCoherent}) {
+    Result r(n);
+    ASSERT_EQ(scene.cast_rays(rays.data(), n, r.hits(), 2, order).status, SceneStatus::kOk);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double expect = h / -static_cast<double>(rays[6 * i + 5]);
+      ASSERT_NEAR(r.t[i], expect, 1e-5 * expect) << i;
+      ASSERT_NEAR(r.n[3 * i + 2], 1.0f, 1e-6f);
+    }
+  }
+}
+
+TEST(RaycastScene, PacketAndSingleRayPathsAgree) {
+  RaycastScene scene;
+  Mesh a = box(-3, -3, -1, 3, 3, 4);
+  Mesh b = box(0.5f, 0.5f, 0, 1.5f, 2.5f, 1);
+  scene.add_triangles(a.v.data(), 8, a.t.data(), 12);
+  scene.add_triangles(b.v.data(), 8, b.t.data(), 12);
+  std::mt19937 rng(3);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  const std::size_t n = 3001;  // not a multiple of the packet width
+  std::vector<float> rays(6 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    float* r = &rays[6 * i];
+    r[0] = 0.1f; r[1] = 0.2f; r[2] = 0.3f;
+    r[3] = g(rng); r[4] = g(rng); r[5] = g(rng);
+  }
+  Result s(n), p(n);
+  scene.cast_rays(rays.data(), n, s.hits(), 1, RayOrder::kIncoherent);
+  scene.cast_rays(rays.data(), n, p.hits(), 2, RayOrder::kCoherent);
+  EXPECT_EQ(s.g, p.g);
+  EXPECT_EQ(s.p, p.p);
+  for (std::size_t i = 0; i < n; ++i) ASSERT_NEAR(s.t[i], p.t[i], 1e-6f * s.t[i]) << i;
+}
+
+TEST(RaycastScene, BadInputReportsStatusAndIndex) {
+  RaycastScene scene;
+  Mesh b = box(0, 0, 0, 1, 1, 1);
+  EXPECT_EQ(scene.add_triangles(b.v.data(), 8, b.t.data(), 0).status, SceneStatus::kNoTriangles);
+  std::vector<std::uint32_t> bad = b.t;
+  bad[3 * 5 + 1] = 8;
+  SceneResult r = scene.add_triangles(b.v.data(), 8, bad.data(), 12);
+  EXPECT_EQ(r.status, SceneStatus::kIndexOutOfRange);
+  EXPECT_EQ(r.index, 5u);
+  std::vector<float> nanv = b.v;
+  nanv[3 * 6 + 2] = NAN;
+  r = scene.add_triangles(nanv.data(), 8, b.t.data(), 12);
+  EXPECT_EQ(r.status, SceneStatus::kNonFiniteVertex);
+  EXPECT_EQ(r.index, 6u);
+  EXPECT_EQ(scene.num_geometries(), 0u);
+
+  std::vector<float> rays = {0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, NAN, 0, 1, 0, 0};
+  Result out(3);
+  r = scene.cast_rays(rays.data(), 3, out.hits());
+  EXPECT_EQ(r.status, SceneStatus::kZeroDirection);
+  EXPECT_EQ(r.index, 1u);
+  r = scene.cast_rays(rays.data() + 12, 1, out.hits());
+  EXPECT_EQ(r.status, SceneStatus::kNonFiniteRay);
+}
+
+TEST(RaycastScene, DegenerateTrianglesAreNeverHit) {
+  RaycastScene scene;
+  std::vector<float> v = {1, -1, -1, 1, 1, -1, 1, 1, -1, 1, 0, 1};  // v1 == v2: zero area
+  std::vector<std::uint32_t> t = {0, 1, 2};
+  ASSERT_EQ(scene.add_triangles(v.data(), 4, t.data(), 1).status, SceneStatus::kOk);
+  std::vector<float> rays = {0, 0, 0, 1, 0, 0};
+  Result r(1);
+  scene.cast_rays(rays.data(), 1, r.hits());
+  EXPECT_TRUE(std::isinf(r.t[0]));
+}
+
+}  // namespace
+}  // namespace cufund::lidar

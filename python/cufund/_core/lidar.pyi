@@ -1,0 +1,53 @@
+"""
+Embree ray casting for LiDAR and depth cameras (paper §2.2).
+"""
+from __future__ import annotations
+import numpy
+import numpy.typing
+import typing
+__all__: list[str] = ['INVALID_ID', 'RaycastScene', 'scan_rays']
+class RaycastScene:
+    """
+    A scene of triangle meshes that casts rays with Embree 3, shaped like Open3D's RaycastingScene.
+    
+    Add meshes with ``add_triangles``, then ``cast_rays``; the acceleration structure is (re)built on the
+    first cast after a change. Casting is multithreaded and releases the GIL.
+    """
+    INVALID_ID: typing.ClassVar[int] = 4294967295
+    def __init__(self) -> None:
+        ...
+    def add_triangles(self, vertices: typing.Any, triangles: typing.Any) -> int:
+        """
+        Adds a mesh and returns its geometry id (0, 1, 2, ... in order of addition).
+        
+        vertices: (V, 3) real [m]; triangles: (T, 3) integer vertex indices, T >= 1. The mesh is copied.
+        Degenerate (zero-area) triangles are kept but never hit.
+        """
+    def cast_rays(self, rays: typing.Any, nthreads: typing.SupportsInt | typing.SupportsIndex = 0, coherent: typing.Any = None) -> dict:
+        """
+        Casts rays and returns the first hit of each.
+        
+        rays: (..., 6) rows of (origin xyz, direction xyz), float32 preferred (others are converted); every
+        value finite and every direction non-zero, else ValueError naming the ray.
+        nthreads: 0 uses every core. coherent: None guesses from the rays (8-wide packets when consecutive
+        rays share an origin, regrouped into compact angular tiles on large scenes), True forces packets of
+        consecutive rays, False single rays; the results are the same either way.
+        
+        Returns a dict of arrays shaped like the leading dims of ``rays``:
+        ``t_hit`` float32 (inf on a miss; in units of the direction's length), ``geometry_ids`` and
+        ``primitive_ids`` uint32 (INVALID_ID on a miss), ``primitive_uvs`` float32 (..., 2) barycentrics,
+        ``primitive_normals`` float32 (..., 3) unit geometric normals (zero on a miss), also as ``normals``.
+        """
+    @property
+    def num_geometries(self) -> int:
+        ...
+    @property
+    def num_triangles(self) -> int:
+        ...
+def scan_rays(d_L: typing.Any, t: typing.Any, knot_t: typing.Any, knot_p: typing.Any, knot_q: typing.Any) -> numpy.typing.NDArray[numpy.float32]:
+    """
+    (N, 6) float32 rays of a moving sensor: ray i leaves from the sensor pose at time t[i], interpolated
+    between pose knots (knot_t (K,) increasing [s], knot_p (K, 3) p_WL [m], knot_q (K, 4) q_WL [w, x, y, z]
+    unit, consecutive signs aligned) linearly in position and by slerp in rotation, along R_WL d_L[i].
+    """
+INVALID_ID: int = 4294967295

@@ -1,0 +1,112 @@
+"""Nonlinear geometric tracking control on SE(3) (Lee, Leok & McClamroch, CDC 2010), in world ENU / body FLU.
+
+Position mode:  F = -k_x e_x - k_v e_v + m g e_3 + m a_d,   f = F . R e_3,   b_3d = F / |F|
+Attitude:       e_R = 1/2 vee(R_d^T R - R^T R_d),   e_W = W - R^T R_d W_d
+                M = -k_R e_R - k_W e_W + W x J W - J (hat(W) R^T R_d W_d - R^T R_d dW_d)
+with the desired body rate W_d from the jerk feed-forward (differential flatness; dW_d taken as zero).
+Velocity mode drops the position term; attitude mode tracks a given attitude and thrust. Gains are scaled by
+the mass (k_x, k_v) and the inertia (k_R, k_W), so they are accelerations per unit error. The force law and the
+mode logic are here; the attitude law runs in C++ (``cpp/control/geometric_control.cpp``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import _core
+from ..config import check_real_fields
+from ..components import Bus, Controller
+from ..messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, ThrustTorqueSetpoint, Topics
+from ..params import QuadrotorParams
+from .allocation import ControlAllocator
+from .flight_mode import BumplessTransfer, ModeReferences
+from .rotations import quat_to_rotation
+
+__all__ = ["GeometricControlParams", "GeometricController"]
+
+
+@dataclass(frozen=True)
+class GeometricControlParams:
+    """Gains of the SE(3) controller, as accelerations per unit error."""
+
+    k_x: float = 6.0
+    """Position gain [m/s^2 per m] (times the mass gives Lee's k_x)."""
+    k_v: float = 4.5
+    """Velocity gain [m/s^2 per m/s]."""
+    k_R: float = 150.0
+    """Attitude gain [rad/s^2 per rad] (times J gives Lee's k_R)."""
+    k_W: float = 22.0
+    """Body-rate gain [rad/s^2 per rad/s]."""
+    k_R_yaw: float = 40.0
+    """Attitude gain about body z [rad/s^2 per rad]."""
+    k_W_yaw: float = 10.0
+    """Body-rate gain about body z [rad/s^2 per rad/s]."""
+
+    def __post_init__(self) -> None:
+        check_real_fields(self, "GeometricControlParams")
+
+
+class GeometricController(Controller):
+    """The SE(3) controller as one component: references in (``Topics.TRAJECTORY_SETPOINT``, or
+    ``Topics.MANUAL_ATTITUDE_SETPOINT`` in attitude mode), rotor speeds out (``Topics.ACTUATOR_COMMAND``),
+    through the same prioritising :class:`ControlAllocator` as the cascaded PID. Mode switches hold the
+    references the vehicle had at the switch (see :class:`ModeReferences`) and fade out the step between the
+    last and the new force command (:class:`BumplessTransfer`)."""
+
+    name = "geometric_controller"
+
+    def __init__(self, params: QuadrotorParams, gains: GeometricControlParams | None = None, rate_hz: float = 500.0,
+                 mode: FlightMode = FlightMode.POSITION) -> None:
+        self.params = params
+        self.gains = gains or GeometricControlParams()
+        self.rate_hz = rate_hz
+        self.refs = ModeReferences(mode)
+        self.transfer = BumplessTransfer()
+        self.allocator = ControlAllocator(params)
+        g = self.gains
+        self._J = params.inertia_matrix
+        self._kR = np.array([g.k_R, g.k_R, g.k_R_yaw])
+        self._kW = np.array([g.k_W, g.k_W, g.k_W_yaw])
+        self.last: AttitudeSetpoint | None = None
+
+    def reset(self) -> None:
+        self.refs.reset()
+        self.transfer.reset()
+        self.last = None
+
+    @property
+    def mode(self) -> FlightMode:
+        return self.refs.mode
+
+    def update(self, t: float, state: Odometry, bus: Bus) -> None:
+        g = self.gains
+        m, grav = self.params.mass, self.params.gravity
+        mode = self.refs.update(t, state, bus, self.last)
+        if mode is FlightMode.ATTITUDE:
+            att = self.refs.attitude(bus)
+            f = m * grav if math.isnan(att.thrust) else att.thrust
+            thrust, M, q_d = _core.control.geometric_from_attitude(self._J, self._kR, self._kW, state.q_WB, state.w_B,
+                                                                   att.q_WB, f, att.yaw_rate)
+            yaw_rate = att.yaw_rate
+        else:
+            sp = self.refs.trajectory(t, bus)
+            F = m * (sp.a_W - g.k_v * (state.v_W - sp.v_W))
+            F[2] += m * grav
+            if mode is FlightMode.POSITION:
+                F -= g.k_x * m * (state.p_W - sp.p_W)
+            if self.refs.switched and self.last is not None:
+                # the force last commanded continues and fades into the new one
+                self.transfer.start(t, self.last.thrust * quat_to_rotation(self.last.q_WB)[:, 2], F)
+            F = F + self.transfer.offset(t)
+            thrust, M, q_d = _core.control.geometric_from_force(self._J, m, self._kR, self._kW, state.q_WB, state.w_B,
+                                                                F, sp.j_W, sp.yaw, sp.yaw_rate)
+            yaw_rate = sp.yaw_rate
+        speeds = self.allocator.rotor_speeds(thrust, M)
+        self.last = AttitudeSetpoint(t, q_d, thrust, yaw_rate)
+        a = self.allocator.last_thrust_torque
+        bus.publish(Topics.ATTITUDE_SETPOINT, self.last)
+        bus.publish(Topics.THRUST_TORQUE_SETPOINT, ThrustTorqueSetpoint(t, float(a[0]), a[1:].copy()))
+        bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand(t, speeds))

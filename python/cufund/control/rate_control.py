@@ -1,0 +1,111 @@
+"""PX4-style body-rate control (``mc_rate_control``) followed by control allocation (``control_allocator``)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import check_real_fields
+from ..components import Bus, Controller
+from ..messages import ActuatorCommand, Odometry, RateSetpoint, ThrustTorqueSetpoint, Topics
+from ..params import QuadrotorParams
+from .allocation import ControlAllocator
+
+__all__ = ["RateControlParams", "RateController"]
+
+_RATE_I_SCALE = math.radians(400.0)  # PX4: integration slows for rate errors near 400 deg/s
+
+
+@dataclass(frozen=True)
+class RateControlParams:
+    """Rate PID gains. PX4 names in brackets; PX4's gains act on normalised actuator outputs, these on angular
+    acceleration (torque = J * output), so they play the same role with vehicle-independent units: P
+    [rad/s^2 per rad/s], I [rad/s^2 per rad], D [rad/s^2 per rad/s^2], FF [rad/s^2 per rad/s]."""
+
+    roll_p: float = 25.0
+    """(MC_ROLLRATE_P)"""
+    roll_i: float = 10.0
+    """(MC_ROLLRATE_I)"""
+    roll_d: float = 0.2
+    """(MC_ROLLRATE_D)"""
+    pitch_p: float = 25.0
+    """(MC_PITCHRATE_P)"""
+    pitch_i: float = 10.0
+    """(MC_PITCHRATE_I)"""
+    pitch_d: float = 0.2
+    """(MC_PITCHRATE_D)"""
+    yaw_p: float = 12.0
+    """(MC_YAWRATE_P)"""
+    yaw_i: float = 5.0
+    """(MC_YAWRATE_I)"""
+    yaw_d: float = 0.0
+    """(MC_YAWRATE_D)"""
+    feed_forward: float = 0.0
+    """Rate feed-forward on all axes (MC_ROLLRATE_FF, MC_PITCHRATE_FF, MC_YAWRATE_FF)."""
+    integrator_limit: float = 30.0
+    """Integrator magnitude limit per axis [rad/s^2] (MC_RR_INT_LIM, MC_PR_INT_LIM, MC_YR_INT_LIM)."""
+    d_cutoff_hz: float = 30.0
+    """Low-pass cutoff of the rate derivative used by D [Hz] (IMU_DGYRO_CUTOFF)."""
+
+    def __post_init__(self) -> None:
+        check_real_fields(self, "RateControlParams")
+
+
+class RateController(Controller):
+    """Tracks ``Topics.RATE_SETPOINT``; publishes :class:`ActuatorCommand` on ``Topics.ACTUATOR_COMMAND`` (and
+    the allocated thrust and torque on ``Topics.THRUST_TORQUE_SETPOINT``).
+
+    PID with the derivative on the measured rate (low-passed), so setpoint steps do not kick; the integrator
+    grows less for large errors (PX4's ``1 - (e / 400 deg/s)^2`` factor), stops on an axis whose torque the
+    allocator could not deliver in the error's direction, and is limited in magnitude.
+    """
+
+    name = "rate_controller"
+
+    def __init__(self, params: QuadrotorParams, gains: RateControlParams | None = None, rate_hz: float = 500.0) -> None:
+        self.params = params
+        self.gains = gains or RateControlParams()
+        self.rate_hz = rate_hz
+        self.allocator = ControlAllocator(params)
+        g = self.gains
+        self._kp = np.array([g.roll_p, g.pitch_p, g.yaw_p])
+        self._ki = np.array([g.roll_i, g.pitch_i, g.yaw_i])
+        self._kd = np.array([g.roll_d, g.pitch_d, g.yaw_d])
+        self._J = params.inertia_matrix
+        self.reset()
+
+    def reset(self) -> None:
+        self.rate_int = np.zeros(3)
+        """Rate integrator [rad/s^2]."""
+        self._w_prev: np.ndarray | None = None
+        self._dw_filt = np.zeros(3)
+
+    def update(self, t: float, state: Odometry, bus: Bus) -> None:
+        sp: RateSetpoint | None = bus.get(Topics.RATE_SETPOINT)
+        if sp is None:
+            return
+        g = self.gains
+        dt = 1.0 / self.rate_hz
+        w = state.w_B
+        if self._w_prev is None:
+            self._w_prev = w.copy()
+        alpha = dt / (dt + 1.0 / (2.0 * math.pi * g.d_cutoff_hz)) if g.d_cutoff_hz > 0 else 1.0
+        self._dw_filt += alpha * ((w - self._w_prev) / dt - self._dw_filt)
+        self._w_prev = w.copy()
+        e = sp.w_B - w
+        alpha_cmd = self._kp * e + self.rate_int - self._kd * self._dw_filt + g.feed_forward * sp.w_B
+        torque = self._J @ alpha_cmd
+        speeds = self.allocator.rotor_speeds(sp.thrust, torque)
+        sat = self.allocator.last_saturation.torque
+        lim = g.integrator_limit
+        for i in range(3):
+            ei = float(e[i])
+            if (sat[i] > 0 and ei > 0) or (sat[i] < 0 and ei < 0):
+                continue
+            i_factor = max(0.0, 1.0 - (ei / _RATE_I_SCALE) ** 2)
+            self.rate_int[i] = min(max(self.rate_int[i] + i_factor * self._ki[i] * ei * dt, -lim), lim)
+        a = self.allocator.last_thrust_torque
+        bus.publish(Topics.THRUST_TORQUE_SETPOINT, ThrustTorqueSetpoint(t, float(a[0]), a[1:].copy()))
+        bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand(t, speeds))

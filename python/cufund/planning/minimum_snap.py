@@ -1,0 +1,234 @@
+"""Minimum-snap trajectories through waypoints (paper §3.1, eq. 6; Mellinger & Kumar 2011).
+
+Position minimises the integral of the squared 4th derivative (n = 4), yaw the squared 2nd derivative (m = 2),
+each between fixed waypoints, starting and ending at rest (derivatives 1..n-1 zero at both ends).
+
+The optimum of ``min sum_i int |p^(k)|^2 dt`` with fixed interior waypoints is, by the Euler-Lagrange equation
+``p^(2k) = 0``, a piecewise polynomial of degree 2k-1 that is continuous to derivative 2k-2 at every interior
+waypoint. Those conditions give exactly as many linear equations as coefficients, so the trajectory is the
+solution of one banded linear system (no QP): a degree-7 spline continuous to the 6th derivative for position
+(snap is continuous, as required), a cubic C^2 spline for yaw.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+
+import numpy as np
+from scipy.linalg import solve_banded
+
+from .trajectory import TrajectorySamples
+
+__all__ = ["MinimumSnapTrajectory", "min_derivative_spline", "allocate_segment_times"]
+
+_POWERS8 = np.arange(8.0)
+
+
+def _falling(j: np.ndarray, r: int) -> np.ndarray:
+    """j (j-1) ... (j-r+1), zero where j < r."""
+    out = np.ones_like(j, dtype=float)
+    for i in range(r):
+        out *= j - i
+    return np.where(j >= r, out, 0.0)
+
+
+def min_derivative_spline(values: np.ndarray, durations: np.ndarray, order: int) -> np.ndarray:
+    """Coefficients of the piecewise polynomial through ``values`` minimising ``int |p^(order)|^2 dt``.
+
+    ``values`` (M+1, d) waypoints, ``durations`` (M,) segment times [s] > 0. Derivatives 1..order-1 are zero at
+    both ends. Returns ``c`` of shape (M, 2*order, d) in normalised time: on segment i,
+    ``p(t) = sum_j c[i, j] * s**j`` with ``s = (t - t_i) / durations[i]`` in [0, 1].
+    """
+    k = int(order)
+    values = np.asarray(values, dtype=float)
+    T = np.asarray(durations, dtype=float)
+    m = T.shape[0]
+    nc = 2 * k  # coefficients per segment; unknowns ordered segment by segment
+    n = m * nc
+    j = np.arange(nc)
+    F = np.stack([_falling(j, r) for r in range(nc)])  # F[r, j]: d^r/ds^r s^j at s = 1
+    fact = np.array([math.factorial(r) for r in range(nc)], dtype=float)
+    rows: list[np.ndarray] = []
+    cols: list[np.ndarray] = []
+    vals: list[np.ndarray] = []
+
+    def put(r: object, c: object, v: object) -> None:
+        r, c, v = np.broadcast_arrays(r, c, v)
+        rows.append(r.ravel())
+        cols.append(c.ravel())
+        vals.append(v.ravel())
+
+    seg = np.arange(m)
+    base = seg * nc
+    top = (k - 1) + seg * nc  # first row of segment i's block: 2 waypoint rows, then 2k-2 (last: k-1) derivative rows
+    b = np.zeros((n, values.shape[1]))
+    rs = np.arange(1, k)
+    put(rs - 1, rs, fact[rs])  # rest at the start: p_0^(r)(0) = 0, r = 1..k-1
+    put(top, base, 1.0)  # p_i(0) = w_i
+    b[top] = values[:-1]
+    put(top[:, None] + 1, base[:, None] + j, 1.0)  # p_i(1) = w_{i+1}
+    b[top + 1] = values[1:]
+    if m > 1:  # continuity of derivatives 1..2k-2 into the next segment, each row scaled by T_i^r
+        ri = np.arange(1, 2 * k - 1)
+        inner = seg[:-1]
+        row = top[inner, None] + 1 + ri  # (m-1, 2k-2)
+        put(row[:, :, None], base[inner, None, None] + j, F[ri][None, :, :])
+        ratio = (T[:-1] / T[1:])[:, None] ** ri
+        put(row, base[inner, None] + nc + ri, -fact[ri] * ratio)
+    put((top[-1] + 1 + rs)[:, None], base[-1] + j, F[rs])  # rest at the end
+    r_all, c_all, v_all = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    lo, up = 3 * k - 2, k  # lower and upper bandwidth of this ordering
+    ab = np.zeros((lo + up + 1, n))
+    np.add.at(ab, (up + r_all - c_all, c_all), v_all)
+    return solve_banded((lo, up), ab, b, check_finite=False).reshape(m, nc, -1)
+
+
+def allocate_segment_times(waypoints: np.ndarray, v_max: float, a_max: float) -> np.ndarray:
+    """Rest-to-rest trapezoidal-profile time for each segment's straight-line distance [s]."""
+    d = np.linalg.norm(np.diff(np.asarray(waypoints, dtype=float), axis=0), axis=1)
+    tri = d < v_max * v_max / a_max
+    return np.where(tri, 2.0 * np.sqrt(d / a_max), d / v_max + v_max / a_max)
+
+
+class MinimumSnapTrajectory:
+    """Minimum-snap position (n = 4) and minimum-acceleration yaw (m = 2) through waypoints, from rest to rest.
+
+    Args:
+        waypoints_W: (K, 3) positions [m], K >= 2, consecutive ones distinct.
+        yaw: (K,) yaw at each waypoint [rad] (unwrapped so each change is the shorter way round); zeros if None.
+        durations: (K-1,) segment times [s]. If None they are allocated from ``v_max`` and ``a_max``: trapezoidal
+            estimates per segment, then all scaled by one factor so the peak speed or acceleration of the
+            resulting trajectory just meets its limit (a uniform time scaling keeps the optimal shape).
+        v_max: speed limit for time allocation [m/s].
+        a_max: acceleration limit for time allocation [m/s^2].
+        t_start: time of the first waypoint [s].
+    """
+
+    def __init__(self, waypoints_W: np.ndarray, yaw: np.ndarray | None = None, durations: np.ndarray | None = None,
+                 v_max: float = 1.0, a_max: float = 2.0, t_start: float = 0.0) -> None:
+        w = np.asarray(waypoints_W, dtype=float)
+        if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 2:
+            raise ValueError(f"waypoints_W must have shape (K, 3) with K >= 2, got {w.shape}")
+        if not np.all(np.isfinite(w)):
+            raise ValueError("waypoints_W must be finite")
+        k = w.shape[0]
+        psi = np.zeros(k) if yaw is None else np.asarray(yaw, dtype=float)
+        if psi.shape != (k,) or not np.all(np.isfinite(psi)):
+            raise ValueError(f"yaw must be {k} finite angles (one per waypoint), got shape {psi.shape}")
+        psi = np.unwrap(psi)
+        if durations is None:
+            if not (v_max > 0 and a_max > 0):
+                raise ValueError(f"v_max and a_max must be > 0, got {v_max}, {a_max}")
+            if np.any(np.linalg.norm(np.diff(w, axis=0), axis=1) <= 0):
+                raise ValueError("consecutive waypoints_W must differ to allocate segment times")
+            T = allocate_segment_times(w, v_max, a_max)
+        else:
+            T = np.asarray(durations, dtype=float)
+            if T.shape != (k - 1,) or not np.all(np.isfinite(T)) or np.any(T <= 0):
+                raise ValueError(f"durations must be {k - 1} finite times > 0 [s], got {T}")
+        self.waypoints_W = w
+        self.yaw_waypoints = psi
+        self.t_start = float(t_start)
+        self._set_times(T)
+        if durations is None:
+            s = self.sample(self._dense_times())
+            scale = max(np.max(np.linalg.norm(s.v_W, axis=1)) / v_max,
+                        math.sqrt(np.max(np.linalg.norm(s.a_W, axis=1)) / a_max))
+            self._set_times(T * scale)
+
+    def _set_times(self, T: np.ndarray) -> None:
+        self.durations = T
+        self.t_knots = self.t_start + np.concatenate([[0.0], np.cumsum(T)])
+        self.coeffs = min_derivative_spline(self.waypoints_W, T, 4)  # (M, 8, 3)
+        self.yaw_coeffs = min_derivative_spline(self.yaw_waypoints[:, None], T, 2)  # (M, 4, 1)
+        self._knots_list = self.t_knots.tolist()
+        self._pos_tables = self._tables(self.coeffs)
+        self._yaw_tables = self._tables(self.yaw_coeffs)
+        # per segment, derivatives 0..3 (position) and 0..1 (yaw) side by side: (M, r, 8, d) -> one matmul per sample
+        self._pos_stack = np.stack(self._pos_tables[:4], axis=1)
+        self._yaw_stack = np.stack(self._yaw_tables[:2], axis=1)
+
+    def _dense_times(self, per_segment: int = 16) -> np.ndarray:
+        s = np.linspace(0.0, 1.0, per_segment, endpoint=False)
+        return (self.t_knots[:-1, None] + self.durations[:, None] * s).ravel()
+
+    @property
+    def duration(self) -> float:
+        """Total time [s]."""
+        return float(self.t_knots[-1] - self.t_knots[0])
+
+    @property
+    def t_end(self) -> float:
+        """Time of the last waypoint [s]."""
+        return float(self.t_knots[-1])
+
+    def _tables(self, c: np.ndarray) -> list[np.ndarray]:
+        """Per derivative order r, coefficients (M, nc, d) of p^(r) in powers of s, scaled to time units."""
+        nc = c.shape[1]
+        j = np.arange(nc)
+        out = []
+        for r in range(nc):
+            d = np.zeros_like(c)
+            d[:, : nc - r] = c[:, r:] * _falling(j[r:], r)[None, :, None] / self.durations[:, None, None] ** r
+            out.append(d)
+        return out
+
+    def derivative(self, t: np.ndarray | float, r: int, which: str = "position") -> np.ndarray:
+        """The r-th time derivative at times ``t``: (N, 3) for position, (N,) for yaw; rest outside the span."""
+        tab = (self._pos_tables if which == "position" else self._yaw_tables)[r]
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        i, s = self._locate(t)
+        c = tab[i]  # (N, nc, d)
+        out = c[:, -1]
+        for p in range(c.shape[1] - 2, -1, -1):  # Horner
+            out = out * s[:, None] + c[:, p]
+        if r > 0:
+            out = np.where(((t < self.t_knots[0]) | (t > self.t_knots[-1]))[:, None], 0.0, out)
+        return out if which == "position" else out[:, 0]
+
+    def _locate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        i = np.clip(np.searchsorted(self.t_knots, t, side="right") - 1, 0, len(self.durations) - 1)
+        return i, np.clip((t - self.t_knots[i]) / self.durations[i], 0.0, 1.0)
+
+    def sample(self, t: np.ndarray | float) -> TrajectorySamples:
+        if isinstance(t, (float, int)):
+            return self._sample_one(float(t))
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        i, s = self._locate(t)
+        inside = ((t >= self.t_knots[0]) & (t <= self.t_knots[-1]))[:, None]
+        S8 = s[:, None] ** np.arange(8)  # powers of s, (N, 8)
+        S4 = S8[:, :4]
+        pos = [np.einsum("nj,njd->nd", S8, self._pos_tables[r][i]) for r in range(4)]
+        yaw = [np.einsum("nj,njd->nd", S4, self._yaw_tables[r][i])[:, 0] for r in range(2)]
+        return TrajectorySamples(t=t, p_W=pos[0], v_W=np.where(inside, pos[1], 0.0), a_W=np.where(inside, pos[2], 0.0),
+                                 j_W=np.where(inside, pos[3], 0.0), yaw=yaw[0], yaw_rate=np.where(inside[:, 0], yaw[1], 0.0))
+
+    def _sample_one(self, t: float) -> TrajectorySamples:
+        """The same as :meth:`sample` for one time, without the vectorised machinery (for per-tick setpoints)."""
+        knots = self._knots_list
+        i = min(max(bisect.bisect_right(knots, t) - 1, 0), len(knots) - 2)
+        s = min(max((t - knots[i]) / (knots[i + 1] - knots[i]), 0.0), 1.0)
+        S = s ** _POWERS8
+        pos = S @ self._pos_stack[i]  # (4, 3): position, velocity, acceleration, jerk
+        yaw = S[:4] @ self._yaw_stack[i]  # (2, 1): yaw, yaw rate
+        if not knots[0] <= t <= knots[-1]:
+            pos[1:] = 0.0
+            yaw[1] = 0.0
+        return TrajectorySamples(t=np.array([t]), p_W=pos[0:1], v_W=pos[1:2], a_W=pos[2:3], j_W=pos[3:4],
+                                 yaw=yaw[0], yaw_rate=yaw[1])
+
+    def snap_cost(self) -> float:
+        """``sum_i int |p''''(t)|^2 dt`` over all segments, exact [m^2/s^7]."""
+        return _derivative_cost(self.coeffs, self.durations, 4)
+
+
+def _derivative_cost(c: np.ndarray, T: np.ndarray, r: int) -> float:
+    nc = c.shape[1]
+    j = np.arange(nc)
+    f = _falling(j, r)
+    e = np.maximum(j - r, 0)
+    # int_0^1 s^(a+b) ds over the derivative's monomials
+    H = np.outer(f, f) / np.where((f[:, None] * f[None, :]) > 0, e[:, None] + e[None, :] + 1, 1)
+    per_seg = np.einsum("mad,ab,mbd->m", c, H, c)
+    return float(np.sum(per_seg / T ** (2 * r - 1)))

@@ -1,0 +1,64 @@
+"""Jerk-limited point-to-point moves (take-off, landing, go-to) computed by ruckig (Berscheid & Kroeger 2021)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .trajectory import TrajectorySamples
+
+__all__ = ["JerkLimitedMove"]
+
+
+class JerkLimitedMove:
+    """Time-optimal rest-to-rest move from ``start_W`` to ``goal_W`` [m] under per-axis limits on velocity
+    [m/s], acceleration [m/s^2] and jerk [m/s^3], holding ``yaw`` [rad]; starts at ``t_start`` [s].
+
+    Position, velocity and acceleration come from ruckig; jerk (which ruckig's Python API does not return) is the
+    central difference of its acceleration over 0.1 ms, exact inside each constant-jerk phase.
+    """
+
+    def __init__(self, start_W: np.ndarray, goal_W: np.ndarray, v_max: float = 1.0, a_max: float = 2.0,
+                 j_max: float = 5.0, yaw: float = 0.0, t_start: float = 0.0) -> None:
+        from ruckig import InputParameter, Result, Ruckig, Trajectory
+
+        a, b = np.asarray(start_W, dtype=float), np.asarray(goal_W, dtype=float)
+        for name, x in (("start_W", a), ("goal_W", b)):
+            if x.shape != (3,) or not np.all(np.isfinite(x)):
+                raise ValueError(f"{name} must be 3 finite numbers [m], got {x}")
+        for name, x in (("v_max", v_max), ("a_max", a_max), ("j_max", j_max)):
+            if not (np.isfinite(x) and x > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {x!r}")
+        inp = InputParameter(3)
+        inp.current_position, inp.target_position = a.tolist(), b.tolist()
+        inp.max_velocity, inp.max_acceleration, inp.max_jerk = [v_max] * 3, [a_max] * 3, [j_max] * 3
+        self._traj = Trajectory(3)
+        result = Ruckig(3).calculate(inp, self._traj)
+        if result not in (Result.Working, Result.Finished):
+            raise ValueError(f"ruckig could not plan the move from {a} to {b}: {result}")
+        self.start_W, self.goal_W = a, b
+        self.yaw_value = float(yaw)
+        self.t_start = float(t_start)
+
+    @property
+    def duration(self) -> float:
+        return float(self._traj.duration)
+
+    @property
+    def t_end(self) -> float:
+        return self.t_start + self.duration
+
+    def _acc(self, tau: float) -> np.ndarray:
+        return np.asarray(self._traj.at_time(min(max(tau, 0.0), self.duration))[2])
+
+    def sample(self, t: np.ndarray | float) -> TrajectorySamples:
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        n = t.shape[0]
+        p, v, a, j = (np.zeros((n, 3)) for _ in range(4))
+        h = 5e-5
+        for k, tk in enumerate(t):
+            tau = min(max(tk - self.t_start, 0.0), self.duration)
+            pk, vk, ak = self._traj.at_time(tau)
+            p[k], v[k], a[k] = pk, vk, ak
+            if 0.0 < tk - self.t_start < self.duration:
+                j[k] = (self._acc(tau + h) - self._acc(tau - h)) / (2 * h)
+        return TrajectorySamples(t=t, p_W=p, v_W=v, a_W=a, j_W=j, yaw=np.full(n, self.yaw_value), yaw_rate=np.zeros(n))

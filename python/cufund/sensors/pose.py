@@ -1,0 +1,84 @@
+"""Poses for sensors: quaternions [w, x, y, z], rigid transforms and pose trajectories sampled in time."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import numpy as np
+
+PoseFn = Callable[[float], tuple[object, object]]
+"""``pose_fn(t) -> (p_W (3,), q_WB (4,) [w, x, y, z])``: the body pose at time t [s]."""
+
+
+def _unit_quaternion(q: object, field: str) -> np.ndarray:
+    q = np.asarray(q, dtype=float)
+    if q.shape != (4,) or not np.all(np.isfinite(q)):
+        raise ValueError(f"{field} must be 4 finite numbers [w, x, y, z], got {q.shape} {q!r}")
+    n = np.linalg.norm(q)
+    if n < 1e-9:
+        raise ValueError(f"{field} must be a non-zero quaternion [w, x, y, z]")
+    return q / n
+
+
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """(…, 4) unit quaternions [w, x, y, z] -> (…, 3, 3) rotation matrices."""
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a ⊗ b of (…, 4) quaternions [w, x, y, z]."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
+
+
+def yaw_quaternion(yaw: float) -> np.ndarray:
+    """[w, x, y, z] of a rotation by ``yaw`` [rad] about z."""
+    return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+
+
+@dataclasses.dataclass(frozen=True)
+class Transform:
+    """Rigid transform T_AB: maps points from frame B to frame A (p_A = R_AB p_B + t_AB)."""
+
+    t: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Translation t_AB, origin of B in A [m]."""
+    q: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    """Rotation q_AB [w, x, y, z]."""
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.t, dtype=float)
+        if t.shape != (3,) or not np.all(np.isfinite(t)):
+            raise ValueError(f"t must be 3 finite numbers [m], got {self.t!r}")
+        object.__setattr__(self, "t", tuple(float(v) for v in t))
+        object.__setattr__(self, "q", tuple(float(v) for v in _unit_quaternion(self.q, "q")))
+
+    @property
+    def R(self) -> np.ndarray:
+        return quat_to_matrix(np.array(self.q))
+
+
+def sample_poses(pose_fn: PoseFn, times: np.ndarray, T_BS: Transform) -> tuple[np.ndarray, np.ndarray]:
+    """Sensor poses at ``times``: p_WS (K, 3) and R_WS (K, 3, 3), from the body poses pose_fn(t)
+    composed with the mounting T_BS. Quaternion signs are aligned so interpolation takes the short way."""
+    p_WB = np.empty((len(times), 3))
+    q_WB = np.empty((len(times), 4))
+    for k, t in enumerate(times):
+        p, q = pose_fn(float(t))
+        p = np.asarray(p, dtype=float)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"pose_fn({t}) must return p_W as 3 finite numbers [m], got {p!r}")
+        p_WB[k] = p
+        q_WB[k] = _unit_quaternion(q, f"pose_fn({t}) q_WB")
+        if k and np.dot(q_WB[k], q_WB[k - 1]) < 0:
+            q_WB[k] = -q_WB[k]
+    q_WS = quat_mul(q_WB, np.array(T_BS.q))
+    p_WS = p_WB + quat_to_matrix(q_WB) @ np.array(T_BS.t)
+    return p_WS, q_WS

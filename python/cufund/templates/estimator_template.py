@@ -1,0 +1,30 @@
+"""Template: an estimator. Copy, rename, replace the filter.
+
+A :class:`cufund.Estimator` fuses measurements into an :class:`Odometry` on its ``topic``; once one is attached,
+controllers with an automatic state topic fly on its output instead of ground truth. This one low-pass filters
+the template position sensor's readings (``/sensors/position``) and passes the other fields through.
+"""
+
+from __future__ import annotations
+
+import cufund
+from cufund.messages import Odometry
+
+
+class MyEstimator(cufund.Estimator):
+    name = "my_estimator"
+
+    def __init__(self, input_topic: str = "/sensors/position", gain: float = 0.5, rate_hz: float = 100.0) -> None:
+        self.input_topic, self.gain, self.rate_hz = input_topic, gain, rate_hz
+        self.last: Odometry | None = None
+
+    def reset(self) -> None:
+        self.last = None
+
+    def estimate(self, t: float, bus: cufund.Bus) -> Odometry | None:
+        z: Odometry | None = bus.get(self.input_topic)
+        if z is None:
+            return None
+        p = z.p_W if self.last is None else self.last.p_W + self.gain * (z.p_W - self.last.p_W)
+        self.last = Odometry(t, p, z.v_W, z.q_WB, z.w_B)
+        return self.last

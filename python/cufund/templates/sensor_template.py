@@ -1,0 +1,28 @@
+"""Template: a sensor. Copy, rename, replace the measurement model.
+
+A :class:`cufund.Sensor` turns ground truth into a measurement on its ``topic``. This one is a position sensor
+(e.g. motion capture) with Gaussian noise from its own seeded generator, so runs stay repeatable.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import cufund
+from cufund.messages import Odometry
+
+
+class MyPositionSensor(cufund.Sensor):
+    name = "my_position_sensor"
+    topic = "/sensors/position"
+
+    def __init__(self, sigma_m: float = 0.01, rate_hz: float = 100.0, seed: int = 0) -> None:
+        self.sigma, self.rate_hz, self.seed = sigma_m, rate_hz, seed
+        self.rng = np.random.default_rng(seed)
+
+    def reset(self) -> None:
+        self.rng = np.random.default_rng(self.seed)
+
+    def measure(self, t: float, truth: Odometry) -> Odometry:
+        noisy = truth.p_W + self.sigma * self.rng.standard_normal(3)
+        return Odometry(t, noisy, truth.v_W.copy(), truth.q_WB.copy(), truth.w_B.copy())

@@ -1,0 +1,1 @@
+"""Visualisation: plots, MeshCat replays and live viewing. Imported only where used, never by the simulator."""

@@ -1,0 +1,100 @@
+"""Built-in worlds: ``load("imav2025_tunnel" | "empty" | "forest" | "corridor")``."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from .world import World
+
+WALL = (0.75, 0.75, 0.72)
+FLOOR = (0.45, 0.45, 0.45)
+
+
+def _arena(world: World, size: tuple[float, float, float], centre_xy: tuple[float, float] = (0.0, 0.0),
+           wall: float = 0.1) -> None:
+    """Floor, ceiling and four walls of an indoor arena, inner size (sx, sy, sz) [m], floor at z = 0."""
+    sx, sy, sz = size
+    cx, cy = centre_xy
+    world.add_box((sx + 2 * wall, sy + 2 * wall, wall), (cx, cy, -wall / 2), label="floor", color=FLOOR)
+    world.add_box((sx + 2 * wall, sy + 2 * wall, wall), (cx, cy, sz + wall / 2), label="ceiling", color=WALL)
+    world.add_box((wall, sy, sz), (cx - (sx + wall) / 2, cy, sz / 2), label="wall", color=WALL)
+    world.add_box((wall, sy, sz), (cx + (sx + wall) / 2, cy, sz / 2), label="wall", color=WALL)
+    world.add_box((sx, wall, sz), (cx, cy - (sy + wall) / 2, sz / 2), label="wall", color=WALL)
+    world.add_box((sx, wall, sz), (cx, cy + (sy + wall) / 2, sz / 2), label="wall", color=WALL)
+
+
+def imav2025_tunnel() -> World:
+    """IMAV 2025 tunnel challenge (paper §3): five frames with 0.5 m (y) × 1 m (z) openings, 0.5 m
+    apart along x, from x = 0 to x = 2 m (2 m in total), in a 12 m × 8 m × 4 m arena.
+
+    Each frame stands on the floor: its 5 cm bars surround an opening from z = 0.05 to 1.05 m, centred
+    on y = 0. The vehicle starts around x = -2 m and flies along +x.
+    """
+    world = World("imav2025_tunnel")
+    _arena(world, (12.0, 8.0, 4.0), centre_xy=(1.0, 0.0))
+    bar = 0.05
+    for k in range(5):
+        world.add_tunnel_frame((0.5 * k, 0.0, bar + 0.5), width=0.5, height=1.0, depth=bar, thickness=bar)
+    return world
+
+
+def empty() -> World:
+    """Just a 100 m × 100 m ground plane at z = 0."""
+    world = World("empty")
+    world.add_plane((100.0, 100.0), (0.0, 0.0, 0.0), label="ground", color=FLOOR)
+    return world
+
+
+def forest(seed: int = 0, n_trees: int = 120, size: float = 40.0, clearing: float = 2.0) -> World:
+    """Ground and ``n_trees`` trunks (cylinders, radius 0.1–0.3 m, height 4–10 m) at seeded uniform
+    random positions in a ``size`` × ``size`` square, none within ``clearing`` of the origin."""
+    if n_trees < 0:
+        raise ValueError(f"n_trees must be >= 0, got {n_trees}")
+    world = World("forest")
+    world.add_plane((size + 10.0, size + 10.0), (0.0, 0.0, 0.0), label="ground", color=(0.35, 0.3, 0.2))
+    rng = np.random.default_rng(seed)
+    placed = 0
+    while placed < n_trees:
+        x, y = rng.uniform(-size / 2, size / 2, 2)
+        if np.hypot(x, y) < clearing:
+            continue
+        r, h = rng.uniform(0.1, 0.3), rng.uniform(4.0, 10.0)
+        world.add_cylinder(r, h, (x, y, h / 2), label="tree", color=(0.4, 0.25, 0.1), segments=12)
+        placed += 1
+    return world
+
+
+def corridor(length: float = 30.0, width: float = 2.0, height: float = 2.5) -> World:
+    """A straight corridor along +x from x = 0, with floor, ceiling and walls; open at both ends."""
+    world = World("corridor")
+    wall = 0.1
+    cx = length / 2
+    world.add_box((length, width + 2 * wall, wall), (cx, 0, -wall / 2), label="floor", color=FLOOR)
+    world.add_box((length, width + 2 * wall, wall), (cx, 0, height + wall / 2), label="ceiling", color=WALL)
+    world.add_box((length, wall, height), (cx, (width + wall) / 2, height / 2), label="wall", color=WALL)
+    world.add_box((length, wall, height), (cx, -(width + wall) / 2, height / 2), label="wall", color=WALL)
+    return world
+
+
+BUILTIN: dict[str, Callable[..., World]] = {
+    "imav2025_tunnel": imav2025_tunnel,
+    "empty": empty,
+    "forest": forest,
+    "corridor": corridor,
+}
+
+
+def load(name: str, **kwargs: object) -> World:
+    """A built-in world by name (keyword arguments go to its builder, e.g. ``seed`` for forest),
+    or a world described in a YAML file when ``name`` ends in .yaml / .yml."""
+    if name.endswith((".yaml", ".yml")):
+        from .description import world_from_yaml
+
+        if kwargs:
+            raise ValueError("a YAML world takes no keyword arguments")
+        return world_from_yaml(name)
+    if name not in BUILTIN:
+        raise ValueError(f"unknown world {name!r}; built-in worlds are: {', '.join(BUILTIN)}")
+    return BUILTIN[name](**kwargs)

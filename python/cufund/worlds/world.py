@@ -1,0 +1,168 @@
+"""A world of triangle meshes, each with an id, a semantic label and a colour."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from .. import _core
+from . import primitives
+
+
+@dataclasses.dataclass(frozen=True)
+class WorldObject:
+    """One rigid mesh of the world, in world coordinates (ENU, z up)."""
+
+    id: int
+    """Index in ``World.objects``; equals the ray caster's geometry id."""
+    label: str
+    """Semantic label, e.g. "wall", "tunnel_frame", "tree"."""
+    color: tuple[float, float, float]
+    """Albedo as RGB in [0, 1]."""
+    vertices: np.ndarray
+    """(V, 3) float64 vertex positions in the world frame [m]."""
+    triangles: np.ndarray
+    """(T, 3) int64 vertex indices."""
+    reflectivity: float = 0.8
+    """LiDAR reflectivity in [0, 1]; intensity = reflectivity × |cos(incidence)|."""
+
+
+def _pose_matrix(position: object, yaw: float) -> tuple[np.ndarray, np.ndarray]:
+    p = np.asarray(position, dtype=float)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ValueError(f"position must be 3 finite numbers [m], got {position!r}")
+    yaw = float(yaw)
+    if not np.isfinite(yaw):
+        raise ValueError(f"yaw must be finite [rad], got {yaw}")
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), p
+
+
+def _color(color: object) -> tuple[float, float, float]:
+    c = np.asarray(color, dtype=float)
+    if c.shape != (3,) or not np.all((c >= 0.0) & (c <= 1.0)):
+        raise ValueError(f"color must be 3 numbers in [0, 1] (RGB), got {color!r}")
+    return (float(c[0]), float(c[1]), float(c[2]))
+
+
+class World:
+    """Triangle meshes for ray-traced sensors and collisions.
+
+    Add objects with ``add_mesh`` or the primitive helpers; each returns its ``WorldObject``. The
+    Embree scene (``raycast_scene``) is built on first use and rebuilt after changes.
+    """
+
+    def __init__(self, name: str = "world") -> None:
+        self.name = name
+        self._objects: list[WorldObject] = []
+        self._scene: _core.lidar.RaycastScene | None = None
+
+    @property
+    def objects(self) -> tuple[WorldObject, ...]:
+        return tuple(self._objects)
+
+    def __len__(self) -> int:
+        return len(self._objects)
+
+    def add_mesh(self, vertices: object, triangles: object, label: str = "object",
+                 color: object = (0.7, 0.7, 0.7), position: object = (0.0, 0.0, 0.0), yaw: float = 0.0,
+                 reflectivity: float = 0.8) -> WorldObject:
+        """Adds a mesh given in its own frame, placed at ``position`` [m] rotated by ``yaw`` [rad] about z."""
+        v = np.asarray(vertices, dtype=float)
+        f = np.asarray(triangles)
+        if v.ndim != 2 or v.shape[1] != 3:
+            raise ValueError(f"vertices must have shape (V, 3), got {v.shape}")
+        if f.ndim != 2 or f.shape[1] != 3 or f.shape[0] == 0:
+            raise ValueError(f"triangles must have shape (T, 3) with T >= 1, got {f.shape}")
+        if not np.issubdtype(f.dtype, np.integer):
+            raise ValueError(f"triangles must have an integer dtype, got {f.dtype}")
+        if not np.all(np.isfinite(v)):
+            raise ValueError("vertices must be finite")
+        if f.min() < 0 or f.max() >= len(v):
+            raise ValueError(f"triangles must index vertices in [0, {len(v)}), got [{f.min()}, {f.max()}]")
+        if not 0.0 <= float(reflectivity) <= 1.0:
+            raise ValueError(f"reflectivity must be in [0, 1], got {reflectivity}")
+        R, p = _pose_matrix(position, yaw)
+        obj = WorldObject(len(self._objects), str(label), _color(color), v @ R.T + p, f.astype(np.int64),
+                          float(reflectivity))
+        self._objects.append(obj)
+        self._scene = None
+        return obj
+
+    def add_box(self, size: object, position: object, yaw: float = 0.0, label: str = "box",
+                color: object = (0.7, 0.7, 0.7)) -> WorldObject:
+        """Box of edge lengths ``size`` (sx, sy, sz) [m] centred at ``position``."""
+        return self.add_mesh(*primitives.box(tuple(size)), label, color, position, yaw)
+
+    def add_plane(self, size: object, position: object, yaw: float = 0.0, label: str = "floor",
+                  color: object = (0.5, 0.5, 0.5)) -> WorldObject:
+        """Horizontal rectangle (sx, sy) [m] at ``position``, facing up."""
+        return self.add_mesh(*primitives.plane(tuple(size)), label, color, position, yaw)
+
+    def add_cylinder(self, radius: float, height: float, position: object, label: str = "cylinder",
+                     color: object = (0.7, 0.7, 0.7), segments: int = 32) -> WorldObject:
+        """Vertical capped cylinder centred at ``position``."""
+        return self.add_mesh(*primitives.cylinder(radius, height, segments), label, color, position)
+
+    def add_sphere(self, radius: float, position: object, label: str = "sphere",
+                   color: object = (0.7, 0.7, 0.7), subdivisions: int = 3) -> WorldObject:
+        return self.add_mesh(*primitives.sphere(radius, subdivisions), label, color, position)
+
+    def add_tunnel_frame(self, position: object, width: float = 0.5, height: float = 1.0, depth: float = 0.05,
+                         thickness: float = 0.05, yaw: float = 0.0, label: str = "tunnel_frame",
+                         color: object = (0.9, 0.4, 0.1)) -> WorldObject:
+        """Rectangular frame around an opening width (y) × height (z) [m] centred at ``position``;
+        flown through along x (rotated by ``yaw``)."""
+        return self.add_mesh(*primitives.tunnel_frame(width, height, depth, thickness), label, color, position, yaw)
+
+    def load_mesh(self, path: str | Path, label: str | None = None, color: object = (0.7, 0.7, 0.7),
+                  position: object = (0.0, 0.0, 0.0), yaw: float = 0.0, scale: float = 1.0) -> WorldObject:
+        """Adds a mesh from an OBJ, STL or PLY file (read with trimesh), scaled by ``scale``."""
+        import trimesh  # imported here: only mesh files need it
+
+        path = Path(path)
+        if not path.is_file():
+            raise ValueError(f"mesh file {str(path)!r} does not exist")
+        if not np.isfinite(scale) or scale <= 0:
+            raise ValueError(f"scale must be a finite number > 0, got {scale}")
+        mesh = trimesh.load(path, force="mesh", process=False)
+        if len(mesh.faces) == 0:
+            raise ValueError(f"mesh file {str(path)!r} holds no triangles")
+        return self.add_mesh(np.asarray(mesh.vertices) * scale, np.asarray(mesh.faces), label or path.stem, color,
+                             position, yaw)
+
+    # --- queries ------------------------------------------------------------------------------
+    @property
+    def raycast_scene(self) -> _core.lidar.RaycastScene:
+        """The Embree scene of all objects; geometry id == object id."""
+        if self._scene is None:
+            scene = _core.lidar.RaycastScene()
+            for obj in self._objects:
+                gid = scene.add_triangles(obj.vertices.astype(np.float32), obj.triangles)
+                assert gid == obj.id
+            self._scene = scene
+        return self._scene
+
+    def colors(self) -> np.ndarray:
+        """(n_objects + 1, 3) albedo per object id; the last row (index -1) is black for misses."""
+        return np.array([o.color for o in self._objects] + [(0.0, 0.0, 0.0)], dtype=float).reshape(-1, 3)
+
+    def reflectivities(self) -> np.ndarray:
+        """(n_objects + 1,) reflectivity per object id; the last entry (misses) is 0."""
+        return np.array([o.reflectivity for o in self._objects] + [0.0], dtype=float)
+
+    def labels(self) -> list[str]:
+        return [o.label for o in self._objects]
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) axis-aligned [min, max] corners of all objects [m]."""
+        if not self._objects:
+            raise ValueError("the world is empty: no bounds")
+        v = np.vstack([o.vertices for o in self._objects])
+        return np.stack([v.min(0), v.max(0)])
+
+    def __repr__(self) -> str:
+        tris = sum(len(o.triangles) for o in self._objects)
+        return f"World({self.name!r}, {len(self._objects)} objects, {tris} triangles)"

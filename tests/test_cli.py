@@ -1,0 +1,42 @@
+"""The ``cufund`` command line."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from cufund.cli import main
+
+
+def test_help_lists_scenarios(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert "square" in out and "§3.1" in out and "run" in out
+
+
+def test_console_script_installed():
+    exe = Path(sys.executable).parent / "cufund"
+    r = subprocess.run([str(exe), "--help"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and "square" in r.stdout
+
+
+def test_run_square_writes_folder(tmp_path, capsys):
+    out = tmp_path / "sq"
+    assert main(["run", "square", "--controller", "geometric", "--out", str(out), "--no-replay"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "metrics.json", "trajectory.png"]
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["status"] == "completed" and m["tracking_rmse_m"] <= 0.02
+    assert f"run folder: {out.resolve()}" in capsys.readouterr().out
+    # config.yaml runs again through the same command
+    assert main(["run", str(out / "config.yaml"), "--out", str(tmp_path / "again"), "--no-replay"]) == 0
+    m2 = json.loads((tmp_path / "again" / "metrics.json").read_text())
+    assert m2["tracking_rmse_m"] == m["tracking_rmse_m"]
+
+
+def test_bad_scenario_exits_2(capsys):
+    assert main(["run", "nosuch"]) == 2
+    assert "unknown scenario 'nosuch'" in capsys.readouterr().err

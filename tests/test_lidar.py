@@ -1,0 +1,233 @@
+"""LiDAR scan patterns and the range model: FOV, points per frame, Livox coverage growth, per-point
+timestamps and motion distortion, noise, dropout, intensity, determinism, bad input."""
+
+import numpy as np
+import pytest
+
+import cufund
+from cufund import lidar as L
+from cufund.sensors.pose import Transform, quat_to_matrix, yaw_quaternion
+
+
+def covered_cells(pattern, frames, cell_deg=1.0):
+    cells, counts = set(), []
+    for k in range(frames):
+        r = pattern.frame(k)
+        a = np.floor(np.rad2deg(r.azimuth) / cell_deg).astype(int)
+        e = np.floor(np.rad2deg(r.elevation) / cell_deg).astype(int)
+        cells |= set(zip(a.tolist(), e.tolist()))
+        counts.append(len(cells))
+    return counts
+
+
+@pytest.mark.parametrize(
+    "pattern, n, el_lo, el_hi, period",
+    [
+        (L.vlp16(), 16 * 1800, -15.0, 15.0, 0.1),
+        (L.os1_64(), 64 * 1024, -16.6, 16.6, 0.1),
+        (L.PlanarPattern(), 1081, 0.0, 0.0, 0.025),
+        (L.mid360(), 20000, -7.0, 52.0, 0.1),
+        (L.avia(), 24000, -38.6, 38.6, 0.1),
+    ],
+)
+def test_patterns_fov_points_per_frame_and_timing(pattern, n, el_lo, el_hi, period):
+    for k in (0, 3):
+        r = pattern.frame(k)
+        assert len(r.t) == n
+        el = np.rad2deg(r.elevation)
+        assert el.min() >= el_lo - 1e-6 and el.max() <= el_hi + 1e-6
+        assert el.max() - el.min() >= 0.95 * (el_hi - el_lo)
+        assert r.t.min() >= 0 and r.t.max() < period and np.all(np.diff(r.t) >= 0)
+        np.testing.assert_allclose(np.linalg.norm(r.directions(), axis=1), 1.0)
+    assert pattern.period == pytest.approx(period)
+
+
+def test_planar_pattern_spans_270_degrees():
+    az = np.rad2deg(L.PlanarPattern().frame(0).azimuth)
+    assert az.min() == pytest.approx(-135.0) and az.max() == pytest.approx(135.0)
+
+
+def test_mid360_coverage_grows_over_frames_while_a_spinning_lidar_repeats():
+    mid = covered_cells(L.mid360(), 10)
+    assert all(b > a for a, b in zip(mid, mid[1:5]))  # strictly growing early on
+    full = 360 * 59
+    assert mid[0] < 0.5 * full and mid[-1] > 0.95 * full
+    vlp = covered_cells(L.vlp16(), 5)
+    assert vlp == [vlp[0]] * 5
+    r0, r1 = L.mid360().frame(0), L.mid360().frame(1)
+    assert not np.allclose(r0.elevation, r1.elevation)  # non-repetitive
+
+
+def test_avia_rosette_coverage_grows():
+    c = covered_cells(L.avia(), 6, cell_deg=0.5)
+    assert all(b > a for a, b in zip(c, c[1:]))
+    assert c[-1] > 1.2 * c[0]
+
+
+def test_csv_pattern_slices_frames_and_wraps(tmp_path):
+    t = np.arange(300) * 1e-3  # 0.3 s of rows at 1 kHz
+    az = np.linspace(-180, 180, 300, endpoint=False)
+    zen = 90.0 - np.linspace(-10, 10, 300)
+    path = tmp_path / "pattern.csv"
+    np.savetxt(path, np.column_stack([t, az, zen]), delimiter=",", header="time,azimuth,zenith", comments="")
+    p = L.CsvPattern(str(path), rate=10.0)
+    f0, f1, f3 = p.frame(0), p.frame(1), p.frame(3)
+    assert len(f0.t) == 100
+    np.testing.assert_allclose(np.rad2deg(f0.azimuth), az[:100])
+    np.testing.assert_allclose(np.rad2deg(f0.elevation), np.linspace(-10, 10, 300)[:100])
+    np.testing.assert_allclose(np.rad2deg(f1.azimuth), az[100:200])
+    np.testing.assert_allclose(f3.azimuth, f0.azimuth)  # the 0.3 s table wraps around
+    bad = tmp_path / "bad.csv"
+    bad.write_text("1,2\n3,4\n")
+    with pytest.raises(ValueError, match="time, azimuth, zenith"):
+        L.CsvPattern(str(bad))
+
+
+def wall_world(x=10.0):
+    w = cufund.World("wall")
+    w.add_box((0.2, 200.0, 200.0), (x + 0.1, 0.0, 0.0), label="wall")
+    return w
+
+
+def static_pose(p=(0.0, 0.0, 0.0), q=(1.0, 0.0, 0.0, 0.0)):
+    return lambda t: (np.array(p), np.array(q))
+
+
+def test_ranges_to_a_wall_are_analytic_and_points_are_consistent():
+    lid = L.Lidar(L.vlp16(), L.LidarParams(range_max=100.0))
+    pc = lid.scan(wall_world(), static_pose((1.0, 0.5, 0.0)), 0.0)
+    d = pc.points_L / np.linalg.norm(pc.points_L, axis=1, keepdims=True)
+    np.testing.assert_allclose(pc.ranges, 9.0 / d[:, 0], rtol=1e-5)
+    np.testing.assert_allclose(pc.points_W[:, 0], 10.0, atol=1e-4)
+    assert np.all(d[:, 0] > 0.09)  # returns only from the half facing the wall (range <= 100 m)
+
+
+def test_motion_distortion_each_point_leaves_from_the_pose_at_its_own_time():
+    v = 2.0
+    x0 = 1.0
+    lid = L.Lidar(L.mid360(), L.LidarParams(range_max=100.0))
+    pc = lid.scan(wall_world(), lambda t: (np.array([x0 + v * (t - 5.0), 0.0, 0.0]), np.array([1.0, 0, 0, 0])), 5.0)
+    # In the LiDAR frame at firing time the wall is at x = 10 - (x0 + v (t - 5)).
+    np.testing.assert_allclose(pc.points_L[:, 0], 10.0 - (x0 + v * (pc.t - 5.0)), atol=2e-4)
+    assert pc.t.min() >= 5.0 and pc.t.max() < 5.1
+    assert np.ptp(pc.points_L[:, 0]) > 0.15  # 2 m/s over 0.1 s: the distortion is there to undistort
+
+
+def test_rotating_sensor_with_mount_matches_the_exact_pose_per_point():
+    rate = 3.0  # rad/s yaw
+    T_BL = Transform((0.1, -0.05, 0.2), (np.cos(0.2), np.sin(0.2), 0.0, 0.0))
+    pose = lambda t: (np.array([0.3 * t, 0.0, 1.0]), yaw_quaternion(rate * t))  # noqa: E731
+    w = cufund.worlds.load("imav2025_tunnel")
+    pc = L.Lidar(L.mid360(), L.LidarParams(pose_samples=8), T_BL).scan(w, pose, 0.0)
+    R_BL, t_BL = T_BL.R, np.array(T_BL.t)
+    for i in np.linspace(0, len(pc) - 1, 200).astype(int):
+        p_WB, q_WB = pose(pc.t[i])
+        R_WB = quat_to_matrix(q_WB)
+        expect = R_WB @ (R_BL @ pc.points_L[i] + t_BL) + p_WB
+        np.testing.assert_allclose(pc.points_W[i], expect, atol=2e-4)
+
+
+def test_noise_dropout_and_determinism():
+    params = L.LidarParams(range_noise_std=0.05, dropout=0.3, seed=7, range_max=100.0)
+    world = wall_world()
+    a = L.Lidar(L.os1_64(), params).scan(world, static_pose(), 0.0)
+    b = L.Lidar(L.os1_64(), params).scan(world, static_pose(), 0.0)
+    c = L.Lidar(L.os1_64(), L.LidarParams(range_noise_std=0.05, dropout=0.3, seed=8, range_max=100.0)).scan(
+        world, static_pose(), 0.0)
+    clean = L.Lidar(L.os1_64(), L.LidarParams(range_max=100.0)).scan(world, static_pose(), 0.0)
+    np.testing.assert_array_equal(a.ranges, b.ranges)
+    np.testing.assert_array_equal(a.points_L, b.points_L)
+    assert len(a) != len(c) or not np.array_equal(a.ranges, c.ranges)
+    assert len(a) / len(clean) == pytest.approx(0.7, abs=0.02)
+    err = a.ranges - np.linalg.norm(a.points_W.astype(float), axis=1)
+    assert np.std(err) == pytest.approx(0.05, rel=0.05)
+    assert abs(np.mean(err)) < 0.003
+
+
+def test_range_limits_and_intensity_from_incidence_angle():
+    w = cufund.World()
+    w.add_plane((200.0, 200.0), (0.0, 0.0, 0.0), label="floor")
+    h = 2.0
+    pc = L.Lidar(L.vlp16(), L.LidarParams(range_min=3.0, range_max=20.0)).scan(w, static_pose((0, 0, h)), 0.0)
+    assert pc.ranges.min() >= 3.0 and pc.ranges.max() <= 20.0
+    assert len(pc) > 1000
+    refl = w.objects[0].reflectivity
+    np.testing.assert_allclose(pc.intensity, refl * h / pc.ranges, rtol=1e-4)
+
+
+def test_scan_counts_frames_and_accepts_a_raycast_scene():
+    w = cufund.worlds.load("corridor")
+    lid = L.Lidar(L.mid360())
+    a = lid.scan(w.raycast_scene, static_pose((5, 0, 1)), 0.0)
+    b = lid.scan(w, static_pose((5, 0, 1)), 0.1)
+    assert (a.frame, b.frame) == (0, 1)
+    assert np.all(a.intensity <= 1.0) and np.all(a.intensity > 0)
+    assert set(np.unique(a.object_ids)) <= {0, 1, 2, 3}
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"range_min": -1.0}, "range_min"),
+        ({"range_max": 0.05}, "range_max"),
+        ({"range_noise_std": np.nan}, "range_noise_std"),
+        ({"dropout": 1.0}, "dropout"),
+        ({"pose_samples": 1}, "pose_samples"),
+    ],
+)
+def test_bad_params_raise(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        L.LidarParams(**kwargs)
+
+
+def test_bad_pose_and_target_raise():
+    lid = L.Lidar(L.vlp16())
+    with pytest.raises(ValueError, match="target must be a cufund.World"):
+        lid.scan("world", static_pose(), 0.0)
+    with pytest.raises(ValueError, match=r"p_W as 3 finite numbers"):
+        lid.scan(wall_world(), lambda t: (np.array([np.nan, 0, 0]), np.array([1.0, 0, 0, 0])), 0.0)
+    with pytest.raises(ValueError, match=r"q_WB must be 4 finite numbers"):
+        lid.scan(wall_world(), lambda t: (np.zeros(3), np.zeros(3)), 0.0)
+    with pytest.raises(ValueError, match="pattern must provide"):
+        L.Lidar(object())
+
+
+def test_scan_rays_validates_knots():
+    d = np.array([[1.0, 0.0, 0.0]])
+    q = np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]])
+    with pytest.raises(ValueError, match="knot_t must be strictly increasing"):
+        cufund._core.lidar.scan_rays(d, [0.0], [0.0, 0.0], np.zeros((2, 3)), q)
+    with pytest.raises(ValueError, match=r"knot_q must have shape \(2, 4\)"):
+        cufund._core.lidar.scan_rays(d, [0.0], [0.0, 1.0], np.zeros((2, 3)), q[:, :3])
+    with pytest.raises(ValueError, match=r"knot_t must have shape \(K,\) with K >= 2"):
+        cufund._core.lidar.scan_rays(d, [0.0], [0.0], np.zeros((1, 3)), q[:1])
+
+
+def test_lidar_component_publishes_distorted_frames_in_the_simulator():
+    quad = cufund.Quadrotor(cufund.presets.cu_astro())
+    quad.hover([0.0, 0.0, 1.0])
+    quad.state.v[:] = [1.0, 0.0, 0.0]  # coasting towards the wall at x = 10 m
+    sim = cufund.Simulator(quad, physics_rate_hz=1000, record_topics=())
+    T_BL = Transform((0.05, 0.0, 0.1))
+    comp = sim.add(cufund.sensors.LidarComponent(L.Lidar(L.mid360(), L.LidarParams(range_max=100.0), T_BL),
+                                                 wall_world(), rate_hz=200.0))
+    frames = []
+
+    class Grab(cufund.Component):
+        name, rate_hz = "grab", 200.0
+
+        def step(self, t, bus):
+            pc = bus.get(cufund.Topics.POINT_CLOUD)
+            if pc is not None and (not frames or frames[-1] is not pc):
+                frames.append(pc)
+
+    sim.add(Grab())
+    result = sim.run(0.5)
+    assert [f.frame for f in frames] == [0, 1, 2, 3]
+    x_of_t = lambda t: np.interp(t, result.states["t"], result.states["p_W"][:, 0])  # noqa: E731
+    for f in frames:
+        assert f.t.min() >= f.t0 and f.t.max() < f.t0 + 0.1
+        np.testing.assert_allclose(f.points_L[:, 0], 10.0 - x_of_t(f.t) - 0.05, atol=2e-3)
+    assert comp.topic == cufund.Topics.POINT_CLOUD
+    with pytest.raises(ValueError, match="multiple of the LiDAR frame rate"):
+        cufund.sensors.LidarComponent(L.Lidar(L.mid360()), wall_world(), rate_hz=15.0)
