@@ -211,3 +211,28 @@ def test_sensor_outside_the_map_marks_the_part_of_the_beam_inside():
     assert (s.hit_voxels, s.outside, s.free_voxels) == (1, 0, 15)  # voxels x = 0..14 free, 15 hit
     lo = m.log_odds()[:, 12, 7]
     assert np.all(lo[:15] < 0) and lo[15] > 0 and np.all(lo[16:] == 0)
+
+
+def test_scanning_a_box_world_with_the_simulated_lidar_recovers_the_box():
+    from cufund import World
+    from cufund.lidar import Lidar, mid360, mid360_params
+
+    res = 0.05
+    lo, hi = np.array([0.6, -0.4, 0.0]), np.array([1.2, 0.5, 1.2])
+    world = World("box")
+    world.add_box(hi - lo, (lo + hi) / 2)
+    lidar = Lidar(mid360(), mid360_params(range_noise_std=0.0))
+    m = make_map(resolution=res, size=(4.0, 4.0, 2.0), origin_W=(-2.0, -2.0, -0.5))
+    hit_voxels = set()
+    for k, p in enumerate(([0.0, 0.0, 0.3], [-0.2, 0.4, 0.5], [0.1, -0.5, 0.2])):
+        p_W = np.asarray(p, dtype=float)
+        cloud = lidar.scan(world, lambda t, p_W=p_W: (p_W, np.array([1.0, 0.0, 0.0, 0.0])), t0=0.1 * k)
+        assert len(cloud.points_W) > 1000
+        m.insert_scan(cloud.points_W, p_W)
+        hit_voxels |= {tuple(v) for v in np.floor((cloud.points_W - m.params.origin_W) / res).astype(int)}
+    occupied = {tuple(v) for v in np.argwhere(m.occupied())}
+    centres = m.occupied_points()
+    assert np.all(centres >= lo - res / 2 - 1e-6) and np.all(centres <= hi + res / 2 + 1e-6)
+    assert occupied <= hit_voxels and len(occupied) >= 0.97 * len(hit_voxels)
+    # A point 0.3 m in front of the face seen by the sensors is 0.3 m from the box (within a voxel).
+    assert abs(m.distance(np.array([0.3, 0.05, 0.4])) - 0.3) <= res
