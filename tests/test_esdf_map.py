@@ -236,3 +236,30 @@ def test_scanning_a_box_world_with_the_simulated_lidar_recovers_the_box():
     assert occupied <= hit_voxels and len(occupied) >= 0.97 * len(hit_voxels)
     # A point 0.3 m in front of the face seen by the sensors is 0.3 m from the box (within a voxel).
     assert abs(m.distance(np.array([0.3, 0.05, 0.4])) - 0.3) <= res
+
+
+def test_esdf_mapper_integrates_the_lidar_topic_in_the_simulator():
+    import cufund
+    from cufund.lidar import Lidar, mid360
+    from cufund.sensors import LidarComponent
+    from cufund.sensors.pose import Transform
+
+    lo, hi = np.array([0.6, -0.4, 0.0]), np.array([1.2, 0.5, 1.2])
+    world = cufund.World("box")
+    world.add_box(hi - lo, (lo + hi) / 2)
+    quad = cufund.Quadrotor(cufund.presets.cu_astro())
+    quad.hover([0.0, 0.0, 0.6])
+    quad.state.v[:] = [0.3, 0.0, 0.0]  # drifting towards the box: the frames are motion-distorted
+    sim = cufund.Simulator(quad, physics_rate_hz=1000, record_topics=())
+    T_BL = Transform((0.05, 0.0, 0.1))
+    sim.add(LidarComponent(Lidar(mid360(), T_BL=T_BL), world, rate_hz=200.0))
+    res = 0.05
+    mapper = sim.add(esdf.EsdfMapper(esdf.EsdfMapParams(resolution=res, size=(4.0, 4.0, 2.0), origin_W=(-2.0, -2.0, -0.5)),
+                                     T_BL=T_BL, rate_hz=200.0))
+    sim.run(0.45)
+    assert mapper.frames == 4
+    m = mapper.map
+    centres = m.occupied_points()
+    assert len(centres) > 100
+    assert np.all(centres >= lo - res / 2 - 1e-6) and np.all(centres <= hi + res / 2 + 1e-6)
+    assert abs(m.distance(np.array([0.3, 0.05, 0.6])) - 0.3) <= res

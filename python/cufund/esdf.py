@@ -3,6 +3,6 @@
 The implementation lives in :mod:`cufund.mapping`; this module is the name the paper's users know.
 """
 
-from .mapping import DistanceField, EsdfMap, EsdfMapParams, ScanStats, edt
+from .mapping import DistanceField, EsdfMap, EsdfMapParams, EsdfMapper, ScanStats, edt
 
-__all__ = ["DistanceField", "EsdfMap", "EsdfMapParams", "ScanStats", "edt"]
+__all__ = ["DistanceField", "EsdfMap", "EsdfMapParams", "EsdfMapper", "ScanStats", "edt"]

@@ -6,5 +6,6 @@ Planners depend on the :class:`DistanceField` interface; :class:`EsdfMap` is cuf
 from .distance_field import DistanceField
 from .edt import edt
 from .esdf_map import EsdfMap, EsdfMapParams, ScanStats
+from .esdf_mapper import EsdfMapper
 
-__all__ = ["DistanceField", "EsdfMap", "EsdfMapParams", "ScanStats", "edt"]
+__all__ = ["DistanceField", "EsdfMap", "EsdfMapParams", "EsdfMapper", "ScanStats", "edt"]
