@@ -68,13 +68,15 @@ sanitize: $(VENV)/.tools
 	  $(VENV)/bin/ctest --test-dir $(SAN_BUILD) --output-on-failure -j $(JOBS)
 
 bench: $(VENV)/.installed $(CPP_BUILD)/build.ninja
-	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_dynamics
+	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_dynamics bench_esdf
 	$(CPP_BUILD)/cpp/dynamics/bench_dynamics --benchmark_min_time=0.2
 	$(VPY) benchmarks/bench_dynamics.py
 	$(VPY) benchmarks/bench_square.py
 	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_lidar
 	$(CPP_BUILD)/cpp/lidar/bench_lidar --benchmark_min_time=0.2
 	$(VPY) benchmarks/bench_lidar.py
+	$(CPP_BUILD)/cpp/esdf/bench_esdf --benchmark_min_time=0.2
+	$(VPY) benchmarks/bench_esdf.py
 
 # Regenerates the checked-in type stubs from the compiled module (tests/test_stubs.py checks them).
 stubs: $(VENV)/.installed

@@ -12,4 +12,6 @@ PYBIND11_MODULE(_core, m) {
   cufund::py_bind::define_control(control);
   py::module_ lidar = m.def_submodule("lidar", "Embree ray casting for LiDAR and depth cameras (paper §2.2).");
   cufund::py_bind::define_lidar(lidar);
+  py::module_ esdf = m.def_submodule("esdf", "Occupancy mapping and exact Euclidean distance fields (paper §2.3).");
+  cufund::py_bind::define_esdf(esdf);
 }

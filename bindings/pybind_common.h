@@ -68,5 +68,6 @@ void define_dynamics(py::module_& m);
 void define_control(py::module_& m);
 void define_lidar(py::module_& m);
 void define_collision(py::module_& m);  // in dynamics.cpp: Bullet collision checks
+void define_esdf(py::module_& m);
 
 }  // namespace cufund::py_bind

@@ -1,6 +1,6 @@
 """cufund: simulation and autonomy for micro aerial vehicles, with a fast C++ core."""
 
-from . import control, lidar, messages, planning, presets, sensors, worlds
+from . import control, esdf, lidar, messages, planning, presets, sensors, worlds
 from ._core import __version__
 from .components import Bus, Component, Controller, Estimator, Mapper, Planner, Recorder, Sensor
 from .config import ConfigError
@@ -36,6 +36,7 @@ __all__ = [
     "__version__",
     "available_scenarios",
     "control",
+    "esdf",
     "lidar",
     "load_scenario",
     "messages",

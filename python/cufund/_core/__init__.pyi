@@ -5,5 +5,6 @@ from __future__ import annotations
 from . import dynamics
 from . import control
 from . import lidar
-__all__: list[str] = ['control', 'dynamics', 'lidar']
+from . import esdf
+__all__: list[str] = ['control', 'dynamics', 'esdf', 'lidar']
 __version__: str = '0.1.0'

@@ -1,0 +1,80 @@
+// The one-dimensional kernels every Euclidean distance transform in cpp/esdf is built from:
+// the distance to the nearest site along a line (two linear scans), and the lower envelope of
+// parabolas of Felzenszwalb & Huttenlocher, "Distance Transforms of Sampled Functions" (2012).
+#pragma once
+
+#include <cstddef>
+#include <limits>
+
+namespace cufund::esdf {
+
+inline constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// d[q] = (spacing * |q - p|)^2 for the nearest p with site[p * stride] != 0, +inf if the line has none.
+inline void squared_distance_to_sites_1d(const unsigned char* site, std::ptrdiff_t stride, std::ptrdiff_t n,
+                                         double spacing, double* d) {
+  // Forward pass: distance to the nearest site at or before q; backward pass: the nearer side.
+  std::ptrdiff_t last = -1;
+  for (std::ptrdiff_t q = 0; q < n; ++q) {
+    if (site[q * stride]) last = q;
+    d[q] = last < 0 ? kInf : spacing * static_cast<double>(q - last);
+  }
+  last = -1;
+  for (std::ptrdiff_t q = n - 1; q >= 0; --q) {
+    if (site[q * stride]) last = q;
+    if (last >= 0) {
+      const double b = spacing * static_cast<double>(last - q);
+      if (b < d[q]) d[q] = b;
+    }
+    d[q] = d[q] * d[q];
+  }
+}
+
+// Lower envelope of parabolas: d[q] = min_p f[p] + (spacing * (q - p))^2 for q in [0, n).
+// Entries f[p] = +inf are not sites; a line without sites gives d = +inf everywhere.
+// v (n ints) and z (n + 1 doubles) are caller-provided scratch; d must not alias f.
+inline void lower_envelope_1d(const double* f, double* d, std::ptrdiff_t n, double spacing, std::ptrdiff_t* v,
+                              double* z) {
+  const double w = spacing * spacing;
+  std::ptrdiff_t k = -1;
+  for (std::ptrdiff_t q = 0; q < n; ++q) {
+    const double fq = f[q];
+    if (fq == kInf) continue;
+    if (k < 0) {
+      k = 0;
+      v[0] = q;
+      z[0] = -kInf;
+      z[1] = kInf;
+      continue;
+    }
+    const double qq = static_cast<double>(q);
+    double s;
+    for (;;) {
+      const double p = static_cast<double>(v[k]);
+      // Abscissa where the parabolas rooted at p and q meet.
+      s = ((fq - f[v[k]]) / w + (qq * qq - p * p)) / (2.0 * (qq - p));
+      if (s <= z[k]) {
+        --k;  // z[0] = -inf, so k never drops below 0 here.
+      } else {
+        break;
+      }
+    }
+    ++k;
+    v[k] = q;
+    z[k] = s;
+    z[k + 1] = kInf;
+  }
+  if (k < 0) {
+    for (std::ptrdiff_t q = 0; q < n; ++q) d[q] = kInf;
+    return;
+  }
+  k = 0;
+  for (std::ptrdiff_t q = 0; q < n; ++q) {
+    const double qq = static_cast<double>(q);
+    while (z[k + 1] < qq) ++k;
+    const double dq = spacing * (qq - static_cast<double>(v[k]));
+    d[q] = f[v[k]] + dq * dq;
+  }
+}
+
+}  // namespace cufund::esdf

@@ -1,0 +1,185 @@
+#include "occupancy_grid.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cufund::esdf {
+
+OccupancyGrid::OccupancyGrid(const GridGeometry& geometry, const SensorModel& model)
+    : geometry_(geometry),
+      model_(model),
+      log_odds_(static_cast<std::size_t>(geometry.shape[0] * geometry.shape[1] * geometry.shape[2]), 0.0f),
+      hit_bits_((log_odds_.size() + 63) / 64, 0u),
+      free_bits_(hit_bits_.size(), 0u) {}
+
+namespace {
+inline bool test_and_set(std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
+  std::uint64_t& w = bits[static_cast<std::size_t>(i >> 6)];
+  const std::uint64_t b = std::uint64_t{1} << (i & 63);
+  const bool was = (w & b) != 0;
+  w |= b;
+  return was;
+}
+inline bool test(const std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
+  return (bits[static_cast<std::size_t>(i >> 6)] >> (i & 63)) & 1u;
+}
+inline void clear(std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
+  bits[static_cast<std::size_t>(i >> 6)] &= ~(std::uint64_t{1} << (i & 63));
+}
+}  // namespace
+
+template <typename Visit>
+void OccupancyGrid::traverse(const double* a_W, const double* b_W, bool skip_end, Visit&& visit) const {
+  const auto& n = geometry_.shape;
+  double a[3], b[3], d[3];
+  for (int i = 0; i < 3; ++i) {
+    a[i] = (a_W[i] - geometry_.origin_W[i]) / geometry_.resolution;
+    b[i] = (b_W[i] - geometry_.origin_W[i]) / geometry_.resolution;
+    d[i] = b[i] - a[i];
+  }
+  // Clip the parameter range [0, 1] of a + t d to the grid box [0, n].
+  double t0 = 0.0, t1 = 1.0;
+  for (int i = 0; i < 3; ++i) {
+    const double hi = static_cast<double>(n[i]);
+    if (d[i] == 0.0) {
+      if (a[i] < 0.0 || a[i] >= hi) return;
+      continue;
+    }
+    double lo_t = (0.0 - a[i]) / d[i], hi_t = (hi - a[i]) / d[i];
+    if (lo_t > hi_t) std::swap(lo_t, hi_t);
+    t0 = std::max(t0, lo_t);
+    t1 = std::min(t1, hi_t);
+  }
+  if (t0 > t1) return;
+  Index cur[3], end[3], step[3];
+  double t_max[3], t_delta[3];
+  for (int i = 0; i < 3; ++i) {
+    const auto clampi = [&](double u) {
+      return std::clamp(static_cast<Index>(std::floor(u)), Index{0}, n[i] - 1);
+    };
+    cur[i] = clampi(a[i] + t0 * d[i]);
+    end[i] = clampi(t1 >= 1.0 ? b[i] : a[i] + t1 * d[i]);
+    if (d[i] > 0.0) {
+      step[i] = 1;
+      t_max[i] = (static_cast<double>(cur[i] + 1) - a[i]) / d[i];
+      t_delta[i] = 1.0 / d[i];
+    } else if (d[i] < 0.0) {
+      step[i] = -1;
+      t_max[i] = (static_cast<double>(cur[i]) - a[i]) / d[i];
+      t_delta[i] = -1.0 / d[i];
+    } else {
+      step[i] = 0;
+      t_max[i] = std::numeric_limits<double>::infinity();
+      t_delta[i] = 0.0;
+    }
+  }
+  // The end voxel holds b only when b is inside the grid, i.e. the segment was not cut at t = 1.
+  const bool end_holds_b = t1 >= 1.0;
+  // Bound on the number of steps, so rounding can never make the walk run away.
+  Index budget = std::abs(end[0] - cur[0]) + std::abs(end[1] - cur[1]) + std::abs(end[2] - cur[2]) + 1;
+  for (;;) {
+    const bool at_end = cur[0] == end[0] && cur[1] == end[1] && cur[2] == end[2];
+    if (!(at_end && skip_end && end_holds_b)) visit((cur[0] * n[1] + cur[1]) * n[2] + cur[2]);
+    if (at_end || --budget <= 0) return;
+    int ax = t_max[0] < t_max[1] ? (t_max[0] < t_max[2] ? 0 : 2) : (t_max[1] < t_max[2] ? 1 : 2);
+    if (t_max[ax] > t1) return;
+    cur[ax] += step[ax];
+    if (cur[ax] < 0 || cur[ax] >= n[ax]) return;
+    t_max[ax] += t_delta[ax];
+  }
+}
+
+void OccupancyGrid::apply(Index i, float delta, bool hit, std::vector<Index>* flipped,
+                          std::vector<std::uint8_t>* state) {
+  float& l = log_odds_[static_cast<std::size_t>(i)];
+  const bool before = l > model_.log_odds_occupied;
+  l = hit ? std::min(l + delta, model_.log_odds_max) : std::max(l + delta, model_.log_odds_min);
+  const bool after = l > model_.log_odds_occupied;
+  if (before != after) {
+    flipped->push_back(i);
+    state->push_back(after ? 1 : 0);
+  }
+}
+
+ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* origin_W, std::vector<Index>* flipped,
+                                     std::vector<std::uint8_t>* flipped_state) {
+  ScanStats stats;
+  stats.points = n;
+  const auto& g = geometry_;
+  std::vector<Index> hits, frees;
+
+  // Beam ends first, so that a voxel both hit and crossed in one scan counts as hit only.
+  std::vector<std::uint8_t> use(static_cast<std::size_t>(n), 0);
+  std::vector<double> ends(static_cast<std::size_t>(3 * n));
+  for (Index k = 0; k < n; ++k) {
+    const double* p = p_W + 3 * k;
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+      ++stats.nan_points;
+      continue;
+    }
+    double* e = ends.data() + 3 * k;
+    const double dx = p[0] - origin_W[0], dy = p[1] - origin_W[1], dz = p[2] - origin_W[2];
+    const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
+    bool hit = true;
+    if (r > model_.max_range) {
+      ++stats.beyond_range;
+      const double s = model_.max_range / r;
+      e[0] = origin_W[0] + s * dx;
+      e[1] = origin_W[1] + s * dy;
+      e[2] = origin_W[2] + s * dz;
+      hit = false;
+    } else {
+      e[0] = p[0];
+      e[1] = p[1];
+      e[2] = p[2];
+    }
+    Index ijk[3];
+    bool inside = true;
+    for (int i = 0; i < 3; ++i) {
+      const double u = std::floor((e[i] - g.origin_W[i]) / g.resolution);
+      inside = inside && u >= 0.0 && u < static_cast<double>(g.shape[i]);
+      ijk[i] = inside ? static_cast<Index>(u) : 0;
+    }
+    if (hit && !inside) {
+      ++stats.outside;
+      hit = false;
+    }
+    use[static_cast<std::size_t>(k)] = hit ? 2 : 1;  // 2: beam with a hit end, 1: free beam
+    if (hit) {
+      const Index i = (ijk[0] * g.shape[1] + ijk[1]) * g.shape[2] + ijk[2];
+      if (!test_and_set(hit_bits_, i)) hits.push_back(i);
+    }
+  }
+  for (Index k = 0; k < n; ++k) {
+    const std::uint8_t u = use[static_cast<std::size_t>(k)];
+    if (!u) continue;
+    traverse(origin_W, ends.data() + 3 * k, u == 2, [&](Index i) {
+      if (!test(hit_bits_, i) && !test_and_set(free_bits_, i)) frees.push_back(i);
+    });
+  }
+  for (Index i : hits) clear(hit_bits_, i);
+  for (Index i : frees) clear(free_bits_, i);
+  const std::size_t before = flipped->size();
+  for (Index i : hits) apply(i, model_.log_odds_hit, true, flipped, flipped_state);
+  for (Index i : frees) apply(i, model_.log_odds_miss, false, flipped, flipped_state);
+  stats.hit_voxels = static_cast<Index>(hits.size());
+  stats.free_voxels = static_cast<Index>(frees.size());
+  stats.flipped_voxels = static_cast<Index>(flipped->size() - before);
+  return stats;
+}
+
+void OccupancyGrid::set_occupied(const std::vector<Index>& index, const std::vector<std::uint8_t>& value,
+                                 std::vector<Index>* flipped, std::vector<std::uint8_t>* flipped_state) {
+  for (std::size_t k = 0; k < index.size(); ++k) {
+    float& l = log_odds_[static_cast<std::size_t>(index[k])];
+    const bool before = l > model_.log_odds_occupied;
+    l = value[k] ? model_.log_odds_max : model_.log_odds_min;
+    const bool after = l > model_.log_odds_occupied;
+    if (before != after) {
+      flipped->push_back(index[k]);
+      flipped_state->push_back(after ? 1 : 0);
+    }
+  }
+}
+
+}  // namespace cufund::esdf
