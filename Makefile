@@ -47,7 +47,7 @@ $(VENV)/.installed: $(VENV)/.tools $(SOURCES)
 	CMAKE_BUILD_PARALLEL_LEVEL=$(JOBS) $(VPIP) install -q --no-build-isolation -e '.[test]'
 	touch $@
 
-$(CPP_BUILD)/build.ninja: $(VENV)/.tools CMakeLists.txt cpp/dynamics/CMakeLists.txt
+$(CPP_BUILD)/build.ninja: $(VENV)/.tools CMakeLists.txt $(wildcard cpp/*/CMakeLists.txt)
 	$(MAKE) deps
 	$(VENV)/bin/cmake -S . -B $(CPP_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
 	  -DCMAKE_BUILD_TYPE=Release -DCUFUND_BUILD_TESTS=ON -DCUFUND_BUILD_BENCHMARKS=ON -DCUFUND_BUILD_PYTHON=OFF
@@ -67,16 +67,13 @@ sanitize: $(VENV)/.tools
 	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
 	  $(VENV)/bin/ctest --test-dir $(SAN_BUILD) --output-on-failure -j $(JOBS)
 
+CPP_BENCHES := dynamics lidar esdf
+PY_BENCHES := $(wildcard benchmarks/bench_*.py)
+
 bench: $(VENV)/.installed $(CPP_BUILD)/build.ninja
-	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_dynamics bench_esdf
-	$(CPP_BUILD)/cpp/dynamics/bench_dynamics --benchmark_min_time=0.2
-	$(VPY) benchmarks/bench_dynamics.py
-	$(VPY) benchmarks/bench_square.py
-	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target bench_lidar
-	$(CPP_BUILD)/cpp/lidar/bench_lidar --benchmark_min_time=0.2
-	$(VPY) benchmarks/bench_lidar.py
-	$(CPP_BUILD)/cpp/esdf/bench_esdf --benchmark_min_time=0.2
-	$(VPY) benchmarks/bench_esdf.py
+	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target $(addprefix bench_,$(CPP_BENCHES))
+	set -e; for b in $(CPP_BENCHES); do $(CPP_BUILD)/cpp/$$b/bench_$$b --benchmark_min_time=0.2; done
+	set -e; for b in $(PY_BENCHES); do $(VPY) $$b; done
 
 # Regenerates the checked-in type stubs from the compiled module (tests/test_stubs.py checks them).
 stubs: $(VENV)/.installed
