@@ -1,8 +1,28 @@
 #include "thread_pool.h"
 
 #include <algorithm>
+#include <chrono>
 
 namespace cufund {
+namespace {
+
+// How long an idle thread polls before it blocks: long enough to bridge the gap between the
+// parallel loops of consecutive simulation steps, short enough not to matter when idle.
+constexpr auto kSpin = std::chrono::microseconds(50);
+
+template <typename Ready>
+bool spin_until(Ready&& ready) {
+  const auto deadline = std::chrono::steady_clock::now() + kSpin;
+  for (int k = 0;; ++k) {
+    if (ready()) return true;
+    if ((k & 63) == 63 && std::chrono::steady_clock::now() > deadline) return false;
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+  }
+}
+
+}  // namespace
 
 ThreadPool& ThreadPool::instance() {
   static ThreadPool pool(std::max(1, static_cast<int>(std::thread::hardware_concurrency())) - 1);
@@ -16,10 +36,14 @@ ThreadPool::ThreadPool(int workers) {
 ThreadPool::~ThreadPool() {
   {
     std::lock_guard<std::mutex> lk(m_);
-    stop_ = true;
+    stop_.store(true);
   }
   wake_.notify_all();
   for (auto& t : workers_) t.join();
+}
+
+bool ThreadPool::job_waiting(std::uint64_t seen) const {
+  return open_.load(std::memory_order_acquire) && generation_.load(std::memory_order_acquire) != seen;
 }
 
 void ThreadPool::parallel_for(std::size_t n, int threads, const std::function<void(std::size_t)>& fn) {
@@ -36,32 +60,40 @@ void ThreadPool::parallel_for(std::size_t n, int threads, const std::function<vo
     max_workers_ = threads - 1;
     entered_ = 0;
     next_.store(0, std::memory_order_relaxed);
-    ++generation_;
-    open_ = true;
+    generation_.fetch_add(1, std::memory_order_release);
+    open_.store(true, std::memory_order_release);
   }
   wake_.notify_all();
   for (std::size_t i; (i = next_.fetch_add(1, std::memory_order_relaxed)) < n;) fn(i);
+  {
+    std::lock_guard<std::mutex> lk(m_);
+    open_.store(false, std::memory_order_release);  // workers that look from now on do not join this job
+  }
+  if (spin_until([this] { return active_.load(std::memory_order_acquire) == 0; })) return;
   std::unique_lock<std::mutex> lk(m_);
-  open_ = false;  // workers that wake from now on do not join this job
-  done_.wait(lk, [this] { return active_ == 0; });
+  done_.wait(lk, [this] { return active_.load(std::memory_order_acquire) == 0; });
 }
 
 void ThreadPool::work() {
   std::uint64_t seen = 0;
-  std::unique_lock<std::mutex> lk(m_);
   for (;;) {
-    wake_.wait(lk, [&] { return stop_ || (open_ && generation_ != seen); });
-    if (stop_) return;
-    seen = generation_;
+    if (!spin_until([&] { return stop_.load(std::memory_order_relaxed) || job_waiting(seen); })) {
+      std::unique_lock<std::mutex> lk(m_);
+      wake_.wait(lk, [&] { return stop_.load(std::memory_order_relaxed) || job_waiting(seen); });
+    }
+    std::unique_lock<std::mutex> lk(m_);
+    if (stop_.load()) return;
+    if (!open_.load(std::memory_order_relaxed)) continue;  // the job closed while we were getting here
+    seen = generation_.load(std::memory_order_relaxed);
     if (entered_ >= max_workers_) continue;
     ++entered_;
-    ++active_;
+    active_.fetch_add(1, std::memory_order_relaxed);
     const auto* fn = fn_;
     const std::size_t n = n_;
     lk.unlock();
     for (std::size_t i; (i = next_.fetch_add(1, std::memory_order_relaxed)) < n;) (*fn)(i);
     lk.lock();
-    if (--active_ == 0) done_.notify_all();
+    if (active_.fetch_sub(1, std::memory_order_acq_rel) == 1) done_.notify_all();
   }
 }
 
