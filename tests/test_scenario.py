@@ -24,7 +24,10 @@ def test_square_is_listed_and_loads():
     ({"vehicle": "bebop"}, "vehicle must be one of crazyflie, iris, cu_astro"),
     ({"vehicle": {"mass": 1.0}}, "vehicle: .*missing.*inertia"),
     ({"seed": -1}, "seed must be an integer >= 0"),
-    ({"duration": "long"}, "duration must be a number > 0"),
+    ({"duration": "long"}, "duration must be a finite number > 0"),
+    ({"duration": float("inf")}, "duration must be a finite number > 0"),
+    ({"name": 5}, "name must be a non-empty string"),
+    ({"trajectory": {"yaw": [float("nan")] * 5}}, "trajectory.yaw must have one finite angle per waypoint"),
 ])
 def test_bad_scenarios(data, match):
     with pytest.raises(ConfigError, match=match):

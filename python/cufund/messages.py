@@ -74,18 +74,19 @@ class Odometry:
 
 @dataclass(frozen=True, slots=True)
 class Imu:
-    """Specific force and angular rate in the body frame."""
+    """Specific force and angular rate in the IMU's own frame I (the body frame when the IMU is mounted
+    without rotation; its mounting, ``q_BI`` and lever arm ``p_BI``, is the estimator's extrinsic)."""
 
     t: float
-    a_B: np.ndarray
+    f_I: np.ndarray
     """Specific force (accelerometer) [m/s^2], (3,)."""
-    w_B: np.ndarray
+    w_I: np.ndarray
     """Angular rate (gyroscope) [rad/s], (3,)."""
 
 
 @dataclass(frozen=True, slots=True)
 class MagneticField:
-    """Magnetometer sample in the body frame."""
+    """Magnetometer sample in the body frame (the magnetometer is mounted along the body axes)."""
 
     t: float
     m_B: np.ndarray

@@ -151,7 +151,7 @@ class Quadrotor:
 
     def hover(self, p_W: np.ndarray | None = None) -> None:
         """Steady hover at ``p_W`` [m]: rotors at hover speed, at rest, level."""
-        self._batch.hover(None if p_W is None else np.asarray(p_W, dtype=float).reshape(1, 3))
+        self._batch.hover(None if p_W is None else _finite_rows("p_W", p_W, 1))
 
     def step(self, dt: float, rotor_speed_cmd: np.ndarray) -> None:
         """Advances by ``dt`` [s] holding ``rotor_speed_cmd`` (4,) [rad/s], clipped to the rotor limits."""

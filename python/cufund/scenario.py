@@ -110,8 +110,9 @@ class TrajectoryConfig:
         object.__setattr__(self, "waypoints", tuple(tuple(float(x) for x in r) for r in w))
         if self.yaw is not None:
             y = np.asarray(self.yaw, dtype=float)
-            if y.shape != (w.shape[0],):
-                raise ConfigError(f"trajectory.yaw must have one angle per waypoint ({w.shape[0]}), got shape {y.shape}")
+            if y.shape != (w.shape[0],) or not np.all(np.isfinite(y)):
+                raise ConfigError(f"trajectory.yaw must have one finite angle per waypoint ({w.shape[0]}) [rad], "
+                                  f"got {[float(v) for v in y]}")
             object.__setattr__(self, "yaw", tuple(float(v) for v in y))
         for name in ("v_max", "a_max", "move_v_max", "move_a_max", "move_j_max", "hover_s"):
             v = getattr(self, name)
@@ -208,8 +209,11 @@ class ScenarioConfig:
         object.__setattr__(self, "trajectory", _nested(TrajectoryConfig, self.trajectory, "trajectory"))
         object.__setattr__(self, "rates", _nested(RatesConfig, self.rates, "rates"))
         object.__setattr__(self, "sensors", _nested(SensorsConfig, self.sensors, "sensors"))
-        if isinstance(self.duration, bool) or not isinstance(self.duration, (int, float)) or not self.duration > 0:
-            raise ConfigError(f"duration must be a number > 0 [s], got {self.duration!r}")
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
+        if (isinstance(self.duration, bool) or not isinstance(self.duration, (int, float))
+                or not math.isfinite(self.duration) or not self.duration > 0):
+            raise ConfigError(f"duration must be a finite number > 0 [s], got {self.duration!r}")
         object.__setattr__(self, "duration", float(self.duration))
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ConfigError(f"seed must be an integer >= 0, got {self.seed!r}")

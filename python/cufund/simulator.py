@@ -36,13 +36,14 @@ class RunStatus(enum.Enum):
 class SimulationResult:
     """What a run returns. ``states`` holds ground truth sampled every ``record_period`` physics steps:
     ``t`` (N,), ``p_W`` (N, 3), ``v_W`` (N, 3), ``q_WB`` (N, 4), ``w_B`` (N, 3), ``rotor_speeds`` (N, 4).
-    ``topics`` maps each recorded topic to its messages as arrays (one per message field, stacked)."""
+    ``topics`` maps each recorded topic to its messages as arrays (one per message field, stacked; a field
+    whose shape varies between messages, like a LiDAR frame's points, is a list)."""
 
     status: RunStatus
     sim_time_s: float
     wall_time_s: float
     states: dict[str, np.ndarray]
-    topics: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    topics: dict[str, dict[str, np.ndarray | list[Any]]] = field(default_factory=dict)
     recordings: dict[str, dict[str, Any]] = field(default_factory=dict)
     """``Recorder`` components' histories, by component name."""
     message: str = ""
@@ -56,15 +57,18 @@ class SimulationResult:
         return self.sim_time_s / self.wall_time_s if self.wall_time_s > 0 else math.inf
 
 
-def _stack(messages: list[Any]) -> dict[str, np.ndarray]:
+def _stack(messages: list[Any]) -> dict[str, np.ndarray | list[Any]]:
+    """Each message field stacked into one array along a new first axis; a field whose values differ in
+    shape from message to message (e.g. the points of LiDAR frames) stays a list of its values."""
     if not messages:
         return {}
-    out = {}
+    out: dict[str, np.ndarray | list[Any]] = {}
     for f in fields(messages[0]):
         values = [getattr(m, f.name) for m in messages]
         if isinstance(values[0], enum.Enum):
             values = [v.value for v in values]
-        out[f.name] = np.asarray(values)
+        shapes = {np.shape(v) for v in values}
+        out[f.name] = np.asarray(values) if len(shapes) == 1 else values
     return out
 
 

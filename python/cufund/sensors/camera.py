@@ -153,7 +153,12 @@ class DepthCamera(_RayCamera):
         if not (np.isfinite(noise_coeff) and noise_coeff >= 0):
             raise ValueError(f"noise_coeff must be a finite number >= 0 [1/m], got {noise_coeff}")
         self.depth_min, self.depth_max, self.noise_coeff = float(depth_min), float(depth_max), float(noise_coeff)
-        self._rng = np.random.default_rng(seed)
+        self.seed = seed
+        self.reset()
+
+    def reset(self) -> None:
+        """Restarts the seeded depth-noise stream."""
+        self._rng = np.random.default_rng(self.seed)
 
     def render(self, target: World | _core.lidar.RaycastScene, p_W: object, q_WB: object) -> np.ndarray:
         """(H, W) float32 depth image of ``target`` seen from body pose (p_W, q_WB)."""

@@ -27,6 +27,10 @@ class CameraComponent(Component):
         self.camera, self.world, self.rate_hz = camera, world, float(rate_hz)
         self.topic = topic or (DEPTH_TOPIC if isinstance(camera, DepthCamera) else RGB_TOPIC)
 
+    def reset(self) -> None:
+        if isinstance(self.camera, DepthCamera):
+            self.camera.reset()
+
     def step(self, t: float, bus: Bus) -> None:
         truth: Odometry = bus.get(Topics.GROUND_TRUTH)
         image = self.camera.render(self.world, truth.p_W, truth.q_WB)

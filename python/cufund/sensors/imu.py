@@ -189,8 +189,8 @@ class ImuModel:
 
 
 class ImuSensor(Sensor):
-    """Publishes :class:`~cufund.messages.Imu` samples (IMU frame) at the part's rate from ground truth's true
-    accelerations. ``gravity`` must be the vehicle's (``params.gravity``)."""
+    """Publishes :class:`~cufund.messages.Imu` samples (in the IMU frame, ``f_I`` and ``w_I``) at the part's
+    rate from ground truth's true accelerations. ``gravity`` must be the vehicle's (``params.gravity``)."""
 
     name = "imu"
 

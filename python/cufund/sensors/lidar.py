@@ -70,6 +70,10 @@ class Lidar:
         self.pattern = pattern
         self.params = params or LidarParams()
         self.T_BL = T_BL or Transform()
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to frame 0 and the start of the seeded noise stream: the same scans again."""
         self._rng = np.random.default_rng(self.params.seed)
         self._frame = 0
         self._cached: tuple[ScanRays, np.ndarray] | None = None

@@ -31,6 +31,7 @@ class LidarComponent(Component):
         self.reset()
 
     def reset(self) -> None:
+        self.lidar.reset()
         self._t: list[float] = []
         self._p: list[np.ndarray] = []
         self._q: list[np.ndarray] = []
