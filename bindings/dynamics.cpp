@@ -105,12 +105,15 @@ void define_dynamics(py::module_& m) {
                              "N quadrotors integrated together; state arrays are views into C++ memory.")
       .def(py::init([](const QuadrotorParams& p, std::int64_t n) {
              check_params(p);
-             if (n < 1) throw py::value_error("n must be an integer >= 1, got " + std::to_string(n));
+             if (n < 1 || static_cast<std::uint64_t>(n) > QuadrotorBatch::kMaxSize) {
+               throw py::value_error("n must be an integer in [1, 2^32], got " + std::to_string(n));
+             }
              return std::make_unique<QuadrotorBatch>(p, static_cast<std::size_t>(n));
            }),
            py::arg("params"), py::arg("n"))
       .def_property_readonly("size", &QuadrotorBatch::size)
-      .def_property_readonly("params", &QuadrotorBatch::params)
+      .def_property_readonly("params", &QuadrotorBatch::params, py::return_value_policy::copy,
+                             "A copy of the parameters (they cannot change after construction).")
       .def_property("time", &QuadrotorBatch::time, &QuadrotorBatch::set_time, "Simulated time [s].")
       .def_property_readonly("hover_rotor_speed", &QuadrotorBatch::hover_rotor_speed)
       .def("reset", &QuadrotorBatch::reset, "All vehicles at the origin, level, at rest; time 0.")

@@ -1,5 +1,6 @@
 // Bindings of cpp/esdf: the exact Euclidean distance transform and the incremental ESDF map.
 #include <cmath>
+#include <shared_mutex>
 #include <limits>
 #include <memory>
 
@@ -153,6 +154,12 @@ void define_esdf(py::module_& m) {
                  2e9) {
                throw py::value_error("shape must hold at most 2e9 voxels, got " + std::string(py::str(shape_obj)));
              }
+             double diagonal2 = 0.0;  // squared distances are kept exactly as int32
+             for (int i = 0; i < 3; ++i) diagonal2 += std::pow(static_cast<double>(g.shape[static_cast<std::size_t>(i)] - 1), 2);
+             if (diagonal2 > esdf::EsdfMap::kMaxSquaredDiagonal) {
+               throw py::value_error("shape must have a diagonal of at most 46340 voxels (squared distances are exact "
+                                     "32-bit integers), got " + std::string(py::str(shape_obj)));
+             }
              if (!(std::isfinite(resolution) && resolution > 0.0)) {
                throw py::value_error("resolution must be finite and > 0 [m], got " + std::to_string(resolution));
              }
@@ -173,7 +180,10 @@ void define_esdf(py::module_& m) {
            py::arg("origin_W"), py::arg("shape"), py::arg("resolution"), py::arg("log_odds_hit"),
            py::arg("log_odds_miss"), py::arg("log_odds_min"), py::arg("log_odds_max"), py::arg("log_odds_occupied"),
            py::arg("max_range"), py::arg("signed"), py::arg("nthreads"))
-      .def(py::init([](const esdf::EsdfMap& other) { return std::make_unique<esdf::EsdfMap>(other); }),
+      .def(py::init([](const esdf::EsdfMap& other) {
+             std::shared_lock<std::shared_mutex> read(other.access_mutex());
+             return std::make_unique<esdf::EsdfMap>(other);
+           }),
            py::arg("other"), "A deep copy.")
       .def(
           "insert_scan",
@@ -183,6 +193,7 @@ void define_esdf(py::module_& m) {
             esdf::EsdfUpdateStats s;
             {
               py::gil_scoped_release release;
+              std::unique_lock<std::shared_mutex> write(self.access_mutex());
               s = self.insert_scan(p.data(), p.shape(0), o.data());
             }
             return stats_dict(s);
@@ -204,6 +215,7 @@ void define_esdf(py::module_& m) {
             esdf::EsdfUpdateStats s;
             {
               py::gil_scoped_release release;
+              std::unique_lock<std::shared_mutex> write(self.access_mutex());
               s = self.set_occupied(idx, val);
             }
             return stats_dict(s);
@@ -213,6 +225,7 @@ void define_esdf(py::module_& m) {
           "recompute",
           [](esdf::EsdfMap& self) {
             py::gil_scoped_release release;
+            std::unique_lock<std::shared_mutex> write(self.access_mutex());
             self.recompute();
           })
       .def(
@@ -224,6 +237,7 @@ void define_esdf(py::module_& m) {
             py::array_t<double> g(gradient ? std::vector<py::ssize_t>{n, 3} : std::vector<py::ssize_t>{0, 3});
             {
               py::gil_scoped_release release;
+              std::shared_lock<std::shared_mutex> read(self.access_mutex());
               self.query(p.data(), n, d.mutable_data(), gradient ? g.mutable_data() : nullptr);
             }
             if (gradient) return py::make_tuple(d, g);
@@ -232,21 +246,34 @@ void define_esdf(py::module_& m) {
           py::arg("points_W"), py::arg("gradient"))
       .def("distances",
            [](const esdf::EsdfMap& self) {
+             std::shared_lock<std::shared_mutex> read(self.access_mutex());
              std::vector<double> v(static_cast<std::size_t>(self.occupancy().size()));
              for (Index i = 0; i < self.occupancy().size(); ++i) v[static_cast<std::size_t>(i)] = self.voxel_distance(i);
              return grid_array(self, v);
            })
       .def("occupied",
            [](const esdf::EsdfMap& self) {
+             std::shared_lock<std::shared_mutex> read(self.access_mutex());
              const auto& n = self.geometry().shape;
              py::array_t<bool> out({n[0], n[1], n[2]});
              bool* o = out.mutable_data();
              for (Index i = 0; i < self.occupancy().size(); ++i) o[i] = self.occupancy().occupied(i);
              return out;
            })
-      .def("log_odds", [](const esdf::EsdfMap& self) { return grid_array(self, self.occupancy().log_odds()); })
-      .def("outside_squared", [](const esdf::EsdfMap& self) { return grid_array(self, self.outside_squared()); })
-      .def("inside_squared", [](const esdf::EsdfMap& self) { return grid_array(self, self.inside_squared()); });
+      .def("log_odds",
+           [](const esdf::EsdfMap& self) {
+             std::shared_lock<std::shared_mutex> read(self.access_mutex());
+             return grid_array(self, self.occupancy().log_odds());
+           })
+      .def("outside_squared",
+           [](const esdf::EsdfMap& self) {
+             std::shared_lock<std::shared_mutex> read(self.access_mutex());
+             return grid_array(self, self.outside_squared());
+           })
+      .def("inside_squared", [](const esdf::EsdfMap& self) {
+        std::shared_lock<std::shared_mutex> read(self.access_mutex());
+        return grid_array(self, self.inside_squared());
+      });
 }
 
 }  // namespace cufund::py_bind

@@ -49,15 +49,22 @@ py::array_t<std::uint32_t, py::array::c_style> triangles_array(const py::handle&
   if (arr.ndim() != 2 || arr.shape(1) != 3) {
     throw py::value_error("triangles must have shape (T, 3), got " + shape_str(arr));
   }
-  if (kind == 'i') {
-    auto i64 = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(arr);
-    const std::int64_t* p = i64.data();
-    for (py::ssize_t i = 0; i < i64.size(); ++i) {
-      if (p[i] < 0 || p[i] > std::numeric_limits<std::uint32_t>::max() - 1) {
+  // Range-check in 64 bits before narrowing to uint32 (a forcecast would wrap 2^32 + k to k).
+  auto check = [](const auto* p, py::ssize_t size) {
+    for (py::ssize_t i = 0; i < size; ++i) {
+      const bool negative = p[i] < 0;
+      if (negative || static_cast<std::uint64_t>(p[i]) > std::numeric_limits<std::uint32_t>::max() - 1) {
         throw py::value_error("triangles must hold vertex indices in [0, V), got " + std::to_string(p[i]) +
                               " in triangle " + std::to_string(i / 3));
       }
     }
+  };
+  if (kind == 'i') {
+    auto i64 = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(arr);
+    check(i64.data(), i64.size());
+  } else {
+    auto u64 = py::array_t<std::uint64_t, py::array::c_style | py::array::forcecast>::ensure(arr);
+    check(u64.data(), u64.size());
   }
   return py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>::ensure(arr);
 }

@@ -263,3 +263,9 @@ def test_esdf_mapper_integrates_the_lidar_topic_in_the_simulator():
     assert len(centres) > 100
     assert np.all(centres >= lo - res / 2 - 1e-6) and np.all(centres <= hi + res / 2 + 1e-6)
     assert abs(m.distance(np.array([0.3, 0.05, 0.6])) - 0.3) <= res
+
+
+def test_a_map_too_long_for_exact_integer_distances_is_rejected():
+    # 50 000 voxels along x: squared distances would overflow the exact int32 storage.
+    with pytest.raises(ValueError, match="diagonal of at most 46340 voxels"):
+        esdf.EsdfMap(esdf.EsdfMapParams(resolution=0.1, size=(5000.0, 0.1, 0.1), origin_W=(0.0, 0.0, 0.0)))

@@ -231,3 +231,35 @@ def test_lidar_component_publishes_distorted_frames_in_the_simulator():
     assert comp.topic == cufund.Topics.POINT_CLOUD
     with pytest.raises(ValueError, match="multiple of the LiDAR frame rate"):
         cufund.sensors.LidarComponent(L.Lidar(L.mid360()), wall_world(), rate_hz=15.0)
+
+
+def test_unsigned_triangle_indices_beyond_32_bits_are_rejected_not_wrapped():
+    scene = cufund.lidar.RaycastScene()
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)
+    with pytest.raises(ValueError, match="triangles must hold vertex indices in"):
+        scene.add_triangles(v, np.array([[0, 1, 2 + 2**32]], np.uint64))
+
+
+def test_adding_triangles_while_casting_on_another_thread_is_safe():
+    """Embree forbids changing a scene during traversal: the scene serialises the two."""
+    import threading
+
+    scene = cufund.lidar.RaycastScene()
+    v = np.array([[-5, -5, 0], [5, -5, 0], [0, 5, 0]], np.float32)
+    scene.add_triangles(v, np.array([[0, 1, 2]], np.uint32))
+    rays = np.tile(np.array([0, 0, 1, 0, 0, -1], np.float32), (200_000, 1))
+    errors = []
+
+    def cast():
+        try:
+            for _ in range(20):
+                assert np.all(scene.cast_rays(rays)["t_hit"] <= 1.0 + 1e-5)
+        except Exception as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    t = threading.Thread(target=cast)
+    t.start()
+    for k in range(200):
+        scene.add_triangles(v + np.float32(10 + k), np.array([[0, 1, 2]], np.uint32))
+    t.join()
+    assert not errors and scene.num_triangles == 201

@@ -156,10 +156,25 @@ def test_bad_time_step_raises(crazyflie, dt):
         cufund.Quadrotor(crazyflie).step(dt, np.zeros(4))
 
 
-@pytest.mark.parametrize("n", [0, -3, 2.5, True])
+@pytest.mark.parametrize("n", [0, -3, 2.5, True, 2**32 + 1, 2**59, 2**70])
 def test_bad_batch_size_raises(crazyflie, n):
-    with pytest.raises(ValueError, match="n must be an integer >= 1"):
+    with pytest.raises(ValueError, match=r"n must be an integer in \[1, 2\^32\]"):
         cufund.QuadrotorBatch(crazyflie, n)
+
+
+def test_core_batch_rejects_sizes_whose_state_would_overflow(crazyflie):
+    from cufund import _core
+
+    with pytest.raises(ValueError, match=r"n must be an integer in \[1, 2\^32\]"):
+        _core.dynamics.QuadrotorBatch(crazyflie.to_core(), 2**62)
+
+
+def test_core_batch_params_are_a_copy(crazyflie):
+    from cufund import _core
+
+    b = _core.dynamics.QuadrotorBatch(crazyflie.to_core(), 1)
+    b.params.mass = -1.0  # changes a copy, not the running batch
+    assert b.params.mass == crazyflie.mass
 
 
 @pytest.mark.parametrize(("wind", "message"), [

@@ -42,6 +42,16 @@ ThreadPool::~ThreadPool() {
   for (auto& t : workers_) t.join();
 }
 
+void ThreadPool::run_claims(const std::function<void(std::size_t)>& fn, std::size_t n) {
+  try {
+    for (std::size_t i; (i = next_.fetch_add(1, std::memory_order_relaxed)) < n;) fn(i);
+  } catch (...) {
+    next_.store(n, std::memory_order_relaxed);  // nobody starts another call
+    std::lock_guard<std::mutex> lk(m_);
+    if (!error_) error_ = std::current_exception();
+  }
+}
+
 bool ThreadPool::job_waiting(std::uint64_t seen) const {
   return open_.load(std::memory_order_acquire) && generation_.load(std::memory_order_acquire) != seen;
 }
@@ -59,19 +69,30 @@ void ThreadPool::parallel_for(std::size_t n, int threads, const std::function<vo
     n_ = n;
     max_workers_ = threads - 1;
     entered_ = 0;
+    error_ = nullptr;
     next_.store(0, std::memory_order_relaxed);
     generation_.fetch_add(1, std::memory_order_release);
     open_.store(true, std::memory_order_release);
   }
   wake_.notify_all();
-  for (std::size_t i; (i = next_.fetch_add(1, std::memory_order_relaxed)) < n;) fn(i);
+  run_claims(fn, n);
   {
     std::lock_guard<std::mutex> lk(m_);
     open_.store(false, std::memory_order_release);  // workers that look from now on do not join this job
   }
-  if (spin_until([this] { return active_.load(std::memory_order_acquire) == 0; })) return;
-  std::unique_lock<std::mutex> lk(m_);
-  done_.wait(lk, [this] { return active_.load(std::memory_order_acquire) == 0; });
+  std::unique_lock<std::mutex> lk(m_, std::defer_lock);
+  if (!spin_until([this] { return active_.load(std::memory_order_acquire) == 0; })) {
+    lk.lock();
+    done_.wait(lk, [this] { return active_.load(std::memory_order_acquire) == 0; });
+  } else {
+    lk.lock();
+  }
+  if (error_) {
+    std::exception_ptr e = error_;
+    error_ = nullptr;
+    lk.unlock();
+    std::rethrow_exception(e);
+  }
 }
 
 void ThreadPool::work() {
@@ -91,7 +112,7 @@ void ThreadPool::work() {
     const auto* fn = fn_;
     const std::size_t n = n_;
     lk.unlock();
-    for (std::size_t i; (i = next_.fetch_add(1, std::memory_order_relaxed)) < n;) (*fn)(i);
+    run_claims(*fn, n);
     lk.lock();
     if (active_.fetch_sub(1, std::memory_order_acq_rel) == 1) done_.notify_all();
   }

@@ -12,6 +12,7 @@
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
+#include <exception>
 #include <functional>
 #include <mutex>
 #include <thread>
@@ -30,7 +31,8 @@ class ThreadPool {
   ThreadPool& operator=(const ThreadPool&) = delete;
 
   // Calls fn(i) once for every i in [0, n) on at most `threads` threads, the caller included
-  // (threads <= 0: all). Returns when every call has returned. fn must not throw.
+  // (threads <= 0: all). Returns when every call has returned. If a call throws, no new calls start,
+  // and the first exception is rethrown here once every running call has returned.
   void parallel_for(std::size_t n, int threads, const std::function<void(std::size_t)>& fn);
 
   int size() const { return static_cast<int>(workers_.size()) + 1; }
@@ -38,6 +40,8 @@ class ThreadPool {
  private:
   void work();
   bool job_waiting(std::uint64_t seen) const;
+  // Runs fn(i) for claimed indices until none are left; an exception stops the claiming and is kept.
+  void run_claims(const std::function<void(std::size_t)>& fn, std::size_t n);
 
   std::vector<std::thread> workers_;
   std::mutex submit_;  // one job at a time
@@ -51,6 +55,7 @@ class ThreadPool {
   std::size_t n_ = 0;
   int max_workers_ = 0, entered_ = 0;
   std::atomic<std::size_t> next_{0};
+  std::exception_ptr error_;  // the first exception of the current job (guarded by m_)
 };
 
 }  // namespace cufund

@@ -3,6 +3,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "quadrotor_dynamics.h"
 
@@ -104,8 +105,15 @@ void integrate_range(const DynamicsConstants& constants, double* __restrict stat
 
 }  // namespace
 
+namespace {
+std::size_t checked_size(std::size_t n) {
+  if (n < 1 || n > QuadrotorBatch::kMaxSize) throw std::length_error("QuadrotorBatch size out of range");
+  return n;
+}
+}  // namespace
+
 QuadrotorBatch::QuadrotorBatch(const QuadrotorParams& params, std::size_t n)
-    : params_(params), n_(n), state_(static_cast<std::size_t>(kRows) * n, 0.0) {
+    : params_(params), n_(checked_size(n)), state_(static_cast<std::size_t>(kRows) * n_, 0.0) {
   reset();
 }
 

@@ -42,7 +42,10 @@ class QuadrotorBatch {
     kRows = 32,
   };
 
-  // params must have passed validate(); n >= 1.
+  // Most vehicles in one batch (2^32; the state alone is then 1 TiB).
+  static constexpr std::size_t kMaxSize = std::size_t(1) << 32;
+
+  // params must have passed validate(); 1 <= n <= kMaxSize (else std::length_error).
   QuadrotorBatch(const QuadrotorParams& params, std::size_t n);
 
   std::size_t size() const { return n_; }

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <shared_mutex>
 #include <vector>
 
 #include "incremental_edt.h"
@@ -23,9 +24,19 @@ struct EsdfUpdateStats {
   IncrementalEdtStats inside;   // the field inside obstacles (sites: free voxels); zero if unsigned
 };
 
+// A reader-writer lock that a copy of its owner does not share (a copy gets its own, unlocked).
+struct AccessLock {
+  mutable std::shared_mutex mutex;
+  AccessLock() = default;
+  AccessLock(const AccessLock&) {}
+  AccessLock& operator=(const AccessLock&) { return *this; }
+};
+
 class EsdfMap {
  public:
   using Index = std::ptrdiff_t;
+  // The largest squared voxel distance the incremental transform stores exactly (int32).
+  static constexpr double kMaxSquaredDiagonal = 2147483646.0;
   EsdfMap(const GridGeometry& geometry, const SensorModel& model, const EsdfOptions& options);
 
   const OccupancyGrid& occupancy() const { return grid_; }
@@ -52,6 +63,10 @@ class EsdfMap {
   // take the value on the boundary (zero gradient along a clamped axis); a non-finite point gives NaN.
   void query(const double* p_W, Index n, double* distance, double* grad_W) const;
 
+  // Callers that may run concurrently (the Python binding releases the GIL) hold this: exclusively to
+  // insert, set or recompute; shared to read.
+  std::shared_mutex& access_mutex() const { return access_.mutex; }
+
  private:
   EsdfUpdateStats apply(const std::vector<Index>& flipped, const std::vector<std::uint8_t>& state);
 
@@ -59,6 +74,7 @@ class EsdfMap {
   EsdfOptions options_;
   IncrementalEdt outside_;
   std::optional<IncrementalEdt> inside_;  // empty when unsigned
+  AccessLock access_;
 };
 
 }  // namespace cufund::esdf

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <shared_mutex>
 #include <stdexcept>
 #include <utility>
 
@@ -208,6 +209,8 @@ struct RaycastScene::Impl {
   std::size_t triangles = 0;
   mutable std::mutex commit_mutex;
   mutable bool dirty = true;
+  // Embree forbids changing a scene while it is traversed: casts share this lock, additions own it.
+  mutable std::shared_mutex scene_mutex;
 
   Impl() {
     device = rtcNewDevice(nullptr);
@@ -254,6 +257,7 @@ SceneResult RaycastScene::add_triangles(const float* vertices, std::size_t nv, c
   std::copy(vertices, vertices + 3 * nv, vb);
   std::copy(triangles, triangles + 3 * nt, ib);
   rtcCommitGeometry(g);
+  std::unique_lock<std::shared_mutex> no_casts(impl_->scene_mutex);
   const unsigned id = rtcAttachGeometry(impl_->scene, g);
   rtcReleaseGeometry(g);
   std::lock_guard<std::mutex> lock(impl_->commit_mutex);
@@ -273,6 +277,7 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
     }
     if (r[3] == 0.0f && r[4] == 0.0f && r[5] == 0.0f) return {SceneStatus::kZeroDirection, i, kInvalidId};
   }
+  std::shared_lock<std::shared_mutex> no_additions(impl_->scene_mutex);
   impl_->commit();
   const bool coherent = order == RayOrder::kCoherent || (order == RayOrder::kAuto && looks_coherent(rays, n));
   RTCScene scene = impl_->scene;

@@ -34,8 +34,8 @@ class QuadrotorBatch:
     def __init__(self, params: QuadrotorParams, n: int, wind: WindField = None) -> None:
         if not isinstance(params, QuadrotorParams):
             raise TypeError(f"params must be a cufund.QuadrotorParams, got {type(params).__name__}")
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
-            raise ValueError(f"n must be an integer >= 1, got {n!r}")
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 2**32:
+            raise ValueError(f"n must be an integer in [1, 2^32], got {n!r}")
         self.params = params
         self._core = _core.dynamics.QuadrotorBatch(params.to_core(), int(n))
         self._wind_fn: Callable[[float, np.ndarray], np.ndarray] | None = None

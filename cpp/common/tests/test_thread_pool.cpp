@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <stdexcept>
 #include <set>
 #include <thread>
 #include <vector>
@@ -50,6 +52,26 @@ TEST(ThreadPool, ConcurrentCallersAreSerialisedSafely) {
   }
   for (auto& t : callers) t.join();
   EXPECT_EQ(total.load(), 4L * 50 * (99 * 100 / 2));
+}
+
+TEST(ThreadPool, AnExceptionStopsTheLoopAndReachesTheCaller) {
+  ThreadPool pool(2);
+  for (int rep = 0; rep < 50; ++rep) {
+    std::atomic<int> calls{0};
+    const std::size_t bad = static_cast<std::size_t>(rep % 7);  // thrown by the caller or by a worker
+    EXPECT_THROW(pool.parallel_for(1000, 3,
+                                   [&](std::size_t i) {
+                                     calls.fetch_add(1);
+                                     std::this_thread::sleep_for(std::chrono::microseconds(20));
+                                     if (i == bad) throw std::runtime_error("chunk failed");
+                                   }),
+                 std::runtime_error);
+    EXPECT_LT(calls.load(), 1000);  // the loop stopped early
+  }
+  // The pool is still usable afterwards.
+  std::atomic<int> calls{0};
+  pool.parallel_for(100, 3, [&](std::size_t) { calls.fetch_add(1); });
+  EXPECT_EQ(calls.load(), 100);
 }
 
 }  // namespace

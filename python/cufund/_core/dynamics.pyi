@@ -178,7 +178,9 @@ class QuadrotorBatch:
         """
     @property
     def params(self) -> QuadrotorParams:
-        ...
+        """
+        A copy of the parameters (they cannot change after construction).
+        """
     @property
     def q(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
         """
