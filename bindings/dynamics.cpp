@@ -204,7 +204,7 @@ Use cufund.worlds.CollisionChecker, which builds it from a cufund.World.
             auto h = as_float64(half_extents, "half_extents", {3});
             for (int k = 0; k < 3; ++k) {
               if (!(std::isfinite(h.data()[k]) && h.data()[k] > 0)) {
-                throw py::value_error("half_extents must be 3 finite numbers > 0 [m]");
+                throw py::value_error("box half extents must be 3 finite numbers > 0 [m] (box_size / 2)");
               }
             }
             w.set_vehicle_box(h.data()[0], h.data()[1], h.data()[2]);

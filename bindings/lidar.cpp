@@ -201,6 +201,29 @@ Returns a dict of arrays shaped like the leading dims of ``rays``:
         for (py::ssize_t i = 0; i + 1 < k; ++i) {
           if (!(kt.data()[i + 1] > kt.data()[i])) throw py::value_error("knot_t must be strictly increasing");
         }
+        auto require_finite = [](const double* p, py::ssize_t size, const char* field) {
+          for (py::ssize_t i = 0; i < size; ++i) {
+            if (!std::isfinite(p[i])) throw py::value_error(std::string(field) + " must be finite, got a NaN or inf");
+          }
+        };
+        require_finite(d.data(), 3 * n, "d_L");
+        require_finite(tt.data(), n, "t");
+        require_finite(kt.data(), k, "knot_t");
+        require_finite(kp.data(), 3 * k, "knot_p");
+        require_finite(kq.data(), 4 * k, "knot_q");
+        for (py::ssize_t i = 0; i < k; ++i) {
+          const double* q = kq.data() + 4 * i;
+          if (std::abs(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0) > 1e-6) {
+            throw py::value_error("knot_q must hold unit quaternions [w, x, y, z], knot " + std::to_string(i) +
+                                  " is not");
+          }
+        }
+        for (py::ssize_t i = 0; i < n; ++i) {
+          const double* v = d.data() + 3 * i;
+          if (v[0] == 0.0 && v[1] == 0.0 && v[2] == 0.0) {
+            throw py::value_error("d_L must hold non-zero directions, row " + std::to_string(i) + " is zero");
+          }
+        }
         py::array_t<float> rays({n, py::ssize_t{6}});
         {
           py::gil_scoped_release release;

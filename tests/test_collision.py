@@ -56,7 +56,7 @@ def test_bad_collision_input():
     w = cufund.worlds.load("empty")
     with pytest.raises(ValueError, match="exactly one vehicle shape"):
         CollisionChecker(w)
-    with pytest.raises(ValueError, match="half_extents must be 3 finite numbers > 0"):
+    with pytest.raises(ValueError, match="box_size must be 3 finite numbers > 0"):
         CollisionChecker(w, box_size=(0.2, 0.0, 0.1))
     with pytest.raises(ValueError, match="radius must be a finite number > 0"):
         CollisionChecker(w, radius=-1.0)

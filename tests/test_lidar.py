@@ -263,3 +263,18 @@ def test_adding_triangles_while_casting_on_another_thread_is_safe():
         scene.add_triangles(v + np.float32(10 + k), np.array([[0, 1, 2]], np.uint32))
     t.join()
     assert not errors and scene.num_triangles == 201
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ({"t": np.array([np.nan])}, "t must be finite"),
+    ({"knot_q": np.array([[0.0, 0, 0, 0], [1.0, 0, 0, 0]])}, "knot_q must hold unit quaternions"),
+    ({"d_L": np.zeros((1, 3))}, "d_L must hold non-zero directions"),
+])
+def test_scan_rays_rejects_non_finite_and_degenerate_input(change, message):
+    from cufund import _core
+
+    args = {"d_L": np.array([[1.0, 0, 0]]), "t": np.array([0.05]), "knot_t": np.array([0.0, 0.1]),
+            "knot_p": np.zeros((2, 3)), "knot_q": np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]])}
+    args.update(change)
+    with pytest.raises(ValueError, match=message):
+        _core.lidar.scan_rays(**args)

@@ -54,8 +54,8 @@ class CollisionChecker:
             self._object_ids.append(oid)
         if box_size is not None:
             size = np.asarray(box_size, dtype=float)
-            if size.shape != (3,):
-                raise ValueError(f"box_size must be 3 numbers (x, y, z) [m], got {box_size!r}")
+            if size.shape != (3,) or not np.all(np.isfinite(size)) or np.any(size <= 0):
+                raise ValueError(f"box_size must be 3 finite numbers > 0 (x, y, z) [m], got {box_size!r}")
             self._cw.set_vehicle_box(size / 2.0)
         else:
             self._cw.set_vehicle_sphere(float(radius))  # type: ignore[arg-type]
