@@ -15,6 +15,15 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 
+def _firing_clock(point_rate: float, period: float, lasers: int, k: int
+                  ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """Frame k of a solid-state LiDAR firing ``point_rate`` points/s round-robin over ``lasers``: the
+    points per frame, their indices, absolute firing times [s] and laser channels."""
+    n = int(round(point_rate * period))
+    i = np.arange(n)
+    return n, i, (k * n + i) / point_rate, (i % lasers).astype(np.int32)
+
+
 @dataclasses.dataclass(frozen=True)
 class ScanRays:
     """The rays of one frame, all (N,)."""
@@ -163,10 +172,7 @@ class Mid360Pattern:
         return 1.0 / self.rate
 
     def frame(self, k: int) -> ScanRays:
-        n = int(round(self.point_rate * self.period))
-        i = np.arange(n)
-        t_abs = (k * n + i) / self.point_rate
-        ch = (i % self.lasers).astype(np.int32)
+        n, i, t_abs, ch = _firing_clock(self.point_rate, self.period, self.lasers, k)
         az = np.mod(2 * np.pi * (self.spin_rate * t_abs + ch / self.lasers), 2 * np.pi)
         phase = 2 * np.pi * self.spin_rate * self.sweep_ratio * t_abs + np.pi * ch / self.lasers
         mid, half = (self.elevation_max + self.elevation_min) / 2, (self.elevation_max - self.elevation_min) / 2
@@ -208,10 +214,7 @@ class RosettePattern:
         return 1.0 / self.rate
 
     def frame(self, k: int) -> ScanRays:
-        n = int(round(self.point_rate * self.period))
-        i = np.arange(n)
-        t_abs = (k * n + i) / self.point_rate
-        ch = (i % self.lasers).astype(np.int32)
+        n, i, t_abs, ch = _firing_clock(self.point_rate, self.period, self.lasers, k)
         w1 = 2 * np.pi * self.prism_rate
         w2 = w1 * self.prism_ratio
         offset = (ch - (self.lasers - 1) / 2) * 0.02  # beams 0.02 apart in the unit rosette
