@@ -269,3 +269,16 @@ def test_a_map_too_long_for_exact_integer_distances_is_rejected():
     # 50 000 voxels along x: squared distances would overflow the exact int32 storage.
     with pytest.raises(ValueError, match="diagonal of at most 46340 voxels"):
         esdf.EsdfMap(esdf.EsdfMapParams(resolution=0.1, size=(5000.0, 0.1, 0.1), origin_W=(0.0, 0.0, 0.0)))
+
+
+def test_scans_give_the_same_map_on_one_thread_and_on_all():
+    """Beams are traversed in parallel; the occupancy and the field must not depend on it."""
+    maps = [make_map(max_range=2.0, nthreads=t) for t in (1, 0)]
+    rng = np.random.default_rng(5)
+    for step in range(6):
+        origin = np.array([0.1 * step - 0.3, 0.2, 0.6])
+        pts = origin + rng.normal(size=(3000, 3)) * [1.5, 1.2, 0.5]
+        stats = [m.insert_scan(pts, origin) for m in maps]
+        assert stats[0] == stats[1]
+    np.testing.assert_array_equal(maps[0].log_odds(), maps[1].log_odds())
+    np.testing.assert_array_equal(maps[0].distances(), maps[1].distances())

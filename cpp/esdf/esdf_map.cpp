@@ -44,7 +44,7 @@ EsdfUpdateStats EsdfMap::apply(const std::vector<Index>& flipped, const std::vec
 EsdfUpdateStats EsdfMap::insert_scan(const double* p_W, Index n, const double* origin_W) {
   std::vector<Index> flipped;
   std::vector<std::uint8_t> state;
-  const ScanStats scan = grid_.insert_scan(p_W, n, origin_W, &flipped, &state);
+  const ScanStats scan = grid_.insert_scan(p_W, n, origin_W, &flipped, &state, options_.nthreads);
   EsdfUpdateStats stats = apply(flipped, state);
   stats.scan = scan;
   return stats;

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "edt.h"
+#include "parallel.h"
+
 namespace cufund::esdf {
 
 OccupancyGrid::OccupancyGrid(const GridGeometry& geometry, const SensorModel& model)
@@ -25,6 +28,19 @@ inline bool test(const std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
 }
 inline void clear(std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
   bits[static_cast<std::size_t>(i >> 6)] &= ~(std::uint64_t{1} << (i & 63));
+}
+// Sets bit i; safe against other threads setting bits of the same word.
+inline void atomic_set(std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
+  __atomic_fetch_or(&bits[static_cast<std::size_t>(i >> 6)], std::uint64_t{1} << (i & 63), __ATOMIC_RELAXED);
+}
+// Appends the indices of the set bits in ascending order and clears them.
+void drain(std::vector<std::uint64_t>& bits, std::vector<std::ptrdiff_t>* out) {
+  for (std::size_t k = 0; k < bits.size(); ++k) {
+    for (std::uint64_t w = bits[k]; w != 0; w &= w - 1) {
+      out->push_back(static_cast<std::ptrdiff_t>(k * 64 + static_cast<std::size_t>(__builtin_ctzll(w))));
+    }
+    bits[k] = 0;
+  }
 }
 }  // namespace
 
@@ -102,7 +118,7 @@ void OccupancyGrid::apply(Index i, float delta, bool hit, std::vector<Index>* fl
 }
 
 ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* origin_W, std::vector<Index>* flipped,
-                                     std::vector<std::uint8_t>* flipped_state) {
+                                     std::vector<std::uint8_t>* flipped_state, int nthreads) {
   ScanStats stats;
   stats.points = n;
   const auto& g = geometry_;
@@ -150,15 +166,19 @@ ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* o
       if (!test_and_set(hit_bits_, i)) hits.push_back(i);
     }
   }
-  for (Index k = 0; k < n; ++k) {
-    const std::uint8_t u = use[static_cast<std::size_t>(k)];
-    if (!u) continue;
-    traverse(origin_W, ends.data() + 3 * k, u == 2, [&](Index i) {
-      if (!test(hit_bits_, i) && !test_and_set(free_bits_, i)) frees.push_back(i);
-    });
-  }
+  // Beams in parallel: each marks the voxels it crosses (hit voxels excepted) in a shared bitset, so the
+  // set of free voxels, gathered below in ascending order, does not depend on which thread crossed what.
+  parallel_chunks(n, 256, resolve_threads(nthreads), [&](Index begin, Index end, Index) {
+    for (Index k = begin; k < end; ++k) {
+      const std::uint8_t u = use[static_cast<std::size_t>(k)];
+      if (!u) continue;
+      traverse(origin_W, ends.data() + 3 * k, u == 2, [&](Index i) {
+        if (!test(hit_bits_, i)) atomic_set(free_bits_, i);
+      });
+    }
+  });
+  drain(free_bits_, &frees);
   for (Index i : hits) clear(hit_bits_, i);
-  for (Index i : frees) clear(free_bits_, i);
   const std::size_t before = flipped->size();
   for (Index i : hits) apply(i, model_.log_odds_hit, true, flipped, flipped_state);
   for (Index i : frees) apply(i, model_.log_odds_miss, false, flipped, flipped_state);

@@ -49,9 +49,10 @@ class OccupancyGrid {
 
   // Inserts n points p_W (n x 3, world frame) seen from sensor origin_W (3). Appends the voxels whose
   // occupied state changed to `flipped` (with their new state in `flipped_state`). Points with a
-  // non-finite coordinate are skipped; origin_W must be finite (checked by the caller).
+  // non-finite coordinate are skipped; origin_W must be finite (checked by the caller). Beams are traversed
+  // on up to `nthreads` threads (0: all); the result does not depend on the thread count.
   ScanStats insert_scan(const double* p_W, Index n, const double* origin_W, std::vector<Index>* flipped,
-                        std::vector<std::uint8_t>* flipped_state);
+                        std::vector<std::uint8_t>* flipped_state, int nthreads = 1);
 
   // Sets voxels index[k] to log_odds_max (value[k] != 0) or log_odds_min; records flips as above.
   void set_occupied(const std::vector<Index>& index, const std::vector<std::uint8_t>& value,
