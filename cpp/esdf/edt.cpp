@@ -17,13 +17,8 @@ using Index = std::ptrdiff_t;
 constexpr Index kBlock = 16;
 
 // Per-thread buffers for kBlock lines of length n.
-struct LineScratch {
-  explicit LineScratch(Index n)
-      : f(static_cast<std::size_t>(kBlock * n)), d(static_cast<std::size_t>(kBlock * n)),
-        v(static_cast<std::size_t>(n)), z(static_cast<std::size_t>(n + 1)) {}
-  std::vector<double> f, d;
-  std::vector<Index> v;
-  std::vector<double> z;
+struct LineScratch : LineBuffers {
+  explicit LineScratch(Index n) : LineBuffers(kBlock, n) {}
 };
 
 // Pass along the contiguous last axis: squared distance to the nearest site (or non-site if

@@ -5,10 +5,22 @@
 
 #include <cstddef>
 #include <limits>
+#include <vector>
 
 namespace cufund::esdf {
 
 inline constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Buffers of the lower-envelope pass for `lines` lines of length n handled together: their input f
+// and output d, and one line's envelope (parabola vertices v, boundaries z).
+struct LineBuffers {
+  LineBuffers(std::ptrdiff_t lines, std::ptrdiff_t n)
+      : f(static_cast<std::size_t>(lines * n)), d(static_cast<std::size_t>(lines * n)),
+        v(static_cast<std::size_t>(n)), z(static_cast<std::size_t>(n + 1)) {}
+  std::vector<double> f, d;
+  std::vector<std::ptrdiff_t> v;
+  std::vector<double> z;
+};
 
 // d[q] = (spacing * |q - p|)^2 for the nearest p with site[p * stride] != 0, +inf if the line has none.
 inline void squared_distance_to_sites_1d(const unsigned char* site, std::ptrdiff_t stride, std::ptrdiff_t n,

@@ -24,13 +24,8 @@ constexpr Index kFullPassFactor = 8;
 
 }  // namespace
 
-struct IncrementalEdt::Scratch {
-  explicit Scratch(Index n)
-      : f(static_cast<std::size_t>(kGroup * n)), d(static_cast<std::size_t>(kGroup * n)),
-        v(static_cast<std::size_t>(n)), z(static_cast<std::size_t>(n + 1)) {}
-  std::vector<double> f, d;
-  std::vector<Index> v;
-  std::vector<double> z;
+struct IncrementalEdt::Scratch : LineBuffers {
+  explicit Scratch(Index n) : LineBuffers(kGroup, n) {}
   std::vector<std::pair<Index, Index>> windows;
 };
 
