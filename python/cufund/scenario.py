@@ -122,11 +122,11 @@ class TrajectoryConfig:
 
 
 _SENSOR_KINDS = {
-    # name: (params class, presets, stream index of its seed)
-    "imu": (ImuParams, IMU_PRESETS, 0),
-    "magnetometer": (MagnetometerParams, {"default": MagnetometerParams}, 1),
-    "barometer": (BarometerParams, BAROMETER_PRESETS, 2),
-    "gps": (GpsParams, GPS_PRESETS, 3),
+    # name: (params class, presets, component class, stream index of its seed)
+    "imu": (ImuParams, IMU_PRESETS, ImuSensor, 0),
+    "magnetometer": (MagnetometerParams, {"default": MagnetometerParams}, MagnetometerSensor, 1),
+    "barometer": (BarometerParams, BAROMETER_PRESETS, BarometerSensor, 2),
+    "gps": (GpsParams, GPS_PRESETS, GpsSensor, 3),
 }
 
 
@@ -151,7 +151,7 @@ class SensorsConfig:
 
     def params(self, kind: str) -> Any:
         """The parameters of sensor ``kind``, or None when it is not attached."""
-        cls, known, _ = _SENSOR_KINDS[kind]
+        cls, known, _, _ = _SENSOR_KINDS[kind]
         value = getattr(self, kind)
         if value is None or isinstance(value, cls):
             return value
@@ -164,16 +164,13 @@ class SensorsConfig:
     def components(self, seed: int, gravity: float) -> list[Any]:
         """The attached sensors as simulator components, each with its own seed."""
         out = []
-        for kind, (_, _, stream) in _SENSOR_KINDS.items():
+        for kind, (_, _, component, stream) in _SENSOR_KINDS.items():
             params = self.params(kind)
             if params is None:
                 continue
             sensor_seed = int(np.random.SeedSequence([seed, stream]).generate_state(1)[0])
-            if kind == "imu":
-                out.append(ImuSensor(params, sensor_seed, gravity=gravity))
-            else:
-                out.append({"magnetometer": MagnetometerSensor, "barometer": BarometerSensor,
-                            "gps": GpsSensor}[kind](params, sensor_seed))
+            extra = {"gravity": gravity} if component is ImuSensor else {}  # the IMU senses gravity
+            out.append(component(params, sensor_seed, **extra))
         return out
 
 

@@ -178,6 +178,17 @@ class Simulator:
         ground_truth = Topics.GROUND_TRUTH
         actuator = Topics.ACTUATOR_COMMAND
         last_bar = -1
+
+        def snapshot(t: float) -> Odometry:
+            """Ground truth now, with the true accelerations of the last physics step."""
+            return Odometry(t, s.p.copy(), s.v.copy(), s.q.copy(), s.w.copy(), accel_W.copy(), alpha_B.copy())
+
+        def write_row(i: int, t: float) -> np.ndarray:
+            row = hist[i]
+            row[0] = t
+            row[1:4], row[4:7], row[7:11], row[11:14], row[14:18] = s.p, s.v, s.q, s.w, s.rotor_speeds
+            return row
+
         wall0 = time.perf_counter()
         k = 0
         for k in range(n_steps + 1):
@@ -187,8 +198,7 @@ class Simulator:
                 for period, step in schedule:
                     if k % period == 0:
                         if truth is None:
-                            truth = Odometry(t, s.p.copy(), s.v.copy(), s.q.copy(), s.w.copy(),
-                                             accel_W.copy(), alpha_B.copy())
+                            truth = snapshot(t)
                             bus.publish(ground_truth, truth)
                         step(t, bus)
             if collision is not None and k % coll_every == 0:
@@ -198,14 +208,11 @@ class Simulator:
                     status = RunStatus.CRASHED
                     message = (f"collided with {hit.label!r} (object {hit.object_id}) at "
                                f"({hit.point_W[0]:.3f}, {hit.point_W[1]:.3f}, {hit.point_W[2]:.3f}) m at t = {t:.3f} s")
-                    hist[n_written, 0] = t
-                    hist[n_written, 1:18] = np.concatenate([s.p, s.v, s.q, s.w, s.rotor_speeds])
+                    write_row(n_written, t)
                     n_written += 1
                     break
             if k % rec_every == 0:
-                row = hist[n_written]
-                row[0] = t
-                row[1:4], row[4:7], row[7:11], row[11:14], row[14:18] = s.p, s.v, s.q, s.w, s.rotor_speeds
+                row = write_row(n_written, t)
                 n_written += 1
                 bad = self._check(row)
                 if bad is not None:
@@ -213,8 +220,7 @@ class Simulator:
                     break
                 if done is not None:
                     if truth is None:
-                        truth = Odometry(t, s.p.copy(), s.v.copy(), s.q.copy(), s.w.copy(),
-                                         accel_W.copy(), alpha_B.copy())
+                        truth = snapshot(t)
                     if done(t, truth):
                         status, message = RunStatus.COMPLETED, "done condition met"
                         break

@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..components import Sensor
 from ..config import ConfigError, from_dict
 from ..messages import AirPressure, Odometry, Topics
+from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec
 
 __all__ = ["isa_pressure", "isa_altitude", "BarometerParams", "BarometerModel", "BarometerSensor", "BAROMETER_PRESETS"]
@@ -25,17 +25,21 @@ LAPSE = 0.0065  # [K/m]
 EXPONENT = 9.80665 * 0.0289644 / (8.31432 * LAPSE)  # g0 M / (R* L) = 5.255876 with ISO 2533's R*
 
 
-def isa_pressure(altitude_m: np.ndarray, sea_level_pressure: float = P0, sea_level_temperature: float = T0
-                 ) -> np.ndarray:
+def _real(x: float | np.ndarray) -> float | np.ndarray:
+    """A Python number stays one (the fast per-sample path); anything else becomes a float array."""
+    return x if isinstance(x, (float, int)) else np.asarray(x, float)
+
+
+def isa_pressure(altitude_m: float | np.ndarray, sea_level_pressure: float = P0,
+                 sea_level_temperature: float = T0) -> float | np.ndarray:
     """Static pressure [Pa] at geopotential altitude [m] above mean sea level."""
-    return sea_level_pressure * (1.0 - LAPSE * np.asarray(altitude_m, float) / sea_level_temperature) ** EXPONENT
+    return sea_level_pressure * (1.0 - LAPSE * _real(altitude_m) / sea_level_temperature) ** EXPONENT
 
 
-def isa_altitude(pressure_pa: np.ndarray, sea_level_pressure: float = P0, sea_level_temperature: float = T0
-                 ) -> np.ndarray:
+def isa_altitude(pressure_pa: float | np.ndarray, sea_level_pressure: float = P0,
+                 sea_level_temperature: float = T0) -> float | np.ndarray:
     """Altitude [m] above mean sea level at which the ISA has ``pressure_pa``."""
-    ratio = np.asarray(pressure_pa, float) / sea_level_pressure
-    return sea_level_temperature / LAPSE * (1.0 - ratio ** (1.0 / EXPONENT))
+    return sea_level_temperature / LAPSE * (1.0 - (_real(pressure_pa) / sea_level_pressure) ** (1.0 / EXPONENT))
 
 
 @dataclass(frozen=True)
@@ -85,10 +89,10 @@ class BarometerModel:
     def reset(self) -> None:
         self._errors.reset()
 
-    def temperature_k(self, z_W: np.ndarray) -> np.ndarray:
+    def temperature_k(self, z_W: float | np.ndarray) -> float | np.ndarray:
         """Air temperature [K] at world heights z_W [m] (ISA lapse)."""
         p = self.params
-        return p.sea_level_temperature_k - LAPSE * (p.home_altitude_m + np.asarray(z_W, float))
+        return p.sea_level_temperature_k - LAPSE * (p.home_altitude_m + _real(z_W))
 
     def measure(self, z_W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(pressure [Pa], altitude above home [m]) for heights z_W (K,) or a scalar."""
@@ -97,10 +101,9 @@ class BarometerModel:
             z0 = float(z_W)
             if not math.isfinite(z0):
                 raise ValueError(f"z_W must be finite with shape () or (K,), got {z_W!r}")
-            h = p.home_altitude_m + z0
-            pressure = p.sea_level_pressure_pa * (1.0 - LAPSE * h / p.sea_level_temperature_k) ** EXPONENT
+            pressure = isa_pressure(p.home_altitude_m + z0, p.sea_level_pressure_pa, p.sea_level_temperature_k)
             pressure += float(self._errors.sample_one()[0])
-            altitude = p.sea_level_temperature_k / LAPSE * (1.0 - (pressure / p.sea_level_pressure_pa) ** (1.0 / EXPONENT))
+            altitude = isa_altitude(pressure, p.sea_level_pressure_pa, p.sea_level_temperature_k)
             return pressure, altitude - p.home_altitude_m
         z = np.atleast_1d(np.asarray(z_W, dtype=float))
         if z.ndim != 1 or not np.all(np.isfinite(z)):
@@ -111,22 +114,15 @@ class BarometerModel:
         return pressure, altitude
 
 
-class BarometerSensor(Sensor):
+class BarometerSensor(ModelSensor):
     """Publishes :class:`~cufund.messages.AirPressure` samples at the sensor's rate."""
 
     name = "barometer"
 
     def __init__(self, params: BarometerParams, seed: int = 0, topic: str = Topics.BAROMETER) -> None:
-        self.model = BarometerModel(params, seed)
-        self.rate_hz = params.rate_hz
-        self.topic = topic
-
-    def reset(self) -> None:
-        self.model.reset()
+        super().__init__(BarometerModel(params, seed), params.rate_hz, topic)
 
     def measure(self, t: float, truth: Odometry) -> AirPressure:
         z = float(truth.p_W[2])
         pressure, altitude = self.model.measure(z)
-        p = self.model.params
-        temperature = p.sea_level_temperature_k - LAPSE * (p.home_altitude_m + z)
-        return AirPressure(t, pressure, altitude, temperature)
+        return AirPressure(t, pressure, altitude, self.model.temperature_k(z))

@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..components import Sensor
 from ..config import ConfigError, from_dict
 from ..messages import GpsFix, Odometry, Topics
 from .geodesy import GeoPoint, enu_to_lla
+from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec
 
 __all__ = ["GpsParams", "GpsFix", "GpsModel", "GpsSensor", "GPS_PRESETS", "CEP_TO_SIGMA"]
@@ -132,19 +132,14 @@ class GpsModel:
         return ready
 
 
-class GpsSensor(Sensor):
+class GpsSensor(ModelSensor):
     """Publishes :class:`~cufund.messages.GpsFix` es at the receiver's rate, each ``latency_s`` after its
     measurement time (rounded to the receiver's period)."""
 
     name = "gps"
 
     def __init__(self, params: GpsParams, seed: int = 0, topic: str = Topics.GPS) -> None:
-        self.model = GpsModel(params, seed)
-        self.rate_hz = params.rate_hz
-        self.topic = topic
-
-    def reset(self) -> None:
-        self.model.reset()
+        super().__init__(GpsModel(params, seed), params.rate_hz, topic)
 
     def measure(self, t: float, truth: Odometry) -> GpsFix | None:
         return self.model.measure(t, truth.p_W, truth.v_W)

@@ -18,26 +18,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..components import Sensor
 from ..config import ConfigError, from_dict
 from ..messages import Imu, Odometry, Topics
+from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec
+from .pose import quat_to_matrix, world_to_body
 
-__all__ = ["ImuParams", "ImuModel", "ImuSensor", "IMU_PRESETS", "imu_preset", "quat_to_rotation"]
+__all__ = ["ImuParams", "ImuModel", "ImuSensor", "IMU_PRESETS", "imu_preset"]
 
 G0 = 9.80665
 DEG = math.pi / 180.0
-
-
-def quat_to_rotation(q: np.ndarray) -> np.ndarray:
-    """R (..., 3, 3) of unit quaternions q (..., 4) [w, x, y, z]."""
-    q = np.asarray(q, dtype=float)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
 
 
 def _vec(name: str, value: object, dim: int) -> tuple[float, ...]:
@@ -103,7 +93,7 @@ class ImuModel:
         self.params = params
         self.gravity = float(gravity)
         self._errors = ErrorProcess([(params.accel, 3), (params.gyro, 3)], 1.0 / params.rate_hz, seed)
-        self._R_IB = quat_to_rotation(np.asarray(params.q_BI)).T
+        self._R_IB = quat_to_matrix(np.asarray(params.q_BI)).T
         self._r = np.asarray(params.p_BI)
         self._r_tuple = tuple(float(v) for v in params.p_BI)
         self._scale_a = 1.0 + np.asarray(params.accel_scale_factor)
@@ -136,7 +126,7 @@ class ImuModel:
                 raise ValueError(f"{name} must have shape ({k}, {d}), got {x.shape}")
             if not np.all(np.isfinite(x)):
                 raise ValueError(f"{name} must be finite")
-        R_WB = quat_to_rotation(q)
+        R_WB = quat_to_matrix(q)
         f_B = np.einsum("kji,kj->ki", R_WB, a + np.array([0.0, 0.0, self.gravity]))
         f_B += np.cross(al, self._r) + np.cross(w, np.cross(w, self._r))
         e = self._errors.sample(k)
@@ -157,10 +147,7 @@ class ImuModel:
                              ("alpha_B", (bx, by, bz))):
             if not all(math.isfinite(v) for v in values):
                 raise ValueError(f"{name} must be finite")
-        # f_B = R_WB^T (a_W + g e_z): rows of R^T are the columns of R.
-        fx = (1 - 2 * (qy * qy + qz * qz)) * ax + 2 * (qx * qy + qw * qz) * ay + 2 * (qx * qz - qw * qy) * az
-        fy = 2 * (qx * qy - qw * qz) * ax + (1 - 2 * (qx * qx + qz * qz)) * ay + 2 * (qy * qz + qw * qx) * az
-        fz = 2 * (qx * qz + qw * qy) * ax + 2 * (qy * qz - qw * qx) * ay + (1 - 2 * (qx * qx + qy * qy)) * az
+        fx, fy, fz = world_to_body(qw, qx, qy, qz, ax, ay, az)  # f_B = R_WB^T (a_W + g e_z)
         rx, ry, rz = self._r_tuple
         if rx or ry or rz:
             cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx  # w x r
@@ -188,19 +175,14 @@ class ImuModel:
         return self.measure(q, z, z, z)
 
 
-class ImuSensor(Sensor):
+class ImuSensor(ModelSensor):
     """Publishes :class:`~cufund.messages.Imu` samples (in the IMU frame, ``f_I`` and ``w_I``) at the part's
     rate from ground truth's true accelerations. ``gravity`` must be the vehicle's (``params.gravity``)."""
 
     name = "imu"
 
     def __init__(self, params: ImuParams, seed: int = 0, gravity: float = G0, topic: str = Topics.IMU) -> None:
-        self.model = ImuModel(params, seed, gravity)
-        self.rate_hz = params.rate_hz
-        self.topic = topic
-
-    def reset(self) -> None:
-        self.model.reset()
+        super().__init__(ImuModel(params, seed, gravity), params.rate_hz, topic)
 
     def measure(self, t: float, truth: Odometry) -> Imu:
         if truth.a_W is None or truth.alpha_B is None:

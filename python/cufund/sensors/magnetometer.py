@@ -14,11 +14,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..components import Sensor
 from ..config import ConfigError, from_dict
 from ..messages import MagneticField, Odometry, Topics
-from .imu import quat_to_rotation
+from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec
+from .pose import quat_to_matrix, world_to_body
 
 __all__ = ["EarthField", "MagnetometerParams", "MagnetometerModel", "MagnetometerSensor"]
 
@@ -101,33 +101,23 @@ class MagnetometerModel:
             qw, qx, qy, qz = (float(v) for v in q_WB)
             if not all(math.isfinite(v) for v in (qw, qx, qy, qz)):
                 raise ValueError("q_WB must be finite")
-            bx, by, bz = self._B_W_tuple
-            # R_WB^T B_W with scalar arithmetic (the per-tick path).
-            B_B = np.array((
-                (1 - 2 * (qy * qy + qz * qz)) * bx + 2 * (qx * qy + qw * qz) * by + 2 * (qx * qz - qw * qy) * bz,
-                2 * (qx * qy - qw * qz) * bx + (1 - 2 * (qx * qx + qz * qz)) * by + 2 * (qy * qz + qw * qx) * bz,
-                2 * (qx * qz + qw * qy) * bx + 2 * (qy * qz - qw * qx) * by + (1 - 2 * (qx * qx + qy * qy)) * bz))
+            B_B = np.array(world_to_body(qw, qx, qy, qz, *self._B_W_tuple))  # the per-tick path
             return self._S @ B_B + self._h + self._errors.sample_one()
         q = np.atleast_2d(np.asarray(q_WB, dtype=float))
         if q.ndim != 2 or q.shape[1] != 4 or not np.all(np.isfinite(q)):
             raise ValueError(f"q_WB must be finite with shape (4,) or (K, 4), got {np.shape(q_WB)}")
-        B_B = np.einsum("kji,j->ki", quat_to_rotation(q), self._B_W)
+        B_B = np.einsum("kji,j->ki", quat_to_matrix(q), self._B_W)
         m = B_B @ self._S.T + self._h + self._errors.sample(q.shape[0])
         return m[0] if np.ndim(q_WB) == 1 else m
 
 
-class MagnetometerSensor(Sensor):
+class MagnetometerSensor(ModelSensor):
     """Publishes :class:`~cufund.messages.MagneticField` samples at the sensor's rate."""
 
     name = "magnetometer"
 
     def __init__(self, params: MagnetometerParams, seed: int = 0, topic: str = Topics.MAGNETOMETER) -> None:
-        self.model = MagnetometerModel(params, seed)
-        self.rate_hz = params.rate_hz
-        self.topic = topic
-
-    def reset(self) -> None:
-        self.model.reset()
+        super().__init__(MagnetometerModel(params, seed), params.rate_hz, topic)
 
     def measure(self, t: float, truth: Odometry) -> MagneticField:
         return MagneticField(t, self.model.measure(truth.q_WB))

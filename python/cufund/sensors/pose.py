@@ -31,6 +31,15 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     ], -2)
 
 
+def world_to_body(qw: float, qx: float, qy: float, qz: float, x: float, y: float, z: float
+                  ) -> tuple[float, float, float]:
+    """R_WB^T v for one unit quaternion q_WB [w, x, y, z] and world vector v, in scalar arithmetic (a
+    per-sample fast path: the same numbers as ``quat_to_matrix(q).T @ v`` up to rounding)."""
+    return ((1 - 2 * (qy * qy + qz * qz)) * x + 2 * (qx * qy + qw * qz) * y + 2 * (qx * qz - qw * qy) * z,
+            2 * (qx * qy - qw * qz) * x + (1 - 2 * (qx * qx + qz * qz)) * y + 2 * (qy * qz + qw * qx) * z,
+            2 * (qx * qz + qw * qy) * x + 2 * (qy * qz - qw * qx) * y + (1 - 2 * (qx * qx + qy * qy)) * z)
+
+
 def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product a ⊗ b of (…, 4) quaternions [w, x, y, z]."""
     aw, ax, ay, az = np.moveaxis(a, -1, 0)
