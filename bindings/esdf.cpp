@@ -121,8 +121,8 @@ py::dict stats_dict(const esdf::EsdfUpdateStats& s) {
   return d;
 }
 
-template <typename T>
-py::array grid_array(const esdf::EsdfMap& m, const std::vector<T>& data) {
+template <typename T, typename Alloc>
+py::array grid_array(const esdf::EsdfMap& m, const std::vector<T, Alloc>& data) {
   const auto& n = m.geometry().shape;
   py::array_t<T> out({n[0], n[1], n[2]});
   std::copy(data.begin(), data.end(), out.mutable_data());

@@ -21,12 +21,17 @@ inline std::int32_t to_int(double v) { return v == kInf ? IncrementalEdt::kNoSit
 constexpr Index kGroup = 16;
 // A stage falls back to a full pass when its changed positions exceed 1/kFullPassFactor of the grid.
 constexpr Index kFullPassFactor = 8;
+// Lines ahead whose changed inputs and outputs are prefetched: a line's first touch is a cache miss.
+constexpr Index kPrefetchLines = 4;
+constexpr Index kPrefetchReach = 32;
 
 }  // namespace
 
 struct IncrementalEdt::Scratch : LineBuffers {
-  explicit Scratch(Index n) : LineBuffers(kGroup, n) {}
-  std::vector<std::pair<Index, Index>> windows;
+  // Buffers for `lines` lines of length n handled together (full passes group kGroup lines).
+  Scratch(Index lines, Index n) : LineBuffers(lines, n) {}
+  std::vector<std::pair<Index, Index>> windows;  // outputs recomputed exactly
+  std::vector<Position> grown, shrunk;                      // changed inputs: (p, old) / (p, new)
 };
 
 IncrementalEdt::IncrementalEdt(const std::array<Index, 3>& shape)
@@ -55,7 +60,7 @@ void IncrementalEdt::column(Index c, std::vector<double>& buf, std::vector<Chang
     const std::int32_t nv = to_int(buf[static_cast<std::size_t>(q)]);
     std::int32_t& old = g1_[static_cast<std::size_t>((ix * nz + q) * ny + iy)];
     if (nv != old) {
-      if (changed) changed->push_back({q * nx + ix, iy, std::min(old, nv)});  // stage-2 line (iz = q, ix)
+      if (changed) changed->push_back({q * nx + ix, static_cast<std::int32_t>(iy), std::min(old, nv)});  // stage-2 line (iz = q, ix)
       old = nv;
     }
   }
@@ -72,7 +77,7 @@ void IncrementalEdt::full_pass(int stage, int nthreads, Changes* changed, Index*
   std::vector<Index> totals(static_cast<std::size_t>(chunks), 0);
   if (changed && static_cast<Index>(changed->size()) < chunks) changed->resize(static_cast<std::size_t>(chunks));
   parallel_chunks(groups, chunk, nthreads, [&](Index g_begin, Index g_end, Index c) {
-    Scratch s(n);
+    Scratch s(group, n);
     auto* out = changed ? &(*changed)[static_cast<std::size_t>(c)] : nullptr;
     Index& total = totals[static_cast<std::size_t>(c)];
     for (Index g = g_begin; g < g_end; ++g) {
@@ -92,7 +97,7 @@ void IncrementalEdt::full_pass(int stage, int nthreads, Changes* changed, Index*
             ++total;
             if (out) {  // stage-3 line (iz, iy = q), position ix
               const Index line = first + j;
-              out->push_back({(line / nx) * ny + q, line % nx, std::min(o, nv)});
+              out->push_back({(line / nx) * ny + q, static_cast<std::int32_t>(line % nx), std::min(o, nv)});
             }
             o = nv;
           }
@@ -105,59 +110,137 @@ void IncrementalEdt::full_pass(int stage, int nthreads, Changes* changed, Index*
   if (n_changed) *n_changed = total;
 }
 
+namespace {
+
+// The output positions q in [lo, hi] of a line where the parabola low + (q - p)^2 can reach the old
+// output: low + (q - p)^2 <= old(q) (`strict`: < old(q)). Over the whole line they form one interval
+// (a parabola under a lower envelope of parabolas of the same curvature, whose difference is
+// concave), inside the q with (q - p)^2 <= old(q), which are contiguous around p because sqrt(old)
+// is 1-Lipschitz along a line. Walking away from p, the same Lipschitz bound skips q that provably
+// fail. Returns (a, b), a > b when empty.
+template <typename Old>
+std::pair<Index, Index> reach(Index p, Index low, bool strict, Index lo, Index hi, const Old& old) {
+  Index a = hi + 1, b = lo - 1;
+  const Index start = std::clamp(p, lo, hi);
+  bool start_in = false;
+  for (const Index dir : {Index{1}, Index{-1}}) {
+    if (dir < 0 && b >= a && !start_in) break;  // the interval lies right of the start
+    bool found = false;
+    for (Index q = dir > 0 ? start : start - 1; q >= lo && q <= hi;) {
+      const std::int32_t g = old(q);
+      const Index d = q > p ? q - p : p - q;
+      const Index c = low + d * d;
+      if (g == IncrementalEdt::kNoSite || c < static_cast<Index>(g) || (!strict && c == static_cast<Index>(g))) {
+        a = std::min(a, q);
+        b = std::max(b, q);
+        found = true;
+        if (q == start) start_in = true;
+        q += dir;
+        continue;
+      }
+      // From here on q moves away from p (or leaves [lo, hi]).
+      if (found || d * d > static_cast<Index>(g)) break;  // left the interval, or past the bound
+      // Here c >= old(q) = D^2 with d <= D. At d + j, old <= (D + j)^2, so c stays >= old (> old when
+      // not strict) while j < gap / (2 (D - d)), gap = c - D^2.
+      const double D = std::sqrt(static_cast<double>(g));
+      if (D <= static_cast<double>(d)) break;
+      const double gap = static_cast<double>(c - static_cast<Index>(g));
+      const Index skip = static_cast<Index>(std::floor(gap / (2.0 * (D - static_cast<double>(d))) - 1e-9));
+      q += dir * (std::max<Index>(skip, 0) + 1);
+    }
+  }
+  return {a, b};
+}
+
+// Sorts intervals and merges the overlapping or adjacent ones, in place.
+void merge_intervals(std::vector<std::pair<Index, Index>>& w) {
+  std::sort(w.begin(), w.end());
+  std::size_t out = 0;
+  for (std::size_t i = 0; i < w.size();) {
+    Index lo = w[i].first, hi = w[i].second;
+    for (++i; i < w.size() && w[i].first <= hi + 1; ++i) hi = std::max(hi, w[i].second);
+    w[out++] = {lo, hi};
+  }
+  w.resize(out);
+}
+
+}  // namespace
+
 void IncrementalEdt::update_line(int stage, const LineWork& work, const std::vector<Position>& positions, Scratch& s,
                                  std::vector<Change>* changed, Index* n_changed) {
   const Index nx = shape_[0], ny = shape_[1];
   const LineView v = view(stage, work.line);
   const Index n = v.n;
   const auto old = [&](Index q) { return v.out[q * v.out_stride]; };
-  // Output windows. q can change only if low(p) + (q - p)^2 <= old(q) for a changed p (else the old
-  // minimum came from an unchanged input and no changed input gets below it). For one p these q form
-  // an interval (where a parabola lies under a lower envelope of parabolas), inside the q with
-  // (q - p)^2 <= old(q), which are contiguous around p because D = sqrt(old) is 1-Lipschitz along a
-  // line. Walking away from p, the same Lipschitz bound skips q that provably fail.
-  auto& windows = s.windows;
-  windows.clear();
-  for (Index k = work.begin; k < work.end; ++k) {
-    const Index p = positions[static_cast<std::size_t>(k)].pos;
-    const Index low = positions[static_cast<std::size_t>(k)].low;
-    Index a = n, b = -1;
-    bool p_in = false;
-    for (const Index dir : {Index{1}, Index{-1}}) {
-      if (dir < 0 && b >= a && !p_in) break;  // the interval lies right of p
-      bool found = false;
-      for (Index q = dir > 0 ? p : p - 1; q >= 0 && q < n;) {
-        const std::int32_t g = old(q);
-        const Index d = dir > 0 ? q - p : p - q;
-        if (g == kNoSite || low + d * d <= static_cast<Index>(g)) {
-          a = std::min(a, q);
-          b = std::max(b, q);
-          found = true;
-          if (q == p) p_in = true;
-          q += dir;
-          continue;
-        }
-        if (found || d * d > static_cast<Index>(g)) break;  // left the interval, or past the bound
-        // Here low + d^2 > old(q) = D^2 with d <= D. At d + j, old <= (D + j)^2, so the gap stays
-        // positive while j < gap / (2 (D - d)).
-        const double D = std::sqrt(static_cast<double>(g));
-        if (D <= static_cast<double>(d)) break;
-        const double gap = static_cast<double>(low + d * d - static_cast<Index>(g));
-        const Index skip = static_cast<Index>(std::floor(gap / (2.0 * (D - static_cast<double>(d))) - 1e-9));
-        q += dir * (std::max<Index>(skip, 0) + 1);
-      }
+  const auto write = [&](Index q, std::int32_t nv) {
+    std::int32_t& o = v.out[q * v.out_stride];
+    if (o == nv) return;
+    ++*n_changed;
+    if (changed) {  // stage-3 line (iz, iy = q), position ix
+      const Index iz = work.line / nx, ix = work.line % nx;
+      changed->push_back({iz * ny + q, static_cast<std::int32_t>(ix), std::min(o, nv)});
     }
-    if (a <= b) windows.emplace_back(a, b);
+    o = nv;
+  };
+  // An input that grew (its site moved away or vanished) can only raise the outputs it was nearest
+  // to: those are recomputed exactly. An input that shrank can only lower outputs, to its own
+  // parabola: new(q) = min(old(q), lowest shrunk parabola at q) wherever no input grew.
+  auto& grown = s.grown;
+  auto& shrunk = s.shrunk;
+  grown.clear();
+  shrunk.clear();
+  for (Index k = work.begin; k < work.end; ++k) {
+    const Position& c = positions[static_cast<std::size_t>(k)];
+    const std::int32_t now = v.in[c.pos];
+    if (c.low < now) {
+      grown.push_back({c.pos, c.low});
+    } else {
+      shrunk.push_back({c.pos, now});
+    }
   }
-  std::sort(windows.begin(), windows.end());
-  std::size_t w = 0;
-  while (w < windows.size()) {
-    Index lo = windows[w].first, hi = windows[w].second;
-    for (++w; w < windows.size() && windows[w].first <= hi + 1; ++w) hi = std::max(hi, windows[w].second);
+  // Every window is found on the old output, before anything is written.
+  auto& exact = s.windows;
+  exact.clear();
+  for (const Position& c : grown) {
+    const auto w = reach(c.pos, c.low, false, 0, n - 1, old);
+    if (w.first <= w.second) exact.push_back(w);
+  }
+  merge_intervals(exact);
+  // Only the lower envelope of the shrunk inputs' parabolas can lower an output, each envelope
+  // parabola on its own segment (integers q with z[e] < q <= z[e + 1]); walking segments, not every
+  // shrunk input's reach, visits each output once. The walks skip the exact windows (recomputed
+  // below from their old values) and read nothing but their own segment, which only they write.
+  Index top = -1;
+  {
+    const auto pos = [&](Index j) { return shrunk[static_cast<std::size_t>(j)].pos; };
+    const auto val = [&](Index j) { return static_cast<double>(shrunk[static_cast<std::size_t>(j)].low); };
+    for (Index j = 0; j < static_cast<Index>(shrunk.size()); ++j) envelope_push(j, 1.0, s.v.data(), s.z.data(), top, pos, val);
+  }
+  const auto lower = [&](const Position& c, Index lo, Index hi) {
+    const auto w = reach(c.pos, c.low, true, lo, hi, old);
+    for (Index q = w.first; q <= w.second; ++q) write(q, static_cast<std::int32_t>(c.low + (q - c.pos) * (q - c.pos)));
+  };
+  std::size_t x = 0;  // first exact window not left of the current segment
+  for (Index e = 0; e <= top; ++e) {
+    const double z0 = s.z[static_cast<std::size_t>(e)], z1 = s.z[static_cast<std::size_t>(e + 1)];
+    Index lo = z0 < 0.0 ? 0 : static_cast<Index>(std::floor(z0)) + 1;
+    const Index hi = z1 >= static_cast<double>(n - 1) ? n - 1 : static_cast<Index>(std::floor(z1));
+    const Position& c = shrunk[static_cast<std::size_t>(s.v[static_cast<std::size_t>(e)])];
+    while (x < exact.size() && exact[x].second < lo) ++x;
+    for (std::size_t y = x; lo <= hi; ++y) {
+      if (y == exact.size() || exact[y].first > hi) {
+        lower(c, lo, hi);
+        break;
+      }
+      if (lo < exact[y].first) lower(c, lo, exact[y].first - 1);
+      lo = exact[y].second + 1;
+    }
+  }
+
+  for (const auto& [lo, hi] : exact) {
     // Input window: every site that can be nearest to some q in [lo, hi]. Start from the old
-    // distances (enough where distances only shrink: the nearest site is then within sqrt(old(q)))
-    // and widen until provably enough: a site outside [wlo, whi] is at least (q - wlo + 1) or
-    // (whi + 1 - q) away from q.
+    // distances and widen until provably enough: a site outside [wlo, whi] is at least
+    // (q - wlo + 1) or (whi + 1 - q) away from q.
     Index wlo = lo, whi = hi;
     for (Index q = lo; q <= hi && (wlo > 0 || whi < n - 1); ++q) {
       const std::int32_t g = old(q);
@@ -169,36 +252,37 @@ void IncrementalEdt::update_line(int stage, const LineWork& work, const std::vec
       const Index m = whi - wlo + 1;
       for (Index q = wlo; q <= whi; ++q) s.f[static_cast<std::size_t>(q - wlo)] = to_double(v.in[q]);
       lower_envelope_1d(s.f.data(), s.d.data(), m, 1.0, s.v.data(), s.z.data());
-      bool exact = true;
-      for (Index q = lo; q <= hi && exact; ++q) {
+      bool enough = true;
+      for (Index q = lo; q <= hi && enough; ++q) {
         const double r = s.d[static_cast<std::size_t>(q - wlo)];
         const double left = static_cast<double>(q - wlo + 1), right = static_cast<double>(whi + 1 - q);
-        exact = !((wlo > 0 && r > left * left) || (whi < n - 1 && r > right * right));
+        enough = !((wlo > 0 && r > left * left) || (whi < n - 1 && r > right * right));
       }
-      if (!exact) {  // some distance grew: widen both sides by the window's length
-        wlo = std::max(Index{0}, wlo - m);
-        whi = std::min(n - 1, whi + m);
-        continue;
+      if (enough) break;
+      wlo = std::max(Index{0}, wlo - m);  // some distance grew past the window: widen both sides
+      whi = std::min(n - 1, whi + m);
+    }
+    for (Index q = lo; q <= hi; ++q) write(q, to_int(s.d[static_cast<std::size_t>(q - wlo)]));
+  }
+}
+
+void IncrementalEdt::prefetch_line(int stage, const LineWork& work, const std::vector<Position>& positions) {
+  const LineView v = view(stage, work.line);
+  for (Index k = work.begin; k < work.end; ++k) {
+    const Index p = positions[static_cast<std::size_t>(k)].pos;
+    __builtin_prefetch(v.in + p);
+    if (v.out_stride == 1) {  // the walks from p mostly stay within a few cache lines of it
+      for (Index q = std::max<Index>(0, p - kPrefetchReach); q <= std::min(v.n - 1, p + kPrefetchReach); q += 16) {
+        __builtin_prefetch(v.out + q, 1);
       }
-      for (Index q = lo; q <= hi; ++q) {
-        const std::int32_t nv = to_int(s.d[static_cast<std::size_t>(q - wlo)]);
-        std::int32_t& o = v.out[q * v.out_stride];
-        if (o != nv) {
-          ++*n_changed;
-          if (changed) {  // stage-3 line (iz, iy = q), position ix
-            const Index iz = work.line / nx, ix = work.line % nx;
-            changed->push_back({iz * ny + q, ix, std::min(o, nv)});
-          }
-          o = nv;
-        }
-      }
-      break;
+    } else {
+      __builtin_prefetch(v.out + p * v.out_stride, 1);
     }
   }
 }
 
-IncrementalEdt::Work IncrementalEdt::merge(Changes& changes) {
-  Work w;
+void IncrementalEdt::merge(Changes& changes, Work& w) {
+  w.lines.clear();
   // Count per line, then bucket the positions by line.
   for (const auto& list : changes) {
     for (const Change& c : list) {
@@ -235,7 +319,6 @@ IncrementalEdt::Work IncrementalEdt::merge(Changes& changes) {
     std::sort(b, e, [](const Position& x, const Position& y) { return x.pos < y.pos || (x.pos == y.pos && x.low < y.low); });
     l.end = l.begin + (std::unique(b, e, [](const Position& x, const Position& y) { return x.pos == y.pos; }) - b);
   }
-  return w;
 }
 
 std::vector<std::int32_t> IncrementalEdt::squared_distance() const {
@@ -266,7 +349,8 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
   const Index nz = shape_[2];
   const Index longest = std::max({shape_[0], shape_[1], shape_[2]});
   IncrementalEdtStats stats;
-  Changes changes(1);
+  Changes& changes = changes_;
+  if (changes.empty()) changes.resize(1);
 
   // Apply the site changes; the columns holding a changed voxel are stage 1's work.
   for (std::size_t k = 0; k < index.size(); ++k) {
@@ -274,12 +358,13 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
     const std::uint8_t nv = value[k] ? 1 : 0;
     if (sites_[static_cast<std::size_t>(i)] != nv) {
       sites_[static_cast<std::size_t>(i)] = nv;
-      changes[0].push_back({i / nz, i % nz, 0});
+      changes[0].push_back({i / nz, static_cast<std::int32_t>(i % nz), 0});
     }
   }
   // A voxel toggled twice in one call is counted once per toggle; the stats are informative only.
   stats.changed_sites = static_cast<Index>(changes[0].size());
-  const Work columns = merge(changes);
+  const Work& columns = columns_;
+  merge(changes, columns_);
   stats.columns = static_cast<Index>(columns.lines.size());
 
   const Index n_columns = stats.columns;
@@ -295,7 +380,8 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
 
   Index changed = 0;
   for (int stage = 2; stage <= 3; ++stage) {
-    const Work work = merge(changes);
+    const Work& work = work_;
+    merge(changes, work_);
     (stage == 2 ? stats.y_lines : stats.x_lines) = static_cast<Index>(work.lines.size());
     const Index n_lines = static_cast<Index>(work.lines.size());
     Index stage_changed = 0;
@@ -311,9 +397,10 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
     if (stage == 2) changes.resize(std::max(changes.size(), static_cast<std::size_t>(chunks)));
     std::vector<Index> counts(static_cast<std::size_t>(chunks), 0);
     parallel_chunks(n_lines, chunk, nt, [&](Index begin, Index end, Index c) {
-      Scratch s(longest);
+      Scratch s(1, longest);
       auto* out = stage == 2 ? &changes[static_cast<std::size_t>(c)] : nullptr;
       for (Index k = begin; k < end; ++k) {
+        if (k + kPrefetchLines < end) prefetch_line(stage, work.lines[static_cast<std::size_t>(k + kPrefetchLines)], work.positions);
         update_line(stage, work.lines[static_cast<std::size_t>(k)], work.positions, s, out,
                     &counts[static_cast<std::size_t>(c)]);
       }

@@ -2,10 +2,11 @@
 // disappear, touching only what changed (the FIESTA idea of propagating changes, made exact). The
 // separable transform is stored stage by stage as integer squared voxel distances: along z (stage 1),
 // then over each x-slab (stage 2, along y), then over the grid (stage 3, along x). A change of sites
-// recomputes the z-columns holding a changed voxel; each later stage recomputes, on the lines whose
-// input changed, only the windows where the output can change (q with min(old, new input at p) +
-// (q - p)^2 <= old(q) for a changed input p), from an input window proven wide enough. Values are integers and every window is
-// computed exactly, so the result is identical to a full recompute, not merely close.
+// recomputes the z-columns holding a changed voxel; each later stage visits only the lines whose input
+// changed, and there only the outputs a changed input can reach. An input that shrank lowers outputs
+// to its parabola (a min, like an insertion wavefront); an input that grew forces an exact recompute
+// of the outputs it was nearest to, from an input window proven wide enough. Values are integers and
+// every step is exact, so the result is identical to a full recompute, not merely close.
 #pragma once
 
 #include <array>
@@ -14,6 +15,8 @@
 #include <limits>
 #include <utility>
 #include <vector>
+
+#include "huge_page_allocator.h"
 
 namespace cufund::esdf {
 
@@ -65,12 +68,11 @@ class IncrementalEdt {
   };
   // A changed input of the next stage: line, position and min(old value, new value).
   struct Change {
-    Index line, pos;
-    std::int32_t low;
+    Index line;
+    std::int32_t pos, low;
   };
   struct Position {
-    Index pos;
-    std::int32_t low;
+    std::int32_t pos, low;
   };
   struct Work {
     std::vector<LineWork> lines;  // sorted by line
@@ -92,21 +94,25 @@ class IncrementalEdt {
   // Full stage-2/3 pass over all lines, in groups of neighbouring lines that share cache lines;
   // records changes like update_line when `changed` / `n_changed` are given.
   void full_pass(int stage, int nthreads, Changes* changed, Index* n_changed);
-  // Recomputes only the windows of one line whose output can change: positions q with
-  // low(p) + (q - p)^2 <= old(q) for a changed input p, where low(p) = min(old, new input at p).
-  // Appends the changes of the output (stage 2) and counts changed voxels.
+  // Updates the outputs of one line that its changed inputs (positions with low = min(old, new input))
+  // can reach. Appends the changes of the output (stage 2) and counts changed voxels.
   void update_line(int stage, const LineWork& work, const std::vector<Position>& positions, Scratch& s,
                    std::vector<Change>* changed, Index* n_changed);
-  // Merges per-chunk (line, position) lists into per-line sorted positions.
-  Work merge(Changes& changes);
+  // Prefetches the inputs and outputs at a line's changed positions.
+  void prefetch_line(int stage, const LineWork& work, const std::vector<Position>& positions);
+  // Merges per-chunk (line, position) lists into per-line sorted positions, emptying the lists.
+  void merge(Changes& changes, Work& out);
 
   std::array<Index, 3> shape_;
   std::vector<std::uint8_t> sites_;
   // Stage outputs, each laid out so that the next stage reads its lines contiguously:
   // g1 [ix][iz][iy] (y fastest), g2 and g3 [iz][iy][ix] (x fastest).
-  std::vector<std::int32_t> g1_, g2_, g3_;
+  HugePageVector<std::int32_t> g1_, g2_, g3_;
   // Merge scratch, one entry per line of the largest stage: -1 / unused between updates.
   std::vector<Index> merge_slot_;
+  // Buffers of `update`, kept between calls so that their memory is not faulted in again each time.
+  Changes changes_;
+  Work columns_, work_;
 };
 
 }  // namespace cufund::esdf

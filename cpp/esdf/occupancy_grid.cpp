@@ -29,9 +29,13 @@ inline bool test(const std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
 inline void clear(std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
   bits[static_cast<std::size_t>(i >> 6)] &= ~(std::uint64_t{1} << (i & 63));
 }
-// Sets bit i; safe against other threads setting bits of the same word.
+// Sets bit i; safe against other threads setting bits of the same word. Voxels near the sensor are
+// crossed by most beams: a plain (atomic) load skips the locked write, and the cache-line ping-pong
+// between threads, once the bit is set.
 inline void atomic_set(std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
-  __atomic_fetch_or(&bits[static_cast<std::size_t>(i >> 6)], std::uint64_t{1} << (i & 63), __ATOMIC_RELAXED);
+  std::uint64_t* w = &bits[static_cast<std::size_t>(i >> 6)];
+  const std::uint64_t b = std::uint64_t{1} << (i & 63);
+  if (!(__atomic_load_n(w, __ATOMIC_RELAXED) & b)) __atomic_fetch_or(w, b, __ATOMIC_RELAXED);
 }
 // Appends the indices of the set bits in ascending order and clears them.
 void drain(std::vector<std::uint64_t>& bits, std::vector<std::ptrdiff_t>* out) {
@@ -122,11 +126,16 @@ ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* o
   ScanStats stats;
   stats.points = n;
   const auto& g = geometry_;
-  std::vector<Index> hits, frees;
+  auto& hits = hits_;
+  auto& frees = frees_;
+  hits.clear();
+  frees.clear();
 
   // Beam ends first, so that a voxel both hit and crossed in one scan counts as hit only.
-  std::vector<std::uint8_t> use(static_cast<std::size_t>(n), 0);
-  std::vector<double> ends(static_cast<std::size_t>(3 * n));
+  auto& use = use_;
+  auto& ends = ends_;
+  use.assign(static_cast<std::size_t>(n), 0);
+  ends.resize(static_cast<std::size_t>(3 * n));
   for (Index k = 0; k < n; ++k) {
     const double* p = p_W + 3 * k;
     if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {

@@ -8,6 +8,8 @@
 #include <limits>
 #include <vector>
 
+#include "huge_page_allocator.h"
+
 namespace cufund::esdf {
 
 struct GridGeometry {
@@ -44,7 +46,7 @@ class OccupancyGrid {
   const GridGeometry& geometry() const { return geometry_; }
   const SensorModel& model() const { return model_; }
   Index size() const { return static_cast<Index>(log_odds_.size()); }
-  const std::vector<float>& log_odds() const { return log_odds_; }
+  const HugePageVector<float>& log_odds() const { return log_odds_; }
   bool occupied(Index i) const { return log_odds_[static_cast<std::size_t>(i)] > model_.log_odds_occupied; }
 
   // Inserts n points p_W (n x 3, world frame) seen from sensor origin_W (3). Appends the voxels whose
@@ -67,10 +69,14 @@ class OccupancyGrid {
 
   GridGeometry geometry_;
   SensorModel model_;
-  std::vector<float> log_odds_;
+  HugePageVector<float> log_odds_;
   // Per-scan marks, one bit per voxel (small enough to stay in cache while beams are walked); all
   // clear between scans.
   std::vector<std::uint64_t> hit_bits_, free_bits_;
+  // Per-scan buffers, kept so that their memory is not faulted in again on every scan.
+  std::vector<std::uint8_t> use_;
+  std::vector<double> ends_;
+  std::vector<Index> hits_, frees_;
 };
 
 }  // namespace cufund::esdf

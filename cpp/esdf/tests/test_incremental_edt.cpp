@@ -47,6 +47,57 @@ TEST(IncrementalEdt, RandomInsertRemoveSequencesEqualFullRecompute) {
   }
 }
 
+// Sparse sites in a large open grid: long lines carry many changed inputs at once, grown and shrunk
+// on the same line, so updates combine several envelope segments with exact windows between them.
+TEST(IncrementalEdt, BoxesAppearingAndVanishingInOpenSpaceEqualFullRecompute) {
+  std::mt19937 rng(7);
+  for (const std::array<Index, 3>& n : {std::array<Index, 3>{48, 41, 9}, std::array<Index, 3>{23, 64, 17}}) {
+    const Index size = n[0] * n[1] * n[2];
+    IncrementalEdt inc(n);
+    inc.reset(test::random_sites(size, 0.0005, 3).data(), 2);
+    for (int step = 0; step < 150; ++step) {
+      std::vector<Index> idx;
+      std::vector<std::uint8_t> val;
+      // A few boxes set to sites or cleared, plus scattered single flips.
+      for (int b = 0; b < 1 + step % 3; ++b) {
+        std::array<Index, 3> lo{}, hi{};
+        for (int a = 0; a < 3; ++a) {
+          lo[a] = std::uniform_int_distribution<Index>(0, n[a] - 1)(rng);
+          hi[a] = std::min(n[a] - 1, lo[a] + std::uniform_int_distribution<Index>(0, 4)(rng));
+        }
+        const std::uint8_t v = rng() % 2;
+        for (Index x = lo[0]; x <= hi[0]; ++x)
+          for (Index y = lo[1]; y <= hi[1]; ++y)
+            for (Index z = lo[2]; z <= hi[2]; ++z) {
+              idx.push_back((x * n[1] + y) * n[2] + z);
+              val.push_back(v);
+            }
+      }
+      for (int c = 0; c < 5; ++c) {
+        idx.push_back(std::uniform_int_distribution<Index>(0, size - 1)(rng));
+        val.push_back(rng() % 2);
+      }
+      const auto before = inc.squared_distance();
+      const auto stats = inc.update(idx, val, step % 2 ? 1 : 2);
+      IncrementalEdt full(n);
+      full.reset(inc.sites().data(), 1);
+      const auto after = inc.squared_distance();
+      ASSERT_EQ(after, full.squared_distance()) << "step " << step;
+      Index changed = 0;
+      for (std::size_t i = 0; i < after.size(); ++i) changed += before[i] != after[i];
+      EXPECT_EQ(stats.changed_distances, changed) << "step " << step;
+      if (step % 50 == 0) {
+        const auto ref = test::brute_squared(inc.sites(), n, {1.0, 1.0, 1.0});
+        for (Index i = 0; i < size; ++i) {
+          const std::int32_t got = after[static_cast<std::size_t>(i)];
+          ASSERT_EQ(got == IncrementalEdt::kNoSite ? std::numeric_limits<double>::infinity() : got,
+                    ref[static_cast<std::size_t>(i)]);
+        }
+      }
+    }
+  }
+}
+
 TEST(IncrementalEdt, SingleInsertTouchesOnlyItsNeighbourhood) {
   const std::array<Index, 3> n{30, 30, 30};
   std::vector<std::uint8_t> sites(27000, 0);
