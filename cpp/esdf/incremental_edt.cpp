@@ -343,6 +343,67 @@ void IncrementalEdt::recompute(int nthreads) {
   full_pass(3, nt, nullptr, nullptr);
 }
 
+void IncrementalEdt::update_slices(const Work& work, int nthreads, Index* x_lines, Index* n_changed) {
+  const Index nx = shape_[0], ny = shape_[1];
+  const Index longest = std::max({shape_[0], shape_[1], shape_[2]});
+  // Stage-2 lines are numbered iz * nx + ix and sorted: each slice's lines form one run.
+  std::vector<std::pair<Index, Index>> runs;
+  for (Index k = 0; k < static_cast<Index>(work.lines.size()); ++k) {
+    if (runs.empty() || work.lines[static_cast<std::size_t>(k)].line / nx !=
+                            work.lines[static_cast<std::size_t>(runs.back().first)].line / nx) {
+      runs.emplace_back(k, k);
+    }
+    runs.back().second = k + 1;
+  }
+  const Index n_runs = static_cast<Index>(runs.size());
+  std::vector<Index> lines_done(static_cast<std::size_t>(n_runs), 0), changed(static_cast<std::size_t>(n_runs), 0);
+  parallel_chunks(n_runs, 1, nthreads, [&](Index r_begin, Index r_end, Index) {
+    Scratch s(1, longest);
+    std::vector<Change> out;   // the slice's stage-2 output changes = its stage-3 input changes
+    Work slice;                // the same, bucketed by stage-3 line
+    std::vector<Index> start(static_cast<std::size_t>(ny + 1));
+    for (Index r = r_begin; r < r_end; ++r) {
+      const auto [first, last] = runs[static_cast<std::size_t>(r)];
+      const Index iz = work.lines[static_cast<std::size_t>(first)].line / nx;
+      out.clear();
+      Index stage2_changed = 0;
+      for (Index k = first; k < last; ++k) {
+        if (k + kPrefetchLines < last) prefetch_line(2, work.lines[static_cast<std::size_t>(k + kPrefetchLines)], work.positions);
+        update_line(2, work.lines[static_cast<std::size_t>(k)], work.positions, s, &out, &stage2_changed);
+      }
+      // Counting sort by stage-3 line (iy). It is stable, and the stage-2 lines ran in ascending ix,
+      // each writing an output at most once: every line's positions come out sorted and distinct.
+      std::fill(start.begin(), start.end(), 0);
+      for (const Change& c : out) ++start[static_cast<std::size_t>(c.line - iz * ny + 1)];
+      for (Index iy = 0; iy < ny; ++iy) start[static_cast<std::size_t>(iy + 1)] += start[static_cast<std::size_t>(iy)];
+      slice.lines.clear();
+      for (Index iy = 0; iy < ny; ++iy) {
+        const Index b = start[static_cast<std::size_t>(iy)], e = start[static_cast<std::size_t>(iy + 1)];
+        if (b < e) slice.lines.push_back({iz * ny + iy, b, b});
+      }
+      slice.positions.resize(out.size());
+      for (const Change& c : out) {
+        Index& cursor = start[static_cast<std::size_t>(c.line - iz * ny)];
+        slice.positions[static_cast<std::size_t>(cursor++)] = {c.pos, c.low};
+      }
+      for (auto& l : slice.lines) l.end = start[static_cast<std::size_t>(l.line - iz * ny)];
+      const Index n_lines = static_cast<Index>(slice.lines.size());
+      for (Index k = 0; k < n_lines; ++k) {
+        if (k + kPrefetchLines < n_lines) prefetch_line(3, slice.lines[static_cast<std::size_t>(k + kPrefetchLines)], slice.positions);
+        update_line(3, slice.lines[static_cast<std::size_t>(k)], slice.positions, s, nullptr,
+                    &changed[static_cast<std::size_t>(r)]);
+      }
+      lines_done[static_cast<std::size_t>(r)] = n_lines;
+    }
+  });
+  *x_lines = 0;
+  *n_changed = 0;
+  for (Index r = 0; r < n_runs; ++r) {
+    *x_lines += lines_done[static_cast<std::size_t>(r)];
+    *n_changed += changed[static_cast<std::size_t>(r)];
+  }
+}
+
 IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, const std::vector<std::uint8_t>& value,
                                            int nthreads) {
   const int nt = resolve_threads(nthreads);
@@ -391,6 +452,10 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
       full_pass(stage, nt, stage == 2 ? &changes : nullptr, &stage_changed);
       if (stage == 3) changed = stage_changed;
       continue;
+    }
+    if (stage == 2) {  // the usual case: stages 2 and 3 slice by slice
+      update_slices(work, nt, &stats.x_lines, &changed);
+      break;
     }
     const Index chunk = chunk_size(n_lines, nt, 8);
     const Index chunks = (n_lines + chunk - 1) / chunk;

@@ -98,6 +98,10 @@ class IncrementalEdt {
   // can reach. Appends the changes of the output (stage 2) and counts changed voxels.
   void update_line(int stage, const LineWork& work, const std::vector<Position>& positions, Scratch& s,
                    std::vector<Change>* changed, Index* n_changed);
+  // Stages 2 and 3 of an update, one z-slice at a time: a slice's stage-2 lines, then the stage-3
+  // lines their output changes reach, all in the same slice of g2 and g3 (640 kB for 400 x 400),
+  // which stays in cache between the two. Slices run in parallel.
+  void update_slices(const Work& work, int nthreads, Index* x_lines, Index* n_changed);
   // Prefetches the inputs and outputs at a line's changed positions.
   void prefetch_line(int stage, const LineWork& work, const std::vector<Position>& positions);
   // Merges per-chunk (line, position) lists into per-line sorted positions, emptying the lists.

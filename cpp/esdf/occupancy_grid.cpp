@@ -175,17 +175,19 @@ ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* o
       if (!test_and_set(hit_bits_, i)) hits.push_back(i);
     }
   }
-  // Beams in parallel: each marks the voxels it crosses (hit voxels excepted) in a shared bitset, so the
-  // set of free voxels, gathered below in ascending order, does not depend on which thread crossed what.
+  // Beams in parallel: each marks the voxels it crosses in a shared bitset, so the set of free voxels,
+  // gathered below in ascending order, does not depend on which thread crossed what. Hit voxels are
+  // unmarked afterwards (one pass over the few hits, not a second bitset lookup per step).
   parallel_chunks(n, 256, resolve_threads(nthreads), [&](Index begin, Index end, Index) {
     for (Index k = begin; k < end; ++k) {
       const std::uint8_t u = use[static_cast<std::size_t>(k)];
       if (!u) continue;
       traverse(origin_W, ends.data() + 3 * k, u == 2, [&](Index i) {
-        if (!test(hit_bits_, i)) atomic_set(free_bits_, i);
+        atomic_set(free_bits_, i);
       });
     }
   });
+  for (Index i : hits) clear(free_bits_, i);
   drain(free_bits_, &frees);
   for (Index i : hits) clear(hit_bits_, i);
   const std::size_t before = flipped->size();
