@@ -116,6 +116,8 @@ py::dict stats_dict(const esdf::EsdfUpdateStats& s) {
   d["free_voxels"] = s.scan.free_voxels;
   d["flipped_voxels"] = s.outside.changed_sites;
   d["changed_distances"] = s.outside.changed_distances + s.inside.changed_distances;
+  d["raycast_seconds"] = s.raycast_seconds;
+  d["field_seconds"] = s.field_seconds;
   d["lines_recomputed"] = s.outside.columns + s.outside.y_lines + s.outside.x_lines + s.inside.columns +
                           s.inside.y_lines + s.inside.x_lines;
   return d;

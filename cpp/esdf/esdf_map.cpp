@@ -1,6 +1,7 @@
 #include "esdf_map.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -31,6 +32,7 @@ void EsdfMap::recompute() {
 }
 
 EsdfUpdateStats EsdfMap::apply(const std::vector<Index>& flipped, const std::vector<std::uint8_t>& state) {
+  const auto start = std::chrono::steady_clock::now();
   EsdfUpdateStats stats;
   stats.outside = outside_.update(flipped, state, options_.nthreads);
   if (inside_) {
@@ -38,15 +40,19 @@ EsdfUpdateStats EsdfMap::apply(const std::vector<Index>& flipped, const std::vec
     for (std::size_t k = 0; k < state.size(); ++k) free_state[k] = state[k] ? 0 : 1;
     stats.inside = inside_->update(flipped, free_state, options_.nthreads);
   }
+  stats.field_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return stats;
 }
 
 EsdfUpdateStats EsdfMap::insert_scan(const double* p_W, Index n, const double* origin_W) {
   std::vector<Index> flipped;
   std::vector<std::uint8_t> state;
+  const auto start = std::chrono::steady_clock::now();
   const ScanStats scan = grid_.insert_scan(p_W, n, origin_W, &flipped, &state, options_.nthreads);
+  const double raycast = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EsdfUpdateStats stats = apply(flipped, state);
   stats.scan = scan;
+  stats.raycast_seconds = raycast;
   return stats;
 }
 

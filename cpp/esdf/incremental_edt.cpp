@@ -23,7 +23,6 @@ constexpr Index kGroup = 16;
 constexpr Index kFullPassFactor = 8;
 // Lines ahead whose changed inputs and outputs are prefetched: a line's first touch is a cache miss.
 constexpr Index kPrefetchLines = 4;
-constexpr Index kPrefetchReach = 32;
 
 }  // namespace
 
@@ -268,15 +267,12 @@ void IncrementalEdt::update_line(int stage, const LineWork& work, const std::vec
 
 void IncrementalEdt::prefetch_line(int stage, const LineWork& work, const std::vector<Position>& positions) {
   const LineView v = view(stage, work.line);
-  for (Index k = work.begin; k < work.end; ++k) {
-    const Index p = positions[static_cast<std::size_t>(k)].pos;
-    __builtin_prefetch(v.in + p);
-    if (v.out_stride == 1) {  // the walks from p mostly stay within a few cache lines of it
-      for (Index q = std::max<Index>(0, p - kPrefetchReach); q <= std::min(v.n - 1, p + kPrefetchReach); q += 16) {
-        __builtin_prefetch(v.out + q, 1);
-      }
-    } else {
-      __builtin_prefetch(v.out + p * v.out_stride, 1);
+  for (Index k = work.begin; k < work.end; ++k) __builtin_prefetch(v.in + positions[static_cast<std::size_t>(k)].pos);
+  if (v.out_stride == 1) {  // the walks from the changed positions roam the line: fetch all of it
+    for (Index q = 0; q < v.n; q += 16) __builtin_prefetch(v.out + q, 1);
+  } else {
+    for (Index k = work.begin; k < work.end; ++k) {
+      __builtin_prefetch(v.out + positions[static_cast<std::size_t>(k)].pos * v.out_stride, 1);
     }
   }
 }

@@ -5,7 +5,7 @@ from __future__ import annotations
 import copy
 import math
 import numbers
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -126,6 +126,10 @@ class ScanStats:
     """Voxels whose distance changed (both the outside and the inside field)."""
     lines_recomputed: int
     """Grid lines the incremental update recomputed (a full recompute does nx*ny + nx*nz + ny*nz per field)."""
+    raycast_seconds: float = field(default=0.0, compare=False)
+    """Wall time [s] of the occupancy update (beam traversal and log-odds); 0 for ``set_occupied``."""
+    field_seconds: float = field(default=0.0, compare=False)
+    """Wall time [s] of the incremental distance-field update. Timings are not compared by ``==``."""
 
 
 def _points(name: str, p: npt.ArrayLike) -> tuple[np.ndarray, bool]:
