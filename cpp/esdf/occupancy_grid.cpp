@@ -97,15 +97,33 @@ void OccupancyGrid::traverse(const double* a_W, const double* b_W, bool skip_end
   const bool end_holds_b = t1 >= 1.0;
   // Bound on the number of steps, so rounding can never make the walk run away.
   Index budget = std::abs(end[0] - cur[0]) + std::abs(end[1] - cur[1]) + std::abs(end[2] - cur[2]) + 1;
+  // The axis to step is data dependent: chosen with masks rather than branches (a mispredicted
+  // branch per voxel would dominate the walk), on scalars so nothing goes through memory. Same
+  // choice as min(t_max) with ties to the later axis pair: x if tx < ty and tx < tz, else y if
+  // ty < tz, else z.
+  double tx = t_max[0], ty = t_max[1], tz = t_max[2];
+  Index cx = cur[0], cy = cur[1], cz = cur[2];
+  const Index sx = step[0], sy = step[1], sz = step[2];
+  const Index lx = sx * n[1] * n[2], ly = sy * n[2], lz = sz;
+  Index index = (cx * n[1] + cy) * n[2] + cz;
   for (;;) {
-    const bool at_end = cur[0] == end[0] && cur[1] == end[1] && cur[2] == end[2];
-    if (!(at_end && skip_end && end_holds_b)) visit((cur[0] * n[1] + cur[1]) * n[2] + cur[2]);
+    const bool at_end = cx == end[0] && cy == end[1] && cz == end[2];
+    if (!(at_end && skip_end && end_holds_b)) visit(index);
     if (at_end || --budget <= 0) return;
-    int ax = t_max[0] < t_max[1] ? (t_max[0] < t_max[2] ? 0 : 2) : (t_max[1] < t_max[2] ? 1 : 2);
-    if (t_max[ax] > t1) return;
-    cur[ax] += step[ax];
-    if (cur[ax] < 0 || cur[ax] >= n[ax]) return;
-    t_max[ax] += t_delta[ax];
+    const bool x_first = tx < ty;
+    const bool bx = x_first & (tx < tz);
+    const bool by = !x_first & (ty < tz);
+    const bool bz = !(bx | by);
+    const double t_next = bx ? tx : (by ? ty : tz);
+    if (t_next > t1) return;
+    cx += bx ? sx : 0;
+    cy += by ? sy : 0;
+    cz += bz ? sz : 0;
+    if (cx < 0 || cx >= n[0] || cy < 0 || cy >= n[1] || cz < 0 || cz >= n[2]) return;
+    index += (bx ? lx : 0) + (by ? ly : 0) + (bz ? lz : 0);
+    tx += bx ? t_delta[0] : 0.0;
+    ty += by ? t_delta[1] : 0.0;
+    tz += bz ? t_delta[2] : 0.0;
   }
 }
 
