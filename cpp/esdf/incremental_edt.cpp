@@ -30,7 +30,7 @@ struct IncrementalEdt::Scratch : LineBuffers {
   // Buffers for `lines` lines of length n handled together (full passes group kGroup lines).
   Scratch(Index lines, Index n) : LineBuffers(lines, n) {}
   std::vector<std::pair<Index, Index>> windows;  // outputs recomputed exactly
-  std::vector<Position> grown, shrunk;                      // changed inputs: (p, old) / (p, new)
+  std::vector<Position> grown, shrunk;           // changed inputs: (p, old) / (p, new)
 };
 
 IncrementalEdt::IncrementalEdt(const std::array<Index, 3>& shape)
