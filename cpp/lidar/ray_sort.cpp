@@ -7,6 +7,10 @@
 #include <cmath>
 #include <vector>
 
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
+
 namespace cufund::lidar {
 
 namespace {
@@ -23,7 +27,7 @@ inline std::uint32_t spread_by_1(std::uint32_t v) {
 
 // Rays per block of spatial_order's parallel passes (one work item of the thread pool).
 constexpr std::size_t kBlock = std::size_t{1} << 16;
-// Bits per axis of the heading point's Morton code (64^3 cells: finer keys measured no faster),
+// Bits per axis of the keyed point's Morton code (64^3 cells: finer keys measured no faster),
 // sorted by two radix passes of 9 bits (512 buckets: few enough write streams to stay in cache).
 constexpr int kAxisBits = 6;
 constexpr int kDigitBits = 9;
@@ -82,24 +86,55 @@ struct Spread3Table {
 };
 constexpr Spread3Table kSpread3;
 
+// min2 = b < a ? b : a and max2 = a < b ? b : a (a NaN b gives a), without branches: the compiler
+// turns these selects into jumps, which mispredict on random rays.
+#if defined(__SSE__)
+inline float min2(float a, float b) { return _mm_cvtss_f32(_mm_min_ss(_mm_set_ss(b), _mm_set_ss(a))); }
+inline float max2(float a, float b) { return _mm_cvtss_f32(_mm_max_ss(_mm_set_ss(b), _mm_set_ss(a))); }
+#else
+inline float min2(float a, float b) { return b < a ? b : a; }
+inline float max2(float a, float b) { return a < b ? b : a; }
+#endif
+
+// The cell of coordinate x on an axis of 2^kAxisBits cells from lo (NaN: cell 0).
 inline std::uint32_t cell(float x, float lo, float scale) {
   constexpr float kMax = static_cast<float>((1 << kAxisBits) - 1);
-  float q = (x - lo) * scale;
-  q = q > 0.0f ? q : 0.0f;
-  q = q < kMax ? q : kMax;
+  const float q = min2(max2(0.0f, (x - lo) * scale), kMax);
   return static_cast<std::uint32_t>(static_cast<int>(q));
 }
 
-// Key of the heading point o + reach * d / |d| of each ray in [begin, end), quantised to kAxisBits
-// per axis in the cube [lo, lo + 2^kAxisBits / scale)^3, paired with the ray's index.
-void heading_keys(const float* rays, std::size_t begin, std::size_t end, float reach, const float* lo, float scale,
-                  std::uint64_t* e) {
+
+// Where ray r meets the box [lo, hi] that holds the scene: where it leaves the box when it starts
+// inside (the far end of the stretch that can hit anything), where it enters when it starts outside
+// and points at it, else its origin.
+inline std::array<float, 3> box_point(const float* r, const float* lo, const float* hi) {
+  float t_in = -INFINITY, t_out = INFINITY;
+  for (int k = 0; k < 3; ++k) {
+    const float inv = 1.0f / r[3 + k];  // +-inf for a zero component: that slab never ends
+    const float a = (lo[k] - r[k]) * inv, b = (hi[k] - r[k]) * inv;
+    t_in = max2(t_in, min2(a, b));  // a NaN (origin on a plane) leaves the bound as it was
+    t_out = min2(t_out, max2(a, b));
+  }
+  // Inside: t_in <= 0 <= t_out. Outside and pointing at the box: 0 < t_in <= t_out.
+  const float t = t_in <= 0.0f ? max2(t_out, 0.0f) : (t_in <= t_out ? t_in : 0.0f);
+  return {r[0] + t * r[3], r[1] + t * r[4], r[2] + t * r[5]};
+}
+
+// Where ray r heads: the point `reach` along it.
+inline std::array<float, 3> heading_point(const float* r, float reach) {
+  const float s = reach / std::sqrt(r[3] * r[3] + r[4] * r[4] + r[5] * r[5]);
+  return {r[0] + s * r[3], r[1] + s * r[4], r[2] + s * r[5]};
+}
+
+// Morton key of point(ray) for each ray in [begin, end), quantised to kAxisBits per axis in the
+// cube [q0, q0 + 2^kAxisBits / scale)^3, paired with the ray's index.
+template <typename Point>
+void point_keys(const float* rays, std::size_t begin, std::size_t end, const Point& point, const float* q0,
+                float scale, std::uint64_t* e) {
   for (std::size_t i = begin; i < end; ++i) {
-    const float* r = rays + 6 * i;
-    const float s = reach / std::sqrt(r[3] * r[3] + r[4] * r[4] + r[5] * r[5]);
-    const std::uint32_t c = kSpread3.v[cell(r[0] + s * r[3], lo[0], scale)] |
-                            (kSpread3.v[cell(r[1] + s * r[4], lo[1], scale)] << 1) |
-                            (kSpread3.v[cell(r[2] + s * r[5], lo[2], scale)] << 2);
+    const std::array<float, 3> p = point(rays + 6 * i);
+    const std::uint32_t c = kSpread3.v[cell(p[0], q0[0], scale)] | (kSpread3.v[cell(p[1], q0[1], scale)] << 1) |
+                            (kSpread3.v[cell(p[2], q0[2], scale)] << 2);
     e[i] = (std::uint64_t{c} << 32) | i;
   }
 }
@@ -158,12 +193,17 @@ void direction_tile_order(const float* rays, std::size_t begin, std::size_t end,
   std::copy(idx[src], idx[src] + m, order);
 }
 
-void spatial_order(const float* rays, std::size_t n, float reach, std::uint32_t* order, int nthreads) {
+void spatial_order(const float* rays, std::size_t n, const float* scene_lo, const float* scene_hi, RayKey key,
+                   std::uint32_t* order, int nthreads) {
   if (n == 0) return;
   const std::size_t blocks = (n + kBlock - 1) / kBlock;
   auto block_end = [&](std::size_t b) { return std::min(n, (b + 1) * kBlock); };
+  const bool empty = !(scene_lo[0] <= scene_hi[0] && scene_lo[1] <= scene_hi[1] && scene_lo[2] <= scene_hi[2]);
+  float reach = 0.0f;  // kHeading: half the scene
+  for (int k = 0; k < 3 && !empty; ++k) reach = std::max(reach, 0.5f * (scene_hi[k] - scene_lo[k]));
 
-  // The heading points lie within reach of the origins' bounding box.
+  // The keyed points lie on the scene's box, within reach of an origin or at an origin: quantise
+  // in the box around the scene and the origins grown by reach.
   std::vector<std::array<float, 6>> boxes(blocks);
   for_blocks(blocks, nthreads, [&](std::size_t b) {
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -175,16 +215,16 @@ void spatial_order(const float* rays, std::size_t n, float reach, std::uint32_t*
     }
     boxes[b] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
   });
-  float lo[3], extent = 0.0f;
+  const float grow = key == RayKey::kHeading ? reach : 0.0f;
+  float q0[3], extent = 0.0f;
   for (int k = 0; k < 3; ++k) {
-    float hi = -INFINITY;
-    lo[k] = INFINITY;
+    float hi = empty ? -INFINITY : scene_hi[k];
+    q0[k] = empty ? INFINITY : scene_lo[k];
     for (const auto& box : boxes) {
-      lo[k] = std::min(lo[k], box[k]);
-      hi = std::max(hi, box[3 + k]);
+      q0[k] = std::min(q0[k], box[k] - grow);
+      hi = std::max(hi, box[3 + k] + grow);
     }
-    lo[k] -= reach;
-    extent = std::max(extent, hi + reach - lo[k]);
+    extent = std::max(extent, hi - q0[k]);
   }
   // One scale for all axes: cubic cells.
   constexpr float kCells = static_cast<float>(1 << kAxisBits);
@@ -196,7 +236,14 @@ void spatial_order(const float* rays, std::size_t n, float reach, std::uint32_t*
   if (scratch.size() < 2 * n) scratch.resize(2 * n);
   std::uint64_t* src = scratch.data();
   std::uint64_t* dst = src + n;
-  for_blocks(blocks, nthreads, [&](std::size_t b) { heading_keys(rays, b * kBlock, block_end(b), reach, lo, scale, src); });
+  for_blocks(blocks, nthreads, [&](std::size_t b) {
+    if (key == RayKey::kHeading) {
+      point_keys(rays, b * kBlock, block_end(b), [&](const float* r) { return heading_point(r, reach); }, q0, scale, src);
+    } else {
+      point_keys(rays, b * kBlock, block_end(b), [&](const float* r) { return box_point(r, scene_lo, scene_hi); }, q0,
+                 scale, src);
+    }
+  });
   std::vector<std::uint32_t> slots(blocks * kDigits);
   for (int pass = 0; pass < kPasses; ++pass) {
     const int shift = 32 + pass * kDigitBits;

@@ -20,13 +20,25 @@ inline constexpr std::size_t kMaxTileRays = 1024;
 // order[k] is the offset from `begin` of the k-th ray.
 void direction_tile_order(const float* rays, std::size_t begin, std::size_t end, std::uint16_t* order);
 
-// Orders all n rays by where they are heading: the Morton code (6 bits per axis) of the point
-// o + reach * d / |d|, quantised in a cube around those points (the origins' bounding box grown by
-// reach). Rays that end up next to each other travel through the same region, whatever their
-// origins; within a cell they keep their input order. `reach` should be about the size of
-// the scene (how far a ray typically goes). A stable radix sort, split into blocks over the thread
-// pool (nthreads <= 0: all): the same order for any thread count. Rays must be finite with non-zero
-// directions; n < 2^32. The calling thread keeps 16 bytes per ray of scratch for its next call.
-void spatial_order(const float* rays, std::size_t n, float reach, std::uint32_t* order, int nthreads);
+// Which point of a ray spatial_order sorts by.
+enum class RayKey {
+  kHeading,      // o + reach * d / |d|, reach = half the scene's largest side: rays that head the
+                 //   same way from nearby origins pack into coherent packets (best on BVHs that
+                 //   fit in cache)
+  kBoxCrossing,  // where the ray leaves the scene's box when it starts inside (the far end of the
+                 //   stretch that can hit anything), where it enters when it starts outside and
+                 //   points at it, else its origin: rays that end in the same part of the scene are
+                 //   traced together, so its nodes and triangles stay in cache (best on large BVHs)
+};
+
+// Orders all n rays by the Morton code (6 bits per axis, over the box around the scene and the
+// origins) of their `key` point, given the box [scene_lo, scene_hi] holding the scene (inverted,
+// lo > hi, for an empty scene: every ray then keys by its origin). Rays next to each other in the
+// order travel through the same part of the scene; within a cell they keep their input order.
+// A stable radix sort, split into blocks over the thread pool (nthreads <= 0: all): the same order
+// for any thread count. Rays must be finite with non-zero directions; n < 2^32. The calling thread
+// keeps 16 bytes per ray of scratch for its next call.
+void spatial_order(const float* rays, std::size_t n, const float* scene_lo, const float* scene_hi, RayKey key,
+                   std::uint32_t* order, int nthreads);
 
 }  // namespace cufund::lidar

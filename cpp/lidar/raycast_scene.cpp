@@ -24,7 +24,9 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 // threads when one half of a scan sees sky and the other walls.
 constexpr std::size_t kChunk = kMaxTileRays;
 
-// Scenes at least this large get coherent rays reordered into angular tiles (RayOrder::kAuto).
+// Scenes at least this large get coherent rays reordered into angular tiles (RayOrder::kAuto), and
+// sorted rays keyed by where they cross the scene's box rather than by heading: their BVH outgrows
+// the caches, and locality beats packet coherence.
 constexpr std::size_t kTileMinTriangles = 50000;
 
 // Incoherent batches of at least this many rays, on scenes of at least this many triangles, are
@@ -202,8 +204,8 @@ struct RaycastScene::Impl {
   std::size_t triangles = 0;
   mutable std::mutex commit_mutex;
   mutable bool dirty = true;
-  // Largest side of the scene's bounding box after the last commit: how far rays typically go.
-  mutable float extent = 0.0f;
+  // The scene's bounding box after the last commit (inverted while empty).
+  mutable float lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
   // Embree forbids changing a scene while it is traversed: casts share this lock, additions own it.
   mutable std::shared_mutex scene_mutex;
 
@@ -227,8 +229,12 @@ struct RaycastScene::Impl {
       rtcCommitScene(scene);
       RTCBounds b;
       rtcGetSceneBounds(scene, &b);
-      const float e = std::max({b.upper_x - b.lower_x, b.upper_y - b.lower_y, b.upper_z - b.lower_z});
-      extent = std::isfinite(e) && e > 0.0f ? e : 0.0f;
+      const bool empty = !(b.lower_x <= b.upper_x && b.lower_y <= b.upper_y && b.lower_z <= b.upper_z);
+      const float l[3] = {b.lower_x, b.lower_y, b.lower_z}, h[3] = {b.upper_x, b.upper_y, b.upper_z};
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = empty ? kInf : l[k];
+        hi[k] = empty ? -kInf : h[k];
+      }
       dirty = false;
     }
   }
@@ -286,8 +292,8 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
   const bool sorted = n <= std::numeric_limits<std::uint32_t>::max() &&
                       (order == RayOrder::kSorted || (order == RayOrder::kAuto && !coherent && n >= kSortMinRays &&
                                                       impl_->triangles >= kSortMinTriangles));
-  // Kept for the calling thread's next sorted cast (40 bytes per ray): fresh pages would cost about
-  // as much as the sort.
+  // Kept for the calling thread's next sorted cast (40 bytes per ray, 16 more in spatial_order):
+  // fresh pages would cost about as much as the sort.
   thread_local std::vector<std::uint32_t> index, position;
   thread_local std::vector<StagedHit> staged;
   if (sorted) {
@@ -296,8 +302,10 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
       position.resize(n);
       staged.resize(n);
     }
-    // Half the scene: far enough that rays heading into the same part of it get the same key.
-    spatial_order(rays, n, 0.5f * impl_->extent, index.data(), nthreads);
+    // Keys measured on a UV sphere, random rays from inside: heading 8% faster at 10k triangles,
+    // box crossing 8% faster at 1M (and 2-10% at 100k).
+    const RayKey key = impl_->triangles >= kTileMinTriangles ? RayKey::kBoxCrossing : RayKey::kHeading;
+    spatial_order(rays, n, impl_->lo, impl_->hi, key, index.data(), nthreads);
   }
   // The thread_local names mean other vectors on a pool thread: pass pointers.
   const std::uint32_t* sorted_index = index.data();

@@ -44,10 +44,10 @@ enum class RayOrder {
                 //   rays on scenes of >= 1000 triangles, single rays for the rest
   kIncoherent,  // single-ray traversal in the given order
   kCoherent,    // 8-wide packets of consecutive rays (sensor scans, image rows)
-  kSorted,      // rays sorted by where they head (ray_sort.h), then 8-wide packets in that order:
-                //   random rays share BVH nodes and cache lines with their neighbours. The calling
-                //   thread keeps 40 bytes per ray of scratch for its next call. At most 2^32 - 1
-                //   rays (larger batches are cast as kIncoherent).
+  kSorted,      // rays sorted by where they cross the scene's box (ray_sort.h), then 8-wide packets
+                //   in that order: random rays share BVH nodes and cache lines with their
+                //   neighbours. The calling thread keeps 56 bytes per ray of scratch for its next
+                //   call. At most 2^32 - 1 rays (larger batches are cast as kIncoherent).
 };
 
 class RaycastScene {
