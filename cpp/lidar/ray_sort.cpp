@@ -67,7 +67,9 @@ void count_digits(const std::uint64_t* e, std::size_t begin, std::size_t end, in
 void scatter_digits(const std::uint64_t* e, std::size_t begin, std::size_t end, int shift, std::uint32_t* slot,
                     std::uint64_t* out, std::uint32_t* ray_out) {
   if (ray_out) {
-    for (std::size_t i = begin; i < end; ++i) ray_out[slot[(e[i] >> shift) & (kDigits - 1)]++] = static_cast<std::uint32_t>(e[i]);
+    for (std::size_t i = begin; i < end; ++i) {
+      ray_out[slot[(e[i] >> shift) & (kDigits - 1)]++] = static_cast<std::uint32_t>(e[i]);
+    }
   } else {
     for (std::size_t i = begin; i < end; ++i) out[slot[(e[i] >> shift) & (kDigits - 1)]++] = e[i];
   }
@@ -201,6 +203,7 @@ void spatial_order(const float* rays, std::size_t n, const float* scene_lo, cons
   const bool empty = !(scene_lo[0] <= scene_hi[0] && scene_lo[1] <= scene_hi[1] && scene_lo[2] <= scene_hi[2]);
   float reach = 0.0f;  // kHeading: half the scene
   for (int k = 0; k < 3 && !empty; ++k) reach = std::max(reach, 0.5f * (scene_hi[k] - scene_lo[k]));
+  if (empty) key = RayKey::kHeading;  // with reach 0: the origins
 
   // The keyed points lie on the scene's box, within reach of an origin or at an origin: quantise
   // in the box around the scene and the origins grown by reach.
@@ -238,16 +241,18 @@ void spatial_order(const float* rays, std::size_t n, const float* scene_lo, cons
   std::uint64_t* dst = src + n;
   for_blocks(blocks, nthreads, [&](std::size_t b) {
     if (key == RayKey::kHeading) {
-      point_keys(rays, b * kBlock, block_end(b), [&](const float* r) { return heading_point(r, reach); }, q0, scale, src);
+      auto along = [&](const float* r) { return heading_point(r, reach); };
+      point_keys(rays, b * kBlock, block_end(b), along, q0, scale, src);
     } else {
-      point_keys(rays, b * kBlock, block_end(b), [&](const float* r) { return box_point(r, scene_lo, scene_hi); }, q0,
-                 scale, src);
+      auto crossing = [&](const float* r) { return box_point(r, scene_lo, scene_hi); };
+      point_keys(rays, b * kBlock, block_end(b), crossing, q0, scale, src);
     }
   });
   std::vector<std::uint32_t> slots(blocks * kDigits);
   for (int pass = 0; pass < kPasses; ++pass) {
     const int shift = 32 + pass * kDigitBits;
-    for_blocks(blocks, nthreads, [&](std::size_t b) { count_digits(src, b * kBlock, block_end(b), shift, &slots[b * kDigits]); });
+    for_blocks(blocks, nthreads,
+               [&](std::size_t b) { count_digits(src, b * kBlock, block_end(b), shift, &slots[b * kDigits]); });
     exclusive_offsets(slots, blocks, kDigits);
     std::uint32_t* ray_out = pass == kPasses - 1 ? order : nullptr;
     for_blocks(blocks, nthreads, [&](std::size_t b) {
