@@ -1,5 +1,6 @@
 #include "raycast_scene.h"
 
+#include "ray_sort.h"
 #include "thread_pool.h"
 
 #include <embree3/rtcore.h>
@@ -11,6 +12,7 @@
 #include <shared_mutex>
 #include <stdexcept>
 #include <utility>
+#include <vector>
 
 namespace cufund::lidar {
 
@@ -20,10 +22,19 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 
 // Rays per thread-pool work item: large enough to amortise scheduling, small enough to balance two
 // threads when one half of a scan sees sky and the other walls.
-constexpr std::size_t kChunk = 1024;
+constexpr std::size_t kChunk = kMaxTileRays;
 
-// Scenes at least this large get coherent rays reordered into angular tiles (RayOrder::kAuto).
+// Scenes at least this large get coherent rays reordered into angular tiles (RayOrder::kAuto), and
+// sorted rays keyed by where they cross the scene's box rather than by heading: their BVH outgrows
+// the caches, and locality beats packet coherence.
 constexpr std::size_t kTileMinTriangles = 50000;
+
+// Incoherent batches of at least this many rays, on scenes of at least this many triangles, are
+// sorted by heading (RayOrder::kAuto). Sorting, gathering and unsorting cost ~25 ns per ray on one
+// core; on a 200-triangle UV sphere, rays from inside already save more than that, on a lone
+// triangle (~35 ns per ray in all) they do not.
+constexpr std::size_t kSortMinRays = 4096;
+constexpr std::size_t kSortMinTriangles = 1000;
 
 inline void write_miss(const RayHits& out, std::size_t i) {
   out.t_hit[i] = kInf;
@@ -82,13 +93,17 @@ void cast_single(RTCScene scene, const float* rays, std::size_t begin, std::size
   }
 }
 
-// Casts rays [begin, end) in 8-wide packets of consecutive rays, or, when `order` is given, of rays
-// begin + order[0], begin + order[1], ... (a permutation of [0, end - begin)).
-void cast_packets8(RTCScene scene, const float* rays, std::size_t begin, std::size_t end, const RayHits& out,
-                   const std::uint16_t* order = nullptr) {
+// Traces the rays at positions [begin, end) in 8-wide packets (ray index[j] at position j, or ray j
+// itself when index is null) and calls emit(j, packet, lane) for each. `coherent` tells Embree the
+// packets are coherent (rays from one origin), which picks a frustum traversal; its distances may
+// differ from the single-ray path's in the last bits, so sorted batches leave it off and match
+// single rays exactly.
+template <typename Emit>
+void trace_packets8(RTCScene scene, const float* rays, std::size_t begin, std::size_t end,
+                    const std::uint32_t* index, bool coherent, const Emit& emit) {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
-  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  if (coherent) ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   alignas(32) int valid[8];
   alignas(32) RTCRayHit8 rh;
   for (std::size_t b = begin; b < end; b += 8) {
@@ -96,8 +111,8 @@ void cast_packets8(RTCScene scene, const float* rays, std::size_t begin, std::si
     for (int k = 0; k < 8; ++k) {
       const bool on = k < m;
       valid[k] = on ? -1 : 0;
-      const std::size_t j = b + (on ? k : 0);
-      const float* r = rays + 6 * (order ? begin + order[j - begin] : j);
+      const std::size_t j = on ? b + k : b;
+      const float* r = rays + 6 * (index ? index[j] : j);
       rh.ray.org_x[k] = r[0];
       rh.ray.org_y[k] = r[1];
       rh.ray.org_z[k] = r[2];
@@ -114,77 +129,57 @@ void cast_packets8(RTCScene scene, const float* rays, std::size_t begin, std::si
       rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
     }
     rtcIntersect8(valid, scene, &ctx, &rh);
-    for (int k = 0; k < m; ++k) {
-      write_hit(out, order ? begin + order[b + k - begin] : b + k, rh.ray.tfar[k], rh.hit.geomID[k], rh.hit.primID[k], rh.hit.u[k], rh.hit.v[k],
-                rh.hit.Ng_x[k], rh.hit.Ng_y[k], rh.hit.Ng_z[k]);
-    }
+    for (int k = 0; k < m; ++k) emit(b + k, rh, k);
   }
 }
 
-// Spreads the low 16 bits of v to the even bits.
-inline std::uint32_t spread16(std::uint32_t v) {
-  v &= 0x0000FFFFu;
-  v = (v | (v << 8)) & 0x00FF00FFu;
-  v = (v | (v << 4)) & 0x0F0F0F0Fu;
-  v = (v | (v << 2)) & 0x33333333u;
-  v = (v | (v << 1)) & 0x55555555u;
-  return v;
+void cast_packets8(RTCScene scene, const float* rays, std::size_t begin, std::size_t end, const RayHits& out,
+                   const std::uint32_t* index = nullptr) {
+  trace_packets8(scene, rays, begin, end, index, true, [&](std::size_t j, const RTCRayHit8& rh, int k) {
+    write_hit(out, index ? index[j] : j, rh.ray.tfar[k], rh.hit.geomID[k], rh.hit.primID[k], rh.hit.u[k],
+              rh.hit.v[k], rh.hit.Ng_x[k], rh.hit.Ng_y[k], rh.hit.Ng_z[k]);
+  });
 }
 
-// Orders the rays of one chunk (at most kChunk) along a Morton curve over their directions
-// (octahedral map, 8 bits per axis over the chunk's own extent), so that 8 consecutive rays form a
-// compact angular tile. A scan delivered column by column (8 channels of one column = a thin line)
-// then fills packets with 2 x 4 neighbourhoods, which share far more BVH nodes. Two radix passes,
-// all in cache; the results do not depend on the order.
-void tile_order(const float* rays, std::size_t begin, std::size_t end, std::uint16_t* order) {
+// One ray's raw hit, kept in sorted order until unsort_hits writes it where the caller wants it.
+// Half a cache line: a random read touches one line, not two.
+struct alignas(32) StagedHit {
+  float t, u, v, ng[3];
+  std::uint32_t geom, prim;
+};
+
+// Casts the sorted rays index[begin], ..., index[end - 1] (end - begin <= kChunk) in 8-wide packets
+// into staged[begin, end), and notes where each ray went in position[ray]. The rays sit anywhere in
+// memory: a tight loop gathers them first, so that the cache misses overlap instead of stalling the
+// traversal one by one.
+void cast_sorted(RTCScene scene, const float* rays, const std::uint32_t* index, std::size_t begin, std::size_t end,
+                 StagedHit* staged, std::uint32_t* position) {
   const std::size_t m = end - begin;
-  float uv[2][kChunk];
-  float lo[2] = {2.0f, 2.0f}, hi[2] = {-2.0f, -2.0f};
-  for (std::size_t i = 0; i < m; ++i) {
-    const float* d = rays + 6 * (begin + i) + 3;
-    const float inv = 1.0f / (std::abs(d[0]) + std::abs(d[1]) + std::abs(d[2]));
-    float u = d[0] * inv, v = d[1] * inv;
-    if (d[2] < 0.0f) {
-      const float uu = (1.0f - std::abs(v)) * (u >= 0.0f ? 1.0f : -1.0f);
-      v = (1.0f - std::abs(u)) * (v >= 0.0f ? 1.0f : -1.0f);
-      u = uu;
-    }
-    uv[0][i] = u;
-    uv[1][i] = v;
-    lo[0] = std::min(lo[0], u);
-    hi[0] = std::max(hi[0], u);
-    lo[1] = std::min(lo[1], v);
-    hi[1] = std::max(hi[1], v);
+  constexpr std::size_t kAhead = 16;
+  float local[6 * kChunk];
+  for (std::size_t k = 0; k < m; ++k) {
+    if (k + kAhead < m) __builtin_prefetch(rays + 6 * std::size_t{index[begin + k + kAhead]});
+    const std::uint32_t i = index[begin + k];
+    std::copy_n(rays + 6 * std::size_t{i}, 6, local + 6 * k);
+    position[i] = static_cast<std::uint32_t>(begin + k);
   }
-  // One scale for both axes keeps tiles square in angle.
-  const float extent = std::max(hi[0] - lo[0], hi[1] - lo[1]);
-  const float scale = extent > 0.0f ? 255.0f / extent : 0.0f;
-  std::uint16_t key[2][kChunk];
-  std::uint16_t idx[2][kChunk];
-  for (std::size_t i = 0; i < m; ++i) {
-    const auto qu = static_cast<std::uint32_t>(std::min((uv[0][i] - lo[0]) * scale, 255.0f));
-    const auto qv = static_cast<std::uint32_t>(std::min((uv[1][i] - lo[1]) * scale, 255.0f));
-    key[0][i] = static_cast<std::uint16_t>(spread16(qu) | (spread16(qv) << 1));
-    idx[0][i] = static_cast<std::uint16_t>(i);
+  trace_packets8(scene, local, 0, m, nullptr, false, [&](std::size_t k, const RTCRayHit8& rh, int lane) {
+    staged[begin + k] = {rh.ray.tfar[lane], rh.hit.u[lane], rh.hit.v[lane],
+                         {rh.hit.Ng_x[lane], rh.hit.Ng_y[lane], rh.hit.Ng_z[lane]},
+                         rh.hit.geomID[lane], rh.hit.primID[lane]};
+  });
+}
+
+// Writes the staged hits of rays [begin, end) to their places in out (a gather: the random reads
+// overlap far better than random writes to five arrays would).
+void unsort_hits(const StagedHit* staged, const std::uint32_t* position, std::size_t begin, std::size_t end,
+                 const RayHits& out) {
+  constexpr std::size_t kAhead = 16;
+  for (std::size_t i = begin; i < end; ++i) {
+    if (i + kAhead < end) __builtin_prefetch(staged + position[i + kAhead]);
+    const StagedHit& h = staged[position[i]];
+    write_hit(out, i, h.t, h.geom, h.prim, h.u, h.v, h.ng[0], h.ng[1], h.ng[2]);
   }
-  int src = 0;
-  for (int shift = 0; shift < 16; shift += 8) {
-    std::uint32_t count[256] = {};
-    for (std::size_t i = 0; i < m; ++i) ++count[(key[src][i] >> shift) & 255u];
-    std::uint32_t sum = 0;
-    for (auto& c : count) {
-      const std::uint32_t t = c;
-      c = sum;
-      sum += t;
-    }
-    for (std::size_t i = 0; i < m; ++i) {
-      const std::uint32_t dst = count[(key[src][i] >> shift) & 255u]++;
-      key[1 - src][dst] = key[src][i];
-      idx[1 - src][dst] = idx[src][i];
-    }
-    src = 1 - src;
-  }
-  std::copy(idx[src], idx[src] + m, order);
 }
 
 // True when rays are mostly in runs sharing one origin (a sensor frame or an image), sampled cheaply.
@@ -209,6 +204,8 @@ struct RaycastScene::Impl {
   std::size_t triangles = 0;
   mutable std::mutex commit_mutex;
   mutable bool dirty = true;
+  // The scene's bounding box after the last commit (inverted while empty).
+  mutable float lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
   // Embree forbids changing a scene while it is traversed: casts share this lock, additions own it.
   mutable std::shared_mutex scene_mutex;
 
@@ -230,6 +227,14 @@ struct RaycastScene::Impl {
     std::lock_guard<std::mutex> lock(commit_mutex);
     if (dirty) {
       rtcCommitScene(scene);
+      RTCBounds b;
+      rtcGetSceneBounds(scene, &b);
+      const bool empty = !(b.lower_x <= b.upper_x && b.lower_y <= b.upper_y && b.lower_z <= b.upper_z);
+      const float l[3] = {b.lower_x, b.lower_y, b.lower_z}, h[3] = {b.upper_x, b.upper_y, b.upper_z};
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = empty ? kInf : l[k];
+        hi[k] = empty ? -kInf : h[k];
+      }
       dirty = false;
     }
   }
@@ -283,24 +288,58 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
   RTCScene scene = impl_->scene;
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   // Tiling pays where the BVH outgrows the caches; on small scenes it costs more than it saves.
-  const bool tiles = order == RayOrder::kAuto && impl_->triangles >= kTileMinTriangles;
+  const bool tiles = coherent && order == RayOrder::kAuto && impl_->triangles >= kTileMinTriangles;
+  const bool sorted = n <= std::numeric_limits<std::uint32_t>::max() &&
+                      (order == RayOrder::kSorted || (order == RayOrder::kAuto && !coherent && n >= kSortMinRays &&
+                                                      impl_->triangles >= kSortMinTriangles));
+  // Kept for the calling thread's next sorted cast (40 bytes per ray, 16 more in spatial_order):
+  // fresh pages would cost about as much as the sort.
+  thread_local std::vector<std::uint32_t> index, position;
+  thread_local std::vector<StagedHit> staged;
+  if (sorted) {
+    if (index.size() < n) {
+      index.resize(n);
+      position.resize(n);
+      staged.resize(n);
+    }
+    // Keys measured on a UV sphere, random rays from inside: heading 8% faster at 10k triangles,
+    // box crossing 8% faster at 1M (and 2-10% at 100k).
+    const RayKey key = impl_->triangles >= kTileMinTriangles ? RayKey::kBoxCrossing : RayKey::kHeading;
+    spatial_order(rays, n, impl_->lo, impl_->hi, key, index.data(), nthreads);
+  }
+  // The thread_local names mean other vectors on a pool thread: pass pointers.
+  const std::uint32_t* sorted_index = index.data();
+  std::uint32_t* sorted_position = position.data();
+  StagedHit* staged_hits = staged.data();
   auto work = [&](std::size_t c) {
     const std::size_t begin = c * kChunk;
     const std::size_t end = std::min(n, begin + kChunk);
-    if (coherent && tiles) {
+    if (sorted) {
+      cast_sorted(scene, rays, sorted_index, begin, end, staged_hits, sorted_position);
+    } else if (tiles) {
       std::uint16_t local[kChunk];
-      tile_order(rays, begin, end, local);
-      cast_packets8(scene, rays, begin, end, out, local);
+      std::uint32_t tile[kChunk];
+      direction_tile_order(rays, begin, end, local);
+      for (std::size_t k = 0; k < end - begin; ++k) tile[k] = static_cast<std::uint32_t>(begin + local[k]);
+      cast_packets8(scene, rays, 0, end - begin, out, tile);
     } else if (coherent) {
       cast_packets8(scene, rays, begin, end, out);
     } else {
       cast_single(scene, rays, begin, end, out);
     }
   };
-  if (chunks <= 1 || nthreads == 1) {
-    for (std::size_t c = 0; c < chunks; ++c) work(c);
-  } else {
-    ThreadPool::instance().parallel_for(chunks, nthreads, work);
+  auto for_chunks = [&](const auto& fn) {
+    if (chunks <= 1 || nthreads == 1) {
+      for (std::size_t c = 0; c < chunks; ++c) fn(c);
+    } else {
+      ThreadPool::instance().parallel_for(chunks, nthreads, fn);
+    }
+  };
+  for_chunks(work);
+  if (sorted) {
+    for_chunks([&](std::size_t c) {
+      unsort_hits(staged_hits, sorted_position, c * kChunk, std::min(n, (c + 1) * kChunk), out);
+    });
   }
   return {};
 }

@@ -35,11 +35,19 @@ struct RayHits {
   float* normals = nullptr;               // (N, 3) unit geometric normal, (v1-v0)x(v2-v0) side; 0 on a miss
 };
 
+// How cast_rays groups rays for traversal. The hit (or miss), ids, distance and normal of every ray
+// are the same under each order up to the last bits of t_hit under kCoherent packets, which Embree
+// traverses as frusta; kSorted and kIncoherent agree exactly.
 enum class RayOrder {
   kAuto,        // packets when consecutive rays share an origin (regrouped into angular tiles of
-                //   8 on scenes of >= 50k triangles), single rays otherwise
-  kIncoherent,  // single-ray traversal (random rays)
-  kCoherent,    // 8-wide packets (sensor scans, image rows)
+                //   8 on scenes of >= 50k triangles); otherwise kSorted for batches of >= 4096
+                //   rays on scenes of >= 1000 triangles, single rays for the rest
+  kIncoherent,  // single-ray traversal in the given order
+  kCoherent,    // 8-wide packets of consecutive rays (sensor scans, image rows)
+  kSorted,      // rays sorted by where they cross the scene's box (ray_sort.h), then 8-wide packets
+                //   in that order: random rays share BVH nodes and cache lines with their
+                //   neighbours. The calling thread keeps 56 bytes per ray of scratch for its next
+                //   call. At most 2^32 - 1 rays (larger batches are cast as kIncoherent).
 };
 
 class RaycastScene {

@@ -1,5 +1,6 @@
 // Rays/s (wall clock, 2 threads) of RaycastScene on a UV sphere of about 10k / 100k / 1M triangles;
 // second argument 0: random rays, 1: a 64-channel spinning scan from the centre, column by column.
+// BM_SpatialOrder: the ray sort alone (second argument 0: RayKey::kHeading, 1: kBoxCrossing).
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -7,6 +8,7 @@
 #include <random>
 #include <vector>
 
+#include "ray_sort.h"
 #include "raycast_scene.h"
 
 namespace {
@@ -70,6 +72,24 @@ void BM_CastRays(benchmark::State& state) {
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * n));
 }
 BENCHMARK(BM_CastRays)->ArgsProduct({{10000, 100000, 1000000}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Cost of ordering n random rays by heading (RayOrder::kSorted's overhead before any ray is cast).
+void BM_SpatialOrder(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  std::vector<float> rays(6 * n);
+  std::mt19937 rng(2);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  for (float& x : rays) x = g(rng);
+  std::vector<std::uint32_t> order(n);
+  const float lo[3] = {-3.0f, -3.0f, -3.0f}, hi[3] = {3.0f, 3.0f, 3.0f};
+  const auto key = state.range(1) ? cufund::lidar::RayKey::kBoxCrossing : cufund::lidar::RayKey::kHeading;
+  for (auto _ : state) {
+    cufund::lidar::spatial_order(rays.data(), n, lo, hi, key, order.data(), 2);
+    benchmark::DoNotOptimize(order.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * n));
+}
+BENCHMARK(BM_SpatialOrder)->ArgsProduct({{100000, 1000000}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

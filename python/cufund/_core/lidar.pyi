@@ -30,8 +30,11 @@ class RaycastScene:
         rays: (..., 6) rows of (origin xyz, direction xyz), float32 preferred (others are converted); every
         value finite and every direction non-zero, else ValueError naming the ray.
         nthreads: 0 uses every core. coherent: None guesses from the rays (8-wide packets when consecutive
-        rays share an origin, regrouped into compact angular tiles on large scenes), True forces packets of
-        consecutive rays, False single rays; the results are the same either way.
+        rays share an origin, regrouped into compact angular tiles on large scenes; otherwise, for 4096 rays
+        or more on scenes of 1000 triangles or more, rays sorted by where they head and cast in packets in
+        that order), True forces packets of consecutive rays, False single rays in the given order. The
+        results are the same either way (bit for bit, except the last bits of distances, barycentrics and
+        normals with True).
         
         Returns a dict of arrays shaped like the leading dims of ``rays``:
         ``t_hit`` float32 (inf on a miss; in units of the direction's length), ``geometry_ids`` and
