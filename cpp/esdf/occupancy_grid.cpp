@@ -37,15 +37,6 @@ inline void atomic_set(std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
   const std::uint64_t b = std::uint64_t{1} << (i & 63);
   if (!(__atomic_load_n(w, __ATOMIC_RELAXED) & b)) __atomic_fetch_or(w, b, __ATOMIC_RELAXED);
 }
-// Appends the indices of the set bits in ascending order and clears them.
-void drain(std::vector<std::uint64_t>& bits, std::vector<std::ptrdiff_t>* out) {
-  for (std::size_t k = 0; k < bits.size(); ++k) {
-    for (std::uint64_t w = bits[k]; w != 0; w &= w - 1) {
-      out->push_back(static_cast<std::ptrdiff_t>(k * 64 + static_cast<std::size_t>(__builtin_ctzll(w))));
-    }
-    bits[k] = 0;
-  }
-}
 }  // namespace
 
 template <typename Visit>
@@ -145,9 +136,7 @@ ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* o
   stats.points = n;
   const auto& g = geometry_;
   auto& hits = hits_;
-  auto& frees = frees_;
   hits.clear();
-  frees.clear();
 
   // Beam ends first, so that a voxel both hit and crossed in one scan counts as hit only.
   auto& use = use_;
@@ -206,13 +195,37 @@ ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* o
     }
   });
   for (Index i : hits) clear(free_bits_, i);
-  drain(free_bits_, &frees);
   for (Index i : hits) clear(hit_bits_, i);
   const std::size_t before = flipped->size();
   for (Index i : hits) apply(i, model_.log_odds_hit, true, flipped, flipped_state);
-  for (Index i : frees) apply(i, model_.log_odds_miss, false, flipped, flipped_state);
+  // Free voxels: drained from the bitset and updated in parallel over word ranges, each range's flips
+  // appended in range order, so the flips come out in ascending voxel order as in a serial pass.
+  const auto words = static_cast<Index>(free_bits_.size());
+  const int nt = resolve_threads(nthreads);
+  const Index chunk = chunk_size(words, nt, 4096);
+  const Index chunks = (words + chunk - 1) / chunk;
+  if (static_cast<Index>(chunk_flips_.size()) < chunks) chunk_flips_.resize(static_cast<std::size_t>(chunks));
+  parallel_chunks(words, chunk, nt, [&](Index begin, Index end, Index c) {
+    ChunkFlips& out = chunk_flips_[static_cast<std::size_t>(c)];
+    out.index.clear();
+    out.state.clear();
+    out.free_voxels = 0;
+    for (Index k = begin; k < end; ++k) {
+      std::uint64_t& w = free_bits_[static_cast<std::size_t>(k)];
+      for (std::uint64_t b = w; b != 0; b &= b - 1) {
+        apply(k * 64 + __builtin_ctzll(b), model_.log_odds_miss, false, &out.index, &out.state);
+        ++out.free_voxels;
+      }
+      w = 0;
+    }
+  });
+  for (Index c = 0; c < chunks; ++c) {
+    const ChunkFlips& f = chunk_flips_[static_cast<std::size_t>(c)];
+    flipped->insert(flipped->end(), f.index.begin(), f.index.end());
+    flipped_state->insert(flipped_state->end(), f.state.begin(), f.state.end());
+    stats.free_voxels += f.free_voxels;
+  }
   stats.hit_voxels = static_cast<Index>(hits.size());
-  stats.free_voxels = static_cast<Index>(frees.size());
   stats.flipped_voxels = static_cast<Index>(flipped->size() - before);
   return stats;
 }

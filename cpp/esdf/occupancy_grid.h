@@ -76,7 +76,13 @@ class OccupancyGrid {
   // Per-scan buffers, kept so that their memory is not faulted in again on every scan.
   std::vector<std::uint8_t> use_;
   std::vector<double> ends_;
-  std::vector<Index> hits_, frees_;
+  std::vector<Index> hits_;
+  struct ChunkFlips {
+    std::vector<Index> index;
+    std::vector<std::uint8_t> state;
+    Index free_voxels = 0;
+  };
+  std::vector<ChunkFlips> chunk_flips_;  // per word range of the free-voxel pass
 };
 
 }  // namespace cufund::esdf
