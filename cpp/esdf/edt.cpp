@@ -89,8 +89,6 @@ void unsigned_transform(const std::uint8_t* sites, bool invert, const std::array
 
 }  // namespace
 
-int resolve_threads(int nthreads) { return nthreads > 0 ? nthreads : ThreadPool::instance().size(); }
-
 template <typename T>
 EdtStatus euclidean_distance_transform(const std::uint8_t* sites, const std::array<std::ptrdiff_t, 3>& shape,
                                        const EdtOptions& options, T* out) {

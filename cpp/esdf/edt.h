@@ -1,5 +1,5 @@
 // Exact Euclidean distance transform of a boolean voxel grid (Felzenszwalb & Huttenlocher):
-// separable, linear time, multithreaded with OpenMP.
+// separable, linear time, multithreaded on the shared thread pool.
 #pragma once
 
 #include <array>
@@ -27,8 +27,5 @@ struct EdtOptions {
 template <typename T>
 EdtStatus euclidean_distance_transform(const std::uint8_t* sites, const std::array<std::ptrdiff_t, 3>& shape,
                                        const EdtOptions& options, T* out);
-
-// Threads an `nthreads` request resolves to (<= 0 means all hardware threads).
-int resolve_threads(int nthreads);
 
 }  // namespace cufund::esdf

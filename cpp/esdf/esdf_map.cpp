@@ -5,7 +5,6 @@
 #include <cmath>
 #include <limits>
 
-#include "edt.h"
 #include "parallel.h"
 
 namespace cufund::esdf {

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "edt.h"
 #include "edt_line.h"
 #include "parallel.h"
 

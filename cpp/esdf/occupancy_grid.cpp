@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "edt.h"
 #include "parallel.h"
 
 namespace cufund::esdf {
