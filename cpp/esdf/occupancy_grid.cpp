@@ -22,9 +22,6 @@ inline bool test_and_set(std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
   w |= b;
   return was;
 }
-inline bool test(const std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
-  return (bits[static_cast<std::size_t>(i >> 6)] >> (i & 63)) & 1u;
-}
 inline void clear(std::vector<std::uint64_t>& bits, std::ptrdiff_t i) {
   bits[static_cast<std::size_t>(i >> 6)] &= ~(std::uint64_t{1} << (i & 63));
 }
@@ -117,11 +114,10 @@ void OccupancyGrid::traverse(const double* a_W, const double* b_W, bool skip_end
   }
 }
 
-void OccupancyGrid::apply(Index i, float delta, bool hit, std::vector<Index>* flipped,
-                          std::vector<std::uint8_t>* state) {
+void OccupancyGrid::set(Index i, float value, std::vector<Index>* flipped, std::vector<std::uint8_t>* state) {
   float& l = log_odds_[static_cast<std::size_t>(i)];
   const bool before = l > model_.log_odds_occupied;
-  l = hit ? std::min(l + delta, model_.log_odds_max) : std::max(l + delta, model_.log_odds_min);
+  l = value;
   const bool after = l > model_.log_odds_occupied;
   if (before != after) {
     flipped->push_back(i);
@@ -129,11 +125,18 @@ void OccupancyGrid::apply(Index i, float delta, bool hit, std::vector<Index>* fl
   }
 }
 
+void OccupancyGrid::apply(Index i, float delta, bool hit, std::vector<Index>* flipped,
+                          std::vector<std::uint8_t>* state) {
+  const float l = log_odds_[static_cast<std::size_t>(i)];
+  set(i, hit ? std::min(l + delta, model_.log_odds_max) : std::max(l + delta, model_.log_odds_min), flipped, state);
+}
+
 ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* origin_W, std::vector<Index>* flipped,
                                      std::vector<std::uint8_t>* flipped_state, int nthreads) {
   ScanStats stats;
   stats.points = n;
   const auto& g = geometry_;
+  const int nt = resolve_threads(nthreads);
   auto& hits = hits_;
   hits.clear();
 
@@ -184,7 +187,7 @@ ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* o
   // Beams in parallel: each marks the voxels it crosses in a shared bitset, so the set of free voxels,
   // gathered below in ascending order, does not depend on which thread crossed what. Hit voxels are
   // unmarked afterwards (one pass over the few hits, not a second bitset lookup per step).
-  parallel_chunks(n, 256, resolve_threads(nthreads), [&](Index begin, Index end, Index) {
+  parallel_chunks(n, 256, nt, [&](Index begin, Index end, Index) {
     for (Index k = begin; k < end; ++k) {
       const std::uint8_t u = use[static_cast<std::size_t>(k)];
       if (!u) continue;
@@ -200,7 +203,6 @@ ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* o
   // Free voxels: drained from the bitset and updated in parallel over word ranges, each range's flips
   // appended in range order, so the flips come out in ascending voxel order as in a serial pass.
   const auto words = static_cast<Index>(free_bits_.size());
-  const int nt = resolve_threads(nthreads);
   const Index chunk = chunk_size(words, nt, 4096);
   const Index chunks = (words + chunk - 1) / chunk;
   if (static_cast<Index>(chunk_flips_.size()) < chunks) chunk_flips_.resize(static_cast<std::size_t>(chunks));
@@ -232,14 +234,7 @@ ScanStats OccupancyGrid::insert_scan(const double* p_W, Index n, const double* o
 void OccupancyGrid::set_occupied(const std::vector<Index>& index, const std::vector<std::uint8_t>& value,
                                  std::vector<Index>* flipped, std::vector<std::uint8_t>* flipped_state) {
   for (std::size_t k = 0; k < index.size(); ++k) {
-    float& l = log_odds_[static_cast<std::size_t>(index[k])];
-    const bool before = l > model_.log_odds_occupied;
-    l = value[k] ? model_.log_odds_max : model_.log_odds_min;
-    const bool after = l > model_.log_odds_occupied;
-    if (before != after) {
-      flipped->push_back(index[k]);
-      flipped_state->push_back(after ? 1 : 0);
-    }
+    set(index[k], value[k] ? model_.log_odds_max : model_.log_odds_min, flipped, flipped_state);
   }
 }
 

@@ -65,7 +65,10 @@ class OccupancyGrid {
   // with `skip_end`, the voxel holding b_W (when inside) is not visited.
   template <typename Visit>
   void traverse(const double* a_W, const double* b_W, bool skip_end, Visit&& visit) const;
-  void apply(Index i, float delta, bool clamp_max, std::vector<Index>* flipped, std::vector<std::uint8_t>* state);
+  // Sets voxel i's log-odds, recording a change of its occupied state in flipped / state.
+  void set(Index i, float value, std::vector<Index>* flipped, std::vector<std::uint8_t>* state);
+  // Adds delta, clamped to log_odds_max (hit) or log_odds_min (miss), recording a flip like set.
+  void apply(Index i, float delta, bool hit, std::vector<Index>* flipped, std::vector<std::uint8_t>* state);
 
   GridGeometry geometry_;
   SensorModel model_;
