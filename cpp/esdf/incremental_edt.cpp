@@ -64,7 +64,7 @@ void IncrementalEdt::column(Index c, std::vector<double>& buf, std::vector<Chang
   }
 }
 
-void IncrementalEdt::full_pass(int stage, int nthreads, Changes* changed, Index* n_changed) {
+IncrementalEdt::Index IncrementalEdt::full_pass(int stage, int nthreads) {
   const Index nx = shape_[0], ny = shape_[1], nz = shape_[2];
   const Index lines = stage == 2 ? nx * nz : ny * nz;
   const Index group = stage == 2 ? kGroup : 1;
@@ -73,10 +73,8 @@ void IncrementalEdt::full_pass(int stage, int nthreads, Changes* changed, Index*
   const Index chunk = chunk_size(groups, nthreads, 4);
   const Index chunks = (groups + chunk - 1) / chunk;
   std::vector<Index> totals(static_cast<std::size_t>(chunks), 0);
-  if (changed && static_cast<Index>(changed->size()) < chunks) changed->resize(static_cast<std::size_t>(chunks));
   parallel_chunks(groups, chunk, nthreads, [&](Index g_begin, Index g_end, Index c) {
     Scratch s(group, n);
-    auto* out = changed ? &(*changed)[static_cast<std::size_t>(c)] : nullptr;
     Index& total = totals[static_cast<std::size_t>(c)];
     for (Index g = g_begin; g < g_end; ++g) {
       const Index first = g * group, count = std::min(group, lines - first);
@@ -91,21 +89,15 @@ void IncrementalEdt::full_pass(int stage, int nthreads, Changes* changed, Index*
         for (Index j = 0; j < count; ++j) {
           const std::int32_t nv = to_int(s.d[static_cast<std::size_t>(j * n + q)]);
           std::int32_t& o = v[j].out[q * v[j].out_stride];
-          if (o != nv) {
-            ++total;
-            if (out) {  // stage-3 line (iz, iy = q), position ix
-              const Index line = first + j;
-              out->push_back({(line / nx) * ny + q, static_cast<std::int32_t>(line % nx), std::min(o, nv)});
-            }
-            o = nv;
-          }
+          total += o != nv;
+          o = nv;
         }
       }
     }
   });
   Index total = 0;
   for (Index t : totals) total += t;
-  if (n_changed) *n_changed = total;
+  return total;
 }
 
 namespace {
@@ -334,8 +326,8 @@ void IncrementalEdt::recompute(int nthreads) {
     std::vector<double> buf(static_cast<std::size_t>(nz));
     for (Index c = begin; c < end; ++c) column(c, buf, nullptr);
   });
-  full_pass(2, nt, nullptr, nullptr);
-  full_pass(3, nt, nullptr, nullptr);
+  full_pass(2, nt);
+  full_pass(3, nt);
 }
 
 void IncrementalEdt::update_slices(const Work& work, int nthreads, Index* x_lines, Index* n_changed) {
@@ -352,7 +344,8 @@ void IncrementalEdt::update_slices(const Work& work, int nthreads, Index* x_line
   }
   const Index n_runs = static_cast<Index>(runs.size());
   std::vector<Index> lines_done(static_cast<std::size_t>(n_runs), 0), changed(static_cast<std::size_t>(n_runs), 0);
-  parallel_chunks(n_runs, 1, nthreads, [&](Index r_begin, Index r_end, Index) {
+  // Several slices per work item, so their buffers are allocated once per item, not per slice.
+  parallel_chunks(n_runs, chunk_size(n_runs, nthreads, 1), nthreads, [&](Index r_begin, Index r_end, Index) {
     Scratch s(1, longest);
     std::vector<Change> out;   // the slice's stage-2 output changes = its stage-3 input changes
     Work slice;                // the same, bucketed by stage-3 line
@@ -403,7 +396,6 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
                                            int nthreads) {
   const int nt = resolve_threads(nthreads);
   const Index nz = shape_[2];
-  const Index longest = std::max({shape_[0], shape_[1], shape_[2]});
   IncrementalEdtStats stats;
   Changes& changes = changes_;
   if (changes.empty()) changes.resize(1);
@@ -434,39 +426,18 @@ IncrementalEdtStats IncrementalEdt::update(const std::vector<Index>& index, cons
     });
   }
 
+  // Stage 2's work. Usually small: stages 2 and 3 then run slice by slice. When much of the grid
+  // changed (e.g. the first scans), full passes are cheaper than the windows (each changed position
+  // costs about a window of 2 * distance voxels), and stage 3 then has as much to do as stage 2.
+  merge(changes, work_);
+  stats.y_lines = static_cast<Index>(work_.lines.size());
   Index changed = 0;
-  for (int stage = 2; stage <= 3; ++stage) {
-    const Work& work = work_;
-    merge(changes, work_);
-    (stage == 2 ? stats.y_lines : stats.x_lines) = static_cast<Index>(work.lines.size());
-    const Index n_lines = static_cast<Index>(work.lines.size());
-    Index stage_changed = 0;
-    // When much of the grid changed (e.g. the first scans), one full pass is cheaper than the windows
-    // (each changed position costs about a window of 2 * distance voxels).
-    if (static_cast<Index>(work.positions.size()) * kFullPassFactor > size()) {
-      full_pass(stage, nt, stage == 2 ? &changes : nullptr, &stage_changed);
-      if (stage == 3) changed = stage_changed;
-      continue;
-    }
-    if (stage == 2) {  // the usual case: stages 2 and 3 slice by slice
-      update_slices(work, nt, &stats.x_lines, &changed);
-      break;
-    }
-    const Index chunk = chunk_size(n_lines, nt, 8);
-    const Index chunks = (n_lines + chunk - 1) / chunk;
-    if (stage == 2) changes.resize(std::max(changes.size(), static_cast<std::size_t>(chunks)));
-    std::vector<Index> counts(static_cast<std::size_t>(chunks), 0);
-    parallel_chunks(n_lines, chunk, nt, [&](Index begin, Index end, Index c) {
-      Scratch s(1, longest);
-      auto* out = stage == 2 ? &changes[static_cast<std::size_t>(c)] : nullptr;
-      for (Index k = begin; k < end; ++k) {
-        if (k + kPrefetchLines < end) prefetch_line(stage, work.lines[static_cast<std::size_t>(k + kPrefetchLines)], work.positions);
-        update_line(stage, work.lines[static_cast<std::size_t>(k)], work.positions, s, out,
-                    &counts[static_cast<std::size_t>(c)]);
-      }
-    });
-    for (Index c : counts) stage_changed += c;
-    if (stage == 3) changed = stage_changed;
+  if (static_cast<Index>(work_.positions.size()) * kFullPassFactor > size()) {
+    full_pass(2, nt);
+    stats.x_lines = shape_[1] * shape_[2];
+    changed = full_pass(3, nt);
+  } else {
+    update_slices(work_, nt, &stats.x_lines, &changed);
   }
   stats.changed_distances = changed;
   return stats;

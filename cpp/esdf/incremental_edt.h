@@ -92,8 +92,8 @@ class IncrementalEdt {
   // Stage 1 for column c = ix * ny + iy; appends (stage-2 line, position iy) where g1 changed.
   void column(Index c, std::vector<double>& buf, std::vector<Change>* changed);
   // Full stage-2/3 pass over all lines, in groups of neighbouring lines that share cache lines;
-  // records changes like update_line when `changed` / `n_changed` are given.
-  void full_pass(int stage, int nthreads, Changes* changed, Index* n_changed);
+  // returns how many outputs changed.
+  Index full_pass(int stage, int nthreads);
   // Updates the outputs of one line that its changed inputs (positions with low = min(old, new input))
   // can reach. Appends the changes of the output (stage 2) and counts changed voxels.
   void update_line(int stage, const LineWork& work, const std::vector<Position>& positions, Scratch& s,

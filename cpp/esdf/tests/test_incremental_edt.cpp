@@ -98,6 +98,31 @@ TEST(IncrementalEdt, BoxesAppearingAndVanishingInOpenSpaceEqualFullRecompute) {
   }
 }
 
+// Batches of one to a few hundred flips on small, flat or long grids (1-voxel axes included): updates
+// switch back and forth between line windows and full passes.
+TEST(IncrementalEdt, MidSizedBatchesOnSmallGridsEqualFullRecompute) {
+  std::mt19937 rng(3);
+  for (const std::array<Index, 3>& n : {std::array<Index, 3>{7, 1, 33}, std::array<Index, 3>{40, 3, 1},
+                                        std::array<Index, 3>{64, 64, 1}, std::array<Index, 3>{90, 5, 4},
+                                        std::array<Index, 3>{30, 20, 10}}) {
+    const Index size = n[0] * n[1] * n[2];
+    IncrementalEdt inc(n);
+    for (int step = 0; step < 60; ++step) {
+      const int count = std::uniform_int_distribution<int>(1, 200)(rng);
+      std::vector<Index> idx;
+      std::vector<std::uint8_t> val;
+      for (int c = 0; c < count; ++c) {
+        idx.push_back(std::uniform_int_distribution<Index>(0, size - 1)(rng));
+        val.push_back(rng() % 5 < 3 ? 1 : 0);
+      }
+      inc.update(idx, val, 2);
+      IncrementalEdt full(n);
+      full.reset(inc.sites().data(), 1);
+      ASSERT_EQ(inc.squared_distance(), full.squared_distance()) << "step " << step;
+    }
+  }
+}
+
 TEST(IncrementalEdt, SingleInsertTouchesOnlyItsNeighbourhood) {
   const std::array<Index, 3> n{30, 30, 30};
   std::vector<std::uint8_t> sites(27000, 0);
