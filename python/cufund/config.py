@@ -37,6 +37,14 @@ def from_dict(cls: type[T], data: Any, where: str | None = None) -> T:
     return cls(**data)
 
 
+def nested(cls: type[T], value: Any, where: str) -> T:
+    """A dataclass field that holds another dataclass: ``value`` itself if it is a ``cls``, else ``cls`` built
+    from the mapping ``value`` by :func:`from_dict` (None: all defaults)."""
+    if isinstance(value, cls):
+        return value
+    return from_dict(cls, {} if value is None else value, where)
+
+
 def check_real_fields(obj: Any, where: str, positive: bool = False, unit: str = "") -> None:
     """Makes every field of the frozen dataclass ``obj`` a float, requiring a finite number >= 0 (> 0 when
     ``positive``); the error names ``where.field``."""

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, from_dict
+from ..config import ConfigError, nested
 from ..messages import GpsFix, Odometry, Topics
 from .geodesy import GeoPoint, enu_to_lla
 from .model_sensor import ModelSensor
@@ -46,8 +46,7 @@ class GpsParams:
     name: str = "ideal"
 
     def __post_init__(self) -> None:
-        if isinstance(self.home, dict):
-            object.__setattr__(self, "home", from_dict(GeoPoint, self.home, "GpsParams.home"))
+        object.__setattr__(self, "home", nested(GeoPoint, self.home, "GpsParams.home"))
         if not (math.isfinite(self.rate_hz) and 0 < self.rate_hz <= 50):
             raise ConfigError(f"rate_hz must be in (0, 50] [Hz], got {self.rate_hz!r}")
         for f in ("horizontal_sigma_m", "vertical_sigma_m", "drift_m_per_sqrt_s", "velocity_sigma_m_s", "latency_s"):

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, from_dict
+from ..config import ConfigError, from_dict, nested
 from ..messages import Imu, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec
@@ -65,11 +65,7 @@ class ImuParams:
         if not (math.isfinite(self.rate_hz) and 100.0 <= self.rate_hz <= 1000.0):
             raise ConfigError(f"rate_hz must be between 100 and 1000 [Hz], got {self.rate_hz!r}")
         for f in ("accel", "gyro"):
-            v = getattr(self, f)
-            if isinstance(v, dict):
-                object.__setattr__(self, f, from_dict(NoiseSpec, v, f"ImuParams.{f}"))
-            elif not isinstance(v, NoiseSpec):
-                raise ConfigError(f"{f} must be a NoiseSpec or a mapping, got {type(v).__name__}")
+            object.__setattr__(self, f, nested(NoiseSpec, getattr(self, f), f"ImuParams.{f}"))
             getattr(self, f).per_axis(3)  # validates
         for f in ("accel_scale_factor", "gyro_scale_factor", "p_BI"):
             object.__setattr__(self, f, _vec(f, getattr(self, f), 3))
