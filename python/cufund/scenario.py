@@ -202,10 +202,7 @@ class ScenarioConfig:
         object.__setattr__(self, "sensors", nested(SensorsConfig, self.sensors, "sensors"))
         if not isinstance(self.name, str) or not self.name:
             raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
-        if (isinstance(self.duration, bool) or not isinstance(self.duration, (int, float))
-                or not math.isfinite(self.duration) or not self.duration > 0):
-            raise ConfigError(f"duration must be a finite number > 0 [s], got {self.duration!r}")
-        object.__setattr__(self, "duration", float(self.duration))
+        check_real_fields(self, "scenario", positive=True, unit=" [s]", names=("duration",))
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ConfigError(f"seed must be an integer >= 0, got {self.seed!r}")
 

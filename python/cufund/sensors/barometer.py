@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, nested
+from ..config import ConfigError, check_real_fields, nested
 from ..messages import AirPressure, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec
@@ -55,8 +55,7 @@ class BarometerParams:
     name: str = "ideal"
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
-            raise ConfigError(f"rate_hz must be a finite number > 0 [Hz], got {self.rate_hz!r}")
+        check_real_fields(self, "BarometerParams", positive=True, unit=" [Hz]", names=("rate_hz",))
         object.__setattr__(self, "noise", nested(NoiseSpec, self.noise, "BarometerParams.noise"))
         self.noise.per_axis(1)
         if not (math.isfinite(self.home_altitude_m) and -500 <= self.home_altitude_m <= 10000):

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, from_dict, nested
+from ..config import ConfigError, check_real_fields, from_dict, nested
 from ..messages import Imu, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec
@@ -72,10 +72,7 @@ class ImuParams:
         q = np.asarray(_vec("q_BI", self.q_BI, 4))
         if abs(np.linalg.norm(q) - 1.0) > 1e-6:
             raise ConfigError(f"q_BI must be a unit quaternion [w, x, y, z], got norm {np.linalg.norm(q)}")
-        for f in ("accel_range", "gyro_range"):
-            v = getattr(self, f)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ConfigError(f"{f} must be a finite number > 0, got {v!r}")
+        check_real_fields(self, "ImuParams", positive=True, names=("accel_range", "gyro_range"))
 
     @classmethod
     def from_dict(cls, data: dict) -> ImuParams:

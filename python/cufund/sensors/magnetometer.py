@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, nested
+from ..config import ConfigError, check_real_fields, nested
 from ..messages import MagneticField, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec
@@ -64,8 +64,7 @@ class MagnetometerParams:
     earth: EarthField = field(default_factory=EarthField)
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
-            raise ConfigError(f"rate_hz must be a finite number > 0 [Hz], got {self.rate_hz!r}")
+        check_real_fields(self, "MagnetometerParams", positive=True, unit=" [Hz]", names=("rate_hz",))
         object.__setattr__(self, "noise", nested(NoiseSpec, self.noise, "MagnetometerParams.noise"))
         object.__setattr__(self, "earth", nested(EarthField, self.earth, "MagnetometerParams.earth"))
         self.noise.per_axis(3)
