@@ -69,9 +69,12 @@ def load_yaml(path: str | Path) -> Any:
 
 
 def to_dict(obj: Any) -> dict[str, Any]:
-    """A dataclass as plain Python data (tuples become lists) suitable for ``yaml.safe_dump``."""
+    """A dataclass as plain Python data (nested dataclasses become dicts, tuples lists) suitable for
+    ``yaml.safe_dump``."""
 
     def plain(x: Any) -> Any:
+        if dataclasses.is_dataclass(x) and not isinstance(x, type):
+            return {f.name: plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
         if isinstance(x, (tuple, list)):
             return [plain(v) for v in x]
         return x

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from . import presets
-from .config import ConfigError, check_real_fields, from_dict, load_yaml, nested
+from .config import ConfigError, check_real_fields, from_dict, load_yaml, nested, to_dict
 from .control import (AttitudeControlParams, AttitudeController, GeometricControlParams, GeometricController,
                       PositionControlParams, PositionController, RateControlParams, RateController)
 from .messages import Topics
@@ -215,15 +215,7 @@ class ScenarioConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (for ``config.yaml``) that :meth:`from_dict` turns back into an equal scenario."""
-
-        def plain(x: Any) -> Any:
-            if dataclasses.is_dataclass(x) and not isinstance(x, type):
-                return {f.name: plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
-            if isinstance(x, (tuple, list)):
-                return [plain(v) for v in x]
-            return x
-
-        return plain(self)
+        return to_dict(self)
 
     def replace(self, **changes: Any) -> ScenarioConfig:
         return dataclasses.replace(self, **changes)
