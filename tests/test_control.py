@@ -190,11 +190,16 @@ def test_geometric_recovers_from_150_deg_tilt():
 
 
 def test_rotation_helpers_round_trip():
+    from scipy.spatial.transform import Rotation
+
     rng = np.random.default_rng(0)
     for _ in range(50):
         q = rng.standard_normal(4)
         q /= np.linalg.norm(q)
         q = q if q[0] >= 0 else -q
+        R = Rotation.from_quat(q[[1, 2, 3, 0]]).as_matrix()  # scipy: [x, y, z, w], independent of ours
+        np.testing.assert_allclose(quat_to_rotation(q), R, atol=1e-12)
+        np.testing.assert_allclose(rotation_to_quat(R), q, atol=1e-12)
         np.testing.assert_allclose(rotation_to_quat(quat_to_rotation(q)), q, atol=1e-12)
 
 

@@ -5,7 +5,6 @@ import pytest
 
 import cufund
 from cufund import Simulator, RunStatus, Topics
-from cufund.messages import Odometry
 from cufund.templates.estimator_template import MyEstimator
 from cufund.templates.sensor_template import MyPositionSensor
 from cufund.templates.controller_template import MyController
@@ -145,7 +144,6 @@ def test_rejects_non_components():
         Simulator(_quad()).add(object())
     with pytest.raises(TypeError, match="Quadrotor"):
         Simulator("quad")
-    assert isinstance(Odometry(0.0, np.zeros(3), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3)), Odometry)
 
 
 def test_recorder_histories_in_result():

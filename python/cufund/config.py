@@ -37,16 +37,25 @@ def from_dict(cls: type[T], data: Any, where: str | None = None) -> T:
     return cls(**data)
 
 
-def check_real_fields(obj: Any, where: str, positive: bool = False, unit: str = "") -> None:
-    """Makes every field of the frozen dataclass ``obj`` a float, requiring a finite number >= 0 (> 0 when
-    ``positive``); the error names ``where.field``."""
+def nested(cls: type[T], value: Any, where: str) -> T:
+    """A dataclass field that holds another dataclass: ``value`` itself if it is a ``cls``, else ``cls`` built
+    from the mapping ``value`` by :func:`from_dict` (None: all defaults)."""
+    if isinstance(value, cls):
+        return value
+    return from_dict(cls, {} if value is None else value, where)
+
+
+def check_real_fields(obj: Any, where: str, positive: bool = False, unit: str = "",
+                      names: tuple[str, ...] | None = None) -> None:
+    """Makes the fields ``names`` (default: every field) of the frozen dataclass ``obj`` floats, requiring a
+    finite number >= 0 (> 0 when ``positive``); the error names ``where.field``."""
     bound = "> 0" if positive else ">= 0"
-    for f in dataclasses.fields(obj):
-        v = getattr(obj, f.name)
+    for name in names if names is not None else [f.name for f in dataclasses.fields(obj)]:
+        v = getattr(obj, name)
         if (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
                 or v < 0 or (positive and v == 0)):
-            raise ConfigError(f"{where}.{f.name} must be a finite number {bound}{unit}, got {v!r}")
-        object.__setattr__(obj, f.name, float(v))
+            raise ConfigError(f"{where}.{name} must be a finite number {bound}{unit}, got {v!r}")
+        object.__setattr__(obj, name, float(v))
 
 
 def load_yaml(path: str | Path) -> Any:
@@ -60,9 +69,12 @@ def load_yaml(path: str | Path) -> Any:
 
 
 def to_dict(obj: Any) -> dict[str, Any]:
-    """A dataclass as plain Python data (tuples become lists) suitable for ``yaml.safe_dump``."""
+    """A dataclass as plain Python data (nested dataclasses become dicts, tuples lists) suitable for
+    ``yaml.safe_dump``."""
 
     def plain(x: Any) -> Any:
+        if dataclasses.is_dataclass(x) and not isinstance(x, type):
+            return {f.name: plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
         if isinstance(x, (tuple, list)):
             return [plain(v) for v in x]
         return x

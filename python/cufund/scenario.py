@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from . import presets
-from .config import ConfigError, check_real_fields, from_dict, load_yaml
+from .config import ConfigError, check_real_fields, from_dict, load_yaml, nested, to_dict
 from .control import (AttitudeControlParams, AttitudeController, GeometricControlParams, GeometricController,
                       PositionControlParams, PositionController, RateControlParams, RateController)
 from .messages import Topics
@@ -27,12 +27,6 @@ __all__ = ["ControllerConfig", "RatesConfig", "ScenarioConfig", "ScenarioRun", "
            "available_scenarios", "load_scenario", "run_scenario"]
 
 _PRESETS = {"crazyflie": presets.crazyflie, "iris": presets.iris, "cu_astro": presets.cu_astro}
-
-
-def _nested(cls: type, value: Any, where: str) -> Any:
-    if isinstance(value, cls):
-        return value
-    return from_dict(cls, {} if value is None else value, where)
 
 
 @dataclass(frozen=True)
@@ -73,7 +67,7 @@ class ControllerConfig:
         for name, cls in (("position", PositionControlParams), ("attitude", AttitudeControlParams),
                           ("rate", RateControlParams), ("geometric", GeometricControlParams)):
             try:
-                object.__setattr__(self, name, _nested(cls, getattr(self, name), f"controller.{name}"))
+                object.__setattr__(self, name, nested(cls, getattr(self, name), f"controller.{name}"))
             except ValueError as e:
                 raise ConfigError(str(e) if "controller." in str(e) else f"controller.{name}: {e}") from None
 
@@ -202,16 +196,13 @@ class ScenarioConfig:
                 raise ConfigError(f"vehicle: {e}") from None
         else:
             raise ConfigError(f"vehicle must be a preset name or a mapping, got {type(self.vehicle).__name__}")
-        object.__setattr__(self, "controller", _nested(ControllerConfig, self.controller, "controller"))
-        object.__setattr__(self, "trajectory", _nested(TrajectoryConfig, self.trajectory, "trajectory"))
-        object.__setattr__(self, "rates", _nested(RatesConfig, self.rates, "rates"))
-        object.__setattr__(self, "sensors", _nested(SensorsConfig, self.sensors, "sensors"))
+        object.__setattr__(self, "controller", nested(ControllerConfig, self.controller, "controller"))
+        object.__setattr__(self, "trajectory", nested(TrajectoryConfig, self.trajectory, "trajectory"))
+        object.__setattr__(self, "rates", nested(RatesConfig, self.rates, "rates"))
+        object.__setattr__(self, "sensors", nested(SensorsConfig, self.sensors, "sensors"))
         if not isinstance(self.name, str) or not self.name:
             raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
-        if (isinstance(self.duration, bool) or not isinstance(self.duration, (int, float))
-                or not math.isfinite(self.duration) or not self.duration > 0):
-            raise ConfigError(f"duration must be a finite number > 0 [s], got {self.duration!r}")
-        object.__setattr__(self, "duration", float(self.duration))
+        check_real_fields(self, "scenario", positive=True, unit=" [s]", names=("duration",))
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ConfigError(f"seed must be an integer >= 0, got {self.seed!r}")
 
@@ -224,15 +215,7 @@ class ScenarioConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (for ``config.yaml``) that :meth:`from_dict` turns back into an equal scenario."""
-
-        def plain(x: Any) -> Any:
-            if dataclasses.is_dataclass(x) and not isinstance(x, type):
-                return {f.name: plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
-            if isinstance(x, (tuple, list)):
-                return [plain(v) for v in x]
-            return x
-
-        return plain(self)
+        return to_dict(self)
 
     def replace(self, **changes: Any) -> ScenarioConfig:
         return dataclasses.replace(self, **changes)

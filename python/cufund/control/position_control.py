@@ -12,6 +12,7 @@ from ..config import check_real_fields
 from ..components import Bus, Controller
 from ..messages import AttitudeSetpoint, FlightMode, Odometry, Topics
 from ..params import QuadrotorParams
+from .derivative_filter import LowPassDerivative
 from .flight_mode import BumplessTransfer, ModeReferences
 from .rotations import attitude_from_thrust_and_yaw, quat_to_rotation, rotation_to_quat
 
@@ -87,6 +88,7 @@ class PositionController(Controller):
         self._kv = np.array([g.xy_vel_p, g.xy_vel_p, g.z_vel_p])
         self._ki = np.array([g.xy_vel_i, g.xy_vel_i, g.z_vel_i])
         self._kd = np.array([g.xy_vel_d, g.xy_vel_d, g.z_vel_d])
+        self._acc = LowPassDerivative(g.vel_d_cutoff_hz)
         self.reset()
 
     def reset(self) -> None:
@@ -94,8 +96,7 @@ class PositionController(Controller):
         self.transfer.reset()
         self.vel_int = np.zeros(3)
         """Velocity integrator [m/s^2]."""
-        self._v_prev: np.ndarray | None = None
-        self._acc_filt = np.zeros(3)
+        self._acc.reset()
         self.last: AttitudeSetpoint | None = None
 
     @property
@@ -108,11 +109,7 @@ class PositionController(Controller):
         dt = 1.0 / self.rate_hz
         mode = self.refs.update(t, state, bus, self.last)
         # velocity derivative for D, low-passed; kept running in every mode so D does not kick after a switch
-        if self._v_prev is None:
-            self._v_prev = state.v_W.copy()
-        alpha = dt / (dt + 1.0 / (2.0 * math.pi * g.vel_d_cutoff_hz)) if g.vel_d_cutoff_hz > 0 else 1.0
-        self._acc_filt += alpha * ((state.v_W - self._v_prev) / dt - self._acc_filt)
-        self._v_prev = state.v_W.copy()
+        acc_filt = self._acc.update(state.v_W, dt)
         if mode is FlightMode.ATTITUDE:
             att = self.refs.attitude(bus)
             thrust = m * grav if math.isnan(att.thrust) else att.thrust
@@ -129,7 +126,7 @@ class PositionController(Controller):
             v_sp[:2] *= g.xy_vel_max / vxy
         v_sp[2] = min(max(v_sp[2], -g.z_vel_max_dn), g.z_vel_max_up)
         v_err = v_sp - state.v_W
-        acc_sp = self._kv * v_err + self.vel_int - self._kd * self._acc_filt + sp.a_W
+        acc_sp = self._kv * v_err + self.vel_int - self._kd * acc_filt + sp.a_W
         if self.refs.switched and self.last is not None:
             # hand over: the acceleration last commanded (in any mode) continues and fades into the new one
             z_prev = quat_to_rotation(self.last.q_WB)[:, 2]

@@ -12,6 +12,7 @@ from ..components import Bus, Controller
 from ..messages import ActuatorCommand, Odometry, RateSetpoint, ThrustTorqueSetpoint, Topics
 from ..params import QuadrotorParams
 from .allocation import ControlAllocator
+from .derivative_filter import LowPassDerivative
 
 __all__ = ["RateControlParams", "RateController"]
 
@@ -74,13 +75,13 @@ class RateController(Controller):
         self._ki = np.array([g.roll_i, g.pitch_i, g.yaw_i])
         self._kd = np.array([g.roll_d, g.pitch_d, g.yaw_d])
         self._J = params.inertia_matrix
+        self._dw = LowPassDerivative(g.d_cutoff_hz)
         self.reset()
 
     def reset(self) -> None:
         self.rate_int = np.zeros(3)
         """Rate integrator [rad/s^2]."""
-        self._w_prev: np.ndarray | None = None
-        self._dw_filt = np.zeros(3)
+        self._dw.reset()
 
     def update(self, t: float, state: Odometry, bus: Bus) -> None:
         sp: RateSetpoint | None = bus.get(Topics.RATE_SETPOINT)
@@ -89,13 +90,9 @@ class RateController(Controller):
         g = self.gains
         dt = 1.0 / self.rate_hz
         w = state.w_B
-        if self._w_prev is None:
-            self._w_prev = w.copy()
-        alpha = dt / (dt + 1.0 / (2.0 * math.pi * g.d_cutoff_hz)) if g.d_cutoff_hz > 0 else 1.0
-        self._dw_filt += alpha * ((w - self._w_prev) / dt - self._dw_filt)
-        self._w_prev = w.copy()
+        dw_filt = self._dw.update(w, dt)
         e = sp.w_B - w
-        alpha_cmd = self._kp * e + self.rate_int - self._kd * self._dw_filt + g.feed_forward * sp.w_B
+        alpha_cmd = self._kp * e + self.rate_int - self._kd * dw_filt + g.feed_forward * sp.w_B
         torque = self._J @ alpha_cmd
         speeds = self.allocator.rotor_speeds(sp.thrust, torque)
         sat = self.allocator.last_saturation.torque

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, from_dict
+from ..config import ConfigError, check_real_fields, nested
 from ..messages import AirPressure, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec
@@ -55,10 +55,8 @@ class BarometerParams:
     name: str = "ideal"
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
-            raise ConfigError(f"rate_hz must be a finite number > 0 [Hz], got {self.rate_hz!r}")
-        if isinstance(self.noise, dict):
-            object.__setattr__(self, "noise", from_dict(NoiseSpec, self.noise, "BarometerParams.noise"))
+        check_real_fields(self, "BarometerParams", positive=True, unit=" [Hz]", names=("rate_hz",))
+        object.__setattr__(self, "noise", nested(NoiseSpec, self.noise, "BarometerParams.noise"))
         self.noise.per_axis(1)
         if not (math.isfinite(self.home_altitude_m) and -500 <= self.home_altitude_m <= 10000):
             raise ConfigError(f"home_altitude_m must be in [-500, 10000] [m], got {self.home_altitude_m!r}")

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, from_dict
+from ..config import ConfigError, check_real_fields, nested
 from ..messages import GpsFix, Odometry, Topics
 from .geodesy import GeoPoint, enu_to_lla
 from .model_sensor import ModelSensor
@@ -46,14 +46,11 @@ class GpsParams:
     name: str = "ideal"
 
     def __post_init__(self) -> None:
-        if isinstance(self.home, dict):
-            object.__setattr__(self, "home", from_dict(GeoPoint, self.home, "GpsParams.home"))
+        object.__setattr__(self, "home", nested(GeoPoint, self.home, "GpsParams.home"))
         if not (math.isfinite(self.rate_hz) and 0 < self.rate_hz <= 50):
             raise ConfigError(f"rate_hz must be in (0, 50] [Hz], got {self.rate_hz!r}")
-        for f in ("horizontal_sigma_m", "vertical_sigma_m", "drift_m_per_sqrt_s", "velocity_sigma_m_s", "latency_s"):
-            v = getattr(self, f)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ConfigError(f"{f} must be a finite number >= 0, got {v!r}")
+        check_real_fields(self, "GpsParams", names=("horizontal_sigma_m", "vertical_sigma_m", "drift_m_per_sqrt_s",
+                                                    "velocity_sigma_m_s", "latency_s"))
         if not (isinstance(self.satellites, int) and 0 <= self.satellites <= 64):
             raise ConfigError(f"satellites must be an integer in [0, 64], got {self.satellites!r}")
         if not (isinstance(self.min_satellites, int) and 4 <= self.min_satellites):

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, from_dict
+from ..config import ConfigError, check_real_fields, from_dict, nested
 from ..messages import Imu, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec
@@ -65,21 +65,14 @@ class ImuParams:
         if not (math.isfinite(self.rate_hz) and 100.0 <= self.rate_hz <= 1000.0):
             raise ConfigError(f"rate_hz must be between 100 and 1000 [Hz], got {self.rate_hz!r}")
         for f in ("accel", "gyro"):
-            v = getattr(self, f)
-            if isinstance(v, dict):
-                object.__setattr__(self, f, from_dict(NoiseSpec, v, f"ImuParams.{f}"))
-            elif not isinstance(v, NoiseSpec):
-                raise ConfigError(f"{f} must be a NoiseSpec or a mapping, got {type(v).__name__}")
+            object.__setattr__(self, f, nested(NoiseSpec, getattr(self, f), f"ImuParams.{f}"))
             getattr(self, f).per_axis(3)  # validates
         for f in ("accel_scale_factor", "gyro_scale_factor", "p_BI"):
             object.__setattr__(self, f, _vec(f, getattr(self, f), 3))
         q = np.asarray(_vec("q_BI", self.q_BI, 4))
         if abs(np.linalg.norm(q) - 1.0) > 1e-6:
             raise ConfigError(f"q_BI must be a unit quaternion [w, x, y, z], got norm {np.linalg.norm(q)}")
-        for f in ("accel_range", "gyro_range"):
-            v = getattr(self, f)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ConfigError(f"{f} must be a finite number > 0, got {v!r}")
+        check_real_fields(self, "ImuParams", positive=True, names=("accel_range", "gyro_range"))
 
     @classmethod
     def from_dict(cls, data: dict) -> ImuParams:

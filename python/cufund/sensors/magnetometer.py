@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, from_dict
+from ..config import ConfigError, check_real_fields, nested
 from ..messages import MagneticField, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec
@@ -64,12 +64,9 @@ class MagnetometerParams:
     earth: EarthField = field(default_factory=EarthField)
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
-            raise ConfigError(f"rate_hz must be a finite number > 0 [Hz], got {self.rate_hz!r}")
-        if isinstance(self.noise, dict):
-            object.__setattr__(self, "noise", from_dict(NoiseSpec, self.noise, "MagnetometerParams.noise"))
-        if isinstance(self.earth, dict):
-            object.__setattr__(self, "earth", from_dict(EarthField, self.earth, "MagnetometerParams.earth"))
+        check_real_fields(self, "MagnetometerParams", positive=True, unit=" [Hz]", names=("rate_hz",))
+        object.__setattr__(self, "noise", nested(NoiseSpec, self.noise, "MagnetometerParams.noise"))
+        object.__setattr__(self, "earth", nested(EarthField, self.earth, "MagnetometerParams.earth"))
         self.noise.per_axis(3)
         h = np.asarray(self.hard_iron_T, dtype=float)
         if h.shape != (3,) or not np.all(np.isfinite(h)):
