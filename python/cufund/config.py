@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
 import yaml
 
 T = TypeVar("T")
@@ -56,6 +58,25 @@ def check_real_fields(obj: Any, where: str, positive: bool = False, unit: str = 
                 or v < 0 or (positive and v == 0)):
             raise ConfigError(f"{where}.{name} must be a finite number {bound}{unit}, got {v!r}")
         object.__setattr__(obj, name, float(v))
+
+
+def real_number(name: str, value: Any) -> float:
+    """``value`` as a float if it is a real number (not a bool); else a ConfigError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
+        raise ConfigError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
+    return float(value)
+
+
+def vector3(name: str, value: Any, unit: str = "", finite: bool = False) -> tuple[float, float, float]:
+    """``value`` as 3 floats (``finite``: all finite); else a ConfigError naming ``name`` and ``unit``."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise ConfigError(f"{name} must be 3 real numbers{unit}: {e}") from None
+    if a.shape != (3,) or (finite and not np.all(np.isfinite(a))):
+        what = "finite real numbers" if finite else "real numbers"
+        raise ConfigError(f"{name} must be 3 {what}{unit}, got {value!r}")
+    return (float(a[0]), float(a[1]), float(a[2]))
 
 
 def load_yaml(path: str | Path) -> Any:

@@ -10,15 +10,9 @@ from typing import Any
 import numpy as np
 
 from . import _core
-from .config import ConfigError, from_dict, load_yaml, to_dict
+from .config import ConfigError, from_dict, load_yaml, real_number, to_dict, vector3
 
 _LAYOUTS = {"x": _core.dynamics.RotorLayout.X, "+": _core.dynamics.RotorLayout.PLUS}
-
-
-def _real(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ConfigError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
-    return float(value)
 
 
 def _matrix3(name: str, value: Any) -> tuple[tuple[float, float, float], ...]:
@@ -31,16 +25,6 @@ def _matrix3(name: str, value: Any) -> tuple[tuple[float, float, float], ...]:
     if a.shape != (3, 3):
         raise ConfigError(f"{name} must be a 3x3 matrix or 3 diagonal entries, got shape {a.shape}")
     return tuple(tuple(float(x) for x in row) for row in a)  # type: ignore[return-value]
-
-
-def _vector3(name: str, value: Any) -> tuple[float, float, float]:
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise ConfigError(f"{name} must be 3 real numbers: {e}") from None
-    if a.shape != (3,):
-        raise ConfigError(f"{name} must be 3 real numbers, got shape {a.shape}")
-    return (float(a[0]), float(a[1]), float(a[2]))
 
 
 @dataclass(frozen=True)
@@ -91,9 +75,9 @@ class QuadrotorParams:
     def __post_init__(self) -> None:
         for f in ("mass", "arm_length", "k_f", "c_m", "tau_m", "rotor_speed_max", "rotor_speed_min",
                   "rotor_drag_xy", "rotor_drag_z", "gravity", "max_integration_step"):
-            object.__setattr__(self, f, _real(f, getattr(self, f)))
+            object.__setattr__(self, f, real_number(f, getattr(self, f)))
         object.__setattr__(self, "inertia", _matrix3("inertia", self.inertia))
-        object.__setattr__(self, "body_drag", _vector3("body_drag", self.body_drag))
+        object.__setattr__(self, "body_drag", vector3("body_drag", self.body_drag))
         if self.layout not in _LAYOUTS:
             raise ConfigError(f"layout must be one of 'x', '+', got {self.layout!r}")
         if not isinstance(self.ground_plane, bool):

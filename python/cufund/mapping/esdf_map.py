@@ -12,25 +12,9 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import _core
-from ..config import ConfigError, from_dict
+from ..config import ConfigError, from_dict, real_number, vector3
 
 _AXES = {"x": 0, "y": 1, "z": 2}
-
-
-def _real(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
-        raise ConfigError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
-    return float(value)
-
-
-def _vector3(name: str, value: Any) -> tuple[float, float, float]:
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise ConfigError(f"{name} must be 3 real numbers [m]: {e}") from None
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise ConfigError(f"{name} must be 3 finite real numbers [m], got {value!r}")
-    return (float(a[0]), float(a[1]), float(a[2]))
 
 
 @dataclass(frozen=True)
@@ -66,17 +50,17 @@ class EsdfMapParams:
     """Worker threads for the distance field and queries; 0 uses every core."""
 
     def __post_init__(self) -> None:
-        res = _real("resolution", self.resolution)
+        res = real_number("resolution", self.resolution)
         if not (math.isfinite(res) and res > 0):
             raise ConfigError(f"resolution must be finite and > 0 [m], got {self.resolution!r}")
-        size = _vector3("size", self.size)
+        size = vector3("size", self.size, " [m]", finite=True)
         if min(size) <= 0:
             raise ConfigError(f"size must be > 0 [m] on every axis, got {size}")
         object.__setattr__(self, "resolution", res)
         object.__setattr__(self, "size", size)
-        object.__setattr__(self, "origin_W", _vector3("origin_W", self.origin_W))
+        object.__setattr__(self, "origin_W", vector3("origin_W", self.origin_W, " [m]", finite=True))
         for name in ("log_odds_hit", "log_odds_miss", "log_odds_min", "log_odds_max", "log_odds_occupied", "max_range"):
-            object.__setattr__(self, name, _real(name, getattr(self, name)))
+            object.__setattr__(self, name, real_number(name, getattr(self, name)))
         if not (math.isfinite(self.log_odds_hit) and self.log_odds_hit > 0):
             raise ConfigError(f"log_odds_hit must be finite and > 0, got {self.log_odds_hit}")
         if not (math.isfinite(self.log_odds_miss) and self.log_odds_miss < 0):
@@ -237,7 +221,7 @@ class EsdfMap:
         ``position`` [m] (clamped to the map); rows/columns follow the other two axes in x, y, z order."""
         a = self._axis(axis)
         p = self._params
-        pos = _real("position", position)
+        pos = real_number("position", position)
         if not math.isfinite(pos):
             raise ValueError(f"position must be finite [m], got {position!r}")
         i = int(np.clip(math.floor((pos - p.origin_W[a]) / p.resolution), 0, self.shape[a] - 1))
