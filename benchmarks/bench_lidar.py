@@ -33,16 +33,6 @@ def best_times(fns, repeats: int) -> list[float]:
     return best
 
 
-def best_time(fn, repeats: int) -> float:
-    fn()  # warm-up (builds the BVH)
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
 def sphere_mesh(triangles: int) -> tuple[np.ndarray, np.ndarray]:
     res = int(round(np.sqrt(triangles / 4.0)))  # create_sphere makes about 4 res^2 triangles
     mesh = o3d.geometry.TriangleMesh.create_sphere(radius=3.0, resolution=res)
@@ -96,12 +86,12 @@ def main() -> None:
     print(f"\nsensor models in imav2025_tunnel ({args.threads} threads), best of {args.repeats}:")
     for name, pattern in (("Livox Mid-360", cufund.lidar.mid360()), ("Ouster OS1-64", cufund.lidar.os1_64())):
         lidar = cufund.lidar.Lidar(pattern, cufund.lidar.LidarParams(nthreads=args.threads, range_noise_std=0.02))
-        t = best_time(lambda: lidar.scan(world, pose, 0.0), args.repeats)
+        (t,) = best_times([lambda: lidar.scan(world, pose, 0.0)], args.repeats)
         n = len(pattern.frame(0).t)
         print(f"  {name}: {1 / t:8.1f} frames/s ({n} rays/frame, {n / t / 1e6:.2f} Mrays/s incl. Python)")
     cam = cufund.sensors.DepthCamera(cufund.sensors.CameraIntrinsics.from_fov(640, 480, np.deg2rad(87.0)),
                                      nthreads=args.threads)
-    t = best_time(lambda: cam.render(world, [-1.5, 0.0, 0.55], [1.0, 0.0, 0.0, 0.0]), args.repeats)
+    (t,) = best_times([lambda: cam.render(world, [-1.5, 0.0, 0.55], [1.0, 0.0, 0.0, 0.0])], args.repeats)
     print(f"  depth camera 640x480: {1 / t:8.1f} frames/s")
 
 

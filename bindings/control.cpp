@@ -9,23 +9,16 @@
 namespace cufund::py_bind {
 namespace {
 
-Eigen::Vector3d vec3(const py::handle& obj, const char* field) {
-  auto a = as_float64(obj, field, {3});
-  const double* d = a.data();
-  for (int i = 0; i < 3; ++i) {
-    if (!std::isfinite(d[i])) throw py::value_error(std::string(field) + " must be finite");
-  }
-  return Eigen::Vector3d(d[0], d[1], d[2]);
+// A finite (N,) vector, else ValueError naming the field.
+template <int N>
+Eigen::Matrix<double, N, 1> finite_vector(const py::handle& obj, const char* field) {
+  auto a = as_float64(obj, field, {N});
+  const Eigen::Map<const Eigen::Matrix<double, N, 1>> v(a.data());
+  if (!v.allFinite()) throw py::value_error(std::string(field) + " must be finite");
+  return v;
 }
-
-Eigen::Vector4d vec4(const py::handle& obj, const char* field) {
-  auto a = as_float64(obj, field, {4});
-  const double* d = a.data();
-  for (int i = 0; i < 4; ++i) {
-    if (!std::isfinite(d[i])) throw py::value_error(std::string(field) + " must be finite");
-  }
-  return Eigen::Vector4d(d[0], d[1], d[2], d[3]);
-}
+const auto vec3 = finite_vector<3>;
+const auto vec4 = finite_vector<4>;
 
 double finite(double x, const char* field) {
   if (!std::isfinite(x)) throw py::value_error(std::string(field) + " must be finite, got " + std::to_string(x));

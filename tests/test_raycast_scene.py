@@ -31,7 +31,7 @@ def test_plane_ranges_are_height_over_sine_of_depression():
                             np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)]).astype(np.float32)
     out = scene.cast_rays(rays)
     np.testing.assert_allclose(out["t_hit"], h / -rays[:, 5].astype(np.float64), rtol=2e-6)
-    np.testing.assert_allclose(np.abs(out["normals"][:, 2]), 1.0, atol=1e-6)
+    np.testing.assert_allclose(out["normals"], np.tile([0.0, 0.0, 1.0], (n, 1)), atol=1e-6)  # plane() faces +z
     assert np.all(out["geometry_ids"] == 0)
 
 

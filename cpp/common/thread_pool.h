@@ -8,6 +8,7 @@
 // Results must not depend on which thread ran which chunk.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <condition_variable>
 #include <cstddef>
@@ -57,5 +58,20 @@ class ThreadPool {
   std::atomic<std::size_t> next_{0};
   std::exception_ptr error_;  // the first exception of the current job (guarded by m_)
 };
+
+// Calls body(begin, end, chunk_index) for consecutive chunks of at most `chunk` items covering
+// [0, n), on up to `threads` threads of the shared pool (the caller included; chunks are claimed one
+// at a time, so a busy machine only slows the loop down). Results must not depend on which thread
+// ran a chunk.
+template <typename Body>
+void parallel_chunks(std::ptrdiff_t n, std::ptrdiff_t chunk, int threads, Body&& body) {
+  if (n <= 0) return;
+  chunk = std::max<std::ptrdiff_t>(1, chunk);
+  const std::ptrdiff_t chunks = (n + chunk - 1) / chunk;
+  ThreadPool::instance().parallel_for(static_cast<std::size_t>(chunks), threads, [&](std::size_t c) {
+    const auto begin = static_cast<std::ptrdiff_t>(c) * chunk;
+    body(begin, std::min(n, begin + chunk), static_cast<std::ptrdiff_t>(c));
+  });
+}
 
 }  // namespace cufund

@@ -34,16 +34,6 @@ constexpr int kDigitBits = 9;
 constexpr int kPasses = 2;
 constexpr std::uint32_t kDigits = 1u << kDigitBits;
 
-// Runs fn(b) for b in [0, count), on the pool when there is more than one.
-template <typename Fn>
-void for_blocks(std::size_t count, int nthreads, const Fn& fn) {
-  if (count <= 1 || nthreads == 1) {
-    for (std::size_t b = 0; b < count; ++b) fn(b);
-  } else {
-    ThreadPool::instance().parallel_for(count, nthreads, fn);
-  }
-}
-
 // Turns per-block digit counts (hist[block * digits + digit]) into the first output slot of each
 // (block, digit): all of digit 0 in block order, then digit 1, ... (a stable counting sort).
 void exclusive_offsets(std::vector<std::uint32_t>& hist, std::size_t blocks, std::uint32_t digits) {
@@ -199,7 +189,7 @@ void spatial_order(const float* rays, std::size_t n, const float* scene_lo, cons
                    std::uint32_t* order, int nthreads) {
   if (n == 0) return;
   const std::size_t blocks = (n + kBlock - 1) / kBlock;
-  auto block_end = [&](std::size_t b) { return std::min(n, (b + 1) * kBlock); };
+  const auto rays_n = static_cast<std::ptrdiff_t>(n);  // parallel_chunks counts in ptrdiff_t
   const bool empty = !(scene_lo[0] <= scene_hi[0] && scene_lo[1] <= scene_hi[1] && scene_lo[2] <= scene_hi[2]);
   float reach = 0.0f;  // kHeading: half the scene
   for (int k = 0; k < 3 && !empty; ++k) reach = std::max(reach, 0.5f * (scene_hi[k] - scene_lo[k]));
@@ -208,9 +198,9 @@ void spatial_order(const float* rays, std::size_t n, const float* scene_lo, cons
   // The keyed points lie on the scene's box, within reach of an origin or at an origin: quantise
   // in the box around the scene and the origins grown by reach.
   std::vector<std::array<float, 6>> boxes(blocks);
-  for_blocks(blocks, nthreads, [&](std::size_t b) {
+  parallel_chunks(rays_n, kBlock, nthreads, [&](std::size_t begin, std::size_t end, std::size_t b) {
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (std::size_t i = b * kBlock; i < block_end(b); ++i) {
+    for (std::size_t i = begin; i < end; ++i) {
       for (int k = 0; k < 3; ++k) {
         lo[k] = std::min(lo[k], rays[6 * i + k]);
         hi[k] = std::max(hi[k], rays[6 * i + k]);
@@ -239,24 +229,25 @@ void spatial_order(const float* rays, std::size_t n, const float* scene_lo, cons
   if (scratch.size() < 2 * n) scratch.resize(2 * n);
   std::uint64_t* src = scratch.data();
   std::uint64_t* dst = src + n;
-  for_blocks(blocks, nthreads, [&](std::size_t b) {
+  parallel_chunks(rays_n, kBlock, nthreads, [&](std::size_t begin, std::size_t end, std::size_t) {
     if (key == RayKey::kHeading) {
       auto along = [&](const float* r) { return heading_point(r, reach); };
-      point_keys(rays, b * kBlock, block_end(b), along, q0, scale, src);
+      point_keys(rays, begin, end, along, q0, scale, src);
     } else {
       auto crossing = [&](const float* r) { return box_point(r, scene_lo, scene_hi); };
-      point_keys(rays, b * kBlock, block_end(b), crossing, q0, scale, src);
+      point_keys(rays, begin, end, crossing, q0, scale, src);
     }
   });
   std::vector<std::uint32_t> slots(blocks * kDigits);
   for (int pass = 0; pass < kPasses; ++pass) {
     const int shift = 32 + pass * kDigitBits;
-    for_blocks(blocks, nthreads,
-               [&](std::size_t b) { count_digits(src, b * kBlock, block_end(b), shift, &slots[b * kDigits]); });
+    parallel_chunks(rays_n, kBlock, nthreads, [&](std::size_t begin, std::size_t end, std::size_t b) {
+      count_digits(src, begin, end, shift, &slots[b * kDigits]);
+    });
     exclusive_offsets(slots, blocks, kDigits);
     std::uint32_t* ray_out = pass == kPasses - 1 ? order : nullptr;
-    for_blocks(blocks, nthreads, [&](std::size_t b) {
-      scatter_digits(src, b * kBlock, block_end(b), shift, &slots[b * kDigits], dst, ray_out);
+    parallel_chunks(rays_n, kBlock, nthreads, [&](std::size_t begin, std::size_t end, std::size_t b) {
+      scatter_digits(src, begin, end, shift, &slots[b * kDigits], dst, ray_out);
     });
     std::swap(src, dst);
   }

@@ -286,7 +286,6 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
   impl_->commit();
   const bool coherent = order == RayOrder::kCoherent || (order == RayOrder::kAuto && looks_coherent(rays, n));
   RTCScene scene = impl_->scene;
-  const std::size_t chunks = (n + kChunk - 1) / kChunk;
   // Tiling pays where the BVH outgrows the caches; on small scenes it costs more than it saves.
   const bool tiles = coherent && order == RayOrder::kAuto && impl_->triangles >= kTileMinTriangles;
   const bool sorted = n <= std::numeric_limits<std::uint32_t>::max() &&
@@ -311,9 +310,8 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
   const std::uint32_t* sorted_index = index.data();
   std::uint32_t* sorted_position = position.data();
   StagedHit* staged_hits = staged.data();
-  auto work = [&](std::size_t c) {
-    const std::size_t begin = c * kChunk;
-    const std::size_t end = std::min(n, begin + kChunk);
+  const auto rays_n = static_cast<std::ptrdiff_t>(n);  // parallel_chunks counts in ptrdiff_t
+  parallel_chunks(rays_n, kChunk, nthreads, [&](std::size_t begin, std::size_t end, std::size_t) {
     if (sorted) {
       cast_sorted(scene, rays, sorted_index, begin, end, staged_hits, sorted_position);
     } else if (tiles) {
@@ -327,18 +325,10 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
     } else {
       cast_single(scene, rays, begin, end, out);
     }
-  };
-  auto for_chunks = [&](const auto& fn) {
-    if (chunks <= 1 || nthreads == 1) {
-      for (std::size_t c = 0; c < chunks; ++c) fn(c);
-    } else {
-      ThreadPool::instance().parallel_for(chunks, nthreads, fn);
-    }
-  };
-  for_chunks(work);
+  });
   if (sorted) {
-    for_chunks([&](std::size_t c) {
-      unsort_hits(staged_hits, sorted_position, c * kChunk, std::min(n, (c + 1) * kChunk), out);
+    parallel_chunks(rays_n, kChunk, nthreads, [&](std::size_t begin, std::size_t end, std::size_t) {
+      unsort_hits(staged_hits, sorted_position, begin, end, out);
     });
   }
   return {};

@@ -51,10 +51,10 @@ TEST(RaycastScene, BoxFacesAtAnalyticDistances) {
   EXPECT_FLOAT_EQ(r.t[2], 3.0f);
   EXPECT_FLOAT_EQ(r.t[3], 1.5f);  // t is in units of |direction|
   for (int i = 0; i < 4; ++i) EXPECT_EQ(r.g[i], 0u);
-  // Outward normals (triangles wound counter-clockwise seen from outside).
-  EXPECT_NEAR(std::abs(r.n[0]), 1.0f, 1e-6f);
-  EXPECT_NEAR(std::abs(r.n[4]), 1.0f, 1e-6f);
-  EXPECT_NEAR(std::abs(r.n[8]), 1.0f, 1e-6f);
+  // Outward normals (triangles wound counter-clockwise seen from outside): +x, -y, +z faces.
+  EXPECT_NEAR(r.n[0], 1.0f, 1e-6f);
+  EXPECT_NEAR(r.n[4], -1.0f, 1e-6f);
+  EXPECT_NEAR(r.n[8], 1.0f, 1e-6f);
 }
 
 TEST(RaycastScene, MissIsInfinityAndInvalidIds) {
