@@ -89,8 +89,10 @@ IncrementalEdt::Index IncrementalEdt::full_pass(int stage, int nthreads) {
         for (Index j = 0; j < count; ++j) {
           const std::int32_t nv = to_int(s.d[static_cast<std::size_t>(j * n + q)]);
           std::int32_t& o = v[j].out[q * v[j].out_stride];
-          total += o != nv;
-          o = nv;
+          if (o != nv) {  // unchanged outputs are not stored: no needless cache-line writes
+            ++total;
+            o = nv;
+          }
         }
       }
     }
