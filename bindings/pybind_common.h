@@ -69,5 +69,6 @@ void define_control(py::module_& m);
 void define_lidar(py::module_& m);
 void define_collision(py::module_& m);  // in dynamics.cpp: Bullet collision checks
 void define_esdf(py::module_& m);
+void define_planning(py::module_& m);  // bindings/planning.cpp
 
 }  // namespace cufund::py_bind

@@ -1,0 +1,213 @@
+// Bindings of cpp/planning: certified clearance queries on an ESDF map, triangle voxelisation, and the
+// deterministic grid A*. Use cufund.planning (ClearanceQuery, GridPathSearch, voxelize_world).
+#include <cmath>
+#include <mutex>
+#include <shared_mutex>
+#include <string>
+
+#include "clearance.h"
+#include "esdf_map.h"
+#include "grid_astar.h"
+#include "pybind_common.h"
+#include "voxelize.h"
+
+namespace cufund::py_bind {
+namespace {
+
+using Index = std::ptrdiff_t;
+using planning::Vec3;
+
+Vec3 point3(const py::handle& obj, const char* field) {
+  auto a = as_float64(obj, field, {3});
+  const Vec3 v{a.at(0), a.at(1), a.at(2)};
+  if (!(std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]))) {
+    std::ostringstream os;
+    os << field << " must be 3 finite numbers [m], got [" << v[0] << ", " << v[1] << ", " << v[2] << "]";
+    throw py::value_error(os.str());
+  }
+  return v;
+}
+
+double radius_arg(double r) {
+  if (!(std::isfinite(r) && r >= 0.0)) throw py::value_error("radius must be finite and >= 0 [m], got " + std::to_string(r));
+  return r;
+}
+
+// An ESDF map with the certified-clearance view; keeps the map alive and reads under its shared lock.
+struct ClearanceQuery {
+  const esdf::EsdfMap& map;
+  planning::ClearanceMap view;
+  explicit ClearanceQuery(const esdf::EsdfMap& m) : map(m), view(m) {}
+};
+
+py::array_t<double> path_array(const std::vector<Vec3>& path) {
+  py::array_t<double> out({static_cast<py::ssize_t>(path.size()), py::ssize_t{3}});
+  double* o = out.mutable_data();
+  for (std::size_t i = 0; i < path.size(); ++i) {
+    for (std::size_t a = 0; a < 3; ++a) o[3 * i + a] = path[i][a];
+  }
+  return out;
+}
+
+std::vector<Vec3> path_vector(const py::handle& obj, const char* field) {
+  py::array arr = py::array::ensure(obj);
+  if (!arr || arr.ndim() != 2 || arr.shape(1) != 3) {
+    throw py::value_error(std::string(field) + " must have shape (K, 3), got " + (arr ? shape_str(arr) : std::string("a non-array")));
+  }
+  auto a = as_float64(obj, field, {arr.shape(0), 3});
+  std::vector<Vec3> out(static_cast<std::size_t>(a.shape(0)));
+  for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+    out[static_cast<std::size_t>(i)] = {a.at(i, 0), a.at(i, 1), a.at(i, 2)};
+    for (double x : out[static_cast<std::size_t>(i)]) {
+      if (!std::isfinite(x)) throw py::value_error(std::string(field) + " must be finite, row " + std::to_string(i) + " is not");
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+void define_planning(py::module_& m) {
+  py::class_<ClearanceQuery>(m, "ClearanceQuery",
+                             "Certified clearance on an ESDF map; use cufund.planning.ClearanceQuery.")
+      .def(py::init<const esdf::EsdfMap&>(), py::arg("esdf_map"), py::keep_alive<1, 2>())
+      .def(
+          "clearance",
+          [](const ClearanceQuery& self, double x, double y, double z) {
+            std::shared_lock<std::shared_mutex> read(self.map.access_mutex());
+            return self.view.clearance({x, y, z});
+          },
+          py::arg("x"), py::arg("y"), py::arg("z"))
+      .def(
+          "clearance_many",
+          [](const ClearanceQuery& self, const py::handle& points_W) {
+            py::array arr = py::array::ensure(points_W);
+            if (!arr || arr.ndim() != 2 || arr.shape(1) != 3) {
+              throw py::value_error("points_W must have shape (N, 3), got " +
+                                    (arr ? shape_str(arr) : std::string("a non-array")));
+            }
+            auto p = as_float64(points_W, "points_W", {arr.shape(0), 3});
+            const py::ssize_t n = p.shape(0);
+            py::array_t<double> out(n);
+            double* o = out.mutable_data();
+            const double* q = p.data();
+            {
+              py::gil_scoped_release release;
+              std::shared_lock<std::shared_mutex> read(self.map.access_mutex());
+              for (py::ssize_t i = 0; i < n; ++i) o[i] = self.view.clearance({q[3 * i], q[3 * i + 1], q[3 * i + 2]});
+            }
+            return out;
+          },
+          py::arg("points_W"))
+      .def(
+          "segment_free",
+          [](const ClearanceQuery& self, double x0, double y0, double z0, double x1, double y1, double z1, double radius) {
+            radius_arg(radius);
+            std::shared_lock<std::shared_mutex> read(self.map.access_mutex());
+            return self.view.segment_free({x0, y0, z0}, {x1, y1, z1}, radius);
+          },
+          py::arg("x0"), py::arg("y0"), py::arg("z0"), py::arg("x1"), py::arg("y1"), py::arg("z1"), py::arg("radius"))
+      .def(
+          "segments_free",
+          [](const ClearanceQuery& self, const py::handle& path_obj, double radius) {
+            radius_arg(radius);
+            const auto path = path_vector(path_obj, "path_W");
+            py::array_t<bool> out(static_cast<py::ssize_t>(path.size() > 0 ? path.size() - 1 : 0));
+            bool* o = out.mutable_data();
+            py::gil_scoped_release release;
+            std::shared_lock<std::shared_mutex> read(self.map.access_mutex());
+            for (std::size_t i = 1; i < path.size(); ++i) o[i - 1] = self.view.segment_free(path[i - 1], path[i], radius);
+            return out;
+          },
+          py::arg("path_W"), py::arg("radius"))
+      .def(
+          "shortcut",
+          [](const ClearanceQuery& self, const py::handle& path_obj, double radius) {
+            radius_arg(radius);
+            const auto path = path_vector(path_obj, "path_W");
+            std::vector<Vec3> out;
+            {
+              py::gil_scoped_release release;
+              std::shared_lock<std::shared_mutex> read(self.map.access_mutex());
+              out = planning::shortcut_path(self.view, path, radius);
+            }
+            return path_array(out);
+          },
+          py::arg("path_W"), py::arg("radius"))
+      .def_property_readonly("min_step", [](const ClearanceQuery& self) { return self.view.min_step(); });
+
+  py::class_<planning::GridAStar>(m, "GridAStar", "Deterministic A* on the ESDF grid; use cufund.planning.GridPathSearch.")
+      .def(py::init<>())
+      .def(
+          "plan",
+          [](planning::GridAStar& self, const ClearanceQuery& query, const py::handle& start, const py::handle& goal,
+             double radius, Index max_expansions, bool shortcut) {
+            planning::AStarOptions opt;
+            opt.radius = radius_arg(radius);
+            if (max_expansions < 1) throw py::value_error("max_expansions must be >= 1, got " + std::to_string(max_expansions));
+            opt.max_expansions = max_expansions;
+            opt.shortcut = shortcut;
+            const Vec3 s = point3(start, "start_W"), g = point3(goal, "goal_W");
+            planning::AStarResult r;
+            {
+              py::gil_scoped_release release;
+              std::shared_lock<std::shared_mutex> read(query.map.access_mutex());
+              r = self.plan(query.view, s, g, opt);
+            }
+            py::dict d;
+            d["status"] = static_cast<int>(r.status);
+            d["path"] = path_array(r.path);
+            d["length"] = r.length;
+            d["expansions"] = r.expansions;
+            d["clearance_queries"] = r.clearance_queries;
+            return d;
+          },
+          py::arg("query"), py::arg("start_W"), py::arg("goal_W"), py::arg("radius"), py::arg("max_expansions"),
+          py::arg("shortcut"));
+
+  m.def(
+      "voxelize_triangles",
+      [](const py::handle& origin_W, const py::handle& shape_obj, double resolution, const py::handle& vertices_obj,
+         const py::handle& triangles_obj) {
+        esdf::GridGeometry g;
+        const Vec3 o = point3(origin_W, "origin_W");
+        g.origin_W = o;
+        auto s = as_float64(shape_obj, "shape", {3});
+        for (int i = 0; i < 3; ++i) {
+          const double v = s.at(i);
+          if (!(v >= 1.0 && v == std::floor(v) && v < 1e6)) throw py::value_error("shape must be 3 integers >= 1");
+          g.shape[static_cast<std::size_t>(i)] = static_cast<Index>(v);
+        }
+        if (!(std::isfinite(resolution) && resolution > 0.0)) {
+          throw py::value_error("resolution must be finite and > 0 [m], got " + std::to_string(resolution));
+        }
+        g.resolution = resolution;
+        py::array varr = py::array::ensure(vertices_obj);
+        if (!varr || varr.ndim() != 2 || varr.shape(1) != 3) {
+          throw py::value_error("vertices must have shape (V, 3), got " + (varr ? shape_str(varr) : std::string("a non-array")));
+        }
+        auto v = as_float64(vertices_obj, "vertices", {varr.shape(0), 3});
+        for (py::ssize_t i = 0; i < v.size(); ++i) {
+          if (!std::isfinite(v.data()[i])) throw py::value_error("vertices must be finite");
+        }
+        auto t = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(triangles_obj);
+        if (!t || t.ndim() != 2 || t.shape(1) != 3) throw py::value_error("triangles must be an integer array of shape (T, 3)");
+        for (py::ssize_t i = 0; i < t.size(); ++i) {
+          if (t.data()[i] < 0 || t.data()[i] >= v.shape(0)) {
+            throw py::value_error("triangles must index vertices (0 <= index < " + std::to_string(v.shape(0)) + "), got " +
+                                  std::to_string(t.data()[i]));
+          }
+        }
+        std::vector<Index> idx;
+        {
+          py::gil_scoped_release release;
+          idx = planning::voxelize_triangles(g, v.data(), v.shape(0), t.data(), t.shape(0));
+        }
+        py::array_t<std::int64_t> out(static_cast<py::ssize_t>(idx.size()));
+        std::copy(idx.begin(), idx.end(), out.mutable_data());
+        return out;
+      },
+      py::arg("origin_W"), py::arg("shape"), py::arg("resolution"), py::arg("vertices"), py::arg("triangles"));
+}
+
+}  // namespace cufund::py_bind

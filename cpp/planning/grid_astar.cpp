@@ -1,0 +1,243 @@
+#include "grid_astar.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <queue>
+#include <tuple>
+
+namespace cufund::planning {
+
+using Index = std::ptrdiff_t;
+
+namespace {
+
+double distance(const Vec3& a, const Vec3& b) {
+  return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+// Octile distance on the 26-connected grid [voxels]: the shortest grid path ignoring obstacles.
+double octile(Index dx, Index dy, Index dz) {
+  Index a = std::abs(dx), b = std::abs(dy), c = std::abs(dz);
+  if (a < b) std::swap(a, b);
+  if (b < c) std::swap(b, c);
+  if (a < b) std::swap(a, b);  // a >= b >= c
+  return static_cast<double>(a - b) + std::sqrt(2.0) * static_cast<double>(b - c) + std::sqrt(3.0) * static_cast<double>(c);
+}
+
+struct Entry {
+  double f;
+  double h;
+  Index index;
+  bool operator>(const Entry& o) const { return std::tie(f, h, index) > std::tie(o.f, o.h, o.index); }
+};
+
+// The voxel holding p (clamped to the grid).
+std::array<Index, 3> voxel_of(const esdf::GridGeometry& g, const Vec3& p) {
+  std::array<Index, 3> v{};
+  for (std::size_t a = 0; a < 3; ++a) {
+    const double u = std::floor((p[a] - g.origin_W[a]) / g.resolution);
+    v[a] = static_cast<Index>(std::clamp(u, 0.0, static_cast<double>(g.shape[a] - 1)));
+  }
+  return v;
+}
+
+}  // namespace
+
+double path_length(const std::vector<Vec3>& path) {
+  double s = 0.0;
+  for (std::size_t i = 1; i < path.size(); ++i) s += distance(path[i - 1], path[i]);
+  return s;
+}
+
+double GridAStar::node_clearance(const ClearanceMap& map, Index linear, AStarResult& result) {
+  float& c = clearance_[static_cast<std::size_t>(linear)];
+  if (std::isnan(c)) {
+    const auto& g = map.geometry();
+    const Index k = linear % g.shape[2], j = (linear / g.shape[2]) % g.shape[1], i = linear / (g.shape[1] * g.shape[2]);
+    // Rounded down to float so the cached value never exceeds the certified bound.
+    const double d = map.clearance(map.centre(i, j, k));
+    float f = static_cast<float>(d);
+    if (static_cast<double>(f) > d) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+    c = f;
+    ++result.clearance_queries;
+  }
+  return static_cast<double>(c);
+}
+
+AStarResult GridAStar::plan(const ClearanceMap& map, const Vec3& start, const Vec3& goal, const AStarOptions& opt) {
+  AStarResult result;
+  const auto& g = map.geometry();
+  const double h = g.resolution;
+  const double r = opt.radius;
+  if (!(map.clearance(start) >= r)) {
+    result.status = PathStatus::kStartBlocked;
+    return result;
+  }
+  if (!(map.clearance(goal) >= r)) {
+    result.status = PathStatus::kGoalBlocked;
+    return result;
+  }
+  if (map.segment_free(start, goal, r)) {
+    result.status = PathStatus::kFound;
+    result.path = {start, goal};
+    result.length = distance(start, goal);
+    return result;
+  }
+  const Index n = g.shape[0] * g.shape[1] * g.shape[2];
+  if (static_cast<Index>(stamp_.size()) != n) {
+    stamp_.assign(static_cast<std::size_t>(n), 0);
+    g_.resize(static_cast<std::size_t>(n));
+    clearance_.resize(static_cast<std::size_t>(n));
+    parent_.resize(static_cast<std::size_t>(n));
+    closed_.resize(static_cast<std::size_t>(n));
+    generation_ = 0;
+  }
+  if (++generation_ == 0) {  // wrapped: clear the stamps once every 2^32 searches
+    std::fill(stamp_.begin(), stamp_.end(), 0u);
+    generation_ = 1;
+  }
+  auto touch = [&](Index i) {
+    const auto s = static_cast<std::size_t>(i);
+    if (stamp_[s] != generation_) {
+      stamp_[s] = generation_;
+      g_[s] = std::numeric_limits<float>::infinity();
+      clearance_[s] = std::numeric_limits<float>::quiet_NaN();
+      parent_[s] = -1;
+      closed_[s] = 0;
+    }
+  };
+  const auto gv = voxel_of(g, goal);
+  auto heuristic = [&](Index i, Index j, Index k) { return h * octile(i - gv[0], j - gv[1], k - gv[2]); };
+  auto lin = [&](Index i, Index j, Index k) { return (i * g.shape[1] + j) * g.shape[2] + k; };
+  auto in_grid = [&](Index i, Index j, Index k) {
+    return i >= 0 && j >= 0 && k >= 0 && i < g.shape[0] && j < g.shape[1] && k < g.shape[2];
+  };
+
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> open;
+  // Goal set: voxels around the goal that a free segment joins to it, with that segment's length.
+  std::vector<std::pair<Index, double>> goal_links;
+  for (Index di = -1; di <= 1; ++di) {
+    for (Index dj = -1; dj <= 1; ++dj) {
+      for (Index dk = -1; dk <= 1; ++dk) {
+        const Index i = gv[0] + di, j = gv[1] + dj, k = gv[2] + dk;
+        if (!in_grid(i, j, k)) continue;
+        const Vec3 c = map.centre(i, j, k);
+        if (map.segment_free(c, goal, r)) goal_links.emplace_back(lin(i, j, k), distance(c, goal));
+      }
+    }
+  }
+  if (goal_links.empty()) {
+    result.status = PathStatus::kGoalBlocked;
+    return result;
+  }
+  std::sort(goal_links.begin(), goal_links.end());
+  auto goal_link = [&](Index i) -> double {
+    auto it = std::lower_bound(goal_links.begin(), goal_links.end(), std::make_pair(i, -1.0));
+    return it != goal_links.end() && it->first == i ? it->second : -1.0;
+  };
+  const auto sv = voxel_of(g, start);
+  bool seeded = false;
+  for (Index di = -1; di <= 1; ++di) {
+    for (Index dj = -1; dj <= 1; ++dj) {
+      for (Index dk = -1; dk <= 1; ++dk) {
+        const Index i = sv[0] + di, j = sv[1] + dj, k = sv[2] + dk;
+        if (!in_grid(i, j, k)) continue;
+        const Vec3 c = map.centre(i, j, k);
+        if (!map.segment_free(start, c, r)) continue;
+        const Index id = lin(i, j, k);
+        touch(id);
+        const double gc = distance(start, c);
+        g_[static_cast<std::size_t>(id)] = static_cast<float>(gc);
+        parent_[static_cast<std::size_t>(id)] = -1;
+        open.push({gc + heuristic(i, j, k), heuristic(i, j, k), id});
+        seeded = true;
+      }
+    }
+  }
+  if (!seeded) {
+    result.status = PathStatus::kStartBlocked;
+    return result;
+  }
+
+  Index best_goal = -1;
+  double best_cost = std::numeric_limits<double>::infinity();
+  while (!open.empty()) {
+    const Entry e = open.top();
+    open.pop();
+    if (e.f >= best_cost) break;  // no open node can improve the best complete path
+    const auto s = static_cast<std::size_t>(e.index);
+    if (closed_[s]) continue;
+    closed_[s] = 1;
+    if (++result.expansions > opt.max_expansions) {
+      result.status = PathStatus::kExpansionLimit;
+      return result;
+    }
+    const double gcur = static_cast<double>(g_[s]);
+    const double link = goal_link(e.index);
+    if (link >= 0.0 && gcur + link < best_cost) {
+      best_cost = gcur + link;
+      best_goal = e.index;
+    }
+    const Index k0 = e.index % g.shape[2], j0 = (e.index / g.shape[2]) % g.shape[1],
+                i0 = e.index / (g.shape[1] * g.shape[2]);
+    const Vec3 c0 = map.centre(i0, j0, k0);
+    const double cl0 = node_clearance(map, e.index, result);
+    for (Index di = -1; di <= 1; ++di) {
+      for (Index dj = -1; dj <= 1; ++dj) {
+        for (Index dk = -1; dk <= 1; ++dk) {
+          if (di == 0 && dj == 0 && dk == 0) continue;
+          const Index i = i0 + di, j = j0 + dj, k = k0 + dk;
+          if (!in_grid(i, j, k)) continue;
+          const Index id = lin(i, j, k);
+          touch(id);
+          const auto t = static_cast<std::size_t>(id);
+          if (closed_[t]) continue;
+          const double step = h * std::sqrt(static_cast<double>(di * di + dj * dj + dk * dk));
+          const double ng = gcur + step;
+          if (ng >= static_cast<double>(g_[t])) continue;
+          const double cl = node_clearance(map, id, result);
+          if (!(cl >= r)) continue;
+          // Every edge point is within step/2 of an end, so ends clearing r + step/2 certify the edge.
+          const bool free = std::min(cl, cl0) >= r + 0.5 * step || map.segment_free(c0, map.centre(i, j, k), r);
+          if (!free) continue;
+          g_[t] = static_cast<float>(ng);
+          parent_[t] = e.index;
+          const double hh = heuristic(i, j, k);
+          open.push({ng + hh, hh, id});
+        }
+      }
+    }
+  }
+  if (best_goal < 0) {
+    result.status = PathStatus::kNoPath;
+    return result;
+  }
+  std::vector<Vec3> path{goal};
+  for (Index i = best_goal; i >= 0; i = parent_[static_cast<std::size_t>(i)]) {
+    const Index k = i % g.shape[2], j = (i / g.shape[2]) % g.shape[1], ii = i / (g.shape[1] * g.shape[2]);
+    path.push_back(map.centre(ii, j, k));
+  }
+  path.push_back(start);
+  std::reverse(path.begin(), path.end());
+  if (opt.shortcut) path = shortcut_path(map, path, r);
+  result.status = PathStatus::kFound;
+  result.length = path_length(path);
+  result.path = std::move(path);
+  return result;
+}
+
+std::vector<Vec3> shortcut_path(const ClearanceMap& map, const std::vector<Vec3>& path, double radius) {
+  if (path.size() <= 2) return path;
+  std::vector<Vec3> out{path.front()};
+  std::size_t i = 0;
+  while (i + 1 < path.size()) {
+    std::size_t j = i + 1;
+    while (j + 1 < path.size() && map.segment_free(path[i], path[j + 1], radius)) ++j;
+    out.push_back(path[j]);
+    i = j;
+  }
+  return out;
+}
+
+}  // namespace cufund::planning

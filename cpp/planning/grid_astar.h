@@ -1,0 +1,62 @@
+// Deterministic A* over the voxel centres of an ESDF map with a clearance constraint, and greedy
+// line-of-sight shortcutting of its result. The default global path search where repeatability
+// matters more than optimality: the same map, start, goal and options give the same path, always.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "clearance.h"
+
+namespace cufund::planning {
+
+enum class PathStatus : int {
+  kFound = 0,
+  kStartBlocked = 1,     // the start is outside the map or closer than the radius to an obstacle
+  kGoalBlocked = 2,      // the same for the goal
+  kNoPath = 3,           // every reachable voxel was expanded
+  kExpansionLimit = 4,   // max_expansions reached first
+};
+
+struct AStarOptions {
+  double radius = 0.2;                    // required clearance [m] of every point of the path
+  std::ptrdiff_t max_expansions = 5000000;  // stop after this many node expansions
+  bool shortcut = true;                   // greedy line-of-sight shortcutting of the voxel path
+};
+
+struct AStarResult {
+  PathStatus status = PathStatus::kNoPath;
+  std::vector<Vec3> path;           // start, waypoints, goal [m] (empty unless found)
+  double length = 0.0;              // [m] of `path`
+  std::ptrdiff_t expansions = 0;    // nodes expanded
+  std::ptrdiff_t clearance_queries = 0;
+};
+
+// A* on the 26-connected grid of voxel centres. A voxel is a node when its clearance is >= radius;
+// an edge when the segment between the centres is free (ClearanceMap::segment_free, cheap when both
+// ends clear the radius by half the edge length). The start and goal points connect to those of the
+// 27 voxels around them that a free segment reaches. Ties are broken by the smaller heuristic, then
+// the smaller linear index, so the result does not depend on anything but the inputs. Buffers are
+// kept between searches on the same grid shape.
+class GridAStar {
+ public:
+  AStarResult plan(const ClearanceMap& map, const Vec3& start, const Vec3& goal, const AStarOptions& options);
+
+ private:
+  double node_clearance(const ClearanceMap& map, std::ptrdiff_t linear, AStarResult& result);
+  std::vector<std::uint32_t> stamp_;  // == generation_: g_, parent_, clearance_ of this search are valid
+  std::vector<float> g_;
+  std::vector<float> clearance_;      // NaN: not yet queried in this search
+  std::vector<std::int64_t> parent_;  // -1: start point; -2: closed marker kept in closed_
+  std::vector<std::uint8_t> closed_;
+  std::uint32_t generation_ = 0;
+};
+
+// Greedy shortcutting: from each kept point, jump to the farthest later point a free segment reaches.
+// The first and last points are kept; the result is free wherever the input was.
+std::vector<Vec3> shortcut_path(const ClearanceMap& map, const std::vector<Vec3>& path, double radius);
+
+double path_length(const std::vector<Vec3>& path);
+
+}  // namespace cufund::planning

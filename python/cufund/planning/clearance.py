@@ -1,0 +1,71 @@
+"""Certified clearance on an ESDF map: the scalar query and motion check path planners call per state.
+
+``clearance(p)`` is a lower bound on the distance [m] from ``p`` to every obstacle surface inside an
+occupied voxel (the maximum over the 8 surrounding voxel centres of ``D(c) - |p - c|``, minus half a voxel
+diagonal), so ``clearance(p) >= r`` proves a sphere of radius ``r`` at ``p`` free. It is at most
+``sqrt(3) * resolution`` below the distance to the occupied voxels, ``2 sqrt(3) * resolution`` below that to a surface voxelised into them. Outside the map it is ``-inf`` (unknown is not free).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from .. import _core
+from ..mapping.esdf_map import EsdfMap
+
+__all__ = ["ClearanceQuery"]
+
+
+class ClearanceQuery:
+    """Clearance and motion checks on an :class:`~cufund.esdf.EsdfMap` (a live view: map updates show).
+
+    ``clearance_xyz`` and ``segment_free_xyz`` take plain floats and cross into C++ without numpy, for
+    sampling-based planners that call them per state (about a microsecond or less each).
+    """
+
+    def __init__(self, esdf_map: EsdfMap) -> None:
+        if not isinstance(esdf_map, EsdfMap):
+            raise TypeError(f"esdf_map must be a cufund.esdf.EsdfMap, got {type(esdf_map).__name__}")
+        self.esdf_map = esdf_map
+        self._core = _core.planning.ClearanceQuery(esdf_map._core)
+        self.clearance_xyz = self._core.clearance
+        """``clearance_xyz(x, y, z) -> float`` [m]: the scalar fast path."""
+        self.segment_free_xyz = self._core.segment_free
+        """``segment_free_xyz(x0, y0, z0, x1, y1, z1, radius) -> bool``: the scalar motion check."""
+
+    @property
+    def resolution(self) -> float:
+        return self.esdf_map.params.resolution
+
+    @property
+    def min_step(self) -> float:
+        """Segments must clear the radius by this much [m] to be certified free (the smallest trace step)."""
+        return float(self._core.min_step)
+
+    def clearance(self, p_W: npt.ArrayLike) -> np.ndarray | float:
+        """Clearance [m] at points ``p_W`` (N, 3) -> (N,), or at one point (3,) -> float."""
+        a = np.asarray(p_W, dtype=float)
+        if a.shape == (3,):
+            return float(self._core.clearance(float(a[0]), float(a[1]), float(a[2])))
+        return self._core.clearance_many(a)
+
+    def segment_free(self, p0_W: npt.ArrayLike, p1_W: npt.ArrayLike, radius: float) -> bool:
+        """True when every point of the segment is certified at least ``radius`` [m] from obstacles."""
+        a, b = _point("p0_W", p0_W), _point("p1_W", p1_W)
+        return bool(self._core.segment_free(a[0], a[1], a[2], b[0], b[1], b[2], float(radius)))
+
+    def path_free(self, path_W: npt.ArrayLike, radius: float) -> np.ndarray:
+        """Per edge of the polyline ``path_W`` (K, 3): is it certified free? (K-1,) bool."""
+        return self._core.segments_free(np.asarray(path_W, dtype=float), float(radius))
+
+    def shortcut(self, path_W: npt.ArrayLike, radius: float) -> np.ndarray:
+        """Greedy line-of-sight shortcut of a free polyline (ends kept, never longer)."""
+        return self._core.shortcut(np.asarray(path_W, dtype=float), float(radius))
+
+
+def _point(name: str, p: npt.ArrayLike) -> np.ndarray:
+    a = np.asarray(p, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be 3 finite numbers [m], got {p!r}")
+    return a

@@ -1,0 +1,93 @@
+"""Global path search on an ESDF map: the deterministic grid A* (the default) and its result type.
+
+The OMPL planners (:mod:`.ompl_path`) return the same :class:`PathResult`.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from .. import _core
+from ..config import ConfigError
+from .clearance import ClearanceQuery
+
+__all__ = ["GridPathSearch", "GridPathSearchParams", "PathResult"]
+
+_STATUS = {0: "found", 1: "start_blocked", 2: "goal_blocked", 3: "no_path", 4: "expansion_limit"}
+
+
+@dataclass(frozen=True)
+class PathResult:
+    """A path from start to goal, or why there is none."""
+
+    status: str
+    """"found", "start_blocked", "goal_blocked", "no_path", "expansion_limit" or "timeout"."""
+    path_W: np.ndarray
+    """(K, 3) waypoints [m] from start to goal, every edge certified free; (0, 3) unless found."""
+    length: float
+    """Length of ``path_W`` [m] (0 unless found)."""
+    plan_seconds: float = field(compare=False)
+    """Wall time of the search [s] (not compared by ``==``)."""
+    expansions: int = 0
+    """Nodes expanded (A*) or states sampled (OMPL's planner data)."""
+
+    @property
+    def found(self) -> bool:
+        return self.status == "found"
+
+
+def _radius(value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (math.isfinite(value) and value >= 0):
+        raise ConfigError(f"radius must be a finite number >= 0 [m], got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class GridPathSearchParams:
+    """Parameters of :class:`GridPathSearch`."""
+
+    radius: float = 0.25
+    """Required clearance [m] of every point of the path: the vehicle's radius plus a margin."""
+    max_expansions: int = 5_000_000
+    """Give up ("expansion_limit") after this many node expansions."""
+    shortcut: bool = True
+    """Greedy line-of-sight shortcutting of the voxel path (fewer, longer segments)."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "radius", _radius(self.radius))
+        if isinstance(self.max_expansions, bool) or not isinstance(self.max_expansions, numbers.Integral) \
+                or self.max_expansions < 1:
+            raise ConfigError(f"max_expansions must be an integer >= 1, got {self.max_expansions!r}")
+        if not isinstance(self.shortcut, (bool, np.bool_)):
+            raise ConfigError(f"shortcut must be a bool, got {self.shortcut!r}")
+
+
+class GridPathSearch:
+    """Deterministic A* over the voxel centres of the ESDF (26-connected, certified clearance).
+
+    The same map, start, goal and params give the same path, bit for bit. Search buffers are kept
+    between calls, so replanning on one map costs no allocation.
+    """
+
+    def __init__(self, params: GridPathSearchParams | None = None) -> None:
+        self.params = GridPathSearchParams() if params is None else params
+        if not isinstance(self.params, GridPathSearchParams):
+            raise TypeError(f"params must be a GridPathSearchParams, got {type(params).__name__}")
+        self._core = _core.planning.GridAStar()
+
+    def plan(self, query: ClearanceQuery, start_W: npt.ArrayLike, goal_W: npt.ArrayLike) -> PathResult:
+        """A path from ``start_W`` to ``goal_W`` (3,) [m] keeping ``params.radius`` of clearance."""
+        if not isinstance(query, ClearanceQuery):
+            raise TypeError(f"query must be a ClearanceQuery, got {type(query).__name__}")
+        p = self.params
+        t0 = time.perf_counter()
+        r = self._core.plan(query._core, start_W, goal_W, p.radius, int(p.max_expansions), bool(p.shortcut))
+        dt = time.perf_counter() - t0
+        return PathResult(status=_STATUS[r["status"]], path_W=r["path"], length=float(r["length"]), plan_seconds=dt,
+                          expansions=int(r["expansions"]))
