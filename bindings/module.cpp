@@ -14,6 +14,7 @@ PYBIND11_MODULE(_core, m) {
   cufund::py_bind::define_lidar(lidar);
   py::module_ esdf = m.def_submodule("esdf", "Occupancy mapping and exact Euclidean distance fields (paper §2.3).");
   cufund::py_bind::define_esdf(esdf);
+  { py::module_ odometry = m.def_submodule("odometry", "LiDAR-inertial odometry kernels (issue 12)."); cufund::py_bind::define_odometry(odometry); }
   py::module_ planning = m.def_submodule("planning", "Clearance queries and grid path search on the ESDF (paper §2.3).");
   cufund::py_bind::define_planning(planning);
 }

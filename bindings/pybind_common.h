@@ -69,6 +69,7 @@ void define_control(py::module_& m);
 void define_lidar(py::module_& m);
 void define_collision(py::module_& m);  // in dynamics.cpp: Bullet collision checks
 void define_esdf(py::module_& m);
+void define_odometry(py::module_& m);  // odometry.cpp
 void define_planning(py::module_& m);  // bindings/planning.cpp
 
 }  // namespace cufund::py_bind

@@ -6,5 +6,6 @@ from . import dynamics
 from . import control
 from . import lidar
 from . import esdf
-__all__: list[str] = ['control', 'dynamics', 'esdf', 'lidar']
+from . import odometry
+__all__: list[str] = ['control', 'dynamics', 'esdf', 'lidar', 'odometry']
 __version__: str = '0.1.0'

@@ -1,0 +1,251 @@
+#include "voxel_map.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "imu_propagation.h"
+#include "thread_pool.h"
+
+namespace cufund::odometry {
+
+namespace {
+
+constexpr std::int64_t kHalfRange = std::int64_t{1} << 20;
+
+std::int64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
+  return ((x + kHalfRange) << 42) | ((y + kHalfRange) << 21) | (z + kHalfRange);
+}
+
+bool voxel_index(const Eigen::Vector3d& p, double inv_voxel, Eigen::Matrix<std::int64_t, 3, 1>& idx) {
+  for (int i = 0; i < 3; ++i) {
+    const double f = std::floor(p[i] * inv_voxel);
+    if (!(f >= -static_cast<double>(kHalfRange) + 1 && f < static_cast<double>(kHalfRange) - 1)) return false;
+    idx[i] = static_cast<std::int64_t>(f);
+  }
+  return true;
+}
+
+double robust_weight(Robust kind, double r, double c) {
+  const double a = std::abs(r);
+  switch (kind) {
+    case Robust::kHuber: return a <= c ? 1.0 : c / a;
+    case Robust::kCauchy: return 1.0 / (1.0 + (r / c) * (r / c));
+    case Robust::kNone: break;
+  }
+  return 1.0;
+}
+
+}  // namespace
+
+bool voxel_key(const Eigen::Vector3d& p, double inv_voxel, std::int64_t& key) {
+  Eigen::Matrix<std::int64_t, 3, 1> idx;
+  if (!voxel_index(p, inv_voxel, idx)) return false;
+  key = pack(idx[0], idx[1], idx[2]);
+  return true;
+}
+
+std::vector<double> voxel_downsample(const double* points, std::size_t n, double voxel) {
+  const double inv = 1.0 / voxel;
+  std::unordered_map<std::int64_t, std::size_t> slot;
+  slot.reserve(n);
+  std::vector<Eigen::Vector3d> sums;
+  std::vector<std::size_t> counts;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d p(points[3 * i], points[3 * i + 1], points[3 * i + 2]);
+    std::int64_t key;
+    if (!voxel_key(p, inv, key)) continue;
+    auto [it, added] = slot.try_emplace(key, sums.size());
+    if (added) {
+      sums.push_back(p);
+      counts.push_back(1);
+    } else {
+      sums[it->second] += p;
+      ++counts[it->second];
+    }
+  }
+  std::vector<double> out(3 * sums.size());
+  for (std::size_t j = 0; j < sums.size(); ++j) {
+    Eigen::Map<Eigen::Vector3d>(out.data() + 3 * j) = sums[j] / static_cast<double>(counts[j]);
+  }
+  return out;
+}
+
+VoxelMap::VoxelMap(double voxel_size, int max_points_per_voxel, double min_point_distance, double max_distance,
+                   std::size_t max_voxels)
+    : voxel_(voxel_size),
+      inv_voxel_(1.0 / voxel_size),
+      min_d2_(min_point_distance * min_point_distance),
+      max_distance_(max_distance),
+      max_per_voxel_(max_points_per_voxel),
+      max_voxels_(max_voxels) {}
+
+std::size_t VoxelMap::insert(const double* points_W, std::size_t n, const Eigen::Vector3d& origin) {
+  std::size_t kept = 0;
+  Eigen::Matrix<std::int64_t, 3, 1> idx;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d p(points_W[3 * i], points_W[3 * i + 1], points_W[3 * i + 2]);
+    if (!voxel_index(p, inv_voxel_, idx)) continue;
+    Voxel& v = voxels_[pack(idx[0], idx[1], idx[2])];
+    if (v.points.empty()) v.centre = (idx.cast<double>().array() + 0.5).matrix() * voxel_;
+    if (static_cast<int>(v.points.size()) >= max_per_voxel_) continue;
+    bool near = false;
+    for (const auto& x : v.points) near = near || (x - p).squaredNorm() < min_d2_;
+    if (near) continue;
+    v.points.push_back(p);
+    ++points_;
+    ++kept;
+  }
+  evict(origin);
+  return kept;
+}
+
+void VoxelMap::evict(const Eigen::Vector3d& origin) {
+  const double r2 = max_distance_ * max_distance_;
+  for (auto it = voxels_.begin(); it != voxels_.end();) {
+    if ((it->second.centre - origin).squaredNorm() > r2) {
+      points_ -= it->second.points.size();
+      it = voxels_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  if (voxels_.size() <= max_voxels_) return;
+  std::vector<std::pair<double, std::int64_t>> far;
+  far.reserve(voxels_.size());
+  for (const auto& [key, v] : voxels_) far.emplace_back((v.centre - origin).squaredNorm(), key);
+  const std::size_t drop = voxels_.size() - max_voxels_;
+  std::nth_element(far.begin(), far.begin() + static_cast<std::ptrdiff_t>(drop), far.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first || (a.first == b.first && a.second > b.second); });
+  for (std::size_t i = 0; i < drop; ++i) {
+    auto it = voxels_.find(far[i].second);
+    points_ -= it->second.points.size();
+    voxels_.erase(it);
+  }
+}
+
+std::vector<double> VoxelMap::points() const {
+  std::vector<double> out;
+  out.reserve(3 * points_);
+  for (const auto& [key, v] : voxels_) {
+    for (const auto& p : v.points) out.insert(out.end(), {p.x(), p.y(), p.z()});
+  }
+  return out;
+}
+
+int VoxelMap::nearest(const Eigen::Vector3d& query, int k, double max_d2, Eigen::Vector3d* out, double* d2) const {
+  Eigen::Matrix<std::int64_t, 3, 1> idx;
+  if (!voxel_index(query, inv_voxel_, idx)) return 0;
+  int found = 0;
+  for (int dx = -1; dx <= 1; ++dx) {
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dz = -1; dz <= 1; ++dz) {
+        const auto it = voxels_.find(pack(idx[0] + dx, idx[1] + dy, idx[2] + dz));
+        if (it == voxels_.end()) continue;
+        for (const auto& p : it->second.points) {
+          const double d = (p - query).squaredNorm();
+          if (d > max_d2 || (found == k && d >= d2[k - 1])) continue;
+          // Insertion into the sorted list (ties keep the earlier point).
+          int j = found < k ? found++ : k - 1;
+          while (j > 0 && d2[j - 1] > d) {
+            d2[j] = d2[j - 1];
+            out[j] = out[j - 1];
+            --j;
+          }
+          d2[j] = d;
+          out[j] = p;
+        }
+      }
+    }
+  }
+  return found;
+}
+
+void VoxelMap::knn(const double* queries, std::size_t q, int k, double max_distance, double* neighbours,
+                   double* dist2, int threads) const {
+  const double md = std::min(max_distance, voxel_);
+  parallel_chunks(static_cast<std::ptrdiff_t>(q), 256, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t) {
+    std::vector<Eigen::Vector3d> nb(static_cast<std::size_t>(k));
+    for (std::ptrdiff_t i = b; i < e; ++i) {
+      double* d2 = dist2 + i * k;
+      const int found = nearest(Eigen::Map<const Eigen::Vector3d>(queries + 3 * i), k, md * md, nb.data(), d2);
+      for (int j = 0; j < k; ++j) {
+        double* o = neighbours + (i * k + j) * 3;
+        if (j < found) {
+          o[0] = nb[j].x(); o[1] = nb[j].y(); o[2] = nb[j].z();
+        } else {
+          d2[j] = std::numeric_limits<double>::infinity();
+          o[0] = o[1] = o[2] = std::numeric_limits<double>::quiet_NaN();
+        }
+      }
+    }
+  });
+}
+
+PlaneTerms VoxelMap::point_to_plane(const double* points_I, std::size_t n, const Eigen::Matrix3d& R_WI,
+                                    const Eigen::Vector3d& t_W, const PlaneParams& prm, int threads) const {
+  PlaneTerms out;
+  out.valid.assign(n, 0);
+  out.residual.assign(n, 0.0);
+  out.normal.assign(3 * n, 0.0);
+  out.weight.assign(n, 0.0);
+  const int k = prm.neighbours;
+  const double md = std::min(prm.max_neighbour_distance, voxel_);
+  const double inv_s2 = 1.0 / (prm.sigma * prm.sigma);
+  constexpr std::ptrdiff_t kChunk = 512;
+  const auto chunks = static_cast<std::size_t>((static_cast<std::ptrdiff_t>(n) + kChunk - 1) / kChunk);
+  struct Partial {
+    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+    double cost = 0.0;
+    std::size_t inliers = 0;
+  };
+  std::vector<Partial> parts(chunks);
+  parallel_chunks(static_cast<std::ptrdiff_t>(n), kChunk, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t c) {
+    std::vector<Eigen::Vector3d> nb(static_cast<std::size_t>(k));
+    std::vector<double> d2(static_cast<std::size_t>(k));
+    Partial& part = parts[static_cast<std::size_t>(c)];
+    for (std::ptrdiff_t i = b; i < e; ++i) {
+      const Eigen::Vector3d q = Eigen::Map<const Eigen::Vector3d>(points_I + 3 * i);
+      const Eigen::Vector3d x = R_WI * q + t_W;
+      if (nearest(x, k, md * md, nb.data(), d2.data()) < k) continue;
+      Eigen::Vector3d c0 = Eigen::Vector3d::Zero();
+      for (const auto& p : nb) c0 += p;
+      c0 /= k;
+      Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+      for (const auto& p : nb) C += (p - c0) * (p - c0).transpose();
+      C /= k;
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+      es.computeDirect(C);
+      if (!(es.eigenvalues()[0] <= prm.max_plane_rms * prm.max_plane_rms)) continue;
+      // A line (two small eigenvalues) has no plane.
+      if (es.eigenvalues()[1] < 4.0 * es.eigenvalues()[0] + 1e-12) continue;
+      const Eigen::Vector3d nrm = es.eigenvectors().col(0).normalized();
+      const double r = nrm.dot(x - c0);
+      if (std::abs(r) > prm.max_residual) continue;
+      const double w = robust_weight(prm.robust, r, prm.robust_scale);
+      const Eigen::Vector3d n_I = R_WI.transpose() * nrm;
+      Eigen::Matrix<double, 6, 1> J;
+      J.head<3>() = q.cross(n_I);
+      J.tail<3>() = n_I;
+      part.H.noalias() += (w * inv_s2) * J * J.transpose();
+      part.b.noalias() += (w * inv_s2 * r) * J;
+      part.cost += w * inv_s2 * r * r;
+      ++part.inliers;
+      out.valid[i] = 1;
+      out.residual[i] = r;
+      out.weight[i] = w;
+      for (int j = 0; j < 3; ++j) out.normal[3 * i + j] = nrm[j];
+    }
+  });
+  for (const auto& part : parts) {
+    out.H += part.H;
+    out.b += part.b;
+    out.cost += part.cost;
+    out.inliers += part.inliers;
+  }
+  return out;
+}
+
+}  // namespace cufund::odometry
