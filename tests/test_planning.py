@@ -153,3 +153,21 @@ def test_esdf_from_world_marks_only_voxels_touching_triangles(setting):
     assert truth(centres).max() <= 0.5 * np.sqrt(3.0) * RES + 1e-5
     with pytest.raises(ValueError, match=r"bounds_W must be finite \[min, max\] corners"):
         esdf_from_world(world, RES, [[0, 0, 0], [0, 1, 1]])
+
+
+def test_min_snap_through_a_forest_path_keeps_clearance(setting):
+    from cufund.planning import MinSnapPlanner, MinSnapPlannerParams
+
+    _, q, truth = setting
+    path = GridPathSearch(GridPathSearchParams(radius=0.25)).plan(q, START, GOAL)
+    assert path.found
+    loose = MinSnapPlanner(MinSnapPlannerParams(v_max=2.0, a_max=3.0)).plan(path.path_W, query=q)
+    res = MinSnapPlanner(MinSnapPlannerParams(v_max=2.0, a_max=3.0, radius=0.2)).plan(path.path_W, query=q)
+    assert res.status == "ok" and res.inserted > 0
+    tr = res.trajectory
+    p = tr.sample(np.linspace(tr.t_knots[0], tr.t_end, 20001)).p_W
+    assert truth(p).min() >= 0.2 - 1e-5
+    assert res.min_clearance >= 0.2
+    lt = loose.trajectory
+    assert truth(lt.sample(np.linspace(lt.t_knots[0], lt.t_end, 20001)).p_W).min() < 0.2  # the check was needed
+    assert res.feasibility.peak_speed <= 2.0 * 1.01

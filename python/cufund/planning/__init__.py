@@ -2,7 +2,9 @@
 
 from ..components import Planner
 from .clearance import ClearanceQuery
-from .minimum_snap import MinimumSnapTrajectory, allocate_segment_times, min_derivative_spline
+from .feasibility import TrajectoryFeasibility, feasibility
+from .min_snap_planner import MinSnapPlanner, MinSnapPlannerParams, MinSnapResult
+from .minimum_snap import MinimumSnapTrajectory, allocate_segment_times, min_derivative_spline, optimize_segment_times
 from .ompl_path import OmplPathParams, OmplPathPlanner
 from .path_search import GridPathSearch, GridPathSearchParams, PathResult
 from .point_to_point import JerkLimitedMove
@@ -11,7 +13,9 @@ from .trajectory import Trajectory, TrajectorySamples
 from .trajectory_follower import TrajectoryFollower
 from .world_map import esdf_from_world
 
-__all__ = ["ClearanceQuery", "GridPathSearch", "GridPathSearchParams", "Hold", "JerkLimitedMove", "MinimumSnapTrajectory",
+__all__ = ["ClearanceQuery", "GridPathSearch", "GridPathSearchParams", "Hold", "JerkLimitedMove", "MinSnapPlanner",
+           "MinSnapPlannerParams", "MinSnapResult", "MinimumSnapTrajectory",
            "OmplPathParams", "OmplPathPlanner", "PathResult", "TrajectorySequence", "Planner", "Trajectory",
-           "TrajectoryFollower", "TrajectorySamples", "allocate_segment_times", "esdf_from_world",
+           "TrajectoryFeasibility", "TrajectoryFollower", "TrajectorySamples", "feasibility",
+           "allocate_segment_times", "optimize_segment_times", "esdf_from_world",
            "min_derivative_spline"]
