@@ -21,23 +21,55 @@ py::array_t<double, py::array::c_style> command_array(const py::handle& obj, std
   return as_float64(obj, "rotor_speed_cmd", {nn, kNumRotors});
 }
 
-void raise_step_error(const StepResult& r, double dt, const py::array& cmd) {
+const char* row_name(int row) {
+  if (row < QuadrotorBatch::kV) return "p";
+  if (row < QuadrotorBatch::kQ) return "v";
+  if (row < QuadrotorBatch::kW) return "q";
+  if (row < QuadrotorBatch::kRotor) return "w";
+  if (row < QuadrotorBatch::kWind) return "rotor_speeds";
+  if (row < QuadrotorBatch::kForceExt) return "wind_W";
+  if (row < QuadrotorBatch::kTorqueExt) return "force_ext_W";
+  return "torque_ext_B";
+}
+
+void raise_step_error(const StepResult& r, double dt, const py::array& cmd, std::size_t n) {
+  std::ostringstream os;
   switch (r.status) {
     case StepStatus::kOk:
       return;
-    case StepStatus::kBadTimeStep: {
-      std::ostringstream os;
-      os << "dt must be a finite number > 0 [s] of at most 1e9 integration sub-steps, got " << dt;
+    case StepStatus::kBadTimeStep:
+      os << "dt must be a finite number > 0 [s], got " << dt;
       throw py::value_error(os.str());
-    }
+    case StepStatus::kTooManySubsteps:
+      os << "dt must need at most " << QuadrotorBatch::max_substeps()
+         << " integration sub-steps (dt / max_integration_step; raise cufund.limits.configure(step_max_substeps=...)),"
+            " got dt = " << dt << " s";
+      throw py::value_error(os.str());
     case StepStatus::kNonFiniteCommand: {
       const double bad = static_cast<const double*>(cmd.data())[r.index];
-      std::ostringstream msg;
-      msg << "rotor_speed_cmd must be finite [rad/s], got " << bad << " for vehicle " << r.index / kNumRotors
-          << ", rotor " << r.index % kNumRotors + 1;
-      throw py::value_error(msg.str());
+      os << "rotor_speed_cmd must be finite [rad/s], got " << bad << " for vehicle " << r.index / kNumRotors
+         << ", rotor " << r.index % kNumRotors + 1;
+      throw py::value_error(os.str());
     }
+    case StepStatus::kNonFiniteState: {
+      const auto row = static_cast<int>(r.index / static_cast<std::int64_t>(n));
+      os << "state " << row_name(row) << " of vehicle " << r.index % static_cast<std::int64_t>(n)
+         << " must be finite before a step, got a NaN or inf (written through the state view?)";
+      throw py::value_error(os.str());
+    }
+    case StepStatus::kZeroQuaternion:
+      os << "state q of vehicle " << r.index << " must be a non-zero quaternion [w, x, y, z], got norm < 1e-6";
+      throw py::value_error(os.str());
   }
+}
+
+const QuadrotorParams& params_arg(const py::handle& obj) {
+  if (!py::isinstance<QuadrotorParams>(obj)) {
+    throw py::type_error("params must be a cufund.QuadrotorParams (its .to_core()), got " + type_name(obj));
+  }
+  const QuadrotorParams& p = obj.cast<const QuadrotorParams&>();
+  check_params(p);
+  return p;
 }
 
 }  // namespace
@@ -103,10 +135,13 @@ void define_dynamics(py::module_& m) {
 
   py::class_<QuadrotorBatch>(m, "QuadrotorBatch",
                              "N quadrotors integrated together; state arrays are views into C++ memory.")
-      .def(py::init([](const QuadrotorParams& p, std::int64_t n) {
-             check_params(p);
-             if (n < 1 || static_cast<std::uint64_t>(n) > QuadrotorBatch::kMaxSize) {
-               throw py::value_error("n must be an integer in [1, 2^32], got " + std::to_string(n));
+      .def(py::init([](const py::handle& params, const py::handle& n_obj) {
+             const QuadrotorParams& p = params_arg(params);
+             std::int64_t n = 0;
+             try {
+               n = int_arg(n_obj, "n", 1, static_cast<std::int64_t>(QuadrotorBatch::kMaxSize));
+             } catch (const py::value_error&) {
+               throw py::value_error("n must be an integer in [1, 2^32], got " + std::string(py::repr(n_obj)));
              }
              return std::make_unique<QuadrotorBatch>(p, static_cast<std::size_t>(n));
            }),
@@ -114,7 +149,14 @@ void define_dynamics(py::module_& m) {
       .def_property_readonly("size", &QuadrotorBatch::size)
       .def_property_readonly("params", &QuadrotorBatch::params, py::return_value_policy::copy,
                              "A copy of the parameters (they cannot change after construction).")
-      .def_property("time", &QuadrotorBatch::time, &QuadrotorBatch::set_time, "Simulated time [s].")
+      .def_property(
+          "time", &QuadrotorBatch::time,
+          [](QuadrotorBatch& b, const py::handle& t) {
+            if (!b.set_time(real_arg(t, "time"))) {
+              throw py::value_error("time must be a finite number [s], got " + std::string(py::repr(t)));
+            }
+          },
+          "Simulated time [s].")
       .def_property_readonly("hover_rotor_speed", &QuadrotorBatch::hover_rotor_speed)
       .def("reset", &QuadrotorBatch::reset, "All vehicles at the origin, level, at rest; time 0.")
 #define CUFUND_VIEW(name, field, rows, doc)                                                       \
@@ -138,19 +180,28 @@ void define_dynamics(py::module_& m) {
 #undef CUFUND_VIEW
       .def(
           "step",
-          [](QuadrotorBatch& b, double dt, const py::handle& cmd_obj, int nthreads) {
+          [](QuadrotorBatch& b, const py::handle& dt_obj, const py::handle& cmd_obj, const py::handle& nthreads_obj) {
+            const double dt = real_arg(dt_obj, "dt");
+            const int nthreads = threads_arg(nthreads_obj);
             py::array_t<double, py::array::c_style> cmd = command_array(cmd_obj, b.size());
             StepResult r;
-            if (b.size() >= 64) {
+            // Release the GIL when the step is long: many vehicles or many sub-steps.
+            const double work = static_cast<double>(b.size()) * (dt / b.params().max_integration_step);
+            if (b.size() >= 64 || work >= 256.0) {
               py::gil_scoped_release release;
               r = b.step(dt, cmd.data(), nthreads);
             } else {
               r = b.step(dt, cmd.data(), nthreads);
             }
-            raise_step_error(r, dt, cmd);
+            raise_step_error(r, dt, cmd, b.size());
           },
           py::arg("dt"), py::arg("rotor_speed_cmd"), py::arg("nthreads") = 0,
-          "Advance by dt [s] holding rotor_speed_cmd (N, 4) [rad/s]; nthreads 0 = all cores.");
+          "Advance by dt [s] holding rotor_speed_cmd (N, 4) [rad/s]; nthreads 0 = all cores. Concurrent calls from "
+          "several threads run one after the other (an internal lock).");
+  m.def(
+      "set_max_step_substeps", [](const py::handle& n) { QuadrotorBatch::set_max_substeps(int_arg(n, "n", 1, 1000000000)); },
+      py::arg("n"), "Most RK4 sub-steps one QuadrotorBatch.step may take (process-wide).");
+  m.def("max_step_substeps", &QuadrotorBatch::max_substeps, "Most RK4 sub-steps one QuadrotorBatch.step may take.");
 }
 
 }  // namespace cufund::py_bind
@@ -181,7 +232,7 @@ Use cufund.worlds.CollisionChecker, which builds it from a cufund.World.
               throw py::value_error("triangles must be an integer array of shape (T, 3) with T >= 1, got " +
                                     (t_arr ? shape_str(t_arr) : std::string("a non-array")));
             }
-            auto t64 = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(t_arr);
+            auto t64 = contiguous<std::int64_t>(t_arr, "triangles");
             const auto nv = static_cast<std::int64_t>(v.shape(0));
             std::vector<std::uint32_t> tri(static_cast<std::size_t>(t64.size()));
             for (py::ssize_t i = 0; i < t64.size(); ++i) {
@@ -212,7 +263,8 @@ Use cufund.worlds.CollisionChecker, which builds it from a cufund.World.
           py::arg("half_extents"), "The vehicle is a box of half extents (hx, hy, hz) [m] about the body origin.")
       .def(
           "set_vehicle_sphere",
-          [](CollisionWorld& w, double radius) {
+          [](CollisionWorld& w, const py::handle& radius_obj) {
+            const double radius = real_arg(radius_obj, "radius");
             if (!(std::isfinite(radius) && radius > 0)) {
               throw py::value_error("radius must be a finite number > 0 [m], got " + std::to_string(radius));
             }
@@ -221,7 +273,9 @@ Use cufund.worlds.CollisionChecker, which builds it from a cufund.World.
           py::arg("radius"), "The vehicle is a sphere of this radius [m] about the body origin.")
       .def(
           "check",
-          [](const CollisionWorld& w, const py::handle& p_W, const py::handle& q_WB, double margin) -> py::object {
+          [](const CollisionWorld& w, const py::handle& p_W, const py::handle& q_WB,
+             const py::handle& margin_obj) -> py::object {
+            const double margin = real_arg(margin_obj, "margin");
             auto p = as_float64(p_W, "p_W", {3});
             auto q = as_float64(q_WB, "q_WB", {4});
             double qn = 0;

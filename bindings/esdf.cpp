@@ -7,6 +7,7 @@
 #include "edt.h"
 #include "esdf_map.h"
 #include "pybind_common.h"
+#include "thread_pool.h"
 
 namespace cufund::py_bind {
 namespace {
@@ -60,10 +61,9 @@ py::array_t<std::uint8_t, py::array::c_style> occupancy_array(const py::handle& 
     if (arr.shape(i) == 0) throw py::value_error("occupied must not be empty, got shape " + shape_str(arr));
   }
   if (kind == 'b' && arr.itemsize() == 1) {
-    return py::array_t<std::uint8_t, py::array::c_style>::ensure(
-        py::module_::import("numpy").attr("ascontiguousarray")(arr).attr("view")("uint8"));
+    return contiguous<std::uint8_t>(arr.attr("view")("uint8"), "occupied");
   }
-  return py::array_t<std::uint8_t, py::array::c_style>::ensure(arr.attr("__ne__")(0).attr("view")("uint8"));
+  return contiguous<std::uint8_t>(arr.attr("__ne__")(0).attr("view")("uint8"), "occupied");
 }
 
 py::array edt(const py::handle& occupied_obj, const py::handle& voxel_size_obj, bool signed_distance, int nthreads,
@@ -195,6 +195,7 @@ void define_esdf(py::module_& m) {
             esdf::EsdfUpdateStats s;
             {
               py::gil_scoped_release release;
+              ForkSafeSection no_fork;
               std::unique_lock<std::shared_mutex> write(self.access_mutex());
               s = self.insert_scan(p.data(), p.shape(0), o.data());
             }
@@ -217,6 +218,7 @@ void define_esdf(py::module_& m) {
             esdf::EsdfUpdateStats s;
             {
               py::gil_scoped_release release;
+              ForkSafeSection no_fork;
               std::unique_lock<std::shared_mutex> write(self.access_mutex());
               s = self.set_occupied(idx, val);
             }
@@ -227,6 +229,7 @@ void define_esdf(py::module_& m) {
           "recompute",
           [](esdf::EsdfMap& self) {
             py::gil_scoped_release release;
+            ForkSafeSection no_fork;
             std::unique_lock<std::shared_mutex> write(self.access_mutex());
             self.recompute();
           })
@@ -235,10 +238,16 @@ void define_esdf(py::module_& m) {
           [](const esdf::EsdfMap& self, const py::handle& points_W, bool gradient) -> py::object {
             auto p = points_array(points_W, "points_W");
             const py::ssize_t n = p.shape(0);
+            for (py::ssize_t i = 0; i < 3 * n; ++i) {
+              if (!std::isfinite(p.data()[i])) {
+                throw py::value_error("points_W must be finite [m], got a NaN or inf in row " + std::to_string(i / 3));
+              }
+            }
             py::array_t<double> d(n);
             py::array_t<double> g(gradient ? std::vector<py::ssize_t>{n, 3} : std::vector<py::ssize_t>{0, 3});
             {
               py::gil_scoped_release release;
+              ForkSafeSection no_fork;
               std::shared_lock<std::shared_mutex> read(self.access_mutex());
               self.query(p.data(), n, d.mutable_data(), gradient ? g.mutable_data() : nullptr);
             }
@@ -246,6 +255,36 @@ void define_esdf(py::module_& m) {
             return std::move(d);
           },
           py::arg("points_W"), py::arg("gradient"))
+      .def(
+          "set_log_odds",
+          [](esdf::EsdfMap& self, const py::handle& values) {
+            const auto& n = self.geometry().shape;
+            py::array arr = py::array::ensure(values);
+            if (!arr || arr.ndim() != 3 || arr.shape(0) != n[0] || arr.shape(1) != n[1] || arr.shape(2) != n[2] ||
+                arr.dtype().kind() != 'f') {
+              throw py::value_error("log_odds must be a float array of shape (" + std::to_string(n[0]) + ", " +
+                                    std::to_string(n[1]) + ", " + std::to_string(n[2]) + "), got " +
+                                    (arr ? shape_str(arr) : type_name(values)));
+            }
+            auto v = contiguous<float>(arr, "log_odds");
+            const auto& m = self.occupancy().model();
+            for (py::ssize_t i = 0; i < v.size(); ++i) {
+              const float x = v.data()[i];
+              if (!(x >= m.log_odds_min && x <= m.log_odds_max) && x != 0.0f) {
+                throw py::value_error("log_odds must lie in [log_odds_min, log_odds_max] (or be 0, unobserved), got " +
+                                      std::to_string(x) + " at flat index " + std::to_string(i));
+              }
+            }
+            esdf::EsdfUpdateStats s;
+            {
+              py::gil_scoped_release release;
+              ForkSafeSection no_fork;
+              std::unique_lock<std::shared_mutex> write(self.access_mutex());
+              s = self.set_log_odds(v.data());
+            }
+            return stats_dict(s);
+          },
+          py::arg("log_odds"), "Sets every voxel's log-odds (a saved log_odds()) and updates the field.")
       .def("distances",
            [](const esdf::EsdfMap& self) {
              std::shared_lock<std::shared_mutex> read(self.access_mutex());

@@ -36,7 +36,7 @@ py::array_t<float, py::array::c_style> vertices_array(const py::handle& obj) {
   if (arr.ndim() != 2 || arr.shape(1) != 3) {
     throw py::value_error("vertices must have shape (V, 3), got " + shape_str(arr));
   }
-  return py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(arr);
+  return contiguous<float>(arr, "vertices");
 }
 
 // (T, 3) integer, non-negative -> C-contiguous uint32.
@@ -60,13 +60,13 @@ py::array_t<std::uint32_t, py::array::c_style> triangles_array(const py::handle&
     }
   };
   if (kind == 'i') {
-    auto i64 = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(arr);
+    auto i64 = contiguous<std::int64_t>(arr, "triangles");
     check(i64.data(), i64.size());
   } else {
-    auto u64 = py::array_t<std::uint64_t, py::array::c_style | py::array::forcecast>::ensure(arr);
+    auto u64 = contiguous<std::uint64_t>(arr, "triangles");
     check(u64.data(), u64.size());
   }
-  return py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>::ensure(arr);
+  return contiguous<std::uint32_t>(arr, "triangles");
 }
 
 [[noreturn]] void raise_status(const SceneResult& r, const char* field) {
@@ -84,7 +84,9 @@ py::array_t<std::uint32_t, py::array::c_style> triangles_array(const py::handle&
   throw py::value_error(os.str());
 }
 
-py::dict cast(const RaycastScene& scene, const py::handle& rays_obj, int nthreads, const py::object& coherent) {
+py::dict cast(const RaycastScene& scene, const py::handle& rays_obj, const py::handle& nthreads_obj,
+             const py::object& coherent) {
+  const int nthreads = threads_arg(nthreads_obj);
   py::array arr = checked_array(rays_obj, "rays");
   const char kind = arr.dtype().kind();
   if (kind != 'f' && kind != 'i' && kind != 'u') {
@@ -94,12 +96,11 @@ py::dict cast(const RaycastScene& scene, const py::handle& rays_obj, int nthread
   if (arr.ndim() < 1 || arr.shape(arr.ndim() - 1) != 6) {
     throw py::value_error("rays must have shape (N, 6), got " + shape_str(arr));
   }
-  if (nthreads < 0) throw py::value_error("nthreads must be >= 0 (0: all cores), got " + std::to_string(nthreads));
-  auto rays = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(arr);
+  auto rays = contiguous<float>(arr, "rays");
   std::vector<py::ssize_t> lead(arr.shape(), arr.shape() + arr.ndim() - 1);
   const auto n = static_cast<std::size_t>(rays.size() / 6);
   RayOrder order = RayOrder::kAuto;
-  if (!coherent.is_none()) order = coherent.cast<bool>() ? RayOrder::kCoherent : RayOrder::kIncoherent;
+  if (!coherent.is_none()) order = bool_arg(coherent, "coherent") ? RayOrder::kCoherent : RayOrder::kIncoherent;
 
   auto with = [&](py::ssize_t k) {
     std::vector<py::ssize_t> s = lead;
@@ -159,7 +160,7 @@ Degenerate (zero-area) triangles are kept but never hit.
 )doc")
       .def(
           "cast_rays",
-          [](const RaycastScene& self, const py::handle& rays, int nthreads, const py::object& coherent) {
+          [](const RaycastScene& self, const py::handle& rays, const py::handle& nthreads, const py::object& coherent) {
             return cast(self, rays, nthreads, coherent);
           },
           py::arg("rays"), py::arg("nthreads") = 0, py::arg("coherent") = py::none(), R"doc(

@@ -1,10 +1,13 @@
 // cufund._core: one extension, one submodule per C++ area. Users import `cufund`, never this.
 #include "pybind_common.h"
+#include "thread_pool.h"
 
 PYBIND11_MODULE(_core, m) {
   namespace py = pybind11;
   m.doc() = "cufund's compiled core. Import the public API from `cufund`, not from here.";
   m.attr("__version__") = CUFUND_VERSION;
+  m.def("thread_pool_size", [] { return cufund::ThreadPool::instance().size(); },
+        "Threads of the shared C++ pool, the caller included (CUFUND_NUM_THREADS, else the CPUs this process may use).");
   py::module_ dynamics = m.def_submodule("dynamics", "Quadrotor rigid-body dynamics (paper §2.1).");
   cufund::py_bind::define_dynamics(dynamics);
   cufund::py_bind::define_collision(dynamics);

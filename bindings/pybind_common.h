@@ -6,8 +6,11 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <initializer_list>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -34,13 +37,89 @@ inline std::string expected_shape_str(std::initializer_list<py::ssize_t> shape) 
   return os.str();
 }
 
+template <typename T>
+using carray = py::array_t<T, py::array::c_style | py::array::forcecast>;
+
+inline std::string type_name(const py::handle& obj) {
+  return std::string(py::str(py::type::of(obj).attr("__name__")));
+}
+
+// `obj` as a C-contiguous array of T, copied only when needed. Unlike array_t::ensure (which returns
+// null and drops the error), a failed allocation raises MemoryError naming `field`, and a failed
+// conversion ValueError naming it.
+template <typename T>
+carray<T> contiguous(const py::handle& obj, const std::string& field) {
+  try {
+    return carray<T>(py::reinterpret_borrow<py::object>(obj));
+  } catch (py::error_already_set& e) {
+    if (e.matches(PyExc_MemoryError)) {
+      PyErr_SetString(PyExc_MemoryError, ("not enough memory for a contiguous copy of " + field).c_str());
+      throw py::error_already_set();
+    }
+    throw py::value_error(field + " could not be converted to an array: " + std::string(py::str(e.value())));
+  }
+}
+
+// Scalar arguments taken as py::handle and checked here, so a wrong type raises TypeError naming the
+// argument (pybind11's own conversion says only "incompatible function arguments").
+inline double real_arg(const py::handle& obj, const char* field) {
+  if (PyBool_Check(obj.ptr()) || !(PyFloat_Check(obj.ptr()) || PyLong_Check(obj.ptr()) ||
+                                   py::isinstance(obj, py::module_::import("numbers").attr("Real")))) {
+    throw py::type_error(std::string(field) + " must be a real number, got " + type_name(obj));
+  }
+  const double x = PyFloat_AsDouble(obj.ptr());
+  if (x == -1.0 && PyErr_Occurred()) {
+    PyErr_Clear();
+    throw py::value_error(std::string(field) + " must be a real number representable as float64, got " +
+                          std::string(py::repr(obj)));
+  }
+  return x;
+}
+
+inline double finite_arg(const py::handle& obj, const char* field) {
+  const double x = real_arg(obj, field);
+  if (!std::isfinite(x)) {
+    throw py::value_error(std::string(field) + " must be finite, got " + std::string(py::repr(obj)));
+  }
+  return x;
+}
+
+inline std::int64_t int_arg(const py::handle& obj, const char* field, std::int64_t lo, std::int64_t hi) {
+  if (PyBool_Check(obj.ptr()) || !(PyLong_Check(obj.ptr()) || PyIndex_Check(obj.ptr()))) {
+    throw py::type_error(std::string(field) + " must be an integer, got " + type_name(obj));
+  }
+  int overflow = 0;
+  py::object idx = py::reinterpret_steal<py::object>(PyNumber_Index(obj.ptr()));
+  if (!idx) throw py::error_already_set();
+  const long long v = PyLong_AsLongLongAndOverflow(idx.ptr(), &overflow);
+  if (overflow != 0 || v < lo || v > hi) {
+    throw py::value_error(std::string(field) + " must be an integer in [" + std::to_string(lo) + ", " +
+                          std::to_string(hi) + "], got " + std::string(py::repr(obj)));
+  }
+  return static_cast<std::int64_t>(v);
+}
+
+inline int threads_arg(const py::handle& obj) {
+  try {
+    return static_cast<int>(int_arg(obj, "nthreads", 0, 1 << 20));
+  } catch (const py::value_error&) {
+    throw py::value_error("nthreads must be >= 0 (0: all cores) and at most 2^20, got " + std::string(py::repr(obj)));
+  }
+}
+
+inline bool bool_arg(const py::handle& obj, const char* field) {
+  if (PyBool_Check(obj.ptr())) return obj.ptr() == Py_True;
+  const py::object numpy_bool = py::module_::import("numpy").attr("bool_");
+  if (py::isinstance(obj, numpy_bool)) return PyObject_IsTrue(obj.ptr()) == 1;
+  throw py::type_error(std::string(field) + " must be True or False, got " + type_name(obj));
+}
+
 // Converts `obj` to a C-contiguous float64 array of exactly `shape`, accepting real integer and
 // floating inputs; anything else raises ValueError naming `field`. (Finiteness is the caller's.)
 inline py::array_t<double, py::array::c_style> as_float64(const py::handle& obj, const char* field,
                                                            std::initializer_list<py::ssize_t> shape) {
   py::array arr = py::array::ensure(obj);
-  if (!arr) throw py::value_error(std::string(field) + " must be an array of real numbers, got " +
-                                  std::string(py::str(py::type::of(obj).attr("__name__"))));
+  if (!arr) throw py::value_error(std::string(field) + " must be an array of real numbers, got " + type_name(obj));
   const char kind = arr.dtype().kind();
   if (kind != 'f' && kind != 'i' && kind != 'u') {
     throw py::value_error(std::string(field) + " must have a real numeric dtype (float or int), got " +
@@ -53,7 +132,7 @@ inline py::array_t<double, py::array::c_style> as_float64(const py::handle& obj,
     throw py::value_error(std::string(field) + " must have shape " + expected_shape_str(shape) + ", got " +
                           shape_str(arr));
   }
-  return py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(arr);
+  return contiguous<double>(arr, field);
 }
 
 // A writable numpy view of `rows` SoA rows of length n starting at `data`, shaped (n, rows) with

@@ -155,7 +155,10 @@ def test_points_outside_the_map_and_nan_are_counted_not_fatal():
     pts = np.array([[10.0, 0.0, 0.5], [np.nan, 0.0, 0.0], [0.5, 0.0, 0.5], [0.0, np.inf, 0.0]])
     s = m.insert_scan(pts, [0.0, 0.0, 0.5])
     assert (s.points, s.nan_points, s.outside, s.hit_voxels) == (4, 2, 1, 1)
-    assert np.isnan(m.distance(np.array([[np.nan, 0, 0]]))[0])
+    with pytest.raises(ValueError, match=r"p_W must be finite \[m\], got \[nan, 0.0, 0.0\] in row 0"):
+        m.distance(np.array([[np.nan, 0, 0]]))
+    with pytest.raises(ValueError, match=r"p_W must be finite \[m\], got \[inf, 0.0, 0.5\] in row 1"):
+        m.distance_and_gradient(np.array([[0.5, 0, 0.5], [np.inf, 0, 0.5]]))
 
 
 @pytest.mark.parametrize(
@@ -226,10 +229,11 @@ def test_scanning_a_box_world_with_the_simulated_lidar_recovers_the_box():
     hit_voxels = set()
     for k, p in enumerate(([0.0, 0.0, 0.3], [-0.2, 0.4, 0.5], [0.1, -0.5, 0.2])):
         p_W = np.asarray(p, dtype=float)
-        cloud = lidar.scan(world, lambda t, p_W=p_W: (p_W, np.array([1.0, 0.0, 0.0, 0.0])), t0=0.1 * k)
-        assert len(cloud.points_W) > 1000
-        m.insert_scan(cloud.points_W, p_W)
-        hit_voxels |= {tuple(v) for v in np.floor((cloud.points_W - m.params.origin_W) / res).astype(int)}
+        _, truth = lidar.scan_with_truth(world, lambda t, p_W=p_W: (p_W, np.array([1.0, 0.0, 0.0, 0.0])), t0=0.1 * k)
+        points_W = truth.points_W.astype(float)  # noise-free hits (range_noise_std=0), world frame
+        assert len(points_W) > 1000
+        m.insert_scan(points_W, p_W)
+        hit_voxels |= {tuple(v) for v in np.floor((points_W - m.params.origin_W) / res).astype(int)}
     occupied = {tuple(v) for v in np.argwhere(m.occupied())}
     centres = m.occupied_points()
     assert np.all(centres >= lo - res / 2 - 1e-6) and np.all(centres <= hi + res / 2 + 1e-6)
@@ -282,3 +286,36 @@ def test_scans_give_the_same_map_on_one_thread_and_on_all():
         assert stats[0] == stats[1]
     np.testing.assert_array_equal(maps[0].log_odds(), maps[1].log_odds())
     np.testing.assert_array_equal(maps[0].distances(), maps[1].distances())
+
+
+def test_esdf_map_pickles_with_its_occupancy_and_distances(rng):
+    import pickle
+
+    m = make_map()
+    origin = np.array([0.2, 0.3, 0.5])
+    for _ in range(3):
+        m.insert_scan(origin + rng.uniform(-1.0, 1.5, (400, 3)), origin)
+    m.set_occupied(np.array([[3, 4, 5], [10, 10, 2]]))
+    c = pickle.loads(pickle.dumps(m))
+    assert c.params == m.params
+    assert np.array_equal(c.log_odds(), m.log_odds())
+    assert np.array_equal(c.occupied(), m.occupied())
+    assert c.distances().tobytes() == m.distances().tobytes()
+    for a, b in zip(c.squared_distances(), m.squared_distances()):
+        assert np.array_equal(a, b)
+    # Both continue identically: the same scan on each gives the same statistics and fields.
+    scan = origin + rng.uniform(-1.0, 1.5, (300, 3))
+    assert c.insert_scan(scan, origin) == m.insert_scan(scan, origin)
+    assert c.distances().tobytes() == m.distances().tobytes()
+    q = rng.uniform(0, 2, (50, 3))
+    assert c.distance(q).tobytes() == m.distance(q).tobytes()
+
+
+def test_esdf_map_voxel_count_is_limited_and_configurable():
+    import cufund.limits
+
+    with pytest.raises(ConfigError, match=r"at most grid_max_voxels = 134217728 voxels"):
+        make_map(resolution=0.01, size=(100.0, 100.0, 10.0))  # 1e9 voxels, ~20 GB
+    with cufund.limits.override(grid_max_voxels=1000):
+        with pytest.raises(ConfigError, match=r"got \(20, 20, 20\) = 8000"):
+            make_map(resolution=0.1, size=(2.0, 2.0, 2.0))

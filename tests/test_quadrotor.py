@@ -212,3 +212,138 @@ def test_reported_accelerations_match_central_differences(crazyflie, rng):
     np.testing.assert_allclose(a_mid, (quad.state.v - v0) / (2 * h), rtol=1e-5, atol=1e-7)
     np.testing.assert_allclose(alpha_mid, (quad.state.w - w0) / (2 * h), rtol=1e-5, atol=1e-5)
     assert np.linalg.norm(alpha_mid) > 1.0  # a real rotation is going on
+
+
+# --- Pickling, thread safety, fork safety and limits (issues 10 and 11) ---------------------------
+
+def _fly(quad, steps, k0=0):
+    """A deterministic, varying command sequence (so that a wrong restore shows)."""
+    hover = quad.params.hover_rotor_speed
+    for k in range(k0, k0 + steps):
+        quad.step(1e-3, hover * (1.0 + 0.05 * np.sin(0.01 * k + np.arange(4))))
+
+
+def test_quadrotor_pickles_and_continues_bit_for_bit(crazyflie):
+    import pickle
+
+    quad = cufund.Quadrotor(crazyflie, wind=np.array([0.5, -0.2, 0.0]))
+    quad.hover(np.array([1.0, 2.0, 3.0]))
+    quad.force_ext_W[:] = (0.01, 0.0, -0.02)
+    _fly(quad, 150)
+    copy = pickle.loads(pickle.dumps(quad))
+    assert copy.t == quad.t and copy.params == quad.params
+    assert np.array_equal(copy.state.as_vector(), quad.state.as_vector())
+    for name in ("wind_W", "force_ext_W", "torque_ext_B", "accel_W", "alpha_B"):
+        assert np.array_equal(getattr(copy, name), getattr(quad, name)), name
+    _fly(quad, 200, 150)
+    _fly(copy, 200, 150)
+    assert copy.t == quad.t
+    assert copy.state.as_vector().tobytes() == quad.state.as_vector().tobytes()  # bit for bit
+    # The copy owns its state: stepping it does not move the original.
+    before = quad.state.as_vector()
+    _fly(copy, 5)
+    assert np.array_equal(quad.state.as_vector(), before)
+
+
+def test_quadrotor_batch_pickles_and_continues_bit_for_bit(crazyflie, rng):
+    import pickle
+
+    b = cufund.QuadrotorBatch(crazyflie, 7)
+    b.hover(rng.uniform(-1, 1, (7, 3)) + [0, 0, 2])
+    cmd = crazyflie.hover_rotor_speed * (1 + 0.1 * rng.standard_normal((7, 4)))
+    for _ in range(50):
+        b.step(1e-3, cmd)
+    c = pickle.loads(pickle.dumps(b))
+    for _ in range(50):
+        b.step(1e-3, cmd)
+        c.step(1e-3, cmd)
+    assert c.t == b.t and c.n == b.n
+    for name in cufund.QuadrotorBatch._ROWS:
+        assert getattr(c, name).tobytes() == getattr(b, name).tobytes(), name
+
+
+def test_batch_time_and_state_writes_must_be_finite(crazyflie):
+    b = cufund.QuadrotorBatch(crazyflie, 3)
+    with pytest.raises(ValueError, match="t must be finite"):
+        b.t = float("nan")
+    with pytest.raises(TypeError, match="t must be a real number"):
+        b.t = "1.0"
+    assert b.t == 0.0
+    b.v[2, 1] = np.inf
+    with pytest.raises(ValueError, match="state v of vehicle 2 must be finite"):
+        b.step(1e-3, np.zeros((3, 4)))
+    b.v[2, 1] = 0.0
+    b.torque_ext_B[0, 2] = np.nan
+    with pytest.raises(ValueError, match="state torque_ext_B of vehicle 0 must be finite"):
+        b.step(1e-3, np.zeros((3, 4)))
+    b.torque_ext_B[0, 2] = 0.0
+    b.q[1] = 0.0
+    with pytest.raises(ValueError, match="state q of vehicle 1 must be a non-zero quaternion"):
+        b.step(1e-3, np.zeros((3, 4)))
+    assert b.t == 0.0  # nothing advanced
+
+
+@pytest.mark.parametrize(("dt", "nthreads", "error", "message"), [
+    ("0.001", 0, TypeError, "dt must be a real number, got str"),
+    (None, 0, TypeError, "dt must be a real number, got NoneType"),
+    (1e-3, "2", TypeError, "nthreads must be an integer, got str"),
+    (1e-3, -1, ValueError, "nthreads must be >= 0"),
+])
+def test_step_arguments_are_named_in_errors(crazyflie, dt, nthreads, error, message):
+    b = cufund.QuadrotorBatch(crazyflie, 2)
+    with pytest.raises(error, match=message):
+        b.step(dt, np.zeros((2, 4)), nthreads)
+
+
+def test_step_dt_is_limited_and_the_limit_is_configurable(crazyflie):
+    import cufund.limits
+
+    quad = cufund.Quadrotor(crazyflie)
+    with pytest.raises(ValueError, match=r"dt must need at most 1000000 integration sub-steps"):
+        quad.step(1e5, np.zeros(4))  # 1e8 sub-steps: 16 s before the limit
+    with cufund.limits.override(step_max_substeps=10):
+        with pytest.raises(ValueError, match="at most 10 integration sub-steps"):
+            quad.step(0.011, np.zeros(4))
+        quad.step(0.010, np.zeros(4))
+    assert quad.t == pytest.approx(0.010)
+    assert cufund.limits.current().step_max_substeps == 1_000_000
+
+
+def test_batch_size_is_limited_and_the_limit_is_configurable(crazyflie):
+    import cufund.limits
+
+    with cufund.limits.override(batch_max_size=8):
+        with pytest.raises(ValueError, match=r"n must be at most batch_max_size = 8"):
+            cufund.QuadrotorBatch(crazyflie, 9)
+        assert cufund.QuadrotorBatch(crazyflie, 8).n == 8
+    with pytest.raises(ValueError, match=r"n must be at most batch_max_size = 16777216"):
+        cufund.QuadrotorBatch(crazyflie, 2**25)
+
+
+@pytest.mark.parametrize(("n", "nthreads"), [(200, 0), (4096, 1)])
+def test_one_batch_stepped_from_four_threads_equals_the_same_steps_in_sequence(crazyflie, rng, n, nthreads):
+    import threading
+
+    p0 = rng.uniform(-5, 5, (n, 3)) + [0, 0, 10]
+    cmd = crazyflie.hover_rotor_speed * (1 + 0.05 * rng.standard_normal((n, 4)))
+    shared, serial = cufund.QuadrotorBatch(crazyflie, n), cufund.QuadrotorBatch(crazyflie, n)
+    shared.hover(p0)
+    serial.hover(p0)
+    steps, threads = 20, 4
+    barrier = threading.Barrier(threads)
+
+    def worker():
+        barrier.wait()
+        for _ in range(steps):
+            shared.step(1e-3, cmd, nthreads)
+
+    pool = [threading.Thread(target=worker) for _ in range(threads)]
+    for t in pool:
+        t.start()
+    for t in pool:
+        t.join()
+    for _ in range(steps * threads):
+        serial.step(1e-3, cmd, nthreads)
+    assert shared.t == serial.t
+    for name in ("p", "v", "q", "w", "rotor_speeds"):
+        assert getattr(shared, name).tobytes() == getattr(serial, name).tobytes(), name

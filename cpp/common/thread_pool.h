@@ -6,6 +6,12 @@
 // per call when the cores are shared). Idle workers spin for a few tens of microseconds before they
 // sleep, so back-to-back loops (a simulation stepping at 1 kHz) find them awake.
 // Results must not depend on which thread ran which chunk.
+//
+// A parallel_for called from inside a running loop (by the caller or a worker, on any pool) runs its
+// body inline on that thread, so nesting never deadlocks. The shared pool's size comes from the
+// CUFUND_NUM_THREADS environment variable, else the CPUs this process may run on (sched_getaffinity).
+// Fork safety: fork() waits until no parallel loop and no ForkSafeSection is running (pthread_atfork),
+// and the child builds a fresh shared pool on first use (the parent's workers do not exist there).
 #pragma once
 
 #include <algorithm>
@@ -23,8 +29,17 @@ namespace cufund {
 
 class ThreadPool {
  public:
-  // The shared pool, with hardware_concurrency() - 1 workers, created on first use.
+  // The shared pool, with default_size() - 1 workers, created on first use (throws
+  // std::invalid_argument when CUFUND_NUM_THREADS is set but not an integer in [1, kMaxThreads]).
   static ThreadPool& instance();
+
+  // Threads the shared pool uses, the caller included: CUFUND_NUM_THREADS if set, else the number of
+  // CPUs in this process's affinity mask. Reads the environment on every call.
+  static int default_size();
+  static constexpr int kMaxThreads = 1024;
+
+  // True while the calling thread runs a chunk of a parallel_for (any pool).
+  static bool in_parallel_region();
 
   explicit ThreadPool(int workers);
   ~ThreadPool();
@@ -57,6 +72,21 @@ class ThreadPool {
   int max_workers_ = 0, entered_ = 0;
   std::atomic<std::size_t> next_{0};
   std::exception_ptr error_;  // the first exception of the current job (guarded by m_)
+};
+
+// Holds off fork() (in any thread) while alive: a fork waits until every section has ended, so a
+// child never inherits an object half-way through an update or a lock held by a vanished thread.
+// Re-entrant on one thread; a no-op inside a parallel_for chunk (the loop's caller holds one).
+// Never wait for the GIL or for another thread's section while holding one.
+class ForkSafeSection {
+ public:
+  ForkSafeSection();
+  ~ForkSafeSection();
+  ForkSafeSection(const ForkSafeSection&) = delete;
+  ForkSafeSection& operator=(const ForkSafeSection&) = delete;
+
+ private:
+  bool held_ = false;
 };
 
 // Calls body(begin, end, chunk_index) for consecutive chunks of at most `chunk` items covering

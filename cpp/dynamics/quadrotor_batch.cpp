@@ -2,7 +2,9 @@
 
 #include <Eigen/LU>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "quadrotor_dynamics.h"
@@ -106,6 +108,52 @@ void integrate_range(const DynamicsConstants& constants, double* __restrict stat
 }  // namespace
 
 namespace {
+
+std::atomic<std::int64_t> g_max_substeps{1000000};
+
+// The first (lowest flat index) non-finite entry of rows [kP, kAccel) or zero quaternion, in parallel.
+StepResult check_state(const double* state, std::size_t n, int nthreads) {
+  constexpr std::size_t kBlock = 4096;
+  constexpr auto kNone = std::numeric_limits<std::int64_t>::max();
+  std::atomic<std::int64_t> bad{kNone}, zero_q{kNone};
+  auto keep_min = [](std::atomic<std::int64_t>& a, std::int64_t v) {
+    for (std::int64_t cur = a.load(); v < cur && !a.compare_exchange_weak(cur, v);) {
+    }
+  };
+  ThreadPool::instance().parallel_for((n + kBlock - 1) / kBlock, nthreads, [&](std::size_t b) {
+    const std::size_t begin = b * kBlock, end = std::min(n, begin + kBlock);
+    for (int r = QuadrotorBatch::kP; r < QuadrotorBatch::kAccel; ++r) {
+      const double* row = state + static_cast<std::size_t>(r) * n;
+      bool ok = true;
+      for (std::size_t i = begin; i < end; ++i) ok &= std::isfinite(row[i]);
+      if (ok) continue;
+      for (std::size_t i = begin; i < end; ++i) {
+        if (!std::isfinite(row[i])) {
+          keep_min(bad, static_cast<std::int64_t>(static_cast<std::size_t>(r) * n + i));
+          break;
+        }
+      }
+    }
+    const double* q = state + static_cast<std::size_t>(QuadrotorBatch::kQ) * n;
+    for (std::size_t i = begin; i < end; ++i) {
+      const double nq = q[i] * q[i] + q[n + i] * q[n + i] + q[2 * n + i] * q[2 * n + i] + q[3 * n + i] * q[3 * n + i];
+      if (!(nq >= 1e-12)) {
+        keep_min(zero_q, static_cast<std::int64_t>(i));
+        break;
+      }
+    }
+  });
+  StepResult r;
+  if (bad.load() != kNone) {
+    r.status = StepStatus::kNonFiniteState;
+    r.index = bad.load();
+  } else if (zero_q.load() != kNone) {
+    r.status = StepStatus::kZeroQuaternion;
+    r.index = zero_q.load();
+  }
+  return r;
+}
+
 std::size_t checked_size(std::size_t n) {
   if (n < 1 || n > QuadrotorBatch::kMaxSize) throw std::length_error("QuadrotorBatch size out of range");
   return n;
@@ -117,7 +165,41 @@ QuadrotorBatch::QuadrotorBatch(const QuadrotorParams& params, std::size_t n)
   reset();
 }
 
+QuadrotorBatch::QuadrotorBatch(const QuadrotorBatch& other) : params_(other.params_), n_(other.n_) {
+  std::lock_guard<std::mutex> lk(other.mutex_);
+  time_ = other.time_;
+  state_ = other.state_;
+}
+
+QuadrotorBatch& QuadrotorBatch::operator=(const QuadrotorBatch& other) {
+  if (this == &other) return *this;
+  std::scoped_lock lk(mutex_, other.mutex_);
+  params_ = other.params_;
+  n_ = other.n_;
+  time_ = other.time_;
+  state_ = other.state_;
+  return *this;
+}
+
+std::int64_t QuadrotorBatch::max_substeps() { return g_max_substeps.load(); }
+
+void QuadrotorBatch::set_max_substeps(std::int64_t n) { g_max_substeps.store(std::max<std::int64_t>(1, n)); }
+
+double QuadrotorBatch::time() const {
+  std::lock_guard<std::mutex> lk(mutex_);
+  return time_;
+}
+
+bool QuadrotorBatch::set_time(double t) {
+  if (!std::isfinite(t)) return false;
+  std::lock_guard<std::mutex> lk(mutex_);
+  time_ = t;
+  return true;
+}
+
 void QuadrotorBatch::reset() {
+  ForkSafeSection no_fork;
+  std::lock_guard<std::mutex> lk(mutex_);
   std::fill(state_.begin(), state_.end(), 0.0);
   std::fill(row(kQ), row(kQ) + n_, 1.0);
   time_ = 0.0;
@@ -129,8 +211,14 @@ double QuadrotorBatch::hover_rotor_speed() const {
 
 StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
   StepResult result;
+  ForkSafeSection no_fork;
+  std::lock_guard<std::mutex> lk(mutex_);
   if (!(std::isfinite(dt) && dt > 0.0 && dt / params_.max_integration_step <= 1e9)) {
     result.status = StepStatus::kBadTimeStep;
+    return result;
+  }
+  if (dt / params_.max_integration_step > static_cast<double>(g_max_substeps.load()) + 1e-6) {
+    result.status = StepStatus::kTooManySubsteps;
     return result;
   }
   const std::size_t ncmd = kNumRotors * n_;
@@ -141,6 +229,8 @@ StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
       return result;
     }
   }
+  result = check_state(state_.data(), n_, nthreads);
+  if (result.status != StepStatus::kOk) return result;
   const int substeps = std::max(1, static_cast<int>(std::ceil(dt / params_.max_integration_step - 1e-9)));
   const double h = dt / substeps;
   const DynamicsConstants c = make_constants(params_);

@@ -4,10 +4,13 @@
 // inner loop runs across vehicles in SIMD lanes and numpy sees each field as an (N, k) view
 // with strides (8, 8N). Every vehicle is integrated by the same scalar arithmetic
 // (no FMA contraction), so a batch of N equals N batches of one bit for bit, on any thread count.
+// Thread safety: step(), reset() and the time lock an internal mutex (concurrent steps run one after
+// the other); a step also holds off fork() (ForkSafeSection) so a child never sees a half step.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <mutex>
 #include <vector>
 
 #include "quadrotor_params.h"
@@ -18,11 +21,15 @@ enum class StepStatus : int {
   kOk = 0,
   kBadTimeStep = 1,          // dt not finite, <= 0, or more than 1e9 integration sub-steps
   kNonFiniteCommand = 2,     // a commanded rotor speed is NaN or infinite
+  kNonFiniteState = 3,       // a state or held-input entry (rows kP..kTorqueExt) is NaN or infinite
+  kZeroQuaternion = 4,       // an attitude quaternion of norm < 1e-6
+  kTooManySubsteps = 5,      // dt / max_integration_step exceeds the configured limit
 };
 
 struct StepResult {
   StepStatus status = StepStatus::kOk;
-  std::int64_t index = -1;   // flat index (vehicle * 4 + rotor) of the offending command
+  std::int64_t index = -1;   // kNonFiniteCommand: vehicle * 4 + rotor; kNonFiniteState: row * N + vehicle;
+                             // kZeroQuaternion: the vehicle
 };
 
 class QuadrotorBatch {
@@ -45,13 +52,22 @@ class QuadrotorBatch {
   // Most vehicles in one batch (2^32; the state alone is then 1 TiB).
   static constexpr std::size_t kMaxSize = std::size_t(1) << 32;
 
+  // Most RK4 sub-steps one step() may take (dt / max_integration_step), process-wide; default 1e6
+  // (1000 s at 1 kHz). A larger dt fails with kTooManySubsteps instead of running for minutes.
+  static std::int64_t max_substeps();
+  static void set_max_substeps(std::int64_t n);  // n >= 1
+
   // params must have passed validate(); 1 <= n <= kMaxSize (else std::length_error).
   QuadrotorBatch(const QuadrotorParams& params, std::size_t n);
+  // Copies parameters, state and time (each under the source's lock); the copy has its own mutex.
+  QuadrotorBatch(const QuadrotorBatch& other);
+  QuadrotorBatch& operator=(const QuadrotorBatch& other);
 
   std::size_t size() const { return n_; }
   const QuadrotorParams& params() const { return params_; }
-  double time() const { return time_; }
-  void set_time(double t) { time_ = t; }
+  double time() const;
+  // false (time unchanged) unless t is finite.
+  bool set_time(double t);
 
   double* row(int r) { return state_.data() + static_cast<std::size_t>(r) * n_; }
   const double* row(int r) const { return state_.data() + static_cast<std::size_t>(r) * n_; }
@@ -72,6 +88,9 @@ class QuadrotorBatch {
   std::size_t n_;
   double time_ = 0.0;
   std::vector<double> state_;
+  // step(), reset() and the time are serialised: concurrent calls from several threads run one after
+  // the other. Writes through row() pointers (numpy views) are not synchronised.
+  mutable std::mutex mutex_;
 };
 
 }  // namespace cufund

@@ -31,6 +31,20 @@ std::string validate(const QuadrotorParams& p) {
     return expect("inertia", "positive definite [kg m^2]; smallest eigenvalue", ev.minCoeff());
   }
   if (!(finite(p.arm_length) && p.arm_length > 0)) return expect("arm_length", "a finite number > 0 [m]", p.arm_length);
+  // Plausibility: a rigid quadrotor's principal moments are within a few orders of magnitude of
+  // m d^2 (about 0.3 m d^2 for a Crazyflie, 0.5 for an Iris). Far outside, the parameters are a typo
+  // (e.g. inertia in g mm^2, or 1e-300) and the integration would overflow to NaN.
+  const double md2 = p.mass * p.arm_length * p.arm_length;
+  const double ratio_min = ev.minCoeff() / md2, ratio_max = ev.maxCoeff() / md2;
+  if (!(ratio_min >= kInertiaRatioMin && ratio_max <= kInertiaRatioMax)) {
+    std::ostringstream os;
+    os.precision(3);
+    os << "inertia must be plausible for the mass and arm_length: principal moments within [1e-6, 1e6] * mass * "
+          "arm_length^2 = ["
+       << kInertiaRatioMin * md2 << ", " << kInertiaRatioMax * md2 << "] kg m^2, got eigenvalues " << ev.minCoeff()
+       << " to " << ev.maxCoeff() << " (units: kg m^2?)";
+    return os.str();
+  }
   if (!(finite(p.k_f) && p.k_f > 0)) return expect("k_f", "a finite number > 0 [N/(rad/s)^2]", p.k_f);
   if (!(finite(p.c_m) && p.c_m > 0)) return expect("c_m", "a finite number > 0 [m]", p.c_m);
   if (!(finite(p.tau_m) && p.tau_m > 0)) return expect("tau_m", "a finite number > 0 [s]", p.tau_m);

@@ -44,6 +44,10 @@ struct QuadrotorParams {
   double max_integration_step = 1e-3;  // RK4 sub-step upper bound [s] (1 kHz default)
 };
 
+// Bounds on the principal moments of inertia over mass * arm_length^2 (a plausibility check).
+constexpr double kInertiaRatioMin = 1e-6;
+constexpr double kInertiaRatioMax = 1e6;
+
 // Returns "" when the parameters are physical, else a message naming the field
 // and what was expected, e.g. "mass must be a finite number > 0, got -1".
 std::string validate(const QuadrotorParams& params);

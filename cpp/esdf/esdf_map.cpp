@@ -62,6 +62,13 @@ EsdfUpdateStats EsdfMap::set_occupied(const std::vector<Index>& index, const std
   return apply(flipped, state);
 }
 
+EsdfUpdateStats EsdfMap::set_log_odds(const float* values) {
+  std::vector<Index> flipped;
+  std::vector<std::uint8_t> state;
+  grid_.set_log_odds(values, &flipped, &state);
+  return apply(flipped, state);
+}
+
 double EsdfMap::voxel_distance(Index i) const {
   const double inf = std::numeric_limits<double>::infinity();
   const double h = grid_.geometry().resolution;

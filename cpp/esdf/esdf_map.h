@@ -49,6 +49,9 @@ class EsdfMap {
   EsdfUpdateStats insert_scan(const double* p_W, Index n, const double* origin_W);
   // Forces voxels occupied / free (log-odds to the clamping bound) and updates the field incrementally.
   EsdfUpdateStats set_occupied(const std::vector<Index>& index, const std::vector<std::uint8_t>& value);
+  // Sets every voxel's log-odds (occupancy().size() values, e.g. a saved log_odds()) and updates the
+  // field: a map restored this way equals the saved one (occupancy and distances, bit for bit).
+  EsdfUpdateStats set_log_odds(const float* values);
   // Recomputes the whole field from the occupancy (the incremental path must equal this bit for bit).
   void recompute();
 

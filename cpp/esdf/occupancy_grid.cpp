@@ -238,4 +238,9 @@ void OccupancyGrid::set_occupied(const std::vector<Index>& index, const std::vec
   }
 }
 
+void OccupancyGrid::set_log_odds(const float* values, std::vector<Index>* flipped,
+                                 std::vector<std::uint8_t>* flipped_state) {
+  for (Index i = 0; i < size(); ++i) set(i, values[i], flipped, flipped_state);
+}
+
 }  // namespace cufund::esdf

@@ -57,6 +57,8 @@ class OccupancyGrid {
                         std::vector<std::uint8_t>* flipped_state, int nthreads = 1);
 
   // Sets voxels index[k] to log_odds_max (value[k] != 0) or log_odds_min; records flips as above.
+  // Sets every voxel's log-odds from values (size() entries, e.g. a saved log_odds()), recording flips.
+  void set_log_odds(const float* values, std::vector<Index>* flipped, std::vector<std::uint8_t>* flipped_state);
   void set_occupied(const std::vector<Index>& index, const std::vector<std::uint8_t>& value,
                     std::vector<Index>* flipped, std::vector<std::uint8_t>* flipped_state);
 

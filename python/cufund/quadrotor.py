@@ -6,11 +6,12 @@ numpy views into the C++ buffers: reading them costs no copy, and writing them s
 
 from __future__ import annotations
 
-from typing import Callable, Union
+import math
+from typing import Any, Callable, Union
 
 import numpy as np
 
-from . import _core
+from . import _core, limits
 from .params import QuadrotorParams
 
 __all__ = ["Quadrotor", "QuadrotorBatch", "QuadrotorState", "WindField"]
@@ -36,6 +37,10 @@ class QuadrotorBatch:
             raise TypeError(f"params must be a cufund.QuadrotorParams, got {type(params).__name__}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 2**32:
             raise ValueError(f"n must be an integer in [1, 2^32], got {n!r}")
+        cap = limits.current().batch_max_size
+        if n > cap:
+            raise ValueError(f"n must be at most batch_max_size = {cap} vehicles (256 bytes each), got {n}; "
+                             "raise it with cufund.limits.configure(batch_max_size=...)")
         self.params = params
         self._core = _core.dynamics.QuadrotorBatch(params.to_core(), int(n))
         self._wind_fn: Callable[[float, np.ndarray], np.ndarray] | None = None
@@ -53,7 +58,25 @@ class QuadrotorBatch:
 
     @t.setter
     def t(self, value: float) -> None:
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise TypeError(f"t must be a real number [s], got {type(value).__name__}")
+        if not math.isfinite(value):
+            raise ValueError(f"t must be finite [s], got {value!r}")
         self._core.time = float(value)
+
+    # Pickling: parameters, time, every state and held-input row, and the wind (a function must itself pickle).
+    _ROWS = ("p", "v", "q", "w", "rotor_speeds", "wind_W", "force_ext_W", "torque_ext_B", "accel_W", "alpha_B")
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"params": self.params, "n": self.n, "t": self.t, "wind_fn": self._wind_fn,
+                **{name: np.array(getattr(self, name)) for name in self._ROWS}}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        QuadrotorBatch.__init__(self, state["params"], state["n"])
+        for name in self._ROWS:
+            getattr(self, name)[:] = state[name]
+        self._core.time = state["t"]
+        self._wind_fn = state["wind_fn"]
 
     p = property(lambda self: self._core.p, doc="Position p_W [m], (n, 3) view.")
     v = property(lambda self: self._core.v, doc="Velocity v_W [m/s], (n, 3) view.")
@@ -128,10 +151,18 @@ class Quadrotor:
     """One quadrotor. ``step(dt, rotor_speed_cmd)`` with a (4,) command [rad/s]; ``state`` holds views."""
 
     def __init__(self, params: QuadrotorParams, wind: WindField = None) -> None:
-        self._batch = QuadrotorBatch(params, 1, wind)
-        b = self._batch
+        self._attach(QuadrotorBatch(params, 1, wind))
+
+    def _attach(self, batch: QuadrotorBatch) -> None:
+        self._batch = b = batch
         self.state = QuadrotorState(b.p[0], b.v[0], b.q[0], b.w[0], b.rotor_speeds[0])
         self._step = b._core.step
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"batch": self._batch}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self._attach(state["batch"])
 
     params = property(lambda self: self._batch.params)
     t = property(lambda self: self._batch.t, doc="Simulated time [s].")

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <thread>
+
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstring>
@@ -209,6 +211,56 @@ TEST(QuadrotorBatch, RejectsBadTimeStepAndNonFiniteCommands) {
   EXPECT_EQ(r.status, StepStatus::kNonFiniteCommand);
   EXPECT_EQ(r.index, 6);
   EXPECT_EQ(b.time(), 0.0);  // nothing advanced
+}
+
+TEST(QuadrotorBatch, RejectsNonFiniteStateZeroQuaternionAndTooLongSteps) {
+  B b(small_quad(), 3);
+  std::vector<double> cmd(12, 100.0);
+  b.row(B::kV + 1)[2] = std::numeric_limits<double>::quiet_NaN();
+  StepResult r = b.step(1e-3, cmd.data());
+  EXPECT_EQ(r.status, StepStatus::kNonFiniteState);
+  EXPECT_EQ(r.index, (B::kV + 1) * 3 + 2);
+  b.row(B::kV + 1)[2] = 0.0;
+  b.row(B::kForceExt)[0] = std::numeric_limits<double>::infinity();
+  r = b.step(1e-3, cmd.data());
+  EXPECT_EQ(r.status, StepStatus::kNonFiniteState);
+  EXPECT_EQ(r.index, B::kForceExt * 3 + 0);
+  b.row(B::kForceExt)[0] = 0.0;
+  for (int k = 0; k < 4; ++k) b.row(B::kQ + k)[1] = 0.0;
+  r = b.step(1e-3, cmd.data());
+  EXPECT_EQ(r.status, StepStatus::kZeroQuaternion);
+  EXPECT_EQ(r.index, 1);
+  b.row(B::kQ)[1] = 1.0;
+  const auto saved = B::max_substeps();
+  B::set_max_substeps(10);
+  EXPECT_EQ(b.step(0.0105, cmd.data()).status, StepStatus::kTooManySubsteps);  // 11 sub-steps of 1 ms
+  EXPECT_EQ(b.step(0.010, cmd.data()).status, StepStatus::kOk);
+  B::set_max_substeps(saved);
+  EXPECT_DOUBLE_EQ(b.time(), 0.010);
+}
+
+TEST(QuadrotorBatch, ConcurrentStepsFromManyThreadsEqualTheSameStepsInSequence) {
+  constexpr std::size_t n = 300;  // two blocks: the pool is used
+  B shared(small_quad(), n), serial(small_quad(), n);
+  for (std::size_t i = 0; i < n; ++i) {
+    shared.row(B::kP + 2)[i] = serial.row(B::kP + 2)[i] = 1.0 + 0.01 * static_cast<double>(i);
+  }
+  std::vector<double> cmd(4 * n, 500.0);
+  constexpr int kThreads = 4, kSteps = 25;
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([&] {
+      for (int s = 0; s < kSteps; ++s) ASSERT_EQ(shared.step(1e-3, cmd.data(), 2).status, StepStatus::kOk);
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (int s = 0; s < kThreads * kSteps; ++s) ASSERT_EQ(serial.step(1e-3, cmd.data(), 1).status, StepStatus::kOk);
+  EXPECT_EQ(shared.time(), serial.time());
+  for (int r = 0; r < B::kRows; ++r) {
+    for (std::size_t i = 0; i < n; ++i) {
+      ASSERT_EQ(std::memcmp(&shared.row(r)[i], &serial.row(r)[i], sizeof(double)), 0) << "row " << r << " vehicle " << i;
+    }
+  }
 }
 
 }  // namespace

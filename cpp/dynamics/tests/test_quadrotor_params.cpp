@@ -31,6 +31,19 @@ TEST(QuadrotorParams, InertiaMustBeSymmetricPositiveDefinite) {
   EXPECT_NE(validate(p).find("positive definite"), std::string::npos);
 }
 
+TEST(QuadrotorParams, ImplausibleInertiaForTheMassIsRejected) {
+  QuadrotorParams p = testing::small_quad();
+  EXPECT_EQ(validate(p), "");
+  p.inertia = Eigen::Matrix3d::Identity() * 1e-300;  // integrates to NaN in one step
+  EXPECT_NE(validate(p).find("inertia must be plausible"), std::string::npos);
+  p = testing::small_quad();
+  p.mass = 1e-300;
+  EXPECT_NE(validate(p).find("inertia must be plausible"), std::string::npos);
+  p = testing::small_quad();
+  p.inertia *= 1e9;  // kg mm^2 given as kg m^2
+  EXPECT_NE(validate(p).find("inertia must be plausible"), std::string::npos);
+}
+
 TEST(QuadrotorParams, RotorLimitsOrdered) {
   QuadrotorParams p = testing::small_quad();
   p.rotor_speed_max = p.rotor_speed_min;

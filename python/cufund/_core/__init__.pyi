@@ -7,5 +7,10 @@ from . import control
 from . import lidar
 from . import esdf
 from . import odometry
-__all__: list[str] = ['control', 'dynamics', 'esdf', 'lidar', 'odometry']
+from . import planning
+__all__: list[str] = ['control', 'dynamics', 'esdf', 'lidar', 'odometry', 'planning', 'thread_pool_size']
+def thread_pool_size() -> int:
+    """
+    Threads of the shared C++ pool, the caller included (CUFUND_NUM_THREADS, else the CPUs this process may use).
+    """
 __version__: str = '0.1.0'

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['CollisionWorld', 'QuadrotorBatch', 'QuadrotorParams', 'RotorLayout', 'allocation_matrix', 'allocation_matrix_inverse', 'rotor_positions', 'rotor_spins', 'validate_params']
+__all__: list[str] = ['CollisionWorld', 'QuadrotorBatch', 'QuadrotorParams', 'RotorLayout', 'allocation_matrix', 'allocation_matrix_inverse', 'max_step_substeps', 'rotor_positions', 'rotor_spins', 'set_max_step_substeps', 'validate_params']
 class RotorLayout:
     """
     Rotor arrangement and numbering (PX4 airframe reference).
@@ -143,15 +143,15 @@ class QuadrotorBatch:
     """
     N quadrotors integrated together; state arrays are views into C++ memory.
     """
-    def __init__(self, params: QuadrotorParams, n: typing.SupportsInt | typing.SupportsIndex) -> None:
+    def __init__(self, params: typing.Any, n: typing.Any) -> None:
         ...
     def reset(self) -> None:
         """
         All vehicles at the origin, level, at rest; time 0.
         """
-    def step(self, dt: typing.SupportsFloat | typing.SupportsIndex, rotor_speed_cmd: typing.Any, nthreads: typing.SupportsInt | typing.SupportsIndex = 0) -> None:
+    def step(self, dt: typing.Any, rotor_speed_cmd: typing.Any, nthreads: typing.Any = 0) -> None:
         """
-        Advance by dt [s] holding rotor_speed_cmd (N, 4) [rad/s]; nthreads 0 = all cores.
+        Advance by dt [s] holding rotor_speed_cmd (N, 4) [rad/s]; nthreads 0 = all cores. Concurrent calls from several threads run one after the other (an internal lock).
         """
     @property
     def accel_W(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
@@ -200,7 +200,7 @@ class QuadrotorBatch:
         Simulated time [s].
         """
     @time.setter
-    def time(self, arg1: typing.SupportsFloat | typing.SupportsIndex) -> None:
+    def time(self, arg1: typing.Any) -> None:
         ...
     @property
     def torque_ext_B(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
@@ -233,7 +233,7 @@ class CollisionWorld:
         """
         Adds a static mesh [m]; returns its object id (0, 1, ...).
         """
-    def check(self, p_W: typing.Any, q_WB: typing.Any, margin: typing.SupportsFloat | typing.SupportsIndex = 0.0) -> typing.Any:
+    def check(self, p_W: typing.Any, q_WB: typing.Any, margin: typing.Any = 0.0) -> typing.Any:
         """
         The deepest contact of the vehicle at body pose (p_W [m], q_WB [w, x, y, z]) with any mesh whose
         signed distance is <= margin [m], as a dict (object_id, point_W on the mesh, normal_W from the mesh
@@ -243,7 +243,7 @@ class CollisionWorld:
         """
         The vehicle is a box of half extents (hx, hy, hz) [m] about the body origin.
         """
-    def set_vehicle_sphere(self, radius: typing.SupportsFloat | typing.SupportsIndex) -> None:
+    def set_vehicle_sphere(self, radius: typing.Any) -> None:
         """
         The vehicle is a sphere of this radius [m] about the body origin.
         """
@@ -258,6 +258,10 @@ def allocation_matrix_inverse(params: QuadrotorParams) -> typing.Annotated[numpy
     """
     A^-1 (4, 4): [f, M_x, M_y, M_z] -> rotor thrusts [N], unsaturated.
     """
+def max_step_substeps() -> int:
+    """
+    Most RK4 sub-steps one QuadrotorBatch.step may take.
+    """
 def rotor_positions(params: QuadrotorParams) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 3]"]:
     """
     Rotor centres in body FLU [m], shape (4, 3), PX4 numbering.
@@ -265,6 +269,10 @@ def rotor_positions(params: QuadrotorParams) -> typing.Annotated[numpy.typing.ND
 def rotor_spins(params: QuadrotorParams) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
     """
     +1 for a rotor spinning counter-clockwise seen from above, -1 clockwise.
+    """
+def set_max_step_substeps(n: typing.Any) -> None:
+    """
+    Most RK4 sub-steps one QuadrotorBatch.step may take (process-wide).
     """
 def validate_params(params: QuadrotorParams) -> str:
     """

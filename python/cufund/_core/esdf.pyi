@@ -34,6 +34,10 @@ class EsdfMap:
         ...
     def recompute(self) -> None:
         ...
+    def set_log_odds(self, log_odds: typing.Any) -> dict:
+        """
+        Sets every voxel's log-odds (a saved log_odds()) and updates the field.
+        """
     def set_occupied(self, index: typing.Annotated[numpy.typing.ArrayLike, numpy.int64], value: typing.Annotated[numpy.typing.ArrayLike, numpy.uint8]) -> dict:
         ...
 def edt(occupied: typing.Any, voxel_size: typing.Any, signed: bool, nthreads: typing.SupportsInt | typing.SupportsIndex, single: bool) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:

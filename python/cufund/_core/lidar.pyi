@@ -23,7 +23,7 @@ class RaycastScene:
         vertices: (V, 3) real [m]; triangles: (T, 3) integer vertex indices, T >= 1. The mesh is copied.
         Degenerate (zero-area) triangles are kept but never hit.
         """
-    def cast_rays(self, rays: typing.Any, nthreads: typing.SupportsInt | typing.SupportsIndex = 0, coherent: typing.Any = None) -> dict:
+    def cast_rays(self, rays: typing.Any, nthreads: typing.Any = 0, coherent: typing.Any = None) -> dict:
         """
         Casts rays and returns the first hit of each.
         

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .. import _core
+from .. import _core, limits
 from ..config import ConfigError, from_dict, real_number, vector3
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -118,9 +118,14 @@ class ScanStats:
 
 def _points(name: str, p: npt.ArrayLike) -> tuple[np.ndarray, bool]:
     a = np.asarray(p)
-    if a.ndim == 1 and a.shape == (3,):
-        return a.reshape(1, 3), True
-    return a, False
+    single = a.ndim == 1 and a.shape == (3,)
+    if single:
+        a = a.reshape(1, 3)
+    if a.ndim == 2 and a.shape[1] == 3 and a.dtype.kind in "fiu":
+        bad = ~np.isfinite(a).all(axis=1)
+        if bad.any():
+            raise ValueError(f"{name} must be finite [m], got {a[bad][0].tolist()} in row {int(np.argmax(bad))}")
+    return a, single
 
 
 class EsdfMap:
@@ -135,6 +140,11 @@ class EsdfMap:
     def __init__(self, params: EsdfMapParams) -> None:
         if not isinstance(params, EsdfMapParams):
             raise ValueError(f"params must be an EsdfMapParams, got {type(params).__name__}")
+        voxels = math.prod(params.shape)
+        cap = limits.current().grid_max_voxels
+        if voxels > cap:
+            raise ConfigError(f"size / resolution must give at most grid_max_voxels = {cap} voxels, got "
+                              f"{params.shape} = {voxels}; raise it with cufund.limits.configure(grid_max_voxels=...)")
         self._params = params
         self._core = _core.esdf.EsdfMap(
             params.origin_W, params.shape, params.resolution, params.log_odds_hit, params.log_odds_miss,
@@ -182,7 +192,7 @@ class EsdfMap:
 
     def distance(self, p_W: npt.ArrayLike) -> np.ndarray:
         """Signed distance [m] at points ``p_W`` (N, 3) or (3,), trilinearly interpolated; points beyond
-        the outermost voxel centres take the boundary value, NaN points give NaN."""
+        the outermost voxel centres take the boundary value; a NaN or infinite point raises ValueError."""
         a, single = _points("p_W", p_W)
         d = self._core.query(a, False)
         return d[0] if single else d
@@ -235,6 +245,15 @@ class EsdfMap:
     def copy(self) -> EsdfMap:
         """A deep copy (occupancy and field)."""
         return copy.deepcopy(self)
+
+    def __getstate__(self) -> dict[str, Any]:
+        # The log-odds are the whole state: the field is a function of the occupancy (the incremental
+        # update equals a full recompute bit for bit), rebuilt on unpickling.
+        return {"params": self._params, "log_odds": self.log_odds()}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        EsdfMap.__init__(self, state["params"])
+        self._core.set_log_odds(state["log_odds"])
 
     def __deepcopy__(self, memo: dict[int, Any]) -> EsdfMap:
         new = EsdfMap.__new__(EsdfMap)
