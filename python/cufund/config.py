@@ -80,13 +80,77 @@ def vector3(name: str, value: Any, unit: str = "", finite: bool = False) -> tupl
 
 
 def load_yaml(path: str | Path) -> Any:
-    """Parses a YAML file; a syntax error names the file and line."""
+    """Parses a YAML file; a syntax error names the file and line.
+
+    Bounded (see :mod:`cufund.limits`): the file size, the nesting depth, alias uses and the size of the
+    document with its aliases expanded, so that a "billion laughs" or self-referencing file fails fast
+    with :class:`ConfigError` instead of filling the memory.
+    """
+    from .limits import current
+
+    lim = current()
     path = Path(path)
+    size = path.stat().st_size
+    if size > lim.yaml_max_bytes:
+        raise ConfigError(f"{path}: the file is {size} bytes, more than yaml_max_bytes = {lim.yaml_max_bytes} "
+                          "(cufund.limits.configure(yaml_max_bytes=...))")
     try:
-        with path.open("r", encoding="utf-8") as f:
-            return yaml.safe_load(f)
+        text = path.read_text(encoding="utf-8")
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        if node is None:
+            return None
+        _check_yaml_graph(node, path, lim)
+        return yaml.safe_load(text)
+    except RecursionError:
+        raise ConfigError(f"{path}: nesting deeper than yaml_max_depth = {lim.yaml_max_depth}") from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"{path}: not UTF-8 text: {e}") from None
     except yaml.YAMLError as e:
         raise ConfigError(f"{path}: invalid YAML: {e}") from e
+
+
+def _check_yaml_graph(root: yaml.Node, path: Path, lim: Any) -> None:
+    """Depth, alias uses, expanded size and cycles of a composed YAML node graph (an alias is the anchored
+    node itself, reached a second time), walked iteratively in time linear in the distinct nodes."""
+
+    def children(n: yaml.Node) -> list[yaml.Node]:
+        if isinstance(n, yaml.MappingNode):
+            return [x for kv in n.value for x in kv]
+        if isinstance(n, yaml.SequenceNode):
+            return list(n.value)
+        return []
+
+    where = f"{path}"
+    done: dict[int, tuple[int, int]] = {}  # id -> (nodes with aliases expanded, depth)
+    on_path: set[int] = set()
+    aliases = 0
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        n, finished = stack.pop()
+        key = id(n)
+        if finished:
+            on_path.discard(key)
+            kids = children(n)
+            size = 1 + sum(done[id(c)][0] for c in kids)
+            depth = 1 + max((done[id(c)][1] for c in kids), default=0)
+            if depth > lim.yaml_max_depth:
+                raise ConfigError(f"{where}: nesting deeper than yaml_max_depth = {lim.yaml_max_depth} "
+                                  f"(line {n.start_mark.line + 1})")
+            if size > lim.yaml_max_nodes:
+                raise ConfigError(f"{where}: more than yaml_max_nodes = {lim.yaml_max_nodes} values with aliases "
+                                  f"expanded (line {n.start_mark.line + 1}: a 'billion laughs' file?)")
+            done[key] = (size, depth)
+            continue
+        if key in done:
+            aliases += 1
+            if aliases > lim.yaml_max_aliases:
+                raise ConfigError(f"{where}: more than yaml_max_aliases = {lim.yaml_max_aliases} alias uses")
+            continue
+        if key in on_path:
+            raise ConfigError(f"{where}: an alias refers to a value that contains it (line {n.start_mark.line + 1})")
+        on_path.add(key)
+        stack.append((n, True))
+        stack.extend((c, False) for c in children(n))
 
 
 def to_dict(obj: Any) -> dict[str, Any]:

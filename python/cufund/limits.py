@@ -30,6 +30,8 @@ class Limits:
     """Deepest nesting of mappings and sequences in a YAML file."""
     yaml_max_bytes: int = 16 * 2**20
     """Largest YAML file read [bytes] (16 MiB)."""
+    yaml_max_nodes: int = 1_000_000
+    """Most values (scalars, lists, mappings) in a YAML document with its aliases expanded."""
     grid_max_voxels: int = 2**27
     """Most voxels of one ESDF map (about 20 bytes each: 2**27 is ~2.7 GB)."""
     batch_max_size: int = 2**24
