@@ -125,6 +125,13 @@ def test_yaml_world_with_mesh_file(tmp_path):
         ("objects:\n  - {type: box, position: [0, 0, 0]}\n", "objects\\[0\\] \\(box\\).*size"),
         ("objects:\n  - {type: box, size: [1, -1, 1], position: [0, 0, 0]}\n", "size\\[1\\] must be a finite number > 0"),
         ("walls: []\n", "unknown key 'walls'"),
+        ("objects:\n  - {type: cylinder, radius: 1, height: 1, position: [0, 0, 0], segments: 1e8}\n",
+         "segments must be an integer, got '1e8'"),
+        ("objects:\n  - {type: cylinder, radius: 1, height: 1, position: [0, 0, 0], segments: 100000000}\n",
+         r"segments must be in \[3, 4096\], got 100000000 \(mesh_max_segments = 4096"),
+        ("objects:\n  - {type: sphere, radius: 1, position: [0, 0, 0], subdivisions: 2.5}\n",
+         "subdivisions must be an integer, got 2.5"),
+        ("objects:\n  - {type: mesh, path: 7, position: [0, 0, 0]}\n", r"objects\[0\].path must be a file name"),
     ],
 )
 def test_bad_yaml_worlds_raise_config_error(tmp_path, text, message):
@@ -155,3 +162,39 @@ def test_scene_is_rebuilt_after_adding_objects():
     assert cast(w, (0, 0, 0), (1, 0, 0))[0] == pytest.approx(4.5)
     w.add_box((1, 1, 1), (2, 0, 0))
     assert cast(w, (0, 0, 0), (1, 0, 0)) == (pytest.approx(1.5), 1)
+
+
+def test_forest_with_an_impossible_clearing_fails_fast():
+    with pytest.raises(ValueError, match=r"clearing must be < size / sqrt\(2\) = 0.707 m"):
+        cufund.worlds.load("forest", n_trees=3, size=1.0, clearing=5.0)  # looped forever before
+    # Room for only a sliver: the bounded number of draws ends it with a message.
+    with pytest.raises(ValueError, match="could not place 50 trees outside a clearing of 0.7 m in a 1.0 m square"):
+        cufund.worlds.load("forest", n_trees=50, size=1.0, clearing=0.7)
+    for kwargs, message in [({"n_trees": 2.5}, "n_trees must be an integer"),
+                            ({"size": float("nan")}, "size must be a finite number > 0"),
+                            ({"clearing": -1.0}, "clearing must be a finite number >= 0")]:
+        with pytest.raises(ValueError, match=message):
+            cufund.worlds.load("forest", **kwargs)
+
+
+def test_obj_face_index_zero_and_out_of_range_are_rejected(tmp_path):
+    verts = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+    for face, message in [("f 0 1 2", "bad.obj:4: face index 0 must be in \\[1, 3\\]"),
+                          ("f 1 2 4", "bad.obj:4: face index 4 must be in \\[1, 3\\]"),
+                          ("f 1 2 x", "bad.obj:4: face index 'x' is not an integer")]:
+        (tmp_path / "bad.obj").write_text(verts + face + "\n")
+        with pytest.raises(ValueError, match=message):
+            cufund.World().load_mesh(tmp_path / "bad.obj")
+    (tmp_path / "ok.obj").write_text(verts + "f 1 2 -1\n")  # -1: the last vertex
+    obj = cufund.World().load_mesh(tmp_path / "ok.obj")
+    assert obj.vertices[obj.triangles[0]].tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+
+
+def test_unreadable_mesh_files_raise_value_error_naming_the_file(tmp_path):
+    pytest.importorskip("trimesh")
+    cases = {"junk.stl": b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n", "junk.ply": b"ply\nformat ascii 1.0\n",
+             "empty.obj": b"# nothing\n", "junk.glb": b"glTF\x02\x00\x00\x00"}
+    for name, data in cases.items():
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(ValueError, match=f"mesh file .*{name}"):
+            cufund.World().load_mesh(tmp_path / name)

@@ -50,13 +50,25 @@ def empty() -> World:
 def forest(seed: int = 0, n_trees: int = 120, size: float = 40.0, clearing: float = 2.0) -> World:
     """Ground and ``n_trees`` trunks (cylinders, radius 0.1–0.3 m, height 4–10 m) at seeded uniform
     random positions in a ``size`` × ``size`` square, none within ``clearing`` of the origin."""
-    if n_trees < 0:
-        raise ValueError(f"n_trees must be >= 0, got {n_trees}")
+    from .primitives import _count
+
+    n_trees = _count("n_trees", n_trees, 0, 100_000)
+    for name, value in (("size", size), ("clearing", clearing)):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(value) or value < 0 or (name == "size" and value == 0):
+            raise ValueError(f"{name} must be a finite number {'> 0' if name == 'size' else '>= 0'} [m], got {value!r}")
+    if n_trees and clearing >= size / np.sqrt(2.0):
+        raise ValueError(f"clearing must be < size / sqrt(2) = {size / np.sqrt(2.0):.3g} m so that trees fit in the "
+                         f"{size} m square outside it, got {clearing}")
     world = World("forest")
     world.add_plane((size + 10.0, size + 10.0), (0.0, 0.0, 0.0), label="ground", color=(0.35, 0.3, 0.2))
     rng = np.random.default_rng(seed)
-    placed = 0
+    placed = attempts = 0
     while placed < n_trees:
+        attempts += 1
+        if attempts > 1000 * (n_trees + 10):  # a sliver of room outside the clearing
+            raise ValueError(f"could not place {n_trees} trees outside a clearing of {clearing} m in a {size} m square "
+                             f"(placed {placed} in {attempts - 1} draws); make the clearing smaller or the square larger")
         x, y = rng.uniform(-size / 2, size / 2, 2)
         if np.hypot(x, y) < clearing:
             continue

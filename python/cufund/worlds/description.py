@@ -58,6 +58,8 @@ def world_from_dict(data: Any, base_dir: str | Path = ".") -> World:
         if bad:
             raise ConfigError(f"unknown key {bad[0]!r} in {where} ({kind}); expected one of: {', '.join(allowed)}")
         if kind == "mesh" and "path" in kwargs:
+            if not isinstance(kwargs["path"], str):
+                raise ConfigError(f"{where}.path must be a file name (string), got {kwargs['path']!r}")
             path = Path(kwargs["path"])
             kwargs["path"] = path if path.is_absolute() else Path(base_dir) / path
         try:

@@ -18,6 +18,16 @@ def _positive(name: str, value: float) -> float:
     return value
 
 
+def _count(name: str, value: object, lo: int, hi: int, limit: str = "") -> int:
+    """An integer in [lo, hi]; ``limit`` names the cufund.limits field that sets hi."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name} must be an integer, got {value!r}")
+    if not lo <= int(value) <= hi:
+        hint = f" ({limit} = {hi}; raise it with cufund.limits.configure({limit}=...))" if limit else ""
+        raise ValueError(f"{name} must be in [{lo}, {hi}], got {value}{hint}")
+    return int(value)
+
+
 def box(size: tuple[float, float, float]) -> Mesh:
     """Box of edge lengths ``size`` = (sx, sy, sz) [m]."""
     if len(size) != 3:
@@ -43,10 +53,10 @@ def plane(size: tuple[float, float]) -> Mesh:
 
 def cylinder(radius: float, height: float, segments: int = 32) -> Mesh:
     """Capped cylinder about the z axis, from z = -height/2 to +height/2."""
+    from ..limits import current
+
     r, h = _positive("radius", radius), _positive("height", height)
-    if int(segments) < 3:
-        raise ValueError(f"segments must be >= 3, got {segments}")
-    n = int(segments)
+    n = _count("segments", segments, 3, current().mesh_max_segments, "mesh_max_segments")
     a = 2.0 * np.pi * np.arange(n) / n
     ring = np.stack([r * np.cos(a), r * np.sin(a)], 1)
     bottom = np.column_stack([ring, np.full(n, -h / 2)])
@@ -62,8 +72,7 @@ def cylinder(radius: float, height: float, segments: int = 32) -> Mesh:
 def sphere(radius: float, subdivisions: int = 3) -> Mesh:
     """Icosphere: an icosahedron subdivided ``subdivisions`` times, vertices on the sphere."""
     r = _positive("radius", radius)
-    if not 0 <= int(subdivisions) <= 7:
-        raise ValueError(f"subdivisions must be in [0, 7], got {subdivisions}")
+    subdivisions = _count("subdivisions", subdivisions, 0, 7)
     t = (1.0 + 5.0**0.5) / 2.0
     v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
                   [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)

@@ -125,13 +125,25 @@ class World:
         path = Path(path)
         if not path.is_file():
             raise ValueError(f"mesh file {str(path)!r} does not exist")
-        if not np.isfinite(scale) or scale <= 0:
-            raise ValueError(f"scale must be a finite number > 0, got {scale}")
-        mesh = trimesh.load(path, force="mesh", process=False)
-        if len(mesh.faces) == 0:
+        if isinstance(scale, bool) or not isinstance(scale, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(scale) or scale <= 0:
+            raise ValueError(f"scale must be a finite number > 0, got {scale!r}")
+        if path.suffix.lower() == ".obj":
+            _check_obj_faces(path)
+        try:
+            mesh = trimesh.load(path, force="mesh", process=False)
+            faces, vertices = np.asarray(mesh.faces), np.asarray(mesh.vertices, dtype=float)
+        except Exception as e:  # trimesh raises IndexError, KeyError, NotImplementedError, ... on bad files
+            raise ValueError(f"mesh file {str(path)!r} could not be read: {type(e).__name__}: {e}") from None
+        if faces.ndim != 2 or len(faces) == 0:
             raise ValueError(f"mesh file {str(path)!r} holds no triangles")
-        return self.add_mesh(np.asarray(mesh.vertices) * scale, np.asarray(mesh.faces), label or path.stem, color,
-                             position, yaw)
+        from ..limits import current
+
+        cap = current().mesh_max_triangles
+        if len(faces) > cap:
+            raise ValueError(f"mesh file {str(path)!r} holds {len(faces)} triangles, more than mesh_max_triangles = "
+                             f"{cap} (cufund.limits.configure(mesh_max_triangles=...))")
+        return self.add_mesh(vertices * scale, faces, label or path.stem, color, position, yaw)
 
     # --- queries ------------------------------------------------------------------------------
     @property
@@ -166,3 +178,24 @@ class World:
     def __repr__(self) -> str:
         tris = sum(len(o.triangles) for o in self._objects)
         return f"World({self.name!r}, {len(self._objects)} objects, {tris} triangles)"
+
+
+def _check_obj_faces(path: Path) -> None:
+    """OBJ vertex indices are 1-based (negative: relative to the last vertex); trimesh silently turns an index
+    0 or one past the vertices into a wrong triangle, so those are errors naming the file and line."""
+    vertices = 0
+    with path.open("r", encoding="utf-8", errors="replace") as f:
+        for line_no, line in enumerate(f, 1):
+            head = line[:2]
+            if head == "v " or head == "v\t":
+                vertices += 1
+            elif head == "f " or head == "f\t":
+                for token in line.split()[1:]:
+                    field = token.split("/")[0]
+                    try:
+                        k = int(field)
+                    except ValueError:
+                        raise ValueError(f"{path}:{line_no}: face index {token!r} is not an integer") from None
+                    if k == 0 or k > vertices or -k > vertices:
+                        raise ValueError(f"{path}:{line_no}: face index {k} must be in [1, {vertices}] (OBJ indices "
+                                         f"start at 1; negative ones count back from the last vertex)")
