@@ -11,7 +11,7 @@ JOBS ?= $(shell nproc)
 # chromium: headless browser that checks replay.html in tests/test_replay.py.
 APT_PACKAGES := libeigen3-dev libembree-dev libbullet-dev libgtest-dev libbenchmark-dev libusb-1.0-0 chromium
 # Build tools installed into the venv (no build isolation, so rebuilds are incremental).
-BUILD_TOOLS := "scikit-build-core>=0.10" "pybind11>=2.13" "cmake>=3.18" ninja
+BUILD_TOOLS := "scikit-build-core>=0.10" "pybind11>=3.1,<3.2" "cmake>=3.18" ninja
 
 SOURCES := $(shell find cpp bindings -type f \( -name '*.cpp' -o -name '*.h' -o -name CMakeLists.txt \)) \
            CMakeLists.txt pyproject.toml

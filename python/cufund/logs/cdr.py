@@ -1,0 +1,343 @@
+"""Fixed-size CDR messages encoded a block at a time with numpy.
+
+A message whose fields are all numbers and fixed-shape numeric arrays has the same CDR byte layout every time:
+the 4-byte encapsulation header (little-endian CDR), then each field aligned to its own size, counted from the end
+of the header (OMG CDR; what ROS 2 writes). A block of such messages is therefore one numpy structured array with
+explicit offsets: filling its columns from 1024 messages costs a few numpy calls, not 1024 ``struct.pack`` calls.
+Constant strings (the ``frame_id`` of a Foxglove schema on one topic) have a fixed length too and sit in the
+template every row is copied from.
+
+The ros2msg text of each layout is what Foxglove Studio and ``mcap-ros2-support`` decode the bytes with.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+import typing
+from dataclasses import dataclass
+from operator import attrgetter, itemgetter
+from typing import Any
+
+import numpy as np
+
+__all__ = ["CdrField", "CdrLayout", "MessageLayout", "infer_message_layout", "stamp_sec_nsec"]
+
+CDR_LE_HEADER = b"\x00\x01\x00\x00"
+_FIRST, _SECOND = itemgetter(0), itemgetter(1)
+_ROS_TYPES = {"f8": "float64", "f4": "float32", "i8": "int64", "i4": "int32", "i2": "int16", "i1": "int8",
+              "u8": "uint64", "u4": "uint32", "u2": "uint16", "u1": "uint8", "b1": "bool"}
+
+OPTIONAL_ARRAY_SHAPES: dict[tuple[str, str], tuple[int, ...]] = {
+    ("Odometry", "a_W"): (3,), ("Odometry", "alpha_B"): (3,),
+}
+"""Shapes of optional array fields of cufund messages, so that a topic whose first message has ``None`` there
+still gets a fixed layout."""
+
+
+@dataclass(frozen=True)
+class CdrField:
+    """One primitive field (or fixed array of them) of a CDR layout, or a constant string."""
+
+    name: str
+    """Column name (dotted for nested Foxglove fields: ``timestamp.sec``)."""
+    code: str
+    """numpy code without byte order (``f8``, ``i4``, ``b1``, ...), or ``str`` for a constant string."""
+    count: int = 0
+    """0: a scalar; else the length of a fixed array."""
+    const: str = ""
+    """The value of a constant string."""
+
+
+class CdrLayout:
+    """Byte layout of one fixed-size CDR message: a numpy dtype with explicit offsets and a row template."""
+
+    def __init__(self, fields: list[CdrField]):
+        names, formats, offsets = ["_header"], ["V4"], [0]
+        consts: list[tuple[str, bytes]] = []
+        pos = 0  # relative to the end of the encapsulation header (CDR alignment origin)
+        for f in fields:
+            if f.code == "str":
+                pos = _align(pos, 4)
+                raw = f.const.encode() + b"\0"
+                names += [f"_{f.name}.len", f"_{f.name}"]
+                formats += ["<u4", f"V{len(raw)}"]
+                offsets += [4 + pos, 4 + pos + 4]
+                consts.append((f.name, raw))
+                pos += 4 + len(raw)
+                continue
+            size = np.dtype(f.code).itemsize
+            pos = _align(pos, size)
+            names.append(f.name)
+            formats.append((f"<{f.code}", (f.count,)) if f.count else f"<{f.code}")
+            offsets.append(4 + pos)
+            pos += size * max(f.count, 1)
+        self.fields = fields
+        self.dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": 4 + pos})
+        self.size = 4 + pos
+        template = np.zeros(1, self.dtype)
+        template["_header"] = np.frombuffer(CDR_LE_HEADER, "V4")[0]
+        for name, raw in consts:
+            template[f"_{name}.len"] = len(raw)
+            template[f"_{name}"] = np.frombuffer(raw, f"V{len(raw)}")[0]
+        self.template = template
+
+    def empty(self, n: int) -> np.ndarray:
+        """``n`` rows with the header and constant strings set, numbers zero."""
+        return np.repeat(self.template, n)
+
+    def ros2msg(self) -> str:
+        """The field lines of the ros2msg definition (flat layouts only)."""
+        lines = []
+        for f in self.fields:
+            if f.code == "str":
+                lines.append(f"string {f.name}")
+            else:
+                lines.append(f"{_ROS_TYPES[f.code]}{f'[{f.count}]' if f.count else ''} {f.name}")
+        return "\n".join(lines) + "\n"
+
+
+def _align(pos: int, size: int) -> int:
+    return (pos + size - 1) // size * size
+
+
+def stamp_sec_nsec(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Seconds and nanoseconds of stamps ``t`` [s] (a ROS ``builtin_interfaces/Time``), rounded to 1 ns."""
+    ns = np.round(np.asarray(t, dtype=np.float64) * 1e9)
+    ns = np.nan_to_num(ns, nan=0.0, posinf=0.0, neginf=0.0).astype(np.int64)
+    sec = np.floor_divide(ns, 1_000_000_000)
+    return np.clip(sec, -(2**31), 2**31 - 1).astype(np.int32), (ns - sec * 1_000_000_000).astype(np.uint32)
+
+
+@dataclass(frozen=True)
+class _Column:
+    attr: str
+    ros_name: str
+    code: str
+    shape: tuple[int, ...]
+    optional: bool
+
+
+class MessageLayout:
+    """Exact CDR encoding of one dataclass whose fields are numbers and fixed-shape numeric arrays.
+
+    Field names are lower-cased for the ros2msg schema (ROS 2 field names are lower case); an optional array
+    field adds a ``bool has_<name>`` at the end. Arrays of more than one dimension are flattened; their shape
+    and dtype travel in the channel metadata (:meth:`describe`)."""
+
+    def __init__(self, cls: type, columns: list[_Column]):
+        self.cls = cls
+        self.columns = columns
+        fields = [CdrField(c.ros_name, c.code, int(np.prod(c.shape)) if c.shape else 0) for c in columns]
+        fields += [CdrField(f"has_{c.ros_name}", "b1") for c in columns if c.optional]
+        self.layout = CdrLayout(fields)
+        self._columns = [itemgetter(i) for i in range(len(columns))]
+        self._all = _getter([c.attr for c in columns])
+        self._packer: _Packer | None = None
+
+    def extractor(self, first: Any) -> Any:
+        """``extract(message, log_time_ns, publish_time_ns, sequence)`` for a topic whose first message is
+        ``first``: what a logger keeps of a message until its block is encoded. That is the bytes of its arrays,
+        joined while they are still in the CPU cache, and its numbers — or, for a message that does not fit
+        the topic's layout (another shape, dtype or a None), ``None`` and all its field values, encoded (or
+        rejected with a clear error) with the block. The tuple holds no reference to the message or its arrays,
+        so nothing the garbage collector must follow stays alive."""
+        self._packer = _Packer(self, first)
+        return self._packer.extract
+
+    def describe(self) -> list[list[Any]]:
+        """The columns as JSON-able lists (kept in the channel metadata; :meth:`from_description` inverts it)."""
+        return [[c.attr, c.ros_name, c.code, list(c.shape), c.optional] for c in self.columns]
+
+    @classmethod
+    def from_description(cls, message_cls: type, description: list[list[Any]]) -> MessageLayout:
+        return cls(message_cls, [_Column(a, r, code, tuple(shape), bool(opt))
+                                 for a, r, code, shape, opt in description])
+
+    def encode(self, extracted: list[tuple[Any, ...]], topic: str) -> np.ndarray:
+        """(n, size) uint8: the CDR bytes of each message, from what :meth:`extract` kept of them."""
+        n = len(extracted)
+        raws = list(map(_FIRST, extracted))
+        slow = raws.count(None)
+        if slow == 0:
+            rows = self._packer.rows(raws, list(map(_SECOND, extracted)))  # type: ignore[union-attr]
+        elif slow == n:
+            rows = self._rows(list(map(_SECOND, extracted)), topic)
+        else:
+            rows = self.layout.empty(n)
+            fast = [i for i, r in enumerate(raws) if r is not None]
+            other = [i for i, r in enumerate(raws) if r is None]
+            rows[fast] = self._packer.rows([raws[i] for i in fast],  # type: ignore[union-attr]
+                                           [extracted[i][1] for i in fast])
+            rows[other] = self._rows([extracted[i][1] for i in other], topic)
+        return rows.view(np.uint8).reshape(n, self.layout.size)
+
+    def _rows(self, values_of: list[tuple[Any, ...]], topic: str) -> np.ndarray:
+        """The general path: rows from every field value of each message (validates shapes and dtypes)."""
+        n = len(values_of)
+        rows = self.layout.empty(n)
+        for col, get in zip(self.columns, self._columns):
+            values = list(map(get, values_of))
+            if not col.shape:
+                rows[col.ros_name] = np.array(values, dtype=col.code)
+                continue
+            if col.optional:
+                present = [v is not None for v in values]
+                rows[f"has_{col.ros_name}"] = present
+                if not all(present):
+                    index = [i for i, p in enumerate(present) if p]
+                    if index:
+                        rows[col.ros_name][index] = self._stack([values[i] for i in index], col, topic)
+                    continue
+            rows[col.ros_name] = self._stack(values, col, topic)
+        return rows
+
+    @staticmethod
+    def _stack(values: list[Any], col: _Column, topic: str) -> np.ndarray:
+        """(n, count) array of one array column (ValueError naming the field when a shape or dtype differs from
+        the topic's first message)."""
+        n, dtype = len(values), np.dtype(col.code)
+        try:
+            block = np.array(values)
+        except ValueError as exc:  # ragged
+            raise ValueError(f"topic {topic!r}: field {col.attr!r} changed shape within the log "
+                             f"(expected {col.shape})") from exc
+        if block.shape[1:] != col.shape:
+            raise ValueError(f"topic {topic!r}: field {col.attr!r} has shape {block.shape[1:]}, "
+                             f"the topic's first message had {col.shape}")
+        if not np.can_cast(block.dtype, dtype, casting="same_kind"):
+            raise ValueError(f"topic {topic!r}: field {col.attr!r} has dtype {block.dtype}, the topic's first "
+                             f"message had {dtype}")
+        return block.reshape(n, -1)
+
+    def decode(self, data: bytes | memoryview) -> Any:
+        if len(data) != self.layout.size:
+            raise ValueError(f"a {self.cls.__name__} record has {len(data)} bytes, the schema needs "
+                             f"{self.layout.size}")
+        row = np.frombuffer(data, self.layout.dtype, count=1)[0]
+        kwargs: dict[str, Any] = {}
+        for col in self.columns:
+            value = row[col.ros_name]
+            if col.optional and not row[f"has_{col.ros_name}"]:
+                kwargs[col.attr] = None
+            elif col.shape:
+                kwargs[col.attr] = np.array(value, dtype=np.dtype(col.code)).reshape(col.shape)
+            elif col.code == "f8":
+                kwargs[col.attr] = float(value)
+            elif col.code == "b1":
+                kwargs[col.attr] = bool(value)
+            else:
+                kwargs[col.attr] = int(value)
+        return self.cls(**kwargs)
+
+
+def _getter(attrs: list[str]) -> Any:
+    """``attrgetter`` that always returns a tuple (also of one or no attribute)."""
+    if not attrs:
+        return lambda message: ()
+    if len(attrs) == 1:
+        get = attrgetter(attrs[0])
+        return lambda message: (get(message),)
+    return attrgetter(*attrs)
+
+
+class _Packer:
+    """The fast path of one topic: the arrays present in its first message, checked by dtype and total size and
+    joined into bytes at write time; numbers kept as a tuple. Anything else takes the general path."""
+
+    def __init__(self, layout: MessageLayout, first: Any):
+        cols = layout.columns
+        present = [c for c in cols if c.shape and getattr(first, c.attr) is not None]
+        absent = [c for c in cols if c.shape and getattr(first, c.attr) is None]
+        self.scalars = [c for c in cols if not c.shape]
+        self.present, self.absent = present, absent
+        self._arrays = _getter([c.attr for c in present])
+        self._dtypes = _getter([f"{c.attr}.dtype" for c in present])
+        self._expected = tuple(np.dtype(c.code) for c in present)
+        self._absent = _getter([c.attr for c in absent])
+        self._nones = (None,) * len(absent)
+        self._scalars = _getter([c.attr for c in self.scalars])
+        self._all = layout._all
+        self._layout = layout.layout
+        self.packed = np.dtype([(c.ros_name, f"<{c.code}", (int(np.prod(c.shape)),)) for c in present])
+        self._scalar_columns = [itemgetter(i) for i in range(len(self.scalars))]
+        self.extract = self._make_extract()
+
+    def _make_extract(self) -> Any:
+        join, arrays, dtypes, expected = b"".join, self._arrays, self._dtypes, self._expected
+        absent, nones, scalars, all_fields, nbytes = self._absent, self._nones, self._scalars, self._all, \
+            self.packed.itemsize
+
+        def extract(message: Any, log: int, publish: int, sequence: int) -> tuple[Any, ...]:
+            try:
+                raw = join(arrays(message))
+                if len(raw) == nbytes and dtypes(message) == expected and absent(message) == nones:
+                    return raw, scalars(message), log, publish, sequence
+            except (TypeError, BufferError, AttributeError, ValueError):
+                pass  # None, a list, a non-contiguous array, an array where None was: the general path
+            return None, all_fields(message), log, publish, sequence
+
+        return extract
+
+    def rows(self, raws: list[bytes], scalars: list[tuple[Any, ...]]) -> np.ndarray:
+        n = len(raws)
+        rows = self._layout.empty(n)
+        packed = np.frombuffer(b"".join(raws), self.packed) if self.present else None
+        for c in self.present:
+            rows[c.ros_name] = packed[c.ros_name]  # type: ignore[index]
+            if c.optional:
+                rows[f"has_{c.ros_name}"] = True
+        for c, get in zip(self.scalars, self._scalar_columns):
+            rows[c.ros_name] = np.array(list(map(get, scalars)), dtype=c.code)
+        return rows
+
+
+def _unwrap_optional(hint: Any) -> tuple[Any, bool]:
+    if typing.get_origin(hint) in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if len(args) == 1 and len(typing.get_args(hint)) == 2:
+            return args[0], True
+        return None, False
+    return hint, False
+
+
+def infer_message_layout(cls: type, first: Any) -> MessageLayout | None:
+    """The fixed CDR layout of dataclass ``cls``, from its type hints and its ``first`` message (array shapes and
+    dtypes); None when a field is not a number or a numeric array (the JSON codec takes those)."""
+    if not dataclasses.is_dataclass(cls):
+        return None
+    try:
+        hints = typing.get_type_hints(cls)
+    except Exception:  # noqa: BLE001 - unresolvable annotations: not a fixed layout
+        return None
+    columns = []
+    for field in dataclasses.fields(cls):
+        base, optional = _unwrap_optional(hints.get(field.name))
+        ros_name = field.name.lower()
+        if base is float and not optional:
+            columns.append(_Column(field.name, ros_name, "f8", (), False))
+        elif base is bool and not optional:
+            columns.append(_Column(field.name, ros_name, "b1", (), False))
+        elif base is int and not optional:
+            columns.append(_Column(field.name, ros_name, "i8", (), False))
+        elif base is np.ndarray:
+            value = getattr(first, field.name, None)
+            if value is not None:
+                shape = tuple(value.shape) if isinstance(value, np.ndarray) else None
+            else:
+                shape = OPTIONAL_ARRAY_SHAPES.get((cls.__name__, field.name))
+            if value is not None:
+                if not isinstance(value, np.ndarray) or value.dtype.kind not in "fiub" or value.size == 0:
+                    return None
+                code = "b1" if value.dtype.kind == "b" else value.dtype.str[1:]
+            else:
+                code = "f8"
+            if shape is None or len(shape) == 0 or code not in _ROS_TYPES:
+                return None
+            columns.append(_Column(field.name, ros_name, code, shape, optional))
+        else:
+            return None
+    names = [c.ros_name for c in columns]
+    if len(set(names)) != len(names):
+        return None
+    return MessageLayout(cls, columns)

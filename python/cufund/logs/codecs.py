@@ -1,0 +1,396 @@
+"""How each message type is written to and read from a log: one codec per topic, chosen from its first message.
+
+- Fixed-size messages (odometry, IMU, setpoints, actuator commands, any dataclass of numbers and fixed-shape
+  arrays): exact CDR (``cufund_msgs/msg/<Class>``, ros2msg schema), a block at a time with numpy. Odometry adds
+  two Foxglove views on companion channels: ``<topic>/pose`` (``foxglove_msgs/msg/PoseInFrame`` in ``world``)
+  and ``<topic>/tf`` (``foxglove_msgs/msg/FrameTransform`` ``world`` -> ``base_link`` for the truth,
+  ``base_link_estimate`` for the estimate).
+- Point clouds, LiDAR truth, camera images and GPS fixes: Foxglove's JSON schemas (``foxglove.PointCloud`` in
+  frame ``lidar`` with every per-point field packed, ``foxglove.RawImage``, ``foxglove.LocationFix``); what an
+  exact round trip needs beyond them (the float64 stamp, dtypes, the other fields) rides along in a ``cufund``
+  field, which Foxglove ignores.
+- Anything else (enums, strings, user dataclasses): JSON of the fields (``cufund.<Class>``, JSON Schema).
+
+The channel metadata names the codec and the message class, so :func:`codec_from_channel` rebuilds the codec.
+"""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import json
+import typing
+from typing import Any
+
+import numpy as np
+
+from . import schemas
+from .cdr import CdrLayout, MessageLayout, infer_message_layout, stamp_sec_nsec
+from .jsonvalue import class_path, decode_fields, encode_fields, encode_value, resolve_class
+
+__all__ = ["Codec", "View", "codec_for", "codec_from_channel"]
+
+ODOMETRY_CHILD_FRAMES = {"/truth/odometry": "base_link", "/estimator/odometry": "base_link_estimate"}
+"""Child frame of the ``<topic>/tf`` view of odometry topics (others: ``base_link`` plus the topic's name)."""
+WORLD_FRAME = "world"
+
+
+@dataclasses.dataclass
+class View:
+    """A companion channel derived from a topic's messages for Foxglove (not read back)."""
+
+    suffix: str
+    schema_name: str
+    schema_text: str
+    layout: CdrLayout
+    fill: typing.Callable[[np.ndarray, dict[str, np.ndarray]], None]
+
+    schema_encoding = "ros2msg"
+    message_encoding = "cdr"
+
+
+class Codec:
+    """Encodes a block of one topic's messages; decodes one message."""
+
+    name: str
+    schema_name: str
+    schema_encoding: str
+    schema_data: bytes
+    message_encoding: str
+    fixed_size: int = 0
+    """Bytes per message when every message has the same size (``encode`` then returns an (n, size) array)."""
+    views: tuple[View, ...] = ()
+
+    def __init__(self, cls: type):
+        self.cls = cls
+
+    def metadata(self) -> dict[str, str]:
+        return {"cufund.codec": self.name, "cufund.class": class_path(self.cls)}
+
+    def extractor(self, first: Any) -> Any:
+        """``extract(message, log_time_ns, publish_time_ns, sequence) -> tuple`` for a topic whose first message
+        is ``first``: what a logger keeps of each message until its block is encoded. Item 1 is what
+        :meth:`encode` takes; items -3, -2, -1 are the two times and the sequence. Here: the message itself."""
+        return _keep_message
+
+    def encode(self, extracted: list[Any], topic: str) -> np.ndarray | list[bytes]:
+        """The encoded messages of a block, from what :meth:`extractor` kept of each."""
+        raise NotImplementedError
+
+    def decode(self, data: bytes | memoryview) -> Any:
+        raise NotImplementedError
+
+
+def _keep_message(message: Any, log: int, publish: int, sequence: int) -> tuple[Any, ...]:
+    return None, message, log, publish, sequence
+
+
+class CdrCodec(Codec):
+    name = "cdr"
+    schema_encoding = "ros2msg"
+    message_encoding = "cdr"
+
+    def __init__(self, layout: MessageLayout, views: tuple[View, ...] = ()):
+        super().__init__(layout.cls)
+        self.layout = layout
+        self.schema_name = f"cufund_msgs/msg/{layout.cls.__name__}"
+        self.schema_data = layout.layout.ros2msg().encode()
+        self.fixed_size = layout.layout.size
+        self.views = views
+
+    def extractor(self, first: Any) -> Any:
+        return self.layout.extractor(first)
+
+    def metadata(self) -> dict[str, str]:
+        return {**super().metadata(), "cufund.layout": json.dumps(self.layout.describe())}
+
+    def encode(self, extracted: list[Any], topic: str) -> np.ndarray:
+        return self.layout.encode(extracted, topic)
+
+    def decode(self, data: bytes | memoryview) -> Any:
+        return self.layout.decode(data)
+
+
+def _odometry_views(topic: str) -> tuple[View, ...]:
+    child = ODOMETRY_CHILD_FRAMES.get(str(topic), "base_link" + str(topic).replace("/", "_"))
+
+    def fill_pose(rows: np.ndarray, exact: dict[str, np.ndarray]) -> None:
+        rows["timestamp.sec"], rows["timestamp.nanosec"] = exact["stamp"]
+        rows["pose.position"] = exact["p_w"]
+        rows["pose.orientation"] = exact["q_wb"][:, [1, 2, 3, 0]]
+
+    def fill_tf(rows: np.ndarray, exact: dict[str, np.ndarray]) -> None:
+        rows["timestamp.sec"], rows["timestamp.nanosec"] = exact["stamp"]
+        rows["translation"] = exact["p_w"]
+        rows["rotation"] = exact["q_wb"][:, [1, 2, 3, 0]]
+
+    return (View("/pose", *schemas.POSE_IN_FRAME, schemas.pose_in_frame_layout(WORLD_FRAME), fill_pose),
+            View("/tf", *schemas.FRAME_TRANSFORM, schemas.frame_transform_layout(WORLD_FRAME, child), fill_tf))
+
+
+def view_rows(codec: Codec, exact: np.ndarray) -> list[np.ndarray]:
+    """The rows of each view of ``codec`` from the (n, size) exact CDR rows of a block."""
+    if not codec.views:
+        return []
+    assert isinstance(codec, CdrCodec)
+    decoded = exact.reshape(-1).view(codec.layout.layout.dtype)
+    columns = {name: decoded[name] for name in ("t", "p_w", "q_wb")}
+    columns["stamp"] = stamp_sec_nsec(columns["t"])
+    out = []
+    for view in codec.views:
+        rows = view.layout.empty(len(decoded))
+        view.fill(rows, columns)
+        out.append(rows.view(np.uint8).reshape(len(decoded), view.layout.size))
+    return out
+
+
+class JsonCodec(Codec):
+    """Every field as exact JSON (``encode_value``), under a ``cufund.<Class>`` JSON Schema."""
+
+    name = "json"
+    schema_encoding = "jsonschema"
+    message_encoding = "json"
+
+    def __init__(self, cls: type):
+        super().__init__(cls)
+        self.schema_name = f"cufund.{cls.__name__}"
+        self.schema_data = json.dumps(_json_schema(cls)).encode()
+
+    def encode(self, extracted: list[Any], topic: str) -> list[bytes]:
+        return [_dumps(encode_fields(e[1], f"topic {topic!r}: {self.cls.__name__}")) for e in extracted]
+
+    def decode(self, data: bytes | memoryview) -> Any:
+        return self.cls(**decode_fields(json.loads(bytes(data))))
+
+
+def _dumps(obj: Any) -> bytes:
+    return json.dumps(obj, separators=(",", ":"), allow_nan=False).encode()
+
+
+def _json_schema(cls: type) -> dict[str, Any]:
+    try:
+        hints = typing.get_type_hints(cls)
+    except Exception:  # noqa: BLE001 - unresolvable annotations: untyped properties
+        hints = {}
+    kinds = {float: {"type": ["number", "object"]}, int: {"type": "integer"}, bool: {"type": "boolean"},
+             str: {"type": "string"}}
+    properties = {f.name: dict(kinds.get(hints.get(f.name), {}), description=f"{cls.__name__}.{f.name}")
+                  for f in dataclasses.fields(cls)}
+    return {"title": f"cufund.{cls.__name__}", "type": "object", "properties": properties,
+            "description": "cufund message: non-finite floats, arrays, enums and nested dataclasses are objects "
+                           "tagged $float, $ndarray, $enum, $dataclass"}
+
+
+class _FoxgloveJsonCodec(Codec):
+    """A Foxglove JSON schema for the bulk of a message; its other fields, exact, in ``cufund``."""
+
+    schema_encoding = "jsonschema"
+    message_encoding = "json"
+    bulk: tuple[str, ...] = ()
+    """Fields carried by the Foxglove part (not repeated in ``cufund``)."""
+
+    def __init__(self, cls: type, schema: tuple[str, bytes], frame_id: str):
+        super().__init__(cls)
+        self.schema_name, self.schema_data = schema
+        self.name = self.schema_name
+        self.frame_id = frame_id
+        self._others = [f.name for f in dataclasses.fields(cls) if f.name not in self.bulk]
+
+    def _header(self, message: Any) -> dict[str, Any]:
+        sec, nsec = stamp_sec_nsec(np.array([message.t]))
+        return {"timestamp": {"sec": max(int(sec[0]), 0), "nsec": int(nsec[0])}, "frame_id": self.frame_id}
+
+    def _exact(self, message: Any, topic: str, **extra: Any) -> dict[str, Any]:
+        where = f"topic {topic!r}: {self.cls.__name__}"
+        return {"fields": {n: encode_value(getattr(message, n), f"{where}.{n}") for n in self._others}, **extra}
+
+    def decode(self, data: bytes | memoryview) -> Any:
+        obj = json.loads(bytes(data))
+        exact = obj["cufund"]
+        return self.cls(**decode_fields(exact["fields"]), **self._decode_bulk(obj, exact))
+
+    def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
+        raise NotImplementedError
+
+
+class PointCloudCodec(_FoxgloveJsonCodec):
+    """``foxglove.PointCloud``: x, y, z from the (N, 3) ``xyz`` field and one packed field per per-point array."""
+
+    def __init__(self, cls: type, frame_id: str, xyz: str, per_point: tuple[tuple[str, str], ...]):
+        self.xyz, self.per_point = xyz, per_point
+        self.bulk = (xyz, *(attr for attr, _ in per_point))
+        super().__init__(cls, schemas.POINT_CLOUD_SCHEMA, frame_id)
+
+    def encode(self, extracted: list[Any], topic: str) -> list[bytes]:
+        return [self._encode_one(e[1], topic) for e in extracted]
+
+    def _encode_one(self, message: Any, topic: str) -> bytes:
+        xyz = np.asarray(getattr(message, self.xyz))
+        if xyz.ndim != 2 or xyz.shape[1] != 3:
+            raise ValueError(f"topic {topic!r}: {self.cls.__name__}.{self.xyz} must have shape (N, 3), "
+                             f"got {xyz.shape}")
+        columns = [("x", xyz[:, 0]), ("y", xyz[:, 1]), ("z", xyz[:, 2])]
+        columns += [(name, np.asarray(getattr(message, attr))) for attr, name in self.per_point]
+        dtypes = {name: col.dtype.str for name, col in columns}
+        packed = []
+        for name, col in columns:
+            if col.shape != (len(xyz),):
+                raise ValueError(f"topic {topic!r}: per-point field {name!r} has shape {col.shape}, "
+                                 f"expected ({len(xyz)},)")
+            packed.append((name, _packable(col)))
+        dtype = np.dtype([(name, col.dtype.newbyteorder("<")) for name, col in packed])
+        data = np.empty(len(xyz), dtype)
+        for name, col in packed:
+            data[name] = col
+        fields, offset = [], 0
+        for name, col in packed:
+            fields.append({"name": name, "offset": offset, "type": schemas.NUMERIC_TYPES[col.dtype.name]})
+            offset += col.dtype.itemsize
+        obj = {**self._header(message),
+               "pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
+                        "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+               "point_stride": dtype.itemsize, "fields": fields,
+               "data": base64.b64encode(data.tobytes()).decode(),
+               "cufund": self._exact(message, topic, dtypes=dtypes)}
+        return _dumps(obj)
+
+    def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
+        dtype = np.dtype({"names": [f["name"] for f in obj["fields"]],
+                          "formats": [_NUMPY_OF_TYPE[f["type"]] for f in obj["fields"]],
+                          "offsets": [f["offset"] for f in obj["fields"]], "itemsize": obj["point_stride"]})
+        data = np.frombuffer(base64.b64decode(obj["data"]), dtype)
+        dtypes = exact["dtypes"]
+        out = {self.xyz: np.stack([data[k].astype(dtypes[k]) for k in "xyz"], axis=1)}
+        for attr, name in self.per_point:
+            out[attr] = data[name].astype(dtypes[name])
+        return out
+
+
+_NUMPY_OF_TYPE = {v: "<" + np.dtype(k).str[1:] for k, v in schemas.NUMERIC_TYPES.items()}
+
+
+def _packable(col: np.ndarray) -> np.ndarray:
+    """``col`` in a dtype Foxglove's packed fields have, value for value: 64-bit integers as int32 or uint32 when
+    they fit, else as float64 when below 2**53; bool as uint8."""
+    if col.dtype.name in schemas.NUMERIC_TYPES:
+        return col
+    if col.dtype.kind == "b":
+        return col.astype(np.uint8)
+    if col.dtype.kind in "iu":
+        low, high = (int(col.min()), int(col.max())) if col.size else (0, 0)
+        for candidate in (np.int32, np.uint32):
+            info = np.iinfo(candidate)
+            if low >= info.min and high <= info.max:
+                return col.astype(candidate)
+        if max(-low, high) <= 2**53:
+            return col.astype(np.float64)
+    if col.dtype.kind == "f":
+        return col.astype(np.float64)
+    raise ValueError(f"cannot pack a per-point field of dtype {col.dtype} exactly")
+
+
+_IMAGE_ENCODINGS = {("float32", 2): "32FC1", ("uint8", 2): "mono8", ("uint16", 2): "16UC1",
+                    ("uint8", 3): "rgb8", ("uint8", 4): "rgba8"}
+
+
+class RawImageCodec(_FoxgloveJsonCodec):
+    """``foxglove.RawImage``; the exact dtype and shape ride along (so any numeric image round-trips)."""
+
+    bulk = ("image",)
+
+    def encode(self, extracted: list[Any], topic: str) -> list[bytes]:
+        out = []
+        for m in (e[1] for e in extracted):
+            image = np.ascontiguousarray(m.image)
+            if image.ndim not in (2, 3):
+                raise ValueError(f"topic {topic!r}: an image must be (H, W) or (H, W, C), got {image.shape}")
+            channels = image.shape[2] if image.ndim == 3 else 1
+            encoding = _IMAGE_ENCODINGS.get((image.dtype.name, channels if image.ndim == 3 else 2), "")
+            obj = {**self._header(m), "width": image.shape[1], "height": image.shape[0], "encoding": encoding,
+                   "step": image.shape[1] * channels * image.dtype.itemsize,
+                   "data": base64.b64encode(image.tobytes()).decode(),
+                   "cufund": self._exact(m, topic, dtype=image.dtype.str, shape=list(image.shape))}
+            out.append(_dumps(obj))
+        return out
+
+    def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
+        image = np.frombuffer(base64.b64decode(obj["data"]), np.dtype(exact["dtype"])).reshape(exact["shape"])
+        return {"image": image.copy()}
+
+
+class LocationFixCodec(_FoxgloveJsonCodec):
+    """``foxglove.LocationFix`` with the receiver's claimed accuracy as a diagonal covariance."""
+
+    def encode(self, extracted: list[Any], topic: str) -> list[bytes]:
+        out = []
+        for m in (e[1] for e in extracted):
+            position = [m.latitude_deg, m.longitude_deg, m.altitude_m]
+            known = all(np.isfinite([*position, m.eph, m.epv]))
+            var = [m.eph**2, m.eph**2, m.epv**2] if known else [0.0, 0.0, 0.0]
+            obj = {**self._header(m), **{k: (float(v) if np.isfinite(v) else None)
+                                         for k, v in zip(("latitude", "longitude", "altitude"), position)},
+                   "position_covariance": [var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2]],
+                   "position_covariance_type": 2 if known else 0,
+                   "cufund": self._exact(m, topic)}
+            out.append(_dumps(obj))
+        return out
+
+    def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
+        return {}
+
+
+def _lidar_codec(cls: type) -> PointCloudCodec:
+    return PointCloudCodec(cls, "lidar", "points_L", (("dt", "dt"), ("ranges", "range"), ("intensity", "intensity"),
+                                                      ("channel", "channel")))
+
+
+def _lidar_truth_codec(cls: type) -> PointCloudCodec:
+    return PointCloudCodec(cls, WORLD_FRAME, "points_W", (("object_ids", "object_id"),))
+
+
+def _has_fields(cls: type, names: tuple[str, ...]) -> bool:
+    return tuple(f.name for f in dataclasses.fields(cls)) == names
+
+
+def codec_for(topic: str, message: Any) -> Codec:
+    """The codec of ``topic``, whose first message is ``message``."""
+    cls = type(message)
+    if not dataclasses.is_dataclass(cls):
+        raise TypeError(f"topic {topic!r}: only dataclass messages can be logged, got {cls.__name__}")
+    cufund = cls.__module__ == "cufund.messages"
+    name = cls.__name__
+    if cufund and name == "PointCloud" and _has_fields(
+            cls, ("t", "dt", "points_L", "ranges", "intensity", "channel", "frame")):
+        return _lidar_codec(cls)
+    if cufund and name == "LidarTruth" and _has_fields(cls, ("t", "points_W", "object_ids")):
+        return _lidar_truth_codec(cls)
+    if cufund and name == "CameraImage" and _has_fields(cls, ("t", "image")):
+        return RawImageCodec(cls, schemas.RAW_IMAGE_SCHEMA, "camera")
+    if cufund and name == "GpsFix":
+        return LocationFixCodec(cls, schemas.LOCATION_FIX_SCHEMA, "gps")
+    layout = infer_message_layout(cls, message)
+    if layout is not None:
+        views = _odometry_views(topic) if cufund and name == "Odometry" else ()
+        return CdrCodec(layout, views)
+    return JsonCodec(cls)
+
+
+def codec_from_channel(metadata: dict[str, str]) -> Codec:
+    """The codec a channel was written with, from its metadata (ValueError when it names none)."""
+    kind, path = metadata.get("cufund.codec"), metadata.get("cufund.class")
+    if kind is None or path is None:
+        raise ValueError("the channel was not written by cufund (no cufund.codec / cufund.class metadata)")
+    cls = resolve_class(path)
+    if kind == "cdr":
+        return CdrCodec(MessageLayout.from_description(cls, json.loads(metadata["cufund.layout"])))
+    if kind == "json":
+        return JsonCodec(cls)
+    if kind == "foxglove.PointCloud":
+        fields = tuple(f.name for f in dataclasses.fields(cls))
+        return _lidar_codec(cls) if "points_L" in fields else _lidar_truth_codec(cls)
+    if kind == "foxglove.RawImage":
+        return RawImageCodec(cls, schemas.RAW_IMAGE_SCHEMA, "camera")
+    if kind == "foxglove.LocationFix":
+        return LocationFixCodec(cls, schemas.LOCATION_FIX_SCHEMA, "gps")
+    raise ValueError(f"unknown cufund codec {kind!r}")
+

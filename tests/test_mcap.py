@@ -1,0 +1,345 @@
+"""MCAP logs: every message type round-trips bit for bit, the file is what the official ``mcap`` reader, the ROS 2
+CDR decoder and Foxglove's JSON schemas expect, memory stays bounded, and a damaged file gives a clear error."""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import enum
+import json
+import tracemalloc
+
+import jsonschema
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+from cufund import messages as M
+from cufund.logs import LogRecord, McapLogger, McapReadError, log_topics, read_mcap
+
+
+class Color(enum.Enum):
+    RED = "red"
+    BLUE = 2
+
+
+@dataclasses.dataclass(frozen=True)
+class Inner:
+    gain: float
+    name: str
+
+
+@dataclasses.dataclass(frozen=True)
+class UserMessage:
+    """Not a cufund message, with fields no fixed layout holds: the JSON codec takes it."""
+
+    t: float
+    label: str
+    color: Color
+    inner: Inner
+    grid: np.ndarray
+    counts: tuple
+    extra: dict
+    maybe: float | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class UserFixed:
+    """A user dataclass of numbers and fixed arrays: logged as exact CDR."""
+
+    t: float
+    k: int
+    ok: bool
+    R_WB: np.ndarray
+    ids: np.ndarray
+
+
+def _stream(rng: np.random.Generator) -> list[tuple[str, object]]:
+    """Messages of every type on their topics, several per topic, many sharing a stamp."""
+    out: list[tuple[str, object]] = []
+    v3 = lambda: rng.normal(size=3)  # noqa: E731
+    for i in range(9):
+        t = 0.01 * i + rng.random() * 1e-3  # stamps with full float64 mantissas
+        q = rng.normal(size=4)
+        out += [
+            ("/truth/odometry", M.Odometry(t, v3(), v3(), q / np.linalg.norm(q), v3(), v3(), v3())),
+            ("/estimator/odometry", M.Odometry(t, v3(), v3(), q, v3(), v3() if i % 4 == 3 else None)),
+            ("/sensors/imu", M.Imu(t, v3(), v3())),
+            ("/sensors/magnetometer", M.MagneticField(t, v3() * 1e-5)),
+            ("/sensors/barometer", M.AirPressure(t, 101325.0 + rng.normal(), rng.normal(), 288.15)),
+            ("/sensors/gps", M.GpsFix(t, 47.3 + rng.random(), 8.5, 500.0 + rng.random(), v3(), 3, 11, 0.8, 1.3)
+             if i % 3 else M.GpsFix(t, np.nan, np.nan, np.nan, np.full(3, np.nan), 0, 0, np.inf, np.inf)),
+            ("/setpoint/trajectory", M.TrajectorySetpoint(t, v3(), v3(), v3(), v3(), rng.normal(), 0.0)),
+            ("/setpoint/attitude", M.AttitudeSetpoint(t, q, 0.3 + rng.random(), -0.1)),
+            ("/setpoint/rates", M.RateSetpoint(t, v3(), 0.31)),
+            ("/setpoint/thrust_torque", M.ThrustTorqueSetpoint(t, 0.29, v3() * 1e-3)),
+            ("/actuator/command", M.ActuatorCommand(t, 2000.0 + rng.random(4))),
+            ("/user/fixed", UserFixed(t, -(2**62) + i, i % 2 == 0, rng.normal(size=(3, 3)),
+                                      rng.integers(-5, 5, 4).astype(np.int32))),
+        ]
+        if i % 3 == 0:
+            n = 50 + 7 * i
+            out += [
+                ("/commander/flight_mode", M.FlightModeCommand(t, list(M.FlightMode)[i % 3])),
+                ("/sensors/lidar", M.PointCloud(t, np.sort(rng.random(n)) * 0.1,
+                                                rng.normal(size=(n, 3)).astype(np.float32), rng.random(n) * 40,
+                                                rng.random(n), rng.integers(0, 32, n), i)),
+                ("/truth/point_cloud", M.LidarTruth(t, rng.normal(size=(n, 3)).astype(np.float32),
+                                                    rng.integers(0, 2**40, n))),
+                ("/sensors/depth_image", M.CameraImage(t, np.where(rng.random((6, 8)) < 0.2, np.nan,
+                                                                   rng.random((6, 8))).astype(np.float32))),
+                ("/sensors/rgb_image", M.CameraImage(t, rng.integers(0, 256, (6, 8, 3)).astype(np.uint8))),
+                ("/user/json", UserMessage(t, "a \"label\" ünïcode", Color.BLUE if i else Color.RED,
+                                           Inner(-np.inf, "x"), rng.normal(size=(2, 40)), (1, 2.5, "s"),
+                                           {"k": [1, None]}, None if i else 3.5)),
+            ]
+    return out
+
+
+def _same(a: object, b: object) -> bool:
+    """Equal type and value, arrays by dtype, shape and bytes, floats by bits (NaN equals NaN)."""
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, np.ndarray):
+        return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+    if isinstance(a, float):
+        return np.float64(a).tobytes() == np.float64(b).tobytes()
+    if dataclasses.is_dataclass(a):
+        return all(_same(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a))
+    if isinstance(a, (tuple, list)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    return a == b
+
+
+def _write(path, stream, **options) -> list[tuple[str, object, int, int]]:
+    written = []
+    with McapLogger(path, {"scenario": "unit", "seed": "3"}, **options) as log:
+        for k, (topic, message) in enumerate(stream):
+            log_ns = int(round(message.t * 1e9)) // 1_000_000 * 1_000_000 + 10  # ms buckets: many ties
+            written.append((topic, message, log_ns, log_ns - k % 5))
+            log.write(topic, message, log_ns, log_ns - k % 5)
+    return written
+
+
+@pytest.fixture(scope="module")
+def log_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("mcap") / "run.mcap"
+    written = _write(path, _stream(np.random.default_rng(7)), block_messages=4)
+    return path, written
+
+
+def test_every_message_type_round_trips_exactly_in_log_time_then_write_order(log_file):
+    path, written = log_file
+    records = list(read_mcap(path))
+    expected = sorted(written, key=lambda w: w[2])  # stable: ties keep the write order
+    assert [(r.topic, r.log_time_ns, r.publish_time_ns) for r in records] == [(t, a, b) for t, _, a, b in expected]
+    for record, (topic, message, _, _) in zip(records, expected):
+        assert isinstance(record, LogRecord)
+        assert _same(record.message, message), (topic, record.message, message)
+    assert isinstance(records[0].message.p_W, np.ndarray) and not records[0].message.p_W.flags.writeable
+
+
+def test_topic_selection_and_topic_listing(log_file):
+    path, written = log_file
+    only = list(read_mcap(path, topics=["/sensors/imu", "/user/json"]))
+    assert [r.topic for r in only] == [t for t, *_ in sorted(written, key=lambda w: w[2])
+                                       if t in ("/sensors/imu", "/user/json")]
+    topics = log_topics(path)
+    assert topics["/truth/odometry"] == "Odometry" and topics["/user/json"] == "UserMessage"
+    assert "/truth/odometry/tf" not in topics  # a Foxglove view, not a logged topic
+    with pytest.raises(ValueError, match="/no/such/topic"):
+        read_mcap(path, topics="/no/such/topic")
+
+
+def test_official_reader_sees_a_valid_indexed_file(log_file):
+    path, written = log_file
+    with open(path, "rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        summary = reader.get_summary()
+        messages = list(reader.iter_messages(log_time_order=False))
+        metadata = list(reader.iter_metadata())
+        ordered = [m.log_time for _, _, m in reader.iter_messages(log_time_order=True)]
+    n_views = 2 * sum(topic.endswith("/odometry") for topic, *_ in written)
+    assert len(messages) == summary.statistics.message_count == len(written) + n_views
+    assert sum(summary.statistics.channel_message_counts.values()) == len(messages)
+    assert summary.statistics.chunk_count == len(summary.chunk_indexes) > 10
+    assert [(m.name, m.metadata) for m in metadata] == [("cufund", {"scenario": "unit", "seed": "3"})]
+    times = sorted(m.log_time for _, _, m in messages)
+    assert ordered == times  # the reader merges chunks by their indexed start times: they are right
+    statistics = summary.statistics
+    assert min(i.message_start_time for i in summary.chunk_indexes) == times[0] == statistics.message_start_time
+    assert max(i.message_end_time for i in summary.chunk_indexes) == times[-1] == statistics.message_end_time
+
+
+def _schemas(path):
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    return {c.topic: summary.schemas[c.schema_id] for c in summary.channels.values()}, summary
+
+
+def test_schema_names_are_foxglove_well_known_ones(log_file):
+    path, _ = log_file
+    schemas, summary = _schemas(path)
+    names = {topic: s.name for topic, s in schemas.items()}
+    assert names["/truth/odometry/tf"] == "foxglove_msgs/msg/FrameTransform"
+    assert names["/truth/odometry/pose"] == names["/estimator/odometry/pose"] == "foxglove_msgs/msg/PoseInFrame"
+    assert names["/sensors/lidar"] == names["/truth/point_cloud"] == "foxglove.PointCloud"
+    assert names["/sensors/depth_image"] == names["/sensors/rgb_image"] == "foxglove.RawImage"
+    assert names["/sensors/gps"] == "foxglove.LocationFix"
+    assert names["/truth/odometry"] == "cufund_msgs/msg/Odometry"
+    assert names["/user/json"] == "cufund.UserMessage"
+    encodings = {c.topic: c.message_encoding for c in summary.channels.values()}
+    assert encodings["/truth/odometry/tf"] == "cdr" and encodings["/sensors/lidar"] == "json"
+
+
+def test_cdr_channels_decode_with_the_ros2_decoder_to_the_logged_values(log_file):
+    path, written = log_file
+    factory = DecoderFactory()
+    truth = [m for t, m, *_ in written if t == "/truth/odometry"]
+    estimate = [m for t, m, *_ in written if t == "/estimator/odometry"]
+    fixed = [m for t, m, *_ in written if t == "/user/fixed"]
+    seen: dict[str, list] = {}
+    with open(path, "rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            if channel.message_encoding == "cdr":
+                decode = factory.decoder_for("cdr", schema)
+                seen.setdefault(channel.topic, []).append(decode(message.data))
+    for odometry, tf, pose in zip(truth, seen["/truth/odometry/tf"], seen["/truth/odometry/pose"]):
+        assert (tf.parent_frame_id, tf.child_frame_id) == ("world", "base_link")
+        p, q = odometry.p_W, odometry.q_WB
+        assert [tf.translation.x, tf.translation.y, tf.translation.z] == list(p)
+        assert [tf.rotation.w, tf.rotation.x, tf.rotation.y, tf.rotation.z] == list(q)
+        assert pose.frame_id == "world" and [pose.pose.position.x, pose.pose.orientation.w] == [p[0], q[0]]
+        assert tf.timestamp.sec + tf.timestamp.nanosec * 1e-9 == pytest.approx(odometry.t, abs=1e-9)
+    assert seen["/estimator/odometry/tf"][0].child_frame_id == "base_link_estimate"
+    for odometry, exact in zip(estimate, seen["/estimator/odometry"]):
+        assert exact.t == odometry.t and list(exact.q_wb) == list(odometry.q_WB)
+        assert bool(exact.has_a_w) == (odometry.a_W is not None)
+        if odometry.a_W is not None:
+            assert list(exact.a_w) == list(odometry.a_W)
+    for user, exact in zip(fixed, seen["/user/fixed"]):
+        assert (exact.k, exact.ok) == (user.k, user.ok)
+        assert list(exact.r_wb) == list(user.R_WB.ravel()) and list(exact.ids) == list(user.ids)
+
+
+def test_json_channels_follow_their_schemas_and_carry_the_foxglove_fields(log_file):
+    path, written = log_file
+    schemas, _ = _schemas(path)
+    clouds = [m for t, m, *_ in written if t == "/sensors/lidar"]
+    images = [m for t, m, *_ in written if t == "/sensors/rgb_image"]
+    fixes = [m for t, m, *_ in written if t == "/sensors/gps"]
+    got: dict[str, list] = {}
+    with open(path, "rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            if channel.message_encoding == "json":
+                obj = json.loads(message.data)  # strict JSON: no NaN literals
+                jsonschema.validate(obj, json.loads(schemas[channel.topic].data))
+                got.setdefault(channel.topic, []).append(obj)
+    for cloud, obj in zip(clouds, got["/sensors/lidar"]):
+        assert obj["frame_id"] == "lidar"
+        fields = {f["name"]: f for f in obj["fields"]}
+        assert {"x", "y", "z", "dt", "range", "intensity", "channel"} <= set(fields)
+        assert fields["x"]["type"] == 7 and fields["dt"]["type"] == 8  # FLOAT32, FLOAT64
+        raw = np.frombuffer(base64.b64decode(obj["data"]), np.uint8).reshape(len(cloud), obj["point_stride"])
+        for axis, name in enumerate("xyz"):
+            off = fields[name]["offset"]
+            assert np.array_equal(raw[:, off:off + 4].copy().view("<f4")[:, 0], cloud.points_L[:, axis])
+        off = fields["range"]["offset"]
+        assert np.array_equal(raw[:, off:off + 8].copy().view("<f8")[:, 0], cloud.ranges)
+    for image, obj in zip(images, got["/sensors/rgb_image"]):
+        assert (obj["width"], obj["height"], obj["encoding"], obj["step"]) == (8, 6, "rgb8", 24)
+        assert base64.b64decode(obj["data"]) == image.image.tobytes()
+    for fix, obj in zip(fixes, got["/sensors/gps"]):
+        if fix.fix_type == 3:
+            assert (obj["latitude"], obj["longitude"]) == (fix.latitude_deg, fix.longitude_deg)
+            assert obj["position_covariance"][0] == fix.eph**2 and obj["position_covariance_type"] == 2
+        else:
+            assert obj["latitude"] is None and obj["position_covariance_type"] == 0
+
+
+def test_memory_stays_bounded_while_a_long_log_is_written(tmp_path):
+    """10 000 odometry messages (3.3 MB of CDR): the logger holds one block, the rest is on disk."""
+    rng = np.random.default_rng(0)
+    arrays = rng.normal(size=(6, 3))
+    path = tmp_path / "long.mcap"
+    log = McapLogger(path, block_messages=256, compression="")
+    tracemalloc.start()
+    base, _ = tracemalloc.get_traced_memory()
+    sizes = []
+    for k in range(10_000):
+        log.write("/truth/odometry", M.Odometry(k * 1e-3, *arrays[:2], np.array([1.0, 0, 0, 0]), *arrays[2:5]),
+                  k * 1_000_000, k * 1_000_000)
+        if k % 2500 == 2499:
+            sizes.append(path.stat().st_size)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert max(len(b.rows) for b in log._topics.values()) < 256
+    log.close()
+    assert peak - base < 1_500_000, peak - base
+    assert sizes[0] > 0.15 * sizes[-1] > 0 and sizes == sorted(sizes)  # streamed to disk as it goes
+    assert sum(1 for _ in read_mcap(path)) == 10_000
+
+
+def test_wrong_type_bad_time_and_changed_shape_are_errors(tmp_path):
+    with McapLogger(tmp_path / "a.mcap") as log:
+        log.write("/actuator/command", M.ActuatorCommand(0.0, np.ones(4)), 0, 0)
+        with pytest.raises(TypeError, match="/actuator/command.*ActuatorCommand.*Imu"):
+            log.write("/actuator/command", M.Imu(0.0, np.ones(3), np.ones(3)), 0, 0)
+        with pytest.raises(ValueError, match="absolute name"):
+            log.write("relative", M.Imu(0.0, np.ones(3), np.ones(3)), 0, 0)
+    log = McapLogger(tmp_path / "b.mcap")
+    log.write("/actuator/command", M.ActuatorCommand(0.0, np.ones(4)), 0, 0)
+    log.write("/actuator/command", M.ActuatorCommand(0.0, np.ones(6)), 1, 1)
+    with pytest.raises(ValueError, match="rotor_speeds.*shape"):
+        log.close()
+    log = McapLogger(tmp_path / "c.mcap")
+    log.write("/actuator/command", M.ActuatorCommand(0.0, np.ones(4)), 0.5, 0)
+    with pytest.raises(TypeError, match="log_time_ns must be non-negative integer"):
+        log.close()
+    with pytest.raises(TypeError, match="cannot log a value of type object"):
+        with McapLogger(tmp_path / "d.mcap") as log:
+            log.write("/x", UserMessage(0.0, "", Color.RED, Inner(1.0, ""), np.zeros(1), (), {"k": object()}), 0, 0)
+
+
+def test_int_arrays_in_a_float_topic_take_the_checked_path(tmp_path):
+    """Same byte size, other dtype: never reinterpreted, logged as the first message's dtype (value-exact)."""
+    path = tmp_path / "a.mcap"
+    with McapLogger(path) as log:
+        log.write("/a", M.ActuatorCommand(0.0, np.array([1.5, 2, 3, 4])), 0, 0)
+        log.write("/a", M.ActuatorCommand(0.1, np.array([7, 8, 9, 2**40])), 1, 1)
+    second = list(read_mcap(path))[1].message
+    assert second.rotor_speeds.dtype == np.float64 and second.rotor_speeds.tolist() == [7, 8, 9, 2**40]
+
+
+@pytest.mark.parametrize("damage", ["truncated", "flipped", "not_mcap", "empty", "missing"])
+def test_a_damaged_file_gives_a_clear_error(log_file, tmp_path, damage):
+    path, _ = log_file
+    data = bytearray(path.read_bytes())
+    bad = tmp_path / "bad.mcap"
+    if damage == "truncated":
+        bad.write_bytes(data[: len(data) // 2])
+    elif damage == "flipped":
+        with open(path, "rb") as f:
+            index = make_reader(f).get_summary().chunk_indexes[3]
+        at = index.chunk_start_offset + index.chunk_length - 10  # inside the compressed records
+        data[at] ^= 0xFF
+        bad.write_bytes(data)
+    elif damage == "not_mcap":
+        bad.write_text("t,x\n0,1\n" * 100)
+    elif damage == "empty":
+        bad.write_bytes(b"")
+    with pytest.raises(McapReadError, match="bad.mcap"):
+        list(read_mcap(bad))
+
+
+def test_an_unclosed_logger_leaves_a_file_without_summary(tmp_path):
+    path = tmp_path / "open.mcap"
+    log = McapLogger(path, block_messages=2)
+    for k in range(5):
+        log.write("/a", M.ActuatorCommand(k * 0.1, np.ones(4)), k, k)
+    del log
+    with pytest.raises(McapReadError, match="not a complete MCAP log|no summary"):
+        read_mcap(path)
