@@ -33,12 +33,37 @@ double radius_arg(double r) {
   return r;
 }
 
-// An ESDF map with the certified-clearance view; keeps the map alive and reads under its shared lock.
+// The certified-clearance view of an ESDF map (kept alive by the Python object; read under its shared
+// lock) or of a static distance array (owned here).
 struct ClearanceQuery {
-  const esdf::EsdfMap& map;
+  const esdf::EsdfMap* map = nullptr;
+  py::array_t<double, py::array::c_style> distances;
   planning::ClearanceMap view;
-  explicit ClearanceQuery(const esdf::EsdfMap& m) : map(m), view(m) {}
+  explicit ClearanceQuery(const esdf::EsdfMap& m) : map(&m), view(m) {}
+  ClearanceQuery(const esdf::GridGeometry& g, py::array_t<double, py::array::c_style> d)
+      : distances(std::move(d)), view(g, distances.data()) {}
+  std::shared_lock<std::shared_mutex> read() const {
+    return map ? std::shared_lock<std::shared_mutex>(map->access_mutex()) : std::shared_lock<std::shared_mutex>();
+  }
 };
+
+esdf::GridGeometry geometry_arg(const py::handle& origin_W, const py::handle& shape_obj, double resolution) {
+  esdf::GridGeometry g;
+  g.origin_W = point3(origin_W, "origin_W");
+  auto s = as_float64(shape_obj, "shape", {3});
+  for (int i = 0; i < 3; ++i) {
+    const double v = s.at(i);
+    if (!(v >= 1.0 && v == std::floor(v) && v < 1e6)) {
+      throw py::value_error("shape must be 3 integers >= 1, got " + std::string(py::str(shape_obj)));
+    }
+    g.shape[static_cast<std::size_t>(i)] = static_cast<Index>(v);
+  }
+  if (!(std::isfinite(resolution) && resolution > 0.0)) {
+    throw py::value_error("resolution must be finite and > 0 [m], got " + std::to_string(resolution));
+  }
+  g.resolution = resolution;
+  return g;
+}
 
 py::array_t<double> path_array(const std::vector<Vec3>& path) {
   py::array_t<double> out({static_cast<py::ssize_t>(path.size()), py::ssize_t{3}});
@@ -71,10 +96,25 @@ void define_planning(py::module_& m) {
   py::class_<ClearanceQuery>(m, "ClearanceQuery",
                              "Certified clearance on an ESDF map; use cufund.planning.ClearanceQuery.")
       .def(py::init<const esdf::EsdfMap&>(), py::arg("esdf_map"), py::keep_alive<1, 2>())
+      .def(py::init([](const py::handle& origin_W, double resolution, const py::handle& distances_obj) {
+             py::array arr = py::array::ensure(distances_obj);
+             if (!arr || arr.ndim() != 3) {
+               throw py::value_error("distances must be a 3-D array (nx, ny, nz) [m], got " +
+                                     (arr ? shape_str(arr) : std::string("a non-array")));
+             }
+             auto d = as_float64(distances_obj, "distances", {arr.shape(0), arr.shape(1), arr.shape(2)});
+             const auto g = geometry_arg(origin_W, py::make_tuple(arr.shape(0), arr.shape(1), arr.shape(2)), resolution);
+             const double* p = d.data();
+             for (py::ssize_t i = 0; i < d.size(); ++i) {
+               if (std::isnan(p[i])) throw py::value_error("distances must not hold NaN");
+             }
+             return std::make_unique<ClearanceQuery>(g, std::move(d));
+           }),
+           py::arg("origin_W"), py::arg("resolution"), py::arg("distances"))
       .def(
           "clearance",
           [](const ClearanceQuery& self, double x, double y, double z) {
-            std::shared_lock<std::shared_mutex> read(self.map.access_mutex());
+            const auto lock = self.read();
             return self.view.clearance({x, y, z});
           },
           py::arg("x"), py::arg("y"), py::arg("z"))
@@ -93,7 +133,7 @@ void define_planning(py::module_& m) {
             const double* q = p.data();
             {
               py::gil_scoped_release release;
-              std::shared_lock<std::shared_mutex> read(self.map.access_mutex());
+              const auto lock = self.read();
               for (py::ssize_t i = 0; i < n; ++i) o[i] = self.view.clearance({q[3 * i], q[3 * i + 1], q[3 * i + 2]});
             }
             return out;
@@ -103,7 +143,7 @@ void define_planning(py::module_& m) {
           "segment_free",
           [](const ClearanceQuery& self, double x0, double y0, double z0, double x1, double y1, double z1, double radius) {
             radius_arg(radius);
-            std::shared_lock<std::shared_mutex> read(self.map.access_mutex());
+            const auto lock = self.read();
             return self.view.segment_free({x0, y0, z0}, {x1, y1, z1}, radius);
           },
           py::arg("x0"), py::arg("y0"), py::arg("z0"), py::arg("x1"), py::arg("y1"), py::arg("z1"), py::arg("radius"))
@@ -115,7 +155,7 @@ void define_planning(py::module_& m) {
             py::array_t<bool> out(static_cast<py::ssize_t>(path.size() > 0 ? path.size() - 1 : 0));
             bool* o = out.mutable_data();
             py::gil_scoped_release release;
-            std::shared_lock<std::shared_mutex> read(self.map.access_mutex());
+            const auto lock = self.read();
             for (std::size_t i = 1; i < path.size(); ++i) o[i - 1] = self.view.segment_free(path[i - 1], path[i], radius);
             return out;
           },
@@ -128,7 +168,7 @@ void define_planning(py::module_& m) {
             std::vector<Vec3> out;
             {
               py::gil_scoped_release release;
-              std::shared_lock<std::shared_mutex> read(self.map.access_mutex());
+              const auto lock = self.read();
               out = planning::shortcut_path(self.view, path, radius);
             }
             return path_array(out);
@@ -151,7 +191,7 @@ void define_planning(py::module_& m) {
             planning::AStarResult r;
             {
               py::gil_scoped_release release;
-              std::shared_lock<std::shared_mutex> read(query.map.access_mutex());
+              const auto lock = query.read();
               r = self.plan(query.view, s, g, opt);
             }
             py::dict d;
@@ -169,19 +209,7 @@ void define_planning(py::module_& m) {
       "voxelize_triangles",
       [](const py::handle& origin_W, const py::handle& shape_obj, double resolution, const py::handle& vertices_obj,
          const py::handle& triangles_obj) {
-        esdf::GridGeometry g;
-        const Vec3 o = point3(origin_W, "origin_W");
-        g.origin_W = o;
-        auto s = as_float64(shape_obj, "shape", {3});
-        for (int i = 0; i < 3; ++i) {
-          const double v = s.at(i);
-          if (!(v >= 1.0 && v == std::floor(v) && v < 1e6)) throw py::value_error("shape must be 3 integers >= 1");
-          g.shape[static_cast<std::size_t>(i)] = static_cast<Index>(v);
-        }
-        if (!(std::isfinite(resolution) && resolution > 0.0)) {
-          throw py::value_error("resolution must be finite and > 0 [m], got " + std::to_string(resolution));
-        }
-        g.resolution = resolution;
+        const esdf::GridGeometry g = geometry_arg(origin_W, shape_obj, resolution);
         py::array varr = py::array::ensure(vertices_obj);
         if (!varr || varr.ndim() != 2 || varr.shape(1) != 3) {
           throw py::value_error("vertices must have shape (V, 3), got " + (varr ? shape_str(varr) : std::string("a non-array")));

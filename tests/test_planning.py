@@ -171,3 +171,16 @@ def test_min_snap_through_a_forest_path_keeps_clearance(setting):
     lt = loose.trajectory
     assert truth(lt.sample(np.linspace(lt.t_knots[0], lt.t_end, 20001)).p_W).min() < 0.2  # the check was needed
     assert res.feasibility.peak_speed <= 2.0 * 1.01
+
+
+def test_static_field_from_the_world_equals_the_live_map(setting):
+    from cufund.planning import clearance_from_world
+
+    world, q, _ = setting
+    static = clearance_from_world(world, RES, BOUNDS, nthreads=1)
+    np.testing.assert_array_equal(static.bounds_W, q.bounds_W)
+    p = np.random.default_rng(5).uniform(BOUNDS[0] - 0.2, BOUNDS[1] + 0.2, size=(2000, 3))
+    np.testing.assert_allclose(static.clearance(p), q.clearance(p), rtol=0, atol=1e-12)
+    assert static.esdf_map is None
+    with pytest.raises(ValueError, match=r"distances must be a 3-D array"):
+        ClearanceQuery.from_distances(np.zeros((4, 4)), [0, 0, 0], 0.1)

@@ -9,7 +9,10 @@ namespace cufund::planning {
 using Index = std::ptrdiff_t;
 
 ClearanceMap::ClearanceMap(const esdf::EsdfMap& map)
-    : map_(map), geometry_(map.geometry()), half_diagonal_(0.5 * std::sqrt(3.0) * map.geometry().resolution) {}
+    : map_(&map), geometry_(map.geometry()), half_diagonal_(0.5 * std::sqrt(3.0) * map.geometry().resolution) {}
+
+ClearanceMap::ClearanceMap(const esdf::GridGeometry& geometry, const double* distances)
+    : distances_(distances), geometry_(geometry), half_diagonal_(0.5 * std::sqrt(3.0) * geometry.resolution) {}
 
 bool ClearanceMap::inside(const Vec3& p) const {
   for (int a = 0; a < 3; ++a) {
@@ -28,7 +31,7 @@ Vec3 ClearanceMap::centre(Index i, Index j, Index k) const {
 }
 
 double ClearanceMap::centre_distance(Index linear) const {
-  const double d = map_.voxel_distance(linear);
+  const double d = map_ ? map_->voxel_distance(linear) : distances_[linear];
   return d > 0.0 ? d : 0.0;  // occupied (signed, negative or -inf): the nearest occupied centre is itself
 }
 

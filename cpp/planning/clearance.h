@@ -11,7 +11,8 @@ namespace cufund::planning {
 
 using Vec3 = std::array<double, 3>;
 
-// A non-owning view of an EsdfMap (the caller keeps the map alive and holds its read lock).
+// A non-owning view of an EsdfMap (the caller keeps the map alive and holds its read lock), or of a
+// static field: an array of voxel-centre distances (e.g. from euclidean_distance_transform).
 //
 // clearance(p) = max over the 8 voxel centres c around p of (D(c) - |p - c|) - sqrt(3)/2 * h, where
 // D(c) >= 0 is the exact distance from c to the nearest occupied voxel centre (the map's outside
@@ -23,6 +24,10 @@ using Vec3 = std::array<double, 3>;
 class ClearanceMap {
  public:
   explicit ClearanceMap(const esdf::EsdfMap& map);
+  // distances: shape[0] * shape[1] * shape[2] values, voxel (i, j, k) at (i * ny + j) * nz + k, the
+  // distance [m] from each voxel centre to the nearest occupied voxel centre (<= 0 or -inf at occupied
+  // voxels, +inf everywhere when nothing is occupied). Not copied: the caller keeps it alive.
+  ClearanceMap(const esdf::GridGeometry& geometry, const double* distances);
 
   double clearance(const Vec3& p) const;
   // True when every point of the segment p0 -> p1 is at least `radius` from every surface inside an
@@ -36,14 +41,14 @@ class ClearanceMap {
   bool inside(const Vec3& p) const;
   double min_step() const { return 0.02 * geometry_.resolution; }
   const esdf::GridGeometry& geometry() const { return geometry_; }
-  const esdf::EsdfMap& map() const { return map_; }
   // Voxel centre and linear index helpers.
   Vec3 centre(std::ptrdiff_t i, std::ptrdiff_t j, std::ptrdiff_t k) const;
   // Distance D at a voxel centre [m], >= 0 (0 for occupied voxels); +inf when nothing is occupied.
   double centre_distance(std::ptrdiff_t linear) const;
 
  private:
-  const esdf::EsdfMap& map_;
+  const esdf::EsdfMap* map_ = nullptr;
+  const double* distances_ = nullptr;
   esdf::GridGeometry geometry_;
   double half_diagonal_;
 };

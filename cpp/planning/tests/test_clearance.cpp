@@ -8,6 +8,7 @@
 #include <memory>
 #include <random>
 
+#include "edt.h"
 #include "voxelize.h"
 
 namespace cufund::planning {
@@ -67,6 +68,27 @@ TEST(Clearance, LowerBoundOnDistanceToOccupiedVoxelsAndTight) {
     const double c = cm.clearance(p), b = brute(f.g, f.occ, p);
     ASSERT_LE(c, b + 1e-12) << p[0] << " " << p[1] << " " << p[2];
     ASSERT_GE(c, b - std::sqrt(3.0) * h - 1e-12);
+  }
+}
+
+TEST(Clearance, StaticFieldEqualsTheMap) {
+  Fixture f(7, 12);
+  std::vector<std::uint8_t> sites(static_cast<std::size_t>(f.g.shape[0] * f.g.shape[1] * f.g.shape[2]), 0);
+  for (Index i : f.occ) sites[static_cast<std::size_t>(i)] = 1;
+  std::vector<double> d(sites.size());
+  esdf::EdtOptions o;
+  o.voxel_size = {f.g.resolution, f.g.resolution, f.g.resolution};
+  esdf::euclidean_distance_transform(sites.data(), f.g.shape, o, d.data());
+  const ClearanceMap from_map(f.map), from_array(f.g, d.data());
+  std::mt19937_64 rng(2);
+  std::uniform_real_distribution<double> ux(-1.0, 1.4), uy(-2.0, 0.0), uz(0.5, 2.1);
+  for (int t = 0; t < 500; ++t) {
+    const Vec3 p{ux(rng), uy(rng), uz(rng)}, q{ux(rng), uy(rng), uz(rng)};
+    ASSERT_NEAR(from_map.clearance(p), from_array.clearance(p), 1e-12);  // sqrt(s) * h vs sqrt(s * h^2)
+    const double margin = from_map.segment_min_clearance(p, q, 0.001) - 0.1;
+    if (std::fabs(margin) > 1e-6) {
+      ASSERT_EQ(from_map.segment_free(p, q, 0.1), from_array.segment_free(p, q, 0.1));
+    }
   }
 }
 

@@ -11,11 +11,11 @@ from .point_to_point import JerkLimitedMove
 from .sequence import Hold, TrajectorySequence
 from .trajectory import Trajectory, TrajectorySamples
 from .trajectory_follower import TrajectoryFollower
-from .world_map import esdf_from_world
+from .world_map import clearance_from_world, esdf_from_world, world_occupancy
 
 __all__ = ["ClearanceQuery", "GridPathSearch", "GridPathSearchParams", "Hold", "JerkLimitedMove", "MinSnapPlanner",
            "MinSnapPlannerParams", "MinSnapResult", "MinimumSnapTrajectory",
            "OmplPathParams", "OmplPathPlanner", "PathResult", "TrajectorySequence", "Planner", "Trajectory",
            "TrajectoryFeasibility", "TrajectoryFollower", "TrajectorySamples", "feasibility",
-           "allocate_segment_times", "optimize_segment_times", "esdf_from_world",
-           "min_derivative_spline"]
+           "allocate_segment_times", "optimize_segment_times", "clearance_from_world", "esdf_from_world",
+           "min_derivative_spline", "world_occupancy"]

@@ -18,7 +18,8 @@ __all__ = ["ClearanceQuery"]
 
 
 class ClearanceQuery:
-    """Clearance and motion checks on an :class:`~cufund.esdf.EsdfMap` (a live view: map updates show).
+    """Clearance and motion checks on an :class:`~cufund.esdf.EsdfMap` (a live view: map updates show) or
+    on a static distance array (:meth:`from_distances`, :func:`~cufund.planning.clearance_from_world`).
 
     ``clearance_xyz`` and ``segment_free_xyz`` take plain floats and cross into C++ without numpy, for
     sampling-based planners that call them per state (about a microsecond or less each).
@@ -27,8 +28,28 @@ class ClearanceQuery:
     def __init__(self, esdf_map: EsdfMap) -> None:
         if not isinstance(esdf_map, EsdfMap):
             raise TypeError(f"esdf_map must be a cufund.esdf.EsdfMap, got {type(esdf_map).__name__}")
-        self.esdf_map = esdf_map
-        self._core = _core.planning.ClearanceQuery(esdf_map._core)
+        self.esdf_map: EsdfMap | None = esdf_map
+        """The live map, or None for a static field (:meth:`from_distances`)."""
+        mp = esdf_map.params
+        self._init(_core.planning.ClearanceQuery(esdf_map._core), mp.origin_W, mp.shape, mp.resolution)
+
+    @classmethod
+    def from_distances(cls, distances: npt.ArrayLike, origin_W: npt.ArrayLike, resolution: float) -> ClearanceQuery:
+        """A static field: ``distances`` (nx, ny, nz) [m] from each voxel centre to the nearest occupied voxel
+        centre (as :func:`cufund.esdf.edt` gives; values <= 0 mark occupied voxels), voxel (0, 0, 0) with its
+        minimum corner at ``origin_W`` [m], edge ``resolution`` [m]. Copied once."""
+        d = np.asarray(distances, dtype=float)
+        core = _core.planning.ClearanceQuery(np.asarray(origin_W, dtype=float), float(resolution), d)
+        self = cls.__new__(cls)
+        self.esdf_map = None
+        self._init(core, tuple(float(x) for x in np.asarray(origin_W, dtype=float)), d.shape, float(resolution))
+        return self
+
+    def _init(self, core: object, origin_W: tuple, shape: tuple, resolution: float) -> None:
+        self._core = core
+        self._resolution = float(resolution)
+        lo = np.asarray(origin_W, dtype=float)
+        self._bounds = np.stack([lo, lo + np.asarray(shape) * self._resolution])
         self.clearance_xyz = self._core.clearance
         """``clearance_xyz(x, y, z) -> float`` [m]: the scalar fast path."""
         self.segment_free_xyz = self._core.segment_free
@@ -36,7 +57,13 @@ class ClearanceQuery:
 
     @property
     def resolution(self) -> float:
-        return self.esdf_map.params.resolution
+        """Voxel edge [m]."""
+        return self._resolution
+
+    @property
+    def bounds_W(self) -> np.ndarray:
+        """(2, 3) [min, max] corners of the mapped box [m]; clearance is -inf outside."""
+        return self._bounds.copy()
 
     @property
     def min_step(self) -> float:

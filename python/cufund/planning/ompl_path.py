@@ -84,9 +84,7 @@ class OmplPathPlanner:
         if not query.clearance(goal) >= r:
             return _empty("goal_blocked", t0)
         ou.setLogLevel(ou.LOG_WARN)
-        mp = query.esdf_map.params
-        lo = np.asarray(mp.origin_W)
-        hi = lo + np.asarray(mp.shape) * mp.resolution
+        lo, hi = query.bounds_W
         space = ob.RealVectorStateSpace(3)
         bounds = ob.RealVectorBounds(3)
         for i in range(3):

@@ -8,38 +8,54 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import _core
+from ..mapping.edt import edt
 from ..mapping.esdf_map import EsdfMap, EsdfMapParams
+from .clearance import ClearanceQuery
 from ..worlds.world import World
 
-__all__ = ["esdf_from_world"]
+__all__ = ["clearance_from_world", "esdf_from_world", "world_occupancy"]
 
 
-def esdf_from_world(world: World, resolution: float = 0.1, bounds_W: npt.ArrayLike | None = None,
-                    nthreads: int = 0) -> EsdfMap:
-    """An :class:`EsdfMap` with every voxel that a triangle of ``world`` touches set occupied.
+def world_occupancy(world: World, resolution: float = 0.1, bounds_W: npt.ArrayLike | None = None
+                    ) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """Boolean grid (nx, ny, nz) of the voxels a triangle of ``world`` touches, and its origin [m].
 
-    Args:
-        world: the meshes.
-        resolution: voxel edge [m].
-        bounds_W: (2, 3) [min, max] corners of the mapped box [m]; the world's bounds if None.
-        nthreads: threads of the distance field (0: all cores).
-
-    Every surface point inside the box lies in an occupied voxel, which is what makes
-    :class:`~cufund.planning.ClearanceQuery` a certified lower bound on the distance to the world.
+    The box is ``bounds_W`` ((2, 3) [min, max] corners [m]; the world's bounds if None) rounded up to whole
+    voxels of edge ``resolution`` [m]. The overlap test is exact (closed voxels), so every surface point in
+    the box lies in a marked voxel: what makes :class:`ClearanceQuery` a certified bound on the world.
     """
     if not isinstance(world, World):
         raise TypeError(f"world must be a cufund.worlds.World, got {type(world).__name__}")
     b = world.bounds() if bounds_W is None else np.asarray(bounds_W, dtype=float)
     if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[1] <= b[0]):
         raise ValueError(f"bounds_W must be finite [min, max] corners of shape (2, 3) with max > min, got {bounds_W!r}")
-    if not (isinstance(resolution, (int, float)) and math.isfinite(resolution) and resolution > 0):
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, float)) \
+            or not (math.isfinite(resolution) and resolution > 0):
         raise ValueError(f"resolution must be finite and > 0 [m], got {resolution!r}")
-    params = EsdfMapParams(resolution=float(resolution), size=tuple(b[1] - b[0]), origin_W=tuple(b[0]), nthreads=nthreads)
+    shape = tuple(max(1, math.ceil(s / resolution - 1e-9)) for s in (b[1] - b[0]))
+    origin = tuple(float(x) for x in b[0])
+    occ = np.zeros(shape, dtype=bool)
+    for o in world.objects:
+        index = _core.planning.voxelize_triangles(origin, shape, float(resolution), o.vertices, o.triangles)
+        occ.ravel()[index] = True
+    return occ, origin
+
+
+def esdf_from_world(world: World, resolution: float = 0.1, bounds_W: npt.ArrayLike | None = None,
+                    nthreads: int = 0) -> EsdfMap:
+    """An :class:`EsdfMap` (live, updatable) with every voxel of :func:`world_occupancy` set occupied."""
+    occ, origin = world_occupancy(world, resolution, bounds_W)
+    params = EsdfMapParams(resolution=float(resolution), size=tuple(np.asarray(occ.shape) * float(resolution)),
+                           origin_W=origin, nthreads=nthreads)
     esdf = EsdfMap(params)
-    shape = params.shape
-    index = [_core.planning.voxelize_triangles(params.origin_W, shape, params.resolution, o.vertices, o.triangles)
-             for o in world.objects]
-    lin = np.unique(np.concatenate(index)) if index else np.zeros(0, np.int64)
-    if lin.size:
-        esdf.set_occupied(np.stack(np.unravel_index(lin, shape), axis=1))
+    if occ.any():
+        esdf.set_occupied(np.argwhere(occ))
     return esdf
+
+
+def clearance_from_world(world: World, resolution: float = 0.1, bounds_W: npt.ArrayLike | None = None,
+                         nthreads: int = 0) -> ClearanceQuery:
+    """A static :class:`ClearanceQuery` of the world's known geometry: the exact distance transform of
+    :func:`world_occupancy` (much cheaper to build than an :class:`EsdfMap`, which is kept up to date)."""
+    occ, origin = world_occupancy(world, resolution, bounds_W)
+    return ClearanceQuery.from_distances(edt(occ, float(resolution), nthreads=nthreads), origin, float(resolution))

@@ -6,6 +6,7 @@ from typing import Callable
 
 import numpy as np
 
+from .tunnel_course import tunnel_course
 from .world import World
 
 WALL = (0.75, 0.75, 0.72)
@@ -95,6 +96,7 @@ BUILTIN: dict[str, Callable[..., World]] = {
     "empty": empty,
     "forest": forest,
     "corridor": corridor,
+    "tunnel_course": tunnel_course,
 }
 
 
