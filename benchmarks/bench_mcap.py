@@ -1,0 +1,142 @@
+"""Benchmark of run logs (not a test; prints figures and ratios).
+
+1. Writing N messages of each type with :class:`cufund.logs.McapLogger` (write calls plus their share of block
+   encoding, main-thread CPU time and wall time) vs the official Python path for the same bytes: ``mcap_ros2``'s
+   ``Writer.write_message`` with the same ros2msg schema (per-message CDR serialisation into ``mcap``'s writer,
+   zstd chunks). Messages are built fresh in the timed loop for both (as a simulator makes them).
+2. The square case study (``cufund run square``'s pipeline, in process) with and without ``run.mcap``:
+   alternating runs, median wall time of each, and the overhead in percent (the issue's bound: <= 10 %).
+3. Reading the square's log back with :func:`cufund.logs.read_mcap` (messages per second).
+
+Run: ``.venv/bin/python benchmarks/bench_mcap.py [--repeats 7]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cufund import messages as M
+from cufund.logs import McapLogger, read_mcap
+from cufund.logs.codecs import codec_for
+
+N = 20_000
+
+
+def _makers(rng: np.random.Generator) -> dict[str, object]:
+    a = rng.normal(size=(8, 4))
+    return {
+        "Odometry (truth)": lambda t: M.Odometry(t, a[0, :3] + t, a[1, :3], a[2], a[3, :3], a[4, :3], a[5, :3]),
+        "Imu": lambda t: M.Imu(t, a[0, :3] + t, a[1, :3]),
+        "TrajectorySetpoint": lambda t: M.TrajectorySetpoint(t, a[0, :3] + t, a[1, :3], a[2, :3], a[3, :3], 0.1, 0.0),
+        "AttitudeSetpoint": lambda t: M.AttitudeSetpoint(t, a[2] + t, 0.3, 0.0),
+        "ActuatorCommand": lambda t: M.ActuatorCommand(t, a[6] + t),
+        "AirPressure": lambda t: M.AirPressure(t, 101325.0 + t, 1.0, 288.15),
+    }
+
+
+def _as_ros(message: object, layout) -> dict:
+    """The message as the dict ``mcap_ros2`` serialises (what a user of the official writer would build)."""
+    out = {}
+    for attr, ros_name, _, shape, optional in layout.describe():
+        value = getattr(message, attr)
+        if optional:
+            out[f"has_{ros_name}"] = value is not None
+            value = np.zeros(int(np.prod(shape))) if value is None else value
+        out[ros_name] = value.ravel().tolist() if shape else value
+    return out
+
+
+def bench_types(tmp: Path) -> None:
+    from mcap_ros2.writer import Writer as Ros2Writer
+
+    print(f"1. logging {N} messages of one type: cost per message beyond building it (main-thread CPU, and wall)")
+    print(f"   {'type':22s} {'cufund us':>10s} {'wall us':>8s} {'mcap_ros2 us':>13s} {'ratio':>6s} {'bytes/msg':>9s}")
+    for name, make in _makers(np.random.default_rng(0)).items():
+        codec = codec_for("/x", make(0.0))
+        times = [k * 1e-3 for k in range(N)]
+        build = (np.inf, np.inf)
+        for _ in range(3):
+            c0, w0 = time.thread_time(), time.perf_counter()
+            for k, t in enumerate(times):
+                make(t)
+            build = min(build, (time.thread_time() - c0, time.perf_counter() - w0))
+        best = (np.inf, np.inf)
+        for _ in range(3):
+            path = tmp / "types.mcap"
+            c0, w0 = time.thread_time(), time.perf_counter()
+            with McapLogger(path) as log:
+                write = log.write
+                for k, t in enumerate(times):
+                    write("/x", make(t), k, k)
+            best = min(best, (time.thread_time() - c0, time.perf_counter() - w0))
+        size = path.stat().st_size
+        peer = np.inf
+        for _ in range(2):
+            with open(tmp / "peer.mcap", "wb") as f:
+                c0 = time.thread_time()
+                writer = Ros2Writer(f)
+                schema = writer.register_msgdef(codec.schema_name, codec.schema_data.decode())
+                for k, t in enumerate(times):
+                    writer.write_message("/x", schema, _as_ros(make(t), codec.layout), k, k)
+                writer.finish()
+                peer = min(peer, time.thread_time() - c0)
+        ours, wall, peer = best[0] - build[0], best[1] - build[1], peer - build[0]
+        print(f"   {name:22s} {ours / N * 1e6:10.2f} {wall / N * 1e6:8.2f} {peer / N * 1e6:13.2f} "
+              f"{peer / ours:5.0f}x {size / N:9.0f}")
+
+
+def bench_square(tmp: Path, repeats: int) -> Path | None:
+    import cufund
+
+    config = cufund.load_scenario("square")
+    try:
+        cufund.run_scenario(config, logger=None)
+    except TypeError:
+        print("2. the square: run_scenario takes no logger yet (integration pending); skipped")
+        return None
+    walls: dict[str, list[float]] = {"without": [], "with": []}
+    path = tmp / "square.mcap"
+    for _ in range(repeats):
+        for kind in ("without", "with"):
+            t0 = time.perf_counter()
+            logger = McapLogger(path, {"scenario": "square"}) if kind == "with" else None
+            run = cufund.run_scenario(config, logger=logger)
+            if logger is not None:
+                logger.close()
+            walls[kind].append(time.perf_counter() - t0)
+    without, with_log = statistics.median(walls["without"]), statistics.median(walls["with"])
+    n = sum(1 for _ in read_mcap(path))
+    print(f"2. the square ({run.result.sim_time_s:.1f} s simulated, {n} messages logged, {repeats} alternating runs)")
+    print(f"   median wall: without log {without:.3f} s, with run.mcap {with_log:.3f} s: "
+          f"{(with_log / without - 1) * 100:+.1f} % ({(with_log - without) / n * 1e6:.2f} us per message); "
+          f"best: {min(walls['without']):.3f} s vs {min(walls['with']):.3f} s; "
+          f"file {path.stat().st_size / 1e6:.1f} MB")
+    return path
+
+
+def bench_read(path: Path) -> None:
+    t0 = time.perf_counter()
+    n = sum(1 for _ in read_mcap(path))
+    wall = time.perf_counter() - t0
+    print(f"3. read_mcap: {n} messages in {wall:.2f} s ({n / wall / 1e3:.0f} k messages/s)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=7, help="alternating square runs with and without the log")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        bench_types(Path(tmp))
+        path = bench_square(Path(tmp), args.repeats)
+        if path is not None:
+            bench_read(path)
+
+
+if __name__ == "__main__":
+    main()
