@@ -4,7 +4,7 @@
 per message and in bounded memory; :func:`read_mcap` gives the same message objects back, bit for bit.
 """
 
-from .mcap_reader import LogRecord, McapReadError, log_topics, read_mcap
+from .mcap_reader import LogRecord, McapReadError, log_metadata, log_topics, read_mcap
 from .mcap_writer import McapLogger
 
-__all__ = ["LogRecord", "McapLogger", "McapReadError", "log_topics", "read_mcap"]
+__all__ = ["LogRecord", "McapLogger", "McapReadError", "log_metadata", "log_topics", "read_mcap"]

@@ -20,7 +20,7 @@ from mcap.reader import make_reader
 
 from .codecs import Codec, codec_from_channel
 
-__all__ = ["LogRecord", "McapReadError", "log_topics", "read_mcap"]
+__all__ = ["LogRecord", "McapReadError", "log_metadata", "log_topics", "read_mcap"]
 
 
 class LogRecord(NamedTuple):
@@ -72,6 +72,20 @@ def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
     stream, _, codecs = _open(Path(path))
     stream.close()
     return {topic: codec.cls.__name__ for topic, codec in codecs.values()}
+
+
+def log_metadata(path: str | os.PathLike[str]) -> dict[str, str]:
+    """The ``cufund`` metadata record of a log (what :class:`McapLogger` was given), or {}."""
+    stream, reader, _ = _open(Path(path))
+    try:
+        for record in reader.iter_metadata():
+            if record.name == "cufund":
+                return dict(record.metadata)
+    except _ERRORS as exc:
+        raise McapReadError(f"{str(path)!r} is corrupt: {exc}") from exc
+    finally:
+        stream.close()
+    return {}
 
 
 def read_mcap(path: str | os.PathLike[str], topics: Iterable[str] | str | None = None) -> Iterator[LogRecord]:
