@@ -27,10 +27,11 @@ def test_console_script_installed():
 def test_run_square_writes_folder(tmp_path, capsys):
     out = tmp_path / "sq"
     assert main(["run", "square", "--controller", "geometric", "--out", str(out), "--no-replay"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "metrics.json", "trajectory.png"]
+    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "metrics.json", "run.mcap", "trajectory.png"]
     m = json.loads((out / "metrics.json").read_text())
     assert m["status"] == "completed" and m["tracking_rmse_m"] <= 0.02
-    assert f"run folder: {out.resolve()}" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert f"run folder: {out.resolve()}" in printed and "status: completed" in printed
     # config.yaml runs again through the same command
     assert main(["run", str(out / "config.yaml"), "--out", str(tmp_path / "again"), "--no-replay"]) == 0
     m2 = json.loads((tmp_path / "again" / "metrics.json").read_text())

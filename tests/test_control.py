@@ -14,7 +14,7 @@ from cufund.messages import AttitudeSetpoint, FlightModeCommand, TrajectorySetpo
 from cufund.scenario import load_scenario
 
 PARAMS = cufund.presets.cu_astro()
-GAINS = load_scenario("square").controller
+GAINS = load_scenario("square").controller.params
 Z3 = np.zeros(3)
 
 
@@ -26,6 +26,7 @@ class Script(cufund.Component):
 
     def __init__(self, events):
         self.events = sorted(events, key=lambda e: e[0])
+        self.outputs = tuple({ev[1] for ev in self.events})
 
     def step(self, t, bus):
         for ev in self.events:

@@ -95,10 +95,11 @@ def static_pose(p=(0.0, 0.0, 0.0), q=(1.0, 0.0, 0.0, 0.0)):
 
 def test_ranges_to_a_wall_are_analytic_and_points_are_consistent():
     lid = L.Lidar(L.vlp16(), L.LidarParams(range_max=100.0))
-    pc = lid.scan(wall_world(), static_pose((1.0, 0.5, 0.0)), 0.0)
+    pc, truth = lid.scan_with_truth(wall_world(), static_pose((1.0, 0.5, 0.0)), 0.0)
     d = pc.points_L / np.linalg.norm(pc.points_L, axis=1, keepdims=True)
     np.testing.assert_allclose(pc.ranges, 9.0 / d[:, 0], rtol=1e-5)
-    np.testing.assert_allclose(pc.points_W[:, 0], 10.0, atol=1e-4)
+    np.testing.assert_allclose(truth.points_W[:, 0], 10.0, atol=1e-4)
+    assert len(truth.points_W) == len(pc) and truth.t == pc.t
     assert np.all(d[:, 0] > 0.09)  # returns only from the half facing the wall (range <= 100 m)
 
 
@@ -108,8 +109,9 @@ def test_motion_distortion_each_point_leaves_from_the_pose_at_its_own_time():
     lid = L.Lidar(L.mid360(), L.LidarParams(range_max=100.0))
     pc = lid.scan(wall_world(), lambda t: (np.array([x0 + v * (t - 5.0), 0.0, 0.0]), np.array([1.0, 0, 0, 0])), 5.0)
     # In the LiDAR frame at firing time the wall is at x = 10 - (x0 + v (t - 5)).
-    np.testing.assert_allclose(pc.points_L[:, 0], 10.0 - (x0 + v * (pc.t - 5.0)), atol=2e-4)
-    assert pc.t.min() >= 5.0 and pc.t.max() < 5.1
+    assert pc.t == 5.0  # one stamp per frame (its start), a time offset per point
+    np.testing.assert_allclose(pc.points_L[:, 0], 10.0 - (x0 + v * pc.dt), atol=2e-4)
+    assert pc.dt.min() >= 0.0 and pc.dt.max() < 0.1
     assert np.ptp(pc.points_L[:, 0]) > 0.15  # 2 m/s over 0.1 s: the distortion is there to undistort
 
 
@@ -118,19 +120,19 @@ def test_rotating_sensor_with_mount_matches_the_exact_pose_per_point():
     T_BL = Transform((0.1, -0.05, 0.2), (np.cos(0.2), np.sin(0.2), 0.0, 0.0))
     pose = lambda t: (np.array([0.3 * t, 0.0, 1.0]), yaw_quaternion(rate * t))  # noqa: E731
     w = cufund.worlds.load("imav2025_tunnel")
-    pc = L.Lidar(L.mid360(), L.LidarParams(pose_samples=8), T_BL).scan(w, pose, 0.0)
+    pc, truth = L.Lidar(L.mid360(), L.LidarParams(pose_samples=8), T_BL).scan_with_truth(w, pose, 0.0)
     R_BL, t_BL = T_BL.R, np.array(T_BL.t)
     for i in np.linspace(0, len(pc) - 1, 200).astype(int):
-        p_WB, q_WB = pose(pc.t[i])
+        p_WB, q_WB = pose(pc.t + pc.dt[i])
         R_WB = quat_to_matrix(q_WB)
         expect = R_WB @ (R_BL @ pc.points_L[i] + t_BL) + p_WB
-        np.testing.assert_allclose(pc.points_W[i], expect, atol=2e-4)
+        np.testing.assert_allclose(truth.points_W[i], expect, atol=2e-4)
 
 
 def test_noise_dropout_and_determinism():
     params = L.LidarParams(range_noise_std=0.05, dropout=0.3, seed=7, range_max=100.0)
     world = wall_world()
-    a = L.Lidar(L.os1_64(), params).scan(world, static_pose(), 0.0)
+    a, a_truth = L.Lidar(L.os1_64(), params).scan_with_truth(world, static_pose(), 0.0)
     b = L.Lidar(L.os1_64(), params).scan(world, static_pose(), 0.0)
     c = L.Lidar(L.os1_64(), L.LidarParams(range_noise_std=0.05, dropout=0.3, seed=8, range_max=100.0)).scan(
         world, static_pose(), 0.0)
@@ -139,7 +141,7 @@ def test_noise_dropout_and_determinism():
     np.testing.assert_array_equal(a.points_L, b.points_L)
     assert len(a) != len(c) or not np.array_equal(a.ranges, c.ranges)
     assert len(a) / len(clean) == pytest.approx(0.7, abs=0.02)
-    err = a.ranges - np.linalg.norm(a.points_W.astype(float), axis=1)
+    err = a.ranges - np.linalg.norm(a_truth.points_W.astype(float), axis=1)
     assert np.std(err) == pytest.approx(0.05, rel=0.05)
     assert abs(np.mean(err)) < 0.003
 
@@ -158,11 +160,11 @@ def test_range_limits_and_intensity_from_incidence_angle():
 def test_scan_counts_frames_and_accepts_a_raycast_scene():
     w = cufund.worlds.load("corridor")
     lid = L.Lidar(L.mid360())
-    a = lid.scan(w.raycast_scene, static_pose((5, 0, 1)), 0.0)
+    a, a_truth = lid.scan_with_truth(w.raycast_scene, static_pose((5, 0, 1)), 0.0)
     b = lid.scan(w, static_pose((5, 0, 1)), 0.1)
     assert (a.frame, b.frame) == (0, 1)
     assert np.all(a.intensity <= 1.0) and np.all(a.intensity > 0)
-    assert set(np.unique(a.object_ids)) <= {0, 1, 2, 3}
+    assert set(np.unique(a_truth.object_ids)) <= {0, 1, 2, 3}
 
 
 @pytest.mark.parametrize(
@@ -214,20 +216,23 @@ def test_lidar_component_publishes_distorted_frames_in_the_simulator():
     frames = []
 
     class Grab(cufund.Component):
-        name, rate_hz = "grab", 200.0
+        name, rate_hz = "grab", 30.0  # slower than the LiDAR: the subscription still delivers every frame
+        inputs = (cufund.Topics.POINT_CLOUD,)
+
+        def setup(self, bus):
+            self.sub = bus.subscribe(cufund.Topics.POINT_CLOUD)
 
         def step(self, t, bus):
-            pc = bus.get(cufund.Topics.POINT_CLOUD)
-            if pc is not None and (not frames or frames[-1] is not pc):
-                frames.append(pc)
+            frames.extend(self.sub.take())
 
     sim.add(Grab())
     result = sim.run(0.5)
     assert [f.frame for f in frames] == [0, 1, 2, 3]
+    assert [f.t for f in frames] == pytest.approx([0.0, 0.1, 0.2, 0.3])
     x_of_t = lambda t: np.interp(t, result.states["t"], result.states["p_W"][:, 0])  # noqa: E731
     for f in frames:
-        assert f.t.min() >= f.t0 and f.t.max() < f.t0 + 0.1
-        np.testing.assert_allclose(f.points_L[:, 0], 10.0 - x_of_t(f.t) - 0.05, atol=2e-3)
+        assert f.dt.min() >= 0.0 and f.dt.max() < 0.1
+        np.testing.assert_allclose(f.points_L[:, 0], 10.0 - x_of_t(f.t + f.dt) - 0.05, atol=2e-3)
     assert comp.topic == cufund.Topics.POINT_CLOUD
     with pytest.raises(ValueError, match="multiple of the LiDAR frame rate"):
         cufund.sensors.LidarComponent(L.Lidar(L.mid360()), wall_world(), rate_hz=15.0)

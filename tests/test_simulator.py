@@ -38,14 +38,19 @@ def test_components_run_at_their_rates_in_order():
     assert [t for t, tag in log if tag == "a"] == pytest.approx(np.arange(10) * 0.01)
 
 
-def test_rate_must_divide_physics_rate():
-    sim = Simulator(_quad())
-    with pytest.raises(ValueError, match="must divide the physics rate 1000 Hz exactly, got 300 Hz"):
-        sim.add(Counter(300, [], "x"))
+def test_any_rate_runs_at_exact_times_and_bad_rates_are_named():
+    log = []
+    sim = Simulator(_quad(), physics_rate_hz=1000)
+    sim.add(Counter(300, log, "x"))  # does not divide the physics rate: physics steps are split at its events
+    sim.run(0.1)
+    # event k at k/300 s rounded down to the nanosecond, computed from k (no drift)
+    assert [t for t, _ in log] == [round((k * 10**9 // 300) / 1e9, 9) for k in range(30)]
     with pytest.raises(ValueError, match="physics_rate_hz"):
         Simulator(_quad(), physics_rate_hz=-1)
     with pytest.raises(ValueError, match="duration"):
         sim.run(float("nan"))
+    with pytest.raises(ValueError, match=r"Counter\.rate_hz must be a finite number > 0"):
+        sim.add(Counter(0.0, [], "y"))
 
 
 def test_free_fall_crashes_and_holds_rotors_without_commands():
@@ -102,10 +107,10 @@ def test_controller_uses_estimator_output_once_attached():
     r = sim.run(1.0)
     assert ctrl.active_state_topic == Topics.ESTIMATE and planner.active_state_topic == Topics.ESTIMATE
     assert r.topics[Topics.ESTIMATE]["p_W"].shape == (100, 3)
-    # the explicit choice wins; two estimators need one
-    ctrl.state_topic = Topics.GROUND_TRUTH
-    sim.run(0.01)
-    assert ctrl.active_state_topic == Topics.GROUND_TRUTH
+    # an explicit choice wins, but flight software may not fly on ground truth once an estimator is attached
+    ctrl.state_topic = Topics.TRUTH_ODOMETRY
+    with pytest.raises(ValueError, match="my_controller reads ground truth .*/truth/odometry.* estimator is configured"):
+        sim.run(0.01)
     ctrl.state_topic = None
     sim.add(MyEstimator())
     with pytest.raises(ValueError, match="state_topic must be set when several estimators"):

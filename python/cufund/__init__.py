@@ -2,9 +2,11 @@
 
 from . import control, esdf, lidar, messages, planning, presets, sensors, worlds
 from ._core import __version__
-from .components import Bus, Component, Controller, Estimator, Mapper, Planner, Recorder, Sensor
+from .bus import Bus, BusView, Subscription
+from .components import Component, Controller, Estimator, Mapper, Planner, Recorder, Sensor
 from .config import ConfigError
 from .messages import FlightMode, Topics
+from .topics import Topic
 from .params import QuadrotorParams
 from .quadrotor import Quadrotor, QuadrotorBatch, QuadrotorState
 from .scenario import ScenarioConfig, ScenarioRun, available_scenarios, load_scenario, run_scenario
@@ -13,6 +15,7 @@ from .worlds import World
 
 __all__ = [
     "Bus",
+    "BusView",
     "Component",
     "ConfigError",
     "Controller",
@@ -31,6 +34,8 @@ __all__ = [
     "Sensor",
     "SimulationResult",
     "Simulator",
+    "Subscription",
+    "Topic",
     "Topics",
     "World",
     "__version__",

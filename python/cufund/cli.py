@@ -1,42 +1,134 @@
-"""The ``cufund`` command line."""
+"""The ``cufund`` command line.
+
+Exit codes: 0 the run completed; 1 it ran but ended otherwise (crashed, diverged, timed out, aborted; the status is
+printed); 2 invalid configuration or usage (a message naming the field, no traceback), checked before anything
+runs.
+"""
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 import time
 from pathlib import Path
 
 from .config import ConfigError
-from .scenario import available_scenarios, load_scenario, run_scenario
+from .scenario import available_scenarios, load_scenario, parse_overrides
 from .sensors import allan_report
+
+EXIT_COMPLETED, EXIT_NOT_COMPLETED, EXIT_INVALID = 0, 1, 2
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # usage errors exit 2, as argparse does, with our prefix
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_INVALID, f"cufund: {message}\n")
 
 
 def _parser() -> argparse.ArgumentParser:
-    scenarios = "\n".join(f"  {name:<12} {desc}" for name, desc in available_scenarios().items())
-    p = argparse.ArgumentParser(
+    scenarios = "\n".join(f"  {name:<14} {desc}" for name, desc in available_scenarios().items())
+    p = _Parser(
         prog="cufund", formatter_class=argparse.RawDescriptionHelpFormatter,
         description="cufund: quadrotor simulation and autonomy.",
         epilog=f"built-in scenarios (cufund run NAME):\n{scenarios}\n\nA scenario may also be a YAML file, e.g. a "
                "run folder's config.yaml.")
-    sub = p.add_subparsers(dest="command", required=True)
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     run = sub.add_parser("run", help="run a scenario and write a run folder",
                          formatter_class=argparse.RawDescriptionHelpFormatter,
-                         epilog=f"built-in scenarios:\n{scenarios}")
+                         epilog=f"built-in scenarios:\n{scenarios}\n\nexit codes: 0 completed, 1 ended otherwise, "
+                                "2 invalid configuration or usage")
     run.add_argument("scenario", help="a built-in scenario name or a YAML file")
-    run.add_argument("--controller", choices=("pid", "geometric"), help="override the scenario's controller")
-    run.add_argument("--out", type=Path, help="run folder (default: runs/<scenario>-<controller>-<time>)")
-    run.add_argument("--seed", type=int, help="override the scenario's seed")
+    run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a field by its dotted key, e.g. --set controller.kind=geometric --set seed=3 "
+                          "(repeatable)")
+    run.add_argument("--controller", help="same as --set controller.kind=NAME")
+    run.add_argument("--seed", help="same as --set seed=N")
+    run.add_argument("--out", type=Path, help="run folder (default: runs/<scenario>-<time>)")
     run.add_argument("--viz", action="store_true", help="stream the run live to MeshCat (http on 127.0.0.1)")
     run.add_argument("--no-replay", action="store_true", help="skip replay.html")
-    sub.add_parser("list", help="list the built-in scenarios")
+    run.add_argument("--no-log", action="store_true", help="skip run.mcap")
+    sub.add_parser("list", help="list the built-in scenarios and registered kinds")
     allan = sub.add_parser("allan", help="simulate a static IMU and compare its Allan deviation with its noise model",
                            description="Simulates a static IMU and writes imu.npz (raw samples), allan.png and "
                                        "allan.json (fitted vs configured noise density and bias random walk, per axis).")
     allan_report.add_arguments(allan)
+    try:
+        from .viz import log_replay
+    except ImportError:  # pragma: no cover - the replay viewer is optional at import time
+        log_replay = None
+    if log_replay is not None:
+        rep = sub.add_parser("replay", help="re-open a run.mcap log in the MeshCat viewer")
+        log_replay.add_arguments(rep)
     return p
+
+
+def _list() -> int:
+    from .registry import GROUPS, available
+
+    print("scenarios:")
+    for name, desc in available_scenarios().items():
+        print(f"  {name:<16} {desc}")
+    for group in GROUPS:
+        print(f"{group} kinds:")
+        for name, kind in sorted(available(group).items()):
+            print(f"  {name:<16} {kind.doc}")
+    return EXIT_COMPLETED
+
+
+def _run(args: argparse.Namespace) -> int:
+    from .scenario_build import build_simulation, out_dir_problem
+
+    try:
+        overrides = parse_overrides(args.overrides)
+        if args.controller is not None:
+            overrides["controller.kind"] = args.controller
+        if args.seed is not None:
+            overrides.update(parse_overrides([f"seed={args.seed}"]))
+        cfg = load_scenario(args.scenario, overrides)
+        out = args.out or Path("runs") / f"{cfg.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+        problem = out_dir_problem(out)
+        if problem:
+            raise ConfigError(problem)
+        build_simulation(cfg)  # the whole graph validated before anything runs
+    except (ConfigError, OSError) as e:
+        print(f"cufund: {e}", file=sys.stderr)
+        return EXIT_INVALID
+    from .run_folder import write_run_folder
+    from .scenario_build import run_scenario
+
+    extra: tuple = ()
+    viewer = None
+    if args.viz:
+        from .viz.live import LiveViewer
+
+        viewer = LiveViewer(cfg.vehicle_params())
+        print(f"MeshCat: open {viewer.url}", flush=True)
+        extra = (viewer,)
+    out.mkdir(parents=True, exist_ok=True)
+    logger = None
+    if cfg.log.mcap and not args.no_log:
+        from .logs import McapLogger
+
+        logger = McapLogger(out / "run.mcap", metadata={"scenario": cfg.name, "seed": str(cfg.seed)})
+    try:
+        run = run_scenario(cfg, progress=sys.stderr.isatty() or args.viz, extra_components=extra, logger=logger)
+    finally:
+        if logger is not None:
+            logger.close()
+    write_run_folder(run, out, replay=not args.no_replay)
+    print(json.dumps(run.metrics, indent=2, default=str))
+    status = run.result.status.value
+    print(f"status: {status} ({run.result.message})")
+    print(f"run folder: {out.resolve()}")
+    if args.viz and sys.stdin.isatty():
+        try:
+            input("The live view stays up until you press Enter (or Ctrl-C). ")
+        except (KeyboardInterrupt, EOFError):
+            pass
+    if viewer is not None:
+        viewer.close()
+    return EXIT_COMPLETED if status == "completed" else EXIT_NOT_COMPLETED
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -46,44 +138,18 @@ def main(argv: list[str] | None = None) -> int:
             return allan_report.run(args)
         except ValueError as e:
             print(f"cufund: {e}", file=sys.stderr)
-            return 2
+            return EXIT_INVALID
     if args.command == "list":
-        for name, desc in available_scenarios().items():
-            print(f"{name:<12} {desc}")
-        return 0
-    try:
-        cfg = load_scenario(args.scenario)
-        if args.controller:
-            cfg = cfg.replace(controller=dataclasses.replace(cfg.controller, kind=args.controller))
-        if args.seed is not None:
-            cfg = cfg.replace(seed=args.seed)
-    except (ConfigError, OSError) as e:
-        print(f"cufund: {e}", file=sys.stderr)
-        return 2
-    out = args.out or Path("runs") / f"{cfg.name}-{cfg.controller.kind}-{time.strftime('%Y%m%d-%H%M%S')}"
-    extra: tuple = ()
-    viewer = None
-    if args.viz:
-        from .scenario import build_reference
-        from .viz.live import LiveViewer
+        return _list()
+    if args.command == "replay":
+        from .viz import log_replay
 
-        viewer = LiveViewer(cfg.vehicle_params(), build_reference(cfg.trajectory)[0])
-        print(f"MeshCat: open {viewer.url}", flush=True)
-        extra = (viewer,)
-    run = run_scenario(cfg, progress=sys.stderr.isatty() or args.viz, extra_components=extra)
-    from .run_folder import write_run_folder
-
-    write_run_folder(run, out, replay=not args.no_replay)
-    print(json.dumps(run.metrics, indent=2))
-    print(f"run folder: {out.resolve()}")
-    if args.viz and sys.stdin.isatty():
         try:
-            input("The live view stays up until you press Enter (or Ctrl-C). ")
-        except (KeyboardInterrupt, EOFError):
-            pass
-    if viewer is not None:
-        viewer.close()
-    return 0 if run.result.status.value == "completed" else 1
+            return log_replay.run(args)
+        except (ConfigError, ValueError, OSError) as e:
+            print(f"cufund: {e}", file=sys.stderr)
+            return EXIT_INVALID
+    return _run(args)
 
 
 if __name__ == "__main__":

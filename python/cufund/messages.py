@@ -1,44 +1,70 @@
-"""Typed messages that components exchange on named topics (the paper's ROS messages, without ROS).
+"""Typed messages that components exchange on typed topics (the paper's ROS messages, without ROS).
 
-Every message carries the simulated time ``t`` [s] at which it was produced. Arrays are float64 numpy arrays;
-frames follow the names (``_W`` world ENU, ``_B`` body FLU), quaternions are ``[w, x, y, z]``. Messages are
-frozen: a component that wants to change one publishes a new one.
+Every message carries its measurement stamp ``t`` [s]: the simulated time the measured quantity refers to
+(the bus records separately when a message became visible). Arrays are float64 numpy arrays unless a field
+says otherwise; frames follow the names (``_W`` world ENU, ``_B`` body FLU), quaternions are ``[w, x, y, z]``.
+Messages are frozen and their arrays read-only: a component that wants to change one publishes a new one, and
+a publisher cannot change a message after publishing it. Ground truth travels only on ``/truth/...`` topics
+(:class:`Odometry` and :class:`LidarTruth`); no sensor message carries a true value.
 """
 
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from typing import Any, Callable, TypeVar
 
 import numpy as np
 
-__all__ = [
-    "ActuatorCommand", "AirPressure", "AttitudeSetpoint", "FlightMode", "FlightModeCommand", "GpsFix", "Imu",
-    "MagneticField", "Odometry", "PointCloud",
-    "RateSetpoint", "ThrustTorqueSetpoint", "TrajectorySetpoint", "Topics",
-]
+from .topics import Topic
+
+_M = TypeVar("_M")
 
 
-class Topics:
-    """Default topic names used by the built-in components."""
+def _readonly(value: Any) -> Any:
+    """``value`` as a read-only array: a fresh array the publisher owns is frozen in place (no copy); a view or a
+    list is copied first, so no one keeps a writable alias of a published array."""
+    if value is None:
+        return None
+    if isinstance(value, np.ndarray):
+        if value.base is not None:
+            value = value.copy()
+    else:
+        value = np.array(value, dtype=float)
+    value.setflags(write=False)
+    return value
 
-    GROUND_TRUTH = "/ground_truth/odometry"
-    """Exact vehicle state, published by the simulator every physics step at which any component runs."""
-    ESTIMATE = "/estimator/odometry"
-    TRAJECTORY_SETPOINT = "/setpoint/trajectory"
-    ATTITUDE_SETPOINT = "/setpoint/attitude"
-    """Attitude and thrust from the position controller (or the user in attitude mode)."""
-    MANUAL_ATTITUDE_SETPOINT = "/setpoint/attitude_manual"
-    """Attitude and thrust commanded by a user or planner in attitude mode."""
-    RATE_SETPOINT = "/setpoint/rates"
-    THRUST_TORQUE_SETPOINT = "/setpoint/thrust_torque"
-    ACTUATOR_COMMAND = "/actuator/command"
-    FLIGHT_MODE = "/commander/flight_mode"
-    IMU = "/sensors/imu"
-    MAGNETOMETER = "/sensors/magnetometer"
-    BAROMETER = "/sensors/barometer"
-    GPS = "/sensors/gps"
-    POINT_CLOUD = "/sensors/point_cloud"
+
+def message(cls: type[_M]) -> type[_M]:
+    """Makes ``cls`` a frozen, slotted dataclass whose ``np.ndarray`` fields are read-only after construction."""
+    array_fields = tuple(name for name, kind in cls.__annotations__.items() if "ndarray" in str(kind))
+    if array_fields:
+        setter = object.__setattr__
+
+        ndarray = np.ndarray
+
+        def __post_init__(self: Any) -> None:
+            for name in array_fields:
+                value = getattr(self, name)
+                if value.__class__ is ndarray and value.base is None:  # fresh: freeze in place
+                    value.setflags(write=False)
+                else:
+                    setter(self, name, _readonly(value))
+
+        cls.__post_init__ = __post_init__  # type: ignore[attr-defined]
+    cls = dataclass(frozen=True, slots=True)(cls)
+    names = tuple(f.name for f in fields(cls))
+
+    def trusted(*values: Any) -> Any:
+        """Builds the message from arrays the caller guarantees are read-only and unshared (no checks, no
+        copies): for producers of many messages per second, like the simulator's ground truth."""
+        obj = object.__new__(cls)
+        for name, value in zip(names, values):
+            object.__setattr__(obj, name, value)
+        return obj
+
+    cls.trusted = staticmethod(trusted)  # type: ignore[attr-defined]
+    return cls
 
 
 class FlightMode(enum.Enum):
@@ -52,7 +78,7 @@ class FlightMode(enum.Enum):
     """Attitude and collective thrust."""
 
 
-@dataclass(frozen=True, slots=True)
+@message
 class Odometry:
     """Vehicle state estimate (or ground truth)."""
 
@@ -72,7 +98,7 @@ class Odometry:
     """Angular acceleration [rad/s^2], (3,): set on ground truth, else None."""
 
 
-@dataclass(frozen=True, slots=True)
+@message
 class Imu:
     """Specific force and angular rate in the IMU's own frame I (the body frame when the IMU is mounted
     without rotation; its mounting, ``q_BI`` and lever arm ``p_BI``, is the estimator's extrinsic)."""
@@ -84,7 +110,7 @@ class Imu:
     """Angular rate (gyroscope) [rad/s], (3,)."""
 
 
-@dataclass(frozen=True, slots=True)
+@message
 class MagneticField:
     """Magnetometer sample in the body frame (the magnetometer is mounted along the body axes)."""
 
@@ -93,7 +119,7 @@ class MagneticField:
     """Magnetic flux density [T], (3,)."""
 
 
-@dataclass(frozen=True, slots=True)
+@message
 class AirPressure:
     """Barometer sample."""
 
@@ -106,7 +132,7 @@ class AirPressure:
     """Air temperature [K]."""
 
 
-@dataclass(frozen=True, slots=True)
+@message
 class GpsFix:
     """One GNSS receiver output (like PX4's ``sensor_gps``)."""
 
@@ -127,36 +153,68 @@ class GpsFix:
     """Vertical position accuracy (1 sigma) [m]."""
 
 
-@dataclass(frozen=True, slots=True)
+@message
 class PointCloud:
-    """One LiDAR frame: the valid returns, each stamped with its own firing time (what
-    :class:`cufund.sensors.LidarComponent` publishes on ``Topics.POINT_CLOUD``)."""
+    """One LiDAR frame as a driver reports it: the valid returns, one stamp for the frame and a time offset
+    per point (what :class:`cufund.sensors.LidarComponent` publishes). No ground truth: the true hit points
+    travel separately as :class:`LidarTruth` on ``/truth/point_cloud``."""
 
-    t0: float
-    """Frame start time [s]."""
-    t: np.ndarray
-    """(N,) firing time of each point [s] (absolute, t0 <= t < t0 + period)."""
+    t: float
+    """Frame stamp: the start of the frame [s]."""
+    dt: np.ndarray
+    """(N,) firing time of each point after ``t`` [s] (0 <= dt < frame period)."""
     points_L: np.ndarray
-    """(N, 3) float32 points in the LiDAR frame at their own firing time (what a driver reports:
-    motion-distorted when the sensor moves during the frame) [m]."""
-    points_W: np.ndarray
-    """(N, 3) float32 noise-free hit points in the world frame (ground truth) [m]."""
+    """(N, 3) float32 points in the LiDAR frame, each at its own firing time (motion-distorted when the sensor
+    moves during the frame) [m]."""
     ranges: np.ndarray
     """(N,) measured ranges, noise included [m]."""
     intensity: np.ndarray
-    """(N,) reflectivity × |cos(incidence angle)| in [0, 1]."""
+    """(N,) reflectivity x |cos(incidence angle)| in [0, 1]."""
     channel: np.ndarray
     """(N,) laser channel (ring) index."""
-    object_ids: np.ndarray
-    """(N,) id of the world object hit (geometry id of the scene)."""
     frame: int
-    """Frame index of the pattern."""
+    """Frame index of the scan pattern."""
 
     def __len__(self) -> int:
-        return len(self.t)
+        return len(self.dt)
 
 
-@dataclass(frozen=True, slots=True)
+@message
+class LidarTruth:
+    """Ground truth of one LiDAR frame, point for point with its :class:`PointCloud` (a ``/truth/`` topic)."""
+
+    t: float
+    """The frame's stamp [s]."""
+    points_W: np.ndarray
+    """(N, 3) float32 noise-free hit points in the world frame [m]."""
+    object_ids: np.ndarray
+    """(N,) id of the world object each ray hit (geometry id of the scene)."""
+
+
+@message
+class CameraImage:
+    """One camera frame (global shutter)."""
+
+    t: float
+    """Capture time [s]."""
+    image: np.ndarray
+    """(H, W) float32 depth [m] (NaN = no return) or (H, W, 3) uint8 RGB."""
+
+
+@message
+class MapUpdate:
+    """A map a mapper maintains, announced after each update: planners read the map object itself (it stays
+    owned and updated by the mapper; read it only inside a component's step)."""
+
+    t: float
+    """Stamp of the newest measurement integrated [s]."""
+    map: Any
+    """The map (e.g. :class:`cufund.mapping.EsdfMap`)."""
+    frames: int
+    """Measurements integrated so far."""
+
+
+@message
 class TrajectorySetpoint:
     """A point of a trajectory, PX4's ``trajectory_setpoint``: position mode uses all fields, velocity mode
     ignores ``p_W``."""
@@ -176,7 +234,7 @@ class TrajectorySetpoint:
     """Heading rate feed-forward [rad/s]."""
 
 
-@dataclass(frozen=True, slots=True)
+@message
 class AttitudeSetpoint:
     """Attitude and collective thrust, PX4's ``vehicle_attitude_setpoint``."""
 
@@ -189,7 +247,7 @@ class AttitudeSetpoint:
     """Yaw-rate feed-forward [rad/s]."""
 
 
-@dataclass(frozen=True, slots=True)
+@message
 class RateSetpoint:
     """Body rates and collective thrust, PX4's ``vehicle_rates_setpoint``."""
 
@@ -200,7 +258,7 @@ class RateSetpoint:
     """Collective thrust [N]."""
 
 
-@dataclass(frozen=True, slots=True)
+@message
 class ThrustTorqueSetpoint:
     """Collective thrust and body torque, the input of control allocation."""
 
@@ -211,7 +269,7 @@ class ThrustTorqueSetpoint:
     """[N m], (3,)."""
 
 
-@dataclass(frozen=True, slots=True)
+@message
 class ActuatorCommand:
     """Rotor speed commands, PX4 numbering; the simulator holds the latest one over each physics step."""
 
@@ -220,9 +278,43 @@ class ActuatorCommand:
     """[rad/s], (4,)."""
 
 
-@dataclass(frozen=True, slots=True)
+@message
 class FlightModeCommand:
     """Switches the flight controller's mode."""
 
     t: float
     mode: FlightMode
+
+
+class Topics:
+    """The topics of the built-in components, each typed with its message. Ground truth lies under ``/truth/``."""
+
+    TRUTH_ODOMETRY = Topic("/truth/odometry", Odometry)
+    """Exact vehicle state with its true accelerations, published by the simulator at every instant at which a
+    component runs."""
+    GROUND_TRUTH = TRUTH_ODOMETRY
+    """Alias of ``TRUTH_ODOMETRY``."""
+    TRUTH_POINT_CLOUD = Topic("/truth/point_cloud", LidarTruth)
+    """The true hit points of each frame of the LiDAR on ``POINT_CLOUD``."""
+    ESTIMATE = Topic("/estimator/odometry", Odometry)
+    """The estimator's state at its output rate (IMU rate for the built-in ones): what the attitude and position
+    loops, mappers and planners use once an estimator is attached."""
+    TRAJECTORY_SETPOINT = Topic("/setpoint/trajectory", TrajectorySetpoint)
+    ATTITUDE_SETPOINT = Topic("/setpoint/attitude", AttitudeSetpoint)
+    """Attitude and thrust from the position controller (or the user in attitude mode)."""
+    MANUAL_ATTITUDE_SETPOINT = Topic("/setpoint/attitude_manual", AttitudeSetpoint)
+    """Attitude and thrust commanded by a user or planner in attitude mode."""
+    RATE_SETPOINT = Topic("/setpoint/rates", RateSetpoint)
+    THRUST_TORQUE_SETPOINT = Topic("/setpoint/thrust_torque", ThrustTorqueSetpoint)
+    ACTUATOR_COMMAND = Topic("/actuator/command", ActuatorCommand)
+    FLIGHT_MODE = Topic("/commander/flight_mode", FlightModeCommand)
+    IMU = Topic("/sensors/imu", Imu)
+    MAGNETOMETER = Topic("/sensors/magnetometer", MagneticField)
+    BAROMETER = Topic("/sensors/barometer", AirPressure)
+    GPS = Topic("/sensors/gps", GpsFix)
+    POINT_CLOUD = Topic("/sensors/lidar", PointCloud)
+    POSE = Topic("/sensors/pose", Odometry)
+    """A pose source (motion capture, or a slow odometry) as :class:`Odometry`."""
+    DEPTH_IMAGE = Topic("/sensors/depth_image", CameraImage)
+    RGB_IMAGE = Topic("/sensors/rgb_image", CameraImage)
+    ESDF_MAP = Topic("/map/esdf", MapUpdate)

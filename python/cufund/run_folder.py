@@ -1,32 +1,46 @@
-"""Writing a run folder: metrics.json, config.yaml (reproduces the run), trajectory.png and replay.html."""
+"""Writing a run folder: metrics.json, config.yaml (reproduces the run), trajectory.png and replay.html (when the
+run flew a reference); ``run.mcap`` is written while the run goes (see :func:`cufund.scenario_build.run_scenario`'s
+``logger``)."""
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
+from typing import Any
 
 import yaml
 
-from .scenario import ScenarioRun
+from .scenario_build import ScenarioRun
 
 __all__ = ["write_run_folder"]
+
+
+def _json_safe(x: Any) -> Any:
+    if isinstance(x, float) and not math.isfinite(x):
+        return None if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    if isinstance(x, dict):
+        return {k: _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_json_safe(v) for v in x]
+    return x
 
 
 def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, replay: bool = True) -> Path:
     """Writes the run's files into ``out`` (created if needed); returns the folder."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "metrics.json").write_text(json.dumps(run.metrics, indent=2) + "\n", encoding="utf-8")
+    (out / "metrics.json").write_text(json.dumps(_json_safe(run.metrics), indent=2) + "\n", encoding="utf-8")
     with (out / "config.yaml").open("w", encoding="utf-8") as f:
         f.write(f"# Reproduce with: cufund run {out / 'config.yaml'}\n")
         yaml.safe_dump(run.config.to_dict(), f, sort_keys=False)
     params = run.config.vehicle_params()
-    if plots:
+    if plots and run.reference is not None and run.path is not None and "tracking_rmse_m" in run.metrics:
         from .viz.plots import plot_tracking
 
         window = (float(run.path.t_knots[0]), run.path.t_end)
-        title = (f"{run.config.name}, {run.config.controller.kind}: RMSE {100 * run.metrics['tracking_rmse_m']:.2f} cm, "
-                 f"max {100 * run.metrics['tracking_max_m']:.2f} cm")
+        title = (f"{run.config.name}, {run.config.controller.kind if run.config.controller else 'no controller'}: "
+                 f"RMSE {100 * run.metrics['tracking_rmse_m']:.2f} cm, max {100 * run.metrics['tracking_max_m']:.2f} cm")
         plot_tracking(out / "trajectory.png", run.result, run.reference, window, title)
     if replay:
         from .viz.replay import write_replay_html

@@ -1,5 +1,12 @@
-"""Scenarios: a YAML file naming the vehicle, controller and gains, trajectory, rates, duration and seed,
-validated into frozen dataclasses and run on the :class:`~cufund.simulator.Simulator`."""
+"""Scenarios as data: a YAML file describing a pipeline — world, vehicle, sensors, estimator, mapper, planner,
+controller, mission — validated into frozen dataclasses before anything runs.
+
+Each part is ``{kind: NAME, ...params}`` (a bare ``NAME`` is ``{kind: NAME}``; ``null`` leaves it out), the kind
+looked up in :mod:`cufund.registry`. Every part also takes ``latency_s`` and ``phase_s``; sensors also ``topic``
+and their extrinsic (``T_BI``, ``T_BL``, ``T_BC``). Dotted overrides (``controller.kind=geometric``,
+``sensors.imu.rate_hz=400``, ``world.seed=3``) apply to the plain data before validation
+(:func:`apply_overrides`). Building and running: :mod:`cufund.scenario_build`.
+"""
 
 from __future__ import annotations
 
@@ -7,31 +14,35 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable, Mapping
 
 import numpy as np
+import yaml
 
 from . import presets
 from .config import ConfigError, check_real_fields, from_dict, load_yaml, nested, to_dict
-from .control import (AttitudeControlParams, AttitudeController, GeometricControlParams, GeometricController,
-                      PositionControlParams, PositionController, RateControlParams, RateController)
-from .messages import Topics
+from .messages import AirPressure, CameraImage, GpsFix, Imu, MagneticField, Odometry, PointCloud
 from .params import QuadrotorParams
-from .planning import Hold, JerkLimitedMove, MinimumSnapTrajectory, TrajectoryFollower, TrajectorySequence
-from .quadrotor import Quadrotor
-from .sensors import (BAROMETER_PRESETS, GPS_PRESETS, IMU_PRESETS, BarometerParams, BarometerSensor, GpsParams,
-                      GpsSensor, ImuParams, ImuSensor, MagnetometerParams, MagnetometerSensor)
-from .simulator import SimulationResult, Simulator
+from .registry import lookup
+from .sensors.pose import Transform
+from .topics import Topic
 
-__all__ = ["ControllerConfig", "RatesConfig", "ScenarioConfig", "ScenarioRun", "SensorsConfig", "TrajectoryConfig",
-           "available_scenarios", "load_scenario", "run_scenario"]
+__all__ = ["LogConfig", "PartSpec", "RatesConfig", "ScenarioConfig", "TrajectoryConfig", "apply_overrides",
+           "available_scenarios", "load_scenario", "parse_overrides"]
 
 _PRESETS = {"crazyflie": presets.crazyflie, "iris": presets.iris, "cu_astro": presets.cu_astro}
+_MESSAGE_OF = {"imu": Imu, "magnetometer": MagneticField, "barometer": AirPressure, "gps": GpsFix,
+               "lidar": PointCloud, "camera": CameraImage, "pose": Odometry}
+_EXTRINSIC_OF = {"imu": "T_BI", "lidar": "T_BL", "camera": "T_BC"}
+# the old shorthand `sensors: {magnetometer: default, imu: ideal}`
+_SHORTHAND = {("magnetometer", "default"): "magnetometer", ("imu", "ideal"): "ideal_imu",
+              ("barometer", "ideal"): "ideal_barometer", ("gps", "ideal"): "ideal_gps"}
+_PART_GROUPS = ("world", "estimator", "mapper", "planner", "controller", "mission")
 
 
 @dataclass(frozen=True)
 class RatesConfig:
-    """Component rates [Hz]; each must divide ``physics_hz``."""
+    """Physics and built-in component rates [Hz] (any positive rates; the physics grid is split at events)."""
 
     physics_hz: float = 1000.0
     """Physics (RK4) steps per second."""
@@ -48,34 +59,15 @@ class RatesConfig:
 
     def __post_init__(self) -> None:
         check_real_fields(self, "rates", positive=True, unit=" [Hz]")
-
-
-@dataclass(frozen=True)
-class ControllerConfig:
-    """Which controller flies, and the gains of each (only the chosen one's are used)."""
-
-    kind: str = "pid"
-    """``pid`` (PX4-style cascade) or ``geometric`` (SE(3), Lee et al. 2010)."""
-    position: PositionControlParams = field(default_factory=PositionControlParams)
-    attitude: AttitudeControlParams = field(default_factory=AttitudeControlParams)
-    rate: RateControlParams = field(default_factory=RateControlParams)
-    geometric: GeometricControlParams = field(default_factory=GeometricControlParams)
-
-    def __post_init__(self) -> None:
-        if self.kind not in ("pid", "geometric"):
-            raise ConfigError(f"controller.kind must be 'pid' or 'geometric', got {self.kind!r}")
-        for name, cls in (("position", PositionControlParams), ("attitude", AttitudeControlParams),
-                          ("rate", RateControlParams), ("geometric", GeometricControlParams)):
-            try:
-                object.__setattr__(self, name, nested(cls, getattr(self, name), f"controller.{name}"))
-            except ValueError as e:
-                raise ConfigError(str(e) if "controller." in str(e) else f"controller.{name}: {e}") from None
+        for f in dataclasses.fields(self):
+            if getattr(self, f.name) > 1e6:
+                raise ConfigError(f"rates.{f.name} must be at most 1e6 Hz, got {getattr(self, f.name)!r}")
 
 
 @dataclass(frozen=True)
 class TrajectoryConfig:
     """Take off from the first waypoint's ground point, hover, fly a minimum-snap path through the waypoints,
-    hover, land below the last waypoint."""
+    hover, land below the last waypoint (the ``waypoints`` planner)."""
 
     waypoints: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 1.5), (1.0, 0.0, 1.5), (1.0, 1.0, 1.5),
                                                          (0.0, 1.0, 1.5), (0.0, 0.0, 1.5))
@@ -96,17 +88,25 @@ class TrajectoryConfig:
     """Hover before and after the min-snap path [s]."""
 
     def __post_init__(self) -> None:
-        w = np.asarray(self.waypoints, dtype=float) if self.waypoints is not None else np.zeros(0)
+        try:
+            w = np.asarray(self.waypoints, dtype=float) if self.waypoints is not None else np.zeros(0)
+        except (TypeError, ValueError):
+            raise ConfigError(f"trajectory.waypoints must be a list of [x, y, z] points [m], got {self.waypoints!r}") from None
         if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 2 or not np.all(np.isfinite(w)):
             raise ConfigError(f"trajectory.waypoints must be a list of at least 2 [x, y, z] points [m], got shape {w.shape}")
         if np.any(w[:, 2] <= 0.1):
             raise ConfigError("trajectory.waypoints must all be above 0.1 m (the path is flown after take-off)")
+        if np.any(np.abs(w) > 1e5):
+            raise ConfigError("trajectory.waypoints must lie within 1e5 m of the origin")
         object.__setattr__(self, "waypoints", tuple(tuple(float(x) for x in r) for r in w))
         if self.yaw is not None:
-            y = np.asarray(self.yaw, dtype=float)
+            try:
+                y = np.asarray(self.yaw, dtype=float)
+            except (TypeError, ValueError):
+                y = np.full(1, np.nan)
             if y.shape != (w.shape[0],) or not np.all(np.isfinite(y)):
                 raise ConfigError(f"trajectory.yaw must have one finite angle per waypoint ({w.shape[0]}) [rad], "
-                                  f"got {[float(v) for v in y]}")
+                                  f"got {self.yaw!r}")
             object.__setattr__(self, "yaw", tuple(float(v) for v in y))
         for name in ("v_max", "a_max", "move_v_max", "move_a_max", "move_j_max", "hover_s"):
             v = getattr(self, name)
@@ -115,76 +115,168 @@ class TrajectoryConfig:
             object.__setattr__(self, name, float(v))
 
 
-_SENSOR_KINDS = {
-    # name: (params class, presets, component class, stream index of its seed)
-    "imu": (ImuParams, IMU_PRESETS, ImuSensor, 0),
-    "magnetometer": (MagnetometerParams, {"default": MagnetometerParams}, MagnetometerSensor, 1),
-    "barometer": (BarometerParams, BAROMETER_PRESETS, BarometerSensor, 2),
-    "gps": (GpsParams, GPS_PRESETS, GpsSensor, 3),
-}
+@dataclass(frozen=True)
+class LogConfig:
+    """What the run writes to ``run.mcap``."""
+
+    mcap: bool = True
+    """Write ``run.mcap`` (every visible message, streamed while the run goes)."""
+    exclude: tuple[str, ...] = ()
+    """Topics left out of the log (e.g. camera images)."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.mcap, bool):
+            raise ConfigError(f"log.mcap must be true or false, got {self.mcap!r}")
+        if isinstance(self.exclude, str) or not all(isinstance(t, str) for t in self.exclude):
+            raise ConfigError(f"log.exclude must be a list of topic names, got {self.exclude!r}")
+        object.__setattr__(self, "exclude", tuple(self.exclude))
 
 
 @dataclass(frozen=True)
-class SensorsConfig:
-    """Inertial and navigation sensors to attach: each null (none), a preset name, or a mapping of its
-    parameters (:class:`~cufund.sensors.ImuParams`, ``MagnetometerParams``, ``BarometerParams``, ``GpsParams``).
-    Each gets its own random stream, seeded from the scenario's seed and the sensor's kind."""
+class PartSpec:
+    """One part of a scenario: its kind, the kind's params, and its timing (and, for sensors, topic and
+    extrinsic)."""
 
-    imu: Any = None
-    """e.g. ``icm42688p`` or ``bmi088``."""
-    magnetometer: Any = None
-    """``default`` or a mapping."""
-    barometer: Any = None
-    """e.g. ``ms5611``."""
-    gps: Any = None
-    """e.g. ``ublox_m8n`` or ``ublox_m9n``."""
+    kind: str
+    params: Any
+    latency_s: float = 0.0
+    """What the part publishes becomes visible this much later [s]."""
+    phase_s: float = 0.0
+    """Delay of the part's first run [s]."""
+    topic: Topic | None = None
+    """Sensors: the topic it publishes on."""
+    extrinsic: Transform | None = None
+    """Mounted sensors: the sensor's pose in the body frame (T_BI, T_BL or T_BC)."""
+    sensor_type: str | None = None
 
-    def __post_init__(self) -> None:
-        for kind in _SENSOR_KINDS:
-            self.params(kind)  # validates
 
-    def params(self, kind: str) -> Any:
-        """The parameters of sensor ``kind``, or None when it is not attached."""
-        cls, known, _, _ = _SENSOR_KINDS[kind]
-        value = getattr(self, kind)
-        if value is None or isinstance(value, cls):
-            return value
-        if isinstance(value, str):
-            if value not in known:
-                raise ConfigError(f"sensors.{kind} must be one of {', '.join(known)} or a mapping, got {value!r}")
-            return known[value]()
-        return from_dict(cls, value, f"sensors.{kind}")
+def _transform(value: Any, where: str) -> Transform:
+    if isinstance(value, Transform):
+        return value
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where} must be a mapping {{p: [x, y, z], q: [w, x, y, z]}}, got {value!r}")
+    unknown = sorted(set(value) - {"p", "q"})
+    if unknown:
+        raise ConfigError(f"unknown key {unknown[0]!r} in {where}; expected p [m] and q [w, x, y, z]")
+    q = value.get("q", (1.0, 0.0, 0.0, 0.0))
+    try:
+        qa = np.asarray(q, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{where}.q must be 4 numbers [w, x, y, z], got {q!r}") from None
+    if qa.shape == (4,) and np.all(np.isfinite(qa)) and abs(np.linalg.norm(qa) - 1.0) > 1e-6:
+        raise ConfigError(f"{where}.q must be a unit quaternion [w, x, y, z] (a rotation), got norm "
+                          f"{np.linalg.norm(qa):.6g}")
+    try:
+        return Transform(value.get("p", (0.0, 0.0, 0.0)), q)
+    except (TypeError, ValueError) as e:
+        raise ConfigError(f"{where}: {e}") from None
 
-    def components(self, seed: int, gravity: float) -> list[Any]:
-        """The attached sensors as simulator components, each with its own seed."""
-        out = []
-        for kind, (_, _, component, stream) in _SENSOR_KINDS.items():
-            params = self.params(kind)
-            if params is None:
-                continue
-            sensor_seed = int(np.random.SeedSequence([seed, stream]).generate_state(1)[0])
-            extra = {"gravity": gravity} if component is ImuSensor else {}  # the IMU senses gravity
-            out.append(component(params, sensor_seed, **extra))
-        return out
+
+def _timing(values: dict[str, Any], where: str, own: set[str]) -> tuple[float, float]:
+    """The part's latency and phase, unless its kind's params have fields of those names (then they are the
+    kind's: e.g. a GNSS receiver models its own latency)."""
+    out = []
+    for key in ("latency_s", "phase_s"):
+        v = values.get(key, 0.0) if key in own else values.pop(key, 0.0)
+        if key in own:
+            out.append(0.0)
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 or v > 3600:
+            raise ConfigError(f"{where}.{key} must be a number of seconds in [0, 3600], got {v!r}")
+        out.append(float(v))
+    return out[0], out[1]
+
+
+def parse_part(group: str, value: Any, where: str, sensor_name: str | None = None) -> PartSpec | None:
+    """A scenario part from its YAML value (None leaves it out)."""
+    if value is None:
+        return None
+    if isinstance(value, PartSpec):
+        lookup(group, value.kind, where)
+        return value
+    if isinstance(value, str):
+        value = {"kind": _SHORTHAND.get((sensor_name, value), value)}
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where} must be a kind name or a mapping with a 'kind' key, got {type(value).__name__}")
+    values = dict(value)
+    if "kind" not in values:
+        raise ConfigError(f"missing key 'kind' in {where}")
+    kind = lookup(group, values.pop("kind"), where)
+    latency, phase = _timing(values, where, {f.name for f in dataclasses.fields(kind.params)})
+    topic = extrinsic = None
+    if group == "sensor":
+        stype = kind.sensor_type or "sensor"
+        t = values.pop("topic", f"/sensors/{sensor_name}")
+        try:
+            topic = Topic(t, _MESSAGE_OF.get(stype, object))
+        except ValueError as e:
+            raise ConfigError(f"{where}.topic: {e}") from None
+        key = _EXTRINSIC_OF.get(stype)
+        for other in set(_EXTRINSIC_OF.values()) - {key}:
+            if other in values:
+                raise ConfigError(f"{where}.{other}: a {stype} sensor's extrinsic is "
+                                  f"{key or 'not configurable'}, got {other}")
+        if key is not None and key in values:
+            extrinsic = _transform(values.pop(key), f"{where}.{key}")
+    params = kind.parse(values, where)
+    return PartSpec(kind.name, params, latency, phase, topic, extrinsic, kind.sensor_type if group == "sensor" else None)
+
+
+def part_to_dict(spec: PartSpec | None) -> Any:
+    """Plain data that :func:`parse_part` turns back into an equal spec."""
+    if spec is None:
+        return None
+    out: dict[str, Any] = {"kind": spec.kind}
+    if spec.latency_s:
+        out["latency_s"] = spec.latency_s
+    if spec.phase_s:
+        out["phase_s"] = spec.phase_s
+    if spec.topic is not None:
+        out["topic"] = str(spec.topic)
+    if spec.extrinsic is not None:
+        out[_EXTRINSIC_OF[spec.sensor_type]] = {"p": list(spec.extrinsic.t), "q": list(spec.extrinsic.q)}
+    out.update(to_dict(spec.params))
+    return out
 
 
 @dataclass(frozen=True)
 class ScenarioConfig:
-    """A complete, reproducible run."""
+    """A complete, reproducible run: the pipeline and everything that parametrises it."""
 
     name: str = "custom"
     vehicle: Any = "cu_astro"
     """A preset name (cu_astro, crazyflie, iris) or a mapping of :class:`QuadrotorParams` fields."""
-    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    world: Any = None
+    """A world kind (empty, imav2025_tunnel, forest, corridor, file, ...) or null for none (the ground plane of the
+    dynamics only)."""
+    sensors: Any = None
+    """``{NAME: {kind: ..., ...}}``: each sensor publishes on ``/sensors/NAME`` unless given a ``topic``."""
+    estimator: Any = None
+    """An estimator kind, or null: controllers then fly on ground truth."""
+    mapper: Any = None
+    planner: Any = "waypoints"
+    controller: Any = "pid"
+    mission: Any = None
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    """The reference of the ``waypoints`` planner."""
     rates: RatesConfig = field(default_factory=RatesConfig)
-    sensors: SensorsConfig = field(default_factory=SensorsConfig)
+    log: LogConfig = field(default_factory=LogConfig)
+    collision_box: tuple[float, float, float] = (0.216, 0.216, 0.095)
+    """The vehicle's shape against the world's meshes: a box of these full edge lengths (x, y, z) in the body
+    frame [m] (default: CU-Astro's 216 x 216 x 95 mm)."""
+    start_p_W: tuple[float, float, float] | None = None
+    """Where the vehicle stands at the start, rotors stopped [m] (default: below the first waypoint)."""
     duration: float = 60.0
     """Longest simulated time [s]; the run ends earlier (completed) once the vehicle has landed."""
     seed: int = 0
-    """Seed of every random source (sensor noise); the same seed repeats a run bit for bit."""
+    """One seed derives every random stream (sensor noise, LiDAR noise, ...); the same seed repeats a run bit for
+    bit."""
+    base_dir: str | None = field(default=None, compare=False, repr=False)
+    """Where the scenario file lies (relative paths in it resolve from there); not part of the scenario."""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
         if isinstance(self.vehicle, str):
             if self.vehicle not in _PRESETS:
                 raise ConfigError(f"vehicle must be one of {', '.join(_PRESETS)} or a mapping of QuadrotorParams fields, "
@@ -192,33 +284,144 @@ class ScenarioConfig:
         elif isinstance(self.vehicle, dict):
             try:
                 QuadrotorParams.from_dict(self.vehicle)
-            except ValueError as e:
+            except (TypeError, ValueError) as e:
                 raise ConfigError(f"vehicle: {e}") from None
         else:
             raise ConfigError(f"vehicle must be a preset name or a mapping, got {type(self.vehicle).__name__}")
-        object.__setattr__(self, "controller", nested(ControllerConfig, self.controller, "controller"))
+        for name in _PART_GROUPS:
+            object.__setattr__(self, name, parse_part(name, getattr(self, name), name))
+        sensors = {} if self.sensors is None else self.sensors
+        if not isinstance(sensors, dict):
+            raise ConfigError(f"sensors must be a mapping of sensor names to sensors, got {type(sensors).__name__}")
+        parsed = {}
+        for sname, value in sensors.items():
+            if not isinstance(sname, str) or not sname.isidentifier():
+                raise ConfigError(f"sensors: a sensor name must be an identifier like imu or lidar_front, got {sname!r}")
+            spec = parse_part("sensor", value, f"sensors.{sname}", sensor_name=sname)
+            if spec is not None:
+                parsed[sname] = spec
+        topics = [str(s.topic) for s in parsed.values()]
+        dup = sorted({t for t in topics if topics.count(t) > 1})
+        if dup:
+            raise ConfigError(f"sensors: two sensors publish on {dup[0]}; give one a different topic")
+        object.__setattr__(self, "sensors", parsed)
         object.__setattr__(self, "trajectory", nested(TrajectoryConfig, self.trajectory, "trajectory"))
         object.__setattr__(self, "rates", nested(RatesConfig, self.rates, "rates"))
-        object.__setattr__(self, "sensors", nested(SensorsConfig, self.sensors, "sensors"))
-        if not isinstance(self.name, str) or not self.name:
-            raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
+        object.__setattr__(self, "log", nested(LogConfig, self.log, "log"))
+        try:
+            box = np.asarray(self.collision_box, dtype=float)
+        except (TypeError, ValueError):
+            box = np.zeros(1)
+        if box.shape != (3,) or not np.all(np.isfinite(box)) or np.any(box <= 0) or np.any(box > 100):
+            raise ConfigError(f"collision_box must be 3 finite lengths in (0, 100] [m], got {self.collision_box!r}")
+        object.__setattr__(self, "collision_box", tuple(float(v) for v in box))
+        if self.start_p_W is not None:
+            try:
+                p = np.asarray(self.start_p_W, dtype=float)
+            except (TypeError, ValueError):
+                p = np.full(1, np.nan)
+            if p.shape != (3,) or not np.all(np.isfinite(p)) or p[2] < 0:
+                raise ConfigError(f"start_p_W must be 3 finite numbers [m] with z >= 0, got {self.start_p_W!r}")
+            object.__setattr__(self, "start_p_W", tuple(float(v) for v in p))
         check_real_fields(self, "scenario", positive=True, unit=" [s]", names=("duration",))
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ConfigError(f"seed must be an integer >= 0, got {self.seed!r}")
+        if self.duration > 1e6:
+            raise ConfigError(f"scenario.duration must be at most 1e6 s, got {self.duration!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
+            raise ConfigError(f"seed must be an integer in [0, 2^63), got {self.seed!r}")
 
     def vehicle_params(self) -> QuadrotorParams:
         return _PRESETS[self.vehicle]() if isinstance(self.vehicle, str) else QuadrotorParams.from_dict(self.vehicle)
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> ScenarioConfig:
+    def from_dict(cls, data: Any, base_dir: str | Path | None = None) -> ScenarioConfig:
+        if isinstance(data, dict) and base_dir is not None:
+            data = {**data, "base_dir": str(base_dir)}
+        if isinstance(data, dict) and "base_dir" in data and base_dir is None:
+            raise ConfigError("unknown key 'base_dir' in scenario")
         return from_dict(cls, data, "scenario")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (for ``config.yaml``) that :meth:`from_dict` turns back into an equal scenario."""
-        return to_dict(self)
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if f.name == "base_dir":
+                continue
+            if f.name in _PART_GROUPS:
+                out[f.name] = part_to_dict(v)
+            elif f.name == "sensors":
+                out[f.name] = {k: part_to_dict(s) for k, s in v.items()}
+            elif dataclasses.is_dataclass(v):
+                out[f.name] = to_dict(v)
+            elif isinstance(v, tuple):
+                out[f.name] = list(v)
+            else:
+                out[f.name] = v
+        return out
 
     def replace(self, **changes: Any) -> ScenarioConfig:
         return dataclasses.replace(self, **changes)
+
+    def with_overrides(self, overrides: Mapping[str, Any] | Iterable[str]) -> ScenarioConfig:
+        """A copy with dotted overrides applied (``{"controller.kind": "geometric"}`` or ``["seed=3"]``)."""
+        return ScenarioConfig.from_dict(apply_overrides(self.to_dict(), overrides), self.base_dir)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (_rebuild, (self.to_dict(), self.base_dir))
+
+
+def _rebuild(data: dict[str, Any], base_dir: str | None) -> ScenarioConfig:
+    return ScenarioConfig.from_dict(data, base_dir)
+
+
+def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
+    """``["a.b=1", "c=x"]`` as ``{"a.b": 1, "c": "x"}``; values are YAML scalars or flow collections."""
+    out: dict[str, Any] = {}
+    for item in items:
+        if not isinstance(item, str) or "=" not in item:
+            raise ConfigError(f"--set takes KEY=VALUE with a dotted KEY (e.g. controller.kind=geometric), got {item!r}")
+        key, text = item.split("=", 1)
+        key = key.strip()
+        try:
+            value = yaml.safe_load(text) if text.strip() else ""
+        except yaml.YAMLError as e:
+            raise ConfigError(f"--set {key}: cannot read the value {text!r}: {e}") from None
+        out[key] = value
+    return out
+
+
+def apply_overrides(data: dict[str, Any], overrides: Mapping[str, Any] | Iterable[str]) -> dict[str, Any]:
+    """``data`` (a scenario as plain data) with each dotted key set. A part given by its bare kind name becomes a
+    mapping first (``world.seed=3`` on ``world: forest``); a new key is created, and the validation that follows
+    names any key the part does not know."""
+    if not isinstance(overrides, Mapping):
+        overrides = parse_overrides(overrides)
+    out = _deep_copy(data)
+    for key, value in overrides.items():
+        if not isinstance(key, str) or not key or any(not p for p in key.split(".")):
+            raise ConfigError(f"an override key must be a dotted name like controller.kind, got {key!r}")
+        parts = key.split(".")
+        node = out
+        for depth, p in enumerate(parts[:-1]):
+            child = node.get(p)
+            if isinstance(child, str) and (depth > 0 or p in _PART_GROUPS):
+                child = {"kind": _SHORTHAND.get((p, child), child)}
+            elif child is None:
+                child = {}
+            elif not isinstance(child, dict):
+                raise ConfigError(f"override {key}: {'.'.join(parts[:depth + 1])} is {child!r}, not a mapping")
+            node[p] = child
+            node = child
+        node[parts[-1]] = value
+    return out
+
+
+def _deep_copy(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {k: _deep_copy(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_deep_copy(v) for v in x]
+    return x
 
 
 def _scenario_dir() -> Path:
@@ -234,96 +437,29 @@ def available_scenarios() -> dict[str, str]:
     return out
 
 
-def load_scenario(name_or_path: str | Path) -> ScenarioConfig:
-    """A built-in scenario by name (see :func:`available_scenarios`) or a YAML file."""
+def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | Iterable[str] = ()) -> ScenarioConfig:
+    """A built-in scenario by name (see :func:`available_scenarios`) or a YAML file, with dotted ``overrides``."""
     p = Path(name_or_path)
     if not p.suffix and not p.exists():
         p = _scenario_dir() / f"{name_or_path}.yaml"
         if not p.exists():
-            raise ConfigError(f"unknown scenario {name_or_path!r}; built-in: {', '.join(available_scenarios())}")
-    return ScenarioConfig.from_dict(load_yaml(p))
+            raise ConfigError(f"unknown scenario {str(name_or_path)!r}; built-in: {', '.join(available_scenarios())}")
+    data = load_yaml(p)
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{p}: a scenario must be a mapping of keys to values, got {type(data).__name__}")
+    return ScenarioConfig.from_dict(apply_overrides(data, overrides), base_dir=p.resolve().parent)
 
 
-@dataclass
-class ScenarioRun:
-    """A finished scenario: the simulator's result, the flown reference, and the tracking metrics."""
+def __getattr__(name: str) -> Any:
+    """Running lives in :mod:`cufund.scenario_build`; these names stay importable from here."""
+    if name in ("run_scenario", "ScenarioRun", "RunSummary", "build_simulation", "tracking_metrics"):
+        from . import scenario_build
 
-    config: ScenarioConfig
-    result: SimulationResult
-    reference: TrajectorySequence
-    path: MinimumSnapTrajectory
-    """The min-snap part, over which tracking error is measured."""
-    metrics: dict[str, Any]
+        return getattr(scenario_build, name)
+    if name == "build_reference":
+        from .planning.kinds import build_reference
 
-
-def build_reference(cfg: TrajectoryConfig) -> tuple[TrajectorySequence, MinimumSnapTrajectory]:
-    w = np.asarray(cfg.waypoints)
-    yaw = None if cfg.yaw is None else np.asarray(cfg.yaw)
-    yaw0 = 0.0 if yaw is None else float(yaw[0])
-    ground = np.array([w[0, 0], w[0, 1], 0.0])
-    takeoff = JerkLimitedMove(ground, w[0], cfg.move_v_max, cfg.move_a_max, cfg.move_j_max, yaw0, t_start=0.0)
-    hover1 = Hold(w[0], cfg.hover_s, yaw0, t_start=takeoff.t_end)
-    path = MinimumSnapTrajectory(w, yaw, v_max=cfg.v_max, a_max=cfg.a_max, t_start=hover1.t_end)
-    yaw_end = float(path.yaw_waypoints[-1])
-    hover2 = Hold(w[-1], cfg.hover_s, yaw_end, t_start=path.t_end)
-    landing = JerkLimitedMove(w[-1], np.array([w[-1, 0], w[-1, 1], 0.0]), cfg.move_v_max, cfg.move_a_max,
-                              cfg.move_j_max, yaw_end, t_start=hover2.t_end)
-    return TrajectorySequence([takeoff, hover1, path, hover2, landing]), path
-
-
-def run_scenario(config: ScenarioConfig, progress: bool = False, extra_components: tuple = ()) -> ScenarioRun:
-    """Builds the vehicle, reference, simulator and controllers of ``config``, runs it, measures tracking.
-
-    Tracking error is ``|p_W(t) - p_ref(t)|``: the true position against the min-snap trajectory evaluated at
-    the same time, at every physics step from the path's first to its last waypoint time.
-    """
-    params = config.vehicle_params()
-    rates = config.rates
-    reference, path = build_reference(config.trajectory)
-    quad = Quadrotor(params)
-    w0 = np.asarray(config.trajectory.waypoints[0])
-    quad.state.p[:] = (w0[0], w0[1], 0.0)  # on the ground below the first waypoint, rotors stopped
-    sensors = config.sensors.components(config.seed, params.gravity)
-    sim = Simulator(quad, physics_rate_hz=rates.physics_hz,
-                    record_topics=(Topics.TRAJECTORY_SETPOINT, Topics.ATTITUDE_SETPOINT, Topics.ACTUATOR_COMMAND,
-                                   *(sensor.topic for sensor in sensors)))
-    for sensor in sensors:  # sensors first: within a tick, they measure the state the controllers see
-        sim.add(sensor)
-    sim.add(TrajectoryFollower(reference, rate_hz=rates.trajectory_hz))
-    c = config.controller
-    if c.kind == "pid":
-        sim.add(PositionController(params, c.position, rate_hz=rates.position_hz))
-        sim.add(AttitudeController(c.attitude, rate_hz=rates.attitude_hz))
-        sim.add(RateController(params, c.rate, rate_hz=rates.rate_hz))
-    else:
-        sim.add(GeometricController(params, c.geometric, rate_hz=rates.geometric_hz))
-    for comp in extra_components:
-        sim.add(comp)
-    t_landed = reference.t_end
-
-    def landed(t: float, truth: Any) -> bool:
-        return t >= t_landed and truth.p_W[2] < 0.02 and float(np.linalg.norm(truth.v_W)) < 0.05
-
-    result = sim.run(config.duration, done=landed, progress=progress)
-    return ScenarioRun(config, result, reference, path, tracking_metrics(result, path))
-
-
-def tracking_metrics(result: SimulationResult, path: MinimumSnapTrajectory) -> dict[str, Any]:
-    t = result.states["t"]
-    m = (t >= path.t_knots[0]) & (t <= path.t_end)
-    if not np.any(m):
-        err = np.array([math.nan])
-    else:
-        err = np.linalg.norm(result.states["p_W"][m] - path.sample(t[m]).p_W, axis=1)
-    return {
-        "status": result.status.value,
-        "message": result.message,
-        "tracking_rmse_m": float(np.sqrt(np.mean(err ** 2))),
-        "tracking_max_m": float(np.max(err)),
-        "tracking_min_m": float(np.min(err)),
-        "tracking_window_s": [float(path.t_knots[0]), float(path.t_end)],
-        "tracking_samples": int(np.count_nonzero(m)),
-        "sim_time_s": result.sim_time_s,
-        "wall_time_s": result.wall_time_s,
-        "real_time_factor": result.real_time_factor,
-    }
+        return build_reference
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

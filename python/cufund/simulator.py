@@ -1,4 +1,11 @@
-"""The lockstep simulator: physics at a fixed rate, every component at its own rate, one deterministic clock."""
+"""The lockstep simulator: physics at a fixed rate, components on a deterministic event schedule.
+
+Physics steps at ``physics_rate_hz`` on its own grid; an event (a component's run, or a message with latency
+becoming visible) that falls between two physics nodes splits that step, so every event happens at its exact time
+(to the nanosecond, see :mod:`cufund.scheduler`). A run is advanced from outside with :meth:`Simulator.advance_to`
+or :meth:`Simulator.step` (lockstep for MAVLink, a ground station or a sweep worker); :meth:`Simulator.run` is
+:meth:`reset` plus ``advance_to``. Same components, same seed: bit-identical runs.
+"""
 
 from __future__ import annotations
 
@@ -11,9 +18,12 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from .components import Bus, Component, Estimator, Recorder, _StateUser
+from .bus import Bus, BusView
+from .components import Component, Estimator, _StateUser
 from .messages import ActuatorCommand, Odometry, Topics
 from .quadrotor import Quadrotor
+from .scheduler import NS, EventClock, ScheduleError, rate_fraction, seconds_to_ns, topological_order
+from .topics import is_truth
 from .worlds.collision import CollisionChecker, Contact
 
 __all__ = ["RunStatus", "SimulationResult", "Simulator"]
@@ -30,6 +40,8 @@ class RunStatus(enum.Enum):
     """The vehicle hit the ground too fast, landed upside down, or collided with a world object."""
     DIVERGED = "diverged"
     """The state became non-finite or left physical bounds."""
+    ABORTED = "aborted"
+    """A component ended the run (e.g. a mission that aborted and landed), with its reason."""
 
 
 @dataclass
@@ -50,6 +62,10 @@ class SimulationResult:
     """Why the run ended, in words."""
     contact: Contact | None = None
     """For a run that CRASHED into a world object: the contact (object, label, point, normal, depth)."""
+    dropped: dict[str, int] = field(default_factory=dict)
+    """Messages dropped from full subscription queues, by ``component:topic`` (empty when none was)."""
+    component_seconds: dict[str, float] = field(default_factory=dict)
+    """Wall time spent in each component's ``step`` [s] (``physics``: the integrator)."""
 
     @property
     def real_time_factor(self) -> float:
@@ -68,46 +84,63 @@ def _stack(messages: list[Any]) -> dict[str, np.ndarray | list[Any]]:
         if isinstance(values[0], enum.Enum):
             values = [v.value for v in values]
         shapes = {np.shape(v) for v in values}
-        out[f.name] = np.asarray(values) if len(shapes) == 1 else values
+        out[f.name] = np.asarray(values) if len(shapes) == 1 and _stackable(values[0]) else values
     return out
 
 
-class Simulator:
-    """Advances ``vehicle`` at ``physics_rate_hz`` and runs the added components at their rates.
+def _stackable(value: Any) -> bool:
+    return value is None or isinstance(value, (int, float, bool, str, np.ndarray, np.generic))
 
-    The vehicle's rotor-speed input is the latest :class:`~cufund.messages.ActuatorCommand` on
-    ``Topics.ACTUATOR_COMMAND`` (held over each physics step; before the first one, the rotor speeds at the
-    start of the run). Ground truth (with the true accelerations of the last physics step, which inertial
-    sensors read) is published on ``Topics.GROUND_TRUTH`` at every tick where a component
-    runs. Set the initial state through ``vehicle`` (e.g. ``vehicle.hover(p_W)``) before :meth:`run`.
+
+class _Slot:
+    """A component as scheduled: its clock, bus handle and time spent."""
+
+    __slots__ = ("component", "name", "clock", "view", "run", "seconds")
+
+    def __init__(self, component: Component, name: str, clock: EventClock, view: BusView) -> None:
+        self.component, self.name, self.clock, self.view = component, name, clock, view
+        self.run = component.step
+        self.seconds = 0.0
+
+
+class Simulator:
+    """Advances ``vehicle`` at ``physics_rate_hz`` and runs the added components on their schedules.
+
+    The vehicle's rotor-speed input is the latest visible :class:`~cufund.messages.ActuatorCommand` on
+    ``Topics.ACTUATOR_COMMAND`` (held until the next one; before the first, the rotor speeds at the start of the
+    run). Ground truth (with the true accelerations of the last physics step, which inertial sensors read) is
+    published on ``Topics.TRUTH_ODOMETRY`` at every instant where a component runs. Set the initial state through
+    ``vehicle`` (e.g. ``vehicle.hover(p_W)``) before :meth:`reset` / :meth:`run`.
 
     Args:
         vehicle: the plant.
-        physics_rate_hz: physics steps per second; every component rate must divide it.
-        record_rate_hz: ground-truth sampling rate for the result (defaults to the physics rate).
-        record_topics: topics whose every message is kept in the result.
+        physics_rate_hz: physics steps per second (the grid the integrator steps on between events).
+        record_rate_hz: ground-truth sampling rate for the result (defaults to the physics rate; it must divide
+            it: samples are taken at physics nodes).
+        record_topics: topics whose every message is kept in memory for the result.
         collision: checks the vehicle against a world's meshes (build it with ``ignore_labels=("floor",
             "ground")`` to leave landing to the dynamics' ground plane).
-        collision_rate_hz: how often the collision check runs (each check costs ~20 us; at 250 Hz a vehicle at
-            5 m/s moves 2 cm between checks).
+        collision_rate_hz: how often the collision check runs (must divide the physics rate).
+        logger: receives every visible message (``write(topic, message, log_time_ns, publish_time_ns)``), e.g. a
+            :class:`cufund.logs.McapLogger`; ground truth is logged at ``log_truth_rate_hz``.
     """
 
     def __init__(self, vehicle: Quadrotor, physics_rate_hz: float = 1000.0, record_rate_hz: float | None = None,
                  record_topics: Iterable[str] = (), collision: CollisionChecker | None = None,
-                 collision_rate_hz: float = 250.0) -> None:
+                 collision_rate_hz: float = 250.0, logger: Any = None) -> None:
         if not isinstance(vehicle, Quadrotor):
             raise TypeError(f"vehicle must be a cufund.Quadrotor, got {type(vehicle).__name__}")
-        if not (isinstance(physics_rate_hz, (int, float)) and math.isfinite(physics_rate_hz) and physics_rate_hz > 0):
-            raise ValueError(f"physics_rate_hz must be a finite number > 0, got {physics_rate_hz!r}")
+        self._physics_rate = rate_fraction("physics_rate_hz", physics_rate_hz)
         self.vehicle = vehicle
         self.physics_rate_hz = float(physics_rate_hz)
-        self.record_period = self._period("record_rate_hz", record_rate_hz or physics_rate_hz)
+        self.record_period = self._nodes_per("record_rate_hz", record_rate_hz or physics_rate_hz)
         self.record_topics = tuple(record_topics)
         if collision is not None and not isinstance(collision, CollisionChecker):
             raise TypeError(f"collision must be a cufund.worlds.CollisionChecker, got {type(collision).__name__}")
         self.collision = collision
         """The vehicle's shape against a world: any penetration ends the run CRASHED with the contact."""
-        self.collision_period = self._period("collision_rate_hz", collision_rate_hz)
+        self.collision_period = self._nodes_per("collision_rate_hz", collision_rate_hz)
+        self.logger = logger
         self.components: list[Component] = []
         self.crash_speed = 1.0
         """Downward speed at ground contact above which a run counts as crashed [m/s]."""
@@ -115,136 +148,317 @@ class Simulator:
         """Distance from the origin beyond which a run counts as diverged [m]."""
         self.max_body_rate = 1e3
         """Body rate beyond which a run counts as diverged [rad/s]."""
+        self._started = False
 
-    def _period(self, name: str, rate_hz: float) -> int:
-        if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
-            raise ValueError(f"{name} must be a finite number > 0 [Hz], got {rate_hz!r}")
-        ratio = self.physics_rate_hz / rate_hz
-        k = round(ratio)
-        if k < 1 or abs(ratio - k) > 1e-9 * ratio:
-            raise ValueError(f"{name} must divide the physics rate {self.physics_rate_hz:g} Hz exactly, got {rate_hz:g} Hz")
-        return k
+    def _nodes_per(self, name: str, rate_hz: float) -> int:
+        """Physics nodes per sample of an activity that runs on the physics grid."""
+        ratio = self._physics_rate / rate_fraction(name, rate_hz)
+        if ratio.denominator != 1 or ratio < 1:
+            raise ValueError(f"{name} must divide the physics rate {self.physics_rate_hz:g} Hz exactly, "
+                             f"got {float(rate_hz):g} Hz")
+        return int(ratio)
 
     def add(self, component: Component) -> Component:
-        """Attaches ``component``; it runs after those added before it within a tick. Returns it."""
+        """Attaches ``component`` (its place within an instant follows from its declared inputs and outputs).
+        Returns it."""
         if not isinstance(component, Component):
             raise TypeError(f"component must implement cufund.components.Component, got {type(component).__name__}")
-        self._period(f"{type(component).__name__}.rate_hz", component.rate_hz)
+        label = getattr(component, "name", "") or type(component).__name__
+        rate_fraction(f"{label}.rate_hz", component.rate_hz)
+        seconds_to_ns(f"{label}.phase_s", component.phase_s)
+        seconds_to_ns(f"{label}.latency_s", component.latency_s)
         self.components.append(component)
         return component
 
+    # -- wiring ------------------------------------------------------------------------------------------------
+    @property
+    def estimators(self) -> list[Estimator]:
+        return [c for c in self.components if isinstance(c, Estimator)]
+
     def _resolve_state_topics(self) -> None:
-        estimators = [c for c in self.components if isinstance(c, Estimator)]
+        estimators = self.estimators
         for c in self.components:
-            if not isinstance(c, _StateUser):
+            if not isinstance(c, _StateUser) and not hasattr(c, "active_state_topic"):
                 continue
-            if c.state_topic is not None:
+            if getattr(c, "state_topic", None) is not None:
                 c.active_state_topic = c.state_topic
             elif len(estimators) == 1:
                 c.active_state_topic = estimators[0].topic
             elif not estimators:
-                c.active_state_topic = Topics.GROUND_TRUTH
+                c.active_state_topic = Topics.TRUTH_ODOMETRY
             else:
                 raise ValueError(f"{type(c).__name__}.state_topic must be set when several estimators are attached "
                                  f"({', '.join(e.topic for e in estimators)})")
+            on_estimate = getattr(c, "use_estimator", None)
+            if on_estimate is not None:
+                on_estimate(bool(estimators))
+
+    def _names(self) -> list[str]:
+        names, seen = [], {}
+        for c in self.components:
+            base = getattr(c, "name", type(c).__name__) or type(c).__name__
+            k = seen.get(base, 0)
+            seen[base] = k + 1
+            names.append(base if k == 0 else f"{base}#{k + 1}")
+        return names
+
+    def wiring(self) -> list[str]:
+        """Problems of the component graph, one sentence each (empty when every required input has a publisher
+        and, with an estimator, no flight software reads ground truth). Resolves the state topics first."""
+        self._resolve_state_topics()
+        names = self._names()
+        published = {str(Topics.TRUTH_ODOMETRY)}
+        for c in self.components:
+            published.update(str(t) for t in c.outputs)
+        problems = []
+        deny = bool(self.estimators)
+        for name, c in zip(names, self.components):
+            for topic in c.inputs:
+                if str(topic) not in published:
+                    problems.append(f"{name} needs {topic}; nothing publishes it")
+            if deny and not c.reads_truth:
+                for topic in (*c.inputs, *c.optional_inputs):
+                    if is_truth(str(topic)):
+                        problems.append(f"{name} reads ground truth ({topic}) although an estimator is configured")
+        return problems
+
+    # -- running -----------------------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Starts a run at the vehicle's current state and time: resets every component, orders them, opens the
+        bus. Raises ValueError (naming the components and topics) for an unsatisfied input, a truth read by
+        flight software with an estimator configured, or a zero-latency cycle."""
+        problems = self.wiring()
+        if problems:
+            raise ValueError("; ".join(problems))
+        names = self._names()
+        latencies = [seconds_to_ns(f"{n}.latency_s", c.latency_s) for n, c in zip(names, self.components)]
+        order = topological_order(names, [(*c.inputs, *c.optional_inputs) for c in self.components],
+                                  [c.outputs for c in self.components], latencies)
+        self.t_start_ns = round(self.vehicle.t * NS)
+        self.bus = Bus(self.record_topics, logger=self.logger)
+        self.bus.now_ns = self.t_start_ns
+        deny = bool(self.estimators)
+        self._slots: list[_Slot] = []
+        for i in order:
+            c, name = self.components[i], names[i]
+            c.reset()
+            phase = seconds_to_ns(f"{name}.phase_s", c.phase_s)
+            rate = rate_fraction(f"{name}.rate_hz", c.rate_hz)
+            if phase * rate >= NS:
+                raise ScheduleError(f"{name}.phase_s must be less than its period 1 / rate_hz, got {c.phase_s!r}")
+            view = BusView(self.bus, name, (*c.inputs, *c.optional_inputs, Topics.TRUTH_ODOMETRY) if c.reads_truth
+                           else (*c.inputs, *c.optional_inputs), c.outputs, latencies[i],
+                           deny_truth=deny and not c.reads_truth)
+            c.setup(view)
+            self._slots.append(_Slot(c, name, EventClock(rate, phase, self.t_start_ns), view))
+        self._physics = EventClock(self._physics_rate, 0, self.t_start_ns)
+        self._physics.advance()
+        self._node = 0  # physics nodes passed since the start of the run
+        self._at_node = True
+        self._truth_at: tuple[int, Odometry | None] = (-1, None)
+        self._now_ns = self.t_start_ns
+        self._state = s = self.vehicle.state  # views into the C++ state, valid for the vehicle's lifetime
+        self._truth_views = (s.p, s.v, s.q, s.w, self.vehicle.accel_W, self.vehicle.alpha_B)
+        self._cmd = s.rotor_speeds.copy()
+        self._rows: list[np.ndarray] = []
+        self._block = np.empty((4096, 18))
+        self._n_block = 0
+        self.status: RunStatus | None = None
+        self.message = ""
+        self.contact: Contact | None = None
+        self._wall = 0.0
+        self._physics_seconds = 0.0
+        self._started = True
+
+    @property
+    def t(self) -> float:
+        """The current simulated time [s]."""
+        return self._now_ns / NS if self._started else self.vehicle.t
+
+    @property
+    def finished(self) -> bool:
+        return self._started and self.status is not None
+
+    def stop(self, status: RunStatus, message: str) -> None:
+        """Ends the run now with ``status`` (a component may call it, e.g. a mission that aborted)."""
+        if self.status is None:
+            self.status, self.message = status, message
+
+    def _snapshot(self, t: float) -> Odometry:
+        """Ground truth now, with the true accelerations of the last physics step (one read-only buffer)."""
+        x = np.concatenate(self._truth_views)
+        x.setflags(write=False)
+        return Odometry.trusted(t, x[0:3], x[3:6], x[6:10], x[10:13], x[13:16], x[16:19])
+
+    def _write_row(self, t: float) -> np.ndarray:
+        if self._n_block == len(self._block):
+            self._rows.append(self._block)
+            self._block = np.empty((4096, 18))
+            self._n_block = 0
+        s = self._state
+        row = self._block[self._n_block]
+        self._n_block += 1
+        row[0] = t
+        row[1:4], row[4:7], row[7:11], row[11:14], row[14:18] = s.p, s.v, s.q, s.w, s.rotor_speeds
+        return row
+
+    def step(self, done: Callable[[float, Odometry], bool] | None = None) -> bool:
+        """Advances one physics step (events inside it included). Returns False once the run has ended."""
+        if not self._started:
+            self.reset()
+        return self.advance_to(self._physics.next_ns / NS, done)
+
+    def advance_to(self, t: float, done: Callable[[float, Odometry], bool] | None = None,
+                   progress: bool = False) -> bool:
+        """Simulates up to time ``t`` [s] (events at ``t`` itself run at the next call), continuing the current
+        run (starting one with :meth:`reset` if none is open). ``done(t, truth)`` is checked at every
+        ground-truth record; when it holds the run ends COMPLETED. Returns False once the run has ended."""
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t):
+            raise ValueError(f"t must be a finite time [s], got {t!r}")
+        if not self._started:
+            self.reset()
+        if self.status is not None:
+            return False
+        end_ns = round(t * NS)
+        if end_ns < self._now_ns:
+            raise ValueError(f"t must not be before the simulator's time {self.t:.9f} s, got {t!r}")
+        wall0 = time.perf_counter()
+        try:
+            self._advance(end_ns, done, progress)
+        finally:
+            self._wall += time.perf_counter() - wall0
+        return self.status is None
+
+    def _advance(self, end_ns: int, done: Callable[[float, Odometry], bool] | None, progress: bool) -> None:
+        quad, bus, slots, physics = self.vehicle, self.bus, self._slots, self._physics
+        truth_topic, actuator = Topics.TRUTH_ODOMETRY, str(Topics.ACTUATOR_COMMAND)
+        latest = bus._latest
+        now, cmd, at_node = self._now_ns, self._cmd, self._at_node
+        start_ns, span = now, max(end_ns - now, 1)
+        last_bar = -1
+        perf = time.perf_counter
+        next_event = self._next_event()
+        while now < end_ns:
+            if now >= next_event:
+                bus.now_ns = now
+                bus.release(now)
+                t = now / NS
+                truth = None
+                for s in slots:
+                    clock = s.clock
+                    if clock.next_ns == now:
+                        if truth is None:
+                            truth = self._snapshot(t)
+                            self._truth_at = (now, truth)
+                            bus.publish(truth_topic, truth)
+                        w0 = perf()
+                        s.run(t, s.view)
+                        s.seconds += perf() - w0
+                        clock.advance()
+                act: ActuatorCommand | None = latest.get(actuator)
+                if act is not None:
+                    cmd = act.rotor_speeds
+                next_event = self._next_event()
+                if self.status is not None:  # a component stopped the run
+                    self._write_row(t)
+                    break
+            if at_node and self._node_checks(now, done):
+                break
+            target = physics.next_ns
+            if next_event < target:
+                target = next_event
+            if end_ns < target:
+                target = end_ns
+            w0 = perf()
+            quad.step((target - now) / NS, cmd)
+            self._physics_seconds += perf() - w0
+            now = target
+            at_node = now == physics.next_ns
+            if at_node:
+                self._node += 1
+                physics.advance()
+            if progress:
+                bar = (400 * (now - start_ns)) // span
+                if bar != last_bar:
+                    last_bar = bar
+                    chars = bar // 10
+                    sys.stderr.write(f"\r[{'#' * chars}{'.' * (40 - chars)}] {now / NS:7.2f} s")
+                    sys.stderr.flush()
+        if progress:
+            sys.stderr.write("\n")
+        self._now_ns, self._cmd, self._at_node = now, cmd, at_node
+
+    def _next_event(self) -> float:
+        """The next instant at which a component runs or a message becomes visible [ns]."""
+        nxt = min([s.clock.next_ns for s in self._slots], default=math.inf)
+        pending = self.bus.next_visible_ns()
+        return pending if pending is not None and pending < nxt else nxt
+
+    def _node_checks(self, now: int, done: Callable[[float, Odometry], bool] | None) -> bool:
+        """What happens at a physics node: collision check, state record, divergence and ``done`` checks. True
+        when the run ends here."""
+        t = now / NS
+        node = self._node
+        state = self._state
+        if self.collision is not None and node % self.collision_period == 0:
+            hit = self.collision.check(state.p, state.q)
+            if hit is not None and hit.distance < 0.0:
+                self.contact = hit
+                self.status = RunStatus.CRASHED
+                self.message = (f"collided with {hit.label!r} (object {hit.object_id}) at ({hit.point_W[0]:.3f}, "
+                                f"{hit.point_W[1]:.3f}, {hit.point_W[2]:.3f}) m at t = {t:.3f} s")
+                self._write_row(t)
+                return True
+        if node % self.record_period == 0:
+            row = self._write_row(t)
+            bad = self._check(row)
+            if bad is not None:
+                self.status, self.message = bad
+                return True
+            if done is not None:
+                at, truth = self._truth_at
+                if done(t, truth if at == now else self._snapshot(t)):
+                    self.status, self.message = RunStatus.COMPLETED, "done condition met"
+                    return True
+        return False
+
+    def result(self) -> SimulationResult:
+        """The run so far: recorded states and topics, status (COMPLETED if still open and no ``done`` given)."""
+        if not self._started:
+            raise RuntimeError("no run: call reset(), advance_to() or run() first")
+        h = np.concatenate([*self._rows, self._block[:self._n_block]]) if self._rows else self._block[:self._n_block]
+        states = {"t": h[:, 0], "p_W": h[:, 1:4], "v_W": h[:, 4:7], "q_WB": h[:, 7:11], "w_B": h[:, 11:14],
+                  "rotor_speeds": h[:, 14:18]}
+        topics = {str(topic): _stack(self.bus.recorded(topic)) for topic in self.record_topics}
+        recordings = {s.name: s.component.histories() for s in self._slots if hasattr(s.component, "histories")
+                      and callable(s.component.histories)}
+        status = self.status or RunStatus.COMPLETED
+        seconds = {s.name: s.seconds for s in self._slots}
+        seconds["physics"] = self._physics_seconds
+        return SimulationResult(status=status, sim_time_s=(self._now_ns - self.t_start_ns) / NS,
+                                wall_time_s=self._wall, states=states, topics=topics, recordings=recordings,
+                                message=self.message or "duration elapsed", contact=self.contact,
+                                dropped=self.bus.dropped(), component_seconds=seconds)
 
     def run(self, duration: float, done: Callable[[float, Odometry], bool] | None = None,
             progress: bool = False) -> SimulationResult:
-        """Simulates up to ``duration`` [s] from the vehicle's current state and time.
+        """Simulates up to ``duration`` [s] from the vehicle's current state and time (a new run).
 
-        ``done(t, truth)`` is checked at every ground-truth record; when it holds the run ends COMPLETED.
-        ``progress`` draws a progress bar on stderr.
+        ``done(t, truth)`` is checked at every ground-truth record; when it holds the run ends COMPLETED (without
+        one, the run ends COMPLETED when the duration elapses; with one, TIMEOUT). ``progress`` draws a progress
+        bar on stderr.
         """
-        if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
+        if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not math.isfinite(duration) \
+                or duration <= 0:
             raise ValueError(f"duration must be a finite number > 0 [s], got {duration!r}")
-        self._resolve_state_topics()
-        for c in self.components:
-            c.reset()
-        quad = self.vehicle
-        s = quad.state
-        accel_W, alpha_B = quad.accel_W, quad.alpha_B
-        dt = 1.0 / self.physics_rate_hz
-        n_steps = int(round(duration * self.physics_rate_hz))
-        schedule = [(self._period(type(c).__name__, c.rate_hz), c.step) for c in self.components]
-        bus = Bus(self.record_topics)
-        t0 = quad.t
-        cmd = s.rotor_speeds.copy()
-        rec_every = self.record_period
-        collision, coll_every, contact = self.collision, self.collision_period, None
-        n_rec = n_steps // rec_every + 2  # + a row for the state at a collision
-        hist = np.empty((n_rec, 18))
-        n_written = 0
-        status, message = (RunStatus.COMPLETED if done is None else RunStatus.TIMEOUT), "duration elapsed"
-        ground_truth = Topics.GROUND_TRUTH
-        actuator = Topics.ACTUATOR_COMMAND
-        last_bar = -1
-
-        def snapshot(t: float) -> Odometry:
-            """Ground truth now, with the true accelerations of the last physics step."""
-            return Odometry(t, s.p.copy(), s.v.copy(), s.q.copy(), s.w.copy(), accel_W.copy(), alpha_B.copy())
-
-        def write_row(i: int, t: float) -> np.ndarray:
-            row = hist[i]
-            row[0] = t
-            row[1:4], row[4:7], row[7:11], row[11:14], row[14:18] = s.p, s.v, s.q, s.w, s.rotor_speeds
-            return row
-
-        wall0 = time.perf_counter()
-        k = 0
-        for k in range(n_steps + 1):
-            t = t0 + k * dt
-            truth = None
-            if k < n_steps:
-                for period, step in schedule:
-                    if k % period == 0:
-                        if truth is None:
-                            truth = snapshot(t)
-                            bus.publish(ground_truth, truth)
-                        step(t, bus)
-            if collision is not None and k % coll_every == 0:
-                hit = collision.check(s.p, s.q)
-                if hit is not None and hit.distance < 0.0:
-                    contact = hit
-                    status = RunStatus.CRASHED
-                    message = (f"collided with {hit.label!r} (object {hit.object_id}) at "
-                               f"({hit.point_W[0]:.3f}, {hit.point_W[1]:.3f}, {hit.point_W[2]:.3f}) m at t = {t:.3f} s")
-                    write_row(n_written, t)
-                    n_written += 1
-                    break
-            if k % rec_every == 0:
-                row = write_row(n_written, t)
-                n_written += 1
-                bad = self._check(row)
-                if bad is not None:
-                    status, message = bad
-                    break
-                if done is not None:
-                    if truth is None:
-                        truth = snapshot(t)
-                    if done(t, truth):
-                        status, message = RunStatus.COMPLETED, "done condition met"
-                        break
-            if k == n_steps:
-                break
-            act: ActuatorCommand | None = bus.get(actuator)
-            if act is not None:
-                cmd = act.rotor_speeds
-            quad.step(dt, cmd)
-            if progress and (10 * 40 * k) // n_steps != last_bar:
-                last_bar = (10 * 40 * k) // n_steps
-                done_chars = last_bar // 10
-                sys.stderr.write(f"\r[{'#' * done_chars}{'.' * (40 - done_chars)}] {t - t0:7.2f} / {duration:.2f} s")
-                sys.stderr.flush()
-        wall = time.perf_counter() - wall0
-        if progress:
-            sys.stderr.write("\n")
-        h = hist[:n_written]
-        states = {"t": h[:, 0], "p_W": h[:, 1:4], "v_W": h[:, 4:7], "q_WB": h[:, 7:11], "w_B": h[:, 11:14],
-                  "rotor_speeds": h[:, 14:18]}
-        topics = {topic: _stack(bus.recorded(topic)) for topic in self.record_topics}
-        recordings = {c.name: c.histories() for c in self.components if isinstance(c, Recorder)}
-        return SimulationResult(status=status, sim_time_s=float(h[-1, 0] - t0), wall_time_s=wall, states=states,
-                                topics=topics, recordings=recordings, message=message, contact=contact)
+        self.reset()
+        self.advance_to(self.t_start_ns / NS + duration, done, progress)
+        if self.status is None and self._at_node:
+            self._node_checks(self._now_ns, done)  # the last node: recorded, checked
+        if self.status is None:
+            self.status = RunStatus.COMPLETED if done is None else RunStatus.TIMEOUT
+            self.message = "duration elapsed"
+        return self.result()
 
     def _check(self, row: np.ndarray) -> tuple[RunStatus, str] | None:
         if not math.isfinite(float(row.sum())):

@@ -46,6 +46,8 @@ class AttitudeController(Controller):
     """
 
     name = "attitude_controller"
+    reads = (Topics.ATTITUDE_SETPOINT,)
+    writes = (Topics.RATE_SETPOINT,)
 
     def __init__(self, gains: AttitudeControlParams | None = None, rate_hz: float = 250.0) -> None:
         self.gains = gains or AttitudeControlParams()
@@ -57,7 +59,7 @@ class AttitudeController(Controller):
         self._max = np.array([g.roll_rate_max, g.pitch_rate_max, g.yaw_rate_max])
 
     def update(self, t: float, state: Odometry, bus: Bus) -> None:
-        sp: AttitudeSetpoint | None = bus.get(Topics.ATTITUDE_SETPOINT)
+        sp: AttitudeSetpoint | None = bus.latest(Topics.ATTITUDE_SETPOINT)
         if sp is None:
             return
         q = state.q_WB

@@ -28,6 +28,9 @@ class ModeReferences:
     their own output with :class:`BumplessTransfer`.
     """
 
+    TOPICS = (Topics.TRAJECTORY_SETPOINT, Topics.MANUAL_ATTITUDE_SETPOINT, Topics.FLIGHT_MODE)
+    """What it reads (all optional: without a reference the controller holds)."""
+
     def __init__(self, mode: FlightMode, trajectory_topic: str = Topics.TRAJECTORY_SETPOINT,
                  attitude_topic: str = Topics.MANUAL_ATTITUDE_SETPOINT, brake_tau: float = 0.25) -> None:
         self.initial_mode = FlightMode(mode)
@@ -46,7 +49,7 @@ class ModeReferences:
 
     def update(self, t: float, state: Odometry, bus: Bus, last_attitude: AttitudeSetpoint | None) -> FlightMode:
         """Reads a pending mode command and, on a switch, captures the hold references."""
-        cmd: FlightModeCommand | None = bus.get(Topics.FLIGHT_MODE)
+        cmd: FlightModeCommand | None = bus.latest(Topics.FLIGHT_MODE)
         self.switched = False
         if self.switch_t is None or (cmd is not None and cmd.t >= self.switch_t and cmd.mode != self.mode):
             if self.switch_t is not None:
@@ -61,7 +64,7 @@ class ModeReferences:
 
     def trajectory(self, t: float, bus: Bus) -> TrajectorySetpoint:
         """The trajectory reference at time ``t`` for position and velocity modes."""
-        sp: TrajectorySetpoint | None = bus.get(self.trajectory_topic)
+        sp: TrajectorySetpoint | None = bus.latest(self.trajectory_topic)
         if sp is not None and self.switch_t is not None and sp.t >= self.switch_t:
             return sp
         h = self._hold_traj
@@ -76,7 +79,7 @@ class ModeReferences:
 
     def attitude(self, bus: Bus) -> AttitudeSetpoint:
         """The attitude reference for attitude mode (thrust NaN: hover thrust, chosen by the controller)."""
-        sp: AttitudeSetpoint | None = bus.get(self.attitude_topic)
+        sp: AttitudeSetpoint | None = bus.latest(self.attitude_topic)
         if sp is not None and self.switch_t is not None and sp.t >= self.switch_t:
             return sp
         assert self._hold_att is not None

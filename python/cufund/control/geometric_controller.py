@@ -23,6 +23,7 @@ from ..messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, 
 from ..params import QuadrotorParams
 from .allocation import ControlAllocator
 from .flight_mode import BumplessTransfer, ModeReferences
+from .gyro_input import GyroInput
 from .rotations import quat_to_rotation
 
 __all__ = ["GeometricControlParams", "GeometricController"]
@@ -54,13 +55,19 @@ class GeometricController(Controller):
     ``Topics.MANUAL_ATTITUDE_SETPOINT`` in attitude mode), rotor speeds out (``Topics.ACTUATOR_COMMAND``),
     through the same prioritising :class:`ControlAllocator` as the cascaded PID. Mode switches hold the
     references the vehicle had at the switch (see :class:`ModeReferences`) and fade out the step between the
-    last and the new force command (:class:`BumplessTransfer`)."""
+    last and the new force command (:class:`BumplessTransfer`). With an estimator attached, position, velocity and
+    attitude come from the estimate and the body rate from the IMU's gyro (as :class:`RateController`)."""
 
     name = "geometric_controller"
+    optional_reads = ModeReferences.TOPICS
+    writes = (Topics.ATTITUDE_SETPOINT, Topics.THRUST_TORQUE_SETPOINT, Topics.ACTUATOR_COMMAND)
 
     def __init__(self, params: QuadrotorParams, gains: GeometricControlParams | None = None, rate_hz: float = 500.0,
-                 mode: FlightMode = FlightMode.POSITION) -> None:
+                 mode: FlightMode = FlightMode.POSITION,
+                 q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0), gyro_cutoff_hz: float = 40.0) -> None:
         self.params = params
+        self.gyro = GyroInput(q_BI, gyro_cutoff_hz)
+        self.use_gyro = False
         self.gains = gains or GeometricControlParams()
         self.rate_hz = rate_hz
         self.refs = ModeReferences(mode)
@@ -72,10 +79,22 @@ class GeometricController(Controller):
         self._kW = np.array([g.k_W, g.k_W, g.k_W_yaw])
         self.last: AttitudeSetpoint | None = None
 
+    def use_estimator(self, attached: bool) -> None:
+        self.use_gyro = attached
+
+    @property
+    def inputs(self) -> tuple[str, ...]:  # type: ignore[override]
+        return (self.active_state_topic, Topics.IMU) if self.use_gyro else (self.active_state_topic,)
+
     def reset(self) -> None:
         self.refs.reset()
         self.transfer.reset()
+        self.gyro.reset()
         self.last = None
+
+    def setup(self, bus: Bus) -> None:
+        if self.use_gyro:
+            self.gyro.setup(bus)
 
     @property
     def mode(self) -> FlightMode:
@@ -84,11 +103,16 @@ class GeometricController(Controller):
     def update(self, t: float, state: Odometry, bus: Bus) -> None:
         g = self.gains
         m, grav = self.params.mass, self.params.gravity
+        w_B = state.w_B
+        if self.use_gyro:
+            w_B = self.gyro.update()
+            if w_B is None:
+                return
         mode = self.refs.update(t, state, bus, self.last)
         if mode is FlightMode.ATTITUDE:
             att = self.refs.attitude(bus)
             f = m * grav if math.isnan(att.thrust) else att.thrust
-            thrust, M, q_d = _core.control.geometric_from_attitude(self._J, self._kR, self._kW, state.q_WB, state.w_B,
+            thrust, M, q_d = _core.control.geometric_from_attitude(self._J, self._kR, self._kW, state.q_WB, w_B,
                                                                    att.q_WB, f, att.yaw_rate)
             yaw_rate = att.yaw_rate
         else:
@@ -101,7 +125,7 @@ class GeometricController(Controller):
                 # the force last commanded continues and fades into the new one
                 self.transfer.start(t, self.last.thrust * quat_to_rotation(self.last.q_WB)[:, 2], F)
             F = F + self.transfer.offset(t)
-            thrust, M, q_d = _core.control.geometric_from_force(self._J, m, self._kR, self._kW, state.q_WB, state.w_B,
+            thrust, M, q_d = _core.control.geometric_from_force(self._J, m, self._kR, self._kW, state.q_WB, w_B,
                                                                 F, sp.j_W, sp.yaw, sp.yaw_rate)
             yaw_rate = sp.yaw_rate
         speeds = self.allocator.rotor_speeds(thrust, M)

@@ -74,6 +74,8 @@ class PositionController(Controller):
     """
 
     name = "position_controller"
+    optional_reads = ModeReferences.TOPICS
+    writes = (Topics.ATTITUDE_SETPOINT,)
 
     def __init__(self, params: QuadrotorParams, gains: PositionControlParams | None = None, rate_hz: float = 250.0,
                  mode: FlightMode = FlightMode.POSITION, max_thrust: float | None = None) -> None:

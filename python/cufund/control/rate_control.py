@@ -13,6 +13,7 @@ from ..messages import ActuatorCommand, Odometry, RateSetpoint, ThrustTorqueSetp
 from ..params import QuadrotorParams
 from .allocation import ControlAllocator
 from .derivative_filter import LowPassDerivative
+from .gyro_input import GyroInput
 
 __all__ = ["RateControlParams", "RateController"]
 
@@ -58,15 +59,25 @@ class RateController(Controller):
     """Tracks ``Topics.RATE_SETPOINT``; publishes :class:`ActuatorCommand` on ``Topics.ACTUATOR_COMMAND`` (and
     the allocated thrust and torque on ``Topics.THRUST_TORQUE_SETPOINT``).
 
+    Its body-rate input, as PX4's: with an estimator attached, the IMU's gyro (every sample on ``Topics.IMU``,
+    rotated by the IMU mounting ``q_BI`` and low-passed at ``gyro_cutoff_hz``), never the estimate; without one,
+    the state topic's ``w_B`` (ground truth).
+
     PID with the derivative on the measured rate (low-passed), so setpoint steps do not kick; the integrator
     grows less for large errors (PX4's ``1 - (e / 400 deg/s)^2`` factor), stops on an axis whose torque the
     allocator could not deliver in the error's direction, and is limited in magnitude.
     """
 
     name = "rate_controller"
+    reads = (Topics.RATE_SETPOINT,)
+    writes = (Topics.ACTUATOR_COMMAND, Topics.THRUST_TORQUE_SETPOINT)
 
-    def __init__(self, params: QuadrotorParams, gains: RateControlParams | None = None, rate_hz: float = 500.0) -> None:
+    def __init__(self, params: QuadrotorParams, gains: RateControlParams | None = None, rate_hz: float = 500.0,
+                 q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0), gyro_cutoff_hz: float = 40.0) -> None:
         self.params = params
+        self.gyro = GyroInput(q_BI, gyro_cutoff_hz)
+        self.use_gyro = False
+        """True when the body rate comes from the IMU (set by the simulator: an estimator is attached)."""
         self.gains = gains or RateControlParams()
         self.rate_hz = rate_hz
         self.allocator = ControlAllocator(params)
@@ -78,18 +89,42 @@ class RateController(Controller):
         self._dw = LowPassDerivative(g.d_cutoff_hz)
         self.reset()
 
+    def use_estimator(self, attached: bool) -> None:
+        self.use_gyro = attached
+
+    @property
+    def inputs(self) -> tuple[str, ...]:  # type: ignore[override]
+        return (Topics.IMU, *self.reads) if self.use_gyro else (self.active_state_topic, *self.reads)
+
     def reset(self) -> None:
         self.rate_int = np.zeros(3)
         """Rate integrator [rad/s^2]."""
         self._dw.reset()
+        self.gyro.reset()
+
+    def setup(self, bus: Bus) -> None:
+        if self.use_gyro:
+            self.gyro.setup(bus)
+
+    def step(self, t: float, bus: Bus) -> None:
+        if self.use_gyro:
+            w = self.gyro.update()
+        else:
+            state = bus.latest(self.active_state_topic)
+            w = None if state is None else state.w_B
+        if w is not None:
+            self.control(t, w, bus)
 
     def update(self, t: float, state: Odometry, bus: Bus) -> None:
-        sp: RateSetpoint | None = bus.get(Topics.RATE_SETPOINT)
+        self.control(t, state.w_B, bus)
+
+    def control(self, t: float, w: np.ndarray, bus: Bus) -> None:
+        """One step of the rate loop with measured body rate ``w`` [rad/s]."""
+        sp: RateSetpoint | None = bus.latest(Topics.RATE_SETPOINT)
         if sp is None:
             return
         g = self.gains
         dt = 1.0 / self.rate_hz
-        w = state.w_B
         dw_filt = self._dw.update(w, dt)
         e = sp.w_B - w
         alpha_cmd = self._kp * e + self.rate_int - self._kd * dw_filt + g.feed_forward * sp.w_B

@@ -22,6 +22,7 @@ class TrajectoryFollower(Planner):
 
     def __init__(self, trajectory: Trajectory, rate_hz: float = 250.0, topic: str = Topics.TRAJECTORY_SETPOINT,
                  block: int = 1024) -> None:
+        self.writes = (topic,)
         if not isinstance(trajectory, Trajectory):
             raise TypeError(f"trajectory must implement cufund.planning.Trajectory, got {type(trajectory).__name__}")
         self.trajectory = trajectory
@@ -44,10 +45,18 @@ class TrajectoryFollower(Planner):
             return self.trajectory.sample(float(t)), 0
         if self._rows is None or not (self._j0 <= j < self._j0 + self._block):
             self._j0 = j
-            self._rows = self.trajectory.sample(self._t_first + (j + np.arange(self._block)) / self.rate_hz)
+            rows = self.trajectory.sample(self._t_first + (j + np.arange(self._block)) / self.rate_hz)
+            for a in (rows.p_W, rows.v_W, rows.a_W, rows.j_W):
+                a.setflags(write=False)  # rows are published as views: never written again
+            self._rows = rows
         return self._rows, j - self._j0
 
     def update(self, t: float, state: Odometry, bus: Bus) -> None:
         s, i = self._lookup(t)
-        bus.publish(self.topic, TrajectorySetpoint(t, s.p_W[i], s.v_W[i], s.a_W[i], s.j_W[i], float(s.yaw[i]),
-                                                   float(s.yaw_rate[i])))
+        if i == 0 and s is not self._rows:  # sampled off the grid: fresh arrays, checked as usual
+            bus.publish(self.topic, TrajectorySetpoint(t, s.p_W[0], s.v_W[0], s.a_W[0], s.j_W[0], float(s.yaw[0]),
+                                                       float(s.yaw_rate[0])))
+            return
+        # read-only views of the block (see _lookup): no copies needed
+        bus.publish(self.topic, TrajectorySetpoint.trusted(t, s.p_W[i], s.v_W[i], s.a_W[i], s.j_W[i], float(s.yaw[i]),
+                                                           float(s.yaw_rate[i])))

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import _core
+from ..messages import CameraImage  # noqa: F401 - re-exported: cameras' message
 from ..worlds.world import World
 from .pose import Transform, quat_mul, quat_to_matrix
 
@@ -43,8 +44,13 @@ class CameraIntrinsics:
     def __post_init__(self) -> None:
         for name in ("width", "height"):
             v = getattr(self, name)
-            if int(v) != v or v < 1:
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
+                    or not np.isfinite(v) or int(v) != v or v < 1 or v > 100_000:
                 raise ValueError(f"{name} must be a positive integer [px], got {v}")
+        for name in ("fx", "fy", "cx", "cy"):
+            if isinstance(getattr(self, name), bool) or not isinstance(getattr(self, name), (int, float, np.integer,
+                                                                                              np.floating)):
+                raise ValueError(f"{name} must be a real number [px], got {getattr(self, name)!r}")
         for name in ("fx", "fy"):
             v = float(getattr(self, name))
             if not (np.isfinite(v) and v > 0):
@@ -229,17 +235,3 @@ def save_png(path: str | Path, image: np.ndarray, depth_scale: float = 1000.0) -
     png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, bit_depth, color_type, 0, 0, 0))
     png += chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b"")
     Path(path).write_bytes(png)
-
-
-@dataclasses.dataclass(frozen=True)
-class CameraImage:
-    """One camera frame as published by :class:`CameraComponent`."""
-
-    t: float
-    """Capture time [s]."""
-    image: np.ndarray
-    """(H, W) float32 depth [m] (NaN = no return) or (H, W, 3) uint8 RGB."""
-    p_W: np.ndarray
-    """(3,) body position at capture [m]."""
-    q_WB: np.ndarray
-    """(4,) body attitude at capture [w, x, y, z] (the camera pose is this composed with its T_BC)."""

@@ -69,7 +69,8 @@ class ImuParams:
             getattr(self, f).per_axis(3)  # validates
         for f in ("accel_scale_factor", "gyro_scale_factor", "p_BI"):
             object.__setattr__(self, f, _vec(f, getattr(self, f), 3))
-        q = np.asarray(_vec("q_BI", self.q_BI, 4))
+        object.__setattr__(self, "q_BI", _vec("q_BI", self.q_BI, 4))
+        q = np.asarray(self.q_BI)
         if abs(np.linalg.norm(q) - 1.0) > 1e-6:
             raise ConfigError(f"q_BI must be a unit quaternion [w, x, y, z], got norm {np.linalg.norm(q)}")
         check_real_fields(self, "ImuParams", positive=True, names=("accel_range", "gyro_range"))

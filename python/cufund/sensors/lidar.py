@@ -8,7 +8,7 @@ from typing import Union
 import numpy as np
 
 from .. import _core
-from ..messages import PointCloud
+from ..messages import LidarTruth, PointCloud
 from ..worlds.world import World
 from .patterns import ScanPattern, ScanRays
 from .pose import PoseFn, Transform, sample_poses
@@ -93,6 +93,12 @@ class Lidar:
         return rays, rays.directions()
 
     def scan(self, target: Target, pose_fn: PoseFn, t0: float, frame: int | None = None) -> PointCloud:
+        """One frame starting at ``t0`` [s] (the cloud's stamp), as the sensor reports it."""
+        return self.scan_with_truth(target, pose_fn, t0, frame)[0]
+
+    def scan_with_truth(self, target: Target, pose_fn: PoseFn, t0: float,
+                        frame: int | None = None) -> tuple[PointCloud, LidarTruth]:
+        """Like :meth:`scan`, with the frame's ground truth: noise-free world hit points and object ids."""
         if isinstance(target, World):
             scene, refl = target.raycast_scene, target.reflectivities()
         elif isinstance(target, _core.lidar.RaycastScene):
@@ -124,14 +130,15 @@ class Lidar:
         ids = hit["geometry_ids"][idx]
         cos_inc = np.abs(np.sum(hit["normals"][idx] * d_W[idx], axis=1))
         reflect = refl[ids] if refl is not None else 1.0
-        return PointCloud(
-            t0=float(t0),
-            t=t_abs[idx],
+        cloud = PointCloud(
+            t=float(t0),
+            dt=np.asarray(rays_L.t, dtype=float)[idx],
             points_L=(d_L[idx] * r_meas[:, None]).astype(np.float32),
-            points_W=(p_WL[idx] + d_W[idx] * r_true[idx, None]).astype(np.float32),
             ranges=r_meas,
             intensity=np.clip(reflect * cos_inc, 0.0, 1.0),
             channel=rays_L.channel[idx],
-            object_ids=ids,
             frame=k,
         )
+        truth = LidarTruth(t=float(t0), points_W=(p_WL[idx] + d_W[idx] * r_true[idx, None]).astype(np.float32),
+                           object_ids=ids)
+        return cloud, truth

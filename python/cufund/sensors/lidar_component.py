@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..components import Bus, Component
-from ..messages import Odometry, Topics
+from ..components import BusView, Component
+from ..messages import LidarTruth, Odometry, PointCloud, Topics
+from ..topics import Topic
 from ..worlds.world import World
 from .lidar import Lidar
 
@@ -13,21 +14,30 @@ from .lidar import Lidar
 class LidarComponent(Component):
     """Runs ``lidar`` in a :class:`cufund.Simulator` against ``world``.
 
-    The component runs at ``rate_hz`` (the rate at which it samples the ground-truth pose; it must divide
-    the physics rate and be a multiple of the LiDAR's frame rate). At the end of each frame it casts the
-    whole frame, every ray from the pose at its own firing time (interpolated between the recorded poses),
-    and publishes the :class:`cufund.sensors.PointCloud` on ``topic`` — one frame late, like a real driver.
+    The component runs at ``rate_hz``, the rate at which it samples the true pose (a multiple of the LiDAR's
+    frame rate). At the end of each frame it casts the whole frame, every ray from the pose at its own firing
+    time (interpolated between the sampled poses), and publishes the :class:`~cufund.messages.PointCloud`
+    (stamped with the frame's start) on ``topic`` — at the frame's end, like a real driver, plus ``latency_s`` —
+    and the frame's ground truth (:class:`~cufund.messages.LidarTruth`) on ``truth_topic``.
     """
 
     name = "lidar"
+    reads_truth = True
 
-    def __init__(self, lidar: Lidar, world: World, topic: str = Topics.POINT_CLOUD, rate_hz: float = 100.0) -> None:
+    def __init__(self, lidar: Lidar, world: World, topic: str = Topics.POINT_CLOUD, rate_hz: float = 100.0,
+                 truth_topic: str | None = None, latency_s: float = 0.0) -> None:
         if not isinstance(world, World):
             raise ValueError(f"world must be a cufund.World, got {type(world).__name__}")
         per_frame = rate_hz * lidar.period
         if not (np.isfinite(per_frame) and per_frame >= 1 and abs(per_frame - round(per_frame)) < 1e-9):
             raise ValueError(f"rate_hz must be a multiple of the LiDAR frame rate {1 / lidar.period:g} Hz, got {rate_hz}")
-        self.lidar, self.world, self.topic, self.rate_hz = lidar, world, topic, float(rate_hz)
+        self.lidar, self.world, self.rate_hz, self.latency_s = lidar, world, float(rate_hz), float(latency_s)
+        self.topic = topic if isinstance(topic, Topic) else Topic(topic, PointCloud)
+        if truth_topic is None:
+            truth_topic = Topics.TRUTH_POINT_CLOUD if self.topic == Topics.POINT_CLOUD else "/truth" + self.topic
+        self.truth_topic = Topic(str(truth_topic), LidarTruth)
+        self.inputs = (Topics.TRUTH_ODOMETRY,)
+        self.outputs = (self.topic, self.truth_topic)
         self.reset()
 
     def reset(self) -> None:
@@ -47,16 +57,18 @@ class LidarComponent(Component):
         q = (1 - s) * q0 + s * q1  # the lidar model interpolates finely between its own pose samples
         return (1 - s) * self._p[i] + s * self._p[i + 1], q / np.linalg.norm(q)
 
-    def step(self, t: float, bus: Bus) -> None:
-        truth: Odometry = bus.get(Topics.GROUND_TRUTH)
+    def step(self, t: float, bus: BusView) -> None:
+        truth: Odometry = bus.latest(Topics.TRUTH_ODOMETRY)
         self._t.append(t)
-        self._p.append(np.asarray(truth.p_W, dtype=float).copy())
-        self._q.append(np.asarray(truth.q_WB, dtype=float).copy())
+        self._p.append(truth.p_W)
+        self._q.append(truth.q_WB)
         if self._frame_start is None:
             self._frame_start = t
         period = self.lidar.period
         if t - self._frame_start >= period - 1e-9:
-            bus.publish(self.topic, self.lidar.scan(self.world, self._pose, self._frame_start))
+            cloud, hits = self.lidar.scan_with_truth(self.world, self._pose, self._frame_start)
+            bus.publish(self.topic, cloud)
+            bus.publish(self.truth_topic, hits)
             self._frame_start += period
             keep = max(0, int(np.searchsorted(self._t, self._frame_start, side="right")) - 1)
             del self._t[:keep], self._p[:keep], self._q[:keep]

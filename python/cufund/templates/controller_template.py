@@ -17,14 +17,16 @@ from cufund.messages import ActuatorCommand, Odometry, Topics, TrajectorySetpoin
 
 class MyController(cufund.Controller):
     name = "my_controller"
+    optional_reads = (Topics.TRAJECTORY_SETPOINT,)  # read if something publishes it (the state topic is implied)
+    writes = (Topics.ACTUATOR_COMMAND,)
 
     def __init__(self, params: cufund.QuadrotorParams, rate_hz: float = 500.0) -> None:
         self.params = params
-        self.rate_hz = rate_hz  # must divide the simulator's physics rate
+        self.rate_hz = rate_hz  # any positive rate
         self.allocator = ControlAllocator(params)
 
-    def update(self, t: float, state: Odometry, bus: cufund.Bus) -> None:
-        sp: TrajectorySetpoint | None = bus.get(Topics.TRAJECTORY_SETPOINT)
+    def update(self, t: float, state: Odometry, bus: cufund.BusView) -> None:
+        sp: TrajectorySetpoint | None = bus.latest(Topics.TRAJECTORY_SETPOINT)
         z_ref = sp.p_W[2] if sp is not None else state.p_W[2]
         m, g = self.params.mass, self.params.gravity
         thrust = m * (g + 4.0 * (z_ref - state.p_W[2]) - 3.0 * state.v_W[2])

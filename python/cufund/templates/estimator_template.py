@@ -16,13 +16,14 @@ class MyEstimator(cufund.Estimator):
 
     def __init__(self, input_topic: str = "/sensors/position", gain: float = 0.5, rate_hz: float = 100.0) -> None:
         self.input_topic, self.gain, self.rate_hz = input_topic, gain, rate_hz
+        self.inputs = (input_topic,)  # declared inputs: the only topics it may read
         self.last: Odometry | None = None
 
     def reset(self) -> None:
         self.last = None
 
-    def estimate(self, t: float, bus: cufund.Bus) -> Odometry | None:
-        z: Odometry | None = bus.get(self.input_topic)
+    def estimate(self, t: float, bus: cufund.BusView) -> Odometry | None:
+        z: Odometry | None = bus.latest(self.input_topic)
         if z is None:
             return None
         p = z.p_W if self.last is None else self.last.p_W + self.gain * (z.p_W - self.last.p_W)

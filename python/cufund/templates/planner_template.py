@@ -17,6 +17,7 @@ from cufund.messages import Odometry, Topics, TrajectorySetpoint
 
 class MyPlanner(cufund.Planner):
     name = "my_planner"
+    writes = (Topics.TRAJECTORY_SETPOINT,)
 
     def __init__(self, radius: float = 0.5, period: float = 8.0, rate_hz: float = 100.0) -> None:
         self.radius, self.omega, self.rate_hz = radius, 2.0 * math.pi / period, rate_hz
@@ -25,7 +26,7 @@ class MyPlanner(cufund.Planner):
     def reset(self) -> None:
         self.center = None
 
-    def update(self, t: float, state: Odometry, bus: cufund.Bus) -> None:
+    def update(self, t: float, state: Odometry, bus: cufund.BusView) -> None:
         if self.center is None:
             self.center = state.p_W - np.array([self.radius, 0.0, 0.0])
         r, w = self.radius, self.omega

@@ -15,6 +15,8 @@ from cufund.messages import Odometry, Topics, TrajectorySetpoint
 
 class MyRecorder(cufund.Recorder):
     name = "setpoint_distance"
+    inputs = (Topics.TRUTH_ODOMETRY,)  # a recorder is a truth consumer: it may read /truth/ topics
+    optional_inputs = (Topics.TRAJECTORY_SETPOINT,)
 
     def __init__(self, rate_hz: float = 50.0) -> None:
         self.rate_hz = rate_hz
@@ -24,9 +26,9 @@ class MyRecorder(cufund.Recorder):
     def reset(self) -> None:
         self.t, self.distance = [], []
 
-    def record(self, t: float, bus: cufund.Bus) -> None:
-        truth: Odometry | None = bus.get(Topics.GROUND_TRUTH)
-        sp: TrajectorySetpoint | None = bus.get(Topics.TRAJECTORY_SETPOINT)
+    def record(self, t: float, bus: cufund.BusView) -> None:
+        truth: Odometry | None = bus.latest(Topics.TRUTH_ODOMETRY)
+        sp: TrajectorySetpoint | None = bus.latest(Topics.TRAJECTORY_SETPOINT)
         if truth is not None and sp is not None:
             self.t.append(t)
             self.distance.append(float(np.linalg.norm(truth.p_W - sp.p_W)))

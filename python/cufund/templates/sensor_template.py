@@ -14,7 +14,7 @@ from cufund.messages import Odometry
 
 class MyPositionSensor(cufund.Sensor):
     name = "my_position_sensor"
-    topic = "/sensors/position"
+    topic = cufund.Topic("/sensors/position", Odometry)  # a typed topic: the bus checks what is published
 
     def __init__(self, sigma_m: float = 0.01, rate_hz: float = 100.0, seed: int = 0) -> None:
         self.sigma, self.rate_hz, self.seed = sigma_m, rate_hz, seed
@@ -25,4 +25,4 @@ class MyPositionSensor(cufund.Sensor):
 
     def measure(self, t: float, truth: Odometry) -> Odometry:
         noisy = truth.p_W + self.sigma * self.rng.standard_normal(3)
-        return Odometry(t, noisy, truth.v_W.copy(), truth.q_WB.copy(), truth.w_B.copy())
+        return Odometry(t, noisy, truth.v_W, truth.q_WB, truth.w_B)

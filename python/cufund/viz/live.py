@@ -24,6 +24,9 @@ class LiveViewer(Component):
     """
 
     name = "live_viewer"
+    reads_truth = True
+    inputs = (Topics.TRUTH_ODOMETRY,)
+    optional_inputs = (Topics.TRAJECTORY_SETPOINT,)
 
     def __init__(self, params: QuadrotorParams, planned: Trajectory | None = None, rate_hz: float = 25.0,
                  speed: float | None = 1.0, visualizer: Any = None) -> None:
@@ -60,13 +63,13 @@ class LiveViewer(Component):
         self._wall0 = None
 
     def step(self, t: float, bus: Bus) -> None:
-        truth = bus.get(Topics.GROUND_TRUTH)
+        truth = bus.latest(Topics.TRUTH_ODOMETRY)
         if truth is None:
             return
         if self._wall0 is None:
             self._wall0, self._t0 = time.perf_counter(), t
         self.vis[VEHICLE].set_transform(pose_matrix(truth.p_W, truth.q_WB))
-        sp = bus.get(Topics.TRAJECTORY_SETPOINT)
+        sp = bus.latest(Topics.TRAJECTORY_SETPOINT)
         if sp is not None:
             self.vis[SETPOINT].set_transform(pose_matrix(sp.p_W, np.array([1.0, 0.0, 0.0, 0.0])))
         self._flown.append(truth.p_W.copy())
