@@ -4,6 +4,7 @@ from ..components import Planner
 from .clearance import ClearanceQuery
 from .feasibility import TrajectoryFeasibility, feasibility
 from .min_snap_planner import MinSnapPlanner, MinSnapPlannerParams, MinSnapResult
+from .mission_spec import MissionPlan, MissionSpec, Region
 from .minimum_snap import MinimumSnapTrajectory, allocate_segment_times, min_derivative_spline, optimize_segment_times
 from .ompl_path import OmplPathParams, OmplPathPlanner
 from .path_search import GridPathSearch, GridPathSearchParams, PathResult
@@ -14,8 +15,8 @@ from .trajectory_follower import TrajectoryFollower
 from .world_map import clearance_from_world, esdf_from_world, world_occupancy
 
 __all__ = ["ClearanceQuery", "GridPathSearch", "GridPathSearchParams", "Hold", "JerkLimitedMove", "MinSnapPlanner",
-           "MinSnapPlannerParams", "MinSnapResult", "MinimumSnapTrajectory",
-           "OmplPathParams", "OmplPathPlanner", "PathResult", "TrajectorySequence", "Planner", "Trajectory",
+           "MinSnapPlannerParams", "MinSnapResult", "MinimumSnapTrajectory", "MissionPlan", "MissionSpec",
+           "OmplPathParams", "OmplPathPlanner", "PathResult", "Region", "TrajectorySequence", "Planner", "Trajectory",
            "TrajectoryFeasibility", "TrajectoryFollower", "TrajectorySamples", "feasibility",
            "allocate_segment_times", "optimize_segment_times", "clearance_from_world", "esdf_from_world",
            "min_derivative_spline", "world_occupancy"]
