@@ -1,0 +1,54 @@
+"""Rotations, rigid transforms and the GTSAM boundary: the ONE place quaternions are converted.
+
+cufund's quaternions are [w, x, y, z]; GTSAM's ``Rot3.toQuaternion().coeffs()`` is [x, y, z, w] (Eigen's order),
+so nothing else in this package touches gtsam quaternions.
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..sensors.pose import Transform
+
+__all__ = ["quat_from_matrix", "matrix_from_quat", "pose3", "pose3_parts", "homogeneous", "scan_frame"]
+
+
+def matrix_from_quat(q_wxyz: np.ndarray) -> np.ndarray:
+    """(…, 4) [w, x, y, z] -> (…, 3, 3)."""
+    q = np.asarray(q_wxyz, dtype=float)
+    return Rotation.from_quat(q[..., [1, 2, 3, 0]]).as_matrix()
+
+
+def quat_from_matrix(R: np.ndarray) -> np.ndarray:
+    """(…, 3, 3) -> (…, 4) [w, x, y, z] with w >= 0."""
+    q = Rotation.from_matrix(np.asarray(R, dtype=float)).as_quat()[..., [3, 0, 1, 2]]
+    return np.where(q[..., :1] < 0, -q, q)
+
+
+def pose3(R: np.ndarray, p: np.ndarray) -> gtsam.Pose3:
+    return gtsam.Pose3(gtsam.Rot3(np.asarray(R, dtype=float)), np.asarray(p, dtype=float))
+
+
+def pose3_parts(T: gtsam.Pose3) -> tuple[np.ndarray, np.ndarray]:
+    """(R (3, 3), p (3,)) of a gtsam Pose3 (matrices only: no quaternion ordering to get wrong)."""
+    return T.rotation().matrix(), np.asarray(T.translation(), dtype=float)
+
+
+def homogeneous(T: Transform) -> np.ndarray:
+    """4x4 matrix of a cufund Transform (T_AB: B -> A)."""
+    M = np.eye(4)
+    M[:3, :3] = matrix_from_quat(np.asarray(T.q))
+    M[:3, 3] = T.t
+    return M
+
+
+def scan_frame(cloud: object) -> tuple[float, np.ndarray, np.ndarray]:
+    """(frame start t [s], per-point offsets dt (N,) [s], points_L (N, 3)) of a PointCloud, from either its
+    current shape (t, dt) or the older one (t0, absolute per-point t)."""
+    if hasattr(cloud, "dt"):
+        t = float(cloud.t)
+        return t, np.asarray(cloud.dt, dtype=float), np.asarray(cloud.points_L)
+    t0 = float(cloud.t0)
+    return t0, np.asarray(cloud.t, dtype=float) - t0, np.asarray(cloud.points_L)

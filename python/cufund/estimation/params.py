@@ -1,0 +1,127 @@
+"""Parameters of the LiDAR-inertial odometry (:class:`LioCore`, :class:`LioEstimator`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..config import ConfigError, check_real_fields, from_dict, nested
+from ..sensors.imu import G0, ImuParams, imu_preset
+from ..sensors.pose import Transform
+
+__all__ = ["LioParams"]
+
+_POSITIVE = ("init_duration_s", "init_max_gyro_dev", "init_max_accel_dev", "gravity", "scan_voxel", "map_voxel",
+             "map_insert_voxel", "map_max_distance", "plane_radius", "max_plane_rms", "max_residual", "robust_scale",
+             "range_sigma", "convergence", "refit_distance", "lag_s", "lidar_information_scale", "relinearize_threshold")
+
+
+@dataclass(frozen=True)
+class LioParams:
+    """LiDAR-inertial odometry settings. SI units."""
+
+    imu: ImuParams = field(default_factory=lambda: imu_preset("icm42688p"))
+    """The IMU part: its noise spec sets the IMU factors' noise, its p_BI / q_BI the IMU extrinsic."""
+    T_BL: Transform = field(default_factory=Transform)
+    """LiDAR frame L -> body frame B."""
+    p_WB0: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Known pad position of the body [m]: the estimate starts here (no alignment)."""
+    q_WB0: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    """Known pad attitude [w, x, y, z]."""
+    pad_attitude_known: bool = True
+    """True: the pad attitude is trusted and the accelerometer bias is the mean specific force minus gravity in
+    the IMU frame. False: roll and pitch come from the mean specific force (yaw from q_WB0), bias starts at 0."""
+    gravity: float = G0
+    """[m/s^2]"""
+    init_duration_s: float = 1.0
+    """Static initialisation on the pad [s] (>= 1 s)."""
+    init_max_gyro_dev: float = 0.05
+    """Largest allowed |gyro - mean| during initialisation [rad/s]; more is motion: ValueError."""
+    init_max_accel_dev: float = 0.5
+    """Largest allowed |accel - mean| during initialisation [m/s^2]."""
+    min_range: float = 0.3
+    """Returns closer than this are dropped (the airframe) [m]."""
+    scan_voxel: float = 0.2
+    """Downsampling of the deskewed scan for registration [m]."""
+    map_insert_voxel: float = 0.05
+    """Downsampling of the deskewed scan added to the map [m]."""
+    map_voxel: float = 0.5
+    """Voxel edge of the map [m]; neighbour searches reach one voxel."""
+    map_points_per_voxel: int = 20
+    map_min_point_distance: float = 0.05
+    """[m]"""
+    map_max_distance: float = 40.0
+    """Voxels farther than this from the vehicle are evicted [m]."""
+    map_max_voxels: int = 200_000
+    neighbours: int = 10
+    """Map points per fitted plane."""
+    plane_radius: float = 0.3
+    """Neighbours farther than this are not used [m] (at most map_voxel)."""
+    max_plane_rms: float = 0.05
+    """[m]"""
+    max_residual: float = 0.3
+    """Point-to-plane distances beyond this are outliers [m]."""
+    robust: str = "huber"
+    """'none', 'huber' or 'cauchy'."""
+    robust_scale: float = 0.05
+    """[m]"""
+    range_sigma: float = 0.02
+    """Point-to-plane residual standard deviation [m] (about the LiDAR's range noise)."""
+    max_iterations: int = 10
+    convergence: float = 1e-4
+    """Registration stops when the step is below this [rad, m]."""
+    degeneracy_threshold: float = 0.02
+    """A direction of the registration Hessian is weakly observable when its eigenvalue, divided by the inlier
+    count / range_sigma^2, is below this; it is left to the IMU."""
+    lag_s: float = 1.0
+    """Fixed-lag smoother window [s]."""
+    lidar_information_scale: float = 1.0
+    """Scales the LiDAR factor's information (points are not independent: < 1 is more honest)."""
+    tightly_coupled: bool = True
+    """True: the LiDAR factor re-finds correspondences and re-linearises the point-to-plane residuals whenever
+    the smoother relinearises. False: a pose factor from the converged registration and its Hessian."""
+    refit_distance: float = 0.01
+    """The tightly coupled factor re-finds its correspondences when the pose has moved more than this since they
+    were found [m] (rotations count as their displacement at one map voxel)."""
+    smoother_iterations: int = 2
+    """Smoother updates per scan (the first adds the factors, the rest re-linearise)."""
+    relinearize_threshold: float = 0.001
+    """ISAM2 relinearisation threshold [rad, m]."""
+    nthreads: int = 0
+    """Threads for the C++ kernels (0: all)."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "imu", nested(ImuParams, self.imu, "LioParams.imu"))
+        if not isinstance(self.T_BL, Transform):
+            if isinstance(self.T_BL, dict):
+                object.__setattr__(self, "T_BL", Transform(**self.T_BL))
+            else:
+                raise ConfigError(f"LioParams.T_BL must be a Transform, got {type(self.T_BL).__name__}")
+        check_real_fields(self, "LioParams", positive=True, names=_POSITIVE)
+        if not (math.isfinite(self.min_range) and self.min_range >= 0):
+            raise ConfigError(f"LioParams.min_range must be a finite number >= 0 [m], got {self.min_range!r}")
+        if not (math.isfinite(self.degeneracy_threshold) and self.degeneracy_threshold >= 0):
+            raise ConfigError("LioParams.degeneracy_threshold must be a finite number >= 0")
+        if self.init_duration_s < 1.0:
+            raise ConfigError(f"LioParams.init_duration_s must be >= 1 [s], got {self.init_duration_s!r}")
+        if self.robust not in ("none", "huber", "cauchy"):
+            raise ConfigError(f"LioParams.robust must be 'none', 'huber' or 'cauchy', got {self.robust!r}")
+        for name, lo in (("map_points_per_voxel", 1), ("map_max_voxels", 1), ("neighbours", 3),
+                         ("max_iterations", 1), ("smoother_iterations", 1), ("nthreads", 0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+                raise ConfigError(f"LioParams.{name} must be an integer >= {lo}, got {v!r}")
+        p = np.asarray(self.p_WB0, dtype=float)
+        q = np.asarray(self.q_WB0, dtype=float)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ConfigError(f"LioParams.p_WB0 must be 3 finite numbers [m], got {self.p_WB0!r}")
+        if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1) > 1e-6:
+            raise ConfigError(f"LioParams.q_WB0 must be a unit quaternion [w, x, y, z], got {self.q_WB0!r}")
+        object.__setattr__(self, "p_WB0", tuple(float(v) for v in p))
+        object.__setattr__(self, "q_WB0", tuple(float(v) for v in q))
+
+    @classmethod
+    def from_dict(cls, data: dict) -> LioParams:
+        return from_dict(cls, data, "LioParams")
