@@ -103,6 +103,24 @@ Robust robust_kind(const std::string& name) {
   throw py::value_error("robust must be 'none', 'huber' or 'cauchy', got '" + name + "'");
 }
 
+py::dict terms_dict(const PlaneTerms& terms, py::ssize_t n) {
+  py::array_t<bool> valid(n);
+  for (py::ssize_t i = 0; i < n; ++i) valid.mutable_data()[i] = terms.valid[static_cast<std::size_t>(i)] != 0;
+  py::array_t<double> normal({n, py::ssize_t{3}});
+  if (n) std::memcpy(normal.mutable_data(), terms.normal.data(), terms.normal.size() * sizeof(double));
+  const Eigen::Matrix<double, 6, 6, Eigen::RowMajor> H = terms.H;
+  py::dict out;
+  out["valid"] = valid;
+  out["residual"] = py::array_t<double>(n, terms.residual.data());
+  out["normal"] = normal;
+  out["weight"] = py::array_t<double>(n, terms.weight.data());
+  out["H"] = py::array_t<double>({6, 6}, H.data());
+  out["b"] = py::array_t<double>(6, terms.b.data());
+  out["cost"] = terms.cost;
+  out["inliers"] = terms.inliers;
+  return out;
+}
+
 void positive(double v, const char* field) {
   if (!(std::isfinite(v) && v > 0.0)) throw py::value_error(std::string(field) + " must be a finite number > 0");
 }
@@ -200,6 +218,44 @@ void define_odometry(py::module_& m) {
       "The centroid of the points (N, 3) in each occupied cubic voxel of edge `voxel` [m] (grid anchored at the "
       "origin), in the order the voxels are first seen.");
 
+  m.def(
+      "plane_terms",
+      [](const py::handle& points_I, const py::handle& planes, const py::handle& valid, const py::handle& R_WI,
+         const py::handle& p_W, double max_residual, const std::string& robust, double robust_scale, double sigma,
+         int nthreads) {
+        auto p = finite_rows(points_I, "points_I", 3);
+        const py::ssize_t n = p.shape(0);
+        auto pl = finite(planes, "planes", {n, 4});
+        py::array va = py::array::ensure(valid);
+        if (!va || va.dtype().kind() != 'b' || va.ndim() != 1 || va.shape(0) != n) {
+          throw py::value_error("valid must be a bool array of shape (" + std::to_string(n) + ",)");
+        }
+        auto v = py::array_t<bool, py::array::c_style | py::array::forcecast>::ensure(va);
+        const Eigen::Matrix3d R = rotation_matrix(R_WI, "R_WI");
+        const Eigen::Vector3d t = vec3(p_W, "p_W");
+        positive(max_residual, "max_residual");
+        positive(robust_scale, "robust_scale");
+        positive(sigma, "sigma");
+        PlaneParams prm;
+        prm.max_residual = max_residual;
+        prm.robust = robust_kind(robust);
+        prm.robust_scale = robust_scale;
+        prm.sigma = sigma;
+        const int threads = thread_count(nthreads);
+        PlaneTerms terms;
+        {
+          py::gil_scoped_release release;
+          terms = plane_terms(p.data(), pl.data(), reinterpret_cast<const std::uint8_t*>(v.data()),
+                              static_cast<std::size_t>(n), R, t, prm, threads);
+        }
+        return terms_dict(terms, n);
+      },
+      py::arg("points_I"), py::arg("planes"), py::arg("valid"), py::arg("R_WI"), py::arg("p_W"),
+      py::arg("max_residual") = 0.5, py::arg("robust") = "huber", py::arg("robust_scale") = 0.05,
+      py::arg("sigma") = 0.02, py::arg("nthreads") = 0,
+      "Point-to-plane terms (as VoxelMap.point_to_plane returns them) of points_I (N, 3) placed by (R_WI, p_W) "
+      "against fixed planes (N, 4) where valid (N,): the correspondences of VoxelMap.fit_planes kept fixed.");
+
   py::class_<PyVoxelMap>(m, "VoxelMap", "Incremental hashed voxel map with point-to-plane registration terms.")
       .def(py::init([](double voxel_size, int max_points_per_voxel, double min_point_distance, double max_distance,
                        std::size_t max_voxels) {
@@ -284,6 +340,37 @@ void define_odometry(py::module_& m) {
           "The k nearest stored points within max_distance [m] (capped at the voxel size) of each query (Q, 3): "
           "(neighbours (Q, k, 3), squared distances (Q, k)) ascending; NaN / inf where fewer were found.")
       .def(
+          "fit_planes",
+          [](const PyVoxelMap& self, const py::handle& points_I, const py::handle& R_WI, const py::handle& p_W,
+             int neighbours, double max_neighbour_distance, double max_plane_rms, int nthreads) {
+            auto p = finite_rows(points_I, "points_I", 3);
+            const Eigen::Matrix3d R = rotation_matrix(R_WI, "R_WI");
+            const Eigen::Vector3d t = vec3(p_W, "p_W");
+            if (neighbours < 3 || neighbours > 64) throw py::value_error("neighbours must be in [3, 64]");
+            positive(max_neighbour_distance, "max_neighbour_distance");
+            positive(max_plane_rms, "max_plane_rms");
+            PlaneParams prm;
+            prm.neighbours = neighbours;
+            prm.max_neighbour_distance = max_neighbour_distance;
+            prm.max_plane_rms = max_plane_rms;
+            const int threads = thread_count(nthreads);
+            const py::ssize_t n = p.shape(0);
+            py::array_t<bool> valid(n);
+            py::array_t<double> planes({n, py::ssize_t{4}});
+            {
+              py::gil_scoped_release release;
+              std::lock_guard<std::mutex> lock(self.m);
+              static_assert(sizeof(bool) == sizeof(std::uint8_t), "bool arrays are written as bytes");
+              self.map->fit_planes(p.data(), static_cast<std::size_t>(n), R, t, prm,
+                                   reinterpret_cast<std::uint8_t*>(valid.mutable_data()), planes.mutable_data(), threads);
+            }
+            return py::make_tuple(valid, planes);
+          },
+          py::arg("points_I"), py::arg("R_WI"), py::arg("p_W"), py::arg("neighbours") = 5,
+          py::arg("max_neighbour_distance") = 1.0, py::arg("max_plane_rms") = 0.05, py::arg("nthreads") = 0,
+          "Fits a plane to the `neighbours` nearest map points of each of points_I (N, 3) placed by (R_WI, p_W): "
+          "(valid (N,), planes (N, 4) [unit normal, offset], normal . x + offset = 0 in the world).")
+      .def(
           "point_to_plane",
           [](const PyVoxelMap& self, const py::handle& points_I, const py::handle& R_WI, const py::handle& p_W,
              int neighbours, double max_neighbour_distance, double max_plane_rms, double max_residual,
@@ -312,22 +399,7 @@ void define_odometry(py::module_& m) {
               std::lock_guard<std::mutex> lock(self.m);
               terms = self.map->point_to_plane(p.data(), static_cast<std::size_t>(p.shape(0)), R, t, prm, threads);
             }
-            const auto n = static_cast<py::ssize_t>(p.shape(0));
-            py::array_t<bool> valid(n);
-            for (py::ssize_t i = 0; i < n; ++i) valid.mutable_data()[i] = terms.valid[static_cast<std::size_t>(i)] != 0;
-            py::array_t<double> normal({n, py::ssize_t{3}});
-            if (n) std::memcpy(normal.mutable_data(), terms.normal.data(), terms.normal.size() * sizeof(double));
-            const Eigen::Matrix<double, 6, 6, Eigen::RowMajor> H = terms.H;
-            py::dict out;
-            out["valid"] = valid;
-            out["residual"] = py::array_t<double>(n, terms.residual.data());
-            out["normal"] = normal;
-            out["weight"] = py::array_t<double>(n, terms.weight.data());
-            out["H"] = py::array_t<double>({6, 6}, H.data());
-            out["b"] = py::array_t<double>(6, terms.b.data());
-            out["cost"] = terms.cost;
-            out["inliers"] = terms.inliers;
-            return out;
+            return terms_dict(terms, p.shape(0));
           },
           py::arg("points_I"), py::arg("R_WI"), py::arg("p_W"), py::arg("neighbours") = 5,
           py::arg("max_neighbour_distance") = 1.0, py::arg("max_plane_rms") = 0.05, py::arg("max_residual") = 0.5,

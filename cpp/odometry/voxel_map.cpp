@@ -137,26 +137,36 @@ std::vector<double> VoxelMap::points() const {
 int VoxelMap::nearest(const Eigen::Vector3d& query, int k, double max_d2, Eigen::Vector3d* out, double* d2) const {
   Eigen::Matrix<std::int64_t, 3, 1> idx;
   if (!voxel_index(query, inv_voxel_, idx)) return 0;
+  // Offsets of the query inside its voxel, to skip neighbour voxels that cannot hold a closer point.
+  Eigen::Vector3d lo, hi;  // distance to the voxel's lower and upper faces, per axis
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = query[a] - static_cast<double>(idx[a]) * voxel_;
+    hi[a] = voxel_ - lo[a];
+  }
   int found = 0;
-  for (int dx = -1; dx <= 1; ++dx) {
-    for (int dy = -1; dy <= 1; ++dy) {
-      for (int dz = -1; dz <= 1; ++dz) {
-        const auto it = voxels_.find(pack(idx[0] + dx, idx[1] + dy, idx[2] + dz));
-        if (it == voxels_.end()) continue;
-        for (const auto& p : it->second.points) {
-          const double d = (p - query).squaredNorm();
-          if (d > max_d2 || (found == k && d >= d2[k - 1])) continue;
-          // Insertion into the sorted list (ties keep the earlier point).
-          int j = found < k ? found++ : k - 1;
-          while (j > 0 && d2[j - 1] > d) {
-            d2[j] = d2[j - 1];
-            out[j] = out[j - 1];
-            --j;
-          }
-          d2[j] = d;
-          out[j] = p;
-        }
+  // The query's own voxel first (offset 13 of 27), so the bound tightens early.
+  for (int m = 0; m < 27; ++m) {
+    const int o = m == 0 ? 13 : (m <= 13 ? m - 1 : m);
+    const int dx = o / 9 - 1, dy = (o / 3) % 3 - 1, dz = o % 3 - 1;
+    const double gx = dx < 0 ? lo[0] : (dx > 0 ? hi[0] : 0.0);
+    const double gy = dy < 0 ? lo[1] : (dy > 0 ? hi[1] : 0.0);
+    const double gz = dz < 0 ? lo[2] : (dz > 0 ? hi[2] : 0.0);
+    const double bound = found == k ? d2[k - 1] : max_d2;
+    if (gx * gx + gy * gy + gz * gz > bound) continue;
+    const auto it = voxels_.find(pack(idx[0] + dx, idx[1] + dy, idx[2] + dz));
+    if (it == voxels_.end()) continue;
+    for (const auto& p : it->second.points) {
+      const double d = (p - query).squaredNorm();
+      if (d > max_d2 || (found == k && d >= d2[k - 1])) continue;
+      // Insertion into the sorted list.
+      int j = found < k ? found++ : k - 1;
+      while (j > 0 && d2[j - 1] > d) {
+        d2[j] = d2[j - 1];
+        out[j] = out[j - 1];
+        --j;
       }
+      d2[j] = d;
+      out[j] = p;
     }
   }
   return found;
@@ -183,32 +193,19 @@ void VoxelMap::knn(const double* queries, std::size_t q, int k, double max_dista
   });
 }
 
-PlaneTerms VoxelMap::point_to_plane(const double* points_I, std::size_t n, const Eigen::Matrix3d& R_WI,
-                                    const Eigen::Vector3d& t_W, const PlaneParams& prm, int threads) const {
-  PlaneTerms out;
-  out.valid.assign(n, 0);
-  out.residual.assign(n, 0.0);
-  out.normal.assign(3 * n, 0.0);
-  out.weight.assign(n, 0.0);
+void VoxelMap::fit_planes(const double* points_I, std::size_t n, const Eigen::Matrix3d& R_WI,
+                          const Eigen::Vector3d& t_W, const PlaneParams& prm, std::uint8_t* valid, double* planes,
+                          int threads) const {
   const int k = prm.neighbours;
   const double md = std::min(prm.max_neighbour_distance, voxel_);
-  const double inv_s2 = 1.0 / (prm.sigma * prm.sigma);
-  constexpr std::ptrdiff_t kChunk = 512;
-  const auto chunks = static_cast<std::size_t>((static_cast<std::ptrdiff_t>(n) + kChunk - 1) / kChunk);
-  struct Partial {
-    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
-    double cost = 0.0;
-    std::size_t inliers = 0;
-  };
-  std::vector<Partial> parts(chunks);
-  parallel_chunks(static_cast<std::ptrdiff_t>(n), kChunk, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t c) {
+  parallel_chunks(static_cast<std::ptrdiff_t>(n), 256, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t) {
     std::vector<Eigen::Vector3d> nb(static_cast<std::size_t>(k));
     std::vector<double> d2(static_cast<std::size_t>(k));
-    Partial& part = parts[static_cast<std::size_t>(c)];
     for (std::ptrdiff_t i = b; i < e; ++i) {
-      const Eigen::Vector3d q = Eigen::Map<const Eigen::Vector3d>(points_I + 3 * i);
-      const Eigen::Vector3d x = R_WI * q + t_W;
+      valid[i] = 0;
+      double* pl = planes + 4 * i;
+      pl[0] = pl[1] = pl[2] = pl[3] = 0.0;
+      const Eigen::Vector3d x = R_WI * Eigen::Map<const Eigen::Vector3d>(points_I + 3 * i) + t_W;
       if (nearest(x, k, md * md, nb.data(), d2.data()) < k) continue;
       Eigen::Vector3d c0 = Eigen::Vector3d::Zero();
       for (const auto& p : nb) c0 += p;
@@ -222,8 +219,37 @@ PlaneTerms VoxelMap::point_to_plane(const double* points_I, std::size_t n, const
       // A line (two small eigenvalues) has no plane.
       if (es.eigenvalues()[1] < 4.0 * es.eigenvalues()[0] + 1e-12) continue;
       const Eigen::Vector3d nrm = es.eigenvectors().col(0).normalized();
-      const double r = nrm.dot(x - c0);
-      if (std::abs(r) > prm.max_residual) continue;
+      valid[i] = 1;
+      pl[0] = nrm.x(); pl[1] = nrm.y(); pl[2] = nrm.z(); pl[3] = -nrm.dot(c0);
+    }
+  });
+}
+
+PlaneTerms plane_terms(const double* points_I, const double* planes, const std::uint8_t* fitted, std::size_t n,
+                       const Eigen::Matrix3d& R_WI, const Eigen::Vector3d& t_W, const PlaneParams& prm, int threads) {
+  PlaneTerms out;
+  out.valid.assign(n, 0);
+  out.residual.assign(n, 0.0);
+  out.normal.assign(3 * n, 0.0);
+  out.weight.assign(n, 0.0);
+  const double inv_s2 = 1.0 / (prm.sigma * prm.sigma);
+  constexpr std::ptrdiff_t kChunk = 1024;
+  const auto chunks = static_cast<std::size_t>((static_cast<std::ptrdiff_t>(n) + kChunk - 1) / kChunk);
+  struct Partial {
+    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+    double cost = 0.0;
+    std::size_t inliers = 0;
+  };
+  std::vector<Partial> parts(chunks);
+  parallel_chunks(static_cast<std::ptrdiff_t>(n), kChunk, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t c) {
+    Partial& part = parts[static_cast<std::size_t>(c)];
+    for (std::ptrdiff_t i = b; i < e; ++i) {
+      if (!fitted[i]) continue;
+      const Eigen::Vector3d q = Eigen::Map<const Eigen::Vector3d>(points_I + 3 * i);
+      const Eigen::Vector3d nrm = Eigen::Map<const Eigen::Vector3d>(planes + 4 * i);
+      const double r = nrm.dot(R_WI * q + t_W) + planes[4 * i + 3];
+      if (!(std::abs(r) <= prm.max_residual)) continue;
       const double w = robust_weight(prm.robust, r, prm.robust_scale);
       const Eigen::Vector3d n_I = R_WI.transpose() * nrm;
       Eigen::Matrix<double, 6, 1> J;
@@ -246,6 +272,14 @@ PlaneTerms VoxelMap::point_to_plane(const double* points_I, std::size_t n, const
     out.inliers += part.inliers;
   }
   return out;
+}
+
+PlaneTerms VoxelMap::point_to_plane(const double* points_I, std::size_t n, const Eigen::Matrix3d& R_WI,
+                                    const Eigen::Vector3d& t_W, const PlaneParams& prm, int threads) const {
+  std::vector<std::uint8_t> fitted(n);
+  std::vector<double> planes(4 * n);
+  fit_planes(points_I, n, R_WI, t_W, prm, fitted.data(), planes.data(), threads);
+  return plane_terms(points_I, planes.data(), fitted.data(), n, R_WI, t_W, prm, threads);
 }
 
 }  // namespace cufund::odometry

@@ -44,6 +44,10 @@ struct PlaneTerms {
   std::size_t inliers = 0;
 };
 
+// Point-to-plane terms of points_I (n, 3) placed by (R_WI, t_W) against given planes (n, 4) where fitted[i].
+PlaneTerms plane_terms(const double* points_I, const double* planes, const std::uint8_t* fitted, std::size_t n,
+                       const Eigen::Matrix3d& R_WI, const Eigen::Vector3d& t_W, const PlaneParams& params, int threads);
+
 class VoxelMap {
  public:
   VoxelMap(double voxel_size, int max_points_per_voxel, double min_point_distance, double max_distance,
@@ -64,7 +68,13 @@ class VoxelMap {
   void knn(const double* queries, std::size_t q, int k, double max_distance, double* neighbours, double* dist2,
            int threads) const;
 
-  // Point-to-plane terms of points_I (n, 3, in the frame whose world pose is R_WI, t_W).
+  // Fits a plane to the neighbours of each point of points_I (n, 3) placed by (R_WI, t_W): valid (n,) and
+  // planes (n, 4) [normal, offset] with normal . x + offset = 0 in the world.
+  void fit_planes(const double* points_I, std::size_t n, const Eigen::Matrix3d& R_WI, const Eigen::Vector3d& t_W,
+                  const PlaneParams& params, std::uint8_t* valid, double* planes, int threads) const;
+
+  // Point-to-plane terms of points_I (n, 3, in the frame whose world pose is R_WI, t_W): fit_planes, then
+  // plane_terms.
   PlaneTerms point_to_plane(const double* points_I, std::size_t n, const Eigen::Matrix3d& R_WI,
                             const Eigen::Vector3d& t_W, const PlaneParams& params, int threads) const;
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['VoxelMap', 'deskew', 'imu_propagate', 'voxel_downsample']
+__all__: list[str] = ['VoxelMap', 'deskew', 'imu_propagate', 'plane_terms', 'voxel_downsample']
 class VoxelMap:
     """
     Incremental hashed voxel map with point-to-plane registration terms.
@@ -18,6 +18,10 @@ class VoxelMap:
         ...
     def evict(self, origin: typing.Any) -> None:
         ...
+    def fit_planes(self, points_I: typing.Any, R_WI: typing.Any, p_W: typing.Any, neighbours: typing.SupportsInt | typing.SupportsIndex = 5, max_neighbour_distance: typing.SupportsFloat | typing.SupportsIndex = 1.0, max_plane_rms: typing.SupportsFloat | typing.SupportsIndex = 0.05, nthreads: typing.SupportsInt | typing.SupportsIndex = 0) -> tuple[numpy.typing.NDArray[numpy.bool], numpy.typing.NDArray[numpy.float64]]:
+        """
+        Fits a plane to the `neighbours` nearest map points of each of points_I (N, 3) placed by (R_WI, p_W): (valid (N,), planes (N, 4) [unit normal, offset], normal . x + offset = 0 in the world).
+        """
     def insert(self, points_W: typing.Any, origin: typing.Any) -> int:
         """
         Adds world points (N, 3) [m], then evicts voxels far from origin (3,). Returns how many were kept.
@@ -47,6 +51,10 @@ def deskew(points_L: typing.Any, t_points: typing.Any, knot_t: typing.Any, state
 def imu_propagate(p_W: typing.Any, v_W: typing.Any, q_WI: typing.Any, bias_acc: typing.Any, bias_gyr: typing.Any, gravity_W: typing.Any, dt: typing.Any, acc: typing.Any, gyr: typing.Any) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
     """
     Propagates an IMU-frame state through samples held over dt (n,) [s] with accelerometer acc (n, 3) [m/s^2] and gyroscope gyr (n, 3) [rad/s] readings, exactly as GTSAM's tangent-space preintegration. Returns (states (n+1, 10) [p_W, v_W, q_WI (w, x, y, z)], rates (n, 6) [a_W, w_I] held over each sample).
+    """
+def plane_terms(points_I: typing.Any, planes: typing.Any, valid: typing.Any, R_WI: typing.Any, p_W: typing.Any, max_residual: typing.SupportsFloat | typing.SupportsIndex = 0.5, robust: str = 'huber', robust_scale: typing.SupportsFloat | typing.SupportsIndex = 0.05, sigma: typing.SupportsFloat | typing.SupportsIndex = 0.02, nthreads: typing.SupportsInt | typing.SupportsIndex = 0) -> dict:
+    """
+    Point-to-plane terms (as VoxelMap.point_to_plane returns them) of points_I (N, 3) placed by (R_WI, p_W) against fixed planes (N, 4) where valid (N,): the correspondences of VoxelMap.fit_planes kept fixed.
     """
 def voxel_downsample(points: typing.Any, voxel: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
     """
