@@ -1,9 +1,10 @@
 """LiDAR-inertial odometry on GTSAM (issue 12): :class:`LioCore` (pure: samples in, odometry out) and its
-parameters :class:`LioParams`; offline flight records from the standalone sensor models in ``flight_data``."""
+parameters :class:`LioParams`; :class:`LioEstimator`, the simulator component (registry kind ``lio``); offline flight records from the standalone sensor models in ``flight_data``."""
 
 from .flight_data import FlatBodyMotion, FlightRecord, LidarFrame, record_flight, replay
 from .lio_core import LioCore, NavEstimate, ScanDiagnostics
+from .lio_estimator import LioEstimator
 from .params import LioParams
 
-__all__ = ["FlatBodyMotion", "FlightRecord", "LidarFrame", "LioCore", "LioParams", "NavEstimate", "ScanDiagnostics",
+__all__ = ["FlatBodyMotion", "FlightRecord", "LidarFrame", "LioCore", "LioEstimator", "LioParams", "NavEstimate", "ScanDiagnostics",
            "record_flight", "replay"]

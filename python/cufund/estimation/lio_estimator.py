@@ -1,0 +1,62 @@
+"""``LioEstimator``: :class:`LioCore` as a :class:`cufund.Estimator` (registry kind ``lio``).
+
+Reads every IMU sample (a subscription to ``/sensors/imu``) and every LiDAR frame (``/sensors/lidar``), and
+publishes the body ``Odometry`` on ``/estimator/odometry`` at IMU rate. A frame is processed once IMU samples
+past its end have arrived (so its IMU factor and deskewing use measured motion, not extrapolation).
+"""
+
+from __future__ import annotations
+
+from ..components import Estimator
+from ..messages import Odometry, Topics
+from .frames import scan_frame
+from .lio_core import LioCore, ScanDiagnostics
+from .params import LioParams
+
+__all__ = ["LioEstimator"]
+
+
+class LioEstimator(Estimator):
+    """LiDAR-inertial odometry on GTSAM (see :mod:`cufund.estimation.lio_core`)."""
+
+    name = "lio"
+    inputs = (Topics.IMU, Topics.POINT_CLOUD)
+
+    def __init__(self, params: LioParams | dict | None = None, rate_hz: float | None = None) -> None:
+        if isinstance(params, dict):
+            params = LioParams.from_dict(params)
+        self.params = params or LioParams()
+        self.rate_hz = float(rate_hz) if rate_hz is not None else float(self.params.imu.rate_hz)
+        self.reset()
+
+    def reset(self) -> None:
+        self.core = LioCore(self.params)
+        self._frames: list[tuple[float, object, object, float]] = []  # (start, dt, points, end)
+        self._latest: Odometry | None = None
+        self._imu_sub = self._lidar_sub = None
+
+    def setup(self, bus) -> None:
+        self._imu_sub = bus.subscribe(Topics.IMU)
+        self._lidar_sub = bus.subscribe(Topics.POINT_CLOUD)
+
+    @property
+    def diagnostics(self) -> list[ScanDiagnostics]:
+        return self.core.diagnostics
+
+    def estimate(self, t: float, bus) -> Odometry | None:
+        for cloud in self._lidar_sub.take():
+            start, dt, pts = scan_frame(cloud)
+            end = start + (float(dt.max()) if len(dt) else 0.0)
+            self._frames.append((start, dt, pts, end))
+        self._frames.sort(key=lambda f: f[3])
+        for imu in self._imu_sub.take():
+            while self._frames and self._frames[0][3] < imu.t:
+                self._process_frame()
+            out = self.core.add_imu(imu.t, imu.f_I, imu.w_I)
+            if out is not None:
+                self._latest = out
+        return self._latest
+
+    def _process_frame(self) -> None:
+        start, dt, pts, _ = self._frames.pop(0)
+        self.core.add_scan(start, dt, pts)
