@@ -136,3 +136,30 @@ def test_corridor_flight_flags_the_axis_and_does_not_diverge():
     # Along the axis only the IMU measures the ~2.5 m travelled: centimetres of drift, not metres.
     assert pos.max() < 0.25 and rot.max() < 0.5
     assert np.sqrt(np.mean(rot**2)) < 0.1
+
+
+def test_our_odometry_figures_equal_evo_ape_on_the_tum_files(tunnel_flight, tmp_path):
+    from evo.core import metrics, sync
+    from evo.tools import file_interface
+
+    from cufund.estimation import odometry_errors, read_tum, write_tum
+
+    rec, _, at_scans, _ = tunnel_flight
+    t = np.array([o.t for o in at_scans])
+    truth = rec.motion.state(t)
+    est_file, ref_file = tmp_path / "estimate.tum", tmp_path / "truth.tum"
+    write_tum(est_file, t, np.array([o.p_W for o in at_scans]), np.array([o.q_WB for o in at_scans]))
+    write_tum(ref_file, t, truth["p_W"], truth["q_WB"])
+    t_back, p_back, q_back = read_tum(est_file)
+    ours = odometry_errors(p_back, q_back, *read_tum(ref_file)[1:])
+    ref, est = sync.associate_trajectories(file_interface.read_tum_trajectory_file(ref_file),
+                                           file_interface.read_tum_trajectory_file(est_file))
+    ape = metrics.APE(metrics.PoseRelation.translation_part)
+    ape.process_data((ref, est))
+    stats = ape.get_all_statistics()
+    assert ours["odometry_rmse_m"] == pytest.approx(stats["rmse"], rel=1e-6)
+    assert ours["odometry_max_m"] == pytest.approx(stats["max"], rel=1e-6)
+    assert ours["odometry_min_m"] == pytest.approx(stats["min"], rel=1e-6, abs=1e-9)
+    rot = metrics.APE(metrics.PoseRelation.rotation_angle_deg)
+    rot.process_data((ref, est))
+    assert ours["odometry_rot_rmse_deg"] == pytest.approx(rot.get_statistic(metrics.StatisticsType.rmse), rel=1e-5)
