@@ -181,12 +181,16 @@ void define_planning(py::module_& m) {
       .def(
           "plan",
           [](planning::GridAStar& self, const ClearanceQuery& query, const py::handle& start, const py::handle& goal,
-             double radius, Index max_expansions, bool shortcut) {
+             double radius, Index max_expansions, bool shortcut, double heuristic_weight) {
             planning::AStarOptions opt;
             opt.radius = radius_arg(radius);
             if (max_expansions < 1) throw py::value_error("max_expansions must be >= 1, got " + std::to_string(max_expansions));
             opt.max_expansions = max_expansions;
             opt.shortcut = shortcut;
+            if (!(std::isfinite(heuristic_weight) && heuristic_weight >= 1.0)) {
+              throw py::value_error("heuristic_weight must be finite and >= 1, got " + std::to_string(heuristic_weight));
+            }
+            opt.heuristic_weight = heuristic_weight;
             const Vec3 s = point3(start, "start_W"), g = point3(goal, "goal_W");
             planning::AStarResult r;
             {
@@ -203,7 +207,7 @@ void define_planning(py::module_& m) {
             return d;
           },
           py::arg("query"), py::arg("start_W"), py::arg("goal_W"), py::arg("radius"), py::arg("max_expansions"),
-          py::arg("shortcut"));
+          py::arg("shortcut"), py::arg("heuristic_weight"));
 
   m.def(
       "voxelize_triangles",

@@ -109,6 +109,10 @@ def test_grid_astar_path_clears_the_triangles_and_is_deterministic(setting):
     b = GridPathSearch(params).plan(q, START, GOAL)
     np.testing.assert_array_equal(a.path_W, b.path_W)
     assert a.expansions == b.expansions
+    optimal = GridPathSearch(GridPathSearchParams(radius=0.3, heuristic_weight=1.0)).plan(q, START, GOAL)
+    _check_path(optimal, q, truth, START, GOAL, 0.3)
+    assert optimal.expansions > a.expansions  # the weighted search (default 1.5) expands fewer nodes
+    assert a.length <= 1.5 * optimal.length
 
 
 def test_grid_astar_statuses(setting):
@@ -125,6 +129,8 @@ def test_grid_astar_statuses(setting):
     assert few.status == "expansion_limit" and few.path_W.shape == (0, 3)
     with pytest.raises(ConfigError, match="radius must be a finite number >= 0"):
         GridPathSearchParams(radius=-1.0)
+    with pytest.raises(ConfigError, match="heuristic_weight must be a finite number >= 1"):
+        GridPathSearchParams(heuristic_weight=0.5)
     with pytest.raises(ConfigError, match="max_expansions must be an integer >= 1"):
         GridPathSearchParams(max_expansions=0)
     with pytest.raises(ValueError, match="goal_W must be 3 finite numbers"):

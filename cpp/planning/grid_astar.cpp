@@ -108,7 +108,8 @@ AStarResult GridAStar::plan(const ClearanceMap& map, const Vec3& start, const Ve
     }
   };
   const auto gv = voxel_of(g, goal);
-  auto heuristic = [&](Index i, Index j, Index k) { return h * octile(i - gv[0], j - gv[1], k - gv[2]); };
+  const double hw = h * std::max(1.0, opt.heuristic_weight);
+  auto heuristic = [&](Index i, Index j, Index k) { return hw * octile(i - gv[0], j - gv[1], k - gv[2]); };
   auto lin = [&](Index i, Index j, Index k) { return (i * g.shape[1] + j) * g.shape[2] + k; };
   auto in_grid = [&](Index i, Index j, Index k) {
     return i >= 0 && j >= 0 && k >= 0 && i < g.shape[0] && j < g.shape[1] && k < g.shape[2];

@@ -23,6 +23,7 @@ struct AStarOptions {
   double radius = 0.2;                    // required clearance [m] of every point of the path
   std::ptrdiff_t max_expansions = 5000000;  // stop after this many node expansions
   bool shortcut = true;                   // greedy line-of-sight shortcutting of the voxel path
+  double heuristic_weight = 1.0;          // >= 1: weighted A* (f = g + w h), at most w times the grid optimum
 };
 
 struct AStarResult {
