@@ -206,6 +206,20 @@ class BusView:
         else:
             bus._deliver(typed, message, bus.now_ns, bus.now_ns)
 
+    def publish_at(self, topic: str, message: Any, visible_ns: int, publish_ns: int | None = None) -> None:
+        """Schedules ``message`` (on a declared output) to become visible at ``visible_ns`` (>= now), as if it had
+        been published at ``publish_ns``: for replaying a log at its own times."""
+        entry = self._writable.get(topic)
+        if entry is None:
+            raise TopicAccessError(f"{self.owner} published on {topic}, which is not among its declared outputs")
+        bus = self._bus
+        if visible_ns < bus.now_ns:
+            raise ValueError(f"{self.owner}: a message on {topic} cannot become visible in the past "
+                             f"({visible_ns} ns < now {bus.now_ns} ns)")
+        bus._seq += 1
+        heapq.heappush(bus._pending, (int(visible_ns), bus._seq, entry[0], message,
+                                      int(visible_ns if publish_ns is None else publish_ns)))
+
     @property
     def now(self) -> float:
         """The current simulated time [s]."""

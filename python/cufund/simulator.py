@@ -121,15 +121,17 @@ class Simulator:
         collision: checks the vehicle against a world's meshes (build it with ``ignore_labels=("floor",
             "ground")`` to leave landing to the dynamics' ground plane).
         collision_rate_hz: how often the collision check runs (must divide the physics rate).
+        vehicle: the plant; None runs the components on the clock without physics or ground truth (e.g. an
+            estimator fed by a :class:`cufund.logs.LogPlayer`).
         logger: receives every visible message (``write(topic, message, log_time_ns, publish_time_ns)``), e.g. a
             :class:`cufund.logs.McapLogger`; ground truth is logged at ``log_truth_rate_hz``.
     """
 
-    def __init__(self, vehicle: Quadrotor, physics_rate_hz: float = 1000.0, record_rate_hz: float | None = None,
+    def __init__(self, vehicle: Quadrotor | None, physics_rate_hz: float = 1000.0, record_rate_hz: float | None = None,
                  record_topics: Iterable[str] = (), collision: CollisionChecker | None = None,
                  collision_rate_hz: float = 250.0, logger: Any = None) -> None:
-        if not isinstance(vehicle, Quadrotor):
-            raise TypeError(f"vehicle must be a cufund.Quadrotor, got {type(vehicle).__name__}")
+        if vehicle is not None and not isinstance(vehicle, Quadrotor):
+            raise TypeError(f"vehicle must be a cufund.Quadrotor (or None: no physics), got {type(vehicle).__name__}")
         self._physics_rate = rate_fraction("physics_rate_hz", physics_rate_hz)
         self.vehicle = vehicle
         self.physics_rate_hz = float(physics_rate_hz)
@@ -141,6 +143,8 @@ class Simulator:
         """The vehicle's shape against a world: any penetration ends the run CRASHED with the contact."""
         self.collision_period = self._nodes_per("collision_rate_hz", collision_rate_hz)
         self.logger = logger
+        self.start_time = 0.0
+        """Without a vehicle: the simulated time at which a run starts [s]."""
         self.components: list[Component] = []
         self.crash_speed = 1.0
         """Downward speed at ground contact above which a run counts as crashed [m/s]."""
@@ -207,7 +211,7 @@ class Simulator:
         and, with an estimator, no flight software reads ground truth). Resolves the state topics first."""
         self._resolve_state_topics()
         names = self._names()
-        published = {str(Topics.TRUTH_ODOMETRY)}
+        published = {str(Topics.TRUTH_ODOMETRY)} if self.vehicle is not None else set()
         for c in self.components:
             published.update(str(t) for t in c.outputs)
         problems = []
@@ -234,7 +238,7 @@ class Simulator:
         latencies = [seconds_to_ns(f"{n}.latency_s", c.latency_s) for n, c in zip(names, self.components)]
         order = topological_order(names, [(*c.inputs, *c.optional_inputs) for c in self.components],
                                   [c.outputs for c in self.components], latencies)
-        self.t_start_ns = round(self.vehicle.t * NS)
+        self.t_start_ns = round(self.vehicle.t * NS) if self.vehicle is not None else round(self.start_time * NS)
         self.bus = Bus(self.record_topics, logger=self.logger)
         self.bus.now_ns = self.t_start_ns
         deny = bool(self.estimators)
@@ -255,11 +259,15 @@ class Simulator:
         self._physics.advance()
         self._node = 0  # physics nodes passed since the start of the run
         self._at_node = True
+        self._processed_ns = -1
         self._truth_at: tuple[int, Odometry | None] = (-1, None)
         self._now_ns = self.t_start_ns
-        self._state = s = self.vehicle.state  # views into the C++ state, valid for the vehicle's lifetime
-        self._truth_views = (s.p, s.v, s.q, s.w, self.vehicle.accel_W, self.vehicle.alpha_B)
-        self._cmd = s.rotor_speeds.copy()
+        if self.vehicle is not None:
+            self._state = s = self.vehicle.state  # views into the C++ state, valid for the vehicle's lifetime
+            self._truth_views = (s.p, s.v, s.q, s.w, self.vehicle.accel_W, self.vehicle.alpha_B)
+            self._cmd = s.rotor_speeds.copy()
+        else:
+            self._cmd = None
         self._rows: list[np.ndarray] = []
         self._block = np.empty((4096, 18))
         self._n_block = 0
@@ -271,9 +279,24 @@ class Simulator:
         self._started = True
 
     @property
+    def schedule(self) -> list[dict[str, Any]]:
+        """The components in the order they run within an instant (after :meth:`reset`), with their timing."""
+        if not self._started:
+            raise RuntimeError("no run: call reset() first")
+        return [{"name": s.name, "rate_hz": float(s.component.rate_hz), "phase_s": float(s.component.phase_s),
+                 "latency_s": float(s.component.latency_s)} for s in self._slots]
+
+    @property
+    def views(self) -> dict[str, BusView]:
+        """Each component's bus handle by name (its ``reads`` tell which topics it read)."""
+        return {s.name: s.view for s in self._slots}
+
+    @property
     def t(self) -> float:
         """The current simulated time [s]."""
-        return self._now_ns / NS if self._started else self.vehicle.t
+        if self._started:
+            return self._now_ns / NS
+        return self.vehicle.t if self.vehicle is not None else self.start_time
 
     @property
     def finished(self) -> bool:
@@ -310,8 +333,10 @@ class Simulator:
 
     def advance_to(self, t: float, done: Callable[[float, Odometry], bool] | None = None,
                    progress: bool = False) -> bool:
-        """Simulates up to time ``t`` [s] (events at ``t`` itself run at the next call), continuing the current
-        run (starting one with :meth:`reset` if none is open). ``done(t, truth)`` is checked at every
+        """Simulates up to time ``t`` [s], continuing the current run (starting one with :meth:`reset` if none is
+        open). Time stops at the last physics node or event at or before ``t`` (a physics step is never split for
+        where a call ends, so any sequence of calls gives the same run, bit for bit); events at the time reached
+        run at the next call. ``done(t, truth)`` is checked at every
         ground-truth record; when it holds the run ends COMPLETED. Returns False once the run has ended."""
         if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t):
             raise ValueError(f"t must be a finite time [s], got {t!r}")
@@ -339,39 +364,43 @@ class Simulator:
         perf = time.perf_counter
         next_event = self._next_event()
         while now < end_ns:
-            if now >= next_event:
-                bus.now_ns = now
-                bus.release(now)
-                t = now / NS
-                truth = None
-                for s in slots:
-                    clock = s.clock
-                    if clock.next_ns == now:
-                        if truth is None:
-                            truth = self._snapshot(t)
-                            self._truth_at = (now, truth)
-                            bus.publish(truth_topic, truth)
-                        w0 = perf()
-                        s.run(t, s.view)
-                        s.seconds += perf() - w0
-                        clock.advance()
-                act: ActuatorCommand | None = latest.get(actuator)
-                if act is not None:
-                    cmd = act.rotor_speeds
-                next_event = self._next_event()
-                if self.status is not None:  # a component stopped the run
-                    self._write_row(t)
+            if self._processed_ns != now:  # events and node checks at `now`, once
+                self._processed_ns = now
+                if now >= next_event:
+                    bus.now_ns = now
+                    bus.release(now)
+                    t = now / NS
+                    truth = None
+                    for s in slots:
+                        clock = s.clock
+                        if clock.next_ns == now:
+                            if truth is None and quad is not None:
+                                truth = self._snapshot(t)
+                                self._truth_at = (now, truth)
+                                bus.publish(truth_topic, truth)
+                            w0 = perf()
+                            s.run(t, s.view)
+                            s.seconds += perf() - w0
+                            clock.advance()
+                    act: ActuatorCommand | None = latest.get(actuator)
+                    if act is not None:
+                        cmd = act.rotor_speeds
+                    next_event = self._next_event()
+                    if self.status is not None:  # a component stopped the run
+                        if quad is not None:
+                            self._write_row(t)
+                        break
+                if at_node and quad is not None and self._node_checks(now, done):
                     break
-            if at_node and self._node_checks(now, done):
-                break
             target = physics.next_ns
             if next_event < target:
                 target = next_event
-            if end_ns < target:
-                target = end_ns
-            w0 = perf()
-            quad.step((target - now) / NS, cmd)
-            self._physics_seconds += perf() - w0
+            if target > end_ns:  # stop on the grid: a step is never split for where a call ends
+                break
+            if quad is not None:
+                w0 = perf()
+                quad.step((target - now) / NS, cmd)
+                self._physics_seconds += perf() - w0
             now = target
             at_node = now == physics.next_ns
             if at_node:
@@ -453,7 +482,7 @@ class Simulator:
             raise ValueError(f"duration must be a finite number > 0 [s], got {duration!r}")
         self.reset()
         self.advance_to(self.t_start_ns / NS + duration, done, progress)
-        if self.status is None and self._at_node:
+        if self.status is None and self._at_node and self.vehicle is not None:
             self._node_checks(self._now_ns, done)  # the last node: recorded, checked
         if self.status is None:
             self.status = RunStatus.COMPLETED if done is None else RunStatus.TIMEOUT

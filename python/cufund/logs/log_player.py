@@ -1,0 +1,85 @@
+"""Replaying a log into a simulator: the bag-driven workflow of LiDAR-odometry developers, without ROS."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Iterable, Iterator
+
+from ..bus import BusView
+from ..components import Component
+from ..topics import Topic, is_truth
+from .mcap_reader import LogRecord, log_topics, read_mcap
+
+__all__ = ["LogPlayer"]
+
+
+class LogPlayer(Component):
+    """Publishes the messages of a cufund MCAP log (``run.mcap``) on their topics, each becoming visible at the
+    time it became visible in the recorded run, so that an estimator or mapper re-run on the log sees exactly
+    what it saw closed-loop (run it in a ``Simulator(None)``: no physics).
+
+    ``topics``: which logged topics to play (default: every ``/sensors/...`` topic). Truth topics are played only
+    when named, and the player then counts as a truth consumer. The log is streamed: the player schedules the
+    next ``window_s`` of messages each time it runs, so memory stays bounded however long the log.
+    """
+
+    name = "log_player"
+
+    def __init__(self, path: str | os.PathLike[str], topics: Iterable[str] | None = None, window_s: float = 0.5) -> None:
+        self.path = Path(path)
+        logged = log_topics(self.path)  # raises McapReadError for a damaged file
+        if topics is None:
+            chosen = [t for t in logged if t.startswith("/sensors/")]
+        else:
+            chosen = [str(t) for t in topics]
+            missing = [t for t in chosen if t not in logged]
+            if missing:
+                raise ValueError(f"topics: {missing[0]} is not in {self.path} (it has {', '.join(sorted(logged))})")
+        if not window_s > 0:
+            raise ValueError(f"window_s must be > 0 [s], got {window_s!r}")
+        from .. import messages
+
+        self.topics = tuple(Topic(t, getattr(messages, logged[t], object)) for t in chosen)
+        self.outputs = self.topics
+        self.reads_truth = any(is_truth(t) for t in chosen)  # type: ignore[misc]
+        self.rate_hz = 1.0 / window_s
+        self.window_ns = round(window_s * 1e9)
+        self.played = 0
+        """Messages scheduled so far."""
+
+    def reset(self) -> None:
+        self._records: Iterator[LogRecord] = read_mcap(self.path, topics=[str(t) for t in self.topics])
+        self._next: LogRecord | None = None
+        self.played = 0
+
+    def setup(self, bus: BusView) -> None:
+        self._schedule(bus)  # before the first instant's messages are released
+
+    def step(self, t: float, bus: BusView) -> None:
+        self._schedule(bus)
+
+    def _schedule(self, bus: BusView) -> None:
+        """Schedules the logged messages up to two windows ahead of now (ahead of the next run)."""
+        now = bus._bus.now_ns
+        horizon = now + 2 * self.window_ns
+        while True:
+            if self._next is None:
+                self._next = next(self._records, None)
+                if self._next is None:
+                    return
+            rec = self._next
+            if rec.log_time_ns > horizon:
+                return
+            if rec.log_time_ns >= now:  # what lies before the start is not played
+                bus.publish_at(rec.topic, rec.message, rec.log_time_ns, rec.publish_time_ns)
+                self.played += 1
+            self._next = None
+
+    @property
+    def first_time(self) -> float:
+        """The log time of the first message played [s] (start the simulator there)."""
+        first = next(read_mcap(self.path, topics=[str(t) for t in self.topics]), None)
+        return 0.0 if first is None else first.log_time_ns / 1e9
+
+
