@@ -7,9 +7,14 @@ VPY := $(VENV)/bin/python
 VPIP := $(VPY) -m pip
 JOBS ?= $(shell nproc)
 
-# Debian 12 packages the C++ core and the Python dependencies need.
-# chromium: headless browser that checks replay.html in tests/test_replay.py.
-APT_PACKAGES := libeigen3-dev libembree-dev libbullet-dev libgtest-dev libbenchmark-dev libusb-1.0-0 chromium
+# Debian 12 packages, each installed only when missing (as root, or through sudo). First what a stock Debian 12
+# lacks to build the extension and create the venv (CMake and Ninja come into the venv from PyPI):
+BUILD_PACKAGES := python3 python3-venv python3-dev g++ make pkg-config git ca-certificates
+# then the C++ core's libraries; what the open3d wheel loads (OpenGL/EGL, X11, TBB, libusb); chromium and
+# chromium-driver: the headless browser that checks replay.html (tests/test_replay.py) and the later web UIs;
+# mona: needed by later issues.
+APT_PACKAGES := $(BUILD_PACKAGES) libeigen3-dev libembree-dev libbullet-dev libgtest-dev libbenchmark-dev \
+                libusb-1.0-0 libgl1 libegl1 libx11-6 libtbb12 chromium chromium-driver mona
 # Build tools installed into the venv (no build isolation, so rebuilds are incremental).
 BUILD_TOOLS := "scikit-build-core>=0.10" "pybind11>=3.1,<3.2" "cmake>=3.18" ninja
 
