@@ -261,7 +261,8 @@ class LioCore:
                                          nthreads=self.params.nthreads)
         rng = np.linalg.norm(deskewed, axis=1)
         deskewed = deskewed[rng >= self.params.min_range]
-        scan_L = _core.odometry.voxel_downsample(deskewed, self.params.scan_voxel)
+        ins_L = _core.odometry.voxel_downsample(deskewed, self.params.map_insert_voxel)
+        scan_L = _core.odometry.voxel_downsample(ins_L, self.params.scan_voxel)
         scan_I = scan_L @ self._R_IL.T + self._p_IL
         R_pred, p_pred = matrix_from_quat(states[-1, 6:]), states[-1, :3]
         v_pred = states[-1, 3:6]
@@ -303,7 +304,6 @@ class LioCore:
                                  np.asarray(bias.gyroscope()))
         self._k = k
         # The map grows with this frame, placed at the new estimate.
-        ins_L = _core.odometry.voxel_downsample(deskewed, self.params.map_insert_voxel)
         self._map.insert((ins_L @ self._R_IL.T + self._p_IL) @ R.T + pos, pos)
         self._catch_up()
         self._imu.prune(t_end - 0.5)

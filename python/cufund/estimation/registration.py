@@ -77,13 +77,14 @@ class Registration:
 
 
 def register(model: PlaneModel, points_I: np.ndarray, R0: np.ndarray, p0: np.ndarray) -> Registration:
-    """Gauss-Newton from (R0, p0): correspondences are re-found, then kept while the steps shrink, until a
-    re-found set moves the pose by less than ``convergence``."""
+    """Gauss-Newton from (R0, p0): correspondences are found, then kept while the steps shrink; they are re-found
+    (and the iteration goes on) unless the pose converged within ``refit_distance`` of where they were found."""
     prm = model.params
     R, p = R0.copy(), p0.copy()
     converged = False
     it = 0
     planes = fit_planes(model, points_I, R, p)
+    R_fit, p_fit = R, p
     fresh = True
     while it < prm.max_iterations:
         it += 1
@@ -95,16 +96,18 @@ def register(model: PlaneModel, points_I: np.ndarray, R0: np.ndarray, p0: np.nda
         step = -V @ ((V.T @ terms["b"]) / evals[obs])
         p = p + R @ step[3:]
         R = R @ so3_exp(step[:3])
+        moved = max(np.linalg.norm(p - p_fit), np.linalg.norm(R - R_fit) * prm.map_voxel)
         small = np.linalg.norm(step) < prm.convergence
-        if small and fresh:
+        if small and (fresh or moved < prm.refit_distance):
             converged = True
             break
         if small or it % 3 == 0:
             planes = fit_planes(model, points_I, R, p)
+            R_fit, p_fit = R, p
             fresh = True
         else:
             fresh = False
-    if not fresh:
+    if not fresh and not converged:
         planes = fit_planes(model, points_I, R, p)
     terms = plane_terms(model, points_I, R, p, planes)
     evals, evecs, obs = observable_split(terms["H"], terms["inliers"], prm)
