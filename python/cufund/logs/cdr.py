@@ -252,10 +252,9 @@ class _Packer:
         self.scalars = [c for c in cols if not c.shape]
         self.present, self.absent = present, absent
         self._arrays = _getter([c.attr for c in present])
-        self._dtypes = _getter([f"{c.attr}.dtype" for c in present])
-        self._expected = tuple(np.dtype(c.code) for c in present)
-        self._absent = _getter([c.attr for c in absent])
-        self._nones = (None,) * len(absent)
+        # one getter checks both: the dtypes of the arrays present in the first message, and None where it had None
+        self._checks = _getter([f"{c.attr}.dtype" for c in present] + [c.attr for c in absent])
+        self._expected = tuple(np.dtype(c.code) for c in present) + (None,) * len(absent)
         self._scalars = _getter([c.attr for c in self.scalars])
         self._all = layout._all
         self._layout = layout.layout
@@ -264,14 +263,13 @@ class _Packer:
         self.extract = self._make_extract()
 
     def _make_extract(self) -> Any:
-        join, arrays, dtypes, expected = b"".join, self._arrays, self._dtypes, self._expected
-        absent, nones, scalars, all_fields, nbytes = self._absent, self._nones, self._scalars, self._all, \
-            self.packed.itemsize
+        join, arrays, checks, expected = b"".join, self._arrays, self._checks, self._expected
+        scalars, all_fields, nbytes = self._scalars, self._all, self.packed.itemsize
 
         def extract(message: Any, log: int, publish: int, sequence: int) -> tuple[Any, ...]:
             try:
                 raw = join(arrays(message))
-                if len(raw) == nbytes and dtypes(message) == expected and absent(message) == nones:
+                if len(raw) == nbytes and checks(message) == expected:
                     return raw, scalars(message), log, publish, sequence
             except (TypeError, BufferError, AttributeError, ValueError):
                 pass  # None, a list, a non-contiguous array, an array where None was: the general path

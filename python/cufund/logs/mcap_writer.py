@@ -13,6 +13,7 @@ the ``mcap`` package's record classes. Each Message record's ``sequence`` is the
 
 from __future__ import annotations
 
+import itertools
 import os
 import struct
 import zlib
@@ -76,7 +77,7 @@ class McapLogger:
         self._channels: list[Channel] = []
         self._metadata_indexes: list[MetadataIndex] = []
         self._counts: dict[int, int] = {}
-        self._sequence = 0
+        self._sequence = itertools.count()
         self._start_time: int | None = None
         self._end_time = 0
         self._out = ChunkWriter(self._file, compression, background=False)
@@ -103,9 +104,7 @@ class McapLogger:
             raise TypeError(f"topic {buffer.topic!r} is logged as {buffer.cls.__name__} (its first message), "
                             f"got a {type(message).__name__}")
         rows = buffer.rows
-        sequence = self._sequence
-        rows.append(buffer.extract(message, log_time_ns, publish_time_ns, sequence))
-        self._sequence = sequence + 1
+        rows.append(buffer.extract(message, log_time_ns, publish_time_ns, next(self._sequence)))
         if len(rows) >= buffer.limit:
             self._flush(buffer)
 
