@@ -5,6 +5,7 @@
 #include <shared_mutex>
 #include <string>
 
+#include "bspline_optimizer.h"
 #include "clearance.h"
 #include "esdf_map.h"
 #include "grid_astar.h"
@@ -208,6 +209,50 @@ void define_planning(py::module_& m) {
           },
           py::arg("query"), py::arg("start_W"), py::arg("goal_W"), py::arg("radius"), py::arg("max_expansions"),
           py::arg("shortcut"), py::arg("heuristic_weight"));
+
+  m.def(
+      "optimize_bspline",
+      [](const esdf::EsdfMap& map, const py::handle& start, const py::handle& initial, const py::handle& tail,
+         const py::handle& end_target, bool pull_end, double w_smooth, double w_collision, double w_feasibility,
+         double w_end, double d_safe, double v_max, double a_max, double dt, int max_iterations) {
+        planning::BsplineProblem pb;
+        pb.start = path_vector(start, "start");
+        pb.tail = path_vector(tail, "tail");
+        pb.end_target = point3(end_target, "end_target");
+        pb.pull_end = pull_end;
+        const auto x0 = path_vector(initial, "initial");
+        if (x0.empty()) throw py::value_error("initial must hold at least one control point");
+        planning::BsplineWeights w;
+        w.smooth = w_smooth;
+        w.collision = w_collision;
+        w.feasibility = w_feasibility;
+        w.end = w_end;
+        w.d_safe = d_safe;
+        w.v_max = v_max;
+        w.a_max = a_max;
+        w.dt = dt;
+        for (double v : {w_smooth, w_collision, w_feasibility, w_end, v_max, a_max, dt}) {
+          if (!(std::isfinite(v) && v > 0.0)) throw py::value_error("weights, limits and dt must be finite and > 0");
+        }
+        if (!std::isfinite(d_safe)) throw py::value_error("d_safe must be finite");
+        planning::LbfgsOptions opt;
+        opt.max_iterations = std::max(1, max_iterations);
+        planning::BsplineResult r;
+        {
+          py::gil_scoped_release release;
+          std::shared_lock<std::shared_mutex> read(map.access_mutex());
+          r = planning::optimize_bspline(map, pb, w, x0, opt);
+        }
+        py::dict d;
+        d["free"] = path_array(r.free);
+        d["cost"] = r.cost;
+        d["iterations"] = r.iterations;
+        d["evaluations"] = r.evaluations;
+        return d;
+      },
+      py::arg("esdf_map"), py::arg("start"), py::arg("initial"), py::arg("tail"), py::arg("end_target"),
+      py::arg("pull_end"), py::arg("w_smooth"), py::arg("w_collision"), py::arg("w_feasibility"), py::arg("w_end"),
+      py::arg("d_safe"), py::arg("v_max"), py::arg("a_max"), py::arg("dt"), py::arg("max_iterations"));
 
   m.def(
       "voxelize_triangles",

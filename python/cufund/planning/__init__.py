@@ -1,10 +1,12 @@
 """Trajectories and planners (paper §3.1)."""
 
 from ..components import Planner
+from .bspline import UniformBspline
 from .clearance import ClearanceQuery
 from .feasibility import TrajectoryFeasibility, feasibility
 from .min_snap_planner import MinSnapPlanner, MinSnapPlannerParams, MinSnapResult
 from .mission_spec import MissionPlan, MissionSpec, Region
+from .local_planner import BsplineLocalPlanner, LocalPlan, LocalPlannerParams
 from .minimum_snap import MinimumSnapTrajectory, allocate_segment_times, min_derivative_spline, optimize_segment_times
 from .ompl_path import OmplPathParams, OmplPathPlanner
 from .path_search import GridPathSearch, GridPathSearchParams, PathResult
@@ -14,9 +16,9 @@ from .trajectory import Trajectory, TrajectorySamples
 from .trajectory_follower import TrajectoryFollower
 from .world_map import clearance_from_world, esdf_from_world, world_occupancy
 
-__all__ = ["ClearanceQuery", "GridPathSearch", "GridPathSearchParams", "Hold", "JerkLimitedMove", "MinSnapPlanner",
+__all__ = ["BsplineLocalPlanner", "ClearanceQuery", "GridPathSearch", "GridPathSearchParams", "Hold", "JerkLimitedMove", "LocalPlan", "LocalPlannerParams", "MinSnapPlanner",
            "MinSnapPlannerParams", "MinSnapResult", "MinimumSnapTrajectory", "MissionPlan", "MissionSpec",
            "OmplPathParams", "OmplPathPlanner", "PathResult", "Region", "TrajectorySequence", "Planner", "Trajectory",
-           "TrajectoryFeasibility", "TrajectoryFollower", "TrajectorySamples", "feasibility",
+           "TrajectoryFeasibility", "TrajectoryFollower", "TrajectorySamples", "UniformBspline", "feasibility",
            "allocate_segment_times", "optimize_segment_times", "clearance_from_world", "esdf_from_world",
            "min_derivative_spline", "world_occupancy"]

@@ -1,0 +1,155 @@
+"""ESDF-gradient B-spline local replanner (the Fast-Planner / EGO-Planner family).
+
+Each replan starts from the vehicle's current position, velocity and acceleration (the first three
+control points are fixed by them, so the new trajectory joins the old one with no jump in position,
+velocity or acceleration), follows a guide path towards the goal (the grid A* on the current map,
+a straight line when that fails), and optimises the free control points with L-BFGS on
+
+    w_smooth * sum |jerk control points|^2 + w_collision * sum max(0, d_safe - d(Q_i))^3
+    + w_feasibility * (speed and acceleration excess per axis)^2 + w_end * |Q_last - horizon point|^2
+
+with d and its gradient the map's trilinear ESDF (control points bound the curve: convex hull). The
+result is accepted only if the certified clearance along densely sampled points of the curve is at
+least ``radius``; otherwise the status says why and the caller keeps the previous trajectory.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from .. import _core
+from ..config import ConfigError
+from ..mapping.esdf_map import EsdfMap
+from .bspline import UniformBspline, start_control_points
+from .clearance import ClearanceQuery
+from .path_search import GridPathSearch, GridPathSearchParams
+
+__all__ = ["BsplineLocalPlanner", "LocalPlan", "LocalPlannerParams"]
+
+
+@dataclass(frozen=True)
+class LocalPlannerParams:
+    """Parameters of :class:`BsplineLocalPlanner`. Lengths [m], times [s]."""
+
+    radius: float = 0.3
+    """Clearance every point of an accepted trajectory keeps (certified against the map) [m]."""
+    margin: float = 0.3
+    """The collision cost acts below radius + margin (+ half a voxel diagonal) [m]."""
+    v_max: float = 2.0
+    """Speed limit per axis [m/s]."""
+    a_max: float = 3.0
+    """Acceleration limit per axis [m/s^2]."""
+    dt: float = 0.15
+    """Knot interval of the B-spline [s]."""
+    horizon: float = 7.0
+    """Length of guide path a replan covers [m]."""
+    w_smooth: float = 1.0
+    """Weight of the jerk control points' squares."""
+    w_collision: float = 50.0
+    """Weight of the cubed ESDF penetration below the safe distance."""
+    w_feasibility: float = 1.0
+    """Weight of the squared speed / acceleration excess."""
+    w_end: float = 10.0
+    """Weight pulling the horizon's last control point to the guide path."""
+    max_iterations: int = 200
+    """L-BFGS iterations per replan (C++, GIL released)."""
+
+    def __post_init__(self) -> None:
+        for name in ("radius", "margin", "v_max", "a_max", "dt", "horizon", "w_smooth", "w_collision",
+                     "w_feasibility", "w_end"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"{name} must be a finite number > 0, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if isinstance(self.max_iterations, bool) or not isinstance(self.max_iterations, numbers.Integral) \
+                or self.max_iterations < 1:
+            raise ConfigError(f"max_iterations must be an integer >= 1, got {self.max_iterations!r}")
+
+
+@dataclass(frozen=True)
+class LocalPlan:
+    """One replan's outcome."""
+
+    status: str
+    """"ok", "collision" (the optimised curve is closer than the radius somewhere), "at_goal"."""
+    trajectory: UniformBspline | None
+    """The new trajectory from ``t`` (None unless ok)."""
+    plan_seconds: float
+    """Wall time of the replan [s]."""
+    min_clearance: float
+    """Smallest certified clearance along the curve [m] (inf for at_goal)."""
+    path_length: float
+    """Length of the new trajectory's curve [m] (0 unless ok)."""
+    reaches_goal: bool = False
+    """The trajectory ends at rest at the goal."""
+
+
+class BsplineLocalPlanner:
+    """Replans a B-spline on a (growing) :class:`~cufund.esdf.EsdfMap` from the current state to ``goal_W``."""
+
+    def __init__(self, esdf_map: EsdfMap, params: LocalPlannerParams | None = None) -> None:
+        if not isinstance(esdf_map, EsdfMap):
+            raise TypeError(f"esdf_map must be a cufund.esdf.EsdfMap, got {type(esdf_map).__name__}")
+        self.params = LocalPlannerParams() if params is None else params
+        if not isinstance(self.params, LocalPlannerParams):
+            raise TypeError(f"params must be a LocalPlannerParams, got {type(params).__name__}")
+        self.esdf_map = esdf_map
+        self.query = ClearanceQuery(esdf_map)
+        self._guide = GridPathSearch(GridPathSearchParams(radius=self.params.radius, max_expansions=200_000))
+        self._d_safe = self.params.radius + self.params.margin + 0.5 * math.sqrt(3.0) * esdf_map.params.resolution
+
+    def replan(self, t: float, p_W: npt.ArrayLike, v_W: npt.ArrayLike, a_W: npt.ArrayLike, goal_W: npt.ArrayLike,
+               yaw: float = 0.0) -> LocalPlan:
+        """A trajectory from time ``t`` [s] and state (p, v, a) towards ``goal_W`` (3,) [m]."""
+        t0 = time.perf_counter()
+        par = self.params
+        p, v, a, goal = (np.asarray(x, dtype=float).reshape(3) for x in (p_W, v_W, a_W, goal_W))
+        if np.linalg.norm(goal - p) < 0.05 and np.linalg.norm(v) < 0.05:
+            return LocalPlan("at_goal", None, time.perf_counter() - t0, math.inf, 0.0, True)
+        guide = self._guide.plan(self.query, p, goal)
+        path = guide.path_W if guide.found else np.stack([p, goal])
+        fixed = start_control_points(p, v, a, par.dt)
+        ds = 0.7 * par.v_max * par.dt
+        pts, reaches = _resample(path, ds, par.horizon)
+        n_free = max(1, len(pts) - (0 if not reaches else 1))
+        init = pts[:n_free]
+        end_target = pts[-1]
+        tail = np.repeat(goal[None], 3, axis=0) if reaches else np.zeros((0, 3))
+        x = self._optimise(fixed, init, tail, end_target, reaches)
+        q = np.vstack([fixed, x.reshape(-1, 3), tail])
+        traj = UniformBspline(q, par.dt, t_start=t, yaw=yaw)
+        ts = np.linspace(traj.t_start, traj.t_end, max(2, int(traj.duration / 0.01) + 1))
+        curve = traj.sample(ts).p_W
+        clearance = float(self.query.clearance(curve).min())
+        length = float(np.sum(np.linalg.norm(np.diff(curve, axis=0), axis=1)))
+        dt = time.perf_counter() - t0
+        if clearance < par.radius:
+            return LocalPlan("collision", None, dt, clearance, 0.0, False)
+        return LocalPlan("ok", traj, dt, clearance, length, reaches)
+
+    def _optimise(self, fixed: np.ndarray, init: np.ndarray, tail: np.ndarray, end_target: np.ndarray,
+                  reaches: bool) -> np.ndarray:
+        par = self.params
+        r = _core.planning.optimize_bspline(
+            self.esdf_map._core, fixed, init, tail, end_target, not reaches, par.w_smooth, par.w_collision,
+            par.w_feasibility, par.w_end, self._d_safe, par.v_max, par.a_max, par.dt, int(par.max_iterations))
+        return r["free"]
+
+
+def _resample(path: np.ndarray, ds: float, horizon: float) -> tuple[np.ndarray, bool]:
+    """Points every ``ds`` along the polyline after its start, up to ``horizon``; whether its end was reached
+    (then the last point is the end)."""
+    seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    total = float(cum[-1])
+    reaches = total <= horizon
+    stop = min(total, horizon)
+    s = np.arange(1, max(1, int(math.ceil(stop / ds))) + 1) * (stop / max(1, int(math.ceil(stop / ds))))
+    out = np.stack([np.interp(s, cum, path[:, k]) for k in range(3)], axis=1)
+    return out, reaches
