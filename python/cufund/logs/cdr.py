@@ -13,6 +13,7 @@ The ros2msg text of each layout is what Foxglove Studio and ``mcap-ros2-support`
 from __future__ import annotations
 
 import dataclasses
+import struct
 import types
 import typing
 from dataclasses import dataclass
@@ -24,7 +25,6 @@ import numpy as np
 __all__ = ["CdrField", "CdrLayout", "MessageLayout", "infer_message_layout", "stamp_sec_nsec"]
 
 CDR_LE_HEADER = b"\x00\x01\x00\x00"
-_FIRST, _SECOND = itemgetter(0), itemgetter(1)
 _ROS_TYPES = {"f8": "float64", "f4": "float32", "i8": "int64", "i4": "int32", "i2": "int16", "i1": "int8",
               "u8": "uint64", "u4": "uint32", "u2": "uint16", "u1": "uint8", "b1": "bool"}
 
@@ -133,17 +133,10 @@ class MessageLayout:
         self.layout = CdrLayout(fields)
         self._columns = [itemgetter(i) for i in range(len(columns))]
         self._all = _getter([c.attr for c in columns])
-        self._packer: _Packer | None = None
 
-    def extractor(self, first: Any) -> Any:
-        """``extract(message, log_time_ns, publish_time_ns, sequence)`` for a topic whose first message is
-        ``first``: what a logger keeps of a message until its block is encoded. That is the bytes of its arrays,
-        joined while they are still in the CPU cache, and its numbers — or, for a message that does not fit
-        the topic's layout (another shape, dtype or a None), ``None`` and all its field values, encoded (or
-        rejected with a clear error) with the block. The tuple holds no reference to the message or its arrays,
-        so nothing the garbage collector must follow stays alive."""
-        self._packer = _Packer(self, first)
-        return self._packer.extract
+    def accumulator(self, first: Any) -> FixedAccumulator:
+        """What a logger buffers a topic's messages in, for a topic whose first message is ``first``."""
+        return FixedAccumulator(self, first)
 
     def describe(self) -> list[list[Any]]:
         """The columns as JSON-able lists (kept in the channel metadata; :meth:`from_description` inverts it)."""
@@ -153,24 +146,6 @@ class MessageLayout:
     def from_description(cls, message_cls: type, description: list[list[Any]]) -> MessageLayout:
         return cls(message_cls, [_Column(a, r, code, tuple(shape), bool(opt))
                                  for a, r, code, shape, opt in description])
-
-    def encode(self, extracted: list[tuple[Any, ...]], topic: str) -> np.ndarray:
-        """(n, size) uint8: the CDR bytes of each message, from what :meth:`extract` kept of them."""
-        n = len(extracted)
-        raws = list(map(_FIRST, extracted))
-        slow = raws.count(None)
-        if slow == 0:
-            rows = self._packer.rows(raws, list(map(_SECOND, extracted)))  # type: ignore[union-attr]
-        elif slow == n:
-            rows = self._rows(list(map(_SECOND, extracted)), topic)
-        else:
-            rows = self.layout.empty(n)
-            fast = [i for i, r in enumerate(raws) if r is not None]
-            other = [i for i, r in enumerate(raws) if r is None]
-            rows[fast] = self._packer.rows([raws[i] for i in fast],  # type: ignore[union-attr]
-                                           [extracted[i][1] for i in fast])
-            rows[other] = self._rows([extracted[i][1] for i in other], topic)
-        return rows.view(np.uint8).reshape(n, self.layout.size)
 
     def _rows(self, values_of: list[tuple[Any, ...]], topic: str) -> np.ndarray:
         """The general path: rows from every field value of each message (validates shapes and dtypes)."""
@@ -241,53 +216,90 @@ def _getter(attrs: list[str]) -> Any:
     return attrgetter(*attrs)
 
 
-class _Packer:
-    """The fast path of one topic: the arrays present in its first message, checked by dtype and total size and
-    joined into bytes at write time; numbers kept as a tuple. Anything else takes the general path."""
+_STRUCT_CODES = {"f8": "d", "i8": "q", "b1": "?"}
+
+
+class FixedAccumulator:
+    """A topic's messages between two blocks, kept without keeping the messages.
+
+    A message that matches the topic's first one (the same arrays present, with its dtypes and sizes; None where
+    it had None) goes into one ``bytearray``: its numbers packed with ``struct`` and its arrays' bytes, copied while
+    they are still in the CPU cache. Nothing per message stays alive but three ints, so the simulator's freed arrays
+    are reused at once and the garbage collector has nothing to follow. Any other message keeps all its field
+    values and takes the general (checked, slower) path when the block is encoded."""
 
     def __init__(self, layout: MessageLayout, first: Any):
+        self.layout = layout
         cols = layout.columns
         present = [c for c in cols if c.shape and getattr(first, c.attr) is not None]
         absent = [c for c in cols if c.shape and getattr(first, c.attr) is None]
         self.scalars = [c for c in cols if not c.shape]
-        self.present, self.absent = present, absent
-        self._arrays = _getter([c.attr for c in present])
-        # one getter checks both: the dtypes of the arrays present in the first message, and None where it had None
-        self._checks = _getter([f"{c.attr}.dtype" for c in present] + [c.attr for c in absent])
-        self._expected = tuple(np.dtype(c.code) for c in present) + (None,) * len(absent)
-        self._scalars = _getter([c.attr for c in self.scalars])
-        self._all = layout._all
-        self._layout = layout.layout
-        self.packed = np.dtype([(c.ros_name, f"<{c.code}", (int(np.prod(c.shape)),)) for c in present])
-        self._scalar_columns = [itemgetter(i) for i in range(len(self.scalars))]
-        self.extract = self._make_extract()
+        self.present = present
+        head = struct.Struct("<" + "".join(_STRUCT_CODES[c.code] for c in self.scalars))
+        self.packed = np.dtype([(c.ros_name, f"<{c.code}") for c in self.scalars]
+                               + [(c.ros_name, f"<{c.code}", (int(np.prod(c.shape)),)) for c in present])
+        self.logs: list[int] = []
+        self.publishes: list[int] = []
+        self.sequences: list[int] = []
+        self.slow: list[tuple[int, tuple[Any, ...]]] = []
+        self.buffer = bytearray()
+        self.add = self._make_add(head, _getter([c.attr for c in present]), _getter([c.attr for c in self.scalars]),
+                                  _getter([f"{c.attr}.dtype" for c in present] + [c.attr for c in absent]),
+                                  tuple(np.dtype(c.code) for c in present) + (None,) * len(absent),
+                                  self.packed.itemsize - head.size)
 
-    def _make_extract(self) -> Any:
-        join, arrays, checks, expected = b"".join, self._arrays, self._checks, self._expected
-        scalars, all_fields, nbytes = self._scalars, self._all, self.packed.itemsize
+    def _make_add(self, head: struct.Struct, arrays: Any, scalars: Any, checks: Any, expected: tuple[Any, ...],
+                  nbytes: int) -> Any:
+        join, pack, extend = b"".join, head.pack, self.buffer.extend
+        logs, publishes, sequences = self.logs, self.publishes, self.sequences
+        log_append, publish_append, sequence_append = logs.append, publishes.append, sequences.append
+        slow_append, all_fields = self.slow.append, self.layout._all
 
-        def extract(message: Any, log: int, publish: int, sequence: int) -> tuple[Any, ...]:
+        def add(message: Any, log: int, publish: int, sequence: int) -> int:
+            """Buffers ``message``; returns how many the block holds."""
+            log_append(log)
+            publish_append(publish)
+            sequence_append(sequence)
             try:
                 raw = join(arrays(message))
                 if len(raw) == nbytes and checks(message) == expected:
-                    return raw, scalars(message), log, publish, sequence
-            except (TypeError, BufferError, AttributeError, ValueError):
-                pass  # None, a list, a non-contiguous array, an array where None was: the general path
-            return None, all_fields(message), log, publish, sequence
+                    extend(pack(*scalars(message)))  # packs (or fails) before anything is appended
+                    extend(raw)
+                    return len(logs)
+            except (TypeError, BufferError, AttributeError, ValueError, struct.error):
+                pass  # None, a list, a non-contiguous array, an array where None was, a non-number
+            slow_append((len(logs) - 1, all_fields(message)))
+            return len(logs)
 
-        return extract
+        return add
 
-    def rows(self, raws: list[bytes], scalars: list[tuple[Any, ...]]) -> np.ndarray:
-        n = len(raws)
-        rows = self._layout.empty(n)
-        packed = np.frombuffer(b"".join(raws), self.packed) if self.present else None
+    def drain(self, topic: str) -> tuple[np.ndarray, list[int], list[int], list[int]]:
+        """The block's (n, size) CDR rows and its times and sequences; empties the accumulator."""
+        n = len(self.logs)
+        times = (self.logs[:], self.publishes[:], self.sequences[:])
+        layout = self.layout
+        rows = layout.layout.empty(n)
+        fast = np.frombuffer(bytes(self.buffer), self.packed)
+        if self.slow:
+            other = [i for i, _ in self.slow]
+            keep = np.ones(n, bool)
+            keep[other] = False
+            target = rows[keep]
+            self._fill(target, fast)
+            rows[keep] = target
+            rows[other] = layout._rows([values for _, values in self.slow], topic)
+        else:
+            self._fill(rows, fast)
+        del self.logs[:], self.publishes[:], self.sequences[:], self.slow[:], self.buffer[:]
+        return rows.view(np.uint8).reshape(n, layout.layout.size), *times
+
+    def _fill(self, rows: np.ndarray, fast: np.ndarray) -> None:
+        for c in self.scalars:
+            rows[c.ros_name] = fast[c.ros_name]
         for c in self.present:
-            rows[c.ros_name] = packed[c.ros_name]  # type: ignore[index]
+            rows[c.ros_name] = fast[c.ros_name]
             if c.optional:
                 rows[f"has_{c.ros_name}"] = True
-        for c, get in zip(self.scalars, self._scalar_columns):
-            rows[c.ros_name] = np.array(list(map(get, scalars)), dtype=c.code)
-        return rows
 
 
 def _unwrap_optional(hint: Any) -> tuple[Any, bool]:

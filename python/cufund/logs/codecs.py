@@ -67,22 +67,34 @@ class Codec:
     def metadata(self) -> dict[str, str]:
         return {"cufund.codec": self.name, "cufund.class": class_path(self.cls)}
 
-    def extractor(self, first: Any) -> Any:
-        """``extract(message, log_time_ns, publish_time_ns, sequence) -> tuple`` for a topic whose first message
-        is ``first``: what a logger keeps of each message until its block is encoded. Item 1 is what
-        :meth:`encode` takes; items -3, -2, -1 are the two times and the sequence. Here: the message itself."""
-        return _keep_message
+    def accumulator(self, first: Any) -> Any:
+        """What a logger buffers a topic's messages in (``add(message, log_ns, publish_ns, sequence) -> count``,
+        ``drain(topic) -> (payload, log times, publish times, sequences)``); here the messages themselves."""
+        return MessageAccumulator(self)
 
-    def encode(self, extracted: list[Any], topic: str) -> np.ndarray | list[bytes]:
-        """The encoded messages of a block, from what :meth:`extractor` kept of each."""
+    def encode(self, messages: list[Any], topic: str) -> np.ndarray | list[bytes]:
+        """The encoded messages of a block."""
         raise NotImplementedError
 
     def decode(self, data: bytes | memoryview) -> Any:
         raise NotImplementedError
 
 
-def _keep_message(message: Any, log: int, publish: int, sequence: int) -> tuple[Any, ...]:
-    return None, message, log, publish, sequence
+class MessageAccumulator:
+    """Keeps the messages of a block (for codecs that encode one message at a time: low-rate topics)."""
+
+    def __init__(self, codec: Codec):
+        self.codec = codec
+        self.items: list[tuple[Any, int, int, int]] = []
+
+    def add(self, message: Any, log: int, publish: int, sequence: int) -> int:
+        self.items.append((message, log, publish, sequence))
+        return len(self.items)
+
+    def drain(self, topic: str) -> tuple[list[bytes], list[int], list[int], list[int]]:
+        items, self.items = self.items, []
+        return (self.codec.encode([i[0] for i in items], topic),  # type: ignore[return-value]
+                [i[1] for i in items], [i[2] for i in items], [i[3] for i in items])
 
 
 class CdrCodec(Codec):
@@ -98,14 +110,15 @@ class CdrCodec(Codec):
         self.fixed_size = layout.layout.size
         self.views = views
 
-    def extractor(self, first: Any) -> Any:
-        return self.layout.extractor(first)
+    def accumulator(self, first: Any) -> Any:
+        return self.layout.accumulator(first)
 
     def metadata(self) -> dict[str, str]:
         return {**super().metadata(), "cufund.layout": json.dumps(self.layout.describe())}
 
-    def encode(self, extracted: list[Any], topic: str) -> np.ndarray:
-        return self.layout.encode(extracted, topic)
+    def encode(self, messages: list[Any], topic: str) -> np.ndarray:
+        return self.layout._rows([self.layout._all(m) for m in messages], topic).view(np.uint8).reshape(
+            len(messages), self.fixed_size)
 
     def decode(self, data: bytes | memoryview) -> Any:
         return self.layout.decode(data)
@@ -156,8 +169,8 @@ class JsonCodec(Codec):
         self.schema_name = f"cufund.{cls.__name__}"
         self.schema_data = json.dumps(_json_schema(cls)).encode()
 
-    def encode(self, extracted: list[Any], topic: str) -> list[bytes]:
-        return [_dumps(encode_fields(e[1], f"topic {topic!r}: {self.cls.__name__}")) for e in extracted]
+    def encode(self, messages: list[Any], topic: str) -> list[bytes]:
+        return [_dumps(encode_fields(m, f"topic {topic!r}: {self.cls.__name__}")) for m in messages]
 
     def decode(self, data: bytes | memoryview) -> Any:
         return self.cls(**decode_fields(json.loads(bytes(data))))
@@ -221,8 +234,8 @@ class PointCloudCodec(_FoxgloveJsonCodec):
         self.bulk = (xyz, *(attr for attr, _ in per_point))
         super().__init__(cls, schemas.POINT_CLOUD_SCHEMA, frame_id)
 
-    def encode(self, extracted: list[Any], topic: str) -> list[bytes]:
-        return [self._encode_one(e[1], topic) for e in extracted]
+    def encode(self, messages: list[Any], topic: str) -> list[bytes]:
+        return [self._encode_one(m, topic) for m in messages]
 
     def _encode_one(self, message: Any, topic: str) -> bytes:
         xyz = np.asarray(getattr(message, self.xyz))
@@ -298,9 +311,9 @@ class RawImageCodec(_FoxgloveJsonCodec):
 
     bulk = ("image",)
 
-    def encode(self, extracted: list[Any], topic: str) -> list[bytes]:
+    def encode(self, messages: list[Any], topic: str) -> list[bytes]:
         out = []
-        for m in (e[1] for e in extracted):
+        for m in messages:
             image = np.ascontiguousarray(m.image)
             if image.ndim not in (2, 3):
                 raise ValueError(f"topic {topic!r}: an image must be (H, W) or (H, W, C), got {image.shape}")
@@ -321,9 +334,9 @@ class RawImageCodec(_FoxgloveJsonCodec):
 class LocationFixCodec(_FoxgloveJsonCodec):
     """``foxglove.LocationFix`` with the receiver's claimed accuracy as a diagonal covariance."""
 
-    def encode(self, extracted: list[Any], topic: str) -> list[bytes]:
+    def encode(self, messages: list[Any], topic: str) -> list[bytes]:
         out = []
-        for m in (e[1] for e in extracted):
+        for m in messages:
             position = [m.latitude_deg, m.longitude_deg, m.altitude_m]
             known = all(np.isfinite([*position, m.eph, m.epv]))
             var = [m.eph**2, m.eph**2, m.epv**2] if known else [0.0, 0.0, 0.0]

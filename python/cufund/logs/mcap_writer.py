@@ -17,7 +17,6 @@ import itertools
 import os
 import struct
 import zlib
-from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
@@ -35,16 +34,15 @@ __all__ = ["MAGIC", "McapLogger"]
 MAGIC = b"\x89MCAP0\r\n"
 _MESSAGE_HEADER = 2 + 4 + 8 + 8  # channel id, sequence, log time, publish time
 _COMPRESSIONS = ("zstd", "lz4", "")
-_LOG, _PUBLISH, _SEQUENCE = itemgetter(-3), itemgetter(-2), itemgetter(-1)
 
 
 class _TopicBuffer:
-    __slots__ = ("topic", "codec", "cls", "extract", "channels", "limit", "rows")
+    __slots__ = ("topic", "codec", "cls", "accumulator", "add", "channels", "limit", "count")
 
-    def __init__(self, topic: str, codec: Codec, extract: Any, channels: list[int], limit: int):
-        self.topic, self.codec, self.extract, self.channels, self.limit = topic, codec, extract, channels, limit
-        self.cls = codec.cls
-        self.rows: list[tuple[Any, ...]] = []
+    def __init__(self, topic: str, codec: Codec, accumulator: Any, channels: list[int], limit: int):
+        self.topic, self.codec, self.channels, self.limit = topic, codec, channels, limit
+        self.cls, self.accumulator, self.add = codec.cls, accumulator, accumulator.add
+        self.count = 0
 
 
 class McapLogger:
@@ -103,9 +101,8 @@ class McapLogger:
         if message.__class__ is not buffer.cls:
             raise TypeError(f"topic {buffer.topic!r} is logged as {buffer.cls.__name__} (its first message), "
                             f"got a {type(message).__name__}")
-        rows = buffer.rows
-        rows.append(buffer.extract(message, log_time_ns, publish_time_ns, next(self._sequence)))
-        if len(rows) >= buffer.limit:
+        count = buffer.count = buffer.add(message, log_time_ns, publish_time_ns, next(self._sequence))
+        if count >= buffer.limit:
             self._flush(buffer)
 
     # -- topics and chunks --------------------------------------------------------------------------------------
@@ -121,13 +118,12 @@ class McapLogger:
             channels.append(self._channel(f"{topic}{view.suffix}", view.schema_name, view.schema_encoding,
                                           view.schema_text.encode(), view.message_encoding,
                                           {"cufund.view_of": str(topic)}))
-        extract = codec.extractor(message)
         if codec.fixed_size:
             size = codec.fixed_size * (1 + len(codec.views))
         else:
-            size = sum(len(b) for b in codec.encode([extract(message, 0, 0, 0)], topic))
+            size = sum(len(b) for b in codec.encode([message], topic))
         limit = max(1, min(self._block, self._chunk_bytes // max(size, 1)))
-        buffer = self._topics[topic] = _TopicBuffer(str(topic), codec, extract, channels, limit)
+        buffer = self._topics[topic] = _TopicBuffer(str(topic), codec, codec.accumulator(message), channels, limit)
         return buffer
 
     def _channel(self, topic: str, schema_name: str, schema_encoding: str, schema_data: bytes,
@@ -147,15 +143,14 @@ class McapLogger:
         return channel.id
 
     def _flush(self, buffer: _TopicBuffer) -> None:
-        rows = buffer.rows
-        if not rows:
+        if not buffer.count:
             return
-        buffer.rows = []
+        buffer.count = 0
         codec, topic = buffer.codec, buffer.topic
-        log = _times(list(map(_LOG, rows)), "log_time_ns", topic)
-        publish = _times(list(map(_PUBLISH, rows)), "publish_time_ns", topic)
-        sequence = (np.array(list(map(_SEQUENCE, rows)), dtype=np.int64) & 0xFFFFFFFF).astype(np.uint32)
-        payload = codec.encode(rows, topic)
+        payload, log_times, publish_times, sequences = buffer.accumulator.drain(topic)
+        log = _times(log_times, "log_time_ns", topic)
+        publish = _times(publish_times, "publish_time_ns", topic)
+        sequence = (np.array(sequences, dtype=np.int64) & 0xFFFFFFFF).astype(np.uint32)
         groups = [(buffer.channels[0], payload)]
         if codec.views:
             groups += list(zip(buffer.channels[1:], view_rows(codec, payload)))
