@@ -72,6 +72,14 @@ std::vector<double> voxel_downsample(const double* points, std::size_t n, double
   return out;
 }
 
+namespace {
+constexpr std::int64_t kEmpty = std::numeric_limits<std::int64_t>::min();
+
+std::size_t hash_slot(std::int64_t key, std::size_t mask) {
+  return static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ull) >> 20) & mask;
+}
+}  // namespace
+
 VoxelMap::VoxelMap(double voxel_size, int max_points_per_voxel, double min_point_distance, double max_distance,
                    std::size_t max_voxels)
     : voxel_(voxel_size),
@@ -79,21 +87,71 @@ VoxelMap::VoxelMap(double voxel_size, int max_points_per_voxel, double min_point
       min_d2_(min_point_distance * min_point_distance),
       max_distance_(max_distance),
       max_per_voxel_(max_points_per_voxel),
-      max_voxels_(max_voxels) {}
+      max_voxels_(max_voxels) {
+  rebuild_table(1024);
+}
+
+void VoxelMap::clear() {
+  keys_.clear();
+  counts_.clear();
+  centres_.clear();
+  slots_.clear();
+  points_ = 0;
+  rebuild_table(1024);
+}
+
+std::int32_t VoxelMap::find(std::int64_t key) const {
+  for (std::size_t s = hash_slot(key, table_mask_);; s = (s + 1) & table_mask_) {
+    if (table_keys_[s] == key) return table_index_[s];
+    if (table_keys_[s] == kEmpty) return -1;
+  }
+}
+
+void VoxelMap::table_insert(std::int64_t key, std::int32_t index) {
+  std::size_t s = hash_slot(key, table_mask_);
+  while (table_keys_[s] != kEmpty) s = (s + 1) & table_mask_;
+  table_keys_[s] = key;
+  table_index_[s] = index;
+}
+
+void VoxelMap::rebuild_table(std::size_t capacity) {
+  std::size_t cap = 1024;
+  while (cap < capacity) cap *= 2;
+  table_keys_.assign(cap, kEmpty);
+  table_index_.assign(cap, -1);
+  table_mask_ = cap - 1;
+  for (std::size_t i = 0; i < keys_.size(); ++i) table_insert(keys_[i], static_cast<std::int32_t>(i));
+}
 
 std::size_t VoxelMap::insert(const double* points_W, std::size_t n, const Eigen::Vector3d& origin) {
   std::size_t kept = 0;
   Eigen::Matrix<std::int64_t, 3, 1> idx;
+  const auto per = static_cast<std::size_t>(max_per_voxel_);
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d p(points_W[3 * i], points_W[3 * i + 1], points_W[3 * i + 2]);
     if (!voxel_index(p, inv_voxel_, idx)) continue;
-    Voxel& v = voxels_[pack(idx[0], idx[1], idx[2])];
-    if (v.points.empty()) v.centre = (idx.cast<double>().array() + 0.5).matrix() * voxel_;
-    if (static_cast<int>(v.points.size()) >= max_per_voxel_) continue;
+    const std::int64_t key = pack(idx[0], idx[1], idx[2]);
+    std::int32_t v = find(key);
+    if (v < 0) {
+      v = static_cast<std::int32_t>(keys_.size());
+      keys_.push_back(key);
+      counts_.push_back(0);
+      centres_.push_back((idx.cast<double>().array() + 0.5).matrix() * voxel_);
+      slots_.resize(slots_.size() + 3 * per);
+      if (2 * keys_.size() > table_keys_.size()) {
+        rebuild_table(4 * keys_.size());
+      } else {
+        table_insert(key, v);
+      }
+    }
+    int& count = counts_[static_cast<std::size_t>(v)];
+    if (count >= max_per_voxel_) continue;
+    const double* base = slots_.data() + static_cast<std::size_t>(v) * 3 * per;
     bool near = false;
-    for (const auto& x : v.points) near = near || (x - p).squaredNorm() < min_d2_;
+    for (int j = 0; j < count && !near; ++j) near = (Eigen::Map<const Eigen::Vector3d>(base + 3 * j) - p).squaredNorm() < min_d2_;
     if (near) continue;
-    v.points.push_back(p);
+    Eigen::Map<Eigen::Vector3d>(slots_.data() + static_cast<std::size_t>(v) * 3 * per + 3 * static_cast<std::size_t>(count)) = p;
+    ++count;
     ++points_;
     ++kept;
   }
@@ -102,34 +160,60 @@ std::size_t VoxelMap::insert(const double* points_W, std::size_t n, const Eigen:
 }
 
 void VoxelMap::evict(const Eigen::Vector3d& origin) {
+  const std::size_t n = keys_.size();
+  std::vector<std::uint8_t> keep(n, 1);
   const double r2 = max_distance_ * max_distance_;
-  for (auto it = voxels_.begin(); it != voxels_.end();) {
-    if ((it->second.centre - origin).squaredNorm() > r2) {
-      points_ -= it->second.points.size();
-      it = voxels_.erase(it);
-    } else {
-      ++it;
+  std::size_t alive = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    keep[i] = (centres_[i] - origin).squaredNorm() <= r2;
+    alive += keep[i];
+  }
+  if (alive > max_voxels_) {
+    std::vector<std::pair<double, std::size_t>> far;
+    far.reserve(alive);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (keep[i]) far.emplace_back((centres_[i] - origin).squaredNorm(), i);
     }
+    const std::size_t drop = alive - max_voxels_;
+    std::nth_element(far.begin(), far.begin() + static_cast<std::ptrdiff_t>(drop), far.end(),
+                     [&](const auto& a, const auto& b) {
+                       return a.first > b.first || (a.first == b.first && keys_[a.second] > keys_[b.second]);
+                     });
+    for (std::size_t i = 0; i < drop; ++i) keep[far[i].second] = 0;
+    alive = max_voxels_;
   }
-  if (voxels_.size() <= max_voxels_) return;
-  std::vector<std::pair<double, std::int64_t>> far;
-  far.reserve(voxels_.size());
-  for (const auto& [key, v] : voxels_) far.emplace_back((v.centre - origin).squaredNorm(), key);
-  const std::size_t drop = voxels_.size() - max_voxels_;
-  std::nth_element(far.begin(), far.begin() + static_cast<std::ptrdiff_t>(drop), far.end(),
-                   [](const auto& a, const auto& b) { return a.first > b.first || (a.first == b.first && a.second > b.second); });
-  for (std::size_t i = 0; i < drop; ++i) {
-    auto it = voxels_.find(far[i].second);
-    points_ -= it->second.points.size();
-    voxels_.erase(it);
+  if (alive == n) return;
+  // Compact in place, keeping the insertion order.
+  const auto per3 = 3 * static_cast<std::size_t>(max_per_voxel_);
+  std::size_t w = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!keep[i]) {
+      points_ -= static_cast<std::size_t>(counts_[i]);
+      continue;
+    }
+    if (w != i) {
+      keys_[w] = keys_[i];
+      counts_[w] = counts_[i];
+      centres_[w] = centres_[i];
+      std::copy(slots_.begin() + static_cast<std::ptrdiff_t>(i * per3), slots_.begin() + static_cast<std::ptrdiff_t>((i + 1) * per3),
+                slots_.begin() + static_cast<std::ptrdiff_t>(w * per3));
+    }
+    ++w;
   }
+  keys_.resize(w);
+  counts_.resize(w);
+  centres_.resize(w);
+  slots_.resize(w * per3);
+  rebuild_table(2 * w);
 }
 
 std::vector<double> VoxelMap::points() const {
   std::vector<double> out;
   out.reserve(3 * points_);
-  for (const auto& [key, v] : voxels_) {
-    for (const auto& p : v.points) out.insert(out.end(), {p.x(), p.y(), p.z()});
+  const auto per3 = 3 * static_cast<std::size_t>(max_per_voxel_);
+  for (std::size_t i = 0; i < keys_.size(); ++i) {
+    out.insert(out.end(), slots_.begin() + static_cast<std::ptrdiff_t>(i * per3),
+               slots_.begin() + static_cast<std::ptrdiff_t>(i * per3 + 3 * static_cast<std::size_t>(counts_[i])));
   }
   return out;
 }
@@ -153,9 +237,12 @@ int VoxelMap::nearest(const Eigen::Vector3d& query, int k, double max_d2, Eigen:
     const double gz = dz < 0 ? lo[2] : (dz > 0 ? hi[2] : 0.0);
     const double bound = found == k ? d2[k - 1] : max_d2;
     if (gx * gx + gy * gy + gz * gz > bound) continue;
-    const auto it = voxels_.find(pack(idx[0] + dx, idx[1] + dy, idx[2] + dz));
-    if (it == voxels_.end()) continue;
-    for (const auto& p : it->second.points) {
+    const std::int32_t v = find(pack(idx[0] + dx, idx[1] + dy, idx[2] + dz));
+    if (v < 0) continue;
+    const double* base = slots_.data() + static_cast<std::size_t>(v) * 3 * static_cast<std::size_t>(max_per_voxel_);
+    const int count = counts_[static_cast<std::size_t>(v)];
+    for (int m2 = 0; m2 < count; ++m2) {
+      const Eigen::Vector3d p = Eigen::Map<const Eigen::Vector3d>(base + 3 * m2);
       const double d = (p - query).squaredNorm();
       if (d > max_d2 || (found == k && d >= d2[k - 1])) continue;
       // Insertion into the sorted list.

@@ -9,7 +9,6 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 namespace cufund::odometry {
@@ -56,10 +55,10 @@ class VoxelMap {
   // Adds world points (n, 3), then evicts around `origin`. Returns the number of points kept.
   std::size_t insert(const double* points_W, std::size_t n, const Eigen::Vector3d& origin);
   void evict(const Eigen::Vector3d& origin);
-  void clear() { voxels_.clear(); points_ = 0; }
+  void clear();
 
   std::size_t size() const { return points_; }
-  std::size_t voxel_count() const { return voxels_.size(); }
+  std::size_t voxel_count() const { return keys_.size(); }
   double voxel_size() const { return voxel_; }
   std::vector<double> points() const;  // every stored point, (size(), 3)
 
@@ -79,18 +78,26 @@ class VoxelMap {
                             const Eigen::Vector3d& t_W, const PlaneParams& params, int threads) const;
 
  private:
-  struct Voxel {
-    std::vector<Eigen::Vector3d> points;
-    Eigen::Vector3d centre;
-  };
   // Up to k nearest (ascending); returns how many were found.
   int nearest(const Eigen::Vector3d& query, int k, double max_d2, Eigen::Vector3d* out, double* d2) const;
+  // Dense index of the voxel with `key`, or -1.
+  std::int32_t find(std::int64_t key) const;
+  void table_insert(std::int64_t key, std::int32_t index);
+  void rebuild_table(std::size_t capacity);
 
   double voxel_, inv_voxel_, min_d2_, max_distance_;
   int max_per_voxel_;
   std::size_t max_voxels_;
   std::size_t points_ = 0;
-  std::unordered_map<std::int64_t, Voxel> voxels_;
+  // Voxels in insertion order: key, point count, centre, and max_per_voxel_ point slots each.
+  std::vector<std::int64_t> keys_;
+  std::vector<int> counts_;
+  std::vector<Eigen::Vector3d> centres_;
+  std::vector<double> slots_;
+  // Open-addressing hash (linear probing) from key to dense index; capacity a power of two.
+  std::vector<std::int64_t> table_keys_;
+  std::vector<std::int32_t> table_index_;
+  std::size_t table_mask_ = 0;
 };
 
 }  // namespace cufund::odometry

@@ -43,7 +43,7 @@ class LioParams:
     """Largest allowed |accel - mean| during initialisation [m/s^2]."""
     min_range: float = 0.3
     """Returns closer than this are dropped (the airframe) [m]."""
-    scan_voxel: float = 0.2
+    scan_voxel: float = 0.3
     """Downsampling of the deskewed scan for registration [m]."""
     map_insert_voxel: float = 0.05
     """Downsampling of the deskewed scan added to the map [m]."""
@@ -70,8 +70,11 @@ class LioParams:
     range_sigma: float = 0.02
     """Point-to-plane residual standard deviation [m] (about the LiDAR's range noise)."""
     max_iterations: int = 10
+    """Gauss-Newton steps per set of correspondences."""
+    max_refits: int = 3
+    """Times the registration may re-find its correspondences."""
     convergence: float = 1e-4
-    """Registration stops when the step is below this [rad, m]."""
+    """Gauss-Newton stops when the step is below this [rad, m]."""
     degeneracy_threshold: float = 0.02
     """A direction of the registration Hessian is weakly observable when its eigenvalue, divided by the inlier
     count / range_sigma^2, is below this; it is left to the IMU."""
@@ -109,7 +112,7 @@ class LioParams:
         if self.robust not in ("none", "huber", "cauchy"):
             raise ConfigError(f"LioParams.robust must be 'none', 'huber' or 'cauchy', got {self.robust!r}")
         for name, lo in (("map_points_per_voxel", 1), ("map_max_voxels", 1), ("neighbours", 3),
-                         ("max_iterations", 1), ("smoother_iterations", 1), ("nthreads", 0)):
+                         ("max_iterations", 1), ("max_refits", 0), ("smoother_iterations", 1), ("nthreads", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
                 raise ConfigError(f"LioParams.{name} must be an integer >= {lo}, got {v!r}")

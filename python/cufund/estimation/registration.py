@@ -77,38 +77,36 @@ class Registration:
 
 
 def register(model: PlaneModel, points_I: np.ndarray, R0: np.ndarray, p0: np.ndarray) -> Registration:
-    """Gauss-Newton from (R0, p0): correspondences are found, then kept while the steps shrink; they are re-found
-    (and the iteration goes on) unless the pose converged within ``refit_distance`` of where they were found."""
+    """Gauss-Newton from (R0, p0): with the correspondences fixed the steps are iterated to ``convergence``;
+    correspondences are then re-found (at most ``max_refits`` times) unless the pose ended within
+    ``refit_distance`` of where they were found."""
     prm = model.params
     R, p = R0.copy(), p0.copy()
     converged = False
     it = 0
-    planes = fit_planes(model, points_I, R, p)
-    R_fit, p_fit = R, p
-    fresh = True
-    while it < prm.max_iterations:
-        it += 1
-        terms = plane_terms(model, points_I, R, p, planes)
-        if terms["inliers"] < 6:
-            break
-        evals, evecs, obs = observable_split(terms["H"], terms["inliers"], prm)
-        V = evecs[:, obs]
-        step = -V @ ((V.T @ terms["b"]) / evals[obs])
-        p = p + R @ step[3:]
-        R = R @ so3_exp(step[:3])
+    fits = 0
+    while True:
+        planes = fit_planes(model, points_I, R, p)
+        fits += 1
+        R_fit, p_fit = R, p
+        for _ in range(prm.max_iterations):
+            it += 1
+            terms = plane_terms(model, points_I, R, p, planes)
+            if terms["inliers"] < 6:
+                break
+            evals, evecs, obs = observable_split(terms["H"], terms["inliers"], prm)
+            V = evecs[:, obs]
+            step = -V @ ((V.T @ terms["b"]) / evals[obs])
+            p = p + R @ step[3:]
+            R = R @ so3_exp(step[:3])
+            if np.linalg.norm(step) < prm.convergence:
+                break
         moved = max(np.linalg.norm(p - p_fit), np.linalg.norm(R - R_fit) * prm.map_voxel)
-        small = np.linalg.norm(step) < prm.convergence
-        if small and (fresh or moved < prm.refit_distance):
+        if moved < prm.refit_distance:
             converged = True
             break
-        if small or it % 3 == 0:
-            planes = fit_planes(model, points_I, R, p)
-            R_fit, p_fit = R, p
-            fresh = True
-        else:
-            fresh = False
-    if not fresh and not converged:
-        planes = fit_planes(model, points_I, R, p)
+        if fits > prm.max_refits:
+            break
     terms = plane_terms(model, points_I, R, p, planes)
     evals, evecs, obs = observable_split(terms["H"], terms["inliers"], prm)
     deg = evecs[:, ~obs].T.copy()
