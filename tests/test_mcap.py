@@ -174,6 +174,37 @@ def test_official_reader_sees_a_valid_indexed_file(log_file):
     assert max(i.message_end_time for i in summary.chunk_indexes) == times[-1] == statistics.message_end_time
 
 
+def test_message_indexes_point_at_their_messages(log_file):
+    """Read record by record (the streaming reader, CRCs checked): every Message Index entry is the log time and
+    offset of a Message record of its channel in the decompressed chunk before it."""
+    import struct
+
+    import zstandard
+    from mcap.records import Chunk, DataEnd, Footer, Header, MessageIndex
+    from mcap.stream_reader import StreamReader
+
+    path, written = log_file
+    with open(path, "rb") as f:
+        records = list(StreamReader(f, emit_chunks=True, validate_crcs=True).records)
+    assert isinstance(records[0], Header) and isinstance(records[-1], Footer)
+    assert any(isinstance(r, DataEnd) for r in records)
+    checked = 0
+    chunk_data = b""
+    for record in records:
+        if isinstance(record, Chunk):
+            assert record.compression == "zstd"
+            chunk_data = zstandard.ZstdDecompressor().decompress(record.data, record.uncompressed_size)
+            assert len(chunk_data) == record.uncompressed_size
+        elif isinstance(record, MessageIndex):
+            times = [t for t, _ in record.records]
+            assert times == sorted(times)
+            for log_time, offset in record.records:
+                opcode, _, channel, _, stamp = struct.unpack_from("<BQHIQ", chunk_data, offset)
+                assert (opcode, channel, stamp) == (0x05, record.channel_id, log_time)
+                checked += 1
+    assert checked == sum(1 for _ in read_mcap(path)) + 2 * sum(t.endswith("/odometry") for t, *_ in written)
+
+
 def _schemas(path):
     with open(path, "rb") as f:
         summary = make_reader(f).get_summary()
