@@ -65,6 +65,8 @@ def replay_log(path: str | Path, vis: Any, params: QuadrotorParams, *, speed: fl
     g = meshcat.geometry
     vis.delete()
     draw_vehicle(vis, params)
+    # the camera of replay.html: 2.6 m south-east of the origin and 2.6 m up (MeshCat's y-up camera frame)
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [2.0, 2.6, 2.6])
     if ESTIMATE in topics:
         d = params.arm_length
         vis[ESTIMATE_VEHICLE].set_object(g.Box([2 * d, 2 * d, 0.3 * d]),
