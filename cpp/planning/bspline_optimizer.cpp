@@ -183,7 +183,7 @@ BsplineResult optimize_bspline(const esdf::EsdfMap& map, const BsplineProblem& p
     x.swap(xn);
     g.swap(gn);
     f = fn;
-    if (df <= 1e-12 * std::max(1.0, std::fabs(f))) break;
+    if (df <= opt.relative_decrease * std::max(1.0, std::fabs(f))) break;
   }
   res.free = unflatten(x);
   res.cost = f;

@@ -31,6 +31,7 @@ struct LbfgsOptions {
   int max_iterations = 200;
   int memory = 8;
   double gradient_tolerance = 1e-6;  // stop when |g|_inf <= this * max(1, |f|)
+  double relative_decrease = 1e-6;   // or when an iteration lowers f by less than this * max(1, |f|)
 };
 
 struct BsplineResult {

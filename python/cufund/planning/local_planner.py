@@ -57,7 +57,7 @@ class LocalPlannerParams:
     """Weight of the squared speed / acceleration excess."""
     w_end: float = 10.0
     """Weight pulling the horizon's last control point to the guide path."""
-    max_iterations: int = 200
+    max_iterations: int = 100
     """L-BFGS iterations per replan (C++, GIL released)."""
 
     def __post_init__(self) -> None:
@@ -102,6 +102,7 @@ class BsplineLocalPlanner:
         self.esdf_map = esdf_map
         self.query = ClearanceQuery(esdf_map)
         self._guide = GridPathSearch(GridPathSearchParams(radius=self.params.radius, max_expansions=200_000))
+        self._cache: tuple[np.ndarray, np.ndarray] | None = None  # (goal, guide path) of the last A*
         self._d_safe = self.params.radius + self.params.margin + 0.5 * math.sqrt(3.0) * esdf_map.params.resolution
 
     def replan(self, t: float, p_W: npt.ArrayLike, v_W: npt.ArrayLike, a_W: npt.ArrayLike, goal_W: npt.ArrayLike,
@@ -112,8 +113,7 @@ class BsplineLocalPlanner:
         p, v, a, goal = (np.asarray(x, dtype=float).reshape(3) for x in (p_W, v_W, a_W, goal_W))
         if np.linalg.norm(goal - p) < 0.05 and np.linalg.norm(v) < 0.05:
             return LocalPlan("at_goal", None, time.perf_counter() - t0, math.inf, 0.0, True)
-        guide = self._guide.plan(self.query, p, goal)
-        path = guide.path_W if guide.found else np.stack([p, goal])
+        path = self._guide_path(p, goal)
         fixed = start_control_points(p, v, a, par.dt)
         ds = 0.7 * par.v_max * par.dt
         pts, reaches = _resample(path, ds, par.horizon)
@@ -132,6 +132,28 @@ class BsplineLocalPlanner:
         if clearance < par.radius:
             return LocalPlan("collision", None, dt, clearance, 0.0, False)
         return LocalPlan("ok", traj, dt, clearance, length, reaches)
+
+    def _guide_path(self, p: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """The last guide path from the point nearest ``p`` on, while its next ``horizon`` metres stay
+        certified free on the current map; otherwise a new grid A* (a straight line if that fails)."""
+        par = self.params
+        if self._cache is not None and np.array_equal(self._cache[0], goal):
+            g = self._cache[1]
+            a, b = g[:-1], g[1:]
+            ab = b - a
+            u = np.clip(np.einsum("kd,kd->k", p - a, ab) / np.maximum(np.einsum("kd,kd->k", ab, ab), 1e-12), 0, 1)
+            k = int(np.argmin(np.linalg.norm(a + u[:, None] * ab - p, axis=1)))
+            cand = np.vstack([p, g[k + 1:]])
+            within = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(cand, axis=0), axis=1))])
+            n = int(np.searchsorted(within, par.horizon)) + 1
+            if self.query.path_free(cand[: n + 1], par.radius).all():
+                return cand
+        guide = self._guide.plan(self.query, p, goal)
+        if not guide.found:
+            self._cache = None
+            return np.stack([p, goal])
+        self._cache = (goal.copy(), guide.path_W)
+        return guide.path_W
 
     def _optimise(self, fixed: np.ndarray, init: np.ndarray, tail: np.ndarray, end_target: np.ndarray,
                   reaches: bool) -> np.ndarray:

@@ -1,0 +1,164 @@
+"""Global planning benchmark (issue 13): seeded forests and tunnel courses.
+
+For each layout: the deterministic grid A* (the default global planner) and OMPL's RRTConnect (first
+solution, simplified) against an InformedRRT* reference given `--ref-time` seconds. Prints the success
+rate (goal reached and, checked independently with Open3D's distance to the world's triangles, never
+closer than the radius), path length over the reference's, and planning time median / p99.
+Targets (2 cores): success >= 99 % in forests, 100 % in tunnels; length <= 1.05 x reference; global
+plan <= 20 ms median. `--local N`: the B-spline local replanner flies N forests by receding horizon at
+10 Hz (perfect tracking, the map known in advance: not yet the growing map of a LiDAR), reporting its
+success and per-replan time (targets: <= 5 ms median, <= 20 ms p99).
+
+Run: `.venv/bin/python benchmarks/bench_planning.py [--forests 200] [--tunnels 200] [--ref-time 5]`
+(the issue's figures; about 35 min). `--forests 20 --tunnels 20 --ref-time 1` takes about 1 min.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import open3d as o3d
+
+from cufund.planning import (BsplineLocalPlanner, GridPathSearch, GridPathSearchParams, LocalPlannerParams,
+                             OmplPathParams, OmplPathPlanner, clearance_from_world, esdf_from_world)
+from cufund.worlds import tunnel_course_layout
+from cufund.worlds.builtin import forest
+
+RADIUS_FOREST = 0.3
+RES_FOREST = 0.1
+
+
+def truth_distance(world):
+    scene = o3d.t.geometry.RaycastingScene()
+    for o in world.objects:
+        scene.add_triangles(o.vertices.astype(np.float32), o.triangles.astype(np.uint32))
+    return lambda p: scene.compute_distance(np.asarray(p, np.float32).reshape(-1, 3)).numpy()
+
+
+def dense(path, step=0.01):
+    return np.vstack([a + np.linspace(0, 1, max(2, int(np.linalg.norm(b - a) / step) + 1))[:, None] * (b - a)
+                      for a, b in zip(path[:-1], path[1:])])
+
+
+def safe(result, truth, radius):
+    return result.found and float(truth(dense(result.path_W)).min()) >= radius - 1e-5
+
+
+def forest_case(seed):
+    """A 40 m forest at 0.15 trees/m^2; start and goal 30 m apart at 1.5 m height, nudged off trunks."""
+    world = forest(seed=seed, n_trees=240, size=40.0, clearing=0.0)
+    q = clearance_from_world(world, RES_FOREST, [[-17.0, -8.0, 0.0], [17.0, 8.0, 3.0]])
+    ends = []
+    for x in (-15.0, 15.0):
+        for y in np.arange(0.0, 4.0, 0.1):
+            p = next((np.array([x, s * y, 1.5]) for s in (1, -1) if q.clearance([x, s * y, 1.5]) >= RADIUS_FOREST + 0.2),
+                     None)
+            if p is not None:
+                ends.append(p)
+                break
+    return world, q, ends[0], ends[1], RADIUS_FOREST
+
+
+def run(cases, ref_time, label):
+    astar = dict(ok=0, t=[], ratio=[])
+    rrtc = dict(ok=0, t=[], ratio=[])
+    n = 0
+    grid = None  # one planner for all layouts: its search buffers are reused while the grid shape stays
+    for world, q, legs, radius in cases:
+        n += 1
+        truth = truth_distance(world)
+        if grid is None or grid.params.radius != radius:
+            grid = GridPathSearch(GridPathSearchParams(radius=radius))
+        first = OmplPathPlanner(OmplPathParams(radius=radius, time_limit=5.0))
+        ref = OmplPathPlanner(OmplPathParams(radius=radius, time_limit=1.0, improve_time=ref_time, simplify=False))
+        la = lr = lref = ta = tr = 0.0
+        ok_a = ok_r = True
+        for start, goal in legs:
+            a = grid.plan(q, start, goal)
+            r = first.plan(q, start, goal)
+            f = ref.plan(q, start, goal)
+            ok_a &= safe(a, truth, radius)
+            ok_r &= safe(r, truth, radius)
+            la, lr, lref = la + a.length, lr + r.length, lref + (f.length if f.found else np.nan)
+            ta, tr = ta + a.plan_seconds, tr + r.plan_seconds
+        astar["ok"] += ok_a
+        rrtc["ok"] += ok_r
+        astar["t"].append(ta)
+        rrtc["t"].append(tr)
+        astar["ratio"].append(la / lref)
+        rrtc["ratio"].append(lr / lref)
+    for name, d in (("grid A*", astar), ("RRTConnect+simplify", rrtc)):
+        t = np.array(d["t"]) * 1e3
+        ratio = np.array(d["ratio"])
+        print(f"{label:8s} {name:20s} success {d['ok']}/{n} = {100.0 * d['ok'] / n:5.1f} %   "
+              f"length / InformedRRT*({ref_time:g} s): median {np.nanmedian(ratio):.3f} max {np.nanmax(ratio):.3f}   "
+              f"plan ms: median {np.median(t):.1f} p99 {np.percentile(t, 99):.1f}")
+
+
+def run_local(n_forests):
+    times, ok, n = [], 0, 0
+    for seed in range(n_forests):
+        world, _, start, goal, radius = forest_case(seed)
+        esdf = esdf_from_world(world, RES_FOREST, [[-17.0, -8.0, 0.0], [17.0, 8.0, 3.0]])
+        lp = BsplineLocalPlanner(esdf, LocalPlannerParams(radius=radius, v_max=2.0, a_max=3.0))
+        t, p, v, a = 0.0, start, np.zeros(3), np.zeros(3)
+        flown, plan, reached = [], None, False
+        for _ in range(400):  # 40 s at 10 Hz
+            r = lp.replan(t, p, v, a, goal)
+            times.append(r.plan_seconds)
+            if r.status == "ok":
+                plan = r.trajectory
+            if plan is None:
+                break
+            if r.status == "ok" and r.reaches_goal:
+                flown.append(plan.sample(np.linspace(t, plan.t_end, 200)).p_W)
+                reached = True
+                break
+            flown.append(plan.sample(np.linspace(t, t + 0.1, 11)).p_W)
+            t += 0.1
+            s = plan.sample(t)
+            p, v, a = s.p_W[0], s.v_W[0], s.a_W[0]
+        n += 1
+        ok += reached and float(truth_distance(world)(np.vstack(flown)).min()) >= radius - 1e-5
+    t = np.array(times) * 1e3
+    print(f"forest   local B-spline       success {ok}/{n} = {100.0 * ok / n:5.1f} %   "
+          f"replan ms: median {np.median(t):.2f} p99 {np.percentile(t, 99):.2f} ({t.size} replans)")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--forests", type=int, default=200)
+    ap.add_argument("--tunnels", type=int, default=200)
+    ap.add_argument("--ref-time", type=float, default=5.0)
+    ap.add_argument("--local", type=int, default=200)
+    args = ap.parse_args()
+
+    def forests():
+        for seed in range(args.forests):
+            world, q, s, g, r = forest_case(seed)
+            yield world, q, [(s, g)], r
+
+    def tunnels():
+        for seed in range(args.tunnels):
+            c = tunnel_course_layout(seed)
+            r = 0.15
+            lo, hi = c.path_W.min(0) - 1.0, c.path_W.max(0) + 1.0
+            lo[2] = 0.0
+            q = clearance_from_world(c.world, 0.025, np.stack([lo, hi]))
+            pts = [c.entry_W] + [np.asarray(f.centre_W) for f in c.frames] + [c.exit_W]
+            yield c.world, q, list(zip(pts[:-1], pts[1:])), r
+
+    t0 = time.perf_counter()
+    if args.forests:
+        run(forests(), args.ref_time, "forest")
+    if args.tunnels:
+        run(tunnels(), args.ref_time, "tunnel")
+    if args.local:
+        run_local(args.local)
+    print(f"total {time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
