@@ -321,6 +321,8 @@ def test_wrong_type_bad_time_and_changed_shape_are_errors(tmp_path):
             log.write("/actuator/command", M.Imu(0.0, np.ones(3), np.ones(3)), 0, 0)
         with pytest.raises(ValueError, match="absolute name"):
             log.write("relative", M.Imu(0.0, np.ones(3), np.ones(3)), 0, 0)
+    with pytest.raises(ValueError, match="closed McapLogger"):
+        log.write("/actuator/command", M.ActuatorCommand(0.0, np.ones(4)), 1, 1)
     log = McapLogger(tmp_path / "b.mcap")
     log.write("/actuator/command", M.ActuatorCommand(0.0, np.ones(4)), 0, 0)
     log.write("/actuator/command", M.ActuatorCommand(0.0, np.ones(6)), 1, 1)

@@ -182,8 +182,9 @@ class McapLogger:
         """Flushes every topic and writes the summary and footer; idempotent."""
         if self._file.closed:
             return
+        topics, self._topics = self._topics, {}  # a later write finds no topic and raises in _open_topic
         try:
-            for buffer in self._topics.values():
+            for buffer in topics.values():
                 self._flush(buffer)
             self._record(DataEnd(data_section_crc=0))
             self._out.close()
