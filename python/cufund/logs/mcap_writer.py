@@ -1,10 +1,12 @@
 """`McapLogger`: writes cufund messages to an MCAP file while a run goes, at about a microsecond per message.
 
-``write`` only appends the message and its times to its topic's buffer. When a buffer holds ``block_messages``
-messages (or about ``chunk_bytes`` of encoded data) the whole block is encoded at once (numpy for fixed-size
-CDR, see :mod:`cufund.logs.cdr`), its Message records and message index are built as numpy structured arrays,
-and it goes to the file as one compressed chunk. Memory stays bounded by one block per topic, however long the
-run. The summary (schemas, channels, statistics, chunk and metadata indexes) is written by :meth:`close`.
+``write`` only adds the message to its topic's accumulator: for fixed-size messages, its numbers and its arrays'
+bytes appended to one ``bytearray`` (:class:`cufund.logs.cdr.FixedAccumulator`); for the others, the message.
+When a topic holds ``block_messages`` messages (or about ``chunk_bytes`` of encoded data) the whole block is
+encoded at once (numpy structured arrays for the CDR rows, their Message records and the message index) and
+handed to a background thread that compresses it and writes it as one chunk. Memory stays bounded by one block
+per topic (and at most 8 chunks waiting for the disk), however long the run. The summary (schemas, channels,
+statistics, chunk and metadata indexes) is written by :meth:`close`.
 
 The record layouts follow the MCAP specification (https://mcap.dev/spec); schemas, channels and the summary use
 the ``mcap`` package's record classes. Each Message record's ``sequence`` is the logger's running write count
@@ -93,8 +95,8 @@ class McapLogger:
         """Logs ``message`` on ``topic`` at ``log_time_ns`` (when it became visible) and ``publish_time_ns`` [ns].
 
         A topic's codec is chosen from its first message; a later message of another type raises TypeError here,
-        a bad time or array shape when its block is encoded (at the latest at :meth:`close`). Only the message's
-        field values are kept until then (a tuple of numbers and arrays, which the garbage collector skips)."""
+        a bad time or array shape when its block is encoded (at the latest at :meth:`close`). A fixed-size message
+        is copied into the block's buffer at once: no reference to it or its arrays is kept."""
         buffer = self._topics.get(topic)
         if buffer is None:
             buffer = self._open_topic(topic, message)
