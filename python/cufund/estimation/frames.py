@@ -20,6 +20,11 @@ __all__ = ["quat_from_matrix", "matrix_from_quat", "pose3", "pose3_parts", "homo
 def matrix_from_quat(q_wxyz: np.ndarray) -> np.ndarray:
     """(…, 4) [w, x, y, z] (normalised here) -> (…, 3, 3)."""
     q = np.asarray(q_wxyz, dtype=float)
+    if q.shape == (4,):  # one quaternion: plain arithmetic (the per-IMU-sample path)
+        w, x, y, z = (q / math.sqrt(float(q @ q))).tolist()
+        return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y, z = np.moveaxis(q, -1, 0)
     return np.stack([

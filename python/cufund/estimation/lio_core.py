@@ -41,6 +41,8 @@ class ScanDiagnostics:
     """Weakly observable directions in the world frame, each [rotation (3), translation (3)]."""
     time_ms: float
     """Wall time spent on this frame [ms]."""
+    cpu_ms: float = 0.0
+    """CPU time of the process (all threads) spent on this frame [ms]: the cost on a busy machine."""
     skipped: str = ""
     """Why the frame added no LiDAR factor ('' when it did)."""
 
@@ -232,7 +234,7 @@ class LioCore:
     # ---------------------------------------------------------------- LiDAR
     def add_scan(self, t: float, dt: np.ndarray, points_L: np.ndarray) -> Odometry | None:
         """One LiDAR frame: start time t [s], per-point offsets dt (N,) [s], points_L (N, 3) [m]."""
-        wall = time.perf_counter()
+        wall, cpu = time.perf_counter(), time.process_time()
         if not math.isfinite(t):
             raise ValueError(f"t must be finite [s], got {t!r}")
         pts = np.asarray(points_L)
@@ -251,7 +253,7 @@ class LioCore:
         t_end = t + (float(d.max()) if len(d) else 0.0)
         if len(pts) == 0 or t_end <= self._node.t:
             self.skipped_scans += 1
-            self.diagnostics.append(ScanDiagnostics(t_end, 0, 0, 0, (), (), 0.0,
+            self.diagnostics.append(ScanDiagnostics(t_end, 0, 0, 0, (), (), 0.0, skipped=
                                                     "empty frame" if len(pts) == 0 else "frame ends before the state"))
             return None
         prev = self._node
@@ -311,7 +313,7 @@ class LioCore:
             t_end, len(scan_I), reg.inliers if reg else 0, reg.iterations if reg else 0,
             tuple(float(e) for e in reg.eigenvalues) if reg else (),
             tuple(tuple(float(x) for x in row) for row in reg.degenerate_W) if reg else (),
-            (time.perf_counter() - wall) * 1e3, skipped))
+            (time.perf_counter() - wall) * 1e3, cpu_ms=(time.process_time() - cpu) * 1e3, skipped=skipped))
         if skipped:
             self.skipped_scans += 1
         return self._odometry(self._node)
@@ -368,7 +370,8 @@ class LioCore:
         p_WB = s.p_W - R_WB @ self._p_BI
         w_I = (self._last_sample[1] if self._last_sample is not None else np.zeros(3)) - s.bias_gyr
         w_B = self._R_BI @ w_I
-        v_WB = s.v_W - R_WB @ np.cross(w_B, self._p_BI)
+        (wx, wy, wz), (rx, ry, rz) = w_B.tolist(), self._p_BI.tolist()
+        v_WB = s.v_W - R_WB @ np.array([wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx])
         return Odometry(t=s.t, p_W=p_WB, v_W=v_WB, q_WB=quat_from_matrix(R_WB), w_B=w_B)
 
     @property

@@ -47,9 +47,9 @@ class LioParams:
     """Downsampling of the deskewed scan for registration [m]."""
     map_insert_voxel: float = 0.05
     """Downsampling of the deskewed scan added to the map [m]."""
-    map_voxel: float = 0.5
+    map_voxel: float = 0.25
     """Voxel edge of the map [m]; neighbour searches reach one voxel."""
-    map_points_per_voxel: int = 20
+    map_points_per_voxel: int = 6
     map_min_point_distance: float = 0.05
     """[m]"""
     map_max_distance: float = 40.0
