@@ -142,8 +142,9 @@ class MinSnapPlanner:
         if query is not None:
             c = query.clearance(x)
             min_clear = float(c.min())
-            if p.radius is not None:
+            if p.radius is not None:  # the samples and the chords between them (certified)
                 bad_sample |= c < p.radius
+                bad_sample[:-1] |= ~query.path_free(x, p.radius)
         err = polyline_distance(x, polyline)
         if p.corridor is not None:
             bad_sample |= err > p.corridor
