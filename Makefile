@@ -23,7 +23,7 @@ SOURCES := $(shell find cpp bindings -type f \( -name '*.cpp' -o -name '*.h' -o 
 CPP_BUILD := build/cpp
 SAN_BUILD := build/sanitize
 
-.PHONY: demo test test-cpp test-python bench sanitize deps stubs clean
+.PHONY: demo test test-cpp test-python bench sanitize fuzz deps stubs clean
 
 # The paper's §3.1 case study; prints the metrics and where the run folder is.
 demo: $(VENV)/.installed
@@ -64,13 +64,41 @@ test-cpp: $(CPP_BUILD)/build.ninja
 test-python: $(VENV)/.installed
 	$(VPY) -m pytest -q
 
-sanitize: $(VENV)/.tools
+# The gtests and the Python suite against an ASan + UBSan build (not part of `make test`). The Python
+# suite imports a sanitised cufund._core (build/sanitize-py) through a symlink tree of python/cufund,
+# with the sanitizer runtimes preloaded into the stock interpreter; leak checks are off there (CPython
+# keeps its arenas). SAN_PYTEST selects the tests (the fuzz suite caps address space, which ASan cannot run under).
+SAN_PY := build/sanitize-py
+SAN_PYTEST ?= tests --ignore=tests/fuzz
+SAN_PRELOAD = $(shell g++ -print-file-name=libasan.so) $(shell g++ -print-file-name=libubsan.so)
+sanitize: $(VENV)/.installed
 	$(MAKE) deps
 	$(VENV)/bin/cmake -S . -B $(SAN_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
 	  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCUFUND_BUILD_TESTS=ON -DCUFUND_SANITIZE=ON -DCUFUND_BUILD_PYTHON=OFF
 	$(VENV)/bin/cmake --build $(SAN_BUILD) -j $(JOBS)
 	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
 	  $(VENV)/bin/ctest --test-dir $(SAN_BUILD) --output-on-failure -j $(JOBS)
+	$(VENV)/bin/cmake -S . -B $(SAN_PY)/build -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
+	  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCUFUND_SANITIZE=ON -DCUFUND_BUILD_PYTHON=ON \
+	  -DSKBUILD_PROJECT_VERSION=$$($(VPY) -c "import cufund; print(cufund.__version__)") \
+	  -DPython_EXECUTABLE=$(abspath $(VPY)) -Dpybind11_DIR=$$($(VPY) -m pybind11 --cmakedir)
+	$(VENV)/bin/cmake --build $(SAN_PY)/build -j $(JOBS) --target _core
+	rm -rf $(SAN_PY)/pkg && mkdir -p $(SAN_PY)/pkg/cufund
+	for f in python/cufund/*; do ln -s $(abspath .)/$$f $(SAN_PY)/pkg/cufund/; done
+	ln -s $(abspath $(SAN_PY))/build/_core*.so $(SAN_PY)/pkg/cufund/
+	printf 'import sys\nsys.meta_path[:] = [f for f in sys.meta_path if "ScikitBuild" not in type(f).__name__]\n' \
+	  > $(SAN_PY)/pkg/sitecustomize.py
+	PYTHONPATH=$(abspath $(SAN_PY))/pkg LD_PRELOAD="$(SAN_PRELOAD)" \
+	  ASAN_OPTIONS=detect_leaks=0:abort_on_error=1:detect_odr_violation=0 \
+	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 CUFUND_EXPECT_SANITIZED=1 \
+	  $(VPY) -m pytest -q -p no:cacheprovider $(SAN_PYTEST)
+
+# A long fuzz campaign (the default test run does a small, fixed one): every outcome counted per area.
+FUZZ_EXAMPLES ?= 2000
+fuzz: $(VENV)/.installed
+	CUFUND_FUZZ_CAMPAIGN=1 CUFUND_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) CUFUND_FUZZ_REPORT=build/fuzz/report.json \
+	  $(VPY) -m pytest -q -p no:cacheprovider tests/fuzz
+	@echo "outcomes and failing cases: build/fuzz/report.json"
 
 CPP_BENCHES := dynamics lidar esdf
 PY_BENCHES := $(wildcard benchmarks/bench_*.py)

@@ -57,6 +57,13 @@ void raise_step_error(const StepResult& r, double dt, const py::array& cmd, std:
          << " must be finite before a step, got a NaN or inf (written through the state view?)";
       throw py::value_error(os.str());
     }
+    case StepStatus::kDiverged: {
+      const auto row = static_cast<int>(r.index / static_cast<std::int64_t>(n));
+      os << "the step diverged: state " << row_name(row) << " of vehicle " << r.index % static_cast<std::int64_t>(n)
+         << " is NaN or inf after it; the state, command and held inputs (wind_W, force_ext_W, torque_ext_B) are "
+            "beyond what the model integrates (state left as it is; reset or rewrite it)";
+      throw py::value_error(os.str());
+    }
     case StepStatus::kZeroQuaternion:
       os << "state q of vehicle " << r.index << " must be a non-zero quaternion [w, x, y, z], got norm < 1e-6";
       throw py::value_error(os.str());

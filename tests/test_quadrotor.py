@@ -347,3 +347,14 @@ def test_one_batch_stepped_from_four_threads_equals_the_same_steps_in_sequence(c
     assert shared.t == serial.t
     for name in ("p", "v", "q", "w", "rotor_speeds"):
         assert getattr(shared, name).tobytes() == getattr(serial, name).tobytes(), name
+
+
+def test_a_step_that_overflows_raises_instead_of_returning_nan(crazyflie):
+    b = cufund.QuadrotorBatch(crazyflie, 2)
+    b.hover(np.array([0.0, 0.0, 1.0]))
+    b.torque_ext_B[1] = (1e300, 0.0, 0.0)  # finite, but the body rate overflows within the step
+    with pytest.raises(ValueError, match=r"the step diverged: state \w+ of vehicle 1 is NaN or inf"):
+        b.step(1e-3, np.full((2, 4), crazyflie.hover_rotor_speed))
+    assert np.isfinite(b.w[0]).all()
+    with pytest.raises(ValueError, match=r"state \w+ of vehicle 1 must be finite before a step"):
+        b.step(1e-3, np.full((2, 4), crazyflie.hover_rotor_speed))  # and it stays an error, never silent

@@ -91,3 +91,10 @@ def test_fork_while_another_thread_steps_a_large_batch_gives_a_working_child():
     """, timeout=300)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "hung 0"
+
+
+@pytest.mark.skipif(os.environ.get("CUFUND_EXPECT_SANITIZED") != "1", reason="only under `make sanitize`")
+def test_the_sanitised_extension_is_the_one_under_test():
+    from cufund import _core
+
+    assert "sanitize-py" in _core.__file__

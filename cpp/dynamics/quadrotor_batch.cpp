@@ -64,11 +64,12 @@ CUFUND_INLINE void load(const DynamicsConstants& c, const Rows& p, const double*
 
 // Integrates vehicles [begin, end): the loop body is one vehicle, so the compiler maps vehicles to
 // SIMD lanes. Compiled for several instruction sets and picked at load time where the compiler can.
+// Returns false when the new state or its accelerations hold a NaN or inf (inputs beyond the model).
 template <bool kGround>
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(CUFUND_NO_TARGET_CLONES)
 __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #endif
-void integrate_range(const DynamicsConstants& constants, double* __restrict state, std::size_t n, std::size_t begin,
+bool integrate_range(const DynamicsConstants& constants, double* __restrict state, std::size_t n, std::size_t begin,
                      std::size_t end, const double* __restrict cmd, double h, int substeps) {
   const DynamicsConstants c = constants;  // a local copy: provably not aliased by the state stores
   Rows p;
@@ -103,6 +104,15 @@ void integrate_range(const DynamicsConstants& constants, double* __restrict stat
       p[QuadrotorBatch::kAlpha + k][i] = held ? 0.0 : dx[10 + k];
     }
   }
+  // Finiteness of the new state and accelerations, row by row over the block (cache-hot; each row's
+  // loop is an OR reduction, which vectorises).
+  unsigned bad = 0;
+  for (int r = QuadrotorBatch::kP; r < QuadrotorBatch::kRows; ++r) {
+    if (r >= QuadrotorBatch::kWind && r < QuadrotorBatch::kAccel) continue;  // held inputs, checked before
+    const double* row = p[r];
+    for (std::size_t i = begin; i < end; ++i) bad |= static_cast<unsigned>(!std::isfinite(row[i]));
+  }
+  return bad == 0;
 }
 
 }  // namespace
@@ -111,47 +121,60 @@ namespace {
 
 std::atomic<std::int64_t> g_max_substeps{1000000};
 
-// The first (lowest flat index) non-finite entry of rows [kP, kAccel) or zero quaternion, in parallel.
-StepResult check_state(const double* state, std::size_t n, int nthreads) {
-  constexpr std::size_t kBlock = 4096;
-  constexpr auto kNone = std::numeric_limits<std::int64_t>::max();
-  std::atomic<std::int64_t> bad{kNone}, zero_q{kNone};
-  auto keep_min = [](std::atomic<std::int64_t>& a, std::int64_t v) {
-    for (std::int64_t cur = a.load(); v < cur && !a.compare_exchange_weak(cur, v);) {
-    }
-  };
-  ThreadPool::instance().parallel_for((n + kBlock - 1) / kBlock, nthreads, [&](std::size_t b) {
-    const std::size_t begin = b * kBlock, end = std::min(n, begin + kBlock);
-    for (int r = QuadrotorBatch::kP; r < QuadrotorBatch::kAccel; ++r) {
-      const double* row = state + static_cast<std::size_t>(r) * n;
-      bool ok = true;
-      for (std::size_t i = begin; i < end; ++i) ok &= std::isfinite(row[i]);
-      if (ok) continue;
-      for (std::size_t i = begin; i < end; ++i) {
-        if (!std::isfinite(row[i])) {
-          keep_min(bad, static_cast<std::int64_t>(static_cast<std::size_t>(r) * n + i));
-          break;
-        }
-      }
-    }
-    const double* q = state + static_cast<std::size_t>(QuadrotorBatch::kQ) * n;
-    for (std::size_t i = begin; i < end; ++i) {
-      const double nq = q[i] * q[i] + q[n + i] * q[n + i] + q[2 * n + i] * q[2 * n + i] + q[3 * n + i] * q[3 * n + i];
-      if (!(nq >= 1e-12)) {
-        keep_min(zero_q, static_cast<std::int64_t>(i));
-        break;
-      }
-    }
-  });
+// True when rows [kP, kAccel) of vehicles [begin, end) are finite and every quaternion is non-zero:
+// OR reductions, which vectorise (the common case costs a pass over the block).
+bool block_ok(const double* state, std::size_t n, std::size_t begin, std::size_t end) {
+  unsigned bad = 0;
+  for (int r = QuadrotorBatch::kP; r < QuadrotorBatch::kAccel; ++r) {
+    const double* row = state + static_cast<std::size_t>(r) * n;
+    for (std::size_t i = begin; i < end; ++i) bad |= static_cast<unsigned>(!std::isfinite(row[i]));
+  }
+  const double* q = state + static_cast<std::size_t>(QuadrotorBatch::kQ) * n;
+  for (std::size_t i = begin; i < end; ++i) {
+    const double nq = q[i] * q[i] + q[n + i] * q[n + i] + q[2 * n + i] * q[2 * n + i] + q[3 * n + i] * q[3 * n + i];
+    bad |= static_cast<unsigned>(!(nq >= 1e-12));
+  }
+  return bad == 0;
+}
+
+// The first offending entry (lowest row, then vehicle), after block_ok failed somewhere.
+StepResult locate_bad_state(const double* state, std::size_t n) {
   StepResult r;
-  if (bad.load() != kNone) {
-    r.status = StepStatus::kNonFiniteState;
-    r.index = bad.load();
-  } else if (zero_q.load() != kNone) {
-    r.status = StepStatus::kZeroQuaternion;
-    r.index = zero_q.load();
+  for (int row = QuadrotorBatch::kP; row < QuadrotorBatch::kAccel; ++row) {
+    const double* p = state + static_cast<std::size_t>(row) * n;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!std::isfinite(p[i])) {
+        r.status = StepStatus::kNonFiniteState;
+        r.index = static_cast<std::int64_t>(static_cast<std::size_t>(row) * n + i);
+        return r;
+      }
+    }
+  }
+  const double* q = state + static_cast<std::size_t>(QuadrotorBatch::kQ) * n;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!(q[i] * q[i] + q[n + i] * q[n + i] + q[2 * n + i] * q[2 * n + i] + q[3 * n + i] * q[3 * n + i] >= 1e-12)) {
+      r.status = StepStatus::kZeroQuaternion;
+      r.index = static_cast<std::int64_t>(i);
+      return r;
+    }
   }
   return r;
+}
+
+StepResult check_state(const double* state, std::size_t n, int nthreads) {
+  constexpr std::size_t kBlock = 4096;
+  bool ok = true;
+  if (n <= kBlock) {
+    ok = block_ok(state, n, 0, n);
+  } else {
+    std::atomic<bool> all_ok{true};
+    ThreadPool::instance().parallel_for((n + kBlock - 1) / kBlock, nthreads, [&](std::size_t b) {
+      const std::size_t begin = b * kBlock;
+      if (!block_ok(state, n, begin, std::min(n, begin + kBlock))) all_ok.store(false, std::memory_order_relaxed);
+    });
+    ok = all_ok.load();
+  }
+  return ok ? StepResult{} : locate_bad_state(state, n);
 }
 
 std::size_t checked_size(std::size_t n) {
@@ -240,16 +263,20 @@ StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
   const std::size_t nblocks = (n_ + kBlock - 1) / kBlock;
   double* state = state_.data();
   const bool ground = params_.ground_plane;
+  std::atomic<bool> diverged{false};
   ThreadPool::instance().parallel_for(nblocks, nthreads, [&](std::size_t b) {
     const std::size_t begin = b * kBlock;
     const std::size_t end = std::min(n_, begin + kBlock);
-    if (ground) {
-      integrate_range<true>(c, state, n_, begin, end, cmd, h, substeps);
-    } else {
-      integrate_range<false>(c, state, n_, begin, end, cmd, h, substeps);
-    }
+    const bool ok = ground ? integrate_range<true>(c, state, n_, begin, end, cmd, h, substeps)
+                           : integrate_range<false>(c, state, n_, begin, end, cmd, h, substeps);
+    if (!ok) diverged.store(true, std::memory_order_relaxed);
   });
   time_ += dt;
+  if (diverged.load()) {
+    result = check_state(state, n_, nthreads);  // which vehicle and field
+    result.status = StepStatus::kDiverged;
+    if (result.index < 0) result.index = 0;
+  }
   return result;
 }
 

@@ -24,6 +24,8 @@ enum class StepStatus : int {
   kNonFiniteState = 3,       // a state or held-input entry (rows kP..kTorqueExt) is NaN or infinite
   kZeroQuaternion = 4,       // an attitude quaternion of norm < 1e-6
   kTooManySubsteps = 5,      // dt / max_integration_step exceeds the configured limit
+  kDiverged = 6,             // the step ran, but the new state is NaN or inf (inputs beyond the model's range);
+                             // index as for kNonFiniteState (row * N + vehicle), time advanced
 };
 
 struct StepResult {

@@ -78,7 +78,7 @@ class QuadrotorParams:
             object.__setattr__(self, f, real_number(f, getattr(self, f)))
         object.__setattr__(self, "inertia", _matrix3("inertia", self.inertia))
         object.__setattr__(self, "body_drag", vector3("body_drag", self.body_drag))
-        if self.layout not in _LAYOUTS:
+        if not isinstance(self.layout, str) or self.layout not in _LAYOUTS:
             raise ConfigError(f"layout must be one of 'x', '+', got {self.layout!r}")
         if not isinstance(self.ground_plane, bool):
             raise ConfigError(f"ground_plane must be true or false, got {self.ground_plane!r}")

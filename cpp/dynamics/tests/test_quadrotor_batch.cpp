@@ -239,6 +239,16 @@ TEST(QuadrotorBatch, RejectsNonFiniteStateZeroQuaternionAndTooLongSteps) {
   EXPECT_DOUBLE_EQ(b.time(), 0.010);
 }
 
+TEST(QuadrotorBatch, AStepThatOverflowsReportsDivergenceNotSilentNaN) {
+  B b(small_quad(), 2);
+  std::vector<double> cmd(8, 100.0);
+  b.row(B::kTorqueExt + 0)[1] = 1e300;  // finite, but w overflows within the step
+  const StepResult r = b.step(1e-3, cmd.data());
+  EXPECT_EQ(r.status, StepStatus::kDiverged);
+  EXPECT_EQ(r.index % 2, 1);  // vehicle 1
+  EXPECT_TRUE(std::isfinite(b.row(B::kW)[0]));  // vehicle 0 is fine
+}
+
 TEST(QuadrotorBatch, ConcurrentStepsFromManyThreadsEqualTheSameStepsInSequence) {
   constexpr std::size_t n = 300;  // two blocks: the pool is used
   B shared(small_quad(), n), serial(small_quad(), n);

@@ -56,6 +56,10 @@ class EsdfMapParams:
         size = vector3("size", self.size, " [m]", finite=True)
         if min(size) <= 0:
             raise ConfigError(f"size must be > 0 [m] on every axis, got {size}")
+        for axis, extent in zip("xyz", size):
+            if not extent / res < 2**31:  # also catches a subnormal resolution (extent / res = inf)
+                raise ConfigError(f"size / resolution must give fewer than 2^31 voxels per axis, got {extent} / {res} "
+                                  f"along {axis}")
         object.__setattr__(self, "resolution", res)
         object.__setattr__(self, "size", size)
         object.__setattr__(self, "origin_W", vector3("origin_W", self.origin_W, " [m]", finite=True))

@@ -15,7 +15,7 @@ import numpy as np
 from ..config import ConfigError, check_real_fields, nested
 from ..messages import AirPressure, Odometry, Topics
 from .model_sensor import ModelSensor
-from .noise import ErrorProcess, NoiseSpec
+from .noise import ErrorProcess, NoiseSpec, real_fields
 
 __all__ = ["isa_pressure", "isa_altitude", "BarometerParams", "BarometerModel", "BarometerSensor", "BAROMETER_PRESETS"]
 
@@ -55,6 +55,7 @@ class BarometerParams:
     name: str = "ideal"
 
     def __post_init__(self) -> None:
+        real_fields(self, "BarometerParams")
         check_real_fields(self, "BarometerParams", positive=True, unit=" [Hz]", names=("rate_hz",))
         object.__setattr__(self, "noise", nested(NoiseSpec, self.noise, "BarometerParams.noise"))
         self.noise.per_axis(1)

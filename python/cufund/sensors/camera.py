@@ -47,6 +47,7 @@ class CameraIntrinsics:
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
                     or not np.isfinite(v) or int(v) != v or v < 1 or v > 100_000:
                 raise ValueError(f"{name} must be a positive integer [px], got {v}")
+            object.__setattr__(self, name, int(v))
         for name in ("fx", "fy", "cx", "cy"):
             if isinstance(getattr(self, name), bool) or not isinstance(getattr(self, name), (int, float, np.integer,
                                                                                               np.floating)):
@@ -58,7 +59,10 @@ class CameraIntrinsics:
         for name in ("cx", "cy"):
             if not np.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be finite [px]")
-        d = np.asarray(self.distortion, dtype=float)
+        try:
+            d = np.asarray(self.distortion, dtype=float)
+        except (TypeError, ValueError):
+            d = np.full(1, np.nan)  # reported below
         if d.shape != (5,) or not np.all(np.isfinite(d)):
             raise ValueError(f"distortion must be 5 finite numbers (k1, k2, p1, p2, k3), got {self.distortion!r}")
         object.__setattr__(self, "distortion", tuple(float(x) for x in d))

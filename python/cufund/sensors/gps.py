@@ -19,7 +19,7 @@ from ..config import ConfigError, check_real_fields, nested
 from ..messages import GpsFix, Odometry, Topics
 from .geodesy import GeoPoint, enu_to_lla
 from .model_sensor import ModelSensor
-from .noise import ErrorProcess, NoiseSpec
+from .noise import ErrorProcess, NoiseSpec, real_fields
 
 __all__ = ["GpsParams", "GpsFix", "GpsModel", "GpsSensor", "GPS_PRESETS", "CEP_TO_SIGMA"]
 
@@ -46,6 +46,7 @@ class GpsParams:
     name: str = "ideal"
 
     def __post_init__(self) -> None:
+        real_fields(self, "GpsParams")
         object.__setattr__(self, "home", nested(GeoPoint, self.home, "GpsParams.home"))
         if not (math.isfinite(self.rate_hz) and 0 < self.rate_hz <= 50):
             raise ConfigError(f"rate_hz must be in (0, 50] [Hz], got {self.rate_hz!r}")

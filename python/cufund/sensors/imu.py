@@ -21,7 +21,7 @@ import numpy as np
 from ..config import ConfigError, check_real_fields, from_dict, nested
 from ..messages import Imu, Odometry, Topics
 from .model_sensor import ModelSensor
-from .noise import ErrorProcess, NoiseSpec
+from .noise import ErrorProcess, NoiseSpec, real_fields
 from .pose import quat_to_matrix, world_to_body
 
 __all__ = ["ImuParams", "ImuModel", "ImuSensor", "IMU_PRESETS", "imu_preset"]
@@ -62,6 +62,7 @@ class ImuParams:
     name: str = "ideal"
 
     def __post_init__(self) -> None:
+        real_fields(self, "ImuParams")
         if not (math.isfinite(self.rate_hz) and 100.0 <= self.rate_hz <= 1000.0):
             raise ConfigError(f"rate_hz must be between 100 and 1000 [Hz], got {self.rate_hz!r}")
         for f in ("accel", "gyro"):

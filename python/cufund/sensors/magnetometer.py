@@ -17,7 +17,7 @@ import numpy as np
 from ..config import ConfigError, check_real_fields, nested
 from ..messages import MagneticField, Odometry, Topics
 from .model_sensor import ModelSensor
-from .noise import ErrorProcess, NoiseSpec
+from .noise import ErrorProcess, NoiseSpec, real_fields
 from .pose import quat_to_matrix, world_to_body
 
 __all__ = ["EarthField", "MagnetometerParams", "MagnetometerModel", "MagnetometerSensor"]
@@ -35,6 +35,7 @@ class EarthField:
     intensity_T: float = 45e-6
 
     def __post_init__(self) -> None:
+        real_fields(self, "EarthField")
         if not (math.isfinite(self.declination_deg) and -180 <= self.declination_deg <= 180):
             raise ConfigError(f"declination_deg must be in [-180, 180], got {self.declination_deg!r}")
         if not (math.isfinite(self.inclination_deg) and -90 <= self.inclination_deg <= 90):
@@ -64,6 +65,7 @@ class MagnetometerParams:
     earth: EarthField = field(default_factory=EarthField)
 
     def __post_init__(self) -> None:
+        real_fields(self, "MagnetometerParams")
         check_real_fields(self, "MagnetometerParams", positive=True, unit=" [Hz]", names=("rate_hz",))
         object.__setattr__(self, "noise", nested(NoiseSpec, self.noise, "MagnetometerParams.noise"))
         object.__setattr__(self, "earth", nested(EarthField, self.earth, "MagnetometerParams.earth"))

@@ -18,7 +18,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import ConfigError
+from ..config import ConfigError, real_number
+
+
+def real_fields(obj: object, where: str) -> None:
+    """Every field of the frozen dataclass ``obj`` annotated ``float`` must hold a real number (not a bool,
+    None, string or list); else a ConfigError naming ``where.field``. Ranges are the caller's checks."""
+    import dataclasses
+
+    for f in dataclasses.fields(obj):  # type: ignore[arg-type]
+        if f.type in ("float", float):
+            object.__setattr__(obj, f.name, real_number(f"{where}.{f.name}", getattr(obj, f.name)))
 
 __all__ = ["NoiseSpec", "ErrorProcess"]
 

@@ -15,6 +15,12 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 
+def _count(name: str, value: object, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
+    return int(value)
+
+
 def _firing_clock(point_rate: float, period: float, lasers: int, k: int
                   ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     """Frame k of a solid-state LiDAR firing ``point_rate`` points/s round-robin over ``lasers``: the
@@ -56,6 +62,8 @@ class ScanPattern(Protocol):
 
 
 def _check(name: str, value: float, lo: float = 0.0, hi: float = np.inf, unit: str = "") -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a real number in ({lo}, {hi}] {unit}, got {value!r}".rstrip())
     value = float(value)
     if not (np.isfinite(value) and lo < value <= hi):
         raise ValueError(f"{name} must be in ({lo}, {hi}] {unit}, got {value}".rstrip())
@@ -110,8 +118,9 @@ class SpinningPattern:
         el = np.asarray(self.elevations, dtype=float)
         if el.ndim != 1 or len(el) == 0 or not np.all(np.abs(el) < np.pi / 2):
             raise ValueError("elevations must be a non-empty list of angles in (-π/2, π/2) [rad]")
-        if int(self.columns) < 1:
+        if isinstance(self.columns, bool) or not isinstance(self.columns, (int, np.integer)) or self.columns < 1:
             raise ValueError(f"columns must be >= 1, got {self.columns}")
+        _count("columns", self.columns, 1, 10**6)
         _check("rate", self.rate, 0.0, 1e3, "[Hz]")
         object.__setattr__(self, "elevations", tuple(float(e) for e in el))
 
@@ -164,8 +173,13 @@ class Mid360Pattern:
     def __post_init__(self) -> None:
         _check("point_rate", self.point_rate, 0.0, 1e8, "[1/s]")
         _check("rate", self.rate, 0.0, 1e3, "[Hz]")
+        for name in ("elevation_min", "elevation_max"):
+            _check(name, getattr(self, name), -np.inf, np.inf, "[rad]")
         if not -np.pi / 2 < self.elevation_min < self.elevation_max < np.pi / 2:
             raise ValueError("need -π/2 < elevation_min < elevation_max < π/2 [rad]")
+        _count("lasers", self.lasers, 1, 1024)
+        _check("spin_rate", self.spin_rate, 0.0, 1e4, "[Hz]")
+        _check("sweep_ratio", self.sweep_ratio, 0.0, 1e4)
 
     @property
     def period(self) -> float:
@@ -208,6 +222,9 @@ class RosettePattern:
         _check("rate", self.rate, 0.0, 1e3, "[Hz]")
         _check("fov_horizontal", self.fov_horizontal, 0.0, np.pi, "[rad]")
         _check("fov_vertical", self.fov_vertical, 0.0, np.pi, "[rad]")
+        _count("lasers", self.lasers, 1, 1024)
+        _check("prism_rate", self.prism_rate, 0.0, 1e5, "[Hz]")
+        _check("prism_ratio", self.prism_ratio, 0.0, 1e3)
 
     @property
     def period(self) -> float:

@@ -12,6 +12,8 @@ Mesh = tuple[np.ndarray, np.ndarray]
 
 
 def _positive(name: str, value: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a finite number > 0 [m], got {value!r}")
     value = float(value)
     if not np.isfinite(value) or value <= 0.0:
         raise ValueError(f"{name} must be a finite number > 0 [m], got {value}")
@@ -30,8 +32,8 @@ def _count(name: str, value: object, lo: int, hi: int, limit: str = "") -> int:
 
 def box(size: tuple[float, float, float]) -> Mesh:
     """Box of edge lengths ``size`` = (sx, sy, sz) [m]."""
-    if len(size) != 3:
-        raise ValueError(f"size must have 3 entries (sx, sy, sz) [m], got {len(size)}")
+    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 3:
+        raise ValueError(f"size must have 3 entries (sx, sy, sz) [m], got {size!r}")
     h = np.array([_positive(f"size[{i}]", s) for i, s in enumerate(size)]) / 2.0
     corners = np.array([[(i & 1) * 2 - 1, ((i >> 1) & 1) * 2 - 1, ((i >> 2) & 1) * 2 - 1] for i in range(8)], float)
     tris = np.array(
@@ -44,8 +46,8 @@ def box(size: tuple[float, float, float]) -> Mesh:
 
 def plane(size: tuple[float, float]) -> Mesh:
     """Rectangle of ``size`` = (sx, sy) [m] in the z = 0 plane, normal +z (two triangles)."""
-    if len(size) != 2:
-        raise ValueError(f"size must have 2 entries (sx, sy) [m], got {len(size)}")
+    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2:
+        raise ValueError(f"size must have 2 entries (sx, sy) [m], got {size!r}")
     hx, hy = _positive("size[0]", size[0]) / 2.0, _positive("size[1]", size[1]) / 2.0
     v = np.array([[-hx, -hy, 0.0], [hx, -hy, 0.0], [hx, hy, 0.0], [-hx, hy, 0.0]])
     return v, np.array([[0, 1, 2], [0, 2, 3]], np.int64)

@@ -29,10 +29,19 @@ class WorldObject:
     """LiDAR reflectivity in [0, 1]; intensity = reflectivity × |cos(incidence)|."""
 
 
+def _floats(name: str, value: object, what: str) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {what}, got {value!r}") from None
+
+
 def _pose_matrix(position: object, yaw: float) -> tuple[np.ndarray, np.ndarray]:
-    p = np.asarray(position, dtype=float)
+    p = _floats("position", position, "3 finite numbers [m]")
     if p.shape != (3,) or not np.all(np.isfinite(p)):
         raise ValueError(f"position must be 3 finite numbers [m], got {position!r}")
+    if isinstance(yaw, bool) or not isinstance(yaw, (int, float, np.integer, np.floating)):
+        raise ValueError(f"yaw must be a finite number [rad], got {yaw!r}")
     yaw = float(yaw)
     if not np.isfinite(yaw):
         raise ValueError(f"yaw must be finite [rad], got {yaw}")
@@ -41,7 +50,7 @@ def _pose_matrix(position: object, yaw: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _color(color: object) -> tuple[float, float, float]:
-    c = np.asarray(color, dtype=float)
+    c = _floats("color", color, "3 numbers in [0, 1] (RGB)")
     if c.shape != (3,) or not np.all((c >= 0.0) & (c <= 1.0)):
         raise ValueError(f"color must be 3 numbers in [0, 1] (RGB), got {color!r}")
     return (float(c[0]), float(c[1]), float(c[2]))
@@ -70,7 +79,7 @@ class World:
                  color: object = (0.7, 0.7, 0.7), position: object = (0.0, 0.0, 0.0), yaw: float = 0.0,
                  reflectivity: float = 0.8) -> WorldObject:
         """Adds a mesh given in its own frame, placed at ``position`` [m] rotated by ``yaw`` [rad] about z."""
-        v = np.asarray(vertices, dtype=float)
+        v = _floats("vertices", vertices, "an array of shape (V, 3) [m]")
         f = np.asarray(triangles)
         if v.ndim != 2 or v.shape[1] != 3:
             raise ValueError(f"vertices must have shape (V, 3), got {v.shape}")
@@ -82,7 +91,8 @@ class World:
             raise ValueError("vertices must be finite")
         if f.min() < 0 or f.max() >= len(v):
             raise ValueError(f"triangles must index vertices in [0, {len(v)}), got [{f.min()}, {f.max()}]")
-        if not 0.0 <= float(reflectivity) <= 1.0:
+        if isinstance(reflectivity, bool) or not isinstance(reflectivity, (int, float, np.integer, np.floating)) \
+                or not 0.0 <= float(reflectivity) <= 1.0:
             raise ValueError(f"reflectivity must be in [0, 1], got {reflectivity}")
         R, p = _pose_matrix(position, yaw)
         obj = WorldObject(len(self._objects), str(label), _color(color), v @ R.T + p, f.astype(np.int64),
@@ -94,12 +104,12 @@ class World:
     def add_box(self, size: object, position: object, yaw: float = 0.0, label: str = "box",
                 color: object = (0.7, 0.7, 0.7)) -> WorldObject:
         """Box of edge lengths ``size`` (sx, sy, sz) [m] centred at ``position``."""
-        return self.add_mesh(*primitives.box(tuple(size)), label, color, position, yaw)
+        return self.add_mesh(*primitives.box(size), label, color, position, yaw)
 
     def add_plane(self, size: object, position: object, yaw: float = 0.0, label: str = "floor",
                   color: object = (0.5, 0.5, 0.5)) -> WorldObject:
         """Horizontal rectangle (sx, sy) [m] at ``position``, facing up."""
-        return self.add_mesh(*primitives.plane(tuple(size)), label, color, position, yaw)
+        return self.add_mesh(*primitives.plane(size), label, color, position, yaw)
 
     def add_cylinder(self, radius: float, height: float, position: object, label: str = "cylinder",
                      color: object = (0.7, 0.7, 0.7), segments: int = 32) -> WorldObject:
@@ -134,7 +144,8 @@ class World:
             mesh = trimesh.load(path, force="mesh", process=False)
             faces, vertices = np.asarray(mesh.faces), np.asarray(mesh.vertices, dtype=float)
         except Exception as e:  # trimesh raises IndexError, KeyError, NotImplementedError, ... on bad files
-            raise ValueError(f"mesh file {str(path)!r} could not be read: {type(e).__name__}: {e}") from None
+            raise ValueError(f"mesh file {str(path)!r} must be a readable OBJ, STL or PLY mesh: {type(e).__name__}: "
+                             f"{e}") from None
         if faces.ndim != 2 or len(faces) == 0:
             raise ValueError(f"mesh file {str(path)!r} holds no triangles")
         from ..limits import current
