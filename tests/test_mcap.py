@@ -127,7 +127,7 @@ def _write(path, stream, **options) -> list[tuple[str, object, int, int]]:
 @pytest.fixture(scope="module")
 def log_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("mcap") / "run.mcap"
-    written = _write(path, _stream(np.random.default_rng(7)), block_messages=4)
+    written = _write(path, _stream(np.random.default_rng(7)), block_messages=4, compression="zstd")
     return path, written
 
 

@@ -26,6 +26,8 @@ class ChunkWriter:
 
     def __init__(self, file: IO[bytes], compression: str, *, background: bool = True, max_pending: int = 8):
         self.file = file
+        self.position = file.tell()
+        """Where the next record goes (kept here: ``file.tell()`` would be one more hand-over of the GIL)."""
         self.compression = compression
         self._compress = _compressor(compression)
         self.chunk_indexes: list[ChunkIndex] = []
@@ -39,7 +41,7 @@ class ChunkWriter:
 
     def write(self, data: bytes) -> None:
         """Appends already-serialised records."""
-        self._submit((self.file.write, (data,)))
+        self._submit((self._write, (data,)))
 
     def chunk(self, raw: bytes, start: int, end: int, indexes: list[tuple[int, bytes]]) -> None:
         """Appends a Chunk of the uncompressed records ``raw`` (log times ``start``..``end``) followed by its
@@ -78,26 +80,29 @@ class ChunkWriter:
                 except BaseException as exc:  # noqa: BLE001 - handed to the producer thread
                     self._error = exc
 
+    def _write(self, data: bytes) -> None:
+        self.file.write(data)
+        self.position += len(data)
+
     def _write_chunk(self, raw: bytes, start: int, end: int, indexes: list[tuple[int, bytes]]) -> None:
-        file = self.file
+        # one file write per chunk: each call that releases the GIL is a hand-over with the simulation's thread
         data = self._compress(raw) if self._compress else raw
         compression = self.compression.encode()
-        chunk_start = file.tell()
-        body = struct.pack("<QQQII", start, end, len(raw), zlib.crc32(raw), len(compression)) + compression \
-            + struct.pack("<Q", len(data))
-        file.write(struct.pack("<BQ", Opcode.CHUNK, len(body) + len(data)))
-        file.write(body)
-        file.write(data)
-        chunk_length = file.tell() - chunk_start
-        offsets = {}
+        chunk_start = self.position
+        header = struct.pack("<BQQQQII", Opcode.CHUNK, 8 * 3 + 4 + 4 + len(compression) + 8 + len(data), start, end,
+                             len(raw), zlib.crc32(raw), len(compression)) + compression + struct.pack("<Q", len(data))
+        chunk_length = len(header) + len(data)
+        parts = [header, data]
+        offsets, position = {}, chunk_start + chunk_length
         for channel_id, entries in indexes:
-            offsets[channel_id] = file.tell()
-            file.write(struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 6 + len(entries), channel_id, len(entries)))
-            file.write(entries)
+            offsets[channel_id] = position
+            parts += [struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 6 + len(entries), channel_id, len(entries)), entries]
+            position += 15 + len(entries)
+        self._write(b"".join(parts))
         self.chunk_indexes.append(ChunkIndex(
             message_start_time=start, message_end_time=end, chunk_start_offset=chunk_start,
             chunk_length=chunk_length, message_index_offsets=offsets,
-            message_index_length=file.tell() - chunk_start - chunk_length, compression=self.compression,
+            message_index_length=position - chunk_start - chunk_length, compression=self.compression,
             compressed_size=len(data), uncompressed_size=len(raw)))
 
 

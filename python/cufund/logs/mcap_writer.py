@@ -35,7 +35,7 @@ __all__ = ["MAGIC", "McapLogger"]
 
 MAGIC = b"\x89MCAP0\r\n"
 _MESSAGE_HEADER = 2 + 4 + 8 + 8  # channel id, sequence, log time, publish time
-_COMPRESSIONS = ("zstd", "lz4", "")
+_COMPRESSIONS = ("lz4", "zstd", "")
 
 
 class _TopicBuffer:
@@ -50,12 +50,14 @@ class _TopicBuffer:
 class McapLogger:
     """Writes messages to ``path`` (an MCAP file Foxglove Studio and the ``mcap`` tools open without ROS).
 
-    ``metadata`` (str -> str) is stored as an MCAP Metadata record named ``cufund``. Use as a context manager or
+    ``metadata`` (str -> str) is stored as an MCAP Metadata record named ``cufund``. ``compression``: ``lz4``
+    (default: about twice as fast as zstd level 1 on these records, files about 40 % larger), ``zstd`` or ``""``.
+    ``background``: compress and write on a thread (the default), or in the caller's. Use as a context manager or
     call :meth:`close`; a file whose logger was never closed has no summary (the ``mcap`` tools can recover its
     complete chunks)."""
 
     def __init__(self, path: str | os.PathLike[str], metadata: dict[str, str] | None = None, *,
-                 block_messages: int = 1024, chunk_bytes: int = 1 << 20, compression: str = "zstd",
+                 block_messages: int = 1024, chunk_bytes: int = 1 << 20, compression: str = "lz4",
                  background: bool = True):
         if compression not in _COMPRESSIONS:
             raise ValueError(f"compression must be one of {_COMPRESSIONS}, got {compression!r}")
