@@ -224,8 +224,8 @@ class FixedAccumulator:
 
     A message that matches the topic's first one (the same arrays present, with its dtypes and sizes; None where
     it had None) goes into one ``bytearray``: its numbers packed with ``struct`` and its arrays' bytes, copied while
-    they are still in the CPU cache. Nothing per message stays alive but three ints, so the simulator's freed arrays
-    are reused at once and the garbage collector has nothing to follow. Any other message keeps all its field
+    they are still in the CPU cache, after its two times and its sequence number. No object per message stays
+    alive, so the simulator's freed arrays are reused at once and the garbage collector has nothing to follow. Any other message keeps all its field
     values and takes the general (checked, slower) path when the block is encoded."""
 
     def __init__(self, layout: MessageLayout, first: Any):
@@ -235,63 +235,72 @@ class FixedAccumulator:
         absent = [c for c in cols if c.shape and getattr(first, c.attr) is None]
         self.scalars = [c for c in cols if not c.shape]
         self.present = present
-        head = struct.Struct("<" + "".join(_STRUCT_CODES[c.code] for c in self.scalars))
-        self.packed = np.dtype([(c.ros_name, f"<{c.code}") for c in self.scalars]
+        # per message: log and publish time, sequence, the numbers, then the arrays' bytes
+        head = struct.Struct("<QQQ" + "".join(_STRUCT_CODES[c.code] for c in self.scalars))
+        self.packed = np.dtype([("_log", "<u8"), ("_publish", "<u8"), ("_sequence", "<u8")]
+                               + [(c.ros_name, f"<{c.code}") for c in self.scalars]
                                + [(c.ros_name, f"<{c.code}", (int(np.prod(c.shape)),)) for c in present])
-        self.logs: list[int] = []
-        self.publishes: list[int] = []
-        self.sequences: list[int] = []
-        self.slow: list[tuple[int, tuple[Any, ...]]] = []
+        self.slow: list[tuple[int, Any, Any, Any, tuple[Any, ...]]] = []
         self.buffer = bytearray()
-        self.add = self._make_add(head, _getter([c.attr for c in present]), _getter([c.attr for c in self.scalars]),
-                                  _getter([f"{c.attr}.dtype" for c in present] + [c.attr for c in absent]),
-                                  tuple(np.dtype(c.code) for c in present) + (None,) * len(absent),
-                                  self.packed.itemsize - head.size)
+        self.add, self._count = self._make_add(
+            head, _getter([c.attr for c in present]), _getter([c.attr for c in self.scalars]),
+            _getter([f"{c.attr}.dtype" for c in present] + [c.attr for c in absent]),
+            tuple(np.dtype(c.code) for c in present) + (None,) * len(absent), self.packed.itemsize - head.size)
 
     def _make_add(self, head: struct.Struct, arrays: Any, scalars: Any, checks: Any, expected: tuple[Any, ...],
-                  nbytes: int) -> Any:
+                  nbytes: int) -> tuple[Any, Any]:
         join, pack, extend = b"".join, head.pack, self.buffer.extend
-        logs, publishes, sequences = self.logs, self.publishes, self.sequences
-        log_append, publish_append, sequence_append = logs.append, publishes.append, sequences.append
         slow_append, all_fields = self.slow.append, self.layout._all
+        count = 0
 
         def add(message: Any, log: int, publish: int, sequence: int) -> int:
             """Buffers ``message``; returns how many the block holds."""
-            log_append(log)
-            publish_append(publish)
-            sequence_append(sequence)
+            nonlocal count
+            count += 1
             try:
                 raw = join(arrays(message))
                 if len(raw) == nbytes and checks(message) == expected:
-                    extend(pack(*scalars(message)))  # packs (or fails) before anything is appended
+                    extend(pack(log, publish, sequence, *scalars(message)))  # packs (or fails) before appending
                     extend(raw)
-                    return len(logs)
+                    return count
             except (TypeError, BufferError, AttributeError, ValueError, struct.error):
-                pass  # None, a list, a non-contiguous array, an array where None was, a non-number
-            slow_append((len(logs) - 1, all_fields(message)))
-            return len(logs)
+                pass  # None, a list, a non-contiguous array, an array where None was, a non-number, a bad time
+            slow_append((count - 1, log, publish, sequence, all_fields(message)))
+            return count
 
-        return add
+        def take() -> int:
+            nonlocal count
+            n, count = count, 0
+            return n
 
-    def drain(self, topic: str) -> tuple[np.ndarray, list[int], list[int], list[int]]:
+        return add, take
+
+    def drain(self, topic: str) -> tuple[np.ndarray, list[Any], list[Any], list[Any]]:
         """The block's (n, size) CDR rows and its times and sequences; empties the accumulator."""
-        n = len(self.logs)
-        times = (self.logs[:], self.publishes[:], self.sequences[:])
+        n = self._count()
         layout = self.layout
         rows = layout.layout.empty(n)
         fast = np.frombuffer(bytes(self.buffer), self.packed)
+        times = [fast[name].tolist() for name in ("_log", "_publish", "_sequence")]
         if self.slow:
-            other = [i for i, _ in self.slow]
+            other = [entry[0] for entry in self.slow]
             keep = np.ones(n, bool)
             keep[other] = False
             target = rows[keep]
             self._fill(target, fast)
             rows[keep] = target
-            rows[other] = layout._rows([values for _, values in self.slow], topic)
+            rows[other] = layout._rows([entry[4] for entry in self.slow], topic)
+            merged: list[list[Any]] = [[None] * n for _ in range(3)]
+            for column, fast_values, k in zip(merged, times, (1, 2, 3)):
+                for i, value in zip(np.flatnonzero(keep).tolist(), fast_values):
+                    column[i] = value
+                for entry in self.slow:
+                    column[entry[0]] = entry[k]
+            times = merged
         else:
             self._fill(rows, fast)
-        del self.logs[:], self.publishes[:], self.sequences[:], self.slow[:], self.buffer[:]
-        return rows.view(np.uint8).reshape(n, layout.layout.size), *times
+        del self.slow[:], self.buffer[:]
+        return rows.view(np.uint8).reshape(n, layout.layout.size), times[0], times[1], times[2]
 
     def _fill(self, rows: np.ndarray, fast: np.ndarray) -> None:
         for c in self.scalars:
