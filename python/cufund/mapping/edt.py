@@ -43,7 +43,10 @@ def edt(
         raise ValueError(f"nthreads must be an integer >= 0 (0 = all cores), got {nthreads!r}")
     if not isinstance(signed, (bool, np.bool_)):
         raise ValueError(f"signed must be a bool, got {signed!r}")
-    kind = np.dtype(dtype)
+    try:
+        kind = np.dtype(dtype)
+    except TypeError:
+        raise ValueError(f"dtype must be float32 or float64, got {dtype!r}") from None
     if kind not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"dtype must be float32 or float64, got {kind}")
     return _core.esdf.edt(
