@@ -1,8 +1,9 @@
 """`read_mcap`: the cufund messages of a log written by :class:`cufund.logs.McapLogger`, exactly as written.
 
-Reading goes through the official ``mcap`` reader (chunk CRCs checked); each channel's metadata names its codec
-and message class, which rebuild the same frozen dataclasses (float64 bit for bit, array dtypes and shapes, enums
-as enums). Messages come in log-time order, ties in the order they were written. Foxglove view channels
+The official ``mcap`` reader checks the file and reads its summary; the chunks are then merged in log-time order
+by :mod:`cufund.logs.chunk_reader` (CRCs checked), ties in the order they were written. Each channel's metadata
+names its codec and message class, which rebuild the same frozen dataclasses (float64 bit for bit, array dtypes
+and shapes, enums as enums). Foxglove view channels
 (``<topic>/pose``, ``<topic>/tf``) are derived data and are not returned.
 """
 
@@ -18,6 +19,7 @@ import zstandard
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
+from .chunk_reader import iter_chunk_messages
 from .codecs import Codec, codec_from_channel
 
 __all__ = ["LogRecord", "McapReadError", "log_metadata", "log_topics", "read_mcap"]
@@ -108,29 +110,18 @@ def read_mcap(path: str | os.PathLike[str], topics: Iterable[str] | str | None =
 
 
 def _iterate(path: Path, stream: Any, reader: Any, codecs: dict[int, tuple[str, Codec]]) -> Iterator[LogRecord]:
-    topics = sorted({topic for topic, _ in codecs.values()})
     try:
-        if not topics:
+        if not codecs:
             return
-        pending: list[Any] = []
+        summary = reader.get_summary()
+        if not summary.chunk_indexes and summary.statistics and summary.statistics.message_count:
+            raise McapReadError(f"{str(path)!r} has no chunk index (not written by cufund.logs.McapLogger)")
         try:
-            for _, channel, message in reader.iter_messages(topics=topics, log_time_order=True):
-                if channel.id not in codecs:
-                    continue
-                if pending and message.log_time != pending[0].log_time:
-                    yield from _decode(pending, codecs)
-                    pending = []
-                pending.append(message)
+            for log, _, _, _, channel, publish, data in iter_chunk_messages(stream, summary.chunk_indexes,
+                                                                              set(codecs)):
+                topic, codec = codecs[channel]
+                yield LogRecord(topic, log, publish, codec.decode(data))
         except _ERRORS as exc:
             raise McapReadError(f"{str(path)!r} is corrupt: {exc}") from exc
-        yield from _decode(pending, codecs)
     finally:
         stream.close()
-
-
-def _decode(messages: list[Any], codecs: dict[int, tuple[str, Codec]]) -> Iterator[LogRecord]:
-    if len(messages) > 1:
-        messages.sort(key=lambda m: m.sequence)
-    for m in messages:
-        topic, codec = codecs[m.channel_id]
-        yield LogRecord(topic, m.log_time, m.publish_time, codec.decode(m.data))
