@@ -2,6 +2,22 @@
 
 :class:`McapLogger` writes any cufund message (and user dataclasses) while a run goes, at about a microsecond
 per message and in bounded memory; :func:`read_mcap` gives the same message objects back, bit for bit.
+
+What a log holds (one channel per topic, named as the topic):
+
+- Fixed-size messages (odometry, IMU, magnetometer, barometer, setpoints, actuator commands; any dataclass of
+  numbers and fixed-shape numeric arrays): CDR with a ros2msg schema ``cufund_msgs/msg/<Class>`` (field names
+  lower-cased, an optional array adds ``has_<name>``), plottable in Foxglove.
+- Each odometry topic also gets two Foxglove views: ``<topic>/pose`` (``foxglove_msgs/msg/PoseInFrame`` in
+  ``world``) and ``<topic>/tf`` (``foxglove_msgs/msg/FrameTransform`` ``world`` -> ``base_link`` for
+  ``/truth/odometry``, ``base_link_estimate`` for ``/estimator/odometry``).
+- Point clouds (``foxglove.PointCloud``: in frame ``lidar`` with x, y, z, dt, range, intensity, channel packed;
+  LiDAR truth in ``world`` with object_id), camera images (``foxglove.RawImage``, frame ``camera``) and GPS fixes
+  (``foxglove.LocationFix``): JSON with JSON Schema; the float64 stamp, dtypes and other fields ride along in a
+  ``cufund`` field for the exact round trip.
+- Anything else (enums, strings, nested dataclasses): JSON of the fields (``cufund.<Class>``).
+
+Chunks are lz4 (or zstd) with CRCs, indexed; the ``cufund`` metadata record holds what the logger was given.
 """
 
 from .mcap_reader import LogRecord, McapReadError, log_metadata, log_topics, read_mcap
