@@ -376,3 +376,30 @@ def test_an_unclosed_logger_leaves_a_file_without_summary(tmp_path):
     del log
     with pytest.raises(McapReadError, match="not a complete MCAP log|no summary"):
         read_mcap(path)
+
+
+@pytest.mark.filterwarnings("ignore:This process .* is multi-threaded:DeprecationWarning")  # Python >= 3.12
+def test_a_forked_child_cannot_write_through_its_parents_logger(tmp_path):
+    """The child has the logger's queue but not its writer thread: it must fail at once, not wait forever."""
+    import multiprocessing
+
+    global _CHILD_LOG
+    _CHILD_LOG = McapLogger(tmp_path / "a.mcap", block_messages=1)
+    _CHILD_LOG.write("/a", M.ActuatorCommand(0.0, np.ones(4)), 0, 0)
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        message = pool.apply(_write_in_child)
+    assert "forked child" in message
+    _CHILD_LOG.write("/a", M.ActuatorCommand(0.1, np.ones(4)), 1, 1)  # the parent goes on
+    _CHILD_LOG.close()
+    assert [r.log_time_ns for r in read_mcap(tmp_path / "a.mcap")] == [0, 1]
+
+
+_CHILD_LOG: McapLogger | None = None
+
+
+def _write_in_child() -> str:
+    try:
+        _CHILD_LOG.write("/a", M.ActuatorCommand(1.0, np.ones(4)), 2, 2)
+    except RuntimeError as exc:
+        return str(exc)
+    return "no error"

@@ -7,6 +7,7 @@ bounded; a producer that outruns the disk waits). Records are written in the ord
 
 from __future__ import annotations
 
+import os
 import queue
 import struct
 import threading
@@ -32,6 +33,7 @@ class ChunkWriter:
         self._compress = _compressor(compression)
         self.chunk_indexes: list[ChunkIndex] = []
         self._error: BaseException | None = None
+        self._pid = os.getpid()
         self._queue: queue.Queue[Any] | None = None
         self._thread: threading.Thread | None = None
         if background:
@@ -50,13 +52,15 @@ class ChunkWriter:
 
     def close(self) -> None:
         """Waits for every submitted job; re-raises the first error a job had."""
-        if self._thread is not None and self._queue is not None:
+        if self._thread is not None and self._queue is not None and os.getpid() == self._pid:
             self._queue.put(_STOP)
             self._thread.join()
             self._thread = None
         self._raise()
 
     def _submit(self, job: tuple[Any, tuple[Any, ...]]) -> None:
+        if os.getpid() != self._pid:  # a forked child has the queue but not the thread: it would wait forever
+            raise RuntimeError("an McapLogger cannot write from a forked child process; open one there")
         self._raise()
         if self._queue is None:
             job[0](*job[1])
