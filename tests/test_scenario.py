@@ -243,3 +243,15 @@ def test_square_is_listed_and_loads():
     cfg = load_scenario("square")
     assert cfg.vehicle == "cu_astro" and cfg.controller.kind == "pid" and cfg.rates.physics_hz == 1000.0
     assert ScenarioConfig.from_dict(cfg.to_dict()) == cfg
+
+
+def test_the_run_summary_and_the_config_pickle():
+    from cufund.scenario_build import RunSummary, run_scenario
+
+    run = run_scenario(load_scenario("square", {"duration": 1.0}))
+    summary = run.summary({"metrics": "metrics.json"})
+    again = pickle.loads(pickle.dumps(summary))
+    assert isinstance(again, RunSummary) and again == summary
+    assert again.status == "timeout" and again.metrics["sim_time_s"] == 1.0
+    cfg = load_scenario("square_mocap", {"seed": 5})
+    assert pickle.loads(pickle.dumps(cfg)) == cfg

@@ -35,7 +35,7 @@ def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, repl
         f.write(f"# Reproduce with: cufund run {out / 'config.yaml'}\n")
         yaml.safe_dump(run.config.to_dict(), f, sort_keys=False)
     params = run.config.vehicle_params()
-    if plots and run.reference is not None and run.path is not None and "tracking_rmse_m" in run.metrics:
+    if plots and run.reference is not None and run.path is not None and run.metrics.get("tracking_rmse_m") is not None:
         from .viz.plots import plot_tracking
 
         window = (float(run.path.t_knots[0]), run.path.t_end)

@@ -229,14 +229,11 @@ def tracking_metrics(result: SimulationResult, path: Any) -> dict[str, Any]:
     """|true position - reference position| at every recorded state within the path's time span."""
     t = result.states["t"]
     m = (t >= path.t_knots[0]) & (t <= path.t_end)
-    if not np.any(m):
-        err = np.array([math.nan])
-    else:
-        err = np.linalg.norm(result.states["p_W"][m] - path.sample(t[m]).p_W, axis=1)
-    return {
-        "tracking_rmse_m": float(np.sqrt(np.mean(err ** 2))),
-        "tracking_max_m": float(np.max(err)),
-        "tracking_min_m": float(np.min(err)),
+    err = np.linalg.norm(result.states["p_W"][m] - path.sample(t[m]).p_W, axis=1) if np.any(m) else None
+    return {  # None: the run ended before the path began
+        "tracking_rmse_m": None if err is None else float(np.sqrt(np.mean(err ** 2))),
+        "tracking_max_m": None if err is None else float(np.max(err)),
+        "tracking_min_m": None if err is None else float(np.min(err)),
         "tracking_window_s": [float(path.t_knots[0]), float(path.t_end)],
         "tracking_samples": int(np.count_nonzero(m)),
     }
