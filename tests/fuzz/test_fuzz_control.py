@@ -45,3 +45,19 @@ def test_allocation(server, thrust, torque):
         "result = a.allocate(thrust, torque)\nresult = np.concatenate([result[0], result[1]])",
         {"thrust": thrust, "torque": torque}, check="np.isfinite(result).all()")
     expect_good(outcome, detail)
+
+
+@fuzz_settings
+@given(goal=arrays([(3,), (2,)], st.one_of(st.floats(-1e17, 1e17), floats_any())),
+       v_max=st.one_of(st.just(1.0), scalars()), a_max=st.one_of(st.just(2.0), floats_any()))
+def test_point_to_point_move(server, goal, v_max, a_max):
+    # ruckig raises its own RuckigError for far goals (a waypoint at 1.5e16 m): it must arrive as ValueError.
+    code = """
+from cufund.planning.point_to_point import JerkLimitedMove
+move = JerkLimitedMove(np.zeros(3), goal, v_max=v_max, a_max=a_max)
+s = move.sample(np.linspace(0.0, move.duration, 5))
+result = np.concatenate([np.ravel(s.p_W), [move.duration]])
+"""
+    outcome, detail = server.run("planning", "", code, {"goal": goal, "v_max": v_max, "a_max": a_max},
+                                 check="np.isfinite(result).all()")
+    expect_good(outcome, detail)

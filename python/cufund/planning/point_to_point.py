@@ -21,18 +21,28 @@ class JerkLimitedMove:
                  j_max: float = 5.0, yaw: float = 0.0, t_start: float = 0.0) -> None:
         from ruckig import InputParameter, Result, Ruckig, Trajectory
 
-        a, b = np.asarray(start_W, dtype=float), np.asarray(goal_W, dtype=float)
-        for name, x in (("start_W", a), ("goal_W", b)):
-            if x.shape != (3,) or not np.all(np.isfinite(x)):
-                raise ValueError(f"{name} must be 3 finite numbers [m], got {x}")
+        points = []
+        for name, x in (("start_W", start_W), ("goal_W", goal_W)):
+            try:
+                p = np.asarray(x, dtype=float)
+            except (TypeError, ValueError):
+                p = np.full(1, np.nan)  # reported below
+            if p.shape != (3,) or not np.all(np.isfinite(p)):
+                raise ValueError(f"{name} must be 3 finite numbers [m], got {x!r}")
+            points.append(p)
+        a, b = points
         for name, x in (("v_max", v_max), ("a_max", a_max), ("j_max", j_max)):
-            if not (np.isfinite(x) and x > 0):
+            if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) \
+                    or not (np.isfinite(x) and x > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {x!r}")
         inp = InputParameter(3)
         inp.current_position, inp.target_position = a.tolist(), b.tolist()
         inp.max_velocity, inp.max_acceleration, inp.max_jerk = [v_max] * 3, [a_max] * 3, [j_max] * 3
         self._traj = Trajectory(3)
-        result = Ruckig(3).calculate(inp, self._traj)
+        try:
+            result = Ruckig(3).calculate(inp, self._traj)
+        except Exception as e:  # RuckigError (e.g. a waypoint at 1.5e16 m) is not a ValueError
+            raise ValueError(f"ruckig could not plan the move from start_W {a} to goal_W {b}: {e}") from None
         if result not in (Result.Working, Result.Finished):
             raise ValueError(f"ruckig could not plan the move from {a} to {b}: {result}")
         self.start_W, self.goal_W = a, b
