@@ -145,6 +145,8 @@ def test_ompl_path_clears_the_triangles_and_improves_on_the_first_solution(setti
     _check_path(best, q, truth, START, GOAL, 0.3)
     astar = GridPathSearch(GridPathSearchParams(radius=0.3)).plan(q, START, GOAL)
     assert best.length <= 1.1 * astar.length  # simplified, optimised: close to the grid optimum
+    bit = OmplPathPlanner(OmplPathParams(radius=0.3, time_limit=2.0, improve_time=0.3, optimizer="bit_star"))
+    _check_path(bit.plan(q, START, GOAL), q, truth, START, GOAL, 0.3)
     assert OmplPathPlanner(OmplPathParams(radius=0.3)).plan(q, START, [50.0, 0.0, 1.0]).status == "goal_blocked"
     with pytest.raises(ConfigError, match="optimizer must be one of"):
         OmplPathParams(optimizer="prm")
