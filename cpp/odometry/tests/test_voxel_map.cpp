@@ -72,6 +72,36 @@ TEST(VoxelMap, KnnEqualsBruteForceOverStoredPoints) {
   }
 }
 
+TEST(VoxelMap, SearchesStayExactAfterEvictionsCompactTheMap) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-6.0, 6.0);
+  VoxelMap map(0.5, 8, 0.05, 4.0, 600);
+  for (int round = 0; round < 5; ++round) {
+    std::vector<double> pts(3 * 4000);
+    for (auto& x : pts) x = u(rng);
+    map.insert(pts.data(), 4000, Eigen::Vector3d(round - 2.0, 0.5 * round, 0.0));
+  }
+  ASSERT_LE(map.voxel_count(), 600u);
+  const auto stored = map.points();
+  ASSERT_EQ(stored.size(), 3 * map.size());
+  std::vector<double> queries(3 * 100), nb(3 * 100 * 4), d2(100 * 4);
+  for (auto& x : queries) x = u(rng) / 3.0;
+  map.knn(queries.data(), 100, 4, 0.5, nb.data(), d2.data(), 2);
+  for (std::size_t i = 0; i < 100; ++i) {
+    std::vector<double> all;
+    for (std::size_t j = 0; j < map.size(); ++j) {
+      const double d = (Eigen::Map<const Eigen::Vector3d>(stored.data() + 3 * j) -
+                        Eigen::Map<const Eigen::Vector3d>(queries.data() + 3 * i)).squaredNorm();
+      if (d <= 0.25) all.push_back(d);
+    }
+    std::sort(all.begin(), all.end());
+    for (std::size_t j = 0; j < 4; ++j) {
+      if (j < all.size()) EXPECT_DOUBLE_EQ(d2[i * 4 + j], all[j]);
+      else EXPECT_TRUE(std::isinf(d2[i * 4 + j]));
+    }
+  }
+}
+
 TEST(VoxelMap, EvictsByDistanceAndBySize) {
   std::vector<double> pts;
   for (int i = 0; i < 100; ++i) pts.insert(pts.end(), {static_cast<double>(i), 0.0, 0.0});
