@@ -262,6 +262,7 @@ SceneResult RaycastScene::add_triangles(const float* vertices, std::size_t nv, c
   std::copy(vertices, vertices + 3 * nv, vb);
   std::copy(triangles, triangles + 3 * nt, ib);
   rtcCommitGeometry(g);
+  ForkSafeSection no_fork;  // a child must not inherit the scene's locks held
   std::unique_lock<std::shared_mutex> no_casts(impl_->scene_mutex);
   const unsigned id = rtcAttachGeometry(impl_->scene, g);
   rtcReleaseGeometry(g);
@@ -282,6 +283,7 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
     }
     if (r[3] == 0.0f && r[4] == 0.0f && r[5] == 0.0f) return {SceneStatus::kZeroDirection, i, kInvalidId};
   }
+  ForkSafeSection no_fork;  // a child must not inherit the scene's locks held
   std::shared_lock<std::shared_mutex> no_additions(impl_->scene_mutex);
   impl_->commit();
   const bool coherent = order == RayOrder::kCoherent || (order == RayOrder::kAuto && looks_coherent(rays, n));
