@@ -45,7 +45,7 @@ class CameraIntrinsics:
         for name in ("width", "height"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
-                    or not np.isfinite(v) or int(v) != v or v < 1 or v > 100_000:
+                    or not 1 <= v <= 100_000 or int(v) != v:
                 raise ValueError(f"{name} must be a positive integer [px], got {v}")
             object.__setattr__(self, name, int(v))
         for name in ("fx", "fy", "cx", "cy"):

@@ -31,7 +31,10 @@ DEG = math.pi / 180.0
 
 
 def _vec(name: str, value: object, dim: int) -> tuple[float, ...]:
-    a = np.asarray(value, dtype=float)
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        a = np.full(1, np.nan)  # reported below
     if a.shape != (dim,) or not np.all(np.isfinite(a)):
         raise ConfigError(f"{name} must be {dim} finite numbers, got {value!r}")
     return tuple(float(x) for x in a)

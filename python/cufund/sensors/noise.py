@@ -34,7 +34,10 @@ __all__ = ["NoiseSpec", "ErrorProcess"]
 
 
 def _nonneg_vector(name: str, value: object, dim: int) -> tuple[float, ...]:
-    a = np.broadcast_to(np.asarray(value, dtype=float), (dim,)) if np.ndim(value) == 0 else np.asarray(value, float)
+    try:
+        a = np.broadcast_to(np.asarray(value, dtype=float), (dim,)) if np.ndim(value) == 0 else np.asarray(value, float)
+    except (TypeError, ValueError, OverflowError):
+        a = np.full(1, np.nan)  # reported below
     if a.shape != (dim,) or not np.all(np.isfinite(a)) or np.any(a < 0):
         raise ConfigError(f"{name} must be a finite number >= 0 or {dim} of them, got {value!r}")
     return tuple(float(x) for x in a)

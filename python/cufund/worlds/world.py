@@ -136,7 +136,7 @@ class World:
         if not path.is_file():
             raise ValueError(f"mesh file {str(path)!r} does not exist")
         if isinstance(scale, bool) or not isinstance(scale, (int, float, np.integer, np.floating)) \
-                or not np.isfinite(scale) or scale <= 0:
+                or not 0 < scale < float("inf"):
             raise ValueError(f"scale must be a finite number > 0, got {scale!r}")
         if path.suffix.lower() == ".obj":
             _check_obj_faces(path)
