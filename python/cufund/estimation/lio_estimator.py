@@ -22,11 +22,14 @@ class LioEstimator(Estimator):
     name = "lio"
     inputs = (Topics.IMU, Topics.POINT_CLOUD)
 
-    def __init__(self, params: LioParams | dict | None = None, rate_hz: float | None = None) -> None:
+    def __init__(self, params: LioParams | dict | None = None, rate_hz: float | None = None,
+                 imu_topic: str = Topics.IMU, lidar_topic: str = Topics.POINT_CLOUD) -> None:
         if isinstance(params, dict):
             params = LioParams.from_dict(params)
         self.params = params or LioParams()
         self.rate_hz = float(rate_hz) if rate_hz is not None else float(self.params.imu.rate_hz)
+        self.imu_topic, self.lidar_topic = imu_topic, lidar_topic
+        self.inputs = (imu_topic, lidar_topic)
         self.reset()
 
     def reset(self) -> None:
@@ -36,8 +39,8 @@ class LioEstimator(Estimator):
         self._imu_sub = self._lidar_sub = None
 
     def setup(self, bus) -> None:
-        self._imu_sub = bus.subscribe(Topics.IMU)
-        self._lidar_sub = bus.subscribe(Topics.POINT_CLOUD)
+        self._imu_sub = bus.subscribe(self.imu_topic)
+        self._lidar_sub = bus.subscribe(self.lidar_topic)
 
     @property
     def diagnostics(self) -> list[ScanDiagnostics]:
