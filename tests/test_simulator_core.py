@@ -1,7 +1,6 @@
 """The simulator core: every message delivered, exact event times at any rate, latency, topological order,
 flight software on the estimate (never on truth), advancing from outside, logs replayed bit for bit."""
 
-import math
 
 import numpy as np
 import pytest

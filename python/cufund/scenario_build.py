@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-import time
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,7 +14,7 @@ from .messages import Odometry, Topics
 from .quadrotor import Quadrotor
 from .registry import lookup
 from .scenario import PartSpec, ScenarioConfig, TrajectoryConfig
-from .simulator import RunStatus, SimulationResult, Simulator
+from .simulator import SimulationResult, Simulator
 from .worlds.collision import CollisionChecker
 
 __all__ = ["BuildContext", "RunSummary", "ScenarioRun", "build_simulation", "odometry_metrics", "run_scenario",
@@ -282,5 +280,3 @@ def out_dir_problem(out: str | Path) -> str | None:
     return None
 
 
-def _now() -> str:
-    return time.strftime("%Y%m%d-%H%M%S")

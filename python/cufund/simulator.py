@@ -357,7 +357,7 @@ class Simulator:
     def _advance(self, end_ns: int, done: Callable[[float, Odometry], bool] | None, progress: bool) -> None:
         quad, bus, slots, physics = self.vehicle, self.bus, self._slots, self._physics
         truth_topic, actuator = Topics.TRUTH_ODOMETRY, str(Topics.ACTUATOR_COMMAND)
-        latest = bus._latest
+        latest, pending, deliver = bus._latest, bus._pending, bus._deliver
         now, cmd, at_node = self._now_ns, self._cmd, self._at_node
         start_ns, span = now, max(end_ns - now, 1)
         last_bar = -1
@@ -368,24 +368,29 @@ class Simulator:
                 self._processed_ns = now
                 if now >= next_event:
                     bus.now_ns = now
-                    bus.release(now)
+                    if pending and pending[0][0] <= now:
+                        bus.release(now)
                     t = now / NS
                     truth = None
+                    next_event = math.inf
                     for s in slots:
                         clock = s.clock
                         if clock.next_ns == now:
                             if truth is None and quad is not None:
                                 truth = self._snapshot(t)
                                 self._truth_at = (now, truth)
-                                bus.publish(truth_topic, truth)
+                                deliver(truth_topic, truth, now, now)
                             w0 = perf()
                             s.run(t, s.view)
                             s.seconds += perf() - w0
                             clock.advance()
+                        if clock.next_ns < next_event:
+                            next_event = clock.next_ns
+                    if pending and pending[0][0] < next_event:
+                        next_event = pending[0][0]
                     act: ActuatorCommand | None = latest.get(actuator)
                     if act is not None:
                         cmd = act.rotor_speeds
-                    next_event = self._next_event()
                     if self.status is not None:  # a component stopped the run
                         if quad is not None:
                             self._write_row(t)
