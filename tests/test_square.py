@@ -69,3 +69,13 @@ def test_from_python_in_a_few_lines():
     cfg = cufund.load_scenario("square")
     r = cufund.run_scenario(cfg)
     assert r.result.status is cufund.RunStatus.COMPLETED
+
+
+def test_square_on_lidar_inertial_odometry_meets_the_square_bounds():
+    """square_lio: the controllers fly on the GTSAM LIO estimate (Mid-360 + ICM-42688-P in the tunnel arena)."""
+    run = run_scenario(load_scenario("square_lio"))
+    m = run.metrics
+    assert m["status"] == "completed"
+    assert m["tracking_rmse_m"] <= 0.02 and m["tracking_max_m"] <= 0.05
+    assert m["odometry_rmse_m"] <= 0.01 and m["odometry_max_m"] <= 0.03 and m["odometry_rot_rmse_deg"] <= 0.2
+    assert m["odometry_samples"] > 2000  # at IMU rate

@@ -4,8 +4,15 @@ from __future__ import annotations
 
 from typing import Any
 
+import dataclasses
+
+from ..config import ConfigError
 from ..registry import Kind, register
 from .imu_propagator import ImuPropagator, ImuPropagatorParams
+from .params import LioParams
+
+_FROM_SCENARIO = {"imu": "sensors.<imu> (its kind and T_BI)", "T_BL": "sensors.<lidar>.T_BL",
+                  "p_WB0": "start_p_W", "gravity": "vehicle"}
 
 
 def _imu_propagator(p: ImuPropagatorParams, ctx: Any) -> list[Any]:
@@ -17,3 +24,22 @@ def _imu_propagator(p: ImuPropagatorParams, ctx: Any) -> list[Any]:
 
 register(Kind("estimator", "imu_propagator", ImuPropagatorParams, _imu_propagator, None,
               "IMU-rate odometry between slow pose corrections (sensors: an IMU and a pose source)"))
+
+
+def _lio(p: LioParams, ctx: Any) -> list[Any]:
+    from .lio_estimator import LioEstimator  # GTSAM loads only when a scenario uses the LIO
+
+    default = LioParams()
+    for name, source in _FROM_SCENARIO.items():
+        if getattr(p, name) != getattr(default, name):
+            raise ConfigError(f"estimator.{name}: the LIO takes it from the scenario ({source}); give it once there")
+    _, imu = ctx.sensor_of_type("imu", "", "estimator")
+    _, lidar = ctx.sensor_of_type("lidar", "", "estimator")
+    start = ctx.config.start_p_W or (ctx.config.trajectory.waypoints[0][0], ctx.config.trajectory.waypoints[0][1], 0.0)
+    params = dataclasses.replace(p, imu=ctx.imu_params(), T_BL=lidar.extrinsic or default.T_BL, p_WB0=tuple(start),
+                                 gravity=ctx.vehicle.gravity)
+    return [LioEstimator(params, imu_topic=imu.topic, lidar_topic=lidar.topic)]
+
+
+register(Kind("estimator", "lio", LioParams, _lio, None,
+              "LiDAR-inertial odometry on GTSAM (sensors: an IMU and a LiDAR; starts from the known pad pose)"))
