@@ -90,29 +90,29 @@ def _run(args: argparse.Namespace) -> int:
         problem = out_dir_problem(out)
         if problem:
             raise ConfigError(problem)
-        build_simulation(cfg)  # the whole graph validated before anything runs
+        built = build_simulation(cfg)  # the whole graph validated before anything runs
     except (ConfigError, OSError) as e:
         print(f"cufund: {e}", file=sys.stderr)
         return EXIT_INVALID
     from .run_folder import write_run_folder
-    from .scenario_build import run_scenario
+    from .scenario_build import run_built
 
-    extra: tuple = ()
     viewer = None
     if args.viz:
         from .viz.live import LiveViewer
 
-        viewer = LiveViewer(cfg.vehicle_params())
+        viewer = LiveViewer(cfg.vehicle_params(), built.context.reference)
         print(f"MeshCat: open {viewer.url}", flush=True)
-        extra = (viewer,)
+        built.simulator.add(viewer)
     out.mkdir(parents=True, exist_ok=True)
     logger = None
     if cfg.log.mcap and not args.no_log:
         from .logs import McapLogger
 
         logger = McapLogger(out / "run.mcap", metadata={"scenario": cfg.name, "seed": str(cfg.seed)})
+        built.simulator.logger = logger
     try:
-        run = run_scenario(cfg, progress=sys.stderr.isatty() or args.viz, extra_components=extra, logger=logger)
+        run = run_built(built, progress=sys.stderr.isatty() or args.viz)
     finally:
         if logger is not None:
             logger.close()

@@ -17,7 +17,8 @@ from .scenario import PartSpec, ScenarioConfig, TrajectoryConfig
 from .simulator import SimulationResult, Simulator
 from .worlds.collision import CollisionChecker
 
-__all__ = ["BuildContext", "RunSummary", "ScenarioRun", "build_simulation", "odometry_metrics", "run_scenario",
+__all__ = ["BuildContext", "Built", "RunSummary", "ScenarioRun", "build_simulation", "odometry_metrics", "run_built",
+           "run_scenario",
            "tracking_metrics"]
 
 
@@ -193,7 +194,12 @@ def run_scenario(config: ScenarioConfig, progress: bool = False, extra_component
     """Builds ``config`` (:func:`build_simulation`), runs it until the vehicle has landed after its reference (or
     the duration elapses), and measures it: tracking error when there is a reference, odometry error when there is
     an estimator (both against ground truth, which only these metrics read)."""
-    built = build_simulation(config, extra_components, logger)
+    return run_built(build_simulation(config, extra_components, logger), progress)
+
+
+def run_built(built: Built, progress: bool = False) -> ScenarioRun:
+    """Runs a scenario made by :func:`build_simulation` (see :func:`run_scenario`)."""
+    config = built.config
     t_landed = built.landing_after
 
     def landed(t: float, truth: Odometry) -> bool:
