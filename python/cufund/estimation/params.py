@@ -88,7 +88,7 @@ class LioParams:
     refit_distance: float = 0.01
     """The tightly coupled factor re-finds its correspondences when the pose has moved more than this since they
     were found [m] (rotations count as their displacement at one map voxel)."""
-    smoother_iterations: int = 2
+    smoother_iterations: int = 1
     """Smoother updates per scan (the first adds the factors, the rest re-linearise)."""
     relinearize_threshold: float = 0.001
     """ISAM2 relinearisation threshold [rad, m]."""
