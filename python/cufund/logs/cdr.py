@@ -283,13 +283,14 @@ class FixedAccumulator:
                                     (TypeError, BufferError, AttributeError, ValueError, struct.error),
                                     [np.dtype(c.code) for c in present])
 
-    def drain(self, topic: str) -> tuple[np.ndarray, list[Any], list[Any], list[Any]]:
-        """The block's (n, size) CDR rows and its times and sequences; empties the accumulator."""
+    def drain(self, topic: str) -> tuple[np.ndarray, Any, Any, Any]:
+        """The block's (n, size) CDR rows, its log and publish times and its sequence numbers (uint64 arrays, or
+        lists when a message took the general path); empties the accumulator."""
         n = self._count()
         layout = self.layout
         rows = layout.layout.empty(n)
         fast = np.frombuffer(bytes(self.buffer), self.packed)
-        times = [fast[name].tolist() for name in ("_log", "_publish", "_sequence")]
+        times: list[Any] = [fast[name] for name in ("_log", "_publish", "_sequence")]
         if self.slow:
             other = [entry[0] for entry in self.slow]
             keep = np.ones(n, bool)
@@ -300,7 +301,7 @@ class FixedAccumulator:
             rows[other] = layout._rows([entry[4] for entry in self.slow], topic)
             merged: list[list[Any]] = [[None] * n for _ in range(3)]
             for column, fast_values, k in zip(merged, times, (1, 2, 3)):
-                for i, value in zip(np.flatnonzero(keep).tolist(), fast_values):
+                for i, value in zip(np.flatnonzero(keep).tolist(), fast_values.tolist()):
                     column[i] = value
                 for entry in self.slow:
                     column[entry[0]] = entry[k]

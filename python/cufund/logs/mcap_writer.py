@@ -154,7 +154,7 @@ class McapLogger:
         payload, log_times, publish_times, sequences = buffer.accumulator.drain(topic)
         log = _times(log_times, "log_time_ns", topic)
         publish = _times(publish_times, "publish_time_ns", topic)
-        sequence = (np.array(sequences, dtype=np.int64) & 0xFFFFFFFF).astype(np.uint32)
+        sequence = (np.asarray(sequences, dtype=np.uint64) & np.uint64(0xFFFFFFFF)).astype(np.uint32)
         groups = [(buffer.channels[0], payload)]
         if codec.views:
             groups += list(zip(buffer.channels[1:], view_rows(codec, payload)))
@@ -249,7 +249,9 @@ class McapLogger:
                 file.close()
 
 
-def _times(values: list[Any], name: str, topic: str) -> np.ndarray:
+def _times(values: Any, name: str, topic: str) -> np.ndarray:
+    if isinstance(values, np.ndarray) and values.dtype == np.uint64:
+        return values  # packed with struct "Q": already non-negative integers
     array = np.array(values)
     if array.dtype.kind not in "iu" or (array.size and array.min() < 0):
         raise TypeError(f"topic {topic!r}: {name} must be non-negative integer nanoseconds, got e.g. "
