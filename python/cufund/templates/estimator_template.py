@@ -1,8 +1,10 @@
 """Template: an estimator. Copy, rename, replace the filter.
 
 A :class:`cufund.Estimator` fuses measurements into an :class:`Odometry` on its ``topic``; once one is attached,
-controllers with an automatic state topic fly on its output instead of ground truth. This one low-pass filters
-the template position sensor's readings (``/sensors/position``) and passes the other fields through.
+the attitude and position loops, mappers and planners fly on its output instead of ground truth (and the rate
+loop on the IMU's gyro). This one low-pass filters the template position sensor's readings
+(``/sensors/position``), each reading exactly once (a subscription delivers every message since the last run,
+however the rates compare), and passes the other fields through.
 """
 
 from __future__ import annotations
@@ -22,10 +24,12 @@ class MyEstimator(cufund.Estimator):
     def reset(self) -> None:
         self.last = None
 
+    def setup(self, bus: cufund.BusView) -> None:
+        self.readings = bus.subscribe(self.input_topic)
+
     def estimate(self, t: float, bus: cufund.BusView) -> Odometry | None:
-        z: Odometry | None = bus.latest(self.input_topic)
-        if z is None:
-            return None
-        p = z.p_W if self.last is None else self.last.p_W + self.gain * (z.p_W - self.last.p_W)
-        self.last = Odometry(t, p, z.v_W, z.q_WB, z.w_B)
-        return self.last
+        readings = self.readings.take()  # every new reading, in order, once
+        for z in readings:
+            p = z.p_W if self.last is None else self.last.p_W + self.gain * (z.p_W - self.last.p_W)
+            self.last = Odometry(z.t, p, z.v_W, z.q_WB, z.w_B)
+        return self.last if readings else None  # publish only what is new
