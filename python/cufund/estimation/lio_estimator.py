@@ -50,22 +50,27 @@ class LioEstimator(Estimator):
         return self.core.diagnostics
 
     def estimate(self, t: float, bus) -> Odometry | None:
-        for cloud in self._lidar_sub.take():
+        self.feed(self._lidar_sub.take(), self._imu_sub.take())
+        return self._latest
+
+    def feed(self, clouds: list, imus: list) -> list[Odometry]:
+        """Queues LiDAR frames, then integrates IMU samples in order, processing each queued frame as soon as a
+        sample past its end arrives. Returns the IMU-rate outputs."""
+        for cloud in clouds:
             start, dt, pts = scan_frame(cloud)
             end = start + (float(dt.max()) if len(dt) else 0.0)
             self._frames.append((start, dt, pts, end))
         self._frames.sort(key=lambda f: f[3])
-        for imu in self._imu_sub.take():
+        outputs = []
+        for imu in imus:
             while self._frames and self._frames[0][3] < imu.t:
-                self._process_frame()
+                start, dt, pts, _ = self._frames.pop(0)
+                self.core.add_scan(start, dt, pts)
             out = self.core.add_imu(imu.t, imu.f_I, imu.w_I)
             if out is not None:
                 self._latest = out
-        return self._latest
-
-    def _process_frame(self) -> None:
-        start, dt, pts, _ = self._frames.pop(0)
-        self.core.add_scan(start, dt, pts)
+                outputs.append(out)
+        return outputs
 
 
 def build_lio(params: LioParams, ctx: Any) -> list[LioEstimator]:
