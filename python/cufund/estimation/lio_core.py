@@ -24,6 +24,9 @@ from .registration import PlaneModel, fit_planes, observable_split, plane_terms,
 
 __all__ = ["LioCore", "ScanDiagnostics", "NavEstimate"]
 
+_PAD_FRAMES_KEPT = 30
+"""LiDAR frames taken on the pad that seed the map (the newest ones)."""
+
 
 @dataclass(frozen=True)
 class ScanDiagnostics:
@@ -245,6 +248,7 @@ class LioCore:
             # Before initialisation the vehicle is on the pad: the frame is kept to seed the map.
             ok = np.all(np.isfinite(pts), axis=1)
             self._pad_frames.append(np.asarray(pts[ok], dtype=float))
+            del self._pad_frames[:-_PAD_FRAMES_KEPT]  # bounded while no IMU sample arrives
             self.dropped_points += int(np.count_nonzero(~ok))
             return None
         ok = np.all(np.isfinite(pts), axis=1) & np.isfinite(d) & (d >= 0)
