@@ -53,6 +53,13 @@ def _parser() -> argparse.ArgumentParser:
                            description="Simulates a static IMU and writes imu.npz (raw samples), allan.png and "
                                        "allan.json (fitted vs configured noise density and bias random walk, per axis).")
     allan_report.add_arguments(allan)
+    from .sweep import cli as sweep_cli
+
+    sweep = sub.add_parser("sweep", help="run many variants of a scenario on Dask (local cluster or a scheduler)",
+                           description="Runs every variant of a sweep file as a Dask task and writes results.parquet, "
+                                       "summary.md, plots/ and each variant's run folder; a re-run resumes. Exit "
+                                       "codes: 0 every variant ran, 1 some failed or interrupted, 2 invalid sweep.")
+    sweep_cli.add_arguments(sweep)
     try:
         from .viz import log_replay
     except ImportError:  # pragma: no cover - the replay viewer is optional at import time
@@ -139,6 +146,10 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as e:
             print(f"cufund: {e}", file=sys.stderr)
             return EXIT_INVALID
+    if args.command == "sweep":
+        from .sweep import cli as sweep_cli
+
+        return sweep_cli.run_cli(args)
     if args.command == "list":
         return _list()
     if args.command == "replay":

@@ -13,7 +13,7 @@ import yaml
 
 from .scenario_build import ScenarioRun
 
-__all__ = ["write_run_folder"]
+__all__ = ["run_into_folder", "write_run_folder"]
 
 
 def _json_safe(x: Any) -> Any:
@@ -47,3 +47,25 @@ def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, repl
 
         write_replay_html(out / "replay.html", run.result, params, run.reference)
     return out
+
+
+def run_into_folder(config: Any, out: str | Path, *, log: bool = True, plots: bool = True, replay: bool = True,
+                    progress: bool = False, extra_components: tuple = ()) -> ScenarioRun:
+    """Runs ``config`` (a :class:`cufund.ScenarioConfig`) into the run folder ``out``: ``run.mcap`` while it goes
+    (when ``log`` and the scenario's ``log.mcap``), then :func:`write_run_folder`. Returns the run."""
+    from .scenario_build import run_scenario
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    logger = None
+    if log and config.log.mcap:
+        from .logs import McapLogger
+
+        logger = McapLogger(out / "run.mcap", metadata={"scenario": config.name, "seed": str(config.seed)})
+    try:
+        run = run_scenario(config, progress=progress, extra_components=extra_components, logger=logger)
+    finally:
+        if logger is not None:
+            logger.close()
+    write_run_folder(run, out, plots=plots, replay=replay)
+    return run

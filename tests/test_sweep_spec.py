@@ -1,0 +1,78 @@
+"""Sweep files without a cluster: expansion, draws, keys, validation, and the report's confidence intervals."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import cufund
+from cufund.scenario import load_scenario
+from cufund.sweep import config_key, load_spec
+from cufund.sweep.report import t_interval, wilson_interval
+
+
+def test_grid_times_draws_times_repeats_resolve_like_load_scenario():
+    spec = load_spec({"scenario": "square", "set": {"duration": 3},
+                      "grid": {"controller.kind": ["pid", "geometric"], "seed": [3, 8]},
+                      "random": {"n": 3, "seed": 5, "draws": {"controller.position.xy_p": {"uniform": [0.8, 1.2]},
+                                                               "trajectory.hover_s": {"range": [1, 4]}}},
+                      "repeats": 2})
+    variants = spec.variants()
+    assert len(variants) == 2 * 2 * 3 * 2
+    assert spec.swept_keys == ["controller.kind", "seed", "controller.position.xy_p", "trajectory.hover_s"]
+    rng = np.random.default_rng(5)  # the draws, in file order, from the sweep's own seed
+    expected = [(rng.uniform(0.8, 1.2), int(rng.integers(1, 4))) for _ in range(3)]
+    drawn = sorted({(v.overrides["controller.position.xy_p"], v.overrides["trajectory.hover_s"]) for v in variants})
+    assert drawn == sorted(expected)
+    for v in variants:
+        if v.repeat == 0:  # repeat 0 is exactly the scenario with its overrides
+            assert v.config == load_scenario("square", {"duration": 3, **v.overrides})
+            assert v.key == config_key(v.config)
+        else:  # another repeat differs by its seed only
+            assert v.config.seed not in (3, 8)
+            assert v.config.replace(seed=v.overrides["seed"]) == load_scenario("square", {"duration": 3, **v.overrides})
+    assert len({v.key for v in variants}) == len(variants)
+
+
+def test_key_is_the_resolved_configuration():
+    a = load_scenario("square", {"seed": 3})
+    assert config_key(a) == config_key(load_scenario("square", ["seed=3"]))
+    assert config_key(a) == config_key(a.with_overrides({"controller.kind": "pid"}))  # the same run, spelled twice
+    assert config_key(a) != config_key(a.with_overrides({"controller.position.xy_p": 3.0001}))
+
+
+@pytest.mark.parametrize("spec, field", [
+    ({"scenario": "square", "grid": {"controller.position.xy_pp": [1.0, 2.0]}}, "xy_pp"),
+    ({"scenario": "square", "grid": {"controller.position.xy_p": [3.0, "fast"]}}, "xy_p"),
+    ({"scenario": "square", "grid": {"controller.kind": ["pid", "lqr"]}}, "lqr"),
+    ({"scenario": "square", "random": {"n": 2, "draws": {"seed": {"uniform": [2, 1]}}}}, "sweep.random.draws.seed"),
+    ({"scenario": "square", "random": {"n": 2, "draws": {"seed": {"gauss": [0, 1]}}}}, "sweep.random.draws.seed"),
+    ({"scenario": "square", "grid": {"seed": []}}, "sweep.grid.seed"),
+    ({"scenario": "square", "repeats": 0}, "sweep.repeats"),
+    ({"scenario": "square", "grids": {}}, "grids"),
+    ({"scenario": "no_such_scenario"}, "no_such_scenario"),
+])
+def test_a_bad_sweep_names_the_field(spec, field):
+    with pytest.raises(cufund.ConfigError, match=field.replace(".", r"\.")):
+        load_spec(spec).variants()
+
+
+def test_a_bad_override_names_its_variant():
+    spec = load_spec({"scenario": "square", "grid": {"seed": [1, 2], "controller.position.xy_p": [3.0, -1.0]}})
+    with pytest.raises(cufund.ConfigError, match=r"sweep variant seed=1, controller\.position\.xy_p=-1\.0: "):
+        spec.variants()
+
+
+def test_wilson_interval_matches_scipy():
+    for k, n in [(0, 5), (3, 7), (10, 10), (41, 100)]:
+        ci = stats.binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+        assert wilson_interval(k, n) == pytest.approx((ci.low, ci.high), abs=1e-6)
+    assert all(math.isnan(x) for x in wilson_interval(0, 0))
+
+
+def test_t_interval_matches_scipy():
+    v = np.array([1.0, 2.5, 2.0, np.nan, 4.0])
+    finite = v[np.isfinite(v)]
+    lo, hi = stats.t.interval(0.95, finite.size - 1, loc=finite.mean(), scale=stats.sem(finite))
+    assert t_interval(v) == pytest.approx((finite.mean(), lo, hi), rel=1e-12)
