@@ -18,7 +18,7 @@ from cufund.worlds import load
 T_BL = Transform(t=(0.05, 0.0, 0.05))
 
 
-def _flight(world, waypoints, yaw, t_end, seed=1, point_rate=100_000):
+def _flight(world, waypoints, yaw, t_end, seed=1, point_rate=60_000):
     traj = MinimumSnapTrajectory(np.asarray(waypoints, float), yaw=np.asarray(yaw, float), v_max=1.5, a_max=2.0,
                                  t_start=1.2)
     motion = FlatBodyMotion(traj)
