@@ -9,7 +9,6 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import cloudpickle
 import pandas as pd
@@ -178,3 +177,15 @@ def test_a_variant_whose_worker_dies_is_retried_once_then_failed(client, tmp_pat
     summary = (tmp_path / "sw" / "summary.md").read_text()
     assert "## Failed variants" in summary and "worker died twice" in summary
     client.wait_for_workers(2, timeout=60)  # the nanny restarted them
+
+
+def test_a_sweep_on_a_scheduler_by_address(client):
+    def clients(dask_scheduler):
+        return sorted(dask_scheduler.clients)
+
+    before = client.run_on_scheduler(clients)
+    spec = {"scenario": "square", "set": {"duration": 1}, "grid": {"controller.kind": ["pid", "geometric"]}}
+    frame = run(spec, scheduler=client.scheduler.address)
+    assert frame["controller.kind"].tolist() == ["pid", "geometric"] and set(frame["sim_time_s"]) == {1.0}
+    assert set(frame["attempts"]) == {1}
+    assert client.run_on_scheduler(clients) == before  # its own client came and went

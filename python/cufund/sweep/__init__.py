@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .execute import Outcome, execute, local_client, run_variant
-from .results import FAILED, WALL_METRICS, is_wall_metric, load_records, results_frame, write_record
+from .results import WALL_METRICS, is_wall_metric, load_records, results_frame, write_record
 from .spec import SweepSpec, Variant, config_key, load_spec
 
 __all__ = ["WALL_METRICS", "SweepSpec", "Variant", "config_key", "is_wall_metric", "load_spec", "local_client",

@@ -56,8 +56,9 @@ def run_variant(config: Any, files: bool = True, heavy: bool = False, plots: boo
 @contextlib.contextmanager
 def local_client(workers: int | None = None) -> Iterator[Any]:
     """A ``distributed.Client`` on a fresh ``LocalCluster``: ``workers`` single-threaded worker processes (default:
-    one per CPU this process may use), every socket on 127.0.0.1, no dashboard, ``CUFUND_NUM_THREADS=1`` in each
-    worker, and a task whose worker dies marked failed at once (the sweep retries it once itself)."""
+    one per CPU this process may use), every socket on 127.0.0.1 (the scheduler's HTTP endpoints, and its dashboard
+    when bokeh is installed, on a free port), ``CUFUND_NUM_THREADS=1`` in each worker, and a task whose worker dies
+    marked failed at once (the sweep retries it once itself)."""
     import dask
     from distributed import Client, LocalCluster
 
@@ -66,8 +67,8 @@ def local_client(workers: int | None = None) -> Iterator[Any]:
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.CRITICAL,
-                               env={THREADS_ENV: "1"})
+                               dashboard_address="127.0.0.1:0", worker_dashboard_address=None,
+                               silence_logs=logging.CRITICAL, env={THREADS_ENV: "1"})
     try:
         with Client(cluster) as client:
             yield client
