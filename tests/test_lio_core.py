@@ -163,3 +163,17 @@ def test_our_odometry_figures_equal_evo_ape_on_the_tum_files(tunnel_flight, tmp_
     rot = metrics.APE(metrics.PoseRelation.rotation_angle_deg)
     rot.process_data((ref, est))
     assert ours["odometry_rot_rmse_deg"] == pytest.approx(rot.get_statistic(metrics.StatisticsType.rmse), rel=1e-5)
+
+
+def test_an_ideal_imu_with_zero_noise_densities_still_works():
+    world = load("imav2025_tunnel")
+    traj = MinimumSnapTrajectory(np.array([[-3, -1.5, 1.5], [-2.5, -1.2, 1.5]]), v_max=1.5, a_max=2.0, t_start=1.1)
+    motion = FlatBodyMotion(traj)
+    ideal = imu_preset("ideal")
+    rec = record_flight(motion, ImuModel(ideal, seed=0), Lidar(Mid360Pattern(point_rate=40_000), mid360_params(), T_BL),
+                        world, 0.0, 2.2)
+    st = motion.state(np.zeros(1))
+    core = LioCore(LioParams(imu=ideal, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0])))
+    at_scans, _ = replay(core, rec)
+    pos, rot = _errors(at_scans, motion)
+    assert len(at_scans) >= 10 and pos.max() < 0.02 and rot.max() < 0.2

@@ -128,12 +128,16 @@ class LioCore:
         ip = self.params.imu
         acc_w, acc_rw, _ = ip.accel.per_axis(3)
         gyr_w, gyr_rw, _ = ip.gyro.per_axis(3)
-        # An ideal IMU still needs a well-conditioned problem: densities are floored well below any real part.
+        # An ideal IMU (zero densities) still needs a well-conditioned problem: its zeros become small densities
+        # (a real part's spec is used as given).
+        def density(x: np.ndarray, floor: float) -> np.ndarray:
+            return np.diag(np.where(x > 0, x, floor) ** 2)
+
         pim = gtsam.PreintegrationCombinedParams(self._g)
-        pim.setAccelerometerCovariance(np.diag(np.maximum(acc_w, 1e-4) ** 2))
-        pim.setGyroscopeCovariance(np.diag(np.maximum(gyr_w, 1e-5) ** 2))
-        pim.setBiasAccCovariance(np.diag(np.maximum(acc_rw, 1e-5) ** 2))
-        pim.setBiasOmegaCovariance(np.diag(np.maximum(gyr_rw, 1e-6) ** 2))
+        pim.setAccelerometerCovariance(density(acc_w, 1e-3))
+        pim.setGyroscopeCovariance(density(gyr_w, 1e-4))
+        pim.setBiasAccCovariance(density(acc_rw, 1e-4))
+        pim.setBiasOmegaCovariance(density(gyr_rw, 1e-5))
         pim.setIntegrationCovariance(np.eye(3) * 1e-10)
         return pim
 
