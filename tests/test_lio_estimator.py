@@ -72,34 +72,6 @@ def test_estimator_publishes_at_imu_rate_what_the_core_computes():
     assert err < 0.02
 
 
-def test_controllers_fly_a_square_on_the_lio_estimate_in_the_simulator():
-    import yaml
-
-    from cufund import registry
-    from cufund.estimation import build_lio
-    from cufund.scenario import ScenarioConfig, run_scenario
-
-    added = "lio" not in registry.available("estimator")
-    if added:
-        registry.register(registry.Kind("estimator", "lio", LioParams, build_lio, None, "LiDAR-inertial odometry"))
-    try:
-        from importlib.resources import files
-
-        data = yaml.safe_load(files("cufund.scenarios").joinpath("square_sensors.yaml").read_text())
-        data.update(name="square_lio_test", world="imav2025_tunnel", estimator={"kind": "lio"}, duration=7.0)
-        data["trajectory"].update(waypoints=[[-3, -1.5, 1.5], [-2.5, -1.5, 1.5], [-2.5, -1.0, 1.5]], hover_s=0.5)
-        data["sensors"] = {"imu": "icm42688p", "lidar": {"kind": "mid360", "T_BL": {"p": [0, 0, 0.08],
-                                                                                    "q": [1, 0, 0, 0]}}}
-        result = run_scenario(ScenarioConfig.from_dict(data))
-    finally:
-        if added:
-            registry.unregister("estimator", "lio")
-    m = result.metrics
-    assert m["odometry_samples"] > 1000  # the controllers' state came from the estimator at IMU rate
-    assert m["odometry_rmse_m"] < 0.01 and m["odometry_max_m"] < 0.03 and m["odometry_rot_rmse_deg"] < 0.2
-    assert m["tracking_max_m"] < 0.1
-
-
 def test_run_on_log_reproduces_the_online_figures_and_writes_the_files(tmp_path):
     from cufund.estimation import odometry_errors, read_tum, run_on_log
     from cufund.logs import McapLogger

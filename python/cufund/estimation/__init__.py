@@ -16,7 +16,7 @@ _EXPORTS = {
     "FlatBodyMotion": "flight_data", "FlightRecord": "flight_data", "LidarFrame": "flight_data",
     "record_flight": "flight_data", "replay": "flight_data",
     "LioCore": "lio_core", "NavEstimate": "lio_core", "ScanDiagnostics": "lio_core",
-    "LioEstimator": "lio_estimator", "build_lio": "lio_estimator", "LioParams": "params", "run_on_log": "offline",
+    "LioEstimator": "lio_estimator", "LioParams": "params", "run_on_log": "offline",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -7,16 +7,13 @@ past its end have arrived (so its IMU factor and deskewing use measured motion, 
 
 from __future__ import annotations
 
-import dataclasses
-from typing import Any
-
 from ..components import Estimator
 from ..messages import Odometry, Topics
 from .frames import scan_frame
 from .lio_core import LioCore, ScanDiagnostics
 from .params import LioParams
 
-__all__ = ["LioEstimator", "build_lio"]
+__all__ = ["LioEstimator"]
 
 
 class LioEstimator(Estimator):
@@ -71,19 +68,3 @@ class LioEstimator(Estimator):
                 self._latest = out
                 outputs.append(out)
         return outputs
-
-
-def build_lio(params: LioParams, ctx: Any) -> list[LioEstimator]:
-    """The registry's build function for kind ``lio``: the scenario's IMU (its params and mounting), its LiDAR
-    (extrinsic T_BL and topic) and the vehicle's start on the pad (level, at ``start_p_W`` or below the first
-    waypoint) complete ``params``. Register with
-    ``register(Kind("estimator", "lio", LioParams, build_lio, None, "LiDAR-inertial odometry on GTSAM"))``."""
-    from ..sensors.pose import Transform
-
-    _, imu = ctx.sensor_of_type("imu", "", "estimator")
-    _, lidar = ctx.sensor_of_type("lidar", "", "estimator")
-    wp = ctx.config.trajectory.waypoints
-    start = ctx.config.start_p_W or (wp[0][0], wp[0][1], 0.0)
-    params = dataclasses.replace(params, imu=ctx.imu_params(), T_BL=lidar.extrinsic or Transform(),
-                                 p_WB0=tuple(float(v) for v in start), q_WB0=(1.0, 0.0, 0.0, 0.0))
-    return [LioEstimator(params, imu_topic=imu.topic, lidar_topic=lidar.topic)]
