@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <new>
 #include <queue>
 #include <tuple>
 
@@ -85,16 +86,22 @@ AStarResult GridAStar::plan(const ClearanceMap& map, const Vec3& start, const Ve
     return result;
   }
   const Index n = g.shape[0] * g.shape[1] * g.shape[2];
-  if (static_cast<Index>(stamp_.size()) != n) {
-    stamp_.assign(static_cast<std::size_t>(n), 0);
-    g_.resize(static_cast<std::size_t>(n));
-    clearance_.resize(static_cast<std::size_t>(n));
-    parent_.resize(static_cast<std::size_t>(n));
-    closed_.resize(static_cast<std::size_t>(n));
+  if (size_ != n) {
+    const auto un = static_cast<std::size_t>(n);
+    stamp_.reset(static_cast<std::uint32_t*>(std::calloc(un, sizeof(std::uint32_t))));
+    g_.reset(static_cast<float*>(std::malloc(un * sizeof(float))));
+    clearance_.reset(static_cast<float*>(std::malloc(un * sizeof(float))));
+    parent_.reset(static_cast<std::int64_t*>(std::malloc(un * sizeof(std::int64_t))));
+    closed_.reset(static_cast<std::uint8_t*>(std::malloc(un)));
+    if (!stamp_ || !g_ || !clearance_ || !parent_ || !closed_) {
+      size_ = 0;
+      throw std::bad_alloc();
+    }
+    size_ = n;
     generation_ = 0;
   }
   if (++generation_ == 0) {  // wrapped: clear the stamps once every 2^32 searches
-    std::fill(stamp_.begin(), stamp_.end(), 0u);
+    std::fill(stamp_.get(), stamp_.get() + size_, 0u);
     generation_ = 1;
   }
   auto touch = [&](Index i) {

@@ -5,6 +5,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
+#include <memory>
 #include <vector>
 
 #include "clearance.h"
@@ -46,11 +48,19 @@ class GridAStar {
 
  private:
   double node_clearance(const ClearanceMap& map, std::ptrdiff_t linear, AStarResult& result);
-  std::vector<std::uint32_t> stamp_;  // == generation_: g_, parent_, clearance_ of this search are valid
-  std::vector<float> g_;
-  std::vector<float> clearance_;      // NaN: not yet queried in this search
-  std::vector<std::int64_t> parent_;  // -1: start point; -2: closed marker kept in closed_
-  std::vector<std::uint8_t> closed_;
+  // Per-voxel buffers from calloc / malloc: a large grid costs no page until a search touches it (a
+  // std::vector would write every byte up front). Entries are valid where stamp_ == generation_.
+  struct Free {
+    void operator()(void* p) const { std::free(p); }
+  };
+  template <typename T>
+  using Buffer = std::unique_ptr<T[], Free>;
+  std::ptrdiff_t size_ = 0;
+  Buffer<std::uint32_t> stamp_;
+  Buffer<float> g_;
+  Buffer<float> clearance_;      // NaN: not yet queried in this search
+  Buffer<std::int64_t> parent_;  // -1: joined to the start point
+  Buffer<std::uint8_t> closed_;
   std::uint32_t generation_ = 0;
 };
 
