@@ -41,3 +41,24 @@ def test_run_square_writes_folder(tmp_path, capsys):
 def test_bad_scenario_exits_2(capsys):
     assert main(["run", "nosuch"]) == 2
     assert "unknown scenario 'nosuch'" in capsys.readouterr().err
+
+
+def test_odometry_on_a_recorded_log(tmp_path, capsys):
+    """cufund odometry re-runs the LIO open loop on a run.mcap, with the extrinsics of the scenario recorded in it."""
+    run = tmp_path / "run"
+    assert main(["run", "square_lio", "--set", "duration=6", "--out", str(run), "--no-replay"]) == 1  # timeout
+    closed_loop = json.loads((run / "metrics.json").read_text())
+    assert closed_loop["lio_scans"] > 40 and closed_loop["lio_ms_per_scan_median"] > 0
+    odo = tmp_path / "odo"
+    assert main(["odometry", str(run / "run.mcap"), "--out", str(odo)]) == 0
+    figures = json.loads((odo / "odometry.json").read_text())
+    assert figures["odometry_rmse_m"] <= 0.01 and figures["odometry_max_m"] <= 0.03
+    # the same estimator on the same data: the open-loop figures agree with the closed-loop ones
+    assert abs(figures["odometry_rmse_m"] - closed_loop["odometry_rmse_m"]) < 0.002
+    assert (odo / "estimate.tum").read_text().count("\n") == figures["odometry_samples"]
+    assert (odo / "odometry.png").read_bytes()[:4] == b"\x89PNG"
+    capsys.readouterr()
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(b"not an mcap file")
+    assert main(["odometry", str(bad), "--out", str(tmp_path / "o2")]) == 2
+    assert "not a complete MCAP log" in capsys.readouterr().err

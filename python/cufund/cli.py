@@ -49,6 +49,12 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--no-replay", action="store_true", help="skip replay.html")
     run.add_argument("--no-log", action="store_true", help="skip run.mcap")
     sub.add_parser("list", help="list the built-in scenarios and registered kinds")
+    odo = sub.add_parser("odometry", help="run the LiDAR-inertial odometry open loop on a run.mcap log",
+                         description="Runs the LIO on the IMU and LiDAR messages of LOG (with the extrinsics of the "
+                                     "scenario recorded in it) and writes odometry.json (errors against the log's "
+                                     "ground truth), odometry.png and TUM files (estimate.tum, truth.tum) for evo.")
+    odo.add_argument("log", type=Path, help="a run.mcap written by cufund run")
+    odo.add_argument("--out", type=Path, required=True, help="folder for the results")
     allan = sub.add_parser("allan", help="simulate a static IMU and compare its Allan deviation with its noise model",
                            description="Simulates a static IMU and writes imu.npz (raw samples), allan.png and "
                                        "allan.json (fitted vs configured noise density and bias random walk, per axis).")
@@ -116,7 +122,10 @@ def _run(args: argparse.Namespace) -> int:
     if cfg.log.mcap and not args.no_log:
         from .logs import McapLogger
 
-        logger = McapLogger(out / "run.mcap", metadata={"scenario": cfg.name, "seed": str(cfg.seed)})
+        import yaml
+
+        logger = McapLogger(out / "run.mcap", metadata={"scenario": cfg.name, "seed": str(cfg.seed),
+                                                        "config": yaml.safe_dump(cfg.to_dict(), sort_keys=False)})
         built.simulator.logger = logger
     try:
         run = run_built(built, progress=sys.stderr.isatty() or args.viz)
@@ -138,6 +147,38 @@ def _run(args: argparse.Namespace) -> int:
     return EXIT_COMPLETED if status == "completed" else EXIT_NOT_COMPLETED
 
 
+def _odometry(args: argparse.Namespace) -> int:
+    import yaml
+
+    from .scenario import ScenarioConfig
+    from .scenario_build import BuildContext, out_dir_problem
+
+    try:
+        from .estimation.kinds import lio_params
+        from .estimation.offline import run_on_log
+        from .estimation.params import LioParams
+        from .logs.mcap_reader import log_metadata
+
+        problem = out_dir_problem(args.out)
+        if problem:
+            raise ConfigError(problem)
+        meta = log_metadata(args.log)
+        params, imu, lidar = LioParams(), "/sensors/imu", "/sensors/lidar"
+        if "config" in meta:  # the scenario the log was recorded with: its extrinsics and IMU
+            cfg = ScenarioConfig.from_dict(yaml.safe_load(meta["config"]))
+            if cfg.estimator is not None and cfg.estimator.kind == "lio":
+                params = cfg.estimator.params
+            params, imu_spec, lidar_spec = lio_params(params, BuildContext(cfg))
+            imu, lidar = imu_spec.topic, lidar_spec.topic
+        figures = run_on_log(args.log, params, args.out, imu_topic=imu, lidar_topic=lidar)
+    except (ConfigError, ValueError, OSError) as e:
+        print(f"cufund: {e}", file=sys.stderr)
+        return EXIT_INVALID
+    print(json.dumps(figures, indent=2))
+    print(f"odometry folder: {args.out.resolve()}")
+    return EXIT_COMPLETED
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "allan":
@@ -152,6 +193,8 @@ def main(argv: list[str] | None = None) -> int:
         return sweep_cli.run_cli(args)
     if args.command == "list":
         return _list()
+    if args.command == "odometry":
+        return _odometry(args)
     if args.command == "replay":
         from .viz import log_replay
 

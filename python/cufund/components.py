@@ -87,10 +87,12 @@ class Estimator(Component):
     its output, and the rate loop the IMU's gyro."""
 
     topic: str = Topics.ESTIMATE
+    extra_outputs: tuple[str, ...] = ()
+    """Topics it publishes besides the estimate (e.g. diagnostics)."""
 
     @property
     def outputs(self) -> tuple[str, ...]:  # type: ignore[override]
-        return (self.topic,)
+        return (self.topic, *self.extra_outputs)
 
     @abstractmethod
     def estimate(self, t: float, bus: BusView) -> Odometry | None:

@@ -202,6 +202,30 @@ class CameraImage:
 
 
 @message
+class OdometryDiagnostics:
+    """How an odometry processed one LiDAR frame (published per frame next to the estimate)."""
+
+    t: float
+    """The frame's estimate stamp [s]."""
+    points: int
+    """Points used after deskewing, range filtering and downsampling."""
+    inliers: int
+    """Correspondences kept by the registration."""
+    iterations: int
+    """Registration iterations."""
+    eigenvalues: np.ndarray
+    """(6,) normalised eigenvalues of the registration Hessian, ascending (small: weakly observable)."""
+    degenerate_directions: np.ndarray
+    """(k, 6) weakly observable directions in the world frame, each [rotation (3), translation (3)]."""
+    time_ms: float
+    """Wall time spent on the frame [ms]."""
+    cpu_ms: float
+    """Process CPU time spent on the frame (all threads) [ms]."""
+    skipped: str
+    """Why the frame added no LiDAR constraint ('' when it did)."""
+
+
+@message
 class MapUpdate:
     """A map a mapper maintains, announced after each update: planners read the map object itself (it stays
     owned and updated by the mapper; read it only inside a component's step)."""
@@ -299,6 +323,8 @@ class Topics:
     ESTIMATE = Topic("/estimator/odometry", Odometry)
     """The estimator's state at its output rate (IMU rate for the built-in ones): what the attitude and position
     loops, mappers and planners use once an estimator is attached."""
+    ESTIMATOR_DIAGNOSTICS = Topic("/estimator/diagnostics", OdometryDiagnostics)
+    """Per-frame diagnostics of a LiDAR odometry."""
     TRAJECTORY_SETPOINT = Topic("/setpoint/trajectory", TrajectorySetpoint)
     ATTITUDE_SETPOINT = Topic("/setpoint/attitude", AttitudeSetpoint)
     """Attitude and thrust from the position controller (or the user in attitude mode)."""

@@ -140,7 +140,7 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
         if spec is not None:
             components += ctx.build(group, spec, group)
     if config.estimator is not None:
-        record.append(Topics.ESTIMATE)
+        record += [Topics.ESTIMATE, Topics.ESTIMATOR_DIAGNOSTICS]
     sim = Simulator(quad, physics_rate_hz=config.rates.physics_hz, record_topics=_recordable(record, components),
                     collision=collision, logger=logger)
     for c in (*components, *extra_components):
@@ -212,6 +212,12 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
         metrics.update(tracking_metrics(result, ctx.tracking_path))
     if config.estimator is not None:
         metrics.update(odometry_metrics(result))
+        diag = result.topics.get(str(Topics.ESTIMATOR_DIAGNOSTICS))
+        if diag:
+            ms = np.asarray(diag["time_ms"], dtype=float)
+            metrics.update({"lio_ms_per_scan_median": float(np.median(ms)), "lio_ms_per_scan_p99":
+                            float(np.percentile(ms, 99)), "lio_cpu_ms_per_scan_median":
+                            float(np.median(np.asarray(diag["cpu_ms"], dtype=float))), "lio_scans": int(len(ms))})
     return ScenarioRun(config, result, ctx.reference, ctx.tracking_path, metrics)
 
 

@@ -26,9 +26,9 @@ register(Kind("estimator", "imu_propagator", ImuPropagatorParams, _imu_propagato
               "IMU-rate odometry between slow pose corrections (sensors: an IMU and a pose source)"))
 
 
-def _lio(p: LioParams, ctx: Any) -> list[Any]:
-    from .lio_estimator import LioEstimator  # GTSAM loads only when a scenario uses the LIO
-
+def lio_params(p: LioParams, ctx: Any) -> tuple[LioParams, Any, Any]:
+    """The LIO's params completed from the scenario (IMU part and mounting, LiDAR extrinsic, pad position,
+    gravity: each given once, in the scenario), with the IMU and LiDAR specs."""
     default = LioParams()
     for name, source in _FROM_SCENARIO.items():
         if getattr(p, name) != getattr(default, name):
@@ -38,6 +38,13 @@ def _lio(p: LioParams, ctx: Any) -> list[Any]:
     start = ctx.config.start_p_W or (ctx.config.trajectory.waypoints[0][0], ctx.config.trajectory.waypoints[0][1], 0.0)
     params = dataclasses.replace(p, imu=ctx.imu_params(), T_BL=lidar.extrinsic or default.T_BL, p_WB0=tuple(start),
                                  gravity=ctx.vehicle.gravity)
+    return params, imu, lidar
+
+
+def _lio(p: LioParams, ctx: Any) -> list[Any]:
+    from .lio_estimator import LioEstimator  # GTSAM loads only when a scenario uses the LIO
+
+    params, imu, lidar = lio_params(p, ctx)
     return [LioEstimator(params, imu_topic=imu.topic, lidar_topic=lidar.topic)]
 
 

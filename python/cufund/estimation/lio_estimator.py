@@ -8,7 +8,9 @@ past its end have arrived (so its IMU factor and deskewing use measured motion, 
 from __future__ import annotations
 
 from ..components import Estimator
-from ..messages import Odometry, Topics
+import numpy as np
+
+from ..messages import Odometry, OdometryDiagnostics, Topics
 from .frames import scan_frame
 from .lio_core import LioCore, ScanDiagnostics
 from .params import LioParams
@@ -30,6 +32,7 @@ class LioEstimator(Estimator):
         self.rate_hz = float(rate_hz) if rate_hz is not None else float(self.params.imu.rate_hz)
         self.imu_topic, self.lidar_topic = imu_topic, lidar_topic
         self.inputs = (imu_topic, lidar_topic)
+        self.extra_outputs = (Topics.ESTIMATOR_DIAGNOSTICS,)
         self.reset()
 
     def reset(self) -> None:
@@ -37,6 +40,7 @@ class LioEstimator(Estimator):
         self._frames: list[tuple[float, object, object, float]] = []  # (start, dt, points, end)
         self._latest: Odometry | None = None
         self._imu_sub = self._lidar_sub = None
+        self._diagnosed = 0
 
     def setup(self, bus) -> None:
         self._imu_sub = bus.subscribe(self.imu_topic)
@@ -48,6 +52,11 @@ class LioEstimator(Estimator):
 
     def estimate(self, t: float, bus) -> Odometry | None:
         self.feed(self._lidar_sub.take(), self._imu_sub.take())
+        for d in self.core.diagnostics[self._diagnosed:]:  # one message per frame processed
+            bus.publish(Topics.ESTIMATOR_DIAGNOSTICS, OdometryDiagnostics(
+                d.t, d.points, d.inliers, d.iterations, np.asarray(d.eigenvalues, dtype=float),
+                np.asarray(d.degenerate_directions, dtype=float).reshape(-1, 6), d.time_ms, d.cpu_ms, d.skipped))
+        self._diagnosed = len(self.core.diagnostics)
         return self._latest
 
     def feed(self, clouds: list, imus: list) -> list[Odometry]:
