@@ -75,3 +75,40 @@ def test_clear_errors():
         Region("x", (0, 0, 0))
     with pytest.raises(ConfigError, match="is not inside the region"):
         Region("x", (0, 0, 0), radius=1.0, waypoint_W=(2, 0, 0))
+
+
+def test_mission_to_trajectory_through_a_tunnel_course():
+    """Task -> path -> motion: the gates of a seeded tunnel course in an order the DFA forces, flown by a
+    min-snap that keeps the radius from the course's triangles (Open3D) and threads every opening in turn."""
+    o3d = pytest.importorskip("open3d")
+    from cufund.planning import clearance_from_world, plan_mission_trajectory
+    from cufund.worlds import tunnel_course_layout
+
+    course = tunnel_course_layout(2)
+    lo, hi = course.path_W.min(0) - 1.0, course.path_W.max(0) + 1.0
+    lo[2] = 0.0
+    q = clearance_from_world(course.world, 0.025, np.stack([lo, hi]))
+    # Any order is allowed by the F's, the U's force gate k before gate k+1 (the shortest order is that one
+    # anyway; the U's make the DFA, not the fast path, find it).
+    spec = MissionSpec.parse("F(gate3) & F(gate1) & F(gate2) & (!gate2 U gate1) & (!gate3 U gate2)")
+    assert spec.dfa is not None
+    regions = course.regions()[:3]
+    radius = 0.15
+    m = plan_mission_trajectory(spec, regions, course.entry_W, q, radius=radius, v_max=1.0, a_max=2.0)
+    assert m.mission.regions == ("gate1", "gate2", "gate3")
+    tr = m.motion.trajectory
+    s = tr.sample(np.linspace(tr.t_knots[0], tr.t_end, 20001))
+    scene = o3d.t.geometry.RaycastingScene()
+    for o in course.world.objects:
+        scene.add_triangles(o.vertices.astype(np.float32), o.triangles.astype(np.uint32))
+    assert scene.compute_distance(s.p_W.astype(np.float32)).numpy().min() >= radius - 1e-5
+    crossings = []
+    for f in course.frames[:3]:
+        side = (s.p_W - f.centre_W) @ f.axis_W
+        k = np.flatnonzero(np.sign(side[:-1]) != np.sign(side[1:]))
+        assert k.size >= 1
+        crossings.append(k[0])
+        h = s.p_W[k[0]] - f.centre_W
+        assert abs(h[2]) <= f.height / 2 and abs(h @ [-np.sin(f.yaw), np.cos(f.yaw), 0.0]) <= f.width / 2
+    assert crossings == sorted(crossings)
+    assert m.motion.feasibility.within(v_max=1.0 * 1.01, a_max=2.0 * 1.01)

@@ -5,6 +5,7 @@ from .bspline import UniformBspline
 from .clearance import ClearanceQuery
 from .feasibility import TrajectoryFeasibility, feasibility
 from .min_snap_planner import MinSnapPlanner, MinSnapPlannerParams, MinSnapResult
+from .mission_trajectory import MissionTrajectory, plan_mission_trajectory
 from .mission_spec import MissionPlan, MissionSpec, Region
 from .local_planner import BsplineLocalPlanner, LocalPlan, LocalPlannerParams
 from .minimum_snap import MinimumSnapTrajectory, allocate_segment_times, min_derivative_spline, optimize_segment_times
@@ -17,8 +18,8 @@ from .trajectory_follower import TrajectoryFollower
 from .world_map import clearance_from_world, esdf_from_world, world_occupancy
 
 __all__ = ["BsplineLocalPlanner", "ClearanceQuery", "GridPathSearch", "GridPathSearchParams", "Hold", "JerkLimitedMove", "LocalPlan", "LocalPlannerParams", "MinSnapPlanner",
-           "MinSnapPlannerParams", "MinSnapResult", "MinimumSnapTrajectory", "MissionPlan", "MissionSpec",
+           "MinSnapPlannerParams", "MinSnapResult", "MinimumSnapTrajectory", "MissionPlan", "MissionSpec", "MissionTrajectory",
            "OmplPathParams", "OmplPathPlanner", "PathResult", "Region", "TrajectorySequence", "Planner", "Trajectory",
            "TrajectoryFeasibility", "TrajectoryFollower", "TrajectorySamples", "UniformBspline", "feasibility",
-           "allocate_segment_times", "optimize_segment_times", "clearance_from_world", "esdf_from_world",
+           "allocate_segment_times", "optimize_segment_times", "plan_mission_trajectory", "clearance_from_world", "esdf_from_world",
            "min_derivative_spline", "world_occupancy"]

@@ -119,6 +119,12 @@ class TunnelFrame:
     def axis_W(self) -> np.ndarray:
         return np.array([math.cos(self.yaw), math.sin(self.yaw), 0.0])
 
+    def region(self, name: str, radius: float = 0.1) -> object:
+        """A :class:`cufund.planning.Region` sphere of ``radius`` [m] at the opening's centre (for missions)."""
+        from ..planning.mission_spec import Region
+
+        return Region(name, self.centre_W, radius=radius)
+
 
 @dataclass(frozen=True)
 class TunnelCourse:
@@ -134,6 +140,10 @@ class TunnelCourse:
     """The flyability check's path from entry to exit through every opening, (K, 3) [m]."""
     attempts: int = field(default=1)
     """Draws it took (1: the first was flyable)."""
+
+    def regions(self, radius: float = 0.1) -> list:
+        """The openings as mission regions ``gate1`` .. ``gateN`` (spheres at their centres), flying order."""
+        return [f.region(f"gate{k + 1}", radius) for k, f in enumerate(self.frames)]
 
 
 def _arena(world: World, p: TunnelCourseParams) -> None:
