@@ -28,9 +28,13 @@ class _Queue:
 class _Bus:
     def __init__(self):
         self.queues = {}
+        self.published = []
 
     def subscribe(self, topic):
         return self.queues.setdefault(topic, _Queue())
+
+    def publish(self, topic, message):
+        self.published.append((topic, message))
 
 
 def test_estimator_publishes_at_imu_rate_what_the_core_computes():
@@ -44,7 +48,7 @@ def test_estimator_publishes_at_imu_rate_what_the_core_computes():
     params = LioParams(T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]))
     est = LioEstimator(params)
     assert isinstance(est, Estimator) and est.rate_hz == 200.0
-    assert Topics.IMU in est.inputs and Topics.POINT_CLOUD in est.inputs and est.outputs == (Topics.ESTIMATE,)
+    assert Topics.IMU in est.inputs and Topics.POINT_CLOUD in est.inputs and est.outputs == (Topics.ESTIMATE, Topics.ESTIMATOR_DIAGNOSTICS)
     bus = _Bus()
     est.setup(bus)
     frames = list(rec.frames)
@@ -58,6 +62,9 @@ def test_estimator_publishes_at_imu_rate_what_the_core_computes():
         if out is not None:
             outputs.append(out)
     assert est.core.initialised and len(est.diagnostics) > 5
+    diag = [m for topic, m in bus.published if topic == Topics.ESTIMATOR_DIAGNOSTICS]  # one per frame processed
+    assert [d.t for d in diag] == [d.t for d in est.diagnostics]
+    assert all(d.eigenvalues.shape == (6,) or d.skipped for d in diag)
     # One output per IMU sample from initialisation on, stamped with the sample times.
     assert [o.t for o in outputs] == list(rec.t_imu[rec.t_imu >= outputs[0].t])
     # The same data through the core directly gives the same estimate.
