@@ -59,6 +59,9 @@ esdf::GridGeometry geometry_arg(const py::handle& origin_W, const py::handle& sh
     }
     g.shape[static_cast<std::size_t>(i)] = static_cast<Index>(v);
   }
+  if (static_cast<double>(g.shape[0]) * static_cast<double>(g.shape[1]) * static_cast<double>(g.shape[2]) > 2e9) {
+    throw py::value_error("shape must hold at most 2e9 voxels, got " + std::string(py::str(shape_obj)));
+  }
   if (!(std::isfinite(resolution) && resolution > 0.0)) {
     throw py::value_error("resolution must be finite and > 0 [m], got " + std::to_string(resolution));
   }
