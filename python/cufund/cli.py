@@ -107,8 +107,7 @@ def _run(args: argparse.Namespace) -> int:
     except (ConfigError, OSError) as e:
         print(f"cufund: {e}", file=sys.stderr)
         return EXIT_INVALID
-    from .run_folder import write_run_folder
-    from .scenario_build import run_built
+    from .run_folder import run_into_folder
 
     viewer = None
     if args.viz:
@@ -117,22 +116,8 @@ def _run(args: argparse.Namespace) -> int:
         viewer = LiveViewer(cfg.vehicle_params(), built.context.reference)
         print(f"MeshCat: open {viewer.url}", flush=True)
         built.simulator.add(viewer)
-    out.mkdir(parents=True, exist_ok=True)
-    logger = None
-    if cfg.log.mcap and not args.no_log:
-        from .logs import McapLogger
-
-        import yaml
-
-        logger = McapLogger(out / "run.mcap", metadata={"scenario": cfg.name, "seed": str(cfg.seed),
-                                                        "config": yaml.safe_dump(cfg.to_dict(), sort_keys=False)})
-        built.simulator.logger = logger
-    try:
-        run = run_built(built, progress=sys.stderr.isatty() or args.viz)
-    finally:
-        if logger is not None:
-            logger.close()
-    write_run_folder(run, out, replay=not args.no_replay)
+    run = run_into_folder(built, out, log=not args.no_log, replay=not args.no_replay,
+                          progress=sys.stderr.isatty() or args.viz)
     print(json.dumps(run.metrics, indent=2, default=str))
     status = run.result.status.value
     print(f"status: {status} ({run.result.message})")

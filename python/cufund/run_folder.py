@@ -51,19 +51,25 @@ def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, repl
 
 def run_into_folder(config: Any, out: str | Path, *, log: bool = True, plots: bool = True, replay: bool = True,
                     progress: bool = False, extra_components: tuple = ()) -> ScenarioRun:
-    """Runs ``config`` (a :class:`cufund.ScenarioConfig`) into the run folder ``out``: ``run.mcap`` while it goes
-    (when ``log`` and the scenario's ``log.mcap``), then :func:`write_run_folder`. Returns the run."""
-    from .scenario_build import run_scenario
+    """Runs ``config`` (a :class:`cufund.ScenarioConfig`, or a scenario already made by
+    :func:`cufund.scenario_build.build_simulation`) into the run folder ``out``: ``run.mcap`` while it goes (when
+    ``log`` and the scenario's ``log.mcap``; its metadata holds the scenario's config), then
+    :func:`write_run_folder`. Returns the run."""
+    from .scenario_build import Built, build_simulation, run_built
 
+    built = config if isinstance(config, Built) else build_simulation(config, extra_components)
+    config = built.config
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     logger = None
     if log and config.log.mcap:
         from .logs import McapLogger
 
-        logger = McapLogger(out / "run.mcap", metadata={"scenario": config.name, "seed": str(config.seed)})
+        logger = McapLogger(out / "run.mcap", metadata={"scenario": config.name, "seed": str(config.seed),
+                                                        "config": yaml.safe_dump(config.to_dict(), sort_keys=False)})
+        built.simulator.logger = logger
     try:
-        run = run_scenario(config, progress=progress, extra_components=extra_components, logger=logger)
+        run = run_built(built, progress=progress)
     finally:
         if logger is not None:
             logger.close()
