@@ -112,3 +112,11 @@ def test_mission_to_trajectory_through_a_tunnel_course():
         assert abs(h[2]) <= f.height / 2 and abs(h @ [-np.sin(f.yaw), np.cos(f.yaw), 0.0]) <= f.width / 2
     assert crossings == sorted(crossings)
     assert m.motion.feasibility.within(v_max=1.0 * 1.01, a_max=2.0 * 1.01)
+
+
+def test_regions_from_a_world_yaml_mapping():
+    r = Region.from_dict("landing", {"centre_W": [6, 0, 0.2], "radius": 0.5, "waypoint_W": [6, 0, 0.5]})
+    assert r.radius == 0.5 and r.waypoint_W == (6.0, 0.0, 0.5) and r.contains([6.3, 0.0, 0.2])
+    assert not r.contains([6.6, 0.0, 0.2])
+    with pytest.raises(ConfigError, match="unknown key 'center' in region gate1"):
+        Region.from_dict("gate1", {"center": [0, 0, 0], "radius": 1.0})

@@ -28,7 +28,7 @@ from typing import Mapping
 import numpy as np
 import numpy.typing as npt
 
-from ..config import ConfigError
+from ..config import ConfigError, from_dict
 
 __all__ = ["MissionPlan", "MissionSpec", "Region"]
 
@@ -67,6 +67,14 @@ class Region:
         object.__setattr__(self, "waypoint_W", wp)
         if not self.contains(wp):
             raise ConfigError(f"region {self.name} waypoint_W {wp} is not inside the region")
+
+    @classmethod
+    def from_dict(cls, name: str, data: Mapping) -> Region:
+        """From a world YAML's ``regions:`` entry, e.g. ``gate1: {centre_W: [2, 0, 1], size: [0.5, 1, 1]}``
+        or ``landing: {centre_W: [6, 0, 0.2], radius: 0.5, waypoint_W: [6, 0, 0.5]}``."""
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"region {name} must be a mapping (centre_W and size or radius), got {data!r}")
+        return from_dict(cls, {"name": name, **dict(data)}, where=f"region {name}")
 
     def contains(self, p_W: npt.ArrayLike) -> bool:
         p = np.asarray(p_W, dtype=float) - self.centre_W
