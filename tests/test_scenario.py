@@ -8,6 +8,8 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
+
 import pytest
 
 import cufund
@@ -255,3 +257,39 @@ def test_the_run_summary_and_the_config_pickle():
     assert again.status == "timeout" and again.metrics["sim_time_s"] == 1.0
     cfg = load_scenario("square_mocap", {"seed": 5})
     assert pickle.loads(pickle.dumps(cfg)) == cfg
+
+
+def _distance_to_polyline(q, corners):
+    d = []
+    for a, b in zip(corners[:-1], corners[1:]):
+        ab = b - a
+        t = np.clip(((q - a) @ ab) / (ab @ ab), 0.0, 1.0)
+        d.append(np.linalg.norm(q - (a + np.outer(t, ab)), axis=1))
+    return np.min(d, axis=0)
+
+
+def test_a_trajectory_corridor_keeps_the_square_within_its_half_width():
+    from cufund.scenario_build import build_simulation
+
+    corners = np.array([[0, 0, 1.5], [1, 0, 1.5], [1, 1, 1.5], [0, 1, 1.5], [0, 0, 1.5]], dtype=float)
+    plain = build_simulation(load_scenario("square")).context.tracking_path
+    tube = build_simulation(load_scenario("square", ["trajectory.corridor=0.15"])).context.tracking_path
+    for path, bound in ((plain, None), (tube, 0.15)):
+        p = path.sample(np.linspace(path.t_knots[0], path.t_end, 4000)).p_W
+        worst = _distance_to_polyline(p, corners).max()
+        if bound is None:
+            assert worst > 0.3  # the plain min-snap square bulges out
+        else:
+            assert worst <= bound
+    with pytest.raises(ConfigError, match="trajectory.corridor must be a half-width > 0"):
+        load_scenario("square", ["trajectory.corridor=-1"])
+
+
+def test_tunnel_course_world_kind_follows_world_seed():
+    from cufund.scenario_build import build_simulation
+
+    a = build_simulation(load_scenario("square", ["world.kind=tunnel_course", "world.seed=2", "start_p_W=[-20, 0, 0]"]))
+    b = build_simulation(load_scenario("square", {"world": {"kind": "tunnel_course", "seed": 2}, "start_p_W": [-20, 0, 0]}))
+    c = build_simulation(load_scenario("square", {"world": {"kind": "tunnel_course", "seed": 5}, "start_p_W": [-20, 0, 0]}))
+    verts = [np.concatenate([o.vertices for o in x.context.world.objects]) for x in (a, b, c)]
+    assert np.array_equal(verts[0], verts[1]) and not np.array_equal(verts[0], verts[2])

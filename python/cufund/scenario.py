@@ -86,8 +86,20 @@ class TrajectoryConfig:
     """Take-off and landing: jerk limit [m/s^3]."""
     hover_s: float = 1.0
     """Hover before and after the min-snap path [s]."""
+    corridor: float | None = None
+    """Half-width of the tube around the waypoint polyline the min-snap path must stay in [m] (waypoints are
+    inserted where it would leave it); null: no tube."""
+    optimize_times: bool = False
+    """Optimise the segment times for least snap before scaling to v_max / a_max (Mellinger & Kumar)."""
 
     def __post_init__(self) -> None:
+        if self.corridor is not None:
+            c = self.corridor
+            if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c) or c <= 0:
+                raise ConfigError(f"trajectory.corridor must be a half-width > 0 [m] or null, got {c!r}")
+            object.__setattr__(self, "corridor", float(c))
+        if not isinstance(self.optimize_times, bool):
+            raise ConfigError(f"trajectory.optimize_times must be true or false, got {self.optimize_times!r}")
         try:
             w = np.asarray(self.waypoints, dtype=float) if self.waypoints is not None else np.zeros(0)
         except (TypeError, ValueError):

@@ -29,7 +29,18 @@ def build_reference(cfg: Any) -> tuple[TrajectorySequence, MinimumSnapTrajectory
     ground = np.array([w[0, 0], w[0, 1], 0.0])
     takeoff = JerkLimitedMove(ground, w[0], cfg.move_v_max, cfg.move_a_max, cfg.move_j_max, yaw0, t_start=0.0)
     hover1 = Hold(w[0], cfg.hover_s, yaw0, t_start=takeoff.t_end)
-    path = MinimumSnapTrajectory(w, yaw, v_max=cfg.v_max, a_max=cfg.a_max, t_start=hover1.t_end)
+    if cfg.corridor is None and not cfg.optimize_times:
+        path = MinimumSnapTrajectory(w, yaw, v_max=cfg.v_max, a_max=cfg.a_max, t_start=hover1.t_end)
+    else:  # the planner that optimises times and inserts waypoints where the path leaves the corridor
+        from .min_snap_planner import MinSnapPlanner, MinSnapPlannerParams
+
+        planner = MinSnapPlanner(MinSnapPlannerParams(cfg.v_max, cfg.a_max, optimize_times=cfg.optimize_times,
+                                                      corridor=cfg.corridor))
+        result = planner.plan(w, yaw, t_start=hover1.t_end)
+        if result.status != "ok":
+            raise ValueError(f"trajectory.corridor: no min-snap path stays within {cfg.corridor} m of the "
+                             f"waypoints ({result.status})")
+        path = result.trajectory
     yaw_end = float(path.yaw_waypoints[-1])
     hover2 = Hold(w[-1], cfg.hover_s, yaw_end, t_start=path.t_end)
     landing = JerkLimitedMove(w[-1], np.array([w[-1, 0], w[-1, 1], 0.0]), cfg.move_v_max, cfg.move_a_max,

@@ -85,3 +85,25 @@ register(Kind("world", "forest", ForestParams, lambda p, ctx: forest(p.seed, p.n
 register(Kind("world", "corridor", CorridorParams, lambda p, ctx: corridor(p.length, p.width, p.height), None,
               "a straight corridor"))
 register(Kind("world", "file", FileParams, _file, None, "a world YAML file (world.path)"))
+
+
+def _tunnel_course_kind() -> None:
+    from .tunnel_course import TunnelCourseParams, tunnel_course_layout
+
+    @dataclass(frozen=True)
+    class TunnelCourseWorldParams(TunnelCourseParams):
+        """A generated tunnel course: its layout seed and the generator's bounds (:class:`TunnelCourseParams`)."""
+
+        seed: int = 0
+        """Layout seed (independent of the scenario seed)."""
+
+        def __post_init__(self) -> None:
+            super().__post_init__()
+            if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+                raise ConfigError(f"world.seed must be an integer >= 0, got {self.seed!r}")
+
+    register(Kind("world", "tunnel_course", TunnelCourseWorldParams, lambda p, ctx: tunnel_course_layout(p.seed, p).world,
+                  None, "a seeded IMAV-style tunnel course (world.seed picks the layout), checked flyable"))
+
+
+_tunnel_course_kind()
