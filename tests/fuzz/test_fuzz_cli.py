@@ -19,8 +19,9 @@ ATOMS = ["1", "-1", "0", ".nan", ".inf", "1e400", "1e-320", "true", "null", "x",
 
 # The child runs cufund's CLI in-process with stderr captured and classifies the exit itself.
 RUN = """
-import contextlib, io
+import contextlib, io, os
 from cufund import cli
+os.chdir(cwd)  # a relative or empty --out lands in the case's folder, never in the source tree
 err = io.StringIO()
 with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
     try:
@@ -79,7 +80,8 @@ def test_cufund_run(server, tmp_path_factory, path, atom, override):
         argv += ["--set", f"{override[0]}={override[1]}"]
     if path != "duration" and (override is None or override[0] != "duration"):
         argv += ["--set", "duration=0.3"]  # a valid mutation flies briefly, not 40 s
-    outcome, detail = server.run("cli", "", RUN, {"argv": argv}, check="result in (0, 1)", timeout=120)
+    outcome, detail = server.run("cli", "", RUN, {"argv": argv, "cwd": str(folder)}, check="result in (0, 1)",
+                                 timeout=120)
     expect_good(outcome, detail)
 
 
@@ -93,5 +95,6 @@ def test_cufund_run_arguments(server, tmp_path_factory, out, extra):
     out_path = out if out.startswith("/") or not out else str(folder / out)
     argv = ["run", str(folder / "scenario.yaml"), "--out", out_path, "--no-replay", "--no-log",
             "--set", "duration=0.3", *extra]
-    outcome, detail = server.run("cli", "", RUN, {"argv": argv}, check="result in (0, 1)", timeout=120)
+    outcome, detail = server.run("cli", "", RUN, {"argv": argv, "cwd": str(folder)}, check="result in (0, 1)",
+                                 timeout=120)
     expect_good(outcome, detail)
