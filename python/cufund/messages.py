@@ -259,6 +259,17 @@ class TrajectorySetpoint:
 
 
 @message
+class TrajectoryUpdate:
+    """A new trajectory from a (re)planner, to be followed from ``trajectory.t_start`` on; a follower keeps
+    the trajectory it had before that time (the planner makes the two join)."""
+
+    t: float
+    """When the plan was made [s]."""
+    trajectory: Any
+    """The new :class:`cufund.planning.Trajectory`."""
+
+
+@message
 class AttitudeSetpoint:
     """Attitude and collective thrust, PX4's ``vehicle_attitude_setpoint``."""
 
@@ -326,6 +337,8 @@ class Topics:
     ESTIMATOR_DIAGNOSTICS = Topic("/estimator/diagnostics", OdometryDiagnostics)
     """Per-frame diagnostics of a LiDAR odometry."""
     TRAJECTORY_SETPOINT = Topic("/setpoint/trajectory", TrajectorySetpoint)
+    TRAJECTORY_UPDATE = Topic("/planner/trajectory", TrajectoryUpdate)
+    """Trajectory updates of a replanner, stitched by :class:`cufund.planning.TrajectoryFollower`."""
     ATTITUDE_SETPOINT = Topic("/setpoint/attitude", AttitudeSetpoint)
     """Attitude and thrust from the position controller (or the user in attitude mode)."""
     MANUAL_ATTITUDE_SETPOINT = Topic("/setpoint/attitude_manual", AttitudeSetpoint)

@@ -67,7 +67,7 @@ def run_into_folder(config: Any, out: str | Path, *, log: bool = True, plots: bo
 
         logger = McapLogger(out / "run.mcap", metadata={"scenario": config.name, "seed": str(config.seed),
                                                         "config": yaml.safe_dump(config.to_dict(), sort_keys=False)})
-        built.simulator.logger = logger
+        built.simulator.logger = _Excluding(logger, config.log.exclude) if config.log.exclude else logger
     try:
         run = run_built(built, progress=progress)
     finally:
@@ -75,3 +75,14 @@ def run_into_folder(config: Any, out: str | Path, *, log: bool = True, plots: bo
             logger.close()
     write_run_folder(run, out, plots=plots, replay=replay)
     return run
+
+
+class _Excluding:
+    """The logger without the topics of ``log.exclude``."""
+
+    def __init__(self, logger: Any, exclude: tuple[str, ...]) -> None:
+        self.logger, self.exclude = logger, frozenset(exclude)
+
+    def write(self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int) -> None:
+        if str(topic) not in self.exclude:
+            self.logger.write(topic, message, log_time_ns, publish_time_ns)

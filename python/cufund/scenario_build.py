@@ -36,6 +36,10 @@ class BuildContext:
         self.seed = 0
         self.reference: Any = None
         self.tracking_path: Any = None
+        self.done: Any = None
+        """``done(t, truth) -> bool`` ending a run whose landing time a planner only learns in flight."""
+        self.metric_hooks: list[Any] = []
+        """``hook(result) -> dict`` merged into the run's metrics (e.g. a replanner's planning metrics)."""
 
     def seed_for(self, where: str) -> int:
         """The seed of the random stream of the part at ``where`` (e.g. ``sensors.lidar``): derived from the
@@ -205,9 +209,11 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
     def landed(t: float, truth: Odometry) -> bool:
         return t_landed is not None and t >= t_landed and truth.p_W[2] < 0.02 and float(np.linalg.norm(truth.v_W)) < 0.05
 
-    result = built.simulator.run(config.duration, done=landed if t_landed is not None else None, progress=progress)
     ctx = built.context
+    result = built.simulator.run(config.duration, done=landed if t_landed is not None else ctx.done, progress=progress)
     metrics = run_metrics(result)
+    for hook in ctx.metric_hooks:
+        metrics.update(hook(result))
     if ctx.tracking_path is not None:
         metrics.update(tracking_metrics(result, ctx.tracking_path))
     if config.estimator is not None:

@@ -1,0 +1,109 @@
+"""The B-spline local replanner as a simulator component: replans on the growing ESDF map towards a goal and
+publishes trajectory updates that :class:`~cufund.planning.TrajectoryFollower` stitches."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from ..components import BusView, Planner
+from ..messages import MapUpdate, Odometry, Topics, TrajectoryUpdate
+from .local_planner import BsplineLocalPlanner, LocalPlannerParams
+from .point_to_point import JerkLimitedMove
+from .sequence import Hold, TrajectorySequence
+from .trajectory import Trajectory
+from .trajectory_follower import stitched
+
+__all__ = ["LocalPlannerComponent", "ReplanRecord"]
+
+
+@dataclass(frozen=True)
+class ReplanRecord:
+    """One replan, kept for the run's metrics."""
+
+    t: float
+    """Simulated time of the replan [s]."""
+    status: str
+    """The planner's status ("ok", "collision", "at_goal")."""
+    plan_ms: float
+    """Wall time of the replan [ms]."""
+    min_clearance_m: float
+    """Smallest clearance of the candidate trajectory on the map [m]."""
+    path_length_m: float
+    """Length of the accepted trajectory [m] (0 when rejected)."""
+
+
+class LocalPlannerComponent(Planner):
+    """Replans at ``rate_hz`` from the followed reference's own position, velocity and acceleration at the
+    replan time (not the measured state), so every update joins the reference with no jump in p, v or a.
+
+    It follows ``initial`` (e.g. the take-off) until ``t_begin``; from then on it replans on the map of the
+    latest :class:`~cufund.messages.MapUpdate` towards ``goal_W``. A rejected replan keeps the previous
+    trajectory. Once the reference rests within ``goal_tolerance`` of the goal it hovers ``hover_s`` and lands
+    with ``landing`` (a jerk-limited move straight down), after which :attr:`t_landed` is set.
+    """
+
+    name = "local_planner"
+
+    def __init__(self, params: LocalPlannerParams, goal_W: npt.ArrayLike, initial: Trajectory, t_begin: float,
+                 rate_hz: float = 10.0, goal_tolerance: float = 0.1, hover_s: float = 1.0,
+                 landing: tuple[float, float, float] = (0.5, 1.0, 3.0), yaw: float = 0.0) -> None:
+        if not isinstance(params, LocalPlannerParams):
+            raise TypeError(f"params must be a LocalPlannerParams, got {type(params).__name__}")
+        goal = np.asarray(goal_W, dtype=float)
+        if goal.shape != (3,) or not np.all(np.isfinite(goal)):
+            raise ValueError(f"goal_W must be 3 finite numbers [m], got {goal_W!r}")
+        if not isinstance(initial, Trajectory):
+            raise TypeError(f"initial must be a cufund.planning.Trajectory, got {type(initial).__name__}")
+        for name, v in (("rate_hz", rate_hz), ("goal_tolerance", goal_tolerance)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        self.params, self.goal_W, self.initial = params, goal, initial
+        self.t_begin, self.rate_hz, self.goal_tolerance = float(t_begin), float(rate_hz), float(goal_tolerance)
+        self.hover_s, self.landing, self.yaw = float(hover_s), tuple(float(x) for x in landing), float(yaw)
+        self.reads = (Topics.ESDF_MAP,)
+        self.writes = (Topics.TRAJECTORY_UPDATE,)
+        self.reset()
+
+    def reset(self) -> None:
+        self.replans: list[ReplanRecord] = []
+        self.reference: Trajectory = self.initial
+        """What the follower flies: the initial reference with every published update stitched in."""
+        self.t_landed: float | None = None
+        """When the landing ends [s], once it is planned."""
+        self._planner: BsplineLocalPlanner | None = None
+
+    def update(self, t: float, state: Odometry, bus: BusView) -> None:
+        if t < self.t_begin or self.t_landed is not None:
+            return
+        msg: MapUpdate | None = bus.latest(Topics.ESDF_MAP)
+        if msg is None:
+            return
+        if self._planner is None or self._planner.esdf_map is not msg.map:
+            self._planner = BsplineLocalPlanner(msg.map, self.params)
+        t_r = t + self.latency_s  # the update is followed from when it becomes visible
+        ref = self.reference.sample(float(t_r))
+        p, v, a = ref.p_W[0], ref.v_W[0], ref.a_W[0]
+        if np.linalg.norm(p - self.goal_W) <= self.goal_tolerance and np.linalg.norm(v) < 0.05 \
+                and np.linalg.norm(a) < 0.05:
+            self._land(t, t_r, p, bus)
+            return
+        plan = self._planner.replan(t_r, p, v, a, self.goal_W, self.yaw)
+        self.replans.append(ReplanRecord(t, plan.status, 1e3 * plan.plan_seconds, plan.min_clearance,
+                                         plan.path_length))
+        if plan.status == "ok" and plan.trajectory is not None:
+            self._publish(t, plan.trajectory, bus)
+
+    def _land(self, t: float, t_r: float, p: np.ndarray, bus: BusView) -> None:
+        hold = Hold(p, self.hover_s, self.yaw, t_start=t_r)
+        v, a, j = self.landing
+        down = JerkLimitedMove(p, np.array([p[0], p[1], 0.0]), v, a, j, self.yaw, t_start=hold.t_end)
+        self._publish(t, TrajectorySequence([hold, down]), bus)
+        self.t_landed = down.t_start + down.duration
+
+    def _publish(self, t: float, trajectory: Trajectory, bus: BusView) -> None:
+        self.reference = stitched(self.reference, trajectory, t)
+        bus.publish(Topics.TRAJECTORY_UPDATE, TrajectoryUpdate(t, trajectory))
