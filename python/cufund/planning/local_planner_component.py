@@ -42,7 +42,7 @@ class LocalPlannerComponent(Planner):
 
     It follows ``initial`` (e.g. the take-off) until ``t_begin``; from then on it replans on the map of the
     latest :class:`~cufund.messages.MapUpdate` towards ``goal_W``. A rejected replan keeps the previous
-    trajectory. Once the reference rests within ``goal_tolerance`` of the goal it hovers ``hover_s`` and lands
+    trajectory. Once the reference rests (zero velocity and acceleration) within ``goal_tolerance`` of the goal it hovers ``hover_s`` and lands
     with ``landing`` (a jerk-limited move straight down), after which :attr:`t_landed` is set.
     """
 
@@ -87,8 +87,8 @@ class LocalPlannerComponent(Planner):
         t_r = t + self.latency_s  # the update is followed from when it becomes visible
         ref = self.reference.sample(float(t_r))
         p, v, a = ref.p_W[0], ref.v_W[0], ref.a_W[0]
-        if np.linalg.norm(p - self.goal_W) <= self.goal_tolerance and np.linalg.norm(v) < 0.05 \
-                and np.linalg.norm(a) < 0.05:
+        if np.linalg.norm(p - self.goal_W) <= self.goal_tolerance and np.linalg.norm(v) < 1e-9 \
+                and np.linalg.norm(a) < 1e-9:  # at rest: the hold joins with no jump
             self._land(t, t_r, p, bus)
             return
         plan = self._planner.replan(t_r, p, v, a, self.goal_W, self.yaw)
