@@ -294,3 +294,10 @@ def test_tunnel_course_world_kind_follows_world_seed():
     c = build_simulation(load_scenario("square", {"world": {"kind": "tunnel_course", "seed": 5}, "start_p_W": [-20, 0, 0]}))
     verts = [np.concatenate([o.vertices for o in x.context.world.objects]) for x in (a, b, c)]
     assert np.array_equal(verts[0], verts[1]) and not np.array_equal(verts[0], verts[2])
+
+
+def test_an_empty_out_is_refused_not_the_current_folder(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "square", "--out", ""]) == 2
+    assert "--out must name a folder" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

@@ -44,7 +44,7 @@ def _parser() -> argparse.ArgumentParser:
                           "(repeatable)")
     run.add_argument("--controller", help="same as --set controller.kind=NAME")
     run.add_argument("--seed", help="same as --set seed=N")
-    run.add_argument("--out", type=Path, help="run folder (default: runs/<scenario>-<time>)")
+    run.add_argument("--out", help="run folder (default: runs/<scenario>-<time>)")
     run.add_argument("--viz", action="store_true", help="stream the run live to MeshCat (http on 127.0.0.1)")
     run.add_argument("--no-replay", action="store_true", help="skip replay.html")
     run.add_argument("--no-log", action="store_true", help="skip run.mcap")
@@ -99,7 +99,9 @@ def _run(args: argparse.Namespace) -> int:
         if args.seed is not None:
             overrides.update(parse_overrides([f"seed={args.seed}"]))
         cfg = load_scenario(args.scenario, overrides)
-        out = args.out or Path("runs") / f"{cfg.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+        if args.out is not None and not args.out.strip():
+            raise ConfigError("--out must name a folder, got an empty string")
+        out = Path(args.out) if args.out is not None else Path("runs") / f"{cfg.name}-{time.strftime('%Y%m%d-%H%M%S')}"
         problem = out_dir_problem(out)
         if problem:
             raise ConfigError(problem)
