@@ -86,6 +86,7 @@ def test_dask_sweep_equals_serial_runs_and_stays_on_loopback(client):
     assert len(set(pids)) >= 3
     _assert_loopback(_sockets(set(pids)))
     assert set(client.run(lambda: os.environ.get("CUFUND_NUM_THREADS")).values()) == {"1"}
+    assert set(client.run(lambda: signal.getsignal(signal.SIGINT)).values()) == {signal.SIG_IGN}
 
 
 class _NoClient:
@@ -189,3 +190,28 @@ def test_a_sweep_on_a_scheduler_by_address(client):
     assert frame["controller.kind"].tolist() == ["pid", "geometric"] and set(frame["sim_time_s"]) == {1.0}
     assert set(frame["attempts"]) == {1}
     assert client.run_on_scheduler(clients) == before  # its own client came and went
+
+
+def test_ctrl_c_stops_cleanly_and_keeps_what_finished(tmp_path):
+    spec_file = tmp_path / "sweep.yaml"
+    spec_file.write_text(json.dumps(SPEC))
+    out = tmp_path / "sw"
+    proc = subprocess.Popen([sys.executable, "-m", "cufund.cli", "sweep", str(spec_file), "--out", str(out),
+                             "--workers", "2", "--no-plots"], start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 240
+        while not list(out.glob("variants/*/result.json")):
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+        os.killpg(proc.pid, signal.SIGINT)  # what a terminal's Ctrl-C sends: the CLI and its workers
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 1 and "interrupted" in err and "Traceback" not in err
+    finished = sorted(p.parent.name for p in out.glob("variants/*/result.json"))
+    assert 1 <= len(finished) < 6
+    assert sorted(pd.read_parquet(out / "results.parquet")["key"]) == finished
+    assert f"{len(finished)} of 6 variants have a result" in (out / "summary.md").read_text()

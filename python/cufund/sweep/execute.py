@@ -58,7 +58,7 @@ def local_client(workers: int | None = None) -> Iterator[Any]:
     """A ``distributed.Client`` on a fresh ``LocalCluster``: ``workers`` single-threaded worker processes (default:
     one per CPU this process may use), every socket on 127.0.0.1 (the scheduler's HTTP endpoints, and its dashboard
     when bokeh is installed, on a free port), ``CUFUND_NUM_THREADS=1`` in each worker, and a task whose worker dies
-    marked failed at once (the sweep retries it once itself)."""
+    marked failed at once (the sweep retries it once itself); workers ignore SIGINT (the client stops them)."""
     import dask
     from distributed import Client, LocalCluster
 
@@ -71,6 +71,9 @@ def local_client(workers: int | None = None) -> Iterator[Any]:
                                silence_logs=logging.CRITICAL, env={THREADS_ENV: "1"})
     try:
         with Client(cluster) as client:
+            from .worker_plugin import IgnoreInterrupts
+
+            client.register_plugin(IgnoreInterrupts(), name="cufund-sweep-ignore-sigint")
             yield client
     finally:
         cluster.close()
