@@ -76,3 +76,40 @@ def test_t_interval_matches_scipy():
     finite = v[np.isfinite(v)]
     lo, hi = stats.t.interval(0.95, finite.size - 1, loc=finite.mean(), scale=stats.sem(finite))
     assert t_interval(v) == pytest.approx((finite.mean(), lo, hi), rel=1e-12)
+
+
+def test_report_bins_drawn_values_and_writes_mixed_columns(tmp_path):
+    import pandas as pd
+
+    from cufund.sweep.report import groups, write_outputs
+    from cufund.sweep.results import results_frame
+    from cufund.sweep.spec import Variant
+
+    rng = np.random.default_rng(0)
+    spec = load_spec({"scenario": "square", "grid": {"world.kind": ["empty", 3]},  # a mixed column (text, int)
+                      "random": {"n": 20, "draws": {"controller.position.xy_p": {"uniform": [2.0, 4.0]}}}})
+    variants, records = [], {}
+    for i in range(40):
+        key = f"{i:016x}"
+        overrides = {"world.kind": ["empty", 3][i % 2], "controller.position.xy_p": float(rng.uniform(2, 4))}
+        variants.append(Variant(i, overrides, 0, None, key))
+        ok = overrides["controller.position.xy_p"] > 3
+        records[key] = {"key": key, "status": "completed" if ok else "crashed", "message": "", "attempts": 1,
+                        "variant_wall_s": 1.0, "metrics": {"tracking_rmse_m": None if not ok else i * 1e-3,
+                                                           "tracking_window_s": [3.4, 12.0]}}
+    frame = results_frame(variants, records, spec.swept_keys, 1, tmp_path)
+    parts = groups(frame, "controller.position.xy_p")
+    assert len(parts) == 8 and sum(len(rows) for _, _, rows in parts) == 40
+    xs = [x for _, x, _ in parts]
+    assert xs == sorted(xs)
+    write_outputs(tmp_path, spec, frame, 40)
+    back = pd.read_parquet(tmp_path / "results.parquet")
+    assert back["world.kind"].tolist() == ["empty", "3"] * 20 and back["tracking_window_s.1"].tolist() == [12.0] * 40
+    assert back["tracking_rmse_m"].isna().sum() == (back["status"] != "completed").sum()
+    summary = (tmp_path / "summary.md").read_text()
+    assert "40 of 40 variants" in summary and "## `controller.position.xy_p`" in summary
+    empty = frame[frame["world.kind"] == "empty"]
+    k = int((empty["status"] == "completed").sum())
+    lo, hi = wilson_interval(k, 20)
+    assert f"| empty | 20 | {k / 20:.0%} [{lo:.0%}, {hi:.0%}] |" in summary
+    assert {p.name for p in (tmp_path / "plots").iterdir()} == {"world.kind.png", "controller.position.xy_p.png"}
