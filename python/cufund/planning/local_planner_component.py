@@ -11,6 +11,7 @@ import numpy.typing as npt
 
 from ..components import BusView, Planner
 from ..messages import MapUpdate, Odometry, Topics, TrajectoryUpdate
+from .bspline import UniformBspline, start_control_points
 from .local_planner import BsplineLocalPlanner, LocalPlannerParams
 from .point_to_point import JerkLimitedMove
 from .sequence import Hold, TrajectorySequence
@@ -42,15 +43,20 @@ class LocalPlannerComponent(Planner):
 
     It follows ``initial`` (e.g. the take-off) until ``t_begin``; from then on it replans on the map of the
     latest :class:`~cufund.messages.MapUpdate` towards ``goal_W``. A rejected replan keeps the previous
-    trajectory. Once the reference rests (zero velocity and acceleration) within ``goal_tolerance`` of the goal it hovers ``hover_s`` and lands
-    with ``landing`` (a jerk-limited move straight down), after which :attr:`t_landed` is set.
+    trajectory. When the map shows the goal closer than the radius (plus ``goal_margin``) to an obstacle, the
+    planner aims at the nearest point back along the line to the vehicle that is clear, at most
+    ``max_goal_shift`` away (:attr:`active_goal`), as EGO-Planner does. Once the reference is within
+    ``goal_tolerance`` of the goal and slow, it brakes to rest there (a short B-spline from the reference's
+    state), hovers ``hover_s`` and lands with ``landing`` (a jerk-limited move straight down), after which
+    :attr:`t_landed` is set.
     """
 
     name = "local_planner"
 
     def __init__(self, params: LocalPlannerParams, goal_W: npt.ArrayLike, initial: Trajectory, t_begin: float,
                  rate_hz: float = 10.0, goal_tolerance: float = 0.1, hover_s: float = 1.0,
-                 landing: tuple[float, float, float] = (0.5, 1.0, 3.0), yaw: float = 0.0) -> None:
+                 landing: tuple[float, float, float] = (0.5, 1.0, 3.0), yaw: float = 0.0,
+                 max_goal_shift: float = 1.0, goal_margin: float = 0.1) -> None:
         if not isinstance(params, LocalPlannerParams):
             raise TypeError(f"params must be a LocalPlannerParams, got {type(params).__name__}")
         goal = np.asarray(goal_W, dtype=float)
@@ -64,6 +70,7 @@ class LocalPlannerComponent(Planner):
         self.params, self.goal_W, self.initial = params, goal, initial
         self.t_begin, self.rate_hz, self.goal_tolerance = float(t_begin), float(rate_hz), float(goal_tolerance)
         self.hover_s, self.landing, self.yaw = float(hover_s), tuple(float(x) for x in landing), float(yaw)
+        self.max_goal_shift, self.goal_margin = float(max_goal_shift), float(goal_margin)
         self.reads = (Topics.ESDF_MAP,)
         self.writes = (Topics.TRAJECTORY_UPDATE,)
         self.reset()
@@ -75,6 +82,9 @@ class LocalPlannerComponent(Planner):
         self.t_landed: float | None = None
         """When the landing ends [s], once it is planned."""
         self._planner: BsplineLocalPlanner | None = None
+        self._arrived = False
+        self.active_goal: np.ndarray = self.goal_W.copy()
+        """The goal flown to: ``goal_W``, or the clear point nearest it when the map shows it blocked."""
 
     def update(self, t: float, state: Odometry, bus: BusView) -> None:
         if t < self.t_begin or self.t_landed is not None:
@@ -87,15 +97,42 @@ class LocalPlannerComponent(Planner):
         t_r = t + self.latency_s  # the update is followed from when it becomes visible
         ref = self.reference.sample(float(t_r))
         p, v, a = ref.p_W[0], ref.v_W[0], ref.a_W[0]
-        if np.linalg.norm(p - self.goal_W) <= self.goal_tolerance and np.linalg.norm(v) < 1e-9 \
-                and np.linalg.norm(a) < 1e-9:  # at rest: the hold joins with no jump
-            self._land(t, t_r, p, bus)
+        if self._arrived:
+            if np.linalg.norm(v) < 1e-9 and np.linalg.norm(a) < 1e-9:  # at rest: the hold joins with no jump
+                self._land(t, t_r, p, bus)
             return
-        plan = self._planner.replan(t_r, p, v, a, self.goal_W, self.yaw)
+        goal = self._clear_goal(p)
+        if np.linalg.norm(p - goal) <= self.goal_tolerance and np.linalg.norm(v) < 0.1 and np.linalg.norm(a) < 0.3:
+            # Arrived (within the tolerance, slow): stop replanning and brake to rest where the reference is.
+            q = start_control_points(p, v, a, self.params.dt)
+            brake = UniformBspline(np.vstack([q, np.repeat(q[2:], 3, axis=0)]), self.params.dt, t_r, self.yaw)
+            self._publish(t, brake, bus)
+            self._arrived = True
+            return
+        plan = self._planner.replan(t_r, p, v, a, goal, self.yaw)
         self.replans.append(ReplanRecord(t, plan.status, 1e3 * plan.plan_seconds, plan.min_clearance,
                                          plan.path_length))
         if plan.status == "ok" and plan.trajectory is not None:
             self._publish(t, plan.trajectory, bus)
+
+    def _clear_goal(self, p: np.ndarray) -> np.ndarray:
+        """The requested goal when the map shows it clear, else the first clear point on the way back to ``p``
+        (5 cm steps, at most ``max_goal_shift``); the last active goal when none is."""
+        assert self._planner is not None
+        need = self.params.radius + self.goal_margin
+        query = self._planner.query
+        if query.clearance(self.goal_W) >= need:
+            self.active_goal = self.goal_W.copy()
+        elif query.clearance(self.active_goal) < need:
+            back = p - self.goal_W
+            dist = float(np.linalg.norm(back))
+            if dist > 1e-9:
+                s = np.arange(1, int(min(self.max_goal_shift, dist) / 0.05) + 1) * 0.05
+                cand = self.goal_W + s[:, None] * (back / dist)
+                ok = np.flatnonzero(query.clearance(cand) >= need)
+                if ok.size:
+                    self.active_goal = cand[ok[0]]
+        return self.active_goal
 
     def _land(self, t: float, t_r: float, p: np.ndarray, bus: BusView) -> None:
         hold = Hold(p, self.hover_s, self.yaw, t_start=t_r)

@@ -46,13 +46,15 @@ def trunk_clearance(p_W: np.ndarray, cylinders: np.ndarray, chunk: int = 4096) -
 
 def planning_metrics(result: Any, planner: Any, world: Any, start_W: np.ndarray,
                      goal_tolerance: float = 0.3) -> dict[str, Any]:
-    """``success`` (the true position came within ``goal_tolerance`` [m] of the planner's goal, the run did not
-    end in a collision, and the vehicle never came closer than the planner's radius to a trunk),
+    """``success`` (the true position came within ``goal_tolerance`` [m] of the planner's goal — its
+    ``active_goal``, moved at most its ``max_goal_shift`` off the requested one when that lies against an
+    obstacle —, the run did not end in a collision, and the vehicle never came closer than the planner's
+    radius to a trunk),
     ``min_clearance_m`` (over the whole flight), ``path_length_m`` (flown from the start until the goal was
     first reached, or the whole flight), and the replans' wall time, status counts and the smallest map clearance
     of an accepted trajectory."""
     t, p = result.states["t"], result.states["p_W"]
-    goal = np.asarray(planner.goal_W, dtype=float)
+    goal = np.asarray(planner.active_goal, dtype=float)
     dist_goal = np.linalg.norm(p - goal, axis=1)
     reached = np.flatnonzero(dist_goal <= goal_tolerance)
     end = int(reached[0]) + 1 if reached.size else p.shape[0]
@@ -70,6 +72,7 @@ def planning_metrics(result: Any, planner: Any, world: Any, start_W: np.ndarray,
         "goal_reached": bool(reached.size > 0),
         "goal_reached_s": float(t[reached[0]]) if reached.size else None,
         "goal_distance_min_m": float(dist_goal.min()) if dist_goal.size else None,
+        "goal_shift_m": float(np.linalg.norm(goal - np.asarray(planner.goal_W, dtype=float))),
         "min_clearance_m": min_clear if np.isfinite(min_clear) else None,
         "clearance_radius_m": radius,
         "path_length_m": float(np.sum(np.linalg.norm(np.diff(p[:end], axis=0), axis=1))),
