@@ -65,7 +65,8 @@ def local_client(workers: int | None = None) -> Iterator[Any]:
     n = workers if workers is not None else len(os.sched_getaffinity(0))
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
-    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+    # no statistical profiler in the workers (it samples every thread's stack every 10 ms; nobody reads it here)
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0, "distributed.worker.profile.enabled": False}):
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                                dashboard_address="127.0.0.1:0", worker_dashboard_address=None,
                                silence_logs=logging.CRITICAL, env={THREADS_ENV: "1"})
@@ -82,12 +83,14 @@ def local_client(workers: int | None = None) -> Iterator[Any]:
 def execute(client: Any, todo: list[Any], on_done: Callable[[Any, Outcome], None], *, files: bool, heavy: bool,
             plots: bool, progress: bool) -> None:
     """Submits one task per item of ``todo`` (each with ``.config`` and ``.key``) and calls ``on_done(item, outcome)``
-    in this thread as each ends. A task whose worker died (``KilledWorker``) is submitted once more; a second death,
-    or an exception in the run, is recorded as ``failed`` with the reason. On ``KeyboardInterrupt`` the pending tasks
+    in this thread as each ends. A task whose worker died (``KilledWorker``) is submitted once more (unless the
+    scheduler retries such tasks itself: its ``distributed.scheduler.allowed-failures`` > 0); a second death, or an
+    exception in the run, is recorded as ``failed`` with the reason. On ``KeyboardInterrupt`` the pending tasks
     are cancelled and the interrupt propagates (what finished was already handed to ``on_done``)."""
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
+    scheduler_retries = _scheduler_retries(client)  # 0 on local_client's; a remote one may retry itself
     bar = _progress(len(todo), progress)
     meta: dict[Any, tuple[Any, int]] = {}
 
@@ -106,12 +109,13 @@ def execute(client: Any, todo: list[Any], on_done: Callable[[Any, Outcome], None
                 outcome.attempts = attempt
             else:
                 exc = fut.exception()
-                if isinstance(exc, KilledWorker) and attempt == 1:
+                if isinstance(exc, KilledWorker) and attempt == 1 and scheduler_retries == 0:
                     pending.add(submit(item, 2))
                     fut.release()
                     continue
                 if isinstance(exc, KilledWorker):
-                    reason = f"its worker died twice while running it ({type(exc).__name__}: {exc})"
+                    deaths = "twice" if scheduler_retries == 0 else f"{scheduler_retries + 1} times"
+                    reason = f"its worker died {deaths} while running it ({type(exc).__name__}: {exc})"
                 else:
                     reason = f"{type(exc).__name__}: {exc}"
                 outcome = Outcome("failed", reason, attempts=attempt)
@@ -123,6 +127,15 @@ def execute(client: Any, todo: list[Any], on_done: Callable[[Any, Outcome], None
         raise
     finally:
         bar.close()
+
+
+def _scheduler_retries(client: Any) -> int:
+    """How many times the scheduler itself re-runs a task whose worker died (its ``allowed-failures``)."""
+    try:
+        # a lambda travels by value: a remote scheduler need not have cufund installed
+        return int(client.run_on_scheduler(lambda dask_scheduler: dask_scheduler.allowed_failures))
+    except Exception:  # a scheduler that refuses run_on_scheduler: count on our own retry
+        return 0
 
 
 def _progress(total: int, enabled: bool) -> Any:
