@@ -115,7 +115,10 @@ class SpinningPattern:
     """Every frame is the same (a LiDAR may cache it)."""
 
     def __post_init__(self) -> None:
-        el = np.asarray(self.elevations, dtype=float)
+        try:
+            el = np.asarray(self.elevations, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            el = np.full(1, np.nan)  # reported below
         if el.ndim != 1 or len(el) == 0 or not np.all(np.abs(el) < np.pi / 2):
             raise ValueError("elevations must be a non-empty list of angles in (-π/2, π/2) [rad]")
         if isinstance(self.columns, bool) or not isinstance(self.columns, (int, np.integer)) or self.columns < 1:
