@@ -301,3 +301,8 @@ def test_an_empty_out_is_refused_not_the_current_folder(tmp_path, capsys, monkey
     assert main(["run", "square", "--out", ""]) == 2
     assert "--out must name a folder" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_out_that_cannot_be_created_exits_2(capsys):
+    assert main(["run", "square", "--out", "/proc/nope/run"]) == 2
+    assert "--out /proc/nope/run: cannot create the folder" in capsys.readouterr().err

@@ -106,6 +106,10 @@ def _run(args: argparse.Namespace) -> int:
         if problem:
             raise ConfigError(problem)
         built = build_simulation(cfg)  # the whole graph validated before anything runs
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise ConfigError(f"--out {out}: cannot create the folder: {e.strerror or e}") from None
     except (ConfigError, OSError) as e:
         print(f"cufund: {e}", file=sys.stderr)
         return EXIT_INVALID

@@ -36,18 +36,28 @@ class LidarParams:
     """Ray casting threads, 0: all cores."""
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.range_min) and self.range_min >= 0):
+        for name in ("range_min", "range_max", "range_noise_std", "dropout"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v):
+                raise ValueError(f"LidarParams.{name} must be a finite real number, got {v!r}")
+        for name in ("pose_samples", "seed", "nthreads"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+                raise ValueError(f"LidarParams.{name} must be an integer, got {v!r}")
+        if not self.range_min >= 0:
             raise ValueError(f"range_min must be a finite number >= 0 [m], got {self.range_min}")
-        if not (np.isfinite(self.range_max) and self.range_max > self.range_min):
+        if not self.range_max > self.range_min:
             raise ValueError(f"range_max must be finite and > range_min [m], got {self.range_max}")
-        if not (np.isfinite(self.range_noise_std) and self.range_noise_std >= 0):
+        if not self.range_noise_std >= 0:
             raise ValueError(f"range_noise_std must be a finite number >= 0 [m], got {self.range_noise_std}")
         if not 0.0 <= self.dropout < 1.0:
             raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
-        if int(self.pose_samples) < 2:
+        if self.pose_samples < 2:
             raise ValueError(f"pose_samples must be >= 2, got {self.pose_samples}")
-        if int(self.nthreads) < 0:
+        if self.nthreads < 0:
             raise ValueError(f"nthreads must be >= 0, got {self.nthreads}")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
 
 
 def mid360_params(**overrides: object) -> LidarParams:
