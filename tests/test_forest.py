@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from cufund import load_scenario
 from cufund.scenario_build import run_scenario
 

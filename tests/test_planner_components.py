@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from cufund import ScenarioConfig
 from cufund.components import Mapper
 from cufund.config import ConfigError
@@ -107,7 +106,7 @@ def test_stitched_setpoints_are_continuous(pillar_flight):
     assert np.allclose(dt, 1 / 250, atol=1e-9)
     # Between consecutive setpoints each quantity can change by at most its derivative's bound times the tick
     # (mean value theorem): a jump at a stitch would break these.
-    n = lambda x: np.linalg.norm(x, axis=1)  # noqa: E731
+    n = lambda x: np.linalg.norm(x, axis=1)
     a_max, j_max = n(a).max(), n(j).max()
     assert np.all(n(np.diff(p, axis=0)) <= (np.maximum(n(v)[:-1], n(v)[1:]) + a_max * dt) * dt + 1e-9)
     assert np.all(n(np.diff(v, axis=0)) <= (np.maximum(n(a)[:-1], n(a)[1:]) + j_max * dt) * dt + 1e-9)
