@@ -81,7 +81,7 @@ def _fly(t_appear):
     probe = UpdateLog()
     mapper = ScriptedMap(t_appear)
     built = build_simulation(_config(), extra_components=(mapper, probe))
-    built.simulator.record_topics = [*built.simulator.record_topics, Topics.TRAJECTORY_SETPOINT]
+    assert Topics.TRAJECTORY_SETPOINT in built.simulator.record_topics  # every setpoint kept
     run = run_built(built)
     planner = next(c for c in built.simulator.components if isinstance(c, LocalPlannerComponent))
     return run, planner, probe
