@@ -88,6 +88,7 @@ class SweepSpec:
             raise ConfigError(f"sweep: {total} variants, more than {_MAX_VARIANTS}; split the sweep")
         draws = self._draw()
         out: list[Variant] = []
+        built: set[str] = set()  # identical configurations (equal draws, say) are validated once
         for point in itertools.product(*self.grid.values()):
             grid_point = dict(zip(self.grid, point))
             for draw in draws:
@@ -99,12 +100,14 @@ class SweepSpec:
                         cfg = base.with_overrides(overrides)
                         if r > 0:
                             cfg = cfg.with_overrides({"seed": repeat_seed(cfg.seed, r)})
-                        if validate:
+                        key = config_key(cfg)
+                        if validate and key not in built:
                             build_simulation(cfg)
+                            built.add(key)
                     except ConfigError as e:
                         raise ConfigError(f"sweep variant {where}" + (f" (repeat {r})" if r else "") +
                                           f": {e}") from None
-                    out.append(Variant(len(out), swept, r, cfg, config_key(cfg)))
+                    out.append(Variant(len(out), swept, r, cfg, key))
         return out
 
     def _base(self) -> ScenarioConfig:
