@@ -33,6 +33,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=2)
     args = ap.parse_args()
     import dask.config
+    import distributed  # noqa: F401  (its config defaults)
 
     # the Pool's workers (spawned after this) get what a Dask nanny gives its workers: CUFUND_NUM_THREADS=1 and
     # dask's pre-spawn environment (OMP/MKL/OpenBLAS threads 1, malloc trim threshold)
