@@ -33,10 +33,14 @@ def bench_real_time_factor() -> None:
     base = load_scenario("square")
     base = base.replace(vehicle="crazyflie", controller=dataclasses.replace(base.controller, kind="geometric"))
     same = base.replace(rates=RatesConfig(physics_hz=1000, trajectory_hz=1000, geometric_hz=1000))
-    ours_same = run_scenario(same)
-    ours_default = run_scenario(base)
+    def best(cfg, repeats=3):
+        """The fastest of a few runs (the first run in a process pays one-time costs; the VM's speed drifts)."""
+        return min((run_scenario(cfg) for _ in range(repeats)), key=lambda r: r.metrics["wall_time_s"])
+
+    ours_same = best(same)
+    ours_default = best(base)
     sensors = load_scenario("square_sensors").sensors  # ICM-42688-P IMU, magnetometer, MS5611, u-blox M8N
-    ours_sensors = run_scenario(same.replace(sensors=sensors))
+    ours_sensors = best(same.replace(sensors=sensors))
     reference, _ = build_reference(base.trajectory)
 
     class Adapter:

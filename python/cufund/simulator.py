@@ -83,7 +83,7 @@ def _stack(messages: list[Any]) -> dict[str, np.ndarray | list[Any]]:
         values = [getattr(m, f.name) for m in messages]
         if isinstance(values[0], enum.Enum):
             values = [v.value for v in values]
-        shapes = {np.shape(v) for v in values}
+        shapes = {v.shape if v.__class__ is np.ndarray else np.shape(v) for v in values}
         out[f.name] = np.asarray(values) if len(shapes) == 1 and _stackable(values[0]) else values
     return out
 
