@@ -203,20 +203,8 @@ class BusView:
         bus = self._bus
         if self._latency_ns:
             bus._enqueue(typed, message, self._latency_ns)
-            return
-        # Bus._deliver, inlined: this runs for every message of a run
-        now = bus.now_ns
-        bus._latest[typed] = message
-        subs = bus._subs.get(typed)
-        if subs:
-            for sub in subs:
-                sub._push(now, message)
-        rec = bus._recorded.get(typed)
-        if rec is not None:
-            rec.append(message)
-        logger = bus.logger
-        if logger is not None and (bus._log_topics is None or typed in bus._log_topics):
-            logger.write(typed, message, now, now)
+        else:
+            bus._deliver(typed, message, bus.now_ns, bus.now_ns)
 
     def publish_at(self, topic: str, message: Any, visible_ns: int, publish_ns: int | None = None) -> None:
         """Schedules ``message`` (on a declared output) to become visible at ``visible_ns`` (>= now), as if it had
