@@ -125,6 +125,19 @@ void positive(double v, const char* field) {
   if (!(std::isfinite(v) && v > 0.0)) throw py::value_error(std::string(field) + " must be a finite number > 0");
 }
 
+// The residual half of PlaneParams, validated: what plane_terms and VoxelMap.point_to_plane share.
+PlaneParams residual_params(double max_residual, const std::string& robust, double robust_scale, double sigma) {
+  positive(max_residual, "max_residual");
+  positive(robust_scale, "robust_scale");
+  positive(sigma, "sigma");
+  PlaneParams prm;
+  prm.max_residual = max_residual;
+  prm.robust = robust_kind(robust);
+  prm.robust_scale = robust_scale;
+  prm.sigma = sigma;
+  return prm;
+}
+
 }  // namespace
 
 void define_odometry(py::module_& m) {
@@ -233,14 +246,7 @@ void define_odometry(py::module_& m) {
         auto v = py::array_t<bool, py::array::c_style | py::array::forcecast>::ensure(va);
         const Eigen::Matrix3d R = rotation_matrix(R_WI, "R_WI");
         const Eigen::Vector3d t = vec3(p_W, "p_W");
-        positive(max_residual, "max_residual");
-        positive(robust_scale, "robust_scale");
-        positive(sigma, "sigma");
-        PlaneParams prm;
-        prm.max_residual = max_residual;
-        prm.robust = robust_kind(robust);
-        prm.robust_scale = robust_scale;
-        prm.sigma = sigma;
+        const PlaneParams prm = residual_params(max_residual, robust, robust_scale, sigma);
         const int threads = thread_count(nthreads);
         PlaneTerms terms;
         {
@@ -381,17 +387,10 @@ void define_odometry(py::module_& m) {
             if (neighbours < 3 || neighbours > 64) throw py::value_error("neighbours must be in [3, 64]");
             positive(max_neighbour_distance, "max_neighbour_distance");
             positive(max_plane_rms, "max_plane_rms");
-            positive(max_residual, "max_residual");
-            positive(robust_scale, "robust_scale");
-            positive(sigma, "sigma");
-            PlaneParams prm;
+            PlaneParams prm = residual_params(max_residual, robust, robust_scale, sigma);
             prm.neighbours = neighbours;
             prm.max_neighbour_distance = max_neighbour_distance;
             prm.max_plane_rms = max_plane_rms;
-            prm.max_residual = max_residual;
-            prm.robust = robust_kind(robust);
-            prm.robust_scale = robust_scale;
-            prm.sigma = sigma;
             const int threads = thread_count(nthreads);
             PlaneTerms terms;
             {
