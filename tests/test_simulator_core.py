@@ -293,8 +293,7 @@ def test_a_full_queue_drops_the_oldest_and_counts_it():
 
 def test_run_mcap_matches_the_histories_and_a_replayed_estimator_is_bit_identical(tmp_path):
     from cufund.estimation.imu_propagator import ImuPropagator
-    from cufund.logs import McapLogger, read_mcap
-    from cufund.logs.log_player import LogPlayer
+    from cufund.logs import LogPlayer, McapLogger, read_mcap
 
     cfg = load_scenario("square_mocap", {"duration": 3.0})
     with McapLogger(tmp_path / "run.mcap") as log:

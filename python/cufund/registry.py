@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable
+from typing import Any, Callable
 
 from .config import ConfigError
 
@@ -138,7 +138,3 @@ def available(group: str) -> dict[str, Kind]:
     """The registered kinds of ``group`` by name."""
     _load()
     return dict(_KINDS[group])
-
-
-def kinds(group: str, names: Iterable[str]) -> list[Kind]:
-    return [lookup(group, n) for n in names]

@@ -20,7 +20,8 @@ What a log holds (one channel per topic, named as the topic):
 Chunks are lz4 (or zstd) with CRCs, indexed; the ``cufund`` metadata record holds what the logger was given.
 """
 
+from .log_player import LogPlayer
 from .mcap_reader import LogRecord, McapReadError, log_metadata, log_topics, read_mcap
 from .mcap_writer import McapLogger
 
-__all__ = ["LogRecord", "McapLogger", "McapReadError", "log_metadata", "log_topics", "read_mcap"]
+__all__ = ["LogPlayer", "LogRecord", "McapLogger", "McapReadError", "log_metadata", "log_topics", "read_mcap"]
