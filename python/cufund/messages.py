@@ -319,6 +319,65 @@ class FlightModeCommand:
     mode: FlightMode
 
 
+@message
+class TunnelEstimate:
+    """What a tunnel detector knows of the course's frames so far, in the estimated world frame; it improves as
+    frames accumulate (paper §3.2, Fig. 9). Frames are ordered along the course (nearest the start first)."""
+
+    t: float
+    """Stamp of the newest scan used [s]."""
+    centres_W: np.ndarray
+    """(k, 3) centre of each frame's opening [m]."""
+    normals_W: np.ndarray
+    """(k, 3) unit normal of each frame's plane, pointing along the course (the direction of flight) [-]."""
+    opening_sizes: np.ndarray
+    """(k, 2) width (horizontal, in the frame's plane) and height of each opening [m]."""
+    confidence: np.ndarray
+    """(k,) confidence of each frame in [0, 1] (grows with the points and scans supporting it)."""
+    scans: int
+    """Scans accumulated so far."""
+
+
+@message
+class VehicleStatus:
+    """The vehicle's command state as a commander keeps it: what ground stations, MAVLink and the web GCS show."""
+
+    t: float
+    armed: bool
+    """Rotors may spin."""
+    mode: str
+    """Command mode: 'idle', 'takeoff', 'hold', 'goto', 'mission', 'offboard', 'land', 'rtl', 'external'."""
+    landed: bool
+    """On the ground (PX4's landed state)."""
+    flight_mode: FlightMode
+    """The controller's reference mode (position, velocity, attitude)."""
+    controller: str
+    """The active controller kind ('pid' or 'geometric')."""
+    mission_current: int
+    """Index of the mission item being flown (-1: none)."""
+    mission_count: int
+    """Items in the uploaded mission."""
+    home_p_W: np.ndarray
+    """Home (where the vehicle was armed) [m], (3,)."""
+    target_p_W: np.ndarray
+    """Where the vehicle is going [m], (3,) (the current position when it holds)."""
+    message: str
+    """The latest event ('' if none): a mode change, a refusal, a warning."""
+
+
+@message
+class MissionState:
+    """A mission state machine's state (published on each transition and at its rate)."""
+
+    t: float
+    state: str
+    """The state's name (e.g. 'initialise', 'takeoff', 'detect', 'fly', 'land', 'done', 'aborted')."""
+    reason: str
+    """Why it is in this state ('' if nothing to say; the abort reason when aborted)."""
+    progress: int
+    """Mission items (frames, waypoints) completed."""
+
+
 class Topics:
     """The topics of the built-in components, each typed with its message. Ground truth lies under ``/truth/``."""
 
@@ -355,3 +414,6 @@ class Topics:
     DEPTH_IMAGE = Topic("/sensors/depth_image", CameraImage)
     RGB_IMAGE = Topic("/sensors/rgb_image", CameraImage)
     ESDF_MAP = Topic("/map/esdf", MapUpdate)
+    TUNNEL_ESTIMATE = Topic("/perception/tunnel", TunnelEstimate)
+    VEHICLE_STATUS = Topic("/vehicle/status", VehicleStatus)
+    MISSION_STATE = Topic("/mission/state", MissionState)
