@@ -8,6 +8,7 @@ runs.
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import sys
 import time
@@ -73,7 +74,20 @@ def _parser() -> argparse.ArgumentParser:
     if log_replay is not None:
         rep = sub.add_parser("replay", help="re-open a run.mcap log in the MeshCat viewer")
         log_replay.add_arguments(rep)
+    for name, (module, help_text) in _SERVERS.items():
+        mod = importlib.import_module(module)
+        mod.add_arguments(sub.add_parser(name, help=help_text, description=help_text))
     return p
+
+
+# Long-running commands, each in its own module: add_arguments(parser) defines its options, run(args) -> exit code.
+_SERVERS = {
+    "px4-sim": ("cufund.mavlink.px4_cli", "be PX4's simulator: serve a scenario to px4_sitl over MAVLink (TCP 4560 + "
+                                          "instance, lockstep) or to a flight controller over serial (HITL)"),
+    "serve": ("cufund.mavlink.serve_cli", "fly a scenario in real time as a MAVLink vehicle that ground stations and "
+                                          "MAVSDK connect to"),
+    "gcs": ("cufund.gcs.cli", "fly a scenario in real time behind a web ground station on 127.0.0.1"),
+}
 
 
 def _list() -> int:
@@ -184,6 +198,8 @@ def main(argv: list[str] | None = None) -> int:
         return sweep_cli.run_cli(args)
     if args.command == "list":
         return _list()
+    if args.command in _SERVERS:
+        return importlib.import_module(_SERVERS[args.command][0]).run(args)
     if args.command == "odometry":
         return _odometry(args)
     if args.command == "replay":
