@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
-
 from cufund.config import ConfigError
 from cufund.mavlink import frames as F
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla
+from scipy.spatial.transform import Rotation
 
 R_NED_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 R_FLU_FRD = np.diag([1.0, -1.0, -1.0])

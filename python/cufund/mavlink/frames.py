@@ -20,10 +20,28 @@ import numpy as np
 from ..sensors.geodesy import GeoPoint, enu_to_lla, lla_to_enu
 
 __all__ = [
-    "enu_to_ned", "ned_to_enu", "flu_to_frd", "frd_to_flu", "rates_flu_to_frd", "rates_frd_to_flu",
-    "q_enu_flu_to_ned_frd", "q_ned_frd_to_enu_flu", "GeodeticOrigin",
-    "deg_to_e7", "e7_to_deg", "m_to_mm", "mm_to_m", "m_s_to_cm_s", "cm_s_to_m_s", "m_s2_to_mg", "mg_to_m_s2",
-    "course_cdeg", "m_to_cm_u16", "STANDARD_GRAVITY", "INT16_MAX", "UINT16_UNKNOWN",
+    "INT16_MAX",
+    "STANDARD_GRAVITY",
+    "UINT16_UNKNOWN",
+    "GeodeticOrigin",
+    "cm_s_to_m_s",
+    "course_cdeg",
+    "deg_to_e7",
+    "e7_to_deg",
+    "enu_to_ned",
+    "flu_to_frd",
+    "frd_to_flu",
+    "m_s2_to_mg",
+    "m_s_to_cm_s",
+    "m_to_cm_u16",
+    "m_to_mm",
+    "mg_to_m_s2",
+    "mm_to_m",
+    "ned_to_enu",
+    "q_enu_flu_to_ned_frd",
+    "q_ned_frd_to_enu_flu",
+    "rates_flu_to_frd",
+    "rates_frd_to_flu",
 ]
 
 STANDARD_GRAVITY = 9.80665  #: g0 [m/s^2] (MAVLink's milli-g unit)
@@ -115,7 +133,7 @@ class GeodeticOrigin:
     alt_m: float = 0.0  #: altitude of the world origin [m]
 
     def __post_init__(self) -> None:
-        self.geo_point  # validates (ConfigError naming the field)
+        GeoPoint(float(self.lat_deg), float(self.lon_deg), float(self.alt_m))  # ConfigError naming the field
 
     @property
     def geo_point(self) -> GeoPoint:
