@@ -21,6 +21,7 @@ import yaml
 
 from . import presets
 from .config import ConfigError, check_real_fields, from_dict, load_yaml, nested, to_dict
+from .faults import faults_to_data, parse_faults
 from .messages import AirPressure, CameraImage, GpsFix, Imu, MagneticField, Odometry, PointCloud
 from .params import QuadrotorParams
 from .registry import lookup
@@ -280,6 +281,9 @@ class ScenarioConfig:
     """Where the vehicle stands at the start, rotors stopped [m] (default: below the first waypoint)."""
     duration: float = 60.0
     """Longest simulated time [s]; the run ends earlier (completed) once the vehicle has landed."""
+    faults: Any = None
+    """Sensor faults in flight (:mod:`cufund.faults`): ``{lidar_dropout: {t_start: 12}, ...}`` or a list of
+    ``{kind: ..., t_start: ...}``; null: none."""
     seed: int = 0
     """One seed derives every random stream (sensor noise, LiDAR noise, ...); the same seed repeats a run bit for
     bit."""
@@ -320,6 +324,7 @@ class ScenarioConfig:
         object.__setattr__(self, "trajectory", nested(TrajectoryConfig, self.trajectory, "trajectory"))
         object.__setattr__(self, "rates", nested(RatesConfig, self.rates, "rates"))
         object.__setattr__(self, "log", nested(LogConfig, self.log, "log"))
+        object.__setattr__(self, "faults", parse_faults(self.faults))
         try:
             box = np.asarray(self.collision_box, dtype=float)
         except (TypeError, ValueError):
@@ -361,6 +366,8 @@ class ScenarioConfig:
                 continue
             if f.name in _PART_GROUPS:
                 out[f.name] = part_to_dict(v)
+            elif f.name == "faults":
+                out[f.name] = faults_to_data(v)
             elif f.name == "sensors":
                 out[f.name] = {k: part_to_dict(s) for k, s in v.items()}
             elif dataclasses.is_dataclass(v):

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from .config import ConfigError
+from .faults import fault_summary, inject_faults
 from .messages import Odometry, Topics
 from .quadrotor import Quadrotor
 from .registry import lookup
@@ -139,6 +140,7 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
     for name, spec in config.sensors.items():
         components += ctx.build("sensor", spec, f"sensors.{name}")
         record.append(spec.topic)
+    components = inject_faults(config.faults, config.sensors, components, ctx.seed_for)
     for group in ("estimator", "mapper", "planner", "controller", "mission"):
         spec = getattr(config, group)
         if spec is not None:
@@ -212,6 +214,8 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
     ctx = built.context
     result = built.simulator.run(config.duration, done=landed if t_landed is not None else ctx.done, progress=progress)
     metrics = run_metrics(result)
+    if config.faults:
+        metrics["faults"] = fault_summary(config.faults)
     for hook in ctx.metric_hooks:
         metrics.update(hook(result))
     if ctx.tracking_path is not None:
