@@ -46,6 +46,8 @@ def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, repl
         from .viz.replay import write_replay_html
 
         write_replay_html(out / "replay.html", run.result, params, run.reference)
+    for hook in run.output_hooks:
+        hook(run, out, plots=plots, replay=replay)
     return out
 
 

@@ -41,6 +41,8 @@ class BuildContext:
         """``done(t, truth) -> bool`` ending a run whose landing time a planner only learns in flight."""
         self.metric_hooks: list[Any] = []
         """``hook(result) -> dict`` merged into the run's metrics (e.g. a replanner's planning metrics)."""
+        self.output_hooks: list[Any] = []
+        """``hook(run, out)`` writes a part's own files into the run folder ``out`` (e.g. a mission's plots)."""
 
     def seed_for(self, where: str) -> int:
         """The seed of the random stream of the part at ``where`` (e.g. ``sensors.lidar``): derived from the
@@ -190,6 +192,8 @@ class ScenarioRun:
     path: Any
     """The part of the reference tracking error is measured over (the min-snap path), or None."""
     metrics: dict[str, Any]
+    output_hooks: list[Any] = field(default_factory=list)
+    """The parts' ``hook(run, out)`` writing their own files into the run folder."""
 
     def summary(self, paths: dict[str, str] | None = None) -> RunSummary:
         return RunSummary(dict(self.metrics), self.result.status.value, self.result.message, dict(paths or {}))
@@ -228,7 +232,7 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
             metrics.update({"lio_ms_per_scan_median": float(np.median(ms)), "lio_ms_per_scan_p99":
                             float(np.percentile(ms, 99)), "lio_cpu_ms_per_scan_median":
                             float(np.median(np.asarray(diag["cpu_ms"], dtype=float))), "lio_scans": int(len(ms))})
-    return ScenarioRun(config, result, ctx.reference, ctx.tracking_path, metrics)
+    return ScenarioRun(config, result, ctx.reference, ctx.tracking_path, metrics, list(ctx.output_hooks))
 
 
 def run_metrics(result: SimulationResult) -> dict[str, Any]:

@@ -88,21 +88,24 @@ register(Kind("world", "file", FileParams, _file, None, "a world YAML file (worl
 
 
 def _tunnel_course_kind() -> None:
-    from .tunnel_course import TunnelCourseParams, tunnel_course_layout
+    from .tunnel_course import TunnelCourseParams, paper_tunnel_course, tunnel_course_layout
 
     @dataclass(frozen=True)
     class TunnelCourseWorldParams(TunnelCourseParams):
         """A generated tunnel course: its layout seed and the generator's bounds (:class:`TunnelCourseParams`)."""
 
-        seed: int = 0
-        """Layout seed (independent of the scenario seed)."""
+        seed: int | None = 0
+        """Layout seed (independent of the scenario seed); null: the paper's IMAV 2025 layout."""
 
         def __post_init__(self) -> None:
             super().__post_init__()
-            if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-                raise ConfigError(f"world.seed must be an integer >= 0, got {self.seed!r}")
+            if self.seed is not None and (isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0):
+                raise ConfigError(f"world.seed must be an integer >= 0 or null (the paper's layout), got {self.seed!r}")
 
-    register(Kind("world", "tunnel_course", TunnelCourseWorldParams, lambda p, ctx: tunnel_course_layout(p.seed, p).world,
+    def layout(p: TunnelCourseWorldParams) -> object:
+        return paper_tunnel_course(p) if p.seed is None else tunnel_course_layout(p.seed, p)
+
+    register(Kind("world", "tunnel_course", TunnelCourseWorldParams, lambda p, ctx: layout(p).world,  # type: ignore[attr-defined]
                   None, "a seeded IMAV-style tunnel course (world.seed picks the layout), checked flyable"))
 
 

@@ -22,7 +22,8 @@ import numpy as np
 
 from .world import World
 
-__all__ = ["TunnelCourse", "TunnelCourseParams", "TunnelFrame", "tunnel_course", "tunnel_course_layout"]
+__all__ = ["TunnelCourse", "TunnelCourseParams", "TunnelFrame", "paper_tunnel_course", "tunnel_course",
+           "tunnel_course_layout"]
 
 _FRAME_COLOR = (0.9, 0.4, 0.1)
 _WALL = (0.75, 0.75, 0.72)
@@ -261,6 +262,22 @@ def tunnel_course_layout(seed: int = 0, params: TunnelCourseParams | None = None
                                 exit_W=np.asarray(last.centre_W) + 1.5 * last.axis_W, path_W=path, attempts=attempt)
     raise ValueError(f"no flyable tunnel course for seed {seed} in {p.max_attempts} draws: widen the openings, "
                      f"narrow the offsets or reduce vehicle_radius ({p.vehicle_radius} m)")
+
+
+def paper_tunnel_course(params: TunnelCourseParams | None = None) -> TunnelCourse:
+    """The paper's IMAV 2025 layout (§3.2) in the generator's arena: five 0.5 m x 1 m openings standing on the
+    floor, 0.5 m apart along +x from x = 0; checked flyable like a generated layout (ValueError if not, e.g. for
+    a ``vehicle_radius`` the openings cannot pass)."""
+    p = TunnelCourseParams() if params is None else params
+    if not isinstance(p, TunnelCourseParams):
+        raise TypeError(f"params must be a TunnelCourseParams, got {type(params).__name__}")
+    frames = [TunnelFrame((0.5 * k, 0.0, 0.5 + p.bar), 0.0, 0.5, 1.0) for k in range(5)]
+    world = _build(frames, p)
+    path = _flyable(world, frames, p)
+    if path is None:
+        raise ValueError(f"the paper's tunnel layout is not flyable for vehicle_radius {p.vehicle_radius} m")
+    return TunnelCourse(world=world, frames=tuple(frames), entry_W=np.asarray(frames[0].centre_W) - 1.5 * frames[0].axis_W,
+                        exit_W=np.asarray(frames[-1].centre_W) + 1.5 * frames[-1].axis_W, path_W=path)
 
 
 def tunnel_course(seed: int = 0, **kwargs: object) -> World:

@@ -1,0 +1,387 @@
+"""The tunnel mission (paper §3.2): a state machine that initialises on the pad, takes off, detects the course's
+frames, flies through them and lands beyond the last one — all on the LiDAR-inertial estimate.
+
+States (published as :class:`~cufund.messages.MissionState` on ``/mission/state``):
+
+``initialise``  on the pad, rotors idle, while the LIO initialises statically (``init_s``);
+``takeoff``     a jerk-limited climb to ``takeoff_height``;
+``detect``      hover until the detector reports the expected number of frames, confident and stable
+                (``detect_timeout_s``: fewer frames -> ``aborted``, land where it is);
+``approach``    min-snap from the hover point onto the first frame's axis and to its centre, at rest;
+                hover there ``hold_s`` while the detections of the frames ahead improve (paper: "the MAV is guided
+                to the centre of the first tunnel wall");
+``through``     re-plan with the newest detections from the first centre through every opening along its normal
+                (approach and exit points on each frame's axis) to ``exit_m`` beyond the last one (paper: "the
+                furthermost centre is used as the planning goal"); re-planned from the reference's state while
+                flying whenever a frame not yet passed moves by more than ``replan_m``;
+``land``        hover ``hold_s``, then straight down;
+``done`` / ``aborted`` (with the reason).
+
+Every plan is a minimum-snap trajectory kept within ``corridor`` of its waypoint polyline (waypoints inserted
+where it strays) and checked against the *detected* frames' bars (:mod:`.tunnel_geometry`): a plan that comes
+closer than ``clearance`` to one is never flown. The mission never reads ground truth.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..components import BusView, Planner
+from ..config import ConfigError
+from ..messages import MissionState, Odometry, Topics, TrajectoryUpdate, TunnelEstimate
+from ..planning.min_snap_planner import MinSnapPlanner, MinSnapPlannerParams
+from ..planning.point_to_point import JerkLimitedMove
+from ..planning.sequence import Hold, TrajectorySequence
+from ..planning.trajectory import Trajectory
+from ..planning.trajectory_follower import stitched
+from .tunnel_geometry import frame_boxes
+
+__all__ = ["TunnelMission", "TunnelMissionParams"]
+
+_FOREVER = 1e6
+
+
+@dataclass(frozen=True)
+class TunnelMissionParams:
+    """The tunnel mission's knobs. Lengths [m], times [s], speeds [m/s], accelerations [m/s^2]."""
+
+    frames: int = 5
+    """Frames the course has (the competition's rules): fewer detected -> abort and land."""
+    takeoff_height: float = 1.0
+    """Hover height above the pad while detecting [m]."""
+    init_s: float = 1.5
+    """Time on the pad before take-off (the LIO's static initialisation needs >= 1 s) [s]."""
+    detect_timeout_s: float = 15.0
+    """Longest hover waiting for the detections [s]."""
+    min_confidence: float = 0.5
+    """Every expected frame needs at least this confidence."""
+    stable_updates: int = 3
+    """Consecutive detections whose centres moved less than ``stable_m``."""
+    stable_m: float = 0.02
+    """Largest centre change between stable detections [m]."""
+    align_m: float = 1.0
+    """Straight approach on the first frame's axis [m]."""
+    axis_m: float = 0.25
+    """Approach and exit points on each frame's axis (at most 0.4 x the gap to the neighbouring frame) [m]."""
+    exit_m: float = 1.0
+    """Landing point beyond the last frame along its axis [m]."""
+    hold_s: float = 1.0
+    """Hover at the first centre and before landing [s]."""
+    v_max: float = 0.6
+    """Min-snap speed limit [m/s]."""
+    a_max: float = 1.0
+    """Min-snap acceleration limit [m/s^2]."""
+    corridor: float = 0.03
+    """Half-width of the tube around the waypoint polyline the min-snap path stays in [m]."""
+    clearance: float = 0.17
+    """Smallest distance from a planned position to a detected bar [m] (the vehicle's half-diagonal + margin)."""
+    bar: float = 0.05
+    """Thickness of the frames' bars (the rules), for the plan check [m]."""
+    replan_m: float = 0.03
+    """Re-plan in flight when a frame ahead moves by more than this [m]."""
+    move_v_max: float = 0.5
+    """Take-off and landing speed limit [m/s]."""
+    move_a_max: float = 1.0
+    """Take-off and landing acceleration limit [m/s^2]."""
+    move_j_max: float = 3.0
+    """Take-off and landing jerk limit [m/s^3]."""
+    rate_hz: float = 20.0
+    """State machine rate [Hz]."""
+    stale_s: float = 0.5
+    """An estimate older than this is a lost estimator: hover, then land [s]."""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.frames, bool) or not isinstance(self.frames, int) or self.frames < 1:
+            raise ConfigError(f"mission.frames must be an integer >= 1, got {self.frames!r}")
+        if isinstance(self.stable_updates, bool) or not isinstance(self.stable_updates, int) or self.stable_updates < 1:
+            raise ConfigError(f"mission.stable_updates must be an integer >= 1, got {self.stable_updates!r}")
+        for name in ("takeoff_height", "init_s", "detect_timeout_s", "stable_m", "align_m", "axis_m", "exit_m",
+                     "v_max", "a_max", "corridor", "clearance", "bar", "replan_m", "move_v_max", "move_a_max",
+                     "move_j_max", "rate_hz", "stale_s"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"mission.{name} must be a finite number > 0, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        for name in ("min_confidence", "hold_s"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"mission.{name} must be a finite number >= 0, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if self.init_s < 1.0:
+            raise ConfigError(f"mission.init_s must be >= 1 s (the LIO's static initialisation), got {self.init_s!r}")
+
+
+@dataclass
+class PlanRecord:
+    """One plan the mission made (kept for the metrics and plots)."""
+
+    t: float
+    leg: str
+    ok: bool
+    reason: str
+    waypoints: np.ndarray
+    trajectory: Any = None
+    plan_ms: float = 0.0
+    min_clearance_m: float = math.inf
+    """Smallest distance of the planned path to the detected bars [m]."""
+
+
+@dataclass
+class _Detections:
+    centres: np.ndarray
+    normals: np.ndarray
+    sizes: np.ndarray
+
+
+class TunnelMission(Planner):
+    """The state machine (see the module docstring). ``pad_W`` is the pad position, ``yaw`` the heading held
+    throughout [rad]. The flown reference is :attr:`reference` (a follower stitches the published updates)."""
+
+    name = "tunnel_mission"
+
+    def __init__(self, params: TunnelMissionParams, pad_W: Any, yaw: float = 0.0) -> None:
+        if not isinstance(params, TunnelMissionParams):
+            raise TypeError(f"params must be a TunnelMissionParams, got {type(params).__name__}")
+        self.params, self.pad_W, self.yaw = params, np.asarray(pad_W, dtype=float), float(yaw)
+        self.rate_hz = params.rate_hz
+        self.reads = (Topics.TUNNEL_ESTIMATE,)
+        self.writes = (Topics.TRAJECTORY_UPDATE, Topics.MISSION_STATE)
+        self.initial = Hold(self.pad_W, _FOREVER, self.yaw, t_start=0.0)
+        self.planner = MinSnapPlanner(MinSnapPlannerParams(v_max=params.v_max, a_max=params.a_max, optimize_times=True,
+                                                           corridor=params.corridor, max_waypoints=200))
+        self.reset()
+
+    def reset(self) -> None:
+        self.reference: Trajectory = self.initial
+        self.state, self.reason, self.progress = "initialise", "", 0
+        self.transitions: list[tuple[float, str, str]] = [(0.0, "initialise", "")]
+        self.plans: list[PlanRecord] = []
+        self.detections: list[tuple[float, TunnelEstimate]] = []
+        self.used: _Detections | None = None
+        """The detections the flown plan goes through."""
+        self.t_end: float | None = None
+        """When the reference comes to rest on the ground (landing's end) [s]."""
+        self._t_state = 0.0
+        self._t_leg_end = math.inf
+        self._stable = 0
+        self._last: np.ndarray | None = None
+        self._published = -1
+
+    # -- helpers ---------------------------------------------------------------------------------------------
+    def _enter(self, t: float, state: str, reason: str, bus: BusView) -> None:
+        self.state, self.reason, self._t_state = state, reason, t
+        self.transitions.append((t, state, reason))
+        bus.publish(Topics.MISSION_STATE, MissionState(t, state, reason, self.progress))
+
+    def _publish(self, t: float, trajectory: Trajectory, bus: BusView) -> None:
+        self.reference = stitched(self.reference, trajectory, t)
+        bus.publish(Topics.TRAJECTORY_UPDATE, TrajectoryUpdate(t, trajectory))
+
+    def _abort(self, t: float, t_r: float, reason: str, bus: BusView) -> None:
+        """Hover where the reference is (it is at rest in every state this is called from), then land."""
+        p = self.reference.sample(float(t_r)).p_W[0]
+        if p[2] - self.pad_W[2] > 0.05:
+            self._land(t, t_r, p, bus)
+        else:
+            self.t_end = t_r
+        self._enter(t, "aborted", reason, bus)
+
+    def _land(self, t: float, t_r: float, p: np.ndarray, bus: BusView) -> None:
+        pp = self.params
+        hold = Hold(p, pp.hold_s, self.yaw, t_start=t_r)
+        ground = np.array([p[0], p[1], self.pad_W[2]])
+        down = JerkLimitedMove(p, ground, pp.move_v_max, pp.move_a_max, pp.move_j_max, self.yaw, t_start=hold.t_end)
+        self._publish(t, TrajectorySequence([hold, down, Hold(ground, _FOREVER, self.yaw, t_start=down.t_end)]), bus)
+        self.t_end = down.t_end
+
+    @property
+    def finished(self) -> bool:
+        return self.state in ("done", "aborted")
+
+    # -- the state machine -----------------------------------------------------------------------------------
+    def update(self, t: float, state: Odometry, bus: BusView) -> None:
+        pp = self.params
+        t_r = t + self.latency_s
+        est: TunnelEstimate | None = bus.latest(Topics.TUNNEL_ESTIMATE)
+        if est is not None and (not self.detections or self.detections[-1][1] is not est):
+            self.detections.append((t, est))
+        if self.state in ("done", "aborted"):
+            if self.state == "done" or self.t_end is None or t_r < self.t_end:
+                return
+            return
+        if self.state == "initialise":
+            if t >= pp.init_s:
+                top = self.pad_W + np.array([0.0, 0.0, pp.takeoff_height])
+                up = JerkLimitedMove(self.pad_W, top, pp.move_v_max, pp.move_a_max, pp.move_j_max, self.yaw,
+                                     t_start=t_r)
+                self._publish(t, TrajectorySequence([up, Hold(top, _FOREVER, self.yaw, t_start=up.t_end)]), bus)
+                self._t_leg_end = up.t_end
+                self._enter(t, "takeoff", "", bus)
+            return
+        if self.state == "takeoff":
+            if t_r >= self._t_leg_end:
+                self._enter(t, "detect", "", bus)
+            return
+        if self.state == "detect":
+            d = self._confident(est)
+            if d is not None:
+                self._stable = self._stable + 1 if (self._last is not None and self._last.shape == d.centres.shape and
+                                                    np.max(np.linalg.norm(self._last - d.centres, axis=1)) < pp.stable_m) else 1
+                self._last = d.centres
+                if self._stable >= pp.stable_updates:
+                    self._plan_approach(t, t_r, d, bus)
+                    return
+            if t - self._t_state > pp.detect_timeout_s:
+                k = 0 if est is None else int(np.count_nonzero(np.asarray(est.confidence) >= pp.min_confidence))
+                self._abort(t, t_r, f"detected {k} of {pp.frames} frames in {pp.detect_timeout_s:g} s", bus)
+            return
+        if self.state == "approach":
+            if t_r >= self._t_leg_end + pp.hold_s:
+                d = self._confident(est) or self.used
+                self.progress = 0
+                self._plan_through(t, t_r, d, bus)
+            return
+        if self.state == "through":
+            self._count_progress(state)
+            if t_r >= self._t_leg_end:
+                self.progress = pp.frames
+                p = self.reference.sample(float(t_r)).p_W[0]
+                self._land(t, t_r, p, bus)
+                self._enter(t, "land", "", bus)
+            return
+        if self.state == "land":
+            if self.t_end is not None and t_r >= self.t_end:
+                self._enter(t, "done", "", bus)
+
+    def _confident(self, est: TunnelEstimate | None) -> _Detections | None:
+        """The expected frames of ``est`` when each is confident enough (ordered along the course), else None."""
+        pp = self.params
+        if est is None:
+            return None
+        conf = np.asarray(est.confidence, dtype=float)
+        if conf.shape[0] < pp.frames or np.any(conf[:pp.frames] < pp.min_confidence):
+            return None
+        return _Detections(np.asarray(est.centres_W, float)[:pp.frames].copy(),
+                           np.asarray(est.normals_W, float)[:pp.frames].copy(),
+                           np.asarray(est.opening_sizes, float)[:pp.frames].copy())
+
+    def _count_progress(self, state: Odometry) -> None:
+        """Frames passed, on the estimate: the estimated position is ahead of the next frame's plane."""
+        d = self.used
+        if d is None:
+            return
+        k = self.progress
+        while k < d.centres.shape[0] and (np.asarray(state.p_W) - d.centres[k]) @ d.normals[k] > 0.1:
+            k += 1
+        self.progress = k
+
+    # -- planning --------------------------------------------------------------------------------------------
+    def _axis_points(self, d: _Detections, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The approach and exit points on frame k's axis, at most 0.4 x the gap to its neighbours apart."""
+        gaps = []
+        if k > 0:
+            gaps.append(np.linalg.norm(d.centres[k] - d.centres[k - 1]))
+        if k + 1 < d.centres.shape[0]:
+            gaps.append(np.linalg.norm(d.centres[k + 1] - d.centres[k]))
+        a = min([self.params.axis_m] + [0.4 * g for g in gaps])
+        n = d.normals[k] / max(np.linalg.norm(d.normals[k]), 1e-12)
+        return d.centres[k] - a * n, d.centres[k] + a * n
+
+    def _plan(self, t: float, t_r: float, leg: str, waypoints: np.ndarray, d: _Detections) -> PlanRecord:
+        import time
+
+        pp = self.params
+        w0 = time.perf_counter()
+        keep = np.concatenate([[True], np.linalg.norm(np.diff(waypoints, axis=0), axis=1) > 1e-3])
+        waypoints = waypoints[keep]
+        rec = PlanRecord(t, leg, False, "", waypoints)
+        try:
+            res = self.planner.plan(waypoints, np.full(waypoints.shape[0], self.yaw), t_start=t_r)
+        except (ValueError, np.linalg.LinAlgError) as e:
+            rec.reason = f"min-snap failed: {e}"
+        else:
+            tr = res.trajectory
+            ts = np.arange(tr.t_knots[0], tr.t_end, 0.01)
+            c = float(frame_boxes(d.centres, d.normals, d.sizes, pp.bar).distance(tr.sample(ts).p_W).min())
+            rec.trajectory, rec.min_clearance_m = tr, c
+            if res.status != "ok":
+                rec.reason = f"min-snap did not stay within {pp.corridor} m of its waypoints"
+            elif c < pp.clearance:
+                rec.reason = f"plan passes {c:.3f} m from a detected bar (< {pp.clearance} m)"
+            else:
+                rec.ok = True
+        rec.plan_ms = 1e3 * (time.perf_counter() - w0)
+        self.plans.append(rec)
+        return rec
+
+    def _narrow(self, d: _Detections) -> str:
+        need = 2 * self.params.clearance
+        bad = [k for k in range(d.sizes.shape[0]) if min(d.sizes[k]) < need]
+        return "" if not bad else (f"opening {bad[0] + 1} ({d.sizes[bad[0], 0]:.2f} x {d.sizes[bad[0], 1]:.2f} m) "
+                                   f"is narrower than the vehicle needs ({need:.2f} m)")
+
+    def _plan_approach(self, t: float, t_r: float, d: _Detections, bus: BusView) -> None:
+        pp = self.params
+        narrow = self._narrow(d)
+        if narrow:
+            self._abort(t, t_r, narrow, bus)
+            return
+        p = self.reference.sample(float(t_r)).p_W[0]
+        n0 = d.normals[0] / np.linalg.norm(d.normals[0])
+        before, _ = self._axis_points(d, 0)
+        w = np.array([p, d.centres[0] - pp.align_m * n0, before, d.centres[0]])
+        rec = self._plan(t, t_r, "approach", w, d)
+        if not rec.ok:
+            self._abort(t, t_r, f"no safe path to the first frame: {rec.reason}", bus)
+            return
+        self.used = d
+        tr = rec.trajectory
+        self._publish(t, TrajectorySequence([tr, Hold(d.centres[0], _FOREVER, self.yaw, t_start=tr.t_end)]), bus)
+        self._t_leg_end = tr.t_end
+        self._enter(t, "approach", "", bus)
+
+    def _plan_through(self, t: float, t_r: float, d: _Detections, bus: BusView) -> None:
+        pp = self.params
+        narrow = self._narrow(d)
+        if narrow:
+            self._abort(t, t_r, narrow, bus)
+            return
+        p = self.reference.sample(float(t_r)).p_W[0]
+        n0 = d.normals[0] / np.linalg.norm(d.normals[0])
+        _, after0 = self._axis_points(d, 0)
+        pts = [p, p + (after0 - d.centres[0]) @ n0 * n0]
+        for k in range(1, d.centres.shape[0]):
+            before, after = self._axis_points(d, k)
+            pts += [before, d.centres[k], after]
+        nl = d.normals[-1] / np.linalg.norm(d.normals[-1])
+        pts.append(d.centres[-1] + pp.exit_m * nl)
+        rec = self._plan(t, t_r, "through", np.array(pts), d)
+        if not rec.ok:
+            self._abort(t, t_r, f"no safe path through the frames: {rec.reason}", bus)
+            return
+        self.used = d
+        self.progress = 1
+        tr = rec.trajectory
+        end = tr.sample(tr.t_end).p_W[0]
+        self._publish(t, TrajectorySequence([tr, Hold(end, _FOREVER, self.yaw, t_start=tr.t_end)]), bus)
+        self._t_leg_end = tr.t_end
+        self._enter(t, "through", "", bus)
+
+    def step(self, t: float, bus: BusView) -> None:
+        state = bus.latest(self.active_state_topic)
+        if state is None:
+            if self.state == "initialise" and t >= self.params.init_s + 5.0:
+                self._abort(t, t + self.latency_s, "no state estimate after initialisation", bus)
+            return
+        if t - float(state.t) > self.params.stale_s and self.state not in ("done", "aborted"):
+            self._abort(t, t + self.latency_s, f"state estimate stale ({t - float(state.t):.2f} s old)", bus)
+            return
+        self.update(t, state, bus)
+        bus.publish(Topics.MISSION_STATE, MissionState(t, self.state, self.reason, self.progress))
+
+
+__all__ += ["PlanRecord"]

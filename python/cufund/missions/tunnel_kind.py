@@ -1,0 +1,80 @@
+"""The ``tunnel`` mission kind: the detector, the state machine and the trajectory follower, the run's end
+condition, its metrics (:mod:`.tunnel_metrics`) and its run-folder files (:mod:`.tunnel_plots`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..config import ConfigError
+from ..messages import Topics
+from ..planning.trajectory_follower import TrajectoryFollower
+from ..registry import Kind, register
+from .tunnel import TunnelMission, TunnelMissionParams
+
+__all__ = ["course_of"]
+
+
+def course_of(config: Any) -> Any:
+    """The true :class:`~cufund.worlds.TunnelCourse` of a scenario on the ``tunnel_course`` world (for metrics,
+    plots and the pre-flight check only; never a flight input), or None for another world."""
+    from ..worlds.tunnel_course import paper_tunnel_course, tunnel_course_layout
+
+    spec = config.world
+    if spec is None or spec.kind != "tunnel_course":
+        return None
+    p = spec.params
+    return paper_tunnel_course(p) if p.seed is None else tunnel_course_layout(p.seed, p)
+
+
+def _detector(ctx: Any, course: Any) -> list[Any]:
+    try:
+        from ..perception import TunnelDetector  # noqa: F401  (engineer D's; see below)
+    except ImportError:
+        TunnelDetector = None
+    if TunnelDetector is None:
+        from .tunnel_standin import StandInDetector
+
+        return [StandInDetector(course, ctx.seed)]
+    return _build_detector(ctx)
+
+
+def _build_detector(ctx: Any) -> list[Any]:
+    from ..perception import TunnelDetector, TunnelDetectorParams
+
+    _, lidar = ctx.sensor_of_type("lidar", "", "mission")
+    return [TunnelDetector(TunnelDetectorParams(), T_BL=lidar.extrinsic)]
+
+
+def _tunnel(p: TunnelMissionParams, ctx: Any) -> list[Any]:
+    from .tunnel_metrics import tunnel_metrics
+    from .tunnel_plots import write_tunnel_outputs
+
+    cfg = ctx.config
+    if cfg.estimator is None:
+        raise ConfigError("mission (tunnel) flies on an estimate: set estimator (e.g. estimator: {kind: lio})")
+    course = course_of(cfg)
+    if course is not None:  # pre-flight: the rules' openings must pass the vehicle with the plan's clearance
+        for k, f in enumerate(course.frames):
+            if min(f.width, f.height) < 2 * p.clearance:
+                raise ConfigError(f"world: opening {k + 1} ({f.width:g} x {f.height:g} m) is unflyable: the mission "
+                                  f"needs {2 * p.clearance:.2f} m (2 x mission.clearance)")
+    start = np.array(cfg.start_p_W if cfg.start_p_W is not None else (0.0, 0.0, 0.0), dtype=float)
+    mission = TunnelMission(p, start, yaw=0.0)
+    follower = TrajectoryFollower(mission.initial, rate_hz=cfg.rates.trajectory_hz, block=32,
+                                  update_topic=Topics.TRAJECTORY_UPDATE)
+
+    def done(t: float, truth: Any) -> bool:  # run end (a harness check): the mission ended and the vehicle rests
+        return mission.finished and mission.t_end is not None and t >= mission.t_end + 0.5 \
+            and truth.p_W[2] < start[2] + 0.03 and float(np.linalg.norm(truth.v_W)) < 0.05
+
+    ctx.done = done
+    ctx.metric_hooks.append(lambda result: tunnel_metrics(result, mission, course))
+    ctx.output_hooks.append(lambda run, out, **kw: write_tunnel_outputs(run, out, mission, course, detector, **kw))
+    detector = _detector(ctx, course)
+    return [*detector, mission, follower]
+
+
+register(Kind("mission", "tunnel", TunnelMissionParams, _tunnel, None,
+              "initialise, take off, detect the tunnel's frames, fly through them on the LIO estimate, land beyond"))
