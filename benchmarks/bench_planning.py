@@ -16,7 +16,10 @@ Run: `.venv/bin/python benchmarks/bench_planning.py [--forests 200] [--tunnels 2
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import time
+import timeit
 
 import numpy as np
 import open3d as o3d
@@ -127,13 +130,37 @@ def run_local(n_forests):
           f"replan ms: median {np.median(t):.2f} p99 {np.percentile(t, 99):.2f} ({t.size} replans)")
 
 
+def run_scalar():
+    """Per-call cost of the scalar clearance query from Python, next to a C builtin of similar arity
+    (math.hypot: the floor of any call from Python) and the numpy path."""
+    _, q, _, _, _ = forest_case(0)
+    f, s = q.clearance_xyz, q.segment_free_xyz
+    p = np.array([1.0, 2.0, 0.5])
+    n = 200_000
+
+    def per_call(stmt, **names):
+        return min(timeit.repeat(stmt, globals=names, number=n, repeat=7)) / n * 1e9
+
+    base = per_call("hypot(1.0, 2.0, 0.5)", hypot=math.hypot)
+    for name, ns in (("clearance_xyz(x, y, z)", per_call("f(1.0, 2.0, 0.5)", f=f)),
+                     ("pybind11 method (old)", per_call("g(1.0, 2.0, 0.5)", g=q._core.clearance)),
+                     ("clearance(p) numpy (3,)", per_call("c(p)", c=q.clearance, p=p)),
+                     ("segment_free_xyz 10 cm", per_call("s(1.0, 2.0, 0.5, 1.1, 2.0, 0.5, 0.1)", s=s))):
+        print(f"scalar   {name:24s} {ns:7.0f} ns per call ({ns / base:4.1f}x math.hypot's {base:.0f} ns)")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--forests", type=int, default=200)
     ap.add_argument("--tunnels", type=int, default=200)
     ap.add_argument("--ref-time", type=float, default=5.0)
     ap.add_argument("--local", type=int, default=200)
+    ap.add_argument("--scalar", action="store_true", help="only the scalar clearance call's cost")
     args = ap.parse_args()
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+    if args.scalar:
+        run_scalar()
+        return
 
     def forests():
         for seed in range(args.forests):

@@ -73,6 +73,29 @@ def test_clearance_outside_the_map_is_minus_infinity_and_inputs_are_checked(sett
         ClearanceQuery(np.zeros((3, 3, 3)))
 
 
+def test_scalar_fast_path_is_the_bound_query_with_checked_arguments(setting):
+    _, q, _ = setting
+    rng = np.random.default_rng(3)
+    p = rng.uniform(BOUNDS[0], BOUNDS[1], size=(40, 3))
+    # The plain builtins agree with the pybind11 methods (ints, numpy scalars and keywords too).
+    assert [q.clearance_xyz(*x) for x in p] == [q._core.clearance(*x) for x in p]
+    assert q.clearance_xyz(1, np.float32(0.5), np.float64(1.0)) == q._core.clearance(1.0, 0.5, 1.0)
+    assert q.clearance_xyz(x=1.0, y=0.5, z=1.0) == q._core.clearance(1.0, 0.5, 1.0)
+    for a, b in zip(p[:-1], p[1:]):
+        assert q.segment_free_xyz(*a, *b, 0.2) is q._core.segment_free(*a, *b, 0.2)
+    with pytest.raises(TypeError, match="y must be a real number"):
+        q.clearance_xyz(1.0, "2", 3.0)
+    with pytest.raises(TypeError, match="z must be a real number"):
+        q.clearance_xyz(1.0, 2.0, True)
+    with pytest.raises(TypeError):
+        q.clearance_xyz(1.0, 2.0)
+    with pytest.raises(ValueError, match="radius must be finite and >= 0"):
+        q.segment_free_xyz(0.0, 0.0, 1.0, 1.0, 0.0, 1.0, float("nan"))
+    # A builtin keeps its query alive.
+    f = ClearanceQuery.from_distances(np.full((4, 4, 4), 0.5), [0.0, 0.0, 0.0], 0.1).clearance_xyz
+    assert f(0.15, 0.15, 0.15) == pytest.approx(0.5 - 0.5 * np.sqrt(3.0) * 0.1)  # at a voxel centre
+
+
 def test_segment_free_is_certified_against_the_triangles(setting):
     _, q, truth = setting
     rng = np.random.default_rng(1)

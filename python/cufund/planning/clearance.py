@@ -22,7 +22,8 @@ class ClearanceQuery:
     on a static distance array (:meth:`from_distances`, :func:`~cufund.planning.clearance_from_world`).
 
     ``clearance_xyz`` and ``segment_free_xyz`` take plain floats and cross into C++ without numpy, for
-    sampling-based planners that call them per state (about a microsecond or less each).
+    sampling-based planners that call them per state (plain builtins: about 50 ns of call overhead, no
+    numpy, no pybind11 dispatch).
     """
 
     def __init__(self, esdf_map: EsdfMap) -> None:
@@ -50,10 +51,10 @@ class ClearanceQuery:
         self._resolution = float(resolution)
         lo = np.asarray(origin_W, dtype=float)
         self._bounds = np.stack([lo, lo + np.asarray(shape) * self._resolution])
-        self.clearance_xyz = self._core.clearance
-        """``clearance_xyz(x, y, z) -> float`` [m]: the scalar fast path."""
-        self.segment_free_xyz = self._core.segment_free
-        """``segment_free_xyz(x0, y0, z0, x1, y1, z1, radius) -> bool``: the scalar motion check."""
+        # Plain builtins over the C++ query (no pybind11 dispatch: ~5x cheaper a call than a bound method).
+        self.clearance_xyz, self.segment_free_xyz = self._core.scalar_functions()
+        """``clearance_xyz(x, y, z) -> float`` [m]: the scalar fast path;
+        ``segment_free_xyz(x0, y0, z0, x1, y1, z1, radius) -> bool``: the scalar motion check."""
 
     @property
     def resolution(self) -> float:
@@ -74,13 +75,14 @@ class ClearanceQuery:
         """Clearance [m] at points ``p_W`` (N, 3) -> (N,), or at one point (3,) -> float."""
         a = np.asarray(p_W, dtype=float)
         if a.shape == (3,):
-            return float(self._core.clearance(float(a[0]), float(a[1]), float(a[2])))
+            return self.clearance_xyz(float(a[0]), float(a[1]), float(a[2]))
         return self._core.clearance_many(a)
 
     def segment_free(self, p0_W: npt.ArrayLike, p1_W: npt.ArrayLike, radius: float) -> bool:
         """True when every point of the segment is certified at least ``radius`` [m] from obstacles."""
         a, b = _point("p0_W", p0_W), _point("p1_W", p1_W)
-        return bool(self._core.segment_free(a[0], a[1], a[2], b[0], b[1], b[2], float(radius)))
+        return self.segment_free_xyz(float(a[0]), float(a[1]), float(a[2]), float(b[0]), float(b[1]), float(b[2]),
+                                     float(radius))
 
     def path_free(self, path_W: npt.ArrayLike, radius: float) -> np.ndarray:
         """Per edge of the polyline ``path_W`` (K, 3): is it certified free? (K-1,) bool."""
