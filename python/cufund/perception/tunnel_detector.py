@@ -1,0 +1,210 @@
+"""The tunnel detector as a simulator component: LiDAR scans in the estimated world frame, accumulated, searched
+for frames at a few hertz, and the frames tracked from one detection to the next (paper §3.2)."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..components import BusView, Component, Subscription
+from ..messages import Odometry, PointCloud, Topics, TunnelEstimate
+from ..sensors.pose import Transform, quat_to_matrix
+from .detection import (
+    FrameDetection,
+    TunnelDetectorParams,
+    detect_in_voxels,
+    order_along_course,
+)
+from .voxel_accumulator import VoxelAccumulator
+
+__all__ = ["TunnelDetector"]
+
+_KNOTS = 20
+"""Poses computed per scan for deskewing (a 0.1 s scan: one every 5 ms)."""
+
+
+@dataclass
+class _Track:
+    """One frame followed across detections (the newest measurement of it; the map only grows)."""
+
+    detection: FrameDetection
+    hits: int = 1
+    misses: int = 0
+
+
+class TunnelDetector(Component):
+    """Detects the tunnel's frames in the LiDAR scans on ``cloud_topic`` and publishes a
+    :class:`~cufund.messages.TunnelEstimate` on ``Topics.TUNNEL_ESTIMATE`` at ``params.rate_hz``.
+
+    Its pose is the estimator's output when one is attached (ground truth only without an estimator, or
+    ``state_topic`` if given): every point, measured in the LiDAR frame at its own firing time, is moved to the
+    world with the body pose at that time (interpolated between the poses received, which deskews the scan) and
+    the extrinsic ``T_BL``. A scan waits until poses up to its last point have arrived. Points within
+    ``params.max_range`` of the LiDAR, below ``params.ceiling_z`` and inside the region of interest are
+    accumulated in a bounded voxel map (:class:`VoxelAccumulator`), on which :func:`detect_in_voxels` runs at
+    every step. Detections continue the nearest track within ``params.associate_radius``; a track's confidence
+    grows with the points on its bars and with repeated detections, and fades while it is not seen again.
+    Frames are published in flying order from ``origin_W`` (default: the first pose received).
+    """
+
+    name = "tunnel_detector"
+
+    def __init__(self, params: TunnelDetectorParams | None = None, T_BL: Transform | None = None,
+                 state_topic: str | None = None, cloud_topic: str = Topics.POINT_CLOUD, expected: int | None = None,
+                 origin_W: object = None) -> None:
+        self.params = TunnelDetectorParams() if params is None else params
+        if not isinstance(self.params, TunnelDetectorParams):
+            raise TypeError(f"params must be a TunnelDetectorParams, got {type(params).__name__}")
+        if T_BL is not None and not isinstance(T_BL, Transform):
+            raise TypeError(f"T_BL must be a cufund Transform, got {type(T_BL).__name__}")
+        if expected is not None and (isinstance(expected, bool) or not isinstance(expected, int) or expected < 1):
+            raise ValueError(f"expected must be None or an integer >= 1 (frames), got {expected!r}")
+        if origin_W is not None:
+            o = np.asarray(origin_W, dtype=float)
+            if o.shape != (3,) or not np.all(np.isfinite(o)):
+                raise ValueError(f"origin_W must be None or 3 finite numbers [m], got {origin_W!r}")
+            origin_W = o
+        self.T_BL = T_BL or Transform()
+        self.state_topic, self.cloud_topic, self.expected = state_topic, cloud_topic, expected
+        self.rate_hz = self.params.rate_hz
+        self.active_state_topic: str = Topics.TRUTH_ODOMETRY
+        self.outputs = (Topics.TUNNEL_ESTIMATE,)
+        self._origin_given = origin_W
+        self.reset()
+
+    @property
+    def inputs(self) -> tuple[str, ...]:  # type: ignore[override]
+        return (self.active_state_topic, self.cloud_topic)
+
+    def reset(self) -> None:
+        p = self.params
+        self.map = VoxelAccumulator(p.voxel, p.max_voxels)
+        self.tracks: list[_Track] = []
+        self.scans = 0
+        self.updates = 0
+        self.update_seconds = 0.0
+        """Wall time spent in :meth:`step` so far [s] (for benchmarks; divide by ``updates``)."""
+        self.origin_W = self._origin_given
+        self._t: list[float] = []
+        self._p: list[np.ndarray] = []
+        self._q: list[np.ndarray] = []
+        self._waiting: list[PointCloud] = []
+        self._last_stamp = 0.0
+
+    def setup(self, bus: BusView) -> None:
+        self._poses_sub: Subscription = bus.subscribe(self.active_state_topic)
+        self._clouds_sub: Subscription = bus.subscribe(self.cloud_topic)
+
+    # -- poses -------------------------------------------------------------------------------------------------
+    def _poses(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Body positions (N, 3) and rotations (N, 3, 3) at times t, interpolated (clamped at the ends)."""
+        ts, p, q = np.asarray(self._t), np.asarray(self._p), np.asarray(self._q)
+        if len(ts) == 1:
+            return np.repeat(p, len(t), axis=0), np.repeat(quat_to_matrix(q), len(t), axis=0)
+        i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
+        s = np.clip((t - ts[i]) / (ts[i + 1] - ts[i]), 0.0, 1.0)[:, None]
+        q0, q1 = q[i], q[i + 1]
+        q1 = np.where(np.sum(q0 * q1, axis=1, keepdims=True) < 0, -q1, q1)
+        qs = (1 - s) * q0 + s * q1
+        return (1 - s) * p[i] + s * p[i + 1], quat_to_matrix(qs / np.linalg.norm(qs, axis=1, keepdims=True))
+
+    def _to_world(self, cloud: PointCloud) -> tuple[np.ndarray, np.ndarray]:
+        """The scan's points in the world (N, 3) and the LiDAR's position when each was measured (N, 3).
+        The LiDAR pose is computed at ``_KNOTS + 1`` instants over the scan and each point moved with both poses
+        around its firing time, the two results blended linearly (the pose interpolated, to second order)."""
+        points_L = np.asarray(cloud.points_L, dtype=float)
+        dt = np.asarray(cloud.dt, dtype=float)
+        span = max(float(np.max(dt, initial=0.0)), 1e-9)
+        p_WB, R_WB = self._poses(cloud.t + np.linspace(0.0, span, _KNOTS + 1))
+        R_WL = R_WB @ self.T_BL.R
+        p_WL = p_WB + R_WB @ np.asarray(self.T_BL.t)
+        x = np.clip(dt / span * _KNOTS, 0.0, _KNOTS)
+        seg = np.minimum(x.astype(np.int64), _KNOTS - 1)
+        s = (x - seg)[:, None]
+        a = np.einsum("nij,nj->ni", R_WL[seg], points_L) + p_WL[seg]
+        b = np.einsum("nij,nj->ni", R_WL[seg + 1], points_L) + p_WL[seg + 1]
+        return a + s * (b - a), p_WL[seg] + s * (p_WL[seg + 1] - p_WL[seg])
+
+    def _insert(self, cloud: PointCloud) -> None:
+        p = self.params
+        points_W, sensor_W = self._to_world(cloud)
+        rays_W = points_W - sensor_W
+        rng = np.linalg.norm(rays_W, axis=1)
+        keep = (rng > 1e-6) & (rng <= p.max_range) & (points_W[:, 2] <= p.ceiling_z)
+        if p.roi_min_W is not None:
+            keep &= np.all(points_W >= np.asarray(p.roi_min_W), axis=1)
+        if p.roi_max_W is not None:
+            keep &= np.all(points_W <= np.asarray(p.roi_max_W), axis=1)
+        self.map.insert(points_W[keep], rays_W[keep] / rng[keep, None])
+        self.scans += 1
+        self._last_stamp = cloud.t
+        keep_poses = max(0, int(np.searchsorted(self._t, cloud.t, side="right")) - 1)
+        del self._t[:keep_poses], self._p[:keep_poses], self._q[:keep_poses]
+
+    # -- tracking ----------------------------------------------------------------------------------------------
+    def _associate(self, detections: list[FrameDetection]) -> None:
+        r = self.params.associate_radius
+        pairs = sorted((float(np.linalg.norm(d.centre_W - tr.detection.centre_W)), i, j)
+                       for i, d in enumerate(detections) for j, tr in enumerate(self.tracks))
+        used_d: set[int] = set()
+        used_t: set[int] = set()
+        for dist, i, j in pairs:
+            if dist > r:
+                break
+            if i in used_d or j in used_t:
+                continue
+            used_d.add(i)
+            used_t.add(j)
+            tr = self.tracks[j]
+            tr.detection, tr.hits, tr.misses = detections[i], tr.hits + 1, 0
+        for j, tr in enumerate(self.tracks):
+            if j not in used_t:
+                tr.misses += 1
+        self.tracks = [tr for tr in self.tracks if tr.misses <= 10]
+        self.tracks.extend(_Track(d) for i, d in enumerate(detections) if i not in used_d)
+
+    def confidence(self, track: _Track) -> float:
+        """In [0, 1): grows with the track's points and detections, fades while it is missed."""
+        support = 1.0 - math.exp(-track.detection.support / self.params.full_support * 3.0)
+        return support * (1.0 - 0.5 ** track.hits) * 0.8 ** track.misses
+
+    def estimate(self) -> TunnelEstimate:
+        """The current tracks as a :class:`TunnelEstimate`, in flying order."""
+        ordered = order_along_course([tr.detection for tr in self.tracks], self.origin_W)
+        by_centre = {id(tr.detection.centre_W): tr for tr in self.tracks}  # ordering keeps the centre arrays
+        conf = [self.confidence(by_centre[id(d.centre_W)]) for d in ordered]
+        k = len(ordered)
+        return TunnelEstimate(
+            t=self._last_stamp,
+            centres_W=np.array([d.centre_W for d in ordered]).reshape(k, 3),
+            normals_W=np.array([d.normal_W for d in ordered]).reshape(k, 3),
+            opening_sizes=np.array([[d.width, d.height] for d in ordered]).reshape(k, 2),
+            confidence=np.array(conf, dtype=float).reshape(k),
+            scans=self.scans)
+
+    # -- the step ----------------------------------------------------------------------------------------------
+    def step(self, t: float, bus: BusView) -> None:
+        start = time.perf_counter()
+        for state in self._poses_sub.take():
+            state: Odometry
+            if not self._t or state.t > self._t[-1]:
+                self._t.append(state.t)
+                self._p.append(np.asarray(state.p_W, dtype=float))
+                self._q.append(np.asarray(state.q_WB, dtype=float))
+                if self.origin_W is None:
+                    self.origin_W = np.asarray(state.p_W, dtype=float).copy()
+        self._waiting.extend(self._clouds_sub.take())
+        inserted = False
+        while self._waiting and self._t and \
+                self._t[-1] >= self._waiting[0].t + float(np.max(self._waiting[0].dt, initial=0.0)):
+            self._insert(self._waiting.pop(0))
+            inserted = True
+        if inserted:
+            cloud, rays = self.map.means()
+            self._associate(detect_in_voxels(cloud, rays, self.params, self.expected, self.origin_W))
+            bus.publish(Topics.TUNNEL_ESTIMATE, self.estimate())
+        self.updates += 1
+        self.update_seconds += time.perf_counter() - start

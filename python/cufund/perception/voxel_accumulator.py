@@ -1,0 +1,62 @@
+"""A bounded map of voxel means: LiDAR points accumulated over scans for detection, the oldest forgotten first."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .detection import voxel_keys
+
+__all__ = ["VoxelAccumulator"]
+
+
+class VoxelAccumulator:
+    """Sums of points and unit ray directions per voxel of edge ``voxel`` [m], at most ``max_voxels`` voxels.
+
+    :meth:`insert` adds a batch; :meth:`means` gives each voxel's mean point and mean ray direction (sorted by
+    voxel, so the same inserts give the same arrays). When the bound is exceeded the voxels seen least recently
+    (ties: lowest key) are dropped.
+    """
+
+    def __init__(self, voxel: float, max_voxels: int) -> None:
+        if not (isinstance(voxel, (int, float)) and np.isfinite(voxel) and voxel > 0):
+            raise ValueError(f"voxel must be a finite number > 0 [m], got {voxel!r}")
+        if isinstance(max_voxels, bool) or not isinstance(max_voxels, (int, np.integer)) or max_voxels < 1:
+            raise ValueError(f"max_voxels must be an integer >= 1, got {max_voxels!r}")
+        self.voxel, self.max_voxels = float(voxel), int(max_voxels)
+        self.clear()
+
+    def clear(self) -> None:
+        self._keys = np.zeros(0, dtype=np.int64)
+        self._sums = np.zeros((0, 7))  # point xyz, ray xyz, count
+        self._seen = np.zeros(0, dtype=np.int64)
+        self.batches = 0
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+    def insert(self, points_W: np.ndarray, rays_W: np.ndarray) -> None:
+        """Adds points (N, 3) [m] and the unit directions (N, 3) of the rays that measured them."""
+        points_W, rays_W = np.asarray(points_W, dtype=float), np.asarray(rays_W, dtype=float)
+        if points_W.ndim != 2 or points_W.shape[1] != 3 or rays_W.shape != points_W.shape:
+            raise ValueError(f"points_W and rays_W must both have shape (N, 3), got {points_W.shape} and "
+                             f"{rays_W.shape}")
+        self.batches += 1
+        if len(points_W) == 0:
+            return
+        keys = np.concatenate([self._keys, voxel_keys(points_W, self.voxel)])
+        rows = np.concatenate([self._sums, np.hstack([points_W, rays_W, np.ones((len(points_W), 1))])])
+        seen = np.concatenate([self._seen, np.full(len(points_W), self.batches, dtype=np.int64)])
+        order = np.argsort(keys, kind="stable")
+        keys = keys[order]
+        start = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+        self._keys = keys[start]
+        self._sums = np.add.reduceat(rows[order], start, axis=0)
+        self._seen = np.maximum.reduceat(seen[order], start)
+        if len(self._keys) > self.max_voxels:
+            keep = np.sort(np.lexsort((self._keys, -self._seen))[:self.max_voxels])
+            self._keys, self._sums, self._seen = self._keys[keep], self._sums[keep], self._seen[keep]
+
+    def means(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each voxel's mean point (M, 3) [m] and mean ray direction (M, 3)."""
+        n = self._sums[:, 6:7]
+        return self._sums[:, :3] / n, self._sums[:, 3:6] / n
