@@ -1,1 +1,20 @@
-"""MAVLink for cufund: frame conversions (:mod:`.frames`) and PX4's simulator interface (:mod:`.px4_sim`)."""
+"""MAVLink for cufund: the one module of frame conversions (:mod:`.frames`) and cufund as PX4's simulator
+(:class:`Px4SimulatorBridge`, SITL over TCP and HITL over serial). Heavy parts are imported on first use."""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["Px4Airframe", "Px4BridgeParams", "Px4Harness", "Px4SimulatorBridge", "px4_scenario"]
+
+_LAZY = {"Px4SimulatorBridge": "px4_sim", "Px4BridgeParams": "px4_sim", "px4_scenario": "px4_sim",
+         "Px4Airframe": "px4_airframe", "Px4Harness": "px4_harness"}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'cufund.mavlink' has no attribute {name!r}")
+    import importlib
+
+    return getattr(importlib.import_module(f"{__name__}.{module}"), name)

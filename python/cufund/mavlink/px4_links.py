@@ -1,0 +1,137 @@
+"""Byte links between cufund and PX4: the SITL TCP server (PX4 connects to 4560 + instance) and a serial port
+for HITL (pyserial). Both: ``send(data)``, ``recv(timeout) -> bytes | None`` (None: nothing arrived within the
+timeout; ``b""``: the peer closed the link), ``close()``."""
+
+from __future__ import annotations
+
+import os
+import select
+import socket
+from typing import Protocol
+
+__all__ = ["PX4_SITL_BASE_PORT", "Link", "LinkClosed", "SerialLink", "TcpServerLink"]
+
+PX4_SITL_BASE_PORT = 4560  #: PX4's simulator_mavlink connects to TCP 4560 + instance
+
+
+class LinkClosed(ConnectionError):
+    """The peer closed the link (or it failed)."""
+
+
+class Link(Protocol):
+    def send(self, data: bytes) -> None: ...
+
+    def recv(self, timeout: float) -> bytes | None: ...
+
+    def close(self) -> None: ...
+
+
+class TcpServerLink:
+    """Listens on ``host:port`` (127.0.0.1 unless told otherwise; port 0 picks a free one, see :attr:`port`) and
+    serves one PX4 connection at a time, with TCP_NODELAY as Gazebo's plugin does."""
+
+    def __init__(self, host: str = "127.0.0.1", port: int = PX4_SITL_BASE_PORT) -> None:
+        if not isinstance(host, str) or not host:
+            raise ValueError(f"host must be an address string like 127.0.0.1, got {host!r}")
+        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+            raise ValueError(f"port must be an integer in [0, 65535], got {port!r}")
+        self._server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self._server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            self._server.bind((host, port))
+        except OSError as e:
+            self._server.close()
+            raise OSError(f"cannot listen on {host}:{port}: {e.strerror or e}") from None
+        self._server.listen(1)
+        self.host, self.port = host, self._server.getsockname()[1]
+        self._conn: socket.socket | None = None
+
+    @property
+    def connected(self) -> bool:
+        return self._conn is not None
+
+    def accept(self, timeout: float | None) -> bool:
+        """Waits up to ``timeout`` [s] (None: forever) for PX4 to connect. True once connected."""
+        if self._conn is not None:
+            return True
+        ready, _, _ = select.select([self._server], [], [], timeout)
+        if not ready:
+            return False
+        conn, _ = self._server.accept()
+        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self._conn = conn
+        return True
+
+    def send(self, data: bytes) -> None:
+        if self._conn is None:
+            raise LinkClosed("no PX4 connection")
+        try:
+            self._conn.sendall(data)
+        except OSError as e:
+            self._drop()
+            raise LinkClosed(f"PX4 connection lost: {e.strerror or e}") from None
+
+    def recv(self, timeout: float) -> bytes | None:
+        if self._conn is None:
+            return b""
+        ready, _, _ = select.select([self._conn], [], [], max(timeout, 0.0))
+        if not ready:
+            return None
+        try:
+            data = self._conn.recv(65536)
+        except OSError:
+            data = b""
+        if not data:
+            self._drop()
+        return data
+
+    def disconnect(self) -> None:
+        """Closes the PX4 connection; the server keeps listening for the next one."""
+        self._drop()
+
+    def _drop(self) -> None:
+        if self._conn is not None:
+            self._conn.close()
+            self._conn = None
+
+    def close(self) -> None:
+        self._drop()
+        self._server.close()
+
+
+class SerialLink:
+    """A serial port (HITL: the flight controller's USB or TELEM port) through pyserial, 8N1, no flow control."""
+
+    def __init__(self, device: str, baud: int = 921600) -> None:
+        import serial
+
+        if not isinstance(device, str) or not device:
+            raise ValueError(f"device must be a serial port path like /dev/ttyACM0, got {device!r}")
+        if isinstance(baud, bool) or not isinstance(baud, int) or baud <= 0:
+            raise ValueError(f"baud must be a positive integer, got {baud!r}")
+        try:
+            self._port = serial.Serial(device, baud, timeout=0, write_timeout=1.0)
+        except (serial.SerialException, OSError) as e:
+            raise OSError(f"cannot open serial port {device}: {e}") from None
+        self.device, self.baud = device, baud
+        self._fd = self._port.fileno()
+
+    connected = True
+
+    def send(self, data: bytes) -> None:
+        try:
+            self._port.write(data)
+        except OSError as e:  # serial.SerialException and its timeout are OSErrors
+            raise LinkClosed(f"serial port {self.device}: {e}") from None
+
+    def recv(self, timeout: float) -> bytes | None:
+        try:
+            ready, _, _ = select.select([self._fd], [], [], max(timeout, 0.0))
+            if not ready:
+                return None
+            return os.read(self._fd, 65536) or None
+        except OSError as e:
+            raise LinkClosed(f"serial port {self.device}: {e.strerror or e}") from None
+
+    def close(self) -> None:
+        self._port.close()
