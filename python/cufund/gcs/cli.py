@@ -1,13 +1,76 @@
-"""Placeholder while this command is being built in this session (replaced by its implementation)."""
+"""``cufund gcs [SCENARIO]``: a live run of SCENARIO and the web ground station serving it on 127.0.0.1.
+
+The first line of output is ``GCS: http://127.0.0.1:PORT/?token=TOKEN``; open it in a browser. Ctrl-C stops.
+"""
 
 from __future__ import annotations
 
 import argparse
+import asyncio
+import signal
+import sys
+
+from .server import GcsServer, parse_speed
+
+__all__ = ["add_arguments", "run"]
+
+DEFAULT_SCENARIO = "vehicle"
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", nargs="?", default=None)
+    p.add_argument("scenario", nargs="?", default=DEFAULT_SCENARIO,
+                   help=f"scenario name or YAML path (default: {DEFAULT_SCENARIO})")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="interface to serve on (default 127.0.0.1; anything else exposes the vehicle's commands)")
+    p.add_argument("--port", type=int, default=0, help="port (default 0: any free port)")
+    p.add_argument("--speed", default="1", help="simulation speed: 0.1 to 10 times real time, or inf (default 1)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario field by its dotted key (repeatable)")
+    p.add_argument("--foxglove", action="store_true", help="also serve the topics over a Foxglove WebSocket server")
+    p.add_argument("--foxglove-port", type=int, default=8765, help="the Foxglove server's port (default 8765)")
+    p.add_argument("--telemetry-hz", type=float, default=50.0, help="telemetry rate to the page (default 50)")
 
 
 def run(args: argparse.Namespace) -> int:
-    raise SystemExit("cufund: this command is not built yet")
+    try:
+        speed = parse_speed(args.speed)
+    except ValueError as exc:
+        print(f"cufund gcs: {exc}", file=sys.stderr)
+        return 2
+    if not 0 <= args.port < 65536 or not 0 <= args.foxglove_port < 65536:
+        print("cufund gcs: --port and --foxglove-port must be in [0, 65535]", file=sys.stderr)
+        return 2
+    if args.host not in LOOPBACK:
+        print(f"cufund gcs: WARNING: serving on {args.host}: anyone who can reach it and has the token can command "
+              "the vehicle", file=sys.stderr)
+    return asyncio.run(_serve(args, speed))
+
+
+async def _serve(args: argparse.Namespace, speed: float) -> int:
+    foxglove = None
+    if args.foxglove:
+        from .foxglove_bridge import FoxgloveBridge
+
+        foxglove = FoxgloveBridge(port=args.foxglove_port)
+    server = GcsServer(args.scenario, tuple(args.overrides), speed, host=args.host, port=args.port,
+                       telemetry_hz=args.telemetry_hz, foxglove=foxglove)
+    try:
+        url = server.start()
+    except Exception as exc:  # noqa: BLE001 - a bad scenario or a busy port: say so, exit 2
+        print(f"cufund gcs: {type(exc).__name__}: {exc}", file=sys.stderr)
+        if foxglove is not None:
+            foxglove.stop()
+        return 2
+    print(f"GCS: {url}", flush=True)
+    if foxglove is not None:
+        print(f"Foxglove: ws://127.0.0.1:{foxglove.port}", flush=True)
+    done = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, done.set)
+    await done.wait()
+    server.stop()
+    if foxglove is not None:
+        foxglove.stop()
+    return 0
