@@ -45,8 +45,7 @@ class GcsProcess:
         ready, _, _ = select.select([self.proc.stdout], [], [], self.timeout)
         line = self.proc.stdout.readline() if ready else ""
         if not line.startswith("GCS: "):
-            self.stop()
-            err = self.proc.stderr.read() if self.proc.stderr else ""
+            err = self.stop()
             raise RuntimeError(f"cufund gcs did not start within {self.timeout:g} s: {line!r} {err[-2000:]}")
         self.first_line = line.rstrip("\n")
         self.url = self.first_line[len("GCS: "):]
@@ -54,8 +53,8 @@ class GcsProcess:
         return self
 
     def stop(self) -> str:
-        """Stops the server; returns what it wrote on stderr."""
-        if self.proc is None:
+        """Stops the server; returns what it wrote on stderr ("" when already stopped)."""
+        if self.proc is None or self.proc.stderr is None or self.proc.stderr.closed:
             return ""
         if self.proc.poll() is None:
             self.proc.terminate()
@@ -64,7 +63,7 @@ class GcsProcess:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait(5)
-        err = self.proc.stderr.read() if self.proc.stderr and not self.proc.stderr.closed else ""
+        err = self.proc.stderr.read()
         for f in (self.proc.stdout, self.proc.stderr):
             if f is not None:
                 f.close()
