@@ -24,7 +24,7 @@ GROUPS = ("world", "sensor", "estimator", "mapper", "planner", "controller", "mi
 """The parts of a scenario that take a ``kind``."""
 
 _BUILTIN_MODULES = ("cufund.worlds.kinds", "cufund.sensors.kinds", "cufund.estimation.kinds", "cufund.mapping.kinds",
-                    "cufund.planning.kinds", "cufund.control.kinds")
+                    "cufund.planning.kinds", "cufund.control.kinds", "cufund.missions.kinds")
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ from ..components import Bus, Controller
 from ..messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, ThrustTorqueSetpoint, Topics
 from ..params import QuadrotorParams
 from .allocation import ControlAllocator
+from .arming import gated
 from .flight_mode import BumplessTransfer, ModeReferences
 from .gyro_input import GyroInput
 from .rotations import quat_to_rotation
@@ -61,6 +62,8 @@ class GeometricController(Controller):
     name = "geometric_controller"
     optional_reads = ModeReferences.TOPICS
     writes = (Topics.ATTITUDE_SETPOINT, Topics.THRUST_TORQUE_SETPOINT, Topics.ACTUATOR_COMMAND)
+    armable = False
+    """Gated by a commander's vehicle status (:func:`cufund.control.arming.make_armable`)."""
 
     def __init__(self, params: QuadrotorParams, gains: GeometricControlParams | None = None, rate_hz: float = 500.0,
                  mode: FlightMode = FlightMode.POSITION,
@@ -101,6 +104,8 @@ class GeometricController(Controller):
         return self.refs.mode
 
     def update(self, t: float, state: Odometry, bus: Bus) -> None:
+        if gated(self, t, bus, "geometric"):
+            return
         g = self.gains
         m, grav = self.params.mass, self.params.gravity
         w_B = state.w_B

@@ -13,6 +13,7 @@ from typing import Any
 
 from ..config import ConfigError, nested
 from ..registry import Kind, register
+from .arming import make_armable
 from .attitude_control import AttitudeControlParams, AttitudeController
 from .geometric_controller import GeometricControlParams, GeometricController
 from .position_control import PositionControlParams, PositionController
@@ -49,16 +50,24 @@ def _q_BI(ctx: Any) -> tuple[float, float, float, float]:
     return tuple(imu.q_BI) if imu is not None else (1.0, 0.0, 0.0, 0.0)
 
 
+def _armable(components: list[Any], ctx: Any) -> list[Any]:
+    """With a commander as planner (built before the controllers), its vehicle status gates the controllers."""
+    if getattr(ctx, "commander", None) is not None:
+        make_armable(components)
+    return components
+
+
 def _pid(p: ControllerParams, ctx: Any) -> list[Any]:
     r, v = ctx.config.rates, ctx.vehicle
-    return [PositionController(v, p.position, rate_hz=r.position_hz),
-            AttitudeController(p.attitude, rate_hz=r.attitude_hz),
-            RateController(v, p.rate, rate_hz=r.rate_hz, q_BI=_q_BI(ctx), gyro_cutoff_hz=p.gyro_cutoff_hz)]
+    return _armable([PositionController(v, p.position, rate_hz=r.position_hz),
+                     AttitudeController(p.attitude, rate_hz=r.attitude_hz),
+                     RateController(v, p.rate, rate_hz=r.rate_hz, q_BI=_q_BI(ctx), gyro_cutoff_hz=p.gyro_cutoff_hz)],
+                    ctx)
 
 
 def _geometric(p: ControllerParams, ctx: Any) -> list[Any]:
-    return [GeometricController(ctx.vehicle, p.geometric, rate_hz=ctx.config.rates.geometric_hz, q_BI=_q_BI(ctx),
-                                gyro_cutoff_hz=p.gyro_cutoff_hz)]
+    return _armable([GeometricController(ctx.vehicle, p.geometric, rate_hz=ctx.config.rates.geometric_hz,
+                                         q_BI=_q_BI(ctx), gyro_cutoff_hz=p.gyro_cutoff_hz)], ctx)
 
 
 register(Kind("controller", "pid", ControllerParams, _pid, None,

@@ -12,6 +12,7 @@ from ..config import check_real_fields
 from ..components import Bus, Controller
 from ..messages import AttitudeSetpoint, FlightMode, Odometry, Topics
 from ..params import QuadrotorParams
+from .arming import Gate, gate
 from .derivative_filter import LowPassDerivative
 from .flight_mode import BumplessTransfer, ModeReferences
 from .rotations import attitude_from_thrust_and_yaw, quat_to_rotation, rotation_to_quat
@@ -76,6 +77,8 @@ class PositionController(Controller):
     name = "position_controller"
     optional_reads = ModeReferences.TOPICS
     writes = (Topics.ATTITUDE_SETPOINT,)
+    armable = False
+    """Gated by a commander's vehicle status (:func:`cufund.control.arming.make_armable`)."""
 
     def __init__(self, params: QuadrotorParams, gains: PositionControlParams | None = None, rate_hz: float = 250.0,
                  mode: FlightMode = FlightMode.POSITION, max_thrust: float | None = None) -> None:
@@ -106,6 +109,9 @@ class PositionController(Controller):
         return self.refs.mode
 
     def update(self, t: float, state: Odometry, bus: Bus) -> None:
+        if self.armable and gate(bus, "pid") is not Gate.FLY:  # disarmed, idle on the ground, or geometric flies
+            self.reset()
+            return
         g = self.gains
         m, grav = self.params.mass, self.params.gravity
         dt = 1.0 / self.rate_hz

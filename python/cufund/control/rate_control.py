@@ -12,6 +12,7 @@ from ..components import Bus, Controller
 from ..messages import ActuatorCommand, Odometry, RateSetpoint, ThrustTorqueSetpoint, Topics
 from ..params import QuadrotorParams
 from .allocation import ControlAllocator
+from .arming import gated
 from .derivative_filter import LowPassDerivative
 from .gyro_input import GyroInput
 
@@ -71,6 +72,8 @@ class RateController(Controller):
     name = "rate_controller"
     reads = (Topics.RATE_SETPOINT,)
     writes = (Topics.ACTUATOR_COMMAND, Topics.THRUST_TORQUE_SETPOINT)
+    armable = False
+    """Gated by a commander's vehicle status (:func:`cufund.control.arming.make_armable`)."""
 
     def __init__(self, params: QuadrotorParams, gains: RateControlParams | None = None, rate_hz: float = 500.0,
                  q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0), gyro_cutoff_hz: float = 40.0) -> None:
@@ -107,6 +110,8 @@ class RateController(Controller):
             self.gyro.setup(bus)
 
     def step(self, t: float, bus: Bus) -> None:
+        if gated(self, t, bus, "pid"):
+            return
         if self.use_gyro:
             w = self.gyro.update()
         else:

@@ -1,0 +1,560 @@
+"""The vehicle commander: arming, take-off, hold, go-to, missions, offboard control, landing and return, as PX4's
+commander and navigator do it, driven by :class:`cufund.missions.Command` s from any thread.
+
+States (``mode``): ``idle`` (on the ground, armed or not) -> ``takeoff`` -> ``hold`` / ``goto`` / ``mission`` /
+``offboard`` -> ``land`` (descend, detect touchdown, disarm) -> ``idle``; ``rtl`` climbs to a safe height, flies
+home and lands. Auto modes fly jerk-limited moves (:class:`cufund.planning.JerkLimitedMove`); a hold stops with a
+critically damped brake from the reference's velocity. The commander publishes the trajectory setpoint (or, in
+attitude mode, the manual attitude setpoint) at its rate and a :class:`VehicleStatus` at ``status_hz`` and at
+every change; the controllers read the status to stop the rotors when disarmed (:mod:`cufund.control.arming`).
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import math
+from collections.abc import Callable
+from concurrent.futures import Future
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..components import BusView, Planner
+from ..messages import (
+    AttitudeSetpoint,
+    FlightMode,
+    FlightModeCommand,
+    Odometry,
+    Topics,
+    TrajectorySetpoint,
+    VehicleStatus,
+)
+from ..planning.point_to_point import JerkLimitedMove
+from ..planning.sequence import Hold
+from .commands import Command, CommandAck, MissionItem, parse_command
+from .events import EventLog
+from .params import CommanderParams, as_dict, field_of
+
+__all__ = ["Commander"]
+
+_Z3 = np.zeros(3)
+
+
+def _yaw_of(q: np.ndarray) -> float:
+    w, x, y, z = (float(v) for v in q)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+class _Brake:
+    """Stops from p0 at velocity v0 (critically damped, time constant tau): p = p0 + v0 (2 tau - (2 tau + s) e^-s/tau)."""
+
+    def __init__(self, p0: np.ndarray, v0: np.ndarray, tau: float, yaw: float, t_start: float) -> None:
+        self.p0, self.v0, self.tau, self.yaw, self.t_start = np.array(p0, float), np.array(v0, float), tau, yaw, t_start
+        self.goal_W = self.p0 + 2 * tau * self.v0
+
+    @property
+    def t_end(self) -> float:
+        return self.t_start + 10 * self.tau
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        tau, s = self.tau, max(t - self.t_start, 0.0)
+        e, v0 = math.exp(-s / tau), self.v0
+        return (self.p0 + v0 * (2 * tau - (2 * tau + s) * e), v0 * ((1 + s / tau) * e), v0 * (-(s / tau ** 2) * e),
+                v0 * (-(1 - s / tau) * e / tau ** 2))
+
+
+@dataclass
+class _Leg:
+    target: np.ndarray
+    yaw: float
+    tag: str
+    """'takeoff', 'goto', 'item', 'rtl_climb', 'rtl_home' or 'land'."""
+    hold_s: float = 0.0
+    seq: int = -1
+    slow: bool = False
+    """Take-off/landing speed limits."""
+
+
+class Commander(Planner):
+    """The vehicle state machine (registry kind ``planner: commander``); see the module doc.
+
+    ``submit(cmd) -> Future[CommandAck]`` from any thread (parsed at once: bad input raises ``ValueError``; applied
+    in the next :meth:`step`, in simulated-time order); ``apply(cmd, t)`` applies at once (tests, scripts).
+    ``events`` is the append-only :class:`EventLog`; ``link_lost()`` / ``link_regained()`` are the link-loss hook.
+    """
+
+    name = "commander"
+    writes = (Topics.TRAJECTORY_SETPOINT, Topics.MANUAL_ATTITUDE_SETPOINT, Topics.FLIGHT_MODE, Topics.VEHICLE_STATUS)
+
+    def __init__(self, params: CommanderParams | None = None, controller: str = "pid",
+                 controllers: tuple[str, ...] | None = None, events: EventLog | None = None) -> None:
+        self.params = params or CommanderParams()
+        self.rate_hz = self.params.rate_hz
+        self.initial_controller = controller
+        self.controllers = tuple(controllers) if controllers is not None else (controller,)
+        """The controller kinds built into the simulation (what ``controller`` may switch to)."""
+        self.events = events if events is not None else EventLog()
+        self._inbox: collections.deque[tuple[Command, Future | None]] = collections.deque()
+        self.param_providers: list[tuple[Callable[[], dict[str, Any]], Callable[[str, Any], bool]]] = []
+        """Extra parameters (e.g. controller gains): ``(get() -> {name: value}, set(name, value) -> handled)``."""
+        self.reset()
+
+    # -- run lifecycle ---------------------------------------------------------------------------------------
+    def reset(self) -> None:
+        self.armed = False
+        self.landed = True
+        self.mode = "idle"
+        self.flight_mode = FlightMode.POSITION
+        self.controller = self.initial_controller
+        self.home_p_W = np.full(3, np.nan)
+        self.target_p_W = np.full(3, np.nan)
+        self.mission: tuple[MissionItem, ...] = ()
+        self.mission_current = -1
+        self.message = ""
+        self.state: Odometry | None = None
+        self.t = 0.0
+        self.setpoint: TrajectorySetpoint | None = None
+        self._ref: Any = None  # JerkLimitedMove / Hold / _Brake
+        self._ref_yaw = 0.0
+        self._legs: collections.deque[_Leg] = collections.deque()
+        self._leg: _Leg | None = None
+        self._leg_phase = "move"  # 'move' then 'hold' (waiting hold_s at the target)
+        self._hold_until = 0.0
+        self._after = "hold"  # what follows the last leg: 'hold' or 'land'
+        self._hold_flight_mode: FlightMode | None = None
+        self._offboard: tuple[Command, float] | None = None
+        self._touchdown_since: float | None = None
+        self._armed_since = 0.0
+        self._link_lost_at: float | None = None
+        self._script = list(self.params.script)
+        self._status_dirty = True
+        self._next_status = -math.inf
+        self._published_mode: FlightMode | None = None
+
+    @property
+    def script_done(self) -> bool:
+        return not self._script
+
+    # -- thread-safe submission --------------------------------------------------------------------------------
+    def submit(self, cmd: Any) -> Future:
+        """Queues ``cmd`` (a dict, a name or a :class:`Command`) for the next step; returns a Future of its
+        :class:`CommandAck`. Raises ``ValueError`` at once for a malformed command."""
+        command = parse_command(cmd)
+        fut: Future = Future()
+        self._inbox.append((command, fut))
+        return fut
+
+    def link_lost(self) -> None:
+        """The command link is gone: hold, then land after ``link_loss_timeout_s`` (thread-safe)."""
+        self._inbox.append((Command("_link_lost"), None))
+
+    def link_regained(self) -> None:
+        """The link is back: no landing for link loss (the vehicle keeps holding)."""
+        self._inbox.append((Command("_link_regained"), None))
+
+    def cancel_pending(self, why: str) -> None:
+        """Fails every queued command (the run has ended)."""
+        while self._inbox:
+            cmd, fut = self._inbox.popleft()
+            if fut is not None and not fut.done():
+                fut.set_result(CommandAck(cmd.command, "failed", why))
+
+    # -- helpers -----------------------------------------------------------------------------------------------
+    def _event(self, kind: str, message: str, **data: Any) -> None:
+        self.message = message
+        self._status_dirty = True
+        self.events.append(self.t, kind, message, **data)
+
+    def _set_mode(self, mode: str, why: str = "") -> None:
+        if mode != self.mode:
+            self.mode = mode
+            self._event("mode", f"mode {mode}" + (f": {why}" if why else ""), mode=mode)
+
+    @property
+    def airborne(self) -> bool:
+        return self.armed and not self.landed
+
+    def _ref_at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        r = self._ref
+        if r is None:
+            p = self.state.p_W if self.state is not None else _Z3
+            return np.array(p, float), _Z3, _Z3, _Z3
+        if isinstance(r, _Brake):
+            return r.at(t)
+        s = r.sample(t)
+        return s.p_W[0], s.v_W[0], s.a_W[0], s.j_W[0]
+
+    def _move(self, t: float, target: np.ndarray, yaw: float, slow: bool = False) -> None:
+        p = self.params
+        start, _, _, _ = self._ref_at(t) if self._ref is not None else (self.state.p_W, 0, 0, 0)  # type: ignore
+        v, a = (p.takeoff_speed if target[2] >= start[2] else p.land_speed, p.a_max) if slow else (p.v_max, p.a_max)
+        self._ref = JerkLimitedMove(np.array(start, float), target, v, a, p.j_max, yaw, t_start=t)
+        self._ref_yaw = yaw
+        self.target_p_W = np.array(target, float)
+
+    def _brake(self, t: float, from_state: bool = False) -> None:
+        if from_state or self._ref is None:
+            s = self.state
+            assert s is not None
+            p0, v0 = s.p_W, s.v_W
+            self._ref_yaw = _yaw_of(s.q_WB)
+        else:
+            p0, v0, _, _ = self._ref_at(t)
+        self._ref = _Brake(p0, v0, self.params.brake_tau, self._ref_yaw, t)
+        self.target_p_W = self._ref.goal_W.copy()
+
+    def _hold(self, t: float, why: str = "", from_state: bool = False) -> None:
+        self._legs.clear()
+        self._leg = None
+        self._offboard = None
+        self._brake(t, from_state)
+        self._hold_flight_mode = None
+        self._set_mode("hold", why)
+
+    def _start_legs(self, t: float, legs: list[_Leg], mode: str, after: str, why: str = "") -> None:
+        self._offboard = None
+        self._hold_flight_mode = None
+        self.flight_mode = FlightMode.POSITION
+        self._legs = collections.deque(legs)
+        self._after = after
+        self._set_mode(mode, why)
+        self._next_leg(t)
+
+    def _next_leg(self, t: float) -> None:
+        if not self._legs:
+            self._leg = None
+            if self._after == "land":
+                self._land(t)
+            else:
+                self._brake(t)
+                self._set_mode("hold", f"{self.mode} done" if self.mode != "hold" else "")
+            return
+        leg = self._legs.popleft()
+        self._leg, self._leg_phase = leg, "move"
+        if leg.tag == "item":
+            self.mission_current = leg.seq
+            self._status_dirty = True
+        self._move(t, leg.target, leg.yaw, leg.slow)
+
+    def _land(self, t: float, why: str = "") -> None:
+        s = self.state
+        assert s is not None
+        p0, _, _, _ = self._ref_at(t) if self._ref is not None else (s.p_W, 0, 0, 0)
+        ground = self.home_p_W[2] if np.isfinite(self.home_p_W[2]) else 0.0
+        target = np.array([p0[0], p0[1], min(ground, float(p0[2])) - 0.05])
+        self._legs = collections.deque()
+        self._after = "hold"
+        self._offboard = None
+        self.flight_mode = FlightMode.POSITION
+        self._leg = _Leg(target, self._ref_yaw, "land", slow=True)
+        self._leg_phase = "move"
+        self._touchdown_since = None
+        self._move(t, target, self._ref_yaw, slow=True)
+        self._set_mode("land", why)
+
+    def _disarm(self, why: str) -> None:
+        self.armed = False
+        self._legs.clear()
+        self._leg = None
+        self._offboard = None
+        self._ref = None
+        self.flight_mode = FlightMode.POSITION
+        self._set_mode("idle")
+        self._event("disarmed", f"disarmed: {why}")
+
+    # -- commands ----------------------------------------------------------------------------------------------
+    def apply(self, cmd: Any, t: float | None = None) -> CommandAck:
+        """Applies ``cmd`` now (at simulated time ``t``, default the last step's) and returns its ack."""
+        command = parse_command(cmd)
+        if t is not None:
+            self.t = float(t)
+        try:
+            ack = self._apply(command, self.t)
+        except Exception as e:  # noqa: BLE001 - a command never takes the commander down
+            ack = CommandAck(command.command, "failed", f"{type(e).__name__}: {e}")
+        if ack.result == "denied":
+            self._event("denied", f"{command.command} denied: {ack.message}", command=command.command)
+        elif ack.result in ("failed", "unsupported"):
+            self._event("warning", f"{command.command} {ack.result}: {ack.message}", command=command.command)
+        return ack
+
+    def _apply(self, c: Command, t: float) -> CommandAck:
+        name, p, s = c.command, self.params, self.state
+        ok = lambda msg="": CommandAck(name, "accepted", msg)
+        deny = lambda msg: CommandAck(name, "denied", msg)
+        if name == "_link_lost":
+            self._event("warning", "link lost")
+            if self.airborne and self.mode not in ("land", "rtl"):
+                self._hold(t, "link lost")
+                self._link_lost_at = t
+            return ok()
+        if name == "_link_regained":
+            if self._link_lost_at is not None:
+                self._event("info", "link regained")
+            self._link_lost_at = None
+            return ok()
+        if name == "get_params":
+            values = as_dict(p)
+            for get, _ in self.param_providers:
+                values.update(get())
+            return CommandAck(name, "accepted", "", values)
+        if name == "set_param":
+            return self._set_param(c)
+        if name == "controller":
+            if c.kind not in self.controllers:
+                return CommandAck(name, "unsupported", f"controller {c.kind!r} is not built into this simulation "
+                                  f"(built: {', '.join(self.controllers)})")
+            if c.kind != self.controller:
+                self.controller = c.kind  # type: ignore[assignment]
+                self._event("controller", f"controller {c.kind}", controller=c.kind)
+            return ok()
+        if name == "mission_upload":
+            if self.mode == "mission":
+                return deny("a mission is running; hold or land first")
+            self.mission, self.mission_current = c.items, -1
+            self._status_dirty = True
+            self._event("mission", f"mission of {len(c.items)} items uploaded", count=len(c.items))
+            return ok()
+        if name == "mission_clear":
+            if self.mode == "mission":
+                self._hold(t, "mission cleared")
+            self.mission, self.mission_current = (), -1
+            self._status_dirty = True
+            return ok()
+        if s is None:
+            return deny("no vehicle state yet")
+        if name == "arm":
+            if self.armed:
+                return ok("already armed")
+            if not self.landed:
+                return deny("not on the ground")
+            self.armed, self._armed_since = True, t
+            self.home_p_W = np.array(s.p_W, float)
+            self._ref, self._ref_yaw = None, _yaw_of(s.q_WB)
+            self._event("armed", "armed")
+            return ok()
+        if name == "disarm":
+            if not self.armed:
+                return ok("already disarmed")
+            if not self.landed and not c.force:
+                return deny("in flight (land first, or force)")
+            self._disarm("forced in flight" if not self.landed else "command")
+            if c.force:
+                self.landed = False
+            return ok()
+        if not self.armed:
+            return deny("disarmed; arm first")
+        if name == "takeoff":
+            if not self.landed:
+                return deny("already airborne")
+            alt = c.altitude if c.altitude is not None else p.takeoff_altitude
+            self._begin_flight(t)
+            target = np.array([s.p_W[0], s.p_W[1], self.home_p_W[2] + alt])
+            self._start_legs(t, [_Leg(target, self._ref_yaw, "takeoff", slow=True)], "takeoff", "hold")
+            return ok()
+        if name == "mission_start":
+            if not self.mission:
+                return deny("no mission uploaded")
+            legs = []
+            if self.landed:
+                self._begin_flight(t)
+                first = self.mission[0].p_W
+                legs.append(_Leg(np.array([s.p_W[0], s.p_W[1], max(first[2], self.home_p_W[2] + 0.5)]),
+                                 self._ref_yaw, "takeoff", slow=True))
+            yaw = self._ref_yaw
+            for i, it in enumerate(self.mission):
+                yaw = yaw if it.yaw is None else it.yaw
+                legs.append(_Leg(np.array(it.p_W), yaw, "item", it.hold_s, i))
+            self._start_legs(t, legs, "mission", "hold")
+            return ok()
+        if name == "land":
+            if self.landed:
+                self._disarm("land on the ground")
+                return ok("on the ground: disarmed")
+            if self.mode == "land":
+                return ok("already landing")
+            self._land(t)
+            return ok()
+        if self.landed:
+            if name.startswith("offboard_"):
+                self._begin_flight(t)
+            elif name == "flight_mode":
+                self.flight_mode = FlightMode(c.mode)
+                self._status_dirty = True
+                return ok("on the ground: applies to offboard control")
+            else:
+                return deny("on the ground; take off first")
+        if name == "hold":
+            self._hold(t)
+            return ok()
+        if name == "goto":
+            yaw = self._ref_yaw if c.yaw is None else c.yaw
+            self._start_legs(t, [_Leg(np.array(c.p_W), yaw, "goto")], "goto", "hold")
+            return ok()
+        if name == "rtl":
+            if not np.all(np.isfinite(self.home_p_W)):
+                return deny("no home position")
+            p0, _, _, _ = self._ref_at(t)
+            z = max(float(p0[2]), self.home_p_W[2] + p.rtl_altitude)
+            legs = [_Leg(np.array([p0[0], p0[1], z]), self._ref_yaw, "rtl_climb"),
+                    _Leg(np.array([self.home_p_W[0], self.home_p_W[1], z]), self._ref_yaw, "rtl_home")]
+            self._start_legs(t, legs, "rtl", "land")
+            return ok()
+        if name == "flight_mode":
+            mode = FlightMode(c.mode)
+            self._hold(t, f"flight mode {mode.value}")
+            self.flight_mode = self._hold_flight_mode = mode
+            self._status_dirty = True
+            return ok()
+        if name.startswith("offboard_"):
+            self.flight_mode = {"offboard_position": FlightMode.POSITION, "offboard_velocity": FlightMode.VELOCITY,
+                                "offboard_attitude": FlightMode.ATTITUDE}[name]
+            self._legs.clear()
+            self._leg = None
+            self._offboard = (c, t)
+            if c.p_W is not None:
+                self.target_p_W = np.array(c.p_W)
+            if c.yaw is not None:
+                self._ref_yaw = c.yaw
+            self._set_mode("offboard")
+            return ok()
+        return CommandAck(name, "unsupported", f"{name} is not handled")
+
+    def _begin_flight(self, t: float) -> None:
+        s = self.state
+        assert s is not None
+        self.landed = False
+        self._ref = Hold(np.array(s.p_W, float), 0.0, self._ref_yaw, t_start=t)
+        self._status_dirty = True
+
+    def _set_param(self, c: Command) -> CommandAck:
+        assert c.name is not None
+        f = field_of(c.name)
+        if f is not None:
+            try:
+                self.params = dataclasses.replace(self.params, **{f: c.value})
+            except Exception as e:  # noqa: BLE001 - ConfigError, TypeError: the ack names the field
+                return CommandAck("set_param", "denied", str(e))
+            self._event("param", f"{c.name} = {getattr(self.params, f)!r}", name=c.name)
+            return CommandAck("set_param", "accepted", "", {c.name: getattr(self.params, f)})
+        for _, setter in self.param_providers:
+            try:
+                if setter(c.name, c.value):
+                    self._event("param", f"{c.name} = {c.value!r}", name=c.name)
+                    return CommandAck("set_param", "accepted", "", {c.name: c.value})
+            except (TypeError, ValueError) as e:
+                return CommandAck("set_param", "denied", str(e))
+        return CommandAck("set_param", "unsupported", f"unknown parameter {c.name!r}")
+
+    # -- the periodic step -------------------------------------------------------------------------------------
+    def step(self, t: float, bus: BusView) -> None:
+        self.t = t
+        state = bus.latest(self.active_state_topic)
+        if state is not None:
+            self.state = state
+        while self._script and self._script[0][0] <= t:
+            self.apply(self._script.pop(0)[1], t)
+        while self._inbox:
+            cmd, fut = self._inbox.popleft()
+            ack = self.apply(cmd, t)
+            if fut is not None and not fut.done():
+                fut.set_result(ack)
+        if self.state is not None:
+            self._supervise(t, self.state)
+            self._publish_setpoint(t, self.state, bus)
+        if self._status_dirty or t >= self._next_status:
+            self._publish_status(t, bus)
+
+    def update(self, t: float, state: Odometry, bus: BusView) -> None:  # Planner's hook (step does it all)
+        pass
+
+    def _supervise(self, t: float, s: Odometry) -> None:
+        p = self.params
+        if not self.armed:
+            self.landed = self.landed or float(np.linalg.norm(s.v_W)) < 0.2 and s.p_W[2] < 0.1 + (
+                self.home_p_W[2] if np.isfinite(self.home_p_W[2]) else 0.0)
+            return
+        if self.landed:
+            if p.auto_disarm_s > 0 and t - self._armed_since > p.auto_disarm_s and self.mode == "idle":
+                self._disarm(f"no take-off within {p.auto_disarm_s:g} s")
+            return
+        if self._link_lost_at is not None and self.mode == "hold" and t - self._link_lost_at >= p.link_loss_timeout_s:
+            self._link_lost_at = None
+            self._land(t, "link lost")
+        if self.mode == "offboard" and self._offboard is not None and t - self._offboard[1] > p.offboard_timeout_s:
+            self.flight_mode = FlightMode.POSITION
+            self._hold(t, "offboard setpoints stale", from_state=True)
+        leg = self._leg
+        if leg is None or self._ref is None:
+            return
+        if leg.tag == "land":
+            slow = float(np.linalg.norm(s.v_W)) < p.touchdown_speed
+            if t >= self._ref.t_end - 0.5 and slow:
+                if self._touchdown_since is None:
+                    self._touchdown_since = t
+                if t - self._touchdown_since >= p.touchdown_s:
+                    self.landed = True
+                    self._leg = None
+                    self._event("landed", "landed")
+                    self._disarm("landed")
+            else:
+                self._touchdown_since = None
+            return
+        if self._leg_phase == "move":
+            if t >= self._ref.t_end and float(np.linalg.norm(s.p_W - leg.target)) <= p.acceptance_radius:
+                if leg.tag == "item":
+                    self._event("mission_item_reached", f"mission item {leg.seq} reached", seq=leg.seq)
+                    if leg.seq == len(self.mission) - 1 and not any(g.tag == "item" for g in self._legs):
+                        self._event("mission_complete", "mission complete", count=len(self.mission))
+                if leg.hold_s > 0:
+                    self._leg_phase, self._hold_until = "hold", t + leg.hold_s
+                else:
+                    self._next_leg(t)
+        elif t >= self._hold_until:
+            self._next_leg(t)
+
+    def _publish_setpoint(self, t: float, s: Odometry, bus: BusView) -> None:
+        if self.flight_mode is not FlightMode.POSITION or self._published_mode is not self.flight_mode:
+            # re-sent while not in position mode: a controller that was reset (disarmed, switched) picks it up
+            bus.publish(Topics.FLIGHT_MODE, FlightModeCommand(t, self.flight_mode))
+            self._published_mode = self.flight_mode
+        yaw = self._ref_yaw
+        if self.mode == "offboard" and self._offboard is not None:
+            c = self._offboard[0]
+            if c.command == "offboard_attitude":
+                bus.publish(Topics.MANUAL_ATTITUDE_SETPOINT, AttitudeSetpoint(
+                    t, np.array(c.q_WB), math.nan if c.thrust is None else c.thrust))
+                return
+            if c.command == "offboard_velocity":
+                sp = TrajectorySetpoint(t, np.array(s.p_W), np.array(c.v_W), _Z3, _Z3, yaw, 0.0)
+            else:
+                v = _Z3 if c.v_W is None else np.array(c.v_W)
+                sp = TrajectorySetpoint(t, np.array(c.p_W), v, _Z3, _Z3, yaw, 0.0)
+        elif self._hold_flight_mode is FlightMode.ATTITUDE:
+            h = 0.5 * yaw
+            bus.publish(Topics.MANUAL_ATTITUDE_SETPOINT, AttitudeSetpoint(
+                t, np.array([math.cos(h), 0.0, 0.0, math.sin(h)]), math.nan))
+            return
+        elif self._hold_flight_mode is FlightMode.VELOCITY:
+            sp = TrajectorySetpoint(t, np.array(s.p_W), _Z3, _Z3, _Z3, yaw, 0.0)
+        else:
+            pr, vr, ar, jr = self._ref_at(t)
+            if self._ref is None:  # on the ground: stay where the vehicle is
+                pr = np.array(s.p_W)
+            sp = TrajectorySetpoint(t, np.array(pr), np.array(vr), np.array(ar), np.array(jr), yaw, 0.0)
+        self.setpoint = sp
+        bus.publish(Topics.TRAJECTORY_SETPOINT, sp)
+
+    def status(self, t: float | None = None) -> VehicleStatus:
+        target = self.target_p_W if np.all(np.isfinite(self.target_p_W)) else (
+            np.array(self.state.p_W) if self.state is not None else np.full(3, np.nan))
+        return VehicleStatus(self.t if t is None else t, self.armed, self.mode, self.landed, self.flight_mode,
+                             self.controller, self.mission_current, len(self.mission), np.array(self.home_p_W),
+                             np.array(target), self.message)
+
+    def _publish_status(self, t: float, bus: BusView) -> None:
+        bus.publish(Topics.VEHICLE_STATUS, self.status(t))
+        self._status_dirty = False
+        self._next_status = t + 1.0 / self.params.status_hz

@@ -1,0 +1,217 @@
+"""The commander (cufund.missions): commands parsed and validated, the vehicle state machine flown in the lockstep
+simulator, checked against ground truth (positions, rotor speeds), never against the commander's own view."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from cufund.config import ConfigError
+from cufund.missions import CommandAck, Commander, parse_command
+from cufund.scenario import ScenarioConfig
+from cufund.scenario_build import build_simulation, run_scenario
+
+
+def _flight(**planner):
+    """A truth-flown cu_astro on the ground at the origin with the commander as planner (no world: fast)."""
+    cfg = ScenarioConfig.from_dict({"name": "cmd", "vehicle": "cu_astro", "planner": {"kind": "commander", **planner},
+                                    "controller": "pid", "start_p_W": [0.0, 0.0, 0.0], "duration": 120.0})
+    built = build_simulation(cfg)
+    sim = built.simulator
+    sim.reset()
+    cmd = next(c for c in sim.components if isinstance(c, Commander))
+    return sim, cmd
+
+
+def _p(sim) -> np.ndarray:
+    return np.array(sim.vehicle.state.p)
+
+
+def _rotors(sim) -> np.ndarray:
+    return np.array(sim.vehicle.state.rotor_speeds)
+
+
+def _airborne(sim, cmd, alt=1.5):
+    sim.advance_to(0.2)
+    assert cmd.apply("arm").result == "accepted"
+    assert cmd.apply({"command": "takeoff", "altitude": alt}).result == "accepted"
+    sim.advance_to(sim.t + 5.0)
+
+
+# -- parsing --------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("bad, field", [
+    ({"command": "fly"}, "command"), ({}, "command"), (3, "dict"),
+    ({"command": "takeoff", "altitude": -1}, "altitude"), ({"command": "takeoff", "altitude": "high"}, "altitude"),
+    ({"command": "goto"}, "p_W"), ({"command": "goto", "p_W": [1, 2]}, "p_W"),
+    ({"command": "goto", "p_W": [1, 2, float("nan")]}, "p_W"), ({"command": "goto", "p_W": [0, 0, 1], "yaw": "n"}, "yaw"),
+    ({"command": "mission_upload", "items": [[0, 0, 1], [1, 1]]}, "items[1]"),
+    ({"command": "mission_upload", "items": "abc"}, "items"),
+    ({"command": "flight_mode", "mode": "acro"}, "mode"), ({"command": "controller", "kind": "mpc"}, "kind"),
+    ({"command": "offboard_attitude", "q_WB": [0, 0, 0, 0]}, "q_WB"),
+    ({"command": "offboard_velocity"}, "v_W"), ({"command": "arm", "altitude": 3}, "altitude"),
+    ({"command": "disarm", "force": "yes"}, "force"), ({"command": "set_param", "value": 1}, "name"),
+])
+def test_bad_commands_name_the_field(bad, field):
+    with pytest.raises(ValueError, match=field.replace("[", r"\[").replace("]", r"\]")):
+        parse_command(bad)
+
+
+def test_commands_parse_into_typed_fields():
+    c = parse_command({"command": "mission_upload", "items": [[0, 0, 1], {"p_W": [1, 0, 1], "yaw": 0.5, "hold_s": 2},
+                                                              [2, 0, 1, 1.0]]})
+    assert [it.p_W for it in c.items] == [(0, 0, 1), (1, 0, 1), (2, 0, 1)]
+    assert c.items[1].yaw == 0.5 and c.items[1].hold_s == 2.0 and c.items[2].yaw == 1.0
+    q = parse_command({"command": "offboard_attitude", "q_WB": [2, 0, 0, 0], "thrust": 3}).q_WB
+    assert q == (1.0, 0.0, 0.0, 0.0)
+    assert parse_command("arm").command == "arm"
+    with pytest.raises(ValueError, match="result"):
+        CommandAck("arm", "maybe")
+
+
+def test_script_errors_name_the_entry():
+    with pytest.raises(ConfigError, match=r"planner.script\[1\].*altitude"):
+        _flight(script=[[0.5, {"command": "arm"}], [1.0, {"command": "takeoff", "altitude": -2}]])
+
+
+# -- flying ---------------------------------------------------------------------------------------------------
+def test_disarmed_rotors_stop_and_takeoff_is_denied():
+    sim, cmd = _flight()
+    sim.advance_to(1.0)
+    assert np.all(_rotors(sim) == 0.0) and abs(_p(sim)[2]) < 1e-6
+    ack = cmd.apply({"command": "takeoff"})
+    assert ack.result == "denied" and "arm" in ack.message
+    assert cmd.events.of_kind("denied")
+    sim.advance_to(2.0)
+    assert abs(_p(sim)[2]) < 1e-6 and np.all(_rotors(sim) == 0.0)
+
+
+def test_takeoff_goto_mission_land():
+    sim, cmd = _flight()
+    _airborne(sim, cmd, 1.5)
+    assert abs(_p(sim)[2] - 1.5) < 0.05 and np.linalg.norm(_p(sim)[:2]) < 0.05
+    assert cmd.apply("arm").message == "already armed"  # arming in flight: a no-op
+    assert cmd.apply("disarm").result == "denied"  # in flight, not forced
+    assert cmd.apply({"command": "goto", "p_W": [1.5, -1.0, 2.0]}).result == "accepted"
+    sim.advance_to(sim.t + 5.0)
+    assert np.linalg.norm(_p(sim) - [1.5, -1.0, 2.0]) < 0.1 and cmd.mode == "hold"
+    items = [[1.5, 1.0, 1.5], [0.0, 1.0, 1.0], [0.0, 0.0, 1.5]]
+    assert cmd.apply({"command": "mission_upload", "items": items}).result == "accepted"
+    assert cmd.apply("mission_start").result == "accepted"
+    t0 = sim.t
+    sim.advance_to(t0 + 12.0)
+    reached = cmd.events.of_kind("mission_item_reached")
+    assert [e["seq"] for e in reached] == [0, 1, 2]
+    assert cmd.events.of_kind("mission_complete") and cmd.mode == "hold"
+    # truth passes each item, in order
+    st = sim.result().states
+    m = st["t"] >= t0
+    d = [np.linalg.norm(st["p_W"][m] - it, axis=1) for it in items]
+    first = [int(np.argmax(di < 0.15)) for di in d]
+    assert all(di.min() < 0.15 for di in d) and first == sorted(first)
+    assert cmd.apply("land").result == "accepted"
+    sim.advance_to(sim.t + 6.0)
+    assert not cmd.armed and cmd.mode == "idle" and cmd.events.of_kind("landed")
+    assert _p(sim)[2] < 0.02 and np.all(_rotors(sim) < 1e-3)  # commanded zero, motor lag decayed
+    assert np.linalg.norm(_p(sim)[:2]) < 0.1
+
+
+def test_rtl_climbs_returns_and_lands_at_home():
+    sim, cmd = _flight(rtl_altitude=2.5)
+    _airborne(sim, cmd, 1.0)
+    cmd.apply({"command": "goto", "p_W": [2.0, 0.0, 1.0]})
+    sim.advance_to(sim.t + 4.0)
+    t0 = sim.t
+    assert cmd.apply("rtl").result == "accepted"
+    sim.advance_to(sim.t + 14.0)
+    st = sim.result().states
+    m = st["t"] >= t0
+    assert st["p_W"][m][:, 2].max() > 2.4  # climbed to the return height first
+    assert not cmd.armed and _p(sim)[2] < 0.02 and np.linalg.norm(_p(sim)[:2]) < 0.1
+
+
+def test_offboard_stale_setpoints_hold():
+    sim, cmd = _flight()
+    _airborne(sim, cmd, 1.5)
+    for k in range(50):  # 1 s of setpoints at 50 Hz towards x = 1
+        cmd.apply({"command": "offboard_position", "p_W": [1.0, 0.0, 1.5]}, sim.t)
+        sim.advance_to(sim.t + 0.02)
+    assert cmd.mode == "offboard"
+    sim.advance_to(sim.t + 0.4)
+    assert cmd.mode == "offboard"
+    sim.advance_to(sim.t + 0.3)  # > 0.5 s without a setpoint
+    assert cmd.mode == "hold" and "stale" in cmd.events.of_kind("mode")[-1]["message"]
+    p_hold = _p(sim)
+    sim.advance_to(sim.t + 3.0)
+    assert np.linalg.norm(_p(sim) - p_hold) < 0.3 and np.linalg.norm(sim.vehicle.state.v) < 0.05
+
+
+def test_offboard_velocity_flies_the_velocity():
+    sim, cmd = _flight()
+    _airborne(sim, cmd, 1.5)
+    for k in range(150):
+        cmd.apply({"command": "offboard_velocity", "v_W": [0.5, 0.0, 0.0]}, sim.t)
+        sim.advance_to(sim.t + 0.02)
+    v = np.array(sim.vehicle.state.v)
+    assert abs(v[0] - 0.5) < 0.1 and abs(v[1]) < 0.05 and abs(v[2]) < 0.05  # the velocity PID's overshoot
+
+
+def test_live_controller_switch_without_a_jump():
+    sim, cmd = _flight()
+    _airborne(sim, cmd, 1.5)
+    t0 = sim.t
+    assert cmd.apply({"command": "controller", "kind": "geometric"}).result == "accepted"
+    sim.advance_to(sim.t + 3.0)
+    assert cmd.apply({"command": "controller", "kind": "pid"}).result == "accepted"
+    sim.advance_to(sim.t + 3.0)
+    st = sim.result().states
+    m = st["t"] >= t0
+    assert np.max(np.linalg.norm(st["p_W"][m] - [0.0, 0.0, 1.5], axis=1)) < 0.05
+
+
+def test_link_loss_holds_then_lands():
+    sim, cmd = _flight(link_loss_timeout_s=1.0)
+    _airborne(sim, cmd, 1.5)
+    cmd.apply({"command": "goto", "p_W": [3.0, 0.0, 1.5]})
+    sim.advance_to(sim.t + 0.5)
+    cmd.link_lost()
+    sim.advance_to(sim.t + 0.1)
+    assert cmd.mode == "hold"
+    sim.advance_to(sim.t + 8.0)
+    assert not cmd.armed and _p(sim)[2] < 0.02 and _p(sim)[0] < 2.0  # never reached the go-to target
+
+
+def test_forced_disarm_in_flight_stops_the_rotors():
+    sim, cmd = _flight()
+    _airborne(sim, cmd, 0.3)
+    assert cmd.apply({"command": "disarm", "force": True}).result == "accepted"
+    w_hover = _rotors(sim).min()
+    sim.advance_to(sim.t + 0.01)
+    from cufund.messages import Topics
+
+    assert np.all(sim.bus.latest(Topics.ACTUATOR_COMMAND).rotor_speeds == 0.0)
+    sim.advance_to(sim.t + 0.1)
+    assert np.all(_rotors(sim) < 0.2 * w_hover)  # spinning down (motor lag)
+
+
+def test_params_by_px4_name():
+    sim, cmd = _flight()
+    assert cmd.apply({"command": "get_params"}).data["MIS_TAKEOFF_ALT"] == 1.5
+    assert cmd.apply({"command": "set_param", "name": "MIS_TAKEOFF_ALT", "value": 1.0}).result == "accepted"
+    assert cmd.apply({"command": "set_param", "name": "MPC_XY_CRUISE", "value": -1}).result == "denied"
+    assert cmd.apply({"command": "set_param", "name": "NOPE", "value": 1}).result == "unsupported"
+    sim.advance_to(0.2)
+    cmd.apply("arm")
+    cmd.apply("takeoff")
+    sim.advance_to(sim.t + 5.0)
+    assert abs(_p(sim)[2] - 1.0) < 0.05
+
+
+def test_scripted_scenario_runs_to_the_end():
+    cfg = ScenarioConfig.from_dict({
+        "name": "scripted", "planner": {"kind": "commander", "script": [
+            [0.2, {"command": "arm"}], [0.5, {"command": "takeoff", "altitude": 1.0}],
+            [4.0, {"command": "goto", "p_W": [1.0, 0.0, 1.0]}], [7.0, {"command": "land"}]]},
+        "start_p_W": [0.0, 0.0, 0.0], "duration": 30.0})
+    run = run_scenario(cfg)
+    assert run.result.status.value == "completed" and run.result.sim_time_s < 20.0
+    p_end = run.result.states["p_W"][-1]
+    assert p_end[2] < 0.02 and abs(p_end[0] - 1.0) < 0.1
