@@ -330,3 +330,36 @@ def test_pd_hover_loop_closed_through_the_bridge():
     tilt = np.degrees(np.arccos(np.clip(1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2), -1, 1)))
     assert tilt.max() < 3.0
     assert np.abs(states["p_W"][last, :2]).max() < 0.3
+
+
+def test_cli_serves_sitl_on_4560_plus_instance(capsys):
+    import socket
+
+    from cufund.cli import main
+
+    with socket.socket() as probe:  # a free port above 4560 stands for the instance number
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    code: dict = {}
+    thread = threading.Thread(target=lambda: code.setdefault("exit", main(
+        ["px4-sim", "square_sensors", "--instance", str(port - 4560), "--speed", "max", "--duration", "0.2",
+         "--set", "vehicle=iris", "--connect-timeout", "20"])), daemon=True)
+    thread.start()
+    px4 = Px4Harness.tcp("127.0.0.1", port, timeout=20.0)
+    try:
+        px4.heartbeat()
+        stamps = []
+        while True:
+            try:
+                s = px4.step(timeout=10.0)
+            except ConnectionError:
+                break
+            stamps.append(s.sensor.time_usec)
+            px4.controls([0.0] * 4, armed=False, time_usec=s.sensor.time_usec)
+    finally:
+        px4.close()
+        thread.join(20.0)
+    assert code["exit"] == 0
+    assert stamps == list(range(0, 200_000, STEP_US))
+    out = capsys.readouterr().out
+    assert f"tcp://127.0.0.1:{port} (SITL, lockstep)" in out and "status: completed (duration elapsed)" in out

@@ -1,0 +1,133 @@
+"""HITL: the same HIL messages over a serial port (pyserial), lockstep off, checked over a pseudo-terminal pair
+(``os.openpty``): the bridge opens the slave as its serial port, a PX4-side harness talks on the master."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+from cufund.mavlink.px4_harness import Px4Harness
+from cufund.mavlink.px4_links import SerialLink
+from cufund.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
+from cufund.presets import iris
+from cufund.scenario import ScenarioConfig
+
+U_HOVER = (iris().hover_rotor_speed - 100.0) / 1000.0
+IDEAL = {"imu": "ideal_imu", "magnetometer": "magnetometer", "barometer": "ideal_barometer", "gps": "ideal_gps"}
+
+
+@contextmanager
+def _pty():
+    master, slave = os.openpty()
+    try:
+        yield master, os.ttyname(slave)
+    finally:
+        os.close(slave)
+        os.close(master)
+
+
+@contextmanager
+def _hitl(duration, hover_at=None, speed=4.0):
+    with _pty() as (master, device):
+        cfg = ScenarioConfig.from_dict({"name": "hitl", "vehicle": "iris", "seed": 2, "sensors": IDEAL})
+        bridge = Px4SimulatorBridge(cfg, SerialLink(device, 921600), Px4BridgeParams(lockstep=False, speed=speed))
+        if hover_at is not None:
+            bridge.simulator.vehicle.hover(np.asarray(hover_at, dtype=float))
+        outcome: dict = {}
+
+        def run():
+            try:
+                outcome["result"] = bridge.run(duration=duration)
+            except BaseException as e:  # noqa: BLE001 - surfaced in the test thread
+                outcome["error"] = e
+
+        thread = threading.Thread(target=run, daemon=True)
+        thread.start()
+        px4 = Px4Harness.fd(master)
+        try:
+            yield bridge, px4, outcome, thread
+        finally:
+            while thread.is_alive():  # keep the line drained so the bridge never blocks on a full pty
+                px4.poll(0.05)
+            thread.join(10.0)
+            bridge.close()
+            if "error" in outcome:
+                raise outcome["error"]
+
+
+def test_hitl_streams_without_waiting_for_controls():
+    with _hitl(duration=0.6) as (bridge, px4, outcome, _):
+        steps = [px4.step(timeout=5.0) for _ in range(100)]  # nobody answers: lockstep is off
+        stamps = [s.sensor.time_usec for s in steps]
+        assert stamps == list(range(0, 400_000, 4000))
+        assert sum(len(s.gps) for s in steps) == 2  # 5 Hz: at 0 and 0.2 s
+        np.testing.assert_allclose(np.mean([s.sensor.zacc for s in steps]), -9.80665, atol=0.01)
+        assert all(s.sensor.fields_updated & 0x3F == 0x3F for s in steps)
+    assert outcome["result"].message == "duration elapsed"
+    assert bridge.stats["controls"] == 0 and bridge.stats["controls_timeouts"] == 0
+
+
+def test_hitl_controls_take_effect_and_go_stale():
+    with _hitl(duration=1.6, hover_at=(0.0, 0.0, 10.0)) as (bridge, px4, outcome, _):
+        px4.request_state(0)
+        for k in range(250):  # 1 s: answer every 5th period only, with more than hover thrust
+            s = px4.step(timeout=5.0)
+            if k % 5 == 0:
+                px4.controls([U_HOVER + 0.1] * 4, armed=True, time_usec=s.sensor.time_usec)
+        bad = bytearray(px4.mav.hil_actuator_controls_encode(0, [1.0] * 16, 129, 1).pack(px4.mav))
+        bad[-2] ^= 0x5A  # a frame hit by line noise: bad CRC, never applied
+        px4._write(b"\x00line noise" + bytes(bad))
+        for _ in range(100):  # 0.4 s with no controls: stale after 0.2 s -> motors stop
+            last = px4.step(timeout=5.0)
+    states = outcome["result"].states
+    t, z, vz = states["t"], states["p_W"][:, 2], states["v_W"][:, 2]
+    assert z[np.searchsorted(t, 1.0)] > 10.5  # climbed on controls that arrived between sensor periods
+    assert vz[-1] < -0.5 and vz[-1] < vz[np.searchsorted(t, 1.0)] - 3.0  # stale controls: motors stopped, falling
+    assert bridge.stats["bad_packets"] >= 1 and 40 <= bridge.stats["controls"] <= 50
+    st = last.state[-1]  # HIL_STATE_QUATERNION over serial too: NED vz [cm/s] is minus the truth's up speed
+    assert st.vz == pytest.approx(-100 * vz[np.searchsorted(t, st.time_usec * 1e-6)], abs=2)
+
+
+def test_cli_hitl_on_a_pty():
+    with _pty() as (master, device):
+        proc = subprocess.Popen([sys.executable, "-m", "cufund.cli", "px4-sim", "square_sensors", "--hitl", device,
+                                 "--speed", "5", "--duration", "0.4", "--set", "vehicle=iris"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            px4 = Px4Harness.fd(master)
+            sensors = []
+            while proc.poll() is None:
+                sensors += [m for m in px4.poll(0.05) if m.get_type() == "HIL_SENSOR"]
+            sensors += [m for m in px4.poll(0.2) if m.get_type() == "HIL_SENSOR"]
+            out, err = proc.communicate(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    assert proc.returncode == 0, err
+    assert "HITL, lockstep off" in out and "status: completed (duration elapsed)" in out
+    assert len(sensors) >= 90 and sensors[0].time_usec == 0
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--speed=-2"], "--speed must be"),
+    (["--hitl", "/nonexistent/tty"], "cannot open serial port /nonexistent/tty"),
+    (["--set", "vehicle=nope"], "vehicle"),
+    (["--duration", "0"], "--duration must be"),
+])
+def test_cli_rejects_bad_usage(argv, message, capsys):
+    from cufund.cli import main
+
+    assert main(["px4-sim", "square_sensors", *argv]) == 2
+    assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kwargs, match", [({"device": ""}, "device must be"), ({"baud": 0}, "baud must be")])
+def test_serial_link_validates(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        SerialLink(**{"device": "/dev/null", "baud": 9600, **kwargs})
