@@ -73,7 +73,8 @@ def test_hitl_streams_without_waiting_for_controls():
 
 
 def test_hitl_controls_take_effect_and_go_stale():
-    with _hitl(duration=1.6, hover_at=(0.0, 0.0, 10.0)) as (bridge, px4, outcome, _):
+    # real time, as HITL runs: the answers may lag the stream by up to stale_controls_s (0.2 s) of wall time
+    with _hitl(duration=1.6, hover_at=(0.0, 0.0, 10.0), speed=1.0) as (bridge, px4, outcome, _):
         px4.request_state(0)
         for k in range(250):  # 1 s: answer every 5th period only, with more than hover thrust
             s = px4.step(timeout=5.0)
