@@ -216,7 +216,11 @@ def _vertical_plane(xy: np.ndarray, threshold: float, iterations: int, rng: np.r
     normals = np.stack([-d_ij[ok, 1], d_ij[ok, 0]], axis=1) / length[ok, None]
     offsets = np.einsum("kj,kj->k", normals, xy[i[ok]])
     inliers = np.abs(xy @ normals.T - offsets) < threshold  # (N, K)
-    best = int(np.argmax(inliers.sum(axis=0)))
+    # Score: the length of line the inliers cover (distinct bins along it), then their count. Vertical bars
+    # project to a spot each, so counts alone would favour a line through two posts or a post and a box.
+    along = np.floor((xy @ np.stack([normals[:, 1], -normals[:, 0]])) / threshold).astype(np.int64)
+    scores = [(len(np.unique(along[inliers[:, k], k])), int(inliers[:, k].sum())) for k in range(len(normals))]
+    best = max(range(len(scores)), key=lambda k: (scores[k], -k))
     mask = inliers[:, best]
     for _ in range(2):  # PCA on the inliers, then the inliers of that line
         sel = xy[mask]
@@ -248,6 +252,10 @@ def _measure(cluster: np.ndarray, cloud: np.ndarray, views: np.ndarray | None, p
     n = np.array([n2[0], n2[1], 0.0])
     u_axis = np.array([-n2[1], n2[0], 0.0])
     depth_c = cluster @ n - d
+    on_plane = np.abs(depth_c) < p.slab  # an object just before the frame may have joined its cluster
+    if on_plane.sum() < 0.5 * len(cluster):
+        return None
+    cluster, depth_c = cluster[on_plane], depth_c[on_plane]
     lo, hi = np.percentile(depth_c, [10, 90])
     if hi - lo > p.max_thickness:
         return None
