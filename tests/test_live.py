@@ -100,3 +100,17 @@ def test_crash_ends_the_run_cleanly_with_an_event():
         assert not run.running
         late = run.submit({"command": "arm"}).result(timeout=1)
         assert late.result == "failed"
+
+
+def test_controller_gains_by_px4_name_in_flight():
+    with LiveRun(FAST, speed=math.inf) as run:
+        params = run.submit({"command": "get_params"}).result(timeout=10).data
+        assert params["MPC_XY_P"] == 0.95 and abs(params["MPC_TILTMAX_AIR"] - 45.0) < 1e-9
+        assert params["GEO_K_X"] > 0 and params["MIS_TAKEOFF_ALT"] == 1.5
+        ack = run.submit({"command": "set_param", "name": "MPC_TILTMAX_AIR", "value": 30.0}).result(timeout=10)
+        assert ack.result == "accepted"
+        pos = next(c for c in run.simulator.components if type(c).__name__ == "PositionController")
+        assert abs(pos.gains.tilt_max - math.radians(30.0)) < 1e-12
+        bad = run.submit({"command": "set_param", "name": "MPC_TILTMAX_AIR", "value": 120.0}).result(timeout=10)
+        assert bad.result == "denied" and "tilt_max" in bad.message
+        assert abs(pos.gains.tilt_max - math.radians(30.0)) < 1e-12

@@ -28,6 +28,7 @@ from .components import Component
 from .messages import Topics
 from .missions.commander import Commander
 from .missions.commands import CommandAck, parse_command
+from .missions.controller_params import controller_param_provider
 from .missions.events import EventLog
 from .scenario import ScenarioConfig, load_scenario
 from .scenario_build import build_simulation
@@ -105,6 +106,8 @@ class LiveRun:
         found = [c for c in sim.components if isinstance(c, Commander)]
         self.commander: Commander | None = found[0] if found else None
         self.events: EventLog = self.commander.events if self.commander is not None else EventLog()
+        if self.commander is not None:  # the controllers' gains by PX4 name, through get_params / set_param
+            self.commander.param_providers.append(controller_param_provider(sim.components))
         self._errors: dict[str, int] = {}
         for c in sim.components:
             self._guard(c)

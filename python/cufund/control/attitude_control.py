@@ -50,9 +50,12 @@ class AttitudeController(Controller):
     writes = (Topics.RATE_SETPOINT,)
 
     def __init__(self, gains: AttitudeControlParams | None = None, rate_hz: float = 250.0) -> None:
-        self.gains = gains or AttitudeControlParams()
+        self.set_gains(gains or AttitudeControlParams())
         self.rate_hz = rate_hz
-        g = self.gains
+
+    def set_gains(self, gains: AttitudeControlParams) -> None:
+        """Replaces the gains, also in flight; the controller's state is kept."""
+        self.gains = g = gains
         rp = 0.5 * (g.roll_p + g.pitch_p)
         self.yaw_weight = min(max(g.yaw_p / rp, 0.0), 1.0)
         self._k = np.array([g.roll_p, g.pitch_p, rp])

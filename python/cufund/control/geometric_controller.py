@@ -71,16 +71,19 @@ class GeometricController(Controller):
         self.params = params
         self.gyro = GyroInput(q_BI, gyro_cutoff_hz)
         self.use_gyro = False
-        self.gains = gains or GeometricControlParams()
+        self.set_gains(gains or GeometricControlParams())
         self.rate_hz = rate_hz
         self.refs = ModeReferences(mode)
         self.transfer = BumplessTransfer()
         self.allocator = ControlAllocator(params)
-        g = self.gains
         self._J = params.inertia_matrix
+        self.last: AttitudeSetpoint | None = None
+
+    def set_gains(self, gains: GeometricControlParams) -> None:
+        """Replaces the gains, also in flight; the controller's state is kept."""
+        self.gains = g = gains
         self._kR = np.array([g.k_R, g.k_R, g.k_R_yaw])
         self._kW = np.array([g.k_W, g.k_W, g.k_W_yaw])
-        self.last: AttitudeSetpoint | None = None
 
     def use_estimator(self, attached: bool) -> None:
         self.use_gyro = attached

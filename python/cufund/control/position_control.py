@@ -83,18 +83,22 @@ class PositionController(Controller):
     def __init__(self, params: QuadrotorParams, gains: PositionControlParams | None = None, rate_hz: float = 250.0,
                  mode: FlightMode = FlightMode.POSITION, max_thrust: float | None = None) -> None:
         self.params = params
-        self.gains = gains or PositionControlParams()
+        self.set_gains(gains or PositionControlParams())
         self.rate_hz = rate_hz
         self.refs = ModeReferences(mode)
         self.transfer = BumplessTransfer()
         self.max_thrust = max_thrust if max_thrust is not None else 4.0 * params.k_f * params.rotor_speed_max ** 2
-        g = self.gains
+        self._acc = LowPassDerivative(self.gains.vel_d_cutoff_hz)
+        self.reset()
+
+    def set_gains(self, gains: PositionControlParams) -> None:
+        """Replaces the gains, also in flight; the controller's state is kept (a filter cutoff keeps the value it
+        was built with)."""
+        self.gains = g = gains
         self._kp = np.array([g.xy_p, g.xy_p, g.z_p])
         self._kv = np.array([g.xy_vel_p, g.xy_vel_p, g.z_vel_p])
         self._ki = np.array([g.xy_vel_i, g.xy_vel_i, g.z_vel_i])
         self._kd = np.array([g.xy_vel_d, g.xy_vel_d, g.z_vel_d])
-        self._acc = LowPassDerivative(g.vel_d_cutoff_hz)
-        self.reset()
 
     def reset(self) -> None:
         self.refs.reset()

@@ -81,16 +81,20 @@ class RateController(Controller):
         self.gyro = GyroInput(q_BI, gyro_cutoff_hz)
         self.use_gyro = False
         """True when the body rate comes from the IMU (set by the simulator: an estimator is attached)."""
-        self.gains = gains or RateControlParams()
+        self.set_gains(gains or RateControlParams())
         self.rate_hz = rate_hz
         self.allocator = ControlAllocator(params)
-        g = self.gains
+        self._J = params.inertia_matrix
+        self._dw = LowPassDerivative(self.gains.d_cutoff_hz)
+        self.reset()
+
+    def set_gains(self, gains: RateControlParams) -> None:
+        """Replaces the gains, also in flight; the controller's state is kept (a filter cutoff keeps the value it
+        was built with)."""
+        self.gains = g = gains
         self._kp = np.array([g.roll_p, g.pitch_p, g.yaw_p])
         self._ki = np.array([g.roll_i, g.pitch_i, g.yaw_i])
         self._kd = np.array([g.roll_d, g.pitch_d, g.yaw_d])
-        self._J = params.inertia_matrix
-        self._dw = LowPassDerivative(g.d_cutoff_hz)
-        self.reset()
 
     def use_estimator(self, attached: bool) -> None:
         self.use_gyro = attached
