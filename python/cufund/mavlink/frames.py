@@ -42,6 +42,8 @@ __all__ = [
     "q_ned_frd_to_enu_flu",
     "rates_flu_to_frd",
     "rates_frd_to_flu",
+    "yaw_enu_to_ned",
+    "yaw_ned_to_enu",
 ]
 
 STANDARD_GRAVITY = 9.80665  #: g0 [m/s^2] (MAVLink's milli-g unit)
@@ -117,6 +119,18 @@ def q_ned_frd_to_enu_flu(q_NED_FRD: np.ndarray) -> np.ndarray:
     q = _quat(q_NED_FRD, "q_NED_FRD")
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return _SQRT_HALF * np.stack([w + z, x + y, x - y, w - z], -1)
+
+
+def yaw_enu_to_ned(yaw_ENU: np.ndarray) -> float | np.ndarray:
+    """Heading [rad] of a body x axis: cufund's yaw (from east, counter-clockwise) -> NED yaw (from north,
+    clockwise), wrapped to [-pi, pi)."""
+    out = (np.pi / 2 - np.asarray(yaw_ENU, dtype=float) + np.pi) % (2 * np.pi) - np.pi
+    return float(out) if out.ndim == 0 else out
+
+
+def yaw_ned_to_enu(yaw_NED: np.ndarray) -> float | np.ndarray:
+    """NED yaw [rad] -> cufund yaw, wrapped to [-pi, pi) (the same reflection: its own inverse)."""
+    return yaw_enu_to_ned(yaw_NED)
 
 
 @dataclass(frozen=True)

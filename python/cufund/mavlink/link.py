@@ -1,0 +1,143 @@
+"""A MAVLink 2 link over UDP: ``udpout:HOST:PORT`` (send to a listening client) or ``udpin:HOST:PORT`` (listen).
+
+One non-blocking socket and one pymavlink codec per link. Parsing never raises: malformed bytes, bad CRCs and
+unknown message ids are counted in :attr:`UdpLink.stats` and dropped. Sockets bind 127.0.0.1 unless the URL names
+another address (a ``udpout`` to a non-loopback host binds the wildcard, the only way to reach it).
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import socket
+from dataclasses import dataclass, field
+
+from pymavlink.dialects.v20 import common as mavlink
+
+_MAX_DATAGRAM = 65535
+
+
+@dataclass(frozen=True)
+class LinkAddress:
+    """A parsed link URL."""
+
+    mode: str
+    """'udpout' (we send first, to host:port) or 'udpin' (we bind host:port and answer whoever writes)."""
+    host: str
+    port: int
+
+    @staticmethod
+    def parse(url: str, name: str = "link") -> LinkAddress:
+        """``udpout:HOST:PORT``, ``udpin:HOST:PORT`` or ``udpin:PORT`` (binds 127.0.0.1); ``udp:`` is ``udpin:``."""
+        if not isinstance(url, str):
+            raise TypeError(f"{name} must be a string like 'udpout:127.0.0.1:14550', got {type(url).__name__}")
+        parts = url.split(":")
+        mode = parts[0].lower()
+        if mode == "udp":
+            mode = "udpin"
+        if mode not in ("udpout", "udpin") or len(parts) not in (2, 3):
+            raise ValueError(f"{name} must be 'udpout:HOST:PORT' or 'udpin:[HOST:]PORT', got {url!r}")
+        host = parts[1] if len(parts) == 3 else "127.0.0.1"
+        try:
+            port = int(parts[-1])
+        except ValueError:
+            raise ValueError(f"{name}: the port must be an integer, got {parts[-1]!r} in {url!r}") from None
+        if not 0 <= port <= 65535 or (mode == "udpout" and port == 0):
+            raise ValueError(f"{name}: port out of range in {url!r}")
+        if mode == "udpout" and not host:
+            raise ValueError(f"{name}: udpout needs a host, got {url!r}")
+        return LinkAddress(mode, host or "127.0.0.1", port)
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+@dataclass
+class LinkStats:
+    """Counters of one link (read by tests and the endpoint's summary)."""
+
+    received: int = 0
+    sent: int = 0
+    bad_data: int = 0
+    """Datagrams or frames dropped: bad CRC, unknown id, truncated, garbage."""
+    send_errors: int = 0
+    by_type: dict[str, int] = field(default_factory=dict)
+
+
+class UdpLink:
+    """One MAVLink 2 UDP link. ``recv()`` returns the messages that arrived; ``send(msg)`` packs with our ids."""
+
+    def __init__(self, url: str, system_id: int = 1, component_id: int = 1, name: str = "link") -> None:
+        self.name = name
+        self.address = LinkAddress.parse(url, name)
+        self.mav = mavlink.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
+        self.mav.robust_parsing = True
+        self.stats = LinkStats()
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        a = self.address
+        if a.mode == "udpin":
+            self.sock.bind((a.host, a.port))
+            self.peer: tuple[str, int] | None = None
+        else:
+            self.sock.bind(("127.0.0.1" if _is_loopback(a.host) else "", 0))
+            self.peer = (socket.gethostbyname(a.host), a.port)
+        self.sock.setblocking(False)
+
+    @property
+    def local_address(self) -> tuple[str, int]:
+        return self.sock.getsockname()
+
+    def fileno(self) -> int:
+        return self.sock.fileno()
+
+    def recv(self, max_datagrams: int = 256) -> list:
+        """Every message in the datagrams waiting (at most ``max_datagrams``), malformed ones dropped."""
+        out = []
+        for _ in range(max_datagrams):
+            try:
+                data, addr = self.sock.recvfrom(_MAX_DATAGRAM)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:  # ICMP port unreachable from a vanished udpout peer, and the like
+                self.stats.send_errors += 1
+                continue
+            if self.address.mode == "udpin":
+                self.peer = addr
+            try:
+                msgs = self.mav.parse_buffer(data) or []
+            except Exception:  # noqa: BLE001 - pymavlink raises a variety of errors on garbage
+                self.stats.bad_data += 1
+                self.mav.buf = bytearray()
+                self.mav.buf_index = 0
+                continue
+            for m in msgs:
+                kind = m.get_type()
+                if kind == "BAD_DATA" or m.get_msgId() < 0:
+                    self.stats.bad_data += 1
+                    continue
+                self.stats.received += 1
+                self.stats.by_type[kind] = self.stats.by_type.get(kind, 0) + 1
+                out.append(m)
+        return out
+
+    def send(self, msg) -> bool:
+        """Pack ``msg`` (a pymavlink message) with this link's sequence and ids and send it to the peer."""
+        if self.peer is None:
+            return False
+        try:
+            self.sock.sendto(msg.pack(self.mav), self.peer)
+        except OSError:
+            self.stats.send_errors += 1
+            return False
+        self.mav.seq = (self.mav.seq + 1) % 256
+        self.stats.sent += 1
+        return True
+
+    def close(self) -> None:
+        self.sock.close()
