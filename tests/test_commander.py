@@ -215,3 +215,31 @@ def test_scripted_scenario_runs_to_the_end():
     assert run.result.status.value == "completed" and run.result.sim_time_s < 20.0
     p_end = run.result.states["p_W"][-1]
     assert p_end[2] < 0.02 and abs(p_end[0] - 1.0) < 0.1
+
+
+def test_flight_mode_switches_in_hover_without_a_jump():
+    sim, cmd = _flight()
+    _airborne(sim, cmd, 1.5)
+    t0 = sim.t
+    for mode in ("velocity", "attitude", "position"):
+        assert cmd.apply({"command": "flight_mode", "mode": mode}).result == "accepted"
+        sim.advance_to(sim.t + 1.5)
+        assert cmd.flight_mode.value == mode and cmd.mode == "hold"
+    st = sim.result().states
+    m = st["t"] >= t0
+    assert np.max(np.linalg.norm(st["p_W"][m] - [0.0, 0.0, 1.5], axis=1)) < 0.02
+    assert np.max(np.linalg.norm(st["v_W"][m], axis=1)) < 0.05
+
+
+def test_retargeting_in_motion_keeps_the_reference_smooth():
+    sim, cmd = _flight()
+    _airborne(sim, cmd, 1.5)
+    cmd.apply({"command": "goto", "p_W": [3.0, 0.0, 1.5]})
+    sim.advance_to(sim.t + 1.5)  # moving at speed
+    sp = cmd.setpoint
+    assert np.linalg.norm(sp.v_W) > 0.5
+    cmd.apply({"command": "goto", "p_W": [0.0, 2.0, 1.5]}, sim.t)
+    sim.advance_to(sim.t + 0.005)
+    assert np.linalg.norm(cmd.setpoint.v_W - sp.v_W) < 0.05  # no velocity step in the reference
+    sim.advance_to(sim.t + 8.0)
+    assert np.linalg.norm(_p(sim) - [0.0, 2.0, 1.5]) < 0.1

@@ -62,6 +62,8 @@ def test_vehicle_scenario_flies_from_commands_submitted_by_other_threads():
         assert tel["estimator"]["ok"] and tel["odometry_error_m"] < 0.05 and 0 < tel["thrust_margin"] < 1
         assert [e["kind"] for e in tel["events"]][:2] == ["armed", "mode"]
         assert run.latest("/sensors/imu") is not None
+        reads = run.simulator.views["commander"].reads
+        assert "/estimator/odometry" in reads and not any(r.startswith("/truth/") for r in reads)
         seen: list = []
         remove = run.add_listener(seen.append, rate_hz=20)
         assert run.submit({"command": "land"}).result(timeout=10).ok

@@ -13,6 +13,7 @@ an event). A crash or collision ends the run with a ``crash`` event.
 
 from __future__ import annotations
 
+import collections
 import math
 import threading
 import time
@@ -121,6 +122,7 @@ class LiveRun:
         """Why the run ended (None while it runs)."""
         self._thread: threading.Thread | None = None
         self._wall_started = 0.0
+        self._rate_window: collections.deque[tuple[float, float]] = collections.deque(maxlen=400)
         vp = self.built.context.vehicle
         self._max_thrust = 4.0 * vp.k_f * vp.rotor_speed_max ** 2
         self._estimated = self.config.estimator is not None
@@ -272,6 +274,11 @@ class LiveRun:
                             self._wake.wait(min(0.005, max(0.001, (0.002 - (target - sim.t)) / speed)))
                         continue
                 alive = sim.advance_to(target)
+                now = time.perf_counter()
+                window = self._rate_window
+                window.append((now, sim.t))
+                while len(window) > 2 and now - window[0][0] > 2.0:
+                    window.popleft()
                 self._notify()
                 if not alive:
                     self._end(f"{sim.status.value if sim.status else 'ended'}: {sim.message}",
@@ -343,10 +350,10 @@ class LiveRun:
         out: dict[str, Any] = {"t": t, "speed": None if self._speed == math.inf else self._speed,
                                "paused": self._paused, "ended": self.ended,
                                "real_time_factor": None}
-        wall = self.simulator._wall if hasattr(self.simulator, "_wall") else 0.0
-        out["real_time_factor"] = (t - self.simulator.t_start_ns / 1e9) / (time.perf_counter() - self._wall_started) \
-            if self._thread is not None and time.perf_counter() > self._wall_started else None
-        out["cpu_real_time_factor"] = (t - self.simulator.t_start_ns / 1e9) / wall if wall > 0 else None
+        window = list(self._rate_window)
+        if len(window) >= 2 and window[-1][0] > window[0][0] and not self._paused:
+            out["real_time_factor"] = (window[-1][1] - window[0][1]) / (window[-1][0] - window[0][0])
+        # real_time_factor: simulated seconds per wall second over the last ~2 s
         c = self.commander
         if c is not None:
             out.update({"mode": c.mode, "armed": c.armed, "landed": c.landed, "flight_mode": c.flight_mode.value,

@@ -187,10 +187,19 @@ class Commander(Planner):
         return s.p_W[0], s.v_W[0], s.a_W[0], s.j_W[0]
 
     def _move(self, t: float, target: np.ndarray, yaw: float, slow: bool = False) -> None:
+        """A jerk-limited move to ``target`` from the reference's current state (smooth when re-targeting in
+        motion)."""
         p = self.params
-        start, _, _, _ = self._ref_at(t) if self._ref is not None else (self.state.p_W, 0, 0, 0)  # type: ignore
+        if self._ref is not None:
+            start, v0, a0, _ = self._ref_at(t)
+        else:
+            start, v0, a0 = np.array(self.state.p_W), _Z3, _Z3  # type: ignore[union-attr]
         v, a = (p.takeoff_speed if target[2] >= start[2] else p.land_speed, p.a_max) if slow else (p.v_max, p.a_max)
-        self._ref = JerkLimitedMove(np.array(start, float), target, v, a, p.j_max, yaw, t_start=t)
+        try:
+            self._ref = JerkLimitedMove(np.array(start, float), target, v, a, p.j_max, yaw, t_start=t,
+                                        start_v_W=v0, start_a_W=a0)
+        except ValueError:  # a state ruckig cannot start from (beyond the limits): from rest at the reference
+            self._ref = JerkLimitedMove(np.array(start, float), target, v, a, p.j_max, yaw, t_start=t)
         self._ref_yaw = yaw
         self.target_p_W = np.array(target, float)
 

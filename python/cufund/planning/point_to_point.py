@@ -10,19 +10,24 @@ __all__ = ["JerkLimitedMove"]
 
 
 class JerkLimitedMove:
-    """Time-optimal rest-to-rest move from ``start_W`` to ``goal_W`` [m] under per-axis limits on velocity
-    [m/s], acceleration [m/s^2] and jerk [m/s^3], holding ``yaw`` [rad]; starts at ``t_start`` [s].
+    """Time-optimal move from ``start_W`` to ``goal_W`` [m], ending at rest, under per-axis limits on velocity
+    [m/s], acceleration [m/s^2] and jerk [m/s^3], holding ``yaw`` [rad]; starts at ``t_start`` [s], at rest or
+    with velocity ``start_v_W`` [m/s] and acceleration ``start_a_W`` [m/s^2] (re-targeting a moving reference).
 
     Position, velocity and acceleration come from ruckig; jerk (which ruckig's Python API does not return) is the
     central difference of its acceleration over 0.1 ms, exact inside each constant-jerk phase.
     """
 
     def __init__(self, start_W: np.ndarray, goal_W: np.ndarray, v_max: float = 1.0, a_max: float = 2.0,
-                 j_max: float = 5.0, yaw: float = 0.0, t_start: float = 0.0) -> None:
+                 j_max: float = 5.0, yaw: float = 0.0, t_start: float = 0.0, start_v_W: np.ndarray | None = None,
+                 start_a_W: np.ndarray | None = None) -> None:
         from ruckig import InputParameter, Result, Ruckig, Trajectory
 
         points = []
-        for name, x in (("start_W", start_W), ("goal_W", goal_W)):
+        for name, x in (("start_W", start_W), ("goal_W", goal_W), ("start_v_W", start_v_W), ("start_a_W", start_a_W)):
+            if x is None:
+                points.append(np.zeros(3))
+                continue
             try:
                 p = np.asarray(x, dtype=float)
             except (TypeError, ValueError):
@@ -30,13 +35,14 @@ class JerkLimitedMove:
             if p.shape != (3,) or not np.all(np.isfinite(p)):
                 raise ValueError(f"{name} must be 3 finite numbers [m], got {x!r}")
             points.append(p)
-        a, b = points
+        a, b, v0, a0 = points
         for name, x in (("v_max", v_max), ("a_max", a_max), ("j_max", j_max)):
             if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) \
                     or not (np.isfinite(x) and x > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {x!r}")
         inp = InputParameter(3)
         inp.current_position, inp.target_position = a.tolist(), b.tolist()
+        inp.current_velocity, inp.current_acceleration = v0.tolist(), a0.tolist()
         inp.max_velocity, inp.max_acceleration, inp.max_jerk = [v_max] * 3, [a_max] * 3, [j_max] * 3
         self._traj = Trajectory(3)
         try:
