@@ -4,6 +4,7 @@ from ..components import Planner
 from .bspline import UniformBspline
 from .clearance import ClearanceQuery
 from .feasibility import TrajectoryFeasibility, feasibility
+from .global_planner import GlobalPlan, GlobalPlanner, GlobalPlannerParams
 from .min_snap_planner import MinSnapPlanner, MinSnapPlannerParams, MinSnapResult
 from .mission_trajectory import MissionTrajectory, plan_mission_trajectory
 from .mission_spec import MissionPlan, MissionSpec, Region
@@ -17,7 +18,7 @@ from .trajectory import Trajectory, TrajectorySamples
 from .trajectory_follower import TrajectoryFollower
 from .world_map import clearance_from_world, esdf_from_world, world_occupancy
 
-__all__ = ["BsplineLocalPlanner", "ClearanceQuery", "GridPathSearch", "GridPathSearchParams", "Hold", "JerkLimitedMove", "LocalPlan", "LocalPlannerParams", "MinSnapPlanner",
+__all__ = ["BsplineLocalPlanner", "ClearanceQuery", "GlobalPlan", "GlobalPlanner", "GlobalPlannerParams", "GridPathSearch", "GridPathSearchParams", "Hold", "JerkLimitedMove", "LocalPlan", "LocalPlannerParams", "MinSnapPlanner",
            "MinSnapPlannerParams", "MinSnapResult", "MinimumSnapTrajectory", "MissionPlan", "MissionSpec", "MissionTrajectory",
            "OmplPathParams", "OmplPathPlanner", "PathResult", "Region", "TrajectorySequence", "Planner", "Trajectory",
            "TrajectoryFeasibility", "TrajectoryFollower", "TrajectorySamples", "UniformBspline", "feasibility",

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
+from ..config import ConfigError
 from ..registry import Kind, register
 from .minimum_snap import MinimumSnapTrajectory
 from .point_to_point import JerkLimitedMove
@@ -120,20 +122,27 @@ class LocalParams:
             raise ConfigError(f"planner.{e}") from None
 
 
-def _local(p: LocalParams, ctx: Any) -> list[Any]:
+def _start(ctx: Any) -> np.ndarray:
+    cfg = ctx.config
+    w0 = cfg.trajectory.waypoints[0]
+    return np.array(cfg.start_p_W if cfg.start_p_W is not None else (w0[0], w0[1], 0.0), dtype=float)
+
+
+def _local(p: LocalParams, ctx: Any, guide_W: np.ndarray | None = None) -> list[Any]:
     from ..messages import Topics
     from .local_planner_component import LocalPlannerComponent
     from .metrics import planning_metrics
 
     cfg = ctx.config
-    w0 = cfg.trajectory.waypoints[0]
-    start = np.array(cfg.start_p_W if cfg.start_p_W is not None else (w0[0], w0[1], 0.0), dtype=float)
+    if cfg.mapper is None:
+        raise ConfigError("planner: the local replanner needs a map: add mapper: {kind: esdf, ...}")
+    start = _start(ctx)
     top = start + np.array([0.0, 0.0, p.takeoff_height])
     takeoff = JerkLimitedMove(start, top, p.move_v_max, p.move_a_max, p.move_j_max, 0.0, t_start=0.0)
     initial = TrajectorySequence([takeoff, Hold(top, p.hover_s, 0.0, t_start=takeoff.t_end)])
     planner = LocalPlannerComponent(p.planner_params(), p.goal, initial, t_begin=initial.t_end, rate_hz=p.rate_hz,
                                     goal_tolerance=p.goal_tolerance, hover_s=p.hover_s,
-                                    landing=(p.move_v_max, p.move_a_max, p.move_j_max))
+                                    landing=(p.move_v_max, p.move_a_max, p.move_j_max), guide_W=guide_W)
     follower = TrajectoryFollower(initial, rate_hz=cfg.rates.trajectory_hz, block=32,
                                   update_topic=Topics.TRAJECTORY_UPDATE)
 
@@ -148,3 +157,106 @@ def _local(p: LocalParams, ctx: Any) -> list[Any]:
 
 register(Kind("planner", "local", LocalParams, _local, None,
               "take off, replan a B-spline on the growing ESDF map (mapper: esdf) to planner.goal, land there"))
+
+
+@dataclass(frozen=True)
+class GlobalParams(LocalParams):
+    """Take off, plan once on the world's known geometry (a certified distance field of its triangles): path
+    search (``search``) -> min-snap keeping ``radius``; then fly it (``local: false``: hover at the goal and land)
+    or hand the path to the local replanner as its guide on the growing map (``local: true``, needs the ``esdf``
+    mapper). Lengths [m], times [s]; the other keys are the ``local`` kind's."""
+
+    search: str = "astar"
+    """Path search: astar (deterministic grid A*), rrt_connect, informed_rrt_star or bit_star (OMPL)."""
+    path_margin: float = 0.05
+    """The path is searched with radius + path_margin [m]."""
+    optimize_times: bool = True
+    """Min-snap segment times optimised for least snap before scaling to v_max / a_max."""
+    heuristic_weight: float = 1.5
+    """Grid A* heuristic weight (>= 1)."""
+    time_limit: float = 1.0
+    """OMPL: wall time for a first solution [s]."""
+    improve_time: float = 1.0
+    """OMPL informed_rrt_star / bit_star: wall time for improving it [s]."""
+    resolution: float = 0.1
+    """Voxel edge of the known-geometry distance field [m]."""
+    map_padding: float = 6.0
+    """The field covers the start and goal's bounding box grown by this much sideways and 2 m up [m]."""
+    local: bool = False
+    """Feed the path to the local replanner instead of flying the min-snap."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not isinstance(self.local, bool):
+            raise ConfigError(f"planner.local must be true or false, got {self.local!r}")
+        for name in ("resolution", "map_padding"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0):
+                raise ConfigError(f"planner.{name} must be a finite number > 0 [m], got {v!r}")
+        self.global_params()
+
+    def global_params(self) -> Any:
+        from .global_planner import GlobalPlannerParams
+
+        try:
+            return GlobalPlannerParams(search=self.search, radius=self.radius, margin=self.path_margin,
+                                       v_max=self.v_max, a_max=self.a_max, optimize_times=self.optimize_times,
+                                       heuristic_weight=self.heuristic_weight, time_limit=self.time_limit,
+                                       improve_time=self.improve_time)
+        except ConfigError as e:
+            msg = str(e)
+            raise ConfigError(f"planner.{'path_' + msg if msg.startswith('margin') else msg}") from None
+
+
+def _global(p: GlobalParams, ctx: Any) -> list[Any]:
+    from .global_planner import GlobalPlanner
+    from .local_planner_component import ReplanRecord
+    from .metrics import planning_metrics
+    from .world_map import clearance_from_world
+
+    world = ctx.require_world()
+    start = _start(ctx)
+    top = start + np.array([0.0, 0.0, p.takeoff_height])
+    goal = np.asarray(p.goal, dtype=float)
+    lo = np.minimum(top, goal) - [p.map_padding, p.map_padding, 0.0]
+    hi = np.maximum(top, goal) + [p.map_padding, p.map_padding, 2.0]
+    lo[2] = min(0.0, float(start[2]))
+    query = clearance_from_world(world, p.resolution, np.stack([lo, hi]))
+    takeoff = JerkLimitedMove(start, top, p.move_v_max, p.move_a_max, p.move_j_max, 0.0, t_start=0.0)
+    hover1 = Hold(top, p.hover_s, 0.0, t_start=takeoff.t_end)
+    plan = GlobalPlanner(p.global_params()).plan(query, top, goal, t_start=hover1.t_end)
+    if not plan.ok:
+        raise ConfigError(f"planner: no {p.search} plan from {top.tolist()} to {list(p.goal)} keeping "
+                          f"{p.radius} m (+ {p.path_margin} m for the path) on the world's geometry ({plan.status})")
+    motion = plan.motion
+    stats = {"global_status": plan.status, "global_search": p.search, "global_plan_ms": 1e3 * plan.plan_seconds,
+             "global_search_ms": 1e3 * plan.search_seconds, "global_motion_ms": 1e3 * plan.motion_seconds,
+             "global_plan_cpu_ms": 1e3 * plan.plan_cpu_seconds, "global_path_length_m": plan.path.length,
+             "global_path_vertices": int(plan.path.path_W.shape[0]), "global_inserted_waypoints": motion.inserted,
+             "global_min_map_clearance_m": motion.min_clearance, "global_duration_s": motion.trajectory.duration,
+             "global_peak_speed_mps": motion.feasibility.peak_speed,
+             "global_peak_acceleration_mps2": motion.feasibility.peak_acceleration,
+             "global_peak_jerk_mps3": motion.feasibility.peak_jerk, "global_max_tilt_deg": motion.feasibility.max_tilt_deg}
+    if p.local:
+        parts = _local(p, ctx, guide_W=plan.path.path_W)
+        ctx.metric_hooks.append(lambda result: stats)
+        return parts
+    path = motion.trajectory
+    hover2 = Hold(goal, p.hover_s, 0.0, t_start=path.t_end)
+    landing = JerkLimitedMove(goal, np.array([goal[0], goal[1], start[2]]), p.move_v_max, p.move_a_max,
+                              p.move_j_max, 0.0, t_start=hover2.t_end)
+    reference = TrajectorySequence([takeoff, hover1, path, hover2, landing])
+    follower = TrajectoryFollower(reference, rate_hz=ctx.config.rates.trajectory_hz)
+    ctx.set_reference(reference, path)
+    # The metrics of a replanning run, with the one plan as its only replan.
+    curve = path.sample(np.arange(path.t_start, path.t_end, 0.01)).p_W
+    record = ReplanRecord(hover1.t_end, plan.status, 1e3 * plan.plan_seconds, motion.min_clearance,
+                          float(np.sum(np.linalg.norm(np.diff(curve, axis=0), axis=1))), 1e3 * plan.plan_cpu_seconds)
+    once = SimpleNamespace(active_goal=goal, goal_W=goal, params=SimpleNamespace(radius=p.radius), replans=[record])
+    ctx.metric_hooks.append(lambda result: {**planning_metrics(result, once, world, start), **stats})
+    return [follower]
+
+
+register(Kind("planner", "global", GlobalParams, _global, None,
+              "take off, plan on the world's geometry (A* or OMPL -> clearance-keeping min-snap) to planner.goal; "
+              "fly it and land, or (local: true) guide the local replanner with it"))

@@ -88,6 +88,8 @@ class LocalPlan:
     """Length of the new trajectory's curve [m] (0 unless ok)."""
     reaches_goal: bool = False
     """The trajectory ends at rest at the goal."""
+    plan_cpu_seconds: float = 0.0
+    """CPU time of the replan on its thread [s] (the wall time less any preemption by other processes)."""
 
 
 class BsplineLocalPlanner:
@@ -101,18 +103,22 @@ class BsplineLocalPlanner:
             raise TypeError(f"params must be a LocalPlannerParams, got {type(params).__name__}")
         self.esdf_map = esdf_map
         self.query = ClearanceQuery(esdf_map)
-        self._guide = GridPathSearch(GridPathSearchParams(radius=self.params.radius, max_expansions=200_000))
+        # The guide only seeds the optimiser: weighted A* (w = 2: about half the expansions of 1.5 in forests,
+        # the same length after shortcutting) with a bounded search (a few ms at most).
+        self._guide = GridPathSearch(GridPathSearchParams(radius=self.params.radius, max_expansions=20_000,
+                                                          heuristic_weight=2.0))
         self._cache: tuple[np.ndarray, np.ndarray] | None = None  # (goal, guide path) of the last A*
         self._d_safe = self.params.radius + self.params.margin + 0.5 * math.sqrt(3.0) * esdf_map.params.resolution
 
     def replan(self, t: float, p_W: npt.ArrayLike, v_W: npt.ArrayLike, a_W: npt.ArrayLike, goal_W: npt.ArrayLike,
                yaw: float = 0.0) -> LocalPlan:
         """A trajectory from time ``t`` [s] and state (p, v, a) towards ``goal_W`` (3,) [m]."""
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         par = self.params
         p, v, a, goal = (np.asarray(x, dtype=float).reshape(3) for x in (p_W, v_W, a_W, goal_W))
         if np.linalg.norm(goal - p) < 0.05 and np.linalg.norm(v) < 0.05:
-            return LocalPlan("at_goal", None, time.perf_counter() - t0, math.inf, 0.0, True)
+            return LocalPlan("at_goal", None, time.perf_counter() - t0, math.inf, 0.0, True,
+                             time.thread_time() - c0)
         path = self._guide_path(p, goal)
         fixed = start_control_points(p, v, a, par.dt)
         ds = 0.7 * par.v_max * par.dt
@@ -131,8 +137,18 @@ class BsplineLocalPlanner:
         # Certified between the samples too: every chord of the 10 ms polyline is traced (the curve is
         # within a_max * (10 ms)^2 / 8 < 0.1 mm of its chords).
         if clearance < par.radius or not self.query.path_free(curve, par.radius).all():
-            return LocalPlan("collision", None, time.perf_counter() - t0, clearance, 0.0, False)
-        return LocalPlan("ok", traj, time.perf_counter() - t0, clearance, length, reaches)
+            return LocalPlan("collision", None, time.perf_counter() - t0, clearance, 0.0, False,
+                             time.thread_time() - c0)
+        return LocalPlan("ok", traj, time.perf_counter() - t0, clearance, length, reaches, time.thread_time() - c0)
+
+    def set_guide(self, goal_W: npt.ArrayLike, path_W: npt.ArrayLike) -> None:
+        """Follow the polyline ``path_W`` (K, 3) [m] (e.g. a global plan) towards ``goal_W`` while its next
+        horizon stays certified free on the map; a new grid A* only where it does not."""
+        goal = np.asarray(goal_W, dtype=float).reshape(3)
+        path = np.asarray(path_W, dtype=float)
+        if path.ndim != 2 or path.shape[1] != 3 or path.shape[0] < 2 or not np.all(np.isfinite(path)):
+            raise ValueError(f"path_W must be finite with shape (K, 3), K >= 2, got {path.shape}")
+        self._cache = (goal.copy(), path.copy())
 
     def _guide_path(self, p: np.ndarray, goal: np.ndarray) -> np.ndarray:
         """The last guide path from the point nearest ``p`` on, while its next ``horizon`` metres stay

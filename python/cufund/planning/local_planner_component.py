@@ -35,6 +35,8 @@ class ReplanRecord:
     """Smallest clearance of the candidate trajectory on the map [m]."""
     path_length_m: float
     """Length of the accepted trajectory [m] (0 when rejected)."""
+    plan_cpu_ms: float = float("nan")
+    """CPU time of the replan [ms] (its wall time less preemption by other processes)."""
 
 
 class LocalPlannerComponent(Planner):
@@ -48,7 +50,8 @@ class LocalPlannerComponent(Planner):
     ``max_goal_shift`` away (:attr:`active_goal`), as EGO-Planner does. Once the reference is within
     ``goal_tolerance`` of the goal and slow, it brakes to rest there (a short B-spline from the reference's
     state), hovers ``hover_s`` and lands with ``landing`` (a jerk-limited move straight down), after which
-    :attr:`t_landed` is set.
+    :attr:`t_landed` is set. ``guide_W`` (K, 3) [m], a polyline ending at the goal, is followed while its next
+    horizon stays free on the map (a grid A* on the map replaces it where it does not).
     """
 
     name = "local_planner"
@@ -56,7 +59,7 @@ class LocalPlannerComponent(Planner):
     def __init__(self, params: LocalPlannerParams, goal_W: npt.ArrayLike, initial: Trajectory, t_begin: float,
                  rate_hz: float = 10.0, goal_tolerance: float = 0.1, hover_s: float = 1.0,
                  landing: tuple[float, float, float] = (0.5, 1.0, 3.0), yaw: float = 0.0,
-                 max_goal_shift: float = 1.0, goal_margin: float = 0.1) -> None:
+                 max_goal_shift: float = 1.0, goal_margin: float = 0.1, guide_W: npt.ArrayLike | None = None) -> None:
         if not isinstance(params, LocalPlannerParams):
             raise TypeError(f"params must be a LocalPlannerParams, got {type(params).__name__}")
         goal = np.asarray(goal_W, dtype=float)
@@ -71,6 +74,8 @@ class LocalPlannerComponent(Planner):
         self.t_begin, self.rate_hz, self.goal_tolerance = float(t_begin), float(rate_hz), float(goal_tolerance)
         self.hover_s, self.landing, self.yaw = float(hover_s), tuple(float(x) for x in landing), float(yaw)
         self.max_goal_shift, self.goal_margin = float(max_goal_shift), float(goal_margin)
+        self.guide_W = None if guide_W is None else np.asarray(guide_W, dtype=float).copy()
+        """A polyline to ``goal_W`` (e.g. a global plan) the replans follow while it stays free on the map."""
         self.reads = (Topics.ESDF_MAP,)
         self.writes = (Topics.TRAJECTORY_UPDATE,)
         self.reset()
@@ -94,6 +99,8 @@ class LocalPlannerComponent(Planner):
             return
         if self._planner is None or self._planner.esdf_map is not msg.map:
             self._planner = BsplineLocalPlanner(msg.map, self.params)
+            if self.guide_W is not None:
+                self._planner.set_guide(self.goal_W, self.guide_W)
         t_r = t + self.latency_s  # the update is followed from when it becomes visible
         ref = self.reference.sample(float(t_r))
         p, v, a = ref.p_W[0], ref.v_W[0], ref.a_W[0]
@@ -111,7 +118,7 @@ class LocalPlannerComponent(Planner):
             return
         plan = self._planner.replan(t_r, p, v, a, goal, self.yaw)
         self.replans.append(ReplanRecord(t, plan.status, 1e3 * plan.plan_seconds, plan.min_clearance,
-                                         plan.path_length))
+                                         plan.path_length, 1e3 * plan.plan_cpu_seconds))
         if plan.status == "ok" and plan.trajectory is not None:
             self._publish(t, plan.trajectory, bus)
 
