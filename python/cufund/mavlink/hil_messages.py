@@ -46,6 +46,8 @@ class HilEncoder:
         self.sensor_id = sensor_id
         self._imu = (np.zeros(3), np.zeros(3))
         self._mag = np.zeros(3)
+        self._imu_flu = (np.zeros(3), np.zeros(3))
+        self._mag_flu = np.zeros(3)
         self._baro = (0.0, 0.0, 0.0)
 
     def hil_sensor(self, time_usec: int, imu: Imu | None, mag: MagneticField | None,
@@ -53,15 +55,17 @@ class HilEncoder:
         """HIL_SENSOR with the groups whose sample is given marked in ``fields_updated`` (the others repeat
         their last values, as Gazebo does, with their bits clear)."""
         bits = 0
-        if imu is not None:
-            f, w = imu.f_I, imu.w_I
-            if self.R_BI is not None:
+        if imu is not None or mag is not None:  # one frame conversion for the rows that are new
+            f, w = (imu.f_I, imu.w_I) if imu is not None else self._imu_flu
+            if imu is not None and self.R_BI is not None:
                 f, w = self.R_BI @ f, self.R_BI @ w
-            self._imu = (frames.flu_to_frd(f), frames.rates_flu_to_frd(w))
-            bits |= HIL_ACCEL | HIL_GYRO
-        if mag is not None:
-            self._mag = frames.flu_to_frd(mag.m_B) * TESLA_TO_GAUSS
-            bits |= HIL_MAG
+            self._imu_flu = (f, w)
+            m = mag.m_B if mag is not None else self._mag_flu
+            self._mag_flu = m
+            frd = frames.flu_to_frd(np.array((f, w, m)))  # specific force, body rate, field: FLU -> FRD alike
+            self._imu = (frd[0], frd[1])
+            self._mag = frd[2] * TESLA_TO_GAUSS
+            bits |= (HIL_ACCEL | HIL_GYRO if imu is not None else 0) | (HIL_MAG if mag is not None else 0)
         if baro is not None:
             p = float(baro.pressure_pa)
             self._baro = (p / 100.0, float(isa_altitude(p)), float(baro.temperature_k) - 273.15)

@@ -78,11 +78,13 @@ class Px4Airframe:
     def rotor_speeds(self, controls: np.ndarray, armed: bool) -> np.ndarray:
         """Rotor-speed commands [rad/s] per PX4 motor output (4,) from outputs ``controls[0..3]``; a
         non-finite output (PX4's "disabled") commands the disarmed speed."""
-        u = np.asarray(controls, dtype=float)[:4]
         if not armed:
             return np.array(self.zero_position_disarmed)
-        omega = (u + self.input_offset) * self.input_scaling + self.zero_position_armed
-        return np.where(np.isfinite(omega), omega, self.zero_position_disarmed)
+        out = np.empty(4)
+        for i in range(4):  # four channels: plain floats beat numpy's per-call overhead here
+            w = (float(controls[i]) + self.input_offset[i]) * self.input_scaling[i] + self.zero_position_armed[i]
+            out[i] = w if math.isfinite(w) else self.zero_position_disarmed[i]
+        return out
 
     def rotor_of_output(self, params: QuadrotorParams) -> np.ndarray:
         """(4,) int: the cufund rotor index driven by PX4 motor output i (0-based), matched by direction from

@@ -74,9 +74,13 @@ class Px4BridgeParams:
     system_id: int = 1
     component_id: int = 200
     """MAVLink source ids of the bridge's messages (Gazebo's plugin uses 1/200)."""
+    record_rate_hz: float = 50.0
+    """Ground-truth samples kept in the run's result [Hz] (must divide the physics rate); sensor messages are not
+    kept: a PX4 session may run for hours."""
 
     def __post_init__(self) -> None:
-        for name in ("hil_sensor_rate_hz", "controls_timeout_s", "stale_controls_s", "heartbeat_period_s"):
+        for name in ("hil_sensor_rate_hz", "controls_timeout_s", "stale_controls_s", "heartbeat_period_s",
+                     "record_rate_hz"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ConfigError(f"{name} must be a number > 0, got {v!r}")
@@ -164,7 +168,12 @@ class Px4SimulatorBridge:
             raise ValueError(f"instance must be an integer in [0, 60000], got {instance!r}")
         self.config = px4_scenario(config)
         self.built = build_simulation(self.config, extra_components=())
-        self.simulator = self.built.simulator
+        self.simulator = sim = self.built.simulator
+        nodes = sim.physics_rate_hz / self.params.record_rate_hz
+        if abs(nodes - round(nodes)) > 1e-9 or nodes < 1:
+            raise ConfigError(f"record_rate_hz must divide the physics rate {sim.physics_rate_hz:g} Hz, "
+                              f"got {self.params.record_rate_hz:g}")
+        sim.record_period, sim.record_topics = round(nodes), ()
         vehicle = self.simulator.vehicle.params
         self.airframe = airframe if airframe is not None else Px4Airframe.for_vehicle(vehicle)
         self._rotor_of_output = self.airframe.rotor_of_output(vehicle)
@@ -284,9 +293,9 @@ class Px4SimulatorBridge:
         return got
 
     def _on_controls(self, msg: Any, t: float) -> None:
-        controls = np.asarray(msg.controls[:4], dtype=float)
+        controls = [min(max(u, -1.0), 1.0) if math.isfinite(u) else math.nan for u in msg.controls[:4]]
         self.armed = bool(msg.mode & MAV_MODE_FLAG_SAFETY_ARMED)
-        self._speeds_px4 = self.airframe.rotor_speeds(np.clip(controls, -1.0, 1.0), self.armed)
+        self._speeds_px4 = self.airframe.rotor_speeds(controls, self.armed)
         self._controls_t = t
         self._got_controls = True
         self.stats["controls"] += 1
