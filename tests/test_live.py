@@ -116,3 +116,21 @@ def test_controller_gains_by_px4_name_in_flight():
         bad = run.submit({"command": "set_param", "name": "MPC_TILTMAX_AIR", "value": 120.0}).result(timeout=10)
         assert bad.result == "denied" and "tilt_max" in bad.message
         assert abs(pos.gains.tilt_max - math.radians(30.0)) < 1e-12
+
+
+def test_commands_are_answered_while_paused_and_the_plan_is_shown():
+    with LiveRun(FAST, speed=math.inf) as run:
+        assert run.wait_until(lambda s: s["t"] > 0.2, 10)
+        run.pause()
+        time.sleep(0.2)
+        t = run.telemetry()["t"]
+        assert run.submit({"command": "arm"}).result(timeout=5).result == "accepted"
+        assert run.submit({"command": "takeoff", "altitude": 1.0}).result(timeout=5).ok
+        tel = run.telemetry()
+        assert tel["t"] == t and tel["armed"] and tel["mode"] == "takeoff"
+        assert tel["plan_W"] == [[0.0, 0.0, 1.0]]
+        run.resume()
+        assert run.wait_until(lambda s: s["mode"] == "hold", 30)
+        assert run.submit({"command": "rtl"}).result(timeout=5).ok
+        plan = run.telemetry()["plan_W"]
+        assert plan[-1] == [0.0, 0.0, 0.0] and len(plan) == 3  # climb, home, touch down

@@ -256,8 +256,10 @@ class LiveRun:
             while not self._stop.is_set():
                 with self._wake:
                     if self._paused:
-                        self._wake.wait(0.1)
+                        self._wake.wait(0.05)
                         wall0, sim0 = time.perf_counter(), sim.t
+                        if self.commander is not None:  # answer commands while paused (applied at this time)
+                            self.commander.process_pending(sim.t)
                         continue
                     if self._speed != speed:
                         speed, wall0, sim0 = self._speed, time.perf_counter(), sim.t
@@ -361,6 +363,7 @@ class LiveRun:
                         else None, "target_p_W": _vec(c.target_p_W) if np.all(np.isfinite(c.target_p_W)) else None,
                         "mission": {"current": c.mission_current, "count": len(c.mission),
                                     "items": [list(it.p_W) for it in c.mission]},
+                        "plan_W": [list(p) for p in c.plan_W],
                         "message": c.message})
         else:
             out.update({"mode": "external", "armed": True, "landed": False, "flight_mode": "position",

@@ -16,7 +16,6 @@ import dataclasses
 import math
 from collections.abc import Callable
 from concurrent.futures import Future
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -35,46 +34,12 @@ from ..planning.point_to_point import JerkLimitedMove
 from ..planning.sequence import Hold
 from .commands import Command, CommandAck, MissionItem, parse_command
 from .events import EventLog
+from .legs import Brake, Leg, yaw_of
 from .params import CommanderParams, as_dict, field_of
 
 __all__ = ["Commander"]
 
 _Z3 = np.zeros(3)
-
-
-def _yaw_of(q: np.ndarray) -> float:
-    w, x, y, z = (float(v) for v in q)
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-
-
-class _Brake:
-    """Stops from p0 at velocity v0 (critically damped, time constant tau): p = p0 + v0 (2 tau - (2 tau + s) e^-s/tau)."""
-
-    def __init__(self, p0: np.ndarray, v0: np.ndarray, tau: float, yaw: float, t_start: float) -> None:
-        self.p0, self.v0, self.tau, self.yaw, self.t_start = np.array(p0, float), np.array(v0, float), tau, yaw, t_start
-        self.goal_W = self.p0 + 2 * tau * self.v0
-
-    @property
-    def t_end(self) -> float:
-        return self.t_start + 10 * self.tau
-
-    def at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        tau, s = self.tau, max(t - self.t_start, 0.0)
-        e, v0 = math.exp(-s / tau), self.v0
-        return (self.p0 + v0 * (2 * tau - (2 * tau + s) * e), v0 * ((1 + s / tau) * e), v0 * (-(s / tau ** 2) * e),
-                v0 * (-(1 - s / tau) * e / tau ** 2))
-
-
-@dataclass
-class _Leg:
-    target: np.ndarray
-    yaw: float
-    tag: str
-    """'takeoff', 'goto', 'item', 'rtl_climb', 'rtl_home' or 'land'."""
-    hold_s: float = 0.0
-    seq: int = -1
-    slow: bool = False
-    """Take-off/landing speed limits."""
 
 
 class Commander(Planner):
@@ -116,10 +81,10 @@ class Commander(Planner):
         self.state: Odometry | None = None
         self.t = 0.0
         self.setpoint: TrajectorySetpoint | None = None
-        self._ref: Any = None  # JerkLimitedMove / Hold / _Brake
+        self._ref: Any = None  # JerkLimitedMove / Hold / Brake
         self._ref_yaw = 0.0
-        self._legs: collections.deque[_Leg] = collections.deque()
-        self._leg: _Leg | None = None
+        self._legs: collections.deque[Leg] = collections.deque()
+        self._leg: Leg | None = None
         self._leg_phase = "move"  # 'move' then 'hold' (waiting hold_s at the target)
         self._hold_until = 0.0
         self._after = "hold"  # what follows the last leg: 'hold' or 'land'
@@ -132,6 +97,9 @@ class Commander(Planner):
         self._status_dirty = True
         self._next_status = -math.inf
         self._published_mode: FlightMode | None = None
+        self.plan_W: tuple[tuple[float, float, float], ...] = ()
+        """The targets still to fly, the current one first [m] (updated at each change; safe to read from any
+        thread)."""
 
     @property
     def script_done(self) -> bool:
@@ -181,7 +149,7 @@ class Commander(Planner):
         if r is None:
             p = self.state.p_W if self.state is not None else _Z3
             return np.array(p, float), _Z3, _Z3, _Z3
-        if isinstance(r, _Brake):
+        if isinstance(r, Brake):
             return r.at(t)
         s = r.sample(t)
         return s.p_W[0], s.v_W[0], s.a_W[0], s.j_W[0]
@@ -208,10 +176,10 @@ class Commander(Planner):
             s = self.state
             assert s is not None
             p0, v0 = s.p_W, s.v_W
-            self._ref_yaw = _yaw_of(s.q_WB)
+            self._ref_yaw = yaw_of(s.q_WB)
         else:
             p0, v0, _, _ = self._ref_at(t)
-        self._ref = _Brake(p0, v0, self.params.brake_tau, self._ref_yaw, t)
+        self._ref = Brake(p0, v0, self.params.brake_tau, self._ref_yaw, t)
         self.target_p_W = self._ref.goal_W.copy()
 
     def _hold(self, t: float, why: str = "", from_state: bool = False) -> None:
@@ -222,7 +190,7 @@ class Commander(Planner):
         self._hold_flight_mode = None
         self._set_mode("hold", why)
 
-    def _start_legs(self, t: float, legs: list[_Leg], mode: str, after: str, why: str = "") -> None:
+    def _start_legs(self, t: float, legs: list[Leg], mode: str, after: str, why: str = "") -> None:
         self._offboard = None
         self._hold_flight_mode = None
         self.flight_mode = FlightMode.POSITION
@@ -257,7 +225,7 @@ class Commander(Planner):
         self._after = "hold"
         self._offboard = None
         self.flight_mode = FlightMode.POSITION
-        self._leg = _Leg(target, self._ref_yaw, "land", slow=True)
+        self._leg = Leg(target, self._ref_yaw, "land", slow=True)
         self._leg_phase = "move"
         self._touchdown_since = None
         self._move(t, target, self._ref_yaw, slow=True)
@@ -341,7 +309,7 @@ class Commander(Planner):
                 return deny("not on the ground")
             self.armed, self._armed_since = True, t
             self.home_p_W = np.array(s.p_W, float)
-            self._ref, self._ref_yaw = None, _yaw_of(s.q_WB)
+            self._ref, self._ref_yaw = None, yaw_of(s.q_WB)
             self._event("armed", "armed")
             return ok()
         if name == "disarm":
@@ -361,7 +329,7 @@ class Commander(Planner):
             alt = c.altitude if c.altitude is not None else p.takeoff_altitude
             self._begin_flight(t)
             target = np.array([s.p_W[0], s.p_W[1], self.home_p_W[2] + alt])
-            self._start_legs(t, [_Leg(target, self._ref_yaw, "takeoff", slow=True)], "takeoff", "hold")
+            self._start_legs(t, [Leg(target, self._ref_yaw, "takeoff", slow=True)], "takeoff", "hold")
             return ok()
         if name == "mission_start":
             if not self.mission:
@@ -370,12 +338,12 @@ class Commander(Planner):
             if self.landed:
                 self._begin_flight(t)
                 first = self.mission[0].p_W
-                legs.append(_Leg(np.array([s.p_W[0], s.p_W[1], max(first[2], self.home_p_W[2] + 0.5)]),
+                legs.append(Leg(np.array([s.p_W[0], s.p_W[1], max(first[2], self.home_p_W[2] + 0.5)]),
                                  self._ref_yaw, "takeoff", slow=True))
             yaw = self._ref_yaw
             for i, it in enumerate(self.mission):
                 yaw = yaw if it.yaw is None else it.yaw
-                legs.append(_Leg(np.array(it.p_W), yaw, "item", it.hold_s, i))
+                legs.append(Leg(np.array(it.p_W), yaw, "item", it.hold_s, i))
             self._start_legs(t, legs, "mission", "hold")
             return ok()
         if name == "land":
@@ -400,15 +368,15 @@ class Commander(Planner):
             return ok()
         if name == "goto":
             yaw = self._ref_yaw if c.yaw is None else c.yaw
-            self._start_legs(t, [_Leg(np.array(c.p_W), yaw, "goto")], "goto", "hold")
+            self._start_legs(t, [Leg(np.array(c.p_W), yaw, "goto")], "goto", "hold")
             return ok()
         if name == "rtl":
             if not np.all(np.isfinite(self.home_p_W)):
                 return deny("no home position")
             p0, _, _, _ = self._ref_at(t)
             z = max(float(p0[2]), self.home_p_W[2] + p.rtl_altitude)
-            legs = [_Leg(np.array([p0[0], p0[1], z]), self._ref_yaw, "rtl_climb"),
-                    _Leg(np.array([self.home_p_W[0], self.home_p_W[1], z]), self._ref_yaw, "rtl_home")]
+            legs = [Leg(np.array([p0[0], p0[1], z]), self._ref_yaw, "rtl_climb"),
+                    Leg(np.array([self.home_p_W[0], self.home_p_W[1], z]), self._ref_yaw, "rtl_home")]
             self._start_legs(t, legs, "rtl", "land")
             return ok()
         if name == "flight_mode":
@@ -465,16 +433,31 @@ class Commander(Planner):
             self.state = state
         while self._script and self._script[0][0] <= t:
             self.apply(self._script.pop(0)[1], t)
-        while self._inbox:
-            cmd, fut = self._inbox.popleft()
-            ack = self.apply(cmd, t)
-            if fut is not None and not fut.done():
-                fut.set_result(ack)
+        self.process_pending(t)
         if self.state is not None:
             self._supervise(t, self.state)
             self._publish_setpoint(t, self.state, bus)
         if self._status_dirty or t >= self._next_status:
             self._publish_status(t, bus)
+
+    def process_pending(self, t: float) -> None:
+        """Applies the submitted commands at time ``t`` (in :meth:`step`; a live run also calls it from the
+        simulation thread while paused, so that commands are answered)."""
+        while self._inbox:
+            cmd, fut = self._inbox.popleft()
+            ack = self.apply(cmd, t)
+            if fut is not None and not fut.done():
+                fut.set_result(ack)
+        if self._status_dirty:
+            self._update_plan()
+
+    def _update_plan(self) -> None:
+        plan = [self._leg.target] if self._leg is not None else []
+        plan += [leg.target for leg in self._legs]
+        if self._after == "land" and plan:
+            ground = self.home_p_W[2] if np.isfinite(self.home_p_W[2]) else 0.0
+            plan.append(np.array([plan[-1][0], plan[-1][1], ground]))
+        self.plan_W = tuple(tuple(float(x) for x in p) for p in plan)
 
     def update(self, t: float, state: Odometry, bus: BusView) -> None:  # Planner's hook (step does it all)
         pass
@@ -564,6 +547,7 @@ class Commander(Planner):
                              np.array(target), self.message)
 
     def _publish_status(self, t: float, bus: BusView) -> None:
+        self._update_plan()
         bus.publish(Topics.VEHICLE_STATUS, self.status(t))
         self._status_dirty = False
         self._next_status = t + 1.0 / self.params.status_hz

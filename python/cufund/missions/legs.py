@@ -1,0 +1,45 @@
+"""What the commander flies: legs (a target with what to do there) and the brake that stops a moving reference."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Brake", "Leg", "yaw_of"]
+
+
+def yaw_of(q: np.ndarray) -> float:
+    w, x, y, z = (float(v) for v in q)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+class Brake:
+    """Stops from p0 at velocity v0 (critically damped, time constant tau): p = p0 + v0 (2 tau - (2 tau + s) e^-s/tau)."""
+
+    def __init__(self, p0: np.ndarray, v0: np.ndarray, tau: float, yaw: float, t_start: float) -> None:
+        self.p0, self.v0, self.tau, self.yaw, self.t_start = np.array(p0, float), np.array(v0, float), tau, yaw, t_start
+        self.goal_W = self.p0 + 2 * tau * self.v0
+
+    @property
+    def t_end(self) -> float:
+        return self.t_start + 10 * self.tau
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        tau, s = self.tau, max(t - self.t_start, 0.0)
+        e, v0 = math.exp(-s / tau), self.v0
+        return (self.p0 + v0 * (2 * tau - (2 * tau + s) * e), v0 * ((1 + s / tau) * e), v0 * (-(s / tau ** 2) * e),
+                v0 * (-(1 - s / tau) * e / tau ** 2))
+
+
+@dataclass
+class Leg:
+    target: np.ndarray
+    yaw: float
+    tag: str
+    """'takeoff', 'goto', 'item', 'rtl_climb', 'rtl_home' or 'land'."""
+    hold_s: float = 0.0
+    seq: int = -1
+    slow: bool = False
+    """Take-off/landing speed limits."""
