@@ -53,6 +53,9 @@ class TunnelDetectorParams:
     """DBSCAN core point threshold (neighbours within ``eps``, the point included)."""
     floor_z: float = 0.0
     """Height of the floor in the (estimated) world frame [m]."""
+    floor_band: float = 0.02
+    """Points lower than floor_z + floor_band are taken for the floor and dropped (a bottom bar standing on the
+    floor keeps its upper part; the floor would otherwise fill most of an accumulated map) [m]."""
     floor_cut: float = 0.1
     """Points lower than floor_z + floor_cut are not clustered (they are still measured) [m]."""
     ceiling_z: float = 3.0
@@ -67,6 +70,9 @@ class TunnelDetectorParams:
     """Robust extent of a bar across its width: from this percentile to 100 - this [%]."""
     slab: float = 0.08
     """Half-depth of the slab around a frame's plane whose points belong to the frame [m]."""
+    min_incidence: float = 0.5
+    """With ray directions known, a frame's points whose ray met its plane at |cos| below this (grazing, their
+    range noise lying in the plane) are not measured."""
     min_opening: float = 0.2
     """Smallest opening width or height accepted [m]."""
     max_opening: float = 2.5
@@ -98,6 +104,10 @@ class TunnelDetectorParams:
                      "rate_hz", "max_range", "associate_radius"):
             object.__setattr__(self, name, _positive(name, getattr(self, name)))
         object.__setattr__(self, "floor_cut", _positive("floor_cut", self.floor_cut, allow_zero=True))
+        object.__setattr__(self, "floor_band", _positive("floor_band", self.floor_band, allow_zero=True))
+        inc = _positive("min_incidence", self.min_incidence, allow_zero=True)
+        if not inc < 1:
+            raise ValueError(f"TunnelDetectorParams.min_incidence must be in [0, 1), got {inc}")
         for name in ("floor_z", "ceiling_z"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
@@ -263,16 +273,25 @@ def _measure(cluster: np.ndarray, cloud: np.ndarray, views: np.ndarray | None, p
     u_lo, u_hi = np.percentile(u_c, [1, 99])
     if not p.min_opening + 2 * b - 0.05 <= u_hi - u_lo <= p.max_opening + 2 * b + 0.05:
         return None
-    # the frame's points: a slab around the plane, within the cluster's horizontal span
+    # the frame's points: a slab around the plane, within the cluster's horizontal span (the bounding box first)
+    reach = 2 * b + p.slab + p.cluster_voxel
+    near = np.all((cloud[:, :2] > cluster[:, :2].min(axis=0) - reach)
+                  & (cloud[:, :2] < cluster[:, :2].max(axis=0) + reach), axis=1)
+    cloud = cloud[near]
+    if views is not None:
+        views = views[near]
     depth = cloud @ n - d
     u_all = cloud @ u_axis
     z_all = cloud[:, 2]
     in_slab = (np.abs(depth) < p.slab) & (u_all > u_lo - 2 * b) & (u_all < u_hi + 2 * b) \
         & (z_all < cluster[:, 2].max() + 2 * b)
+    if views is not None:  # returns of rays grazing the plane carry their range noise into it
+        in_slab &= np.abs(views @ n) >= p.min_incidence
     pts, u, v = cloud[in_slab], u_all[in_slab], z_all[in_slab]
     d_pts = depth[in_slab]
     v_hi = float(np.percentile(cluster[:, 2], 99))
-    mid_u = (u > u_lo + 2 * b) & (u < u_hi - 2 * b)
+    quarter = 0.25 * (u_hi - u_lo)  # the middle half of the span: clear of the posts and their noise
+    mid_u = np.abs(u - 0.5 * (u_lo + u_hi)) < quarter
     top_pts = mid_u & (v > v_hi - 2 * b)
     if top_pts.sum() < p.min_bar_points:
         return None
@@ -376,7 +395,7 @@ def detect_frames(points_W: object, params: TunnelDetectorParams | None = None, 
                                  or expected < 1):
         raise ValueError(f"expected must be None or an integer >= 1 (frames), got {expected!r}")
     pts = _points("points_W", points_W)
-    keep = pts[:, 2] <= p.ceiling_z
+    keep = (pts[:, 2] <= p.ceiling_z) & (pts[:, 2] >= p.floor_z + p.floor_band)
     if p.roi_min_W is not None:
         keep &= np.all(pts >= np.asarray(p.roi_min_W), axis=1)
     if p.roi_max_W is not None:

@@ -84,6 +84,8 @@ class TunnelDetector(Component):
         self.map = VoxelAccumulator(p.voxel, p.max_voxels)
         self.tracks: list[_Track] = []
         self.scans = 0
+        self.detections: list[FrameDetection] = []
+        """The frames found in the map at the last step (before tracking), in flying order."""
         self.updates = 0
         self.update_seconds = 0.0
         """Wall time spent in :meth:`step` so far [s] (for benchmarks; divide by ``updates``)."""
@@ -128,21 +130,23 @@ class TunnelDetector(Component):
         b = np.einsum("nij,nj->ni", R_WL[seg + 1], points_L) + p_WL[seg + 1]
         return a + s * (b - a), p_WL[seg] + s * (p_WL[seg + 1] - p_WL[seg])
 
-    def _insert(self, cloud: PointCloud) -> None:
+    def _crop(self, cloud: PointCloud) -> tuple[np.ndarray, np.ndarray]:
+        """The scan's points to accumulate (N, 3) [m] and the unit directions of their rays (N, 3)."""
         p = self.params
         points_W, sensor_W = self._to_world(cloud)
         rays_W = points_W - sensor_W
         rng = np.linalg.norm(rays_W, axis=1)
-        keep = (rng > 1e-6) & (rng <= p.max_range) & (points_W[:, 2] <= p.ceiling_z)
+        keep = (rng > 1e-6) & (rng <= p.max_range) & (points_W[:, 2] <= p.ceiling_z) \
+            & (points_W[:, 2] >= p.floor_z + p.floor_band)
         if p.roi_min_W is not None:
             keep &= np.all(points_W >= np.asarray(p.roi_min_W), axis=1)
         if p.roi_max_W is not None:
             keep &= np.all(points_W <= np.asarray(p.roi_max_W), axis=1)
-        self.map.insert(points_W[keep], rays_W[keep] / rng[keep, None])
         self.scans += 1
         self._last_stamp = cloud.t
         keep_poses = max(0, int(np.searchsorted(self._t, cloud.t, side="right")) - 1)
         del self._t[:keep_poses], self._p[:keep_poses], self._q[:keep_poses]
+        return points_W[keep], rays_W[keep] / rng[keep, None]
 
     # -- tracking ----------------------------------------------------------------------------------------------
     def _associate(self, detections: list[FrameDetection]) -> None:
@@ -185,6 +189,16 @@ class TunnelDetector(Component):
             confidence=np.array(conf, dtype=float).reshape(k),
             scans=self.scans)
 
+    def frames(self) -> list[FrameDetection]:
+        """The tracked frames in flying order (their newest detections)."""
+        return order_along_course([tr.detection for tr in self.tracks], self.origin_W)
+
+    def plot(self, path: object = None, truth: object = None) -> object:
+        """:func:`~cufund.perception.plot.plot_detection` of the accumulated map and the tracked frames."""
+        from .plot import plot_detection
+
+        return plot_detection(self.map.means()[0], self.frames(), truth, path)
+
     # -- the step ----------------------------------------------------------------------------------------------
     def step(self, t: float, bus: BusView) -> None:
         start = time.perf_counter()
@@ -197,14 +211,15 @@ class TunnelDetector(Component):
                 if self.origin_W is None:
                     self.origin_W = np.asarray(state.p_W, dtype=float).copy()
         self._waiting.extend(self._clouds_sub.take())
-        inserted = False
+        batch = []
         while self._waiting and self._t and \
                 self._t[-1] >= self._waiting[0].t + float(np.max(self._waiting[0].dt, initial=0.0)):
-            self._insert(self._waiting.pop(0))
-            inserted = True
-        if inserted:
+            batch.append(self._crop(self._waiting.pop(0)))
+        if batch:
+            self.map.insert(np.concatenate([b[0] for b in batch]), np.concatenate([b[1] for b in batch]))
             cloud, rays = self.map.means()
-            self._associate(detect_in_voxels(cloud, rays, self.params, self.expected, self.origin_W))
+            self.detections = detect_in_voxels(cloud, rays, self.params, self.expected, self.origin_W)
+            self._associate(self.detections)
             bus.publish(Topics.TUNNEL_ESTIMATE, self.estimate())
         self.updates += 1
         self.update_seconds += time.perf_counter() - start
