@@ -5,6 +5,7 @@
   const token = new URLSearchParams(location.search).get("token") || "";
   const $ = (id) => document.getElementById(id);
   const viewer = new MeshCat.Viewer($("meshcat-pane"));
+  viewer.renderer.shadowMap.enabled = false;  // no shadow-casting lights here; saves a pass per frame
   const scene = viewer.scene;  // MeshCat turns its scene so that paths under it are z-up (ENU)
   const MAX_PATH = 20000, MAX_CLOUD = 8000, PLOT_S = 20;
 
@@ -146,7 +147,7 @@
     $("tel-est").textContent = typeof est === "object" ? JSON.stringify(est) : fmt(est);
     $("tel-track").textContent = fmt(norm(pick(t, "tracking_error", "tracking_error_m")), 3);
     $("tel-odom").textContent = fmt(norm(pick(t, "odometry_error", "odometry_error_m")), 3);
-    if (stats.telemetry % 10 === 0) $("tel-raw").textContent = JSON.stringify(t, null, 1);
+    if ($("tel-raw").parentElement.open) $("tel-raw").textContent = JSON.stringify(t, null, 1);
   }
   function setpointOf(t) { const s = pick(t, "setpoint_p_W", "setpoint.p_W", "setpoint"); return Array.isArray(s) ? s : null; }
   function targetOf(t) { const s = pick(t, "target_p_W", "status.target_p_W"); return Array.isArray(s) ? s : null; }
@@ -190,6 +191,24 @@
   }
   setInterval(drawPlots, 200);
 
+  // Telemetry comes at up to 50 Hz and clouds at the LiDAR's rate; the 3-D view is redrawn at most ?fps= (20) times a
+  // second and the panel 10 times (software WebGL and layout are what cost in a browser without a GPU).
+  let lastDraw = 0, drawPending = false, dirtyPanel = false, dirtyPose = false;
+  const DRAW_MS = 1000 / Math.max(1, Math.min(60, parseFloat(new URLSearchParams(location.search).get("fps")) || 20));
+  function draw() {
+    lastDraw = performance.now();
+    if (dirtyPose && stats.lastTelemetry) { dirtyPose = false; placeVehicle(stats.lastTelemetry); }
+    viewer.set_dirty();
+  }
+  function redraw() {
+    const now = performance.now();
+    if (now - lastDraw >= DRAW_MS) { draw(); return; }
+    if (drawPending) return;
+    drawPending = true;
+    setTimeout(() => { drawPending = false; draw(); }, DRAW_MS - (now - lastDraw));
+  }
+  setInterval(() => { if (dirtyPanel && stats.lastTelemetry) { dirtyPanel = false; showTelemetry(stats.lastTelemetry); } }, 100);
+
   // ---- the vehicle and camera ----------------------------------------------------------------------------------
   const q4 = new THREE.Quaternion(), m4 = new THREE.Matrix4(), v3 = new THREE.Vector3(), one = new THREE.Vector3(1, 1, 1);
   let lastFollow = null;
@@ -210,7 +229,6 @@
       viewer.camera.position.copy(target).add(off);
       lastFollow = target;
     } else { lastFollow = null; }
-    viewer.set_dirty();
   }
   gcs.vehicleScreen = function () {  // the vehicle's pixel in the 3-D pane (CSS pixels, page coordinates)
     const t = stats.lastTelemetry;
@@ -286,7 +304,7 @@
     attr.needsUpdate = true;
     cloudGeom.setDrawRange(0, n);
     stats.clouds += 1;
-    viewer.set_dirty();
+    redraw();
   }
   function onText(m) {
     if (m.type === "telemetry") {
@@ -296,7 +314,7 @@
       while (rateWindow.length && rateWindow[0] < now - 2000) rateWindow.shift();
       stats.rateHz = rateWindow.length > 1 ? (rateWindow.length - 1) / ((now - rateWindow[0]) / 1000) : 0;
       $("tel-rate").textContent = stats.rateHz.toFixed(0) + " Hz";
-      showTelemetry(m); addPlot(m); placeVehicle(m);
+      addPlot(m); dirtyPanel = dirtyPose = true; redraw();
       if (Array.isArray(m.p_W)) {
         const n = flown.geometry.drawRange.count, a = flown.geometry.attributes.position.array;
         if (n === 0 || Math.hypot(m.p_W[0] - a[3 * n - 3], m.p_W[1] - a[3 * n - 2], m.p_W[2] - a[3 * n - 1]) > 0.02) appendLine(flown, m.p_W);
@@ -344,6 +362,7 @@
     return id;
   };
   gcs.raw = (text) => ws.send(text);
+  gcs.dropConnection = () => ws.close();  // as a network drop would (tests: the page reconnects)
 
   // ---- controls -------------------------------------------------------------------------------------------------
   const num = (id) => parseFloat($(id).value);
