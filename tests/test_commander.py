@@ -94,12 +94,14 @@ def test_takeoff_goto_mission_land():
     sim.advance_to(sim.t + 5.0)
     assert np.linalg.norm(_p(sim) - [1.5, -1.0, 2.0]) < 0.1 and cmd.mode == "hold"
     items = [[1.5, 1.0, 1.5], [0.0, 1.0, 1.0], [0.0, 0.0, 1.5]]
-    assert cmd.apply({"command": "mission_upload", "items": items}).result == "accepted"
+    upload = [{"p_W": items[0], "hold_s": 1.0}, *items[1:]]
+    assert cmd.apply({"command": "mission_upload", "items": upload}).result == "accepted"
     assert cmd.apply("mission_start").result == "accepted"
     t0 = sim.t
     sim.advance_to(t0 + 12.0)
     reached = cmd.events.of_kind("mission_item_reached")
     assert [e["seq"] for e in reached] == [0, 1, 2]
+    assert reached[1]["t"] - reached[0]["t"] >= 1.0 + 1.5  # the hold, then 1.5 m along x at <= 1 m/s per axis
     assert cmd.events.of_kind("mission_complete") and cmd.mode == "hold"
     # truth passes each item, in order
     st = sim.result().states
@@ -108,7 +110,11 @@ def test_takeoff_goto_mission_land():
     first = [int(np.argmax(di < 0.15)) for di in d]
     assert all(di.min() < 0.15 for di in d) and first == sorted(first)
     assert cmd.apply("land").result == "accepted"
+    t_land = sim.t
     sim.advance_to(sim.t + 6.0)
+    st = sim.result().states
+    low = (st["t"] >= t_land) & (st["p_W"][:, 2] < 0.1)
+    assert np.any(low) and np.min(st["v_W"][low, 2]) > -0.45  # the last 10 cm at about land_speed (0.3 m/s)
     assert not cmd.armed and cmd.mode == "idle" and cmd.events.of_kind("landed")
     assert _p(sim)[2] < 0.02 and np.all(_rotors(sim) < 1e-3)  # commanded zero, motor lag decayed
     assert np.linalg.norm(_p(sim)[:2]) < 0.1

@@ -34,7 +34,7 @@ from ..planning.point_to_point import JerkLimitedMove
 from ..planning.sequence import Hold
 from .commands import Command, CommandAck, MissionItem, parse_command
 from .events import EventLog
-from .legs import Brake, Leg, yaw_of
+from .legs import Brake, Descend, Leg, yaw_of
 from .params import CommanderParams, as_dict, field_of
 
 __all__ = ["Commander"]
@@ -149,7 +149,7 @@ class Commander(Planner):
         if r is None:
             p = self.state.p_W if self.state is not None else _Z3
             return np.array(p, float), _Z3, _Z3, _Z3
-        if isinstance(r, Brake):
+        if isinstance(r, (Brake, Descend)):
             return r.at(t)
         s = r.sample(t)
         return s.p_W[0], s.v_W[0], s.a_W[0], s.j_W[0]
@@ -162,7 +162,7 @@ class Commander(Planner):
             start, v0, a0, _ = self._ref_at(t)
         else:
             start, v0, a0 = np.array(self.state.p_W), _Z3, _Z3  # type: ignore[union-attr]
-        v, a = (p.takeoff_speed if target[2] >= start[2] else p.land_speed, p.a_max) if slow else (p.v_max, p.a_max)
+        v, a = (p.takeoff_speed if slow else p.v_max), p.a_max
         try:
             self._ref = JerkLimitedMove(np.array(start, float), target, v, a, p.j_max, yaw, t_start=t,
                                         start_v_W=v0, start_a_W=a0)
@@ -220,15 +220,17 @@ class Commander(Planner):
         assert s is not None
         p0, _, _, _ = self._ref_at(t) if self._ref is not None else (s.p_W, 0, 0, 0)
         ground = self.home_p_W[2] if np.isfinite(self.home_p_W[2]) else 0.0
-        target = np.array([p0[0], p0[1], min(ground, float(p0[2])) - 0.05])
+        # approach to land_alt above home's height, then descend at land_speed until the vehicle stops descending
+        target = np.array([p0[0], p0[1], min(ground + self.params.land_alt, float(p0[2]))])
         self._legs = collections.deque()
         self._after = "hold"
         self._offboard = None
+        self._hold_flight_mode = None
         self.flight_mode = FlightMode.POSITION
-        self._leg = Leg(target, self._ref_yaw, "land", slow=True)
+        self._leg = Leg(target, self._ref_yaw, "land")
         self._leg_phase = "move"
         self._touchdown_since = None
-        self._move(t, target, self._ref_yaw, slow=True)
+        self._move(t, target, self._ref_yaw)
         self._set_mode("land", why)
 
     def _disarm(self, why: str) -> None:
@@ -454,7 +456,7 @@ class Commander(Planner):
     def _update_plan(self) -> None:
         plan = [self._leg.target] if self._leg is not None else []
         plan += [leg.target for leg in self._legs]
-        if self._after == "land" and plan:
+        if plan and (self._after == "land" or self._leg is not None and self._leg.tag == "land"):
             ground = self.home_p_W[2] if np.isfinite(self.home_p_W[2]) else 0.0
             plan.append(np.array([plan[-1][0], plan[-1][1], ground]))
         self.plan_W = tuple(tuple(float(x) for x in p) for p in plan)
@@ -482,8 +484,13 @@ class Commander(Planner):
         if leg is None or self._ref is None:
             return
         if leg.tag == "land":
-            slow = float(np.linalg.norm(s.v_W)) < p.touchdown_speed
-            if t >= self._ref.t_end - 0.5 and slow:
+            if self._leg_phase == "move":
+                if t >= self._ref.t_end:
+                    p0, _, _, _ = self._ref_at(t)
+                    self._ref, self._leg_phase = Descend(p0, p.land_speed, self._ref_yaw, t), "descend"
+                return
+            # touchdown (PX4's land detector, simplified): commanded down, but no longer moving, for touchdown_s
+            if t - self._ref.t_start >= 0.5 and float(np.linalg.norm(s.v_W)) < p.touchdown_speed:
                 if self._touchdown_since is None:
                     self._touchdown_since = t
                 if t - self._touchdown_since >= p.touchdown_s:

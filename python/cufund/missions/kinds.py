@@ -37,6 +37,10 @@ def _commander(p: CommanderParams, ctx: Any) -> list[Any]:
 
     ctx.done = done
     ctx.commander = commander
+    ctx.metric_hooks.append(lambda result: {
+        "commander_events": [f"{e['t']:.2f} s {e['message']}" for e in commander.events],
+        "commander_denied": len(commander.events.of_kind("denied")),
+        "mission_items_reached": len(commander.events.of_kind("mission_item_reached"))})
     return [commander, *components]
 
 

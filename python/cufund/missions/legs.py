@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Brake", "Leg", "yaw_of"]
+__all__ = ["Brake", "Descend", "Leg", "yaw_of"]
 
 
 def yaw_of(q: np.ndarray) -> float:
@@ -31,6 +31,18 @@ class Brake:
         e, v0 = math.exp(-s / tau), self.v0
         return (self.p0 + v0 * (2 * tau - (2 * tau + s) * e), v0 * ((1 + s / tau) * e), v0 * (-(s / tau ** 2) * e),
                 v0 * (-(1 - s / tau) * e / tau ** 2))
+
+
+class Descend:
+    """Straight down from p0 at ``speed`` [m/s] from ``t_start`` on (the last part of a landing, until touchdown)."""
+
+    def __init__(self, p0: np.ndarray, speed: float, yaw: float, t_start: float) -> None:
+        self.p0, self.v = np.array(p0, float), np.array([0.0, 0.0, -float(speed)])
+        self.yaw, self.t_start, self.t_end = yaw, t_start, math.inf
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        z = np.zeros(3)
+        return self.p0 + self.v * max(t - self.t_start, 0.0), self.v.copy(), z, z
 
 
 @dataclass

@@ -23,8 +23,11 @@ class CommanderParams:
     """Take-off height above home when the command names none [m] (MIS_TAKEOFF_ALT)."""
     takeoff_speed: float = 0.5
     """Climb speed limit of a take-off [m/s] (MPC_TKO_SPEED)."""
-    land_speed: float = 0.5
-    """Descent speed limit of a landing [m/s] (MPC_LAND_SPEED)."""
+    land_speed: float = 0.3
+    """Final descent speed of a landing, from ``land_alt`` down to touchdown [m/s] (MPC_LAND_SPEED)."""
+    land_alt: float = 0.3
+    """A landing approaches this height above home at go-to speed, then descends at ``land_speed`` [m]
+    (MPC_LAND_ALT2)."""
     v_max: float = 1.0
     """Speed limit per axis of go-to, mission and return legs [m/s] (MPC_XY_CRUISE)."""
     a_max: float = 2.0
@@ -44,9 +47,9 @@ class CommanderParams:
     brake_tau: float = 0.25
     """Time constant of the critically damped stop when the vehicle holds [s]."""
     touchdown_speed: float = 0.15
-    """Touchdown: speed below this [m/s] ..."""
+    """Touchdown: during the final descent, speed below this [m/s] ..."""
     touchdown_s: float = 0.3
-    """... for this long at the end of a landing [s] (then the vehicle disarms)."""
+    """... for this long [s] (then the vehicle disarms)."""
     script: tuple = ()
     """``[[t, command], ...]``: commands applied at simulated time t [s] (a scripted flight without a server)."""
 
@@ -79,6 +82,7 @@ class CommanderParams:
 
 
 PX4_NAMES = {"MIS_TAKEOFF_ALT": "takeoff_altitude", "MPC_TKO_SPEED": "takeoff_speed", "MPC_LAND_SPEED": "land_speed",
+             "MPC_LAND_ALT2": "land_alt",
              "MPC_XY_CRUISE": "v_max", "MPC_ACC_HOR": "a_max", "MPC_JERK_AUTO": "j_max",
              "NAV_ACC_RAD": "acceptance_radius", "COM_OF_LOSS_T": "offboard_timeout_s",
              "COM_DL_LOSS_T": "link_loss_timeout_s", "RTL_RETURN_ALT": "rtl_altitude",
