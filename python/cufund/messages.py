@@ -221,6 +221,11 @@ class OdometryDiagnostics:
     """Process CPU time spent on the frame (all threads) [ms]."""
     skipped: str
     """Why the frame added no LiDAR constraint ('' when it did)."""
+    healthy: bool = True
+    """False while the estimate should not be trusted for precise flight (no LiDAR constraint for a while, the
+    IMU and the LiDAR disagreeing, re-locking after either): hold position or land."""
+    reason: str = ""
+    """Why it is not healthy ('' when it is)."""
 
 
 @message

@@ -228,10 +228,14 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
         metrics.update(odometry_metrics(result))
         diag = result.topics.get(str(Topics.ESTIMATOR_DIAGNOSTICS))
         if diag:
-            ms = np.asarray(diag["time_ms"], dtype=float)
-            metrics.update({"lio_ms_per_scan_median": float(np.median(ms)), "lio_ms_per_scan_p99":
-                            float(np.percentile(ms, 99)), "lio_cpu_ms_per_scan_median":
-                            float(np.median(np.asarray(diag["cpu_ms"], dtype=float))), "lio_scans": int(len(ms))})
+            used = np.asarray([s == "" for s in diag["skipped"]], dtype=bool)  # frames with a LiDAR constraint
+            ms = np.asarray(diag["time_ms"], dtype=float)[used]
+            if len(ms):
+                metrics.update({"lio_ms_per_scan_median": float(np.median(ms)), "lio_ms_per_scan_p99":
+                                float(np.percentile(ms, 99)), "lio_cpu_ms_per_scan_median":
+                                float(np.median(np.asarray(diag["cpu_ms"], dtype=float)[used]))})
+            metrics["lio_scans"] = int(len(ms))
+            metrics["lio_unhealthy_reports"] = int(np.count_nonzero(~np.asarray(diag["healthy"], dtype=bool)))
     return ScenarioRun(config, result, ctx.reference, ctx.tracking_path, metrics, list(ctx.output_hooks))
 
 

@@ -48,6 +48,14 @@ class ScanDiagnostics:
     """CPU time of the process (all threads) spent on this frame [ms]: the cost on a busy machine."""
     skipped: str = ""
     """Why the frame added no LiDAR factor ('' when it did)."""
+    innovation_deg: float = 0.0
+    """Rotation between the IMU-propagated prediction and the registered pose [deg]."""
+    innovation_m: float = 0.0
+    """Distance between the IMU-propagated prediction and the registered position [m]."""
+    healthy: bool = True
+    """False while the estimate should not be trusted for precise flight (see LioCore.health)."""
+    reason: str = ""
+    """Why it is not healthy ('' when it is)."""
 
 
 @dataclass
@@ -89,6 +97,14 @@ class _ImuBuffer:
             del self.t[:i], self.acc[:i], self.gyr[:i]
 
 
+def _so3_log(R: np.ndarray) -> np.ndarray:
+    """The rotation vector of R [rad]."""
+    c = float(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))
+    th = math.acos(c)
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return v * (0.5 if th < 1e-6 else th / (2.0 * math.sin(th)))
+
+
 class LioCore:
     """``add_imu(t, f_I, w_I)`` for every IMU sample, ``add_scan(t, dt, points_L)`` for every LiDAR frame (after
     the IMU samples up to its end). Both return the body ``Odometry`` they produce, or None (still initialising)."""
@@ -109,6 +125,7 @@ class LioCore:
                                             p.map_max_distance, p.map_max_voxels)
         self._model = PlaneModel(self._map, p)
         self._pim_params = self._imu_params()
+        self._pim_recovery = self._imu_params(p.recovery_acc_rw, p.recovery_gyro_rw)
         isam = gtsam.ISAM2Params()
         isam.setRelinearizeThreshold(p.relinearize_threshold)
         isam.relinearizeSkip = 1
@@ -122,12 +139,18 @@ class LioCore:
         self.skipped_imu = 0
         self.skipped_scans = 0
         self.dropped_points = 0
+        self.last_lidar_factor_t: float | None = None
+        """End of the newest frame that added a LiDAR constraint [s] (None before the first)."""
+        self._consistent = self.params.health_relock_frames  # consistent frames in a row
 
     # ---------------------------------------------------------------- setup
-    def _imu_params(self) -> gtsam.PreintegrationCombinedParams:
+    def _imu_params(self, acc_rw_min: float = 0.0, gyr_rw_min: float = 0.0) -> gtsam.PreintegrationCombinedParams:
+        """The IMU factors' noise from the IMU's spec; the bias random walks at least ``acc_rw_min`` and
+        ``gyr_rw_min`` (the loose factors that let the biases follow a jump)."""
         ip = self.params.imu
         acc_w, acc_rw, _ = ip.accel.per_axis(3)
         gyr_w, gyr_rw, _ = ip.gyro.per_axis(3)
+        acc_rw, gyr_rw = np.maximum(acc_rw, acc_rw_min), np.maximum(gyr_rw, gyr_rw_min)
         # An ideal IMU (zero densities) still needs a well-conditioned problem: its zeros become small densities
         # (a real part's spec is used as given).
         def density(x: np.ndarray, floor: float) -> np.ndarray:
@@ -261,8 +284,10 @@ class LioCore:
         t_end = t + (float(d.max()) if len(d) else 0.0)
         if len(pts) == 0 or t_end <= self._node.t:
             self.skipped_scans += 1
-            self.diagnostics.append(ScanDiagnostics(t_end, 0, 0, 0, (), (), 0.0, skipped=
-                                                    "empty frame" if len(pts) == 0 else "frame ends before the state"))
+            why = "empty frame" if len(pts) == 0 else "frame ends before the state"
+            self._consistent = 0 if len(pts) == 0 else self._consistent
+            self.diagnostics.append(ScanDiagnostics(t_end, 0, 0, 0, (), (), 0.0, skipped=why, healthy=len(pts) > 0,
+                                                    reason="no LiDAR constraint: empty frame" if len(pts) == 0 else ""))
             return None
         prev = self._node
         knots, pdt, pacc, pgyr = self._imu.pieces(prev.t, t_end)
@@ -278,11 +303,6 @@ class LioCore:
         v_pred = states[-1, 3:6]
         k = self._k + 1
         graph = gtsam.NonlinearFactorGraph()
-        pim = gtsam.PreintegratedCombinedMeasurements(
-            self._pim_params, gtsam.imuBias.ConstantBias(prev.bias_acc, prev.bias_gyr))
-        for h, a, w in zip(pdt, pacc, pgyr):
-            pim.integrateMeasurement(a, w, float(h))
-        graph.add(gtsam.CombinedImuFactor(X(k - 1), V(k - 1), X(k), V(k), B(k - 1), B(k), pim))
         reg = None
         if len(self._map) == 0:
             R0, p0 = R_pred, p_pred
@@ -297,6 +317,18 @@ class LioCore:
                 graph.add(self._lidar_factor(X(k), scan_I, reg))
             else:
                 graph.add(self._pose_factor(X(k), reg))
+        rot_innov = trans_innov = 0.0
+        if reg is not None:
+            rot_innov = float(np.linalg.norm(_so3_log(R_pred.T @ reg.R_WI)))
+            trans_innov = float(np.linalg.norm(reg.p_W - p_pred))
+        jump = (rot_innov > math.radians(self.params.bias_jump_deg) or trans_innov > self.params.bias_jump_m) \
+            and not skipped
+        pim = gtsam.PreintegratedCombinedMeasurements(
+            self._pim_recovery if jump else self._pim_params,
+            gtsam.imuBias.ConstantBias(prev.bias_acc, prev.bias_gyr))
+        for h, a, w in zip(pdt, pacc, pgyr):
+            pim.integrateMeasurement(a, w, float(h))
+        graph.add(gtsam.CombinedImuFactor(X(k - 1), V(k - 1), X(k), V(k), B(k - 1), B(k), pim))
         values = gtsam.Values()
         values.insert(X(k), pose3(R0, p0))
         values.insert(V(k), v_pred)
@@ -313,6 +345,7 @@ class LioCore:
         self._node = NavEstimate(t_end, R, pos, np.asarray(est.atVector(V(k))), np.asarray(bias.accelerometer()),
                                  np.asarray(bias.gyroscope()))
         self._k = k
+        healthy, reason = self._health(t_end, skipped, jump, rot_innov, trans_innov)
         # The map grows with this frame, placed at the new estimate.
         self._map.insert((ins_L @ self._R_IL.T + self._p_IL) @ R.T + pos, pos)
         self._catch_up()
@@ -321,10 +354,42 @@ class LioCore:
             t_end, len(scan_I), reg.inliers if reg else 0, reg.iterations if reg else 0,
             tuple(float(e) for e in reg.eigenvalues) if reg else (),
             tuple(tuple(float(x) for x in row) for row in reg.degenerate_W) if reg else (),
-            (time.perf_counter() - wall) * 1e3, cpu_ms=(time.process_time() - cpu) * 1e3, skipped=skipped))
+            (time.perf_counter() - wall) * 1e3, cpu_ms=(time.process_time() - cpu) * 1e3, skipped=skipped,
+            innovation_deg=math.degrees(rot_innov), innovation_m=trans_innov, healthy=healthy, reason=reason))
         if skipped:
             self.skipped_scans += 1
         return self._odometry(self._node)
+
+    def _health(self, t_end: float, skipped: str, jump: bool, rot_innov: float, trans_innov: float
+                ) -> tuple[bool, str]:
+        """The frame's health verdict: unhealthy when it added no LiDAR constraint, when the IMU's prediction and
+        the registration disagree (a bias jump, a bad registration), after a LiDAR gap, and until
+        ``health_relock_frames`` consistent frames in a row have followed any of these."""
+        p = self.params
+        gap = None if self.last_lidar_factor_t is None else t_end - self.last_lidar_factor_t
+        if skipped == "first frame builds the map":
+            self.last_lidar_factor_t = t_end
+            return True, ""
+        if skipped:
+            self._consistent = 0
+            return False, f"no LiDAR constraint: {skipped}"
+        self.last_lidar_factor_t = t_end
+        if jump:
+            self._consistent = 0
+            return False, (f"IMU prediction and LiDAR registration disagree by {math.degrees(rot_innov):.2f} deg, "
+                           f"{trans_innov * 100:.1f} cm: re-estimating the IMU biases")
+        if gap is not None and gap > p.health_max_lidar_gap_s:
+            self._consistent = 0
+        self._consistent += 1
+        if self._consistent >= p.health_relock_frames:
+            return True, ""
+        return False, f"re-locking: {self._consistent} of {p.health_relock_frames} consistent LiDAR frames"
+
+    def lidar_gap(self, t: float) -> float | None:
+        """Time since the newest LiDAR constraint at ``t`` [s] (None before initialisation)."""
+        if self._node is None:
+            return None
+        return t - (self.last_lidar_factor_t if self.last_lidar_factor_t is not None else self._node.t)
 
     def _catch_up(self) -> None:
         """The IMU-rate state restarts from the new node and re-integrates the samples after it."""

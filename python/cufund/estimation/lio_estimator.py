@@ -7,8 +7,11 @@ past its end have arrived (so its IMU factor and deskewing use measured motion, 
 
 from __future__ import annotations
 
-from ..components import Estimator
+import math
+
 import numpy as np
+
+from ..components import Estimator
 
 from ..messages import Odometry, OdometryDiagnostics, Topics
 from .frames import scan_frame
@@ -16,6 +19,9 @@ from .lio_core import LioCore, ScanDiagnostics
 from .params import LioParams
 
 __all__ = ["LioEstimator"]
+
+_GAP_REPORT_S = 0.1
+"""How often a LiDAR gap is reported [s]."""
 
 
 class LioEstimator(Estimator):
@@ -41,6 +47,7 @@ class LioEstimator(Estimator):
         self._latest: Odometry | None = None
         self._imu_sub = self._lidar_sub = None
         self._diagnosed = 0
+        self._gap_reported = -math.inf
 
     def setup(self, bus) -> None:
         self._imu_sub = bus.subscribe(self.imu_topic)
@@ -55,9 +62,22 @@ class LioEstimator(Estimator):
         for d in self.core.diagnostics[self._diagnosed:]:  # one message per frame processed
             bus.publish(Topics.ESTIMATOR_DIAGNOSTICS, OdometryDiagnostics(
                 d.t, d.points, d.inliers, d.iterations, np.asarray(d.eigenvalues, dtype=float),
-                np.asarray(d.degenerate_directions, dtype=float).reshape(-1, 6), d.time_ms, d.cpu_ms, d.skipped))
+                np.asarray(d.degenerate_directions, dtype=float).reshape(-1, 6), d.time_ms, d.cpu_ms, d.skipped,
+                d.healthy, d.reason))
         self._diagnosed = len(self.core.diagnostics)
+        self._report_gap(t, bus)
         return self._latest
+
+    def _report_gap(self, t: float, bus) -> None:
+        """Without LiDAR constraints for longer than health_max_lidar_gap_s, an unhealthy diagnostic every LiDAR
+        period (no frame carries the news)."""
+        gap = self.core.lidar_gap(t)
+        if gap is None or gap <= self.params.health_max_lidar_gap_s or t - self._gap_reported < _GAP_REPORT_S:
+            return
+        self._gap_reported = t
+        bus.publish(Topics.ESTIMATOR_DIAGNOSTICS, OdometryDiagnostics(
+            t, 0, 0, 0, np.zeros(0), np.zeros((0, 6)), 0.0, 0.0, "no LiDAR frame", False,
+            f"no LiDAR constraint for {gap:.2f} s: IMU only"))
 
     def feed(self, clouds: list, imus: list) -> list[Odometry]:
         """Queues LiDAR frames, then integrates IMU samples in order, processing each queued frame as soon as a

@@ -15,7 +15,8 @@ __all__ = ["LioParams"]
 
 _POSITIVE = ("init_duration_s", "init_max_gyro_dev", "init_max_accel_dev", "gravity", "scan_voxel", "map_voxel",
              "map_insert_voxel", "map_max_distance", "plane_radius", "max_plane_rms", "max_residual", "robust_scale",
-             "range_sigma", "convergence", "refit_distance", "lag_s", "lidar_information_scale", "relinearize_threshold")
+             "range_sigma", "convergence", "refit_distance", "lag_s", "lidar_information_scale", "relinearize_threshold",
+             "bias_jump_deg", "bias_jump_m", "recovery_acc_rw", "recovery_gyro_rw", "health_max_lidar_gap_s")
 
 
 @dataclass(frozen=True)
@@ -94,6 +95,19 @@ class LioParams:
     """ISAM2 relinearisation threshold [rad, m]."""
     nthreads: int = 0
     """Threads for the C++ kernels (0: all)."""
+    bias_jump_deg: float = 0.2
+    """A frame whose registered attitude is further than this from the IMU's prediction [deg] ..."""
+    bias_jump_m: float = 0.03
+    """... or whose registered position is further than this from it [m] takes a loose bias random walk in its
+    IMU factor (recovery_*_rw), so the bias states can follow a bias jump."""
+    recovery_acc_rw: float = 0.15
+    """Accelerometer bias random walk of such a frame's IMU factor [m/s^2/sqrt(s)]."""
+    recovery_gyro_rw: float = 0.05
+    """Gyroscope bias random walk of such a frame's IMU factor [rad/s/sqrt(s)]."""
+    health_max_lidar_gap_s: float = 0.35
+    """Health: no LiDAR constraint for longer than this makes the estimate unhealthy (IMU only) [s]."""
+    health_relock_frames: int = 3
+    """Health: consistent LiDAR frames in a row needed to be healthy again after a gap or a disagreement."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "imu", nested(ImuParams, self.imu, "LioParams.imu"))
@@ -112,7 +126,7 @@ class LioParams:
         if self.robust not in ("none", "huber", "cauchy"):
             raise ConfigError(f"LioParams.robust must be 'none', 'huber' or 'cauchy', got {self.robust!r}")
         for name, lo in (("map_points_per_voxel", 1), ("map_max_voxels", 1), ("neighbours", 3),
-                         ("max_iterations", 1), ("max_refits", 0), ("smoother_iterations", 1), ("nthreads", 0)):
+                         ("max_iterations", 1), ("max_refits", 0), ("health_relock_frames", 1), ("smoother_iterations", 1), ("nthreads", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
                 raise ConfigError(f"LioParams.{name} must be an integer >= {lo}, got {v!r}")
