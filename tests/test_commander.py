@@ -249,3 +249,27 @@ def test_retargeting_in_motion_keeps_the_reference_smooth():
     assert np.linalg.norm(cmd.setpoint.v_W - sp.v_W) < 0.05  # no velocity step in the reference
     sim.advance_to(sim.t + 8.0)
     assert np.linalg.norm(_p(sim) - [0.0, 2.0, 1.5]) < 0.1
+
+
+def test_offboard_attitude_thrust_above_weight_climbs():
+    sim, cmd = _flight()
+    _airborne(sim, cmd, 1.0)
+    weight = sim.vehicle.params.mass * sim.vehicle.params.gravity
+    z0 = _p(sim)[2]
+    for k in range(50):  # 1 s level at 1.2 x weight: a = 0.2 g up (less the drag and the thrust lag)
+        cmd.apply({"command": "offboard_attitude", "q_WB": [1, 0, 0, 0], "thrust": 1.2 * weight}, sim.t)
+        sim.advance_to(sim.t + 0.02)
+    assert cmd.flight_mode.value == "attitude"
+    dz = _p(sim)[2] - z0
+    assert 0.5 * 0.5 * 0.2 * 9.81 < dz < 1.2 * 0.5 * 0.2 * 9.81 and np.linalg.norm(_p(sim)[:2]) < 0.1
+
+
+def test_same_script_same_flight_bit_for_bit():
+    script = [[0.2, {"command": "arm"}], [0.4, {"command": "takeoff", "altitude": 0.8}],
+              [2.0, {"command": "goto", "p_W": [0.5, 0.5, 1.0]}]]
+    runs = []
+    for _ in range(2):
+        sim, cmd = _flight(script=script)
+        sim.advance_to(3.0)
+        runs.append(sim.result().states["p_W"])
+    assert np.array_equal(runs[0], runs[1]) and runs[0][-1, 2] > 0.5
