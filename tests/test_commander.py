@@ -269,7 +269,7 @@ def test_same_script_same_flight_bit_for_bit():
               [2.0, {"command": "goto", "p_W": [0.5, 0.5, 1.0]}]]
     runs = []
     for _ in range(2):
-        sim, cmd = _flight(script=script)
+        sim, _ = _flight(script=script)
         sim.advance_to(3.0)
         runs.append(sim.result().states["p_W"])
     assert np.array_equal(runs[0], runs[1]) and runs[0][-1, 2] > 0.5
