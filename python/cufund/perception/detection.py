@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FrameDetection", "TunnelDetectorParams", "detect_frames", "detect_in_voxels", "order_along_course", "voxel_keys", "voxel_means"]
+__all__ = ["FrameDetection", "TunnelDetectorParams", "column_keys", "detect_frames", "detect_in_voxels", "order_along_course", "voxel_keys", "voxel_means"]
 
 
 def _positive(name: str, v: object, allow_zero: bool = False) -> float:
@@ -60,6 +60,9 @@ class TunnelDetectorParams:
     """Points lower than floor_z + floor_cut are not clustered (they are still measured) [m]."""
     ceiling_z: float = 3.0
     """Points higher than this are ignored [m]."""
+    max_frame_top: float = 2.6
+    """No frame reaches above this: 10 cm x-y columns holding points between it and ceiling_z (walls, poles) are
+    not clustered, nor accumulated by the component; ceiling_z must stay below the ceiling [m]."""
     roi_min_W: tuple[float, float, float] | None = None
     """Lower corner of the region of interest (e.g. inside the arena's walls) [m]; None: unbounded."""
     roi_max_W: tuple[float, float, float] | None = None
@@ -108,7 +111,7 @@ class TunnelDetectorParams:
         inc = _positive("min_incidence", self.min_incidence, allow_zero=True)
         if not inc < 1:
             raise ValueError(f"TunnelDetectorParams.min_incidence must be in [0, 1), got {inc}")
-        for name in ("floor_z", "ceiling_z"):
+        for name in ("floor_z", "ceiling_z", "max_frame_top"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
                 raise ValueError(f"TunnelDetectorParams.{name} must be a finite number [m], got {v!r}")
@@ -407,12 +410,27 @@ def detect_frames(points_W: object, params: TunnelDetectorParams | None = None, 
     return detect_in_voxels(cloud, views, p, expected, origin_W)
 
 
+def column_keys(points: np.ndarray, cell: float = 0.1) -> np.ndarray:
+    """One int64 key per point naming its x-y column of edge ``cell`` [m]."""
+    ij = np.floor(points[:, :2] / cell).astype(np.int64) + (1 << 30)
+    return (ij[:, 0] << 31) | ij[:, 1]
+
+
+def _in_tall_columns(points: np.ndarray, top: float) -> np.ndarray:
+    """Mask of the points in x-y columns that hold a point above ``top`` [m] (walls, poles)."""
+    if len(points) == 0:
+        return np.zeros(0, dtype=bool)
+    keys = column_keys(points)
+    return np.isin(keys, np.unique(keys[points[:, 2] > top]))
+
+
 def detect_in_voxels(cloud_W: np.ndarray, views_W: np.ndarray | None, params: TunnelDetectorParams,
                      expected: int | None = None, origin_W: object = None) -> list[FrameDetection]:
     """:func:`detect_frames` on points already cropped and reduced to voxel means ``cloud_W`` (M, 3) [m], with
     the mean unit ray direction of each voxel ``views_W`` (M, 3) or None (the detector's accumulated map)."""
     p = params
     coarse = voxel_means(cloud_W[cloud_W[:, 2] > p.floor_z + p.floor_cut], p.cluster_voxel)
+    coarse = coarse[~_in_tall_columns(coarse, p.max_frame_top)]
     labels = _dbscan(coarse, p.eps, p.min_points)
     rng = np.random.default_rng(p.seed)
     found: list[FrameDetection] = []

@@ -15,6 +15,7 @@ from ..sensors.pose import Transform, quat_to_matrix
 from .detection import (
     FrameDetection,
     TunnelDetectorParams,
+    column_keys,
     detect_in_voxels,
     order_along_course,
 )
@@ -89,12 +90,16 @@ class TunnelDetector(Component):
         self.updates = 0
         self.update_seconds = 0.0
         """Wall time spent in :meth:`step` so far [s] (for benchmarks; divide by ``updates``)."""
+        self.update_cpu_seconds = 0.0
+        """CPU time of the process (all its threads) during :meth:`step` so far [s]."""
         self.origin_W = self._origin_given
         self._t: list[float] = []
         self._p: list[np.ndarray] = []
         self._q: list[np.ndarray] = []
         self._waiting: list[PointCloud] = []
         self._last_stamp = 0.0
+        self._tall = np.zeros(0, dtype=np.int64)
+        self._tall_changed = False
 
     def setup(self, bus: BusView) -> None:
         self._poses_sub: Subscription = bus.subscribe(self.active_state_topic)
@@ -138,6 +143,13 @@ class TunnelDetector(Component):
         rng = np.linalg.norm(rays_W, axis=1)
         keep = (rng > 1e-6) & (rng <= p.max_range) & (points_W[:, 2] <= p.ceiling_z) \
             & (points_W[:, 2] >= p.floor_z + p.floor_band)
+        # x-y columns reaching above any frame are walls or poles: never accumulated
+        cols = column_keys(points_W)
+        tall = np.unique(cols[keep & (points_W[:, 2] > p.max_frame_top)])
+        if len(tall) and not np.all(np.isin(tall, self._tall)):
+            self._tall = np.union1d(self._tall, tall)
+            self._tall_changed = True
+        keep &= ~np.isin(cols, self._tall)
         if p.roi_min_W is not None:
             keep &= np.all(points_W >= np.asarray(p.roi_min_W), axis=1)
         if p.roi_max_W is not None:
@@ -201,7 +213,7 @@ class TunnelDetector(Component):
 
     # -- the step ----------------------------------------------------------------------------------------------
     def step(self, t: float, bus: BusView) -> None:
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         for state in self._poses_sub.take():
             state: Odometry
             if not self._t or state.t > self._t[-1]:
@@ -216,6 +228,9 @@ class TunnelDetector(Component):
                 self._t[-1] >= self._waiting[0].t + float(np.max(self._waiting[0].dt, initial=0.0)):
             batch.append(self._crop(self._waiting.pop(0)))
         if batch:
+            if self._tall_changed and len(self.map):
+                self.map.drop(np.isin(column_keys(self.map.means()[0]), self._tall))
+            self._tall_changed = False
             self.map.insert(np.concatenate([b[0] for b in batch]), np.concatenate([b[1] for b in batch]))
             cloud, rays = self.map.means()
             self.detections = detect_in_voxels(cloud, rays, self.params, self.expected, self.origin_W)
@@ -223,3 +238,4 @@ class TunnelDetector(Component):
             bus.publish(Topics.TUNNEL_ESTIMATE, self.estimate())
         self.updates += 1
         self.update_seconds += time.perf_counter() - start
+        self.update_cpu_seconds += time.process_time() - cpu

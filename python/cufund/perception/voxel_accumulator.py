@@ -56,6 +56,11 @@ class VoxelAccumulator:
             keep = np.sort(np.lexsort((self._keys, -self._seen))[:self.max_voxels])
             self._keys, self._sums, self._seen = self._keys[keep], self._sums[keep], self._seen[keep]
 
+    def drop(self, mask: np.ndarray) -> None:
+        """Forgets the voxels where ``mask`` (one bool per voxel, in the order of :meth:`means`) is True."""
+        keep = ~np.asarray(mask, dtype=bool)
+        self._keys, self._sums, self._seen = self._keys[keep], self._sums[keep], self._seen[keep]
+
     def means(self) -> tuple[np.ndarray, np.ndarray]:
         """Each voxel's mean point (M, 3) [m] and mean ray direction (M, 3)."""
         n = self._sums[:, 6:7]
