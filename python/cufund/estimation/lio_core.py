@@ -403,7 +403,8 @@ class LioCore:
 
     def _pose_factor(self, key: int, reg) -> gtsam.NonlinearFactor:
         evals, evecs, obs = observable_split(reg.H, reg.inliers, self.params)
-        lam = np.where(obs, evals, evals.max() * 1e-12 + 1e-9) * self.params.lidar_information_scale
+        noise = min(1.0, self.params.range_sigma / max(reg.residual_sigma, 1e-9)) ** 2  # as in _lidar_factor
+        lam = np.where(obs, evals, evals.max() * 1e-12 + 1e-9) * self.params.lidar_information_scale * noise
         info = evecs @ np.diag(lam) @ evecs.T
         return gtsam.PriorFactorPose3(key, pose3(reg.R_WI, reg.p_W), gtsam.noiseModel.Gaussian.Information(info))
 
@@ -413,7 +414,8 @@ class LioCore:
         Gauss-Newton form e = L^-T b, de/dxi = L with H = L^T L over the observable directions, so
         |e + L dxi|^2 is the quadratic model of the LiDAR cost."""
         model, params = self._model, self.params
-        s = math.sqrt(params.lidar_information_scale)
+        # Noise-aware: residuals wider than range_sigma (a degraded LiDAR) weaken the factor accordingly.
+        s = math.sqrt(params.lidar_information_scale) * min(1.0, params.range_sigma / max(reg.residual_sigma, 1e-9))
         cache: dict[str, object] = {"planes": reg.planes, "fit_R": reg.R_WI, "fit_p": reg.p_W, "M": None}
 
         def error(this: gtsam.CustomFactor, values: gtsam.Values, jacobians) -> np.ndarray:

@@ -74,6 +74,8 @@ class Registration:
     converged: bool
     planes: tuple[np.ndarray, np.ndarray]
     """The correspondences at the solution (valid, planes), see :func:`fit_planes`."""
+    residual_sigma: float = 0.0
+    """Robust standard deviation (1.4826 MAD) of the point-to-plane residuals at the solution [m]."""
 
 
 def register(model: PlaneModel, points_I: np.ndarray, R0: np.ndarray, p0: np.ndarray) -> Registration:
@@ -112,5 +114,8 @@ def register(model: PlaneModel, points_I: np.ndarray, R0: np.ndarray, p0: np.nda
     deg = evecs[:, ~obs].T.copy()
     deg[:, :3] = deg[:, :3] @ R.T
     deg[:, 3:] = deg[:, 3:] @ R.T
+    r = terms["residual"][terms["valid"].astype(bool)]
+    r = r[np.abs(r) <= prm.max_residual]
+    sigma = float(1.4826 * np.median(np.abs(r))) if len(r) else 0.0
     return Registration(R, p, terms["H"], it, int(terms["inliers"]),
-                        evals * prm.range_sigma**2 / max(int(terms["inliers"]), 1), deg, converged, planes)
+                        evals * prm.range_sigma**2 / max(int(terms["inliers"]), 1), deg, converged, planes, sigma)
