@@ -96,12 +96,16 @@ class Px4BridgeParams:
 def px4_scenario(config: ScenarioConfig) -> ScenarioConfig:
     """``config`` as PX4's world: no estimator, mapper, planner, controller or mission (PX4 flies), and an IMU,
     magnetometer, barometer and GPS at PX4's rates (:data:`PX4_SENSOR_RATES`) — the scenario's own models when it
-    has them, cufund's defaults (``icm42688p``, ``magnetometer``, ``ms5611``, ``ublox_m8n``) otherwise."""
+    has them, cufund's defaults (``icm42688p``, ``magnetometer``, ``ms5611``, ``ublox_m8n``) otherwise. The physics
+    node rate is the HIL_SENSOR rate (the vehicle's own integration step is unchanged)."""
     if not isinstance(config, ScenarioConfig):
         raise TypeError(f"config must be a cufund ScenarioConfig, got {type(config).__name__}")
     data = config.to_dict()
     for group in _FLIGHT_SOFTWARE:
         data[group] = None
+    # one physics step per HIL_SENSOR period (PX4 holds its outputs over it); the dynamics still integrate at the
+    # vehicle's max_integration_step inside the step, so accuracy is the scenario's
+    data.setdefault("rates", {})["physics_hz"] = PX4_SENSOR_RATES["imu"]
     sensors = data.get("sensors") or {}
     for stype, rate in PX4_SENSOR_RATES.items():
         name = _sensor_name(config, stype)
