@@ -42,7 +42,8 @@ def _airborne(sim, cmd, alt=1.5):
     ({"command": "fly"}, "command"), ({}, "command"), (3, "dict"),
     ({"command": "takeoff", "altitude": -1}, "altitude"), ({"command": "takeoff", "altitude": "high"}, "altitude"),
     ({"command": "goto"}, "p_W"), ({"command": "goto", "p_W": [1, 2]}, "p_W"),
-    ({"command": "goto", "p_W": [1, 2, float("nan")]}, "p_W"), ({"command": "goto", "p_W": [0, 0, 1], "yaw": "n"}, "yaw"),
+    ({"command": "goto", "p_W": [1, 2, float("nan")]}, "p_W"),
+    ({"command": "goto", "p_W": [0, 0, 1], "yaw": "n"}, "yaw"),
     ({"command": "mission_upload", "items": [[0, 0, 1], [1, 1]]}, "items[1]"),
     ({"command": "mission_upload", "items": "abc"}, "items"),
     ({"command": "flight_mode", "mode": "acro"}, "mode"), ({"command": "controller", "kind": "mpc"}, "kind"),
@@ -273,3 +274,17 @@ def test_same_script_same_flight_bit_for_bit():
         sim.advance_to(3.0)
         runs.append(sim.result().states["p_W"])
     assert np.array_equal(runs[0], runs[1]) and runs[0][-1, 2] > 0.5
+
+
+def test_goto_with_yaw_turns_smoothly():
+    sim, cmd = _flight()
+    _airborne(sim, cmd, 1.5)
+    t0 = sim.t
+    cmd.apply({"command": "goto", "p_W": [0.5, 0.0, 1.5], "yaw": 1.5})
+    sim.advance_to(sim.t + 5.0)
+    w, x, y, z = sim.vehicle.state.q
+    assert abs(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)) - 1.5) < 0.03
+    st = sim.result().states
+    m = st["t"] >= t0
+    assert np.max(np.abs(st["w_B"][m, 2])) < 1.0  # the turn's peak rate is yaw_rate_max = 0.8 rad/s
+    assert np.max(np.abs(st["w_B"][m, 2])) > 0.6

@@ -82,7 +82,8 @@ class Commander(Planner):
         self.t = 0.0
         self.setpoint: TrajectorySetpoint | None = None
         self._ref: Any = None  # JerkLimitedMove / Hold / Brake
-        self._ref_yaw = 0.0
+        self._ref_yaw = 0.0  # the heading to reach; the reference turns to it along _yaw_path
+        self._yaw_path = (0.0, 0.0, 0.0, 0.0)  # (yaw at the start, change, start time, duration)
         self._legs: collections.deque[Leg] = collections.deque()
         self._leg: Leg | None = None
         self._leg_phase = "move"  # 'move' then 'hold' (waiting hold_s at the target)
@@ -168,15 +169,31 @@ class Commander(Planner):
                                         start_v_W=v0, start_a_W=a0)
         except ValueError:  # a state ruckig cannot start from (beyond the limits): from rest at the reference
             self._ref = JerkLimitedMove(np.array(start, float), target, v, a, p.j_max, yaw, t_start=t)
-        self._ref_yaw = yaw
+        self._turn(t, yaw)
         self.target_p_W = np.array(target, float)
+
+    def _turn(self, t: float, yaw: float, instant: bool = False) -> None:
+        """Heads for ``yaw`` [rad]: a smoothstep from the current reference heading, its peak rate yaw_rate_max."""
+        now, _ = self._yaw_at(t)
+        d = (yaw - now + math.pi) % (2 * math.pi) - math.pi
+        self._ref_yaw = now + d
+        T = 0.0 if instant else 1.5 * abs(d) / self.params.yaw_rate_max
+        self._yaw_path = (self._ref_yaw, 0.0, t, 0.0) if T == 0.0 else (now, d, t, T)
+
+    def _yaw_at(self, t: float) -> tuple[float, float]:
+        """The reference heading [rad] and its rate [rad/s] at ``t``."""
+        y0, d, t0, T = self._yaw_path
+        if T <= 0.0 or t >= t0 + T:
+            return y0 + d, 0.0
+        x = max(t - t0, 0.0) / T
+        return y0 + d * x * x * (3 - 2 * x), d * 6 * x * (1 - x) / T
 
     def _brake(self, t: float, from_state: bool = False) -> None:
         if from_state or self._ref is None:
             s = self.state
             assert s is not None
             p0, v0 = s.p_W, s.v_W
-            self._ref_yaw = yaw_of(s.q_WB)
+            self._turn(t, yaw_of(s.q_WB), instant=True)
         else:
             p0, v0, _, _ = self._ref_at(t)
         self._ref = Brake(p0, v0, self.params.brake_tau, self._ref_yaw, t)
@@ -311,7 +328,8 @@ class Commander(Planner):
                 return deny("not on the ground")
             self.armed, self._armed_since = True, t
             self.home_p_W = np.array(s.p_W, float)
-            self._ref, self._ref_yaw = None, yaw_of(s.q_WB)
+            self._ref = None
+            self._turn(t, yaw_of(s.q_WB), instant=True)
             self._event("armed", "armed")
             return ok()
         if name == "disarm":
@@ -396,7 +414,7 @@ class Commander(Planner):
             if c.p_W is not None:
                 self.target_p_W = np.array(c.p_W)
             if c.yaw is not None:
-                self._ref_yaw = c.yaw
+                self._turn(t, c.yaw, instant=True)  # offboard: the client's heading as it comes
             self._set_mode("offboard")
             return ok()
         return CommandAck(name, "unsupported", f"{name} is not handled")
@@ -519,7 +537,7 @@ class Commander(Planner):
             # re-sent while not in position mode: a controller that was reset (disarmed, switched) picks it up
             bus.publish(Topics.FLIGHT_MODE, FlightModeCommand(t, self.flight_mode))
             self._published_mode = self.flight_mode
-        yaw = self._ref_yaw
+        yaw, yaw_rate = self._yaw_at(t)
         if self.mode == "offboard" and self._offboard is not None:
             c = self._offboard[0]
             if c.command == "offboard_attitude":
@@ -542,7 +560,7 @@ class Commander(Planner):
             pr, vr, ar, jr = self._ref_at(t)
             if self._ref is None:  # on the ground: stay where the vehicle is
                 pr = np.array(s.p_W)
-            sp = TrajectorySetpoint(t, np.array(pr), np.array(vr), np.array(ar), np.array(jr), yaw, 0.0)
+            sp = TrajectorySetpoint(t, np.array(pr), np.array(vr), np.array(ar), np.array(jr), yaw, yaw_rate)
         self.setpoint = sp
         bus.publish(Topics.TRAJECTORY_SETPOINT, sp)
 

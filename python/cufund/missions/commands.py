@@ -165,7 +165,8 @@ def parse_command(data: Any) -> Command:
     if isinstance(data, str):
         data = {"command": data}
     if not isinstance(data, Mapping):
-        raise ValueError(f"a command must be a dict with a 'command' key, got {type(data).__name__}")  # noqa: TRY004 - bad input: ValueError
+        # a ValueError (not TypeError) for any bad input: clients map one exception to one error reply
+        raise ValueError(f"a command must be a dict with a 'command' key, got {type(data).__name__}")  # noqa: TRY004
     name = data.get("command")
     if not isinstance(name, str) or name not in _KEYS:
         raise ValueError(f"command must be one of {', '.join(COMMANDS)}, got {name!r}")

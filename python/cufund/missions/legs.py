@@ -16,7 +16,8 @@ def yaw_of(q: np.ndarray) -> float:
 
 
 class Brake:
-    """Stops from p0 at velocity v0 (critically damped, time constant tau): p = p0 + v0 (2 tau - (2 tau + s) e^-s/tau)."""
+    """Stops from p0 at velocity v0, critically damped with time constant tau:
+    p = p0 + v0 (2 tau - (2 tau + s) e^(-s/tau)), which comes to rest 2 tau v0 further on."""
 
     def __init__(self, p0: np.ndarray, v0: np.ndarray, tau: float, yaw: float, t_start: float) -> None:
         self.p0, self.v0, self.tau, self.yaw, self.t_start = np.array(p0, float), np.array(v0, float), tau, yaw, t_start

@@ -34,6 +34,8 @@ class CommanderParams:
     """Acceleration limit per axis of auto moves [m/s^2] (MPC_ACC_HOR)."""
     j_max: float = 5.0
     """Jerk limit per axis of auto moves [m/s^3] (MPC_JERK_AUTO)."""
+    yaw_rate_max: float = 0.8
+    """Peak heading rate of auto turns (go-to and mission yaw) [rad/s]."""
     acceptance_radius: float = 0.15
     """A leg is reached when its reference has arrived and the vehicle is this close [m] (NAV_ACC_RAD)."""
     offboard_timeout_s: float = 0.5
