@@ -8,8 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cufund import ScenarioConfig, load_scenario
+from cufund.components import Component
 from cufund.config import ConfigError
 from cufund.planning import clearance_from_world
+from cufund.planning.diagnostics import PLANNER_DIAGNOSTICS
 from cufund.planning.global_planner import GlobalPlanner, GlobalPlannerParams
 from cufund.scenario_build import build_simulation, run_scenario
 from cufund.worlds.builtin import forest
@@ -124,11 +126,28 @@ def test_global_kind_rejects_bad_settings():
         build_simulation(_yaml_scenario(search="prm"))
     with pytest.raises(ConfigError, match="planner.local must be true or false"):
         build_simulation(_yaml_scenario(local="yes"))
-    with pytest.raises(ConfigError, match="needs a map"):
+    with pytest.raises(ConfigError, match="/map/esdf"):  # the replanner's map has no publisher
         build_simulation(_yaml_scenario(local=True))
     trunk = next(o for o in forest(seed=3, n_trees=60, size=16.0, clearing=1.0).objects if o.label == "tree")
     with pytest.raises(ConfigError, match=r"no astar plan .* \(goal_blocked\)"):  # a goal inside a trunk
         build_simulation(_yaml_scenario(goal=[*trunk.vertices[:, :2].mean(axis=0).tolist(), 1.0]))
+
+
+class DiagnosticsLog(Component):
+    """Keeps every message on /planner/diagnostics."""
+
+    name = "diagnostics_log"
+    rate_hz = 50.0
+    inputs = (PLANNER_DIAGNOSTICS,)
+
+    def reset(self) -> None:
+        self.seen: list = []
+
+    def setup(self, bus) -> None:
+        self.sub = bus.subscribe(PLANNER_DIAGNOSTICS)
+
+    def step(self, t, bus) -> None:
+        self.seen += self.sub.take()
 
 
 def test_forest_global_scenario_guides_the_local_replanner():
@@ -140,8 +159,14 @@ def test_forest_global_scenario_guides_the_local_replanner():
                               "planner.goal": [12.0, 0.0, 1.5], "mapper.size": [18.0, 12.0, 4.0],
                               "mapper.origin_W": [-3.0, -6.0, -0.5], "duration": 30.0})
     world = build_simulation(cfg).context.world
-    run = run_scenario(cfg)
+    log = DiagnosticsLog()
+    run = run_scenario(cfg, extra_components=(log,))
     m = run.metrics
     assert m["status"] == "completed" and m["success"] and m["global_status"] == "ok", m
+    # every replan's diagnostics were published (the last may be still in flight at the end)
+    assert m["replans"] - 1 <= len(log.seen) <= m["replans"]
+    assert {d.status for d in log.seen} <= set(m["replan_status"]) and all(d.planner == "local" for d in log.seen)
+    ok = [d for d in log.seen if d.status == "ok"]
+    assert min(d.min_clearance_m for d in ok) == pytest.approx(m["plan_min_map_clearance_m"])
     assert m["replans"] > 50 and m["global_path_length_m"] > 12.0
     assert _trunks(world)(run.result.states["p_W"]).min() >= RADIUS

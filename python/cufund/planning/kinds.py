@@ -134,8 +134,6 @@ def _local(p: LocalParams, ctx: Any, guide_W: np.ndarray | None = None) -> list[
     from .metrics import planning_metrics
 
     cfg = ctx.config
-    if cfg.mapper is None:
-        raise ConfigError("planner: the local replanner needs a map: add mapper: {kind: esdf, ...}")
     start = _start(ctx)
     top = start + np.array([0.0, 0.0, p.takeoff_height])
     takeoff = JerkLimitedMove(start, top, p.move_v_max, p.move_a_max, p.move_j_max, 0.0, t_start=0.0)

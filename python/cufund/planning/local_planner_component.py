@@ -12,6 +12,7 @@ import numpy.typing as npt
 from ..components import BusView, Planner
 from ..messages import MapUpdate, Odometry, Topics, TrajectoryUpdate
 from .bspline import UniformBspline, start_control_points
+from .diagnostics import PLANNER_DIAGNOSTICS, PlannerDiagnostics
 from .local_planner import BsplineLocalPlanner, LocalPlannerParams
 from .point_to_point import JerkLimitedMove
 from .sequence import Hold, TrajectorySequence
@@ -77,7 +78,7 @@ class LocalPlannerComponent(Planner):
         self.guide_W = None if guide_W is None else np.asarray(guide_W, dtype=float).copy()
         """A polyline to ``goal_W`` (e.g. a global plan) the replans follow while it stays free on the map."""
         self.reads = (Topics.ESDF_MAP,)
-        self.writes = (Topics.TRAJECTORY_UPDATE,)
+        self.writes = (Topics.TRAJECTORY_UPDATE, PLANNER_DIAGNOSTICS)
         self.reset()
 
     def reset(self) -> None:
@@ -117,8 +118,12 @@ class LocalPlannerComponent(Planner):
             self._arrived = True
             return
         plan = self._planner.replan(t_r, p, v, a, goal, self.yaw)
-        self.replans.append(ReplanRecord(t, plan.status, 1e3 * plan.plan_seconds, plan.min_clearance,
-                                         plan.path_length, 1e3 * plan.plan_cpu_seconds))
+        record = ReplanRecord(t, plan.status, 1e3 * plan.plan_seconds, plan.min_clearance, plan.path_length,
+                              1e3 * plan.plan_cpu_seconds)
+        self.replans.append(record)
+        bus.publish(PLANNER_DIAGNOSTICS, PlannerDiagnostics(t, "local", record.status, record.plan_ms,
+                                                            record.plan_cpu_ms, record.min_clearance_m,
+                                                            record.path_length_m))
         if plan.status == "ok" and plan.trajectory is not None:
             self._publish(t, plan.trajectory, bus)
 
