@@ -137,3 +137,22 @@ def test_bad_input_raises():
         F.q_enu_flu_to_ned_frd(np.zeros(3))
     with pytest.raises(ValueError, match="finite"):
         F.deg_to_e7(float("nan"))
+
+
+def test_yaw_conversions_match_the_attitude_conversion():
+    np.testing.assert_allclose(F.yaw_enu_to_ned(np.array([0.0, np.pi / 2, np.pi, -np.pi / 2])),
+                               [np.pi / 2, 0.0, -np.pi / 2, np.pi - 2 * np.pi], atol=1e-12)  # east, north, west, south
+    yaw = np.random.default_rng(5).uniform(-np.pi, np.pi, 50)
+    q_WB = _wxyz(Rotation.from_euler("z", yaw[:, None]))
+    yaw_px4 = _scipy(F.q_enu_flu_to_ned_frd(q_WB)).as_euler("ZYX")[:, 0]
+    np.testing.assert_allclose(np.cos(F.yaw_enu_to_ned(yaw) - yaw_px4), 1.0, atol=1e-12)
+    np.testing.assert_allclose(np.cos(F.yaw_ned_to_enu(F.yaw_enu_to_ned(yaw)) - yaw), 1.0, atol=1e-12)
+    assert isinstance(F.yaw_enu_to_ned(0.3), float)
+
+
+def test_vector_conversions_keep_exact_values_and_do_not_alias():
+    v = np.array([[0.0, -0.0, 1e-300], [np.inf, -2.5, 7.0]])
+    out = F.enu_to_ned(v)
+    np.testing.assert_array_equal(out, [[-0.0, 0.0, -1e-300], [-2.5, np.inf, -7.0]])
+    out[0, 0] = 99.0
+    assert v[0, 1] == 0.0 and F.flu_to_frd(v) is not v

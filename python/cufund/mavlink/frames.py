@@ -51,6 +51,11 @@ INT16_MAX = 32767
 UINT16_UNKNOWN = 65535  #: MAVLink's "unknown" for uint16 fields (eph, epv, vel, cog)
 
 _SQRT_HALF = float(np.sqrt(0.5))
+_SWAP_XY = [1, 0, 2]
+_FLIP_Z = np.array([1.0, 1.0, -1.0])  # multiplying by +-1 is exact: these are pure axis relabellings
+_FLIP_YZ = np.array([1.0, -1.0, -1.0])
+_FLIP_Z.setflags(write=False)
+_FLIP_YZ.setflags(write=False)
 
 
 def _vec3(v: np.ndarray, name: str) -> np.ndarray:
@@ -69,26 +74,22 @@ def _quat(q: np.ndarray, name: str) -> np.ndarray:
 
 def enu_to_ned(v_ENU: np.ndarray) -> np.ndarray:
     """World vectors (..., 3) ENU -> NED: (x, y, z) -> (y, x, -z). Positions, velocities, accelerations, rates."""
-    v = _vec3(v_ENU, "v_ENU")
-    return np.stack([v[..., 1], v[..., 0], -v[..., 2]], -1)
+    return _vec3(v_ENU, "v_ENU")[..., _SWAP_XY] * _FLIP_Z
 
 
 def ned_to_enu(v_NED: np.ndarray) -> np.ndarray:
     """World vectors (..., 3) NED -> ENU: (x, y, z) -> (y, x, -z) (the same swap; it is its own inverse)."""
-    v = _vec3(v_NED, "v_NED")
-    return np.stack([v[..., 1], v[..., 0], -v[..., 2]], -1)
+    return _vec3(v_NED, "v_NED")[..., _SWAP_XY] * _FLIP_Z
 
 
 def flu_to_frd(v_FLU: np.ndarray) -> np.ndarray:
     """Body vectors (..., 3) FLU -> FRD: (x, y, z) -> (x, -y, -z). Specific force, magnetic field, velocity."""
-    v = _vec3(v_FLU, "v_FLU")
-    return np.stack([v[..., 0], -v[..., 1], -v[..., 2]], -1)
+    return _vec3(v_FLU, "v_FLU") * _FLIP_YZ
 
 
 def frd_to_flu(v_FRD: np.ndarray) -> np.ndarray:
     """Body vectors (..., 3) FRD -> FLU: (x, y, z) -> (x, -y, -z)."""
-    v = _vec3(v_FRD, "v_FRD")
-    return np.stack([v[..., 0], -v[..., 1], -v[..., 2]], -1)
+    return _vec3(v_FRD, "v_FRD") * _FLIP_YZ
 
 
 def rates_flu_to_frd(w_FLU: np.ndarray) -> np.ndarray:
