@@ -120,6 +120,7 @@ def test_cli_hitl_on_a_pty():
     (["--hitl", "/nonexistent/tty"], "cannot open serial port /nonexistent/tty"),
     (["--set", "vehicle=nope"], "vehicle"),
     (["--duration", "0"], "--duration must be"),
+    (["--hitl", "/dev/null", "--speed", "max"], "--speed max needs lockstep"),
 ])
 def test_cli_rejects_bad_usage(argv, message, capsys):
     from cufund.cli import main

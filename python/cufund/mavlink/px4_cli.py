@@ -50,6 +50,9 @@ def run(args: argparse.Namespace) -> int:
     link = None
     try:
         speed = _speed(args.speed)
+        if args.hitl and speed is None:
+            raise ConfigError("--speed max needs lockstep; HITL runs against the flight controller's clock, give a "
+                              "factor (1 is real time)")
         if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
             raise ConfigError(f"--duration must be a number of seconds > 0, got {args.duration!r}")
         if not 0 <= args.instance <= 60000:
