@@ -37,6 +37,10 @@ from .scenario_build import build_simulation
 __all__ = ["LiveRun"]
 
 SPEED_MIN, SPEED_MAX = 0.1, 10.0
+RECORD_HZ = 200.0
+"""Rate of the true-state record of a live run [Hz]."""
+_KEEP_BLOCKS = 64
+"""Record blocks (4096 rows each) a live run keeps."""
 
 
 def _rpy(q: np.ndarray) -> list[float]:
@@ -126,6 +130,12 @@ class LiveRun:
         vp = self.built.context.vehicle
         self._max_thrust = 4.0 * vp.k_f * vp.rotor_speed_max ** 2
         self._estimated = self.config.estimator is not None
+        # a live run may last hours: keep no message history and the true state at RECORD_HZ only (its crash and
+        # divergence checks run at the recorded nodes), trimmed to the last ~20 minutes
+        sim.record_topics = ()
+        ratio = sim.physics_rate_hz / RECORD_HZ
+        if ratio == int(ratio) and ratio >= 1:
+            sim.record_period = int(ratio)
         sim.reset()
         if start:
             self.start()
@@ -276,6 +286,9 @@ class LiveRun:
                             self._wake.wait(min(0.005, max(0.001, (0.002 - (target - sim.t)) / speed)))
                         continue
                 alive = sim.advance_to(target)
+                rows = getattr(sim, "_rows", None)
+                if rows is not None and len(rows) > _KEEP_BLOCKS:
+                    del rows[:len(rows) - _KEEP_BLOCKS]
                 now = time.perf_counter()
                 window = self._rate_window
                 window.append((now, sim.t))
