@@ -73,8 +73,10 @@ class Gcs:
 
 
 @contextlib.contextmanager
-def vehicle(speed: float = SPEED, links: int = 1, **endpoint_kw: Any) -> Iterator[tuple[Any, Any, list[Gcs]]]:
-    """A live ``vehicle`` run behind a VehicleEndpoint with ``links`` udpout links, each to its own Gcs."""
+def vehicle(speed: float = SPEED, links: int = 1, extra_links: tuple[str, ...] | list[str] = (),
+            **endpoint_kw: Any) -> Iterator[tuple[Any, Any, list[Gcs]]]:
+    """A live ``vehicle`` run behind a VehicleEndpoint with ``links`` udpout links, each to its own Gcs, and
+    ``extra_links`` (URLs) to other clients."""
     from cufund.live import LiveRun
     from cufund.mavlink.vehicle_endpoint import VehicleEndpoint
 
@@ -83,7 +85,8 @@ def vehicle(speed: float = SPEED, links: int = 1, **endpoint_kw: Any) -> Iterato
     live = LiveRun("vehicle", speed=speed)
     endpoint = None
     try:
-        endpoint = VehicleEndpoint(live, [f"udpout:127.0.0.1:{p}" for p in ports], **endpoint_kw).start()
+        urls = [f"udpout:127.0.0.1:{p}" for p in ports] + list(extra_links)
+        endpoint = VehicleEndpoint(live, urls, **endpoint_kw).start()
         for g in gcss:
             g.recv("HEARTBEAT", 10.0)
         yield live, endpoint, gcss

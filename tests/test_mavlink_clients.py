@@ -1,0 +1,182 @@
+"""Real MAVLink clients fly cufund's vehicle: MAVSDK (mavsdk_server from mavsdk-grpc, driven through its gRPC
+wrapper) and MAVProxy, each a subprocess with timeouts, killed in teardown."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import os
+import queue
+import re
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from cufund.sensors.geodesy import GeoPoint, enu_to_lla
+from mavlink_support import SPEED, free_port, vehicle
+
+mavsdk = pytest.importorskip("mavsdk_grpc")
+from mavsdk_grpc.mission import MissionItem, MissionPlan
+
+HOME = GeoPoint(22.4196, 114.2068, 30.0)
+BIN = Path(sys.executable).parent
+
+
+def _kill(p: subprocess.Popen, pumped: bool = False) -> str:
+    """Stops ``p`` (terminate, then kill) and closes its pipes; its remaining output unless another thread reads
+    it (``pumped``)."""
+    if p.poll() is None:
+        p.terminate()
+    try:
+        out = "" if pumped else p.communicate(timeout=5)[0]
+        p.wait(5)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        out = "" if pumped else p.communicate()[0]
+        p.wait(5)
+    for f in (p.stdin, p.stdout):
+        if f is not None:
+            f.close()
+    return out or ""
+
+
+def _item(lat: float, lon: float, rel_alt: float) -> MissionItem:
+    nan = math.nan
+    return MissionItem(lat, lon, rel_alt, 1.0, False, nan, nan, MissionItem.CameraAction.NONE, nan, nan, 0.2, nan,
+                       nan, MissionItem.VehicleAction.NONE)
+
+
+async def _first(stream, cond, timeout: float):
+    async def scan():
+        async for x in stream:
+            if cond(x):
+                return x
+        return None
+
+    return await asyncio.wait_for(scan(), timeout)
+
+
+def test_mavsdk_connects_takes_off_flies_a_mission_and_lands():
+    api, grpc = free_port(), free_port(socket.SOCK_STREAM)
+    server = subprocess.Popen([str(Path(mavsdk.__file__).parent / "bin" / "mavsdk_server"), "-p", str(grpc),
+                               f"udpin://127.0.0.1:{api}"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                              text=True)
+    path: list[np.ndarray] = []
+    try:
+        with vehicle(links=0, extra_links=[f"udpout:127.0.0.1:{api}"]) as (live, ep, _):
+            remove = live.add_listener(lambda tel: path.append(np.array(tel["p_W"])), 50.0)
+
+            async def fly() -> tuple:
+                drone = mavsdk.System(mavsdk_server_address="127.0.0.1", port=grpc)
+                await drone.connect()
+                await _first(drone.core.connection_state(), lambda s: s.is_connected, 15)
+                await _first(drone.telemetry.health(), lambda h: h.is_global_position_ok and h.is_home_position_ok
+                             and h.is_armable, 10)
+                assert (await _first(drone.telemetry.flight_mode(), lambda m: True, 5)).name == "HOLD"
+                await drone.action.arm()
+                await _first(drone.telemetry.armed(), bool, 5)
+                await drone.action.set_takeoff_altitude(2.0)  # PARAM_SET MIS_TAKEOFF_ALT
+                assert await drone.action.get_takeoff_altitude() == pytest.approx(2.0)
+                await drone.action.takeoff()
+                up = await _first(drone.telemetry.position(), lambda p: p.relative_altitude_m > 1.9, 20)
+                home = await _first(drone.telemetry.home(), lambda h: True, 5)
+                home_W = np.array(live.telemetry()["home_p_W"])
+                wps = [home_W + d for d in ([1.5, 0, 2.0], [1.5, 1.5, 2.0], [0, 1.5, 2.5])]
+                items = [_item(*enu_to_lla(w, HOME)[:2], float(w[2] - home_W[2])) for w in wps]
+                await drone.mission.upload_mission(MissionPlan(items))
+                await drone.mission.start_mission()
+                done = await _first(drone.mission.mission_progress(), lambda p: p.current == p.total, 40)
+                assert await drone.mission.is_mission_finished()
+                await drone.action.land()
+                await _first(drone.telemetry.in_air(), lambda a: not a, 30)
+                await _first(drone.telemetry.armed(), lambda a: not a, 10)
+                return up, home, wps, done
+
+            up, home, wps, done = asyncio.run(asyncio.wait_for(fly(), 80))
+            remove()
+            assert (done.current, done.total) == (3, 3)
+            lla = enu_to_lla(np.array(live.telemetry()["home_p_W"]), HOME)
+            assert (home.latitude_deg, home.longitude_deg) == pytest.approx(tuple(lla[:2]), abs=2e-7)
+            track = np.array(path)
+            for w in wps:  # the flown path passed each waypoint
+                assert np.min(np.linalg.norm(track - w, axis=1)) < 0.25
+            assert live.telemetry()["landed"] and not live.telemetry()["armed"]
+    finally:
+        log = _kill(server)
+    assert "System discovered" in log
+
+
+class _Output:
+    """A subprocess's merged output, searched in order with timeouts (prompts share lines with messages, so the
+    search goes by position in the text, not by line)."""
+
+    def __init__(self, p: subprocess.Popen) -> None:
+        self.q: queue.Queue[str] = queue.Queue()
+        self.text = ""
+        self.pos = 0
+        threading.Thread(target=self._pump, args=(p,), daemon=True).start()
+
+    def _pump(self, p: subprocess.Popen) -> None:
+        for line in p.stdout:  # type: ignore[union-attr]
+            self.q.put(line)
+
+    def expect(self, pattern: str, timeout: float) -> str:
+        end = time.monotonic() + timeout
+        rx = re.compile(pattern)
+        while True:
+            m = rx.search(self.text, self.pos)
+            if m:
+                self.pos = m.end()
+                return m.group(0)
+            try:
+                self.text += self.q.get(timeout=max(end - time.monotonic(), 0.01))
+            except queue.Empty:
+                if time.monotonic() >= end:
+                    raise AssertionError(f"{pattern!r} not seen within {timeout} s; output:\n{self.text[-3000:]}")
+
+
+def test_mavproxy_drives_cufund_serve(tmp_path):
+    port = free_port()
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    serve = subprocess.Popen([str(BIN / "cufund"), "serve", "vehicle", "--mavlink", f"udpout:127.0.0.1:{port}",
+                              "--api", "none", "--speed", str(SPEED), "--duration", "60"],
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    proxy = subprocess.Popen([str(BIN / "mavproxy.py"), f"--master=udpin:127.0.0.1:{port}", "--mav20",
+                              f"--state-basedir={tmp_path}", "--default-modules=link,cmdlong,arm,mode"],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                             env=env, cwd=tmp_path)
+    try:
+        out = _Output(proxy)
+
+        def do(cmd: str) -> None:
+            proxy.stdin.write(cmd + "\n")  # type: ignore[union-attr]
+            proxy.stdin.flush()  # type: ignore[union-attr]
+
+        out.expect(r"Detected vehicle 1:1", 30)
+        out.expect(r"Mode LOITER|LOITER> ", 10)  # PX4's Hold, decoded by MAVProxy from the custom mode
+        do("arm throttle")
+        out.expect(r"COMPONENT_ARM_DISARM: ACCEPTED", 10)
+        do("takeoff 2")  # MAVProxy sends the height as param7; at or below home's AMSL it is a height
+        out.expect(r"NAV_TAKEOFF: ACCEPTED", 10)
+        out.expect(r"Mode TAKEOFF|TAKEOFF> ", 10)
+        out.expect(r"AP: mode hold: takeoff done", 20)
+        # MAVProxy 1.8.75's `mode NAME` passes PX4's mode tuple to COMMAND_LONG and fails before sending; its
+        # `long` command sends the same DO_SET_MODE (custom mode enabled, AUTO, sub-mode) as QGroundControl
+        do("long DO_SET_MODE 1 4 5")  # AUTO.RTL
+        out.expect(r"DO_SET_MODE: ACCEPTED", 10)
+        out.expect(r"AP: mode rtl", 10)
+        out.expect(r"Mode LAND|LAND> ", 40)  # RTL ends with a landing, shown as PX4's AUTO.LAND
+        out.expect(r"AP: landed", 40)
+        out.expect(r"DISARMED", 10)
+        do("long DO_SET_MODE 1 1 0")  # MANUAL: no sticks here, refused
+        out.expect(r"DO_SET_MODE: DENIED", 10)
+    finally:
+        _kill(proxy, pumped=True)
+        serve.send_signal(2)
+        log = _kill(serve)
+    assert re.search(r"MAVLink vehicle 1: udpout:127.0.0.1:\d+ \(local 127.0.0.1:\d+\)", log)
