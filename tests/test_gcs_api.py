@@ -169,3 +169,70 @@ def test_a_non_loopback_host_warns():
         assert g.first_line.startswith("GCS: http://127.0.0.2:")
         err = g.stop()
     assert "WARNING" in err and "127.0.0.2" in err
+
+
+def test_foxglove_server_serves_the_same_telemetry():
+    """A Foxglove WebSocket client (the protocol by hand: advertise, subscribe, binary message data)."""
+    import struct
+
+    with GcsProcess("vehicle", "--speed", "inf", "--foxglove", "--foxglove-port", "0") as g:
+        line = g.proc.stdout.readline()
+        assert line.startswith("Foxglove: ws://127.0.0.1:")
+        ws = websocket.create_connection(line.split()[1], timeout=10, subprotocols=["foxglove.sdk.v1"])
+        try:
+            channels = {}
+            while "/vehicle/telemetry" not in channels:
+                m = json.loads(ws.recv())
+                if m["op"] == "advertise":
+                    channels.update({c["topic"]: c for c in m["channels"]})
+            assert {"/vehicle/pose", "/sensors/lidar", "/vehicle/events"} <= set(channels)
+            assert channels["/vehicle/pose"]["schemaName"] == "foxglove.PoseInFrame"
+            ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+                {"id": 3, "channelId": channels["/vehicle/telemetry"]["id"]}]}))
+            ts = []
+            while len(ts) < 5:
+                raw = ws.recv()
+                if isinstance(raw, bytes) and raw[0] == 1:  # message data: op, subscription id, log time, payload
+                    sub, = struct.unpack_from("<I", raw, 1)
+                    assert sub == 3
+                    tel = json.loads(raw[13:])
+                    ts.append(tel["t"])
+                    assert len(tel["p_W"]) == 3
+            assert ts == sorted(ts) and ts[-1] > ts[0]
+        finally:
+            ws.close()
+
+
+def test_lidar_cloud_frames_are_the_world_points():
+    """With the cloud layer on, a tab gets binary frames: float32 [t, n, xyz...] in the world frame, on the
+    world's surfaces (Open3D's distance to the world's triangles)."""
+    from cufund.worlds import builtin
+
+    o3d = pytest.importorskip("open3d")
+    world = builtin.load("imav2025_tunnel")
+    lo, hi = world.bounds()
+    scene = o3d.t.geometry.RaycastingScene()
+    for obj in world.objects:
+        scene.add_triangles(o3d.core.Tensor(obj.vertices.astype(np.float32)),
+                            o3d.core.Tensor(obj.triangles.astype(np.uint32)))
+    with GcsProcess("vehicle", "--speed", "inf", "--set", "sensors.lidar.kind=mid360",
+                    "--set", "sensors.lidar.T_BL.p=[0,0,0.08]") as g:
+        ws = ws_connect(g)
+        try:
+            receive(ws, "hello")
+            ws.send(json.dumps({"type": "layers", "cloud": True}))
+            ws.settimeout(20)
+            frames = []
+            while len(frames) < 2:
+                raw = ws.recv()
+                if isinstance(raw, bytes):
+                    frames.append(np.frombuffer(raw, dtype="<f4"))
+        finally:
+            ws.close()
+    for f in frames:
+        n = int(f[1])
+        pts = f[2:].reshape(-1, 3)
+        assert 1000 < n == len(pts) <= 8000
+        assert np.all(pts >= lo - 0.02) and np.all(pts <= hi + 0.02)
+        assert scene.compute_distance(o3d.core.Tensor(pts)).numpy().max() < 0.01  # on the world's triangles
+    assert frames[1][0] > frames[0][0]  # successive frames, newer stamps

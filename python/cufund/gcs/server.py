@@ -161,15 +161,18 @@ class GcsServer:
         text = json.dumps({"type": "telemetry", "seq": self.seq, "wall": time.time(), "paused": self._paused,
                            "speed": None if math.isinf(self.speed) else self.speed, **tel})
         for c in list(self.clients):
-            c.send(text, droppable=True)
+            c.send(text, stream="telemetry")
         if events:
             self.broadcast({"type": "events", "events": events})
+        if session.planned_changed:
+            session.planned_changed = False
+            self.broadcast({"type": "planned", "planned": session.planned, "planned_label": session.planned_label})
         if any(c.cloud for c in self.clients) or self.foxglove is not None:
             cloud = session.new_cloud()
             if cloud is not None:
                 for c in list(self.clients):
                     if c.cloud:
-                        c.send(cloud, droppable=True, binary=True)
+                        c.send(cloud, stream="cloud")
                 if self.foxglove is not None:
                     self.foxglove.cloud(cloud)
         if session.esdf is not None and session.esdf is not self._esdf_sent:
@@ -213,30 +216,10 @@ class GcsServer:
                     "message": "queued; the commander applies it when the simulation runs"}
         reply = {"command": name, "result": str(getattr(ack, "result", ack)),
                  "message": str(getattr(ack, "message", ""))}
-        if reply["result"] == "accepted":
-            self._plan_for(command)
         extra = getattr(ack, "data", None)
         if extra is not None:
             reply["data"] = jsonable(extra)
         return reply
-
-    def _plan_for(self, command: dict[str, Any]) -> None:
-        """Shows where an accepted go-to or mission will fly, as the planned path."""
-        session = self.session
-        assert session is not None
-        p = position_of(session.telemetry)
-        start = [] if p is None else [p.tolist()]
-        name = command["command"]
-        try:
-            if name in ("goto", "offboard_position"):
-                self.broadcast(session.set_planned(start + [list(command["p_W"])], name))
-            elif name == "mission_upload":
-                items = [list(i["p_W"] if isinstance(i, dict) else i)[:3] for i in command["items"]]
-                self.broadcast(session.set_planned(start + items, "mission"))
-            elif name == "mission_clear":
-                self.broadcast(session.set_planned(np.zeros((0, 3)), ""))
-        except (KeyError, TypeError, ValueError):
-            pass  # the commander accepted a form we do not draw; nothing to show
 
     async def _local(self, name: str, command: dict[str, Any]) -> dict[str, Any]:
         session = self.session
@@ -334,7 +317,7 @@ class SocketHandler(tornado.websocket.WebSocketHandler):
     def initialize(self, gcs: GcsServer) -> None:
         self.gcs = gcs
         self.cloud = False
-        self._pending: Any = None
+        self._pending: dict[str, Any] = {}
 
     async def get(self, *args: Any, **kwargs: Any) -> None:
         if not authorized(self, self.gcs.token):
@@ -353,15 +336,19 @@ class SocketHandler(tornado.websocket.WebSocketHandler):
     def on_close(self) -> None:
         self.gcs.clients.discard(self)
 
-    def send(self, message: str | bytes, droppable: bool = False, binary: bool = False) -> None:
-        """Writes ``message``; a droppable one (telemetry, clouds) is skipped while this tab has not read the
-        previous one (a slow or dead tab must not queue unbounded data)."""
-        if droppable and self._pending is not None and not self._pending.done():
+    def send(self, message: str | bytes, stream: str = "") -> None:
+        """Writes ``message``. On a named ``stream`` (telemetry, clouds) a message is skipped while the previous one
+        of that stream has not left yet: a slow or dead tab must not queue unbounded data."""
+        pending = self._pending.get(stream)
+        if stream and pending is not None and not pending.done():
             return
         try:
-            self._pending = self.write_message(message, binary=binary)
+            future = self.write_message(message, binary=isinstance(message, bytes))
         except tornado.websocket.WebSocketClosedError:
             self.gcs.clients.discard(self)
+            return
+        if stream:
+            self._pending[stream] = future
 
     def on_message(self, message: str | bytes) -> None:
         try:

@@ -66,15 +66,16 @@ def position_of(telemetry: dict[str, Any]) -> np.ndarray | None:
     return a if a.shape == (3,) and np.all(np.isfinite(a)) else None
 
 
-def _world_of(live: Any) -> Any:
-    """The run's :class:`cufund.worlds.World` (and the tunnel course when the world is one), or (None, None)."""
-    world = getattr(live, "world", None)
-    if world is None:
-        built = getattr(live, "built", None)
-        world = getattr(getattr(built, "context", None), "world", None)
-    course = world if hasattr(world, "regions") and hasattr(world, "world") else None
-    if course is not None:
-        world = course.world
+def _world_of(live: Any) -> tuple[Any, Any]:
+    """The run's :class:`cufund.worlds.World` and its :class:`~cufund.worlds.TunnelCourse` (None unless the world
+    is a tunnel course): the course names the gates as mission regions."""
+    world = getattr(getattr(getattr(live, "built", None), "context", None), "world", None)
+    course = None
+    config = _config_of(live)
+    if config is not None:
+        from ..missions.tunnel_kind import course_of
+
+        course = course_of(config)
     return world, course
 
 
@@ -100,6 +101,9 @@ class GcsSession:
         self._events_seen = 0
         self.planned: list[list[float]] = []
         self.planned_label = ""
+        self.planned_changed = False
+        """Set when a new plan replaced the drawn one (the server then sends it to every tab)."""
+        self._plan_seen: list[Any] = []
         self.telemetry: dict[str, Any] = {}
         self._last_t = -math.inf
         self._cloud_key: Any = None
@@ -144,12 +148,25 @@ class GcsSession:
             self.path.append([round(float(v), 4) for v in p])
             if len(self.path) > 20000:
                 del self.path[: len(self.path) - 20000]
+        self._follow_plan(tel, p)
         if isinstance(t, (int, float)) and t >= self._last_t + 0.05:
             self._last_t = t
             self.history.append(tel)
             while self.history and self.history[0].get("t", t) < t - HISTORY_S:
                 self.history.popleft()
         return tel
+
+    def _follow_plan(self, tel: dict[str, Any], p: np.ndarray | None) -> None:
+        """The commander's targets still to fly (``plan_W``): a new plan is drawn from where the vehicle is; one
+        that only lost its reached targets leaves the drawn path alone (the flown path shows the progress)."""
+        plan = tel.get("plan_W")
+        if not isinstance(plan, list):
+            return
+        prev, self._plan_seen = self._plan_seen, plan
+        progressed = len(plan) <= len(prev) and plan == prev[len(prev) - len(plan):]
+        if plan and not progressed:
+            self.set_planned(([] if p is None else [p.tolist()]) + plan, str(tel.get("mode", "")))
+            self.planned_changed = True
 
     def new_events(self) -> list[dict[str, Any]]:
         """Events of the run not yet seen (each also kept for tabs that connect later)."""
