@@ -68,7 +68,7 @@ def test_mavsdk_connects_takes_off_flies_a_mission_and_lands():
                               text=True)
     path: list[np.ndarray] = []
     try:
-        with vehicle(links=0, extra_links=[f"udpout:127.0.0.1:{api}"]) as (live, ep, _):
+        with vehicle(links=0, extra_links=[f"udpout:127.0.0.1:{api}"]) as (live, _ep, _):
             remove = live.add_listener(lambda tel: path.append(np.array(tel["p_W"])), 50.0)
 
             async def fly() -> tuple:
@@ -100,6 +100,7 @@ def test_mavsdk_connects_takes_off_flies_a_mission_and_lands():
             up, home, wps, done = asyncio.run(asyncio.wait_for(fly(), 80))
             remove()
             assert (done.current, done.total) == (3, 3)
+            assert up.absolute_altitude_m - home.absolute_altitude_m == pytest.approx(up.relative_altitude_m, abs=0.01)
             lla = enu_to_lla(np.array(live.telemetry()["home_p_W"]), HOME)
             assert (home.latitude_deg, home.longitude_deg) == pytest.approx(tuple(lla[:2]), abs=2e-7)
             track = np.array(path)
