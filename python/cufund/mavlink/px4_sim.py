@@ -280,6 +280,8 @@ class Px4SimulatorBridge:
                     self.stats["controls_timeouts"] += 1
                 return
             got = self._handle(data, t) or got
+            if got and wait:  # the period's answer is in: anything after it is read next period
+                return
 
     def _handle(self, data: bytes, t: float) -> bool:
         got = False
