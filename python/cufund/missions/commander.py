@@ -7,6 +7,21 @@ home and lands. Auto modes fly jerk-limited moves (:class:`cufund.planning.JerkL
 critically damped brake from the reference's velocity. The commander publishes the trajectory setpoint (or, in
 attitude mode, the manual attitude setpoint) at its rate and a :class:`VehicleStatus` at ``status_hz`` and at
 every change; the controllers read the status to stop the rotors when disarmed (:mod:`cufund.control.arming`).
+
+What each command does (``denied`` acks say why; every refusal is also a ``denied`` event):
+
+- ``arm``: on the ground with a state estimate; home = here. Armed already: accepted, a no-op. Disarms itself
+  after ``auto_disarm_s`` without a take-off.
+- ``disarm``: on the ground; in flight only with ``force`` (the rotors stop, the vehicle falls).
+- ``takeoff``: armed and on the ground; climbs ``altitude`` (default ``takeoff_altitude``) above home, then holds.
+- ``goto``, ``hold``, ``rtl``, ``flight_mode`` (velocity/attitude hold): airborne. ``land``: airborne (on the
+  ground: disarms). ``rtl``: up to ``rtl_altitude`` above home (or stays higher), home, land.
+- ``mission_upload`` (not while one runs), ``mission_clear``; ``mission_start``: armed (takes off first when on
+  the ground); events ``mission_item_reached`` (``seq``) and ``mission_complete``, then it holds at the last item.
+- ``offboard_*``: armed; each setpoint (re)enters ``offboard``; none for ``offboard_timeout_s``: hold.
+- ``controller``: ``pid``/``geometric`` if built into the simulation (else ``unsupported``), switched in flight.
+- ``get_params`` / ``set_param``: :class:`CommanderParams` under PX4's names where they exist, plus the
+  ``param_providers`` (a live run adds the controllers' gains, :mod:`cufund.missions.controller_params`).
 """
 
 from __future__ import annotations
@@ -15,7 +30,6 @@ import collections
 import dataclasses
 import math
 from collections.abc import Callable
-from concurrent.futures import Future
 from typing import Any
 
 import numpy as np
@@ -34,6 +48,7 @@ from ..planning.point_to_point import JerkLimitedMove
 from ..planning.sequence import Hold
 from .commands import Command, CommandAck, MissionItem, parse_command
 from .events import EventLog
+from .inbox import CommandInbox
 from .legs import Brake, Descend, Leg, yaw_of
 from .params import CommanderParams, as_dict, field_of
 
@@ -42,7 +57,7 @@ __all__ = ["Commander"]
 _Z3 = np.zeros(3)
 
 
-class Commander(Planner):
+class Commander(CommandInbox, Planner):
     """The vehicle state machine (registry kind ``planner: commander``); see the module doc.
 
     ``submit(cmd) -> Future[CommandAck]`` from any thread (parsed at once: bad input raises ``ValueError``; applied
@@ -61,7 +76,7 @@ class Commander(Planner):
         self.controllers = tuple(controllers) if controllers is not None else (controller,)
         """The controller kinds built into the simulation (what ``controller`` may switch to)."""
         self.events = events if events is not None else EventLog()
-        self._inbox: collections.deque[tuple[Command, Future | None]] = collections.deque()
+        CommandInbox.__init__(self)
         self.param_providers: list[tuple[Callable[[], dict[str, Any]], Callable[[str, Any], bool]]] = []
         """Extra parameters (e.g. controller gains): ``(get() -> {name: value}, set(name, value) -> handled)``."""
         self.reset()
@@ -105,30 +120,6 @@ class Commander(Planner):
     @property
     def script_done(self) -> bool:
         return not self._script
-
-    # -- thread-safe submission --------------------------------------------------------------------------------
-    def submit(self, cmd: Any) -> Future:
-        """Queues ``cmd`` (a dict, a name or a :class:`Command`) for the next step; returns a Future of its
-        :class:`CommandAck`. Raises ``ValueError`` at once for a malformed command."""
-        command = parse_command(cmd)
-        fut: Future = Future()
-        self._inbox.append((command, fut))
-        return fut
-
-    def link_lost(self) -> None:
-        """The command link is gone: hold, then land after ``link_loss_timeout_s`` (thread-safe)."""
-        self._inbox.append((Command("_link_lost"), None))
-
-    def link_regained(self) -> None:
-        """The link is back: no landing for link loss (the vehicle keeps holding)."""
-        self._inbox.append((Command("_link_regained"), None))
-
-    def cancel_pending(self, why: str) -> None:
-        """Fails every queued command (the run has ended)."""
-        while self._inbox:
-            cmd, fut = self._inbox.popleft()
-            if fut is not None and not fut.done():
-                fut.set_result(CommandAck(cmd.command, "failed", why))
 
     # -- helpers -----------------------------------------------------------------------------------------------
     def _event(self, kind: str, message: str, **data: Any) -> None:
@@ -463,11 +454,7 @@ class Commander(Planner):
     def process_pending(self, t: float) -> None:
         """Applies the submitted commands at time ``t`` (in :meth:`step`; a live run also calls it from the
         simulation thread while paused, so that commands are answered)."""
-        while self._inbox:
-            cmd, fut = self._inbox.popleft()
-            ack = self.apply(cmd, t)
-            if fut is not None and not fut.done():
-                fut.set_result(ack)
+        self.drain(lambda cmd: self.apply(cmd, t))
         if self._status_dirty:
             self._update_plan()
 
