@@ -158,7 +158,7 @@ class FrameDetection:
     height: float
     """Opening height [m]."""
     support: int
-    """Points on the frame's bars."""
+    """Points on the frame's bars (met at an incidence of at least ``min_incidence``)."""
     points_W: np.ndarray
     """(M, 3) the frame's points (its bars, measured voxel means) [m]."""
     cluster_mean_W: np.ndarray
@@ -254,10 +254,43 @@ def _mid(a: np.ndarray, q: float) -> float:
     return 0.5 * float(lo + hi)
 
 
+def _read_bars(u: np.ndarray, v: np.ndarray, u_lo: float, u_hi: float, v_hi: float, p: TunnelDetectorParams,
+               need: int) -> tuple | None:
+    """The four bars of a frame from its points' plane coordinates (u across, v up): the posts' centre lines
+    u_left and u_right, the top and bottom bars' v_top and v_bot, and each bar's point mask; None unless every
+    bar holds ``need`` points."""
+    b, q = p.bar, p.percentile
+    quarter = 0.25 * (u_hi - u_lo)  # the middle half of the span: clear of the posts and their noise
+    mid_u = np.abs(u - 0.5 * (u_lo + u_hi)) < quarter
+    top_pts = mid_u & (v > v_hi - 2 * b)
+    if top_pts.sum() < need:
+        return None
+    v_top = _mid(v[top_pts], q)
+    # the bottom bar: the highest horizontal structure below the opening, between the posts
+    below = mid_u & (v < v_top - b - p.min_opening)
+    if below.sum() < need:
+        return None
+    edge = float(np.percentile(v[below], 100.0 - q))  # its upper (inner) edge, less q % of the bar
+    bot_pts = below & (v > edge - 2 * b)
+    if bot_pts.sum() < need:
+        return None
+    if edge - 1.5 * b < p.floor_z + 0.02:  # standing on the floor: the floor's points merge with its lower edge
+        v_bot = edge + q / 100.0 * b - b / 2
+    else:
+        v_bot = _mid(v[bot_pts], q)
+    # the posts, between the bars' inner edges
+    rows = (v > v_bot + b) & (v < v_top - b)
+    left = rows & (u < u_lo + 3 * b) & (u < 0.5 * (u_lo + u_hi))
+    right = rows & (u > u_hi - 3 * b) & (u > 0.5 * (u_lo + u_hi))
+    if left.sum() < need or right.sum() < need:
+        return None
+    return _mid(u[left], q), _mid(u[right], q), v_top, v_bot, top_pts, bot_pts, left, right
+
+
 def _measure(cluster: np.ndarray, cloud: np.ndarray, views: np.ndarray | None, p: TunnelDetectorParams,
              rng: np.random.Generator) -> FrameDetection | None:
     """The frame a cluster belongs to, measured on the whole cloud, or None if it is not a frame."""
-    b, q = p.bar, p.percentile
+    b = p.bar
     plane = _vertical_plane(cluster[:, :2], max(b, 2 * p.voxel), p.ransac_iterations, rng)
     if plane is None:
         return None
@@ -288,36 +321,24 @@ def _measure(cluster: np.ndarray, cloud: np.ndarray, views: np.ndarray | None, p
     z_all = cloud[:, 2]
     in_slab = (np.abs(depth) < p.slab) & (u_all > u_lo - 2 * b) & (u_all < u_hi + 2 * b) \
         & (z_all < cluster[:, 2].max() + 2 * b)
-    if views is not None:  # returns of rays grazing the plane carry their range noise into it
-        in_slab &= np.abs(views @ n) >= p.min_incidence
-    pts, u, v = cloud[in_slab], u_all[in_slab], z_all[in_slab]
-    d_pts = depth[in_slab]
     v_hi = float(np.percentile(cluster[:, 2], 99))
-    quarter = 0.25 * (u_hi - u_lo)  # the middle half of the span: clear of the posts and their noise
-    mid_u = np.abs(u - 0.5 * (u_lo + u_hi)) < quarter
-    top_pts = mid_u & (v > v_hi - 2 * b)
-    if top_pts.sum() < p.min_bar_points:
+    # Returns of rays grazing the plane carry their range noise into it: the bars are read on the points met
+    # most squarely that suffice (3x the minimum on every bar), else on all above min_incidence.
+    incidence = np.ones(len(cloud)) if views is None else np.abs(views @ n)
+    base = in_slab & (incidence >= p.min_incidence)
+    bars = None
+    for level, need in ((0.9, 3 * p.min_bar_points), (0.75, 3 * p.min_bar_points), (p.min_incidence, p.min_bar_points)):
+        if level < p.min_incidence:
+            continue
+        sel = in_slab & (incidence >= level)
+        bars = _read_bars(u_all[sel], z_all[sel], u_lo, u_hi, v_hi, p, need)
+        if bars is not None:
+            in_slab = sel
+            break
+    if bars is None:
         return None
-    v_top = _mid(v[top_pts], q)
-    # the bottom bar: the highest horizontal structure below the opening, between the posts
-    below = mid_u & (v < v_top - b - p.min_opening)
-    if below.sum() < p.min_bar_points:
-        return None
-    edge = float(np.percentile(v[below], 100.0 - q))  # its upper (inner) edge, less q % of the bar
-    bot_pts = below & (v > edge - 2 * b)
-    if bot_pts.sum() < p.min_bar_points:
-        return None
-    if edge - 1.5 * b < p.floor_z + 0.02:  # standing on the floor: the floor's points merge with its lower edge
-        v_bot = edge + q / 100.0 * b - b / 2
-    else:
-        v_bot = _mid(v[bot_pts], q)
-    # the posts, between the bars' inner edges
-    rows = (v > v_bot + b) & (v < v_top - b)
-    left = rows & (u < u_lo + 3 * b) & (u < 0.5 * (u_lo + u_hi))
-    right = rows & (u > u_hi - 3 * b) & (u > 0.5 * (u_lo + u_hi))
-    if left.sum() < p.min_bar_points or right.sum() < p.min_bar_points:
-        return None
-    u_left, u_right = _mid(u[left], q), _mid(u[right], q)
+    pts, u, v, d_pts = cloud[in_slab], u_all[in_slab], z_all[in_slab], depth[in_slab]
+    u_left, u_right, v_top, v_bot, top_pts, bot_pts, left, right = bars
     width, height = u_right - u_left - b, v_top - v_bot - b
     if not (p.min_opening <= width <= p.max_opening and p.min_opening <= height <= p.max_opening):
         return None
@@ -328,13 +349,15 @@ def _measure(cluster: np.ndarray, cloud: np.ndarray, views: np.ndarray | None, p
     if hole.sum() > p.max_hole_fraction * own.sum():
         return None
     frame_pts = own & (v > v_bot - b) & (u > u_left - b) & (u < u_right + b)  # the bars, no floor, no legs
+    support = int(np.count_nonzero(base & (z_all > v_bot - b) & (z_all < v_top + b) & (u_all > u_left - b)
+                                   & (u_all < u_right + b)))
     u0, v0 = 0.5 * (u_left + u_right), 0.5 * (v_top + v_bot)
     # depth: a point is on the face its ray met, half a bar before the frame's middle plane
     shift = 0.0 if views is None else np.sign(views[in_slab][own] @ n) * (b / 2)
     d0 = d + float(np.median(d_pts[own] + shift))
     centre = d0 * n + u0 * u_axis + np.array([0.0, 0.0, v0])
     return FrameDetection(centre_W=centre, normal_W=n, width=float(width), height=float(height),
-                          support=int(own.sum()), points_W=pts[frame_pts],
+                          support=support, points_W=pts[frame_pts],
                           cluster_mean_W=pts[frame_pts].mean(axis=0))
 
 
