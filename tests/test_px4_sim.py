@@ -255,6 +255,9 @@ def test_hil_state_quaternion_only_on_request():
         px4.send(px4.mav.command_long_encode(0, 0, 511, 0, 33, 1000, 0, 0, 0, 0, 0))  # not ours to give
         nack = [m for s in _fly(px4, 3, [U_HOVER] * 4) for m in s.other if m.get_type() == "COMMAND_ACK"]
         assert nack[0].result == 3  # MAV_RESULT_UNSUPPORTED
+        px4.send(px4.mav.command_long_encode(0, 0, 511, 0, float("nan"), float("nan"), 0, 0, 0, 0, 0))
+        nan = [m for s in _fly(px4, 3, [U_HOVER] * 4) for m in s.other if m.get_type() == "COMMAND_ACK"]
+        assert nan[0].result == 3
 
 
 def _record(seed):
@@ -363,3 +366,23 @@ def test_cli_serves_sitl_on_4560_plus_instance(capsys):
     assert stamps == list(range(0, 200_000, STEP_US))
     out = capsys.readouterr().out
     assert f"tcp://127.0.0.1:{port} (SITL, lockstep)" in out and "status: completed (duration elapsed)" in out
+
+
+def test_fuzzed_bytes_and_nonsense_commands_never_stop_the_world():
+    rng = np.random.default_rng(11)
+    # a false frame start in the noise may swallow the controls behind it (as in PX4's own parser): the bridge
+    # then steps on after controls_timeout_s, here short
+    params = Px4BridgeParams(speed=None, wait_first_controls=True, controls_timeout_s=0.05)
+    with _serve(params=params, hover_at=(0.0, 0.0, 10.0)) as (bridge, px4, _):
+        for k in range(40):
+            s = px4.step()
+            noise = rng.integers(0, 256, size=int(rng.integers(1, 600)), dtype=np.uint8).tobytes()
+            if k % 3 == 0:
+                noise = noise.replace(b"\xfd", b"\xfe") + b"\xfd"  # a frame start cut short by the next frame
+            px4._write(noise)
+            if k == 5:
+                px4.send(px4.mav.command_long_encode(0, 0, 511, 0, float("nan"), float("nan"), 0, 0, 0, 0, 0))
+            px4.controls([U_HOVER] * 4, time_usec=s.sensor.time_usec)
+        assert px4.step().sensor.time_usec >= 40 * STEP_US
+        assert bridge.stats["bad_packets"] > 0 and bridge.stats["controls"] >= 10
+        assert bridge.stats["controls"] + bridge.stats["controls_timeouts"] >= 40

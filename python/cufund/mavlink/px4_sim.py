@@ -17,11 +17,13 @@ The vehicle, world and sensor models come from a cufund scenario with its flight
 from __future__ import annotations
 
 import math
+import struct
 import time
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from pymavlink.dialects.v20 import common as mavlink
 
 from ..components import BusView, Component
 from ..config import ConfigError
@@ -163,8 +165,6 @@ class Px4SimulatorBridge:
 
     def __init__(self, config: ScenarioConfig, link: Link | None = None, params: Px4BridgeParams | None = None,
                  instance: int = 0, host: str = "127.0.0.1", airframe: Px4Airframe | None = None) -> None:
-        from pymavlink.dialects.v20 import common as mavlink
-
         self.params = params if params is not None else Px4BridgeParams()
         if not isinstance(self.params, Px4BridgeParams):
             raise TypeError(f"params must be a Px4BridgeParams, got {type(self.params).__name__}")
@@ -285,7 +285,12 @@ class Px4SimulatorBridge:
 
     def _handle(self, data: bytes, t: float) -> bool:
         got = False
-        for msg in self._rx.parse_buffer(data) or ():
+        try:
+            messages = self._rx.parse_buffer(data) or ()
+        except (ValueError, TypeError, IndexError, struct.error, mavlink.MAVError):  # pymavlink's robust mode can still raise
+            self.stats["bad_packets"] += 1
+            return False
+        for msg in messages:
             kind = msg.get_type()
             if kind == "HIL_ACTUATOR_CONTROLS":
                 self._on_controls(msg, t)
@@ -309,7 +314,7 @@ class Px4SimulatorBridge:
     def _on_command(self, msg: Any) -> None:
         self.stats["commands"] += 1
         result = MAV_RESULT_UNSUPPORTED
-        if msg.command == MAV_CMD_SET_MESSAGE_INTERVAL and int(msg.param1) == MSG_ID_HIL_STATE_QUATERNION:
+        if msg.command == MAV_CMD_SET_MESSAGE_INTERVAL and msg.param1 == MSG_ID_HIL_STATE_QUATERNION:
             interval = float(msg.param2)
             if interval == -1.0:
                 self._hsq_interval_us = None
