@@ -64,7 +64,12 @@ class _Tap(Component):
     def __init__(self, rate_hz: float) -> None:
         self.rate_hz = rate_hz
         self.topics: tuple[str, ...] = ()
-        self.latest: dict[str, Any] = {}
+        self.snapshot: tuple[float | None, dict[str, Any]] = (None, {})
+        """(time, newest message by topic), swapped whole: readers in other threads see one instant."""
+
+    @property
+    def latest(self) -> dict[str, Any]:
+        return self.snapshot[1]
 
     @property
     def optional_inputs(self) -> tuple[str, ...]:  # type: ignore[override]
@@ -76,7 +81,7 @@ class _Tap(Component):
             m = bus.latest(topic)
             if m is not None:
                 snap[str(topic)] = m
-        self.latest = snap  # one reference swap: readers see a whole snapshot
+        self.snapshot = (t, snap)
 
 
 class LiveRun:
@@ -355,14 +360,15 @@ class LiveRun:
         """A JSON-able snapshot: time, command state, vehicle state (what the vehicle believes: the estimate when
         an estimator runs), the true state and the errors against it (this is a truth consumer), setpoint,
         thrust margin, estimator health, mission progress, and the events from index ``events_since``."""
-        snap = self._tap.latest
+        t_snap, snap = self._tap.snapshot
         truth = snap.get(str(Topics.TRUTH_ODOMETRY))
         est = snap.get(str(Topics.ESTIMATE)) if self._estimated else None
         state = est if self._estimated else truth
         sp = snap.get(str(Topics.TRAJECTORY_SETPOINT))
         tt = snap.get(str(Topics.THRUST_TORQUE_SETPOINT))
-        t = float(self.simulator.t)
-        out: dict[str, Any] = {"t": t, "speed": None if self._speed == math.inf else self._speed,
+        t = float(self.simulator.t) if t_snap is None else float(t_snap)  # the snapshot's time
+        out: dict[str, Any] = {"t": t, "sim_t": float(self.simulator.t),
+                               "speed": None if self._speed == math.inf else self._speed,
                                "paused": self._paused, "ended": self.ended,
                                "real_time_factor": None}
         window = list(self._rate_window)
