@@ -81,6 +81,8 @@ def test_disarmed_rotors_stop_and_takeoff_is_denied():
     ack = cmd.apply({"command": "takeoff"})
     assert ack.result == "denied" and "arm" in ack.message
     assert cmd.events.of_kind("denied")
+    assert cmd.apply("hold").result == "accepted"  # PX4 takes Hold on the ground: a no-op
+    assert cmd.apply({"command": "goto", "p_W": [0, 0, 1]}).result == "denied"
     sim.advance_to(2.0)
     assert abs(_p(sim)[2]) < 1e-6 and np.all(_rotors(sim) == 0.0)
 

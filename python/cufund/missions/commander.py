@@ -14,8 +14,9 @@ What each command does (``denied`` acks say why; every refusal is also a ``denie
   after ``auto_disarm_s`` without a take-off.
 - ``disarm``: on the ground; in flight only with ``force`` (the rotors stop, the vehicle falls).
 - ``takeoff``: armed and on the ground; climbs ``altitude`` (default ``takeoff_altitude``) above home, then holds.
-- ``goto``, ``hold``, ``rtl``, ``flight_mode`` (velocity/attitude hold): airborne. ``land``: airborne (on the
-  ground: disarms). ``rtl``: up to ``rtl_altitude`` above home (or stays higher), home, land.
+- ``goto``, ``hold``, ``rtl``, ``flight_mode`` (velocity/attitude hold): airborne (``hold`` on the ground: a
+  no-op). ``land``: airborne (on the ground: disarms). ``rtl``: up to ``rtl_altitude`` above home (or stays
+  higher), home, land.
 - ``mission_upload`` (not while one runs), ``mission_clear``; ``mission_start``: armed (takes off first when on
   the ground); events ``mission_item_reached`` (``seq``) and ``mission_complete``, then it holds at the last item.
 - ``offboard_*``: armed; each setpoint (re)enters ``offboard``; none for ``offboard_timeout_s``: hold.
@@ -332,6 +333,8 @@ class Commander(CommandInbox, Planner):
             if c.force:
                 self.landed = False
             return ok()
+        if name == "hold" and self.landed:  # PX4 switches to Hold on the ground too: nothing to do
+            return ok("on the ground")
         if not self.armed:
             return deny("disarmed; arm first")
         if name == "takeoff":
