@@ -80,6 +80,7 @@ class UdpLink:
         self.stats = LinkStats()
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)  # bursts (the kernel may cap it)
         a = self.address
         if a.mode == "udpin":
             self.sock.bind((a.host, a.port))
@@ -112,12 +113,14 @@ class UdpLink:
             try:
                 msgs = self.mav.parse_buffer(data) or []
             except Exception:  # noqa: BLE001 - pymavlink raises a variety of errors on garbage
-                self.stats.bad_data += 1
-                self.mav.buf = bytearray()
-                self.mav.buf_index = 0
-                continue
+                msgs = [None]
+            if self.mav.buf_len() > 0:  # a datagram holds whole frames: a partial one is garbage, not a prefix
+                msgs.append(None)
+            self.mav.buf = bytearray()
+            self.mav.buf_index = 0
+            self.mav.expected_length = mavlink.HEADER_LEN_V1 + 2
             for m in msgs:
-                kind = m.get_type()
+                kind = "BAD_DATA" if m is None else m.get_type()
                 if kind == "BAD_DATA" or m.get_msgId() < 0:
                     self.stats.bad_data += 1
                     continue

@@ -91,7 +91,8 @@ class VehicleEndpoint:
         self._offboard: tuple[dict[str, Any], float] | None = None  # the latest offboard setpoint and its wall time
         self._last_rx: float | None = None
         self.link_lost = False
-        self.stats: dict[str, int] = {"commands": 0, "handler_errors": 0, "link_losses": 0, "setpoints": 0}
+        self.stats: dict[str, int] = {"commands": 0, "handler_errors": 0, "link_losses": 0, "setpoints": 0,
+                                      "setpoints_refused": 0}
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -260,13 +261,18 @@ class VehicleEndpoint:
             self.missions.handle(msg, lambda factory: self._send(link, factory), now)
         elif kind in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"):
             self._param(link, msg)
-        elif kind == "SET_POSITION_TARGET_LOCAL_NED":
-            s = self._snap or self._snapshot()
-            self._setpoint(cp.position_target(
-                msg.type_mask, msg.coordinate_frame, np.array([msg.x, msg.y, msg.z]),
-                np.array([msg.vx, msg.vy, msg.vz]), msg.yaw, s.p_W, _yaw_W(s)), now)
-        elif kind == "SET_ATTITUDE_TARGET":
-            self._setpoint(cp.attitude_target(msg.type_mask, np.array(msg.q), msg.thrust, self.max_thrust_N), now)
+        elif kind in ("SET_POSITION_TARGET_LOCAL_NED", "SET_ATTITUDE_TARGET"):
+            try:  # a setpoint has no ack: one that cannot be flown is counted and dropped
+                if kind == "SET_ATTITUDE_TARGET":
+                    cmd = cp.attitude_target(msg.type_mask, np.array(msg.q), msg.thrust, self.max_thrust_N)
+                else:
+                    s = self._snap or self._snapshot()
+                    cmd = cp.position_target(msg.type_mask, msg.coordinate_frame, np.array([msg.x, msg.y, msg.z]),
+                                             np.array([msg.vx, msg.vy, msg.vz]), msg.yaw, s.p_W, _yaw_W(s))
+            except cp.Refused:
+                self.stats["setpoints_refused"] += 1
+                return
+            self._setpoint(cmd, now)
 
     def _setpoint(self, cmd: dict[str, Any], now: float) -> None:
         self.stats["setpoints"] += 1
@@ -357,6 +363,8 @@ class VehicleEndpoint:
                 self._ack(link, msg, c, mavlink.MAV_RESULT_UNSUPPORTED)
         except cp.Refused as r:
             self._ack(link, msg, c, r.result, str(r))
+        except (ValueError, TypeError, OverflowError) as e:  # NaN or absurd parameters
+            self._ack(link, msg, c, mavlink.MAV_RESULT_DENIED, f"bad parameters: {e}")
 
     def _set_interval(self, msg_id: int, interval_us: float) -> int:
         name = _msg_name(msg_id)
