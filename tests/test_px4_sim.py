@@ -386,3 +386,14 @@ def test_fuzzed_bytes_and_nonsense_commands_never_stop_the_world():
         assert px4.step().sensor.time_usec >= 40 * STEP_US
         assert bridge.stats["bad_packets"] > 0 and bridge.stats["controls"] >= 10
         assert bridge.stats["controls"] + bridge.stats["controls_timeouts"] >= 40
+
+
+def test_imu_mounting_is_undone_into_the_body_frame():
+    """An IMU mounted yawed 90 degrees (T_BI) still yields body-FRD rates: a roll to the right is +xgyro."""
+    s45 = math.sqrt(0.5)
+    sensors = {**IDEAL, "imu": {"kind": "ideal_imu", "T_BI": {"p": [0.0, 0.0, 0.0], "q": [s45, 0.0, 0.0, s45]}}}
+    with _serve(config=_config(sensors), hover_at=(0.0, 0.0, 30.0)) as (_, px4, _o):
+        steps = _fly(px4, 50, [U_HOVER - 0.03, U_HOVER + 0.03, U_HOVER + 0.03, U_HOVER - 0.03])
+    first, last = steps[0].sensor, steps[-1].sensor
+    np.testing.assert_allclose([first.xacc, first.yacc, first.zacc], [0.0, 0.0, -9.80665], atol=1e-6)
+    assert last.xgyro > 0.2 and abs(last.ygyro) < 0.05 * last.xgyro
