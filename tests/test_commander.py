@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as hs
 from cufund.config import ConfigError
 from cufund.missions import CommandAck, Commander, parse_command
 from cufund.scenario import ScenarioConfig
@@ -290,3 +292,25 @@ def test_goto_with_yaw_turns_smoothly():
     m = st["t"] >= t0
     assert np.max(np.abs(st["w_B"][m, 2])) < 1.0  # the turn's peak rate is yaw_rate_max = 0.8 rad/s
     assert np.max(np.abs(st["w_B"][m, 2])) > 0.6
+
+
+
+_json = hs.recursive(hs.none() | hs.booleans() | hs.integers() | hs.floats() | hs.text(max_size=8),
+                     lambda inner: hs.lists(inner, max_size=5) | hs.dictionaries(hs.text(max_size=8), inner,
+                                                                                max_size=5), max_leaves=20)
+_names = hs.sampled_from(["arm", "disarm", "takeoff", "goto", "mission_upload", "flight_mode", "controller",
+                          "offboard_position", "offboard_velocity", "offboard_attitude", "set_param", "x"])
+_fields = hs.dictionaries(hs.sampled_from(["altitude", "p_W", "v_W", "yaw", "items", "mode", "kind", "q_WB", "thrust",
+                                           "name", "value", "force", "other"]), _json, max_size=4)
+
+
+@settings(max_examples=200, deadline=None)
+@given(_names, _fields)
+def test_any_json_command_parses_or_raises_value_error(name, fields):
+    try:
+        c = parse_command({"command": name, **fields})
+    except ValueError:
+        return
+    for v in (c.p_W, c.v_W, c.q_WB):
+        assert v is None or all(np.isfinite(v))
+    assert c.altitude is None or (np.isfinite(c.altitude) and c.altitude > 0)

@@ -3,6 +3,7 @@ timing bounds only (3x and more); every wait is bounded."""
 
 from __future__ import annotations
 
+import json
 import math
 import threading
 import time
@@ -58,6 +59,7 @@ def test_vehicle_scenario_flies_from_commands_submitted_by_other_threads():
         assert run.submit({"command": "takeoff", "altitude": 1.2}).result(timeout=10).ok
         assert run.wait_until(lambda s: s["mode"] == "hold", 60)
         tel = run.telemetry(events_since=0)
+        assert json.loads(json.dumps(tel, allow_nan=False)) == tel  # JSON as it is: no numpy types, no NaN
         assert abs(tel["truth_p_W"][2] - 1.2) < 0.05  # ground truth, not the commander's view
         assert tel["estimator"]["ok"] and tel["odometry_error_m"] < 0.05 and 0 < tel["thrust_margin"] < 1
         assert [e["kind"] for e in tel["events"]][:2] == ["armed", "mode"]
