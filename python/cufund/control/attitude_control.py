@@ -10,6 +10,7 @@ import numpy as np
 from ..config import check_real_fields
 from ..components import Bus, Controller
 from ..messages import AttitudeSetpoint, Odometry, RateSetpoint, Topics
+from .arming import Gate, gate
 from .rotations import quat_conjugate, quat_from_two_vectors, quat_multiply, quat_to_rotation
 
 __all__ = ["AttitudeControlParams", "AttitudeController"]
@@ -48,6 +49,8 @@ class AttitudeController(Controller):
     name = "attitude_controller"
     reads = (Topics.ATTITUDE_SETPOINT,)
     writes = (Topics.RATE_SETPOINT,)
+    armable = False
+    """Gated by a commander's vehicle status (:func:`cufund.control.arming.make_armable`)."""
 
     def __init__(self, gains: AttitudeControlParams | None = None, rate_hz: float = 250.0) -> None:
         self.set_gains(gains or AttitudeControlParams())
@@ -62,6 +65,8 @@ class AttitudeController(Controller):
         self._max = np.array([g.roll_rate_max, g.pitch_rate_max, g.yaw_rate_max])
 
     def update(self, t: float, state: Odometry, bus: Bus) -> None:
+        if self.armable and gate(bus, "pid") is not Gate.FLY:  # disarmed, idle on the ground, or geometric flies
+            return
         sp: AttitudeSetpoint | None = bus.latest(Topics.ATTITUDE_SETPOINT)
         if sp is None:
             return
