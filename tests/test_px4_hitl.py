@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import os
+import socket
 import subprocess
 import sys
 import threading
@@ -12,7 +13,7 @@ from contextlib import contextmanager
 import numpy as np
 import pytest
 from cufund.mavlink.px4_harness import Px4Harness
-from cufund.mavlink.px4_links import SerialLink
+from cufund.mavlink.px4_links import GcsForward, SerialLink
 from cufund.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
 from cufund.presets import iris
 from cufund.scenario import ScenarioConfig
@@ -32,10 +33,11 @@ def _pty():
 
 
 @contextmanager
-def _hitl(duration, hover_at=None, speed=4.0):
+def _hitl(duration, hover_at=None, speed=4.0, gcs=None):
     with _pty() as (master, device):
         cfg = ScenarioConfig.from_dict({"name": "hitl", "vehicle": "iris", "seed": 2, "sensors": IDEAL})
-        bridge = Px4SimulatorBridge(cfg, SerialLink(device, 921600), Px4BridgeParams(lockstep=False, speed=speed))
+        bridge = Px4SimulatorBridge(cfg, SerialLink(device, 921600), Px4BridgeParams(lockstep=False, speed=speed),
+                                    gcs=gcs)
         if hover_at is not None:
             bridge.simulator.vehicle.hover(np.asarray(hover_at, dtype=float))
         outcome: dict = {}
@@ -133,3 +135,35 @@ def test_cli_rejects_bad_usage(argv, message, capsys):
 def test_serial_link_validates(kwargs, match):
     with pytest.raises(ValueError, match=match):
         SerialLink(**{"device": "/dev/null", "baud": 9600, **kwargs})
+
+
+def test_hitl_relays_the_flight_controller_to_a_ground_station():
+    """As Gazebo's HITL mode: the board's MAVLink goes to QGroundControl over UDP, QGroundControl's back to it."""
+    from pymavlink.dialects.v20 import common as mavlink
+
+    qgc = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    qgc.bind(("127.0.0.1", 0))
+    qgc.settimeout(5.0)
+    gcs_mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    try:
+        with _hitl(duration=2.0, speed=1.0, gcs=GcsForward("127.0.0.1", qgc.getsockname()[1])) as (bridge, px4, _, _t):
+            px4.step()
+            px4.heartbeat(armed=True)  # the flight controller's heartbeat, over the serial line
+            heard = []
+            while not any(m.get_type() == "HEARTBEAT" for m in heard):
+                data, relay = qgc.recvfrom(65536)
+                heard += gcs_mav.parse_buffer(data) or []
+            hb = next(m for m in heard if m.get_type() == "HEARTBEAT")
+            assert hb.autopilot == 12 and hb.base_mode & 128  # PX4's, armed: relayed as it was sent
+            arm = gcs_mav.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)  # QGC -> the board (sys 1, comp 1)
+            qgc.sendto(arm.pack(gcs_mav), relay)
+            got = []
+            for _ in range(200):
+                s = px4.step(timeout=5.0)
+                got += [m for m in s.other if m.get_type() == "COMMAND_LONG"]
+                if got:
+                    break
+            assert got and got[0].command == 400 and got[0].get_srcSystem() == 255
+            assert bridge.stats["commands"] == 0  # addressed to the board, not answered by the simulator
+    finally:
+        qgc.close()

@@ -20,6 +20,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--hitl", metavar="DEVICE", help="HITL: talk to a flight controller on this serial port "
                                                     "(e.g. /dev/ttyACM0) instead of px4_sitl over TCP")
     p.add_argument("--baud", type=int, default=921600, help="HITL serial baud rate (default 921600)")
+    p.add_argument("--gcs", default="127.0.0.1:14550", metavar="HOST:PORT",
+                   help="HITL: relay the flight controller's MAVLink to a ground station over UDP and back "
+                        "(default 127.0.0.1:14550, QGroundControl's port; 'none' to disable)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario field by its dotted key, e.g. --set vehicle=iris (repeatable)")
     p.add_argument("--speed", default="1", metavar="FACTOR",
@@ -42,12 +45,21 @@ def _speed(text: str) -> float | None:
     return value
 
 
+def _gcs(text: str) -> tuple[str, int] | None:
+    if text.strip().lower() == "none":
+        return None
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise ConfigError(f"--gcs must be HOST:PORT (e.g. 127.0.0.1:14550) or 'none', got {text!r}")
+    return host, int(port)
+
+
 def run(args: argparse.Namespace) -> int:
     from ..scenario import load_scenario, parse_overrides
-    from .px4_links import SerialLink, TcpServerLink
+    from .px4_links import GcsForward, SerialLink, TcpServerLink
     from .px4_sim import Px4BridgeParams, Px4SimulatorBridge
 
-    link = None
+    link = gcs = None
     try:
         speed = _speed(args.speed)
         if args.hitl and speed is None:
@@ -59,14 +71,18 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"--instance must be in [0, 60000], got {args.instance}")
         config = load_scenario(args.scenario, parse_overrides(args.overrides))
         params = Px4BridgeParams(speed=speed, lockstep=args.hitl is None)
+        gcs_address = _gcs(args.gcs) if args.hitl else None
         link = SerialLink(args.hitl, args.baud) if args.hitl else TcpServerLink(args.host, 4560 + args.instance)
-        bridge = Px4SimulatorBridge(config, link, params)
+        gcs = GcsForward(*gcs_address) if gcs_address is not None else None
+        bridge = Px4SimulatorBridge(config, link, params, gcs=gcs)
     except (ConfigError, ValueError, OSError) as e:
-        if link is not None:
-            link.close()
+        for opened in (link, gcs):
+            if opened is not None:
+                opened.close()
         print(f"cufund: {e}", file=sys.stderr)
         return EXIT_INVALID
-    where = f"serial {args.hitl} at {args.baud} baud (HITL, lockstep off)" if args.hitl else \
+    where = f"serial {args.hitl} at {args.baud} baud (HITL, lockstep off" + \
+        (f"; ground station relay udp://{gcs.address[0]}:{gcs.address[1]})" if gcs else ")") if args.hitl else \
         f"tcp://{args.host}:{bridge.port_number} (SITL, lockstep)"
     print(f"cufund px4-sim: {config.name} on {bridge.simulator.vehicle.params.name}, waiting for PX4 on {where}",
           flush=True)

@@ -9,7 +9,7 @@ import select
 import socket
 from typing import Protocol
 
-__all__ = ["PX4_SITL_BASE_PORT", "Link", "LinkClosed", "SerialLink", "TcpServerLink"]
+__all__ = ["PX4_SITL_BASE_PORT", "GcsForward", "Link", "LinkClosed", "SerialLink", "TcpServerLink"]
 
 PX4_SITL_BASE_PORT = 4560  #: PX4's simulator_mavlink connects to TCP 4560 + instance
 
@@ -135,3 +135,37 @@ class SerialLink:
 
     def close(self) -> None:
         self._port.close()
+
+
+class GcsForward:
+    """HITL's window for ground stations, as Gazebo's plugin has: the flight controller's MAVLink (read off the
+    serial line) goes out over UDP to ``host:port`` (QGroundControl listens on 14550), and what comes back to the
+    sending socket goes to the serial line."""
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 14550) -> None:
+        if not isinstance(host, str) or not host:
+            raise ValueError(f"host must be an address string like 127.0.0.1, got {host!r}")
+        if isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535:
+            raise ValueError(f"port must be an integer in [1, 65535], got {port!r}")
+        self.address = (host, port)
+        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._sock.bind(("127.0.0.1" if host in ("127.0.0.1", "localhost") else "0.0.0.0", 0))
+        self._sock.setblocking(False)
+
+    def send(self, data: bytes) -> None:
+        try:
+            self._sock.sendto(data, self.address)
+        except OSError:  # nobody listening (ICMP unreachable) or a full buffer: a GCS is optional
+            pass
+
+    def poll(self) -> bytes:
+        """Everything the ground station sent since the last poll (b"" when nothing)."""
+        chunks = []
+        while True:
+            try:
+                chunks.append(self._sock.recv(65536))
+            except OSError:  # BlockingIOError when drained; ConnectionRefused after an unanswered send
+                return b"".join(chunks)
+
+    def close(self) -> None:
+        self._sock.close()

@@ -34,7 +34,7 @@ from ..simulator import RunStatus, SimulationResult
 from .frames import GeodeticOrigin
 from .hil_messages import HilEncoder
 from .px4_airframe import Px4Airframe
-from .px4_links import Link, LinkClosed, TcpServerLink
+from .px4_links import GcsForward, Link, LinkClosed, TcpServerLink
 
 __all__ = ["PX4_SENSOR_RATES", "Px4BridgeParams", "Px4SimulatorBridge", "px4_scenario"]
 
@@ -160,11 +160,14 @@ class Px4SimulatorBridge:
     :class:`~cufund.mavlink.px4_links.SerialLink` (HITL, with ``params.lockstep`` off).
 
     ``simulator`` is the cufund simulator (set the initial state through ``simulator.vehicle`` before
-    :meth:`run`); ``stats`` counts what went over the link.
+    :meth:`run`); ``stats`` counts what went over the link. ``gcs`` (HITL): a
+    :class:`~cufund.mavlink.px4_links.GcsForward` relaying the flight controller's MAVLink to a ground station and
+    back, since the board's USB port is the simulator's.
     """
 
     def __init__(self, config: ScenarioConfig, link: Link | None = None, params: Px4BridgeParams | None = None,
-                 instance: int = 0, host: str = "127.0.0.1", airframe: Px4Airframe | None = None) -> None:
+                 instance: int = 0, host: str = "127.0.0.1", airframe: Px4Airframe | None = None,
+                 gcs: GcsForward | None = None) -> None:
         self.params = params if params is not None else Px4BridgeParams()
         if not isinstance(self.params, Px4BridgeParams):
             raise TypeError(f"params must be a Px4BridgeParams, got {type(self.params).__name__}")
@@ -182,6 +185,7 @@ class Px4SimulatorBridge:
         self.airframe = airframe if airframe is not None else Px4Airframe.for_vehicle(vehicle)
         self._rotor_of_output = self.airframe.rotor_of_output(vehicle)
         self.link: Any = link if link is not None else TcpServerLink(host, 4560 + instance)
+        self.gcs = gcs
         self.mav = mavlink.MAVLink(None, srcSystem=self.params.system_id, srcComponent=self.params.component_id)
         self.mav.robust_parsing = True
         self._rx = mavlink.MAVLink(None, srcSystem=0, srcComponent=0)
@@ -247,6 +251,10 @@ class Px4SimulatorBridge:
         try:
             self.link.send(b"".join(m.pack(self.mav) for m in out))
             self._receive(t)
+            if self.gcs is not None:
+                from_gcs = self.gcs.poll()
+                if from_gcs:
+                    self.link.send(from_gcs)
         except LinkClosed as e:
             self._close(str(e))
         return self._command(t)
@@ -292,12 +300,15 @@ class Px4SimulatorBridge:
             return False
         for msg in messages:
             kind = msg.get_type()
+            if self.gcs is not None and kind != "BAD_DATA":
+                self.gcs.send(bytes(msg.get_msgbuf()))
             if kind == "HIL_ACTUATOR_CONTROLS":
                 self._on_controls(msg, t)
                 got = True
             elif kind == "HEARTBEAT":
                 self.stats["heartbeats_received"] += 1
-            elif kind == "COMMAND_LONG":
+            elif kind == "COMMAND_LONG" and msg.target_system in (0, self.params.system_id) and \
+                    msg.target_component in (0, self.params.component_id):
                 self._on_command(msg)
             elif kind in ("BAD_DATA", "UNKNOWN") or kind.startswith("UNKNOWN"):
                 self.stats["bad_packets"] += 1
@@ -368,5 +379,7 @@ class Px4SimulatorBridge:
         return sim.result()
 
     def close(self) -> None:
-        """Closes the link (and the TCP server)."""
+        """Closes the link (and the TCP server, and the ground-station relay)."""
         self.link.close()
+        if self.gcs is not None:
+            self.gcs.close()
