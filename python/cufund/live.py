@@ -260,7 +260,10 @@ class LiveRun:
             why = "no commander in this scenario" if self.commander is None else f"the run has ended ({self.ended})"
             fut.set_result(CommandAck(command.command, "unsupported" if self.commander is None else "failed", why))
             return fut
-        return self.commander.submit(command)
+        fut = self.commander.submit(command)
+        with self._wake:  # the simulation thread may be sleeping until the wall clock catches up: go on now
+            self._wake.notify_all()
+        return fut
 
     # -- the simulation thread ---------------------------------------------------------------------------------
     def _loop(self) -> None:
