@@ -139,3 +139,15 @@ def test_commands_are_answered_while_paused_and_the_plan_is_shown():
         assert run.submit({"command": "rtl"}).result(timeout=5).ok
         plan = run.telemetry()["plan_W"]
         assert plan[-1] == [0.0, 0.0, 0.0] and len(plan) == 3  # climb, home, touch down
+
+
+def test_bad_arguments_fail_before_anything_runs():
+    from cufund.config import ConfigError
+
+    with pytest.raises(ValueError, match="speed"):
+        LiveRun(FAST, speed=0)
+    with pytest.raises(ConfigError, match="planner.takeoff_altitude"):
+        LiveRun("vehicle", overrides=["planner.takeoff_altitude=-1"])
+    with pytest.raises(TypeError, match="scenario_or_config"):
+        LiveRun(42)
+    assert not [t for t in threading.enumerate() if t.name == "cufund-live"]

@@ -100,6 +100,7 @@ class LiveRun:
     def __init__(self, scenario_or_config: Any, overrides: Iterable[str] | dict[str, Any] = (), speed: float = 1.0,
                  start: bool = True, telemetry_hz: float = 50.0, script: bool = False,
                  extra_components: Iterable[Component] = ()) -> None:
+        self._speed = self._check_speed(speed)
         self.config = self._config(scenario_or_config, overrides)
         if not script and self.config.planner is not None and hasattr(self.config.planner.params, "script"):
             # a live vehicle waits for its operator: the scenario's scripted commands are for `cufund run`
@@ -121,7 +122,6 @@ class LiveRun:
         self._errors: dict[str, int] = {}
         for c in sim.components:
             self._guard(c)
-        self._speed = self._check_speed(speed)
         self._paused = False
         self._stop = threading.Event()
         self._wake = threading.Condition()
