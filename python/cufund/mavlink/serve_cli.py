@@ -35,6 +35,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--heartbeat-timeout", type=float, default=3.0, metavar="S",
                    help="no message from any client for S wall-clock seconds is a link loss (default 3)")
     p.add_argument("--system-id", type=int, default=1, help="MAVLink system id (default 1)")
+    p.add_argument("--telemetry-hz", type=float, default=250.0,
+                   help="rate of the run's state snapshots the streams read [Hz of simulated time] (default 250: "
+                        "~4 ms median state-to-client latency)")
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="stop after S wall-clock seconds (default: run until interrupted)")
 
@@ -86,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     from .vehicle_endpoint import VehicleEndpoint
 
     try:
-        live = LiveRun(args.scenario, overrides, speed)
+        live = LiveRun(args.scenario, overrides, speed, telemetry_hz=args.telemetry_hz)
     except Exception as exc:  # noqa: BLE001 - an invalid scenario: exit 2, no traceback
         print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2

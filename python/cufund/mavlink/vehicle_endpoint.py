@@ -324,8 +324,9 @@ class VehicleEndpoint:
         s = self._snap or self._snapshot()
         try:
             if c == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
-                arm = round(p[0]) == 1
-                cmd = {"command": "arm"} if arm else {"command": "disarm", "force": round(p[1]) == 21196}
+                if p[0] not in (0.0, 1.0):
+                    raise cp.Refused(mavlink.MAV_RESULT_DENIED, f"arm/disarm param1 must be 1 or 0, got {p[0]}")
+                cmd = {"command": "arm"} if p[0] == 1.0 else {"command": "disarm", "force": p[1] == 21196.0}
                 self._forward(link, msg, c, cmd)
             elif c == mavlink.MAV_CMD_NAV_TAKEOFF:
                 self._forward(link, msg, c, cp.takeoff(z, s.home_p_W, self.origin))
