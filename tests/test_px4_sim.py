@@ -121,7 +121,7 @@ def test_free_run_until_first_controls_then_lockstep():
         px4.heartbeat()
         first = [px4.step() for _ in range(20)]  # nobody answered
         stamps = [s.sensor.time_usec for s in first]
-        assert stamps == list(range(0, 20 * STEP_US, STEP_US))
+        assert stamps == list(range(STEP_US, 21 * STEP_US, STEP_US))  # one period in, as Gazebo: never 0
         hb = [m for s in first for m in s.other if m.get_type() == "HEARTBEAT"]
         assert len(hb) == 1 and hb[0].type == 0 and hb[0].autopilot == 8  # generic, not an autopilot
         px4.controls([0.0] * 4, armed=False)
@@ -146,12 +146,12 @@ def test_hil_sensor_units_frames_and_bits_at_rest():
     with _serve() as (bridge, px4, _):
         steps = _fly(px4, 250, [0.0] * 4, armed=False)  # 1 s on the ground, disarmed
     sensors = [s.sensor for s in steps]
-    assert [m.time_usec for m in sensors] == list(range(0, 250 * STEP_US, STEP_US))
+    assert [m.time_usec for m in sensors] == list(range(STEP_US, 251 * STEP_US, STEP_US))
     assert all(m.id == 0 for m in sensors)
     bits = np.array([m.fields_updated for m in sensors])
     assert np.all(bits & 0x3F == 0x3F)  # accel + gyro every period (IMU at 250 Hz)
-    assert np.count_nonzero(bits & 0x1C0 == 0x1C0) == 100  # magnetometer at 100 Hz
-    assert np.count_nonzero(bits & 0x1A00 == 0x1A00) == 50  # barometer at 50 Hz
+    assert np.count_nonzero(bits[:-1] & 0x1C0 == 0x1C0) == 100  # magnetometer at 100 Hz (samples 0 .. 0.99 s)
+    assert np.count_nonzero(bits[:-1] & 0x1A00 == 0x1A00) == 50  # barometer at 50 Hz
     assert bits[0] == 0x1BFF
     acc = np.array([[m.xacc, m.yacc, m.zacc] for m in sensors])
     gyro = np.array([[m.xgyro, m.ygyro, m.zgyro] for m in sensors])
@@ -185,16 +185,20 @@ def test_hover_thrust_holds_more_thrust_climbs_disarmed_falls():
 
         hover = _fly(px4, 250, [U_HOVER] * 4)
         h = alt(hover)
-        assert len(h) == 200  # 200 Hz as asked (5000 us), only after the request
-        assert max(abs(x - 20.0) for x in h) < 0.02
+        assert 199 <= len(h) <= 200  # 200 Hz as asked (5000 us), only after the request
+        # (the motors idle for the first period, before PX4's first answer: a few cm of sag, then a steady state)
+        assert max(abs(x - 20.0) for x in h) < 0.1
+        vz = [st.vz for s in hover[125:] for st in s.state]
+        assert max(vz) - min(vz) <= 1  # [cm/s]: hover thrust exactly holds the weight
         climb = _fly(px4, 125, [U_HOVER + 0.1] * 4)
         hc = alt(climb)
-        assert hc[-1] > 20.2 and climb[-1].state[-1].vz < -50  # NED z decreases: vz [cm/s] negative
+        assert hc[-1] - h[-1] > 0.2 and climb[-1].state[-1].vz < -50  # NED z decreases: vz [cm/s] negative
         assert np.mean([s.sensor.zacc for s in climb[-50:]]) < -9.80665 - 1.0  # more thrust: more specific force
         hp0 = np.mean([s.sensor.abs_pressure for s in hover if s.sensor.fields_updated & 0x1A00])
         hp1 = climb[-1].sensor.abs_pressure
-        assert hp1 - hp0 == pytest.approx(_isa_pressure_hpa(hc[-1] + bridge.config.sensors["barometer"].params.home_altitude_m)
-                                          - _isa_pressure_hpa(20.0 + bridge.config.sensors["barometer"].params.home_altitude_m), abs=0.03)
+        home = bridge.config.sensors["barometer"].params.home_altitude_m
+        expected = _isa_pressure_hpa(hc[-1] + home) - _isa_pressure_hpa(float(np.mean(h)) + home)
+        assert hp1 - hp0 == pytest.approx(expected, abs=0.03)  # the climb, seen by the barometer as the ISA says
         fall = _fly(px4, 100, [0.9] * 4, armed=False)  # outputs ignored while disarmed
         assert fall[-1].state[-1].vz > 100
 
@@ -220,10 +224,11 @@ def test_hil_gps_rate_and_encoding():
     cfg = _config(IDEAL)
     with _serve(config=cfg, hover_at=(0.0, 0.0, 50.0), v_W=(1.0, 2.0, 0.0)) as (bridge, px4, _):
         steps = _fly(px4, 500, [U_HOVER] * 4)  # 2 s
-    fixes = [g for s in steps for g in s.gps]
-    assert len(fixes) == 10  # 5 Hz
+    fixes = [g for s in steps[:-1] for g in s.gps]
+    assert len(fixes) == 10  # 5 Hz: measured at 0, 0.2, .. 1.8 s
     t = np.array([s.sensor.time_usec for s in steps if s.gps])
-    np.testing.assert_array_equal(np.diff(t), 200_000)
+    assert t[0] == STEP_US
+    np.testing.assert_array_equal(np.diff(t[1:]), 200_000)
     home = GeodeticOrigin.from_geo_point(cfg.sensors["gps"].params.home)
     assert bridge.origin == home
     g = fixes[0]  # measured at t = 0: the origin, 50 m up
@@ -296,7 +301,7 @@ def test_px4_leaving_ends_the_run():
         _fly(px4, 10, [0.0] * 4, armed=False)
         px4.close()
     assert outcome["result"].message == "PX4 closed the connection"
-    assert outcome["result"].sim_time_s == pytest.approx(10 * STEP_US * 1e-6, abs=0.0041)
+    assert outcome["result"].sim_time_s == pytest.approx(11 * STEP_US * 1e-6, abs=1e-9)  # the 11th went unanswered
 
 
 def test_pd_hover_loop_closed_through_the_bridge():
@@ -363,7 +368,7 @@ def test_cli_serves_sitl_on_4560_plus_instance(capsys):
         px4.close()
         thread.join(20.0)
     assert code["exit"] == 0
-    assert stamps == list(range(0, 200_000, STEP_US))
+    assert stamps == list(range(STEP_US, 200_000, STEP_US))
     out = capsys.readouterr().out
     assert f"tcp://127.0.0.1:{port} (SITL, lockstep)" in out and "status: completed (duration elapsed)" in out
 
@@ -395,5 +400,5 @@ def test_imu_mounting_is_undone_into_the_body_frame():
     with _serve(config=_config(sensors), hover_at=(0.0, 0.0, 30.0)) as (_, px4, _o):
         steps = _fly(px4, 50, [U_HOVER - 0.03, U_HOVER + 0.03, U_HOVER + 0.03, U_HOVER - 0.03])
     first, last = steps[0].sensor, steps[-1].sensor
-    np.testing.assert_allclose([first.xacc, first.yacc, first.zacc], [0.0, 0.0, -9.80665], atol=1e-6)
+    assert abs(first.xacc) < 1e-6 and abs(first.yacc) < 1e-6 and first.zacc < -4.0  # thrust along body z only
     assert last.xgyro > 0.2 and abs(last.ygyro) < 0.05 * last.xgyro

@@ -130,7 +130,10 @@ def _sensor_name(config: ScenarioConfig, stype: str) -> str | None:
 
 class _Px4Port(Component):
     """The bridge inside the simulator: runs at the HIL_SENSOR rate after the sensors, exchanges with PX4 and
-    publishes the commanded rotor speeds. A truth reader (HIL_STATE_QUATERNION is ground truth)."""
+    publishes the commanded rotor speeds. A truth reader (HIL_STATE_QUATERNION is ground truth).
+
+    Its first exchange is at the end of the first period, as Gazebo's first update is one step in: PX4 never sees
+    time 0 (a zero timestamp means "no data" to much of PX4); that period's samples go out with it."""
 
     name = "px4"
     reads_truth = True
@@ -144,8 +147,13 @@ class _Px4Port(Component):
 
     def setup(self, bus: BusView) -> None:
         self._subs = {k: bus.subscribe(t) for k, t in self.topics.items()}
+        self._started = False
 
     def step(self, t: float, bus: BusView) -> None:
+        if not self._started:  # the run's first instant: nothing to PX4 yet
+            self._started = True
+            bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand(t, self.bridge._command(t)))
+            return
         latest = {}
         for k, sub in self._subs.items():
             msgs = sub.take()
