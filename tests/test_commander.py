@@ -314,3 +314,17 @@ def test_any_json_command_parses_or_raises_value_error(name, fields):
     for v in (c.p_W, c.v_W, c.q_WB):
         assert v is None or all(np.isfinite(v))
     assert c.altitude is None or (np.isfinite(c.altitude) and c.altitude > 0)
+
+
+def test_mission_start_from_an_item_and_on_the_ground():
+    sim, cmd = _flight()
+    sim.advance_to(0.2)
+    cmd.apply("arm")
+    cmd.apply({"command": "mission_upload", "items": [[5.0, 5.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.2]]})
+    assert cmd.apply({"command": "mission_start", "seq": 3}).result == "denied"
+    assert cmd.apply({"command": "mission_start", "seq": 1}).result == "accepted"  # takes off first
+    sim.advance_to(sim.t + 10.0)
+    assert [e["seq"] for e in cmd.events.of_kind("mission_item_reached")] == [1, 2]
+    st = sim.result().states
+    assert np.min(np.linalg.norm(st["p_W"][:, :2] - [5.0, 5.0], axis=1)) > 5.0  # item 0 never approached
+    assert np.linalg.norm(_p(sim) - [1.0, 1.0, 1.2]) < 0.1

@@ -10,15 +10,15 @@ every change; the controllers read the status to stop the rotors when disarmed (
 
 What each command does (``denied`` acks say why; every refusal is also a ``denied`` event):
 
-- ``arm``: on the ground with a state estimate; home = here. Armed already: accepted, a no-op. Disarms itself
+- ``arm``: on the ground with a healthy state estimate (fresh, finite); home = here. Armed already: accepted, a no-op. Disarms itself
   after ``auto_disarm_s`` without a take-off.
 - ``disarm``: on the ground; in flight only with ``force`` (the rotors stop, the vehicle falls).
 - ``takeoff``: armed and on the ground; climbs ``altitude`` (default ``takeoff_altitude``) above home, then holds.
 - ``goto``, ``hold``, ``rtl``, ``flight_mode`` (velocity/attitude hold): airborne (``hold`` on the ground: a
   no-op). ``land``: airborne (on the ground: disarms). ``rtl``: up to ``rtl_altitude`` above home (or stays
   higher), home, land.
-- ``mission_upload`` (not while one runs), ``mission_clear``; ``mission_start``: armed (takes off first when on
-  the ground); events ``mission_item_reached`` (``seq``) and ``mission_complete``, then it holds at the last item.
+- ``mission_upload`` (not while one runs), ``mission_clear``; ``mission_start`` (from item ``seq``, default 0):
+  armed (takes off first when on the ground); events ``mission_item_reached`` (``seq``) and ``mission_complete``, then it holds at the last item.
 - ``offboard_*``: armed; each setpoint (re)enters ``offboard``; none for ``offboard_timeout_s``: hold.
 - ``controller``: ``pid``/``geometric`` if built into the simulation (else ``unsupported``), switched in flight.
 - ``get_params`` / ``set_param``: :class:`CommanderParams` under PX4's names where they exist, plus the
@@ -318,6 +318,8 @@ class Commander(CommandInbox, Planner):
                 return ok("already armed")
             if not self.landed:
                 return deny("not on the ground")
+            if t - float(s.t) > 0.5 or not np.all(np.isfinite(s.p_W)):  # PX4's preflight check, in short
+                return deny(f"state estimate unhealthy (last at {float(s.t):.2f} s)")
             self.armed, self._armed_since = True, t
             self.home_p_W = np.array(s.p_W, float)
             self._ref = None
@@ -348,14 +350,16 @@ class Commander(CommandInbox, Planner):
         if name == "mission_start":
             if not self.mission:
                 return deny("no mission uploaded")
+            if c.seq >= len(self.mission):
+                return deny(f"seq {c.seq} is past the mission's {len(self.mission)} items")
             legs = []
             if self.landed:
                 self._begin_flight(t)
-                first = self.mission[0].p_W
+                first = self.mission[c.seq].p_W
                 legs.append(Leg(np.array([s.p_W[0], s.p_W[1], max(first[2], self.home_p_W[2] + 0.5)]),
                                  self._ref_yaw, "takeoff", slow=True))
             yaw = self._ref_yaw
-            for i, it in enumerate(self.mission):
+            for i, it in enumerate(self.mission[c.seq:], start=c.seq):
                 yaw = yaw if it.yaw is None else it.yaw
                 legs.append(Leg(np.array(it.p_W), yaw, "item", it.hold_s, i))
             self._start_legs(t, legs, "mission", "hold")

@@ -70,6 +70,8 @@ class Command:
     """set_param: parameter value."""
     force: bool = False
     """disarm: also in flight (the rotors stop and the vehicle falls)."""
+    seq: int = 0
+    """mission_start: the item to start from (MAVLink's MISSION_START first item / MISSION_SET_CURRENT)."""
     extra: Mapping[str, Any] = field(default_factory=dict)
     """Anything else the dict carried (e.g. a client's request id), passed through untouched."""
 
@@ -149,7 +151,7 @@ def _item(i: int, v: Any) -> MissionItem:
 
 _KEYS: dict[str, tuple[str, ...]] = {
     "arm": (), "disarm": ("force",), "takeoff": ("altitude",), "land": (), "rtl": (), "hold": (),
-    "goto": ("p_W", "yaw"), "mission_upload": ("items",), "mission_start": (), "mission_clear": (),
+    "goto": ("p_W", "yaw"), "mission_upload": ("items",), "mission_start": ("seq",), "mission_clear": (),
     "flight_mode": ("mode",), "controller": ("kind",), "offboard_position": ("p_W", "v_W", "yaw"),
     "offboard_velocity": ("v_W", "yaw"), "offboard_attitude": ("q_WB", "thrust"), "set_param": ("name", "value"),
     "get_params": (),
@@ -214,6 +216,11 @@ def parse_command(data: Any) -> Command:
         if len(items) > 10000:
             raise ValueError(f"items must hold at most 10000 waypoints, got {len(items)}")
         kw["items"] = tuple(_item(i, v) for i, v in enumerate(items))
+    elif name == "mission_start":
+        seq = data.get("seq", 0)
+        if isinstance(seq, bool) or not isinstance(seq, (int, np.integer)) or seq < 0:
+            raise ValueError(f"seq must be an item index >= 0, got {seq!r}")
+        kw["seq"] = int(seq)
     elif name == "flight_mode":
         mode = data.get("mode")
         if mode not in FLIGHT_MODES:
