@@ -72,11 +72,12 @@ def paper_means(points: np.ndarray, floor_cut: float = 0.1) -> tuple[np.ndarray,
 
 
 def run(name: str, world: cufund.World, centres: np.ndarray, axes: np.ndarray, sizes: np.ndarray,
-        roi: tuple | None) -> None:
+        roi: tuple | None, degraded: bool = False) -> None:
     t, p, yaw = flight(centres, axes)
     sim = cufund.Simulator(None, physics_rate_hz=1000)
     sim.add(ScriptedTruth(t, p, yaw))
-    sim.add(LidarComponent(Lidar(mid360(), mid360_params(seed=7)), world, rate_hz=100.0))
+    noise = {"range_noise_std": 0.05, "dropout": 0.5} if degraded else {}
+    sim.add(LidarComponent(Lidar(mid360(), mid360_params(seed=7, **noise)), world, rate_hz=100.0))
     det = sim.add(TunnelDetector(TunnelDetectorParams(roi_min_W=roi[0], roi_max_W=roi[1]) if roi else None,
                                  origin_W=p[0]))
     start = time.perf_counter()
@@ -104,18 +105,19 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--layouts", type=int, default=5, help="generated layouts after the paper's (default 5)")
     ap.add_argument("--no-roi", action="store_true", help="no region of interest (the arena's walls in view)")
+    ap.add_argument("--degraded", action="store_true", help="the degraded LiDAR fault: half the points, 5 cm noise")
     args = ap.parse_args()
     import open3d  # noqa: F401 - its import (seconds) is not the detector's cost
 
     print("layout | found | centre error (ours, paper's cluster means) | opening size | cost")
     paper = np.array([[0.5 * k, 0.0, 0.55] for k in range(5)])
     run("paper", imav2025_tunnel(), paper, np.tile([1.0, 0.0, 0.0], (5, 1)), np.tile([0.5, 1.0], (5, 1)),
-        None if args.no_roi else ((-4.85, -3.85, -0.5), (6.85, 3.85, 3.0)))
+        None if args.no_roi else ((-4.85, -3.85, -0.5), (6.85, 3.85, 3.0)), args.degraded)
     for seed in range(args.layouts):
         c = tunnel_course_layout(seed)
         run(f"seed {seed}", c.world, np.array([f.centre_W for f in c.frames]), np.array([f.axis_W for f in c.frames]),
             np.array([[f.width, f.height] for f in c.frames]),
-            None if args.no_roi else ((-3.85, -3.85, -0.5), (7.85, 3.85, 3.0)))
+            None if args.no_roi else ((-3.85, -3.85, -0.5), (7.85, 3.85, 3.0)), args.degraded)
 
 
 if __name__ == "__main__":

@@ -232,8 +232,12 @@ def _vertical_plane(xy: np.ndarray, threshold: float, iterations: int, rng: np.r
     # Score: the length of line the inliers cover (distinct bins along it), then their count. Vertical bars
     # project to a spot each, so counts alone would favour a line through two posts or a post and a box.
     along = np.floor((xy @ np.stack([normals[:, 1], -normals[:, 0]])) / threshold).astype(np.int64)
-    scores = [(len(np.unique(along[inliers[:, k], k])), int(inliers[:, k].sum())) for k in range(len(normals))]
-    best = max(range(len(scores)), key=lambda k: (scores[k], -k))
+    outside = np.iinfo(np.int64).min
+    ranked = np.sort(np.where(inliers, along, outside), axis=0)
+    covered = np.count_nonzero(np.diff(ranked, axis=0) != 0, axis=0) + (ranked[-1] != outside) \
+        - (ranked[0] == outside) * (ranked[-1] != outside)  # distinct bins among the inliers
+    counts = inliers.sum(axis=0)
+    best = int(np.lexsort((np.arange(len(counts))[::-1], counts, covered))[-1])  # most covered, most, first
     mask = inliers[:, best]
     for _ in range(2):  # PCA on the inliers, then the inliers of that line
         sel = xy[mask]

@@ -27,6 +27,14 @@ _KNOTS = 20
 """Poses computed per scan for deskewing (a 0.1 s scan: one every 5 ms)."""
 
 
+def _member(keys: np.ndarray, sorted_set: np.ndarray) -> np.ndarray:
+    """``np.isin(keys, sorted_set)`` for a sorted ``sorted_set``, by binary search."""
+    if len(sorted_set) == 0:
+        return np.zeros(len(keys), dtype=bool)
+    i = np.minimum(np.searchsorted(sorted_set, keys), len(sorted_set) - 1)
+    return sorted_set[i] == keys
+
+
 @dataclass
 class _Track:
     """One frame followed across detections (the newest measurement of it; the map only grows)."""
@@ -47,7 +55,8 @@ class TunnelDetector(Component):
     ``params.max_range`` of the LiDAR, below ``params.ceiling_z`` and inside the region of interest are
     accumulated in a bounded voxel map (:class:`VoxelAccumulator`), on which :func:`detect_in_voxels` runs at
     every step. Detections continue the nearest track within ``params.associate_radius``; a track's confidence
-    grows with the points on its bars and with repeated detections, and fades while it is not seen again.
+    grows with the points on its bars and with repeated detections, and fades slowly while it is not found
+    again (a track found three times is kept; one found fewer times goes after ten misses).
     Frames are published in flying order from ``origin_W`` (default: the first pose received).
     """
 
@@ -130,10 +139,24 @@ class TunnelDetector(Component):
         p_WL = p_WB + R_WB @ np.asarray(self.T_BL.t)
         x = np.clip(dt / span * _KNOTS, 0.0, _KNOTS)
         seg = np.minimum(x.astype(np.int64), _KNOTS - 1)
+        order = None if np.all(seg[1:] >= seg[:-1]) else np.argsort(seg, kind="stable")  # firing order: sorted
+        if order is not None:
+            points_L, seg, x = points_L[order], seg[order], x[order]
         s = (x - seg)[:, None]
-        a = np.einsum("nij,nj->ni", R_WL[seg], points_L) + p_WL[seg]
-        b = np.einsum("nij,nj->ni", R_WL[seg + 1], points_L) + p_WL[seg + 1]
-        return a + s * (b - a), p_WL[seg] + s * (p_WL[seg + 1] - p_WL[seg])
+        points_W = np.empty_like(points_L)
+        bounds = np.searchsorted(seg, np.arange(_KNOTS + 1))
+        for j in range(_KNOTS):  # both poses around each point's time, blended
+            lo, hi = bounds[j], bounds[j + 1]
+            if hi > lo:
+                a = points_L[lo:hi] @ R_WL[j].T + p_WL[j]
+                b = points_L[lo:hi] @ R_WL[j + 1].T + p_WL[j + 1]
+                points_W[lo:hi] = a + s[lo:hi] * (b - a)
+        sensor_W = p_WL[seg] + s * (p_WL[seg + 1] - p_WL[seg])
+        if order is not None:
+            back = np.empty_like(order)
+            back[order] = np.arange(len(order))
+            points_W, sensor_W = points_W[back], sensor_W[back]
+        return points_W, sensor_W
 
     def _crop(self, cloud: PointCloud) -> tuple[np.ndarray, np.ndarray]:
         """The scan's points to accumulate (N, 3) [m] and the unit directions of their rays (N, 3)."""
@@ -146,10 +169,10 @@ class TunnelDetector(Component):
         # x-y columns reaching above any frame are walls or poles: never accumulated
         cols = column_keys(points_W)
         tall = np.unique(cols[keep & (points_W[:, 2] > p.max_frame_top)])
-        if len(tall) and not np.all(np.isin(tall, self._tall)):
+        if len(tall) and not np.all(_member(tall, self._tall)):
             self._tall = np.union1d(self._tall, tall)
             self._tall_changed = True
-        keep &= ~np.isin(cols, self._tall)
+        keep &= ~_member(cols, self._tall)
         if p.roi_min_W is not None:
             keep &= np.all(points_W >= np.asarray(p.roi_min_W), axis=1)
         if p.roi_max_W is not None:
@@ -179,13 +202,14 @@ class TunnelDetector(Component):
         for j, tr in enumerate(self.tracks):
             if j not in used_t:
                 tr.misses += 1
-        self.tracks = [tr for tr in self.tracks if tr.misses <= 10]
+        # a frame seen a few times stays (the course does not move); a one-off goes after 10 misses
+        self.tracks = [tr for tr in self.tracks if tr.hits >= 3 or tr.misses <= 10]
         self.tracks.extend(_Track(d) for i, d in enumerate(detections) if i not in used_d)
 
     def confidence(self, track: _Track) -> float:
         """In [0, 1): grows with the track's points and detections, fades while it is missed."""
         support = 1.0 - math.exp(-track.detection.support / self.params.full_support * 3.0)
-        return support * (1.0 - 0.5 ** track.hits) * 0.8 ** track.misses
+        return support * (1.0 - 0.5 ** track.hits) * 0.95 ** track.misses
 
     def estimate(self) -> TunnelEstimate:
         """The current tracks as a :class:`TunnelEstimate`, in flying order."""
@@ -229,7 +253,7 @@ class TunnelDetector(Component):
             batch.append(self._crop(self._waiting.pop(0)))
         if batch:
             if self._tall_changed and len(self.map):
-                self.map.drop(np.isin(column_keys(self.map.means()[0]), self._tall))
+                self.map.drop(_member(column_keys(self.map.means()[0]), self._tall))
             self._tall_changed = False
             self.map.insert(np.concatenate([b[0] for b in batch]), np.concatenate([b[1] for b in batch]))
             cloud, rays = self.map.means()
