@@ -5,15 +5,16 @@ States (published as :class:`~cufund.messages.MissionState` on ``/mission/state`
 
 ``initialise``  on the pad, rotors idle, while the LIO initialises statically (``init_s``);
 ``takeoff``     a jerk-limited climb to ``takeoff_height``;
-``detect``      hover until the detector reports the expected number of frames, confident and stable
-                (``detect_timeout_s``: fewer frames -> ``aborted``, land where it is);
-``approach``    min-snap from the hover point onto the first frame's axis and to its centre, at rest;
-                hover there ``hold_s`` while the detections of the frames ahead improve (paper: "the MAV is guided
-                to the centre of the first tunnel wall");
+``detect``      hover until the detector reports the first frame, confident and stable (``detect_timeout_s``:
+                none -> ``aborted``, land where it is);
+``align``       a straight move onto the first frame's axis, ``align_m`` before it at its opening's height; hover
+                there until every expected frame is detected, confident and stable (``detect_timeout_s``: fewer
+                frames -> ``aborted``, land there, never entering a frame);
+``enter``       min-snap along the first frame's re-detected axis to its centre, at rest; hover ``hold_s``
+                (paper: "the MAV is guided to the centre of the first tunnel wall");
 ``through``     re-plan with the newest detections from the first centre through every opening along its normal
                 (approach and exit points on each frame's axis) to ``exit_m`` beyond the last one (paper: "the
-                furthermost centre is used as the planning goal"); re-planned from the reference's state while
-                flying whenever a frame not yet passed moves by more than ``replan_m``;
+                furthermost centre is used as the planning goal");
 ``land``        hover ``hold_s``, then straight down;
 ``done`` / ``aborted`` (with the reason).
 
@@ -57,7 +58,7 @@ class TunnelMissionParams:
     """Time on the pad before take-off (the LIO's static initialisation needs >= 1 s) [s]."""
     detect_timeout_s: float = 15.0
     """Longest hover waiting for the detections [s]."""
-    min_confidence: float = 0.5
+    min_confidence: float = 0.2
     """Every expected frame needs at least this confidence."""
     stable_updates: int = 3
     """Consecutive detections whose centres moved less than ``stable_m``."""
@@ -81,8 +82,6 @@ class TunnelMissionParams:
     """Smallest distance from a planned position to a detected bar [m] (the vehicle's half-diagonal + margin)."""
     bar: float = 0.05
     """Thickness of the frames' bars (the rules), for the plan check [m]."""
-    replan_m: float = 0.03
-    """Re-plan in flight when a frame ahead moves by more than this [m]."""
     move_v_max: float = 0.5
     """Take-off and landing speed limit [m/s]."""
     move_a_max: float = 1.0
@@ -100,7 +99,7 @@ class TunnelMissionParams:
         if isinstance(self.stable_updates, bool) or not isinstance(self.stable_updates, int) or self.stable_updates < 1:
             raise ConfigError(f"mission.stable_updates must be an integer >= 1, got {self.stable_updates!r}")
         for name in ("takeoff_height", "init_s", "detect_timeout_s", "stable_m", "align_m", "axis_m", "exit_m",
-                     "v_max", "a_max", "corridor", "clearance", "bar", "replan_m", "move_v_max", "move_a_max",
+                     "v_max", "a_max", "corridor", "clearance", "bar", "move_v_max", "move_a_max",
                      "move_j_max", "rate_hz", "stale_s"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
@@ -161,6 +160,10 @@ class TunnelMission(Planner):
         self.transitions: list[tuple[float, str, str]] = [(0.0, "initialise", "")]
         self.plans: list[PlanRecord] = []
         self.detections: list[tuple[float, TunnelEstimate]] = []
+        self.first: _Detections | None = None
+        """The newest stable detection of the first frame."""
+        self.complete: _Detections | None = None
+        """The newest stable detection of every expected frame."""
         self.used: _Detections | None = None
         """The detections the flown plan goes through."""
         self.t_end: float | None = None
@@ -168,6 +171,7 @@ class TunnelMission(Planner):
         self._t_state = 0.0
         self._t_leg_end = math.inf
         self._stable = 0
+        self._best = 0
         self._last: np.ndarray | None = None
         self._published = -1
 
@@ -181,9 +185,13 @@ class TunnelMission(Planner):
         self.reference = stitched(self.reference, trajectory, t)
         bus.publish(Topics.TRAJECTORY_UPDATE, TrajectoryUpdate(t, trajectory))
 
-    def _abort(self, t: float, t_r: float, reason: str, bus: BusView) -> None:
-        """Hover where the reference is (it is at rest in every state this is called from), then land."""
+    def _abort(self, t: float, t_r: float, reason: str, bus: BusView, back_W: np.ndarray | None = None) -> None:
+        """Hover where the reference is (at rest in every state this is called from), then land (first back out
+        to ``back_W`` when given: from inside a frame's opening, straight down would meet its bottom bar)."""
         p = self.reference.sample(float(t_r)).p_W[0]
+        if back_W is not None:
+            self._move(t, t_r, np.asarray(back_W, dtype=float), bus)
+            t_r, p = self._t_leg_end, np.asarray(back_W, dtype=float)
         if p[2] - self.pad_W[2] > 0.05:
             self._land(t, t_r, p, bus)
         else:
@@ -209,41 +217,41 @@ class TunnelMission(Planner):
         est: TunnelEstimate | None = bus.latest(Topics.TUNNEL_ESTIMATE)
         if est is not None and (not self.detections or self.detections[-1][1] is not est):
             self.detections.append((t, est))
+            self._track_stability(est)
+            self._count(est)
+            if self._stable >= pp.stable_updates:
+                self._latch(est)
         if self.state in ("done", "aborted"):
-            if self.state == "done" or self.t_end is None or t_r < self.t_end:
-                return
             return
         if self.state == "initialise":
             if t >= pp.init_s:
                 top = self.pad_W + np.array([0.0, 0.0, pp.takeoff_height])
-                up = JerkLimitedMove(self.pad_W, top, pp.move_v_max, pp.move_a_max, pp.move_j_max, self.yaw,
-                                     t_start=t_r)
-                self._publish(t, TrajectorySequence([up, Hold(top, _FOREVER, self.yaw, t_start=up.t_end)]), bus)
-                self._t_leg_end = up.t_end
+                self._move(t, t_r, top, bus)
                 self._enter(t, "takeoff", "", bus)
             return
         if self.state == "takeoff":
             if t_r >= self._t_leg_end:
                 self._enter(t, "detect", "", bus)
             return
-        if self.state == "detect":
-            d = self._confident(est)
+        if self.state == "detect":  # the first frame, confident and stable: fly onto its axis
+            d = self.complete or self.first
             if d is not None:
-                self._stable = self._stable + 1 if (self._last is not None and self._last.shape == d.centres.shape and
-                                                    np.max(np.linalg.norm(self._last - d.centres, axis=1)) < pp.stable_m) else 1
-                self._last = d.centres
-                if self._stable >= pp.stable_updates:
-                    self._plan_approach(t, t_r, d, bus)
-                    return
-            if t - self._t_state > pp.detect_timeout_s:
-                k = 0 if est is None else int(np.count_nonzero(np.asarray(est.confidence) >= pp.min_confidence))
-                self._abort(t, t_r, f"detected {k} of {pp.frames} frames in {pp.detect_timeout_s:g} s", bus)
+                self._plan_align(t, t_r, d, bus)
+            elif t - self._t_state > pp.detect_timeout_s:
+                self._abort(t, t_r, f"detected {self._count(est)} of {pp.frames} frames in {pp.detect_timeout_s:g} s", bus)
             return
-        if self.state == "approach":
+        if self.state == "align":  # on the first frame's axis: wait for every frame, confident and stable
+            if t_r < self._t_leg_end:
+                return
+            if self.complete is not None:
+                self._plan_enter(t, t_r, self.complete, bus)
+            elif t_r - self._t_leg_end > pp.detect_timeout_s:
+                self._abort(t, t_r, f"detected {self._count(est)} of {pp.frames} frames in "
+                                    f"{pp.detect_timeout_s:g} s", bus)
+            return
+        if self.state == "enter":  # at the first centre: re-plan through every opening with the newest detections
             if t_r >= self._t_leg_end + pp.hold_s:
-                d = self._confident(est) or self.used
-                self.progress = 0
-                self._plan_through(t, t_r, d, bus)
+                self._plan_through(t, t_r, self.complete or self.used, bus)
             return
         if self.state == "through":
             self._count_progress(state)
@@ -257,17 +265,49 @@ class TunnelMission(Planner):
             if self.t_end is not None and t_r >= self.t_end:
                 self._enter(t, "done", "", bus)
 
-    def _confident(self, est: TunnelEstimate | None) -> _Detections | None:
-        """The expected frames of ``est`` when each is confident enough (ordered along the course), else None."""
+    def _latch(self, est: TunnelEstimate) -> None:
+        """Keeps the newest stable detections: of the first frame (:attr:`first`) and of every expected frame
+        (:attr:`complete`), so a detector that loses sight of a frame for a while does not undo them."""
+        d = self._confident(est, self.params.frames)
+        if d is not None:
+            self.complete = d
+        d1 = self._confident(est, 1)
+        if d1 is not None:
+            self.first = d1
+
+    def _track_stability(self, est: TunnelEstimate) -> None:
+        """Counts consecutive detections whose centres moved less than ``stable_m`` (same number of frames)."""
+        c = np.asarray(est.centres_W, dtype=float)
+        last = self._last
+        same = last is not None and last.shape == c.shape and c.shape[0] > 0 \
+            and float(np.max(np.linalg.norm(last - c, axis=1))) < self.params.stable_m
+        self._stable = self._stable + 1 if same else 0
+        self._last = c
+
+    def _count(self, est: TunnelEstimate | None) -> int:
+        """The most frames seen confident at once so far."""
+        if est is not None:
+            self._best = max(self._best, int(np.count_nonzero(np.asarray(est.confidence) >= self.params.min_confidence)))
+        return self._best
+
+    def _move(self, t: float, t_r: float, goal: np.ndarray, bus: BusView) -> None:
+        """A jerk-limited straight move at rest from the reference's position to ``goal``, then hold there."""
         pp = self.params
+        p = self.reference.sample(float(t_r)).p_W[0]
+        mv = JerkLimitedMove(p, goal, pp.move_v_max, pp.move_a_max, pp.move_j_max, self.yaw, t_start=t_r)
+        self._publish(t, TrajectorySequence([mv, Hold(goal, _FOREVER, self.yaw, t_start=mv.t_end)]), bus)
+        self._t_leg_end = mv.t_end
+
+    def _confident(self, est: TunnelEstimate | None, k: int) -> _Detections | None:
+        """The first ``k`` frames of ``est`` (ordered along the course) when it holds at least ``k`` and each of
+        them is confident enough, else None."""
         if est is None:
             return None
         conf = np.asarray(est.confidence, dtype=float)
-        if conf.shape[0] < pp.frames or np.any(conf[:pp.frames] < pp.min_confidence):
+        if conf.shape[0] < k or np.any(conf[:k] < self.params.min_confidence):
             return None
-        return _Detections(np.asarray(est.centres_W, float)[:pp.frames].copy(),
-                           np.asarray(est.normals_W, float)[:pp.frames].copy(),
-                           np.asarray(est.opening_sizes, float)[:pp.frames].copy())
+        return _Detections(np.asarray(est.centres_W, float)[:k].copy(), np.asarray(est.normals_W, float)[:k].copy(),
+                           np.asarray(est.opening_sizes, float)[:k].copy())
 
     def _count_progress(self, state: Odometry) -> None:
         """Frames passed, on the estimate: the estimated position is ahead of the next frame's plane."""
@@ -324,25 +364,37 @@ class TunnelMission(Planner):
         return "" if not bad else (f"opening {bad[0] + 1} ({d.sizes[bad[0], 0]:.2f} x {d.sizes[bad[0], 1]:.2f} m) "
                                    f"is narrower than the vehicle needs ({need:.2f} m)")
 
-    def _plan_approach(self, t: float, t_r: float, d: _Detections, bus: BusView) -> None:
-        pp = self.params
+    def _align_point(self, d: _Detections) -> np.ndarray:
+        n0 = d.normals[0] / np.linalg.norm(d.normals[0])
+        return d.centres[0] - self.params.align_m * n0
+
+    def _plan_align(self, t: float, t_r: float, d: _Detections, bus: BusView) -> None:
+        """Onto the first frame's axis, ``align_m`` before it at its opening's height (nothing lies between)."""
+        narrow = self._narrow(d)
+        if narrow:
+            self._abort(t, t_r, narrow, bus)
+            return
+        self.used = d
+        self._move(t, t_r, self._align_point(d), bus)
+        self._enter(t, "align", "", bus)
+
+    def _plan_enter(self, t: float, t_r: float, d: _Detections, bus: BusView) -> None:
+        """From the align point along the first frame's (re-detected) axis to its centre, at rest."""
         narrow = self._narrow(d)
         if narrow:
             self._abort(t, t_r, narrow, bus)
             return
         p = self.reference.sample(float(t_r)).p_W[0]
-        n0 = d.normals[0] / np.linalg.norm(d.normals[0])
         before, _ = self._axis_points(d, 0)
-        w = np.array([p, d.centres[0] - pp.align_m * n0, before, d.centres[0]])
-        rec = self._plan(t, t_r, "approach", w, d)
+        rec = self._plan(t, t_r, "enter", np.array([p, self._align_point(d), before, d.centres[0]]), d)
         if not rec.ok:
-            self._abort(t, t_r, f"no safe path to the first frame: {rec.reason}", bus)
+            self._abort(t, t_r, f"no safe path into the first frame: {rec.reason}", bus)
             return
         self.used = d
         tr = rec.trajectory
         self._publish(t, TrajectorySequence([tr, Hold(d.centres[0], _FOREVER, self.yaw, t_start=tr.t_end)]), bus)
         self._t_leg_end = tr.t_end
-        self._enter(t, "approach", "", bus)
+        self._enter(t, "enter", "", bus)
 
     def _plan_through(self, t: float, t_r: float, d: _Detections, bus: BusView) -> None:
         pp = self.params
@@ -361,7 +413,7 @@ class TunnelMission(Planner):
         pts.append(d.centres[-1] + pp.exit_m * nl)
         rec = self._plan(t, t_r, "through", np.array(pts), d)
         if not rec.ok:
-            self._abort(t, t_r, f"no safe path through the frames: {rec.reason}", bus)
+            self._abort(t, t_r, f"no safe path through the frames: {rec.reason}", bus, back_W=self._align_point(self.used))
             return
         self.used = d
         self.progress = 1

@@ -28,23 +28,14 @@ def course_of(config: Any) -> Any:
     return paper_tunnel_course(p) if p.seed is None else tunnel_course_layout(p.seed, p)
 
 
-def _detector(ctx: Any, course: Any) -> list[Any]:
-    try:
-        from ..perception import TunnelDetector  # noqa: F401  (engineer D's; see below)
-    except ImportError:
-        TunnelDetector = None
-    if TunnelDetector is None:
-        from .tunnel_standin import StandInDetector
-
-        return [StandInDetector(course, ctx.seed)]
-    return _build_detector(ctx)
-
-
-def _build_detector(ctx: Any) -> list[Any]:
+def _detector(ctx: Any, p: TunnelMissionParams, start: np.ndarray) -> Any:
+    """Engineer D's detector on the scenario's LiDAR, in the estimated frame, keeping at most the expected frames
+    and ordering them from the pad."""
     from ..perception import TunnelDetector, TunnelDetectorParams
 
     _, lidar = ctx.sensor_of_type("lidar", "", "mission")
-    return [TunnelDetector(TunnelDetectorParams(), T_BL=lidar.extrinsic)]
+    return TunnelDetector(TunnelDetectorParams(), T_BL=lidar.extrinsic, cloud_topic=lidar.topic, expected=p.frames,
+                          origin_W=start)
 
 
 def _tunnel(p: TunnelMissionParams, ctx: Any) -> list[Any]:
@@ -71,9 +62,9 @@ def _tunnel(p: TunnelMissionParams, ctx: Any) -> list[Any]:
 
     ctx.done = done
     ctx.metric_hooks.append(lambda result: tunnel_metrics(result, mission, course))
+    detector = _detector(ctx, p, start)
     ctx.output_hooks.append(lambda run, out, **kw: write_tunnel_outputs(run, out, mission, course, detector, **kw))
-    detector = _detector(ctx, course)
-    return [*detector, mission, follower]
+    return [detector, mission, follower]
 
 
 register(Kind("mission", "tunnel", TunnelMissionParams, _tunnel, None,

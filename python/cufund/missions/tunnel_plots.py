@@ -134,17 +134,12 @@ def write_tunnel_replay(path: str | Path, result: Any, params: Any, world: Any, 
     return path
 
 
-def _clouds(detector: list[Any], result: Any) -> list[np.ndarray]:
-    """Point-cloud snapshots in the world frame: the detector's accumulated map when it exposes one."""
-    out = []
-    for c in detector:
-        for attr in ("points_W", "map_points_W", "accumulated_points_W"):
-            v = getattr(c, attr, None)
-            v = v() if callable(v) else v
-            if v is not None and np.asarray(v).size:
-                out.append(np.asarray(v)[:200_000])
-                break
-    return out
+def _cloud(detector: Any) -> np.ndarray:
+    """The detector's accumulated map (voxel means, world frame) [m]."""
+    try:
+        return np.asarray(detector.map.means()[0], dtype=float)
+    except (AttributeError, ZeroDivisionError, ValueError):
+        return np.zeros((0, 3))
 
 
 def write_tunnel_outputs(run: Any, out: str | Path, mission: Any, course: Any, detector: list[Any],
@@ -165,26 +160,18 @@ def write_tunnel_outputs(run: Any, out: str | Path, mission: Any, course: Any, d
         if world is None and course is not None:
             world = course.world
         write_tunnel_replay(out / "replay.html", run.result, run.config.vehicle_params(), world, mission,
-                            _clouds(detector, run.result))
+                            [_cloud(detector)])
 
 
-def _detection_plot(path: Path, detector: list[Any], course: Any, mission: Any) -> None:
-    try:
-        from ..perception import plot_detection
-    except ImportError:
+def _detection_plot(path: Path, detector: Any, course: Any, mission: Any) -> None:
+    """The detector's Fig.-9-style plot of its map and tracked frames, with the true centres."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if _cloud(detector).shape[0] == 0:
         return
-    for c in detector:
-        pts = None
-        for attr in ("points_W", "map_points_W", "accumulated_points_W"):
-            v = getattr(c, attr, None)
-            v = v() if callable(v) else v
-            if v is not None:
-                pts = np.asarray(v)
-                break
-        dets = getattr(c, "detections", None)
-        if pts is not None:
-            truth = None
-            if course is not None:
-                truth = np.array([f.centre_W for f in course.frames])
-            plot_detection(pts, dets, truth=truth, path=path)
-            return
+    truth = None if course is None else np.array([f.centre_W for f in course.frames])
+    fig = detector.plot(path, truth)
+    plt.close(fig)
