@@ -21,6 +21,7 @@ from cufund.mavlink.px4_sim import (
     Px4BridgeParams,
     Px4SimulatorBridge,
     px4_scenario,
+    sensor_instances,
 )
 from cufund.presets import iris
 from cufund.scenario import ScenarioConfig, load_scenario
@@ -402,3 +403,24 @@ def test_imu_mounting_is_undone_into_the_body_frame():
     first, last = steps[0].sensor, steps[-1].sensor
     assert abs(first.xacc) < 1e-6 and abs(first.yacc) < 1e-6 and first.zacc < -4.0  # thrust along body z only
     assert last.xgyro > 0.2 and abs(last.ygyro) < 0.05 * last.xgyro
+
+
+def test_several_sensors_become_px4_sensor_instances():
+    """A second IMU and barometer go out as HIL_SENSOR instance 1 (before instance 0, which closes the period and
+    drives PX4's lockstep); the sensor named after its type is instance 0 wherever it is declared."""
+    sensors = {"imu_b": "bmi088", **NOISY, "baro_b": "ideal_barometer"}
+    cfg = _config(sensors)
+    assert sensor_instances(cfg, "imu") == ["imu", "imu_b"] and sensor_instances(cfg, "gps") == ["gps"]
+    with _serve(config=cfg) as (_, px4, _o):
+        steps = _fly(px4, 50, [0.0] * 4, armed=False)
+    assert all(len(s.sensors) == 1 and s.sensors[0].id == 1 for s in steps)
+    assert all(s.sensors[0].time_usec == s.sensor.time_usec for s in steps)
+    bits = np.array([s.sensors[0].fields_updated for s in steps])
+    assert np.all(bits & 0x3F == 0x3F) and not np.any(bits & 0x1C0)  # its IMU every period, no magnetometer
+    assert np.count_nonzero(bits[:-1] & 0x1A00) == 10  # its barometer at 50 Hz
+    z1 = np.mean([s.sensors[0].zacc for s in steps])
+    z0 = np.mean([s.sensor.zacc for s in steps])
+    assert z1 == pytest.approx(-9.80665, abs=0.6) and z0 == pytest.approx(-9.80665, abs=0.6) and z0 != z1
+    too_many = _config({**NOISY, "imu_2": "bmi088", "imu_3": "bmi088", "imu_4": "bmi088"})
+    with pytest.raises(ConfigError, match="at most 3 imu"):
+        px4_scenario(too_many)

@@ -20,10 +20,12 @@ MAV_TYPE_QUADROTOR, MAV_AUTOPILOT_PX4 = 2, 12
 
 @dataclass
 class Px4Step:
-    """What the simulator sent for one HIL_SENSOR period: the HIL_SENSOR (it closes the period) and whatever
-    came before it since the previous one."""
+    """What the simulator sent for one HIL_SENSOR period: instance 0's HIL_SENSOR (it closes the period) and
+    whatever came before it since the previous one."""
 
     sensor: Any
+    sensors: list[Any] = field(default_factory=list)
+    """HIL_SENSOR messages of further sensor instances (``id`` 1, 2, ...)."""
     gps: list[Any] = field(default_factory=list)
     state: list[Any] = field(default_factory=list)
     """HIL_STATE_QUATERNION messages."""
@@ -118,17 +120,17 @@ class Px4Harness:
         return out
 
     def step(self, timeout: float = 10.0) -> Px4Step:
-        """Reads until the next HIL_SENSOR. Raises TimeoutError (nothing within ``timeout`` [s]) or
-        ConnectionError (the simulator closed the link)."""
+        """Reads until the next HIL_SENSOR of instance 0. Raises TimeoutError (nothing within ``timeout`` [s])
+        or ConnectionError (the simulator closed the link)."""
         deadline = time.monotonic() + timeout
-        gps, state, other = [], [], []
+        sensors, gps, state, other = [], [], [], []
         while True:
             while self._queue:
                 msg = self._queue.pop(0)
                 kind = msg.get_type()
-                if kind == "HIL_SENSOR":
-                    return Px4Step(msg, gps, state, other)
-                (gps if kind == "HIL_GPS" else state if kind == "HIL_STATE_QUATERNION" else other).append(msg)
+                if kind == "HIL_SENSOR" and msg.id == 0:
+                    return Px4Step(msg, sensors, gps, state, other)
+                {"HIL_SENSOR": sensors, "HIL_GPS": gps, "HIL_STATE_QUATERNION": state}.get(kind, other).append(msg)
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise TimeoutError(f"no HIL_SENSOR within {timeout} s")

@@ -36,10 +36,13 @@ from .hil_messages import HilEncoder
 from .px4_airframe import Px4Airframe
 from .px4_links import GcsForward, Link, LinkClosed, TcpServerLink
 
-__all__ = ["PX4_SENSOR_RATES", "Px4BridgeParams", "Px4SimulatorBridge", "px4_scenario"]
+__all__ = ["PX4_MAX_INSTANCES", "PX4_SENSOR_RATES", "Px4BridgeParams", "Px4SimulatorBridge", "px4_scenario",
+           "sensor_instances"]
 
 #: The sensor rates PX4's simulator contract uses [Hz]; px4_scenario runs the scenario's sensors at them.
 PX4_SENSOR_RATES = {"imu": 250.0, "magnetometer": 100.0, "barometer": 50.0, "gps": 5.0}
+#: Instances of each sensor PX4's simulator_mavlink takes (HIL_SENSOR / HIL_GPS ``id`` 0 .. n-1).
+PX4_MAX_INSTANCES = {"imu": 3, "magnetometer": 4, "barometer": 4, "gps": 2}
 #: Sensor kinds added when a scenario lacks one of PX4's sensors (cufund's models, with their noise).
 _DEFAULT_KINDS = {"imu": "icm42688p", "magnetometer": "magnetometer", "barometer": "ms5611", "gps": "ublox_m8n"}
 _FLIGHT_SOFTWARE = ("estimator", "mapper", "planner", "controller", "mission")
@@ -71,8 +74,6 @@ class Px4BridgeParams:
     """Controls older than this much simulated time command the disarmed rotor speeds [s]."""
     heartbeat_period_s: float = 1.0
     """HEARTBEAT period in simulated time [s]."""
-    sensor_id: int = 0
-    """HIL_SENSOR / HIL_GPS ``id``: the sensor instance (PX4 locks step on instance 0)."""
     system_id: int = 1
     component_id: int = 200
     """MAVLink source ids of the bridge's messages (Gazebo's plugin uses 1/200)."""
@@ -89,7 +90,7 @@ class Px4BridgeParams:
         s = self.speed
         if s is not None and (isinstance(s, bool) or not isinstance(s, (int, float)) or not math.isfinite(s) or s <= 0):
             raise ConfigError(f"speed must be a real-time factor > 0 or None (as fast as possible), got {s!r}")
-        for name, hi in (("sensor_id", 255), ("system_id", 255), ("component_id", 255)):
+        for name, hi in (("system_id", 255), ("component_id", 255)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= hi:
                 raise ConfigError(f"{name} must be an integer in [0, {hi}], got {v!r}")
@@ -110,22 +111,25 @@ def px4_scenario(config: ScenarioConfig) -> ScenarioConfig:
     data.setdefault("rates", {})["physics_hz"] = PX4_SENSOR_RATES["imu"]
     sensors = data.get("sensors") or {}
     for stype, rate in PX4_SENSOR_RATES.items():
-        name = _sensor_name(config, stype)
-        if name is None:
-            name = stype if stype not in sensors else f"px4_{stype}"
-            sensors[name] = {"kind": _DEFAULT_KINDS[stype]}
-        sensors[name]["rate_hz"] = rate
+        names = sensor_instances(config, stype)
+        if not names:
+            names = [stype if stype not in sensors else f"px4_{stype}"]
+            sensors[names[0]] = {"kind": _DEFAULT_KINDS[stype]}
+        for name in names:
+            sensors[name]["rate_hz"] = rate
     data["sensors"] = sensors
     return ScenarioConfig.from_dict(data, base_dir=config.base_dir)
 
 
-def _sensor_name(config: ScenarioConfig, stype: str) -> str | None:
+def sensor_instances(config: ScenarioConfig, stype: str) -> list[str]:
+    """The scenario's sensors of ``stype`` in PX4 instance order (``id`` 0 first): the one named after the type
+    (e.g. ``imu``) is instance 0, the others follow in the scenario's order. Raises ConfigError past PX4's count."""
     found = [n for n, s in config.sensors.items() if s.sensor_type == stype]
-    if len(found) > 1:
-        if stype in found:
-            return stype
-        raise ConfigError(f"sensors: several {stype} sensors ({', '.join(found)}); PX4 gets one — name it {stype}")
-    return found[0] if found else None
+    found.sort(key=lambda n: n != stype)  # stable: the named one first, the rest as declared
+    if len(found) > PX4_MAX_INSTANCES[stype]:
+        raise ConfigError(f"sensors: PX4 takes at most {PX4_MAX_INSTANCES[stype]} {stype} sensors, got "
+                          f"{len(found)} ({', '.join(found)})")
+    return found
 
 
 class _Px4Port(Component):
@@ -138,7 +142,7 @@ class _Px4Port(Component):
     name = "px4"
     reads_truth = True
 
-    def __init__(self, bridge: Px4SimulatorBridge, topics: dict[str, str], rate_hz: float) -> None:
+    def __init__(self, bridge: Px4SimulatorBridge, topics: dict[tuple[str, int], str], rate_hz: float) -> None:
         self.bridge = bridge
         self.topics = topics
         self.rate_hz = rate_hz
@@ -198,16 +202,19 @@ class Px4SimulatorBridge:
         self.mav.robust_parsing = True
         self._rx = mavlink.MAVLink(None, srcSystem=0, srcComponent=0)
         self._rx.robust_parsing = True
-        topics, gps_home, q_BI = {}, None, None
+        topics: dict[tuple[str, int], str] = {}
+        q_BI: dict[int, Any] = {}
         for stype in PX4_SENSOR_RATES:
-            spec = self.config.sensors[_sensor_name(self.config, stype)]
-            topics[stype] = spec.topic
-            if stype == "gps":
-                gps_home = spec.params.home
-            if stype == "imu":
-                q_BI = spec.extrinsic.q if spec.extrinsic is not None else spec.params.q_BI
-        self.origin = GeodeticOrigin.from_geo_point(gps_home)
-        self.encoder = HilEncoder(self.mav, self.origin, np.asarray(q_BI, dtype=float), self.params.sensor_id)
+            for sid, name in enumerate(sensor_instances(self.config, stype)):
+                spec = self.config.sensors[name]
+                topics[(stype, sid)] = spec.topic
+                if stype == "imu":
+                    q_BI[sid] = spec.extrinsic.q if spec.extrinsic is not None else spec.params.q_BI
+        self.origin = GeodeticOrigin.from_geo_point(
+            self.config.sensors[sensor_instances(self.config, "gps")[0]].params.home)
+        self._ids = sorted({sid for _, sid in topics}, reverse=True)  # instance 0 last: it closes the period
+        self.encoders = {sid: HilEncoder(self.mav, self.origin, np.asarray(q_BI.get(sid, (1.0, 0.0, 0.0, 0.0))), sid)
+                         for sid in self._ids}
         self.port = _Px4Port(self, topics, self.params.hil_sensor_rate_hz)
         self.simulator.add(self.port)
         self.stats = {"hil_sensor": 0, "hil_gps": 0, "hil_state_quaternion": 0, "heartbeats_sent": 0,
@@ -233,7 +240,7 @@ class Px4SimulatorBridge:
         return getattr(self.link, "port", None)
 
     # -- the exchange, run by the port component inside the simulator ------------------------------------------
-    def _exchange(self, t: float, latest: dict[str, Any], truth: Any) -> np.ndarray:
+    def _exchange(self, t: float, latest: dict[tuple[str, int], Any], truth: Any) -> np.ndarray:
         p = self.params
         if self._closed:
             return self._command(t)
@@ -245,17 +252,23 @@ class Px4SimulatorBridge:
             self._next_heartbeat = t + p.heartbeat_period_s - 1e-9
             out.append(self.mav.heartbeat_encode(MAV_TYPE_GENERIC, MAV_AUTOPILOT_INVALID, 0, 0, 0))
             self.stats["heartbeats_sent"] += 1
-        if latest["gps"] is not None:
-            out.append(self.encoder.hil_gps(time_usec, latest["gps"]))
-            self.stats["hil_gps"] += 1
+        for sid, encoder in self.encoders.items():
+            fix = latest.get(("gps", sid))
+            if fix is not None:
+                out.append(encoder.hil_gps(time_usec, fix))
+                self.stats["hil_gps"] += 1
         if self._hsq_interval_us is not None and time_usec >= self._hsq_next_us and truth is not None:
-            out.append(self.encoder.hil_state_quaternion(time_usec, truth))
+            out.append(self.encoders[0].hil_state_quaternion(time_usec, truth))
             self._hsq_next_us += self._hsq_interval_us  # on the requested grid, never two in one period
             if self._hsq_next_us <= time_usec:
                 self._hsq_next_us = time_usec + self._hsq_interval_us
             self.stats["hil_state_quaternion"] += 1
-        out.append(self.encoder.hil_sensor(time_usec, latest["imu"], latest["magnetometer"], latest["barometer"]))
-        self.stats["hil_sensor"] += 1
+        for sid in self._ids:  # further instances only when something of theirs is new; instance 0 always, last
+            msg = self.encoders[sid].hil_sensor(time_usec, latest.get(("imu", sid)), latest.get(("magnetometer", sid)),
+                                                latest.get(("barometer", sid)))
+            if sid == 0 or msg.fields_updated:
+                out.append(msg)
+                self.stats["hil_sensor"] += 1
         try:
             self.link.send(b"".join(m.pack(self.mav) for m in out))
             self._receive(t)
