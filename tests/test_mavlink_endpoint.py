@@ -13,7 +13,7 @@ import pytest
 from cufund.mavlink.link import LinkAddress
 from cufund.mavlink.vehicle_endpoint import VehicleEndpoint
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla, lla_to_enu
-from mavlink_support import Gcs, vehicle
+from mavlink_support import Gcs, free_port, vehicle
 from pymavlink import mavutil
 
 M = mavutil.mavlink
@@ -235,6 +235,45 @@ def test_offboard_position_setpoints():
         g.wait("LOCAL_POSITION_NED", there, 20)
         # the stream stops: the commander holds (COM_OF_LOSS_T), PX4's offboard loss failsafe
         g.wait("HEARTBEAT", lambda m: _px4_mode(m) == "LOITER", 10)
+
+
+def test_offboard_attitude_target_turns_the_vehicle():
+    with vehicle() as (live, _ep, (g,)):
+        _take_off(g, 1.5)
+        vp = live.built.context.vehicle
+        hover = vp.mass * 9.81 / (4 * vp.k_f * vp.rotor_speed_max ** 2)  # normalised thrust that carries the weight
+
+        def send() -> None:  # level, nose north (PX4 q_NED_FRD = identity), hover thrust
+            g.mav.set_attitude_target_send(0, 1, 1, 0b0000_0111, [1.0, 0.0, 0.0, 0.0], 0, 0, 0, hover)
+
+        for _ in range(5):
+            send()
+        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6).result == \
+            M.MAV_RESULT_ACCEPTED
+
+        def turned(m) -> bool:
+            send()
+            return m.get_type() == "ATTITUDE" and abs(m.yaw) < math.radians(2) and abs(m.roll) < math.radians(2) \
+                and abs(m.pitch) < math.radians(2)
+
+        g.wait(["ATTITUDE", "LOCAL_POSITION_NED"], turned, 15)
+        tel = live.telemetry()
+        assert tel["mode"] == "offboard" and tel["flight_mode"] == "attitude"
+        assert tel["rpy"][2] == pytest.approx(math.pi / 2, abs=math.radians(2))  # north is ENU yaw +90 degrees
+        assert abs(tel["v_W"][2]) < 0.3  # hover thrust, converted to newtons, about carries the vehicle
+
+
+def test_udpin_link_answers_whoever_writes():
+    port = free_port()
+    with vehicle(links=0, extra_links=[f"udpin:127.0.0.1:{port}"]) as (_live, ep, _):
+        client = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255, dialect="common")
+        try:
+            client.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            hb = client.recv_match(type="HEARTBEAT", blocking=True, timeout=5)
+            assert hb is not None and hb.autopilot == M.MAV_AUTOPILOT_PX4
+            assert ep.links[0].local_address == ("127.0.0.1", port)
+        finally:
+            client.close()
 
 
 def test_link_urls_and_binding():

@@ -13,7 +13,6 @@ import signal
 import sys
 import threading
 import time
-from typing import Any
 
 __all__ = ["add_arguments", "run"]
 
@@ -40,23 +39,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "~4 ms median state-to-client latency)")
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="stop after S wall-clock seconds (default: run until interrupted)")
-
-
-def _origin(live: Any) -> Any:
-    """Where the world origin sits on WGS-84: the scenario's GPS home, or the GPS model's default home."""
-    from ..sensors.gps import GpsParams
-    from .frames import GeodeticOrigin
-
-    for part in (live.config.sensors or {}).values():
-        if isinstance(getattr(part, "params", None), GpsParams):
-            return GeodeticOrigin.from_geo_point(part.params.home)
-    return GeodeticOrigin.from_geo_point(GpsParams().home)
-
-
-def _max_thrust(live: Any) -> float:
-    """Collective thrust at full rotor speed [N]: SET_ATTITUDE_TARGET's thrust 1."""
-    vp = live.built.context.vehicle
-    return 4.0 * float(vp.k_f) * float(vp.rotor_speed_max) ** 2
 
 
 def run(args: argparse.Namespace) -> int:
@@ -101,8 +83,7 @@ def run(args: argparse.Namespace) -> int:
             if ack.result != "accepted":
                 print(f"cufund serve: --link-loss-timeout: {ack.message}", file=sys.stderr)
                 return 2
-        endpoint = VehicleEndpoint(live, urls, system_id=args.system_id, origin=_origin(live),
-                                   max_thrust_N=_max_thrust(live), heartbeat_timeout_s=args.heartbeat_timeout)
+        endpoint = VehicleEndpoint(live, urls, system_id=args.system_id, heartbeat_timeout_s=args.heartbeat_timeout)
         endpoint.start()
         links = ", ".join(f"{lk.address.mode}:{lk.address.host}:{lk.address.port} (local "
                           f"{lk.local_address[0]}:{lk.local_address[1]})" for lk in endpoint.links)

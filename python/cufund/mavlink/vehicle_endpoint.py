@@ -52,13 +52,14 @@ def _msg_name(msg_id: int) -> str | None:
 class VehicleEndpoint:
     """Serves ``run`` on MAVLink links (``udpout:HOST:PORT`` / ``udpin:HOST:PORT`` URLs).
 
-    ``origin`` places the world origin on WGS-84 (the GPS sensor's home by default); ``max_thrust_N`` converts
-    SET_ATTITUDE_TARGET's normalised thrust to newtons. :meth:`start` runs the loop in a thread, :meth:`close`
+    ``origin`` places the world origin on WGS-84 (default: the scenario's GPS home, else the GPS model's default);
+    ``max_thrust_N`` converts SET_ATTITUDE_TARGET's normalised thrust to newtons (default: the vehicle's thrust at
+    full rotor speed). :meth:`start` runs the loop in a thread, :meth:`close`
     stops it and closes the sockets; :meth:`spin_once` runs one iteration (tests drive it directly).
     """
 
     def __init__(self, run: Any, links: Sequence[str], *, system_id: int = 1, component_id: int = 1,
-                 origin: frames.GeodeticOrigin | None = None, max_thrust_N: float = 30.0,
+                 origin: frames.GeodeticOrigin | None = None, max_thrust_N: float | None = None,
                  heartbeat_timeout_s: float = 3.0, rates_hz: dict[str, float] | None = None) -> None:
         if not isinstance(system_id, int) or not 1 <= system_id <= 255:
             raise ValueError(f"system_id must be an integer in [1, 255], got {system_id!r}")
@@ -68,8 +69,8 @@ class VehicleEndpoint:
             raise ValueError(f"heartbeat_timeout_s must be > 0 [s], got {heartbeat_timeout_s!r}")
         self.run = run
         self.system_id, self.component_id = system_id, component_id
-        self.origin = origin or frames.GeodeticOrigin(22.4196, 114.2068, 30.0)
-        self.max_thrust_N = float(max_thrust_N)
+        self.origin = origin or _origin_of(run)
+        self.max_thrust_N = float(max_thrust_N) if max_thrust_N is not None else _max_thrust_of(run)
         self.heartbeat_timeout_s = float(heartbeat_timeout_s)
         self.links: list[UdpLink] = []
         try:
@@ -522,6 +523,23 @@ class VehicleEndpoint:
         if s is None or s.mission_current < 0:
             return 0
         return self._seq_of(s.mission_current)
+
+
+def _origin_of(run: Any) -> frames.GeodeticOrigin:
+    """The scenario's GPS home (where its world origin sits on WGS-84), else the GPS model's default home."""
+    from ..sensors.gps import GpsParams
+
+    config = getattr(run, "config", None)
+    for part in (getattr(config, "sensors", None) or {}).values():
+        if isinstance(getattr(part, "params", None), GpsParams):
+            return frames.GeodeticOrigin.from_geo_point(part.params.home)
+    return frames.GeodeticOrigin.from_geo_point(GpsParams().home)
+
+
+def _max_thrust_of(run: Any) -> float:
+    """Collective thrust at full rotor speed [N] of the run's vehicle (SET_ATTITUDE_TARGET's thrust 1)."""
+    vp = run.built.context.vehicle
+    return 4.0 * float(vp.k_f) * float(vp.rotor_speed_max) ** 2
 
 
 def _yaw_W(s: ts.VehicleSnapshot) -> float:
