@@ -167,3 +167,33 @@ def test_hitl_relays_the_flight_controller_to_a_ground_station():
             assert bridge.stats["commands"] == 0  # addressed to the board, not answered by the simulator
     finally:
         qgc.close()
+
+
+def test_pacing_holds_real_time_and_drops_a_stall_instead_of_bursting(monkeypatch):
+    from cufund.mavlink import px4_sim
+
+    class Clock:  # a fake wall clock: sleeping advances it
+        now, slept = 100.0, []
+
+        def perf_counter(self):
+            return self.now
+
+        def sleep(self, s):
+            self.slept.append(s)
+            self.now += s
+
+    clock = Clock()
+    monkeypatch.setattr(px4_sim, "time", clock)
+    with _pty() as (_, device):
+        cfg = ScenarioConfig.from_dict({"name": "pace", "vehicle": "iris", "sensors": IDEAL})
+        bridge = Px4SimulatorBridge(cfg, SerialLink(device), Px4BridgeParams(lockstep=False, speed=2.0))
+        try:
+            bridge._pace(0.0)
+            bridge._pace(0.004)  # 2x real time: 2 ms of wall per 4 ms period
+            assert clock.slept == [pytest.approx(0.002)]
+            clock.now += 1.0  # a 1 s stall
+            bridge._pace(0.008)  # behind by ~1 s: no sleep, and the debt is dropped...
+            bridge._pace(0.012)  # ...so the next period waits its 2 ms again instead of bursting
+            assert clock.slept == [pytest.approx(0.002), pytest.approx(0.002)]
+        finally:
+            bridge.close()

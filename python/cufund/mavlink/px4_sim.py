@@ -281,6 +281,8 @@ class Px4SimulatorBridge:
         return self._command(t)
 
     def _pace(self, t: float) -> None:
+        """Holds simulated time to ``speed`` x wall time. After a stall (a slow peer, a busy machine) it does not
+        race to catch up more than 0.1 s: a flight controller in HITL would get a burst of stale periods."""
         now = time.perf_counter()
         if self._wall0 is None:
             self._wall0 = now - t / self.params.speed
@@ -288,6 +290,8 @@ class Px4SimulatorBridge:
         wait = self._wall0 + t / self.params.speed - now
         if wait > 0:
             time.sleep(wait)
+        elif wait < -0.1:
+            self._wall0 = now - t / self.params.speed
 
     def _receive(self, t: float) -> None:
         """Lockstep (once controls flow, or always with wait_first_controls): blocks until HIL_ACTUATOR_CONTROLS
