@@ -1,5 +1,6 @@
-"""The forest scenario: the local planner on the growing ESDF map of a Mid-360 crosses seeded forests to the
-goal and lands there, never closer than its radius to a trunk. The clearance is re-measured here by Open3D's
+"""The forest scenario: the local planner on the growing ESDF map of a Mid-360, placed with LiDAR-inertial
+odometry (no ground truth in the loop), crosses seeded forests to the goal and lands there, never closer than
+its radius to a trunk. The clearance is re-measured here by Open3D's
 exact distance to the trunks' triangles (independent of both the ESDF and the metric's cylinder model).
 
 A 12 m goal in a 24 m forest square of the scenario's density keeps the test short; the scenario itself flies
@@ -40,6 +41,7 @@ def test_forest_flight_reaches_the_goal_clear_of_the_trunks(seed):
     from cufund.scenario_build import build_simulation
 
     cfg = _short_forest(seed)
+    assert cfg.estimator is not None and cfg.estimator.kind == "lio"  # the map and the controller use the LIO
     world = build_simulation(cfg).context.world
     run = run_scenario(cfg)
     m = run.metrics
@@ -55,3 +57,5 @@ def test_forest_flight_reaches_the_goal_clear_of_the_trunks(seed):
     line = np.linspace([0.0, 0.0, 1.5], GOAL, 500)
     assert _trunk_distance(world, line).min() < radius
     assert m["path_length_m"] > 12.0 and m["plan_ms_median"] is not None and m["replans"] > 50
+    assert m["plan_cpu_ms_median"] is not None
+    assert m["odometry_rmse_m"] < 0.1 and m["lio_scans"] > 50  # flown on the estimate (truth re-measured here)
