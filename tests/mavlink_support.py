@@ -11,6 +11,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import common as mavlink2
 
 SPEED = 3.0
 """Simulation speed of the tests' live runs (the vehicle scenario runs ~3x real time on 2 loaded cores)."""
@@ -30,6 +31,9 @@ class Gcs:
     def __init__(self, port: int, system_id: int = 255) -> None:
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=system_id,
                                                source_component=190, dialect="common")
+        # MAVLink 2 whatever MAVLINK20 says (MAVLink 1 drops extension fields such as mission_type)
+        self.conn.mav = mavlink2.MAVLink(self.conn, srcSystem=system_id, srcComponent=190)
+        self.conn.mav.robust_parsing = True
         self.mav = self.conn.mav
 
     def recv(self, types: str | list[str] | None = None, timeout: float = 5.0,

@@ -161,6 +161,23 @@ def test_mission_upload_rerequests_lost_items():
         np.testing.assert_allclose(live.telemetry()["mission"]["items"][0], [-2.0, 0.0, 1.0], atol=0.02)
 
 
+def test_mission_set_current_starts_from_that_item():
+    with vehicle() as (live, _ep, (g,)):
+        home = np.array(live.telemetry()["p_W"])
+        wps = [home + d for d in ([1.0, 0, 1.5], [1.0, 1.0, 1.5], [0, 1.0, 2.0])]
+        items = [(M.MAV_FRAME_GLOBAL_INT, *(round(c * 1e7) for c in enu_to_lla(w, HOME)[:2]),
+                  float(enu_to_lla(w, HOME)[2])) for w in wps]
+        assert _upload(g, items) == M.MAV_MISSION_ACCEPTED
+        assert g.command(M.MAV_CMD_DO_SET_MISSION_CURRENT, 2).result == M.MAV_RESULT_ACCEPTED
+        assert g.wait("MISSION_CURRENT", lambda m: True, 5).seq == 2
+        mission = live.telemetry()["mission"]
+        assert mission["count"] == 1  # the commander flies from item 2 on
+        np.testing.assert_allclose(mission["items"][0], wps[2], atol=0.02)
+        g.mav.mission_request_list_send(1, 1, 0)
+        assert g.recv("MISSION_COUNT").count == 3  # the plan itself is unchanged
+        assert g.command(M.MAV_CMD_DO_SET_MISSION_CURRENT, 7).result == M.MAV_RESULT_DENIED
+
+
 def test_parameters_are_the_live_gains():
     with vehicle() as (live, _ep, (g,)):
         g.mav.param_request_list_send(1, 1)

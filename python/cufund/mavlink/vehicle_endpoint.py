@@ -86,6 +86,8 @@ class VehicleEndpoint:
         self.missions = MissionProtocol(self._accept_mission, self._clear_mission, self._set_mission_current,
                                         self._mission_seq)
         self._item_seq: list[int] = []  # commander item index -> MAVLink mission seq
+        self._plan_seqs: list[int] = []  # the whole plan's waypoints: MAVLink seqs ...
+        self._plan_wps: list[dict[str, Any]] = []  # ... and as the commander's items
         self._mission_done = False  # the plan was flown to its end (MISSION_CURRENT: complete)
         self._event_index = len(getattr(run, "events", ()) or ())
         self._snap: ts.VehicleSnapshot | None = None
@@ -488,7 +490,8 @@ class VehicleEndpoint:
             return mavlink.MAV_MISSION_ERROR
         if ack.result != "accepted":
             return mavlink.MAV_MISSION_DENIED
-        self._item_seq = seqs
+        self._item_seq = self._plan_seqs = seqs
+        self._plan_wps = wps
         return mavlink.MAV_MISSION_ACCEPTED
 
     def _clear_mission(self) -> bool:
@@ -497,13 +500,30 @@ class VehicleEndpoint:
         except Exception:  # noqa: BLE001
             return False
         if ack.result == "accepted":
-            self._item_seq = []
+            self._item_seq, self._plan_seqs, self._plan_wps = [], [], []
             self._mission_done = False
         return ack.result == "accepted"
 
     def _set_mission_current(self, seq: int) -> bool:
-        """Only the start of a plan can be chosen (the commander flies its items in order)."""
-        return seq == 0 or (bool(self._item_seq) and seq <= self._item_seq[0])
+        """Makes MAVLink item ``seq`` (or the first waypoint after it) the next one flown: the commander gets the
+        plan from there on (holding first and flying on if a mission is running, as PX4 jumps)."""
+        i = next((k for k, q in enumerate(self._plan_seqs) if q >= seq), None)
+        if i is None:
+            return seq == 0 and not self._plan_seqs
+        running = self._snap is not None and self._snap.mode == "mission"
+        steps = ([{"command": "hold"}] if running else []) + [
+            {"command": "mission_upload", "items": self._plan_wps[i:]}] + (
+            [{"command": "mission_start"}] if running else [])
+        for cmd in steps:
+            try:
+                if self.run.submit(cmd).result(timeout=2.0).result != "accepted":
+                    return False
+            except Exception:  # noqa: BLE001 - a paused or stopped run
+                return False
+        self._item_seq = self._plan_seqs[i:]
+        self._mission_done = False
+        self._next_due["MISSION_CURRENT"] = 0.0
+        return True
 
     def _reached_seqs(self, index: int) -> range:
         """MAVLink seqs reached with the commander's item ``index``: its NAV item and the non-NAV items up to the
@@ -511,7 +531,7 @@ class VehicleEndpoint:
         nav = self._item_seq
         if not 0 <= index < len(nav):
             return range(0)
-        start = 0 if index == 0 else nav[index]
+        start = 0 if index == 0 and nav[0] == self._plan_seqs[0] else nav[index]
         end = nav[index + 1] if index + 1 < len(nav) else max(len(self.missions.items), nav[index] + 1)
         return range(start, end)
 
@@ -520,8 +540,8 @@ class VehicleEndpoint:
 
     def _mission_seq(self, s: ts.VehicleSnapshot | None = None) -> int:
         s = s or self._snap
-        if s is None or s.mission_current < 0:
-            return 0
+        if s is None or s.mission_current < 0:  # not started: the item it would start with
+            return self._item_seq[0] if self._item_seq else 0
         return self._seq_of(s.mission_current)
 
 
