@@ -26,6 +26,7 @@ from typing import Any, Self
 import numpy as np
 
 from .components import Component
+from .control.rotations import yaw_of
 from .messages import Topics
 from .missions.commander import Commander
 from .missions.commands import CommandAck, parse_command
@@ -44,11 +45,11 @@ _KEEP_BLOCKS = 64
 
 
 def _rpy(q: np.ndarray) -> list[float]:
+    """Roll, pitch, yaw [rad] (ZYX Euler angles of body to world)."""
     w, x, y, z = (float(v) for v in q)
     roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
     pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return [roll, pitch, yaw]
+    return [roll, pitch, float(yaw_of(q))]
 
 
 def _vec(a: Any) -> list[float] | None:

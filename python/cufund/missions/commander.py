@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from ..components import BusView, Planner
+from ..control.rotations import yaw_of
 from ..messages import (
     AttitudeSetpoint,
     FlightMode,
@@ -50,7 +51,7 @@ from ..planning.sequence import Hold
 from .commands import Command, CommandAck, MissionItem, parse_command
 from .events import EventLog
 from .inbox import CommandInbox
-from .legs import Brake, Descend, Leg, yaw_of
+from .legs import Brake, Descend, Leg
 from .params import CommanderParams, as_dict, field_of
 
 __all__ = ["Commander"]

@@ -7,12 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Brake", "Descend", "Leg", "yaw_of"]
-
-
-def yaw_of(q: np.ndarray) -> float:
-    w, x, y, z = (float(v) for v in q)
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+__all__ = ["Brake", "Descend", "Leg"]
 
 
 class Brake:
