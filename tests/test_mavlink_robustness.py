@@ -7,12 +7,13 @@ from __future__ import annotations
 import math
 import socket
 import struct
+import threading
 import time
 
 import numpy as np
 import pytest
 from cufund.cli import main as cli_main
-from mavlink_support import vehicle
+from mavlink_support import Gcs, free_port, vehicle
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
 
@@ -69,7 +70,7 @@ def test_garbage_bad_crc_unknown_ids_and_nonsense_values():
 
 
 def test_vanished_client_mid_mission_holds_then_lands():
-    with vehicle(heartbeat_timeout_s=1.5) as (live, ep, (g,)):
+    with vehicle(heartbeat_timeout_s=2.0) as (live, ep, (g,)):
         g.mav.param_set_send(1, 1, b"COM_DL_LOSS_T", 3.0, M.MAV_PARAM_TYPE_REAL32)  # land 3 s (sim) after the hold
         assert g.recv("PARAM_VALUE", cond=lambda m: m.param_id == "COM_DL_LOSS_T").param_value == 3.0
         _take_off(g, 1.5)
@@ -78,9 +79,10 @@ def test_vanished_client_mid_mission_holds_then_lands():
                            ).result(5).result == "accepted"
         assert g.command(M.MAV_CMD_MISSION_START).result == M.MAV_RESULT_ACCEPTED
         g.wait("LOCAL_POSITION_NED", lambda m: m.y - p0[0] > 1.0, 20)  # on its way east
+        since = len(live.events)
         g.close()  # the client is gone: no heartbeat, nothing
         end = time.monotonic() + 15
-        while time.monotonic() < end and not any(e["message"].startswith("link lost") for e in live.events):
+        while time.monotonic() < end and not any(e["message"] == "link lost" for e in live.events.since(since)):
             time.sleep(0.05)
         assert ep.link_lost
         modes = []
@@ -93,8 +95,8 @@ def test_vanished_client_mid_mission_holds_then_lands():
         assert live.telemetry()["landed"]
         p = np.array(live.telemetry()["p_W"])
         assert 1.0 < p[0] - p0[0] < 15.0 and abs(p[1] - p0[1]) < 0.3  # it stopped where it was, short of the waypoint
-        lost = next(e for e in live.events if e["message"] == "link lost")
-        land = next(e for e in live.events if e["kind"] == "mode" and e.get("mode") == "land")
+        lost = next(e for e in live.events.since(since) if e["message"] == "link lost")
+        land = next(e for e in live.events.since(since) if e["kind"] == "mode" and e.get("mode") == "land")
         assert land["t"] - lost["t"] == pytest.approx(3.0, abs=0.1)
 
 
@@ -156,3 +158,21 @@ def test_serve_cli_usage_errors_exit_2(capsys):
     assert cli_main(["serve", "no_such_scenario", "--api", "none", "--duration", "1"]) == 2
     assert "no_such_scenario" in capsys.readouterr().err
     assert cli_main(["serve", "--mavlink", "none", "--api", "none"]) == 2
+
+
+def test_serve_cli_sets_the_link_loss_timeout_and_exits_0():
+    port = free_port()
+    g = Gcs(port)
+    rc: list[int] = []
+    t = threading.Thread(target=lambda: rc.append(cli_main([
+        "serve", "vehicle", "--mavlink", f"udpout:127.0.0.1:{port}", "--api", "none", "--speed", "3",
+        "--duration", "3", "--link-loss-timeout", "7"])))
+    t.start()
+    try:
+        g.recv("HEARTBEAT", 15)
+        g.mav.param_request_read_send(1, 1, b"COM_DL_LOSS_T", -1)
+        assert g.recv("PARAM_VALUE", cond=lambda m: m.param_id == "COM_DL_LOSS_T").param_value == 7.0
+    finally:
+        t.join(20)
+        g.close()
+    assert rc == [0]

@@ -89,8 +89,9 @@ def run(args: argparse.Namespace) -> int:
                           f"{lk.local_address[0]}:{lk.local_address[1]})" for lk in endpoint.links)
         print(f"MAVLink vehicle {args.system_id}: {links}; scenario {args.scenario}, speed {speed:g}", flush=True)
         stop = threading.Event()
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, lambda *_: stop.set())
+        if threading.current_thread() is threading.main_thread():  # (embedded callers keep their handlers)
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, lambda *_: stop.set())
         deadline = math.inf if args.duration is None else time.monotonic() + args.duration
         while not stop.is_set() and time.monotonic() < deadline:
             stop.wait(0.2)
