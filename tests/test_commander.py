@@ -328,3 +328,14 @@ def test_mission_start_from_an_item_and_on_the_ground():
     st = sim.result().states
     assert np.min(np.linalg.norm(st["p_W"][:, :2] - [5.0, 5.0], axis=1)) > 5.0  # item 0 never approached
     assert np.linalg.norm(_p(sim) - [1.0, 1.0, 1.2]) < 0.1
+
+
+def test_a_flood_of_refused_commands_is_answered_but_logged_once_a_second():
+    sim, cmd = _flight()
+    sim.advance_to(0.5)
+    n0 = len(cmd.events)
+    acks = [cmd.apply({"command": "takeoff"}, 0.5 + k * 1e-3) for k in range(500)]  # 0.5 s of 1000/s
+    assert all(a.result == "denied" for a in acks)
+    assert len(cmd.events) - n0 == 1
+    cmd.apply({"command": "takeoff"}, 1.6)
+    assert len(cmd.events) - n0 == 3 and "x499 more" in cmd.events[-2]["message"]

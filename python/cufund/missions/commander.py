@@ -115,6 +115,7 @@ class Commander(CommandInbox, Planner):
         self._status_dirty = True
         self._next_status = -math.inf
         self._published_mode: FlightMode | None = None
+        self._last_refusal: tuple[str, float, int] | None = None  # (message, time of its event, repeats since)
         self.plan_W: tuple[tuple[float, float, float], ...] = ()
         """The targets still to fly, the current one first [m] (updated at each change; safe to read from any
         thread)."""
@@ -263,10 +264,17 @@ class Commander(CommandInbox, Planner):
             ack = self._apply(command, self.t)
         except Exception as e:  # noqa: BLE001 - a command never takes the commander down
             ack = CommandAck(command.command, "failed", f"{type(e).__name__}: {e}")
-        if ack.result == "denied":
-            self._event("denied", f"{command.command} denied: {ack.message}", command=command.command)
-        elif ack.result in ("failed", "unsupported"):
-            self._event("warning", f"{command.command} {ack.result}: {ack.message}", command=command.command)
+        if ack.result != "accepted":
+            kind = "denied" if ack.result == "denied" else "warning"
+            text = f"{command.command} {ack.result}: {ack.message}"
+            last = self._last_refusal
+            if last is not None and last[0] == text and self.t - last[1] < 1.0:  # a flood: one event a second
+                self._last_refusal = (text, last[1], last[2] + 1)
+            else:
+                if last is not None and last[2]:
+                    self.events.append(self.t, kind, f"{last[0]} (x{last[2]} more)", command=command.command)
+                self._event(kind, text, command=command.command)
+                self._last_refusal = (text, self.t, 0)
         return ack
 
     def _apply(self, c: Command, t: float) -> CommandAck:
