@@ -82,6 +82,8 @@ class TunnelDetectorParams:
     """Largest opening width or height accepted [m]."""
     max_thickness: float = 0.15
     """Largest spread of a cluster across its plane (10th to 90th percentile) [m]."""
+    min_separation: float = 0.25
+    """Centres closer than this are one frame (the best supported detection stays) [m]."""
     min_bar_points: int = 6
     """Fewest points on each bar for a frame to be reported."""
     max_hole_fraction: float = 0.05
@@ -104,6 +106,7 @@ class TunnelDetectorParams:
 
     def __post_init__(self) -> None:
         for name in ("voxel", "cluster_voxel", "eps", "bar", "slab", "min_opening", "max_opening", "max_thickness",
+                     "min_separation",
                      "rate_hz", "max_range", "associate_radius"):
             object.__setattr__(self, name, _positive(name, getattr(self, name)))
         object.__setattr__(self, "floor_cut", _positive("floor_cut", self.floor_cut, allow_zero=True))
@@ -292,20 +295,26 @@ def _read_bars(u: np.ndarray, v: np.ndarray, u_lo: float, u_hi: float, v_hi: flo
 
 
 def _measure(cluster: np.ndarray, cloud: np.ndarray, views: np.ndarray | None, p: TunnelDetectorParams,
-             rng: np.random.Generator) -> FrameDetection | None:
-    """The frame a cluster belongs to, measured on the whole cloud, or None if it is not a frame."""
+             rng: np.random.Generator) -> tuple[FrameDetection | None, np.ndarray | None]:
+    """The frame on the best vertical plane through a cluster, measured on the whole cloud (None if it is not a
+    frame), and which of the cluster's points lie on that plane (None without a plane)."""
     b = p.bar
     plane = _vertical_plane(cluster[:, :2], max(b, 2 * p.voxel), p.ransac_iterations, rng)
     if plane is None:
-        return None
+        return None, None
     n2, d = plane
     n = np.array([n2[0], n2[1], 0.0])
     u_axis = np.array([-n2[1], n2[0], 0.0])
     depth_c = cluster @ n - d
-    on_plane = np.abs(depth_c) < p.slab  # an object just before the frame may have joined its cluster
-    if on_plane.sum() < 0.5 * len(cluster):
+    on_plane = np.abs(depth_c) < p.slab  # an object just before the frame, or the next frame, may have joined
+    return _measure_plane(cluster[on_plane], depth_c[on_plane], n, d, u_axis, cloud, views, p), on_plane
+
+
+def _measure_plane(cluster: np.ndarray, depth_c: np.ndarray, n: np.ndarray, d: float, u_axis: np.ndarray,
+                   cloud: np.ndarray, views: np.ndarray | None, p: TunnelDetectorParams) -> FrameDetection | None:
+    b = p.bar
+    if len(cluster) < 2 * p.min_bar_points:
         return None
-    cluster, depth_c = cluster[on_plane], depth_c[on_plane]
     lo, hi = np.percentile(depth_c, [10, 90])
     if hi - lo > p.max_thickness:
         return None
@@ -451,6 +460,16 @@ def _in_tall_columns(points: np.ndarray, top: float) -> np.ndarray:
     return np.isin(keys, np.unique(keys[points[:, 2] > top]))
 
 
+def _overlap(a: FrameDetection, b: FrameDetection, p: TunnelDetectorParams) -> bool:
+    """``a`` and ``b`` cannot both be frames: too close, or ``a``'s centre in ``b``'s outline, near its plane."""
+    d = a.centre_W - b.centre_W
+    if np.linalg.norm(d) < p.min_separation:
+        return True
+    u = np.array([-b.normal_W[1], b.normal_W[0], 0.0])
+    return abs(d @ b.normal_W) < p.min_separation and abs(d @ u) < b.width / 2 + p.bar \
+        and abs(d[2]) < b.height / 2 + p.bar
+
+
 def detect_in_voxels(cloud_W: np.ndarray, views_W: np.ndarray | None, params: TunnelDetectorParams,
                      expected: int | None = None, origin_W: object = None) -> list[FrameDetection]:
     """:func:`detect_frames` on points already cropped and reduced to voxel means ``cloud_W`` (M, 3) [m], with
@@ -465,9 +484,23 @@ def detect_in_voxels(cloud_W: np.ndarray, views_W: np.ndarray | None, params: Tu
         cluster = coarse[labels == label]
         if len(cluster) < 2 * p.min_bar_points:
             continue
-        det = _measure(cluster, cloud_W, views_W, p, rng)
-        if det is not None and not any(np.linalg.norm(det.centre_W - f.centre_W) < p.bar for f in found):
-            found.append(det)
+        for _ in range(3):  # frames close together may share a cluster: each plane in turn
+            det, on_plane = _measure(cluster, cloud_W, views_W, p, rng)
+            if det is not None:
+                found.append(det)
+            if on_plane is None:
+                break
+            cluster = cluster[~on_plane]
+            if len(cluster) < 4 * p.min_bar_points:
+                break
+    # Two frames cannot stand closer than min_separation, nor one's centre within another's outline and less
+    # than min_separation before or behind it: of such a pair (one frame seen twice, a noisy fringe beside it
+    # taken for a frame) the one with more support stays.
+    kept: list[int] = []
+    for k in sorted(range(len(found)), key=lambda k: (-found[k].support, k)):
+        if not any(_overlap(found[k], found[j], p) for j in kept):
+            kept.append(k)
+    found = [found[k] for k in sorted(kept)]
     if expected is not None and len(found) > expected:
         best = sorted(range(len(found)), key=lambda k: (-found[k].support, k))[:expected]
         found = [found[k] for k in sorted(best)]

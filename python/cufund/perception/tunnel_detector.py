@@ -57,7 +57,8 @@ class TunnelDetector(Component):
     every step. Detections continue the nearest track within ``params.associate_radius``; a track's confidence
     grows with the points on its bars and with repeated detections, and fades slowly while it is not found
     again (a track found three times is kept; one found fewer times goes after ten misses).
-    Frames are published in flying order from ``origin_W`` (default: the first pose received).
+    Frames are published in flying order from ``origin_W`` (default: the first pose received); with
+    ``expected``, at most that many (the most confident).
     """
 
     name = "tunnel_detector"
@@ -213,8 +214,12 @@ class TunnelDetector(Component):
 
     def estimate(self) -> TunnelEstimate:
         """The current tracks as a :class:`TunnelEstimate`, in flying order."""
-        ordered = order_along_course([tr.detection for tr in self.tracks], self.origin_W)
-        by_centre = {id(tr.detection.centre_W): tr for tr in self.tracks}  # ordering keeps the centre arrays
+        tracks = self.tracks
+        if self.expected is not None and len(tracks) > self.expected:  # the most confident expected frames
+            best = sorted(range(len(tracks)), key=lambda k: (-self.confidence(tracks[k]), -tracks[k].hits, k))
+            tracks = [tracks[k] for k in sorted(best[:self.expected])]
+        ordered = order_along_course([tr.detection for tr in tracks], self.origin_W)
+        by_centre = {id(tr.detection.centre_W): tr for tr in tracks}  # ordering keeps the centre arrays
         conf = [self.confidence(by_centre[id(d.centre_W)]) for d in ordered]
         k = len(ordered)
         return TunnelEstimate(
