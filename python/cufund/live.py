@@ -14,6 +14,7 @@ an event). A crash or collision ends the run with a ``crash`` event.
 from __future__ import annotations
 
 import collections
+import dataclasses
 import math
 import threading
 import time
@@ -105,8 +106,6 @@ class LiveRun:
         self.config = self._config(scenario_or_config, overrides)
         if not script and self.config.planner is not None and hasattr(self.config.planner.params, "script"):
             # a live vehicle waits for its operator: the scenario's scripted commands are for `cufund run`
-            import dataclasses
-
             planner = dataclasses.replace(self.config.planner,
                                           params=dataclasses.replace(self.config.planner.params, script=()))
             self.config = self.config.replace(planner=planner)
