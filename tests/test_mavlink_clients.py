@@ -22,6 +22,7 @@ from mavlink_support import SPEED, free_port, vehicle
 
 mavsdk = pytest.importorskip("mavsdk_grpc")
 from mavsdk_grpc.mission import MissionItem, MissionPlan
+from mavsdk_grpc.offboard import PositionNedYaw
 
 HOME = GeoPoint(22.4196, 114.2068, 30.0)
 BIN = Path(sys.executable).parent
@@ -61,7 +62,7 @@ async def _first(stream, cond, timeout: float):
     return await asyncio.wait_for(scan(), timeout)
 
 
-def test_mavsdk_connects_takes_off_flies_a_mission_and_lands():
+def test_mavsdk_connects_takes_off_flies_a_mission_offboard_and_lands():
     api, grpc = free_port(), free_port(socket.SOCK_STREAM)
     server = subprocess.Popen([str(Path(mavsdk.__file__).parent / "bin" / "mavsdk_server"), "-p", str(grpc),
                                f"udpin://127.0.0.1:{api}"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -92,17 +93,30 @@ def test_mavsdk_connects_takes_off_flies_a_mission_and_lands():
                 await drone.mission.start_mission()
                 done = await _first(drone.mission.mission_progress(), lambda p: p.current == p.total, 40)
                 assert await drone.mission.is_mission_finished()
+                # offboard: MAVSDK streams the setpoint itself, then switches to OFFBOARD (PX4's order)
+                ned = await _first(drone.telemetry.position_velocity_ned(), lambda p: True, 5)
+                target = (ned.position.north_m - 1.0, ned.position.east_m, ned.position.down_m + 0.5, 180.0)
+                await drone.offboard.set_position_ned(PositionNedYaw(*target))
+                await drone.offboard.start()
+                assert (await _first(drone.telemetry.flight_mode(), lambda m: m.name == "OFFBOARD", 5))
+                at = await _first(drone.telemetry.position_velocity_ned(), lambda p: abs(
+                    p.position.north_m - target[0]) < 0.1 and abs(p.position.down_m - target[2]) < 0.1, 20)
+                heading = await _first(drone.telemetry.heading(), lambda h: abs(h.heading_deg - 180) < 3, 10)
+                await drone.offboard.stop()  # PX4 holds
+                await _first(drone.telemetry.flight_mode(), lambda m: m.name == "HOLD", 5)
                 await drone.action.land()
                 await _first(drone.telemetry.in_air(), lambda a: not a, 30)
                 await _first(drone.telemetry.armed(), lambda a: not a, 10)
-                return up, home, wps, done
+                return up, home, wps, done, at, heading
 
-            up, home, wps, done = asyncio.run(asyncio.wait_for(fly(), 80))
+            up, home, wps, done, at, heading = asyncio.run(asyncio.wait_for(fly(), 90))
             remove()
             assert (done.current, done.total) == (3, 3)
             assert up.absolute_altitude_m - home.absolute_altitude_m == pytest.approx(up.relative_altitude_m, abs=0.01)
             lla = enu_to_lla(np.array(live.telemetry()["home_p_W"]), HOME)
             assert (home.latitude_deg, home.longitude_deg) == pytest.approx(tuple(lla[:2]), abs=2e-7)
+            assert at.position.east_m == pytest.approx(wps[2][0], abs=0.2)  # local NED east = world ENU x
+            assert heading.heading_deg == pytest.approx(180.0, abs=3)
             track = np.array(path)
             for w in wps:  # the flown path passed each waypoint
                 assert np.min(np.linalg.norm(track - w, axis=1)) < 0.25
