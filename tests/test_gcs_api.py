@@ -236,3 +236,25 @@ def test_lidar_cloud_frames_are_the_world_points():
         assert np.all(pts >= lo - 0.02) and np.all(pts <= hi + 0.02)
         assert scene.compute_distance(o3d.core.Tensor(pts)).numpy().max() < 0.01  # on the world's triangles
     assert frames[1][0] > frames[0][0]  # successive frames, newer stamps
+
+
+def test_a_tab_that_acknowledges_gets_no_more_than_it_has_read(gcs):
+    """Flow control: once a tab says what it has read ({"type": "seen"}), at most 3 telemetry messages are
+    unread; acknowledging releases fresh ones (not the backlog)."""
+    ws = ws_connect(gcs)
+    try:
+        ws.send(json.dumps({"type": "seen", "telemetry": 0, "cloud": 0}))  # before any telemetry was read
+        seqs = []
+        ws.settimeout(1.5)
+        try:
+            while True:
+                raw = ws.recv()
+                if isinstance(raw, str) and json.loads(raw)["type"] == "telemetry":
+                    seqs.append(json.loads(raw)["seq"])
+        except websocket.WebSocketTimeoutException:
+            pass
+        assert len(seqs) == 3  # 1.5 s at 50 Hz would be 75
+        ws.send(json.dumps({"type": "seen", "telemetry": 3, "cloud": 0}))
+        assert receive(ws, "telemetry", timeout=2)["seq"] > seqs[-1] + 10
+    finally:
+        ws.close()

@@ -12,7 +12,9 @@ without it):
   ``telemetry`` (at ``telemetry_hz``), ``events``, ``planned``, ``esdf``, ``ack``, ``error``, ``pong``; binary
   frames are LiDAR clouds (float32 ``[t, n, x, y, z, ...]``, world frame) for tabs with the cloud layer on.
   Page → server: ``{"type": "command", "id": n, "command": {...}}``, ``{"type": "layers", "cloud": bool}``,
-  ``{"type": "ping", ...}``. Anything else gets an ``error`` reply; the run goes on.
+  ``{"type": "ping", ...}``, ``{"type": "seen", "telemetry": n, "cloud": m}`` (messages of each stream processed
+  on this connection: from then on at most :data:`IN_FLIGHT` are unread, the rest skipped). Anything else gets an
+  ``error`` reply; the run goes on.
 
 Commands the ground station handles itself (the rest go to the vehicle's commander): ``sim_pause``,
 ``sim_resume``, ``sim_speed {speed}`` (0.1-10, or "inf"), ``sim_restart {scenario}`` (a new live run; every tab
@@ -46,6 +48,9 @@ __all__ = ["GcsServer", "parse_speed"]
 STATIC_DIR = Path(__file__).parent / "static"
 ACK_TIMEOUT_S = 3.0
 """How long a command waits for the commander's acknowledgement before the reply says ``in_progress``."""
+IN_FLIGHT = {"telemetry": 3, "cloud": 1}
+"""Messages of a stream a tab that acknowledges them (``seen``) may have unread: a busy tab gets fresh data late
+rather than stale data in order."""
 LOCAL = ("sim_pause", "sim_resume", "sim_speed", "sim_restart", "tunnel_start", "mission_preview")
 
 
@@ -318,6 +323,9 @@ class SocketHandler(tornado.websocket.WebSocketHandler):
         self.gcs = gcs
         self.cloud = False
         self._pending: dict[str, Any] = {}
+        self.sent = dict.fromkeys(IN_FLIGHT, 0)
+        self.seen: dict[str, int] | None = None
+        """What the tab has processed of each stream (None until it says: then flow control applies)."""
 
     async def get(self, *args: Any, **kwargs: Any) -> None:
         if not authorized(self, self.gcs.token):
@@ -342,6 +350,8 @@ class SocketHandler(tornado.websocket.WebSocketHandler):
         pending = self._pending.get(stream)
         if stream and pending is not None and not pending.done():
             return
+        if stream and self.seen is not None and self.sent[stream] - self.seen[stream] >= IN_FLIGHT[stream]:
+            return
         try:
             future = self.write_message(message, binary=isinstance(message, bytes))
         except tornado.websocket.WebSocketClosedError:
@@ -349,6 +359,7 @@ class SocketHandler(tornado.websocket.WebSocketHandler):
             return
         if stream:
             self._pending[stream] = future
+            self.sent[stream] += 1
 
     def on_message(self, message: str | bytes) -> None:
         try:
@@ -362,10 +373,12 @@ class SocketHandler(tornado.websocket.WebSocketHandler):
                 asyncio.ensure_future(self._command(data.get("id"), data.get("command")))
             elif kind == "layers":
                 self.cloud = bool(data.get("cloud", self.cloud))
+            elif kind == "seen":
+                self.seen = {s: int(data.get(s, 0)) for s in IN_FLIGHT}
             elif kind == "ping":
                 self.send(json.dumps({**data, "type": "pong", "wall": time.time()}))
             else:
-                raise ValueError(f"unknown message type {kind!r}; expected command, layers or ping")
+                raise ValueError(f"unknown message type {kind!r}; expected command, layers, seen or ping")
         except (ValueError, TypeError) as exc:
             self.send(json.dumps({"type": "error", "message": str(exc)}))
 

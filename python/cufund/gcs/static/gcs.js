@@ -285,6 +285,11 @@
 
   // ---- websocket -----------------------------------------------------------------------------------------------
   let ws = null, nextId = 1, backoff = 250;
+  const got = {telemetry: 0, cloud: 0};  // this connection's: the server sends more only as these are acknowledged
+  function seen(stream) {
+    got[stream] += 1;
+    if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({type: "seen", telemetry: got.telemetry, cloud: got.cloud}));
+  }
   const waiting = {};
   const rateWindow = [];
   function connect() {
@@ -292,6 +297,8 @@
     ws = new WebSocket(url);
     ws.binaryType = "arraybuffer";
     ws.onopen = () => { $("conn").textContent = "connected"; $("conn").className = "good"; backoff = 250;
+                        got.telemetry = got.cloud = 0;
+                        ws.send(JSON.stringify({type: "seen", telemetry: 0, cloud: 0}));
                         ws.send(JSON.stringify({type: "layers", cloud: $("layer-cloud").checked})); };
     ws.onclose = () => { $("conn").textContent = "disconnected — reconnecting"; $("conn").className = "bad";
                          setTimeout(connect, backoff); backoff = Math.min(3000, backoff * 2); };
@@ -304,6 +311,7 @@
     attr.needsUpdate = true;
     cloudGeom.setDrawRange(0, n);
     stats.clouds += 1;
+    seen("cloud");
     redraw();
   }
   function onText(m) {
@@ -315,6 +323,7 @@
       stats.rateHz = rateWindow.length > 1 ? (rateWindow.length - 1) / ((now - rateWindow[0]) / 1000) : 0;
       $("tel-rate").textContent = stats.rateHz.toFixed(0) + " Hz";
       addPlot(m); dirtyPanel = dirtyPose = true; redraw();
+      seen("telemetry");
       if (Array.isArray(m.p_W)) {
         const n = flown.geometry.drawRange.count, a = flown.geometry.attributes.position.array;
         if (n === 0 || Math.hypot(m.p_W[0] - a[3 * n - 3], m.p_W[1] - a[3 * n - 2], m.p_W[2] - a[3 * n - 1]) > 0.02) appendLine(flown, m.p_W);
@@ -349,6 +358,10 @@
       const cb = waiting[m.id];
       delete waiting[m.id];
       if (cb) cb(m);
+    } else if (m.type === "pong") {
+      const cb = waiting[m.id];
+      delete waiting[m.id];
+      if (cb) cb(m);
     } else if (m.type === "error") {
       stats.errors.push(m.message);
       $("ack").textContent = "error: " + m.message; $("ack").className = "failed";
@@ -362,6 +375,12 @@
     return id;
   };
   gcs.raw = (text) => ws.send(text);
+  gcs.ping = () => new Promise((resolve) => {  // round trip page -> server -> page [ms]
+    const id = nextId++;
+    waiting[id] = () => resolve(performance.now() - t0);
+    const t0 = performance.now();
+    ws.send(JSON.stringify({type: "ping", id: id}));
+  });
   gcs.dropConnection = () => ws.close();  // as a network drop would (tests: the page reconnects)
 
   // ---- controls -------------------------------------------------------------------------------------------------
@@ -408,8 +427,11 @@
   const canvas = viewer.renderer.domElement;
   let down = null;
   canvas.addEventListener("pointerdown", (e) => { down = [e.clientX, e.clientY]; });
-  canvas.addEventListener("pointerup", (e) => {
-    if (!$("click-goto").checked || !down || Math.hypot(e.clientX - down[0], e.clientY - down[1]) > 4) return;
+  // the orbit controls take the pointer over after a press on the canvas: the release is seen by the document
+  document.addEventListener("pointerup", (e) => {
+    const start = down;
+    down = null;
+    if (!$("click-goto").checked || !start || Math.hypot(e.clientX - start[0], e.clientY - start[1]) > 4) return;
     const g = gcs.groundPoint(e.clientX, e.clientY);
     if (!g) return;
     const p = [Math.round(g[0] * 100) / 100, Math.round(g[1] * 100) / 100, num("goto-z")];

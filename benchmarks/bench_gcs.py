@@ -1,0 +1,162 @@
+"""Web ground station figures, in headless Chromium against `cufund gcs` (vehicle scenario with a Mid-360 LiDAR,
+real time):
+
+1. telemetry rate seen in the browser with the point-cloud layer on (target >= 30 Hz), and the cloud rate;
+2. click-to-setpoint latency: a click on the ground grid (click-to-go) until the commander's acknowledgement reaches
+   the page, and until the page's telemetry shows the clicked point as the vehicle's target (target <= 50 ms);
+3. the server process's CPU (simulation included) with no tab, then with three tabs open (cloud layer on).
+
+    .venv/bin/python benchmarks/bench_gcs.py [--seconds 10] [--clicks 10] [--speed 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import time
+
+from cufund.gcs import GcsProcess
+from cufund.gcs.process import wait_for
+
+
+def cpu_seconds(pid: int) -> float:
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime of all threads
+
+
+def cpu_share(pid: int, seconds: float) -> float:
+    """CPU cores used by ``pid`` over ``seconds`` of wall time."""
+    c0, t0 = cpu_seconds(pid), time.monotonic()
+    time.sleep(seconds)
+    return (cpu_seconds(pid) - c0) / (time.monotonic() - t0)
+
+
+def scripted_latency(gcs: GcsProcess, n: int) -> tuple[list[float], list[float]]:
+    """Go-to commands from a Python websocket client (no browser): ms until the ack, and until a telemetry message
+    shows the new target."""
+    import json
+
+    import websocket
+
+    ws = websocket.create_connection(gcs.base.replace("http://", "ws://") + "/ws?token=" + gcs.token, timeout=10)
+    ws.send(json.dumps({"type": "seen", "telemetry": 0, "cloud": 0}))
+    got, acks, seen = 0, [], []
+    try:
+        for k in range(n):
+            goal = [-2.0 + 0.3 * ((k % 3) - 1), 0.3 * ((k % 2) * 2 - 1), 1.5]
+            t0 = time.perf_counter()
+            ws.send(json.dumps({"type": "command", "id": 100 + k, "command": {"command": "goto", "p_W": goal}}))
+            ack_at = seen_at = None
+            while ack_at is None or seen_at is None:
+                raw = ws.recv()
+                if isinstance(raw, bytes):
+                    continue
+                m = json.loads(raw)
+                now = time.perf_counter()
+                if m["type"] == "telemetry":
+                    got += 1
+                    ws.send(json.dumps({"type": "seen", "telemetry": got, "cloud": 0}))
+                    tg = m.get("target_p_W")
+                    if seen_at is None and tg and max(abs(a - b) for a, b in zip(tg, goal)) < 1e-6:
+                        seen_at = now
+                elif m["type"] == "ack" and m["id"] == 100 + k:
+                    assert m["result"] == "accepted", m
+                    ack_at = now
+            acks.append((ack_at - t0) * 1e3)
+            seen.append((seen_at - t0) * 1e3)
+            time.sleep(0.3)
+    finally:
+        ws.close()
+    return acks, seen
+
+
+def browser():
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
+              "--window-size=1300,800", "--disable-background-timer-throttling",
+              "--disable-renderer-backgrounding", "--disable-backgrounding-occluded-windows"):
+        options.add_argument(a)
+    options.binary_location = shutil.which("chromium")
+    return webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seconds", type=float, default=10.0, help="length of each rate / CPU window [s]")
+    ap.add_argument("--clicks", type=int, default=10)
+    ap.add_argument("--speed", default="1")
+    ap.add_argument("--fps", type=int, default=20, help="the page's 3-D redraw cap (?fps=)")
+    args = ap.parse_args()
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    with GcsProcess("vehicle", "--speed", args.speed, "--set", "sensors.lidar.kind=mid360",
+                    "--set", "sensors.lidar.T_BL.p=[0,0,0.08]", "--set", "planner.auto_disarm_s=0") as gcs:
+        time.sleep(2.0)
+        idle = cpu_share(gcs.pid, args.seconds)
+        d = browser()
+        try:
+            url = f"{gcs.url}&fps={args.fps}"
+            d.get(url)
+            assert wait_for(lambda: d.execute_script("return window.gcs.stats.telemetry") > 10, 30)
+            stats = "return [window.gcs.stats.telemetry, window.gcs.stats.clouds, performance.now()]"
+            n0, c0, w0 = d.execute_script(stats)
+            time.sleep(args.seconds)
+            n1, c1, w1 = d.execute_script(stats)
+            rate, clouds = (n1 - n0) / ((w1 - w0) / 1e3), (c1 - c0) / ((w1 - w0) / 1e3)
+            print(f"telemetry in the browser, cloud layer on: {rate:.1f} Hz (target >= 30); clouds {clouds:.1f} Hz")
+
+            d.execute_script("window.gcs.send({command: 'arm'})")
+            time.sleep(0.5)
+            d.execute_script("window.gcs.send({command: 'takeoff', altitude: 1.5})")
+            assert wait_for(lambda: (t := d.execute_script("return window.gcs.stats.lastTelemetry"))["mode"] == "hold"
+                            and t["p_W"][2] > 1.3, 60), "take-off did not finish"
+            rtt = [d.execute_async_script("window.gcs.ping().then(arguments[0])") for _ in range(20)]
+            print(f"websocket round trip page -> server -> page: median {statistics.median(rtt):.1f} ms, "
+                  f"max {max(rtt):.1f} ms")
+            d.find_element(By.ID, "click-goto").click()
+            d.find_element(By.ID, "follow").click()  # a still camera: the clicked pixels stay where they were
+            canvas = d.execute_script("return window.gcs.viewer.renderer.domElement")
+            acks, seen = [], []
+            for k in range(args.clicks):
+                goal = [-2.0 + 0.4 * ((k % 3) - 1), 0.4 * ((k % 2) * 2 - 1), 0.0]
+                px = d.execute_script("return window.gcs.screenOf(arguments[0])", goal)
+                r = d.execute_script("return arguments[0].getBoundingClientRect()", canvas)
+                ActionChains(d).move_to_element_with_offset(canvas, int(px["x"] - r["x"] - r["width"] / 2),
+                                                            int(px["y"] - r["y"] - r["height"] / 2)).click().perform()
+                click = wait_for(lambda: (c := d.execute_script("return window.gcs.lastClick")) and
+                                 c.get("seenAt") is not None and c.get("ackAt") is not None and c, 10)
+                assert click, "the click did not reach the commander"
+                acks.append(click["ackAt"] - click["t0"])
+                seen.append(click["seenAt"] - click["t0"])
+                d.execute_script("window.gcs.lastClick = null")
+                time.sleep(0.3)
+            print(f"click-to-ack: median {statistics.median(acks):.1f} ms, max {max(acks):.1f} ms over {len(acks)}")
+            print(f"click-to-setpoint (telemetry target = clicked point): median {statistics.median(seen):.1f} ms, "
+                  f"max {max(seen):.1f} ms (target <= 50)")
+
+            acks, seen = scripted_latency(gcs, args.clicks)
+            print(f"the same from a Python websocket client: ack median {statistics.median(acks):.1f} ms, "
+                  f"target in telemetry median {statistics.median(seen):.1f} ms (max {max(seen):.1f})")
+
+            for _ in range(2):
+                d.switch_to.new_window("tab")
+                d.get(url)
+            time.sleep(2.0)
+            three = cpu_share(gcs.pid, args.seconds)
+            tel = d.execute_script("return window.gcs.stats.lastTelemetry")
+            print(f"server CPU (simulation included): {idle:.2f} cores with no tab, {three:.2f} with three tabs "
+                  f"(+{(three - idle) / 3 * 100:.0f} % of a core per tab); real-time factor {tel['real_time_factor']:.2f}")
+        finally:
+            d.quit()
+        print(f"load average during the run: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+
+
+if __name__ == "__main__":
+    main()
