@@ -9,6 +9,7 @@
 #include "deskew.h"
 #include "imu_propagation.h"
 #include "pybind_common.h"
+#include "scan_preprocess.h"
 #include "thread_pool.h"
 #include "voxel_map.h"
 
@@ -138,6 +139,40 @@ PlaneParams residual_params(double max_residual, const std::string& robust, doub
   return prm;
 }
 
+// deskew's inputs, validated (shared by deskew and prepare_scan).
+struct DeskewInputs {
+  py::array_t<float, py::array::c_style | py::array::forcecast> pts;
+  py::array_t<double, py::array::c_style> tp, kt, st, rt;
+  Eigen::Isometry3d bi, bl;
+  py::ssize_t n = 0, k = 0;
+
+  DeskewInputs(const py::handle& points_L, const py::handle& t_points, const py::handle& knot_t,
+               const py::handle& states, const py::handle& rates, double t_ref, const py::handle& T_BI,
+               const py::handle& T_BL) {
+    py::array pa = py::array::ensure(points_L);
+    if (!pa || pa.ndim() != 2 || pa.shape(1) != 3) throw py::value_error("points_L must have shape (N, 3)");
+    pts = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(pa);
+    n = pts.shape(0);
+    for (py::ssize_t i = 0; i < 3 * n; ++i) {
+      if (!std::isfinite(pts.data()[i])) throw py::value_error("points_L must be finite, got a NaN or inf");
+    }
+    tp = finite(t_points, "t_points", {n});
+    kt = finite_rows(knot_t, "knot_t", 0);
+    k = kt.shape(0);
+    if (k < 2) throw py::value_error("knot_t must hold at least 2 knots");
+    for (py::ssize_t i = 1; i < k; ++i) {
+      if (!(kt.data()[i] > kt.data()[i - 1])) throw py::value_error("knot_t must be strictly increasing");
+    }
+    st = finite(states, "states", {k, 10});
+    rt = finite(rates, "rates", {k - 1, 6});
+    if (!std::isfinite(t_ref)) throw py::value_error("t_ref must be finite [s]");
+    bi = rigid_transform(T_BI, "T_BI");
+    bl = rigid_transform(T_BL, "T_BL");
+  }
+
+  Trajectory trajectory() const { return {kt.data(), st.data(), rt.data(), static_cast<std::size_t>(k)}; }
+};
+
 }  // namespace
 
 void define_odometry(py::module_& m) {
@@ -178,32 +213,13 @@ void define_odometry(py::module_& m) {
       "deskew",
       [](const py::handle& points_L, const py::handle& t_points, const py::handle& knot_t, const py::handle& states,
          const py::handle& rates, double t_ref, const py::handle& T_BI, const py::handle& T_BL, int nthreads) {
-        py::array pa = py::array::ensure(points_L);
-        if (!pa || pa.ndim() != 2 || pa.shape(1) != 3) {
-          throw py::value_error("points_L must have shape (N, 3)");
-        }
-        auto pts = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(pa);
-        const py::ssize_t n = pts.shape(0);
-        for (py::ssize_t i = 0; i < 3 * n; ++i) {
-          if (!std::isfinite(pts.data()[i])) throw py::value_error("points_L must be finite, got a NaN or inf");
-        }
-        auto tp = finite(t_points, "t_points", {n});
-        auto kt = finite_rows(knot_t, "knot_t", 0);
-        const py::ssize_t k = kt.shape(0);
-        if (k < 2) throw py::value_error("knot_t must hold at least 2 knots");
-        for (py::ssize_t i = 1; i < k; ++i) {
-          if (!(kt.data()[i] > kt.data()[i - 1])) throw py::value_error("knot_t must be strictly increasing");
-        }
-        auto st = finite(states, "states", {k, 10});
-        auto rt = finite(rates, "rates", {k - 1, 6});
-        if (!std::isfinite(t_ref)) throw py::value_error("t_ref must be finite [s]");
-        const Eigen::Isometry3d bi = rigid_transform(T_BI, "T_BI"), bl = rigid_transform(T_BL, "T_BL");
+        const DeskewInputs in(points_L, t_points, knot_t, states, rates, t_ref, T_BI, T_BL);
         const int threads = thread_count(nthreads);
-        auto out = matrix(static_cast<std::size_t>(n), 3);
+        auto out = matrix(static_cast<std::size_t>(in.n), 3);
         {
           py::gil_scoped_release release;
-          const Trajectory traj{kt.data(), st.data(), rt.data(), static_cast<std::size_t>(k)};
-          deskew(pts.data(), tp.data(), static_cast<std::size_t>(n), traj, t_ref, bi, bl, out.mutable_data(), threads);
+          deskew(in.pts.data(), in.tp.data(), static_cast<std::size_t>(in.n), in.trajectory(), t_ref, in.bi, in.bl,
+                 out.mutable_data(), threads);
         }
         return out;
       },
@@ -212,6 +228,36 @@ void define_odometry(py::module_& m) {
       "Moves each point of points_L (N, 3), fired at t_points (N,) [s], to the LiDAR frame at t_ref along the IMU "
       "trajectory (knot_t (K,), states (K, 10), rates (K-1, 6) as imu_propagate returns them); T_BI and T_BL are "
       "the 4x4 IMU->body and LiDAR->body extrinsics. Returns (N, 3) float64.");
+
+  m.def(
+      "prepare_scan",
+      [](const py::handle& points_L, const py::handle& t_points, const py::handle& knot_t, const py::handle& states,
+         const py::handle& rates, double t_ref, const py::handle& T_BI, const py::handle& T_BL, double min_range,
+         double insert_voxel, double scan_voxel, int nthreads) {
+        const DeskewInputs in(points_L, t_points, knot_t, states, rates, t_ref, T_BI, T_BL);
+        if (!(std::isfinite(min_range) && min_range >= 0.0)) {
+          throw py::value_error("min_range must be a finite number >= 0 [m]");
+        }
+        positive(insert_voxel, "insert_voxel");
+        positive(scan_voxel, "scan_voxel");
+        const int threads = thread_count(nthreads);
+        PreparedScan out;
+        {
+          py::gil_scoped_release release;
+          out = prepare_scan(in.pts.data(), in.tp.data(), static_cast<std::size_t>(in.n), in.trajectory(), t_ref,
+                             in.bi, in.bl, min_range, insert_voxel, scan_voxel, threads);
+        }
+        auto ins = matrix(out.insert_I.size() / 3, 3), scan = matrix(out.scan_I.size() / 3, 3);
+        if (!out.insert_I.empty()) std::memcpy(ins.mutable_data(), out.insert_I.data(), out.insert_I.size() * sizeof(double));
+        if (!out.scan_I.empty()) std::memcpy(scan.mutable_data(), out.scan_I.data(), out.scan_I.size() * sizeof(double));
+        return py::make_tuple(ins, scan);
+      },
+      py::arg("points_L"), py::arg("t_points"), py::arg("knot_t"), py::arg("states"), py::arg("rates"),
+      py::arg("t_ref"), py::arg("T_BI"), py::arg("T_BL"), py::arg("min_range"), py::arg("insert_voxel"),
+      py::arg("scan_voxel"), py::arg("nthreads") = 0,
+      "A LiDAR frame ready for registration in one call: deskew (same arguments), then points closer than "
+      "min_range [m] dropped, voxel_downsample to insert_voxel [m] and that to scan_voxel [m], both in the LiDAR "
+      "frame, then moved to the IMU frame. Returns (insert_I (M, 3), scan_I (S, 3)) float64.");
 
   m.def(
       "voxel_downsample",

@@ -93,6 +93,39 @@ def test_deskewed_moving_scan_matches_the_scene_seen_at_rest():
     assert np.mean(np.abs(raw) < 4 * sigma) < 0.9
 
 
+def test_prepare_scan_equals_deskew_range_filter_and_two_downsamples():
+    rng = np.random.default_rng(8)
+    n = 5000
+    pts = rng.uniform(-6, 6, (n, 3)).astype(np.float32)
+    pts[:40] *= 0.01  # returns from the airframe, dropped by min_range
+    t = np.sort(rng.uniform(0.0, 0.1, n))
+    n_imu = 22
+    knot_t = -0.005 + 0.005 * np.arange(n_imu + 1)
+    states, rates = odo.imu_propagate([1.0, 2.0, 1.5], [0.8, -0.3, 0.1], np.array([0.9, 0.1, -0.2, 0.3]) / np.sqrt(0.95),
+                                      np.zeros(3), np.zeros(3), [0, 0, -G], np.full(n_imu, 0.005),
+                                      rng.normal([0, 0, G], 0.5, (n_imu, 3)), rng.normal(0, 0.4, (n_imu, 3)))
+    M_BI, M_BL = np.eye(4), np.eye(4)
+    M_BI[:3, :3] = Rotation.from_rotvec([0.02, -0.01, 0.3]).as_matrix()
+    M_BI[:3, 3] = [0.01, 0.02, -0.01]
+    M_BL[:3, :3] = Rotation.from_rotvec([0.1, 0.2, -0.3]).as_matrix()
+    M_BL[:3, 3] = [0.05, 0.0, 0.08]
+    ins_I, scan_I = odo.prepare_scan(pts, t, knot_t, states, rates, 0.1, M_BI, M_BL, 0.3, 0.05, 0.3)
+    d = odo.deskew(pts, t, knot_t, states, rates, 0.1, M_BI, M_BL)
+    d = d[np.linalg.norm(d, axis=1) >= 0.3]
+    ins_L = odo.voxel_downsample(d, 0.05)
+    scan_L = odo.voxel_downsample(ins_L, 0.3)
+    T_IL = np.linalg.inv(M_BI) @ M_BL
+    assert 100 < len(scan_I) < len(ins_I) < n - 40
+    np.testing.assert_allclose(ins_I, ins_L @ T_IL[:3, :3].T + T_IL[:3, 3], atol=1e-12)
+    np.testing.assert_allclose(scan_I, scan_L @ T_IL[:3, :3].T + T_IL[:3, 3], atol=1e-12)
+    with pytest.raises(ValueError, match="scan_voxel"):
+        odo.prepare_scan(pts, t, knot_t, states, rates, 0.1, M_BI, M_BL, 0.3, 0.05, 0.0)
+    with pytest.raises(ValueError, match="min_range"):
+        odo.prepare_scan(pts, t, knot_t, states, rates, 0.1, M_BI, M_BL, np.nan, 0.05, 0.3)
+    with pytest.raises(ValueError, match="T_BL"):
+        odo.prepare_scan(pts, t, knot_t, states, rates, 0.1, M_BI, np.diag([1.0, 1, -1, 1]), 0.3, 0.05, 0.3)
+
+
 def test_voxel_downsample_equals_numpy_grouping():
     rng = np.random.default_rng(5)
     pts = rng.uniform(-2, 2, (3000, 3))

@@ -27,6 +27,10 @@ bool voxel_index(const Eigen::Vector3d& p, double inv_voxel, Eigen::Matrix<std::
   return true;
 }
 
+// Offsets o = 9 (dx + 1) + 3 (dy + 1) + (dz + 1) of the 27 voxels around a voxel, by |dx| + |dy| + |dz|.
+constexpr int kNeighbourOrder[27] = {13, 4, 10, 12, 14, 16, 22, 1, 3, 5, 7, 9, 11, 15, 17, 19, 21, 23, 25,
+                                     0, 2, 6, 8, 18, 20, 24, 26};
+
 double robust_weight(Robust kind, double r, double c) {
   const double a = std::abs(r);
   switch (kind) {
@@ -47,27 +51,42 @@ bool voxel_key(const Eigen::Vector3d& p, double inv_voxel, std::int64_t& key) {
 }
 
 std::vector<double> voxel_downsample(const double* points, std::size_t n, double voxel) {
+  // Open addressing (linear probing) from voxel key to output index: no allocation per voxel. Sums start at
+  // the first point and add the others in input order.
   const double inv = 1.0 / voxel;
-  std::unordered_map<std::int64_t, std::size_t> slot;
-  slot.reserve(n);
-  std::vector<Eigen::Vector3d> sums;
-  std::vector<std::size_t> counts;
+  std::size_t cap = 16;
+  while (cap < 2 * n) cap *= 2;
+  const std::size_t mask = cap - 1;
+  constexpr std::int64_t kFree = std::numeric_limits<std::int64_t>::min();
+  std::vector<std::int64_t> table_keys(cap, kFree);
+  std::vector<std::uint32_t> table_index(cap);
+  std::vector<double> sums;
+  std::vector<std::uint32_t> counts;
+  sums.reserve(3 * std::min<std::size_t>(n, 1 << 16));
+  counts.reserve(std::min<std::size_t>(n, 1 << 16));
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d p(points[3 * i], points[3 * i + 1], points[3 * i + 2]);
     std::int64_t key;
     if (!voxel_key(p, inv, key)) continue;
-    auto [it, added] = slot.try_emplace(key, sums.size());
-    if (added) {
-      sums.push_back(p);
+    std::size_t s = static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ull) >> 20) & mask;
+    while (table_keys[s] != kFree && table_keys[s] != key) s = (s + 1) & mask;
+    if (table_keys[s] == kFree) {
+      table_keys[s] = key;
+      table_index[s] = static_cast<std::uint32_t>(counts.size());
+      sums.insert(sums.end(), {p.x(), p.y(), p.z()});
       counts.push_back(1);
     } else {
-      sums[it->second] += p;
-      ++counts[it->second];
+      double* sum = sums.data() + 3 * static_cast<std::size_t>(table_index[s]);
+      sum[0] += p.x();
+      sum[1] += p.y();
+      sum[2] += p.z();
+      ++counts[table_index[s]];
     }
   }
-  std::vector<double> out(3 * sums.size());
-  for (std::size_t j = 0; j < sums.size(); ++j) {
-    Eigen::Map<Eigen::Vector3d>(out.data() + 3 * j) = sums[j] / static_cast<double>(counts[j]);
+  std::vector<double> out(sums.size());
+  for (std::size_t j = 0; j < counts.size(); ++j) {
+    const double c = static_cast<double>(counts[j]);
+    for (int a = 0; a < 3; ++a) out[3 * j + a] = sums[3 * j + a] / c;
   }
   return out;
 }
@@ -227,10 +246,11 @@ int VoxelMap::nearest(const Eigen::Vector3d& query, int k, double max_d2, Eigen:
     lo[a] = query[a] - static_cast<double>(idx[a]) * voxel_;
     hi[a] = voxel_ - lo[a];
   }
+  // The own voxel first, then the 6 face, 12 edge and 8 corner neighbours: the bound of the k-th nearest
+  // tightens early, so more of the farther voxels are skipped. (The order does not change the result: the k
+  // nearest within max_d2, ascending.)
   int found = 0;
-  // The query's own voxel first (offset 13 of 27), so the bound tightens early.
-  for (int m = 0; m < 27; ++m) {
-    const int o = m == 0 ? 13 : (m <= 13 ? m - 1 : m);
+  for (const int o : kNeighbourOrder) {
     const int dx = o / 9 - 1, dy = (o / 3) % 3 - 1, dz = o % 3 - 1;
     const double gx = dx < 0 ? lo[0] : (dx > 0 ? hi[0] : 0.0);
     const double gy = dy < 0 ? lo[1] : (dy > 0 ? hi[1] : 0.0);

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['VoxelMap', 'deskew', 'imu_propagate', 'plane_terms', 'voxel_downsample']
+__all__: list[str] = ['VoxelMap', 'deskew', 'imu_propagate', 'plane_terms', 'prepare_scan', 'voxel_downsample']
 class VoxelMap:
     """
     Incremental hashed voxel map with point-to-plane registration terms.
@@ -55,6 +55,10 @@ def imu_propagate(p_W: typing.Any, v_W: typing.Any, q_WI: typing.Any, bias_acc: 
 def plane_terms(points_I: typing.Any, planes: typing.Any, valid: typing.Any, R_WI: typing.Any, p_W: typing.Any, max_residual: typing.SupportsFloat | typing.SupportsIndex = 0.5, robust: str = 'huber', robust_scale: typing.SupportsFloat | typing.SupportsIndex = 0.05, sigma: typing.SupportsFloat | typing.SupportsIndex = 0.02, nthreads: typing.SupportsInt | typing.SupportsIndex = 0) -> dict:
     """
     Point-to-plane terms (as VoxelMap.point_to_plane returns them) of points_I (N, 3) placed by (R_WI, p_W) against fixed planes (N, 4) where valid (N,): the correspondences of VoxelMap.fit_planes kept fixed.
+    """
+def prepare_scan(points_L: typing.Any, t_points: typing.Any, knot_t: typing.Any, states: typing.Any, rates: typing.Any, t_ref: typing.SupportsFloat | typing.SupportsIndex, T_BI: typing.Any, T_BL: typing.Any, min_range: typing.SupportsFloat | typing.SupportsIndex, insert_voxel: typing.SupportsFloat | typing.SupportsIndex, scan_voxel: typing.SupportsFloat | typing.SupportsIndex, nthreads: typing.SupportsInt | typing.SupportsIndex = 0) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
+    """
+    A LiDAR frame ready for registration in one call: deskew (same arguments), then points closer than min_range [m] dropped, voxel_downsample to insert_voxel [m] and that to scan_voxel [m], both in the LiDAR frame, then moved to the IMU frame. Returns (insert_I (M, 3), scan_I (S, 3)) float64.
     """
 def voxel_downsample(points: typing.Any, voxel: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
     """

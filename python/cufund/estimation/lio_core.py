@@ -264,7 +264,8 @@ class LioCore:
     # ---------------------------------------------------------------- LiDAR
     def add_scan(self, t: float, dt: np.ndarray, points_L: np.ndarray) -> Odometry | None:
         """One LiDAR frame: start time t [s], per-point offsets dt (N,) [s], points_L (N, 3) [m]."""
-        wall, cpu = time.perf_counter(), time.process_time()
+        cpu = time.process_time()  # before the wall clock starts: with the thread pool's workers alive a
+        wall = time.perf_counter()  # process-CPU-time read can take tens of microseconds on a busy machine
         if not math.isfinite(t):
             raise ValueError(f"t must be finite [s], got {t!r}")
         pts = np.asarray(points_L)
@@ -292,13 +293,10 @@ class LioCore:
         prev = self._node
         knots, pdt, pacc, pgyr = self._imu.pieces(prev.t, t_end)
         states, rates = self._propagate(prev, pdt, pacc, pgyr, with_rates=True)
-        deskewed = _core.odometry.deskew(pts, t + d, knots, states, rates, t_end, self._T_BI, self._T_BL,
-                                         nthreads=self.params.nthreads)
-        rng = np.linalg.norm(deskewed, axis=1)
-        deskewed = deskewed[rng >= self.params.min_range]
-        ins_L = _core.odometry.voxel_downsample(deskewed, self.params.map_insert_voxel)
-        scan_L = _core.odometry.voxel_downsample(ins_L, self.params.scan_voxel)
-        scan_I = scan_L @ self._R_IL.T + self._p_IL
+        # deskewed to the frame end, the airframe's returns dropped, downsampled for the map and for registration
+        ins_I, scan_I = _core.odometry.prepare_scan(pts, t + d, knots, states, rates, t_end, self._T_BI, self._T_BL,
+                                                    self.params.min_range, self.params.map_insert_voxel,
+                                                    self.params.scan_voxel, nthreads=self.params.nthreads)
         R_pred, p_pred = matrix_from_quat(states[-1, 6:]), states[-1, :3]
         v_pred = states[-1, 3:6]
         k = self._k + 1
@@ -347,7 +345,7 @@ class LioCore:
         self._k = k
         healthy, reason = self._health(t_end, skipped, jump, rot_innov, trans_innov)
         # The map grows with this frame, placed at the new estimate.
-        self._map.insert((ins_L @ self._R_IL.T + self._p_IL) @ R.T + pos, pos)
+        self._map.insert(ins_I @ R.T + pos, pos)
         self._catch_up()
         self._imu.prune(t_end - 0.5)
         self.diagnostics.append(ScanDiagnostics(
