@@ -20,7 +20,7 @@ pytestmark = pytest.mark.skipif(not shutil.which("chromium") or not shutil.which
 
 @pytest.fixture(scope="module")
 def gcs():
-    with GcsProcess("vehicle", "--speed", "5", "--set", "planner.auto_disarm_s=0") as g:
+    with GcsProcess("vehicle", "--speed", "5", "--telemetry-hz", "20", "--set", "planner.auto_disarm_s=0") as g:
         yield g
 
 
@@ -28,7 +28,7 @@ def gcs():
 def driver():
     options = webdriver.ChromeOptions()
     for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
-              "--window-size=1300,800", "--disable-dev-shm-usage"):
+              "--window-size=1000,650", "--disable-dev-shm-usage"):
         options.add_argument(a)
     options.binary_location = shutil.which("chromium")
     d = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
@@ -89,9 +89,12 @@ def test_buttons_fly_takeoff_goto_and_a_mission(gcs, driver):
     click(d, "cmd-goto")
     assert ack(d, "goto")["result"] == "accepted"
     # the planned path shown is the go-to's
-    planned = d.execute_script("var g = window.gcs.viewer.scene_tree.find(['cufund','planned','<object>']).object"
-                               ".geometry; return Array.from(g.attributes.position.array.slice(0, 3 * g.drawRange.count))")
-    assert np.allclose(np.reshape(planned, (-1, 3))[-1], goal, atol=1e-4)
+    def planned():
+        return np.reshape(d.execute_script(
+            "var g = window.gcs.viewer.scene_tree.find(['cufund','planned','<object>']).object.geometry;"
+            "return Array.from(g.attributes.position.array.slice(0, 3 * g.drawRange.count))"), (-1, 3))
+
+    assert wait_for(lambda: len(planned()) and np.allclose(planned()[-1], goal, atol=1e-4), 5), planned()
     arrived = wait_for(lambda: (t := telemetry(d)) and np.linalg.norm(np.array(t["truth_p_W"]) - goal) < 0.1
                        and np.linalg.norm(t["v_W"]) < 0.1, 30)
     assert arrived, f"at {telemetry(d)['truth_p_W']}, goal {goal}"
