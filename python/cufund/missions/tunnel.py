@@ -16,6 +16,11 @@ States (published as :class:`~cufund.messages.MissionState` on ``/mission/state`
                 (approach and exit points on each frame's axis) to ``exit_m`` beyond the last one (paper: "the
                 furthermost centre is used as the planning goal");
 ``land``        hover ``hold_s``, then straight down;
+
+An unhealthy estimator (LiDAR frames missing for ``lidar_silence_s``, or its diagnostics saying so) at a rest
+point (detect, align, enter) holds the hover and lands (outside the course) after ``health_wait_s`` unless it
+recovers; while flying through the course the planned path is kept (stopping inside the course gains nothing;
+the LIO propagates on the IMU) and the spell is recorded; an estimate older than ``stale_s`` lands at once.
 ``done`` / ``aborted`` (with the reason).
 
 Every plan is a minimum-snap trajectory kept within ``corridor`` of its waypoint polyline (waypoints inserted
@@ -92,6 +97,10 @@ class TunnelMissionParams:
     """State machine rate [Hz]."""
     stale_s: float = 0.5
     """An estimate older than this is a lost estimator: hover, then land [s]."""
+    lidar_silence_s: float = 0.35
+    """The estimator is unhealthy when its newest LiDAR frame diagnostics are older than this [s]."""
+    health_wait_s: float = 3.0
+    """Hovering at a rest point, wait this long for an unhealthy estimator to recover before landing [s]."""
 
     def __post_init__(self) -> None:
         if isinstance(self.frames, bool) or not isinstance(self.frames, int) or self.frames < 1:
@@ -100,7 +109,7 @@ class TunnelMissionParams:
             raise ConfigError(f"mission.stable_updates must be an integer >= 1, got {self.stable_updates!r}")
         for name in ("takeoff_height", "init_s", "detect_timeout_s", "stable_m", "align_m", "axis_m", "exit_m",
                      "v_max", "a_max", "corridor", "clearance", "bar", "move_v_max", "move_a_max",
-                     "move_j_max", "rate_hz", "stale_s"):
+                     "move_j_max", "rate_hz", "stale_s", "lidar_silence_s", "health_wait_s"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"mission.{name} must be a finite number > 0, got {v!r}")
@@ -148,6 +157,7 @@ class TunnelMission(Planner):
         self.params, self.pad_W, self.yaw = params, np.asarray(pad_W, dtype=float), float(yaw)
         self.rate_hz = params.rate_hz
         self.reads = (Topics.TUNNEL_ESTIMATE,)
+        self.optional_reads = (Topics.ESTIMATOR_DIAGNOSTICS,)
         self.writes = (Topics.TRAJECTORY_UPDATE, Topics.MISSION_STATE)
         self.initial = Hold(self.pad_W, _FOREVER, self.yaw, t_start=0.0)
         self.planner = MinSnapPlanner(MinSnapPlannerParams(v_max=params.v_max, a_max=params.a_max, optimize_times=True,
@@ -170,6 +180,11 @@ class TunnelMission(Planner):
         """When the reference comes to rest on the ground (landing's end) [s]."""
         self._t_state = 0.0
         self._t_leg_end = math.inf
+        self.health_events: list[tuple[float, float, str]] = []
+        """Spells of an unhealthy estimator: (start [s], length [s], reason)."""
+        self._diag_t: float | None = None
+        self._diag_ok, self._diag_reason = True, ""
+        self._t_unhealthy: float | None = None
         self._stable = 0
         self._best = 0
         self._last: np.ndarray | None = None
@@ -221,7 +236,15 @@ class TunnelMission(Planner):
             self._count(est)
             if self._stable >= pp.stable_updates:
                 self._latch(est)
+        healthy, why = self._health(t, bus)
         if self.state in ("done", "aborted"):
+            return
+        at_rest = self.state == "detect" or (self.state in ("align", "enter") and t_r >= self._t_leg_end)
+        if not healthy and at_rest:
+            # At a rest point: hover (the reference holds) and wait for the estimator; land if it does not recover.
+            if t - self._t_unhealthy > self.params.health_wait_s:
+                back = self._align_point(self.used) if self.state == "enter" and self.used is not None else None
+                self._abort(t, t_r, f"estimator unhealthy for {t - self._t_unhealthy:.1f} s ({why})", bus, back_W=back)
             return
         if self.state == "initialise":
             if t >= pp.init_s:
@@ -264,6 +287,32 @@ class TunnelMission(Planner):
         if self.state == "land":
             if self.t_end is not None and t_r >= self.t_end:
                 self._enter(t, "done", "", bus)
+
+    def setup(self, bus: BusView) -> None:
+        self._diagnostics = bus.subscribe(Topics.ESTIMATOR_DIAGNOSTICS)
+
+    def _health(self, t: float, bus: BusView) -> tuple[bool, str]:
+        """Is the estimator healthy (its newest LiDAR frame recent and marked healthy)? Records unhealthy spells."""
+        for d in self._diagnostics.take():
+            self._diag_t = float(d.t)
+            self._diag_ok, self._diag_reason = bool(getattr(d, "healthy", True)), str(getattr(d, "reason", ""))
+        if self._diag_t is None:  # no LiDAR frame processed yet (initialising): nothing to judge
+            return True, ""
+        if t - self._diag_t > self.params.lidar_silence_s:
+            ok, why = False, f"no LiDAR frame for {t - self._diag_t:.2f} s"
+        else:
+            ok, why = self._diag_ok, self._diag_reason
+        if not ok and self._t_unhealthy is None:
+            self._t_unhealthy = t
+            self.health_events.append((t, 0.0, why or "unhealthy"))
+        elif ok and self._t_unhealthy is not None:
+            t0, _, r = self.health_events[-1]
+            self.health_events[-1] = (t0, t - t0, r)
+            self._t_unhealthy = None
+        elif not ok and self.health_events:
+            t0, _, r = self.health_events[-1]
+            self.health_events[-1] = (t0, t - t0, r)
+        return ok, why
 
     def _latch(self, est: TunnelEstimate) -> None:
         """Keeps the newest stable detections: of the first frame (:attr:`first`) and of every expected frame

@@ -113,5 +113,7 @@ def tunnel_metrics(result: Any, mission: Any, course: Any) -> dict[str, Any]:
     out["plans"] = [{"t": round(r.t, 3), "leg": r.leg, "ok": r.ok, "reason": r.reason, "plan_ms": round(r.plan_ms, 2),
                      "min_clearance_m": round(float(r.min_clearance_m), 4)} for r in mission.plans]
     out["detections"] = len(mission.detections)
+    out["estimator_unhealthy"] = [[round(a, 3), round(b, 3), c] for a, b, c in mission.health_events]
+    out["estimator_unhealthy_s"] = round(float(sum(b for _, b, _ in mission.health_events)), 3)
     out["time_per_component_s"] = component_split(result.component_seconds)
     return out
