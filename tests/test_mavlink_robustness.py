@@ -81,7 +81,7 @@ def test_vanished_client_mid_mission_holds_then_lands():
         g.wait("LOCAL_POSITION_NED", lambda m: m.y - p0[0] > 1.0, 20)  # on its way east
         since = len(live.events)
         g.close()  # the client is gone: no heartbeat, nothing
-        end = time.monotonic() + 15
+        end = time.monotonic() + 45  # generous: a loaded machine runs the simulation slower
         while time.monotonic() < end and not any(e["message"] == "link lost" for e in live.events.since(since)):
             time.sleep(0.05)
         assert ep.link_lost
