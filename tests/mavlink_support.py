@@ -34,6 +34,7 @@ class Gcs:
         # MAVLink 2 whatever MAVLINK20 says (MAVLink 1 drops extension fields such as mission_type)
         self.conn.mav = mavlink2.MAVLink(self.conn, srcSystem=system_id, srcComponent=190)
         self.conn.mav.robust_parsing = True
+        self.conn.port.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)  # floods of acks while we send
         self.mav = self.conn.mav
 
     def recv(self, types: str | list[str] | None = None, timeout: float = 5.0,
