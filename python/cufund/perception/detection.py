@@ -93,6 +93,8 @@ class TunnelDetectorParams:
     # --- the component ---------------------------------------------------------------------------------
     rate_hz: float = 2.0
     """How often the component re-detects on its accumulated map [Hz]."""
+    point_stride: int = 1
+    """The component accumulates every point_stride-th point of each scan (1: all; a Mid-360 gives 200 000/s)."""
     max_range: float = 10.0
     """Points farther than this from the LiDAR are not accumulated [m]."""
     max_voxels: int = 150_000
@@ -132,7 +134,8 @@ class TunnelDetectorParams:
                 and not all(lo < hi for lo, hi in zip(self.roi_min_W, self.roi_max_W)):
             raise ValueError(f"TunnelDetectorParams.roi_min_W must be below roi_max_W, got {self.roi_min_W} and "
                              f"{self.roi_max_W}")
-        for name in ("min_points", "min_bar_points", "ransac_iterations", "max_voxels", "full_support", "seed"):
+        for name in ("min_points", "min_bar_points", "ransac_iterations", "max_voxels", "full_support", "seed",
+                     "point_stride"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < (0 if name == "seed" else 1):
                 raise ValueError(f"TunnelDetectorParams.{name} must be an integer >= {0 if name == 'seed' else 1}, "

@@ -132,8 +132,9 @@ class TunnelDetector(Component):
         """The scan's points in the world (N, 3) and the LiDAR's position when each was measured (N, 3).
         The LiDAR pose is computed at ``_KNOTS + 1`` instants over the scan and each point moved with both poses
         around its firing time, the two results blended linearly (the pose interpolated, to second order)."""
-        points_L = np.asarray(cloud.points_L, dtype=float)
-        dt = np.asarray(cloud.dt, dtype=float)
+        k = self.params.point_stride
+        points_L = np.asarray(cloud.points_L[::k], dtype=float)
+        dt = np.asarray(cloud.dt[::k], dtype=float)
         span = max(float(np.max(dt, initial=0.0)), 1e-9)
         p_WB, R_WB = self._poses(cloud.t + np.linspace(0.0, span, _KNOTS + 1))
         R_WL = R_WB @ self.T_BL.R
