@@ -481,10 +481,13 @@ def detect_in_voxels(cloud_W: np.ndarray, views_W: np.ndarray | None, params: Tu
     coarse = voxel_means(cloud_W[cloud_W[:, 2] > p.floor_z + p.floor_cut], p.cluster_voxel)
     coarse = coarse[~_in_tall_columns(coarse, p.max_frame_top)]
     labels = _dbscan(coarse, p.eps, p.min_points)
-    rng = np.random.default_rng(p.seed)
     found: list[FrameDetection] = []
-    for label in range(int(labels.max(initial=-1)) + 1):
+    # clusters in the order of their first voxel (coarse is sorted by voxel), each with its own RANSAC draws:
+    # however the clustering numbers them, the same cloud gives the same detections
+    labelled, first = np.unique(labels[labels >= 0], return_index=True)
+    for label in labelled[np.argsort(first)]:
         cluster = coarse[labels == label]
+        rng = np.random.default_rng([p.seed, len(cluster)])
         if len(cluster) < 2 * p.min_bar_points:
             continue
         for _ in range(3):  # frames close together may share a cluster: each plane in turn
