@@ -276,6 +276,24 @@ def test_the_component_detects_in_the_estimated_frame_and_grows_confident(offset
     assert np.all((last.confidence > 0) & (last.confidence < 1))
 
 
+def test_the_component_is_deterministic():
+    def run() -> TunnelEstimate:
+        c = tunnel_course_layout(2)
+        quad = cufund.Quadrotor(cufund.presets.cu_astro())
+        start = np.asarray(c.frames[0].centre_W) - 2.0 * c.frames[0].axis_W
+        quad.hover([start[0], start[1], 0.3])
+        sim = cufund.Simulator(quad, physics_rate_hz=1000)
+        sim.add(cufund.sensors.LidarComponent(Lidar(mid360(), mid360_params(seed=3)), c.world, rate_hz=100.0))
+        det = sim.add(TunnelDetector())
+        sim.run(1.2)
+        return det.estimate()
+
+    a, b = run(), run()
+    assert len(a.centres_W) >= 2 and a.scans == b.scans
+    for name in ("centres_W", "normals_W", "opening_sizes", "confidence"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
 def test_component_arguments_are_checked():
     with pytest.raises(TypeError, match="params must be a TunnelDetectorParams"):
         TunnelDetector({"voxel": 0.02})
