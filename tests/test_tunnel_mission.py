@@ -117,3 +117,26 @@ def test_same_seed_same_flight():
     np.testing.assert_array_equal(a[0], b[0])
     assert len(a[1]) == len(b[1]) and all(np.array_equal(x, y) for x, y in zip(a[1], b[1]))
     assert a[2] == b[2]
+
+
+@pytest.mark.parametrize("faults", [
+    {"lidar_dropout": {"t_start": 15.0, "duration": 1.0}},  # while flying through the course
+    {"lidar_dropout": {"t_start": 6.0, "duration": 1.0}},  # while hovering before the course
+    {"imu_bias_step": {"t_start": 10.0, "gyro": [0.0, 0.0, 0.05], "accel": [0.2, 0.0, 0.0]}},
+    {"lidar_degraded": {"t_start": 5.0, "fraction": 0.5, "noise_m": 0.05}},
+], ids=["dropout_through", "dropout_hover", "imu_bias_step", "lidar_degraded"])
+def test_faults_in_flight_complete_or_land_safely(faults):
+    from cufund.scenario_build import run_built
+
+    run = run_built(build_simulation(load_scenario("tunnel", {"faults": faults})))
+    m = run.metrics
+    assert run.result.status.value == "completed", (run.result.status, run.result.message)  # no collision, no timeout
+    assert m["status"] in ("completed", "aborted")
+    if m["status"] == "aborted":
+        assert m["reason"] and m["frames_passed"] in (0, 5)  # never left inside the course
+    else:
+        assert m["success"] is True and m["frames_passed"] == 5
+    assert m["min_clearance_m"] > 0.15
+    assert run.result.states["p_W"][-1, 2] < 0.05  # landed
+    if "lidar_dropout" in faults:  # the outage was seen and recorded
+        assert m["estimator_unhealthy"] and m["estimator_unhealthy_s"] >= 0.5
