@@ -87,6 +87,17 @@ def test_commands_reposition_land_and_refusals():
             M.MAV_RESULT_ACCEPTED
         g.wait("LOCAL_POSITION_NED", lambda m: np.hypot(m.y - target[0], m.x - target[1]) < 0.1
                and abs(-m.z - target[2]) < 0.1, 20)
+        unset = 2**31 - 1  # COMMAND_INT's "no value": keep lat/lon, change the height above home only
+        g.mav.command_int_send(1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0,
+                               math.nan, unset, unset, 1.0)
+        assert g.recv("COMMAND_ACK", cond=lambda m: m.command == M.MAV_CMD_DO_REPOSITION).result == \
+            M.MAV_RESULT_ACCEPTED
+        g.wait("LOCAL_POSITION_NED", lambda m: abs(-m.z - (home[2] + 1.0)) < 0.05
+               and np.hypot(m.y - target[0], m.x - target[1]) < 0.1, 20)
+        g.mav.command_int_send(1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0,
+                               math.nan, unset, unset, -1.0)  # into the ground
+        assert g.recv("COMMAND_ACK", cond=lambda m: m.command == M.MAV_CMD_DO_REPOSITION).result == \
+            M.MAV_RESULT_DENIED
         assert g.command(M.MAV_CMD_NAV_LAND).result == M.MAV_RESULT_ACCEPTED
         assert _px4_mode(g.wait("HEARTBEAT", lambda m: True, 5)) == "LAND"
         g.wait("EXTENDED_SYS_STATE", lambda m: m.landed_state == M.MAV_LANDED_STATE_ON_GROUND, 30)

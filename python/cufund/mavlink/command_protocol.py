@@ -45,18 +45,19 @@ def takeoff(param7: float, home_p_W: np.ndarray, origin: frames.GeodeticOrigin) 
 
 def reposition(lat_deg: float, lon_deg: float, alt_m: float, yaw_deg: float, frame: int, current_p_W: np.ndarray,
                home_p_W: np.ndarray, origin: frames.GeodeticOrigin) -> dict[str, Any]:
-    """DO_REPOSITION to (lat, lon, alt); NaN lat/lon or alt keeps that part of the current position."""
+    """DO_REPOSITION to (lat, lon, alt): alt AMSL, or above home in a relative frame; NaN lat/lon or alt keeps
+    that part of the current position. A target below home is refused (it is in the ground)."""
     p = np.array(current_p_W, float)
-    if _finite(lat_deg) and _finite(lon_deg):
-        amsl = alt_m if _finite(alt_m) else float(origin.enu_to_lla(p)[2])
+    lla = origin.enu_to_lla(p)
+    if _finite(alt_m):
         relative = frame in (mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT)
-        if relative and _finite(alt_m):
-            amsl = float(origin.enu_to_lla(home_p_W)[2]) + alt_m
-        p = origin.lla_to_enu(np.array([lat_deg, lon_deg, amsl]))
-    elif _finite(alt_m):
-        lla = origin.enu_to_lla(p)
-        p = origin.lla_to_enu(np.array([lla[0], lla[1], alt_m]))
-    cmd: dict[str, Any] = {"command": "goto", "p_W": [float(c) for c in p]}
+        lla[2] = float(alt_m) + (float(origin.enu_to_lla(home_p_W)[2]) if relative else 0.0)
+    if _finite(lat_deg) and _finite(lon_deg):
+        lla[0], lla[1] = float(lat_deg), float(lon_deg)
+    target = origin.lla_to_enu(lla)
+    if np.all(np.isfinite(home_p_W)) and target[2] < home_p_W[2]:
+        raise Refused(mavlink.MAV_RESULT_DENIED, f"reposition target {target[2] - home_p_W[2]:.2f} m below home")
+    cmd: dict[str, Any] = {"command": "goto", "p_W": [float(c) for c in target]}
     if _finite(yaw_deg):
         cmd["yaw"] = float(frames.yaw_ned_to_enu(math.radians(yaw_deg)))
     return cmd

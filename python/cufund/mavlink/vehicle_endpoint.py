@@ -41,6 +41,8 @@ _NAV_COMMANDS = (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_TAKEOFF, mavl
                  mavlink.MAV_CMD_NAV_LOITER_UNLIM)
 _GLOBAL_FRAMES = (mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_FRAME_GLOBAL,
                   mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT)
+_INT32_UNSET = 2**31 - 1  # COMMAND_INT's "no value" for x/y
+
 _RELATIVE_FRAMES = (mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT)
 
 
@@ -344,7 +346,7 @@ class VehicleEndpoint:
             elif c == mavlink.MAV_CMD_DO_REPOSITION:
                 if is_int and frame not in _GLOBAL_FRAMES and frame != mavlink.MAV_FRAME_GLOBAL_INT:
                     raise cp.Refused(mavlink.MAV_RESULT_UNSUPPORTED, f"reposition frame {frame} not supported")
-                lat_ok = not (is_int and x == 0 and y == 0)
+                lat_ok = not (is_int and (x == y == 0 or x == _INT32_UNSET or y == _INT32_UNSET))
                 self._forward(link, msg, c, cp.reposition(lat if lat_ok else math.nan, lon if lat_ok else math.nan,
                                                           z, p[3], frame, s.p_W, s.home_p_W, self.origin))
             elif c == mavlink.MAV_CMD_DO_SET_MODE:
@@ -388,8 +390,6 @@ class VehicleEndpoint:
         name = _msg_name(msg_id)
         s = self._snap or self._snapshot()
         factory = self._stream(name, s) if name else None
-        if factory is None and name == "PROTOCOL_VERSION":
-            factory = lambda mav: mav.protocol_version_encode(200, 100, 200, bytes(8), bytes(8))
         if factory is None:
             self._ack(link, msg, command, mavlink.MAV_RESULT_UNSUPPORTED)
             return
