@@ -126,6 +126,7 @@ def test_mission_upload_download_clear_and_fly():
             items.append((M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, round(lat * 1e7), round(lon * 1e7), float(w[2] - home[2])))
         assert _upload(g, items[:1] + [(99, 0, 0, 0.0)]) == M.MAV_MISSION_UNSUPPORTED_FRAME
         assert _upload(g, items[:1], mission_type=M.MAV_MISSION_TYPE_FENCE) == M.MAV_MISSION_UNSUPPORTED
+        assert _upload(g, [items[0][:3] + (-0.5,)]) == M.MAV_MISSION_INVALID_PARAM7  # below home
         assert _upload(g, items) == M.MAV_MISSION_ACCEPTED
         assert live.telemetry()["mission"]["count"] == 3
         np.testing.assert_allclose(live.telemetry()["mission"]["items"], wps, atol=0.02)

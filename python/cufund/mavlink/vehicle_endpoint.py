@@ -478,6 +478,8 @@ class VehicleEndpoint:
                 return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
             if not np.all(np.isfinite(p)):
                 return mavlink.MAV_MISSION_INVALID
+            if p[2] < home[2]:  # below home: in the ground
+                return mavlink.MAV_MISSION_INVALID_PARAM7
             yaw = None if not math.isfinite(it.param4) else float(frames.yaw_ned_to_enu(math.radians(it.param4)))
             hold = it.param1 if it.command in (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME) \
                 and math.isfinite(it.param1) and it.param1 > 0 else 0.0
