@@ -110,7 +110,9 @@ def main() -> None:
             time.sleep(args.seconds)
             n1, c1, w1 = d.execute_script(stats)
             rate, clouds = (n1 - n0) / ((w1 - w0) / 1e3), (c1 - c0) / ((w1 - w0) / 1e3)
-            print(f"telemetry in the browser, cloud layer on: {rate:.1f} Hz (target >= 30); clouds {clouds:.1f} Hz")
+            fps = d.execute_script("return window.gcs.stats.fps")
+            print(f"telemetry in the browser, cloud layer on: {rate:.1f} Hz (target >= 30); clouds {clouds:.1f} Hz; "
+                  f"3-D redraws capped at {fps:.0f} fps by the page's congestion control")
 
             d.execute_script("window.gcs.send({command: 'arm'})")
             time.sleep(0.5)

@@ -48,8 +48,8 @@ __all__ = ["GcsServer", "parse_speed"]
 STATIC_DIR = Path(__file__).parent / "static"
 ACK_TIMEOUT_S = 3.0
 """How long a command waits for the commander's acknowledgement before the reply says ``in_progress``."""
-IN_FLIGHT = {"telemetry": 3, "cloud": 1}
-"""Messages of a stream a tab that acknowledges them (``seen``) may have unread: a busy tab gets fresh data late
+IN_FLIGHT = {"telemetry": 8, "cloud": 2}
+"""Messages of each stream a tab that acknowledges them (``seen``) may have unread: a busy tab gets fresh data late
 rather than stale data in order."""
 LOCAL = ("sim_pause", "sim_resume", "sim_speed", "sim_restart", "tunnel_start", "mission_preview")
 
