@@ -259,3 +259,30 @@ def test_a_tab_that_acknowledges_gets_no_more_than_it_has_read(gcs):
         assert receive(ws, "telemetry", timeout=2)["seq"] > seqs[-1] + 10
     finally:
         ws.close()
+
+
+def test_tunnel_start_restarts_the_run_and_every_tab_gets_the_new_scene():
+    with GcsProcess("vehicle", "--speed", "inf") as g:
+        a, b = ws_connect(g), ws_connect(g)
+        try:
+            assert receive(a, "hello")["scene"]["regions"] == []
+            receive(b, "hello")
+            a.send(json.dumps({"type": "command", "id": 1, "command": {"command": "tunnel_start"}}))
+            hello = receive(b, "hello", timeout=30)  # the other tab too
+            assert hello["scene"]["scenario"] == "tunnel"
+            gates = {r["name"]: r["centre_W"] for r in hello["scene"]["regions"]}
+            from cufund.missions.tunnel_kind import course_of
+            from cufund.scenario import load_scenario
+
+            course = course_of(load_scenario("tunnel"))
+            assert list(gates) == [f"gate{k + 1}" for k in range(len(course.frames))]
+            assert np.allclose([gates[f"gate{k + 1}"] for k in range(len(course.frames))],
+                               [f.centre_W for f in course.frames])
+            assert receive(a, "ack", timeout=30, pred=lambda m: m["id"] == 1)["result"] == "accepted"
+            a.send(json.dumps({"type": "command", "id": 2, "command": {"command": "sim_restart", "scenario": "nope"}}))
+            ack = receive(a, "ack", timeout=30, pred=lambda m: m["id"] == 2)
+            assert ack["result"] == "failed" and "nope" in ack["message"]
+            assert receive(b, "telemetry", timeout=10)  # the tunnel run goes on
+        finally:
+            a.close()
+            b.close()

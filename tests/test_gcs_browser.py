@@ -195,3 +195,18 @@ def test_tabs_in_sync_and_reconnect_catches_up(gcs, driver):
     click(d, "cmd-land")
     assert ack(d, "land")["result"] == "accepted"
     assert wait_for(lambda: telemetry(d)["mode"] in ("land", "idle"), 5)
+
+
+def test_ltlf_mission_preview_is_drawn_before_it_flies(gcs, driver):
+    d = driver
+    if not d.current_url.startswith(gcs.base):
+        open_page(d, gcs)
+    set_value(d, "ltl-formula", "F(b) & F(a) & G(!c)")
+    click(d, "cmd-ltl-preview")
+    assert ack(d, "mission_preview")["result"] == "accepted"
+    plan = d.execute_script("return window.gcs.lastPlan")
+    p = np.array(telemetry(d)["p_W"])
+    a, b = np.array([2.0, 0.0, 1.5]), np.array([2.0, 2.0, 1.5])  # the page's example regions
+    order = ["a", "b"] if np.linalg.norm(p - a) <= np.linalg.norm(p - b) else ["b", "a"]
+    assert plan["regions"] == order and text(d, "ltl-plan").startswith(" → ".join(order))
+    assert d.find_element(By.ID, "cmd-ltl-fly").is_enabled()
