@@ -171,6 +171,10 @@ def test_mission_upload_rerequests_lost_items():
                                     math.nan, round(p[0] * 1e7), round(p[1] * 1e7), float(p[2]), 0)
         assert g.recv("MISSION_ACK").type == M.MAV_MISSION_ACCEPTED
         np.testing.assert_allclose(live.telemetry()["mission"]["items"][0], [-2.0, 0.0, 1.0], atol=0.02)
+        g.mav.mission_request_send(1, 1, 1, 0)  # the legacy float download: degrees, not degE7
+        it = g.recv("MISSION_ITEM", cond=lambda m: m.seq == 1)
+        assert (it.frame, it.x, it.y, it.z) == (M.MAV_FRAME_GLOBAL, pytest.approx(p[0], abs=2e-5),  # float32
+                                                 pytest.approx(p[1], abs=2e-5), pytest.approx(p[2], abs=1e-3))
 
 
 def test_mission_set_current_starts_from_that_item():
