@@ -110,6 +110,7 @@ class GcsServer:
         self._esdf_sent: Any = None
         self._restarting = False
         self._paused = False
+        self._last_error = ""
 
     # ---- lifecycle -----------------------------------------------------------------------------------------
     def start(self) -> str:
@@ -159,9 +160,13 @@ class GcsServer:
         try:
             tel = session.poll()
             events = session.new_events()
-        except Exception as exc:  # noqa: BLE001 - a failing run must not stop the server; show why
-            self.broadcast({"type": "error", "message": f"telemetry: {type(exc).__name__}: {exc}"})
+        except Exception as exc:  # noqa: BLE001 - a failing run must not stop the server; show why (once)
+            message = f"telemetry: {type(exc).__name__}: {exc}"
+            if message != self._last_error:
+                self._last_error = message
+                self.broadcast({"type": "error", "message": message})
             return
+        self._last_error = ""
         self.seq += 1
         text = json.dumps({"type": "telemetry", "seq": self.seq, "wall": time.time(), "paused": self._paused,
                            "speed": None if math.isinf(self.speed) else self.speed, **tel})
