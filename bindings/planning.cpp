@@ -294,7 +294,7 @@ void define_planning(py::module_& m) {
       .def(
           "plan",
           [](planning::GridAStar& self, const ClearanceQuery& query, const py::handle& start, const py::handle& goal,
-             double radius, Index max_expansions, bool shortcut, double heuristic_weight) {
+             double radius, Index max_expansions, bool shortcut, double heuristic_weight, double z_min, double z_max) {
             planning::AStarOptions opt;
             opt.radius = radius_arg(radius);
             if (max_expansions < 1) throw py::value_error("max_expansions must be >= 1, got " + std::to_string(max_expansions));
@@ -304,6 +304,12 @@ void define_planning(py::module_& m) {
               throw py::value_error("heuristic_weight must be finite and >= 1, got " + std::to_string(heuristic_weight));
             }
             opt.heuristic_weight = heuristic_weight;
+            if (std::isnan(z_min) || std::isnan(z_max) || !(z_max > z_min)) {
+              throw py::value_error("z_max must be > z_min [m], got z_min=" + std::to_string(z_min) +
+                                    ", z_max=" + std::to_string(z_max));
+            }
+            opt.z_min = z_min;
+            opt.z_max = z_max;
             const Vec3 s = point3(start, "start_W"), g = point3(goal, "goal_W");
             planning::AStarResult r;
             {
@@ -320,7 +326,8 @@ void define_planning(py::module_& m) {
             return d;
           },
           py::arg("query"), py::arg("start_W"), py::arg("goal_W"), py::arg("radius"), py::arg("max_expansions"),
-          py::arg("shortcut"), py::arg("heuristic_weight"));
+          py::arg("shortcut"), py::arg("heuristic_weight"), py::arg("z_min") = -std::numeric_limits<double>::infinity(),
+          py::arg("z_max") = std::numeric_limits<double>::infinity());
 
   m.def(
       "optimize_bspline",

@@ -118,3 +118,38 @@ def test_params_are_checked():
         LocalPlannerParams(max_iterations=0)
     with pytest.raises(TypeError, match="esdf_map must be a cufund.esdf.EsdfMap"):
         BsplineLocalPlanner(None)
+
+
+def test_guide_stays_in_the_flight_band_over_unobserved_ground():
+    """A wall from 0.8 m up with no floor mapped under it (unobserved ground is free to the map): the shortest way
+    ducks under it, into the ground. With the band [0.5, 3] m every accepted trajectory stays in it."""
+    m = EsdfMap(EsdfMapParams(resolution=RES, size=(12, 6, 3), origin_W=(-1.0, -3.0, -0.5), nthreads=1))
+    # wall x in [4, 4.4], y in [-1.5, 3], z in [0.8, 2.5]: voxel z index from (0.8 + 0.5) / 0.1 = 13; the way
+    # round is its end at y = -1.5
+    m.set_occupied(np.argwhere(np.ones((4, 45, 17), bool)) + [50, 15, 13])
+    start, goal = np.array([0.0, 0.0, 1.0]), np.array([9.0, 0.0, 1.0])
+    low = BsplineLocalPlanner(m, LocalPlannerParams(radius=0.3, z_min=-1.0)).replan(0.0, start, np.zeros(3),
+                                                                                      np.zeros(3), goal)
+    assert low.status == "ok" and low.trajectory.sample(
+        np.linspace(low.trajectory.t_start, low.trajectory.t_end, 500)).p_W[:, 2].min() < 0.3  # ducks under
+    lp = BsplineLocalPlanner(m, LocalPlannerParams(radius=0.3))
+    t, p, v, a = 0.0, start, np.zeros(3), np.zeros(3)
+    flown = []
+    for _ in range(150):  # receding horizon at 10 Hz, perfect tracking
+        r = lp.replan(t, p, v, a, goal)
+        assert r.status == "ok", r.status
+        tr = r.trajectory
+        assert tr.sample(np.linspace(tr.t_start, tr.t_end, 500)).p_W[:, 2].min() >= 0.5 - 0.05
+        if r.reaches_goal:
+            flown.append(tr.sample(np.linspace(t, tr.t_end, 300)).p_W)
+            break
+        flown.append(tr.sample(np.linspace(t, t + 0.1, 11)).p_W)
+        t += 0.1
+        s = tr.sample(t)
+        p, v, a = s.p_W[0], s.v_W[0], s.a_W[0]
+    assert r.reaches_goal
+    f = np.vstack(flown)
+    wall = (np.array([4.0, -1.5, 0.8]), np.array([4.4, 3.0, 2.5]))
+    assert _box_distance(f, *wall).min() >= 0.3 - 1e-9 and f[:, 2].min() >= 0.45  # round the wall's end
+    with pytest.raises(ConfigError, match="z_max must be > z_min"):
+        LocalPlannerParams(z_min=2.0, z_max=1.0)

@@ -119,7 +119,9 @@ AStarResult GridAStar::plan(const ClearanceMap& map, const Vec3& start, const Ve
   auto heuristic = [&](Index i, Index j, Index k) { return hw * octile(i - gv[0], j - gv[1], k - gv[2]); };
   auto lin = [&](Index i, Index j, Index k) { return (i * g.shape[1] + j) * g.shape[2] + k; };
   auto in_grid = [&](Index i, Index j, Index k) {
-    return i >= 0 && j >= 0 && k >= 0 && i < g.shape[0] && j < g.shape[1] && k < g.shape[2];
+    if (!(i >= 0 && j >= 0 && k >= 0 && i < g.shape[0] && j < g.shape[1] && k < g.shape[2])) return false;
+    const double z = g.origin_W[2] + (static_cast<double>(k) + 0.5) * h;
+    return z >= opt.z_min && z <= opt.z_max;  // the height band (infinite by default)
   };
 
   std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> open;

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <memory>
+#include <limits>
 #include <vector>
 
 #include "clearance.h"
@@ -26,6 +27,10 @@ struct AStarOptions {
   std::ptrdiff_t max_expansions = 5000000;  // stop after this many node expansions
   bool shortcut = true;                   // greedy line-of-sight shortcutting of the voxel path
   double heuristic_weight = 1.0;          // >= 1: weighted A* (f = g + w h), at most w times the grid optimum
+  // Height band [m]: voxels whose centre lies outside [z_min, z_max] are not nodes (e.g. a flight band above
+  // ground the map has not observed yet). The start and goal points themselves may lie outside it.
+  double z_min = -std::numeric_limits<double>::infinity();
+  double z_max = std::numeric_limits<double>::infinity();
 };
 
 struct AStarResult {

@@ -96,6 +96,10 @@ class LocalParams:
     """Guide-path length one replan covers [m]."""
     max_iterations: int = 100
     """Optimiser iterations per replan."""
+    z_min: float = 0.5
+    """Flight band of the replanner, lowest height [m] (unobserved ground is free to the map)."""
+    z_max: float = 3.0
+    """Flight band of the replanner, highest height [m]."""
 
     def __post_init__(self) -> None:
         from ..config import ConfigError, vector3
@@ -117,7 +121,8 @@ class LocalParams:
 
         try:
             return LocalPlannerParams(radius=self.radius, margin=self.margin, v_max=self.v_max, a_max=self.a_max,
-                                      dt=self.dt, horizon=self.horizon, max_iterations=self.max_iterations)
+                                      dt=self.dt, horizon=self.horizon, max_iterations=self.max_iterations,
+                                      z_min=self.z_min, z_max=self.z_max)
         except ConfigError as e:
             raise ConfigError(f"planner.{e}") from None
 

@@ -59,6 +59,12 @@ class LocalPlannerParams:
     """Weight pulling the horizon's last control point to the guide path."""
     max_iterations: int = 100
     """L-BFGS iterations per replan (C++, GIL released)."""
+    z_min: float = 0.5
+    """Lowest height of the flight band [m, world z]: the guide A* searches only in the band, its path is kept in
+    it, and a trajectory leaving it (below the lower of z_min and its start or goal) is rejected ("altitude"). Unobserved ground is free space to
+    the map: without the band a guide may dip into it (forest seed 0 on the LIO flew into the ground so)."""
+    z_max: float = 3.0
+    """Highest height of the flight band [m, world z]."""
 
     def __post_init__(self) -> None:
         for name in ("radius", "margin", "v_max", "a_max", "dt", "horizon", "w_smooth", "w_collision",
@@ -70,6 +76,13 @@ class LocalPlannerParams:
         if isinstance(self.max_iterations, bool) or not isinstance(self.max_iterations, numbers.Integral) \
                 or self.max_iterations < 1:
             raise ConfigError(f"max_iterations must be an integer >= 1, got {self.max_iterations!r}")
+        for name in ("z_min", "z_max"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
+                raise ConfigError(f"{name} must be a finite number [m], got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if not self.z_max > self.z_min:
+            raise ConfigError(f"z_max must be > z_min, got z_min={self.z_min}, z_max={self.z_max}")
 
 
 @dataclass(frozen=True)
@@ -77,7 +90,8 @@ class LocalPlan:
     """One replan's outcome."""
 
     status: str
-    """"ok", "collision" (the optimised curve is closer than the radius somewhere), "at_goal"."""
+    """"ok", "collision" (the optimised curve is closer than the radius somewhere), "altitude" (it leaves the
+    flight band by more than 5 cm), "at_goal"."""
     trajectory: UniformBspline | None
     """The new trajectory from ``t`` (None unless ok)."""
     plan_seconds: float
@@ -106,7 +120,8 @@ class BsplineLocalPlanner:
         # The guide only seeds the optimiser: weighted A* (w = 2: about half the expansions of 1.5 in forests,
         # the same length after shortcutting) with a bounded search (a few ms at most).
         self._guide = GridPathSearch(GridPathSearchParams(radius=self.params.radius, max_expansions=20_000,
-                                                          heuristic_weight=2.0))
+                                                          heuristic_weight=2.0, z_min=self.params.z_min,
+                                                          z_max=self.params.z_max))
         self._cache: tuple[np.ndarray, np.ndarray] | None = None  # (goal, guide path) of the last A*
         self._d_safe = self.params.radius + self.params.margin + 0.5 * math.sqrt(3.0) * esdf_map.params.resolution
 
@@ -123,6 +138,8 @@ class BsplineLocalPlanner:
         fixed = start_control_points(p, v, a, par.dt)
         ds = 0.7 * par.v_max * par.dt
         pts, reaches = _resample(path, ds, par.horizon)
+        lo, hi = min(par.z_min, p[2], goal[2]), max(par.z_max, p[2], goal[2])
+        pts[:, 2] = np.clip(pts[:, 2], lo, hi)  # the flight band (the goal and start may lie outside it)
         n_free = max(1, len(pts) - (0 if not reaches else 1))
         init = pts[:n_free]
         end_target = pts[-1]
@@ -134,6 +151,9 @@ class BsplineLocalPlanner:
         curve = traj.sample(ts).p_W
         clearance = float(self.query.clearance(curve).min())
         length = float(np.sum(np.linalg.norm(np.diff(curve, axis=0), axis=1)))
+        if curve[:, 2].min() < lo - 0.05 or curve[:, 2].max() > hi + 0.05:
+            return LocalPlan("altitude", None, time.perf_counter() - t0, clearance, 0.0, False,
+                             time.thread_time() - c0)
         # Certified between the samples too: every chord of the 10 ms polyline is traced (the curve is
         # within a_max * (10 ms)^2 / 8 < 0.1 mm of its chords).
         if clearance < par.radius or not self.query.path_free(curve, par.radius).all():

@@ -63,8 +63,21 @@ class GridPathSearchParams:
     nodes are expanded in clutter (measured in 40 m forests: 10-100x fewer at 1.5 than at 1, and after
     shortcutting within 1.05 of InformedRRT*'s length). 1 gives the grid-optimal path."""
 
+    z_min: float = -math.inf
+    """Height band [m, world z]: voxels whose centre lies below ``z_min`` or above ``z_max`` are not searched
+    (the start and goal may lie outside it)."""
+    z_max: float = math.inf
+    """See ``z_min``."""
+
     def __post_init__(self) -> None:
         object.__setattr__(self, "radius", _radius(self.radius))
+        for name in ("z_min", "z_max"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or math.isnan(v):
+                raise ConfigError(f"{name} must be a number [m], got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if not self.z_max > self.z_min:
+            raise ConfigError(f"z_max must be > z_min, got z_min={self.z_min}, z_max={self.z_max}")
         if isinstance(self.max_expansions, bool) or not isinstance(self.max_expansions, numbers.Integral) \
                 or self.max_expansions < 1:
             raise ConfigError(f"max_expansions must be an integer >= 1, got {self.max_expansions!r}")
@@ -96,7 +109,7 @@ class GridPathSearch:
         p = self.params
         t0 = time.perf_counter()
         r = self._core.plan(query._core, start_W, goal_W, p.radius, int(p.max_expansions), bool(p.shortcut),
-                            p.heuristic_weight)
+                            p.heuristic_weight, p.z_min, p.z_max)
         dt = time.perf_counter() - t0
         return PathResult(status=_STATUS[r["status"]], path_W=r["path"], length=float(r["length"]), plan_seconds=dt,
                           expansions=int(r["expansions"]))
