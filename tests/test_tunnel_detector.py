@@ -294,6 +294,26 @@ def test_the_component_is_deterministic():
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
 
 
+def test_once_the_expected_frames_are_confident_detection_slows_down():
+    def published(expected: int | None) -> list[TunnelEstimate]:
+        c = tunnel_course_layout(2)
+        quad = cufund.Quadrotor(cufund.presets.cu_astro())
+        start = np.asarray(c.frames[0].centre_W) - 2.0 * c.frames[0].axis_W
+        quad.hover([start[0], start[1], 0.3])
+        sim = cufund.Simulator(quad, physics_rate_hz=1000)
+        sim.add(cufund.sensors.LidarComponent(Lidar(mid360(), mid360_params(seed=3)), c.world, rate_hz=100.0))
+        sim.add(TunnelDetector(TunnelDetectorParams(rate_hz=4.0, settled_rate_hz=1.0), expected=expected))
+        kept = sim.add(Keep())
+        sim.run(3.0)
+        return kept.messages
+
+    every, settled = published(None), published(1)
+    assert len(every) >= 11  # 4 Hz from the first complete scan
+    assert all(len(e.centres_W) <= 1 for e in settled) and settled[-1].confidence[0] >= 0.9
+    gaps = np.diff([e.t for e in settled])
+    assert gaps.max() >= 0.8 and len(settled) < len(every) - 3  # 1 Hz once settled
+
+
 def test_component_arguments_are_checked():
     with pytest.raises(TypeError, match="params must be a TunnelDetectorParams"):
         TunnelDetector({"voxel": 0.02})

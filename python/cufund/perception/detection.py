@@ -93,6 +93,8 @@ class TunnelDetectorParams:
     # --- the component ---------------------------------------------------------------------------------
     rate_hz: float = 2.0
     """How often the component re-detects on its accumulated map [Hz]."""
+    settled_rate_hz: float = 1.0
+    """How often once every expected frame is confidently tracked [Hz] (at most rate_hz)."""
     point_stride: int = 1
     """The component accumulates every point_stride-th point of each scan (1: all; a Mid-360 gives 200 000/s)."""
     max_range: float = 10.0
@@ -109,7 +111,7 @@ class TunnelDetectorParams:
     def __post_init__(self) -> None:
         for name in ("voxel", "cluster_voxel", "eps", "bar", "slab", "min_opening", "max_opening", "max_thickness",
                      "min_separation",
-                     "rate_hz", "max_range", "associate_radius"):
+                     "rate_hz", "settled_rate_hz", "max_range", "associate_radius"):
             object.__setattr__(self, name, _positive(name, getattr(self, name)))
         object.__setattr__(self, "floor_cut", _positive("floor_cut", self.floor_cut, allow_zero=True))
         object.__setattr__(self, "floor_band", _positive("floor_band", self.floor_band, allow_zero=True))

@@ -58,7 +58,8 @@ class TunnelDetector(Component):
     grows with the points on its bars and with repeated detections, and fades slowly while it is not found
     again (a track found three times is kept; one found fewer times goes after ten misses).
     Frames are published in flying order from ``origin_W`` (default: the first pose received); with
-    ``expected``, at most that many (the most confident).
+    ``expected``, at most that many (the most confident), and once all of them are confident (>= 0.9) the map
+    is searched again only at ``params.settled_rate_hz`` (scans are still accumulated at every step).
     """
 
     name = "tunnel_detector"
@@ -109,6 +110,7 @@ class TunnelDetector(Component):
         self._waiting: list[PointCloud] = []
         self._last_stamp = 0.0
         self._tall = np.zeros(0, dtype=np.int64)
+        self._t_detected = -math.inf
         self._tall_changed = False
 
     def setup(self, bus: BusView) -> None:
@@ -231,6 +233,13 @@ class TunnelDetector(Component):
             confidence=np.array(conf, dtype=float).reshape(k),
             scans=self.scans)
 
+    def _settled(self) -> bool:
+        """Every expected frame tracked with confidence >= 0.9 (then detection slows to settled_rate_hz)."""
+        if self.expected is None or len(self.tracks) < self.expected:
+            return False
+        conf = sorted((self.confidence(tr) for tr in self.tracks), reverse=True)
+        return conf[self.expected - 1] >= 0.9
+
     def frames(self) -> list[FrameDetection]:
         """The tracked frames in flying order (their newest detections)."""
         return order_along_course([tr.detection for tr in self.tracks], self.origin_W)
@@ -262,10 +271,12 @@ class TunnelDetector(Component):
                 self.map.drop(_member(column_keys(self.map.means()[0]), self._tall))
             self._tall_changed = False
             self.map.insert(np.concatenate([b[0] for b in batch]), np.concatenate([b[1] for b in batch]))
-            cloud, rays = self.map.means()
-            self.detections = detect_in_voxels(cloud, rays, self.params, self.expected, self.origin_W)
-            self._associate(self.detections)
-            bus.publish(Topics.TUNNEL_ESTIMATE, self.estimate())
+            if not self._settled() or t >= self._t_detected + 1.0 / self.params.settled_rate_hz - 1e-9:
+                cloud, rays = self.map.means()
+                self.detections = detect_in_voxels(cloud, rays, self.params, self.expected, self.origin_W)
+                self._associate(self.detections)
+                self._t_detected = t
+                bus.publish(Topics.TUNNEL_ESTIMATE, self.estimate())
         self.updates += 1
         self.update_seconds += time.perf_counter() - start
         self.update_cpu_seconds += time.process_time() - cpu
