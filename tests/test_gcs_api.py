@@ -282,7 +282,9 @@ def test_tunnel_start_restarts_the_run_and_every_tab_gets_the_new_scene():
             a.send(json.dumps({"type": "command", "id": 2, "command": {"command": "sim_restart", "scenario": "nope"}}))
             ack = receive(a, "ack", timeout=30, pred=lambda m: m["id"] == 2)
             assert ack["result"] == "failed" and "nope" in ack["message"]
-            assert receive(b, "telemetry", timeout=10)  # the tunnel run goes on
+            # the tunnel run goes on: its mission's state machine shows in the event log
+            assert receive(b, "events", timeout=30, pred=lambda m: any(
+                e["kind"] == "mission" and e["message"].startswith("mission takeoff") for e in m["events"]))
         finally:
             a.close()
             b.close()

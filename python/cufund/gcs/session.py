@@ -99,6 +99,7 @@ class GcsSession:
         self.history: collections.deque[dict[str, Any]] = collections.deque()
         self.events: list[dict[str, Any]] = []
         self._events_seen = 0
+        self._mission_state: tuple[str, str] | None = None
         self.planned: list[list[float]] = []
         self.planned_label = ""
         self.planned_changed = False
@@ -173,6 +174,11 @@ class GcsSession:
         fresh = [self._event(e) for e in self.live.events.since(self._events_seen)]
         if fresh:
             self._events_seen = int(fresh[-1].get("index", self._events_seen + len(fresh) - 1)) + 1
+        state = self.live.latest(Topics.MISSION_STATE)  # a mission component's (e.g. the tunnel's) transitions
+        if state is not None and (state.state, state.reason) != self._mission_state:
+            self._mission_state = (state.state, state.reason)
+            fresh.append({"t": float(state.t), "kind": "mission", "message": f"mission {state.state}"
+                          + (f": {state.reason}" if state.reason else "") + f" ({state.progress} done)"})
         return [self.log(e) for e in fresh]
 
     def log(self, event: dict[str, Any]) -> dict[str, Any]:
