@@ -288,3 +288,14 @@ def test_tunnel_start_restarts_the_run_and_every_tab_gets_the_new_scene():
         finally:
             a.close()
             b.close()
+
+
+@pytest.mark.parametrize(("args", "named"), [(["nope"], "nope"), (["--speed", "20"], "speed"),
+                                             (["--set", "controller.kind=zzz"], "controller.kind")])
+def test_bad_arguments_exit_2_naming_them(args, named):
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-c", "import sys; from cufund.cli import main; sys.exit(main(sys.argv[1:]))",
+                        "gcs", *args, "--port", "0"], check=False, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and named in r.stderr and r.stdout == ""
