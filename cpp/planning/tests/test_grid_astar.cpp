@@ -123,5 +123,27 @@ TEST(GridAStar, ShortcutKeepsEndsAndNeverLengthens) {
   for (std::size_t i = 1; i < cut.size(); ++i) EXPECT_TRUE(cm.segment_free(cut[i - 1], cut[i], opt.radius));
 }
 
+TEST(GridAStar, HeightBandExcludesVoxelsOutsideIt) {
+  Wall w(8);  // hole z in [0.6, 1.4]: a band above it leaves no way through the wall
+  ClearanceMap cm(*w.map);
+  GridAStar astar;
+  AStarOptions opt;
+  opt.radius = 0.2;
+  const Vec3 start{0.5, 1.5, 1.0}, goal{3.5, 1.5, 1.0};
+  ASSERT_EQ(astar.plan(cm, start, goal, opt).status, PathStatus::kFound);
+  opt.z_min = 0.75;  // voxel centres 0.75 .. 1.25 only: every node clears the hole's rim (z 0.6, 1.4) by 0.15
+  opt.z_max = 1.25;
+  opt.radius = 0.1;
+  const AStarResult in_band = astar.plan(cm, start, goal, opt);
+  ASSERT_EQ(in_band.status, PathStatus::kFound);
+  for (std::size_t i = 1; i + 1 < in_band.path.size(); ++i) {
+    EXPECT_GE(in_band.path[i][2], opt.z_min);
+    EXPECT_LE(in_band.path[i][2], opt.z_max);
+  }
+  opt.z_min = 1.55;  // above the hole: the wall is closed there
+  opt.z_max = 1.95;
+  EXPECT_EQ(astar.plan(cm, {0.5, 1.5, 1.7}, {3.5, 1.5, 1.7}, opt).status, PathStatus::kNoPath);
+}
+
 }  // namespace
 }  // namespace cufund::planning
