@@ -20,4 +20,6 @@ PYBIND11_MODULE(_core, m) {
   { py::module_ odometry = m.def_submodule("odometry", "LiDAR-inertial odometry kernels (issue 12)."); cufund::py_bind::define_odometry(odometry); }
   py::module_ planning = m.def_submodule("planning", "Clearance queries and grid path search on the ESDF (paper §2.3).");
   cufund::py_bind::define_planning(planning);
+  py::module_ logs = m.def_submodule("logs", "The run log's hot path: packing messages into MCAP blocks (issue 10).");
+  cufund::py_bind::define_logs(logs);
 }

@@ -150,5 +150,6 @@ void define_collision(py::module_& m);  // in dynamics.cpp: Bullet collision che
 void define_esdf(py::module_& m);
 void define_odometry(py::module_& m);  // odometry.cpp
 void define_planning(py::module_& m);  // bindings/planning.cpp
+void define_logs(py::module_& m);      // bindings/logs.cpp
 
 }  // namespace cufund::py_bind

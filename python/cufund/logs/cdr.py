@@ -13,7 +13,6 @@ The ros2msg text of each layout is what Foxglove Studio and ``mcap-ros2-support`
 from __future__ import annotations
 
 import dataclasses
-import struct
 import types
 import typing
 from dataclasses import dataclass
@@ -223,12 +222,15 @@ class FixedAccumulator:
     """A topic's messages between two blocks, kept without keeping the messages.
 
     A message that matches the topic's first one (the same arrays present, with its dtypes and sizes; None where
-    it had None) goes into one ``bytearray``: its numbers packed with ``struct`` and its arrays' bytes, copied while
-    they are still in the CPU cache, after its two times and its sequence number. No object per message stays
-    alive, so the simulator's freed arrays are reused at once and the garbage collector has nothing to follow. Any other message keeps all its field
-    values and takes the general (checked, slower) path when the block is encoded."""
+    it had None) is packed at once by a compiled :class:`cufund._core.logs.RecordPacker`: its two times, its
+    sequence number, its numbers and its arrays' bytes, appended to one buffer while they are still in the CPU
+    cache. No object per message stays alive, so the simulator's freed arrays are reused at once and the garbage
+    collector has nothing to follow. Any other message keeps all its field values and takes the general (checked,
+    slower) path when the block is encoded."""
 
     def __init__(self, layout: MessageLayout, first: Any):
+        from .._core.logs import RecordPacker
+
         self.layout = layout
         cols = layout.columns
         present = [c for c in cols if c.shape and getattr(first, c.attr) is not None]
@@ -236,60 +238,28 @@ class FixedAccumulator:
         self.scalars = [c for c in cols if not c.shape]
         self.present = present
         # per message: log and publish time, sequence, the numbers, then the arrays' bytes
-        head = struct.Struct("<QQQ" + "".join(_STRUCT_CODES[c.code] for c in self.scalars))
         self.packed = np.dtype([("_log", "<u8"), ("_publish", "<u8"), ("_sequence", "<u8")]
                                + [(c.ros_name, f"<{c.code}") for c in self.scalars]
                                + [(c.ros_name, f"<{c.code}", (int(np.prod(c.shape)),)) for c in present])
         self.slow: list[tuple[int, Any, Any, Any, tuple[Any, ...]]] = []
-        self.buffer = bytearray()
-        self.add, self._count = self._make_add(head, present, absent, self.packed.itemsize - head.size)
-
-    def _make_add(self, head: struct.Struct, present: list[_Column], absent: list[_Column],
-                  nbytes: int) -> tuple[Any, Any]:
-        """``add`` written out for this topic's fields (the way ``dataclasses`` writes ``__init__``): plain
-        attribute loads and ``is`` tests of each array's dtype against the (singleton) dtype of its column cost a
-        fraction of generic getters. A message that fails a test takes the general path."""
-        arrays = [f"message.{c.attr}" for c in present]
-        tests = [f"a{i}.dtype is D{i}" for i in range(len(present))] + [f"message.{c.attr} is None" for c in absent]
-        lines = [
-            "def factory(join, pack, extend, slow_append, all_fields, errors, dtypes):",
-            *[f"    D{i} = dtypes[{i}]" for i in range(len(present))],
-            "    count = 0",
-            "    def add(message, log, publish, sequence):",
-            "        nonlocal count",
-            "        count += 1",
-            "        try:",
-            *[f"            a{i} = {arrays[i]}" for i in range(len(present))],
-            f"            if {' and '.join(tests) or 'True'}:",
-            f"                raw = join(({''.join(f'a{i}, ' for i in range(len(present)))}))",
-            f"                if len(raw) == {nbytes}:",
-            "                    extend(pack(log, publish, sequence"
-            + "".join(f", message.{c.attr}" for c in self.scalars) + "))",
-            "                    extend(raw)",
-            "                    return count",
-            "        except errors:",
-            "            pass",
-            "        slow_append((count - 1, log, publish, sequence, all_fields(message)))",
-            "        return count",
-            "    def take():",
-            "        nonlocal count",
-            "        n, count = count, 0",
-            "        return n",
-            "    return add, take",
-        ]
-        namespace: dict[str, Any] = {}
-        exec("\n".join(lines), namespace)  # noqa: S102 - the names are the dataclass's own field names
-        return namespace["factory"](b"".join, head.pack, self.buffer.extend, self.slow.append, self.layout._all,
-                                    (TypeError, BufferError, AttributeError, ValueError, struct.error),
-                                    [np.dtype(c.code) for c in present])
+        dtypes = [np.dtype(c.code) for c in present]
+        all_fields, slow = self.layout._all, self.slow.append
+        self._packer = RecordPacker(
+            [c.attr for c in self.scalars], "".join(_STRUCT_CODES[c.code] for c in self.scalars),
+            [c.attr for c in present], dtypes, [int(np.prod(c.shape)) * d.itemsize for c, d in zip(present, dtypes)],
+            [c.attr for c in absent],
+            lambda index, log, publish, sequence, message: slow((index, log, publish, sequence, all_fields(message))))
+        if self._packer.record_bytes != self.packed.itemsize:  # the two descriptions of a record must agree
+            raise RuntimeError(f"record of {self._packer.record_bytes} bytes packed for a {self.packed.itemsize}-byte dtype")
+        self.add = self._packer.fast_add
 
     def drain(self, topic: str) -> tuple[np.ndarray, Any, Any, Any]:
         """The block's (n, size) CDR rows, its log and publish times and its sequence numbers (uint64 arrays, or
         lists when a message took the general path); empties the accumulator."""
-        n = self._count()
+        data, n = self._packer.drain()
         layout = self.layout
         rows = layout.layout.empty(n)
-        fast = np.frombuffer(bytes(self.buffer), self.packed)
+        fast = np.frombuffer(data, self.packed)
         times: list[Any] = [fast[name] for name in ("_log", "_publish", "_sequence")]
         if self.slow:
             other = [entry[0] for entry in self.slow]
@@ -308,7 +278,7 @@ class FixedAccumulator:
             times = merged
         else:
             self._fill(rows, fast)
-        del self.slow[:], self.buffer[:]
+        del self.slow[:]
         return rows.view(np.uint8).reshape(n, layout.layout.size), times[0], times[1], times[2]
 
     def _fill(self, rows: np.ndarray, fast: np.ndarray) -> None:
