@@ -8,7 +8,8 @@ from . import lidar
 from . import esdf
 from . import odometry
 from . import planning
-__all__: list[str] = ['control', 'dynamics', 'esdf', 'lidar', 'odometry', 'planning', 'thread_pool_size']
+from . import logs
+__all__: list[str] = ['control', 'dynamics', 'esdf', 'lidar', 'logs', 'odometry', 'planning', 'thread_pool_size']
 def thread_pool_size() -> int:
     """
     Threads of the shared C++ pool, the caller included (CUFUND_NUM_THREADS, else the CPUs this process may use).
