@@ -44,19 +44,53 @@ void deskew(const float* points_L, const double* t_points, std::size_t n, const 
   T_WI_ref.linear() = R_ref;
   T_WI_ref.translation() = p_ref;
   const Eigen::Isometry3d T_LW_ref = T_IL.inverse() * T_WI_ref.inverse();
-  std::vector<Eigen::Matrix3d> R_knots(traj.knots);
-  for (std::size_t k = 0; k < traj.knots; ++k) {
+  const Eigen::Matrix3d R_LW = T_LW_ref.linear();
+  const Eigen::Vector3d t_LW = T_LW_ref.translation();
+  // Per interval k, everything the points of the interval share, already in the LiDAR frame at t_ref:
+  //   x_out = A_k Exp(w_k s) x_I + b_k + c_k s + d_k s^2,  A_k = R_LW R_k,  b_k = R_LW p_k + t_LW,
+  //   c_k = R_LW v_k,  d_k = R_LW a_k / 2;  Exp(phi) x by Rodrigues' formula on the vector (no matrix).
+  struct Interval {
+    Eigen::Matrix3d A;
+    Eigen::Vector3d b, c, d, w;
+  };
+  const std::size_t K = traj.knots;
+  std::vector<Interval> iv(K - 1);
+  for (std::size_t k = 0; k + 1 < K; ++k) {
     const double* s = traj.states + 10 * k;
-    R_knots[k] = Eigen::Quaterniond(s[6], s[7], s[8], s[9]).normalized().toRotationMatrix();
+    const double* r = traj.rates + 6 * k;
+    const Eigen::Matrix3d R_k = Eigen::Quaterniond(s[6], s[7], s[8], s[9]).normalized().toRotationMatrix();
+    iv[k].A = R_LW * R_k;
+    iv[k].b = R_LW * Eigen::Vector3d(s[0], s[1], s[2]) + t_LW;
+    iv[k].c = R_LW * Eigen::Vector3d(s[3], s[4], s[5]);
+    iv[k].d = R_LW * Eigen::Vector3d(r[0], r[1], r[2]) * 0.5;
+    iv[k].w = Eigen::Vector3d(r[3], r[4], r[5]);
   }
+  const double* kt = traj.knot_t;
+  const auto last = static_cast<std::ptrdiff_t>(K) - 2;
   parallel_chunks(static_cast<std::ptrdiff_t>(n), 4096, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t) {
-    Eigen::Matrix3d R;
-    Eigen::Vector3d p;
+    std::ptrdiff_t k = -1;
     for (std::ptrdiff_t i = b; i < e; ++i) {
-      pose_at_impl(traj, R_knots.data(), t_points[i], R, p);
-      const Eigen::Vector3d x_L(points_L[3 * i], points_L[3 * i + 1], points_L[3 * i + 2]);
-      const Eigen::Vector3d x_W = R * (T_IL * x_L) + p;
-      Eigen::Map<Eigen::Vector3d>(out + 3 * i) = T_LW_ref * x_W;
+      const double tau = t_points[i];
+      // Interval: the last knot at or before tau, clamped to [0, K-2]; kept from the previous point while it
+      // still holds (the points of a frame come in time order).
+      if (k < 0 || !((k == 0 || tau >= kt[k]) && (k == last || tau < kt[k + 1]))) {
+        k = std::upper_bound(kt, kt + K, tau) - kt - 1;
+        k = std::clamp<std::ptrdiff_t>(k, 0, last);
+      }
+      const Interval& I = iv[static_cast<std::size_t>(k)];
+      const double h = tau - kt[k];
+      const Eigen::Vector3d x_I = T_IL * Eigen::Vector3d(points_L[3 * i], points_L[3 * i + 1], points_L[3 * i + 2]);
+      const Eigen::Vector3d phi = I.w * h;
+      const double t2 = phi.squaredNorm();
+      const Eigen::Vector3d px = phi.cross(x_I), ppx = phi.cross(px);
+      Eigen::Vector3d rx;
+      if (t2 < 1e-16) {
+        rx = x_I + px + 0.5 * ppx;
+      } else {
+        const double t = std::sqrt(t2);
+        rx = x_I + (std::sin(t) / t) * px + ((1.0 - std::cos(t)) / t2) * ppx;
+      }
+      Eigen::Map<Eigen::Vector3d>(out + 3 * i) = I.A * rx + I.b + I.c * h + I.d * (h * h);
     }
   });
 }

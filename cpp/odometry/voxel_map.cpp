@@ -20,9 +20,13 @@ std::int64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
 
 bool voxel_index(const Eigen::Vector3d& p, double inv_voxel, Eigen::Matrix<std::int64_t, 3, 1>& idx) {
   for (int i = 0; i < 3; ++i) {
-    const double f = std::floor(p[i] * inv_voxel);
+    // floor(f) by truncation (no libm call on baseline x86-64): the range test on f is the one on floor(f),
+    // the bounds being integers.
+    const double f = p[i] * inv_voxel;
     if (!(f >= -static_cast<double>(kHalfRange) + 1 && f < static_cast<double>(kHalfRange) - 1)) return false;
-    idx[i] = static_cast<std::int64_t>(f);
+    std::int64_t k = static_cast<std::int64_t>(f);
+    if (static_cast<double>(k) > f) --k;
+    idx[i] = k;
   }
   return true;
 }
