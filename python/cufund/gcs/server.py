@@ -6,6 +6,8 @@ without it):
 - ``GET /`` the page; ``GET /static/...`` its script and style; ``GET /meshcat/main.min.js`` MeshCat's bundled
   viewer (three.js), served from the installed ``meshcat`` package (MeshCat's own server is never started: it binds
   every interface).
+- ``GET /api/stats`` the server's own figures: CPU time of its event-loop thread (everything but the simulation),
+  open tabs, telemetry messages broadcast.
 - ``GET /api/state`` the telemetry as JSON; ``POST /api/command`` a JSON command (``{"command": "arm"}``, ...) →
   its acknowledgement ``{"command", "result", "message"}`` (HTTP 400 for a malformed one).
 - ``GET /ws`` the page's websocket. Server → page: JSON ``hello`` (the scene and everything needed to catch up),
@@ -119,6 +121,7 @@ class GcsServer:
         app = tornado.web.Application([
             (r"/", PageHandler, {"gcs": self}),
             (r"/api/state", StateHandler, {"gcs": self}),
+            (r"/api/stats", StatsHandler, {"gcs": self}),
             (r"/api/command", CommandHandler, {"gcs": self}),
             (r"/ws", SocketHandler, {"gcs": self}),
             (r"/static/(.*)", tornado.web.StaticFileHandler, {"path": str(STATIC_DIR)}),
@@ -321,6 +324,11 @@ class CommandHandler(_Guarded):
             self.write({"result": "failed", "message": str(exc)})
             return
         self.write(ack)
+
+
+class StatsHandler(_Guarded):
+    def get(self) -> None:
+        self.write({"io_thread_cpu_s": time.thread_time(), "tabs": len(self.gcs.clients), "telemetry_sent": self.gcs.seq})
 
 
 class SocketHandler(tornado.websocket.WebSocketHandler):
