@@ -1,22 +1,26 @@
 """Tunnel frames from a point cloud (paper §3.2, Fig. 9), as pure functions testable without a simulator.
 
-:func:`detect_frames` crops the cloud, downsamples it to voxel means, segments it with DBSCAN (Open3D) above
-the floor, and for every cluster fits the frame's vertical plane (a deterministic RANSAC line in the
-horizontal plane, refined by PCA on its inliers). The frame's own points are then gathered from the whole
-cloud in a slab around that plane (the floor cut would otherwise hide a bottom bar standing on the floor) and
-split into its four bars in plane coordinates (u across, horizontal; v up). Each bar's centre line is the
-midpoint of robust percentile extents across the bar (``percentile`` and ``100 - percentile``), which points
-missing along the bar (an occluder, a shadow) and points on its side faces do not move; a bottom bar merged
-with the floor is located by its upper edge instead. The opening is the hole between the bars' inner edges:
-its centre is halfway between the posts and between the top and bottom bars, its width and height the
-distances between the bars' centre lines less one bar thickness.
+:func:`detect_frames` crops the cloud (the floor band, above ``ceiling_z``, outside the region of interest),
+reduces it to voxel means, and segments it with DBSCAN (Open3D) above the floor, leaving out x-y columns that
+reach higher than any frame (walls, poles). In each cluster it fits a vertical plane (deterministic RANSAC on
+a line in the horizontal plane, scored by the length its inliers cover, refined by PCA); frames close enough
+to share a cluster are taken plane by plane. The frame's own points are then gathered from the whole cloud in
+a slab around that plane (the floor cut would otherwise hide a bottom bar standing on the floor), keeping the
+returns whose rays met the plane squarely when the sensor positions are known (a grazing return carries its
+range noise into the plane), and split into the four bars in plane coordinates (u across, horizontal; v up).
+Each bar's centre line is the midpoint of robust percentile extents across the bar (``percentile`` and
+``100 - percentile``), which points missing along the bar (an occluder, a shadow) and points on its side faces
+do not move; a bottom bar merged with the floor is located by its upper edge instead. The opening is the hole
+between the bars' inner edges: its centre is halfway between the posts and between the top and bottom bars,
+its width and height the distances between the bars' centre lines less one bar thickness. Its depth along the
+normal is the median of the bars' points, each moved half a bar away from the side its ray came from.
 
 The paper takes the mean of each cluster's points instead; :attr:`FrameDetection.cluster_mean_W` keeps that
 estimate for comparison (it moves towards the visible side when a bar is partly hidden).
 
 Clusters that are not frames (walls, the floor, a pad, boxes) are rejected: the in-plane extent must fit an
 opening between ``min_opening`` and ``max_opening``, the cluster must be thin across its plane, every bar
-must hold enough points and the opening must be empty.
+must hold enough points and the opening must be empty; detections closer than ``min_separation`` are one.
 """
 
 from __future__ import annotations
