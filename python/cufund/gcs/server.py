@@ -170,6 +170,8 @@ class GcsServer:
                 self.broadcast({"type": "error", "message": message})
             return
         self._last_error = ""
+        if not self.clients and self.foxglove is None:
+            return  # the path and history above still grow for the next tab
         self.seq += 1
         text = json.dumps({"type": "telemetry", "seq": self.seq, "wall": time.time(), "paused": self._paused,
                            "speed": None if math.isinf(self.speed) else self.speed, **tel})
