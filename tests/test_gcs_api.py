@@ -204,9 +204,12 @@ def test_foxglove_server_serves_the_same_telemetry():
             ws.close()
 
 
-def test_lidar_cloud_frames_are_the_world_points():
+def test_lidar_and_esdf_layers_show_the_world():
     """With the cloud layer on, a tab gets binary frames: float32 [t, n, xyz...] in the world frame, on the
-    world's surfaces (Open3D's distance to the world's triangles)."""
+    world's surfaces; the ESDF slice (at 1 m while the vehicle stands on its pad) matches the distance to the
+    world's triangles within the map's resolution. Reference: Open3D's distance queries on the world's meshes."""
+    import base64
+
     from cufund.worlds import builtin
 
     o3d = pytest.importorskip("open3d")
@@ -217,17 +220,21 @@ def test_lidar_cloud_frames_are_the_world_points():
         scene.add_triangles(o3d.core.Tensor(obj.vertices.astype(np.float32)),
                             o3d.core.Tensor(obj.triangles.astype(np.uint32)))
     with GcsProcess("vehicle", "--speed", "inf", "--set", "sensors.lidar.kind=mid360",
-                    "--set", "sensors.lidar.T_BL.p=[0,0,0.08]") as g:
+                    "--set", "sensors.lidar.T_BL.p=[0,0,0.08]", "--set", "mapper.kind=esdf",
+                    "--set", "mapper.resolution=0.1", "--set", "mapper.size=[6,6,3]",
+                    "--set", "mapper.origin_W=[-5,-3,-0.5]", "--set", "mapper.max_range=10") as g:
         ws = ws_connect(g)
         try:
             receive(ws, "hello")
             ws.send(json.dumps({"type": "layers", "cloud": True}))
-            ws.settimeout(20)
-            frames = []
-            while len(frames) < 2:
+            ws.settimeout(30)
+            frames, slices = [], []
+            while len(frames) < 2 or len(slices) < 3:
                 raw = ws.recv()
                 if isinstance(raw, bytes):
                     frames.append(np.frombuffer(raw, dtype="<f4"))
+                elif json.loads(raw)["type"] == "esdf":
+                    slices.append(json.loads(raw))
         finally:
             ws.close()
     for f in frames:
@@ -237,7 +244,15 @@ def test_lidar_cloud_frames_are_the_world_points():
         assert np.all(pts >= lo - 0.02) and np.all(pts <= hi + 0.02)
         assert scene.compute_distance(o3d.core.Tensor(pts)).numpy().max() < 0.01  # on the world's triangles
     assert frames[1][0] > frames[0][0]  # successive frames, newer stamps
-
+    m = slices[-1]
+    n = m["n"]
+    assert m["z"] == 1.0 and m["x"] == [-5.0, 1.0] and m["y"] == [-3.0, 3.0]
+    d = np.frombuffer(base64.b64decode(m["d"]), dtype="<f4").reshape(n, n)
+    X, Y = np.meshgrid(np.linspace(*m["x"], n), np.linspace(*m["y"], n), indexing="xy")
+    q = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, m["z"])]).astype(np.float32)
+    truth = scene.compute_distance(o3d.core.Tensor(q)).numpy().reshape(n, n)
+    assert (truth < 1.0).sum() > 500  # the slice crosses walls and frames
+    assert np.abs(d - truth).max() < 0.15  # resolution 0.1 m
 
 def test_a_tab_that_acknowledges_gets_no_more_than_it_has_read(gcs):
     """Flow control: once a tab says what it has read ({"type": "seen"}), only a few telemetry messages are

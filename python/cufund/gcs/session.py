@@ -32,6 +32,8 @@ PATH_STEP_M = 0.02
 """The flown path keeps a point when the vehicle moved this far [m]."""
 ESDF_CELLS = 64
 """ESDF slice resolution (cells per side)."""
+GROUND_SLICE_M = 1.0
+"""Height of the ESDF slice while the vehicle is below it [m]."""
 
 
 def jsonable(value: Any) -> Any:
@@ -237,8 +239,9 @@ class GcsSession:
         return self.cloud
 
     def sample_esdf(self, *_: Any) -> None:
-        """Samples the mapper's distance field on a horizontal slice at the vehicle's height (called by the
-        live run in its simulation thread, where the map is not being updated)."""
+        """Samples the mapper's distance field on a horizontal slice at the vehicle's height (:data:`GROUND_SLICE_M`
+        while it is lower: a slice through the floor shows nothing) — called by the live run in its simulation
+        thread, where the map is not being updated."""
         msg = self.live.latest(Topics.ESDF_MAP)
         if msg is None or msg.map is None or (msg.t, msg.frames) == self._esdf_key:
             return
@@ -248,7 +251,7 @@ class GcsSession:
         lo = np.asarray(params.origin_W, dtype=float)
         hi = lo + np.asarray(params.size, dtype=float)
         p = position_of(self.telemetry)
-        z = float(np.clip(p[2] if p is not None else 1.0, lo[2], hi[2]))
+        z = float(np.clip(p[2] if p is not None and p[2] > GROUND_SLICE_M else GROUND_SLICE_M, lo[2], hi[2]))
         xs = np.linspace(lo[0], hi[0], ESDF_CELLS)
         ys = np.linspace(lo[1], hi[1], ESDF_CELLS)
         X, Y = np.meshgrid(xs, ys, indexing="xy")
