@@ -30,6 +30,7 @@ __all__ = [
     "e7_to_deg",
     "enu_to_ned",
     "flu_to_frd",
+    "flu_to_frd_xyz",
     "frd_to_flu",
     "m_s2_to_mg",
     "m_s_to_cm_s",
@@ -85,6 +86,11 @@ def ned_to_enu(v_NED: np.ndarray) -> np.ndarray:
 def flu_to_frd(v_FLU: np.ndarray) -> np.ndarray:
     """Body vectors (..., 3) FLU -> FRD: (x, y, z) -> (x, -y, -z). Specific force, magnetic field, velocity."""
     return _vec3(v_FLU, "v_FLU") * _FLIP_YZ
+
+
+def flu_to_frd_xyz(x: float, y: float, z: float) -> tuple[float, float, float]:
+    """:func:`flu_to_frd` of one vector as three plain floats (the per-period hot path, no arrays)."""
+    return x, -y, -z
 
 
 def frd_to_flu(v_FRD: np.ndarray) -> np.ndarray:

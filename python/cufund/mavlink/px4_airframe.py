@@ -80,11 +80,10 @@ class Px4Airframe:
         non-finite output (PX4's "disabled") commands the disarmed speed."""
         if not armed:
             return np.array(self.zero_position_disarmed)
-        out = np.empty(4)
-        for i in range(4):  # four channels: plain floats beat numpy's per-call overhead here
-            w = (float(controls[i]) + self.input_offset[i]) * self.input_scaling[i] + self.zero_position_armed[i]
-            out[i] = w if math.isfinite(w) else self.zero_position_disarmed[i]
-        return out
+        # four channels: plain floats beat numpy's per-call overhead here
+        w = [(float(u) + off) * scale + zero for u, off, scale, zero in
+             zip(controls[:4], self.input_offset, self.input_scaling, self.zero_position_armed)]
+        return np.array([x if math.isfinite(x) else z for x, z in zip(w, self.zero_position_disarmed)])
 
     def rotor_of_output(self, params: QuadrotorParams) -> np.ndarray:
         """(4,) int: the cufund rotor index driven by PX4 motor output i (0-based), matched by direction from

@@ -45,6 +45,7 @@ class TcpServerLink:
         self._server.listen(1)
         self.host, self.port = host, self._server.getsockname()[1]
         self._conn: socket.socket | None = None
+        self._poll = select.poll()
 
     @property
     def connected(self) -> bool:
@@ -60,6 +61,7 @@ class TcpServerLink:
         conn, _ = self._server.accept()
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._conn = conn
+        self._poll.register(conn, select.POLLIN)
         return True
 
     def send(self, data: bytes) -> None:
@@ -74,11 +76,14 @@ class TcpServerLink:
     def recv(self, timeout: float) -> bytes | None:
         if self._conn is None:
             return b""
-        ready, _, _ = select.select([self._conn], [], [], max(timeout, 0.0))
-        if not ready:
+        # one poll object registered once (no select lists per call); a zero timeout reads what is waiting
+        # without polling at all
+        if timeout > 0.0 and not self._poll.poll(timeout * 1e3):
             return None
         try:
-            data = self._conn.recv(65536)
+            data = self._conn.recv(65536, socket.MSG_DONTWAIT)
+        except BlockingIOError:
+            return None
         except OSError:
             data = b""
         if not data:
@@ -91,6 +96,7 @@ class TcpServerLink:
 
     def _drop(self) -> None:
         if self._conn is not None:
+            self._poll.unregister(self._conn)
             self._conn.close()
             self._conn = None
 

@@ -32,6 +32,7 @@ from ..scenario import ScenarioConfig
 from ..scenario_build import build_simulation
 from ..simulator import RunStatus, SimulationResult
 from .frames import GeodeticOrigin
+from .hil_codec import FrameWriter, take_controls
 from .hil_messages import HilEncoder
 from .px4_airframe import Px4Airframe
 from .px4_links import GcsForward, Link, LinkClosed, TcpServerLink
@@ -156,14 +157,14 @@ class _Px4Port(Component):
     def step(self, t: float, bus: BusView) -> None:
         if not self._started:  # the run's first instant: nothing to PX4 yet
             self._started = True
-            bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand(t, self.bridge._command(t)))
+            bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand.trusted(t, self.bridge._command(t)))
             return
         latest = {}
         for k, sub in self._subs.items():
             msgs = sub.take()
             latest[k] = msgs[-1] if msgs else None
         speeds = self.bridge._exchange(t, latest, bus.latest(Topics.TRUTH_ODOMETRY))
-        bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand(t, speeds))
+        bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand.trusted(t, speeds))  # a read-only array
 
 
 class Px4SimulatorBridge:
@@ -196,10 +197,12 @@ class Px4SimulatorBridge:
         vehicle = self.simulator.vehicle.params
         self.airframe = airframe if airframe is not None else Px4Airframe.for_vehicle(vehicle)
         self._rotor_of_output = self.airframe.rotor_of_output(vehicle)
+        self._cmd_disarmed = self._in_rotor_order(np.asarray(self.airframe.zero_position_disarmed, dtype=float))
         self.link: Any = link if link is not None else TcpServerLink(host, 4560 + instance)
         self.gcs = gcs
         self.mav = mavlink.MAVLink(None, srcSystem=self.params.system_id, srcComponent=self.params.component_id)
         self.mav.robust_parsing = True
+        self.writer = FrameWriter(self.mav)
         self._rx = mavlink.MAVLink(None, srcSystem=0, srcComponent=0)
         self._rx.robust_parsing = True
         topics: dict[tuple[str, int], str] = {}
@@ -213,7 +216,7 @@ class Px4SimulatorBridge:
         self.origin = GeodeticOrigin.from_geo_point(
             self.config.sensors[sensor_instances(self.config, "gps")[0]].params.home)
         self._ids = sorted({sid for _, sid in topics}, reverse=True)  # instance 0 last: it closes the period
-        self.encoders = {sid: HilEncoder(self.mav, self.origin, np.asarray(q_BI.get(sid, (1.0, 0.0, 0.0, 0.0))), sid)
+        self.encoders = {sid: HilEncoder(self.writer, self.origin, np.asarray(q_BI.get(sid, (1.0, 0.0, 0.0, 0.0))), sid)
                          for sid in self._ids}
         self.port = _Px4Port(self, topics, self.params.hil_sensor_rate_hz)
         self.simulator.add(self.port)
@@ -226,7 +229,7 @@ class Px4SimulatorBridge:
     def _reset_link_state(self) -> None:
         self._got_controls = False
         self._controls_t = -math.inf
-        self._speeds_px4 = np.zeros(4)
+        self._cmd = self._cmd_disarmed
         self._hsq_interval_us: int | None = None
         self._hsq_next_us = 0
         self._next_heartbeat = -math.inf
@@ -250,7 +253,7 @@ class Px4SimulatorBridge:
         out = []
         if t >= self._next_heartbeat:
             self._next_heartbeat = t + p.heartbeat_period_s - 1e-9
-            out.append(self.mav.heartbeat_encode(MAV_TYPE_GENERIC, MAV_AUTOPILOT_INVALID, 0, 0, 0))
+            out.append(self.writer.heartbeat(MAV_TYPE_GENERIC, MAV_AUTOPILOT_INVALID, 0, 0, 0))
             self.stats["heartbeats_sent"] += 1
         for sid, encoder in self.encoders.items():
             fix = latest.get(("gps", sid))
@@ -264,13 +267,13 @@ class Px4SimulatorBridge:
                 self._hsq_next_us = time_usec + self._hsq_interval_us
             self.stats["hil_state_quaternion"] += 1
         for sid in self._ids:  # further instances only when something of theirs is new; instance 0 always, last
-            msg = self.encoders[sid].hil_sensor(time_usec, latest.get(("imu", sid)), latest.get(("magnetometer", sid)),
-                                                latest.get(("barometer", sid)))
-            if sid == 0 or msg.fields_updated:
-                out.append(msg)
+            frame, bits = self.encoders[sid].hil_sensor(time_usec, latest.get(("imu", sid)),
+                                                        latest.get(("magnetometer", sid)), latest.get(("barometer", sid)))
+            if sid == 0 or bits:
+                out.append(frame)
                 self.stats["hil_sensor"] += 1
         try:
-            self.link.send(b"".join(m.pack(self.mav) for m in out))
+            self.link.send(b"".join(out))
             self._receive(t)
             if self.gcs is not None:
                 from_gcs = self.gcs.poll()
@@ -318,6 +321,15 @@ class Px4SimulatorBridge:
 
     def _handle(self, data: bytes, t: float) -> bool:
         got = False
+        if not self._rx.buf_len():  # pymavlink holds no partial frame: controls at the front take the fast path
+            controls, data = take_controls(data)
+            for frame, u, mode in controls:
+                if self.gcs is not None:
+                    self.gcs.send(frame)
+                self._on_controls(u, mode, t)
+                got = True
+            if not data:
+                return got
         try:
             messages = self._rx.parse_buffer(data) or ()
         except (ValueError, TypeError, IndexError, struct.error, mavlink.MAVError):  # pymavlink's robust mode can still raise
@@ -328,7 +340,7 @@ class Px4SimulatorBridge:
             if self.gcs is not None and kind != "BAD_DATA":
                 self.gcs.send(bytes(msg.get_msgbuf()))
             if kind == "HIL_ACTUATOR_CONTROLS":
-                self._on_controls(msg, t)
+                self._on_controls(msg.controls[:4], msg.mode, t)
                 got = True
             elif kind == "HEARTBEAT":
                 self.stats["heartbeats_received"] += 1
@@ -339,10 +351,10 @@ class Px4SimulatorBridge:
                 self.stats["bad_packets"] += 1
         return got
 
-    def _on_controls(self, msg: Any, t: float) -> None:
-        controls = [min(max(u, -1.0), 1.0) if math.isfinite(u) else math.nan for u in msg.controls[:4]]
-        self.armed = bool(msg.mode & MAV_MODE_FLAG_SAFETY_ARMED)
-        self._speeds_px4 = self.airframe.rotor_speeds(controls, self.armed)
+    def _on_controls(self, u: Any, mode: int, t: float) -> None:
+        controls = [min(max(x, -1.0), 1.0) if math.isfinite(x) else math.nan for x in u]
+        self.armed = bool(mode & MAV_MODE_FLAG_SAFETY_ARMED)
+        self._cmd = self._in_rotor_order(self.airframe.rotor_speeds(controls, self.armed))
         self._controls_t = t
         self._got_controls = True
         self.stats["controls"] += 1
@@ -361,15 +373,19 @@ class Px4SimulatorBridge:
                 self._hsq_next_us = 0
                 result = MAV_RESULT_ACCEPTED
         ack = self.mav.command_ack_encode(msg.command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
-        self.link.send(ack.pack(self.mav))
+        self.link.send(self.writer.pack(ack))
 
-    def _command(self, t: float) -> np.ndarray:
-        """Rotor-speed commands in cufund's rotor order [rad/s] (disarmed speeds when the controls are stale)."""
-        speeds_px4 = self._speeds_px4 if t - self._controls_t <= self.params.stale_controls_s + 1e-9 else \
-            np.asarray(self.airframe.zero_position_disarmed)
+    def _in_rotor_order(self, speeds_px4: np.ndarray) -> np.ndarray:
+        """PX4 motor outputs -> cufund's rotor order, read-only (it goes into messages as it is)."""
         out = np.empty(4)
         out[self._rotor_of_output] = speeds_px4
+        out.setflags(write=False)
         return out
+
+    def _command(self, t: float) -> np.ndarray:
+        """Rotor-speed commands in cufund's rotor order [rad/s] (disarmed speeds when the controls are stale);
+        read-only."""
+        return self._cmd if t - self._controls_t <= self.params.stale_controls_s + 1e-9 else self._cmd_disarmed
 
     def _close(self, reason: str) -> None:
         self._closed = True

@@ -1,0 +1,123 @@
+"""The lockstep hot path's MAVLink 2 wire codec, by hand with :mod:`struct`: HIL_SENSOR, HIL_GPS and HEARTBEAT
+frames out, HIL_ACTUATOR_CONTROLS frames in. pymavlink builds a message object, a header object and a byte
+array per frame; at 250 round trips per simulated second (and thousands per wall second faster than real time)
+that is most of the bridge's cost. Everything else still goes through pymavlink.
+
+The bytes are pymavlink's own (tested byte for byte): the payload layout (``unpacker``) and CRC_EXTRA come from
+pymavlink's message classes, trailing zero bytes of the payload are trimmed as MAVLink 2 does, and the CRC is
+CRC-16/MCRF4XX over the frame after the magic byte, then CRC_EXTRA (``fastcrc``, which pymavlink uses too).
+Unsigned frames only: a signed outgoing link falls back to pymavlink, a signed incoming frame is left to it.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Any
+
+from fastcrc.crc16 import mcrf4xx
+from pymavlink.dialects.v20 import common as mavlink
+
+__all__ = ["MAVLINK2_MAGIC", "ControlsFrame", "FrameWriter", "take_controls"]
+
+MAVLINK2_MAGIC = 0xFD
+_HEADER = struct.Struct("<BBBBBBBHB")  # magic, len, incompat, compat, seq, sysid, compid, msgid low 16, high 8
+_CRC = struct.Struct("<H")
+_HEARTBEAT = mavlink.MAVLink_heartbeat_message
+_HIL_SENSOR = mavlink.MAVLink_hil_sensor_message
+_HIL_GPS = mavlink.MAVLink_hil_gps_message
+_CONTROLS = mavlink.MAVLink_hil_actuator_controls_message
+_CONTROLS_ID = _CONTROLS.id  # 93
+_CONTROLS_LEN = _CONTROLS.unpacker.size  # 81: time_usec, flags, controls[16], mode
+_CONTROLS_EXTRA = bytes((_CONTROLS.crc_extra,))
+_CONTROLS_UNPACK = struct.Struct("<8x8x4f48xB")  # controls[0..3] and mode; time_usec, flags, controls[4..] skipped
+_ZEROS = bytes(_CONTROLS_LEN)
+
+
+def _trimmed_len(payload: bytes) -> int:
+    n = len(payload)
+    while n > 1 and payload[n - 1] == 0:  # MAVLink 2 drops trailing zeros (at least one byte stays)
+        n -= 1
+    return n
+
+
+class FrameWriter:
+    """Packs outgoing frames with the source ids and sequence counter of ``mav`` (a pymavlink ``MAVLink``),
+    so the hand-packed frames and those pymavlink packs (:meth:`pack`) share one sequence."""
+
+    def __init__(self, mav: Any) -> None:
+        self.mav = mav
+
+    def _frame(self, msg_id: int, crc_extra: int, payload: bytes) -> bytes:
+        mav = self.mav
+        n = _trimmed_len(payload)
+        seq = mav.seq
+        mav.seq = (seq + 1) & 0xFF
+        body = _HEADER.pack(MAVLINK2_MAGIC, n, 0, 0, seq, mav.srcSystem, mav.srcComponent, msg_id & 0xFFFF,
+                            msg_id >> 16) + payload[:n]
+        crc = mcrf4xx(bytes((crc_extra,)), mcrf4xx(body[1:], 0xFFFF))
+        return body + _CRC.pack(crc)
+
+    def pack(self, msg: Any) -> bytes:
+        """Any pymavlink message, packed by pymavlink at the next sequence number."""
+        out = msg.pack(self.mav)
+        self.mav.seq = (self.mav.seq + 1) & 0xFF
+        return out
+
+    @property
+    def fast(self) -> bool:
+        """False when the link signs its frames (then every frame goes through pymavlink)."""
+        return not self.mav.signing.sign_outgoing
+
+    def heartbeat(self, type_: int, autopilot: int, base_mode: int, custom_mode: int, system_status: int) -> bytes:
+        if not self.fast:
+            return self.pack(self.mav.heartbeat_encode(type_, autopilot, base_mode, custom_mode, system_status))
+        payload = _HEARTBEAT.unpacker.pack(custom_mode, type_, autopilot, base_mode, system_status, 3)
+        return self._frame(_HEARTBEAT.id, _HEARTBEAT.crc_extra, payload)
+
+    def hil_sensor(self, time_usec: int, xacc: float, yacc: float, zacc: float, xgyro: float, ygyro: float,
+                   zgyro: float, xmag: float, ymag: float, zmag: float, abs_pressure: float, diff_pressure: float,
+                   pressure_alt: float, temperature: float, fields_updated: int, id_: int) -> bytes:
+        if not self.fast:
+            return self.pack(self.mav.hil_sensor_encode(
+                time_usec, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag, abs_pressure, diff_pressure,
+                pressure_alt, temperature, fields_updated, id_))
+        payload = _HIL_SENSOR.unpacker.pack(time_usec, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag,
+                                            abs_pressure, diff_pressure, pressure_alt, temperature, fields_updated,
+                                            id_)
+        return self._frame(_HIL_SENSOR.id, _HIL_SENSOR.crc_extra, payload)
+
+    def hil_gps(self, time_usec: int, fix_type: int, lat: int, lon: int, alt: int, eph: int, epv: int, vel: int,
+                vn: int, ve: int, vd: int, cog: int, satellites_visible: int, id_: int, yaw: int = 0) -> bytes:
+        if not self.fast:
+            return self.pack(self.mav.hil_gps_encode(time_usec, fix_type, lat, lon, alt, eph, epv, vel, vn, ve, vd,
+                                                     cog, satellites_visible, id_, yaw))
+        payload = _HIL_GPS.unpacker.pack(time_usec, lat, lon, alt, eph, epv, vel, vn, ve, vd, cog, fix_type,
+                                         satellites_visible, id_, yaw)
+        return self._frame(_HIL_GPS.id, _HIL_GPS.crc_extra, payload)
+
+
+ControlsFrame = tuple[bytes, tuple[float, float, float, float], int]
+"""One HIL_ACTUATOR_CONTROLS frame taken off the wire: (its bytes, controls[0..3], mode)."""
+
+
+def take_controls(data: bytes) -> tuple[list[ControlsFrame], bytes]:
+    """Splits the leading whole, unsigned, CRC-valid MAVLink 2 HIL_ACTUATOR_CONTROLS frames off ``data``:
+    (those frames, the rest). The rest starts at the first byte that is anything else (another message, a
+    MAVLink 1 or signed frame, a partial frame, a bad CRC, noise) and is for pymavlink's parser."""
+    frames: list[ControlsFrame] = []
+    i, n = 0, len(data)
+    while n - i >= 12 and data[i] == MAVLINK2_MAGIC and data[i + 2] == 0 and data[i + 7] == _CONTROLS_ID and \
+            data[i + 8] == 0 and data[i + 9] == 0:
+        plen = data[i + 1]
+        end = i + 10 + plen
+        if plen > _CONTROLS_LEN or plen == 0 or end + 2 > n:
+            break
+        if mcrf4xx(_CONTROLS_EXTRA, mcrf4xx(data[i + 1:end], 0xFFFF)) != data[end] | data[end + 1] << 8:
+            break
+        payload = data[i + 10:end]
+        if plen < _CONTROLS_LEN:
+            payload += _ZEROS[plen:]
+        c0, c1, c2, c3, mode = _CONTROLS_UNPACK.unpack(payload)
+        frames.append((data[i:end + 2], (c0, c1, c2, c3), mode))
+        i = end + 2
+    return frames, data[i:] if i else data
