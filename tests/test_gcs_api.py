@@ -277,7 +277,7 @@ def test_a_tab_that_acknowledges_gets_no_more_than_it_has_read(gcs):
 
 
 def test_tunnel_start_restarts_the_run_and_every_tab_gets_the_new_scene():
-    with GcsProcess("vehicle", "--speed", "inf") as g:
+    with GcsProcess("vehicle", "--speed", "inf", "--set", "planner.auto_disarm_s=0") as g:  # not for the tunnel
         a, b = ws_connect(g), ws_connect(g)
         try:
             assert receive(a, "hello")["scene"]["regions"] == []
@@ -299,7 +299,7 @@ def test_tunnel_start_restarts_the_run_and_every_tab_gets_the_new_scene():
             assert ack["result"] == "failed" and "nope" in ack["message"]
             # the tunnel run goes on: its mission's state machine shows in the event log
             assert receive(b, "events", timeout=30, pred=lambda m: any(
-                e["kind"] == "mission" and e["message"].startswith("mission takeoff") for e in m["events"]))
+                e["kind"] == "mission" and e["message"].startswith("mission initialise") for e in m["events"]))
         finally:
             a.close()
             b.close()

@@ -19,8 +19,8 @@ without it):
   ``error`` reply; the run goes on.
 
 Commands the ground station handles itself (the rest go to the vehicle's commander): ``sim_pause``,
-``sim_resume``, ``sim_speed {speed}`` (0.1-10, or "inf"), ``sim_restart {scenario}`` (a new live run; every tab
-gets its scene), ``tunnel_start`` (restart with the ``tunnel`` scenario), ``mission_preview {formula, regions}``.
+``sim_resume``, ``sim_speed {speed}`` (0.1-10, or "inf"), ``sim_restart {scenario}`` (a new live run, with the
+command line's overrides only if it is the command line's scenario; every tab gets its scene), ``tunnel_start`` (restart with the ``tunnel`` scenario), ``mission_preview {formula, regions}``.
 """
 
 from __future__ import annotations
@@ -95,7 +95,7 @@ class GcsServer:
                  foxglove: Any = None) -> None:
         if not (isinstance(telemetry_hz, (int, float)) and 1.0 <= telemetry_hz <= 200.0):
             raise ValueError(f"telemetry_hz must be a number in [1, 200], got {telemetry_hz!r}")
-        self.scenario = scenario
+        self.scenario = self.first_scenario = scenario
         self.overrides = tuple(overrides)
         self.speed = parse_speed(speed)
         self.host = host
@@ -272,7 +272,9 @@ class GcsServer:
         self._restarting = True
         loop = asyncio.get_running_loop()
         try:
-            live = await loop.run_in_executor(None, self.live_factory, scenario, self.overrides, self.speed)
+            # the command line's --set overrides belong to its scenario, not to another one
+            overrides = self.overrides if scenario == self.first_scenario else ()
+            live = await loop.run_in_executor(None, self.live_factory, scenario, overrides, self.speed)
         except Exception as exc:
             self._restarting = False
             raise ValueError(f"cannot start scenario {scenario!r}: {exc}") from exc
