@@ -6,11 +6,12 @@ cufund.sensors.geodesy, not against the endpoint's frames module."""
 from __future__ import annotations
 
 import math
+import socket
 import time
 
 import numpy as np
 import pytest
-from cufund.mavlink.link import LinkAddress
+from cufund.mavlink.link import LinkAddress, UdpLink
 from cufund.mavlink.vehicle_endpoint import VehicleEndpoint
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla, lla_to_enu
 from mavlink_support import Gcs, free_port, vehicle
@@ -319,3 +320,17 @@ def test_link_urls_and_binding():
         VehicleEndpoint(object(), ["udpout:127.0.0.1:14550"], system_id=0)
     with vehicle() as (_live, ep, (_g,)):
         assert ep.links[0].local_address[0] == "127.0.0.1"
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        probe.connect(("192.0.2.77", 14550))  # TEST-NET-1: what the kernel would send from (no packet leaves)
+        route = probe.getsockname()[0]
+    except OSError:
+        route = None  # no route off this host: nothing to compare
+    finally:
+        probe.close()
+    if route is not None:
+        link = UdpLink("udpout:192.0.2.77:14550")
+        try:  # a udpout to another host listens on its route's interface, not on every interface
+            assert link.local_address[0] == route != "0.0.0.0"
+        finally:
+            link.close()

@@ -2,7 +2,7 @@
 
 One non-blocking socket and one pymavlink codec per link. Parsing never raises: malformed bytes, bad CRCs and
 unknown message ids are counted in :attr:`UdpLink.stats` and dropped. Sockets bind 127.0.0.1 unless the URL names
-another address (a ``udpout`` to a non-loopback host binds the wildcard, the only way to reach it).
+another address (a ``udpout`` to another host binds the one interface its route leaves by).
 """
 
 from __future__ import annotations
@@ -57,6 +57,21 @@ def _is_loopback(host: str) -> bool:
         return False
 
 
+def _source_address(peer: tuple[str, int]) -> str:
+    """The local address this host sends to ``peer`` from (its route's interface; 127.0.0.1 for loopback), so a
+    ``udpout`` socket listens on that one interface, never on every one."""
+    if _is_loopback(peer[0]):
+        return "127.0.0.1"
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        probe.connect(peer)  # UDP: no packet is sent, the kernel only picks the route
+        return probe.getsockname()[0]
+    except OSError:  # no route (yet): the wildcard is the only way to be reachable when one appears
+        return ""
+    finally:
+        probe.close()
+
+
 @dataclass
 class LinkStats:
     """Counters of one link (read by tests and the endpoint's summary)."""
@@ -86,8 +101,8 @@ class UdpLink:
             self.sock.bind((a.host, a.port))
             self.peer: tuple[str, int] | None = None
         else:
-            self.sock.bind(("127.0.0.1" if _is_loopback(a.host) else "", 0))
             self.peer = (socket.gethostbyname(a.host), a.port)
+            self.sock.bind((_source_address(self.peer), 0))
         self.sock.setblocking(False)
 
     @property
