@@ -56,6 +56,15 @@ def test_garbage_bad_crc_unknown_ids_and_nonsense_values():
         g.mav.mission_request_int_send(1, 1, 65000, 0)
         assert g.recv("MISSION_ACK").type == M.MAV_MISSION_INVALID_SEQUENCE
         g.mav.mission_item_int_send(1, 1, 3, 0, 16, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0)  # no upload in progress: ignored
+        for send_item in (  # a NaN latitude (legacy float item), a latitude beyond the pole: refused by name
+                lambda: g.mav.mission_item_send(1, 1, 0, M.MAV_FRAME_GLOBAL, 16, 0, 1, 0, 0, 0, 0, nan, 114.2, 40, 0),
+                lambda: g.mav.mission_item_int_send(1, 1, 0, M.MAV_FRAME_GLOBAL_INT, 16, 0, 1, 0, 0, 0, 0,
+                                                    95 * 10**7, 1142068000, 40.0, 0)):
+            g.mav.mission_count_send(1, 1, 1, 0)
+            assert g.recv("MISSION_REQUEST_INT").seq == 0
+            send_item()
+            assert g.recv("MISSION_ACK").type == M.MAV_MISSION_INVALID_PARAM5_X
+        assert live.telemetry()["mission"]["count"] == 0
         g.mav.set_position_target_local_ned_send(0, 1, 1, M.MAV_FRAME_LOCAL_NED, 0x9F8, nan, 0, 0, 0, 0, 0, 0, 0, 0,
                                                  0, 0)
         g.mav.set_attitude_target_send(0, 1, 1, 0, [0, 0, 0, 0], 0, 0, 0, 2.0)
@@ -86,6 +95,7 @@ def test_vanished_client_mid_mission_holds_then_lands():
             time.sleep(0.05)
         assert ep.link_lost
         modes = []
+        end = time.monotonic() + 90  # hold, COM_DL_LOSS_T, descent: ~10 s simulated, slower on a loaded machine
         while time.monotonic() < end and not live.telemetry()["landed"]:
             mode = live.telemetry()["mode"]
             if not modes or modes[-1] != mode:
@@ -114,19 +124,20 @@ def test_flood_of_1000_command_long_per_second():
                 n += m.command == M.MAV_CMD_COMPONENT_ARM_DISARM
             return n
 
-        while time.monotonic() - t0 < 2.0:  # 1000 per second in bursts of 10 every 10 ms
+        # 2000 commands, at most 1000 per second, in back-to-back bursts of 10 (a loaded machine may send them more
+        # slowly on average; each burst still arrives at once)
+        while sent < 2000:
             for _ in range(10):
                 g.mav.command_long_send(1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
                 sent += 1
             acks += count_acks()
             time.sleep(max(0.0, t0 + sent / 1000.0 - time.monotonic()))
-        end = time.monotonic() + 3.0
+        end = time.monotonic() + 30.0  # generous: the acks come from the commander's steps
         while acks < sent and time.monotonic() < end:
             g.heartbeat()
             acks += count_acks()
             time.sleep(0.01)
         remove()
-        assert sent >= 1900
         assert acks >= 0.95 * sent  # loopback UDP: (nearly) every command answered
         assert ep.stats["handler_errors"] == 0
         assert max(abs(a - alt[0]) for a in alt) < 0.05  # the hover did not notice
@@ -158,6 +169,9 @@ def test_serve_cli_usage_errors_exit_2(capsys):
     assert cli_main(["serve", "no_such_scenario", "--api", "none", "--duration", "1"]) == 2
     assert "no_such_scenario" in capsys.readouterr().err
     assert cli_main(["serve", "--mavlink", "none", "--api", "none"]) == 2
+    for option in ("--telemetry-hz", "--heartbeat-timeout", "--link-loss-timeout"):  # named, before any run
+        assert cli_main(["serve", option, "nan", "--api", "none"]) == 2
+        assert f"{option} must be a number > 0" in capsys.readouterr().err
 
 
 def test_serve_cli_sets_the_link_loss_timeout_and_exits_0():

@@ -41,7 +41,7 @@ class MissionItem:
             global_frame = m.frame in (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
                                        mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT)
             scale = 1e7 if global_frame else 1e4
-            x, y = round(m.x * scale), round(m.y * scale)
+            x, y = _scaled_int32(m.x, scale, "x"), _scaled_int32(m.y, scale, "y")
             frame = {mavlink.MAV_FRAME_GLOBAL: mavlink.MAV_FRAME_GLOBAL_INT,
                      mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT: mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
                      mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT: mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT}.get(m.frame,
@@ -55,6 +55,23 @@ class MissionItem:
         return mav.mission_item_int_encode(target_system, target_component, self.seq, self.frame, self.command,
                                            int(current), self.autocontinue, self.param1, self.param2, self.param3,
                                            self.param4, self.x, self.y, self.z, MISSION)
+
+
+class BadItem(ValueError):
+    """An item whose field cannot be stored (``result``: the MAV_MISSION_RESULT that names it)."""
+
+    def __init__(self, result: int, text: str) -> None:
+        super().__init__(text)
+        self.result = result
+
+
+def _scaled_int32(v: float, scale: float, name: str) -> int:
+    """A legacy MISSION_ITEM's float x/y as MISSION_ITEM_INT's int32 (degE7 or m*1e4)."""
+    scaled = float(v) * scale
+    if not (abs(scaled) <= 2**31 - 1):  # NaN too
+        result = mavlink.MAV_MISSION_INVALID_PARAM5_X if name == "x" else mavlink.MAV_MISSION_INVALID_PARAM6_Y
+        raise BadItem(result, f"MISSION_ITEM {name} = {v} does not fit MISSION_ITEM_INT")
+    return round(scaled)
 
 
 @dataclass
@@ -123,7 +140,13 @@ class MissionProtocol:
                 if m.seq > len(up.items):
                     self._request(up, now)  # out of sequence: ask again for the one we need
                 return
-            up.items.append(MissionItem.from_message(m))
+            try:
+                up.items.append(MissionItem.from_message(m))
+            except BadItem as e:  # the transfer ends with the reason, as PX4's does
+                self._upload = None
+                self.uploads_failed += 1
+                self._ack(up.send, up.target, e.result)
+                return
             up.retries = 0
             if len(up.items) < up.count:
                 self._request(up, now)

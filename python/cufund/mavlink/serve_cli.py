@@ -49,10 +49,11 @@ def run(args: argparse.Namespace) -> int:
     except ValueError:
         print(f"cufund serve: --speed must be a number > 0, got {args.speed!r}", file=sys.stderr)
         return 2
-    if args.link_loss_timeout is not None and not (math.isfinite(args.link_loss_timeout)
-                                                   and args.link_loss_timeout > 0):
-        print("cufund serve: --link-loss-timeout must be > 0 [s]", file=sys.stderr)
-        return 2
+    for option, value in (("--link-loss-timeout", args.link_loss_timeout), ("--heartbeat-timeout",
+                          args.heartbeat_timeout), ("--telemetry-hz", args.telemetry_hz)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            print(f"cufund serve: {option} must be a number > 0, got {value!r}", file=sys.stderr)
+            return 2
     urls = [u for u in (args.mavlink, args.api) if u and u.lower() != "none"]
     if not urls:
         print("cufund serve: give at least one of --mavlink and --api", file=sys.stderr)

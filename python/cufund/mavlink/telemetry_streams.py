@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
+from ..control.rotations import yaw_of
 from . import frames
 from .px4_modes import heartbeat_mode
 
@@ -101,9 +102,7 @@ class VehicleSnapshot:
 
 def yaw_ned(s: VehicleSnapshot) -> float:
     """NED heading [rad] of the body x axis."""
-    w, x, y, z = s.q_WB
-    yaw_enu = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return float(frames.yaw_enu_to_ned(yaw_enu))
+    return float(frames.yaw_enu_to_ned(yaw_of(s.q_WB)))
 
 
 def landed_state(s: VehicleSnapshot) -> int:

@@ -26,6 +26,7 @@ import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 from typing_extensions import Self
 
+from ..control.rotations import yaw_of
 from . import command_protocol as cp
 from . import frames
 from . import telemetry_streams as ts
@@ -273,7 +274,7 @@ class VehicleEndpoint:
                 else:
                     s = self._snap or self._snapshot()
                     cmd = cp.position_target(msg.type_mask, msg.coordinate_frame, np.array([msg.x, msg.y, msg.z]),
-                                             np.array([msg.vx, msg.vy, msg.vz]), msg.yaw, s.p_W, _yaw_W(s))
+                                             np.array([msg.vx, msg.vy, msg.vz]), msg.yaw, s.p_W, yaw_of(s.q_WB))
             except cp.Refused:
                 self.stats["setpoints_refused"] += 1
                 return
@@ -344,7 +345,7 @@ class VehicleEndpoint:
             elif c == mavlink.MAV_CMD_DO_PAUSE_CONTINUE:
                 self._forward(link, msg, c, {"command": "mission_start"})
             elif c == mavlink.MAV_CMD_DO_REPOSITION:
-                if is_int and frame not in _GLOBAL_FRAMES and frame != mavlink.MAV_FRAME_GLOBAL_INT:
+                if is_int and frame not in _GLOBAL_FRAMES:
                     raise cp.Refused(mavlink.MAV_RESULT_UNSUPPORTED, f"reposition frame {frame} not supported")
                 lat_ok = not (is_int and (x == y == 0 or x == _INT32_UNSET or y == _INT32_UNSET))
                 self._forward(link, msg, c, cp.reposition(lat if lat_ok else math.nan, lon if lat_ok else math.nan,
@@ -470,6 +471,10 @@ class VehicleEndpoint:
             if it.command not in _NAV_COMMANDS:
                 continue
             if it.frame in (mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
+                if abs(it.x) > 90 * 10**7:
+                    return mavlink.MAV_MISSION_INVALID_PARAM5_X  # latitude beyond a pole
+                if abs(it.y) > 180 * 10**7:
+                    return mavlink.MAV_MISSION_INVALID_PARAM6_Y
                 amsl = it.z + (home_amsl if it.frame in _RELATIVE_FRAMES else 0.0)
                 p = self.origin.lla_to_enu(np.array([frames.e7_to_deg(it.x), frames.e7_to_deg(it.y), amsl]))
             elif it.frame == mavlink.MAV_FRAME_LOCAL_NED:
@@ -562,8 +567,3 @@ def _max_thrust_of(run: Any) -> float:
     """Collective thrust at full rotor speed [N] of the run's vehicle (SET_ATTITUDE_TARGET's thrust 1)."""
     vp = run.built.context.vehicle
     return 4.0 * float(vp.k_f) * float(vp.rotor_speed_max) ** 2
-
-
-def _yaw_W(s: ts.VehicleSnapshot) -> float:
-    w, x, y, z = s.q_WB
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
