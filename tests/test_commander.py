@@ -135,7 +135,9 @@ def test_rtl_climbs_returns_and_lands_at_home():
     sim.advance_to(sim.t + 14.0)
     st = sim.result().states
     m = st["t"] >= t0
-    assert st["p_W"][m][:, 2].max() > 2.4  # climbed to the return height first
+    p_rtl = st["p_W"][m]
+    up = int(np.argmax(p_rtl[:, 2] > 2.4))
+    assert p_rtl[up, 2] > 2.4 and p_rtl[up, 0] > 1.8  # climbed to the return height before flying home
     assert not cmd.armed and _p(sim)[2] < 0.02 and np.linalg.norm(_p(sim)[:2]) < 0.1
 
 
