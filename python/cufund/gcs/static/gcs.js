@@ -355,7 +355,8 @@
       for (const t of m.history || []) addPlot(t);
       $("events").innerHTML = ""; stats.events = [];
       addEvents(m.events || []);
-      if (m.esdf) onText(m.esdf);
+      cloudGeom.setDrawRange(0, 0);  // a new run (restart) has neither the old cloud nor the old map
+      if (m.esdf) onText(m.esdf); else if (layer.esdf) { viewer.delete_path(root.concat(["esdf"])); delete layer.esdf; }
       if (m.telemetry && m.telemetry.p_W) { stats.lastTelemetry = m.telemetry; showTelemetry(m.telemetry); placeVehicle(m.telemetry); }
     } else if (m.type === "events") {
       addEvents(m.events);
