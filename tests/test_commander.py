@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as hs
 from cufund.config import ConfigError
+from cufund.messages import Topics
 from cufund.missions import CommandAck, Commander, parse_command
 from cufund.scenario import ScenarioConfig
 from cufund.scenario_build import build_simulation, run_scenario
+from hypothesis import given, settings
+from hypothesis import strategies as hs
 
 
 def _flight(**planner):
@@ -173,8 +174,10 @@ def test_live_controller_switch_without_a_jump():
     t0 = sim.t
     assert cmd.apply({"command": "controller", "kind": "geometric"}).result == "accepted"
     sim.advance_to(sim.t + 3.0)
+    assert sim.bus.latest(Topics.RATE_SETPOINT).t < t0 + 0.01  # the pid chain stood down: geometric flew
     assert cmd.apply({"command": "controller", "kind": "pid"}).result == "accepted"
     sim.advance_to(sim.t + 3.0)
+    assert sim.bus.latest(Topics.RATE_SETPOINT).t > sim.t - 0.01  # and flies again
     st = sim.result().states
     m = st["t"] >= t0
     assert np.max(np.linalg.norm(st["p_W"][m] - [0.0, 0.0, 1.5], axis=1)) < 0.05
