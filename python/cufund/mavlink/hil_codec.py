@@ -31,6 +31,7 @@ _CONTROLS_LEN = _CONTROLS.unpacker.size  # 81: time_usec, flags, controls[16], m
 _CONTROLS_EXTRA = bytes((_CONTROLS.crc_extra,))
 _CONTROLS_UNPACK = struct.Struct("<8x8x4f48xB")  # controls[0..3] and mode; time_usec, flags, controls[4..] skipped
 _ZEROS = bytes(_CONTROLS_LEN)
+_EXTRA = {m.id: bytes((m.crc_extra,)) for m in (_HEARTBEAT, _HIL_SENSOR, _HIL_GPS)}  # CRC_EXTRA, precomputed
 
 
 def _trimmed_len(payload: bytes) -> int:
@@ -47,15 +48,15 @@ class FrameWriter:
     def __init__(self, mav: Any) -> None:
         self.mav = mav
 
-    def _frame(self, msg_id: int, crc_extra: int, payload: bytes) -> bytes:
+    def _frame(self, msg: type, payload: bytes) -> bytes:
         mav = self.mav
         n = _trimmed_len(payload)
         seq = mav.seq
         mav.seq = (seq + 1) & 0xFF
+        msg_id = msg.id
         body = _HEADER.pack(MAVLINK2_MAGIC, n, 0, 0, seq, mav.srcSystem, mav.srcComponent, msg_id & 0xFFFF,
                             msg_id >> 16) + payload[:n]
-        crc = mcrf4xx(bytes((crc_extra,)), mcrf4xx(body[1:], 0xFFFF))
-        return body + _CRC.pack(crc)
+        return body + _CRC.pack(mcrf4xx(_EXTRA[msg_id], mcrf4xx(body[1:], 0xFFFF)))
 
     def pack(self, msg: Any) -> bytes:
         """Any pymavlink message, packed by pymavlink at the next sequence number."""
@@ -72,7 +73,7 @@ class FrameWriter:
         if not self.fast:
             return self.pack(self.mav.heartbeat_encode(type_, autopilot, base_mode, custom_mode, system_status))
         payload = _HEARTBEAT.unpacker.pack(custom_mode, type_, autopilot, base_mode, system_status, 3)
-        return self._frame(_HEARTBEAT.id, _HEARTBEAT.crc_extra, payload)
+        return self._frame(_HEARTBEAT, payload)
 
     def hil_sensor(self, time_usec: int, xacc: float, yacc: float, zacc: float, xgyro: float, ygyro: float,
                    zgyro: float, xmag: float, ymag: float, zmag: float, abs_pressure: float, diff_pressure: float,
@@ -84,7 +85,7 @@ class FrameWriter:
         payload = _HIL_SENSOR.unpacker.pack(time_usec, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag,
                                             abs_pressure, diff_pressure, pressure_alt, temperature, fields_updated,
                                             id_)
-        return self._frame(_HIL_SENSOR.id, _HIL_SENSOR.crc_extra, payload)
+        return self._frame(_HIL_SENSOR, payload)
 
     def hil_gps(self, time_usec: int, fix_type: int, lat: int, lon: int, alt: int, eph: int, epv: int, vel: int,
                 vn: int, ve: int, vd: int, cog: int, satellites_visible: int, id_: int, yaw: int = 0) -> bytes:
@@ -93,7 +94,7 @@ class FrameWriter:
                                                      cog, satellites_visible, id_, yaw))
         payload = _HIL_GPS.unpacker.pack(time_usec, lat, lon, alt, eph, epv, vel, vn, ve, vd, cog, fix_type,
                                          satellites_visible, id_, yaw)
-        return self._frame(_HIL_GPS.id, _HIL_GPS.crc_extra, payload)
+        return self._frame(_HIL_GPS, payload)
 
 
 ControlsFrame = tuple[bytes, tuple[float, float, float, float], int]

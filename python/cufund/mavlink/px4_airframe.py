@@ -14,6 +14,7 @@ both vehicles' geometry, so a mismatch is an error, never a silently swapped mot
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,12 +79,15 @@ class Px4Airframe:
     def rotor_speeds(self, controls: np.ndarray, armed: bool) -> np.ndarray:
         """Rotor-speed commands [rad/s] per PX4 motor output (4,) from outputs ``controls[0..3]``; a
         non-finite output (PX4's "disabled") commands the disarmed speed."""
+        return np.array(self.rotor_speed_list(controls, armed))
+
+    def rotor_speed_list(self, controls: Sequence[float], armed: bool) -> list[float]:
+        """:meth:`rotor_speeds` as a list of 4 plain floats (four channels: no numpy overhead per call)."""
         if not armed:
-            return np.array(self.zero_position_disarmed)
-        # four channels: plain floats beat numpy's per-call overhead here
+            return list(self.zero_position_disarmed)
         w = [(float(u) + off) * scale + zero for u, off, scale, zero in
              zip(controls[:4], self.input_offset, self.input_scaling, self.zero_position_armed)]
-        return np.array([x if math.isfinite(x) else z for x, z in zip(w, self.zero_position_disarmed)])
+        return [x if math.isfinite(x) else z for x, z in zip(w, self.zero_position_disarmed)]
 
     def rotor_of_output(self, params: QuadrotorParams) -> np.ndarray:
         """(4,) int: the cufund rotor index driven by PX4 motor output i (0-based), matched by direction from

@@ -196,8 +196,9 @@ class Px4SimulatorBridge:
         sim.record_period, sim.record_topics = round(nodes), ()
         vehicle = self.simulator.vehicle.params
         self.airframe = airframe if airframe is not None else Px4Airframe.for_vehicle(vehicle)
-        self._rotor_of_output = self.airframe.rotor_of_output(vehicle)
-        self._cmd_disarmed = self._in_rotor_order(np.asarray(self.airframe.zero_position_disarmed, dtype=float))
+        rotor_of_output = self.airframe.rotor_of_output(vehicle)
+        self._output_of_rotor = [int(i) for i in np.argsort(rotor_of_output)]  # PX4 output driving rotor j
+        self._cmd_disarmed = self._in_rotor_order(list(self.airframe.zero_position_disarmed))
         self.link: Any = link if link is not None else TcpServerLink(host, 4560 + instance)
         self.gcs = gcs
         self.mav = mavlink.MAVLink(None, srcSystem=self.params.system_id, srcComponent=self.params.component_id)
@@ -354,7 +355,7 @@ class Px4SimulatorBridge:
     def _on_controls(self, u: Any, mode: int, t: float) -> None:
         controls = [min(max(x, -1.0), 1.0) if math.isfinite(x) else math.nan for x in u]
         self.armed = bool(mode & MAV_MODE_FLAG_SAFETY_ARMED)
-        self._cmd = self._in_rotor_order(self.airframe.rotor_speeds(controls, self.armed))
+        self._cmd = self._in_rotor_order(self.airframe.rotor_speed_list(controls, self.armed))
         self._controls_t = t
         self._got_controls = True
         self.stats["controls"] += 1
@@ -375,10 +376,9 @@ class Px4SimulatorBridge:
         ack = self.mav.command_ack_encode(msg.command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
         self.link.send(self.writer.pack(ack))
 
-    def _in_rotor_order(self, speeds_px4: np.ndarray) -> np.ndarray:
+    def _in_rotor_order(self, speeds_px4: list[float]) -> np.ndarray:
         """PX4 motor outputs -> cufund's rotor order, read-only (it goes into messages as it is)."""
-        out = np.empty(4)
-        out[self._rotor_of_output] = speeds_px4
+        out = np.array([speeds_px4[i] for i in self._output_of_rotor])
         out.setflags(write=False)
         return out
 
