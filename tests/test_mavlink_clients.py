@@ -70,7 +70,7 @@ def test_mavsdk_connects_takes_off_flies_a_mission_offboard_and_lands():
     path: list[np.ndarray] = []
     try:
         with vehicle(links=0, extra_links=[f"udpout:127.0.0.1:{api}"]) as (live, _ep, _):
-            remove = live.add_listener(lambda tel: path.append(np.array(tel["p_W"])), 50.0)
+            remove = live.add_listener(lambda tel: path.append(np.array(tel["truth_p_W"])), 50.0)
 
             async def fly() -> tuple:
                 drone = mavsdk.System(mavsdk_server_address="127.0.0.1", port=grpc)

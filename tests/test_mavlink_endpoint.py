@@ -146,7 +146,7 @@ def test_mission_upload_download_clear_and_fly():
         while len(reached) < 3:
             reached.append(g.wait("MISSION_ITEM_REACHED", lambda m: True, 30).seq)
             tel = live.telemetry()
-            assert np.linalg.norm(np.array(tel["p_W"]) - wps[reached[-1]]) < 0.25
+            assert np.linalg.norm(np.array(tel["truth_p_W"]) - wps[reached[-1]]) < 0.25
         assert reached == [0, 1, 2]
         cur = g.wait("MISSION_CURRENT", lambda m: m.mission_state == M.MISSION_STATE_COMPLETE, 5)
         assert (cur.seq, cur.total) == (3, 3)

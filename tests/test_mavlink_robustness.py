@@ -103,7 +103,7 @@ def test_vanished_client_mid_mission_holds_then_lands():
             time.sleep(0.02)
         assert modes[:2] == ["hold", "land"], modes  # hold first, then land after COM_DL_LOSS_T
         assert live.telemetry()["landed"]
-        p = np.array(live.telemetry()["p_W"])
+        p = np.array(live.telemetry()["truth_p_W"])
         assert 1.0 < p[0] - p0[0] < 15.0 and abs(p[1] - p0[1]) < 0.3  # it stopped where it was, short of the waypoint
         lost = next(e for e in live.events.since(since) if e["message"] == "link lost")
         land = next(e for e in live.events.since(since) if e["kind"] == "mode" and e.get("mode") == "land")
@@ -114,7 +114,7 @@ def test_flood_of_1000_command_long_per_second():
     with vehicle() as (live, ep, (g,)):
         _take_off(g, 1.5)
         alt = []
-        remove = live.add_listener(lambda tel: alt.append(tel["p_W"][2]), 50.0)
+        remove = live.add_listener(lambda tel: alt.append(tel["truth_p_W"][2]), 50.0)
         t0 = time.monotonic()
         sent = acks = 0
 
