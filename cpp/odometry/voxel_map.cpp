@@ -54,6 +54,22 @@ bool voxel_key(const Eigen::Vector3d& p, double inv_voxel, std::int64_t& key) {
   return true;
 }
 
+namespace {
+constexpr std::int64_t kEmpty = std::numeric_limits<std::int64_t>::min();
+
+// Fibonacci hashing: the product's top bits (a table of 2^(64 - shift) slots) depend on every bit of the key;
+// its low bits would ignore a packed key's x and most of its y (long probe runs along x).
+std::size_t hash_slot(std::int64_t key, unsigned shift) {
+  return static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ull) >> shift);
+}
+
+unsigned shift_for(std::size_t capacity) {  // capacity: a power of two >= 2
+  unsigned bits = 0;
+  while ((std::size_t{1} << bits) < capacity) ++bits;
+  return 64u - bits;
+}
+}  // namespace
+
 std::vector<double> voxel_downsample(const double* points, std::size_t n, double voxel) {
   // Open addressing (linear probing) from voxel key to output index: no allocation per voxel. Sums start at
   // the first point and add the others in input order.
@@ -61,6 +77,7 @@ std::vector<double> voxel_downsample(const double* points, std::size_t n, double
   std::size_t cap = 16;
   while (cap < 2 * n) cap *= 2;
   const std::size_t mask = cap - 1;
+  const unsigned shift = shift_for(cap);
   constexpr std::int64_t kFree = std::numeric_limits<std::int64_t>::min();
   std::vector<std::int64_t> table_keys(cap, kFree);
   std::vector<std::uint32_t> table_index(cap);
@@ -72,7 +89,7 @@ std::vector<double> voxel_downsample(const double* points, std::size_t n, double
     const Eigen::Vector3d p(points[3 * i], points[3 * i + 1], points[3 * i + 2]);
     std::int64_t key;
     if (!voxel_key(p, inv, key)) continue;
-    std::size_t s = static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ull) >> 20) & mask;
+    std::size_t s = hash_slot(key, shift);
     while (table_keys[s] != kFree && table_keys[s] != key) s = (s + 1) & mask;
     if (table_keys[s] == kFree) {
       table_keys[s] = key;
@@ -95,13 +112,6 @@ std::vector<double> voxel_downsample(const double* points, std::size_t n, double
   return out;
 }
 
-namespace {
-constexpr std::int64_t kEmpty = std::numeric_limits<std::int64_t>::min();
-
-std::size_t hash_slot(std::int64_t key, std::size_t mask) {
-  return static_cast<std::size_t>((static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ull) >> 20) & mask;
-}
-}  // namespace
 
 VoxelMap::VoxelMap(double voxel_size, int max_points_per_voxel, double min_point_distance, double max_distance,
                    std::size_t max_voxels)
@@ -124,14 +134,14 @@ void VoxelMap::clear() {
 }
 
 std::int32_t VoxelMap::find(std::int64_t key) const {
-  for (std::size_t s = hash_slot(key, table_mask_);; s = (s + 1) & table_mask_) {
+  for (std::size_t s = hash_slot(key, table_shift_);; s = (s + 1) & table_mask_) {
     if (table_keys_[s] == key) return table_index_[s];
     if (table_keys_[s] == kEmpty) return -1;
   }
 }
 
 void VoxelMap::table_insert(std::int64_t key, std::int32_t index) {
-  std::size_t s = hash_slot(key, table_mask_);
+  std::size_t s = hash_slot(key, table_shift_);
   while (table_keys_[s] != kEmpty) s = (s + 1) & table_mask_;
   table_keys_[s] = key;
   table_index_[s] = index;
@@ -143,6 +153,7 @@ void VoxelMap::rebuild_table(std::size_t capacity) {
   table_keys_.assign(cap, kEmpty);
   table_index_.assign(cap, -1);
   table_mask_ = cap - 1;
+  table_shift_ = shift_for(cap);
   for (std::size_t i = 0; i < keys_.size(); ++i) table_insert(keys_[i], static_cast<std::int32_t>(i));
 }
 

@@ -98,6 +98,7 @@ class VoxelMap {
   std::vector<std::int64_t> table_keys_;
   std::vector<std::int32_t> table_index_;
   std::size_t table_mask_ = 0;
+  unsigned table_shift_ = 64;
 };
 
 }  // namespace cufund::odometry
