@@ -79,7 +79,11 @@ def main() -> int:
             print(f"| {key} | - | {np.median(v):.4f} | {worst:.4f} | - |")
     rtf = np.array([m["real_time_factor"] for m in results if m.get("real_time_factor")], dtype=float)
     if rtf.size:
-        print(f"\nreal-time factor: median {np.median(rtf):.2f}x, min {rtf.min():.2f}x, max {rtf.max():.2f}x (target >= 3x)")
+        print(f"\nreal-time factor (wall): median {np.median(rtf):.2f}x, min {rtf.min():.2f}x, max {rtf.max():.2f}x "
+              f"(target >= 3x; load {os.getloadavg()[0]:.1f} at the end)")
+    cpu = np.array([m["cpu_real_time_factor"] for m in results if m.get("cpu_real_time_factor")], dtype=float)
+    if cpu.size:
+        print(f"simulated seconds per process CPU second: median {np.median(cpu):.2f}x, min {cpu.min():.2f}x")
     split: dict[str, float] = {}
     for m in results:
         for k, v in (m.get("time_per_component_s") or {}).items():

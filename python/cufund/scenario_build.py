@@ -220,8 +220,6 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
     metrics = run_metrics(result)
     if config.faults:
         metrics["faults"] = fault_summary(config.faults)
-    for hook in ctx.metric_hooks:
-        metrics.update(hook(result))
     if ctx.tracking_path is not None:
         metrics.update(tracking_metrics(result, ctx.tracking_path))
     if config.estimator is not None:
@@ -236,6 +234,8 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
                                 float(np.median(np.asarray(diag["cpu_ms"], dtype=float)[used]))})
             metrics["lio_scans"] = int(len(ms))
             metrics["lio_unhealthy_reports"] = int(np.count_nonzero(~np.asarray(diag["healthy"], dtype=bool)))
+    for hook in ctx.metric_hooks:  # last: a part may refine a generic figure (e.g. over its flight window only)
+        metrics.update(hook(result))
     return ScenarioRun(config, result, ctx.reference, ctx.tracking_path, metrics, list(ctx.output_hooks))
 
 

@@ -116,4 +116,9 @@ def tunnel_metrics(result: Any, mission: Any, course: Any) -> dict[str, Any]:
     out["estimator_unhealthy"] = [[round(a, 3), round(b, 3), c] for a, b, c in mission.health_events]
     out["estimator_unhealthy_s"] = round(float(sum(b for _, b, _ in mission.health_events)), 3)
     out["time_per_component_s"] = component_split(result.component_seconds)
+    import time
+
+    cpu = time.process_time() - mission.cpu_start_s  # every thread of the process, from the run's start
+    out["cpu_time_s"] = round(cpu, 3)
+    out["cpu_real_time_factor"] = float(result.sim_time_s / cpu) if cpu > 0 else None
     return out
