@@ -8,8 +8,9 @@ States (published as :class:`~cufund.messages.MissionState` on ``/mission/state`
 ``detect``      hover until the detector reports the first frame, confident and stable (``detect_timeout_s``:
                 none -> ``aborted``, land where it is);
 ``align``       a straight move onto the first frame's axis, ``align_m`` before it at its opening's height; hover
-                there until every expected frame is detected, confident and stable (``detect_timeout_s``: fewer
-                frames -> ``aborted``, land there, never entering a frame);
+                there until every expected frame is detected, confident and stable (after ``detect_timeout_s``
+                creep along the axis to ``creep_m`` before the frame and wait once more; still fewer frames ->
+                ``aborted``, land there, never entering a frame);
 ``enter``       min-snap along the first frame's re-detected axis to its centre, at rest; hover ``hold_s``
                 (paper: "the MAV is guided to the centre of the first tunnel wall");
 ``through``     re-plan with the newest detections from the first centre through every opening along its normal
@@ -71,6 +72,9 @@ class TunnelMissionParams:
     """Largest centre change between stable detections [m]."""
     align_m: float = 1.0
     """Straight approach on the first frame's axis [m]."""
+    creep_m: float = 0.5
+    """Still missing frames after ``detect_timeout_s`` at the align point: creep along the axis to this far before
+    the first frame and wait once more [m]."""
     axis_m: float = 0.25
     """Approach and exit points on each frame's axis (at most 0.4 x the gap to the neighbouring frame) [m]."""
     exit_m: float = 1.0
@@ -107,7 +111,7 @@ class TunnelMissionParams:
             raise ConfigError(f"mission.frames must be an integer >= 1, got {self.frames!r}")
         if isinstance(self.stable_updates, bool) or not isinstance(self.stable_updates, int) or self.stable_updates < 1:
             raise ConfigError(f"mission.stable_updates must be an integer >= 1, got {self.stable_updates!r}")
-        for name in ("takeoff_height", "init_s", "detect_timeout_s", "stable_m", "align_m", "axis_m", "exit_m",
+        for name in ("takeoff_height", "init_s", "detect_timeout_s", "stable_m", "align_m", "creep_m", "axis_m", "exit_m",
                      "v_max", "a_max", "corridor", "clearance", "bar", "move_v_max", "move_a_max",
                      "move_j_max", "rate_hz", "stale_s", "lidar_silence_s", "health_wait_s"):
             v = getattr(self, name)
@@ -165,6 +169,10 @@ class TunnelMission(Planner):
         self.reset()
 
     def reset(self) -> None:
+        import time
+
+        self.cpu_start_s = time.process_time()
+        """Process CPU time at the start of the run [s] (for the run's CPU real-time factor)."""
         self.reference: Trajectory = self.initial
         self.state, self.reason, self.progress = "initialise", "", 0
         self.transitions: list[tuple[float, str, str]] = [(0.0, "initialise", "")]
@@ -186,6 +194,7 @@ class TunnelMission(Planner):
         self._diag_ok, self._diag_reason = True, ""
         self._t_unhealthy: float | None = None
         self._stable = 0
+        self._crept = False
         self._best = 0
         self._last: np.ndarray | None = None
         self._published = -1
@@ -269,6 +278,13 @@ class TunnelMission(Planner):
             if self.complete is not None:
                 self._plan_enter(t, t_r, self.complete, bus)
             elif t_r - self._t_leg_end > pp.detect_timeout_s:
+                d = self.first or self.used
+                if not self._crept and d is not None and pp.creep_m < pp.align_m:
+                    # creep closer along the axis (still before the frame) for a better view of the course
+                    self._crept = True
+                    n0 = d.normals[0] / np.linalg.norm(d.normals[0])
+                    self._move(t, t_r, d.centres[0] - pp.creep_m * n0, bus)
+                    return
                 self._abort(t, t_r, f"detected {self._count(est)} of {pp.frames} frames in "
                                     f"{pp.detect_timeout_s:g} s", bus)
             return
@@ -435,7 +451,10 @@ class TunnelMission(Planner):
             return
         p = self.reference.sample(float(t_r)).p_W[0]
         before, _ = self._axis_points(d, 0)
-        rec = self._plan(t, t_r, "enter", np.array([p, self._align_point(d), before, d.centres[0]]), d)
+        n0 = d.normals[0] / np.linalg.norm(d.normals[0])
+        ahead = float((p - d.centres[0]) @ n0)  # < 0: before the frame; past the align point after a creep
+        via = [self._align_point(d)] if ahead < -self.params.align_m + 0.05 else [d.centres[0] + ahead * n0]
+        rec = self._plan(t, t_r, "enter", np.array([p, *via, before, d.centres[0]]), d)
         if not rec.ok:
             self._abort(t, t_r, f"no safe path into the first frame: {rec.reason}", bus)
             return
