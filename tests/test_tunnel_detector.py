@@ -314,6 +314,25 @@ def test_once_the_expected_frames_are_confident_detection_slows_down():
     assert gaps.max() >= 0.8 and len(settled) < len(every) - 3  # 1 Hz once settled
 
 
+def test_an_established_track_takes_an_odd_reading_only_when_it_repeats():
+    from cufund.perception import FrameDetection
+
+    def frame(x: float, height: float) -> FrameDetection:
+        c = np.array([x, 0.0, 0.55])
+        return FrameDetection(c, np.array([1.0, 0.0, 0.0]), 0.5, height, 500, c[None, :], c)
+
+    det = TunnelDetector(expected=1, origin_W=(-2.0, 0.0, 0.0))
+    for _ in range(3):
+        det._associate([frame(0.0, 1.0)])
+    for k in range(2):  # a misread (the bottom bar taken 40 cm too high): ignored twice
+        det._associate([frame(0.0, 0.6)])
+        assert det.estimate().opening_sizes[0, 1] == 1.0
+    det._associate([frame(0.0, 0.6)])  # the third time in a row it is believed
+    assert det.estimate().opening_sizes[0, 1] == 0.6
+    det._associate([frame(0.05, 0.62)])  # small changes are taken at once
+    np.testing.assert_allclose(det.estimate().centres_W[0], [0.05, 0.0, 0.55])
+
+
 def test_component_arguments_are_checked():
     with pytest.raises(TypeError, match="params must be a TunnelDetectorParams"):
         TunnelDetector({"voxel": 0.02})

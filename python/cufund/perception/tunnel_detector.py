@@ -35,6 +35,12 @@ def _member(keys: np.ndarray, sorted_set: np.ndarray) -> np.ndarray:
     return sorted_set[i] == keys
 
 
+def _consistent(old: FrameDetection, new: FrameDetection, tolerance: float = 0.1) -> bool:
+    """``new`` agrees with ``old`` within ``tolerance`` [m]: centre and opening size."""
+    return bool(np.linalg.norm(new.centre_W - old.centre_W) <= tolerance
+                and abs(new.width - old.width) <= tolerance and abs(new.height - old.height) <= tolerance)
+
+
 @dataclass
 class _Track:
     """One frame followed across detections (the newest measurement of it; the map only grows)."""
@@ -42,6 +48,8 @@ class _Track:
     detection: FrameDetection
     hits: int = 1
     misses: int = 0
+    conflicts: int = 0
+    """Consecutive detections that disagreed with an established track (see ``_consistent``)."""
 
 
 class TunnelDetector(Component):
@@ -56,7 +64,9 @@ class TunnelDetector(Component):
     accumulated in a bounded voxel map (:class:`VoxelAccumulator`), on which :func:`detect_in_voxels` runs at
     every step. Detections continue the nearest track within ``params.associate_radius``; a track's confidence
     grows with the points on its bars and with repeated detections, and fades slowly while it is not found
-    again (a track found three times is kept; one found fewer times goes after ten misses).
+    again (a track found three times is kept; one found fewer times goes after ten misses). A track found three
+    times takes a reading that moves its centre or changes its opening by more than 10 cm only when it repeats
+    three times in a row (a frame does not move; a noisy map sometimes misreads one).
     Frames are published in flying order from ``origin_W`` (default: the first pose received); with
     ``expected``, at most that many (the most confident), and once all of them are confident (>= 0.9) the map
     is searched again only at ``params.settled_rate_hz`` (scans are still accumulated at every step).
@@ -202,7 +212,10 @@ class TunnelDetector(Component):
             used_d.add(i)
             used_t.add(j)
             tr = self.tracks[j]
-            tr.detection, tr.hits, tr.misses = detections[i], tr.hits + 1, 0
+            if tr.hits >= 3 and not _consistent(tr.detection, detections[i]) and tr.conflicts < 2:
+                tr.conflicts += 1  # a frame does not change: an odd reading is believed only the third time
+                continue
+            tr.detection, tr.hits, tr.misses, tr.conflicts = detections[i], tr.hits + 1, 0, 0
         for j, tr in enumerate(self.tracks):
             if j not in used_t:
                 tr.misses += 1
