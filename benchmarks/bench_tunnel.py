@@ -29,7 +29,7 @@ def _one(job: tuple[int, list[str]]) -> dict:
     try:
         run = run_scenario(load_scenario("tunnel", parse_overrides([f"world.seed={seed}", *overrides])))
         m = dict(run.metrics)
-    except Exception as e:  # a crash is a failed layout, reported
+    except Exception as e:  # noqa: BLE001 - a crash is a failed layout, reported
         m = {"status": f"exception: {type(e).__name__}: {e}", "success": False}
     m["seed"], m["wall_s"] = seed, time.perf_counter() - t0
     return m

@@ -9,7 +9,6 @@ import math
 
 import numpy as np
 import pytest
-
 from cufund import ConfigError
 from cufund.cli import main as cli_main
 from cufund.missions.tunnel_geometry import frame_boxes, passages
@@ -47,7 +46,7 @@ def test_unflyable_layout_is_rejected_before_flight(tmp_path, capsys):
     narrow = ["world.seed=1", "world.openings=[[0.3, 0.3]]", "world.vehicle_radius=0.05"]  # generated, too narrow
     with pytest.raises(ConfigError, match="unflyable"):
         build_simulation(load_scenario("tunnel", narrow))
-    code = cli_main(["run", "tunnel", "--out", str(tmp_path / "run"), *sum((["--set", o] for o in narrow), [])])
+    code = cli_main(["run", "tunnel", "--out", str(tmp_path / "run"), *[a for o in narrow for a in ("--set", o)]])
     assert code == 2
     assert "unflyable" in capsys.readouterr().err
     assert not (tmp_path / "run" / "metrics.json").exists()
@@ -66,7 +65,7 @@ def paper_run(tmp_path_factory):
 
 
 def test_paper_layout_succeeds_within_the_targets(paper_run):
-    run, out = paper_run
+    _, out = paper_run
     m = json.loads((out / "metrics.json").read_text())
     assert m["status"] == "completed" and m["success"] is True, (m["status"], m["reason"])
     assert m["frames_passed"] == 5 and m["landed_beyond_last_frame"]
@@ -85,7 +84,7 @@ def test_paper_layout_succeeds_within_the_targets(paper_run):
 def test_paper_run_published_mission_states(paper_run):
     from cufund.logs import read_mcap
 
-    run, out = paper_run
+    _, out = paper_run
     states = [r.message.state for r in read_mcap(out / "run.mcap", "/mission/state")]
     assert states[0] == "initialise" and states[-1] == "done"
     assert "through" in states

@@ -32,7 +32,7 @@ closer than ``clearance`` to one is never flown. The mission never reads ground 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -300,9 +300,8 @@ class TunnelMission(Planner):
                 self._land(t, t_r, p, bus)
                 self._enter(t, "land", "", bus)
             return
-        if self.state == "land":
-            if self.t_end is not None and t_r >= self.t_end:
-                self._enter(t, "done", "", bus)
+        if self.state == "land" and self.t_end is not None and t_r >= self.t_end:
+            self._enter(t, "done", "", bus)
 
     def setup(self, bus: BusView) -> None:
         self._diagnostics = bus.subscribe(Topics.ESTIMATOR_DIAGNOSTICS)

@@ -3,6 +3,7 @@ against ground truth (the true states and the true frames: metrics only, never f
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import numpy as np
@@ -10,7 +11,7 @@ import numpy as np
 from ..messages import Topics
 from .tunnel_geometry import frame_boxes, passages
 
-__all__ = ["component_split", "tracking_errors", "tunnel_metrics", "true_frames"]
+__all__ = ["component_split", "tracking_errors", "true_frames", "tunnel_metrics"]
 
 _GROUPS = (("lio", ("lio", "estimator")), ("mapping", ("esdf", "mapper")), ("detection", ("detector", "tunnel")),
            ("planning", ("mission", "follower", "planner")), ("control", ("control", "pid", "geometric", "mixer",
@@ -91,7 +92,7 @@ def tunnel_metrics(result: Any, mission: Any, course: Any) -> dict[str, Any]:
         idx = passages(p, c, n, s)
         out["frames_passed"] = int(sum(i is not None for i in idx))
         order = [i for i in idx if i is not None]
-        passed_all = len(order) == len(idx) and all(a < b for a, b in zip(order, order[1:]))
+        passed_all = len(order) == len(idx) and all(a < b for a, b in itertools.pairwise(order))
         d = mission.used
         if d is not None and d.centres.shape[0] == c.shape[0]:
             e = np.linalg.norm(d.centres - c, axis=1)

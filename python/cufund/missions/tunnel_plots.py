@@ -87,7 +87,13 @@ def write_tunnel_replay(path: str | Path, result: Any, params: Any, world: Any, 
                         clouds: list[np.ndarray], fps: int = 20) -> Path:
     """A self-contained MeshCat replay: the world's meshes, the vehicle flying, the true (red), odometry (blue)
     and setpoint (green) paths, the detected centres, and point-cloud snapshots (world frame)."""
-    from ..viz.meshcat_scene import VEHICLE, draw_path, draw_vehicle, import_meshcat, pose_matrix
+    from ..viz.meshcat_scene import (
+        VEHICLE,
+        draw_path,
+        draw_vehicle,
+        import_meshcat,
+        pose_matrix,
+    )
     from ..viz.replay import _RecordingWindow, viewer_page
 
     meshcat = import_meshcat()
@@ -104,7 +110,7 @@ def write_tunnel_replay(path: str | Path, result: Any, params: Any, world: Any, 
                 g.TriangularMeshGeometry(np.asarray(obj.vertices, float), np.asarray(obj.triangles)),
                 g.MeshLambertMaterial(color=color, opacity=opacity, transparent=opacity < 1))
     draw_vehicle(vis, params)
-    t, p, te, pe, ts, ps = _paths(result)
+    t, p, _, pe, _, ps = _paths(result)
     q = result.states["q_WB"]
     draw_path(vis, "paths/truth", p[:: max(1, len(t) // 3000)], 0xd62728)
     if len(pe):
