@@ -121,6 +121,7 @@ class SerialLink:
             raise OSError(f"cannot open serial port {device}: {e}") from None
         self.device, self.baud = device, baud
         self._fd = self._port.fileno()
+        os.set_blocking(self._fd, False)  # pyserial's own default on POSIX; recv relies on it
 
     connected = True
 
@@ -131,11 +132,14 @@ class SerialLink:
             raise LinkClosed(f"serial port {self.device}: {e}") from None
 
     def recv(self, timeout: float) -> bytes | None:
-        try:
-            ready, _, _ = select.select([self._fd], [], [], max(timeout, 0.0))
-            if not ready:
-                return None
+        try:  # pyserial keeps the descriptor non-blocking: a zero timeout reads without a select
+            if timeout > 0.0:
+                ready, _, _ = select.select([self._fd], [], [], timeout)
+                if not ready:
+                    return None
             return os.read(self._fd, 65536) or None
+        except BlockingIOError:
+            return None
         except OSError as e:
             raise LinkClosed(f"serial port {self.device}: {e.strerror or e}") from None
 
