@@ -79,15 +79,15 @@ class Gcs:
 
 @contextlib.contextmanager
 def vehicle(speed: float = SPEED, links: int = 1, extra_links: tuple[str, ...] | list[str] = (),
-            **endpoint_kw: Any) -> Iterator[tuple[Any, Any, list[Gcs]]]:
-    """A live ``vehicle`` run behind a VehicleEndpoint with ``links`` udpout links, each to its own Gcs, and
-    ``extra_links`` (URLs) to other clients."""
+            scenario: Any = "vehicle", **endpoint_kw: Any) -> Iterator[tuple[Any, Any, list[Gcs]]]:
+    """A live run of ``scenario`` (default: the ``vehicle`` scenario) behind a VehicleEndpoint with ``links``
+    udpout links, each to its own Gcs, and ``extra_links`` (URLs) to other clients."""
     from cufund.live import LiveRun
     from cufund.mavlink.vehicle_endpoint import VehicleEndpoint
 
     ports = [free_port() for _ in range(links)]
     gcss = [Gcs(p) for p in ports]
-    live = LiveRun("vehicle", speed=speed)
+    live = LiveRun(scenario, speed=speed)
     endpoint = None
     try:
         urls = [f"udpout:127.0.0.1:{p}" for p in ports] + list(extra_links)
@@ -101,6 +101,12 @@ def vehicle(speed: float = SPEED, links: int = 1, extra_links: tuple[str, ...] |
         live.stop()
         for g in gcss:
             g.close()
+
+
+OPEN_FIELD = {"name": "open_field", "vehicle": "cu_astro", "planner": {"kind": "commander"}, "controller": "pid",
+              "start_p_W": [0.0, 0.0, 0.0], "duration": 600.0}
+"""A commander's vehicle with nothing to hit (the vehicle scenario's arena is 12 m x 8 m with frames in it): for
+tests whose flight distance depends on wall-clock timing."""
 
 
 def relative_alt_m(m: Any) -> float:

@@ -344,3 +344,14 @@ def test_a_flood_of_refused_commands_is_answered_but_logged_once_a_second():
     assert len(cmd.events) - n0 == 1
     cmd.apply({"command": "takeoff"}, 1.6)
     assert len(cmd.events) - n0 == 3 and "x499 more" in cmd.events[-2]["message"]
+
+
+def test_a_command_withdrawn_before_it_is_applied_is_dropped():
+    sim, cmd = _flight()
+    sim.advance_to(0.2)
+    kept, withdrawn = cmd.submit("arm"), cmd.submit({"command": "takeoff", "altitude": 1.0})
+    assert withdrawn.cancel()  # its submitter gave up waiting before the commander's next step
+    sim.advance_to(0.5)
+    assert kept.result(timeout=0).result == "accepted" and withdrawn.cancelled()
+    sim.advance_to(3.0)
+    assert cmd.armed and abs(_p(sim)[2]) < 1e-3  # armed, never took off

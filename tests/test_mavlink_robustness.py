@@ -13,7 +13,7 @@ import time
 import numpy as np
 import pytest
 from cufund.cli import main as cli_main
-from mavlink_support import Gcs, free_port, vehicle
+from mavlink_support import OPEN_FIELD, Gcs, free_port, vehicle
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
 
@@ -79,7 +79,8 @@ def test_garbage_bad_crc_unknown_ids_and_nonsense_values():
 
 
 def test_vanished_client_mid_mission_holds_then_lands():
-    with vehicle(heartbeat_timeout_s=2.0) as (live, ep, (g,)):
+    # open field: how far it flies before the (wall-clock) link-loss timeout depends on the machine's speed
+    with vehicle(scenario=OPEN_FIELD, heartbeat_timeout_s=2.0) as (live, ep, (g,)):
         g.mav.param_set_send(1, 1, b"COM_DL_LOSS_T", 3.0, M.MAV_PARAM_TYPE_REAL32)  # land 3 s (sim) after the hold
         assert g.recv("PARAM_VALUE", cond=lambda m: m.param_id == "COM_DL_LOSS_T").param_value == 3.0
         _take_off(g, 1.5)
@@ -102,7 +103,9 @@ def test_vanished_client_mid_mission_holds_then_lands():
                 modes.append(mode)
             time.sleep(0.02)
         assert modes[:2] == ["hold", "land"], modes  # hold first, then land after COM_DL_LOSS_T
-        assert live.telemetry()["landed"]
+        tel = live.telemetry()
+        assert tel["landed"], ({k: tel.get(k) for k in ("t", "mode", "armed", "p_W", "truth_p_W", "v_W",
+                                                         "real_time_factor")}, live.events.since(since))
         p = np.array(live.telemetry()["truth_p_W"])
         assert 1.0 < p[0] - p0[0] < 15.0 and abs(p[1] - p0[1]) < 0.3  # it stopped where it was, short of the waypoint
         lost = next(e for e in live.events.since(since) if e["message"] == "link lost")
@@ -190,3 +193,38 @@ def test_serve_cli_sets_the_link_loss_timeout_and_exits_0():
         t.join(20)
         g.close()
     assert rc == [0]
+
+
+def test_a_stalled_run_gets_no_mission_behind_the_clients_back():
+    """The simulation does not answer (here: it never started): the upload is answered MAV_MISSION_ERROR and the
+    queued plan is withdrawn, so the vehicle never flies a plan its operator was told had failed."""
+    from cufund.live import LiveRun
+    from cufund.mavlink.vehicle_endpoint import VehicleEndpoint
+
+    port = free_port()
+    g = Gcs(port)
+    live = LiveRun("vehicle", start=False)
+    ep = VehicleEndpoint(live, [f"udpout:127.0.0.1:{port}"])  # not started: the test turns its loop
+
+    def spin_until(types: str) -> object:
+        end = time.monotonic() + 15
+        while time.monotonic() < end:
+            ep.spin_once(0.05)
+            m = g.conn.recv_match(type=types, blocking=False)
+            if m is not None:
+                return m
+        raise AssertionError(f"no {types}")
+
+    try:
+        spin_until("HEARTBEAT")
+        g.mav.mission_count_send(1, 1, 1, 0)
+        assert spin_until("MISSION_REQUEST_INT").seq == 0
+        g.mav.mission_item_int_send(1, 1, 0, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0,
+                                    0, math.nan, 224196000, 1142068000, 1.0, 0)
+        assert spin_until("MISSION_ACK").type == M.MAV_MISSION_ERROR
+        live.commander.process_pending(0.0)  # the simulation wakes up: nothing of that upload is left to apply
+        assert len(live.commander.mission) == 0 and ep.stats["handler_errors"] == 0
+    finally:
+        ep.close()
+        live.stop()
+        g.close()

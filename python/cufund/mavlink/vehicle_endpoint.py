@@ -14,6 +14,7 @@ the commander's ``link_lost()`` (hold, then land after its ``COM_DL_LOSS_T``); t
 
 from __future__ import annotations
 
+import concurrent.futures
 import math
 import queue
 import select
@@ -460,6 +461,23 @@ class VehicleEndpoint:
                               else None)
 
     # -- missions ---------------------------------------------------------------------------------------------
+    def _decide(self, cmd: dict[str, Any], timeout: float = 2.0) -> Any:
+        """The commander's ack of ``cmd``, waited for on this thread (the mission protocol answers in order); None
+        when it cannot be had within ``timeout`` s: the command is then withdrawn, unapplied, so that the vehicle
+        and the answer the client gets agree."""
+        try:
+            fut = self.run.submit(cmd)
+            return fut.result(timeout=timeout)
+        except concurrent.futures.TimeoutError:  # (the builtin TimeoutError from Python 3.11 on)
+            if fut.cancel():
+                return None
+            try:  # being applied right now: its ack is a moment away
+                return fut.result(timeout=timeout)
+            except Exception:  # noqa: BLE001
+                return None
+        except Exception:  # noqa: BLE001 - a stopped run, a refused command
+            return None
+
     def _accept_mission(self, items: list[MissionItem]) -> int:
         """Waypoints of a MAVLink plan -> the commander's mission (NAV items; other items are kept for download
         but not flown). Refused when a waypoint has a frame we cannot place."""
@@ -490,10 +508,8 @@ class VehicleEndpoint:
                 and math.isfinite(it.param1) and it.param1 > 0 else 0.0
             wps.append({"p_W": [float(c) for c in p], "yaw": yaw, "hold_s": float(hold)})
             seqs.append(it.seq)
-        fut = self.run.submit({"command": "mission_upload", "items": wps})
-        try:
-            ack = fut.result(timeout=2.0)
-        except Exception:  # noqa: BLE001 - a paused or stopped run
+        ack = self._decide({"command": "mission_upload", "items": wps})
+        if ack is None:
             return mavlink.MAV_MISSION_ERROR
         if ack.result != "accepted":
             return mavlink.MAV_MISSION_DENIED
@@ -502,9 +518,8 @@ class VehicleEndpoint:
         return mavlink.MAV_MISSION_ACCEPTED
 
     def _clear_mission(self) -> bool:
-        try:
-            ack = self.run.submit({"command": "mission_clear"}).result(timeout=2.0)
-        except Exception:  # noqa: BLE001
+        ack = self._decide({"command": "mission_clear"})
+        if ack is None:
             return False
         if ack.result == "accepted":
             self._item_seq, self._plan_seqs, self._plan_wps = [], [], []
@@ -522,10 +537,8 @@ class VehicleEndpoint:
             {"command": "mission_upload", "items": self._plan_wps[i:]}] + (
             [{"command": "mission_start"}] if running else [])
         for cmd in steps:
-            try:
-                if self.run.submit(cmd).result(timeout=2.0).result != "accepted":
-                    return False
-            except Exception:  # noqa: BLE001 - a paused or stopped run
+            ack = self._decide(cmd)
+            if ack is None or ack.result != "accepted":
                 return False
         self._item_seq = self._plan_seqs[i:]
         self._mission_done = False

@@ -35,11 +35,14 @@ class CommandInbox:
         self._inbox.append((Command("_link_regained"), None))
 
     def drain(self, apply: Callable[[Command], CommandAck]) -> None:
-        """Applies every queued command in order (on the simulation thread) and resolves its future."""
+        """Applies every queued command in order (on the simulation thread) and resolves its future. A command
+        whose future the submitter cancelled before it was applied (it gave up waiting) is dropped, unapplied."""
         while self._inbox:
             cmd, fut = self._inbox.popleft()
+            if fut is not None and (fut.done() or not fut.set_running_or_notify_cancel()):
+                continue
             ack = apply(cmd)
-            if fut is not None and not fut.done():
+            if fut is not None:
                 fut.set_result(ack)
 
     def cancel_pending(self, why: str) -> None:
