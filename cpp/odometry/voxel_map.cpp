@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include "imu_propagation.h"
 #include "thread_pool.h"
@@ -87,8 +88,9 @@ std::vector<double> voxel_downsample(const double* points, std::size_t n, double
   counts.reserve(std::min<std::size_t>(n, 1 << 16));
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d p(points[3 * i], points[3 * i + 1], points[3 * i + 2]);
-    std::int64_t key;
-    if (!voxel_key(p, inv, key)) continue;
+    Eigen::Matrix<std::int64_t, 3, 1> idx;
+    if (!voxel_index(p, inv, idx)) continue;
+    const std::int64_t key = pack(idx[0], idx[1], idx[2]);
     std::size_t s = hash_slot(key, shift);
     while (table_keys[s] != kFree && table_keys[s] != key) s = (s + 1) & mask;
     if (table_keys[s] == kFree) {
@@ -265,6 +267,7 @@ int VoxelMap::nearest(const Eigen::Vector3d& query, int k, double max_d2, Eigen:
   // tightens early, so more of the farther voxels are skipped. (The order does not change the result: the k
   // nearest within max_d2, ascending.)
   int found = 0;
+  const double* at[kMaxNeighbours];  // k <= kMaxNeighbours: checked by knn and fit_planes
   for (const int o : kNeighbourOrder) {
     const int dx = o / 9 - 1, dy = (o / 3) % 3 - 1, dz = o % 3 - 1;
     const double gx = dx < 0 ? lo[0] : (dx > 0 ? hi[0] : 0.0);
@@ -277,25 +280,28 @@ int VoxelMap::nearest(const Eigen::Vector3d& query, int k, double max_d2, Eigen:
     const double* base = slots_.data() + static_cast<std::size_t>(v) * 3 * static_cast<std::size_t>(max_per_voxel_);
     const int count = counts_[static_cast<std::size_t>(v)];
     for (int m2 = 0; m2 < count; ++m2) {
-      const Eigen::Vector3d p = Eigen::Map<const Eigen::Vector3d>(base + 3 * m2);
-      const double d = (p - query).squaredNorm();
+      const double* p = base + 3 * m2;
+      const double ex = p[0] - query[0], ey = p[1] - query[1], ez = p[2] - query[2];
+      const double d = ex * ex + ey * ey + ez * ez;
       if (d > max_d2 || (found == k && d >= d2[k - 1])) continue;
-      // Insertion into the sorted list.
+      // Insertion into the sorted list (of pointers: the points are copied out once, at the end).
       int j = found < k ? found++ : k - 1;
       while (j > 0 && d2[j - 1] > d) {
         d2[j] = d2[j - 1];
-        out[j] = out[j - 1];
+        at[j] = at[j - 1];
         --j;
       }
       d2[j] = d;
-      out[j] = p;
+      at[j] = p;
     }
   }
+  for (int j = 0; j < found; ++j) out[j] = Eigen::Map<const Eigen::Vector3d>(at[j]);
   return found;
 }
 
 void VoxelMap::knn(const double* queries, std::size_t q, int k, double max_distance, double* neighbours,
                    double* dist2, int threads) const {
+  if (k < 1 || k > kMaxNeighbours) throw std::invalid_argument("knn: k must be in [1, 64]");
   const double md = std::min(max_distance, voxel_);
   parallel_chunks(static_cast<std::ptrdiff_t>(q), 256, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t) {
     std::vector<Eigen::Vector3d> nb(static_cast<std::size_t>(k));
@@ -319,6 +325,7 @@ void VoxelMap::fit_planes(const double* points_I, std::size_t n, const Eigen::Ma
                           const Eigen::Vector3d& t_W, const PlaneParams& prm, std::uint8_t* valid, double* planes,
                           int threads) const {
   const int k = prm.neighbours;
+  if (k < 1 || k > kMaxNeighbours) throw std::invalid_argument("fit_planes: neighbours must be in [1, 64]");
   const double md = std::min(prm.max_neighbour_distance, voxel_);
   parallel_chunks(static_cast<std::ptrdiff_t>(n), 256, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t) {
     std::vector<Eigen::Vector3d> nb(static_cast<std::size_t>(k));

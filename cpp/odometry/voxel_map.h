@@ -62,6 +62,8 @@ class VoxelMap {
   double voxel_size() const { return voxel_; }
   std::vector<double> points() const;  // every stored point, (size(), 3)
 
+  static constexpr int kMaxNeighbours = 64;  // the largest k of knn and of PlaneParams::neighbours
+
   // k nearest stored points within max_distance (<= voxel size) of each query (q, 3): idx-free output
   // neighbours (q, k, 3) and squared distances (q, k) sorted ascending, +inf where fewer were found.
   void knn(const double* queries, std::size_t q, int k, double max_distance, double* neighbours, double* dist2,
