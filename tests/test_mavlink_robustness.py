@@ -5,6 +5,7 @@ endpoint's loop never dies."""
 from __future__ import annotations
 
 import math
+import signal
 import socket
 import struct
 import threading
@@ -175,6 +176,17 @@ def test_serve_cli_usage_errors_exit_2(capsys):
     for option in ("--telemetry-hz", "--heartbeat-timeout", "--link-loss-timeout"):  # named, before any run
         assert cli_main(["serve", option, "nan", "--api", "none"]) == 2
         assert f"{option} must be a number > 0" in capsys.readouterr().err
+
+
+def test_serve_cli_warns_when_a_link_listens_beyond_loopback(capsys):
+    port = free_port()
+    handler = signal.getsignal(signal.SIGINT)
+    assert cli_main(["serve", "--mavlink", f"udpin:0.0.0.0:{port}", "--api", "none", "--duration", "0.2"]) == 0
+    out = capsys.readouterr()
+    assert "0.0.0.0" in out.out and "other machines can command this vehicle" in out.err
+    assert cli_main(["serve", "--mavlink", f"udpin:{port}", "--api", "none", "--duration", "0.2"]) == 0
+    assert "warning" not in capsys.readouterr().err  # the default binds 127.0.0.1: no warning
+    assert signal.getsignal(signal.SIGINT) is handler  # the caller's Ctrl-C handler is back
 
 
 def test_serve_cli_sets_the_link_loss_timeout_and_exits_0():

@@ -13,6 +13,7 @@ import signal
 import sys
 import threading
 import time
+from typing import Any
 
 __all__ = ["add_arguments", "run"]
 
@@ -77,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     endpoint = None
+    previous: dict[int, Any] = {}
     try:
         if args.link_loss_timeout is not None:
             ack = live.submit({"command": "set_param", "name": "COM_DL_LOSS_T",
@@ -89,10 +91,15 @@ def run(args: argparse.Namespace) -> int:
         links = ", ".join(f"{lk.address.mode}:{lk.address.host}:{lk.address.port} (local "
                           f"{lk.local_address[0]}:{lk.local_address[1]})" for lk in endpoint.links)
         print(f"MAVLink vehicle {args.system_id}: {links}; scenario {args.scenario}, speed {speed:g}", flush=True)
+        for lk in endpoint.links:
+            host = lk.local_address[0]
+            if not host.startswith("127."):
+                print(f"cufund serve: warning: {lk.address.mode}:{lk.address.host}:{lk.address.port} listens on "
+                      f"{host or '0.0.0.0'}: other machines can command this vehicle", file=sys.stderr, flush=True)
         stop = threading.Event()
-        if threading.current_thread() is threading.main_thread():  # (embedded callers keep their handlers)
+        if threading.current_thread() is threading.main_thread():  # (restored on the way out)
             for sig in (signal.SIGINT, signal.SIGTERM):
-                signal.signal(sig, lambda *_: stop.set())
+                previous[sig] = signal.signal(sig, lambda *_: stop.set())
         deadline = math.inf if args.duration is None else time.monotonic() + args.duration
         while not stop.is_set() and time.monotonic() < deadline:
             stop.wait(0.2)
@@ -101,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         if endpoint is not None:
             endpoint.close()
         live.stop()
