@@ -21,6 +21,10 @@ class ClearanceQuery:
         ...
     def clearance_many(self, points_W: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         ...
+    def scalar_functions(self) -> tuple[typing.Any, typing.Any]:
+        """
+        (clearance(x, y, z), segment_free(x0, y0, z0, x1, y1, z1, radius)) as plain builtins that skip pybind11's dispatch (each keeps this query alive)
+        """
     def segment_free(self, x0: typing.SupportsFloat | typing.SupportsIndex, y0: typing.SupportsFloat | typing.SupportsIndex, z0: typing.SupportsFloat | typing.SupportsIndex, x1: typing.SupportsFloat | typing.SupportsIndex, y1: typing.SupportsFloat | typing.SupportsIndex, z1: typing.SupportsFloat | typing.SupportsIndex, radius: typing.SupportsFloat | typing.SupportsIndex) -> bool:
         ...
     def segments_free(self, path_W: typing.Any, radius: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.bool]:
@@ -36,7 +40,7 @@ class GridAStar:
     """
     def __init__(self) -> None:
         ...
-    def plan(self, query: ClearanceQuery, start_W: typing.Any, goal_W: typing.Any, radius: typing.SupportsFloat | typing.SupportsIndex, max_expansions: typing.SupportsInt | typing.SupportsIndex, shortcut: bool, heuristic_weight: typing.SupportsFloat | typing.SupportsIndex) -> dict:
+    def plan(self, query: ClearanceQuery, start_W: typing.Any, goal_W: typing.Any, radius: typing.SupportsFloat | typing.SupportsIndex, max_expansions: typing.SupportsInt | typing.SupportsIndex, shortcut: bool, heuristic_weight: typing.SupportsFloat | typing.SupportsIndex, z_min: typing.SupportsFloat | typing.SupportsIndex = ..., z_max: typing.SupportsFloat | typing.SupportsIndex = ...) -> dict:
         ...
 def optimize_bspline(esdf_map: cufund._core.esdf.EsdfMap, start: typing.Any, initial: typing.Any, tail: typing.Any, end_target: typing.Any, pull_end: bool, w_smooth: typing.SupportsFloat | typing.SupportsIndex, w_collision: typing.SupportsFloat | typing.SupportsIndex, w_feasibility: typing.SupportsFloat | typing.SupportsIndex, w_end: typing.SupportsFloat | typing.SupportsIndex, d_safe: typing.SupportsFloat | typing.SupportsIndex, v_max: typing.SupportsFloat | typing.SupportsIndex, a_max: typing.SupportsFloat | typing.SupportsIndex, dt: typing.SupportsFloat | typing.SupportsIndex, max_iterations: typing.SupportsInt | typing.SupportsIndex) -> dict:
     ...
