@@ -403,3 +403,25 @@ def _write_in_child() -> str:
     except RuntimeError as exc:
         return str(exc)
     return "no error"
+
+
+def test_variable_length_messages_are_logged_as_json_and_round_trip(tmp_path):
+    """A tunnel estimate grows a row per frame found and a diagnostics message has a row per weak direction: such
+    messages (``variable_length``) get the JSON codec, so a later message of another size is no error."""
+    estimates = [M.TunnelEstimate(0.1 * k, np.full((k, 3), k * 0.5), np.tile([1.0, 0, 0], (k, 1)), np.ones((k, 2)),
+                                  np.linspace(0, 1, k), k) for k in range(1, 5)]
+    diagnostics = [M.OdometryDiagnostics(0.1 * k, 10, 5, 3, np.arange(6.0), np.ones((k % 2, 6)), 1.0, 1.0, "")
+                   for k in range(4)]
+    with McapLogger(tmp_path / "a.mcap") as log:
+        for k, (e, d) in enumerate(zip(estimates, diagnostics)):
+            log.write("/perception/tunnel", e, k, k)
+            log.write("/estimator/diagnostics", d, k, k)
+    records = list(read_mcap(tmp_path / "a.mcap"))
+    back = {topic: [r.message for r in records if r.topic == topic]
+            for topic in ("/perception/tunnel", "/estimator/diagnostics")}
+    for sent, got in ((estimates, back["/perception/tunnel"]), (diagnostics, back["/estimator/diagnostics"])):
+        assert len(got) == len(sent)
+        for a, b in zip(sent, got):
+            for f in dataclasses.fields(a):
+                x, y = getattr(a, f.name), getattr(b, f.name)
+                assert np.array_equal(x, y) if isinstance(x, np.ndarray) else x == y, f.name

@@ -203,6 +203,9 @@ class CameraImage:
 class OdometryDiagnostics:
     """How an odometry processed one LiDAR frame (published per frame next to the estimate)."""
 
+    variable_length = True
+    """``degenerate_directions`` has a row per weak direction: logs store it as JSON, not as a fixed-size record."""
+
     t: float
     """The frame's estimate stamp [s]."""
     points: int
@@ -328,6 +331,9 @@ class FlightModeCommand:
 class TunnelEstimate:
     """What a tunnel detector knows of the course's frames so far, in the estimated world frame; it improves as
     frames accumulate (paper §3.2, Fig. 9). Frames are ordered along the course (nearest the start first)."""
+
+    variable_length = True
+    """Its arrays grow as frames are found: logs store it as JSON, not as a fixed-size record."""
 
     t: float
     """Stamp of the newest scan used [s]."""

@@ -302,8 +302,8 @@ def _unwrap_optional(hint: Any) -> tuple[Any, bool]:
 def infer_message_layout(cls: type, first: Any) -> MessageLayout | None:
     """The fixed CDR layout of dataclass ``cls``, from its type hints and its ``first`` message (array shapes and
     dtypes); None when a field is not a number or a numeric array (the JSON codec takes those)."""
-    if not dataclasses.is_dataclass(cls):
-        return None
+    if not dataclasses.is_dataclass(cls) or getattr(cls, "variable_length", False):
+        return None  # variable_length: a message class whose array sizes change from message to message
     try:
         hints = typing.get_type_hints(cls)
     except Exception:  # noqa: BLE001 - unresolvable annotations: not a fixed layout
