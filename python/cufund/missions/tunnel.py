@@ -400,7 +400,7 @@ class TunnelMission(Planner):
 
         pp = self.params
         w0 = time.perf_counter()
-        keep = np.concatenate([[True], np.linalg.norm(np.diff(waypoints, axis=0), axis=1) > 1e-3])
+        keep = np.concatenate([[True], np.linalg.norm(np.diff(waypoints, axis=0), axis=1) > 0.05])  # no tiny legs
         waypoints = waypoints[keep]
         rec = PlanRecord(t, leg, False, "", waypoints)
         try:
