@@ -318,6 +318,17 @@ def test_link_urls_and_binding():
             LinkAddress.parse(bad, "link")
     with pytest.raises(ValueError, match="system_id"):
         VehicleEndpoint(object(), ["udpout:127.0.0.1:14550"], system_id=0)
+    with pytest.raises(ValueError, match="component_id"):
+        VehicleEndpoint(object(), ["udpout:127.0.0.1:14550"], component_id=300)
+    for rates, match in (({"HEARTBEAT": 0.0}, "HEARTBEAT"), ({"ATTITUDE": float("nan")}, "ATTITUDE"),
+                         ({"NO_SUCH_STREAM": 1.0}, "NO_SUCH_STREAM")):
+        with pytest.raises(ValueError, match=match):
+            VehicleEndpoint(object(), ["udpout:127.0.0.1:14550"], rates_hz=rates)
+    ep = VehicleEndpoint(object(), ["udpout:127.0.0.1:14550"], max_thrust_N=10.0, rates_hz={"ATTITUDE": 50.0})
+    try:  # one rate changed, every other stream (the heartbeat first) kept at its default
+        assert ep.intervals["ATTITUDE"] == pytest.approx(0.02) and ep.intervals["HEARTBEAT"] == pytest.approx(1.0)
+    finally:
+        ep.close()
     with vehicle() as (_live, ep, (_g,)):
         assert ep.links[0].local_address[0] == "127.0.0.1"
     probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

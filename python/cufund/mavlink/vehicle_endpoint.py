@@ -58,7 +58,8 @@ class VehicleEndpoint:
 
     ``origin`` places the world origin on WGS-84 (default: the scenario's GPS home, else the GPS model's default);
     ``max_thrust_N`` converts SET_ATTITUDE_TARGET's normalised thrust to newtons (default: the vehicle's thrust at
-    full rotor speed). :meth:`start` runs the loop in a thread, :meth:`close`
+    full rotor speed); ``rates_hz`` overrides some of the default stream rates
+    (:data:`cufund.mavlink.telemetry_streams.DEFAULT_RATES_HZ`). :meth:`start` runs the loop in a thread, :meth:`close`
     stops it and closes the sockets; :meth:`spin_once` runs one iteration (tests drive it directly).
     """
 
@@ -67,6 +68,13 @@ class VehicleEndpoint:
                  heartbeat_timeout_s: float = 3.0, rates_hz: dict[str, float] | None = None) -> None:
         if not isinstance(system_id, int) or not 1 <= system_id <= 255:
             raise ValueError(f"system_id must be an integer in [1, 255], got {system_id!r}")
+        if not isinstance(component_id, int) or not 1 <= component_id <= 255:
+            raise ValueError(f"component_id must be an integer in [1, 255], got {component_id!r}")
+        for name, hz in (rates_hz or {}).items():
+            if name not in ts.DEFAULT_RATES_HZ:
+                raise ValueError(f"rates_hz: unknown stream {name!r}; expected one of {sorted(ts.DEFAULT_RATES_HZ)}")
+            if isinstance(hz, bool) or not isinstance(hz, (int, float)) or not (math.isfinite(hz) and hz > 0):
+                raise ValueError(f"rates_hz[{name!r}] must be a finite rate > 0 [Hz], got {hz!r}")
         if not links:
             raise ValueError("links must name at least one link, e.g. ['udpout:127.0.0.1:14550']")
         if not (math.isfinite(heartbeat_timeout_s) and heartbeat_timeout_s > 0):
@@ -83,7 +91,7 @@ class VehicleEndpoint:
         except Exception:
             self.close()
             raise
-        self.intervals: dict[str, float | None] = {k: 1.0 / v for k, v in (rates_hz or ts.DEFAULT_RATES_HZ).items()}
+        self.intervals: dict[str, float | None] = {k: 1.0 / v for k, v in {**ts.DEFAULT_RATES_HZ, **(rates_hz or {})}.items()}
         self._next_due: dict[str, float] = {}
         self._outbox: queue.SimpleQueue = queue.SimpleQueue()
         self.params = ParamTable()
