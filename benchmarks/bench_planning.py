@@ -71,9 +71,11 @@ def run(cases, ref_time, label, split=False):
     astar = dict(ok=0, t=[], ratio=[])
     rrtc = dict(ok=0, t=[], ratio=[])
     n = 0
+    seeds = []
     grid = None  # one planner for all layouts: its search buffers are reused while the grid shape stays
-    for world, q, legs, radius in cases:
+    for seed, (world, q, legs, radius) in cases:
         n += 1
+        seeds.append(seed)
         truth = truth_distance(world)
         if grid is None or grid.params.radius != radius:
             grid = GridPathSearch(GridPathSearchParams(radius=radius))
@@ -102,6 +104,8 @@ def run(cases, ref_time, label, split=False):
         print(f"{label:8s} {name:20s} success {d['ok']}/{n} = {100.0 * d['ok'] / n:5.1f} %   "
               f"length / InformedRRT*({ref_time:g} s{' per layout' if split else ''}): median {np.nanmedian(ratio):.3f} max {np.nanmax(ratio):.3f}   "
               f"plan ms: median {np.median(t):.1f} p99 {np.percentile(t, 99):.1f}")
+        worst = np.argsort(-np.nan_to_num(ratio, nan=-1.0))[:5]
+        print(f"{'':8s} {'':20s} worst: " + ", ".join(f"seed {seeds[i]} {ratio[i]:.3f}" for i in worst))
 
 
 def run_local(n_forests):
@@ -164,6 +168,7 @@ def main():
     ap.add_argument("--local", type=int, default=200)
     ap.add_argument("--scalar", action="store_true", help="only the scalar clearance call's cost")
     ap.add_argument("--first-seed", type=int, default=0, help="layouts first-seed .. first-seed + N - 1")
+    ap.add_argument("--seeds", type=int, nargs="*", help="only these layouts (overrides --first-seed and the counts)")
     ap.add_argument("--split-ref", action="store_true",
                     help="tunnels: --ref-time per layout, shared by its 6 legs (else per leg: 6x longer)")
     args = ap.parse_args()
@@ -173,19 +178,19 @@ def main():
         return
 
     def forests():
-        for seed in range(args.first_seed, args.first_seed + args.forests):
+        for seed in args.seeds if args.seeds else range(args.first_seed, args.first_seed + args.forests):
             world, q, s, g, r = forest_case(seed)
-            yield world, q, [(s, g)], r
+            yield seed, (world, q, [(s, g)], r)
 
     def tunnels():
-        for seed in range(args.first_seed, args.first_seed + args.tunnels):
+        for seed in args.seeds if args.seeds else range(args.first_seed, args.first_seed + args.tunnels):
             c = tunnel_course_layout(seed)
             r = 0.15
             lo, hi = c.path_W.min(0) - 1.0, c.path_W.max(0) + 1.0
             lo[2] = 0.0
             q = clearance_from_world(c.world, 0.025, np.stack([lo, hi]))
             pts = [c.entry_W] + [np.asarray(f.centre_W) for f in c.frames] + [c.exit_W]
-            yield c.world, q, list(zip(pts[:-1], pts[1:])), r
+            yield seed, (c.world, q, list(zip(pts[:-1], pts[1:])), r)
 
     t0 = time.perf_counter()
     if args.forests:

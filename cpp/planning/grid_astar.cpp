@@ -230,7 +230,7 @@ AStarResult GridAStar::plan(const ClearanceMap& map, const Vec3& start, const Ve
   }
   path.push_back(start);
   std::reverse(path.begin(), path.end());
-  if (opt.shortcut) path = shortcut_path(map, path, r);
+  if (opt.shortcut) path = relax_path(map, shortcut_path(map, path, r), r, opt.z_min, opt.z_max);
   result.status = PathStatus::kFound;
   result.length = path_length(path);
   result.path = std::move(path);
@@ -248,6 +248,47 @@ std::vector<Vec3> shortcut_path(const ClearanceMap& map, const std::vector<Vec3>
     i = j;
   }
   return out;
+}
+
+std::vector<Vec3> relax_path(const ClearanceMap& map, const std::vector<Vec3>& path, double radius, double z_min,
+                             double z_max, double max_segment, int iterations) {
+  if (path.size() <= 2) return path;
+  std::vector<Vec3> p{path.front()};
+  for (std::size_t s = 1; s < path.size(); ++s) {
+    const Vec3 &a = path[s - 1], &b = path[s];
+    const int n = std::max(1, static_cast<int>(std::ceil(distance(a, b) / max_segment)));
+    for (int k = 1; k < n; ++k) {
+      const double u = static_cast<double>(k) / n;
+      p.push_back({a[0] + u * (b[0] - a[0]), a[1] + u * (b[1] - a[1]), a[2] + u * (b[2] - a[2])});
+    }
+    p.push_back(b);
+  }
+  // How far a height lies outside the band [m]: a move may not take a vertex further out.
+  const auto out_of_band = [&](double z) { return std::max({z_min - z, z - z_max, 0.0}); };
+  const double tiny = map.min_step();
+  for (int it = 0; it < iterations; ++it) {
+    bool moved = false;
+    for (std::size_t i = 1; i + 1 < p.size(); ++i) {
+      const Vec3 &a = p[i - 1], &b = p[i + 1], c = p[i];
+      Vec3 ab{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+      const double ab2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
+      double u = 0.0;
+      if (ab2 > 0.0) u = std::clamp(((c[0] - a[0]) * ab[0] + (c[1] - a[1]) * ab[1] + (c[2] - a[2]) * ab[2]) / ab2, 0.0, 1.0);
+      const Vec3 d{a[0] + u * ab[0] - c[0], a[1] + u * ab[1] - c[1], a[2] + u * ab[2] - c[2]};
+      if (std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) < tiny) continue;
+      for (double t = 1.0; t >= 0.125; t *= 0.5) {
+        const Vec3 q{c[0] + t * d[0], c[1] + t * d[1], c[2] + t * d[2]};
+        if (out_of_band(q[2]) > out_of_band(c[2])) continue;
+        if (map.segment_free(a, q, radius) && map.segment_free(q, b, radius)) {
+          p[i] = q;
+          moved = true;
+          break;
+        }
+      }
+    }
+    if (!moved) break;
+  }
+  return shortcut_path(map, p, radius);
 }
 
 }  // namespace cufund::planning

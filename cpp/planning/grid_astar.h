@@ -73,6 +73,17 @@ class GridAStar {
 // The first and last points are kept; the result is free wherever the input was.
 std::vector<Vec3> shortcut_path(const ClearanceMap& map, const std::vector<Vec3>& path, double radius);
 
+// String pulling of a free path: segments are split to at most `max_segment` [m], then `iterations` sweeps
+// (fewer once nothing moves) move each interior vertex towards the closest point of the segment joining its
+// neighbours, by the largest of 1, 1/2, 1/4, 1/8 of the way for which both its segments stay free at the
+// radius and its height does not move further out of [z_min, z_max]; then greedy shortcutting. Each move
+// never lengthens the path (the length through a point is convex in it), and the result is free wherever
+// the input was. Deterministic.
+std::vector<Vec3> relax_path(const ClearanceMap& map, const std::vector<Vec3>& path, double radius,
+                             double z_min = -std::numeric_limits<double>::infinity(),
+                             double z_max = std::numeric_limits<double>::infinity(), double max_segment = 0.5,
+                             int iterations = 30);
+
 double path_length(const std::vector<Vec3>& path);
 
 }  // namespace cufund::planning
