@@ -7,7 +7,9 @@ closer than the radius), path length over the reference's, and planning time med
 Targets (2 cores): success >= 99 % in forests, 100 % in tunnels; length <= 1.05 x reference; global
 plan <= 20 ms median. `--local N`: the B-spline local replanner flies N forests by receding horizon at
 10 Hz (perfect tracking, the map known in advance: not yet the growing map of a LiDAR), reporting its
-success and per-replan time (targets: <= 5 ms median, <= 20 ms p99).
+success and per-replan time (targets: <= 5 ms median, <= 20 ms p99). `--local-tunnels N`: the same through N
+tunnel courses (entry, each frame's centre with a stop, exit; radius 0.15 m on a 2.5 cm ESDF). Wall and CPU
+time per replan are printed with the load average: on a loaded machine the wall figure includes preemption.
 
 Run: `.venv/bin/python benchmarks/bench_planning.py [--forests 200] [--tunnels 200] [--ref-time 5]`
 (the issue's figures: about 20 min for the forests, 100 min for the tunnels' 6 legs each at 5 s; `--split-ref`
@@ -108,17 +110,17 @@ def run(cases, ref_time, label, split=False):
         print(f"{'':8s} {'':20s} worst: " + ", ".join(f"seed {seeds[i]} {ratio[i]:.3f}" for i in worst))
 
 
-def run_local(n_forests):
-    times, cpu, ok, n = [], [], 0, 0
-    for seed in range(n_forests):
-        world, _, start, goal, radius = forest_case(seed)
-        esdf = esdf_from_world(world, RES_FOREST, [[-17.0, -8.0, 0.0], [17.0, 8.0, 3.0]])
-        lp = BsplineLocalPlanner(esdf, LocalPlannerParams(radius=radius, v_max=2.0, a_max=3.0))
-        t, p, v, a = 0.0, start, np.zeros(3), np.zeros(3)
-        flown, plan, reached = [], None, False
-        for _ in range(400):  # 40 s at 10 Hz
+def fly_local(lp, world, waypoints, radius, max_replans=400):
+    """Receding horizon at 10 Hz through ``waypoints`` (a stop at each, perfect tracking): success (every
+    waypoint reached, the flown curve never closer than ``radius`` to the triangles, checked with Open3D),
+    per-replan wall and CPU seconds."""
+    t, p, v, a = 0.0, waypoints[0], np.zeros(3), np.zeros(3)
+    flown, wall, cpu = [], [], []
+    for goal in waypoints[1:]:
+        plan, reached = None, False
+        for _ in range(max_replans):
             r = lp.replan(t, p, v, a, goal)
-            times.append(r.plan_seconds)
+            wall.append(r.plan_seconds)
             cpu.append(r.plan_cpu_seconds)
             if r.status == "ok":
                 plan = r.trajectory
@@ -126,18 +128,59 @@ def run_local(n_forests):
                 break
             if r.status == "ok" and r.reaches_goal:
                 flown.append(plan.sample(np.linspace(t, plan.t_end, 200)).p_W)
+                t, p, v, a = plan.t_end, np.asarray(goal, float), np.zeros(3), np.zeros(3)
                 reached = True
                 break
             flown.append(plan.sample(np.linspace(t, t + 0.1, 11)).p_W)
             t += 0.1
             s = plan.sample(t)
             p, v, a = s.p_W[0], s.v_W[0], s.a_W[0]
+        if not reached:
+            return False, wall, cpu
+    return float(truth_distance(world)(np.vstack(flown)).min()) >= radius - 1e-5, wall, cpu
+
+
+def run_local(cases, label):
+    """``cases``: (seed, (world, esdf, waypoints, radius, params)) per layout."""
+    times, cpu, ok, n, failed = [], [], 0, 0, []
+    for seed, (world, esdf, waypoints, radius, params) in cases:
+        success, w, c = fly_local(BsplineLocalPlanner(esdf, params), world, waypoints, radius)
+        times += w
+        cpu += c
         n += 1
-        ok += reached and float(truth_distance(world)(np.vstack(flown)).min()) >= radius - 1e-5
+        ok += success
+        if not success:
+            failed.append(seed)
     t, c = np.array(times) * 1e3, np.array(cpu) * 1e3
-    print(f"forest   local B-spline       success {ok}/{n} = {100.0 * ok / n:5.1f} %   "
+    print(f"{label:8s} local B-spline       success {ok}/{n} = {100.0 * ok / n:5.1f} %   "
           f"replan ms: median {np.median(t):.2f} p99 {np.percentile(t, 99):.2f} "
-          f"(CPU: median {np.median(c):.2f} p99 {np.percentile(c, 99):.2f}; {t.size} replans)")
+          f"(CPU: median {np.median(c):.2f} p99 {np.percentile(c, 99):.2f}; {t.size} replans; load "
+          f"{os.getloadavg()[0]:.1f})" + (f"   failed: {failed}" if failed else ""))
+
+
+def local_forests(seeds):
+    for seed in seeds:
+        world, _, start, goal, radius = forest_case(seed)
+        esdf = esdf_from_world(world, RES_FOREST, [[-17.0, -8.0, 0.0], [17.0, 8.0, 3.0]])
+        yield seed, (world, esdf, [start, goal], radius, LocalPlannerParams(radius=radius, v_max=2.0, a_max=3.0))
+
+
+RES_TUNNEL_LOCAL = 0.025
+
+
+def local_tunnels(seeds):
+    """Entry, each frame's centre, exit of a tunnel course at radius 0.15 on a 2.5 cm ESDF of the known world;
+    the collision cost's margin 5 cm (the smallest opening leaves 0.1 m beyond the radius on each side)."""
+    for seed in seeds:
+        c = tunnel_course_layout(seed)
+        lo, hi = c.path_W.min(0) - 1.0, c.path_W.max(0) + 1.0
+        lo[2] = 0.0
+        esdf = esdf_from_world(c.world, RES_TUNNEL_LOCAL, np.stack([lo, hi]))
+        pts = [c.entry_W] + [np.asarray(f.centre_W) for f in c.frames] + [c.exit_W]
+        z = np.array(pts)[:, 2]
+        params = LocalPlannerParams(radius=0.15, margin=0.05, v_max=1.5, a_max=2.0, dt=0.1, horizon=4.0,
+                                    z_min=max(0.2, float(z.min()) - 0.5), z_max=float(z.max()) + 0.5)
+        yield seed, (c.world, esdf, pts, 0.15, params)
 
 
 def run_scalar():
@@ -166,6 +209,7 @@ def main():
     ap.add_argument("--tunnels", type=int, default=200)
     ap.add_argument("--ref-time", type=float, default=5.0)
     ap.add_argument("--local", type=int, default=200)
+    ap.add_argument("--local-tunnels", type=int, default=200, help="the local replanner through N tunnel courses")
     ap.add_argument("--scalar", action="store_true", help="only the scalar clearance call's cost")
     ap.add_argument("--first-seed", type=int, default=0, help="layouts first-seed .. first-seed + N - 1")
     ap.add_argument("--seeds", type=int, nargs="*", help="only these layouts (overrides --first-seed and the counts)")
@@ -198,7 +242,9 @@ def main():
     if args.tunnels:
         run(tunnels(), args.ref_time, "tunnel", split=args.split_ref)
     if args.local:
-        run_local(args.local)
+        run_local(local_forests(args.seeds or range(args.first_seed, args.first_seed + args.local)), "forest")
+    if args.local_tunnels:
+        run_local(local_tunnels(args.seeds or range(args.first_seed, args.first_seed + args.local_tunnels)), "tunnel")
     print(f"total {time.perf_counter() - t0:.0f} s")
 
 
