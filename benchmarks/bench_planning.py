@@ -28,7 +28,7 @@ import timeit
 import numpy as np
 import open3d as o3d
 
-from cufund.planning import (BsplineLocalPlanner, GridPathSearch, GridPathSearchParams, LocalPlannerParams,
+from cufund.planning import (BsplineLocalPlanner, GlobalPlanner, GlobalPlannerParams, GridPathSearch, GridPathSearchParams, LocalPlannerParams,
                              OmplPathParams, OmplPathPlanner, clearance_from_world, esdf_from_world)
 from cufund.worlds import tunnel_course_layout
 from cufund.worlds.builtin import forest
@@ -183,6 +183,26 @@ def local_tunnels(seeds):
         yield seed, (c.world, esdf, pts, 0.15, params)
 
 
+def run_global(cases):
+    """The global plan on each forest (grid A* then the clearance-keeping min-snap with optimised times):
+    wall and CPU time of the search alone and of search + min-snap (target: global plan <= 20 ms median)."""
+    planner = GlobalPlanner(GlobalPlannerParams(search="astar", radius=RADIUS_FOREST))
+    rows, ok, n = [], 0, 0
+    for _, (world, q, legs, radius) in cases:
+        (start, goal), = legs
+        g = planner.plan(q, start, goal)
+        n += 1
+        ok += g.ok
+        rows.append((g.search_seconds, g.search_cpu_seconds, g.plan_seconds, g.plan_cpu_seconds,
+                     0 if g.motion is None else g.motion.inserted, g.path.path_W.shape[0]))
+    a = np.array(rows)
+    ms = lambda x: f"median {np.median(x) * 1e3:6.1f} p99 {np.percentile(x, 99) * 1e3:6.1f}"  # noqa: E731
+    print(f"forest   global plan          ok {ok}/{n}; load {os.getloadavg()[0]:.1f}; waypoints median "
+          f"{np.median(a[:, 5]):.0f}, inserted median {np.median(a[:, 4]):.0f} max {a[:, 4].max():.0f}")
+    print(f"{'':8s} search only ms       wall {ms(a[:, 0])}   CPU {ms(a[:, 1])}")
+    print(f"{'':8s} search + min-snap ms wall {ms(a[:, 2])}   CPU {ms(a[:, 3])}")
+
+
 def run_scalar():
     """Per-call cost of the scalar clearance query from Python, next to a C builtin of similar arity
     (math.hypot: the floor of any call from Python) and the numpy path."""
@@ -210,6 +230,8 @@ def main():
     ap.add_argument("--ref-time", type=float, default=5.0)
     ap.add_argument("--local", type=int, default=200)
     ap.add_argument("--local-tunnels", type=int, default=200, help="the local replanner through N tunnel courses")
+    ap.add_argument("--global", dest="global_", type=int, default=0,
+                    help="only the global plan (A* + min-snap) timing on N forests")
     ap.add_argument("--scalar", action="store_true", help="only the scalar clearance call's cost")
     ap.add_argument("--first-seed", type=int, default=0, help="layouts first-seed .. first-seed + N - 1")
     ap.add_argument("--seeds", type=int, nargs="*", help="only these layouts (overrides --first-seed and the counts)")
@@ -237,6 +259,12 @@ def main():
             yield seed, (c.world, q, list(zip(pts[:-1], pts[1:])), r)
 
     t0 = time.perf_counter()
+    if args.global_:
+        seeds = args.seeds or range(args.first_seed, args.first_seed + args.global_)
+        args.forests, args.seeds = len(seeds), list(seeds)
+        run_global(forests())
+        print(f"total {time.perf_counter() - t0:.0f} s")
+        return
     if args.forests:
         run(forests(), args.ref_time, "forest")
     if args.tunnels:

@@ -97,6 +97,8 @@ class GlobalPlan:
     """Wall time of the min-snap stage [s]."""
     plan_cpu_seconds: float
     """CPU time of both stages [s]."""
+    search_cpu_seconds: float = 0.0
+    """CPU time of the path search alone [s]."""
 
     @property
     def ok(self) -> bool:
@@ -140,9 +142,10 @@ class GlobalPlanner:
         c0 = time.thread_time()
         path = self._search.plan(query, start_W, goal_W)
         t1 = time.perf_counter()
+        c1 = time.thread_time()
         if not path.found:
-            return GlobalPlan(path.status, path, None, path.plan_seconds, 0.0, time.thread_time() - c0)
+            return GlobalPlan(path.status, path, None, path.plan_seconds, 0.0, c1 - c0, c1 - c0)
         w = path.path_W
         motion = self._motion.plan(w, np.full(w.shape[0], float(yaw)), query=query, t_start=t_start)
         return GlobalPlan("ok" if motion.status == "ok" else motion.status, path, motion, path.plan_seconds,
-                          time.perf_counter() - t1, time.thread_time() - c0)
+                          time.perf_counter() - t1, time.thread_time() - c0, c1 - c0)
