@@ -6,7 +6,7 @@ import numpy as np
 
 from ..components import BusView, Mapper, Subscription
 from ..messages import MapUpdate, Odometry, PointCloud, Topics
-from ..sensors.pose import Transform, quat_to_matrix
+from ..sensors.pose import Transform, interpolate_poses
 from .esdf_map import EsdfMap, EsdfMapParams
 
 
@@ -53,16 +53,7 @@ class EsdfMapper(Mapper):
 
     def _poses(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Body positions (N, 3) and rotations (N, 3, 3) at times t, interpolated (clamped at the ends)."""
-        ts = np.asarray(self._t)
-        p, q = np.asarray(self._p), np.asarray(self._q)
-        if len(ts) == 1:
-            return np.repeat(p, len(t), axis=0), np.repeat(quat_to_matrix(q), len(t), axis=0)
-        i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
-        s = np.clip((t - ts[i]) / (ts[i + 1] - ts[i]), 0.0, 1.0)[:, None]
-        q0, q1 = q[i], q[i + 1]
-        q1 = np.where(np.sum(q0 * q1, axis=1, keepdims=True) < 0, -q1, q1)
-        qs = (1 - s) * q0 + s * q1
-        return (1 - s) * p[i] + s * p[i + 1], quat_to_matrix(qs / np.linalg.norm(qs, axis=1, keepdims=True))
+        return interpolate_poses(self._t, self._p, self._q, t)
 
     def integrate(self, t: float, bus: BusView) -> None:
         for state in self._poses_sub.take():

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..components import BusView, Component, Subscription
 from ..messages import Odometry, PointCloud, Topics, TunnelEstimate
-from ..sensors.pose import Transform, quat_to_matrix
+from ..sensors.pose import Transform, interpolate_poses
 from .detection import (
     FrameDetection,
     TunnelDetectorParams,
@@ -130,15 +130,7 @@ class TunnelDetector(Component):
     # -- poses -------------------------------------------------------------------------------------------------
     def _poses(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Body positions (N, 3) and rotations (N, 3, 3) at times t, interpolated (clamped at the ends)."""
-        ts, p, q = np.asarray(self._t), np.asarray(self._p), np.asarray(self._q)
-        if len(ts) == 1:
-            return np.repeat(p, len(t), axis=0), np.repeat(quat_to_matrix(q), len(t), axis=0)
-        i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
-        s = np.clip((t - ts[i]) / (ts[i + 1] - ts[i]), 0.0, 1.0)[:, None]
-        q0, q1 = q[i], q[i + 1]
-        q1 = np.where(np.sum(q0 * q1, axis=1, keepdims=True) < 0, -q1, q1)
-        qs = (1 - s) * q0 + s * q1
-        return (1 - s) * p[i] + s * p[i + 1], quat_to_matrix(qs / np.linalg.norm(qs, axis=1, keepdims=True))
+        return interpolate_poses(self._t, self._p, self._q, t)
 
     def _to_world(self, cloud: PointCloud) -> tuple[np.ndarray, np.ndarray]:
         """The scan's points in the world (N, 3) and the LiDAR's position when each was measured (N, 3).

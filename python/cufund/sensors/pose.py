@@ -91,3 +91,19 @@ def sample_poses(pose_fn: PoseFn, times: np.ndarray, T_BS: Transform) -> tuple[n
     q_WS = quat_mul(q_WB, np.array(T_BS.q))
     p_WS = p_WB + quat_to_matrix(q_WB) @ np.array(T_BS.t)
     return p_WS, q_WS
+
+
+def interpolate_poses(t_knots: np.ndarray, p_knots: np.ndarray, q_knots: np.ndarray,
+                      t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Body positions (N, 3) and rotations (N, 3, 3) at times ``t`` [s] from pose knots (stamps (K,) ascending,
+    positions (K, 3), quaternions (K, 4) [w, x, y, z]): linear in position, normalised linear in the quaternion
+    (short way round), clamped at the ends."""
+    ts, p, q = np.asarray(t_knots), np.asarray(p_knots), np.asarray(q_knots)
+    if len(ts) == 1:
+        return np.repeat(p, len(t), axis=0), np.repeat(quat_to_matrix(q), len(t), axis=0)
+    i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
+    s = np.clip((t - ts[i]) / (ts[i + 1] - ts[i]), 0.0, 1.0)[:, None]
+    q0, q1 = q[i], q[i + 1]
+    q1 = np.where(np.sum(q0 * q1, axis=1, keepdims=True) < 0, -q1, q1)
+    qs = (1 - s) * q0 + s * q1
+    return (1 - s) * p[i] + s * p[i + 1], quat_to_matrix(qs / np.linalg.norm(qs, axis=1, keepdims=True))
