@@ -14,6 +14,7 @@ Run: ``.venv/bin/python benchmarks/bench_mcap.py [--repeats 7]``
 from __future__ import annotations
 
 import argparse
+import gc
 import statistics
 import tempfile
 import time
@@ -105,6 +106,7 @@ def bench_square(tmp: Path, repeats: int) -> Path | None:
     path = tmp / "square.mcap"
     for _ in range(repeats):
         for kind in ("without", "with"):
+            gc.collect()  # the previous run's garbage is not this run's cost
             t0, c0 = time.perf_counter(), time.thread_time()
             logger = McapLogger(path, {"scenario": "square"}) if kind == "with" else None
             run = cufund.run_scenario(config, logger=logger)
