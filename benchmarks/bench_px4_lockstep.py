@@ -59,8 +59,9 @@ class _Loopback:
 
 
 def _c_speed_peer(port: int) -> None:
-    """PX4's C side in miniature, with a struct codec: frames the byte stream, checks each CRC, and answers each
-    HIL_SENSOR of instance 0 with HIL_ACTUATOR_CONTROLS stamped with its time (sequence numbered, CRC'd)."""
+    """PX4's C side in miniature, with a struct codec: frames the byte stream, checks each CRC, decodes every
+    HIL_SENSOR whole and answers each of instance 0 with HIL_ACTUATOR_CONTROLS stamped with its time (sequence
+    numbered, CRC'd)."""
     import struct
 
     from fastcrc.crc16 import mcrf4xx
@@ -71,6 +72,8 @@ def _c_speed_peer(port: int) -> None:
                                          mavlink.MAVLink_hil_state_quaternion_message)}
     hil_sensor, ctl = mavlink.MAVLink_hil_sensor_message, mavlink.MAVLink_hil_actuator_controls_message
     header, u64 = struct.Struct("<BBBBBBBHB"), struct.Struct("<Q")
+    sensor_unpack, sensor_size = hil_sensor.unpacker.unpack, hil_sensor.unpacker.size
+    zeros = bytes(sensor_size)
     controls_tail = struct.pack("<Q16fB", 1, *([U_HOVER] * 4 + [0.0] * 12), 129)
     sock = socket.create_connection(("127.0.0.1", port))
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
@@ -92,9 +95,14 @@ def _c_speed_peer(port: int) -> None:
                     buf[end] | buf[end + 1] << 8:
                 i += 1
                 continue
-            if msg_id == hil_sensor.id and (n < hil_sensor.unpacker.size or buf[end - 1] == 0):  # id 0 (trimmed)
+            if msg_id == hil_sensor.id:  # decoded whole, as PX4's simulator_mavlink does (trailing zeros restored)
+                payload = buf[i + 10:end]
+                fields = sensor_unpack(payload + zeros[n:] if n < sensor_size else payload)
+                if fields[-1] != 0:  # answered for the primary IMU (id 0) only
+                    i = end + 2
+                    continue
                 body = header.pack(0xFD, ctl.unpacker.size, 0, 0, seq, 1, 1, ctl.id, 0) + \
-                    u64.pack(u64.unpack_from(buf, i + 10)[0]) + controls_tail
+                    u64.pack(fields[0]) + controls_tail
                 out.append(body + struct.pack("<H", mcrf4xx(bytes((ctl.crc_extra,)), mcrf4xx(body[1:]))))
                 seq = (seq + 1) & 0xFF
             i = end + 2
@@ -145,13 +153,44 @@ def _harness_peer(port: int) -> None:
     px4.close()
 
 
-def _run(bridge: Px4SimulatorBridge, seconds: float) -> tuple[float, float]:
-    """(round trips per wall second, per CPU second of this process: cufund's own cost, whatever the load)."""
+def _run(bridge: Px4SimulatorBridge, seconds: float) -> tuple[float, float, float]:
+    """(round trips per wall second, per CPU second of this process: cufund's own cost, whatever the load; seconds
+    the peer took to start and connect). The clocks start once the peer is connected: a peer process's start-up
+    (a Python interpreter importing pymavlink, about 0.5 s) is not a round trip's cost and, over a 10 s run, used
+    to add ~200 us to each."""
     bridge.simulator.vehicle.hover([0.0, 0.0, 10.0])
+    t_connect = 0.0
+    accept = getattr(bridge.link, "accept", None)
+    if accept is not None:
+        t = time.perf_counter()
+        if not accept(30.0):
+            raise TimeoutError("the peer did not connect")
+        t_connect = time.perf_counter() - t
     t0, c0 = time.perf_counter(), time.process_time()
     bridge.run(duration=seconds, connect_timeout=30.0)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    return bridge.stats["controls"] / wall, bridge.stats["controls"] / cpu
+    return bridge.stats["controls"] / wall, bridge.stats["controls"] / cpu, t_connect
+
+
+def _tcp(peer, seconds: float, cpu: int | None = None) -> tuple[float, float, float]:
+    """The bridge over TCP against ``peer`` run in a separate process; ``cpu``: both processes pinned to that CPU
+    (lockstep is serial: on one CPU neither side waits for the other to be woken on another)."""
+    mask = os.sched_getaffinity(0)
+    if cpu is not None:
+        os.sched_setaffinity(0, {cpu})  # the spawned peer inherits it
+    try:
+        bridge = Px4SimulatorBridge(_config(), TcpServerLink("127.0.0.1", 0), PARAMS)
+        proc = mp.get_context("spawn").Process(target=peer, args=(bridge.port_number,), daemon=True)
+        proc.start()
+        try:
+            return _run(bridge, seconds)
+        finally:
+            bridge.close()
+            proc.join(10.0)
+            if proc.is_alive():
+                proc.kill()
+    finally:
+        os.sched_setaffinity(0, mask)
 
 
 def main() -> None:
@@ -161,23 +200,19 @@ def main() -> None:
     load0 = os.getloadavg()[0]
     results = {}
     results["in-process"] = _run(Px4SimulatorBridge(_config(), _Loopback(), PARAMS), seconds)
-    for name, peer in (("tcp, C-speed peer", _c_speed_peer), ("tcp, pymavlink harness", _harness_peer)):
-        bridge = Px4SimulatorBridge(_config(), TcpServerLink("127.0.0.1", 0), PARAMS)
-        proc = mp.get_context("spawn").Process(target=peer, args=(bridge.port_number,), daemon=True)
-        proc.start()
-        try:
-            results[name] = _run(bridge, seconds)
-        finally:
-            bridge.close()
-            proc.join(10.0)
-            if proc.is_alive():
-                proc.kill()
-    results["tcp ping-pong, no sim"] = (_ping_pong(seconds), float("nan"))
-    print(f"  {'peer':<24} {'per wall s':>10} {'x real time':>12} {'x target':>9} {'per cufund CPU s':>17}")
-    for name, (rate, cpu_rate) in results.items():
-        print(f"  {name:<24} {rate:10.0f} {rate / 250:12.1f} {rate / 5000:9.2f} {cpu_rate:17.0f}")
+    one_cpu = max(os.sched_getaffinity(0))
+    for name, peer, cpu in (("tcp, C-speed peer", _c_speed_peer, None),
+                            ("tcp, C-speed, one CPU", _c_speed_peer, one_cpu),
+                            ("tcp, pymavlink harness", _harness_peer, None)):
+        results[name] = _tcp(peer, seconds, cpu)
+    results["tcp ping-pong, no sim"] = (_ping_pong(seconds), float("nan"), float("nan"))
+    print(f"  {'peer':<24} {'per wall s':>10} {'x real time':>12} {'x target':>9} {'per cufund CPU s':>17} "
+          f"{'peer start s':>12}")
+    for name, (rate, cpu_rate, t_connect) in results.items():
+        print(f"  {name:<24} {rate:10.0f} {rate / 250:12.1f} {rate / 5000:9.2f} {cpu_rate:17.0f} {t_connect:12.2f}")
     print(f"  (load average {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on {os.cpu_count()} cores: "
-          f"wall rates fall with other work; per CPU s is cufund's own cost)")
+          f"wall rates fall with other work; per CPU s is cufund's own cost. Clocks start once the peer is "
+          f"connected; 'one CPU': cufund and the peer pinned to CPU {one_cpu}, as `taskset -c {one_cpu}` would)")
 
 
 if __name__ == "__main__":
