@@ -7,11 +7,13 @@ from __future__ import annotations
 import os
 import select
 import socket
+import struct
 from typing import Protocol
 
 __all__ = ["PX4_SITL_BASE_PORT", "GcsForward", "Link", "LinkClosed", "SerialLink", "TcpServerLink"]
 
 PX4_SITL_BASE_PORT = 4560  #: PX4's simulator_mavlink connects to TCP 4560 + instance
+_TIMEVAL = struct.Struct("@ll")  # struct timeval: seconds, microseconds (C longs)
 
 
 class LinkClosed(ConnectionError):
@@ -45,7 +47,7 @@ class TcpServerLink:
         self._server.listen(1)
         self.host, self.port = host, self._server.getsockname()[1]
         self._conn: socket.socket | None = None
-        self._poll = select.poll()
+        self._rcvtimeo = 0.0  # the connection's SO_RCVTIMEO [s]
 
     @property
     def connected(self) -> bool:
@@ -60,8 +62,9 @@ class TcpServerLink:
             return False
         conn, _ = self._server.accept()
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        conn.settimeout(None)  # blocking: Python neither polls before each call nor sets O_NONBLOCK
         self._conn = conn
-        self._poll.register(conn, select.POLLIN)
+        self._set_rcvtimeo(1.0)
         return True
 
     def send(self, data: bytes) -> None:
@@ -74,15 +77,21 @@ class TcpServerLink:
             raise LinkClosed(f"PX4 connection lost: {e.strerror or e}") from None
 
     def recv(self, timeout: float) -> bytes | None:
-        if self._conn is None:
+        """What has arrived, waiting up to ``timeout`` [s] (to within 1 ms) for the first byte: one ``recv``
+        system call. The wait is the socket's receive timeout (SO_RCVTIMEO), set only when ``timeout`` changes by
+        more than 1 ms (no poll/select per call, and no setsockopt per period for a wait that restarts at the same
+        length); a zero timeout reads what is waiting without blocking."""
+        conn = self._conn
+        if conn is None:
             return b""
-        # one poll object registered once (no select lists per call); a zero timeout reads what is waiting
-        # without polling at all
-        if timeout > 0.0 and not self._poll.poll(timeout * 1e3):
-            return None
         try:
-            data = self._conn.recv(65536, socket.MSG_DONTWAIT)
-        except BlockingIOError:
+            if timeout <= 0.0:
+                data = conn.recv(65536, socket.MSG_DONTWAIT)
+            else:
+                if abs(timeout - self._rcvtimeo) > 1e-3:
+                    self._set_rcvtimeo(timeout)
+                data = conn.recv(65536)
+        except BlockingIOError:  # EAGAIN: nothing within the timeout (or nothing waiting)
             return None
         except OSError:
             data = b""
@@ -90,13 +99,18 @@ class TcpServerLink:
             self._drop()
         return data
 
+    def _set_rcvtimeo(self, timeout: float) -> None:
+        usec = max(round(timeout * 1e6), 1)  # a zero timeval would mean "block forever"
+        assert self._conn is not None
+        self._conn.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _TIMEVAL.pack(usec // 1_000_000, usec % 1_000_000))
+        self._rcvtimeo = usec * 1e-6
+
     def disconnect(self) -> None:
         """Closes the PX4 connection; the server keeps listening for the next one."""
         self._drop()
 
     def _drop(self) -> None:
         if self._conn is not None:
-            self._poll.unregister(self._conn)
             self._conn.close()
             self._conn = None
 
