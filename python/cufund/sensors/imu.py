@@ -114,9 +114,13 @@ class ImuModel:
         """Samples for the true attitude q_WB (K, 4) [w, x, y, z], body rate w_B (K, 3) [rad/s], acceleration
         a_W (K, 3) [m/s^2] and angular acceleration alpha_B (K, 3) [rad/s^2]; or one sample from (4,)/(3,).
         Returns (accelerometer (K, 3) [m/s^2], gyroscope (K, 3) [rad/s]) in the IMU frame."""
+        if type(q_WB) is np.ndarray and q_WB.shape == (4,) and type(w_B) is np.ndarray and w_B.shape == (3,) and \
+                type(a_W) is np.ndarray and a_W.shape == (3,) and type(alpha_B) is np.ndarray and alpha_B.shape == (3,):
+            return self._measure_one(q_WB.tolist(), w_B.tolist(), a_W.tolist(), alpha_B.tolist())  # the tick path
         single = np.ndim(q_WB) == 1
         if single and np.shape(w_B) == (3,) and np.shape(a_W) == (3,) and np.shape(alpha_B) == (3,):
-            return self._measure_one(q_WB, w_B, a_W, alpha_B)
+            return self._measure_one([float(v) for v in q_WB], [float(v) for v in w_B], [float(v) for v in a_W],
+                                     [float(v) for v in alpha_B])
         q, w, a, al = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q_WB, w_B, a_W, alpha_B))
         k = q.shape[0]
         for name, x, d in (("q_WB", q, 4), ("w_B", w, 3), ("a_W", a, 3), ("alpha_B", al, 3)):
@@ -133,18 +137,20 @@ class ImuModel:
         gyr = np.clip(self._scale_g * (w @ self._R_IB.T) + e[:, 3:], -self.params.gyro_range, self.params.gyro_range)
         return (acc[0], gyr[0]) if single else (acc, gyr)
 
-    def _measure_one(self, q_WB: np.ndarray, w_B: np.ndarray, a_W: np.ndarray, alpha_B: np.ndarray
+    def _measure_one(self, q: list[float], w: list[float], a: list[float], alpha: list[float]
                      ) -> tuple[np.ndarray, np.ndarray]:
-        """One sample with scalar arithmetic: the simulator's per-tick path (the same model as the batch path,
-        equal to it within rounding)."""
-        qw, qx, qy, qz = (float(v) for v in q_WB)
-        wx, wy, wz = (float(v) for v in w_B)
-        ax, ay, az = float(a_W[0]), float(a_W[1]), float(a_W[2]) + self.gravity
-        bx, by, bz = (float(v) for v in alpha_B)
-        for name, values in (("q_WB", (qw, qx, qy, qz)), ("w_B", (wx, wy, wz)), ("a_W", (ax, ay, az)),
-                             ("alpha_B", (bx, by, bz))):
-            if not all(math.isfinite(v) for v in values):
-                raise ValueError(f"{name} must be finite")
+        """One sample with scalar arithmetic on Python floats (the simulator's per-tick path: the same model as
+        the batch path, equal to it within rounding). ``q`` [w, x, y, z], ``w``, ``a``, ``alpha``: 3 floats."""
+        qw, qx, qy, qz = q
+        wx, wy, wz = w
+        ax, ay, az = a
+        bx, by, bz = alpha
+        # one finiteness test for all 13 inputs (a sum of finite numbers may still overflow: then look closer)
+        if not math.isfinite(qw + qx + qy + qz + wx + wy + wz + ax + ay + az + bx + by + bz):
+            for name, values in (("q_WB", q), ("w_B", w), ("a_W", a), ("alpha_B", alpha)):
+                if not all(math.isfinite(v) for v in values):
+                    raise ValueError(f"{name} must be finite")
+        az += self.gravity
         fx, fy, fz = world_to_body(qw, qx, qy, qz, ax, ay, az)  # f_B = R_WB^T (a_W + g e_z)
         rx, ry, rz = self._r_tuple
         if rx or ry or rz:
@@ -152,19 +158,25 @@ class ImuModel:
             fx += by * rz - bz * ry + wy * cz - wz * cy
             fy += bz * rx - bx * rz + wz * cx - wx * cz
             fz += bx * ry - by * rx + wx * cy - wy * cx
-        e = self._errors.sample_one()
         if self._mounted:
+            e = self._errors.sample_one()
             f = self._scale_a * (self._R_IB @ np.array((fx, fy, fz))) + e[:3]
             g = self._scale_g * (self._R_IB @ np.array((wx, wy, wz))) + e[3:]
-        else:  # IMU axes along the body's, no scale-factor error: skip the matrix products
-            f = np.array((fx + e[0], fy + e[1], fz + e[2]))
-            g = np.array((wx + e[3], wy + e[4], wz + e[5]))
+            ar, gr = self.params.accel_range, self.params.gyro_range
+            if max(abs(f[0]), abs(f[1]), abs(f[2])) > ar:
+                f = np.clip(f, -ar, ar)
+            if max(abs(g[0]), abs(g[1]), abs(g[2])) > gr:
+                g = np.clip(g, -gr, gr)
+            return f, g
+        # IMU axes along the body's, no scale-factor error: no matrix products, no arrays until the result
+        e0, e1, e2, e3, e4, e5 = self._errors.sample_one_values()
+        fx, fy, fz, wx, wy, wz = fx + e0, fy + e1, fz + e2, wx + e3, wy + e4, wz + e5
         ar, gr = self.params.accel_range, self.params.gyro_range
-        if max(abs(f[0]), abs(f[1]), abs(f[2])) > ar:
-            f = np.clip(f, -ar, ar)
-        if max(abs(g[0]), abs(g[1]), abs(g[2])) > gr:
-            g = np.clip(g, -gr, gr)
-        return f, g
+        if max(abs(fx), abs(fy), abs(fz)) > ar:
+            fx, fy, fz = (min(max(v, -ar), ar) for v in (fx, fy, fz))
+        if max(abs(wx), abs(wy), abs(wz)) > gr:
+            wx, wy, wz = (min(max(v, -gr), gr) for v in (wx, wy, wz))
+        return np.array((fx, fy, fz)), np.array((wx, wy, wz))
 
     def measure_static(self, k: int, q_WB: np.ndarray = np.array([1.0, 0.0, 0.0, 0.0])) -> tuple[np.ndarray, np.ndarray]:
         """``k`` samples of an IMU at rest with attitude ``q_WB`` (level by default)."""

@@ -88,13 +88,14 @@ class ErrorProcess:
         self._walk_end = np.zeros(self.dim)  # the walk after the last computed sample
         self._errors = np.empty((0, self.dim))  # computed but not yet handed out
         self._walks = np.empty((0, self.dim))
+        self._rows: list[list[float]] | None = None  # _errors as Python floats, made on first sample_one_values
         self._used = 0
-        self._bias = np.zeros(self.dim)
+        self._bias_row = -1  # the row of _walks of the last sample handed out (-1: none since reset)
 
     @property
     def bias(self) -> np.ndarray:
         """The random-walk part of the bias of the last sample handed out (zero before any)."""
-        return self._bias.copy()
+        return self._walks[self._bias_row].copy() if self._bias_row >= 0 else np.zeros(self.dim)
 
     def _compute(self, k: int) -> None:
         """Computes the next ``k`` samples' errors into the buffer."""
@@ -106,6 +107,7 @@ class ErrorProcess:
         self._walk_end = walk[-1].copy()
         self._walks = walk[:-1]
         self._errors = self.turn_on_bias + self._walks + white
+        self._rows = None
         self._used = 0
 
     def sample(self, k: int = 1) -> np.ndarray:
@@ -119,8 +121,8 @@ class ErrorProcess:
                 self._compute(self._BLOCK)
             take = min(need, len(self._errors) - self._used)
             parts.append(self._errors[self._used:self._used + take])
-            self._bias = self._walks[self._used + take - 1]
             self._used += take
+            self._bias_row = self._used - 1
             need -= take
         return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
@@ -129,6 +131,19 @@ class ErrorProcess:
         if self._used == len(self._errors):
             self._compute(self._BLOCK)
         row = self._errors[self._used]
-        self._bias = self._walks[self._used]
+        self._bias_row = self._used
         self._used += 1
         return row
+
+    def sample_one_values(self) -> list[float]:
+        """:meth:`sample_one` as a list of ``dim`` Python floats (the same numbers, bit for bit; the buffer is
+        converted once per block, so a per-sample caller does no numpy indexing). Do not modify it."""
+        if self._used == len(self._errors):
+            self._compute(self._BLOCK)
+        rows = self._rows
+        if rows is None:
+            rows = self._rows = self._errors.tolist()
+        i = self._used
+        self._bias_row = i
+        self._used = i + 1
+        return rows[i]
