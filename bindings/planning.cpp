@@ -9,6 +9,7 @@
 #include "clearance.h"
 #include "esdf_map.h"
 #include "grid_astar.h"
+#include "min_snap.h"
 #include "pybind_common.h"
 #include "voxelize.h"
 
@@ -193,6 +194,34 @@ py::object scalar_function(const py::object& self, const char* method, PyMethodD
   Py_DECREF(capsule);
   if (f == nullptr) throw py::error_already_set();
   return py::reinterpret_steal<py::object>(f);
+}
+
+// Waypoint values (K, d), K >= 2, finite, and K - 1 finite segment times > 0 [s].
+struct SplineArgs {
+  py::array_t<double, py::array::c_style> values, durations;
+  std::size_t m = 0, dim = 0;
+};
+
+SplineArgs spline_args(const py::handle& values_obj, const py::handle& durations_obj) {
+  py::array arr = py::array::ensure(values_obj);
+  if (!arr || arr.ndim() != 2 || arr.shape(0) < 2 || arr.shape(1) < 1) {
+    throw py::value_error("values must have shape (K, d) with K >= 2, got " + (arr ? shape_str(arr) : std::string("a non-array")));
+  }
+  SplineArgs a;
+  a.values = as_float64(values_obj, "values", {arr.shape(0), arr.shape(1)});
+  a.m = static_cast<std::size_t>(arr.shape(0) - 1);
+  a.dim = static_cast<std::size_t>(arr.shape(1));
+  for (py::ssize_t i = 0; i < a.values.size(); ++i) {
+    if (!std::isfinite(a.values.data()[i])) throw py::value_error("values must be finite");
+  }
+  a.durations = as_float64(durations_obj, "durations", {arr.shape(0) - 1});
+  for (py::ssize_t i = 0; i < a.durations.size(); ++i) {
+    const double t = a.durations.data()[i];
+    if (!(std::isfinite(t) && t > 0.0)) {
+      throw py::value_error("durations must be finite times > 0 [s], got " + std::to_string(t) + " at " + std::to_string(i));
+    }
+  }
+  return a;
 }
 
 }  // namespace
@@ -404,6 +433,58 @@ void define_planning(py::module_& m) {
         return out;
       },
       py::arg("origin_W"), py::arg("shape"), py::arg("resolution"), py::arg("vertices"), py::arg("triangles"));
+
+  m.def(
+      "min_derivative_spline",
+      [](const py::handle& values, const py::handle& durations, int order) {
+        if (order < 1 || order > 8) throw py::value_error("order must be 1..8, got " + std::to_string(order));
+        const SplineArgs a = spline_args(values, durations);
+        std::vector<double> c;
+        {
+          py::gil_scoped_release release;
+          c = planning::min_derivative_spline(a.values.data(), a.m, a.dim, a.durations.data(), order);
+        }
+        py::array_t<double> out({static_cast<py::ssize_t>(a.m), static_cast<py::ssize_t>(2 * order), static_cast<py::ssize_t>(a.dim)});
+        std::copy(c.begin(), c.end(), out.mutable_data());
+        return out;
+      },
+      py::arg("values"), py::arg("durations"), py::arg("order"),
+      "Coefficients (M, 2 order, d) of the minimum-derivative spline through values (M + 1, d) with durations (M,).");
+  m.def(
+      "snap_cost_and_gradient",
+      [](const py::handle& values, const py::handle& durations) {
+        const SplineArgs a = spline_args(values, durations);
+        py::array_t<double> grad(static_cast<py::ssize_t>(a.m));
+        double J;
+        {
+          double* g = grad.mutable_data();
+          py::gil_scoped_release release;
+          J = planning::snap_cost_and_gradient(a.values.data(), a.m, a.dim, a.durations.data(), g);
+        }
+        return py::make_tuple(J, grad);
+      },
+      py::arg("values"), py::arg("durations"), "(snap cost J, dJ/dT (M,)) of the minimum-snap spline.");
+  m.def(
+      "optimize_segment_times",
+      [](const py::handle& values, const py::handle& durations, int max_iterations, double gtol) {
+        const SplineArgs a = spline_args(values, durations);
+        if (max_iterations < 0) throw py::value_error("max_iterations must be >= 0, got " + std::to_string(max_iterations));
+        if (!(std::isfinite(gtol) && gtol >= 0.0)) throw py::value_error("gtol must be finite and >= 0, got " + std::to_string(gtol));
+        planning::TimeOptimizationResult r;
+        {
+          py::gil_scoped_release release;
+          r = planning::optimize_segment_times(a.values.data(), a.m, a.dim, a.durations.data(), max_iterations, gtol);
+        }
+        py::array_t<double> T(static_cast<py::ssize_t>(a.m));
+        std::copy(r.durations.begin(), r.durations.end(), T.mutable_data());
+        py::dict d;
+        d["durations"] = T;
+        d["iterations"] = r.iterations;
+        d["evaluations"] = r.evaluations;
+        return d;
+      },
+      py::arg("values"), py::arg("durations"), py::arg("max_iterations"), py::arg("gtol"),
+      "Snap-optimal segment times with the same total (BFGS on log T); a dict of durations, iterations, evaluations.");
 }
 
 }  // namespace cufund::py_bind

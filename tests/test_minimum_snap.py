@@ -199,3 +199,20 @@ def test_snap_cost_gradient_is_exact():
     h = 1e-6
     fd = [(snap_cost_and_gradient(w, T + h * e)[0] - snap_cost_and_gradient(w, T - h * e)[0]) / (2 * h) for e in np.eye(6)]
     np.testing.assert_allclose(g, fd, rtol=1e-6)
+
+
+@pytest.mark.parametrize("values, durations, match", [
+    (np.zeros((1, 3)), np.ones(0), "values"),
+    (np.zeros((3, 3)), np.ones(3), "durations"),
+    (np.zeros((3, 3)), [1.0, 0.0], "durations"),
+    (np.zeros((3, 3)), [1.0, np.inf], "durations"),
+    (np.array([[0, 0, 0], [1, np.nan, 0], [2, 0, 0.0]]), [1.0, 1.0], "finite"),
+])
+def test_core_spline_functions_reject_bad_input(values, durations, match):
+    from cufund import _core
+
+    for f in (lambda: _core.planning.min_derivative_spline(values, durations, 4),
+              lambda: _core.planning.snap_cost_and_gradient(values, durations),
+              lambda: _core.planning.optimize_segment_times(values, durations, 10, 1e-6)):
+        with pytest.raises(ValueError, match=match):
+            f()

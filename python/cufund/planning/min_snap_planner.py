@@ -88,9 +88,11 @@ def polyline_distance(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
     L2 = np.maximum(np.einsum("kd,kd->k", ab, ab), 1e-300)
     best = np.full(points.shape[0], np.inf)
     for k in range(ab.shape[0]):  # K is small (tens); N may be large
-        u = np.clip((points - a[k]) @ ab[k] / L2[k], 0.0, 1.0)
-        best = np.minimum(best, np.linalg.norm(points - a[k] - u[:, None] * ab[k], axis=1))
-    return best
+        r = points - a[k]
+        u = np.clip(r @ ab[k] / L2[k], 0.0, 1.0)
+        r -= u[:, None] * ab[k]
+        np.minimum(best, np.einsum("nd,nd->n", r, r), out=best)  # squared distances
+    return np.sqrt(best)
 
 
 class MinSnapPlanner:

@@ -17,11 +17,11 @@ import functools
 import math
 
 import numpy as np
-from scipy.linalg import solve_banded
 
+from .. import _core
 from .trajectory import TrajectorySamples
 
-__all__ = ["MinimumSnapTrajectory", "min_derivative_spline", "allocate_segment_times", "optimize_segment_times",
+__all__ = ["MinimumSnapTrajectory", "allocate_segment_times", "min_derivative_spline", "optimize_segment_times",
            "snap_cost_and_gradient"]
 
 _POWERS8 = np.arange(8.0)
@@ -35,70 +35,16 @@ def _falling(j: np.ndarray, r: int) -> np.ndarray:
     return np.where(j >= r, out, 0.0)
 
 
-@functools.lru_cache(maxsize=64)
-def _spline_structure(m: int, k: int) -> tuple:
-    """The parts of :func:`min_derivative_spline`'s banded system that depend only on the number of segments
-    ``m`` and the order ``k``: the band with every constant entry, where the time-ratio entries go and their
-    factors, and the rows of the waypoint values. Read-only arrays (shared by every call)."""
-    nc = 2 * k  # coefficients per segment; unknowns ordered segment by segment
-    n = m * nc
-    j = np.arange(nc)
-    F = np.stack([_falling(j, r) for r in range(nc)])  # F[r, j]: d^r/ds^r s^j at s = 1
-    fact = np.array([math.factorial(r) for r in range(nc)], dtype=float)
-    rows: list[np.ndarray] = []
-    cols: list[np.ndarray] = []
-    vals: list[np.ndarray] = []
-
-    def put(r: object, c: object, v: object) -> None:
-        r, c, v = np.broadcast_arrays(r, c, v)
-        rows.append(r.ravel())
-        cols.append(c.ravel())
-        vals.append(v.ravel())
-
-    seg = np.arange(m)
-    base = seg * nc
-    top = (k - 1) + seg * nc  # first row of segment i's block: 2 waypoint rows, then 2k-2 (last: k-1) derivative rows
-    rs = np.arange(1, k)
-    ri = np.arange(1, 2 * k - 1)
-    put(rs - 1, rs, fact[rs])  # rest at the start: p_0^(r)(0) = 0, r = 1..k-1
-    put(top, base, 1.0)  # p_i(0) = w_i
-    put(top[:, None] + 1, base[:, None] + j, 1.0)  # p_i(1) = w_{i+1}
-    ratio_at = (np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp))
-    if m > 1:  # continuity of derivatives 1..2k-2 into the next segment, each row scaled by T_i^r
-        inner = seg[:-1]
-        row = top[inner, None] + 1 + ri  # (m-1, 2k-2)
-        put(row[:, :, None], base[inner, None, None] + j, F[ri][None, :, :])
-        col = base[inner, None] + nc + ri  # the next segment's coefficient r: -r! (T_i / T_{i+1})^r
-        ratio_at = ((k + row - col).ravel(), col.ravel())
-    put((top[-1] + 1 + rs)[:, None], base[-1] + j, F[rs])  # rest at the end
-    r_all, c_all, v_all = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-    lo, up = 3 * k - 2, k  # lower and upper bandwidth of this ordering
-    ab = np.zeros((lo + up + 1, n))
-    np.add.at(ab, (up + r_all - c_all, c_all), v_all)
-    for a in (ab, top, -fact[ri], *ratio_at):
-        a.flags.writeable = False
-    return ab, ratio_at, -fact[ri], ri, top, (lo, up)
-
-
 def min_derivative_spline(values: np.ndarray, durations: np.ndarray, order: int) -> np.ndarray:
     """Coefficients of the piecewise polynomial through ``values`` minimising ``int |p^(order)|^2 dt``.
 
     ``values`` (M+1, d) waypoints, ``durations`` (M,) segment times [s] > 0. Derivatives 1..order-1 are zero at
     both ends. Returns ``c`` of shape (M, 2*order, d) in normalised time: on segment i,
     ``p(t) = sum_j c[i, j] * s**j`` with ``s = (t - t_i) / durations[i]`` in [0, 1].
+    The banded system is solved in C++ (``cufund._core.planning.min_derivative_spline``, partial pivoting).
     """
-    k = int(order)
-    values = np.asarray(values, dtype=float)
-    T = np.asarray(durations, dtype=float)
-    m = T.shape[0]
-    template, ratio_at, neg_fact, ri, top, bands = _spline_structure(m, k)
-    ab = template.copy()
-    if m > 1:  # no constant shares these band entries
-        ab[ratio_at] = (neg_fact * (T[:-1] / T[1:])[:, None] ** ri).ravel()
-    b = np.zeros((m * 2 * k, values.shape[1]))
-    b[top] = values[:-1]
-    b[top + 1] = values[1:]
-    return solve_banded(bands, ab, b, check_finite=False).reshape(m, 2 * k, -1)
+    return _core.planning.min_derivative_spline(np.asarray(values, dtype=float), np.asarray(durations, dtype=float),
+                                                int(order))
 
 
 def allocate_segment_times(waypoints: np.ndarray, v_max: float, a_max: float) -> np.ndarray:
@@ -121,15 +67,10 @@ def snap_cost_and_gradient(waypoints: np.ndarray, durations: np.ndarray) -> tupl
     + 2 p^(2).p^(6) - 2 p^(3).p^(5) is constant on each segment of the optimum, and moving a knot changes
     the optimal cost by the jump of H there; summed over the knots after segment i (the end's fixed
     derivatives make its term -H), ``dJ/dT_i = -H_i``: one spline solve gives the whole gradient.
+    Computed in C++ (``cufund._core.planning.snap_cost_and_gradient``).
     """
-    T = np.asarray(durations, dtype=float)
-    c = min_derivative_spline(waypoints, T, 4)
-
-    def d(r: int) -> np.ndarray:  # p^(r) at each segment's start, in time units
-        return c[:, r, :] * math.factorial(r) / T[:, None] ** r
-
-    H = np.sum(d(4) ** 2 - 2 * d(1) * d(7) + 2 * d(2) * d(6) - 2 * d(3) * d(5), axis=1)
-    return _derivative_cost(c, T, 4), -H
+    J, g = _core.planning.snap_cost_and_gradient(np.asarray(waypoints, dtype=float), np.asarray(durations, dtype=float))
+    return float(J), g
 
 
 def optimize_segment_times(waypoints: np.ndarray, durations: np.ndarray, max_iterations: int = 100) -> np.ndarray:
@@ -138,29 +79,15 @@ def optimize_segment_times(waypoints: np.ndarray, durations: np.ndarray, max_ite
     The snap cost is homogeneous in the times, ``J(a T) = a^-7 J(T)``, so the best allocation for a fixed
     total is the minimiser of the scale-free ``log J(T) + 7 log sum(T)``; it is found by BFGS over ``log T``
     with the exact gradient of :func:`snap_cost_and_gradient`, from ``durations``, and never returned worse.
-    It stops when the gradient of that log-objective is below 1e-6 (on forest paths of 10-16 waypoints: 40 %
-    fewer evaluations than at 1e-8, the cost within a relative 1e-11 of it).
+    It runs in C++ (``cufund._core.planning.optimize_segment_times``: BFGS with a backtracking Armijo line search,
+    the first inverse-Hessian estimate scaled to the first step's curvature) and stops when the gradient of that
+    log-objective is below 1e-6 (infinity norm) or after ``max_iterations``.
     """
-    from scipy.optimize import minimize
-
     w = np.asarray(waypoints, dtype=float)
     T0 = np.asarray(durations, dtype=float)
-    if T0.shape != (w.shape[0] - 1,) or not np.all(np.isfinite(T0)) or np.any(T0 <= 0):
-        raise ValueError(f"durations must be {w.shape[0] - 1} finite times > 0 [s], got {T0}")
-    total = float(T0.sum())
-    if T0.shape[0] < 2:
-        return T0.copy()
-
-    def f(x: np.ndarray) -> tuple[float, np.ndarray]:
-        T = np.exp(x - x.max())
-        J, dJ = snap_cost_and_gradient(w, T)
-        return math.log(J) + 7.0 * math.log(T.sum()), T * (dJ / J + 7.0 / T.sum())
-
-    x0 = np.log(T0 / total)
-    res = minimize(f, x0, jac=True, method="BFGS", options={"maxiter": int(max_iterations), "gtol": 1e-6})
-    x = res.x if np.isfinite(res.fun) and res.fun <= f(x0)[0] else x0
-    T = np.exp(x - x.max())
-    return T * (total / T.sum())
+    if w.ndim != 2 or w.shape[0] < 2 or T0.shape != (w.shape[0] - 1,) or not np.all(np.isfinite(T0)) or np.any(T0 <= 0):
+        raise ValueError(f"durations must be {max(w.shape[0] - 1, 0)} finite times > 0 [s], got {T0}")
+    return _core.planning.optimize_segment_times(w, T0, int(max_iterations), 1e-6)["durations"]
 
 
 class MinimumSnapTrajectory:
@@ -224,6 +151,11 @@ class MinimumSnapTrajectory:
         # per segment, derivatives 0..3 (position) and 0..1 (yaw) side by side: (M, r, 8, d) -> one matmul per sample
         self._pos_stack = np.stack(self._pos_tables[:4], axis=1)
         self._yaw_stack = np.stack(self._yaw_tables[:2], axis=1)
+        # For vectorised sampling, per segment one (8, 14) table: p, v, a, j (3 columns each), yaw, yaw rate (the
+        # cubic's rows padded with zeros), so a run of samples in one segment is one matmul.
+        yaw = np.zeros((len(T), 8, 2))
+        yaw[:, :4] = np.concatenate(self._yaw_tables[:2], axis=2)
+        self._table = np.concatenate(self._pos_tables[:4] + [yaw], axis=2)
 
     def _dense_times(self, per_segment: int = 16) -> np.ndarray:
         s = np.linspace(0.0, 1.0, per_segment, endpoint=False)
@@ -273,12 +205,18 @@ class MinimumSnapTrajectory:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         i, s = self._locate(t)
         inside = ((t >= self.t_knots[0]) & (t <= self.t_knots[-1]))[:, None]
-        S8 = s[:, None] ** np.arange(8)  # powers of s, (N, 8)
-        S4 = S8[:, :4]
-        pos = [np.einsum("nj,njd->nd", S8, self._pos_tables[r][i]) for r in range(4)]
-        yaw = [np.einsum("nj,njd->nd", S4, self._yaw_tables[r][i])[:, 0] for r in range(2)]
-        return TrajectorySamples(t=t, p_W=pos[0], v_W=np.where(inside, pos[1], 0.0), a_W=np.where(inside, pos[2], 0.0),
-                                 j_W=np.where(inside, pos[3], 0.0), yaw=yaw[0], yaw_rate=np.where(inside[:, 0], yaw[1], 0.0))
+        S = np.vander(s, 8, increasing=True)  # powers of s, (N, 8)
+        out = np.empty((t.size, 14))
+        if t.size > 1 and np.all(i[1:] >= i[:-1]):  # sorted times: one matmul per segment
+            bounds = np.searchsorted(i, np.arange(len(self.durations) + 1))
+            for k in np.flatnonzero(bounds[1:] > bounds[:-1]).tolist():
+                np.matmul(S[bounds[k]:bounds[k + 1]], self._table[k], out=out[bounds[k]:bounds[k + 1]])
+        else:
+            np.einsum("nj,njc->nc", S, self._table[i], out=out)
+        rest = lambda a: np.where(inside, a, 0.0)  # derivatives are zero outside the span
+        return TrajectorySamples(t=t, p_W=np.ascontiguousarray(out[:, 0:3]), v_W=rest(out[:, 3:6]),
+                                 a_W=rest(out[:, 6:9]), j_W=rest(out[:, 9:12]), yaw=out[:, 12].copy(),
+                                 yaw_rate=np.where(inside[:, 0], out[:, 13], 0.0))
 
     def _sample_one(self, t: float) -> TrajectorySamples:
         """The same as :meth:`sample` for one time, without the vectorised machinery (for per-tick setpoints)."""
