@@ -116,6 +116,8 @@ def test_params_are_checked():
         LocalPlannerParams(radius=0.0)
     with pytest.raises(ConfigError, match="max_iterations must be an integer >= 1"):
         LocalPlannerParams(max_iterations=0)
+    with pytest.raises(ConfigError, match="retries must be an integer in 0..8"):
+        LocalPlannerParams(retries=-1)
     with pytest.raises(TypeError, match="esdf_map must be a cufund.esdf.EsdfMap"):
         BsplineLocalPlanner(None)
 
@@ -153,3 +155,29 @@ def test_guide_stays_in_the_flight_band_over_unobserved_ground():
     assert _box_distance(f, *wall).min() >= 0.3 - 1e-9 and f[:, 2].min() >= 0.45  # round the wall's end
     with pytest.raises(ConfigError, match="z_max must be > z_min"):
         LocalPlannerParams(z_min=2.0, z_max=1.0)
+
+
+def test_short_leg_between_offset_tunnel_frames_is_planned_from_rest():
+    """Tunnel course 61, frame 4 to 5 (0.62 m, 0.33 m sideways and 0.17 m up): the guide bends at the radius
+    there, and the first control-point spacing leaves too few points for a rest-to-rest move; the replan
+    retries with denser control points and is certified. Clearance re-measured by Open3D's exact distance
+    to the frames' triangles."""
+    import open3d as o3d
+
+    from cufund.planning import esdf_from_world
+    from cufund.worlds import tunnel_course_layout
+
+    c = tunnel_course_layout(61)
+    start, goal = (np.asarray(c.frames[k].centre_W, float) for k in (3, 4))
+    lo, hi = np.minimum(start, goal) - 1.0, np.maximum(start, goal) + 1.0
+    esdf = esdf_from_world(c.world, 0.025, np.stack([lo, hi]))
+    params = LocalPlannerParams(radius=0.15, margin=0.15, v_max=1.5, a_max=2.0, dt=0.1, horizon=4.0,
+                                z_min=lo[2] + 0.5, z_max=hi[2] - 0.5)
+    r = BsplineLocalPlanner(esdf, params).replan(0.0, start, np.zeros(3), np.zeros(3), goal)
+    assert r.status == "ok" and r.reaches_goal
+    scene = o3d.t.geometry.RaycastingScene()
+    for o in c.world.objects:
+        scene.add_triangles(o.vertices.astype(np.float32), o.triangles.astype(np.uint32))
+    p = r.trajectory.sample(np.linspace(r.trajectory.t_start, r.trajectory.t_end, 400)).p_W
+    assert scene.compute_distance(p.astype(np.float32)).numpy().min() >= 0.15 - 1e-4
+    np.testing.assert_allclose(p[-1], goal, atol=1e-9)

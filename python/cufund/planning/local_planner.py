@@ -58,7 +58,12 @@ class LocalPlannerParams:
     w_end: float = 10.0
     """Weight pulling the horizon's last control point to the guide path."""
     max_iterations: int = 100
-    """L-BFGS iterations per replan (C++, GIL released)."""
+    """L-BFGS iterations per optimisation (C++, GIL released)."""
+    retries: int = 2
+    """A curve that fails its certification (collision or altitude) is optimised again from the same guide with
+    half the control-point spacing, up to this many times: a slower curve with more freedom, which can bend
+    round a corner the guide takes at the radius (e.g. a short leg between two offset tunnel frames, where the
+    first spacing gives too few control points for a rest-to-rest move within the acceleration limit)."""
     z_min: float = 0.5
     """Lowest height of the flight band [m, world z]: the guide A* searches only in the band, its path is kept in
     it, and a trajectory leaving it (below the lower of z_min and its start or goal) is rejected ("altitude"). Unobserved ground is free space to
@@ -76,6 +81,8 @@ class LocalPlannerParams:
         if isinstance(self.max_iterations, bool) or not isinstance(self.max_iterations, numbers.Integral) \
                 or self.max_iterations < 1:
             raise ConfigError(f"max_iterations must be an integer >= 1, got {self.max_iterations!r}")
+        if isinstance(self.retries, bool) or not isinstance(self.retries, numbers.Integral) or not 0 <= self.retries <= 8:
+            raise ConfigError(f"retries must be an integer in 0..8, got {self.retries!r}")
         for name in ("z_min", "z_max"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
@@ -136,9 +143,22 @@ class BsplineLocalPlanner:
                              time.thread_time() - c0)
         path = self._guide_path(p, goal)
         fixed = start_control_points(p, v, a, par.dt)
-        ds = 0.7 * par.v_max * par.dt
-        pts, reaches = _resample(path, ds, par.horizon)
         lo, hi = min(par.z_min, p[2], goal[2]), max(par.z_max, p[2], goal[2])
+        for attempt in range(par.retries + 1):
+            status, traj, clearance, length, reaches = self._attempt(path, fixed, goal, lo, hi, 0.5 ** attempt,
+                                                                         float(t), float(yaw))
+            if status == "ok":
+                break
+        return LocalPlan(status, traj, time.perf_counter() - t0, clearance, length, reaches and status == "ok",
+                         time.thread_time() - c0)
+
+    def _attempt(self, path: np.ndarray, fixed: np.ndarray, goal: np.ndarray, lo: float, hi: float,
+                 spacing: float, t: float, yaw: float) -> tuple[str, UniformBspline | None, float, float, bool]:
+        """One optimisation along ``path`` with the control-point spacing scaled by ``spacing``, from time ``t``,
+        certified: (status, trajectory or None, clearance, length, reaches the goal)."""
+        par = self.params
+        ds = spacing * 0.7 * par.v_max * par.dt
+        pts, reaches = _resample(path, ds, par.horizon)
         pts[:, 2] = np.clip(pts[:, 2], lo, hi)  # the flight band (the goal and start may lie outside it)
         n_free = max(1, len(pts) - (0 if not reaches else 1))
         init = pts[:n_free]
@@ -150,16 +170,14 @@ class BsplineLocalPlanner:
         ts = np.linspace(traj.t_start, traj.t_end, max(2, int(traj.duration / 0.01) + 1))
         curve = traj.sample(ts).p_W
         clearance = float(self.query.clearance(curve).min())
-        length = float(np.sum(np.linalg.norm(np.diff(curve, axis=0), axis=1)))
         if curve[:, 2].min() < lo - 0.05 or curve[:, 2].max() > hi + 0.05:
-            return LocalPlan("altitude", None, time.perf_counter() - t0, clearance, 0.0, False,
-                             time.thread_time() - c0)
+            return "altitude", None, clearance, 0.0, reaches
         # Certified between the samples too: every chord of the 10 ms polyline is traced (the curve is
         # within a_max * (10 ms)^2 / 8 < 0.1 mm of its chords).
         if clearance < par.radius or not self.query.path_free(curve, par.radius).all():
-            return LocalPlan("collision", None, time.perf_counter() - t0, clearance, 0.0, False,
-                             time.thread_time() - c0)
-        return LocalPlan("ok", traj, time.perf_counter() - t0, clearance, length, reaches, time.thread_time() - c0)
+            return "collision", None, clearance, 0.0, reaches
+        length = float(np.sum(np.linalg.norm(np.diff(curve, axis=0), axis=1)))
+        return "ok", traj, clearance, length, reaches
 
     def set_guide(self, goal_W: npt.ArrayLike, path_W: npt.ArrayLike) -> None:
         """Follow the polyline ``path_W`` (K, 3) [m] (e.g. a global plan) towards ``goal_W`` while its next
@@ -209,6 +227,7 @@ def _resample(path: np.ndarray, ds: float, horizon: float) -> tuple[np.ndarray, 
     total = float(cum[-1])
     reaches = total <= horizon
     stop = min(total, horizon)
-    s = np.arange(1, max(1, int(math.ceil(stop / ds))) + 1) * (stop / max(1, int(math.ceil(stop / ds))))
+    n = max(1, math.ceil(stop / ds))
+    s = np.arange(1, n + 1) * (stop / n)
     out = np.stack([np.interp(s, cum, path[:, k]) for k in range(3)], axis=1)
     return out, reaches
