@@ -361,10 +361,12 @@ def test_cli_serves_sitl_on_4560_plus_instance(capsys):
         while True:
             try:
                 s = px4.step(timeout=10.0)
+                stamps.append(s.sensor.time_usec)
+                # until PX4's first controls the world runs on without waiting: on a busy machine the run may end
+                # (and the bridge hang up) before the last answers are written
+                px4.controls([0.0] * 4, armed=False, time_usec=s.sensor.time_usec)
             except ConnectionError:
                 break
-            stamps.append(s.sensor.time_usec)
-            px4.controls([0.0] * 4, armed=False, time_usec=s.sensor.time_usec)
     finally:
         px4.close()
         thread.join(20.0)

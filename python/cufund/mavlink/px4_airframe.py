@@ -81,13 +81,21 @@ class Px4Airframe:
         non-finite output (PX4's "disabled") commands the disarmed speed."""
         return np.array(self.rotor_speed_list(controls, armed))
 
-    def rotor_speed_list(self, controls: Sequence[float], armed: bool) -> list[float]:
-        """:meth:`rotor_speeds` as a list of 4 plain floats (four channels: no numpy overhead per call)."""
+    def rotor_speed_list(self, controls: Sequence[float], armed: bool,
+                         outputs: Sequence[int] = (0, 1, 2, 3)) -> list[float]:
+        """:meth:`rotor_speeds` as a list of plain floats (four channels: no numpy overhead per call), for the
+        motor ``outputs`` (0-based) in the order given: all four by default, or reordered (e.g. into cufund's
+        rotor order) in the same pass."""
         if not armed:
-            return list(self.zero_position_disarmed)
-        w = [(float(u) + off) * scale + zero for u, off, scale, zero in
-             zip(controls[:4], self.input_offset, self.input_scaling, self.zero_position_armed)]
-        return [x if math.isfinite(x) else z for x, z in zip(w, self.zero_position_disarmed)]
+            dis = self.zero_position_disarmed
+            return [dis[i] for i in outputs]
+        off, scale, zero, dis = self.input_offset, self.input_scaling, self.zero_position_armed, \
+            self.zero_position_disarmed
+        out = []
+        for i in outputs:
+            w = (float(controls[i]) + off[i]) * scale[i] + zero[i]
+            out.append(w if math.isfinite(w) else dis[i])
+        return out
 
     def rotor_of_output(self, params: QuadrotorParams) -> np.ndarray:
         """(4,) int: the cufund rotor index driven by PX4 motor output i (0-based), matched by direction from

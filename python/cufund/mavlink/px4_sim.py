@@ -198,7 +198,8 @@ class Px4SimulatorBridge:
         self.airframe = airframe if airframe is not None else Px4Airframe.for_vehicle(vehicle)
         rotor_of_output = self.airframe.rotor_of_output(vehicle)
         self._output_of_rotor = [int(i) for i in np.argsort(rotor_of_output)]  # PX4 output driving rotor j
-        self._cmd_disarmed = self._in_rotor_order(list(self.airframe.zero_position_disarmed))
+        self._cmd_disarmed = np.array(self.airframe.rotor_speed_list((), False, self._output_of_rotor))
+        self._cmd_disarmed.setflags(write=False)
         self.link: Any = link if link is not None else TcpServerLink(host, 4560 + instance)
         self.gcs = gcs
         self.mav = mavlink.MAVLink(None, srcSystem=self.params.system_id, srcComponent=self.params.component_id)
@@ -353,9 +354,12 @@ class Px4SimulatorBridge:
         return got
 
     def _on_controls(self, u: Any, mode: int, t: float) -> None:
-        controls = [min(max(x, -1.0), 1.0) if math.isfinite(x) else math.nan for x in u]
-        self.armed = bool(mode & MAV_MODE_FLAG_SAFETY_ARMED)
-        self._cmd = self._in_rotor_order(self.airframe.rotor_speed_list(controls, self.armed))
+        isfinite = math.isfinite
+        controls = [min(max(x, -1.0), 1.0) if isfinite(x) else math.nan for x in u]
+        self.armed = armed = bool(mode & MAV_MODE_FLAG_SAFETY_ARMED)
+        cmd = np.array(self.airframe.rotor_speed_list(controls, armed, self._output_of_rotor))  # rotor order
+        cmd.setflags(write=False)  # it goes into messages as it is
+        self._cmd = cmd
         self._controls_t = t
         self._got_controls = True
         self.stats["controls"] += 1
@@ -375,12 +379,6 @@ class Px4SimulatorBridge:
                 result = MAV_RESULT_ACCEPTED
         ack = self.mav.command_ack_encode(msg.command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
         self.link.send(self.writer.pack(ack))
-
-    def _in_rotor_order(self, speeds_px4: list[float]) -> np.ndarray:
-        """PX4 motor outputs -> cufund's rotor order, read-only (it goes into messages as it is)."""
-        out = np.array([speeds_px4[i] for i in self._output_of_rotor])
-        out.setflags(write=False)
-        return out
 
     def _command(self, t: float) -> np.ndarray:
         """Rotor-speed commands in cufund's rotor order [rad/s] (disarmed speeds when the controls are stale);

@@ -1,0 +1,59 @@
+"""TcpServerLink, the SITL socket: recv's contract (None when nothing came within the timeout, the bytes that
+came, b"" once the peer left) with one recv per wait, and a fresh connection after a peer leaves."""
+
+from __future__ import annotations
+
+import socket
+import threading
+
+from cufund.mavlink.px4_links import TcpServerLink
+
+
+def _within(seconds: float, fn):
+    """fn() run in a thread; fails (instead of hanging the suite) if it does not return within ``seconds``."""
+    out: dict = {}
+    thread = threading.Thread(target=lambda: out.setdefault("value", fn()), daemon=True)
+    thread.start()
+    thread.join(seconds)
+    assert not thread.is_alive(), f"no return within {seconds} s"
+    return out["value"]
+
+
+def _read(link: TcpServerLink, n: int) -> bytes:
+    got = b""
+    while len(got) < n:
+        data = _within(10.0, lambda: link.recv(5.0))
+        assert data != b"", "the link closed early"
+        got += data or b""
+    return got
+
+
+def test_recv_times_out_reads_and_sees_the_peer_leave():
+    link = TcpServerLink("127.0.0.1", 0)
+    try:
+        assert not link.accept(0.01) and link.recv(0.1) == b""  # nobody connected yet
+        peer = socket.create_connection(("127.0.0.1", link.port))
+        assert link.accept(5.0) and link.connected
+        assert _within(10.0, lambda: link.recv(0.0)) is None  # nothing waiting: no wait at all
+        assert _within(10.0, lambda: link.recv(0.02)) is None  # nothing within a short timeout
+        assert _within(10.0, lambda: link.recv(0.5)) is None  # a longer one (the socket's timeout changes back)
+        peer.sendall(b"HIL")
+        assert _read(link, 3) == b"HIL"
+        link.send(b"controls")
+        assert peer.recv(64) == b"controls"
+        peer.sendall(b"\xfd" * 300)
+        assert _read(link, 300) == b"\xfd" * 300
+        peer.close()
+        assert _within(10.0, lambda: link.recv(5.0)) == b"" and not link.connected
+        assert link.recv(0.0) == b""
+        again = socket.create_connection(("127.0.0.1", link.port))  # the server keeps listening
+        try:
+            assert link.accept(5.0)
+            again.sendall(b"x")
+            assert _read(link, 1) == b"x"
+            link.disconnect()
+            assert again.recv(64) == b"" and not link.connected
+        finally:
+            again.close()
+    finally:
+        link.close()
