@@ -52,6 +52,11 @@ def telemetry(d):
     return d.execute_script("return window.gcs.stats.lastTelemetry")
 
 
+def layer_points(d, name):
+    """The points the 3-D view's line layer ``name`` draws (asked of the view's worker), as an (n, 3) array."""
+    return np.reshape(d.execute_async_script("window.gcs.layerPoints(arguments[0]).then(arguments[1])", name), (-1, 3))
+
+
 def click(d, id_):
     d.find_element(By.ID, id_).click()
 
@@ -90,9 +95,7 @@ def test_buttons_fly_takeoff_goto_and_a_mission(gcs, driver):
     assert ack(d, "goto")["result"] == "accepted"
     # the planned path shown is the go-to's
     def planned():
-        return np.reshape(d.execute_script(
-            "var g = window.gcs.viewer.scene_tree.find(['cufund','planned','<object>']).object.geometry;"
-            "return Array.from(g.attributes.position.array.slice(0, 3 * g.drawRange.count))"), (-1, 3))
+        return layer_points(d, "planned")
 
     assert wait_for(lambda: len(planned()) and np.allclose(planned()[-1], goal, atol=1e-4), 5), planned()
     arrived = wait_for(lambda: (t := telemetry(d)) and np.linalg.norm(np.array(t["truth_p_W"]) - goal) < 0.1
@@ -110,9 +113,7 @@ def test_buttons_fly_takeoff_goto_and_a_mission(gcs, driver):
     reached = [log.index(f"mission item {k} reached") for k in range(3)]
     assert reached == sorted(reached)
     # the flown path the page draws passes each waypoint, in order
-    flown = np.reshape(d.execute_script(
-        "var g = window.gcs.viewer.scene_tree.find(['cufund','flown','<object>']).object.geometry;"
-        "return Array.from(g.attributes.position.array.slice(0, 3 * g.drawRange.count))"), (-1, 3))
+    flown = layer_points(d, "flown")
     nearest = [int(np.argmin(np.linalg.norm(flown - w, axis=1))) for w in waypoints]
     assert all(np.linalg.norm(flown[i] - w) < 0.2 for i, w in zip(nearest, waypoints))  # acceptance 0.15 m
     assert nearest == sorted(nearest)
@@ -131,9 +132,9 @@ def test_the_3d_view_draws_the_vehicle(gcs, driver):
         px = d.execute_script("return window.gcs.vehicleScreen()")
         assert px and 0 < px["z"] < 1, px
 
-        def shot():
-            d.execute_script("window.gcs.viewer.set_dirty()")
-            d.execute_script("return new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+        def shot():  # once the view (a worker) has drawn what the page posted, and the page has shown that frame
+            d.execute_async_script("window.gcs.drawn().then(() => requestAnimationFrame(() => "
+                                   "requestAnimationFrame(arguments[0])))")
             return np.asarray(Image.open(io.BytesIO(d.get_screenshot_as_png())).convert("RGB"), dtype=float)
 
         with_vehicle = shot()
@@ -173,8 +174,7 @@ def test_tabs_in_sync_and_reconnect_catches_up(gcs, driver):
     try:
         open_page(d, gcs)
         second = d.current_window_handle
-        path_len = d.execute_script("return window.gcs.viewer.scene_tree.find(['cufund','flown','<object>'])"
-                                    ".object.geometry.drawRange.count")
+        path_len = len(layer_points(d, "flown"))
         assert path_len > 20  # caught up: the path flown before this tab opened
         d.execute_script("document.getElementById('controller').value = 'geometric'")
         click(d, "cmd-controller")

@@ -3,15 +3,15 @@
 Routes (every one but the static assets needs the token, as ``?token=`` or ``Authorization: Bearer``; 403
 without it):
 
-- ``GET /`` the page; ``GET /static/...`` its script and style; ``GET /meshcat/main.min.js`` MeshCat's bundled
-  viewer (three.js), served from the installed ``meshcat`` package (MeshCat's own server is never started: it binds
-  every interface).
+- ``GET /`` the page; ``GET /static/...`` its scripts (``view.js``, the 3-D view, runs in a Web Worker) and style;
+  ``GET /meshcat/main.min.js`` MeshCat's bundle, for its three.js, served from the installed ``meshcat`` package
+  (MeshCat's own server is never started: it binds every interface).
 - ``GET /api/stats`` the server's own figures: CPU time of its event-loop thread (everything but the simulation),
   open tabs, telemetry messages broadcast.
 - ``GET /api/state`` the telemetry as JSON; ``POST /api/command`` a JSON command (``{"command": "arm"}``, ...) →
   its acknowledgement ``{"command", "result", "message"}`` (HTTP 400 for a malformed one).
 - ``GET /ws`` the page's websocket. Server → page: JSON ``hello`` (the scene and everything needed to catch up),
-  ``telemetry`` (at ``telemetry_hz``), ``events``, ``planned``, ``esdf``, ``ack``, ``error``, ``pong``; binary
+  ``telemetry`` (at ``telemetry_hz``, and at once after a vehicle command's acknowledgement), ``events``, ``planned``, ``esdf``, ``ack``, ``error``, ``pong``; binary
   frames are LiDAR clouds (float32 ``[t, n, x, y, z, ...]``, world frame) for tabs with the cloud layer on.
   Page → server: ``{"type": "command", "id": n, "command": {...}}``, ``{"type": "layers", "cloud": bool}``,
   ``{"type": "ping", ...}``, ``{"type": "seen", "telemetry": n, "cloud": m}`` (messages of each stream processed
@@ -215,6 +215,7 @@ class GcsServer:
             ack = await self._local(name, command)
         else:
             ack = await self._vehicle(name, command)
+            self._tick()  # the commander's new state (a go-to's target) goes out now, not with the next tick
         self.broadcast({"type": "events", "events": [session.log(
             {"t": session.telemetry.get("t"), "kind": "command", "message":
              f"{name}: {ack['result']}" + (f" ({ack['message']})" if ack.get("message") else "")})]})

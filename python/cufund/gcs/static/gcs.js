@@ -1,124 +1,114 @@
-// cufund web ground station: MeshCat's viewer (three.js) for the 3-D view, one websocket for everything live.
+// cufund web ground station, the page's main thread: the websocket, the panel, the plots, the commands and the camera.
+// The 3-D view is drawn by view.js in a Web Worker (see there why); this thread posts it only what it needs.
 "use strict";
 (function () {
-  const THREE = MeshCat.THREE;
   const token = new URLSearchParams(location.search).get("token") || "";
   const $ = (id) => document.getElementById(id);
-  const viewer = new MeshCat.Viewer($("meshcat-pane"));
-  viewer.renderer.shadowMap.enabled = false;  // no shadow-casting lights here; saves a pass per frame
-  const scene = viewer.scene;  // MeshCat turns its scene so that paths under it are z-up (ENU)
-  const MAX_PATH = 20000, MAX_CLOUD = 8000, PLOT_S = 20;
-
-  // ---- 3-D layers ---------------------------------------------------------------------------------------------
-  const root = ["cufund"];
-  const layer = {};
-  function addLayer(name, object) {
-    viewer.set_object(root.concat([name]), object);
-    layer[name] = viewer.scene_tree.find(root.concat([name, "<object>"])).object;
-    return layer[name];
-  }
-  function lineObject(color, capacity) {
-    const g = new THREE.BufferGeometry();
-    g.setAttribute("position", new THREE.BufferAttribute(new Float32Array(3 * capacity), 3));
-    g.setDrawRange(0, 0);
-    const line = new THREE.Line(g, new THREE.LineBasicMaterial({color: color}));
-    line.frustumCulled = false;
-    return line;
-  }
-  function setLine(obj, points) {
-    const attr = obj.geometry.attributes.position;
-    const n = Math.min(points.length, attr.count);
-    for (let i = 0; i < n; i++) attr.setXYZ(i, points[i][0], points[i][1], points[i][2]);
-    attr.needsUpdate = true;
-    obj.geometry.setDrawRange(0, n);
-  }
-  function appendLine(obj, p) {
-    const attr = obj.geometry.attributes.position;
-    let n = obj.geometry.drawRange.count;
-    if (n >= attr.count) { attr.array.copyWithin(0, 3 * (attr.count >> 1)); n = attr.count - (attr.count >> 1); }
-    attr.setXYZ(n, p[0], p[1], p[2]);
-    attr.needsUpdate = true;
-    obj.geometry.setDrawRange(0, n + 1);
-  }
-  function vehicleObject(d) {
-    const g = new THREE.Group();
-    const mat = (c) => new THREE.MeshLambertMaterial({color: c});
-    const body = new THREE.Mesh(new THREE.BoxGeometry(0.8 * d, 0.8 * d, 0.35 * d), mat(0xd62728));
-    g.add(body);
-    const nose = new THREE.Mesh(new THREE.BoxGeometry(0.5 * d, 0.15 * d, 0.15 * d), mat(0xffd700));
-    nose.position.set(0.6 * d, 0, 0);
-    g.add(nose);
-    for (let k = 0; k < 4; k++) {
-      const a = Math.PI / 4 + k * Math.PI / 2;
-      const arm = new THREE.Mesh(new THREE.BoxGeometry(2 * d, 0.1 * d, 0.08 * d), mat(0x202020));
-      arm.rotation.z = a;
-      g.add(arm);
-      const rotor = new THREE.Mesh(new THREE.CylinderGeometry(0.45 * d, 0.45 * d, 0.03 * d, 24),
-                                   mat(k % 2 ? 0xff7f0e : 0x1f77b4));
-      rotor.rotation.x = Math.PI / 2;
-      rotor.position.set(d * Math.cos(a), d * Math.sin(a), 0.08 * d);
-      g.add(rotor);
-    }
-    return g;
-  }
-  function worldObject(meshes) {
-    const g = new THREE.Group();
-    for (const m of meshes) {
-      const geom = new THREE.BufferGeometry();
-      geom.setAttribute("position", new THREE.BufferAttribute(new Float32Array(m.vertices), 3));
-      geom.setIndex(m.triangles);
-      geom.computeVertexNormals();
-      const see_through = m.label === "wall" || m.label === "ceiling";
-      const c = new THREE.Color(m.color[0], m.color[1], m.color[2]);
-      g.add(new THREE.Mesh(geom, new THREE.MeshLambertMaterial({
-        color: c, side: THREE.DoubleSide, transparent: see_through, opacity: m.label === "ceiling" ? 0.08 : (see_through ? 0.25 : 1),
-        depthWrite: !see_through})));
-    }
-    return g;
-  }
-  const esdfCanvas = document.createElement("canvas");
-  function esdfObject(e) {
-    const n = e.n, d = new Float32Array(Uint8Array.from(atob(e.d), (c) => c.charCodeAt(0)).buffer);
-    esdfCanvas.width = n; esdfCanvas.height = n;
-    const ctx = esdfCanvas.getContext("2d"), img = ctx.createImageData(n, n);
-    for (let j = 0; j < n; j++) for (let i = 0; i < n; i++) {
-      const v = d[j * n + i], k = 4 * ((n - 1 - j) * n + i);  // canvas rows run down, y runs up
-      const s = Math.max(0, Math.min(1, v / 2));
-      img.data[k] = v <= 0 ? 200 : 255 * (1 - s); img.data[k + 1] = v <= 0 ? 0 : 255 * s; img.data[k + 2] = 80; img.data[k + 3] = 255;
-    }
-    ctx.putImageData(img, 0, 0);
-    const tex = new THREE.CanvasTexture(esdfCanvas);
-    tex.magFilter = THREE.NearestFilter;
-    const w = e.x[1] - e.x[0], h = e.y[1] - e.y[0];
-    const mesh = new THREE.Mesh(new THREE.PlaneGeometry(w, h),
-      new THREE.MeshBasicMaterial({map: tex, transparent: true, opacity: 0.45, side: THREE.DoubleSide, depthWrite: false}));
-    mesh.position.set(e.x[0] + w / 2, e.y[0] + h / 2, e.z);
-    return mesh;
-  }
-
-  const flown = addLayer("flown", lineObject(0xd62728, MAX_PATH));
-  const planned = addLayer("planned", lineObject(0x1f77b4, 256));
-  const cloudGeom = new THREE.BufferGeometry();
-  cloudGeom.setAttribute("position", new THREE.BufferAttribute(new Float32Array(3 * MAX_CLOUD), 3));
-  cloudGeom.setDrawRange(0, 0);
-  const cloud = addLayer("cloud", new THREE.Points(cloudGeom, new THREE.PointsMaterial({color: 0xff8c00, size: 0.04})));
-  cloud.frustumCulled = false;
-  const setpoint = new THREE.Mesh(new THREE.SphereGeometry(0.04, 12, 8), new THREE.MeshLambertMaterial({color: 0x2ca02c}));
-  let vehicle = null;
-  const hidden = {};
-
-  function applyVisibility() {
-    for (const el of document.querySelectorAll("[data-layer]")) {
-      const obj = layer[el.dataset.layer];
-      if (obj) obj.visible = el.checked;
-    }
-    viewer.set_dirty();
-  }
+  const PLOT_S = 20;
 
   // ---- state shared with tests and benchmarks -------------------------------------------------------------------
   const stats = {telemetry: 0, clouds: 0, rateHz: 0, arrivals: [], lastTelemetry: null, acks: [], errors: [],
                  hellos: 0, events: []};
-  const gcs = window.gcs = {stats: stats, viewer: viewer, send: null, lastClick: null, lastPlan: null};
+  const gcs = window.gcs = {stats: stats, send: null, lastClick: null, lastPlan: null};
+
+  // ---- the 3-D view: a worker drawing on the canvas, or (no OffscreenCanvas) the same code in this page ----------
+  const canvas = document.createElement("canvas");
+  canvas.id = "view3d";
+  $("meshcat-pane").appendChild(canvas);
+  gcs.canvas = canvas;
+  const replies = {};
+  let nextQuery = 1;
+  function fromView(m) {
+    if (m.type === "stats") { stats.fps = m.fps; stats.lagMs = m.lagMs; stats.frames = m.frames; return; }
+    const cb = replies[m.id];
+    delete replies[m.id];
+    if (cb) cb(m.value);
+  }
+  let toView;
+  if (canvas.transferControlToOffscreen && window.Worker) {
+    const worker = new Worker("/static/view.js");
+    const off = canvas.transferControlToOffscreen();
+    worker.postMessage({type: "init", canvas: off}, [off]);
+    worker.onmessage = (e) => fromView(e.data);
+    worker.onerror = (e) => { stats.errors.push("3-D view: " + e.message); };
+    toView = (m, transfer) => worker.postMessage(m, transfer || []);
+  } else {
+    const pending = [];
+    toView = (m) => pending.push(m);
+    const load = (src, then) => { const el = document.createElement("script"); el.src = src; el.onload = then; document.head.appendChild(el); };
+    load("/meshcat/main.min.js", () => load("/static/view.js", () => {
+      const handle = window.cufundView(MeshCat.THREE, canvas, (r) => setTimeout(() => fromView(r)));
+      toView = (m) => handle(m);
+      for (const m of pending.splice(0)) handle(m);
+    }));
+  }
+  const ask = (m) => new Promise((resolve) => { const id = nextQuery++; replies[id] = resolve; toView({...m, id: id}); });
+  gcs.layerPoints = (name) => ask({type: "points", layer: name});  // the points a line / cloud layer draws
+  gcs.drawn = () => ask({type: "drawn"});  // resolves once a frame with everything posted so far is drawn
+  const query = new URLSearchParams(location.search);
+  toView({type: "fps", fps: parseFloat(query.get("fps")) || 20});
+  function resize() {
+    const r = canvas.getBoundingClientRect();
+    cam.aspect = r.width / Math.max(1, r.height);
+    toView({type: "size", w: Math.max(1, Math.round(r.width)), h: Math.max(1, Math.round(r.height)),
+            dpr: Math.min(window.devicePixelRatio || 1, parseFloat(query.get("dpr")) || 1.5)});
+  }
+  function applyVisibility() {
+    const layers = {};
+    for (const el of document.querySelectorAll("[data-layer]")) layers[el.dataset.layer] = el.checked;
+    toView({type: "visible", layers: layers});
+  }
+
+  // ---- the camera: orbit about a target (ENU, z up), moved by this page, drawn by the view ---------------------
+  // p = target + radius (cos el cos az, cos el sin az, sin el); vertical field of view fov [deg], as three.js's
+  // PerspectiveCamera looking at the target with up = z; the projection below is the same, done analytically.
+  const cam = {target: [0, 0, 0], radius: 1, az: 0, el: 0, fov: 75, aspect: 1, near: 0.01, far: 100};
+  const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+  const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+  const unit = (a) => { const n = Math.hypot(a[0], a[1], a[2]); return [a[0] / n, a[1] / n, a[2] / n]; };
+  function setOffset(off) {  // the camera at target + off
+    cam.radius = Math.hypot(off[0], off[1], off[2]);
+    cam.az = Math.atan2(off[1], off[0]);
+    cam.el = Math.asin(off[2] / cam.radius);
+  }
+  function camPosition() {
+    const c = Math.cos(cam.el);
+    return [cam.target[0] + cam.radius * c * Math.cos(cam.az), cam.target[1] + cam.radius * c * Math.sin(cam.az),
+            cam.target[2] + cam.radius * Math.sin(cam.el)];
+  }
+  function camBasis() {  // position, forward, right, up
+    const p = camPosition(), f = unit(sub(cam.target, p)), r = unit(cross(f, [0, 0, 1]));
+    return {p: p, f: f, r: r, u: cross(r, f)};
+  }
+  function postCamera() { toView({type: "camera", p: camPosition(), target: cam.target, fov: cam.fov}); }
+  function project(x) {  // a world point to the canvas (CSS pixels, page coordinates) and its depth in [-1, 1]
+    const b = camBasis(), d = sub(x, b.p), zc = dot(d, b.f), t = Math.tan(cam.fov * Math.PI / 360);
+    const nx = dot(d, b.r) / (zc * t * cam.aspect), ny = dot(d, b.u) / (zc * t), rect = canvas.getBoundingClientRect();
+    const z = (cam.far + cam.near) / (cam.far - cam.near) - 2 * cam.far * cam.near / ((cam.far - cam.near) * zc);
+    return {x: rect.left + (nx + 1) / 2 * rect.width, y: rect.top + (1 - ny) / 2 * rect.height, z: z};
+  }
+  gcs.screenOf = (p_W) => { const s = project(p_W); return {x: s.x, y: s.y}; };
+  gcs.vehicleScreen = function () {  // the vehicle's pixel in the 3-D pane (CSS pixels, page coordinates)
+    const t = stats.lastTelemetry;
+    return t && Array.isArray(t.p_W) ? project(t.p_W) : null;
+  };
+  gcs.groundPoint = function (clientX, clientY) {  // the ENU point [x, y] on the ground (z = 0) under a pixel, or null
+    const rect = canvas.getBoundingClientRect(), b = camBasis(), t = Math.tan(cam.fov * Math.PI / 360);
+    const nx = ((clientX - rect.left) / rect.width) * 2 - 1, ny = 1 - ((clientY - rect.top) / rect.height) * 2;
+    const dir = [0, 1, 2].map((k) => b.f[k] + nx * t * cam.aspect * b.r[k] + ny * t * b.u[k]);
+    if (Math.abs(dir[2]) < 1e-9) return null;
+    const s = -b.p[2] / dir[2];
+    return s > 0 ? [b.p[0] + s * dir[0], b.p[1] + s * dir[1]] : null;
+  };
+  let following = false;
+  function follow(p) {
+    if (!$("follow").checked || !Array.isArray(p)) { following = false; return; }
+    if (!following) setOffset([-2.5, -2.5, 1.8]);  // the first time 2.5 m behind and 1.8 m above; then the user's orbit
+    following = true;
+    cam.target = p.slice(0, 3);
+    postCamera();
+  }
 
   // ---- telemetry panel and plots -------------------------------------------------------------------------------
   const fmt = (v, n = 2) => (typeof v === "number" ? v.toFixed(n) : (v === undefined || v === null ? "–" : String(v)));
@@ -191,94 +181,28 @@
   }
   setInterval(drawPlots, 200);
 
-  // Telemetry comes at up to 50 Hz and clouds at the LiDAR's rate; the 3-D view is redrawn at most ?fps= (20) times a
-  // second and the panel 10 times (software WebGL and layout are what cost in a browser without a GPU).
-  let lastDraw = 0, drawPending = false, dirtyPanel = false, dirtyPose = false;
-  const MAX_FPS = Math.max(1, Math.min(60, parseFloat(new URLSearchParams(location.search).get("fps")) || 20));
-  let DRAW_MS = 1000 / MAX_FPS;
-  // A congested page (software WebGL on a busy machine) draws fewer frames: the lag of a 100 ms timer says how
-  // busy the main thread is; above 30 ms the frame rate drops (to 3 at least), below 10 ms it climbs back.
-  let lastTick = performance.now(), lag = 0;
-  setInterval(() => {
-    const now = performance.now();
-    lag = 0.7 * lag + 0.3 * Math.max(0, now - lastTick - 100);
-    lastTick = now;
-    const fps = 1000 / DRAW_MS;
-    if (lag > 30) DRAW_MS = 1000 / Math.max(3, fps * 0.7);
-    else if (lag < 10) DRAW_MS = 1000 / Math.min(MAX_FPS, fps * 1.2 + 0.5);
-    stats.fps = 1000 / DRAW_MS; stats.lagMs = lag;
-  }, 100);
-  function draw() {
-    lastDraw = performance.now();
-    if (dirtyPose && stats.lastTelemetry) { dirtyPose = false; placeVehicle(stats.lastTelemetry); }
-    viewer.set_dirty();
-  }
-  function redraw() {
-    const now = performance.now();
-    if (now - lastDraw >= DRAW_MS) { draw(); return; }
-    if (drawPending) return;
-    drawPending = true;
-    setTimeout(() => { drawPending = false; draw(); }, DRAW_MS - (now - lastDraw));
-  }
+  // Telemetry comes at up to 50 Hz; the panel is laid out 10 times a second (the target at once: see onText).
+  let dirtyPanel = false;
   setInterval(() => { if (dirtyPanel && stats.lastTelemetry) { dirtyPanel = false; showTelemetry(stats.lastTelemetry); } }, 100);
-
-  // ---- the vehicle and camera ----------------------------------------------------------------------------------
-  const q4 = new THREE.Quaternion(), m4 = new THREE.Matrix4(), v3 = new THREE.Vector3(), one = new THREE.Vector3(1, 1, 1);
-  let lastFollow = null;
-  function toView(p) { return new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4(scene.matrixWorld); }
-  function placeVehicle(t) {
-    const p = t.p_W, q = t.q_WB;
-    if (!vehicle || !Array.isArray(p) || !Array.isArray(q)) return;
-    q4.set(q[1], q[2], q[3], q[0]);
-    m4.compose(v3.set(p[0], p[1], p[2]), q4, one);
-    viewer.set_transform(root.concat(["vehicle"]), m4.toArray());
-    const sp = targetOf(t) || setpointOf(t);
-    if (sp) { setpoint.position.set(sp[0], sp[1], sp[2]); }
-    if ($("follow").checked) {
-      const target = toView(p);
-      // keep the user's orbit offset; the first time, 2.5 m behind and 1.8 m above the vehicle
-      const off = lastFollow ? viewer.camera.position.clone().sub(viewer.controls.target) : toView([-2.5, -2.5, 1.8]);
-      viewer.controls.target.copy(target);
-      viewer.camera.position.copy(target).add(off);
-      lastFollow = target;
-    } else { lastFollow = null; }
-  }
-  gcs.vehicleScreen = function () {  // the vehicle's pixel in the 3-D pane (CSS pixels, page coordinates)
-    const t = stats.lastTelemetry;
-    if (!t || !Array.isArray(t.p_W)) return null;
-    scene.updateMatrixWorld(); viewer.camera.updateMatrixWorld();
-    const s = toView(t.p_W).project(viewer.camera), r = viewer.renderer.domElement.getBoundingClientRect();
-    return {x: r.left + (s.x + 1) / 2 * r.width, y: r.top + (1 - s.y) / 2 * r.height, z: s.z};
-  };
-  gcs.groundPoint = function (clientX, clientY) {  // ENU point on the ground (z = 0) under a pixel, or null
-    const r = viewer.renderer.domElement.getBoundingClientRect();
-    const ndc = new THREE.Vector2(((clientX - r.left) / r.width) * 2 - 1, -((clientY - r.top) / r.height) * 2 + 1);
-    const ray = new THREE.Raycaster();
-    scene.updateMatrixWorld(); viewer.camera.updateMatrixWorld();
-    ray.setFromCamera(ndc, viewer.camera);
-    const normal = new THREE.Vector3(0, 0, 1).transformDirection(scene.matrixWorld);
-    const plane = new THREE.Plane().setFromNormalAndCoplanarPoint(normal, toView([0, 0, 0]));
-    const hit = ray.ray.intersectPlane(plane, new THREE.Vector3());
-    if (!hit) return null;
-    const p = scene.worldToLocal(hit);
-    return [p.x, p.y];
-  };
-  gcs.screenOf = function (p_W) {
-    scene.updateMatrixWorld(); viewer.camera.updateMatrixWorld();
-    const s = toView(p_W).project(viewer.camera), r = viewer.renderer.domElement.getBoundingClientRect();
-    return {x: r.left + (s.x + 1) / 2 * r.width, y: r.top + (1 - s.y) / 2 * r.height};
-  };
 
   function newScene(sc) {
     $("scenario").textContent = sc.scenario ? "— " + sc.scenario : "";
-    addLayer("world", worldObject(sc.meshes || []));
-    vehicle = addLayer("vehicle", vehicleObject(sc.arm_length || 0.15));
-    viewer.set_object(root.concat(["setpoint"]), setpoint);
-    // camera 4 m behind and 3 m above the origin (MeshCat's y-up camera frame: world x, world z, -world y)
-    viewer.set_property(["Cameras", "default", "rotated", "<object>"], "position", [-4, 3, 4]);
-    viewer.controls.target.set(0, 0, 0);
-    lastFollow = null;
+    toView({type: "scene", meshes: sc.meshes || [], arm_length: sc.arm_length || 0.15});
+    cam.target = [0, 0, 0];
+    setOffset([-4, -4, 3]);  // 4 m behind and 3 m above the origin
+    following = false;
+    postCamera();
     applyVisibility();
+  }
+  let shownTarget = "";
+  function showTarget(t) {  // the commander's target, written as soon as it changes
+    const tg = targetOf(t) || setpointOf(t), text = tg ? vec(tg) : "–";
+    if (text !== shownTarget) { shownTarget = text; $("tel-target").textContent = text; }
+    return tg;
+  }
+  function toViewPose(t) {
+    toView({type: "pose", p: t.p_W, q: t.q_WB, sp: targetOf(t) || setpointOf(t)});
+    follow(t.p_W);
   }
 
   // ---- event log ------------------------------------------------------------------------------------------------
@@ -317,15 +241,10 @@
                          setTimeout(connect, backoff); backoff = Math.min(3000, backoff * 2); };
     ws.onmessage = (ev) => (typeof ev.data === "string" ? onText(JSON.parse(ev.data)) : onCloud(ev.data));
   }
-  function onCloud(buf) {
-    const a = new Float32Array(buf), n = Math.min(a[1] | 0, MAX_CLOUD);
-    const attr = cloudGeom.attributes.position;
-    attr.array.set(a.subarray(2, 2 + 3 * n));
-    attr.needsUpdate = true;
-    cloudGeom.setDrawRange(0, n);
+  function onCloud(buf) {  // handed to the view as it is (transferred, not copied)
     stats.clouds += 1;
     seen("cloud");
-    redraw();
+    toView({type: "cloud", buf: buf}, [buf]);
   }
   function onText(m) {
     if (m.type === "telemetry") {
@@ -335,35 +254,33 @@
       while (rateWindow.length && rateWindow[0] < now - 2000) rateWindow.shift();
       stats.rateHz = rateWindow.length > 1 ? (rateWindow.length - 1) / ((now - rateWindow[0]) / 1000) : 0;
       $("tel-rate").textContent = stats.rateHz.toFixed(0) + " Hz";
-      addPlot(m); dirtyPanel = dirtyPose = true; redraw();
-      seen("telemetry");
-      if (Array.isArray(m.p_W)) {
-        const n = flown.geometry.drawRange.count, a = flown.geometry.attributes.position.array;
-        if (n === 0 || Math.hypot(m.p_W[0] - a[3 * n - 3], m.p_W[1] - a[3 * n - 2], m.p_W[2] - a[3 * n - 1]) > 0.02) appendLine(flown, m.p_W);
-      }
+      const tg = showTarget(m);
       const c = gcs.lastClick;
-      if (c && c.seenAt === undefined) {
-        const tg = targetOf(m) || setpointOf(m);
-        if (tg && Math.hypot(tg[0] - c.p_W[0], tg[1] - c.p_W[1]) < 0.01) { c.seenAt = now; stats.arrivals.push(now - c.t0); }
+      if (c && c.seenAt === undefined && tg && Math.hypot(tg[0] - c.p_W[0], tg[1] - c.p_W[1]) < 0.01) {
+        c.seenAt = performance.now();  // the panel shows the clicked point as the target
+        stats.arrivals.push(c.seenAt - c.t0);
+        requestAnimationFrame(() => { c.paintedAt = performance.now(); });  // and the frame that paints it
       }
+      seen("telemetry");
+      addPlot(m); dirtyPanel = true;
+      toViewPose(m);
     } else if (m.type === "hello") {
       stats.hellos += 1;
       newScene(m.scene);
-      setLine(flown, m.path || []);
-      setLine(planned, m.planned || []);
+      toView({type: "path", points: m.path || []});
+      toView({type: "planned", points: m.planned || []});
       for (const k in plot) plot[k].length = 0;
       for (const t of m.history || []) addPlot(t);
       $("events").innerHTML = ""; stats.events = [];
       addEvents(m.events || []);
-      cloudGeom.setDrawRange(0, 0);  // a new run (restart) has neither the old cloud nor the old map
-      if (m.esdf) onText(m.esdf); else if (layer.esdf) { viewer.delete_path(root.concat(["esdf"])); delete layer.esdf; }
-      if (m.telemetry && m.telemetry.p_W) { stats.lastTelemetry = m.telemetry; showTelemetry(m.telemetry); placeVehicle(m.telemetry); }
+      toView({type: "esdf", esdf: m.esdf || null});  // the scene above dropped the old cloud and map
+      if (m.telemetry && m.telemetry.p_W) { stats.lastTelemetry = m.telemetry; showTelemetry(m.telemetry); showTarget(m.telemetry); toViewPose(m.telemetry); }
     } else if (m.type === "events") {
       addEvents(m.events);
     } else if (m.type === "planned") {
-      setLine(planned, m.planned); viewer.set_dirty();
+      toView({type: "planned", points: m.planned});
     } else if (m.type === "esdf") {
-      addLayer("esdf", esdfObject(m)); applyVisibility();
+      toView({type: "esdf", esdf: m});
     } else if (m.type === "ack") {
       stats.acks.push(m);
       const el = $("ack");
@@ -438,19 +355,49 @@
     applyVisibility();
     if (el.id === "layer-cloud" && ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({type: "layers", cloud: el.checked}));
   });
-  const canvas = viewer.renderer.domElement;
-  let down = null;
-  canvas.addEventListener("pointerdown", (e) => { down = [e.clientX, e.clientY]; });
-  // the orbit controls take the pointer over after a press on the canvas: the release is seen by the document
-  document.addEventListener("pointerup", (e) => {
-    const start = down;
-    down = null;
-    if (!$("click-goto").checked || !start || Math.hypot(e.clientX - start[0], e.clientY - start[1]) > 4) return;
+  // ---- the pointer on the 3-D view: drag to orbit (left) or pan (right, or shift), wheel to zoom, click to go ----
+  let drag = null;
+  canvas.addEventListener("contextmenu", (e) => e.preventDefault());
+  canvas.addEventListener("pointerdown", (e) => {
+    drag = {x0: e.clientX, y0: e.clientY, x: e.clientX, y: e.clientY, pan: e.button !== 0 || e.shiftKey, moved: false};
+    canvas.setPointerCapture(e.pointerId);
+  });
+  canvas.addEventListener("pointermove", (e) => {
+    if (!drag) return;
+    const dx = e.clientX - drag.x, dy = e.clientY - drag.y, h = canvas.clientHeight || 1;
+    drag.x = e.clientX; drag.y = e.clientY;
+    if (Math.hypot(e.clientX - drag.x0, e.clientY - drag.y0) > 4) drag.moved = true;
+    if (!drag.moved) return;
+    if (drag.pan) {  // the target moves with the pointer in the view plane
+      const b = camBasis(), s = 2 * cam.radius * Math.tan(cam.fov * Math.PI / 360) / h;
+      cam.target = [0, 1, 2].map((k) => cam.target[k] - s * (dx * b.r[k] - dy * b.u[k]));
+    } else {
+      cam.az -= 2 * Math.PI * dx / h;
+      cam.el = Math.max(-1.5, Math.min(1.5, cam.el + Math.PI * dy / h));
+    }
+    postCamera();
+  });
+  canvas.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    cam.radius = Math.max(0.2, Math.min(80, cam.radius * Math.pow(0.95, -e.deltaY / 100)));
+    postCamera();
+  }, {passive: false});
+  canvas.addEventListener("pointerup", (e) => {
+    const d = drag;
+    drag = null;
+    if (!d || d.moved || d.pan || !$("click-goto").checked) return;
+    // a click: the ground point under it, intersected analytically (no scene ray cast), sent at once; the latency
+    // is counted from the release's own time stamp, so that a busy page's delay in handling it is included
     const g = gcs.groundPoint(e.clientX, e.clientY);
     if (!g) return;
     const p = [Math.round(g[0] * 100) / 100, Math.round(g[1] * 100) / 100, num("goto-z")];
-    gcs.lastClick = {t0: performance.now(), p_W: p};
-    gcs.send({command: "goto", p_W: p}, (ack) => { gcs.lastClick.ackAt = performance.now(); });
+    const click = gcs.lastClick = {t0: e.timeStamp, handledAt: performance.now(), p_W: p};
+    gcs.send({command: "goto", p_W: p}, () => { click.ackAt = performance.now(); });
+    click.sentAt = performance.now();
   });
+  new ResizeObserver(resize).observe(canvas);
+  resize();
+  postCamera();
+  applyVisibility();
   connect();
 })();
