@@ -123,6 +123,7 @@ def test_cli_hitl_on_a_pty():
     (["--set", "vehicle=nope"], "vehicle"),
     (["--duration", "0"], "--duration must be"),
     (["--hitl", "/dev/null", "--speed", "max"], "--speed max needs lockstep"),
+    (["--cpu", "100000"], "--cpu must be one of the CPUs"),
 ])
 def test_cli_rejects_bad_usage(argv, message, capsys):
     from cufund.cli import main

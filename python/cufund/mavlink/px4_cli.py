@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 
 from ..config import ConfigError
@@ -31,6 +32,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="stop after this much simulated time [s] (default: until PX4 disconnects)")
     p.add_argument("--connect-timeout", type=float, default=None,
                    help="give up if PX4 has not connected after this many seconds (default: wait forever)")
+    p.add_argument("--cpu", type=int, default=None, metavar="N",
+                   help="run on CPU N only (Linux); lockstep is serial, so with PX4 on the same CPU (taskset -c N) "
+                        "neither side waits for the other to be woken on another CPU")
 
 
 def _speed(text: str) -> float | None:
@@ -69,6 +73,10 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"--duration must be a number of seconds > 0, got {args.duration!r}")
         if not 0 <= args.instance <= 60000:
             raise ConfigError(f"--instance must be in [0, 60000], got {args.instance}")
+        if args.cpu is not None:
+            cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+            if args.cpu not in cpus:
+                raise ConfigError(f"--cpu must be one of the CPUs this process may use {cpus}, got {args.cpu}")
         config = load_scenario(args.scenario, parse_overrides(args.overrides))
         params = Px4BridgeParams(speed=speed, lockstep=args.hitl is None)
         gcs_address = _gcs(args.gcs) if args.hitl else None
@@ -81,6 +89,8 @@ def run(args: argparse.Namespace) -> int:
                 opened.close()
         print(f"cufund: {e}", file=sys.stderr)
         return EXIT_INVALID
+    if args.cpu is not None:
+        os.sched_setaffinity(0, {args.cpu})  # before any thread starts: they inherit it
     where = f"serial {args.hitl} at {args.baud} baud (HITL, lockstep off" + \
         (f"; ground station relay udp://{gcs.address[0]}:{gcs.address[1]})" if gcs else ")") if args.hitl else \
         f"tcp://{args.host}:{bridge.port_number} (SITL, lockstep)"
