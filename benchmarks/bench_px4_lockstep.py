@@ -1,7 +1,8 @@
 """Lockstep throughput of cufund as PX4's simulator: HIL_SENSOR -> HIL_ACTUATOR_CONTROLS round trips per second.
 
 PX4 needs 250 round trips/s to run in real time; the target (issue 15) is >= 5000/s so PX4 never waits on cufund.
-Three peers, the same scenario (iris, noisy IMU/mag/baro/GPS models, 1 kHz physics):
+Three peers, the same scenario (iris, noisy IMU/mag/baro/GPS models at PX4's rates, one physics step per
+HIL_SENSOR period):
   in-process   the controls are handed back without a socket (cufund's own cost per period: sensors, physics,
                encoding, parsing)
   tcp, C-speed a separate process with a struct codec (what px4_sitl's C side costs): frames and CRC-checks the
@@ -13,11 +14,13 @@ Run: `.venv/bin/python benchmarks/bench_px4_lockstep.py [seconds of simulated ti
 
 from __future__ import annotations
 
+import math
 import multiprocessing as mp
 import os
 import socket
 import sys
 import time
+from typing import Any
 
 from cufund.mavlink.px4_harness import Px4Harness
 from cufund.mavlink.px4_links import TcpServerLink
@@ -58,7 +61,7 @@ class _Loopback:
         pass
 
 
-def _c_speed_peer(port: int) -> None:
+def _c_speed_peer(port: int, cpu_s: Any = None) -> None:
     """PX4's C side in miniature, with a struct codec: frames the byte stream, checks each CRC, decodes every
     HIL_SENSOR whole and answers each of instance 0 with HIL_ACTUATOR_CONTROLS stamped with its time (sequence
     numbered, CRC'd)."""
@@ -77,6 +80,7 @@ def _c_speed_peer(port: int) -> None:
     controls_tail = struct.pack("<Q16fB", 1, *([U_HOVER] * 4 + [0.0] * 12), 129)
     sock = socket.create_connection(("127.0.0.1", port))
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    c0 = time.process_time()
     buf, seq = b"", 0
     while True:
         data = sock.recv(65536)
@@ -110,6 +114,8 @@ def _c_speed_peer(port: int) -> None:
         if out:
             sock.sendall(b"".join(out))
     sock.close()
+    if cpu_s is not None:
+        cpu_s.value = time.process_time() - c0
 
 
 def _echo_peer(port: int) -> None:
@@ -141,8 +147,9 @@ def _ping_pong(seconds: float) -> float:
     return rate
 
 
-def _harness_peer(port: int) -> None:
+def _harness_peer(port: int, cpu_s: Any = None) -> None:
     px4 = Px4Harness.tcp("127.0.0.1", port)
+    c0 = time.process_time()
     px4.heartbeat()
     while True:
         try:
@@ -151,6 +158,8 @@ def _harness_peer(port: int) -> None:
             break
         px4.controls([U_HOVER] * 4, time_usec=s.sensor.time_usec)
     px4.close()
+    if cpu_s is not None:
+        cpu_s.value = time.process_time() - c0
 
 
 def _run(bridge: Px4SimulatorBridge, seconds: float) -> tuple[float, float, float]:
@@ -172,23 +181,27 @@ def _run(bridge: Px4SimulatorBridge, seconds: float) -> tuple[float, float, floa
     return bridge.stats["controls"] / wall, bridge.stats["controls"] / cpu, t_connect
 
 
-def _tcp(peer, seconds: float, cpu: int | None = None) -> tuple[float, float, float]:
-    """The bridge over TCP against ``peer`` run in a separate process; ``cpu``: both processes pinned to that CPU
-    (lockstep is serial: on one CPU neither side waits for the other to be woken on another)."""
+def _tcp(peer, seconds: float, cpu: int | None = None) -> tuple[float, float, float, float]:
+    """``_run`` over TCP against ``peer`` run in a separate process, plus the peer's CPU seconds per round trip
+    (from its connection on). ``cpu``: both processes pinned to that CPU (lockstep is serial: on
+    one CPU neither side waits for the other to be woken on another)."""
     mask = os.sched_getaffinity(0)
     if cpu is not None:
         os.sched_setaffinity(0, {cpu})  # the spawned peer inherits it
     try:
+        ctx = mp.get_context("spawn")
         bridge = Px4SimulatorBridge(_config(), TcpServerLink("127.0.0.1", 0), PARAMS)
-        proc = mp.get_context("spawn").Process(target=peer, args=(bridge.port_number,), daemon=True)
+        peer_cpu = ctx.Value("d", math.nan)
+        proc = ctx.Process(target=peer, args=(bridge.port_number, peer_cpu), daemon=True)
         proc.start()
         try:
-            return _run(bridge, seconds)
+            rate, cpu_rate, t_connect = _run(bridge, seconds)
         finally:
             bridge.close()
             proc.join(10.0)
             if proc.is_alive():
                 proc.kill()
+        return rate, cpu_rate, t_connect, peer_cpu.value / max(bridge.stats["controls"], 1)
     finally:
         os.sched_setaffinity(0, mask)
 
@@ -199,20 +212,22 @@ def main() -> None:
           f"real time needs 250/s, target >= 5000/s")
     load0 = os.getloadavg()[0]
     results = {}
-    results["in-process"] = _run(Px4SimulatorBridge(_config(), _Loopback(), PARAMS), seconds)
+    results["in-process"] = (*_run(Px4SimulatorBridge(_config(), _Loopback(), PARAMS), seconds), math.nan)
     one_cpu = max(os.sched_getaffinity(0))
     for name, peer, cpu in (("tcp, C-speed peer", _c_speed_peer, None),
                             ("tcp, C-speed, one CPU", _c_speed_peer, one_cpu),
                             ("tcp, pymavlink harness", _harness_peer, None)):
         results[name] = _tcp(peer, seconds, cpu)
-    results["tcp ping-pong, no sim"] = (_ping_pong(seconds), float("nan"), float("nan"))
-    print(f"  {'peer':<24} {'per wall s':>10} {'x real time':>12} {'x target':>9} {'per cufund CPU s':>17} "
-          f"{'peer start s':>12}")
-    for name, (rate, cpu_rate, t_connect) in results.items():
-        print(f"  {name:<24} {rate:10.0f} {rate / 250:12.1f} {rate / 5000:9.2f} {cpu_rate:17.0f} {t_connect:12.2f}")
+    results["tcp ping-pong, no sim"] = (_ping_pong(seconds), math.nan, math.nan, math.nan)
+    print(f"  {'peer':<24} {'per wall s':>10} {'x real time':>11} {'x target':>8} {'per cufund CPU s':>16} "
+          f"{'us/trip: wall':>13} {'cufund CPU':>10} {'peer CPU':>8} {'peer start s':>12}")
+    for name, (rate, cpu_rate, t_connect, peer_cpu) in results.items():
+        print(f"  {name:<24} {rate:10.0f} {rate / 250:11.1f} {rate / 5000:8.2f} {cpu_rate:16.0f} {1e6 / rate:13.0f} "
+              f"{1e6 / cpu_rate:10.0f} {peer_cpu * 1e6:8.0f} {t_connect:12.2f}")
     print(f"  (load average {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on {os.cpu_count()} cores: "
           f"wall rates fall with other work; per CPU s is cufund's own cost. Clocks start once the peer is "
-          f"connected; 'one CPU': cufund and the peer pinned to CPU {one_cpu}, as `taskset -c {one_cpu}` would)")
+          f"connected. 'one CPU': cufund and the peer pinned to CPU {one_cpu}, as "
+          f"`cufund px4-sim --cpu {one_cpu}` with `taskset -c {one_cpu} px4 ...` would be)")
 
 
 if __name__ == "__main__":
