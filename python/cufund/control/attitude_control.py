@@ -7,11 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import check_real_fields
+from .. import _core
 from ..components import Bus, Controller
+from ..config import check_real_fields
 from ..messages import AttitudeSetpoint, Odometry, RateSetpoint, Topics
 from .arming import Gate, gate
-from .rotations import quat_conjugate, quat_from_two_vectors, quat_multiply, quat_to_rotation
 
 __all__ = ["AttitudeControlParams", "AttitudeController"]
 
@@ -53,6 +53,7 @@ class AttitudeController(Controller):
     """Gated by a commander's vehicle status (:func:`cufund.control.arming.make_armable`)."""
 
     def __init__(self, gains: AttitudeControlParams | None = None, rate_hz: float = 250.0) -> None:
+        self._core = _core.control.AttitudeControl()  # the arithmetic, in C++ (cpp/control/attitude_control.cpp)
         self.set_gains(gains or AttitudeControlParams())
         self.rate_hz = rate_hz
 
@@ -61,8 +62,8 @@ class AttitudeController(Controller):
         self.gains = g = gains
         rp = 0.5 * (g.roll_p + g.pitch_p)
         self.yaw_weight = min(max(g.yaw_p / rp, 0.0), 1.0)
-        self._k = np.array([g.roll_p, g.pitch_p, rp])
-        self._max = np.array([g.roll_rate_max, g.pitch_rate_max, g.yaw_rate_max])
+        self._core.set_gains(np.array([g.roll_p, g.pitch_p, rp]),
+                             np.array([g.roll_rate_max, g.pitch_rate_max, g.yaw_rate_max]), self.yaw_weight)
 
     def update(self, t: float, state: Odometry, bus: Bus) -> None:
         if self.armable and gate(bus, "pid") is not Gate.FLY:  # disarmed, idle on the ground, or geometric flies
@@ -70,27 +71,5 @@ class AttitudeController(Controller):
         sp: AttitudeSetpoint | None = bus.latest(Topics.ATTITUDE_SETPOINT)
         if sp is None:
             return
-        q = state.q_WB
-        qd = sp.q_WB
-        R = quat_to_rotation(q)
-        e_z, e_z_d = R[:, 2], quat_to_rotation(qd)[:, 2]
-        qd_red = quat_from_two_vectors(e_z, e_z_d)
-        if abs(qd_red[1]) > 1 - 1e-5 or abs(qd_red[2]) > 1 - 1e-5:
-            qd_red = qd  # thrust axes opposite: the full attitude is the only well-defined target
-        else:
-            qd_red = quat_multiply(qd_red, q)
-        q_mix = quat_multiply(quat_conjugate(qd_red), qd)
-        if q_mix[0] < 0:
-            q_mix = -q_mix
-        w_mix = min(max(q_mix[0], -1.0), 1.0)
-        z_mix = min(max(q_mix[3], -1.0), 1.0)
-        yw = self.yaw_weight
-        qd = quat_multiply(qd_red, np.array([math.cos(yw * math.acos(w_mix)), 0.0, 0.0, math.sin(yw * math.asin(z_mix))]))
-        qe = quat_multiply(quat_conjugate(q), qd)
-        if qe[0] < 0:
-            qe = -qe
-        w_sp = 2.0 * qe[1:] * self._k
-        if sp.yaw_rate:
-            w_sp += R[2, :] * sp.yaw_rate  # world z in the body frame, times the yaw-rate feed-forward
-        w_sp = np.minimum(np.maximum(w_sp, -self._max), self._max)
-        bus.publish(Topics.RATE_SETPOINT, RateSetpoint(t, w_sp, sp.thrust))
+        w_sp = self._core.rate_setpoint(state.q_WB, sp.q_WB, sp.yaw_rate)  # fresh and read-only
+        bus.publish(Topics.RATE_SETPOINT, RateSetpoint.trusted(t, w_sp, sp.thrust))

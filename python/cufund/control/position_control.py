@@ -8,14 +8,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import check_real_fields
+from .. import _core
 from ..components import Bus, Controller
+from ..config import check_real_fields
 from ..messages import AttitudeSetpoint, FlightMode, Odometry, Topics
 from ..params import QuadrotorParams
 from .arming import Gate, gate
-from .derivative_filter import LowPassDerivative
 from .flight_mode import BumplessTransfer, ModeReferences
-from .rotations import attitude_from_thrust_and_yaw, quat_to_rotation, rotation_to_quat
+from .rotations import quat_to_rotation
 
 __all__ = ["PositionControlParams", "PositionController"]
 
@@ -83,30 +83,35 @@ class PositionController(Controller):
     def __init__(self, params: QuadrotorParams, gains: PositionControlParams | None = None, rate_hz: float = 250.0,
                  mode: FlightMode = FlightMode.POSITION, max_thrust: float | None = None) -> None:
         self.params = params
-        self.set_gains(gains or PositionControlParams())
         self.rate_hz = rate_hz
         self.refs = ModeReferences(mode)
-        self.transfer = BumplessTransfer()
+        self.transfer_tau = BumplessTransfer().tau
+        """Decay of the step a mode switch would cause in the acceleration command [s] (see BumplessTransfer)."""
         self.max_thrust = max_thrust if max_thrust is not None else 4.0 * params.k_f * params.rotor_speed_max ** 2
-        self._acc = LowPassDerivative(self.gains.vel_d_cutoff_hz)
+        g = gains or PositionControlParams()
+        # the step's arithmetic, in C++ (cpp/control/position_control.cpp); the mode logic stays here
+        self._core = _core.control.PositionControl(params.mass, params.gravity, self.max_thrust, g.vel_d_cutoff_hz,
+                                                   self.transfer_tau)
+        self.set_gains(g)
         self.reset()
 
     def set_gains(self, gains: PositionControlParams) -> None:
         """Replaces the gains, also in flight; the controller's state is kept (a filter cutoff keeps the value it
         was built with)."""
         self.gains = g = gains
-        self._kp = np.array([g.xy_p, g.xy_p, g.z_p])
-        self._kv = np.array([g.xy_vel_p, g.xy_vel_p, g.z_vel_p])
-        self._ki = np.array([g.xy_vel_i, g.xy_vel_i, g.z_vel_i])
-        self._kd = np.array([g.xy_vel_d, g.xy_vel_d, g.z_vel_d])
+        self._core.set_gains(np.array([g.xy_p, g.xy_p, g.z_p]), np.array([g.xy_vel_p, g.xy_vel_p, g.z_vel_p]),
+                             np.array([g.xy_vel_i, g.xy_vel_i, g.z_vel_i]), np.array([g.xy_vel_d, g.xy_vel_d, g.z_vel_d]),
+                             g.xy_vel_max, g.z_vel_max_up, g.z_vel_max_dn, g.tilt_max, g.thr_min, g.thr_max)
 
     def reset(self) -> None:
         self.refs.reset()
-        self.transfer.reset()
-        self.vel_int = np.zeros(3)
-        """Velocity integrator [m/s^2]."""
-        self._acc.reset()
+        self._core.reset()
         self.last: AttitudeSetpoint | None = None
+
+    @property
+    def vel_int(self) -> np.ndarray:
+        """Velocity integrator [m/s^2] (a copy)."""
+        return self._core.vel_int
 
     @property
     def mode(self) -> FlightMode:
@@ -116,71 +121,25 @@ class PositionController(Controller):
         if self.armable and gate(bus, "pid") is not Gate.FLY:  # disarmed, idle on the ground, or geometric flies
             self.reset()
             return
-        g = self.gains
-        m, grav = self.params.mass, self.params.gravity
         dt = 1.0 / self.rate_hz
-        mode = self.refs.update(t, state, bus, self.last)
-        # velocity derivative for D, low-passed; kept running in every mode so D does not kick after a switch
-        acc_filt = self._acc.update(state.v_W, dt)
+        refs = self.refs
+        mode = refs.update(t, state, bus, self.last)
         if mode is FlightMode.ATTITUDE:
-            att = self.refs.attitude(bus)
-            thrust = m * grav if math.isnan(att.thrust) else att.thrust
+            # the velocity derivative for D keeps running in every mode, so D does not kick after a switch
+            self._core.filter_velocity(state.v_W, dt)
+            att = refs.attitude(bus)
+            m = self.params.mass
+            thrust = m * self.params.gravity if math.isnan(att.thrust) else att.thrust
             self.last = AttitudeSetpoint(t, att.q_WB, thrust, att.yaw_rate)
             bus.publish(Topics.ATTITUDE_SETPOINT, self.last)
             return
-        sp = self.refs.trajectory(t, bus)
-        if mode is FlightMode.POSITION:
-            v_sp = self._kp * (sp.p_W - state.p_W) + sp.v_W
-        else:
-            v_sp = sp.v_W.copy()
-        vxy = math.hypot(v_sp[0], v_sp[1])
-        if vxy > g.xy_vel_max:
-            v_sp[:2] *= g.xy_vel_max / vxy
-        v_sp[2] = min(max(v_sp[2], -g.z_vel_max_dn), g.z_vel_max_up)
-        v_err = v_sp - state.v_W
-        acc_sp = self._kv * v_err + self.vel_int - self._kd * acc_filt + sp.a_W
-        if self.refs.switched and self.last is not None:
+        sp = refs.trajectory(t, bus)
+        handover = None
+        if refs.switched and self.last is not None:
             # hand over: the acceleration last commanded (in any mode) continues and fades into the new one
             z_prev = quat_to_rotation(self.last.q_WB)[:, 2]
-            self.transfer.start(t, self.last.thrust / m * z_prev - np.array([0.0, 0.0, grav]), acc_sp)
-        acc_sp = acc_sp + self.transfer.offset(t)
-        F, sat = self._thrust_vector(m * (acc_sp + np.array([0.0, 0.0, grav])))
-        # integrate unless the thrust vector saturated in the direction the error pushes (anti-windup)
-        push = self._ki * v_err * dt
-        keep = ~((sat > 0) & (push > 0) | (sat < 0) & (push < 0))
-        self.vel_int += np.where(keep, push, 0.0)
-        lim = grav  # no more than 1 g from the integrator on any axis
-        self.vel_int = np.minimum(np.maximum(self.vel_int, -lim), lim)
-        thrust = float(np.linalg.norm(F))
-        R_d = attitude_from_thrust_and_yaw(F / thrust, sp.yaw)
-        self.last = AttitudeSetpoint(t, rotation_to_quat(R_d), thrust, sp.yaw_rate)
+            handover = self.last.thrust / self.params.mass * z_prev - np.array([0.0, 0.0, self.params.gravity])
+        q, thrust = self._core.step(t, dt, state.p_W, state.v_W, sp.p_W, sp.v_W, sp.a_W, sp.yaw,
+                                    mode is FlightMode.POSITION, handover)
+        self.last = AttitudeSetpoint.trusted(t, q, thrust, sp.yaw_rate)  # q: fresh and read-only
         bus.publish(Topics.ATTITUDE_SETPOINT, self.last)
-
-    def _thrust_vector(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Limits thrust magnitude and tilt; returns the limited vector and per-axis saturation signs."""
-        g = self.gains
-        sat = np.zeros(3)
-        f_min, f_max = g.thr_min * self.max_thrust, g.thr_max * self.max_thrust
-        F = F.copy()
-        if F[2] < f_min * math.cos(g.tilt_max):
-            F[2] = f_min * math.cos(g.tilt_max)
-            sat[2] = -1
-        h = math.hypot(F[0], F[1])
-        h_max = F[2] * math.tan(g.tilt_max)
-        if h > h_max:
-            F[:2] *= h_max / h
-            sat[:2] = np.sign(F[:2])
-        n = float(np.linalg.norm(F))
-        if n > f_max:
-            # keep the vertical component first (PX4 prioritises altitude), then what is left horizontally
-            if F[2] >= f_max:
-                F = np.array([0.0, 0.0, f_max])
-            else:
-                hh = math.sqrt(f_max * f_max - F[2] * F[2])
-                F[:2] *= hh / max(math.hypot(F[0], F[1]), 1e-12)
-                sat[:2] = np.sign(F[:2])
-            sat[2] = 1
-        elif n < f_min:
-            F *= f_min / max(n, 1e-12)
-            sat[2] = -1
-        return F, sat

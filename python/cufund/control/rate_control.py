@@ -7,13 +7,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import check_real_fields
+from .. import _core
 from ..components import Bus, Controller
+from ..config import check_real_fields
 from ..messages import ActuatorCommand, Odometry, RateSetpoint, ThrustTorqueSetpoint, Topics
 from ..params import QuadrotorParams
-from .allocation import ControlAllocator
 from .arming import gated
-from .derivative_filter import LowPassDerivative
 from .gyro_input import GyroInput
 
 __all__ = ["RateControlParams", "RateController"]
@@ -81,20 +80,19 @@ class RateController(Controller):
         self.gyro = GyroInput(q_BI, gyro_cutoff_hz)
         self.use_gyro = False
         """True when the body rate comes from the IMU (set by the simulator: an estimator is attached)."""
-        self.set_gains(gains or RateControlParams())
+        g = gains or RateControlParams()
+        # the PID step and the allocation, in C++ (cpp/control/rate_control.cpp)
+        self._core = _core.control.RateControl(params.to_core(), g.d_cutoff_hz, _RATE_I_SCALE)
+        self.set_gains(g)
         self.rate_hz = rate_hz
-        self.allocator = ControlAllocator(params)
-        self._J = params.inertia_matrix
-        self._dw = LowPassDerivative(self.gains.d_cutoff_hz)
         self.reset()
 
     def set_gains(self, gains: RateControlParams) -> None:
         """Replaces the gains, also in flight; the controller's state is kept (a filter cutoff keeps the value it
         was built with)."""
         self.gains = g = gains
-        self._kp = np.array([g.roll_p, g.pitch_p, g.yaw_p])
-        self._ki = np.array([g.roll_i, g.pitch_i, g.yaw_i])
-        self._kd = np.array([g.roll_d, g.pitch_d, g.yaw_d])
+        self._core.set_gains(np.array([g.roll_p, g.pitch_p, g.yaw_p]), np.array([g.roll_i, g.pitch_i, g.yaw_i]),
+                             np.array([g.roll_d, g.pitch_d, g.yaw_d]), g.feed_forward, g.integrator_limit)
 
     def use_estimator(self, attached: bool) -> None:
         self.use_gyro = attached
@@ -104,10 +102,13 @@ class RateController(Controller):
         return (Topics.IMU, *self.reads) if self.use_gyro else (self.active_state_topic, *self.reads)
 
     def reset(self) -> None:
-        self.rate_int = np.zeros(3)
-        """Rate integrator [rad/s^2]."""
-        self._dw.reset()
+        self._core.reset()
         self.gyro.reset()
+
+    @property
+    def rate_int(self) -> np.ndarray:
+        """Rate integrator [rad/s^2] (a copy)."""
+        return self._core.rate_int
 
     def setup(self, bus: Bus) -> None:
         if self.use_gyro:
@@ -132,21 +133,7 @@ class RateController(Controller):
         sp: RateSetpoint | None = bus.latest(Topics.RATE_SETPOINT)
         if sp is None:
             return
-        g = self.gains
-        dt = 1.0 / self.rate_hz
-        dw_filt = self._dw.update(w, dt)
-        e = sp.w_B - w
-        alpha_cmd = self._kp * e + self.rate_int - self._kd * dw_filt + g.feed_forward * sp.w_B
-        torque = self._J @ alpha_cmd
-        speeds = self.allocator.rotor_speeds(sp.thrust, torque)
-        sat = self.allocator.last_saturation.torque
-        lim = g.integrator_limit
-        for i in range(3):
-            ei = float(e[i])
-            if (sat[i] > 0 and ei > 0) or (sat[i] < 0 and ei < 0):
-                continue
-            i_factor = max(0.0, 1.0 - (ei / _RATE_I_SCALE) ** 2)
-            self.rate_int[i] = min(max(self.rate_int[i] + i_factor * self._ki[i] * ei * dt, -lim), lim)
-        a = self.allocator.last_thrust_torque
-        bus.publish(Topics.THRUST_TORQUE_SETPOINT, ThrustTorqueSetpoint(t, float(a[0]), a[1:].copy()))
-        bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand(t, speeds))
+        speeds, thrust, torque, _ = self._core.step(w, sp.w_B, sp.thrust, 1.0 / self.rate_hz)
+        # fresh, read-only arrays: the messages take them as they are
+        bus.publish(Topics.THRUST_TORQUE_SETPOINT, ThrustTorqueSetpoint.trusted(t, thrust, torque))
+        bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand.trusted(t, speeds))
