@@ -151,7 +151,8 @@ class _Px4Port(Component):
         self.outputs = (Topics.ACTUATOR_COMMAND,)
 
     def setup(self, bus: BusView) -> None:
-        self._subs = {k: bus.subscribe(t) for k, t in self.topics.items()}
+        self._reads = tuple(self.topics.items())
+        self._seen: dict[tuple[str, int], Any] = dict.fromkeys(self.topics)  # the last sample handed over, per input
         self._started = False
 
     def step(self, t: float, bus: BusView) -> None:
@@ -159,11 +160,17 @@ class _Px4Port(Component):
             self._started = True
             bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand.trusted(t, self.bridge._command(t)))
             return
-        latest = {}
-        for k, sub in self._subs.items():
-            msgs = sub.take()
-            latest[k] = msgs[-1] if msgs else None
-        speeds = self.bridge._exchange(t, latest, bus.latest(Topics.TRUTH_ODOMETRY))
+        # what is new since the last period: each message is its own object, so a newest message that is not the
+        # one handed over last time is new (no subscription queues to fill and empty every period)
+        new = {}
+        seen = self._seen
+        latest = bus.latest
+        for k, topic in self._reads:
+            msg = latest(topic)
+            if msg is not seen[k]:
+                new[k] = seen[k] = msg
+        truth = latest(Topics.TRUTH_ODOMETRY) if self.bridge._hsq_interval_us is not None else None
+        speeds = self.bridge._exchange(t, new, truth)
         bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand.trusted(t, speeds))  # a read-only array
 
 
@@ -220,6 +227,9 @@ class Px4SimulatorBridge:
         self._ids = sorted({sid for _, sid in topics}, reverse=True)  # instance 0 last: it closes the period
         self.encoders = {sid: HilEncoder(self.writer, self.origin, np.asarray(q_BI.get(sid, (1.0, 0.0, 0.0, 0.0))), sid)
                          for sid in self._ids}
+        self._gps_keys = [(("gps", sid), self.encoders[sid]) for sid in self._ids]
+        self._sensor_keys = [(sid, self.encoders[sid], ("imu", sid), ("magnetometer", sid), ("barometer", sid))
+                             for sid in self._ids]
         self.port = _Px4Port(self, topics, self.params.hil_sensor_rate_hz)
         self.simulator.add(self.port)
         self.stats = {"hil_sensor": 0, "hil_gps": 0, "hil_state_quaternion": 0, "heartbeats_sent": 0,
@@ -257,23 +267,24 @@ class Px4SimulatorBridge:
             self._next_heartbeat = t + p.heartbeat_period_s - 1e-9
             out.append(self.writer.heartbeat(MAV_TYPE_GENERIC, MAV_AUTOPILOT_INVALID, 0, 0, 0))
             self.stats["heartbeats_sent"] += 1
-        for sid, encoder in self.encoders.items():
-            fix = latest.get(("gps", sid))
+        stats = self.stats
+        for key, encoder in self._gps_keys:
+            fix = latest.get(key)
             if fix is not None:
                 out.append(encoder.hil_gps(time_usec, fix))
-                self.stats["hil_gps"] += 1
+                stats["hil_gps"] += 1
         if self._hsq_interval_us is not None and time_usec >= self._hsq_next_us and truth is not None:
             out.append(self.encoders[0].hil_state_quaternion(time_usec, truth))
             self._hsq_next_us += self._hsq_interval_us  # on the requested grid, never two in one period
             if self._hsq_next_us <= time_usec:
                 self._hsq_next_us = time_usec + self._hsq_interval_us
-            self.stats["hil_state_quaternion"] += 1
-        for sid in self._ids:  # further instances only when something of theirs is new; instance 0 always, last
-            frame, bits = self.encoders[sid].hil_sensor(time_usec, latest.get(("imu", sid)),
-                                                        latest.get(("magnetometer", sid)), latest.get(("barometer", sid)))
+            stats["hil_state_quaternion"] += 1
+        get = latest.get
+        for sid, encoder, imu, mag, baro in self._sensor_keys:  # further instances only when something of theirs
+            frame, bits = encoder.hil_sensor(time_usec, get(imu), get(mag), get(baro))  # is new; 0 always, last
             if sid == 0 or bits:
                 out.append(frame)
-                self.stats["hil_sensor"] += 1
+                stats["hil_sensor"] += 1
         try:
             self.link.send(b"".join(out))
             self._receive(t)
@@ -302,24 +313,28 @@ class Px4SimulatorBridge:
         """Lockstep (once controls flow, or always with wait_first_controls): blocks until HIL_ACTUATOR_CONTROLS
         (or the timeout); otherwise takes what has arrived."""
         p = self.params
-        wait = p.lockstep and (self._got_controls or p.wait_first_controls)
-        deadline = time.perf_counter() + p.controls_timeout_s
-        got = False
+        link = self.link
+        if not (p.lockstep and (self._got_controls or p.wait_first_controls)):
+            while True:  # take what is waiting, without waiting
+                data = link.recv(0.0)
+                if not data:
+                    if data == b"":
+                        self._close("PX4 closed the connection")
+                    return
+                self._handle(data, t)
+        start = time.perf_counter()
+        timeout = p.controls_timeout_s
         while True:
-            timeout = max(deadline - time.perf_counter(), 0.0) if wait and not got else 0.0
-            data = self.link.recv(timeout)
+            data = link.recv(timeout)
             if data == b"":
                 self._close("PX4 closed the connection")
                 return
-            if data is None:
-                if wait and not got and time.perf_counter() < deadline:
-                    continue
-                if wait and not got:
-                    self.stats["controls_timeouts"] += 1
+            if data is not None and self._handle(data, t):
+                return  # the period's answer is in: anything after it is read next period
+            if timeout == 0.0:  # that was the last look, after the deadline
+                self.stats["controls_timeouts"] += 1
                 return
-            got = self._handle(data, t) or got
-            if got and wait:  # the period's answer is in: anything after it is read next period
-                return
+            timeout = max(start + p.controls_timeout_s - time.perf_counter(), 0.0)
 
     def _handle(self, data: bytes, t: float) -> bool:
         got = False
