@@ -53,7 +53,7 @@ class GlobalPlannerParams:
     """Acceleration limit [m/s^2]."""
     optimize_times: bool = True
     """Optimise the segment times for least snap (Mellinger & Kumar) before scaling to the limits."""
-    heuristic_weight: float = 1.5
+    heuristic_weight: float = 1.2
     """Grid A*: weighted A* factor (>= 1)."""
     max_expansions: int = 5_000_000
     """Grid A*: expansion limit."""

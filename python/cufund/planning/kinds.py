@@ -175,7 +175,7 @@ class GlobalParams(LocalParams):
     """The path is searched with radius + path_margin [m]."""
     optimize_times: bool = True
     """Min-snap segment times optimised for least snap before scaling to v_max / a_max."""
-    heuristic_weight: float = 1.5
+    heuristic_weight: float = 1.2
     """Grid A* heuristic weight (>= 1)."""
     time_limit: float = 1.0
     """OMPL: wall time for a first solution [s]."""
