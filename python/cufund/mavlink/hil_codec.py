@@ -20,7 +20,8 @@ from pymavlink.dialects.v20 import common as mavlink
 __all__ = ["MAVLINK2_MAGIC", "ControlsFrame", "FrameWriter", "take_controls"]
 
 MAVLINK2_MAGIC = 0xFD
-_HEADER = struct.Struct("<BBBBBBBHB")  # magic, len, incompat, compat, seq, sysid, compid, msgid low 16, high 8
+_MAGIC = bytes((MAVLINK2_MAGIC,))
+_HEADER = struct.Struct("<BBBBBBHB")  # after the magic: len, incompat, compat, seq, sysid, compid, msgid low 16, high 8
 _CRC = struct.Struct("<H")
 _HEARTBEAT = mavlink.MAVLink_heartbeat_message
 _HIL_SENSOR = mavlink.MAVLink_hil_sensor_message
@@ -34,13 +35,6 @@ _ZEROS = bytes(_CONTROLS_LEN)
 _EXTRA = {m.id: bytes((m.crc_extra,)) for m in (_HEARTBEAT, _HIL_SENSOR, _HIL_GPS)}  # CRC_EXTRA, precomputed
 
 
-def _trimmed_len(payload: bytes) -> int:
-    n = len(payload)
-    while n > 1 and payload[n - 1] == 0:  # MAVLink 2 drops trailing zeros (at least one byte stays)
-        n -= 1
-    return n
-
-
 class FrameWriter:
     """Packs outgoing frames with the source ids and sequence counter of ``mav`` (a pymavlink ``MAVLink``),
     so the hand-packed frames and those pymavlink packs (:meth:`pack`) share one sequence."""
@@ -50,13 +44,13 @@ class FrameWriter:
 
     def _frame(self, msg: type, payload: bytes) -> bytes:
         mav = self.mav
-        n = _trimmed_len(payload)
+        n = len(payload.rstrip(b"\x00")) or 1  # MAVLink 2 drops trailing zeros (at least one byte stays)
         seq = mav.seq
         mav.seq = (seq + 1) & 0xFF
         msg_id = msg.id
-        body = _HEADER.pack(MAVLINK2_MAGIC, n, 0, 0, seq, mav.srcSystem, mav.srcComponent, msg_id & 0xFFFF,
-                            msg_id >> 16) + payload[:n]
-        return body + _CRC.pack(mcrf4xx(_EXTRA[msg_id], mcrf4xx(body[1:], 0xFFFF)))
+        body = _HEADER.pack(n, 0, 0, seq, mav.srcSystem, mav.srcComponent, msg_id & 0xFFFF, msg_id >> 16) + \
+            payload[:n]  # the CRC covers the frame after the magic byte, then CRC_EXTRA
+        return _MAGIC + body + _CRC.pack(mcrf4xx(_EXTRA[msg_id], mcrf4xx(body, 0xFFFF)))
 
     def pack(self, msg: Any) -> bytes:
         """Any pymavlink message, packed by pymavlink at the next sequence number."""
@@ -78,7 +72,7 @@ class FrameWriter:
     def hil_sensor(self, time_usec: int, xacc: float, yacc: float, zacc: float, xgyro: float, ygyro: float,
                    zgyro: float, xmag: float, ymag: float, zmag: float, abs_pressure: float, diff_pressure: float,
                    pressure_alt: float, temperature: float, fields_updated: int, id_: int) -> bytes:
-        if not self.fast:
+        if self.mav.signing.sign_outgoing:
             return self.pack(self.mav.hil_sensor_encode(
                 time_usec, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag, abs_pressure, diff_pressure,
                 pressure_alt, temperature, fields_updated, id_))
