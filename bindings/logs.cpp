@@ -1,117 +1,316 @@
-// cufund._core.logs: the run log's hot path. A RecordPacker appends one message's fixed-size CDR fields to a
-// topic's block buffer (McapLogger.write calls it for every message of a run). It is binding-only: what it does
-// is read a Python message's attributes and copy its arrays' bytes, so there is no C++ library under cpp/ for it.
+// cufund._core.logs: the run log's hot path. A LogCore takes every message a run publishes
+// (McapLogger.write is its `write`, a plain METH_FASTCALL builtin: one C call per message, no Python frame),
+// copies a fixed-size message's fields straight into its topic's block of CDR rows, and hands a full block to a
+// cufund::logs::ChunkWriter, whose thread encodes the MCAP records (the rows, their Foxglove views, the message
+// indexes), compresses and writes them without the GIL. Anything else goes to a Python callable.
 #include <pybind11/numpy.h>
+#include <unistd.h>
 
 #include <cstdint>
 #include <cstring>
+#include <memory>
+#include <stdexcept>
 #include <string>
+#include <system_error>
+#include <tuple>
+#include <utility>
 #include <vector>
 
+#include "mcap_chunk_writer.h"
 #include "pybind_common.h"
 
-static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "records are packed in the host's order: little-endian");
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "CDR rows are little-endian, as this host");
 
 namespace cufund::py_bind {
 namespace {
 
-// One array field of the record: its attribute, its dtype (numpy's singleton for a native type: compared by
-// identity, as the Python path did) and its size in bytes.
-struct ArrayField {
-  py::object name;
-  py::object dtype;
-  py::ssize_t nbytes;
-  py::ssize_t elements;
-};
+using logs::Block;
+using logs::ChunkWriter;
+using logs::ViewSpec;
 
-// One scalar field: 'd' float64, 'q' int64, '?' bool (struct's codes, little-endian as the host).
+// A scalar field: 'd' float64, 'q' int64, '?' bool (struct's codes), at `offset` in the CDR row.
 struct ScalarField {
   py::object name;
   char code;
+  std::size_t offset;
 };
 
-class RecordPacker {
+// An array field: its attribute, dtype (numpy's singleton for a native type: compared by identity), elements,
+// bytes and offset in the row.
+struct ArrayField {
+  py::object name;
+  py::object dtype;
+  py::ssize_t elements;
+  std::size_t nbytes, offset;
+};
+
+// A topic of fixed-size messages: its class, row layout, the block being filled, and the Python callable that
+// takes what does not fit the layout.
+struct FixedTopic {
+  py::object cls;
+  std::vector<std::uint8_t> row_template;
+  std::vector<ScalarField> scalars;
+  std::vector<ArrayField> arrays;
+  std::vector<py::object> absent;
+  std::shared_ptr<const std::vector<ViewSpec>> views;
+  std::uint16_t channel = 0;
+  std::size_t limit = 1;
+  py::object slow;
+  Block block;
+};
+
+class LogCore {
  public:
-  RecordPacker(const std::vector<std::string>& scalar_names, const std::string& scalar_codes,
-               const std::vector<std::string>& array_names, const std::vector<py::object>& array_dtypes,
-               const std::vector<py::ssize_t>& array_nbytes, const std::vector<std::string>& absent_names,
-               py::object slow)
-      : slow_(std::move(slow)) {
-    if (scalar_names.size() != scalar_codes.size()) throw py::value_error("scalar_codes: one code per scalar name");
-    if (array_names.size() != array_dtypes.size() || array_names.size() != array_nbytes.size()) {
-      throw py::value_error("array_dtypes, array_nbytes: one per array name");
-    }
-    if (!PyCallable_Check(slow_.ptr())) throw py::type_error("slow must be callable");
-    record_bytes_ = 24;
-    for (std::size_t i = 0; i < scalar_names.size(); ++i) {
-      const char c = scalar_codes[i];
-      if (c != 'd' && c != 'q' && c != '?') throw py::value_error("scalar_codes: each 'd', 'q' or '?'");
-      scalars_.push_back({py::str(scalar_names[i]), c});
-      record_bytes_ += c == '?' ? 1 : 8;
+  LogCore(int fd, const std::string& compression, bool background, py::object other)
+      : other_(std::move(other)), topics_(py::dict()) {
+    if (!PyCallable_Check(other_.ptr())) throw py::type_error("other must be callable");
+    writer_ = std::make_unique<ChunkWriter>(fd, logs::compression_from_name(compression), background);
+  }
+
+  // Registers a topic of fixed-size messages; returns its slot.
+  std::size_t add_fixed_topic(py::object topic, py::object cls, std::uint16_t channel, py::bytes row_template,
+                              const std::vector<std::tuple<std::string, char, std::size_t>>& scalars,
+                              const std::vector<std::tuple<std::string, py::object, std::size_t, std::size_t>>& arrays,
+                              const std::vector<std::string>& absent,
+                              const std::vector<std::tuple<std::uint16_t, py::bytes,
+                                                           std::vector<std::tuple<std::size_t, std::size_t, std::size_t>>,
+                                                           std::vector<std::tuple<std::size_t, std::size_t, std::size_t>>>>& views,
+                              std::size_t limit, py::object slow) {
+    auto t = std::make_unique<FixedTopic>();
+    t->cls = std::move(cls);
+    const std::string tmpl = row_template;
+    t->row_template.assign(tmpl.begin(), tmpl.end());
+    const std::size_t size = t->row_template.size();
+    for (const auto& [name, code, offset] : scalars) {
+      if (code != 'd' && code != 'q' && code != '?') throw py::value_error("scalars: each code 'd', 'q' or '?'");
+      if (offset + (code == '?' ? 1 : 8) > size) throw py::value_error("scalars: a field outside the row");
+      t->scalars.push_back({py::str(name), code, offset});
     }
     const py::object dtype_type = py::module_::import("numpy").attr("dtype");
-    for (std::size_t i = 0; i < array_names.size(); ++i) {
-      if (!py::isinstance(array_dtypes[i], dtype_type)) throw py::type_error("array_dtypes: numpy dtypes");
-      const py::ssize_t itemsize = py::dtype::from_args(array_dtypes[i]).itemsize();
-      if (array_nbytes[i] <= 0 || array_nbytes[i] % itemsize != 0) {
-        throw py::value_error("array_nbytes: each > 0 and a multiple of its dtype's itemsize");
+    for (const auto& [name, dtype, nbytes, offset] : arrays) {
+      if (!py::isinstance(dtype, dtype_type)) throw py::type_error("arrays: numpy dtypes");
+      const auto itemsize = static_cast<std::size_t>(py::dtype::from_args(dtype).itemsize());
+      if (nbytes == 0 || nbytes % itemsize != 0 || offset + nbytes > size) {
+        throw py::value_error("arrays: each > 0 bytes, a multiple of its itemsize, inside the row");
       }
-      arrays_.push_back({py::str(array_names[i]), array_dtypes[i], array_nbytes[i], array_nbytes[i] / itemsize});
-      record_bytes_ += array_nbytes[i];
+      t->arrays.push_back({py::str(name), dtype, static_cast<py::ssize_t>(nbytes / itemsize), nbytes, offset});
     }
-    for (const auto& n : absent_names) absent_.push_back(py::str(n));
-  }
-
-  // Appends `message` (or hands it to `slow(index, log, publish, sequence, message)` when a field does not
-  // match the topic's layout); returns the messages added since the last drain.
-  std::int64_t add(py::handle message, py::handle log, py::handle publish, py::handle sequence) {
-    const std::int64_t index = count_++;
-    const std::size_t start = buffer_.size();
-    if (!(put_time(log) && put_time(publish) && put_time(sequence) && pack(message))) {
-      buffer_.resize(start);
-      PyErr_Clear();
-      slow_(index, log, publish, sequence, message);
+    for (const auto& n : absent) t->absent.push_back(py::str(n));
+    auto specs = std::make_shared<std::vector<ViewSpec>>();
+    for (const auto& [view_channel, view_template, copies, stamps] : views) {
+      ViewSpec v;
+      v.channel = view_channel;
+      const std::string vt = view_template;
+      v.row_template.assign(vt.begin(), vt.end());
+      for (const auto& [dst, src, bytes] : copies) {
+        if (dst + bytes > v.row_template.size() || src + bytes > size) throw py::value_error("views: copy outside a row");
+        v.copies.push_back({dst, src, bytes});
+      }
+      for (const auto& [sec, nsec, src] : stamps) {
+        if (sec + 4 > v.row_template.size() || nsec + 4 > v.row_template.size() || src + 8 > size) {
+          throw py::value_error("views: stamp outside a row");
+        }
+        v.stamps.push_back({sec, nsec, src});
+      }
+      specs->push_back(std::move(v));
     }
-    return count_;
+    t->views = std::move(specs);
+    t->channel = channel;
+    t->limit = std::max<std::size_t>(limit, 1);
+    t->slow = std::move(slow);
+    if (!PyCallable_Check(t->slow.ptr())) throw py::type_error("slow must be callable");
+    start_block(*t);
+    fixed_.push_back(std::move(t));
+    const std::size_t slot = fixed_.size() - 1;
+    topics_[topic] = py::int_(slot);
+    return slot;
   }
 
-  // The packed records and their number; empties the buffer.
-  py::tuple drain() {
-    py::bytes out(reinterpret_cast<const char*>(buffer_.data()), buffer_.size());
-    const std::int64_t n = count_;
-    buffer_.clear();
-    count_ = 0;
-    return py::make_tuple(out, n);
+  // The per-message entry (McapLogger.write): a registered fixed topic's message is packed here, any other
+  // message goes to other(topic, message, log, publish, sequence).
+  void write(PyObject* topic, PyObject* message, PyObject* log, PyObject* publish) {
+    PyObject* slot = PyDict_GetItemWithError(topics_.ptr(), topic);  // borrowed
+    const std::uint64_t sequence = sequence_++;
+    if (slot == nullptr) {
+      if (PyErr_Occurred()) throw py::error_already_set();
+      py::object seq = py::int_(sequence);
+      other_(py::handle(topic), py::handle(message), py::handle(log), py::handle(publish), seq);
+      return;
+    }
+    add(*fixed_[PyLong_AsSize_t(slot)], message, log, publish, sequence);
   }
 
-  py::ssize_t record_bytes() const { return record_bytes_; }
-  std::int64_t count() const { return count_; }
+  // Adds a message to a fixed topic with a sequence number already drawn (McapLogger's first message of a topic).
+  void add_with_sequence(std::size_t slot, py::handle message, py::handle log, py::handle publish,
+                         std::uint64_t sequence) {
+    add(*fixed_.at(slot), message.ptr(), log.ptr(), publish.ptr(), sequence);
+  }
+
+  // A block of already encoded messages of one channel (the Python codecs' topics).
+  void write_payloads(std::uint16_t channel, const std::vector<py::bytes>& payloads,
+                      const std::vector<std::uint64_t>& log, const std::vector<std::uint64_t>& publish,
+                      const std::vector<std::uint64_t>& sequence) {
+    if (payloads.empty()) return;
+    if (log.size() != payloads.size() || publish.size() != payloads.size() || sequence.size() != payloads.size()) {
+      throw py::value_error("write_payloads: one log time, publish time and sequence per payload");
+    }
+    Block b;
+    b.channel = channel;
+    for (const auto& p : payloads) {
+      char* data;
+      py::ssize_t n;
+      PyBytes_AsStringAndSize(p.ptr(), &data, &n);
+      b.data.insert(b.data.end(), data, data + n);
+      b.ends.push_back(b.data.size());
+    }
+    b.log = log;
+    b.publish = publish;
+    for (const auto s : sequence) b.sequence.push_back(static_cast<std::uint32_t>(s));
+    submit_block(std::move(b));
+  }
+
+  void write_records(py::bytes records) {
+    char* data;
+    py::ssize_t n;
+    PyBytes_AsStringAndSize(records.ptr(), &data, &n);
+    std::vector<std::uint8_t> v(data, data + n);
+    guarded([&] {
+      if (writer_->full()) {
+        py::gil_scoped_release release;
+        writer_->write(std::move(v));
+      } else {
+        writer_->write(std::move(v));
+      }
+    });
+  }
+
+  // Hands a fixed topic's partial block to the writer.
+  void flush(std::size_t slot) {
+    FixedTopic& t = *fixed_.at(slot);
+    if (t.block.size()) {
+      Block b = std::move(t.block);
+      start_block(t);
+      submit_block(std::move(b));
+    }
+  }
+
+  std::size_t pending(std::size_t slot) const { return fixed_.at(slot)->block.size(); }
+
+  void finish() {
+    guarded([&] {
+      py::gil_scoped_release release;
+      writer_->finish();
+    });
+  }
+
+  void close() {
+    topics_.clear();
+    guarded([&] {
+      py::gil_scoped_release release;
+      writer_->close();
+    });
+  }
+
+  std::uint64_t position() const { return writer_->position(); }
+
+  py::list chunks() const {
+    py::list out;
+    for (const auto& c : writer_->chunks()) {
+      py::dict offsets;
+      for (const auto& [channel, offset] : c.message_index_offsets) offsets[py::int_(channel)] = offset;
+      out.append(py::make_tuple(c.start, c.end, c.chunk_start, c.chunk_length, offsets, c.message_index_length,
+                                c.compressed_size, c.uncompressed_size));
+    }
+    return out;
+  }
+
+  py::dict message_counts() const {
+    py::dict out;
+    for (const auto& [channel, n] : writer_->message_counts()) out[py::int_(channel)] = n;
+    return out;
+  }
+
+  py::object time_range() const {
+    if (!writer_->any_message()) return py::none();
+    return py::make_tuple(writer_->start_time(), writer_->end_time());
+  }
 
  private:
-  template <typename T>
-  void put(const T& v) {
-    const auto* p = reinterpret_cast<const std::uint8_t*>(&v);
-    buffer_.insert(buffer_.end(), p, p + sizeof(T));
+  void start_block(FixedTopic& t) {
+    t.block = Block();
+    t.block.channel = t.channel;
+    t.block.row_bytes = t.row_template.size();
+    t.block.views = t.views;
+    t.block.data.reserve(t.limit * t.row_template.size());
+    t.block.log.reserve(t.limit);
+    t.block.publish.reserve(t.limit);
+    t.block.sequence.reserve(t.limit);
   }
 
-  // A time or sequence number: a Python int in [0, 2^64) (anything else takes the checked path, which names it).
-  bool put_time(py::handle v) {
-    if (!PyLong_CheckExact(v.ptr())) return false;
-    const unsigned long long x = PyLong_AsUnsignedLongLong(v.ptr());
+  void add(FixedTopic& t, PyObject* message, PyObject* log, PyObject* publish, std::uint64_t sequence) {
+    Block& b = t.block;
+    const std::size_t start = b.data.size();
+    std::uint64_t log_ns, publish_ns;
+    b.data.resize(start + t.row_template.size());
+    std::uint8_t* row = b.data.data() + start;
+    if (!(Py_TYPE(message) == reinterpret_cast<PyTypeObject*>(t.cls.ptr()) && get_time(log, &log_ns) &&
+          get_time(publish, &publish_ns) && pack(t, message, row))) {
+      PyErr_Clear();
+      b.data.resize(start);
+      // the checked path: (row bytes, log, publish) or an exception naming what is wrong
+      py::tuple r = t.slow(py::handle(message), py::handle(log), py::handle(publish));
+      const std::string bytes = r[0].cast<std::string>();
+      if (bytes.size() != t.row_template.size()) throw std::logic_error("slow: a row of the wrong size");
+      b.data.insert(b.data.end(), bytes.begin(), bytes.end());
+      log_ns = r[1].cast<std::uint64_t>();
+      publish_ns = r[2].cast<std::uint64_t>();
+    }
+    b.log.push_back(log_ns);
+    b.publish.push_back(publish_ns);
+    b.sequence.push_back(static_cast<std::uint32_t>(sequence));  // mod 2^32, as MCAP's field
+    if (b.size() >= t.limit) {
+      Block full = std::move(b);
+      start_block(t);
+      submit_block(std::move(full));
+    }
+  }
+
+  void submit_block(Block b) {
+    guarded([&] {
+      if (writer_->full()) {  // waiting for the disk: let other Python threads run meanwhile
+        py::gil_scoped_release release;
+        writer_->chunk(std::move(b));
+      } else {
+        writer_->chunk(std::move(b));
+      }
+    });
+  }
+
+  // Runs f (the writer's std::system_error becomes OSError through the translator define_logs registers).
+  template <typename F>
+  static void guarded(F&& f) {
+    f();
+  }
+
+  // A time: a Python int in [0, 2^64) (anything else takes the checked path, which names it).
+  static bool get_time(PyObject* v, std::uint64_t* out) {
+    if (!PyLong_CheckExact(v)) return false;
+    const unsigned long long x = PyLong_AsUnsignedLongLong(v);
     if (x == static_cast<unsigned long long>(-1) && PyErr_Occurred()) return false;
-    put(static_cast<std::uint64_t>(x));
+    *out = x;
     return true;
   }
 
-  bool pack(py::handle message) {
-    for (const auto& s : scalars_) {
-      PyObject* v = PyObject_GetAttr(message.ptr(), s.name.ptr());
+  static bool pack(const FixedTopic& t, PyObject* message, std::uint8_t* row) {
+    std::memcpy(row, t.row_template.data(), t.row_template.size());
+    for (const auto& s : t.scalars) {
+      PyObject* v = PyObject_GetAttr(message, s.name.ptr());
       if (v == nullptr) return false;
       bool ok = true;
       if (s.code == 'd') {
         const double x = PyFloat_AsDouble(v);  // floats, ints and anything with __float__, as struct's 'd'
         ok = !(x == -1.0 && PyErr_Occurred());
-        put(x);
+        std::memcpy(row + s.offset, &x, 8);
       } else if (s.code == 'q') {
         long long x = 0;
         ok = PyIndex_Check(v) != 0;  // struct's 'q' takes what has __index__ (ints, bools, numpy integers)
@@ -124,18 +323,19 @@ class RecordPacker {
             Py_DECREF(i);
           }
         }
-        put(static_cast<std::int64_t>(x));
+        const auto y = static_cast<std::int64_t>(x);
+        std::memcpy(row + s.offset, &y, 8);
       } else {
         const int b = PyObject_IsTrue(v);
         ok = b >= 0;
-        put(static_cast<std::uint8_t>(b == 1));
+        row[s.offset] = static_cast<std::uint8_t>(b == 1);
       }
       Py_DECREF(v);
       if (!ok) return false;
     }
     auto& api = py::detail::npy_api::get();
-    for (const auto& a : arrays_) {
-      PyObject* v = PyObject_GetAttr(message.ptr(), a.name.ptr());
+    for (const auto& a : t.arrays) {
+      PyObject* v = PyObject_GetAttr(message, a.name.ptr());
       if (v == nullptr) return false;
       bool ok = api.PyArray_Check_(v) != 0;
       if (ok) {
@@ -145,17 +345,14 @@ class RecordPacker {
           py::ssize_t n = 1;
           for (int d = 0; d < arr->nd; ++d) n *= arr->dimensions[d];
           ok = n == a.elements;  // the dtype is the layout's, so equal counts mean equal bytes
-          if (ok) {
-            const auto* p = reinterpret_cast<const std::uint8_t*>(arr->data);
-            buffer_.insert(buffer_.end(), p, p + a.nbytes);
-          }
+          if (ok) std::memcpy(row + a.offset, arr->data, a.nbytes);
         }
       }
       Py_DECREF(v);
       if (!ok) return false;
     }
-    for (const auto& name : absent_) {
-      PyObject* v = PyObject_GetAttr(message.ptr(), name.ptr());
+    for (const auto& name : t.absent) {
+      PyObject* v = PyObject_GetAttr(message, name.ptr());
       if (v == nullptr) return false;
       const bool ok = v == Py_None;
       Py_DECREF(v);
@@ -164,60 +361,64 @@ class RecordPacker {
     return true;
   }
 
-  std::vector<ScalarField> scalars_;
-  std::vector<ArrayField> arrays_;
-  std::vector<py::object> absent_;
-  py::object slow_;
-  std::vector<std::uint8_t> buffer_;
-  std::int64_t count_ = 0;
-  py::ssize_t record_bytes_ = 0;
+  py::object other_;
+  py::dict topics_;  // topic -> slot in fixed_
+  std::vector<std::unique_ptr<FixedTopic>> fixed_;
+  std::unique_ptr<ChunkWriter> writer_;
+  std::uint64_t sequence_ = 0;
 };
 
-// `add` as a plain METH_FASTCALL builtin bound to a capsule holding the packer and a strong reference to its
+// `write` as a plain METH_FASTCALL builtin bound to a capsule holding the core and a strong reference to its
 // Python object: pybind11's dispatcher (overload resolution, argument casters) would cost more than the packing.
-struct AddBinding {
-  RecordPacker* packer;
+struct WriteBinding {
+  LogCore* core;
   PyObject* owner;
 };
 
-void add_binding_free(PyObject* capsule) {
-  auto* b = static_cast<AddBinding*>(PyCapsule_GetPointer(capsule, "cufund.RecordPackerAdd"));
+void write_binding_free(PyObject* capsule) {
+  auto* b = static_cast<WriteBinding*>(PyCapsule_GetPointer(capsule, "cufund.LogCoreWrite"));
   if (b == nullptr) return;
   Py_XDECREF(b->owner);
   delete b;
 }
 
-PyObject* fast_add(PyObject* capsule, PyObject* const* args, Py_ssize_t nargs) {
+PyObject* fast_write(PyObject* capsule, PyObject* const* args, Py_ssize_t nargs) {
   if (nargs != 4) {
-    PyErr_Format(PyExc_TypeError, "add(message, log, publish, sequence) takes 4 arguments, got %zd", nargs);
+    PyErr_Format(PyExc_TypeError, "write(topic, message, log_time_ns, publish_time_ns) takes 4 arguments, got %zd",
+                 nargs);
     return nullptr;
   }
-  auto* b = static_cast<AddBinding*>(PyCapsule_GetPointer(capsule, "cufund.RecordPackerAdd"));
+  auto* b = static_cast<WriteBinding*>(PyCapsule_GetPointer(capsule, "cufund.LogCoreWrite"));
   if (b == nullptr) return nullptr;
   try {
-    return PyLong_FromLongLong(b->packer->add(args[0], args[1], args[2], args[3]));
+    b->core->write(args[0], args[1], args[2], args[3]);
+    Py_RETURN_NONE;
   } catch (py::error_already_set& e) {
     e.restore();
     return nullptr;
-  } catch (const std::exception& e) {
+  } catch (const std::logic_error& e) {
     PyErr_SetString(PyExc_RuntimeError, e.what());
+    return nullptr;
+  } catch (const std::exception& e) {
+    PyErr_SetString(PyExc_OSError, e.what());
     return nullptr;
   }
 }
 
-PyMethodDef fast_add_def = {"add", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)(void)>(fast_add)),
-                            METH_FASTCALL, "add(message, log, publish, sequence) -> messages since the last drain."};
+PyMethodDef fast_write_def = {
+    "write", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)(void)>(fast_write)), METH_FASTCALL,
+    "write(topic, message, log_time_ns, publish_time_ns): logs one message."};
 
-py::object fast_adder(py::object self) {
-  auto* b = new AddBinding{self.cast<RecordPacker*>(), self.ptr()};
+py::object fast_writer(py::object self) {
+  auto* b = new WriteBinding{self.cast<LogCore*>(), self.ptr()};
   Py_INCREF(self.ptr());
-  PyObject* capsule = PyCapsule_New(b, "cufund.RecordPackerAdd", add_binding_free);
+  PyObject* capsule = PyCapsule_New(b, "cufund.LogCoreWrite", write_binding_free);
   if (capsule == nullptr) {
     Py_DECREF(b->owner);
     delete b;
     throw py::error_already_set();
   }
-  PyObject* f = PyCFunction_NewEx(&fast_add_def, capsule, nullptr);
+  PyObject* f = PyCFunction_NewEx(&fast_write_def, capsule, nullptr);
   Py_DECREF(capsule);
   if (f == nullptr) throw py::error_already_set();
   return py::reinterpret_steal<py::object>(f);
@@ -226,22 +427,41 @@ py::object fast_adder(py::object self) {
 }  // namespace
 
 void define_logs(py::module_& m) {
-  py::class_<RecordPacker>(m, "RecordPacker",
-                           "Appends messages of one fixed layout to a byte buffer of packed records: log, publish "
-                           "and sequence (uint64), the scalars, then the arrays' bytes (little-endian host).")
-      .def(py::init<const std::vector<std::string>&, const std::string&, const std::vector<std::string>&,
-                    const std::vector<py::object>&, const std::vector<py::ssize_t>&, const std::vector<std::string>&,
-                    py::object>(),
-           py::arg("scalar_names"), py::arg("scalar_codes"), py::arg("array_names"), py::arg("array_dtypes"),
-           py::arg("array_nbytes"), py::arg("absent_names"), py::arg("slow"))
-      .def("add", &RecordPacker::add, py::arg("message"), py::arg("log"), py::arg("publish"), py::arg("sequence"),
-           "Packs the message, or calls slow(index, log, publish, sequence, message) when it does not fit the "
-           "layout; returns the messages added since the last drain.")
-      .def_property_readonly("fast_add", &fast_adder,
-                             "add as a plain builtin (no pybind11 dispatch): what the logger calls per message.")
-      .def("drain", &RecordPacker::drain, "(bytes of the packed records, their number); empties the buffer.")
-      .def_property_readonly("record_bytes", &RecordPacker::record_bytes)
-      .def_property_readonly("count", &RecordPacker::count);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const std::system_error& e) {
+      PyErr_SetString(PyExc_OSError, e.what());
+    }
+  });
+  py::class_<LogCore>(m, "LogCore",
+                      "The hot path of cufund.logs.McapLogger: fixed-size messages packed into CDR rows per topic, "
+                      "blocks encoded, compressed and written by a C++ thread. Owns the file descriptor `fd`.")
+      .def(py::init<int, const std::string&, bool, py::object>(), py::arg("fd"), py::arg("compression"),
+           py::arg("background"), py::arg("other"))
+      .def("add_fixed_topic", &LogCore::add_fixed_topic, py::arg("topic"), py::arg("cls"), py::arg("channel"),
+           py::arg("row_template"), py::arg("scalars"), py::arg("arrays"), py::arg("absent"), py::arg("views"),
+           py::arg("limit"), py::arg("slow"),
+           "Registers a topic of fixed-size messages (scalars: (attr, 'd'|'q'|'?', offset); arrays: (attr, dtype, "
+           "nbytes, offset); absent: attrs that must be None; views: (channel, template, copies (dst, src, "
+           "bytes), stamps (sec, nsec, src t)); slow(message, log, publish) -> (row, log, publish)); its slot.")
+      .def_property_readonly("write", &fast_writer,
+                             "write(topic, message, log_time_ns, publish_time_ns) as a plain builtin.")
+      .def("add_with_sequence", &LogCore::add_with_sequence, py::arg("slot"), py::arg("message"), py::arg("log"),
+           py::arg("publish"), py::arg("sequence"))
+      .def("write_payloads", &LogCore::write_payloads, py::arg("channel"), py::arg("payloads"), py::arg("log"),
+           py::arg("publish"), py::arg("sequence"), "One chunk of already encoded messages of one channel.")
+      .def("write_records", &LogCore::write_records, py::arg("records"), "Raw records, after what was submitted.")
+      .def("flush", &LogCore::flush, py::arg("slot"), "Hands a fixed topic's partial block to the writer.")
+      .def("pending", &LogCore::pending, py::arg("slot"), "Messages of a fixed topic not yet handed over.")
+      .def("finish", &LogCore::finish, "Waits until everything submitted is in the file.")
+      .def("close", &LogCore::close, "Finishes and closes the file.")
+      .def_property_readonly("position", &LogCore::position, "The file position (after finish).")
+      .def("chunks", &LogCore::chunks,
+           "(start, end, chunk_start, chunk_length, message index offsets, message index length, compressed size, "
+           "uncompressed size) of every chunk written.")
+      .def("message_counts", &LogCore::message_counts, "Messages written per channel.")
+      .def("time_range", &LogCore::time_range, "(first, last) log time written [ns], or None.");
 }
 
 }  // namespace cufund::py_bind

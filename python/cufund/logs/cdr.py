@@ -133,9 +133,30 @@ class MessageLayout:
         self._columns = [itemgetter(i) for i in range(len(columns))]
         self._all = _getter([c.attr for c in columns])
 
-    def accumulator(self, first: Any) -> FixedAccumulator:
-        """What a logger buffers a topic's messages in, for a topic whose first message is ``first``."""
-        return FixedAccumulator(self, first)
+    def row_spec(self, first: Any) -> tuple[bytes, list[tuple[str, str, int]], list[tuple[str, np.dtype, int, int]],
+                                             list[str]]:
+        """How :class:`cufund._core.logs.LogCore` packs a message like ``first`` (the same optional arrays present)
+        straight into a CDR row: (template row, scalars (attribute, struct code, offset), arrays (attribute, dtype,
+        bytes, offset), attributes that must be None). Any other message takes :meth:`row`."""
+        fields = self.layout.dtype.fields
+        template = self.layout.empty(1)
+        scalars, arrays, absent = [], [], []
+        for c in self.columns:
+            if not c.shape:
+                scalars.append((c.attr, _STRUCT_CODES[c.code], fields[c.ros_name][1]))
+            elif getattr(first, c.attr) is None:
+                absent.append(c.attr)
+            else:
+                dtype = np.dtype(c.code)
+                arrays.append((c.attr, dtype, int(np.prod(c.shape)) * dtype.itemsize, fields[c.ros_name][1]))
+                if c.optional:
+                    template[f"has_{c.ros_name}"] = True
+        return template.tobytes(), scalars, arrays, absent
+
+    def row(self, message: Any, topic: str) -> bytes:
+        """The checked path: one message's CDR row (ValueError naming the field when a shape or dtype differs
+        from the topic's first message)."""
+        return self._rows([self._all(message)], topic).tobytes()
 
     def describe(self) -> list[list[Any]]:
         """The columns as JSON-able lists (kept in the channel metadata; :meth:`from_description` inverts it)."""
@@ -216,78 +237,6 @@ def _getter(attrs: list[str]) -> Any:
 
 
 _STRUCT_CODES = {"f8": "d", "i8": "q", "b1": "?"}
-
-
-class FixedAccumulator:
-    """A topic's messages between two blocks, kept without keeping the messages.
-
-    A message that matches the topic's first one (the same arrays present, with its dtypes and sizes; None where
-    it had None) is packed at once by a compiled :class:`cufund._core.logs.RecordPacker`: its two times, its
-    sequence number, its numbers and its arrays' bytes, appended to one buffer while they are still in the CPU
-    cache. No object per message stays alive, so the simulator's freed arrays are reused at once and the garbage
-    collector has nothing to follow. Any other message keeps all its field values and takes the general (checked,
-    slower) path when the block is encoded."""
-
-    def __init__(self, layout: MessageLayout, first: Any):
-        from .._core.logs import RecordPacker
-
-        self.layout = layout
-        cols = layout.columns
-        present = [c for c in cols if c.shape and getattr(first, c.attr) is not None]
-        absent = [c for c in cols if c.shape and getattr(first, c.attr) is None]
-        self.scalars = [c for c in cols if not c.shape]
-        self.present = present
-        # per message: log and publish time, sequence, the numbers, then the arrays' bytes
-        self.packed = np.dtype([("_log", "<u8"), ("_publish", "<u8"), ("_sequence", "<u8")]
-                               + [(c.ros_name, f"<{c.code}") for c in self.scalars]
-                               + [(c.ros_name, f"<{c.code}", (int(np.prod(c.shape)),)) for c in present])
-        self.slow: list[tuple[int, Any, Any, Any, tuple[Any, ...]]] = []
-        dtypes = [np.dtype(c.code) for c in present]
-        all_fields, slow = self.layout._all, self.slow.append
-        self._packer = RecordPacker(
-            [c.attr for c in self.scalars], "".join(_STRUCT_CODES[c.code] for c in self.scalars),
-            [c.attr for c in present], dtypes, [int(np.prod(c.shape)) * d.itemsize for c, d in zip(present, dtypes)],
-            [c.attr for c in absent],
-            lambda index, log, publish, sequence, message: slow((index, log, publish, sequence, all_fields(message))))
-        if self._packer.record_bytes != self.packed.itemsize:  # the two descriptions of a record must agree
-            raise RuntimeError(f"record of {self._packer.record_bytes} bytes packed for a {self.packed.itemsize}-byte dtype")
-        self.add = self._packer.fast_add
-
-    def drain(self, topic: str) -> tuple[np.ndarray, Any, Any, Any]:
-        """The block's (n, size) CDR rows, its log and publish times and its sequence numbers (uint64 arrays, or
-        lists when a message took the general path); empties the accumulator."""
-        data, n = self._packer.drain()
-        layout = self.layout
-        rows = layout.layout.empty(n)
-        fast = np.frombuffer(data, self.packed)
-        times: list[Any] = [fast[name] for name in ("_log", "_publish", "_sequence")]
-        if self.slow:
-            other = [entry[0] for entry in self.slow]
-            keep = np.ones(n, bool)
-            keep[other] = False
-            target = rows[keep]
-            self._fill(target, fast)
-            rows[keep] = target
-            rows[other] = layout._rows([entry[4] for entry in self.slow], topic)
-            merged: list[list[Any]] = [[None] * n for _ in range(3)]
-            for column, fast_values, k in zip(merged, times, (1, 2, 3)):
-                for i, value in zip(np.flatnonzero(keep).tolist(), fast_values.tolist()):
-                    column[i] = value
-                for entry in self.slow:
-                    column[entry[0]] = entry[k]
-            times = merged
-        else:
-            self._fill(rows, fast)
-        del self.slow[:]
-        return rows.view(np.uint8).reshape(n, layout.layout.size), times[0], times[1], times[2]
-
-    def _fill(self, rows: np.ndarray, fast: np.ndarray) -> None:
-        for c in self.scalars:
-            rows[c.ros_name] = fast[c.ros_name]
-        for c in self.present:
-            rows[c.ros_name] = fast[c.ros_name]
-            if c.optional:
-                rows[f"has_{c.ros_name}"] = True
 
 
 def _unwrap_optional(hint: Any) -> tuple[Any, bool]:

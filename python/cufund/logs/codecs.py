@@ -37,16 +37,38 @@ WORLD_FRAME = "world"
 
 @dataclasses.dataclass
 class View:
-    """A companion channel derived from a topic's messages for Foxglove (not read back)."""
+    """A companion channel derived from a topic's CDR rows for Foxglove (not read back): each message is the view's
+    template with ``copies`` (destination field, its first element, source field, its first element, elements)
+    taken from the source row and ``stamps`` (destination sec and nanosec fields, source float64 time field
+    [s]) converted as :func:`cufund.logs.cdr.stamp_sec_nsec` does. Built by the logger's C++ writer thread."""
 
     suffix: str
     schema_name: str
     schema_text: str
     layout: CdrLayout
-    fill: typing.Callable[[np.ndarray, dict[str, np.ndarray]], None]
+    copies: tuple[tuple[str, int, str, int, int], ...]
+    stamps: tuple[tuple[str, str, str], ...]
 
     schema_encoding = "ros2msg"
     message_encoding = "cdr"
+
+    def spec(self, source: CdrLayout) -> tuple[bytes, list[tuple[int, int, int]], list[tuple[int, int, int]]]:
+        """(template row, byte copies (dst, src, bytes), stamps (sec, nsec, src t offsets)) against ``source``."""
+        def at(layout: CdrLayout, field: str, element: int) -> tuple[int, int]:
+            dtype, offset = layout.dtype.fields[field][:2]
+            item = dtype.base.itemsize
+            return offset + element * item, item
+
+        copies = []
+        for dst_field, dst_element, src_field, src_element, count in self.copies:
+            dst, item = at(self.layout, dst_field, dst_element)
+            src, src_item = at(source, src_field, src_element)
+            if item != src_item:
+                raise ValueError(f"view {self.suffix}: {dst_field} and {src_field} have different element sizes")
+            copies.append((dst, src, count * item))
+        stamps = [(at(self.layout, sec, 0)[0], at(self.layout, nsec, 0)[0], at(source, t, 0)[0])
+                  for sec, nsec, t in self.stamps]
+        return self.layout.template.tobytes(), copies, stamps
 
 
 class Codec:
@@ -67,9 +89,10 @@ class Codec:
     def metadata(self) -> dict[str, str]:
         return {"cufund.codec": self.name, "cufund.class": class_path(self.cls)}
 
-    def accumulator(self, first: Any) -> Any:
+    def accumulator(self) -> Any:
         """What a logger buffers a topic's messages in (``add(message, log_ns, publish_ns, sequence) -> count``,
-        ``drain(topic) -> (payload, log times, publish times, sequences)``); here the messages themselves."""
+        ``drain(topic) -> (payloads, log times, publish times, sequences)``) unless ``fixed_size`` (those are
+        packed into CDR rows in C++ by :class:`cufund._core.logs.LogCore`)."""
         return MessageAccumulator(self)
 
     def encode(self, messages: list[Any], topic: str) -> np.ndarray | list[bytes]:
@@ -110,9 +133,6 @@ class CdrCodec(Codec):
         self.fixed_size = layout.layout.size
         self.views = views
 
-    def accumulator(self, first: Any) -> Any:
-        return self.layout.accumulator(first)
-
     def metadata(self) -> dict[str, str]:
         return {**super().metadata(), "cufund.layout": json.dumps(self.layout.describe())}
 
@@ -127,34 +147,12 @@ class CdrCodec(Codec):
 def _odometry_views(topic: str) -> tuple[View, ...]:
     child = ODOMETRY_CHILD_FRAMES.get(str(topic), "base_link" + str(topic).replace("/", "_"))
 
-    def fill_pose(rows: np.ndarray, exact: dict[str, np.ndarray]) -> None:
-        rows["timestamp.sec"], rows["timestamp.nanosec"] = exact["stamp"]
-        rows["pose.position"] = exact["p_w"]
-        rows["pose.orientation"] = exact["q_wb"][:, [1, 2, 3, 0]]
-
-    def fill_tf(rows: np.ndarray, exact: dict[str, np.ndarray]) -> None:
-        rows["timestamp.sec"], rows["timestamp.nanosec"] = exact["stamp"]
-        rows["translation"] = exact["p_w"]
-        rows["rotation"] = exact["q_wb"][:, [1, 2, 3, 0]]
-
-    return (View("/pose", *schemas.POSE_IN_FRAME, schemas.pose_in_frame_layout(WORLD_FRAME), fill_pose),
-            View("/tf", *schemas.FRAME_TRANSFORM, schemas.frame_transform_layout(WORLD_FRAME, child), fill_tf))
-
-
-def view_rows(codec: Codec, exact: np.ndarray) -> list[np.ndarray]:
-    """The rows of each view of ``codec`` from the (n, size) exact CDR rows of a block."""
-    if not codec.views:
-        return []
-    assert isinstance(codec, CdrCodec)
-    decoded = exact.reshape(-1).view(codec.layout.layout.dtype)
-    columns = {name: decoded[name] for name in ("t", "p_w", "q_wb")}
-    columns["stamp"] = stamp_sec_nsec(columns["t"])
-    out = []
-    for view in codec.views:
-        rows = view.layout.empty(len(decoded))
-        view.fill(rows, columns)
-        out.append(rows.view(np.uint8).reshape(len(decoded), view.layout.size))
-    return out
+    stamp = (("timestamp.sec", "timestamp.nanosec", "t"),)
+    quaternion = (("{0}", 0, "q_wb", 1, 3), ("{0}", 3, "q_wb", 0, 1))  # [w, x, y, z] -> Foxglove's x, y, z, w
+    pose = (("pose.position", 0, "p_w", 0, 3), *((d.format("pose.orientation"), *r) for d, *r in quaternion))
+    tf = (("translation", 0, "p_w", 0, 3), *((d.format("rotation"), *r) for d, *r in quaternion))
+    return (View("/pose", *schemas.POSE_IN_FRAME, schemas.pose_in_frame_layout(WORLD_FRAME), pose, stamp),
+            View("/tf", *schemas.FRAME_TRANSFORM, schemas.frame_transform_layout(WORLD_FRAME, child), tf, stamp))
 
 
 class JsonCodec(Codec):

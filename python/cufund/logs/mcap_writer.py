@@ -1,12 +1,13 @@
-"""`McapLogger`: writes cufund messages to an MCAP file while a run goes, at about a microsecond per message.
+"""`McapLogger`: writes cufund messages to an MCAP file while a run goes, at well under a microsecond per message.
 
-``write`` only adds the message to its topic's accumulator: for fixed-size messages, its numbers and its arrays'
-bytes appended to one ``bytearray`` (:class:`cufund.logs.cdr.FixedAccumulator`); for the others, the message.
-When a topic holds ``block_messages`` messages (or about ``chunk_bytes`` of encoded data) the whole block is
-encoded at once (numpy structured arrays for the CDR rows, their Message records and the message index) and
-handed to a background thread that compresses it and writes it as one chunk. Memory stays bounded by one block
-per topic (and at most 8 chunks waiting for the disk), however long the run. The summary (schemas, channels,
-statistics, chunk and metadata indexes) is written by :meth:`close`.
+``write`` is a compiled builtin (:class:`cufund._core.logs.LogCore`): a fixed-size message (odometry, IMU,
+setpoints, actuator commands) is copied field by field straight into a CDR row of its topic's block, with no
+Python frame and no object kept. When a topic holds ``block_messages`` messages (or about ``chunk_bytes`` of
+encoded data) the block goes to a C++ writer thread that builds the Message records (and the odometry's Foxglove
+views), the message indexes, compresses (lz4 or zstd) and writes one chunk, never taking the GIL. Other messages
+(JSON, point clouds, images) are kept by their topic in Python and encoded a block at a time. Memory stays
+bounded by one block per topic (and at most 8 chunks waiting for the disk), however long the run. The summary
+(schemas, channels, statistics, chunk and metadata indexes) is written by :meth:`close`.
 
 The record layouts follow the MCAP specification (https://mcap.dev/spec); schemas, channels and the summary use
 the ``mcap`` package's record classes. Each Message record's ``sequence`` is the logger's running write count
@@ -15,9 +16,9 @@ the ``mcap`` package's record classes. Each Message record's ``sequence`` is the
 
 from __future__ import annotations
 
-import itertools
 import os
 import struct
+import weakref
 import zlib
 from pathlib import Path
 from typing import Any
@@ -25,25 +26,27 @@ from typing import Any
 import numpy as np
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
-from mcap.records import (Channel, DataEnd, Footer, Header, Metadata, MetadataIndex, Schema, Statistics,
+from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata, MetadataIndex, Schema, Statistics,
                           SummaryOffset)
 
-from .chunk_writer import ChunkWriter
-from .codecs import Codec, codec_for, view_rows
+from .._core.logs import LogCore
+from .codecs import CdrCodec, Codec, codec_for
 
 __all__ = ["MAGIC", "McapLogger"]
 
 MAGIC = b"\x89MCAP0\r\n"
-_MESSAGE_HEADER = 2 + 4 + 8 + 8  # channel id, sequence, log time, publish time
 _COMPRESSIONS = ("lz4", "zstd", "")
 
 
-class _TopicBuffer:
-    __slots__ = ("topic", "codec", "cls", "accumulator", "add", "channels", "limit", "count")
+class _Topic:
+    """A topic's codec and channels; ``slot`` for a fixed-size topic packed in C++, else ``accumulator``."""
 
-    def __init__(self, topic: str, codec: Codec, accumulator: Any, channels: list[int], limit: int):
-        self.topic, self.codec, self.channels, self.limit = topic, codec, channels, limit
-        self.cls, self.accumulator, self.add = codec.cls, accumulator, accumulator.add
+    __slots__ = ("topic", "codec", "cls", "channels", "limit", "slot", "accumulator", "count")
+
+    def __init__(self, topic: str, codec: Codec, channels: list[int], limit: int):
+        self.topic, self.codec, self.cls, self.channels, self.limit = topic, codec, codec.cls, channels, limit
+        self.slot: int | None = None
+        self.accumulator: Any = None
         self.count = 0
 
 
@@ -52,9 +55,9 @@ class McapLogger:
 
     ``metadata`` (str -> str) is stored as an MCAP Metadata record named ``cufund``. ``compression``: ``lz4``
     (default: about twice as fast as zstd level 1 on these records, files about 40 % larger), ``zstd`` or ``""``.
-    ``background``: compress and write on a thread (the default), or in the caller's. Use as a context manager or
-    call :meth:`close`; a file whose logger was never closed has no summary (the ``mcap`` tools can recover its
-    complete chunks)."""
+    ``background``: encode, compress and write on a C++ thread (the default), or in the caller's. Use as a
+    context manager or call :meth:`close`; a file whose logger was never closed has no summary (the ``mcap``
+    tools can recover its complete chunks)."""
 
     def __init__(self, path: str | os.PathLike[str], metadata: dict[str, str] | None = None, *,
                  block_messages: int = 1024, chunk_bytes: int = 1 << 20, compression: str = "lz4",
@@ -72,47 +75,61 @@ class McapLogger:
         self._block = block_messages
         self._chunk_bytes = chunk_bytes
         self._compression = compression
-        self._file = open(self.path, "wb")  # noqa: SIM115 - closed by close()
-        self._topics: dict[str, _TopicBuffer] = {}
+        self._closed = False
+        self._topics: dict[str, _Topic] = {}
         self._schemas: list[Schema] = []
         self._schema_ids: dict[tuple[str, str, bytes], int] = {}
         self._channels: list[Channel] = []
         self._metadata_indexes: list[MetadataIndex] = []
-        self._counts: dict[int, int] = {}
-        self._sequence = itertools.count()
-        self._start_time: int | None = None
-        self._end_time = 0
-        self._out = ChunkWriter(self._file, compression, background=False)
-        self._file.write(MAGIC)
-        self._record(Header(profile="", library="cufund"))
+        fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, 0o666)
+        this = weakref.ref(self)  # the core must not keep its logger alive: an unclosed logger is freed at once
+
+        def other(*args: Any) -> None:
+            logger = this()
+            if logger is None:
+                raise ValueError("write to a McapLogger that no longer exists")
+            logger._write_other(*args)
+
+        self._core = LogCore(fd, compression, background, other)
+        self.write = self._core.write  # the instance's write: one C call per message
+        position = len(MAGIC) + len(self._record_bytes(Header(profile="", library="cufund")))
+        self._core.write_records(MAGIC + self._record_bytes(Header(profile="", library="cufund")))
         if metadata:
-            offset = self._file.tell()
-            length = self._record(Metadata(name="cufund", metadata=dict(metadata)))
-            self._metadata_indexes.append(MetadataIndex(offset=offset, length=length, name="cufund"))
-        if background:
-            self._out = ChunkWriter(self._file, compression, background=True)
+            data = self._record_bytes(Metadata(name="cufund", metadata=dict(metadata)))
+            self._metadata_indexes.append(MetadataIndex(offset=position, length=len(data), name="cufund"))
+            self._core.write_records(data)
 
     # -- the hot path -------------------------------------------------------------------------------------------
-    def write(self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int) -> None:
+    def write(self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int) -> None:  # type: ignore[no-redef]
         """Logs ``message`` on ``topic`` at ``log_time_ns`` (when it became visible) and ``publish_time_ns`` [ns].
 
-        A topic's codec is chosen from its first message; a later message of another type raises TypeError here,
-        a bad time or array shape when its block is encoded (at the latest at :meth:`close`). A fixed-size message
-        is copied into the block's buffer at once: no reference to it or its arrays is kept."""
-        buffer = self._topics.get(topic)
-        if buffer is None:
-            buffer = self._open_topic(topic, message)
-        if message.__class__ is not buffer.cls:
-            raise TypeError(f"topic {buffer.topic!r} is logged as {buffer.cls.__name__} (its first message), "
-                            f"got a {type(message).__name__}")
-        count = buffer.count = buffer.add(message, log_time_ns, publish_time_ns, next(self._sequence))
-        if count >= buffer.limit:
-            self._flush(buffer)
+        A topic's codec is chosen from its first message; a later message of another type raises TypeError, a
+        bad time (not a non-negative int) TypeError, an array of another shape ValueError naming the field. A
+        fixed-size message is copied into its block at once: no reference to it or its arrays is kept. (Each
+        instance replaces this method by its compiled ``LogCore.write``; this one documents it.)"""
+        self._core.write(topic, message, log_time_ns, publish_time_ns)
+
+    def _write_other(self, topic: str, message: Any, log_time_ns: Any, publish_time_ns: Any, sequence: int) -> None:
+        """What ``LogCore.write`` does not pack itself: a new topic's first message, or a message of a topic
+        encoded in Python."""
+        if self._closed:
+            raise ValueError(f"write to a closed McapLogger ({self.path})")
+        entry = self._topics.get(topic)
+        if entry is None:
+            entry = self._open_topic(topic, message)
+        if entry.slot is not None:
+            self._core.add_with_sequence(entry.slot, message, log_time_ns, publish_time_ns, sequence)
+            return
+        if message.__class__ is not entry.cls:
+            raise TypeError(_wrong_type(entry, message))
+        log = _time(log_time_ns, "log_time_ns", entry.topic)
+        publish = _time(publish_time_ns, "publish_time_ns", entry.topic)
+        entry.count = entry.accumulator.add(message, log, publish, sequence)
+        if entry.count >= entry.limit:
+            self._flush(entry)
 
     # -- topics and chunks --------------------------------------------------------------------------------------
-    def _open_topic(self, topic: str, message: Any) -> _TopicBuffer:
-        if self._file.closed:
-            raise ValueError(f"write to a closed McapLogger ({self.path})")
+    def _open_topic(self, topic: str, message: Any) -> _Topic:
         if not isinstance(topic, str) or not topic.startswith("/"):
             raise ValueError(f"topic must be an absolute name like '/sensors/imu', got {topic!r}")
         codec = codec_for(topic, message)
@@ -123,12 +140,32 @@ class McapLogger:
                                           view.schema_text.encode(), view.message_encoding,
                                           {"cufund.view_of": str(topic)}))
         if codec.fixed_size:
-            size = codec.fixed_size * (1 + len(codec.views))
+            size = codec.fixed_size + sum(view.layout.size for view in codec.views)
         else:
             size = sum(len(b) for b in codec.encode([message], topic))
         limit = max(1, min(self._block, self._chunk_bytes // max(size, 1)))
-        buffer = self._topics[topic] = _TopicBuffer(str(topic), codec, codec.accumulator(message), channels, limit)
-        return buffer
+        entry = self._topics[topic] = _Topic(str(topic), codec, channels, limit)
+        if isinstance(codec, CdrCodec):
+            entry.slot = self._add_fixed_topic(topic, entry, message)
+        else:
+            entry.accumulator = codec.accumulator()
+        return entry
+
+    def _add_fixed_topic(self, topic: str, entry: _Topic, first: Any) -> int:
+        codec = entry.codec
+        assert isinstance(codec, CdrCodec)
+        layout, name = codec.layout, entry.topic
+        template, scalars, arrays, absent = layout.row_spec(first)
+        views = [(channel, *view.spec(layout.layout)) for channel, view in zip(entry.channels[1:], codec.views)]
+
+        def slow(message: Any, log_time_ns: Any, publish_time_ns: Any) -> tuple[bytes, int, int]:
+            if message.__class__ is not entry.cls:
+                raise TypeError(_wrong_type(entry, message))
+            return (layout.row(message, name), _time(log_time_ns, "log_time_ns", name),
+                    _time(publish_time_ns, "publish_time_ns", name))
+
+        return self._core.add_fixed_topic(topic, entry.cls, entry.channels[0], template, scalars, arrays, absent,
+                                          views, entry.limit, slow)
 
     def _channel(self, topic: str, schema_name: str, schema_encoding: str, schema_data: bytes,
                  message_encoding: str, metadata: dict[str, str]) -> int:
@@ -138,76 +175,62 @@ class McapLogger:
             schema_id = self._schema_ids[key] = len(self._schemas) + 1
             schema = Schema(id=schema_id, data=schema_data, encoding=schema_encoding, name=schema_name)
             self._schemas.append(schema)
-            self._record(schema)
+            self._core.write_records(self._record_bytes(schema))
         channel = Channel(id=len(self._channels) + 1, topic=topic, message_encoding=message_encoding,
                           metadata=metadata, schema_id=schema_id)
         self._channels.append(channel)
-        self._counts[channel.id] = 0
-        self._record(channel)
+        self._core.write_records(self._record_bytes(channel))
         return channel.id
 
-    def _flush(self, buffer: _TopicBuffer) -> None:
-        if not buffer.count:
+    def _flush(self, entry: _Topic) -> None:
+        if entry.slot is not None:
+            self._core.flush(entry.slot)
             return
-        buffer.count = 0
-        codec, topic = buffer.codec, buffer.topic
-        payload, log_times, publish_times, sequences = buffer.accumulator.drain(topic)
-        log = _times(log_times, "log_time_ns", topic)
-        publish = _times(publish_times, "publish_time_ns", topic)
-        sequence = (np.asarray(sequences, dtype=np.uint64) & np.uint64(0xFFFFFFFF)).astype(np.uint32)
-        groups = [(buffer.channels[0], payload)]
-        if codec.views:
-            groups += list(zip(buffer.channels[1:], view_rows(codec, payload)))
-        self._write_chunk(groups, log, publish, sequence)
+        if not entry.count:
+            return
+        entry.count = 0
+        payloads, log, publish, sequence = entry.accumulator.drain(entry.topic)
+        self._core.write_payloads(entry.channels[0], payloads, log, publish, sequence)
 
-    def _write_chunk(self, groups: list[tuple[int, np.ndarray | list[bytes]]], log: np.ndarray,
-                     publish: np.ndarray, sequence: np.ndarray) -> None:
-        n = len(log)
-        parts: list[bytes] = []
-        indexes: list[tuple[int, bytes]] = []
-        order = np.argsort(log, kind="stable")
-        entries = np.empty(n, [("log", "<u8"), ("offset", "<u8")])
-        entries["log"] = log[order]
-        offset = 0
-        for channel_id, payload in groups:
-            records, offsets = _message_records(channel_id, payload, log, publish, sequence, offset)
-            parts.append(records)
-            offset += len(records)
-            entries["offset"] = offsets[order]
-            indexes.append((channel_id, entries.tobytes()))
-            self._counts[channel_id] += n
-        start, end = int(log.min()), int(log.max())
-        self._out.chunk(b"".join(parts), start, end, indexes)
-        self._start_time = start if self._start_time is None else min(self._start_time, start)
-        self._end_time = max(self._end_time, end)
+    def pending(self, topic: str) -> int:
+        """Messages of ``topic`` held in memory, not yet handed to the writer (at most one block)."""
+        entry = self._topics[topic]
+        return self._core.pending(entry.slot) if entry.slot is not None else entry.count
 
     # -- closing --------------------------------------------------------------------------------------------------
     def close(self) -> None:
         """Flushes every topic and writes the summary and footer; idempotent."""
-        if self._file.closed:
+        if self._closed:
             return
-        topics, self._topics = self._topics, {}  # a later write finds no topic and raises in _open_topic
+        self._closed = True
         try:
-            for buffer in topics.values():
-                self._flush(buffer)
-            self._record(DataEnd(data_section_crc=0))
-            self._out.close()
-            self._write_summary()
+            for entry in self._topics.values():
+                self._flush(entry)
+            self._core.write_records(self._record_bytes(DataEnd(data_section_crc=0)))
+            self._core.finish()
+            self._core.write_records(self._summary(self._core.position))
         finally:
-            self._out.close()
-            self._file.close()
+            self._core.close()
 
-    def _write_summary(self) -> None:
-        summary_start = self._file.tell()
+    def _summary(self, summary_start: int) -> bytes:
         builder = RecordBuilder()
         offsets: list[SummaryOffset] = []
+        counts = {c.id: 0 for c in self._channels}
+        counts.update(self._core.message_counts())
+        start, end = self._core.time_range() or (0, 0)
+        chunk_indexes = [ChunkIndex(message_start_time=a, message_end_time=b, chunk_start_offset=offset,
+                                    chunk_length=length, message_index_offsets=dict(indexes),
+                                    message_index_length=index_length, compression=self._compression,
+                                    compressed_size=compressed, uncompressed_size=uncompressed)
+                         for a, b, offset, length, indexes, index_length, compressed, uncompressed
+                         in self._core.chunks()]
         statistics = Statistics(
-            message_count=sum(self._counts.values()), schema_count=len(self._schemas),
+            message_count=sum(counts.values()), schema_count=len(self._schemas),
             channel_count=len(self._channels), attachment_count=0, metadata_count=len(self._metadata_indexes),
-            chunk_count=len(self._out.chunk_indexes), message_start_time=self._start_time or 0,
-            message_end_time=self._end_time, channel_message_counts=dict(self._counts))
+            chunk_count=len(chunk_indexes), message_start_time=start, message_end_time=end,
+            channel_message_counts=counts)
         groups = [(Opcode.SCHEMA, self._schemas), (Opcode.CHANNEL, self._channels), (Opcode.STATISTICS, [statistics]),
-                  (Opcode.CHUNK_INDEX, self._out.chunk_indexes), (Opcode.METADATA_INDEX, self._metadata_indexes)]
+                  (Opcode.CHUNK_INDEX, chunk_indexes), (Opcode.METADATA_INDEX, self._metadata_indexes)]
         for opcode, records in groups:
             if not records:
                 continue
@@ -222,17 +245,15 @@ class McapLogger:
         summary = builder.end()
         crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start, summary_offset_start),
                          zlib.crc32(summary))
-        self._file.write(summary)
         footer = RecordBuilder()
         Footer(summary_start=summary_start, summary_offset_start=summary_offset_start, summary_crc=crc).write(footer)
-        self._file.write(footer.end() + MAGIC)
+        return summary + footer.end() + MAGIC
 
-    def _record(self, record: Any) -> int:
+    @staticmethod
+    def _record_bytes(record: Any) -> bytes:
         builder = RecordBuilder()
         record.write(builder)
-        data = builder.end()
-        self._out.write(data)
-        return len(data)
+        return builder.end()
 
     def __enter__(self) -> McapLogger:
         return self
@@ -240,47 +261,13 @@ class McapLogger:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def __del__(self) -> None:
-        file = getattr(self, "_file", None)
-        if file is not None and not file.closed:  # never closed: stop the writer thread, leave no summary
-            try:
-                self._out.close()
-            finally:
-                file.close()
+
+def _wrong_type(entry: _Topic, message: Any) -> str:
+    return (f"topic {entry.topic!r} is logged as {entry.cls.__name__} (its first message), "
+            f"got a {type(message).__name__}")
 
 
-def _times(values: Any, name: str, topic: str) -> np.ndarray:
-    if isinstance(values, np.ndarray) and values.dtype == np.uint64:
-        return values  # packed with struct "Q": already non-negative integers
-    array = np.array(values)
-    if array.dtype.kind not in "iu" or (array.size and array.min() < 0):
-        raise TypeError(f"topic {topic!r}: {name} must be non-negative integer nanoseconds, got e.g. "
-                        f"{values[0]!r}")
-    return array.astype(np.uint64)
-
-
-def _message_records(channel_id: int, payload: np.ndarray | list[bytes], log: np.ndarray, publish: np.ndarray,
-                     sequence: np.ndarray, start: int) -> tuple[bytes, np.ndarray]:
-    """The Message records of one channel's block and each record's offset in the chunk."""
-    n = len(log)
-    if isinstance(payload, np.ndarray):
-        size = payload.shape[1]
-        dtype = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"), ("sequence", "<u4"),
-                          ("log", "<u8"), ("publish", "<u8"), ("data", "u1", (size,))])
-        records = np.empty(n, dtype)
-        records["op"] = Opcode.MESSAGE
-        records["length"] = _MESSAGE_HEADER + size
-        records["channel"] = channel_id
-        records["sequence"] = sequence
-        records["log"] = log
-        records["publish"] = publish
-        records["data"] = payload
-        return records.tobytes(), start + np.arange(n, dtype=np.uint64) * dtype.itemsize
-    parts, offsets, pos = [], np.empty(n, np.uint64), start
-    for i, data in enumerate(payload):
-        header = struct.pack("<BQHIQQ", Opcode.MESSAGE, _MESSAGE_HEADER + len(data), channel_id, int(sequence[i]),
-                             int(log[i]), int(publish[i]))
-        parts += [header, data]
-        offsets[i] = pos
-        pos += len(header) + len(data)
-    return b"".join(parts), offsets
+def _time(value: Any, name: str, topic: str) -> int:
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and 0 <= value < 2**64:
+        return int(value)
+    raise TypeError(f"topic {topic!r}: {name} must be non-negative integer nanoseconds, got {value!r}")
