@@ -4,8 +4,9 @@ real time):
 1. telemetry rate seen in the browser with the point-cloud layer on (target >= 30 Hz), and the cloud rate;
 2. click-to-setpoint latency: from a click on the ground grid (click-to-go; the release's own event time stamp, so
    a busy page's delay in handling it counts) until the commander's acknowledgement reaches the page, until the
-   page's telemetry panel shows the clicked point as the vehicle's target (target <= 50 ms), and until the next
-   frame the page paints after that; with how busy the page's main thread was (CDP Performance TaskDuration);
+   page's telemetry panel shows the clicked point as the vehicle's target (target <= 50 ms), until the next frame
+   the page paints after that, and until the 3-D view has drawn the new setpoint marker; with how busy the page's
+   main thread was (CDP Performance TaskDuration);
 3. the server process's CPU (simulation included) with no tab, then with three tabs open (cloud layer on).
 
     .venv/bin/python benchmarks/bench_gcs.py [--seconds 10] [--clicks 10] [--speed 1]
@@ -163,7 +164,7 @@ def main() -> None:
             d.find_element(By.ID, "click-goto").click()
             d.find_element(By.ID, "follow").click()  # a still camera: the clicked pixels stay where they were
             canvas = d.execute_script("return window.gcs.canvas")
-            acks, seen, painted, handled = [], [], [], []
+            acks, seen, painted, handled, drawn = [], [], [], [], []
             for k in range(args.clicks):
                 goal = [-2.0 + 0.4 * ((k % 3) - 1), 0.4 * ((k % 2) * 2 - 1), 0.0]
                 px = d.execute_script("return window.gcs.screenOf(arguments[0])", goal)
@@ -171,18 +172,20 @@ def main() -> None:
                 ActionChains(d).move_to_element_with_offset(canvas, int(px["x"] - r["x"] - r["width"] / 2),
                                                             int(px["y"] - r["y"] - r["height"] / 2)).click().perform()
                 click = wait_for(lambda: (c := d.execute_script("return window.gcs.lastClick")) and
-                                 all(c.get(k) is not None for k in ("seenAt", "ackAt", "paintedAt")) and c, 10)
+                                 all(c.get(k) is not None for k in ("seenAt", "ackAt", "paintedAt", "drawnAt")) and c, 10)
                 assert click, "the click did not reach the commander"
                 acks.append(click["ackAt"] - click["t0"])
                 seen.append(click["seenAt"] - click["t0"])
                 painted.append(click["paintedAt"] - click["t0"])
                 handled.append(click["handledAt"] - click["t0"])
+                drawn.append(click["drawnAt"] - click["t0"])
                 d.execute_script("window.gcs.lastClick = null")
                 time.sleep(0.3)
             print(f"click (event time stamp) to its handler: {spread(handled)}")
             print(f"click-to-ack: {spread(acks)}")
             print(f"click-to-setpoint (the panel shows the clicked point as the target): {spread(seen)} (target <= 50)")
             print(f"click-to-setpoint painted (the page's next frame): {spread(painted)}")
+            print(f"click to the 3-D view's frame with the new setpoint marker (drawn by its worker): {spread(drawn)}")
 
             acks, seen = scripted_latency(gcs, args.clicks)
             print(f"the same from a Python websocket client: ack median {statistics.median(acks):.1f} ms, "

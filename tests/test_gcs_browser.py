@@ -119,12 +119,17 @@ def test_buttons_fly_takeoff_goto_and_a_mission(gcs, driver):
     assert nearest == sorted(nearest)
 
 
-def test_the_3d_view_draws_the_vehicle(gcs, driver):
+@pytest.mark.parametrize("view", ["worker", "page"])
+def test_the_3d_view_draws_the_vehicle(gcs, driver, view):
+    """Drawn where the page's own projection (the one a click on the ground is picked with) puts it, by the view's
+    worker and by the same view in the page itself (browsers without OffscreenCanvas, ``?view=page``)."""
     from PIL import Image
 
     d = driver
-    if not d.current_url.startswith(gcs.base):
-        open_page(d, gcs)
+    if not d.current_url.startswith(gcs.base) or ("view=page" in d.current_url) != (view == "page"):
+        d.get(gcs.url + "&fps=8" + ("&view=page" if view == "page" else ""))
+        assert wait_for(lambda: text(d, "conn") == "connected" and telemetry(d), 20), "the page did not connect"
+    assert d.execute_script("return window.gcs.viewInWorker") == (view == "worker")
     click(d, "cmd-pause")
     assert ack(d, "sim_pause")["result"] == "accepted"
     try:
@@ -132,7 +137,7 @@ def test_the_3d_view_draws_the_vehicle(gcs, driver):
         px = d.execute_script("return window.gcs.vehicleScreen()")
         assert px and 0 < px["z"] < 1, px
 
-        def shot():  # once the view (a worker) has drawn what the page posted, and the page has shown that frame
+        def shot():  # once the view has drawn what the page posted, and the page has shown that frame
             d.execute_async_script("window.gcs.drawn().then(() => requestAnimationFrame(() => "
                                    "requestAnimationFrame(arguments[0])))")
             return np.asarray(Image.open(io.BytesIO(d.get_screenshot_as_png())).convert("RGB"), dtype=float)
@@ -151,6 +156,8 @@ def test_the_3d_view_draws_the_vehicle(gcs, driver):
         assert (far > 60).sum() < 10
     finally:
         click(d, "cmd-resume")
+        if view == "page":
+            open_page(d, gcs)
 
 
 def test_malformed_socket_message_in_the_page(gcs, driver):

@@ -2,7 +2,8 @@
 // The 3-D view is drawn by view.js in a Web Worker (see there why); this thread posts it only what it needs.
 "use strict";
 (function () {
-  const token = new URLSearchParams(location.search).get("token") || "";
+  const query = new URLSearchParams(location.search);  // token; fps (3-D redraw cap, 20); dpr (cap, 1.5); view=page
+  const token = query.get("token") || "";
   const $ = (id) => document.getElementById(id);
   const PLOT_S = 20;
 
@@ -20,12 +21,18 @@
   let nextQuery = 1;
   function fromView(m) {
     if (m.type === "stats") { stats.fps = m.fps; stats.lagMs = m.lagMs; stats.frames = m.frames; return; }
+    if (m.type === "marker") {  // the view drew a new setpoint: the clicked one?
+      const c = gcs.lastClick;
+      if (c && c.drawnAt === undefined && Math.hypot(m.sp[0] - c.p_W[0], m.sp[1] - c.p_W[1]) < 0.01) c.drawnAt = m.at - performance.timeOrigin;
+      return;
+    }
     const cb = replies[m.id];
     delete replies[m.id];
     if (cb) cb(m.value);
   }
   let toView;
-  if (canvas.transferControlToOffscreen && window.Worker) {
+  gcs.viewInWorker = query.get("view") !== "page" && Boolean(canvas.transferControlToOffscreen && window.Worker);
+  if (gcs.viewInWorker) {
     const worker = new Worker("/static/view.js");
     const off = canvas.transferControlToOffscreen();
     worker.postMessage({type: "init", canvas: off}, [off]);
@@ -45,7 +52,6 @@
   const ask = (m) => new Promise((resolve) => { const id = nextQuery++; replies[id] = resolve; toView({...m, id: id}); });
   gcs.layerPoints = (name) => ask({type: "points", layer: name});  // the points a line / cloud layer draws
   gcs.drawn = () => ask({type: "drawn"});  // resolves once a frame with everything posted so far is drawn
-  const query = new URLSearchParams(location.search);
   toView({type: "fps", fps: parseFloat(query.get("fps")) || 20});
   function resize() {
     const r = canvas.getBoundingClientRect();
@@ -120,6 +126,7 @@
   function showTelemetry(t) {
     const p = t.p_W;
     $("tel-t").textContent = fmt(t.t, 2) + (t.paused ? " (paused)" : "");
+    $("tel-rate").textContent = stats.rateHz.toFixed(0) + " Hz";
     $("tel-mode").textContent = fmt(t.mode);
     $("tel-armed").textContent = fmt(t.armed);
     $("tel-landed").textContent = fmt(t.landed);
@@ -253,7 +260,6 @@
       rateWindow.push(now);
       while (rateWindow.length && rateWindow[0] < now - 2000) rateWindow.shift();
       stats.rateHz = rateWindow.length > 1 ? (rateWindow.length - 1) / ((now - rateWindow[0]) / 1000) : 0;
-      $("tel-rate").textContent = stats.rateHz.toFixed(0) + " Hz";
       const tg = showTarget(m);
       const c = gcs.lastClick;
       if (c && c.seenAt === undefined && tg && Math.hypot(tg[0] - c.p_W[0], tg[1] - c.p_W[1]) < 0.01) {

@@ -119,10 +119,12 @@ function cufundView(THREE, canvas, reply) {
   setpoint.visible = false;
   scene.add(setpoint);
   setLayer("vehicle", vehicleObject(0.15));
-  const q4 = new THREE.Quaternion();
+  const q4 = new THREE.Quaternion(), v3 = new THREE.Vector3();
 
   // ---- drawing on demand: at most maxFps, fewer when this thread is congested ------------------------------------
+  // A new setpoint (a command's effect) is drawn at once, whatever the cap; the page is told when (epoch ms).
   let maxFps = 20, drawMs = 50, dirty = true, timer = null, lastDraw = -1e9, frames = 0, lag = 0, lastTick = performance.now();
+  let markerMoved = null;
   const waiting = [];
   function draw() {
     timer = null;
@@ -132,11 +134,19 @@ function cufundView(THREE, canvas, reply) {
     renderer.render(scene, camera);
     lastDraw = performance.now();
     frames += 1;
-    while (waiting.length) reply({type: "reply", id: waiting.shift(), value: {frames: frames, renderMs: lastDraw - t}});
+    if (waiting.length) {  // answered when the next frame begins: this one has gone to the compositor by then
+      const ids = waiting.splice(0), value = {frames: frames, renderMs: lastDraw - t};
+      nextFrame(() => { for (const id of ids) reply({type: "reply", id: id, value: value}); });
+    }
+    if (markerMoved) { reply({type: "marker", sp: markerMoved, at: performance.timeOrigin + lastDraw}); markerMoved = null; }
   }
-  function redraw() {
+  // frames are drawn in the animation-frame callbacks of the thread the view runs in (a worker's are in step with
+  // the display it draws to), at most every drawMs
+  const nextFrame = typeof requestAnimationFrame === "function" ? requestAnimationFrame : (f) => setTimeout(f, 0);
+  function redraw(now) {
     dirty = true;
-    if (timer === null) timer = setTimeout(draw, Math.max(0, lastDraw + drawMs - performance.now()));
+    if (now && timer !== null) { clearTimeout(timer); timer = null; }
+    if (timer === null) timer = setTimeout(() => nextFrame(draw), now ? 0 : Math.max(0, lastDraw + drawMs - performance.now()));
   }
   setInterval(() => {  // the lag of a 100 ms timer says how busy this thread is: above 30 ms fewer frames (3 at least)
     const now = performance.now();
@@ -187,7 +197,13 @@ function cufundView(THREE, canvas, reply) {
           v.visible = visible.vehicle !== false;
           appendLine(flown, m.p);
         }
-        if (Array.isArray(m.sp)) { setpoint.position.set(m.sp[0], m.sp[1], m.sp[2]); setpoint.visible = true; }
+        if (Array.isArray(m.sp) && (!setpoint.visible || setpoint.position.distanceToSquared(v3.fromArray(m.sp)) > 1e-8)) {
+          setpoint.position.fromArray(m.sp);
+          setpoint.visible = true;
+          markerMoved = m.sp;
+          redraw(true);
+          return;
+        }
         break;
       }
       case "cloud": {  // float32 [t, n, x, y, z, ...] in the world frame
