@@ -1,20 +1,25 @@
 """Benchmark of run logs (not a test; prints figures and ratios).
 
-1. Writing N messages of each type with :class:`cufund.logs.McapLogger` (write calls plus their share of block
-   encoding, main-thread CPU time and wall time) vs the official Python path for the same bytes: ``mcap_ros2``'s
+1. Writing N messages of each type with :class:`cufund.logs.McapLogger` (write calls, main-thread CPU and wall;
+   the writer thread's CPU beside it) vs the official Python path for the same bytes: ``mcap_ros2``'s
    ``Writer.write_message`` with the same ros2msg schema (per-message CDR serialisation into ``mcap``'s writer,
    zstd chunks). Messages are built fresh in the timed loop for both (as a simulator makes them).
 2. The square case study (``cufund run square``'s pipeline, in process) with and without ``run.mcap``:
-   alternating runs, median wall time of each, and the overhead in percent (the issue's bound: <= 10 %).
+   alternating runs, medians of wall time, of the simulation thread's CPU time and of the process's CPU time
+   (the writer thread included), and the overhead of each in percent (the issue's bound: <= 10 % of wall time),
+   with the load average beside them.
 3. Reading the square's log back with :func:`cufund.logs.read_mcap` (messages per second).
 
-Run: ``.venv/bin/python benchmarks/bench_mcap.py [--repeats 7]``
+Run: ``.venv/bin/python benchmarks/bench_mcap.py [--repeats 7] [--square-only]``.
+Instruction counts (load-independent): ``valgrind --tool=callgrind .venv/bin/python benchmarks/bench_mcap.py
+--once without`` and ``--once with`` (one square run each; the difference is the log's cost, both threads).
 """
 
 from __future__ import annotations
 
 import argparse
 import gc
+import os
 import statistics
 import tempfile
 import time
@@ -56,8 +61,10 @@ def _as_ros(message: object, layout) -> dict:
 def bench_types(tmp: Path) -> None:
     from mcap_ros2.writer import Writer as Ros2Writer
 
-    print(f"1. logging {N} messages of one type: cost per message beyond building it (main-thread CPU, and wall)")
-    print(f"   {'type':22s} {'cufund us':>10s} {'wall us':>8s} {'mcap_ros2 us':>13s} {'ratio':>6s} {'bytes/msg':>9s}")
+    print(f"1. logging {N} messages of one type: cost per message beyond building it (main-thread CPU, wall, and the "
+          "writer thread's CPU)")
+    print(f"   {'type':22s} {'cufund us':>10s} {'wall us':>8s} {'writer us':>10s} {'mcap_ros2 us':>13s} {'ratio':>6s} "
+          f"{'bytes/msg':>9s}")
     for name, make in _makers(np.random.default_rng(0)).items():
         codec = codec_for("/x", make(0.0))
         times = [k * 1e-3 for k in range(N)]
@@ -67,15 +74,16 @@ def bench_types(tmp: Path) -> None:
             for k, t in enumerate(times):
                 make(t)
             build = min(build, (time.thread_time() - c0, time.perf_counter() - w0))
-        best = (np.inf, np.inf)
+        best = (np.inf, np.inf, np.inf)
         for _ in range(3):
             path = tmp / "types.mcap"
-            c0, w0 = time.thread_time(), time.perf_counter()
+            c0, w0, p0 = time.thread_time(), time.perf_counter(), time.process_time()
             with McapLogger(path) as log:
                 write = log.write
                 for k, t in enumerate(times):
                     write("/x", make(t), k, k)
-            best = min(best, (time.thread_time() - c0, time.perf_counter() - w0))
+            c1 = time.thread_time()
+            best = min(best, (c1 - c0, time.perf_counter() - w0, time.process_time() - p0 - (c1 - c0)))
         size = path.stat().st_size
         peer = np.inf
         for _ in range(2):
@@ -88,7 +96,7 @@ def bench_types(tmp: Path) -> None:
                 writer.finish()
                 peer = min(peer, time.thread_time() - c0)
         ours, wall, peer = best[0] - build[0], best[1] - build[1], peer - build[0]
-        print(f"   {name:22s} {ours / N * 1e6:10.2f} {wall / N * 1e6:8.2f} {peer / N * 1e6:13.2f} "
+        print(f"   {name:22s} {ours / N * 1e6:10.2f} {wall / N * 1e6:8.2f} {best[2] / N * 1e6:10.2f} {peer / N * 1e6:13.2f} "
               f"{peer / ours:5.0f}x {size / N:9.0f}")
 
 
@@ -96,33 +104,47 @@ def bench_square(tmp: Path, repeats: int) -> Path | None:
     import cufund
 
     config = cufund.load_scenario("square")
-    try:
-        cufund.run_scenario(config, logger=None)
-    except TypeError:
-        print("2. the square: run_scenario takes no logger yet (integration pending); skipped")
-        return None
+    cufund.run_scenario(config, logger=None)  # warm-up: imports, caches
     walls: dict[str, list[float]] = {"without": [], "with": []}
-    cpus: dict[str, list[float]] = {"without": [], "with": []}
+    threads: dict[str, list[float]] = {"without": [], "with": []}
+    processes: dict[str, list[float]] = {"without": [], "with": []}
     path = tmp / "square.mcap"
+    load0 = os.getloadavg()[0]
     for _ in range(repeats):
         for kind in ("without", "with"):
             gc.collect()  # the previous run's garbage is not this run's cost
-            t0, c0 = time.perf_counter(), time.thread_time()
+            t0, c0, p0 = time.perf_counter(), time.thread_time(), time.process_time()
             logger = McapLogger(path, {"scenario": "square"}) if kind == "with" else None
             run = cufund.run_scenario(config, logger=logger)
             if logger is not None:
                 logger.close()
             walls[kind].append(time.perf_counter() - t0)
-            cpus[kind].append(time.thread_time() - c0)
+            threads[kind].append(time.thread_time() - c0)
+            processes[kind].append(time.process_time() - p0)
+    load1 = os.getloadavg()[0]
     n = sum(1 for _ in read_mcap(path))
     print(f"2. the square ({run.result.sim_time_s:.1f} s simulated, {n} messages logged, {repeats} alternating runs, "
-          f"file {path.stat().st_size / 1e6:.1f} MB)")
-    for name, values in (("wall", walls), ("simulation-thread CPU", cpus)):
+          f"file {path.stat().st_size / 1e6:.1f} MB; load average {load0:.2f} before, {load1:.2f} after, "
+          f"{os.cpu_count()} CPUs)")
+    for name, values in (("wall", walls), ("simulation-thread CPU", threads), ("process CPU (all threads)", processes)):
         without, with_log = statistics.median(values["without"]), statistics.median(values["with"])
         print(f"   median {name}: without log {without:.3f} s, with run.mcap {with_log:.3f} s: "
-              f"{(with_log / without - 1) * 100:+.1f} % ({(with_log - without) / n * 1e6:.2f} us per message); "
-              f"best: {min(values['without']):.3f} s vs {min(values['with']):.3f} s")
+              f"{(with_log / without - 1) * 100:+.1f} % ({(with_log - without) / n * 1e6:+.2f} us per message); "
+              f"best: {min(values['without']):.3f} s vs {min(values['with']):.3f} s "
+              f"({(min(values['with']) / min(values['without']) - 1) * 100:+.1f} %)")
     return path
+
+
+def square_once(kind: str) -> None:
+    """One square run with or without the log (for callgrind: run both and compare the totals)."""
+    import cufund
+
+    config = cufund.load_scenario("square")
+    with tempfile.TemporaryDirectory() as tmp:
+        logger = McapLogger(Path(tmp) / "square.mcap", {"scenario": "square"}) if kind == "with" else None
+        cufund.run_scenario(config, logger=logger)
+        if logger is not None:
+            logger.close()
 
 
 def bench_read(path: Path) -> None:
@@ -135,11 +157,17 @@ def bench_read(path: Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7, help="alternating square runs with and without the log")
+    parser.add_argument("--square-only", action="store_true", help="only part 2 (the square with and without)")
+    parser.add_argument("--once", choices=("with", "without"), help="one square run (for callgrind), nothing else")
     args = parser.parse_args()
+    if args.once:
+        square_once(args.once)
+        return
     with tempfile.TemporaryDirectory() as tmp:
-        bench_types(Path(tmp))
+        if not args.square_only:
+            bench_types(Path(tmp))
         path = bench_square(Path(tmp), args.repeats)
-        if path is not None:
+        if path is not None and not args.square_only:
             bench_read(path)
 
 

@@ -1,6 +1,7 @@
 // encode_chunk against the MCAP record layout, read back field by field; the ROS stamp's rounding and flooring.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <memory>
 
