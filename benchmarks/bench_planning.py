@@ -194,13 +194,17 @@ def run_global(cases):
         n += 1
         ok += g.ok
         rows.append((g.search_seconds, g.search_cpu_seconds, g.plan_seconds, g.plan_cpu_seconds,
-                     0 if g.motion is None else g.motion.inserted, g.path.path_W.shape[0]))
+                     0 if g.motion is None else g.motion.inserted, g.path.path_W.shape[0],
+                     np.nan if g.trajectory is None else g.trajectory.snap_cost(),
+                     np.nan if g.motion is None else g.motion.min_clearance))
     a = np.array(rows)
     ms = lambda x: f"median {np.median(x) * 1e3:6.1f} p99 {np.percentile(x, 99) * 1e3:6.1f}"  # noqa: E731
     print(f"forest   global plan          ok {ok}/{n}; load {os.getloadavg()[0]:.1f}; waypoints median "
           f"{np.median(a[:, 5]):.0f}, inserted median {np.median(a[:, 4]):.0f} max {a[:, 4].max():.0f}")
     print(f"{'':8s} search only ms       wall {ms(a[:, 0])}   CPU {ms(a[:, 1])}")
     print(f"{'':8s} search + min-snap ms wall {ms(a[:, 2])}   CPU {ms(a[:, 3])}")
+    print(f"{'':8s} snap cost [m^2/s^7]  median {np.nanmedian(a[:, 6]):.4f} sum {np.nansum(a[:, 6]):.4f}; "
+          f"min clearance {np.nanmin(a[:, 7]):.3f} m (radius {RADIUS_FOREST})")
 
 
 def run_scalar():

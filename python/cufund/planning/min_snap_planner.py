@@ -135,7 +135,7 @@ class MinSnapPlanner:
                     query: ClearanceQuery | None) -> tuple[np.ndarray, float, float]:
         """Per segment of ``traj``: does a sample break the clearance or the corridor?"""
         p = self.params
-        n = max(2, int(math.ceil(traj.duration / p.sample_dt)) + 1)
+        n = max(2, math.ceil(traj.duration / p.sample_dt) + 1)
         t = np.linspace(traj.t_knots[0], traj.t_end, n)
         x = traj.sample(t).p_W
         seg = np.clip(np.searchsorted(traj.t_knots, t, side="right") - 1, 0, len(traj.durations) - 1)
