@@ -111,6 +111,23 @@ const QuadrotorParams& params_arg(const py::handle& params) {
   return p;
 }
 
+// unit_quaternion's normalisation for a vector already read (left bit-identical when already unit).
+Eigen::Vector4d normalised(const Eigen::Vector4d& q, const char* field) {
+  const double norm = q.norm();
+  if (!(norm >= 1e-6)) {
+    throw py::value_error(std::string(field) + " must be a non-zero quaternion [w, x, y, z], got norm " +
+                          std::to_string(norm));
+  }
+  return std::abs(norm - 1.0) <= 1e-12 ? q : Eigen::Vector4d(q / norm);
+}
+
+// (q_WB_d (4,), thrust [N], rotor_speeds (4,), achieved thrust [N], achieved torque_B (3,)), arrays read-only.
+py::tuple geometric_step_tuple(const GeometricStep& s) {
+  return py::make_tuple(readonly_array<4>(s.command.q_WB_d), s.command.thrust,
+                        readonly_array<4>(s.allocation.rotor_speeds), s.allocation.achieved[0],
+                        readonly_array<3>(Eigen::Vector3d(s.allocation.achieved.tail<3>())));
+}
+
 py::tuple command_tuple(const GeometricAttitudeCommand& c) {
   return py::make_tuple(c.thrust, Eigen::Vector3d(c.torque_B), Eigen::Vector4d(c.q_WB_d));
 }
@@ -259,6 +276,56 @@ void define_control(py::module_& m) {
           "rate_int", [](const RateControl& c) { return Eigen::Vector3d(c.rate_int); },
           [](RateControl& c, const py::handle& v) { c.rate_int = vec3(v, "rate_int"); },
           "Rate integrator (3,) [rad/s^2].");
+
+  py::class_<GeometricControl>(m, "GeometricControl",
+                                "The SE(3) controller's force law, attitude law and allocation, one call per step "
+                                "(cufund.control.GeometricController keeps the flight-mode logic).")
+      .def(py::init([](const py::handle& params, const py::handle& transfer_tau) {
+             return GeometricControl(params_arg(params), positive(transfer_tau, "transfer_tau"));
+           }),
+           py::arg("params"), py::arg("transfer_tau"),
+           "params: a cufund.QuadrotorParams (its .to_core()); the mode-switch hand-over's decay time [s].")
+      .def(
+          "set_gains",
+          [](GeometricControl& c, const py::handle& k_x, const py::handle& k_v, const py::handle& k_R,
+             const py::handle& k_W) {
+            c.set_gains(finite(k_x, "k_x"), finite(k_v, "k_v"), vec3(k_R, "k_R"), vec3(k_W, "k_W"));
+          },
+          py::arg("k_x"), py::arg("k_v"), py::arg("k_R"), py::arg("k_W"),
+          "k_x [m/s^2 per m], k_v [m/s^2 per m/s], k_R (3,) [rad/s^2 per rad], k_W (3,) [rad/s^2 per rad/s].")
+      .def("reset", &GeometricControl::reset, "Clears the mode-switch hand-over.")
+      .def(
+          "step_force",
+          [](GeometricControl& c, const py::handle& t, const py::handle& p_W, const py::handle& v_W,
+             const py::handle& q_WB, const py::handle& w_B, const py::handle& p_sp, const py::handle& v_sp,
+             const py::handle& a_sp, const py::handle& j_sp, const py::handle& yaw, const py::handle& yaw_rate,
+             const py::handle& position_mode, const py::handle& handover) {
+            Eigen::Vector3d h;
+            if (!handover.is_none()) h = step_vector<3>(handover, "handover");
+            return geometric_step_tuple(c.step_force(
+                finite(t, "t"), step_vector<3>(p_W, "p_W"), step_vector<3>(v_W, "v_W"),
+                normalised(step_vector<4>(q_WB, "q_WB"), "q_WB"), step_vector<3>(w_B, "w_B"),
+                step_vector<3>(p_sp, "p_sp"), step_vector<3>(v_sp, "v_sp"), step_vector<3>(a_sp, "a_sp"),
+                step_vector<3>(j_sp, "j_sp"), finite(yaw, "yaw"), finite(yaw_rate, "yaw_rate"),
+                bool_arg(position_mode, "position_mode"), handover.is_none() ? nullptr : &h));
+          },
+          py::arg("t"), py::arg("p_W"), py::arg("v_W"), py::arg("q_WB"), py::arg("w_B"), py::arg("p_sp"),
+          py::arg("v_sp"), py::arg("a_sp"), py::arg("j_sp"), py::arg("yaw"), py::arg("yaw_rate"),
+          py::arg("position_mode"), py::arg("handover") = py::none(),
+          "Position (or, position_mode False, velocity) mode at t [s]; handover (3,) [N], at a mode switch, is the "
+          "force last commanded. (q_WB_d (4,), thrust [N], rotor_speeds (4,) [rad/s], achieved thrust [N], "
+          "achieved torque_B (3,) [N m]), arrays read-only.")
+      .def(
+          "step_attitude",
+          [](const GeometricControl& c, const py::handle& q_WB, const py::handle& w_B, const py::handle& q_WB_d,
+             const py::handle& thrust, const py::handle& yaw_rate) {
+            return geometric_step_tuple(c.step_attitude(
+                normalised(step_vector<4>(q_WB, "q_WB"), "q_WB"), step_vector<3>(w_B, "w_B"),
+                normalised(step_vector<4>(q_WB_d, "q_WB_d"), "q_WB_d"), finite(thrust, "thrust"),
+                finite(yaw_rate, "yaw_rate")));
+          },
+          py::arg("q_WB"), py::arg("w_B"), py::arg("q_WB_d"), py::arg("thrust"), py::arg("yaw_rate"),
+          "Attitude mode: as step_force's result for a desired attitude q_WB_d, thrust [N] and yaw rate [rad/s].");
 
   m.def(
       "attitude_from_thrust_and_yaw",

@@ -150,3 +150,33 @@ class RateReference:
             i_factor = max(0.0, 1.0 - (ei / RATE_I_SCALE) ** 2)
             self.rate_int[i] = min(max(self.rate_int[i] + i_factor * self.ki[i] * ei * dt, -lim), lim)
         return speeds, achieved, sat
+
+
+class GeometricReference:
+    """GeometricController.update's force law (position and velocity modes, hand-over) before the attitude law
+    and the allocation, which were already C++ (called here through their own bindings)."""
+
+    def __init__(self, g, params, tau: float = 0.2) -> None:
+        from cufund import _core
+
+        self.g, self.params, self.tau = g, params, tau
+        self.kR = np.array([g.k_R, g.k_R, g.k_R_yaw])
+        self.kW = np.array([g.k_W, g.k_W, g.k_W_yaw])
+        self.J = params.inertia_matrix
+        self.allocator = _core.control.ControlAllocator(params.to_core())
+        self.core = _core.control
+        self.offset = None
+        self.t0 = 0.0
+
+    def step(self, t, p, v, q, w, sp_p, sp_v, sp_a, sp_j, yaw, yaw_rate, position_mode, handover=None):
+        g, m, grav = self.g, self.params.mass, self.params.gravity
+        F = m * (sp_a - g.k_v * (v - sp_v))
+        F[2] += m * grav
+        if position_mode:
+            F -= g.k_x * m * (p - sp_p)
+        if handover is not None:
+            self.offset, self.t0 = handover - F, t
+        F = F + (0.0 if self.offset is None else self.offset * math.exp(-(t - self.t0) / self.tau))
+        thrust, M, q_d = self.core.geometric_from_force(self.J, m, self.kR, self.kW, q, w, F, sp_j, yaw, yaw_rate)
+        speeds, achieved, _ = self.allocator.allocate(thrust, M)
+        return q_d, thrust, speeds, achieved

@@ -1,28 +1,24 @@
-"""The PX4-style loops' C++ kernels (cufund._core.control PositionControl, AttitudeControl, RateControl) against
-their Python/numpy reference (tests/control_reference.py) on random inputs: same outputs and same controller
-state, bit for bit (with a diagonal inertia, as every preset has; within 1e-12 relative for a full one)."""
+"""The controllers' C++ kernels (cufund._core.control PositionControl, AttitudeControl, RateControl,
+GeometricControl) against their Python/numpy reference (tests/control_reference.py) on random inputs: same outputs
+and same controller state, bit for bit (with a diagonal inertia, as every preset has; within 1e-12 relative for a
+full one)."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
 
-import cufund
 import numpy as np
 import pytest
-from control_reference import (
-    RATE_I_SCALE,
-    PositionReference,
-    RateReference,
-    attitude_reference,
-)
+
+import cufund
 from cufund import _core
-from cufund.control import (
-    AttitudeControlParams,
-    PositionControlParams,
-)
+from cufund.control import AttitudeControlParams, PositionControlParams
 from cufund.control.rate_control import _RATE_I_SCALE
 from cufund.scenario import load_scenario
+
+from control_reference import (RATE_I_SCALE, GeometricReference, PositionReference, RateReference,
+                               attitude_reference)
 
 PARAMS = cufund.presets.cu_astro()
 SQUARE = load_scenario("square").controller.params
@@ -165,3 +161,25 @@ def test_kernels_reject_bad_input():
         att.set_gains(z, z, 2.0)
     with pytest.raises(ValueError, match="q_WB_d"):
         att.rate_setpoint(np.array([1.0, 0, 0, 0]), z, 0.0)
+
+
+def test_geometric_kernel_matches_reference():
+    gains = SQUARE.geometric
+    ref = GeometricReference(gains, PARAMS)
+    core = _core.control.GeometricControl(PARAMS.to_core(), 0.2)
+    core.set_gains(gains.k_x, gains.k_v, ref.kR, ref.kW)
+    rng = np.random.default_rng(10)
+    t = 0.0
+    for k in range(3000):
+        t += 0.002
+        scale = 10.0 ** rng.uniform(-3, 1)
+        p, v, w = vec(rng, 3.0), vec(rng, scale), vec(rng, scale)
+        q = unit_quaternion(rng)
+        sp = [p + vec(rng, scale), vec(rng, scale), vec(rng, scale), vec(rng, scale)]
+        yaw, yaw_rate = rng.uniform(-math.pi, math.pi), rng.normal()
+        position_mode = bool(rng.uniform() < 0.8)
+        handover = vec(rng, 10.0) if k == 0 or rng.uniform() < 0.02 else None
+        q_ref, f_ref, speeds_ref, achieved_ref = ref.step(t, p, v, q, w, *sp, yaw, yaw_rate, position_mode, handover)
+        q_d, f, speeds, f_a, torque = core.step_force(t, p, v, q, w, *sp, yaw, yaw_rate, position_mode, handover)
+        assert np.array_equal(q_d, q_ref) and f == f_ref, k
+        assert np.array_equal(speeds, speeds_ref) and np.array_equal(np.array([f_a, *torque]), achieved_ref), k

@@ -80,4 +80,52 @@ GeometricAttitudeCommand geometric_from_attitude(const Eigen::Matrix3d& J, const
   return c;
 }
 
+GeometricControl::GeometricControl(const QuadrotorParams& params, double transfer_tau)
+    : allocator_(params), J_(params.inertia), mass_(params.mass), gravity_(params.gravity), tau_(transfer_tau) {}
+
+void GeometricControl::set_gains(double k_x, double k_v, const Eigen::Vector3d& k_R, const Eigen::Vector3d& k_W) {
+  k_x_ = k_x;
+  k_v_ = k_v;
+  k_R_ = k_R;
+  k_W_ = k_W;
+}
+
+GeometricStep GeometricControl::step_force(double t, const Eigen::Vector3d& p_W, const Eigen::Vector3d& v_W,
+                                           const Eigen::Vector4d& q_WB, const Eigen::Vector3d& w_B,
+                                           const Eigen::Vector3d& p_sp, const Eigen::Vector3d& v_sp,
+                                           const Eigen::Vector3d& a_sp, const Eigen::Vector3d& j_sp, double yaw,
+                                           double yaw_rate, bool position_mode, const Eigen::Vector3d* handover) {
+  // element by element, in the order of the Python force law it replaces (same result bit for bit)
+  Eigen::Vector3d F;
+  for (int i = 0; i < 3; ++i) F[i] = mass_ * (a_sp[i] - k_v_ * (v_W[i] - v_sp[i]));
+  F[2] += mass_ * gravity_;
+  if (position_mode) {
+    const double k = k_x_ * mass_;
+    for (int i = 0; i < 3; ++i) F[i] -= k * (p_W[i] - p_sp[i]);
+  }
+  if (handover != nullptr) {
+    offset_ = *handover - F;
+    t0_ = t;
+    has_offset_ = true;
+  }
+  if (has_offset_) {
+    const double decay = std::exp(-(t - t0_) / tau_);
+    for (int i = 0; i < 3; ++i) F[i] += offset_[i] * decay;
+  } else {
+    for (int i = 0; i < 3; ++i) F[i] += 0.0;  // as `F + 0.0` (turns -0.0 into 0.0)
+  }
+  GeometricStep out;
+  out.command = geometric_from_force(J_, mass_, k_R_, k_W_, q_WB, w_B, F, j_sp, yaw, yaw_rate);
+  out.allocation = allocator_.allocate(out.command.thrust, out.command.torque_B);
+  return out;
+}
+
+GeometricStep GeometricControl::step_attitude(const Eigen::Vector4d& q_WB, const Eigen::Vector3d& w_B,
+                                              const Eigen::Vector4d& q_WB_d, double thrust, double yaw_rate) const {
+  GeometricStep out;
+  out.command = geometric_from_attitude(J_, k_R_, k_W_, q_WB, w_B, q_WB_d, thrust, yaw_rate);
+  out.allocation = allocator_.allocate(out.command.thrust, out.command.torque_B);
+  return out;
+}
+
 }  // namespace cufund

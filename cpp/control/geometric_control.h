@@ -6,6 +6,8 @@
 
 #include <Eigen/Core>
 
+#include "allocation.h"
+
 namespace cufund {
 
 struct GeometricAttitudeCommand {
@@ -29,5 +31,44 @@ GeometricAttitudeCommand geometric_from_attitude(const Eigen::Matrix3d& J, const
                                                  const Eigen::Vector3d& k_W, const Eigen::Vector4d& q_WB,
                                                  const Eigen::Vector3d& w_B, const Eigen::Vector4d& q_WB_d,
                                                  double thrust, double yaw_rate);
+
+// The whole controller as one object, gains and vehicle fixed, for one call per step: the force law (with the
+// bumpless hand-over at a mode switch), the attitude law above and the prioritising allocation.
+struct GeometricStep {
+  GeometricAttitudeCommand command;
+  AllocationResult allocation;
+};
+
+class GeometricControl {
+ public:
+  // transfer_tau [s]: decay of the step a mode switch would cause in the force command.
+  GeometricControl(const QuadrotorParams& params, double transfer_tau);
+
+  // k_x [m/s^2 per m], k_v [m/s^2 per m/s] (times the mass), k_R, k_W per body axis (times J).
+  void set_gains(double k_x, double k_v, const Eigen::Vector3d& k_R, const Eigen::Vector3d& k_W);
+  void reset() { has_offset_ = false; }
+
+  // Position (position_mode) or velocity mode at time t [s]: F = m (a_sp - k_v (v - v_sp)) + m g e3
+  // [- k_x m (p - p_sp)], plus the faded hand-over (handover, non-null at a mode switch: the force last
+  // commanded [N]); q_WB unit.
+  GeometricStep step_force(double t, const Eigen::Vector3d& p_W, const Eigen::Vector3d& v_W,
+                           const Eigen::Vector4d& q_WB, const Eigen::Vector3d& w_B, const Eigen::Vector3d& p_sp,
+                           const Eigen::Vector3d& v_sp, const Eigen::Vector3d& a_sp, const Eigen::Vector3d& j_sp,
+                           double yaw, double yaw_rate, bool position_mode, const Eigen::Vector3d* handover);
+
+  // Attitude mode: a desired attitude (unit), collective thrust [N] and yaw rate [rad/s].
+  GeometricStep step_attitude(const Eigen::Vector4d& q_WB, const Eigen::Vector3d& w_B, const Eigen::Vector4d& q_WB_d,
+                              double thrust, double yaw_rate) const;
+
+ private:
+  ControlAllocator allocator_;
+  Eigen::Matrix3d J_;
+  double mass_, gravity_, tau_;
+  double k_x_ = 0.0, k_v_ = 0.0;
+  Eigen::Vector3d k_R_ = Eigen::Vector3d::Zero(), k_W_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();
+  double t0_ = 0.0;
+  bool has_offset_ = false;
+};
 
 }  // namespace cufund

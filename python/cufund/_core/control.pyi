@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['AttitudeControl', 'ControlAllocator', 'PositionControl', 'RateControl', 'attitude_from_thrust_and_yaw', 'geometric_from_attitude', 'geometric_from_force']
+__all__: list[str] = ['AttitudeControl', 'ControlAllocator', 'GeometricControl', 'PositionControl', 'RateControl', 'attitude_from_thrust_and_yaw', 'geometric_from_attitude', 'geometric_from_force']
 class ControlAllocator:
     """
     Prioritising allocation: roll/pitch first, then collective thrust, then yaw.
@@ -100,6 +100,30 @@ class RateControl:
     @rate_int.setter
     def rate_int(self, arg1: typing.Any) -> None:
         ...
+class GeometricControl:
+    """
+    The SE(3) controller's force law, attitude law and allocation, one call per step (cufund.control.GeometricController keeps the flight-mode logic).
+    """
+    def __init__(self, params: typing.Any, transfer_tau: typing.Any) -> None:
+        """
+        params: a cufund.QuadrotorParams (its .to_core()); the mode-switch hand-over's decay time [s].
+        """
+    def reset(self) -> None:
+        """
+        Clears the mode-switch hand-over.
+        """
+    def set_gains(self, k_x: typing.Any, k_v: typing.Any, k_R: typing.Any, k_W: typing.Any) -> None:
+        """
+        k_x [m/s^2 per m], k_v [m/s^2 per m/s], k_R (3,) [rad/s^2 per rad], k_W (3,) [rad/s^2 per rad/s].
+        """
+    def step_attitude(self, q_WB: typing.Any, w_B: typing.Any, q_WB_d: typing.Any, thrust: typing.Any, yaw_rate: typing.Any) -> tuple:
+        """
+        Attitude mode: as step_force's result for a desired attitude q_WB_d, thrust [N] and yaw rate [rad/s].
+        """
+    def step_force(self, t: typing.Any, p_W: typing.Any, v_W: typing.Any, q_WB: typing.Any, w_B: typing.Any, p_sp: typing.Any, v_sp: typing.Any, a_sp: typing.Any, j_sp: typing.Any, yaw: typing.Any, yaw_rate: typing.Any, position_mode: typing.Any, handover: typing.Any = None) -> tuple:
+        """
+        Position (or, position_mode False, velocity) mode at t [s]; handover (3,) [N], at a mode switch, is the force last commanded. (q_WB_d (4,), thrust [N], rotor_speeds (4,) [rad/s], achieved thrust [N], achieved torque_B (3,) [N m]), arrays read-only.
+        """
 def attitude_from_thrust_and_yaw(z_B: typing.Any, yaw: typing.Any) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
     """
     R_WB (3, 3) with body z along unit z_B and body x along the heading yaw, projected (PX4's bodyzToAttitude).

@@ -6,7 +6,8 @@ Attitude:       e_R = 1/2 vee(R_d^T R - R^T R_d),   e_W = W - R^T R_d W_d
 with the desired body rate W_d from the jerk feed-forward (differential flatness; dW_d taken as zero).
 Velocity mode drops the position term; attitude mode tracks a given attitude and thrust. Gains are scaled by
 the mass (k_x, k_v) and the inertia (k_R, k_W), so they are accelerations per unit error. The force law and the
-mode logic are here; the attitude law runs in C++ (``cpp/control/geometric_control.cpp``).
+mode logic are here; the force law, the attitude law and the allocation run in C++, one call per step
+(``cpp/control/geometric_control.cpp``).
 """
 
 from __future__ import annotations
@@ -21,7 +22,6 @@ from ..config import check_real_fields
 from ..components import Bus, Controller
 from ..messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, ThrustTorqueSetpoint, Topics
 from ..params import QuadrotorParams
-from .allocation import ControlAllocator
 from .arming import gated
 from .flight_mode import BumplessTransfer, ModeReferences
 from .gyro_input import GyroInput
@@ -71,19 +71,18 @@ class GeometricController(Controller):
         self.params = params
         self.gyro = GyroInput(q_BI, gyro_cutoff_hz)
         self.use_gyro = False
+        # force law, attitude law and allocation in one C++ call per step (cpp/control/geometric_control.cpp)
+        self._core = _core.control.GeometricControl(params.to_core(), BumplessTransfer().tau)
         self.set_gains(gains or GeometricControlParams())
         self.rate_hz = rate_hz
         self.refs = ModeReferences(mode)
-        self.transfer = BumplessTransfer()
-        self.allocator = ControlAllocator(params)
-        self._J = params.inertia_matrix
         self.last: AttitudeSetpoint | None = None
+        self.reset()
 
     def set_gains(self, gains: GeometricControlParams) -> None:
         """Replaces the gains, also in flight; the controller's state is kept."""
         self.gains = g = gains
-        self._kR = np.array([g.k_R, g.k_R, g.k_R_yaw])
-        self._kW = np.array([g.k_W, g.k_W, g.k_W_yaw])
+        self._core.set_gains(g.k_x, g.k_v, np.array([g.k_R, g.k_R, g.k_R_yaw]), np.array([g.k_W, g.k_W, g.k_W_yaw]))
 
     def use_estimator(self, attached: bool) -> None:
         self.use_gyro = attached
@@ -94,7 +93,7 @@ class GeometricController(Controller):
 
     def reset(self) -> None:
         self.refs.reset()
-        self.transfer.reset()
+        self._core.reset()
         self.gyro.reset()
         self.last = None
 
@@ -109,8 +108,6 @@ class GeometricController(Controller):
     def update(self, t: float, state: Odometry, bus: Bus) -> None:
         if gated(self, t, bus, "geometric"):
             return
-        g = self.gains
-        m, grav = self.params.mass, self.params.gravity
         w_B = state.w_B
         if self.use_gyro:
             w_B = self.gyro.update()
@@ -119,26 +116,22 @@ class GeometricController(Controller):
         mode = self.refs.update(t, state, bus, self.last)
         if mode is FlightMode.ATTITUDE:
             att = self.refs.attitude(bus)
+            m, grav = self.params.mass, self.params.gravity
             f = m * grav if math.isnan(att.thrust) else att.thrust
-            thrust, M, q_d = _core.control.geometric_from_attitude(self._J, self._kR, self._kW, state.q_WB, w_B,
-                                                                   att.q_WB, f, att.yaw_rate)
+            q_d, thrust, speeds, f_a, torque = self._core.step_attitude(state.q_WB, w_B, att.q_WB, f, att.yaw_rate)
             yaw_rate = att.yaw_rate
         else:
             sp = self.refs.trajectory(t, bus)
-            F = m * (sp.a_W - g.k_v * (state.v_W - sp.v_W))
-            F[2] += m * grav
-            if mode is FlightMode.POSITION:
-                F -= g.k_x * m * (state.p_W - sp.p_W)
+            handover = None
             if self.refs.switched and self.last is not None:
                 # the force last commanded continues and fades into the new one
-                self.transfer.start(t, self.last.thrust * quat_to_rotation(self.last.q_WB)[:, 2], F)
-            F = F + self.transfer.offset(t)
-            thrust, M, q_d = _core.control.geometric_from_force(self._J, m, self._kR, self._kW, state.q_WB, w_B,
-                                                                F, sp.j_W, sp.yaw, sp.yaw_rate)
+                handover = self.last.thrust * quat_to_rotation(self.last.q_WB)[:, 2]
+            q_d, thrust, speeds, f_a, torque = self._core.step_force(
+                t, state.p_W, state.v_W, state.q_WB, w_B, sp.p_W, sp.v_W, sp.a_W, sp.j_W, sp.yaw, sp.yaw_rate,
+                mode is FlightMode.POSITION, handover)
             yaw_rate = sp.yaw_rate
-        speeds = self.allocator.rotor_speeds(thrust, M)
-        self.last = AttitudeSetpoint(t, q_d, thrust, yaw_rate)
-        a = self.allocator.last_thrust_torque
+        # fresh, read-only arrays: the messages take them as they are
+        self.last = AttitudeSetpoint.trusted(t, q_d, thrust, yaw_rate)
         bus.publish(Topics.ATTITUDE_SETPOINT, self.last)
-        bus.publish(Topics.THRUST_TORQUE_SETPOINT, ThrustTorqueSetpoint(t, float(a[0]), a[1:].copy()))
-        bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand(t, speeds))
+        bus.publish(Topics.THRUST_TORQUE_SETPOINT, ThrustTorqueSetpoint.trusted(t, f_a, torque))
+        bus.publish(Topics.ACTUATOR_COMMAND, ActuatorCommand.trusted(t, speeds))
