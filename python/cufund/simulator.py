@@ -92,6 +92,21 @@ def _stackable(value: Any) -> bool:
     return value is None or isinstance(value, (int, float, bool, str, np.ndarray, np.generic))
 
 
+def _joined(views: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """Views into one buffer (the vehicle's C++ state) merged where each ends where the next begins, so that
+    copying them out takes fewer numpy calls. Same values, same order."""
+    out = [views[0]]
+    for v in views[1:]:
+        last = out[-1]
+        if (last.dtype == v.dtype and last.ndim == v.ndim == 1 and last.strides == v.strides == (v.itemsize,)
+                and v.ctypes.data == last.ctypes.data + last.nbytes):
+            # the two are adjacent in memory: one view over both (the first's buffer keeps it alive)
+            out[-1] = np.lib.stride_tricks.as_strided(last, (len(last) + len(v),), last.strides, writeable=False)
+        else:
+            out.append(v)
+    return tuple(out)
+
+
 class _Slot:
     """A component as scheduled: its clock, bus handle and time spent."""
 
@@ -264,8 +279,10 @@ class Simulator:
         self._now_ns = self.t_start_ns
         if self.vehicle is not None:
             self._state = s = self.vehicle.state  # views into the C++ state, valid for the vehicle's lifetime
-            self._truth_views = (s.p, s.v, s.q, s.w, self.vehicle.accel_W, self.vehicle.alpha_B)
+            self._truth_views = _joined((s.p, s.v, s.q, s.w, self.vehicle.accel_W, self.vehicle.alpha_B))
+            self._row_views = _joined((s.p, s.v, s.q, s.w, s.rotor_speeds))
             self._cmd = s.rotor_speeds.copy()
+            self._ground_plane = bool(self.vehicle.params.ground_plane)
         else:
             self._cmd = None
         self._rows: list[np.ndarray] = []
@@ -318,11 +335,14 @@ class Simulator:
             self._rows.append(self._block)
             self._block = np.empty((4096, 18))
             self._n_block = 0
-        s = self._state
         row = self._block[self._n_block]
         self._n_block += 1
         row[0] = t
-        row[1:4], row[4:7], row[7:11], row[11:14], row[14:18] = s.p, s.v, s.q, s.w, s.rotor_speeds
+        views = self._row_views
+        if len(views) == 1:  # the state's rows lie next to each other: one copy
+            row[1:18] = views[0]
+        else:
+            row[1:4], row[4:7], row[7:11], row[11:14], row[14:18] = views
         return row
 
     def step(self, done: Callable[[float, Odometry], bool] | None = None) -> bool:
@@ -362,65 +382,107 @@ class Simulator:
         start_ns, span = now, max(end_ns - now, 1)
         last_bar = -1
         perf = time.perf_counter
+        snapshot, record = self._snapshot, self._record
+        # the physics clock's arithmetic inlined (EventClock.advance): t_k = start + k * NS * den // num
+        p_start, p_num, p_den = physics.start_ns, physics.num, physics.den
+        p_step = NS * p_den
+        p_k, p_next = physics.k, physics.next_ns
+        check_nodes = quad is not None
         next_event = self._next_event()
-        while now < end_ns:
-            if self._processed_ns != now:  # events and node checks at `now`, once
-                self._processed_ns = now
-                if now >= next_event:
-                    bus.now_ns = now
-                    if pending and pending[0][0] <= now:
-                        bus.release(now)
-                    t = now / NS
-                    truth = None
-                    next_event = math.inf
-                    for s in slots:
-                        clock = s.clock
-                        if clock.next_ns == now:
-                            if truth is None and quad is not None:
-                                truth = self._snapshot(t)
-                                self._truth_at = (now, truth)
-                                deliver(truth_topic, truth, now, now)
-                            w0 = perf()
-                            s.run(t, s.view)
-                            s.seconds += perf() - w0
-                            clock.advance()
-                        if clock.next_ns < next_event:
-                            next_event = clock.next_ns
-                    if pending and pending[0][0] < next_event:
-                        next_event = pending[0][0]
-                    act: ActuatorCommand | None = latest.get(actuator)
-                    if act is not None:
-                        cmd = act.rotor_speeds
-                    if self.status is not None:  # a component stopped the run
-                        if quad is not None:
-                            self._write_row(t)
+        try:
+            while now < end_ns:
+                if self._processed_ns != now:  # events and node checks at `now`, once
+                    self._processed_ns = now
+                    if now >= next_event:
+                        bus.now_ns = now
+                        if pending and pending[0][0] <= now:
+                            bus.release(now)
+                        t = now / NS
+                        truth = None
+                        next_event = math.inf
+                        for s in slots:
+                            clock = s.clock
+                            if clock.next_ns == now:
+                                if truth is None and quad is not None:
+                                    truth = snapshot(t)
+                                    self._truth_at = (now, truth)
+                                    deliver(truth_topic, truth, now, now)
+                                w0 = perf()
+                                s.run(t, s.view)
+                                s.seconds += perf() - w0
+                                clock.advance()
+                            if clock.next_ns < next_event:
+                                next_event = clock.next_ns
+                        if pending and pending[0][0] < next_event:
+                            next_event = pending[0][0]
+                        act: ActuatorCommand | None = latest.get(actuator)
+                        if act is not None:
+                            cmd = act.rotor_speeds
+                        if self.status is not None:  # a component stopped the run
+                            if quad is not None:
+                                self._write_row(t)
+                            break
+                    if at_node and check_nodes and record(now, done):
                         break
-                if at_node and quad is not None and self._node_checks(now, done):
+                target = p_next if p_next < next_event else next_event
+                if target > end_ns:  # stop on the grid: a step is never split for where a call ends
                     break
-            target = physics.next_ns
-            if next_event < target:
-                target = next_event
-            if target > end_ns:  # stop on the grid: a step is never split for where a call ends
-                break
-            if quad is not None:
-                w0 = perf()
-                quad.step((target - now) / NS, cmd)
-                self._physics_seconds += perf() - w0
-            now = target
-            at_node = now == physics.next_ns
-            if at_node:
-                self._node += 1
-                physics.advance()
-            if progress:
-                bar = (400 * (now - start_ns)) // span
-                if bar != last_bar:
-                    last_bar = bar
-                    chars = bar // 10
-                    sys.stderr.write(f"\r[{'#' * chars}{'.' * (40 - chars)}] {now / NS:7.2f} s")
-                    sys.stderr.flush()
+                if quad is not None:
+                    w0 = perf()
+                    quad.step((target - now) / NS, cmd)
+                    self._physics_seconds += perf() - w0
+                now = target
+                at_node = now == p_next
+                if at_node:
+                    self._node += 1
+                    p_k += 1
+                    p_next = p_start + (p_k * p_step) // p_num
+                if progress:
+                    bar = (400 * (now - start_ns)) // span
+                    if bar != last_bar:
+                        last_bar = bar
+                        chars = bar // 10
+                        sys.stderr.write(f"\r[{'#' * chars}{'.' * (40 - chars)}] {now / NS:7.2f} s")
+                        sys.stderr.flush()
+        finally:
+            physics.k, physics.next_ns = p_k, p_next
+            self._now_ns, self._cmd, self._at_node = now, cmd, at_node
         if progress:
             sys.stderr.write("\n")
-        self._now_ns, self._cmd, self._at_node = now, cmd, at_node
+
+    def _record(self, now: int, done: Callable[[float, Odometry], bool] | None) -> bool:
+        """:meth:`_node_checks` with the common case (a record node without a collision check, nothing wrong)
+        inlined. True when the run ends here."""
+        node = self._node
+        if node % self.record_period or (self.collision is not None and node % self.collision_period == 0):
+            return self._node_checks(now, done)
+        t = now / NS
+        if self._n_block == 4096:
+            self._rows.append(self._block)
+            self._block = np.empty((4096, 18))
+            self._n_block = 0
+        row = self._block[self._n_block]
+        self._n_block += 1
+        row[0] = t
+        views = self._row_views
+        if len(views) == 1:  # the state's rows lie next to each other: one copy
+            row[1:18] = views[0]
+        else:
+            row[1:4], row[4:7], row[7:11], row[11:14], row[14:18] = views
+        x = row.tolist()  # Python floats: cheaper to compare than numpy scalars
+        d, r = self.max_distance, self.max_body_rate
+        if not math.isfinite(sum(x)) or abs(x[1]) > d or abs(x[2]) > d or abs(x[3]) > d or abs(x[11]) > r \
+                or abs(x[12]) > r or abs(x[13]) > r or (x[3] <= 0.05 and self._ground_plane):
+            bad = self._check(row)
+            if bad is not None:
+                self.status, self.message = bad
+                return True
+        if done is not None:
+            at, truth = self._truth_at
+            if done(t, truth if at == now else self._snapshot(t)):
+                self.status, self.message = RunStatus.COMPLETED, "done condition met"
+                return True
+        return False
 
     def _next_event(self) -> float:
         """The next instant at which a component runs or a message becomes visible [ns]."""
@@ -495,13 +557,15 @@ class Simulator:
         return self.result()
 
     def _check(self, row: np.ndarray) -> tuple[RunStatus, str] | None:
-        if not math.isfinite(float(row.sum())):
+        row = row.tolist()  # Python floats: cheaper to compare than numpy scalars
+        if not math.isfinite(sum(row)):
             return RunStatus.DIVERGED, f"non-finite state at t = {row[0]:.3f} s"
-        if abs(row[1]) > self.max_distance or abs(row[2]) > self.max_distance or abs(row[3]) > self.max_distance:
-            return RunStatus.DIVERGED, f"vehicle left the {self.max_distance:g} m bounds at t = {row[0]:.3f} s"
-        if max(abs(row[11]), abs(row[12]), abs(row[13])) > self.max_body_rate:
-            return RunStatus.DIVERGED, f"body rate above {self.max_body_rate:g} rad/s at t = {row[0]:.3f} s"
-        if self.vehicle.params.ground_plane and row[3] <= 0.05:
+        d, r = self.max_distance, self.max_body_rate
+        if abs(row[1]) > d or abs(row[2]) > d or abs(row[3]) > d:
+            return RunStatus.DIVERGED, f"vehicle left the {d:g} m bounds at t = {row[0]:.3f} s"
+        if abs(row[11]) > r or abs(row[12]) > r or abs(row[13]) > r:
+            return RunStatus.DIVERGED, f"body rate above {r:g} rad/s at t = {row[0]:.3f} s"
+        if self._ground_plane and row[3] <= 0.05:
             # body z axis's world z component: 1 - 2 (x^2 + y^2)
             up = 1.0 - 2.0 * (row[8] * row[8] + row[9] * row[9])
             if row[6] < -self.crash_speed:
