@@ -149,13 +149,13 @@ class MinimumSnapTrajectory:
         self._pos_tables = self._tables(self.coeffs)
         self._yaw_tables = self._tables(self.yaw_coeffs)
         # per segment, derivatives 0..3 (position) and 0..1 (yaw) side by side: (M, r, 8, d) -> one matmul per sample
-        self._pos_stack = np.stack(self._pos_tables[:4], axis=1)
-        self._yaw_stack = np.stack(self._yaw_tables[:2], axis=1)
+        self._pos_stack = np.ascontiguousarray(self._pos_tables[:4].transpose(1, 0, 2, 3))
+        self._yaw_stack = np.ascontiguousarray(self._yaw_tables[:2].transpose(1, 0, 2, 3))
         # For vectorised sampling, per segment one (8, 14) table: p, v, a, j (3 columns each), yaw, yaw rate (the
         # cubic's rows padded with zeros), so a run of samples in one segment is one matmul.
         yaw = np.zeros((len(T), 8, 2))
-        yaw[:, :4] = np.concatenate(self._yaw_tables[:2], axis=2)
-        self._table = np.concatenate(self._pos_tables[:4] + [yaw], axis=2)
+        yaw[:, :4] = np.concatenate(list(self._yaw_tables[:2]), axis=2)
+        self._table = np.concatenate(list(self._pos_tables[:4]) + [yaw], axis=2)
 
     def _dense_times(self, per_segment: int = 16) -> np.ndarray:
         s = np.linspace(0.0, 1.0, per_segment, endpoint=False)
@@ -171,16 +171,13 @@ class MinimumSnapTrajectory:
         """Time of the last waypoint [s]."""
         return float(self.t_knots[-1])
 
-    def _tables(self, c: np.ndarray) -> list[np.ndarray]:
-        """Per derivative order r, coefficients (M, nc, d) of p^(r) in powers of s, scaled to time units."""
+    def _tables(self, c: np.ndarray) -> np.ndarray:
+        """Per derivative order r, coefficients (M, nc, d) of p^(r) in powers of s, scaled to time units:
+        (nc, M, nc, d), indexed by r."""
         nc = c.shape[1]
-        j = np.arange(nc)
-        out = []
-        for r in range(nc):
-            d = np.zeros_like(c)
-            d[:, : nc - r] = c[:, r:] * _falling(j[r:], r)[None, :, None] / self.durations[:, None, None] ** r
-            out.append(d)
-        return out
+        src, factor = _derivative_gather(nc)
+        T_r = np.stack([self.durations ** r for r in range(nc)])  # scalar powers (as sampled one by one)
+        return c[:, src].transpose(1, 0, 2, 3) * factor[:, None, :, None] / T_r[:, :, None, None]
 
     def derivative(self, t: np.ndarray | float, r: int, which: str = "position") -> np.ndarray:
         """The r-th time derivative at times ``t``: (N, 3) for position, (N,) for yaw; rest outside the span."""
@@ -235,6 +232,19 @@ class MinimumSnapTrajectory:
     def snap_cost(self) -> float:
         """``sum_i int |p''''(t)|^2 dt`` over all segments, exact [m^2/s^7]."""
         return _derivative_cost(self.coeffs, self.durations, 4)
+
+
+@functools.lru_cache(maxsize=8)
+def _derivative_gather(nc: int) -> tuple[np.ndarray, np.ndarray]:
+    """For the r-th derivative of sum_j c_j s^j = sum_p c_(p+r) (p+r)!/p! s^p: the source index p + r and the
+    factor (p+r)!/p! (0 where p + r >= nc), each (nc, nc) indexed [r, p] (read-only)."""
+    r, p = np.arange(nc)[:, None], np.arange(nc)[None, :]
+    src = np.minimum(r + p, nc - 1)
+    factor = np.array([[math.factorial(a + b) / math.factorial(b) if a + b < nc else 0.0 for b in range(nc)]
+                       for a in range(nc)])
+    for a in (src, factor):
+        a.flags.writeable = False
+    return src, factor
 
 
 @functools.lru_cache(maxsize=16)
