@@ -6,9 +6,12 @@ HIL_SENSOR period):
   in-process   the controls are handed back without a socket (cufund's own cost per period: sensors, physics,
                encoding, parsing)
   tcp, C-speed a separate process with a struct codec (what px4_sitl's C side costs): frames and CRC-checks the
-               stream, answers each HIL_SENSOR of instance 0 with controls stamped with its time
+               stream, decodes each HIL_SENSOR, answers instance 0's with controls stamped with its time; once
+               where the OS places the two processes, once with both pinned to one CPU (``--cpu`` / ``taskset``)
   tcp, harness a separate process running the pymavlink harness the tests use (parses everything, packs replies)
 and, as the transport's ceiling on this machine, a bare TCP ping-pong of the same sizes with no simulation.
+Per round trip it prints wall, cufund's CPU and the peer's CPU [us]: wall minus the two CPUs is the hand-overs
+(wake-ups, the other process's scheduling). Clocks start once the peer has connected (its start-up is printed).
 Run: `.venv/bin/python benchmarks/bench_px4_lockstep.py [seconds of simulated time, default 20]`.
 """
 
