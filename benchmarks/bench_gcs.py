@@ -30,6 +30,29 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime of all threads
 
 
+def tree_cpu_seconds(root: int) -> float:
+    """CPU seconds of ``root``'s descendants still running (the browser's processes under chromedriver)."""
+    parent = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    parent[int(entry)] = int(f.read().rsplit(")", 1)[1].split()[1])
+            except OSError:
+                continue
+    tree, frontier = set(), {root}
+    while frontier:
+        frontier = {p for p, pp in parent.items() if pp in frontier} - tree
+        tree |= frontier
+    total = 0.0
+    for pid in tree:
+        try:
+            total += cpu_seconds(pid)
+        except OSError:
+            pass
+    return total
+
+
 def io_cpu(gcs: GcsProcess) -> float:
     """CPU seconds of the server's event-loop thread (HTTP, websockets, telemetry; not the simulation)."""
     import json
@@ -127,6 +150,7 @@ def main() -> None:
     ap.add_argument("--clicks", type=int, default=10)
     ap.add_argument("--speed", default="1")
     ap.add_argument("--fps", type=int, default=20, help="the page's 3-D redraw cap (?fps=)")
+    ap.add_argument("--query", default="", help="more of the page's URL parameters, e.g. 'view=page&dpr=1'")
     args = ap.parse_args()
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
@@ -138,17 +162,24 @@ def main() -> None:
         idle, idle_io = cpu_share(gcs, args.seconds)
         d = browser()
         try:
-            url = f"{gcs.url}&fps={args.fps}"
+            url = f"{gcs.url}&fps={args.fps}" + (f"&{args.query}" if args.query else "")
             d.get(url)
-            assert wait_for(lambda: d.execute_script("return window.gcs.stats.telemetry") > 10, 30)
-            stats = "return [window.gcs.stats.telemetry, window.gcs.stats.clouds, performance.now()]"
-            n0, c0, w0 = d.execute_script(stats)
+            assert wait_for(lambda: d.execute_script("return window.gcs.stats.telemetry > 10 && window.gcs.stats.frames > 0"), 30)
+            stats = ("return [window.gcs.stats.telemetry, window.gcs.stats.clouds, performance.now(), "
+                     "window.gcs.stats.frames]")
+            n0, c0, w0, f0 = d.execute_script(stats)
+            b0 = tree_cpu_seconds(d.service.process.pid)
             time.sleep(args.seconds)
-            n1, c1, w1 = d.execute_script(stats)
+            n1, c1, w1, f1 = d.execute_script(stats)
+            b1 = tree_cpu_seconds(d.service.process.pid)
             rate, clouds = (n1 - n0) / ((w1 - w0) / 1e3), (c1 - c0) / ((w1 - w0) / 1e3)
-            fps = d.execute_script("return window.gcs.stats.fps")
+            frames = (f1 - f0) / ((w1 - w0) / 1e3)
+            fps, aa = d.execute_script("return [window.gcs.stats.fps, window.gcs.stats.antialias]")
             print(f"telemetry in the browser, cloud layer on: {rate:.1f} Hz (target >= 30); clouds {clouds:.1f} Hz; "
-                  f"3-D redraws capped at {fps:.0f} fps by the view's congestion control")
+                  f"3-D frames {frames:.1f} /s (capped at {fps:.0f} fps by the view's congestion control; "
+                  f"multisampling {'on' if aa else 'off'})")
+            print(f"the browser's CPU (all its processes): {(b1 - b0) / ((w1 - w0) / 1e3):.2f} cores, "
+                  f"{(b1 - b0) * 1e3 / max(1, f1 - f0):.0f} ms per 3-D frame")
             d.execute_cdp_cmd("Performance.enable", {})
             busy = main_thread_busy(d, min(args.seconds, 5.0))
             print(f"the page's main thread busy {busy * 100:.0f} % of the time (the 3-D view draws in a worker)")

@@ -11,7 +11,7 @@ without it):
 - ``GET /api/state`` the telemetry as JSON; ``POST /api/command`` a JSON command (``{"command": "arm"}``, ...) →
   its acknowledgement ``{"command", "result", "message"}`` (HTTP 400 for a malformed one).
 - ``GET /ws`` the page's websocket. Server → page: JSON ``hello`` (the scene and everything needed to catch up),
-  ``telemetry`` (at ``telemetry_hz``, and at once after a vehicle command's acknowledgement), ``events``, ``planned``, ``esdf``, ``ack``, ``error``, ``pong``; binary
+  ``telemetry`` (at ``telemetry_hz``, and at once when the commander has applied a command), ``events``, ``planned``, ``esdf``, ``ack``, ``error``, ``pong``; binary
   frames are LiDAR clouds (float32 ``[t, n, x, y, z, ...]``, world frame) for tabs with the cloud layer on.
   Page → server: ``{"type": "command", "id": n, "command": {...}}``, ``{"type": "layers", "cloud": bool}``,
   ``{"type": "ping", ...}``, ``{"type": "seen", "telemetry": n, "cloud": m}`` (messages of each stream processed
@@ -26,6 +26,7 @@ command line's overrides only if it is the command line's scenario; every tab ge
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import math
 import secrets
@@ -215,7 +216,6 @@ class GcsServer:
             ack = await self._local(name, command)
         else:
             ack = await self._vehicle(name, command)
-            self._tick()  # the commander's new state (a go-to's target) goes out now, not with the next tick
         self.broadcast({"type": "events", "events": [session.log(
             {"t": session.telemetry.get("t"), "kind": "command", "message":
              f"{name}: {ack['result']}" + (f" ({ack['message']})" if ack.get("message") else "")})]})
@@ -225,6 +225,15 @@ class GcsServer:
         session = self.session
         assert session is not None
         future = session.live.submit(command)  # a malformed command raises ValueError here or in the future
+        # the commander's new state (a go-to's target) goes to every tab as soon as it is applied: scheduled on the
+        # event loop straight from the simulation thread, not with the next tick nor after the ack's way back here
+        loop = asyncio.get_running_loop()
+
+        def push(_: Any) -> None:
+            with contextlib.suppress(RuntimeError):  # the loop has closed: the server stopped meanwhile
+                loop.call_soon_threadsafe(self._tick)
+
+        future.add_done_callback(push)
         try:
             ack = await asyncio.wait_for(asyncio.wrap_future(future), ACK_TIMEOUT_S)
         except asyncio.TimeoutError:

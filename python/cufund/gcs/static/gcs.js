@@ -2,7 +2,9 @@
 // The 3-D view is drawn by view.js in a Web Worker (see there why); this thread posts it only what it needs.
 "use strict";
 (function () {
-  const query = new URLSearchParams(location.search);  // token; fps (3-D redraw cap, 20); dpr (cap, 1.5); view=page
+  // URL parameters: token; fps (3-D redraw cap, 20); dpr (device-pixel-ratio cap, 1.5); aa (multisampling: 1, 0;
+  // default off with a software WebGL renderer); view=page (draw the 3-D view in the page, not a worker)
+  const query = new URLSearchParams(location.search);
   const token = query.get("token") || "";
   const $ = (id) => document.getElementById(id);
   const PLOT_S = 20;
@@ -20,7 +22,7 @@
   const replies = {};
   let nextQuery = 1;
   function fromView(m) {
-    if (m.type === "stats") { stats.fps = m.fps; stats.lagMs = m.lagMs; stats.frames = m.frames; return; }
+    if (m.type === "stats") { stats.fps = m.fps; stats.lagMs = m.lagMs; stats.frames = m.frames; stats.antialias = m.antialias; return; }
     if (m.type === "marker") {  // the view drew a new setpoint: the clicked one?
       const c = gcs.lastClick;
       if (c && c.drawnAt === undefined && Math.hypot(m.sp[0] - c.p_W[0], m.sp[1] - c.p_W[1]) < 0.01) c.drawnAt = m.at - performance.timeOrigin;
@@ -31,11 +33,12 @@
     if (cb) cb(m.value);
   }
   let toView;
+  const antialias = query.has("aa") ? query.get("aa") !== "0" : null;  // default: not with software WebGL
   gcs.viewInWorker = query.get("view") !== "page" && Boolean(canvas.transferControlToOffscreen && window.Worker);
   if (gcs.viewInWorker) {
     const worker = new Worker("/static/view.js");
     const off = canvas.transferControlToOffscreen();
-    worker.postMessage({type: "init", canvas: off}, [off]);
+    worker.postMessage({type: "init", canvas: off, antialias: antialias}, [off]);
     worker.onmessage = (e) => fromView(e.data);
     worker.onerror = (e) => { stats.errors.push("3-D view: " + e.message); };
     toView = (m, transfer) => worker.postMessage(m, transfer || []);
@@ -44,7 +47,7 @@
     toView = (m) => pending.push(m);
     const load = (src, then) => { const el = document.createElement("script"); el.src = src; el.onload = then; document.head.appendChild(el); };
     load("/meshcat/main.min.js", () => load("/static/view.js", () => {
-      const handle = window.cufundView(MeshCat.THREE, canvas, (r) => setTimeout(() => fromView(r)));
+      const handle = window.cufundView(MeshCat.THREE, canvas, (r) => setTimeout(() => fromView(r)), antialias);
       toView = (m) => handle(m);
       for (const m of pending.splice(0)) handle(m);
     }));

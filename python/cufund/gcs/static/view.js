@@ -5,9 +5,22 @@
 // Without OffscreenCanvas the page runs the same view itself (cufundView below, called in the page).
 "use strict";
 
-function cufundView(THREE, canvas, reply) {
+function softwareWebGL() {  // SwiftShader, llvmpipe...: no GPU, every pixel costs CPU (and multisampling four times)
+  try {
+    const probe = typeof OffscreenCanvas === "function" ? new OffscreenCanvas(1, 1) : document.createElement("canvas");
+    const gl = probe.getContext("webgl");
+    const info = gl && gl.getExtension("WEBGL_debug_renderer_info");
+    const name = info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : "";
+    if (gl && gl.getExtension("WEBGL_lose_context")) gl.getExtension("WEBGL_lose_context").loseContext();
+    return /swiftshader|llvmpipe|softpipe|software/i.test(String(name));
+  } catch (e) { return false; }
+}
+
+// antialias: true, false, or null (multisampled unless the WebGL renderer is a software one)
+function cufundView(THREE, canvas, reply, antialias) {
   const MAX_PATH = 20000, MAX_CLOUD = 8000, PATH_STEP_M = 0.02;
-  const renderer = new THREE.WebGLRenderer({canvas: canvas, antialias: true});
+  const aa = typeof antialias === "boolean" ? antialias : !softwareWebGL();
+  const renderer = new THREE.WebGLRenderer({canvas: canvas, antialias: aa});
   const scene = new THREE.Scene();
   scene.background = new THREE.Color(0xeef0f4);
   const grid = new THREE.GridHelper(20, 40, 0x8a8a8a, 0xc8c8c8);  // 0.5 m cells on the ground (z = 0)
@@ -155,7 +168,7 @@ function cufundView(THREE, canvas, reply) {
     const fps = 1000 / drawMs;
     if (lag > 30) drawMs = 1000 / Math.max(3, fps * 0.7);
     else if (lag < 10) drawMs = 1000 / Math.min(maxFps, fps * 1.2 + 0.5);
-    reply({type: "stats", fps: 1000 / drawMs, lagMs: lag, frames: frames});
+    reply({type: "stats", fps: 1000 / drawMs, lagMs: lag, frames: frames, antialias: aa});
   }, 100);
 
   function pointsOf(obj) {
@@ -252,7 +265,7 @@ if (typeof document === "undefined" && typeof importScripts === "function") {  /
   self.onmessage = (e) => {
     const m = e.data;
     if (m.type === "init") {
-      handle = cufundView(MeshCat.THREE, m.canvas, (r) => self.postMessage(r));
+      handle = cufundView(MeshCat.THREE, m.canvas, (r) => self.postMessage(r), m.antialias);
       for (const q of queue.splice(0)) handle(q);
     } else if (handle) handle(m); else queue.push(m);
   };
