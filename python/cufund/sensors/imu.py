@@ -24,7 +24,7 @@ from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
 from .pose import quat_to_matrix, world_to_body
 
-__all__ = ["ImuParams", "ImuModel", "ImuSensor", "IMU_PRESETS", "imu_preset"]
+__all__ = ["IMU_PRESETS", "ImuModel", "ImuParams", "ImuSensor", "imu_preset"]
 
 G0 = 9.80665
 DEG = math.pi / 180.0
@@ -178,7 +178,8 @@ class ImuModel:
             wx, wy, wz = (min(max(v, -gr), gr) for v in (wx, wy, wz))
         return np.array((fx, fy, fz)), np.array((wx, wy, wz))
 
-    def measure_static(self, k: int, q_WB: np.ndarray = np.array([1.0, 0.0, 0.0, 0.0])) -> tuple[np.ndarray, np.ndarray]:
+    def measure_static(self, k: int, q_WB: np.ndarray | tuple[float, ...] = (1.0, 0.0, 0.0, 0.0)
+                       ) -> tuple[np.ndarray, np.ndarray]:
         """``k`` samples of an IMU at rest with attitude ``q_WB`` (level by default)."""
         q = np.broadcast_to(np.asarray(q_WB, dtype=float), (k, 4))
         z = np.zeros((k, 3))

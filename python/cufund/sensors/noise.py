@@ -30,7 +30,7 @@ def real_fields(obj: object, where: str) -> None:
         if f.type in ("float", float):
             object.__setattr__(obj, f.name, real_number(f"{where}.{f.name}", getattr(obj, f.name)))
 
-__all__ = ["NoiseSpec", "ErrorProcess"]
+__all__ = ["ErrorProcess", "NoiseSpec"]
 
 
 def _nonneg_vector(name: str, value: object, dim: int) -> tuple[float, ...]:
