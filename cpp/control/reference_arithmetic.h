@@ -30,7 +30,9 @@ inline double norm(const Eigen::Matrix<double, N, 1>& v) {
 inline double hypot(double a, double b) {
   constexpr double kSplit = 134217729.0;  // 2^27 + 1
   const double va = std::fabs(a), vb = std::fabs(b);
-  const double max = va > vb ? va : vb;
+  double max = 0.0;  // a NaN never becomes the maximum: hypot(inf, nan) is inf
+  if (va > max) max = va;
+  if (vb > max) max = vb;
   if (std::isinf(max)) return max;
   if (std::isnan(a) || std::isnan(b)) return std::numeric_limits<double>::quiet_NaN();
   if (max == 0.0) return max;
