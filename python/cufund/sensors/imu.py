@@ -199,7 +199,9 @@ class ImuSensor(ModelSensor):
         if truth.a_W is None or truth.alpha_B is None:
             raise ValueError("ImuSensor needs ground truth with accelerations (a_W, alpha_B), as the Simulator publishes")
         a, w = self.model.measure(truth.q_WB, truth.w_B, truth.a_W, truth.alpha_B)
-        return Imu(t, a, w)
+        a.setflags(write=False)  # fresh arrays the model keeps no reference to: frozen, the message is trusted
+        w.setflags(write=False)
+        return Imu.trusted(t, a, w)
 
 
 def _mems(name: str, rate_hz: float, acc_nd_ug: float, gyro_nd_dps: float, acc_rw: float, gyro_rw: float,
