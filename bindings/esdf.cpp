@@ -6,6 +6,7 @@
 
 #include "edt.h"
 #include "esdf_map.h"
+#include "scan_placement.h"
 #include "pybind_common.h"
 #include "thread_pool.h"
 
@@ -112,6 +113,7 @@ py::dict stats_dict(const esdf::EsdfUpdateStats& s) {
   d["nan_points"] = s.scan.nan_points;
   d["outside"] = s.scan.outside;
   d["beyond_range"] = s.scan.beyond_range;
+  d["beams"] = s.scan.beams;
   d["hit_voxels"] = s.scan.hit_voxels;
   d["free_voxels"] = s.scan.free_voxels;
   d["flipped_voxels"] = s.outside.changed_sites;
@@ -140,7 +142,8 @@ void define_esdf(py::module_& m) {
 
   py::class_<esdf::EsdfMap>(m, "EsdfMap", "Occupancy grid with an incrementally exact ESDF; use cufund.esdf.EsdfMap.")
       .def(py::init([](const py::handle& origin_W, const py::handle& shape_obj, double resolution, float hit, float miss,
-                       float lmin, float lmax, float locc, double max_range, bool signed_distance, int nthreads) {
+                       float lmin, float lmax, float locc, double max_range, bool signed_distance, int nthreads,
+                       bool merge_beams) {
              esdf::GridGeometry g;
              g.origin_W = finite3(origin_W, "origin_W");
              auto s = as_float64(shape_obj, "shape", {3});
@@ -173,6 +176,7 @@ void define_esdf(py::module_& m) {
              sm.log_odds_max = lmax;
              sm.log_odds_occupied = locc;
              sm.max_range = max_range;
+             sm.merge_beams = merge_beams;
              esdf::EsdfOptions o;
              o.signed_distance = signed_distance;
              o.nthreads = nthreads;
@@ -181,7 +185,7 @@ void define_esdf(py::module_& m) {
            }),
            py::arg("origin_W"), py::arg("shape"), py::arg("resolution"), py::arg("log_odds_hit"),
            py::arg("log_odds_miss"), py::arg("log_odds_min"), py::arg("log_odds_max"), py::arg("log_odds_occupied"),
-           py::arg("max_range"), py::arg("signed"), py::arg("nthreads"))
+           py::arg("max_range"), py::arg("signed"), py::arg("nthreads"), py::arg("merge_beams") = false)
       .def(py::init([](const esdf::EsdfMap& other) {
              std::shared_lock<std::shared_mutex> read(other.access_mutex());
              return std::make_unique<esdf::EsdfMap>(other);
@@ -202,6 +206,108 @@ void define_esdf(py::module_& m) {
             return stats_dict(s);
           },
           py::arg("points_W"), py::arg("origin_W"))
+      .def(
+          "insert_scans",
+          [](esdf::EsdfMap& self, const py::sequence& scans) {
+            std::vector<py::array_t<double, py::array::c_style>> keep;
+            std::vector<esdf::EsdfMap::Scan> batch;
+            for (std::size_t k = 0; k < scans.size(); ++k) {
+              const py::object item = scans[k];
+              if (!py::isinstance<py::tuple>(item) || py::len(item) != 2) {
+                throw py::value_error("scans[" + std::to_string(k) + "] must be a tuple (points_W, origin_W), got " +
+                                      type_name(item));
+              }
+              const py::tuple pair = item.cast<py::tuple>();
+              keep.push_back(points_array(pair[0], "points_W"));
+              batch.push_back({keep.back().data(), keep.back().shape(0), finite3(pair[1], "origin_W")});
+            }
+            esdf::EsdfUpdateStats s;
+            {
+              py::gil_scoped_release release;
+              ForkSafeSection no_fork;
+              std::unique_lock<std::shared_mutex> write(self.access_mutex());
+              s = self.insert_scans(batch);
+            }
+            return stats_dict(s);
+          },
+          py::arg("scans"))
+      .def(
+          "insert_frames",
+          [](esdf::EsdfMap& self, const py::sequence& frames, const py::handle& knots_t, const py::handle& knots_p,
+             const py::handle& knots_q, const py::handle& R_BL, const py::handle& t_BL) {
+            // Pose knots: (K,) strictly ascending finite stamps, (K, 3) positions, (K, 4) non-zero quaternions.
+            py::array kt_arr = py::array::ensure(knots_t);
+            const py::ssize_t nk = kt_arr && kt_arr.ndim() == 1 ? kt_arr.shape(0) : -1;
+            if (nk < 1) throw py::value_error("knots_t must be a non-empty 1-D array of times [s], got " + type_name(knots_t));
+            auto kt = as_float64(knots_t, "knots_t", {nk});
+            auto kp = as_float64(knots_p, "knots_p", {nk, 3});
+            auto kq = as_float64(knots_q, "knots_q", {nk, 4});
+            for (py::ssize_t i = 0; i < nk; ++i) {
+              const double* q = kq.data() + 4 * i;
+              const double* p = kp.data() + 3 * i;
+              bool finite = std::isfinite(kt.data()[i]);
+              for (int a = 0; a < 3; ++a) finite = finite && std::isfinite(p[a]);
+              for (int a = 0; a < 4; ++a) finite = finite && std::isfinite(q[a]);
+              if (!finite) throw py::value_error("pose knot " + std::to_string(i) + " must be finite");
+              if (!(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] > 1e-18)) {
+                throw py::value_error("knots_q row " + std::to_string(i) + " must be a non-zero quaternion [w, x, y, z]");
+              }
+              if (i && !(kt.data()[i] > kt.data()[i - 1])) {
+                throw py::value_error("knots_t must be strictly ascending, got " + std::to_string(kt.data()[i - 1]) +
+                                      " then " + std::to_string(kt.data()[i]) + " at " + std::to_string(i));
+              }
+            }
+            esdf::RigidTransform T_BL;
+            auto R = as_float64(R_BL, "R_BL", {3, 3});
+            std::copy(R.data(), R.data() + 9, T_BL.R.begin());
+            T_BL.t = finite3(t_BL, "t_BL");
+            for (double v : T_BL.R) {
+              if (!std::isfinite(v)) throw py::value_error("R_BL must be finite");
+            }
+            // Frames: (points_L (N, 3) [m, LiDAR frame], t (N,) firing times [s], t_origin [s]).
+            std::vector<py::array_t<double, py::array::c_style>> points, times;
+            std::vector<double> t_origin;
+            for (std::size_t k = 0; k < frames.size(); ++k) {
+              const py::object item = frames[k];
+              if (!py::isinstance<py::tuple>(item) || py::len(item) != 3) {
+                throw py::value_error("frames[" + std::to_string(k) + "] must be a tuple (points_L, t, t_origin), got " +
+                                      type_name(item));
+              }
+              const py::tuple f = item.cast<py::tuple>();
+              points.push_back(points_array(f[0], "points_L"));
+              times.push_back(as_float64(f[1], "t", {points.back().shape(0)}));
+              for (py::ssize_t i = 0; i < times.back().shape(0); ++i) {
+                if (!std::isfinite(times.back().data()[i])) {
+                  throw py::value_error("t must be finite [s], got a NaN or inf at " + std::to_string(i));
+                }
+              }
+              t_origin.push_back(finite_arg(f[2], "t_origin"));
+            }
+            esdf::EsdfUpdateStats s;
+            {
+              py::gil_scoped_release release;
+              ForkSafeSection no_fork;
+              const esdf::PoseKnots knots{kt.data(), kp.data(), kq.data(), nk};
+              std::vector<std::vector<double>> placed(points.size());
+              std::vector<esdf::EsdfMap::Scan> batch;
+              for (std::size_t k = 0; k < points.size(); ++k) {
+                const Index n = points[k].shape(0);
+                placed[k].resize(static_cast<std::size_t>(3 * n));
+                esdf::place_points(knots, T_BL, points[k].data(), times[k].data(), n, placed[k].data());
+                const esdf::RigidTransform T_WB = esdf::body_pose_at(knots, t_origin[k]);
+                std::array<double, 3> o;
+                for (int r = 0; r < 3; ++r) {
+                  o[r] = T_WB.t[r] + T_WB.R[3 * r] * T_BL.t[0] + T_WB.R[3 * r + 1] * T_BL.t[1] + T_WB.R[3 * r + 2] * T_BL.t[2];
+                }
+                batch.push_back({placed[k].data(), n, o});
+              }
+              std::unique_lock<std::shared_mutex> write(self.access_mutex());
+              s = self.insert_scans(batch);
+            }
+            return stats_dict(s);
+          },
+          py::arg("frames"), py::arg("knots_t"), py::arg("knots_p"), py::arg("knots_q"), py::arg("R_BL"),
+          py::arg("t_BL"))
       .def(
           "set_occupied",
           [](esdf::EsdfMap& self, py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> index,

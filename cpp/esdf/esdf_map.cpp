@@ -55,6 +55,18 @@ EsdfUpdateStats EsdfMap::insert_scan(const double* p_W, Index n, const double* o
   return stats;
 }
 
+EsdfUpdateStats EsdfMap::insert_scans(const std::vector<Scan>& scans) {
+  std::vector<Index> flipped;
+  std::vector<std::uint8_t> state;
+  const auto start = std::chrono::steady_clock::now();
+  const ScanStats scan = grid_.insert_scans(scans, &flipped, &state, options_.nthreads);
+  const double raycast = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EsdfUpdateStats stats = apply(flipped, state);
+  stats.scan = scan;
+  stats.raycast_seconds = raycast;
+  return stats;
+}
+
 EsdfUpdateStats EsdfMap::set_occupied(const std::vector<Index>& index, const std::vector<std::uint8_t>& value) {
   std::vector<Index> flipped;
   std::vector<std::uint8_t> state;

@@ -2,6 +2,7 @@
 // every inserted scan, with batched trilinear distance and gradient queries.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -47,6 +48,12 @@ class EsdfMap {
 
   // Inserts a point cloud (see OccupancyGrid::insert_scan) and updates the field incrementally.
   EsdfUpdateStats insert_scan(const double* p_W, Index n, const double* origin_W);
+  // One scan of a batch: n points p_W (n x 3) seen from origin_W.
+  using Scan = OccupancyGrid::Scan;
+  // Inserts the scans in order, each exactly as insert_scan does (occupancy identical to inserting them
+  // one by one), then updates the field once: the same map as one insert_scan per scan, with one
+  // incremental field update instead of one per scan. The scan statistics are summed.
+  EsdfUpdateStats insert_scans(const std::vector<Scan>& scans);
   // Forces voxels occupied / free (log-odds to the clamping bound) and updates the field incrementally.
   EsdfUpdateStats set_occupied(const std::vector<Index>& index, const std::vector<std::uint8_t>& value);
   // Sets every voxel's log-odds (occupancy().size() values, e.g. a saved log_odds()) and updates the

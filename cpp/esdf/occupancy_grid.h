@@ -26,6 +26,11 @@ struct SensorModel {
   float log_odds_max = 3.5f;
   float log_odds_occupied = 0.0f;  // a voxel is occupied when its log-odds exceeds this
   double max_range = std::numeric_limits<double>::infinity();  // beams are cut here, the end free [m]
+  // Casts one beam per distinct end voxel and scan (the scan's first point ending there) rather than one
+  // per point. A beam cut at the grid's border or at max_range ends in the last voxel it reaches inside.
+  // Hits are unchanged; free space is the part of the exact free set the kept beams cross (a subset), so
+  // every log-odds is >= the per-point update's and the occupied voxels are a superset of its.
+  bool merge_beams = false;
 };
 
 struct ScanStats {
@@ -33,6 +38,8 @@ struct ScanStats {
   std::ptrdiff_t nan_points = 0;     // skipped: a coordinate not finite
   std::ptrdiff_t outside = 0;        // beam end outside the grid: only the part inside marks free
   std::ptrdiff_t beyond_range = 0;   // longer than max_range: cut there, no hit
+  std::ptrdiff_t beams = 0;          // beams cast: finite points whose beam crosses the grid (with
+                                     // merge_beams, one per distinct end voxel)
   std::ptrdiff_t hit_voxels = 0;     // distinct voxels updated as hit
   std::ptrdiff_t free_voxels = 0;    // distinct voxels updated as free
   std::ptrdiff_t flipped_voxels = 0; // voxels whose occupied state changed
@@ -56,6 +63,19 @@ class OccupancyGrid {
   ScanStats insert_scan(const double* p_W, Index n, const double* origin_W, std::vector<Index>* flipped,
                         std::vector<std::uint8_t>* flipped_state, int nthreads = 1);
 
+  // One scan of a batch: n points p_W (n x 3) seen from origin_W.
+  struct Scan {
+    const double* p_W;
+    Index n;
+    std::array<double, 3> origin_W;
+  };
+  // Inserts the scans in order, each exactly as insert_scan does (the log-odds are the same as inserting
+  // them one by one). Appends each voxel whose state differs from before the batch once to `flipped`, in
+  // ascending order. The scans' beams are traversed in parallel, several scans at a time; the log-odds
+  // updates run over voxel ranges in parallel, each voxel's scans in order. Returns the summed stats.
+  ScanStats insert_scans(const std::vector<Scan>& scans, std::vector<Index>* flipped,
+                         std::vector<std::uint8_t>* flipped_state, int nthreads = 1);
+
   // Sets voxels index[k] to log_odds_max (value[k] != 0) or log_odds_min; records flips as above.
   // Sets every voxel's log-odds from values (size() entries, e.g. a saved log_odds()), recording flips.
   void set_log_odds(const float* values, std::vector<Index>* flipped, std::vector<std::uint8_t>* flipped_state);
@@ -63,31 +83,50 @@ class OccupancyGrid {
                     std::vector<Index>* flipped, std::vector<std::uint8_t>* flipped_state);
 
  private:
-  // Visits the voxels a segment a_W -> b_W crosses inside the grid, in order, as linear indices;
-  // with `skip_end`, the voxel holding b_W (when inside) is not visited.
+  // The part of a segment a_W -> b_W inside the grid, in voxel units: a + t d for t in [t0, t1].
+  struct Clip {
+    double a[3], d[3], t0, t1;
+    Index cur[3], end[3];  // first and last voxel of the walk
+  };
+  // False when the segment misses the grid.
+  bool clip(const double* a_W, const double* b_W, Clip* c) const;
+  // Visits the voxels a clipped segment crosses inside the grid, in order, as linear indices; with
+  // `skip_end`, the voxel holding its end (when inside) is not visited.
   template <typename Visit>
-  void traverse(const double* a_W, const double* b_W, bool skip_end, Visit&& visit) const;
+  void traverse(const Clip& c, bool skip_end, Visit&& visit) const;
+  // The end e of the beam to point p (cut at max_range) and the voxel holding it; true when it is a hit
+  // (within range, inside the grid). Counts beyond_range and outside in stats.
+  bool beam_end(const double* p, const double* origin_W, double* e, Index* voxel, ScanStats* stats) const;
   // Sets voxel i's log-odds, recording a change of its occupied state in flipped / state.
   void set(Index i, float value, std::vector<Index>* flipped, std::vector<std::uint8_t>* state);
-  // Adds delta, clamped to log_odds_max (hit) or log_odds_min (miss), recording a flip like set.
-  void apply(Index i, float delta, bool hit, std::vector<Index>* flipped, std::vector<std::uint8_t>* state);
+
+  // What one scan does, whatever the grid holds: the distinct voxels holding a beam end (hit, a bitset)
+  // and the voxels its beams cross (free, one byte per voxel; a voxel in both counts as hit), all clear
+  // between scans, plus scratch kept so that its memory is not faulted in again every scan.
+  struct ScanMarks {
+    std::vector<std::uint64_t> hit, free_end;
+    std::vector<std::uint8_t> free;  // 64 per word of `hit`
+    std::vector<Index> free_ends;
+    std::vector<std::uint8_t> use;
+    ScanStats stats;
+  };
+  // Fills `marks` from one scan (its bitsets clear on entry); beams on `nthreads` threads.
+  void mark(const Scan& scan, ScanMarks* marks, int nthreads) const;
+  // Applies the marks of `count` scans in order to the log-odds, clears them, records net flips and
+  // completes each scan's hit_voxels / free_voxels.
+  void apply_marks(ScanMarks* const* marks, int count, std::vector<Index>* flipped,
+                   std::vector<std::uint8_t>* flipped_state, int nthreads);
 
   GridGeometry geometry_;
   SensorModel model_;
   HugePageVector<float> log_odds_;
-  // Per-scan marks, one bit per voxel (small enough to stay in cache while beams are walked); all
-  // clear between scans.
-  std::vector<std::uint64_t> hit_bits_, free_bits_;
-  // Per-scan buffers, kept so that their memory is not faulted in again on every scan.
-  std::vector<std::uint8_t> use_;
-  std::vector<double> ends_;
-  std::vector<Index> hits_;
+  std::vector<ScanMarks> marks_;  // one per scan traversed concurrently
   struct ChunkFlips {
     std::vector<Index> index;
     std::vector<std::uint8_t> state;
-    Index free_voxels = 0;
+    std::vector<Index> hit_voxels, free_voxels;  // per scan of the group
   };
-  std::vector<ChunkFlips> chunk_flips_;  // per word range of the free-voxel pass
+  std::vector<ChunkFlips> chunk_flips_;  // per word range of the log-odds pass
 };
 
 }  // namespace cufund::esdf

@@ -6,13 +6,14 @@ import copy
 import math
 import numbers
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 import numpy.typing as npt
 
 from .. import _core, limits
 from ..config import ConfigError, from_dict, real_number, vector3
+from ..sensors.pose import Transform
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -48,6 +49,12 @@ class EsdfMapParams:
     """Keep the distance inside obstacles too, so the field is negative there."""
     nthreads: int = 0
     """Worker threads for the distance field and queries; 0 uses every core."""
+    merge_beams: bool = False
+    """Cast one beam per distinct end voxel and scan (the scan's first point ending there; a beam cut at the
+    map's border or at ``max_range`` ends in the last voxel it reaches inside) instead of one per point. Hits
+    are unchanged; the free space marked is the part of the per-point free space the kept beams cross, so
+    every log-odds is >= the per-point update's and the occupied voxels are a superset of its. Much cheaper
+    when many points share an end voxel (a LiDAR's dense scan on a 10 cm grid)."""
 
     def __post_init__(self) -> None:
         res = real_number("resolution", self.resolution)
@@ -76,8 +83,9 @@ class EsdfMapParams:
             )
         if not self.max_range > 0:
             raise ConfigError(f"max_range must be > 0 [m], got {self.max_range}")
-        if not isinstance(self.signed, (bool, np.bool_)):
-            raise ConfigError(f"signed must be a bool, got {self.signed!r}")
+        for name in ("signed", "merge_beams"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ConfigError(f"{name} must be a bool, got {getattr(self, name)!r}")
         if isinstance(self.nthreads, bool) or not isinstance(self.nthreads, numbers.Integral) or self.nthreads < 0:
             raise ConfigError(f"nthreads must be an integer >= 0 (0 = all cores), got {self.nthreads!r}")
 
@@ -104,6 +112,8 @@ class ScanStats:
     """Beams whose end lies outside the map: free space marked up to the border, no hit."""
     beyond_range: int
     """Beams longer than ``max_range``: cut there, no hit."""
+    beams: int
+    """Beams cast: the finite points, or with ``merge_beams`` one per distinct end voxel (none that misses the map)."""
     hit_voxels: int
     """Distinct voxels updated as hit."""
     free_voxels: int
@@ -153,7 +163,7 @@ class EsdfMap:
         self._core = _core.esdf.EsdfMap(
             params.origin_W, params.shape, params.resolution, params.log_odds_hit, params.log_odds_miss,
             params.log_odds_min, params.log_odds_max, params.log_odds_occupied, params.max_range,
-            bool(params.signed), int(params.nthreads),
+            bool(params.signed), int(params.nthreads), bool(params.merge_beams),
         )  # fmt: skip
 
     @property
@@ -173,6 +183,32 @@ class EsdfMap:
         the border and are counted in ``outside``.
         """
         return ScanStats(**self._core.insert_scan(points_W, origin_W))
+
+    def insert_scans(self, scans: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]]) -> ScanStats:
+        """Inserts several scans ``(points_W, origin_W)`` in order, each exactly as :meth:`insert_scan` would
+        (the occupancy is the same), then brings the distance field up to date once. The map equals the one
+        :meth:`insert_scan` per scan gives, at one field update for the batch. Statistics are summed over the
+        scans; ``flipped_voxels`` counts the voxels whose state differs from before the batch."""
+        return ScanStats(**self._core.insert_scans(list(scans)))
+
+    def insert_frames(self, frames: Sequence[tuple[npt.ArrayLike, npt.ArrayLike, float]],
+                      poses: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike], T_BL: Transform) -> ScanStats:
+        """Inserts LiDAR frames measured in motion, as :meth:`insert_scans` does after placing them in the world.
+
+        Each frame is ``(points_L, t, t_origin)``: points (N, 3) [m] in the LiDAR frame, each fired at its
+        own time ``t`` (N,) [s], cast from the LiDAR position at ``t_origin`` [s]. ``poses`` are body pose
+        knots ``(t (K,) [s] strictly ascending, p_W (K, 3) [m], q_WB (K, 4) [w, x, y, z])``, interpolated as
+        :func:`cufund.sensors.pose.interpolate_poses` does (linear, normalised linear quaternion, clamped at
+        the ends); ``T_BL`` is the LiDAR's mounting on the body. A point's world position is
+        ``p_WB(t) + R_WB(t) (R_BL p_L + t_BL)``; placing, ray casting and the field update all run in C++
+        with the GIL released.
+        """
+        if not isinstance(T_BL, Transform):
+            raise TypeError(f"T_BL must be a cufund.sensors.pose.Transform, got {type(T_BL).__name__}")
+        if not isinstance(poses, tuple) or len(poses) != 3:
+            raise ValueError("poses must be a tuple (t, p_W, q_WB) of pose knots")
+        t, p, q = poses
+        return ScanStats(**self._core.insert_frames(list(frames), t, p, q, T_BL.R, T_BL.t))
 
     def set_occupied(self, ijk: npt.ArrayLike, occupied: bool | npt.ArrayLike = True) -> ScanStats:
         """Forces voxels ``ijk`` (M, 3) integer indices occupied or free (log-odds to the clamping

@@ -6,7 +6,7 @@ import numpy as np
 
 from ..components import BusView, Mapper, Subscription
 from ..messages import MapUpdate, Odometry, PointCloud, Topics
-from ..sensors.pose import Transform, interpolate_poses
+from ..sensors.pose import Transform
 from .esdf_map import EsdfMap, EsdfMapParams
 
 
@@ -20,7 +20,9 @@ class EsdfMapper(Mapper):
     frame at its own firing time; the mapper moves it to the world frame with the body pose at that time
     (interpolated between the poses it received) and the LiDAR extrinsic ``T_BL``. Each frame's beams are cast
     from the LiDAR position at the middle of the frame. A frame waits until poses up to its last point have
-    arrived; none is skipped, however slowly the mapper runs.
+    arrived; none is skipped, however slowly the mapper runs. The frames ready at a step are inserted in one
+    call (:meth:`EsdfMap.insert_frames`: placed, cast in order, then one distance-field update), giving the
+    same map as inserting them one at a time.
     """
 
     name = "esdf_mapper"
@@ -51,10 +53,6 @@ class EsdfMapper(Mapper):
         self._poses_sub: Subscription = bus.subscribe(self.active_state_topic)
         self._clouds_sub: Subscription = bus.subscribe(self.cloud_topic)
 
-    def _poses(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Body positions (N, 3) and rotations (N, 3, 3) at times t, interpolated (clamped at the ends)."""
-        return interpolate_poses(self._t, self._p, self._q, t)
-
     def integrate(self, t: float, bus: BusView) -> None:
         for state in self._poses_sub.take():
             state: Odometry
@@ -63,23 +61,23 @@ class EsdfMapper(Mapper):
                 self._p.append(state.p_W)
                 self._q.append(state.q_WB)
         self._waiting.extend(self._clouds_sub.take())
-        updated = False
+        ready: list[PointCloud] = []
         while self._waiting and self._t and self._t[-1] >= self._waiting[0].t + float(np.max(self._waiting[0].dt, initial=0.0)):
-            self._insert(self._waiting.pop(0))
-            updated = True
-        if updated:
+            ready.append(self._waiting.pop(0))
+        if ready:
+            self._insert(ready)
             bus.publish(Topics.ESDF_MAP, MapUpdate(self._last_stamp, self.map, self.frames))
 
-    def _insert(self, cloud: PointCloud) -> None:
-        R_BL, t_BL = self.T_BL.R, np.asarray(self.T_BL.t)
-        t_points = cloud.t + np.asarray(cloud.dt, dtype=float)
-        p_WB, R_WB = self._poses(t_points)
-        p_WL = p_WB + R_WB @ t_BL
-        points_W = p_WL + np.einsum("nij,nj->ni", R_WB @ R_BL, np.asarray(cloud.points_L, dtype=float))
-        mid_p, mid_R = self._poses(np.array([cloud.t + 0.5 * float(np.max(cloud.dt, initial=0.0))]))
-        self.map.insert_scan(points_W, mid_p[0] + mid_R[0] @ t_BL)
-        self.frames += 1
-        self._last_stamp = cloud.t
+    def _insert(self, clouds: list[PointCloud]) -> None:
+        """Every frame that can be placed, in one call: placed, cast in order, then one field update."""
+        frames = []
+        for cloud in clouds:
+            dt = np.asarray(cloud.dt, dtype=float)
+            frames.append((cloud.points_L, cloud.t + dt, cloud.t + 0.5 * float(np.max(dt, initial=0.0))))
+        poses = (np.asarray(self._t, dtype=float), np.asarray(self._p, dtype=float), np.asarray(self._q, dtype=float))
+        self.map.insert_frames(frames, poses, self.T_BL)
+        self.frames += len(clouds)
+        self._last_stamp = clouds[-1].t
         # Keep only the poses a later frame can need.
-        keep = max(0, int(np.searchsorted(self._t, cloud.t, side="right")) - 1)
+        keep = max(0, int(np.searchsorted(self._t, clouds[-1].t, side="right")) - 1)
         del self._t[:keep], self._p[:keep], self._q[:keep]

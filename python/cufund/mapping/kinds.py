@@ -28,6 +28,9 @@ class EsdfMapperParams:
     """How often the mapper integrates the frames that arrived [Hz]."""
     lidar: str = ""
     """Name of the LiDAR in ``sensors`` (empty: the only one)."""
+    merge_beams: bool = True
+    """One beam per distinct end voxel and frame (see :attr:`EsdfMapParams.merge_beams`): the same hits, the
+    free space of the kept beams; ``false`` casts every point."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "size", vector3("mapper.size", self.size, " [m]", finite=True))
@@ -36,12 +39,15 @@ class EsdfMapperParams:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ConfigError(f"mapper.{name} must be a finite number > 0, got {v!r}")
+        if not isinstance(self.merge_beams, bool):
+            raise ConfigError(f"mapper.merge_beams must be true or false, got {self.merge_beams!r}")
 
 
 def _esdf(p: EsdfMapperParams, ctx: Any) -> list[Any]:
     name, spec = ctx.sensor_of_type("lidar", p.lidar, "mapper.lidar")
     try:
-        map_params = EsdfMapParams(resolution=p.resolution, size=p.size, origin_W=p.origin_W, max_range=p.max_range)
+        map_params = EsdfMapParams(resolution=p.resolution, size=p.size, origin_W=p.origin_W, max_range=p.max_range,
+                                   merge_beams=p.merge_beams)
     except ValueError as e:
         raise ConfigError(f"mapper: {e}") from None
     return [EsdfMapper(map_params, spec.extrinsic, rate_hz=p.rate_hz, cloud_topic=spec.topic)]

@@ -1,0 +1,81 @@
+#include "scan_placement.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cufund::esdf {
+
+namespace {
+
+// Interval i (knots i, i + 1) and fraction s of time t, as interpolate_poses takes them.
+void interval(const PoseKnots& k, double t, std::ptrdiff_t* i, double* s) {
+  const std::ptrdiff_t j = std::upper_bound(k.t, k.t + k.n, t) - k.t - 1;
+  *i = std::clamp<std::ptrdiff_t>(j, 0, k.n - 2);
+  const double t0 = k.t[*i], t1 = k.t[*i + 1];
+  *s = std::clamp((t - t0) / (t1 - t0), 0.0, 1.0);
+}
+
+void quat_to_matrix(const double q[4], double* R) {
+  const double w = q[0], x = q[1], y = q[2], z = q[3];
+  R[0] = 1 - 2 * (y * y + z * z);
+  R[1] = 2 * (x * y - w * z);
+  R[2] = 2 * (x * z + w * y);
+  R[3] = 2 * (x * y + w * z);
+  R[4] = 1 - 2 * (x * x + z * z);
+  R[5] = 2 * (y * z - w * x);
+  R[6] = 2 * (x * z - w * y);
+  R[7] = 2 * (y * z + w * x);
+  R[8] = 1 - 2 * (x * x + y * y);
+}
+
+}  // namespace
+
+RigidTransform body_pose_at(const PoseKnots& k, double t) {
+  RigidTransform T;
+  double q[4];
+  if (k.n == 1) {
+    std::copy(k.p_W, k.p_W + 3, T.t.begin());
+    std::copy(k.q_WB, k.q_WB + 4, q);
+  } else {
+    std::ptrdiff_t i;
+    double s;
+    interval(k, t, &i, &s);
+    const double* p0 = k.p_W + 3 * i;
+    const double* q0 = k.q_WB + 4 * i;
+    const double* q1 = q0 + 4;
+    const double dot = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3];
+    const double sign = dot < 0 ? -1.0 : 1.0;
+    for (int a = 0; a < 3; ++a) T.t[a] = (1 - s) * p0[a] + s * p0[a + 3];
+    for (int a = 0; a < 4; ++a) q[a] = (1 - s) * q0[a] + s * (sign * q1[a]);
+  }
+  const double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  for (double& v : q) v /= norm;
+  quat_to_matrix(q, T.R.data());
+  return T;
+}
+
+void place_points(const PoseKnots& knots, const RigidTransform& T_BL, const double* points_L, const double* t,
+                  std::ptrdiff_t n, double* points_W) {
+  // Points come in firing order: the pose is recomputed only when the time changes.
+  double last_t = std::nan("");
+  RigidTransform T_WB;
+  double R_WL[9], p_WL[3];
+  for (std::ptrdiff_t k = 0; k < n; ++k) {
+    if (!(t[k] == last_t)) {
+      last_t = t[k];
+      T_WB = body_pose_at(knots, t[k]);
+      const double* R = T_WB.R.data();
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+          R_WL[3 * r + c] = R[3 * r] * T_BL.R[c] + R[3 * r + 1] * T_BL.R[3 + c] + R[3 * r + 2] * T_BL.R[6 + c];
+        }
+        p_WL[r] = T_WB.t[r] + (R[3 * r] * T_BL.t[0] + R[3 * r + 1] * T_BL.t[1] + R[3 * r + 2] * T_BL.t[2]);
+      }
+    }
+    const double* p = points_L + 3 * k;
+    double* o = points_W + 3 * k;
+    for (int r = 0; r < 3; ++r) o[r] = p_WL[r] + (R_WL[3 * r] * p[0] + R_WL[3 * r + 1] * p[1] + R_WL[3 * r + 2] * p[2]);
+  }
+}
+
+}  // namespace cufund::esdf
