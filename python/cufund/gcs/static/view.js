@@ -134,13 +134,17 @@ function cufundView(THREE, canvas, reply, antialias) {
   setLayer("vehicle", vehicleObject(0.15));
   const q4 = new THREE.Quaternion(), v3 = new THREE.Vector3();
 
-  // ---- drawing on demand: at most maxFps, fewer when this thread is congested ------------------------------------
+  // ---- drawing on demand: at most maxFps, fewer when the machine is congested --------------------------------------
   // A new setpoint (a command's effect) is drawn at once, whatever the cap; the page is told when (epoch ms).
   let maxFps = 20, drawMs = 50, dirty = true, timer = null, lastDraw = -1e9, frames = 0, lag = 0, lastTick = performance.now();
-  let markerMoved = null;
+  let markerMoved = null, askedAt = 0, frameLag = 0;
   const waiting = [];
   function draw() {
     timer = null;
+    if (askedAt) {  // how late the frame came: the display pipeline (software rasteriser, compositor) is behind
+      frameLag = 0.7 * frameLag + 0.3 * Math.max(0, performance.now() - askedAt - 17);
+      askedAt = 0;
+    }
     if (!dirty) return;
     dirty = false;
     const t = performance.now();
@@ -159,16 +163,20 @@ function cufundView(THREE, canvas, reply, antialias) {
   function redraw(now) {
     dirty = true;
     if (now && timer !== null) { clearTimeout(timer); timer = null; }
-    if (timer === null) timer = setTimeout(() => nextFrame(draw), now ? 0 : Math.max(0, lastDraw + drawMs - performance.now()));
+    if (timer === null) {
+      timer = setTimeout(() => { askedAt = performance.now(); nextFrame(draw); },
+                         now ? 0 : Math.max(0, lastDraw + drawMs - performance.now()));
+    }
   }
-  setInterval(() => {  // the lag of a 100 ms timer says how busy this thread is: above 30 ms fewer frames (3 at least)
+  setInterval(() => {  // the lag of a 100 ms timer (this thread busy) or of frames: above 30 ms fewer frames (3 at least)
     const now = performance.now();
     lag = 0.7 * lag + 0.3 * Math.max(0, now - lastTick - 100);
     lastTick = now;
-    const fps = 1000 / drawMs;
-    if (lag > 30) drawMs = 1000 / Math.max(3, fps * 0.7);
-    else if (lag < 10) drawMs = 1000 / Math.min(maxFps, fps * 1.2 + 0.5);
-    reply({type: "stats", fps: 1000 / drawMs, lagMs: lag, frames: frames, antialias: aa});
+    const fps = 1000 / drawMs, congestion = Math.max(lag, frameLag);
+    if (congestion > 30) drawMs = 1000 / Math.max(3, fps * 0.7);
+    else if (congestion < 10) drawMs = 1000 / Math.min(maxFps, fps * 1.2 + 0.5);
+    frameLag *= 0.9;  // forgotten while no frame is drawn
+    reply({type: "stats", fps: 1000 / drawMs, lagMs: congestion, frames: frames, antialias: aa});
   }, 100);
 
   function pointsOf(obj) {
