@@ -4,8 +4,13 @@
 #include <limits>
 #include <vector>
 
+#include "dbscan.h"
+#include "deskew.h"
+#include "lidar_frame.h"
+#include "line_support.h"
 #include "pybind_common.h"
 #include "raycast_scene.h"
+#include "scan_pattern.h"
 #include "scan_rays.h"
 
 namespace cufund::py_bind {
@@ -82,6 +87,142 @@ py::array_t<std::uint32_t, py::array::c_style> triangles_array(const py::handle&
     case SceneStatus::kOk: os << ": ok"; break;
   }
   throw py::value_error(os.str());
+}
+
+
+void require_finite(const double* p, py::ssize_t size, const char* field) {
+  for (py::ssize_t i = 0; i < size; ++i) {
+    if (!std::isfinite(p[i])) throw py::value_error(std::string(field) + " must be finite, got a NaN or inf");
+  }
+}
+
+// Pose knots of a moving sensor, checked: K >= 2 strictly increasing finite times, finite positions,
+// unit quaternions.
+struct Knots {
+  py::array_t<double, py::array::c_style> t, p, q;
+};
+
+Knots knots_args(const py::handle& knot_t, const py::handle& knot_p, const py::handle& knot_q) {
+  py::array k_arr = checked_array(knot_t, "knot_t");
+  if (k_arr.ndim() != 1 || k_arr.shape(0) < 2) {
+    throw py::value_error("knot_t must have shape (K,) with K >= 2, got " + shape_str(k_arr));
+  }
+  const py::ssize_t k = k_arr.shape(0);
+  Knots out{as_float64(knot_t, "knot_t", {k}), as_float64(knot_p, "knot_p", {k, 3}),
+            as_float64(knot_q, "knot_q", {k, 4})};
+  const double* kt = out.t.data();
+  for (py::ssize_t i = 0; i + 1 < k; ++i) {
+    if (!(kt[i + 1] > kt[i])) throw py::value_error("knot_t must be strictly increasing");
+  }
+  require_finite(kt, k, "knot_t");
+  require_finite(out.p.data(), 3 * k, "knot_p");
+  require_finite(out.q.data(), 4 * k, "knot_q");
+  for (py::ssize_t i = 0; i < k; ++i) {
+    const double* q = out.q.data() + 4 * i;
+    if (std::abs(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0) > 1e-6) {
+      throw py::value_error("knot_q must hold unit quaternions [w, x, y, z], knot " + std::to_string(i) + " is not");
+    }
+  }
+  return out;
+}
+
+// d_L (N, 3) float64 with no zero row.
+py::array_t<double, py::array::c_style> directions_arg(const py::handle& d_L) {
+  py::array d_arr = checked_array(d_L, "d_L");
+  if (d_arr.ndim() != 2 || d_arr.shape(1) != 3) {
+    throw py::value_error("d_L must have shape (N, 3), got " + shape_str(d_arr));
+  }
+  const py::ssize_t n = d_arr.shape(0);
+  auto d = as_float64(d_L, "d_L", {n, 3});
+  require_finite(d.data(), 3 * n, "d_L");
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const double* v = d.data() + 3 * i;
+    if (v[0] == 0.0 && v[1] == 0.0 && v[2] == 0.0) {
+      throw py::value_error("d_L must hold non-zero directions, row " + std::to_string(i) + " is zero");
+    }
+  }
+  return d;
+}
+
+// An optional (n,) float64 array (None: an empty array; test the argument for None, not the array).
+py::array_t<double, py::array::c_style> optional_rows(const py::handle& obj, const char* field, py::ssize_t n) {
+  if (obj.is_none()) return {};
+  auto a = as_float64(obj, field, {n});
+  require_finite(a.data(), n, field);
+  return a;
+}
+
+py::dict scan_frame(const RaycastScene& scene, const py::handle& d_L, const py::handle& t, const py::handle& channel,
+                    const py::handle& t0_obj, const py::handle& knot_t, const py::handle& knot_p,
+                    const py::handle& knot_q, const py::handle& range_min_obj, const py::handle& range_max_obj,
+                    const py::handle& noise_obj, const py::handle& keep_obj, const py::handle& dropout_obj,
+                    const py::handle& refl_obj, const py::handle& nthreads_obj) {
+  const int nthreads = threads_arg(nthreads_obj);
+  auto d = directions_arg(d_L);
+  const py::ssize_t n = d.shape(0);
+  auto tt = as_float64(t, "t", {n});
+  require_finite(tt.data(), n, "t");
+  py::array ch_arr = checked_array(channel, "channel");
+  if (ch_arr.dtype().kind() != 'i' && ch_arr.dtype().kind() != 'u') {
+    throw py::value_error("channel must have an integer dtype, got " + std::string(py::str(ch_arr.dtype())));
+  }
+  if (ch_arr.ndim() != 1 || ch_arr.shape(0) != n) {
+    throw py::value_error("channel must have shape (" + std::to_string(n) + ",), got " + shape_str(ch_arr));
+  }
+  auto ch = contiguous<std::int32_t>(ch_arr, "channel");
+  const double t0 = finite_arg(t0_obj, "t0");
+  const Knots kn = knots_args(knot_t, knot_p, knot_q);
+  lidar::RangeModel model;
+  model.range_min = finite_arg(range_min_obj, "range_min");
+  model.range_max = finite_arg(range_max_obj, "range_max");
+  model.dropout = finite_arg(dropout_obj, "dropout");
+  auto noise = optional_rows(noise_obj, "noise", n);
+  auto keep = optional_rows(keep_obj, "keep_draw", n);
+  model.noise = noise_obj.is_none() ? nullptr : noise.data();
+  model.keep_draw = keep_obj.is_none() ? nullptr : keep.data();
+  py::array_t<double, py::array::c_style> refl;
+  if (!refl_obj.is_none()) {
+    py::array r_arr = checked_array(refl_obj, "reflectivity");
+    if (r_arr.ndim() != 1) throw py::value_error("reflectivity must have shape (G,), got " + shape_str(r_arr));
+    refl = as_float64(refl_obj, "reflectivity", {r_arr.shape(0)});
+    model.reflectivity = refl.data();
+    model.n_reflectivity = static_cast<std::size_t>(refl.shape(0));
+  }
+  const lidar::FrameRays rays{d.data(), tt.data(), ch.data(), static_cast<std::size_t>(n)};
+  const lidar::FrameKnots knots{kn.t.data(), kn.p.data(), kn.q.data(), static_cast<std::size_t>(kn.t.shape(0))};
+  thread_local lidar::CastFrame cast;
+  {
+    py::gil_scoped_release release;
+    lidar::cast_frame(scene, rays, t0, knots, model, nthreads, cast);
+  }
+  if (cast.bad_geometry != lidar::kInvalidId) {
+    throw py::value_error("reflectivity must have one entry per geometry, got " +
+                          std::to_string(model.n_reflectivity) + " and a hit on geometry " +
+                          std::to_string(cast.bad_geometry));
+  }
+  const auto m = static_cast<py::ssize_t>(cast.returns.size());
+  py::array_t<double> dt(m), ranges(m);
+  py::array_t<float> points_L({m, py::ssize_t{3}}), points_W({m, py::ssize_t{3}});
+  py::array_t<std::int32_t> channels(m);
+  py::array_t<std::uint32_t> ids(m);
+  py::array intensity = model.reflectivity ? py::array(py::array_t<double>(m)) : py::array(py::array_t<float>(m));
+  lidar::FrameReturns out{dt.mutable_data(), points_L.mutable_data(), ranges.mutable_data(),
+                          model.reflectivity ? static_cast<double*>(intensity.mutable_data()) : nullptr,
+                          model.reflectivity ? nullptr : static_cast<float*>(intensity.mutable_data()),
+                          channels.mutable_data(), points_W.mutable_data(), ids.mutable_data()};
+  {
+    py::gil_scoped_release release;
+    lidar::write_returns(rays, model, cast, out);
+  }
+  py::dict r;
+  r["dt"] = dt;
+  r["points_L"] = points_L;
+  r["ranges"] = ranges;
+  r["intensity"] = intensity;
+  r["channel"] = channels;
+  r["points_W"] = points_W;
+  r["object_ids"] = ids;
+  return r;
 }
 
 py::dict cast(const RaycastScene& scene, const py::handle& rays_obj, const py::handle& nthreads_obj,
@@ -187,47 +328,15 @@ Returns a dict of arrays shaped like the leading dims of ``rays``:
       "scan_rays",
       [](const py::handle& d_L, const py::handle& t, const py::handle& knot_t, const py::handle& knot_p,
          const py::handle& knot_q) {
-        py::array d_arr = checked_array(d_L, "d_L");
-        if (d_arr.ndim() != 2 || d_arr.shape(1) != 3) {
-          throw py::value_error("d_L must have shape (N, 3), got " + shape_str(d_arr));
-        }
-        const py::ssize_t n = d_arr.shape(0);
-        auto d = as_float64(d_L, "d_L", {n, 3});
+        auto d = directions_arg(d_L);
+        const py::ssize_t n = d.shape(0);
         auto tt = as_float64(t, "t", {n});
-        py::array k_arr = checked_array(knot_t, "knot_t");
-        if (k_arr.ndim() != 1 || k_arr.shape(0) < 2) {
-          throw py::value_error("knot_t must have shape (K,) with K >= 2, got " + shape_str(k_arr));
-        }
-        const py::ssize_t k = k_arr.shape(0);
-        auto kt = as_float64(knot_t, "knot_t", {k});
-        auto kp = as_float64(knot_p, "knot_p", {k, 3});
-        auto kq = as_float64(knot_q, "knot_q", {k, 4});
-        for (py::ssize_t i = 0; i + 1 < k; ++i) {
-          if (!(kt.data()[i + 1] > kt.data()[i])) throw py::value_error("knot_t must be strictly increasing");
-        }
-        auto require_finite = [](const double* p, py::ssize_t size, const char* field) {
-          for (py::ssize_t i = 0; i < size; ++i) {
-            if (!std::isfinite(p[i])) throw py::value_error(std::string(field) + " must be finite, got a NaN or inf");
-          }
-        };
-        require_finite(d.data(), 3 * n, "d_L");
         require_finite(tt.data(), n, "t");
-        require_finite(kt.data(), k, "knot_t");
-        require_finite(kp.data(), 3 * k, "knot_p");
-        require_finite(kq.data(), 4 * k, "knot_q");
-        for (py::ssize_t i = 0; i < k; ++i) {
-          const double* q = kq.data() + 4 * i;
-          if (std::abs(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0) > 1e-6) {
-            throw py::value_error("knot_q must hold unit quaternions [w, x, y, z], knot " + std::to_string(i) +
-                                  " is not");
-          }
-        }
-        for (py::ssize_t i = 0; i < n; ++i) {
-          const double* v = d.data() + 3 * i;
-          if (v[0] == 0.0 && v[1] == 0.0 && v[2] == 0.0) {
-            throw py::value_error("d_L must hold non-zero directions, row " + std::to_string(i) + " is zero");
-          }
-        }
+        const Knots kn = knots_args(knot_t, knot_p, knot_q);
+        const py::ssize_t k = kn.t.shape(0);
+        const auto& kt = kn.t;
+        const auto& kp = kn.p;
+        const auto& kq = kn.q;
         py::array_t<float> rays({n, py::ssize_t{6}});
         {
           py::gil_scoped_release release;
@@ -240,6 +349,169 @@ Returns a dict of arrays shaped like the leading dims of ``rays``:
 (N, 6) float32 rays of a moving sensor: ray i leaves from the sensor pose at time t[i], interpolated
 between pose knots (knot_t (K,) increasing [s], knot_p (K, 3) p_WL [m], knot_q (K, 4) q_WL [w, x, y, z]
 unit, consecutive signs aligned) linearly in position and by slerp in rotation, along R_WL d_L[i].
+)doc");
+
+  m.def("scan_frame", &scan_frame, py::arg("scene"), py::arg("d_L"), py::arg("t"), py::arg("channel"), py::arg("t0"),
+        py::arg("knot_t"), py::arg("knot_p"), py::arg("knot_q"), py::arg("range_min"), py::arg("range_max"),
+        py::arg("noise") = py::none(), py::arg("keep_draw") = py::none(), py::arg("dropout") = 0.0,
+        py::arg("reflectivity") = py::none(), py::arg("nthreads") = 0, R"doc(
+One LiDAR frame in one call: the rays of scan_rays (ray i at time t0 + t[i] [s]) cast into ``scene`` (in
+packets, channel by channel: the hits of single rays, bit for bit), and the returns the sensor reports.
+A ray returns when its true range is in [range_min, range_max] [m] and, with ``keep_draw`` (N,), when
+keep_draw[i] >= dropout; its measured range is max(true + noise[i], 0) with ``noise`` (N,) [m] (None: none).
+Intensity: reflectivity[geometry id] x |cos incidence| clipped to [0, 1], float64 (None: |cos incidence|,
+float32). Returns a dict over the returns, in ray order: ``dt`` (M,) t[i], ``points_L`` (M, 3) float32,
+``ranges`` (M,), ``intensity`` (M,), ``channel`` (M,) int32, ``points_W`` (M, 3) float32 noise-free world
+hits and ``object_ids`` (M,) uint32.
+)doc");
+
+  m.def(
+      "dbscan",
+      [](const py::handle& points, const py::handle& eps_obj, const py::handle& min_points_obj) {
+        py::array arr = checked_array(points, "points");
+        if (arr.ndim() != 2 || arr.shape(1) != 3) {
+          throw py::value_error("points must have shape (N, 3), got " + shape_str(arr));
+        }
+        const py::ssize_t n = arr.shape(0);
+        auto p = as_float64(points, "points", {n, 3});
+        require_finite(p.data(), 3 * n, "points");
+        const double eps = finite_arg(eps_obj, "eps");
+        if (!(eps > 0)) throw py::value_error("eps must be > 0 [m], got " + std::to_string(eps));
+        const auto min_points = static_cast<std::size_t>(int_arg(min_points_obj, "min_points", 1, 1 << 30));
+        if (n >= (py::ssize_t{1} << 31)) throw py::value_error("points must hold fewer than 2^31 rows");
+        py::array_t<std::int64_t> labels(n);
+        {
+          py::gil_scoped_release release;
+          lidar::dbscan(p.data(), static_cast<std::size_t>(n), eps, min_points, labels.mutable_data());
+        }
+        return labels;
+      },
+      py::arg("points"), py::arg("eps"), py::arg("min_points"), R"doc(
+DBSCAN cluster labels (N,) int64 of ``points`` (N, 3), as Open3D's PointCloud.cluster_dbscan(eps,
+min_points) labels them: core points have >= min_points points (themselves included) closer than eps [m];
+clusters numbered 0, 1, ... by their lowest-index core point; a border point takes the lowest-numbered
+cluster near it; noise is -1.
+)doc");
+
+  m.def(
+      "deskew_crop",
+      [](const py::handle& points_L, const py::handle& dt, const py::handle& stride_obj, const py::handle& span_obj,
+         const py::handle& p_WL, const py::handle& R_WL, const py::handle& max_range, const py::handle& z_min,
+         const py::handle& z_max, const py::handle& tall_z, const py::handle& column_cell) {
+        py::array arr = checked_array(points_L, "points_L");
+        if (arr.ndim() != 2 || arr.shape(1) != 3) {
+          throw py::value_error("points_L must have shape (N, 3), got " + shape_str(arr));
+        }
+        const py::ssize_t n = arr.shape(0);
+        auto pts = contiguous<float>(arr, "points_L");
+        auto times = as_float64(dt, "dt", {n});
+        require_finite(times.data(), n, "dt");
+        for (py::ssize_t i = 0; i < 3 * n; ++i) {
+          if (!std::isfinite(pts.data()[i])) throw py::value_error("points_L must be finite, got a NaN or inf");
+        }
+        const auto stride = static_cast<std::size_t>(int_arg(stride_obj, "stride", 1, 1 << 30));
+        lidar::DeskewKnots knots;
+        knots.span = finite_arg(span_obj, "span");
+        if (!(knots.span > 0)) throw py::value_error("span must be > 0 [s]");
+        py::array k_arr = checked_array(p_WL, "p_WL");
+        if (k_arr.ndim() != 2 || k_arr.shape(0) < 2) {
+          throw py::value_error("p_WL must have shape (K + 1, 3) with K >= 1, got " + shape_str(k_arr));
+        }
+        const py::ssize_t k = k_arr.shape(0);
+        auto p = as_float64(p_WL, "p_WL", {k, 3});
+        auto R = as_float64(R_WL, "R_WL", {k, 3, 3});
+        require_finite(p.data(), 3 * k, "p_WL");
+        require_finite(R.data(), 9 * k, "R_WL");
+        knots.segments = static_cast<std::size_t>(k - 1);
+        knots.p_WL = p.data();
+        knots.R_WL = R.data();
+        lidar::CropBox box{finite_arg(max_range, "max_range"), finite_arg(z_min, "z_min"), finite_arg(z_max, "z_max"),
+                           finite_arg(tall_z, "tall_z"), finite_arg(column_cell, "column_cell")};
+        if (!(box.column_cell > 0)) throw py::value_error("column_cell must be > 0 [m]");
+        thread_local lidar::CroppedScan out;
+        {
+          py::gil_scoped_release release;
+          lidar::deskew_crop(pts.data(), times.data(), static_cast<std::size_t>(n), stride, knots, box, out);
+        }
+        const auto m = static_cast<py::ssize_t>(out.columns.size());
+        py::array_t<double> points_W({m, py::ssize_t{3}}), rays_W({m, py::ssize_t{3}});
+        py::array_t<std::int64_t> columns(m);
+        py::array_t<bool> tall(m);
+        std::copy(out.points_W.begin(), out.points_W.end(), points_W.mutable_data());
+        std::copy(out.rays_W.begin(), out.rays_W.end(), rays_W.mutable_data());
+        std::copy(out.columns.begin(), out.columns.end(), columns.mutable_data());
+        std::transform(out.tall.begin(), out.tall.end(), tall.mutable_data(), [](std::uint8_t v) { return v != 0; });
+        return py::make_tuple(points_W, rays_W, columns, tall);
+      },
+      py::arg("points_L"), py::arg("dt"), py::arg("stride"), py::arg("span"), py::arg("p_WL"), py::arg("R_WL"),
+      py::arg("max_range"), py::arg("z_min"), py::arg("z_max"), py::arg("tall_z"), py::arg("column_cell"), R"doc(
+A scan moved to the world point by point and cropped (the tunnel detector's input). Rows 0, stride, ...
+of ``points_L`` (N, 3) [m] fired at ``dt`` (N,) [s] from the scan start; K + 1 sensor poses ``p_WL``
+(K + 1, 3) [m], ``R_WL`` (K + 1, 3, 3) evenly over [0, span] [s]: a point is moved with the two poses
+around its time and the results blended linearly. Keeps the points 1e-6 m to max_range [m] from the
+sensor with z in [z_min, z_max] [m], in order; returns (points_W (M, 3), unit rays_W (M, 3) from the
+sensor, x-y column keys (M,) int64 of edge column_cell [m] as detection.column_keys, tall (M,) bool:
+z > tall_z).
+)doc");
+
+  m.def(
+      "mid360_frame",
+      [](const py::handle& k_obj, const py::handle& n_obj, const py::handle& point_rate, const py::handle& lasers,
+         const py::handle& spin_rate, const py::handle& sweep_ratio, const py::handle& elevation_min,
+         const py::handle& elevation_max, const py::handle& nthreads_obj) {
+        const int nthreads = threads_arg(nthreads_obj);
+        const std::int64_t k = int_arg(k_obj, "k", 0, std::int64_t{1} << 40);
+        const std::int64_t n = int_arg(n_obj, "n", 0, std::int64_t{1} << 31);
+        lidar::Mid360Params p{finite_arg(point_rate, "point_rate"), int_arg(lasers, "lasers", 1, 1 << 20),
+                              finite_arg(spin_rate, "spin_rate"), finite_arg(sweep_ratio, "sweep_ratio"),
+                              finite_arg(elevation_min, "elevation_min"), finite_arg(elevation_max, "elevation_max")};
+        if (!(p.point_rate > 0)) throw py::value_error("point_rate must be > 0 [1/s]");
+        py::array_t<double> t(n), az(n), el(n), d({static_cast<py::ssize_t>(n), py::ssize_t{3}});
+        py::array_t<std::int32_t> ch(n);
+        {
+          py::gil_scoped_release release;
+          lidar::mid360_frame(p, k, static_cast<std::size_t>(n), t.mutable_data(), az.mutable_data(),
+                              el.mutable_data(), ch.mutable_data(), d.mutable_data(), nthreads);
+        }
+        return py::make_tuple(t, az, el, ch, d);
+      },
+      py::arg("k"), py::arg("n"), py::arg("point_rate"), py::arg("lasers"), py::arg("spin_rate"),
+      py::arg("sweep_ratio"), py::arg("elevation_min"), py::arg("elevation_max"), py::arg("nthreads") = 0, R"doc(
+Frame k (n rays) of cufund.sensors.patterns.Mid360Pattern: (t [s] from the frame start, azimuth [rad],
+elevation [rad], channel int32, unit directions d_L (n, 3)). Ray i fires at (k n + i) / point_rate, laser
+i % lasers; azimuth 2 pi (spin_rate t + channel / lasers) mod 2 pi, elevation the middle of
+[elevation_min, elevation_max] plus half its width times sin(2 pi spin_rate sweep_ratio t + pi channel / lasers).
+)doc");
+
+  m.def(
+      "line_support",
+      [](const py::handle& along_obj, const py::handle& inlier_obj) {
+        py::array a_arr = checked_array(along_obj, "along");
+        if (a_arr.ndim() != 2) throw py::value_error("along must have shape (N, K), got " + shape_str(a_arr));
+        if (a_arr.dtype().kind() != 'i') {
+          throw py::value_error("along must have an integer dtype, got " + std::string(py::str(a_arr.dtype())));
+        }
+        py::array i_arr = checked_array(inlier_obj, "inlier");
+        if (i_arr.dtype().kind() != 'b' || i_arr.ndim() != 2 || i_arr.shape(0) != a_arr.shape(0) ||
+            i_arr.shape(1) != a_arr.shape(1)) {
+          throw py::value_error("inlier must be a bool array shaped like along " + shape_str(a_arr) + ", got " +
+                                std::string(py::str(i_arr.dtype())) + " " + shape_str(i_arr));
+        }
+        auto along = contiguous<std::int64_t>(a_arr, "along");
+        auto inlier = contiguous<bool>(i_arr, "inlier");
+        const py::ssize_t n = a_arr.shape(0), k = a_arr.shape(1);
+        py::array_t<std::int64_t> covered(k), counts(k);
+        {
+          py::gil_scoped_release release;
+          lidar::line_support(along.data(), inlier.data(), static_cast<std::size_t>(n), static_cast<std::size_t>(k),
+                              covered.mutable_data(), counts.mutable_data());
+        }
+        return py::make_tuple(covered, counts);
+      },
+      py::arg("along"), py::arg("inlier"), R"doc(
+Support of K candidate lines over N points: ``along`` (N, K) integer bin of each point along each line,
+``inlier`` (N, K) bool. Returns (covered (K,), counts (K,)) int64: the distinct bins among each line's
+inliers, and its inliers.
 )doc");
 }
 

@@ -283,3 +283,112 @@ def test_scan_rays_rejects_non_finite_and_degenerate_input(change, message):
     args.update(change)
     with pytest.raises(ValueError, match=message):
         _core.lidar.scan_rays(**args)
+
+
+# --- the one-call frame (scan_frame) and the C++ Mid-360 pattern, against NumPy references -------------------------
+
+
+def _numpy_frame(scene, d_L, t, channel, t0, knots, p_k, q_k, rmin, rmax, noise, keep, dropout, refl):
+    """The LiDAR model as it was written in NumPy: scan_rays, cast_rays, then the range model."""
+    rays = cufund._core.lidar.scan_rays(d_L, t0 + t, knots, p_k, q_k)
+    hit = scene.cast_rays(rays, coherent=False)
+    r_true = hit["t_hit"].astype(np.float64)
+    valid = (r_true >= rmin) & (r_true <= rmax)
+    if keep is not None:
+        valid &= keep >= dropout
+    idx = np.nonzero(valid)[0]
+    r_meas = r_true[idx] if noise is None else np.maximum(r_true[idx] + noise[idx], 0.0)
+    ids = hit["geometry_ids"][idx]
+    cos_inc = np.abs(np.sum(hit["normals"][idx] * rays[idx, 3:], axis=1))
+    return {"dt": t[idx], "points_L": (d_L[idx] * r_meas[:, None]).astype(np.float32), "ranges": r_meas,
+            "intensity": np.clip((refl[ids] if refl is not None else 1.0) * cos_inc, 0.0, 1.0),
+            "channel": channel[idx], "points_W": (rays[idx, :3] + rays[idx, 3:] * r_true[idx, None]).astype(np.float32),
+            "object_ids": ids}
+
+
+@pytest.mark.parametrize("with_model", [False, True])
+def test_scan_frame_equals_rays_cast_one_by_one_and_the_numpy_range_model(with_model):
+    from cufund.worlds.builtin import imav2025_tunnel
+
+    world = imav2025_tunnel()
+    scene = world.raycast_scene
+    rays_L = L.mid360().frame(4)
+    d_L, n = rays_L.directions(), len(rays_L.t)
+    t0 = 2.0
+    knots = t0 + np.linspace(0.0, 0.1, 32)
+    p_k = np.column_stack([np.linspace(-2.5, -2.3, 32), np.linspace(0.0, 0.05, 32), np.full(32, 1.2)])
+    yaw = np.linspace(0.0, 0.3, 32)
+    q_k = np.column_stack([np.cos(yaw / 2), np.zeros(32), np.zeros(32), np.sin(yaw / 2)])
+    rng = np.random.default_rng(3)
+    noise = rng.standard_normal(n) * 0.02 if with_model else None
+    keep = rng.random(n) if with_model else None
+    refl = world.reflectivities() if with_model else None
+    args = (scene, d_L, rays_L.t, rays_L.channel, t0, knots, p_k, q_k, 0.5, 6.0, noise, keep, 0.3, refl)
+    got = cufund._core.lidar.scan_frame(*args, nthreads=2)
+    want = _numpy_frame(*args)
+    assert 0 < len(got["dt"]) < n  # the range window (and the dropout) removed some rays, kept others
+    for key, value in want.items():
+        assert got[key].dtype == value.dtype, key
+        np.testing.assert_array_equal(got[key], value, err_msg=key)
+    if not with_model:
+        assert got["intensity"].dtype == np.float32
+
+
+def test_scan_frame_checks_its_arguments():
+    from cufund.worlds.builtin import imav2025_tunnel
+
+    world = imav2025_tunnel()
+    rays_L = L.mid360().frame(0)
+    d_L, n = rays_L.directions(), len(rays_L.t)
+    knots, p_k, q_k = np.array([0.0, 0.1]), np.tile([-2.5, 0.0, 1.0], (2, 1)), np.tile([1.0, 0, 0, 0], (2, 1))
+    base = dict(scene=world.raycast_scene, d_L=d_L, t=rays_L.t, channel=rays_L.channel, t0=0.0, knot_t=knots,
+                knot_p=p_k, knot_q=q_k, range_min=0.1, range_max=40.0)
+    for change, message in [({"noise": np.zeros(n - 1)}, "noise"), ({"channel": rays_L.t}, "channel"),
+                            ({"keep_draw": np.full(n, np.nan)}, "keep_draw"), ({"t0": np.inf}, "t0"),
+                            ({"reflectivity": np.ones(1)}, "reflectivity"), ({"knot_q": 2 * q_k}, "knot_q")]:
+        with pytest.raises(ValueError, match=message):
+            cufund._core.lidar.scan_frame(**{**base, **change})
+
+
+def test_mid360_pattern_is_the_documented_formula():
+    p = L.mid360()
+    for k in (0, 1, 299):
+        r = p.frame(k)
+        n = len(r.t)
+        i = np.arange(n)
+        t_abs = (k * n + i) / p.point_rate
+        ch = i % p.lasers
+        az = np.mod(2 * np.pi * (p.spin_rate * t_abs + ch / p.lasers), 2 * np.pi)
+        el = (p.elevation_max + p.elevation_min) / 2 + (p.elevation_max - p.elevation_min) / 2 * np.sin(
+            2 * np.pi * p.spin_rate * p.sweep_ratio * t_abs + np.pi * ch / p.lasers)
+        np.testing.assert_allclose(r.t, i / p.point_rate, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(r.azimuth, az, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(r.elevation, el, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(r.channel, ch)
+        assert r.channel.dtype == np.int32
+        d = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], 1)
+        np.testing.assert_allclose(r.directions(), d, rtol=0, atol=1e-12)
+
+
+def test_lidar_component_samples_its_poses_as_the_scalar_pose_function_does():
+    from cufund.sensors.lidar_component import LidarComponent
+    from cufund.sensors.pose import sample_poses
+    from cufund.worlds.builtin import imav2025_tunnel
+
+    comp = LidarComponent(L.Lidar(L.mid360(), T_BL=Transform((0.0, 0.0, 0.08), yaw_quaternion(0.2))),
+                          imav2025_tunnel())
+    rng = np.random.default_rng(5)
+    for k in range(12):  # 100 Hz samples of a tumbling body, one sign flipped on purpose
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        comp._t.append(0.01 * k)
+        comp._p.append(rng.normal(size=3))
+        comp._q.append(-q if k == 5 else q)
+    times = np.linspace(0.0, 0.1, 32)
+    many = comp._pose_fn.many(times)
+    from cufund.sensors.lidar import _compose
+
+    want = sample_poses(comp._pose, times, comp.lidar.T_BL)
+    got = _compose(*many, comp.lidar.T_BL)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])

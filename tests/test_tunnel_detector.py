@@ -17,6 +17,7 @@ from cufund.perception import (
     plot_detection,
     voxel_means,
 )
+from cufund.perception.detection import column_keys
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import mid360
 from cufund.sensors.pose import Transform, quat_to_matrix, yaw_quaternion
@@ -354,3 +355,58 @@ def test_plot_detection_draws_clusters_and_centres(course, tmp_path):
     np.testing.assert_allclose(np.c_[red.get_xdata(), red.get_ydata()], [d.centre_W[:2] for d in dets])
     green = next(ln for ln in top.get_lines() if ln.get_label() == "true centre")
     np.testing.assert_allclose(np.c_[green.get_xdata(), green.get_ydata()], truth[:, :2])
+
+
+def test_dbscan_labels_are_open3ds():
+    import open3d as o3d
+
+    from cufund import _core
+
+    rng = np.random.default_rng(11)
+    blobs = [rng.normal(c, 0.05, (300, 3)) for c in ([0, 0, 1], [0.5, 0, 1], [3, 2, 0.5])]  # two touching, one apart
+    clouds = [np.concatenate(blobs + [rng.uniform(-1, 4, (200, 3))]), rng.uniform(0, 1, (1500, 3)), np.zeros((0, 3)),
+              np.zeros((5, 3))]
+    for pts, eps, min_points in itertools.product(clouds, (0.05, 0.12), (1, 4, 10)):
+        want = np.asarray(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts)).cluster_dbscan(
+            eps=eps, min_points=min_points), dtype=np.int64)
+        np.testing.assert_array_equal(_core.lidar.dbscan(pts, eps, min_points), want)
+    labels = _core.lidar.dbscan(clouds[0], 0.12, 4)
+    assert labels.max() >= 1 and np.any(labels == -1)  # the case is not trivial
+    with pytest.raises(ValueError, match="eps"):
+        _core.lidar.dbscan(clouds[1], 0.0, 4)
+    with pytest.raises(ValueError, match="points"):
+        _core.lidar.dbscan(np.full((3, 3), np.nan), 0.1, 4)
+
+
+def test_deskew_crop_moves_each_point_with_the_blended_poses_of_its_time():
+    from cufund import _core
+
+    rng = np.random.default_rng(2)
+    n, K = 5000, 20
+    points_L = rng.uniform(-8, 8, (n, 3)).astype(np.float32)
+    dt = np.sort(rng.uniform(0, 0.1, n))
+    yaw = np.linspace(0.0, 0.2, K + 1)
+    R = quat_to_matrix(np.column_stack([np.cos(yaw / 2), np.zeros(K + 1), np.zeros(K + 1), np.sin(yaw / 2)]))
+    p = np.column_stack([np.linspace(0, 0.3, K + 1), np.zeros(K + 1), np.full(K + 1, 1.0)])
+    span = dt.max()
+    got = _core.lidar.deskew_crop(points_L[::2], dt[::2], 1, span, p, R, 6.0, 0.02, 3.0, 2.6, 0.1)
+    got_strided = _core.lidar.deskew_crop(points_L, dt, 2, span, p, R, 6.0, 0.02, 3.0, 2.6, 0.1)
+    for a, b in zip(got, got_strided):
+        np.testing.assert_array_equal(a, b)
+    # reference: each point with the two knot poses around its time, blended
+    pl, t = points_L[::2].astype(float), dt[::2]
+    x = np.clip(t / span * K, 0, K)
+    seg = np.minimum(x.astype(int), K - 1)
+    s = (x - seg)[:, None]
+    a = np.einsum("nij,nj->ni", R[seg], pl) + p[seg]
+    b = np.einsum("nij,nj->ni", R[seg + 1], pl) + p[seg + 1]
+    w = a + s * (b - a)
+    sensor = p[seg] + s * (p[seg + 1] - p[seg])
+    rng_ = np.linalg.norm(w - sensor, axis=1)
+    keep = (rng_ <= 6.0) & (w[:, 2] >= 0.02) & (w[:, 2] <= 3.0)
+    assert 0 < keep.sum() < len(keep)
+    points_W, rays_W, cols, tall = got
+    np.testing.assert_allclose(points_W, w[keep], atol=1e-12)
+    np.testing.assert_allclose(rays_W, (w - sensor)[keep] / rng_[keep, None], atol=1e-12)
+    np.testing.assert_array_equal(cols, column_keys(points_W))
+    np.testing.assert_array_equal(tall, points_W[:, 2] > 2.6)

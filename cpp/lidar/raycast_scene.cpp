@@ -134,8 +134,8 @@ void trace_packets8(RTCScene scene, const float* rays, std::size_t begin, std::s
 }
 
 void cast_packets8(RTCScene scene, const float* rays, std::size_t begin, std::size_t end, const RayHits& out,
-                   const std::uint32_t* index = nullptr) {
-  trace_packets8(scene, rays, begin, end, index, true, [&](std::size_t j, const RTCRayHit8& rh, int k) {
+                   const std::uint32_t* index = nullptr, bool coherent = true) {
+  trace_packets8(scene, rays, begin, end, index, coherent, [&](std::size_t j, const RTCRayHit8& rh, int k) {
     write_hit(out, index ? index[j] : j, rh.ray.tfar[k], rh.hit.geomID[k], rh.hit.primID[k], rh.hit.u[k],
               rh.hit.v[k], rh.hit.Ng_x[k], rh.hit.Ng_y[k], rh.hit.Ng_z[k]);
   });
@@ -334,6 +334,17 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
     });
   }
   return {};
+}
+
+void RaycastScene::cast_rays_ordered(const float* rays, std::size_t n, const std::uint32_t* order,
+                                     const RayHits& out, int nthreads) const {
+  ForkSafeSection no_fork;  // a child must not inherit the scene's locks held
+  std::shared_lock<std::shared_mutex> no_additions(impl_->scene_mutex);
+  impl_->commit();
+  RTCScene scene = impl_->scene;
+  parallel_chunks(static_cast<std::ptrdiff_t>(n), kChunk, nthreads, [&](std::size_t begin, std::size_t end, std::size_t) {
+    cast_packets8(scene, rays, begin, end, out, order, false);
+  });
 }
 
 std::size_t RaycastScene::num_geometries() const { return impl_->geometries; }

@@ -70,6 +70,14 @@ class RaycastScene {
   SceneResult cast_rays(const float* rays, std::size_t n, const RayHits& out, int nthreads = 0,
                         RayOrder order = RayOrder::kAuto) const;
 
+  // Casts the n rays in the given `order` (a permutation of [0, n), e.g. a scan's rays channel by
+  // channel so that neighbours in the order are neighbours in angle) in 8-wide packets, writing each
+  // ray's hit at its own index. The results are those of single-ray traversal, bit for bit (the packets
+  // are not traced as frusta). Rays must be finite with non-zero directions (unchecked: the caller
+  // made them). nthreads <= 0 uses every core.
+  void cast_rays_ordered(const float* rays, std::size_t n, const std::uint32_t* order, const RayHits& out,
+                         int nthreads = 0) const;
+
   std::size_t num_geometries() const;
   std::size_t num_triangles() const;
 

@@ -9,10 +9,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _core
 from ..components import BusView, Component, Subscription
 from ..messages import Odometry, PointCloud, Topics, TunnelEstimate
 from ..sensors.pose import Transform, interpolate_poses
 from .detection import (
+    COLUMN_CELL,
     FrameDetection,
     TunnelDetectorParams,
     column_keys,
@@ -132,53 +134,28 @@ class TunnelDetector(Component):
         """Body positions (N, 3) and rotations (N, 3, 3) at times t, interpolated (clamped at the ends)."""
         return interpolate_poses(self._t, self._p, self._q, t)
 
-    def _to_world(self, cloud: PointCloud) -> tuple[np.ndarray, np.ndarray]:
-        """The scan's points in the world (N, 3) and the LiDAR's position when each was measured (N, 3).
-        The LiDAR pose is computed at ``_KNOTS + 1`` instants over the scan and each point moved with both poses
-        around its firing time, the two results blended linearly (the pose interpolated, to second order)."""
-        k = self.params.point_stride
-        points_L = np.asarray(cloud.points_L[::k], dtype=float)
-        dt = np.asarray(cloud.dt[::k], dtype=float)
-        span = max(float(np.max(dt, initial=0.0)), 1e-9)
+    def _crop(self, cloud: PointCloud) -> tuple[np.ndarray, np.ndarray]:
+        """The scan's points to accumulate (N, 3) [m] and the unit directions of their rays (N, 3).
+
+        Each point is moved to the world with the LiDAR pose computed at ``_KNOTS + 1`` instants over the scan:
+        with both poses around its firing time, the two results blended linearly (the pose interpolated, to
+        second order). Points farther than ``max_range`` from where the LiDAR was, above ``ceiling_z`` or in the
+        floor band are dropped, then those in x-y columns reaching above any frame, then those outside the region
+        of interest (one C++ pass, :func:`cufund._core.lidar.deskew_crop`, then the column bookkeeping here)."""
+        p = self.params
+        span = max(float(np.max(cloud.dt[::p.point_stride], initial=0.0)), 1e-9)
         p_WB, R_WB = self._poses(cloud.t + np.linspace(0.0, span, _KNOTS + 1))
         R_WL = R_WB @ self.T_BL.R
         p_WL = p_WB + R_WB @ np.asarray(self.T_BL.t)
-        x = np.clip(dt / span * _KNOTS, 0.0, _KNOTS)
-        seg = np.minimum(x.astype(np.int64), _KNOTS - 1)
-        order = None if np.all(seg[1:] >= seg[:-1]) else np.argsort(seg, kind="stable")  # firing order: sorted
-        if order is not None:
-            points_L, seg, x = points_L[order], seg[order], x[order]
-        s = (x - seg)[:, None]
-        points_W = np.empty_like(points_L)
-        bounds = np.searchsorted(seg, np.arange(_KNOTS + 1))
-        for j in range(_KNOTS):  # both poses around each point's time, blended
-            lo, hi = bounds[j], bounds[j + 1]
-            if hi > lo:
-                a = points_L[lo:hi] @ R_WL[j].T + p_WL[j]
-                b = points_L[lo:hi] @ R_WL[j + 1].T + p_WL[j + 1]
-                points_W[lo:hi] = a + s[lo:hi] * (b - a)
-        sensor_W = p_WL[seg] + s * (p_WL[seg + 1] - p_WL[seg])
-        if order is not None:
-            back = np.empty_like(order)
-            back[order] = np.arange(len(order))
-            points_W, sensor_W = points_W[back], sensor_W[back]
-        return points_W, sensor_W
-
-    def _crop(self, cloud: PointCloud) -> tuple[np.ndarray, np.ndarray]:
-        """The scan's points to accumulate (N, 3) [m] and the unit directions of their rays (N, 3)."""
-        p = self.params
-        points_W, sensor_W = self._to_world(cloud)
-        rays_W = points_W - sensor_W
-        rng = np.linalg.norm(rays_W, axis=1)
-        keep = (rng > 1e-6) & (rng <= p.max_range) & (points_W[:, 2] <= p.ceiling_z) \
-            & (points_W[:, 2] >= p.floor_z + p.floor_band)
+        points_W, rays_W, cols, above = _core.lidar.deskew_crop(
+            cloud.points_L, cloud.dt, p.point_stride, span, p_WL, R_WL, p.max_range, p.floor_z + p.floor_band,
+            p.ceiling_z, p.max_frame_top, COLUMN_CELL)
         # x-y columns reaching above any frame are walls or poles: never accumulated
-        cols = column_keys(points_W)
-        tall = np.unique(cols[keep & (points_W[:, 2] > p.max_frame_top)])
+        tall = np.unique(cols[above])
         if len(tall) and not np.all(_member(tall, self._tall)):
             self._tall = np.union1d(self._tall, tall)
             self._tall_changed = True
-        keep &= ~_member(cols, self._tall)
+        keep = ~_member(cols, self._tall)
         if p.roi_min_W is not None:
             keep &= np.all(points_W >= np.asarray(p.roi_min_W), axis=1)
         if p.roi_max_W is not None:
@@ -187,7 +164,7 @@ class TunnelDetector(Component):
         self._last_stamp = cloud.t
         keep_poses = max(0, int(np.searchsorted(self._t, cloud.t, side="right")) - 1)
         del self._t[:keep_poses], self._p[:keep_poses], self._q[:keep_poses]
-        return points_W[keep], rays_W[keep] / rng[keep, None]
+        return points_W[keep], rays_W[keep]
 
     # -- tracking ----------------------------------------------------------------------------------------------
     def _associate(self, detections: list[FrameDetection]) -> None:

@@ -11,7 +11,7 @@ from .. import _core
 from ..messages import LidarTruth, PointCloud
 from ..worlds.world import World
 from .patterns import ScanPattern, ScanRays
-from .pose import PoseFn, Transform, sample_poses
+from .pose import PoseFn, Transform, quat_mul, quat_to_matrix, sample_poses
 
 Target = Union[World, "_core.lidar.RaycastScene"]
 
@@ -71,7 +71,10 @@ class Lidar:
     ``scan(target, pose_fn, t0)`` casts one frame of ``pattern`` starting at time ``t0``: the ray fired
     at time t leaves from the LiDAR pose T_WB(t) T_BL, with T_WB(t) from ``pose_fn(t) -> (p_W, q_WB)``
     sampled ``params.pose_samples`` times over the frame and interpolated. Frames are counted so a
-    non-repetitive pattern advances; ``scan(..., frame=k)`` picks one explicitly.
+    non-repetitive pattern advances; ``scan(..., frame=k)`` picks one explicitly. A ``pose_fn`` with a
+    method ``many(times) -> (p_W (K, 3), q_WB (K, 4))`` (unit quaternions, consecutive signs aligned) is
+    sampled at all the knots in one call. The frame is cast and its returns made in one C++ call
+    (:func:`cufund._core.lidar.scan_frame`).
     """
 
     def __init__(self, pattern: ScanPattern, params: LidarParams | None = None, T_BL: Transform | None = None) -> None:
@@ -120,35 +123,23 @@ class Lidar:
         k = self._frame if frame is None else int(frame)
         self._frame = k + 1
         rays_L, d_L = self._frame_rays(k)
-        t_abs = t0 + rays_L.t
         p = self.params
         knots = t0 + np.linspace(0.0, self.period, int(p.pose_samples))
-        p_WL_k, q_WL_k = sample_poses(pose_fn, knots, self.T_BL)
-        rays = _core.lidar.scan_rays(d_L, t_abs, knots, p_WL_k, q_WL_k)
-        p_WL, d_W = rays[:, :3], rays[:, 3:]
-        hit = scene.cast_rays(rays, nthreads=p.nthreads)
-        r_true = hit["t_hit"].astype(np.float64)
-        valid = (r_true >= p.range_min) & (r_true <= p.range_max)
+        many = getattr(pose_fn, "many", None)
+        p_WL_k, q_WL_k = sample_poses(pose_fn, knots, self.T_BL) if many is None else _compose(*many(knots), self.T_BL)
         # Noise and dropout are drawn for every ray so a frame's draws do not depend on the scene.
-        if p.dropout > 0:
-            valid &= self._rng.random(len(r_true)) >= p.dropout
-        idx = np.nonzero(valid)[0]
-        r_meas = r_true[idx]
-        if p.range_noise_std > 0:
-            noise = self._rng.standard_normal(len(r_true)) * p.range_noise_std
-            r_meas = np.maximum(r_meas + noise[idx], 0.0)
-        ids = hit["geometry_ids"][idx]
-        cos_inc = np.abs(np.sum(hit["normals"][idx] * d_W[idx], axis=1))
-        reflect = refl[ids] if refl is not None else 1.0
-        cloud = PointCloud(
-            t=float(t0),
-            dt=np.asarray(rays_L.t, dtype=float)[idx],
-            points_L=(d_L[idx] * r_meas[:, None]).astype(np.float32),
-            ranges=r_meas,
-            intensity=np.clip(reflect * cos_inc, 0.0, 1.0),
-            channel=rays_L.channel[idx],
-            frame=k,
-        )
-        truth = LidarTruth(t=float(t0), points_W=(p_WL[idx] + d_W[idx] * r_true[idx, None]).astype(np.float32),
-                           object_ids=ids)
+        n = len(rays_L.t)
+        keep = self._rng.random(n) if p.dropout > 0 else None
+        noise = self._rng.standard_normal(n) * p.range_noise_std if p.range_noise_std > 0 else None
+        out = _core.lidar.scan_frame(scene, d_L, rays_L.t, rays_L.channel, float(t0), knots, p_WL_k, q_WL_k,
+                                     p.range_min, p.range_max, noise, keep, p.dropout, refl, p.nthreads)
+        cloud = PointCloud(t=float(t0), dt=out["dt"], points_L=out["points_L"], ranges=out["ranges"],
+                           intensity=out["intensity"], channel=out["channel"], frame=k)
+        truth = LidarTruth(t=float(t0), points_W=out["points_W"], object_ids=out["object_ids"])
         return cloud, truth
+
+
+def _compose(p_WB: np.ndarray, q_WB: np.ndarray, T_BS: Transform) -> tuple[np.ndarray, np.ndarray]:
+    """Sensor poses p_WS (K, 3), q_WS (K, 4) from body poses already unit and sign-aligned (``pose_fn.many``):
+    the numbers :func:`~cufund.sensors.pose.sample_poses` gives for the same body poses."""
+    return p_WB + quat_to_matrix(q_WB) @ np.array(T_BS.t), quat_mul(q_WB, np.array(T_BS.q))

@@ -46,6 +46,7 @@ class LidarComponent(Component):
         self._p: list[np.ndarray] = []
         self._q: list[np.ndarray] = []
         self._frame_start: float | None = None
+        self._pose_fn = _PoseFn(self)
 
     def _pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         ts = self._t
@@ -57,6 +58,23 @@ class LidarComponent(Component):
         q = (1 - s) * q0 + s * q1  # the lidar model interpolates finely between its own pose samples
         return (1 - s) * self._p[i] + s * self._p[i + 1], q / np.linalg.norm(q)
 
+    def _poses(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_pose` at every time of ``times`` (K,), unit and sign-aligned as ``sample_poses`` makes them:
+        positions (K, 3) and quaternions (K, 4), the same numbers (the norms taken row by row, as there)."""
+        ts = np.asarray(self._t)
+        i = np.clip(np.searchsorted(ts, times, side="right") - 1, 0, len(ts) - 2)
+        s = np.clip((times - ts[i]) / (ts[i + 1] - ts[i]), 0.0, 1.0)[:, None]
+        P, Q = np.asarray(self._p), np.asarray(self._q)
+        q0, q1 = Q[i], Q[i + 1]
+        q1 = np.where((np.einsum("ij,ij->i", q0, q1) < 0)[:, None], -q1, q1)
+        q = (1 - s) * q0 + s * q1
+        q = q / np.array([np.linalg.norm(r) for r in q])[:, None]
+        q = q / np.array([np.linalg.norm(r) for r in q])[:, None]  # sample_poses normalises what pose_fn returns
+        for k in range(1, len(q)):
+            if np.dot(q[k], q[k - 1]) < 0:
+                q[k] = -q[k]
+        return (1 - s) * P[i] + s * P[i + 1], q
+
     def step(self, t: float, bus: BusView) -> None:
         truth: Odometry = bus.latest(Topics.TRUTH_ODOMETRY)
         self._t.append(t)
@@ -66,9 +84,22 @@ class LidarComponent(Component):
             self._frame_start = t
         period = self.lidar.period
         if t - self._frame_start >= period - 1e-9:
-            cloud, hits = self.lidar.scan_with_truth(self.world, self._pose, self._frame_start)
+            cloud, hits = self.lidar.scan_with_truth(self.world, self._pose_fn, self._frame_start)
             bus.publish(self.topic, cloud)
             bus.publish(self.truth_topic, hits)
             self._frame_start += period
             keep = max(0, int(np.searchsorted(self._t, self._frame_start, side="right")) - 1)
             del self._t[:keep], self._p[:keep], self._q[:keep]
+
+
+class _PoseFn:
+    """The component's true pose as a ``pose_fn`` for :meth:`Lidar.scan_with_truth`, with ``many``."""
+
+    def __init__(self, component: LidarComponent) -> None:
+        self.component = component
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        return self.component._pose(t)
+
+    def many(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.component._poses(np.asarray(times, dtype=float))

@@ -42,9 +42,13 @@ class ScanRays:
     """[rad], up from the x-y plane."""
     channel: np.ndarray
     """Laser channel (ring) index, int32."""
+    unit: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
+    """(N, 3) the unit directions when the pattern computed them with the angles (else None)."""
 
     def directions(self) -> np.ndarray:
-        """(N, 3) unit direction vectors in the sensor frame."""
+        """(N, 3) unit direction vectors in the sensor frame (``unit`` when given: do not modify it)."""
+        if self.unit is not None:
+            return self.unit
         ce = np.cos(self.elevation)
         return np.stack([ce * np.cos(self.azimuth), ce * np.sin(self.azimuth), np.sin(self.elevation)], 1)
 
@@ -189,12 +193,15 @@ class Mid360Pattern:
         return 1.0 / self.rate
 
     def frame(self, k: int) -> ScanRays:
-        n, i, t_abs, ch = _firing_clock(self.point_rate, self.period, self.lasers, k)
-        az = np.mod(2 * np.pi * (self.spin_rate * t_abs + ch / self.lasers), 2 * np.pi)
-        phase = 2 * np.pi * self.spin_rate * self.sweep_ratio * t_abs + np.pi * ch / self.lasers
-        mid, half = (self.elevation_max + self.elevation_min) / 2, (self.elevation_max - self.elevation_min) / 2
-        el = mid + half * np.sin(phase)
-        return ScanRays(i / self.point_rate, az, el, ch)
+        """Ray i of frame k fires at (k n + i) / point_rate (n rays per frame), laser i % lasers; azimuth
+        2π (spin_rate t + channel / lasers) mod 2π; elevation (min + max) / 2 + (max - min) / 2 ·
+        sin(2π spin_rate sweep_ratio t + π channel / lasers). Computed in C++ with the directions."""
+        from .. import _core
+
+        n = int(round(self.point_rate * self.period))
+        t, az, el, ch, d = _core.lidar.mid360_frame(int(k), n, self.point_rate, self.lasers, self.spin_rate,
+                                                    self.sweep_ratio, self.elevation_min, self.elevation_max)
+        return ScanRays(t, az, el, ch, d)
 
 
 @dataclasses.dataclass(frozen=True)
