@@ -160,6 +160,37 @@ def test_the_3d_view_draws_the_vehicle(gcs, driver, view):
             open_page(d, gcs)
 
 
+def test_click_on_the_ground_goes_there(gcs, driver):
+    """A click on the 3-D view (click to go) sends a go-to to the ground point under the pointer (picked analytically
+    on z = 0 with the camera the view draws with, as the previous test checks), at the altitude typed for go-to."""
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    d = driver
+    if not d.current_url.startswith(gcs.base) or "view=page" in d.current_url:
+        open_page(d, gcs)
+    assert wait_for(lambda: telemetry(d)["mode"] == "hold" and telemetry(d)["armed"], 20), telemetry(d)["mode"]
+    set_value(d, "goto-z", 1.4)
+    d.find_element(By.ID, "click-goto").click()
+    d.find_element(By.ID, "follow").click()  # a still camera
+    try:
+        goal = np.array([-1.6, 0.8])
+        px = d.execute_script("return window.gcs.screenOf(arguments[0])", [*goal, 0.0])
+        canvas = d.execute_script("return window.gcs.canvas")
+        r = d.execute_script("return arguments[0].getBoundingClientRect()", canvas)
+        ActionChains(d).move_to_element_with_offset(canvas, round(px["x"] - r["x"] - r["width"] / 2),
+                                                    round(px["y"] - r["y"] - r["height"] / 2)).click().perform()
+        assert ack(d, "goto")["result"] == "accepted"
+        target = wait_for(lambda: (t := telemetry(d)["target_p_W"]) and np.linalg.norm(np.array(t[:2]) - goal) < 0.05
+                          and t, 5)
+        assert target, (telemetry(d)["target_p_W"], goal)
+        assert target[2] == pytest.approx(1.4)
+        click = d.execute_script("return window.gcs.lastClick")
+        assert click["p_W"] == pytest.approx(target, abs=1e-9) and click["seenAt"] >= click["t0"]
+    finally:
+        d.find_element(By.ID, "click-goto").click()
+        d.find_element(By.ID, "follow").click()
+
+
 def test_malformed_socket_message_in_the_page(gcs, driver):
     d = driver
     if not d.current_url.startswith(gcs.base):
