@@ -316,3 +316,69 @@ def test_run_mcap_matches_the_histories_and_a_replayed_estimator_is_bit_identica
     m = min(n, len(out["t"]))
     for field in ("t", "p_W", "v_W", "q_WB", "w_B"):
         assert out[field][:m].tobytes() == est[field][:m].tobytes(), field
+
+
+def _free_fall(z=100.0):
+    import dataclasses
+
+    params = dataclasses.replace(cufund.presets.cu_astro(), body_drag=(0.0, 0.0, 0.0), rotor_drag_xy=0.0,
+                                 rotor_drag_z=0.0)
+    quad = cufund.Quadrotor(params)
+    quad.state.p[:] = [0.0, 0.0, z]
+    quad.state.rotor_speeds[:] = 0.0
+    return quad
+
+
+def test_truth_readers_see_the_state_at_their_instant_when_flight_software_runs_between_them():
+    """Truth is snapshotted only before components that may read it; a 400 Hz reader between 1 kHz instants of
+    software that cannot read it still sees the exact state at its own time."""
+    quad = _free_fall()
+    seen = []
+
+    class Software(cufund.Component):  # no truth access: instants where only it runs need no snapshot
+        rate_hz = 1000.0
+
+        def step(self, t, bus):
+            pass
+
+    class Sample(cufund.Component):
+        rate_hz, inputs, reads_truth = 400.0, (Topics.TRUTH_ODOMETRY,), True
+
+        def step(self, t, bus):
+            seen.append((t, bus.latest(Topics.TRUTH_ODOMETRY)))
+
+    sim = Simulator(quad)
+    sim.add(Software())
+    sim.add(Sample())
+    sim.run(0.25)
+    g = quad.params.gravity
+    assert len(seen) == 100
+    for t, truth in seen:
+        assert truth.t == t
+        assert truth.p_W[2] == pytest.approx(100.0 - 0.5 * g * t * t, abs=1e-10)
+
+
+def test_done_gets_the_truth_of_its_node_also_when_it_keeps_it():
+    """``done`` receives the state at each node (built lazily where no snapshot was published); one it keeps
+    still holds that node's state after the run has moved on."""
+    quad = _free_fall()
+    kept, read = {}, {}
+
+    def done(t, truth):
+        k = round(t * 1000)
+        assert isinstance(truth, Odometry) and truth.t == t
+        if k % 50 == 0:
+            kept[k] = truth  # read only after the run
+        elif k % 50 == 25:
+            read[k] = truth.p_W.copy()  # read now
+        return False
+
+    sim = Simulator(quad)
+    result = sim.run(0.3, done=done)
+    rows = {round(t * 1000): i for i, t in enumerate(result.states["t"])}
+    assert len(kept) == 7 and len(read) == 6  # nodes 0, 50, ..., 300 (the last is checked too)
+    for k, truth in kept.items():
+        assert np.array_equal(truth.p_W, result.states["p_W"][rows[k]]), k
+        assert np.array_equal(truth.q_WB, result.states["q_WB"][rows[k]]), k
+    for k, p in read.items():
+        assert np.array_equal(p, result.states["p_W"][rows[k]]), k

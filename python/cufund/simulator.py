@@ -83,9 +83,13 @@ def _stack(messages: list[Any]) -> dict[str, np.ndarray | list[Any]]:
         values = [getattr(m, f.name) for m in messages]
         if isinstance(values[0], enum.Enum):
             values = [v.value for v in values]
-        shapes = {v.shape if v.__class__ is np.ndarray else np.shape(v) for v in values}
+        shapes = {v.shape if v.__class__ is np.ndarray else () if v is None or v.__class__ in _SCALARS else np.shape(v)
+                  for v in values}
         out[f.name] = np.asarray(values) if len(shapes) == 1 and _stackable(values[0]) else values
     return out
+
+
+_SCALARS = frozenset((float, int, bool, str))  # np.shape(v) == () without asking numpy
 
 
 def _stackable(value: Any) -> bool:
@@ -107,15 +111,45 @@ def _joined(views: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
     return tuple(out)
 
 
+class _DeferredTruth(Odometry):
+    """Ground truth at one node, built on the first read of a state field: what ``done(t, truth)`` receives at a
+    node where no snapshot was published (most ``done`` conditions test the time first and read the state only
+    near the end). A ``done`` that keeps it gets it built before the state moves on (see ``_record``)."""
+
+    __slots__ = ("_value", "_sim")
+
+    def _resolve(self) -> Odometry:
+        value = self._sim._snapshot(self.t)
+        object.__setattr__(self, "_value", value)
+        return value
+
+
+def _deferred_field(name: str) -> property:
+    def get(self: _DeferredTruth) -> Any:
+        value = self._value
+        if value is None:
+            value = self._resolve()
+        return getattr(value, name)
+
+    return property(get, doc=f"Odometry.{name}, built on first read.")
+
+
+for _f in fields(Odometry):
+    if _f.name != "t":
+        setattr(_DeferredTruth, _f.name, _deferred_field(_f.name))
+
+
 class _Slot:
     """A component as scheduled: its clock, bus handle and time spent."""
 
-    __slots__ = ("component", "name", "clock", "view", "run", "seconds")
+    __slots__ = ("component", "name", "clock", "view", "run", "seconds", "reads_truth")
 
     def __init__(self, component: Component, name: str, clock: EventClock, view: BusView) -> None:
         self.component, self.name, self.clock, self.view = component, name, clock, view
         self.run = component.step
         self.seconds = 0.0
+        self.reads_truth = str(Topics.TRUTH_ODOMETRY) in view._readable
+        """It may read ground truth: the snapshot is published before it runs."""
 
 
 class Simulator:
@@ -383,6 +417,16 @@ class Simulator:
         last_bar = -1
         perf = time.perf_counter
         snapshot, record = self._snapshot, self._record
+        # Ground truth is published at an instant before the first component that may read it. When nothing else
+        # observes the topic (no log, no recording, no subscription), instants where only flight software runs
+        # (which reads the estimate once one is attached) skip the snapshot: no reader could tell.
+        always_truth = (bus.logger is not None or truth_topic in bus._recorded or bool(bus._subs.get(truth_topic)))
+        if quad is not None and getattr(quad, "step", None) == getattr(Quadrotor, "step", None).__get__(quad):
+            batch, core_step = quad._batch, quad._step  # Quadrotor.step without its Python layer (no wind function)
+        else:
+            batch, core_step = None, None
+        physics_seconds = self._physics_seconds
+        processed = self._processed_ns
         # the physics clock's arithmetic inlined (EventClock.advance): t_k = start + k * NS * den // num
         p_start, p_num, p_den = physics.start_ns, physics.num, physics.den
         p_step = NS * p_den
@@ -391,8 +435,8 @@ class Simulator:
         next_event = self._next_event()
         try:
             while now < end_ns:
-                if self._processed_ns != now:  # events and node checks at `now`, once
-                    self._processed_ns = now
+                if processed != now:  # events and node checks at `now`, once
+                    processed = self._processed_ns = now
                     if now >= next_event:
                         bus.now_ns = now
                         if pending and pending[0][0] <= now:
@@ -403,7 +447,7 @@ class Simulator:
                         for s in slots:
                             clock = s.clock
                             if clock.next_ns == now:
-                                if truth is None and quad is not None:
+                                if truth is None and quad is not None and (always_truth or s.reads_truth):
                                     truth = snapshot(t)
                                     self._truth_at = (now, truth)
                                     deliver(truth_topic, truth, now, now)
@@ -429,8 +473,11 @@ class Simulator:
                     break
                 if quad is not None:
                     w0 = perf()
-                    quad.step((target - now) / NS, cmd)
-                    self._physics_seconds += perf() - w0
+                    if batch is not None and batch._wind_fn is None:
+                        core_step((target - now) / NS, cmd, 1)
+                    else:
+                        quad.step((target - now) / NS, cmd)
+                    physics_seconds += perf() - w0
                 now = target
                 at_node = now == p_next
                 if at_node:
@@ -446,6 +493,7 @@ class Simulator:
                         sys.stderr.flush()
         finally:
             physics.k, physics.next_ns = p_k, p_next
+            self._physics_seconds = physics_seconds
             self._now_ns, self._cmd, self._at_node = now, cmd, at_node
         if progress:
             sys.stderr.write("\n")
@@ -479,7 +527,17 @@ class Simulator:
                 return True
         if done is not None:
             at, truth = self._truth_at
-            if done(t, truth if at == now else self._snapshot(t)):
+            if at != now:
+                truth = object.__new__(_DeferredTruth)
+                object.__setattr__(truth, "t", t)
+                object.__setattr__(truth, "_value", None)
+                object.__setattr__(truth, "_sim", self)
+                finished = done(t, truth)
+                if truth._value is None and sys.getrefcount(truth) > 2:  # kept by done: build it while it is true
+                    object.__setattr__(truth, "_value", self._snapshot(t))
+            else:
+                finished = done(t, truth)
+            if finished:
                 self.status, self.message = RunStatus.COMPLETED, "done condition met"
                 return True
         return False
