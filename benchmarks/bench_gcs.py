@@ -9,7 +9,7 @@ real time):
    main thread was (CDP Performance TaskDuration);
 3. the server process's CPU (simulation included) with no tab, then with three tabs open (cloud layer on).
 
-    .venv/bin/python benchmarks/bench_gcs.py [--seconds 10] [--clicks 10] [--speed 1]
+    .venv/bin/python benchmarks/bench_gcs.py [--seconds 10] [--clicks 20] [--speed 1] [--fps 20] [--query aa=1]
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ def browser():
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seconds", type=float, default=10.0, help="length of each rate / CPU window [s]")
-    ap.add_argument("--clicks", type=int, default=10)
+    ap.add_argument("--clicks", type=int, default=20)
     ap.add_argument("--speed", default="1")
     ap.add_argument("--fps", type=int, default=20, help="the page's 3-D redraw cap (?fps=)")
     ap.add_argument("--query", default="", help="more of the page's URL parameters, e.g. 'view=page&dpr=1'")
