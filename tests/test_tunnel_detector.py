@@ -410,3 +410,17 @@ def test_deskew_crop_moves_each_point_with_the_blended_poses_of_its_time():
     np.testing.assert_allclose(rays_W, (w - sensor)[keep] / rng_[keep, None], atol=1e-12)
     np.testing.assert_array_equal(cols, column_keys(points_W))
     np.testing.assert_array_equal(tall, points_W[:, 2] > 2.6)
+
+
+def test_line_support_counts_distinct_bins_and_inliers_per_line():
+    from cufund import _core
+
+    rng = np.random.default_rng(4)
+    for along in (rng.integers(-60, 60, (400, 64)), rng.integers(-2**40, 2**40, (50, 7)), np.zeros((0, 3), np.int64)):
+        inlier = rng.random(along.shape) < 0.3
+        covered, counts = _core.lidar.line_support(along, inlier)
+        for j in range(along.shape[1]):
+            assert covered[j] == len(np.unique(along[inlier[:, j], j]))
+            assert counts[j] == inlier[:, j].sum()
+    with pytest.raises(ValueError, match="inlier"):
+        _core.lidar.line_support(np.zeros((3, 2), np.int64), np.zeros((2, 3), bool))

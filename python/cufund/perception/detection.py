@@ -318,7 +318,8 @@ def _read_bars(u: np.ndarray, v: np.ndarray, u_lo: float, u_hi: float, v_hi: flo
 
 
 def _measure(cluster: np.ndarray, cloud: np.ndarray, views: np.ndarray | None, p: TunnelDetectorParams,
-             rng: np.random.Generator) -> tuple[FrameDetection | None, np.ndarray | None]:
+             rng: np.random.Generator, by_x: tuple[np.ndarray, np.ndarray] | None = None
+             ) -> tuple[FrameDetection | None, np.ndarray | None]:
     """The frame on the best vertical plane through a cluster, measured on the whole cloud (None if it is not a
     frame), and which of the cluster's points lie on that plane (None without a plane)."""
     b = p.bar
@@ -330,11 +331,30 @@ def _measure(cluster: np.ndarray, cloud: np.ndarray, views: np.ndarray | None, p
     u_axis = np.array([-n2[1], n2[0], 0.0])
     depth_c = cluster @ n - d
     on_plane = np.abs(depth_c) < p.slab  # an object just before the frame, or the next frame, may have joined
-    return _measure_plane(cluster[on_plane], depth_c[on_plane], n, d, u_axis, cloud, views, p), on_plane
+    return _measure_plane(cluster[on_plane], depth_c[on_plane], n, d, u_axis, cloud, views, p, by_x), on_plane
+
+
+def _x_order(cloud: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cloud's points in order of x (stable) and their sorted x: a box query then reads a slice."""
+    order = np.argsort(cloud[:, 0], kind="stable")
+    return order, cloud[order, 0]
+
+
+def _in_box(cloud: np.ndarray, lo: np.ndarray, hi: np.ndarray, by_x: tuple[np.ndarray, np.ndarray] | None
+            ) -> np.ndarray:
+    """Indices, ascending, of the points strictly inside the x-y box (lo, hi); with ``by_x`` (:func:`_x_order`)
+    only the points in its x range are tested."""
+    if by_x is None:
+        return np.flatnonzero(np.all((cloud[:, :2] > lo) & (cloud[:, :2] < hi), axis=1))
+    order, xs = by_x
+    cand = order[np.searchsorted(xs, lo[0], side="right"):np.searchsorted(xs, hi[0], side="left")]
+    y = cloud[cand, 1]
+    return np.sort(cand[(y > lo[1]) & (y < hi[1])])
 
 
 def _measure_plane(cluster: np.ndarray, depth_c: np.ndarray, n: np.ndarray, d: float, u_axis: np.ndarray,
-                   cloud: np.ndarray, views: np.ndarray | None, p: TunnelDetectorParams) -> FrameDetection | None:
+                   cloud: np.ndarray, views: np.ndarray | None, p: TunnelDetectorParams,
+                   by_x: tuple[np.ndarray, np.ndarray] | None = None) -> FrameDetection | None:
     b = p.bar
     if len(cluster) < 2 * p.min_bar_points:
         return None
@@ -347,8 +367,7 @@ def _measure_plane(cluster: np.ndarray, depth_c: np.ndarray, n: np.ndarray, d: f
         return None
     # the frame's points: a slab around the plane, within the cluster's horizontal span (the bounding box first)
     reach = 2 * b + p.slab + p.cluster_voxel
-    near = np.all((cloud[:, :2] > cluster[:, :2].min(axis=0) - reach)
-                  & (cloud[:, :2] < cluster[:, :2].max(axis=0) + reach), axis=1)
+    near = _in_box(cloud, cluster[:, :2].min(axis=0) - reach, cluster[:, :2].max(axis=0) + reach, by_x)
     cloud = cloud[near]
     if views is not None:
         views = views[near]
@@ -505,6 +524,7 @@ def detect_in_voxels(cloud_W: np.ndarray, views_W: np.ndarray | None, params: Tu
     coarse = voxel_means(cloud_W[cloud_W[:, 2] > p.floor_z + p.floor_cut], p.cluster_voxel)
     coarse = coarse[~_in_tall_columns(coarse, p.max_frame_top)]
     labels = _dbscan(coarse, p.eps, p.min_points)
+    by_x = _x_order(cloud_W)
     found: list[FrameDetection] = []
     # clusters in the order of their first voxel (coarse is sorted by voxel), each with its own RANSAC draws:
     # however the clustering numbers them, the same cloud gives the same detections
@@ -519,7 +539,7 @@ def detect_in_voxels(cloud_W: np.ndarray, views_W: np.ndarray | None, params: Tu
             continue
         rng = np.random.default_rng([p.seed, len(cluster)])
         for _ in range(3):  # frames close together may share a cluster: each plane in turn
-            det, on_plane = _measure(cluster, cloud_W, views_W, p, rng)
+            det, on_plane = _measure(cluster, cloud_W, views_W, p, rng, by_x)
             if det is not None:
                 found.append(det)
             if on_plane is None:
