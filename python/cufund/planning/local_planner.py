@@ -60,10 +60,11 @@ class LocalPlannerParams:
     max_iterations: int = 100
     """L-BFGS iterations per optimisation (C++, GIL released)."""
     retries: int = 2
-    """A curve that fails its certification (collision or altitude) is optimised again from the same guide with
-    half the control-point spacing, up to this many times: a slower curve with more freedom, which can bend
-    round a corner the guide takes at the radius (e.g. a short leg between two offset tunnel frames, where the
-    first spacing gives too few control points for a rest-to-rest move within the acceleration limit)."""
+    """A curve ending at rest at the goal that fails its certification (collision or altitude) is optimised again
+    from the same guide with half the control-point spacing, up to this many times: a slower curve with more
+    freedom, which can bend round a corner the guide takes at the radius (e.g. a short leg between two offset
+    tunnel frames, where the first spacing gives too few control points for a rest-to-rest move within the
+    acceleration limit). A receding-horizon curve is not retried (its caller keeps the previous trajectory)."""
     z_min: float = 0.5
     """Lowest height of the flight band [m, world z]: the guide A* searches only in the band, its path is kept in
     it, and a trajectory leaving it (below the lower of z_min and its start or goal) is rejected ("altitude"). Unobserved ground is free space to
@@ -147,7 +148,7 @@ class BsplineLocalPlanner:
         for attempt in range(par.retries + 1):
             status, traj, clearance, length, reaches = self._attempt(path, fixed, goal, lo, hi, 0.5 ** attempt,
                                                                          float(t), float(yaw))
-            if status == "ok":
+            if status == "ok" or not reaches:  # only a curve that must stop at the goal is retried
                 break
         return LocalPlan(status, traj, time.perf_counter() - t0, clearance, length, reaches and status == "ok",
                          time.thread_time() - c0)
