@@ -54,15 +54,12 @@ inline std::uint64_t byte_mask(const std::uint8_t* p) {
 }
 }  // namespace
 
-bool OccupancyGrid::clip(const double* a_W, const double* b_W, Clip* c) const {
+bool OccupancyGrid::clip(const double* a, const double* b, Clip* c) const {
   const auto& n = geometry_.shape;
-  double b[3];
   for (int i = 0; i < 3; ++i) {
-    c->a[i] = (a_W[i] - geometry_.origin_W[i]) / geometry_.resolution;
-    b[i] = (b_W[i] - geometry_.origin_W[i]) / geometry_.resolution;
-    c->d[i] = b[i] - c->a[i];
+    c->a[i] = a[i];
+    c->d[i] = b[i] - a[i];
   }
-  const double* a = c->a;
   const double* d = c->d;
   // Clip the parameter range [0, 1] of a + t d to the grid box [0, n].
   double t0 = 0.0, t1 = 1.0;
@@ -181,7 +178,8 @@ bool OccupancyGrid::beam_end(const double* p, const double* origin_W, double* e,
   Index ijk[3];
   bool inside = true;
   for (int i = 0; i < 3; ++i) {
-    const double u = std::floor((e[i] - g.origin_W[i]) / g.resolution);
+    e[i] = (e[i] - g.origin_W[i]) / g.resolution;  // to voxel units
+    const double u = std::floor(e[i]);
     inside = inside && u >= 0.0 && u < static_cast<double>(g.shape[i]);
     ijk[i] = inside ? static_cast<Index>(u) : 0;
   }
@@ -209,6 +207,8 @@ void OccupancyGrid::mark(const Scan& scan, ScanMarks* m, int nthreads) const {
     m->free_end.assign(merge ? words : 0, 0u);
   }
   std::uint8_t* free = m->free.data();
+  double origin_v[3];  // the sensor in voxel units
+  for (int i = 0; i < 3; ++i) origin_v[i] = (origin_W[i] - g.origin_W[i]) / g.resolution;
   auto& free_ends = m->free_ends;
   free_ends.clear();
   // The beam of point k, or false when it is not cast: a non-finite point, a segment missing the grid,
@@ -224,7 +224,7 @@ void OccupancyGrid::mark(const Scan& scan, ScanMarks* m, int nthreads) const {
     Index i;
     *hit = beam_end(p, origin_W, e, &i, &stats);
     if (*hit && test_and_set(m->hit, i) && merge) return false;
-    if (!clip(origin_W, e, c)) return false;
+    if (!clip(origin_v, e, c)) return false;
     if (merge && !*hit) {
       const Index j = (c->end[0] * g.shape[1] + c->end[1]) * g.shape[2] + c->end[2];
       if (test_and_set(m->free_end, j)) return false;
@@ -260,7 +260,7 @@ void OccupancyGrid::mark(const Scan& scan, ScanMarks* m, int nthreads) const {
         ScanStats ignored;
         beam_end(p_W + 3 * k, origin_W, e, &i, &ignored);
         Clip c;
-        clip(origin_W, e, &c);
+        clip(origin_v, e, &c);
         traverse(c, u == 2, [free](Index v) { __atomic_store_n(free + v, std::uint8_t{1}, __ATOMIC_RELAXED); });
       }
     });

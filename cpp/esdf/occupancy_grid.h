@@ -83,19 +83,19 @@ class OccupancyGrid {
                     std::vector<Index>* flipped, std::vector<std::uint8_t>* flipped_state);
 
  private:
-  // The part of a segment a_W -> b_W inside the grid, in voxel units: a + t d for t in [t0, t1].
+  // The part of a segment a -> b inside the grid, in voxel units: a + t d for t in [t0, t1].
   struct Clip {
     double a[3], d[3], t0, t1;
     Index cur[3], end[3];  // first and last voxel of the walk
   };
-  // False when the segment misses the grid.
-  bool clip(const double* a_W, const double* b_W, Clip* c) const;
+  // Clips segment a -> b (in voxel units: (p_W - origin_W) / resolution); false when it misses the grid.
+  bool clip(const double* a, const double* b, Clip* c) const;
   // Visits the voxels a clipped segment crosses inside the grid, in order, as linear indices; with
   // `skip_end`, the voxel holding its end (when inside) is not visited.
   template <typename Visit>
   void traverse(const Clip& c, bool skip_end, Visit&& visit) const;
-  // The end e of the beam to point p (cut at max_range) and the voxel holding it; true when it is a hit
-  // (within range, inside the grid). Counts beyond_range and outside in stats.
+  // The end e of the beam to point p (cut at max_range; in voxel units) and the voxel holding it; true
+  // when it is a hit (within range, inside the grid). Counts beyond_range and outside in stats.
   bool beam_end(const double* p, const double* origin_W, double* e, Index* voxel, ScanStats* stats) const;
   // Sets voxel i's log-odds, recording a change of its occupied state in flipped / state.
   void set(Index i, float value, std::vector<Index>* flipped, std::vector<std::uint8_t>* state);

@@ -7,10 +7,15 @@ namespace cufund::esdf {
 
 namespace {
 
-// Interval i (knots i, i + 1) and fraction s of time t, as interpolate_poses takes them.
+// Interval i (knots i, i + 1) and fraction s of time t, as interpolate_poses takes them (the last knot
+// at or before t, clamped to [0, n - 2]). `*i` on entry is a hint: kept when it is still the interval.
 void interval(const PoseKnots& k, double t, std::ptrdiff_t* i, double* s) {
-  const std::ptrdiff_t j = std::upper_bound(k.t, k.t + k.n, t) - k.t - 1;
-  *i = std::clamp<std::ptrdiff_t>(j, 0, k.n - 2);
+  const std::ptrdiff_t h = *i;
+  const bool hint_ok = h >= 0 && h <= k.n - 2 && (h == 0 || k.t[h] <= t) && (h == k.n - 2 || t < k.t[h + 1]);
+  if (!hint_ok) {
+    const std::ptrdiff_t j = std::upper_bound(k.t, k.t + k.n, t) - k.t - 1;
+    *i = std::clamp<std::ptrdiff_t>(j, 0, k.n - 2);
+  }
   const double t0 = k.t[*i], t1 = k.t[*i + 1];
   *s = std::clamp((t - t0) / (t1 - t0), 0.0, 1.0);
 }
@@ -31,15 +36,20 @@ void quat_to_matrix(const double q[4], double* R) {
 }  // namespace
 
 RigidTransform body_pose_at(const PoseKnots& k, double t) {
+  std::ptrdiff_t hint = -1;
+  return body_pose_at(k, t, &hint);
+}
+
+RigidTransform body_pose_at(const PoseKnots& k, double t, std::ptrdiff_t* hint) {
   RigidTransform T;
   double q[4];
   if (k.n == 1) {
     std::copy(k.p_W, k.p_W + 3, T.t.begin());
     std::copy(k.q_WB, k.q_WB + 4, q);
   } else {
-    std::ptrdiff_t i;
     double s;
-    interval(k, t, &i, &s);
+    interval(k, t, hint, &s);
+    const std::ptrdiff_t i = *hint;
     const double* p0 = k.p_W + 3 * i;
     const double* q0 = k.q_WB + 4 * i;
     const double* q1 = q0 + 4;
@@ -58,12 +68,13 @@ void place_points(const PoseKnots& knots, const RigidTransform& T_BL, const doub
                   std::ptrdiff_t n, double* points_W) {
   // Points come in firing order: the pose is recomputed only when the time changes.
   double last_t = std::nan("");
+  std::ptrdiff_t hint = -1;  // points come in firing order: the interval is usually the previous one
   RigidTransform T_WB;
   double R_WL[9], p_WL[3];
   for (std::ptrdiff_t k = 0; k < n; ++k) {
     if (!(t[k] == last_t)) {
       last_t = t[k];
-      T_WB = body_pose_at(knots, t[k]);
+      T_WB = body_pose_at(knots, t[k], &hint);
       const double* R = T_WB.R.data();
       for (int r = 0; r < 3; ++r) {
         for (int c = 0; c < 3; ++c) {

@@ -25,6 +25,8 @@ struct RigidTransform {
 // The body pose at time t: linear in position, normalised linear in the quaternion (the short way
 // round), clamped at the first and last knot (cufund.sensors.pose.interpolate_poses).
 RigidTransform body_pose_at(const PoseKnots& knots, double t);
+// The same, with `*hint` the interval (knots i, i + 1) to try first; updated to the one used.
+RigidTransform body_pose_at(const PoseKnots& knots, double t, std::ptrdiff_t* hint);
 
 // points_W[3k..] = p_WB(t[k]) + R_WB(t[k]) (R_BL points_L[3k..] + t_BL) for k < n. A non-finite point
 // stays non-finite (the map skips it).
