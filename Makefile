@@ -14,7 +14,7 @@ BUILD_PACKAGES := python3 python3-venv python3-dev g++ make pkg-config git ca-ce
 # chromium-driver: the headless browser that checks replay.html (tests/test_replay.py) and the later web UIs;
 # mona: needed by later issues.
 APT_PACKAGES := $(BUILD_PACKAGES) libeigen3-dev libembree-dev libbullet-dev libgtest-dev libbenchmark-dev \
-                liblz4-dev libzstd-dev zlib1g-dev \
+                liblz4-dev libzstd-dev libdeflate-dev \
                 libusb-1.0-0 libgl1 libegl1 libx11-6 libtbb12 chromium chromium-driver mona
 # Build tools installed into the venv (no build isolation, so rebuilds are incremental).
 BUILD_TOOLS := "scikit-build-core>=0.10" "pybind11>=3.1,<3.2" "cmake>=3.18" ninja

@@ -1,8 +1,8 @@
 #include "mcap_chunk_writer.h"
 
+#include <libdeflate.h>
 #include <lz4frame.h>
 #include <unistd.h>
-#include <zlib.h>
 #include <zstd.h>
 
 #include <algorithm>
@@ -22,7 +22,7 @@ constexpr std::uint8_t kMessage = 0x05, kChunk = 0x06, kMessageIndex = 0x07;
 constexpr std::size_t kMessageHeader = 2 + 4 + 8 + 8;  // channel, sequence, log time, publish time
 
 template <typename T>
-void put(std::vector<std::uint8_t>& out, T v) {
+void put(Bytes& out, T v) {
   const auto* p = reinterpret_cast<const std::uint8_t*>(&v);
   out.insert(out.end(), p, p + sizeof(T));
 }
@@ -32,44 +32,28 @@ void put_at(std::uint8_t* out, T v) {
   std::memcpy(out, &v, sizeof(T));
 }
 
-std::vector<std::uint8_t> compress(const std::vector<std::uint8_t>& raw, Compression c) {
-  std::vector<std::uint8_t> out;
-  if (c == Compression::kLz4) {
-    LZ4F_preferences_t prefs{};
-    prefs.frameInfo.contentSize = raw.size();
-    out.resize(LZ4F_compressFrameBound(raw.size(), &prefs));
-    const std::size_t n = LZ4F_compressFrame(out.data(), out.size(), raw.data(), raw.size(), &prefs);
-    if (LZ4F_isError(n)) throw std::runtime_error(std::string("lz4 compression failed: ") + LZ4F_getErrorName(n));
-    out.resize(n);
-  } else if (c == Compression::kZstd) {
-    out.resize(ZSTD_compressBound(raw.size()));
-    const std::size_t n = ZSTD_compress(out.data(), out.size(), raw.data(), raw.size(), 1);
-    if (ZSTD_isError(n)) throw std::runtime_error(std::string("zstd compression failed: ") + ZSTD_getErrorName(n));
-    out.resize(n);
-  }
-  return out;
-}
-
 // Appends one channel's Message records of the block; their offsets in the chunk go to `offsets`.
-void append_messages(std::vector<std::uint8_t>& raw, const Block& b, std::uint16_t channel, const ViewSpec* view,
+void append_messages(Bytes& raw, const Block& b, std::uint16_t channel, const ViewSpec* view,
                      std::vector<std::uint64_t>& offsets) {
   const std::size_t n = b.size();
+  const std::size_t row = view ? view->row_template.size() : b.row_bytes;
+  std::size_t at = raw.size();
+  raw.resize(at + n * (1 + 8 + kMessageHeader) + (b.row_bytes ? n * row : b.data.size()));  // one resize
   offsets.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint8_t* payload;
     std::size_t size;
     if (b.row_bytes) {
       payload = b.data.data() + i * b.row_bytes;
-      size = view ? view->row_template.size() : b.row_bytes;
+      size = row;
     } else {
       const std::uint64_t begin = i ? b.ends[i - 1] : 0;
       payload = b.data.data() + begin;
       size = b.ends[i] - begin;
     }
-    offsets[i] = raw.size();
-    const std::size_t at = raw.size();
-    raw.resize(at + 1 + 8 + kMessageHeader + size);
+    offsets[i] = at;
     std::uint8_t* p = raw.data() + at;
+    at += 1 + 8 + kMessageHeader + size;
     p[0] = kMessage;
     put_at<std::uint64_t>(p + 1, kMessageHeader + size);
     put_at<std::uint16_t>(p + 9, channel);
@@ -93,6 +77,22 @@ void append_messages(std::vector<std::uint8_t>& raw, const Block& b, std::uint16
       put_at(dst + s.dst_nsec, nsec);
     }
   }
+}
+
+// Compresses src into out from `at` on (out grows to fit); the compressed size.
+std::size_t compress_into(const std::uint8_t* src, std::size_t size, Compression c, Bytes& out, std::size_t at) {
+  if (c == Compression::kLz4) {
+    LZ4F_preferences_t prefs{};
+    prefs.frameInfo.contentSize = size;
+    out.resize(at + LZ4F_compressFrameBound(size, &prefs));
+    const std::size_t n = LZ4F_compressFrame(out.data() + at, out.size() - at, src, size, &prefs);
+    if (LZ4F_isError(n)) throw std::runtime_error(std::string("lz4 compression failed: ") + LZ4F_getErrorName(n));
+    return n;
+  }
+  out.resize(at + ZSTD_compressBound(size));
+  const std::size_t n = ZSTD_compress(out.data() + at, out.size() - at, src, size, 1);
+  if (ZSTD_isError(n)) throw std::runtime_error(std::string("zstd compression failed: ") + ZSTD_getErrorName(n));
+  return n;
 }
 
 }  // namespace
@@ -121,8 +121,15 @@ void stamp_sec_nsec(double t, std::int32_t* sec, std::uint32_t* nsec) {
   *sec = static_cast<std::int32_t>(std::clamp<std::int64_t>(s, INT32_MIN, INT32_MAX));
 }
 
-std::vector<std::uint8_t> encode_chunk(const Block& b, Compression compression, std::uint64_t position,
+std::vector<std::uint8_t> encode_chunk(const Block& block, Compression compression, std::uint64_t position,
                                        ChunkInfo* info) {
+  Bytes out, scratch;
+  encode_chunk(block, compression, position, info, out, scratch);
+  return std::vector<std::uint8_t>(out.begin(), out.end());
+}
+
+void encode_chunk(const Block& b, Compression compression, std::uint64_t position, ChunkInfo* info, Bytes& out,
+                  Bytes& scratch) {
   const std::size_t n = b.size();
   if (n == 0 || b.publish.size() != n || b.sequence.size() != n ||
       (b.row_bytes ? b.data.size() != n * b.row_bytes : b.ends.size() != n || b.ends.back() != b.data.size())) {
@@ -137,45 +144,54 @@ std::vector<std::uint8_t> encode_chunk(const Block& b, Compression compression, 
 
   std::vector<const ViewSpec*> views{nullptr};
   std::vector<std::uint16_t> channels{b.channel};
-  std::size_t per_message = b.row_bytes ? b.row_bytes : 0;
   if (b.row_bytes && b.views) {
     for (const auto& v : *b.views) {
       views.push_back(&v);
       channels.push_back(v.channel);
-      per_message += v.row_template.size();
     }
   }
-  std::vector<std::uint8_t> raw;
-  raw.reserve(n * (channels.size() * (1 + 8 + kMessageHeader)) + (b.row_bytes ? n * per_message : b.data.size()));
-  std::vector<std::vector<std::uint64_t>> offsets(channels.size());
-  for (std::size_t g = 0; g < channels.size(); ++g) append_messages(raw, b, channels[g], views[g], offsets[g]);
-
-  const std::vector<std::uint8_t> packed = compress(raw, compression);
-  const std::vector<std::uint8_t>& records = compression == Compression::kNone ? raw : packed;
   const std::string name = compression_name(compression);
-  const auto crc = static_cast<std::uint32_t>(::crc32(0L, raw.data(), static_cast<uInt>(raw.size())));
-
-  std::vector<std::uint8_t> out;
-  out.reserve(1 + 8 + 8 * 3 + 4 + 4 + name.size() + 8 + records.size() + channels.size() * (15 + 16 * n));
-  out.push_back(kChunk);
-  put<std::uint64_t>(out, 8 * 3 + 4 + 4 + name.size() + 8 + records.size());
-  put<std::uint64_t>(out, *lo);
-  put<std::uint64_t>(out, *hi);
-  put<std::uint64_t>(out, raw.size());
-  put<std::uint32_t>(out, crc);
-  put<std::uint32_t>(out, static_cast<std::uint32_t>(name.size()));
-  out.insert(out.end(), name.begin(), name.end());
-  put<std::uint64_t>(out, records.size());
-  out.insert(out.end(), records.begin(), records.end());
+  const std::size_t header = 1 + 8 + 8 * 3 + 4 + 4 + name.size() + 8;
+  // the records go straight after the chunk's header when stored as they are, else into scratch (reused)
+  Bytes& raw = compression == Compression::kNone ? out : scratch;
+  out.clear();
+  scratch.clear();
+  if (compression == Compression::kNone) out.resize(header);
+  const std::size_t raw_start = raw.size();
+  std::vector<std::vector<std::uint64_t>> offsets(channels.size());
+  for (std::size_t g = 0; g < channels.size(); ++g) {
+    append_messages(raw, b, channels[g], views[g], offsets[g]);
+    if (raw_start) {
+      for (auto& o : offsets[g]) o -= raw_start;  // offsets count from the chunk's first record
+    }
+  }
+  const std::size_t raw_size = raw.size() - raw_start;
+  const std::uint32_t crc = libdeflate_crc32(0, raw.data() + raw_start, raw_size);  // zlib's CRC-32, PCLMUL-fast
+  std::size_t records = raw_size;
+  if (compression != Compression::kNone) {
+    records = compress_into(scratch.data(), raw_size, compression, out, header);
+    out.resize(header + records);
+  }
+  std::uint8_t* h = out.data();
+  h[0] = kChunk;
+  put_at<std::uint64_t>(h + 1, header - 9 + records);
+  put_at<std::uint64_t>(h + 9, *lo);
+  put_at<std::uint64_t>(h + 17, *hi);
+  put_at<std::uint64_t>(h + 25, raw_size);
+  put_at<std::uint32_t>(h + 33, crc);
+  put_at<std::uint32_t>(h + 37, static_cast<std::uint32_t>(name.size()));
+  std::memcpy(h + 41, name.data(), name.size());
+  put_at<std::uint64_t>(h + 41 + name.size(), records);
   const std::uint64_t chunk_length = out.size();
 
   info->start = *lo;
   info->end = *hi;
   info->chunk_start = position;
   info->chunk_length = chunk_length;
-  info->compressed_size = records.size();
-  info->uncompressed_size = raw.size();
+  info->compressed_size = records;
+  info->uncompressed_size = raw_size;
   info->message_index_offsets.clear();
+  out.reserve(out.size() + channels.size() * (15 + 16 * n));
   for (std::size_t g = 0; g < channels.size(); ++g) {
     info->message_index_offsets.emplace_back(channels[g], position + out.size());
     out.push_back(kMessageIndex);
@@ -188,7 +204,6 @@ std::vector<std::uint8_t> encode_chunk(const Block& b, Compression compression, 
     }
   }
   info->message_index_length = out.size() - chunk_length;
-  return out;
 }
 
 ChunkWriter::ChunkWriter(int fd, Compression compression, bool background, std::size_t max_pending)
@@ -273,8 +288,8 @@ void ChunkWriter::process(Job& job) {
     return;
   }
   ChunkInfo info;
-  const std::vector<std::uint8_t> out = encode_chunk(job.block, compression_, position_, &info);
-  write_all(out.data(), out.size());
+  encode_chunk(job.block, compression_, position_, &info, out_, scratch_);
+  write_all(out_.data(), out_.size());
   const Block& b = job.block;
   counts_[b.channel] += b.size();
   if (b.views) {

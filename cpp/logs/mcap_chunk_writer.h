@@ -13,10 +13,35 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
 namespace cufund::logs {
+
+// An allocator whose resize() leaves new bytes uninitialised: buffers that are written right after growing
+// (rows, records, compressed data) would otherwise be zero-filled first.
+template <typename T, typename A = std::allocator<T>>
+class DefaultInitAllocator : public A {
+  using Traits = std::allocator_traits<A>;
+
+ public:
+  template <typename U>
+  struct rebind {
+    using other = DefaultInitAllocator<U, typename Traits::template rebind_alloc<U>>;
+  };
+  using A::A;
+  template <typename U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    Traits::construct(static_cast<A&>(*this), p, std::forward<Args>(args)...);
+  }
+};
+
+using Bytes = std::vector<std::uint8_t, DefaultInitAllocator<std::uint8_t>>;
 
 enum class Compression { kNone, kLz4, kZstd };
 
@@ -48,7 +73,7 @@ void stamp_sec_nsec(double t, std::int32_t* sec, std::uint32_t* nsec);
 struct Block {
   std::uint16_t channel = 0;
   std::size_t row_bytes = 0;         // > 0: every payload has this size; payload i is data[i * row_bytes ...]
-  std::vector<std::uint8_t> data;    // the payloads, back to back
+  Bytes data;                        // the payloads, back to back
   std::vector<std::uint64_t> ends;   // row_bytes == 0: where each payload ends in data
   std::vector<std::uint64_t> log, publish;
   std::vector<std::uint32_t> sequence;
@@ -70,6 +95,10 @@ struct ChunkInfo {
 // the file offset the chunk will start at; `info` is filled in.
 std::vector<std::uint8_t> encode_chunk(const Block& block, Compression compression, std::uint64_t position,
                                        ChunkInfo* info);
+// The same into `out`, with `scratch` for the uncompressed records: both reused from chunk to chunk (no fresh
+// pages for every chunk).
+void encode_chunk(const Block& block, Compression compression, std::uint64_t position, ChunkInfo* info, Bytes& out,
+                  Bytes& scratch);
 
 // Writes raw records and chunks to a file descriptor (owned, closed by close()) in submission order, on a
 // background thread when `background` (at most `max_pending` jobs wait: a producer that outruns the disk
@@ -117,6 +146,7 @@ class ChunkWriter {
   std::map<std::uint16_t, std::uint64_t> counts_;
   bool any_message_ = false;
   std::uint64_t start_ = 0, end_ = 0;
+  Bytes out_, scratch_;  // the writer's chunk buffers, reused
 
   mutable std::mutex mutex_;
   std::condition_variable wake_, space_;
