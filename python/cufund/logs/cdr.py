@@ -1,10 +1,10 @@
-"""Fixed-size CDR messages encoded a block at a time with numpy.
+"""Fixed-size CDR messages: their byte layout, as a numpy structured dtype with explicit offsets.
 
 A message whose fields are all numbers and fixed-shape numeric arrays has the same CDR byte layout every time:
 the 4-byte encapsulation header (little-endian CDR), then each field aligned to its own size, counted from the end
-of the header (OMG CDR; what ROS 2 writes). A block of such messages is therefore one numpy structured array with
-explicit offsets: filling its columns from 1024 messages costs a few numpy calls, not 1024 ``struct.pack`` calls.
-Constant strings (the ``frame_id`` of a Foxglove schema on one topic) have a fixed length too and sit in the
+of the header (OMG CDR; what ROS 2 writes). The logger's compiled hot path (:class:`cufund._core.logs.LogCore`)
+copies each message's fields straight to their offsets in a row (:meth:`MessageLayout.row_spec`); the checked
+path (:meth:`MessageLayout.row`) and the reader (:meth:`MessageLayout.decode`) use the same dtype. Constant strings (the ``frame_id`` of a Foxglove schema on one topic) have a fixed length too and sit in the
 template every row is copied from.
 
 The ros2msg text of each layout is what Foxglove Studio and ``mcap-ros2-support`` decode the bytes with.
