@@ -3,6 +3,7 @@
 
     .venv/bin/python benchmarks/bench_tunnel.py                 # 50 layouts (world.seed 0..49), one at a time
     .venv/bin/python benchmarks/bench_tunnel.py --layouts 10 --jobs 2 --set controller.kind=geometric
+    .venv/bin/python benchmarks/bench_tunnel.py --components      # the paper's layout once: LiDAR and detector time
 
 Each layout is the full stack (LiDAR + IMU models, LIO, ESDF mapping, detection, planning, PID, 1 kHz physics)
 in its own process; with ``--jobs`` > 1 the real-time factors are those of processes sharing the cores.
@@ -35,6 +36,47 @@ def _one(job: tuple[int, list[str]]) -> dict:
     return m
 
 
+def components(overrides: list[str]) -> int:
+    """One run (the paper's layout unless --set world.seed=K) with the LiDAR's and the tunnel detector's process
+    CPU time per step counted beside the simulator's wall time per component (issue 14's targets, on the lead's
+    quiet machine: LiDAR <= 1.5 s, detector <= 0.6 s of wall over the run)."""
+    from cufund.perception.tunnel_detector import TunnelDetector
+    from cufund.scenario import load_scenario, parse_overrides
+    from cufund.scenario_build import run_scenario
+    from cufund.sensors.lidar_component import LidarComponent
+
+    cpu: dict[str, float] = {}
+
+    def counted(cls: type, name: str) -> None:
+        step = cls.step
+
+        def timed(self: object, t: float, bus: object) -> None:
+            c0 = time.process_time()
+            try:
+                step(self, t, bus)
+            finally:
+                cpu[name] = cpu.get(name, 0.0) + time.process_time() - c0
+
+        cls.step = timed
+
+    counted(LidarComponent, "lidar")
+    counted(TunnelDetector, "tunnel_detector")
+    load0 = os.getloadavg()[0]
+    c0, w0 = time.process_time(), time.perf_counter()
+    run = run_scenario(load_scenario("tunnel", parse_overrides(overrides)))
+    cpu_all, wall = time.process_time() - c0, time.perf_counter() - w0
+    m = run.metrics
+    wall_s = m.get("component_seconds", {})
+    print(f"tunnel {' '.join(overrides) or '(paper layout)'}: success={m.get('success')} "
+          f"sim {m.get('sim_time_s'):.1f} s, wall {wall:.1f} s, process CPU {cpu_all:.1f} s, "
+          f"load {load0:.1f} -> {os.getloadavg()[0]:.1f} (2 cores)")
+    for name, target in (("lidar", 1.5), ("tunnel_detector", 0.6)):
+        print(f"  {name:16s} wall {wall_s.get(name, float('nan')):6.2f} s  CPU {cpu.get(name, float('nan')):6.2f} s  "
+              f"(target <= {target} s wall on a quiet machine)")
+    print("  all components (wall s): " + ", ".join(f"{k} {v:.2f}" for k, v in wall_s.items()))
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--layouts", type=int, default=50, help="generated layouts (world.seed 0..N-1), default 50")
@@ -42,7 +84,11 @@ def main() -> int:
     ap.add_argument("--jobs", type=int, default=1, help="processes in parallel (default 1)")
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--json", help="write every layout's metrics here")
+    ap.add_argument("--components", action="store_true",
+                    help="one run in this process: the LiDAR's and the detector's wall and CPU seconds")
     args = ap.parse_args()
+    if args.components:
+        return components(args.overrides)
     jobs = [(s, args.overrides) for s in range(args.first, args.first + args.layouts)]
     print(f"tunnel benchmark: {args.layouts} layouts, {args.jobs} job(s), {os.cpu_count()} cores, load "
           f"{os.getloadavg()[0]:.1f}", flush=True)

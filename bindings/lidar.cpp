@@ -397,7 +397,7 @@ cluster near it; noise is -1.
       "deskew_crop",
       [](const py::handle& points_L, const py::handle& dt, const py::handle& stride_obj, const py::handle& span_obj,
          const py::handle& p_WL, const py::handle& R_WL, const py::handle& max_range, const py::handle& z_min,
-         const py::handle& z_max, const py::handle& tall_z, const py::handle& column_cell) {
+         const py::handle& z_max, const py::handle& tall_z, const py::handle& column_cell, const py::handle& tall_obj) {
         py::array arr = checked_array(points_L, "points_L");
         if (arr.ndim() != 2 || arr.shape(1) != 3) {
           throw py::value_error("points_L must have shape (N, 3), got " + shape_str(arr));
@@ -428,30 +428,40 @@ cluster near it; noise is -1.
         lidar::CropBox box{finite_arg(max_range, "max_range"), finite_arg(z_min, "z_min"), finite_arg(z_max, "z_max"),
                            finite_arg(tall_z, "tall_z"), finite_arg(column_cell, "column_cell")};
         if (!(box.column_cell > 0)) throw py::value_error("column_cell must be > 0 [m]");
+        py::array t_arr = checked_array(tall_obj, "tall");
+        if (t_arr.ndim() != 1 || t_arr.dtype().kind() != 'i') {
+          throw py::value_error("tall must be a sorted (T,) integer array of column keys, got " +
+                                std::string(py::str(t_arr.dtype())) + " " + shape_str(t_arr));
+        }
+        auto tall = contiguous<std::int64_t>(t_arr, "tall");
+        for (py::ssize_t i = 0; i + 1 < tall.shape(0); ++i) {
+          if (tall.data()[i + 1] < tall.data()[i]) throw py::value_error("tall must be sorted ascending");
+        }
         thread_local lidar::CroppedScan out;
         {
           py::gil_scoped_release release;
-          lidar::deskew_crop(pts.data(), times.data(), static_cast<std::size_t>(n), stride, knots, box, out);
+          lidar::deskew_crop(pts.data(), times.data(), static_cast<std::size_t>(n), stride, knots, box, tall.data(),
+                             static_cast<std::size_t>(tall.shape(0)), out);
         }
         const auto m = static_cast<py::ssize_t>(out.columns.size());
         py::array_t<double> points_W({m, py::ssize_t{3}}), rays_W({m, py::ssize_t{3}});
-        py::array_t<std::int64_t> columns(m);
-        py::array_t<bool> tall(m);
+        py::array_t<std::int64_t> new_tall(static_cast<py::ssize_t>(out.new_tall.size()));
         std::copy(out.points_W.begin(), out.points_W.end(), points_W.mutable_data());
         std::copy(out.rays_W.begin(), out.rays_W.end(), rays_W.mutable_data());
-        std::copy(out.columns.begin(), out.columns.end(), columns.mutable_data());
-        std::transform(out.tall.begin(), out.tall.end(), tall.mutable_data(), [](std::uint8_t v) { return v != 0; });
-        return py::make_tuple(points_W, rays_W, columns, tall);
+        std::copy(out.new_tall.begin(), out.new_tall.end(), new_tall.mutable_data());
+        return py::make_tuple(points_W, rays_W, new_tall);
       },
       py::arg("points_L"), py::arg("dt"), py::arg("stride"), py::arg("span"), py::arg("p_WL"), py::arg("R_WL"),
-      py::arg("max_range"), py::arg("z_min"), py::arg("z_max"), py::arg("tall_z"), py::arg("column_cell"), R"doc(
+      py::arg("max_range"), py::arg("z_min"), py::arg("z_max"), py::arg("tall_z"), py::arg("column_cell"),
+      py::arg("tall"), R"doc(
 A scan moved to the world point by point and cropped (the tunnel detector's input). Rows 0, stride, ...
 of ``points_L`` (N, 3) [m] fired at ``dt`` (N,) [s] from the scan start; K + 1 sensor poses ``p_WL``
 (K + 1, 3) [m], ``R_WL`` (K + 1, 3, 3) evenly over [0, span] [s]: a point is moved with the two poses
 around its time and the results blended linearly. Keeps the points 1e-6 m to max_range [m] from the
-sensor with z in [z_min, z_max] [m], in order; returns (points_W (M, 3), unit rays_W (M, 3) from the
-sensor, x-y column keys (M,) int64 of edge column_cell [m] as detection.column_keys, tall (M,) bool:
-z > tall_z).
+sensor with z in [z_min, z_max] [m], in order, except those in tall x-y columns (keys as
+detection.column_keys, edge column_cell [m]): the sorted int64 keys ``tall``, and the columns where a kept
+point of this scan lies above tall_z [m]. Returns (points_W (M, 3), unit rays_W (M, 3) from the sensor,
+new_tall: the sorted keys of those new tall columns not in ``tall``).
 )doc");
 
   m.def(

@@ -378,7 +378,7 @@ def test_dbscan_labels_are_open3ds():
         _core.lidar.dbscan(np.full((3, 3), np.nan), 0.1, 4)
 
 
-def test_deskew_crop_moves_each_point_with_the_blended_poses_of_its_time():
+def test_deskew_crop_moves_each_point_with_the_blended_poses_of_its_time_and_drops_tall_columns():
     from cufund import _core
 
     rng = np.random.default_rng(2)
@@ -389,10 +389,6 @@ def test_deskew_crop_moves_each_point_with_the_blended_poses_of_its_time():
     R = quat_to_matrix(np.column_stack([np.cos(yaw / 2), np.zeros(K + 1), np.zeros(K + 1), np.sin(yaw / 2)]))
     p = np.column_stack([np.linspace(0, 0.3, K + 1), np.zeros(K + 1), np.full(K + 1, 1.0)])
     span = dt.max()
-    got = _core.lidar.deskew_crop(points_L[::2], dt[::2], 1, span, p, R, 6.0, 0.02, 3.0, 2.6, 0.1)
-    got_strided = _core.lidar.deskew_crop(points_L, dt, 2, span, p, R, 6.0, 0.02, 3.0, 2.6, 0.1)
-    for a, b in zip(got, got_strided):
-        np.testing.assert_array_equal(a, b)
     # reference: each point with the two knot poses around its time, blended
     pl, t = points_L[::2].astype(float), dt[::2]
     x = np.clip(t / span * K, 0, K)
@@ -403,13 +399,19 @@ def test_deskew_crop_moves_each_point_with_the_blended_poses_of_its_time():
     w = a + s * (b - a)
     sensor = p[seg] + s * (p[seg + 1] - p[seg])
     rng_ = np.linalg.norm(w - sensor, axis=1)
-    keep = (rng_ <= 6.0) & (w[:, 2] >= 0.02) & (w[:, 2] <= 3.0)
-    assert 0 < keep.sum() < len(keep)
-    points_W, rays_W, cols, tall = got
-    np.testing.assert_allclose(points_W, w[keep], atol=1e-12)
-    np.testing.assert_allclose(rays_W, (w - sensor)[keep] / rng_[keep, None], atol=1e-12)
-    np.testing.assert_array_equal(cols, column_keys(points_W))
-    np.testing.assert_array_equal(tall, points_W[:, 2] > 2.6)
+    base = (rng_ <= 6.0) & (w[:, 2] >= 0.02) & (w[:, 2] <= 3.0)
+    cols = column_keys(w)
+    tall_here = np.unique(cols[base & (w[:, 2] > 2.6)])
+    known = np.unique(np.concatenate([tall_here[::3], column_keys(rng.uniform(-5, 5, (50, 3)))]))
+    keep = base & ~np.isin(cols, np.union1d(known, tall_here))
+    assert 0 < keep.sum() < base.sum() and len(np.setdiff1d(tall_here, known)) > 0
+    for args in ((points_L[::2], dt[::2], 1), (points_L, dt, 2)):  # every row, or every other one
+        points_W, rays_W, new_tall = _core.lidar.deskew_crop(*args, span, p, R, 6.0, 0.02, 3.0, 2.6, 0.1, known)
+        np.testing.assert_allclose(points_W, w[keep], atol=1e-12)
+        np.testing.assert_allclose(rays_W, (w - sensor)[keep] / rng_[keep, None], atol=1e-12)
+        np.testing.assert_array_equal(new_tall, np.setdiff1d(tall_here, known))
+    with pytest.raises(ValueError, match="tall"):
+        _core.lidar.deskew_crop(points_L, dt, 1, span, p, R, 6.0, 0.02, 3.0, 2.6, 0.1, known[::-1])
 
 
 def test_line_support_counts_distinct_bins_and_inliers_per_line():

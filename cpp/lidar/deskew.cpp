@@ -6,16 +6,15 @@
 namespace cufund::lidar {
 
 void deskew_crop(const float* points_L, const double* dt, std::size_t n, std::size_t stride, const DeskewKnots& knots,
-                 const CropBox& box, CroppedScan& out) {
+                 const CropBox& box, const std::int64_t* tall, std::size_t n_tall, CroppedScan& out) {
   out.points_W.clear();
   out.rays_W.clear();
   out.columns.clear();
-  out.tall.clear();
+  out.new_tall.clear();
   const std::size_t rows = n == 0 ? 0 : (n - 1) / stride + 1;
   out.points_W.reserve(3 * rows);
   out.rays_W.reserve(3 * rows);
   out.columns.reserve(rows);
-  out.tall.reserve(rows);
   const auto K = static_cast<std::int64_t>(knots.segments);
   const double k_max = static_cast<double>(K);
   for (std::size_t r = 0; r < rows; ++r) {
@@ -44,9 +43,29 @@ void deskew_crop(const float* points_L, const double* dt, std::size_t n, std::si
       out.points_W.push_back(w[c]);
       out.rays_W.push_back(ray[c] / range);
     }
-    out.columns.push_back((ci << 31) | cj);
-    out.tall.push_back(w[2] > box.tall_z ? 1 : 0);
+    const std::int64_t key = (ci << 31) | cj;
+    out.columns.push_back(key);
+    if (w[2] > box.tall_z && !std::binary_search(tall, tall + n_tall, key)) out.new_tall.push_back(key);
   }
+  std::sort(out.new_tall.begin(), out.new_tall.end());
+  out.new_tall.erase(std::unique(out.new_tall.begin(), out.new_tall.end()), out.new_tall.end());
+  // Drop the points in tall columns, old or new (compacting in place, order kept).
+  std::size_t kept = 0;
+  for (std::size_t r = 0; r < out.columns.size(); ++r) {
+    const std::int64_t key = out.columns[r];
+    if (std::binary_search(tall, tall + n_tall, key) ||
+        std::binary_search(out.new_tall.begin(), out.new_tall.end(), key)) {
+      continue;
+    }
+    for (int c = 0; c < 3; ++c) {
+      out.points_W[3 * kept + c] = out.points_W[3 * r + c];
+      out.rays_W[3 * kept + c] = out.rays_W[3 * r + c];
+    }
+    out.columns[kept++] = key;
+  }
+  out.points_W.resize(3 * kept);
+  out.rays_W.resize(3 * kept);
+  out.columns.resize(kept);
 }
 
 }  // namespace cufund::lidar

@@ -27,13 +27,15 @@ struct CroppedScan {
   std::vector<double> points_W;  // (m, 3) [m]
   std::vector<double> rays_W;    // (m, 3) unit direction from the sensor to each point
   std::vector<std::int64_t> columns;  // (m,) x-y column key (cufund.perception.detection.column_keys)
-  std::vector<std::uint8_t> tall;     // (m,) 1 where the point is above tall_z
+  std::vector<std::int64_t> new_tall;  // sorted column keys above tall_z in this scan, not in the given set
 };
 
 // points_L: rows 0, stride, 2 stride, ... of an (n, 3) scan [m]; dt: (n,) firing times from the scan's
 // start [s], the same rows taken. Keeps the points within max_range of the sensor (and further than
-// 1e-6 m) and inside [z_min, z_max], in scan order.
+// 1e-6 m) and inside [z_min, z_max], in scan order, except those in a tall column: one of the sorted
+// `tall` keys (n_tall of them) or one where a kept point of this scan lies above tall_z (reported in
+// new_tall when not already in `tall`).
 void deskew_crop(const float* points_L, const double* dt, std::size_t n, std::size_t stride, const DeskewKnots& knots,
-                 const CropBox& box, CroppedScan& out);
+                 const CropBox& box, const std::int64_t* tall, std::size_t n_tall, CroppedScan& out);
 
 }  // namespace cufund::lidar

@@ -92,6 +92,7 @@ class TunnelDetector(Component):
                 raise ValueError(f"origin_W must be None or 3 finite numbers [m], got {origin_W!r}")
             origin_W = o
         self.T_BL = T_BL or Transform()
+        self._R_BL, self._t_BL = self.T_BL.R, np.asarray(self.T_BL.t)
         self.state_topic, self.cloud_topic, self.expected = state_topic, cloud_topic, expected
         self.rate_hz = self.params.rate_hz
         self.active_state_topic: str = Topics.TRUTH_ODOMETRY
@@ -145,17 +146,16 @@ class TunnelDetector(Component):
         p = self.params
         span = max(float(np.max(cloud.dt[::p.point_stride], initial=0.0)), 1e-9)
         p_WB, R_WB = self._poses(cloud.t + np.linspace(0.0, span, _KNOTS + 1))
-        R_WL = R_WB @ self.T_BL.R
-        p_WL = p_WB + R_WB @ np.asarray(self.T_BL.t)
-        points_W, rays_W, cols, above = _core.lidar.deskew_crop(
-            cloud.points_L, cloud.dt, p.point_stride, span, p_WL, R_WL, p.max_range, p.floor_z + p.floor_band,
-            p.ceiling_z, p.max_frame_top, COLUMN_CELL)
+        R_WL = R_WB @ self._R_BL
+        p_WL = p_WB + R_WB @ self._t_BL
         # x-y columns reaching above any frame are walls or poles: never accumulated
-        tall = np.unique(cols[above])
-        if len(tall) and not np.all(_member(tall, self._tall)):
+        points_W, rays_W, tall = _core.lidar.deskew_crop(
+            cloud.points_L, cloud.dt, p.point_stride, span, p_WL, R_WL, p.max_range, p.floor_z + p.floor_band,
+            p.ceiling_z, p.max_frame_top, COLUMN_CELL, self._tall)
+        if len(tall):
             self._tall = np.union1d(self._tall, tall)
             self._tall_changed = True
-        keep = ~_member(cols, self._tall)
+        keep = np.ones(len(points_W), dtype=bool)
         if p.roi_min_W is not None:
             keep &= np.all(points_W >= np.asarray(p.roi_min_W), axis=1)
         if p.roi_max_W is not None:
