@@ -70,7 +70,7 @@ void place_points(const PoseKnots& knots, const RigidTransform& T_BL, const doub
   double last_t = std::nan("");
   std::ptrdiff_t hint = -1;  // points come in firing order: the interval is usually the previous one
   RigidTransform T_WB;
-  double R_WL[9], p_WL[3];
+  double R_WL[9] = {}, p_WL[3] = {};
   for (std::ptrdiff_t k = 0; k < n; ++k) {
     if (!(t[k] == last_t)) {
       last_t = t[k];

@@ -73,6 +73,114 @@ TEST(OccupancyGrid, MaxRangeCutsTheBeamWithoutHit) {
   EXPECT_TRUE(flipped.empty());
 }
 
+std::vector<double> random_points(std::mt19937& rng, int n) {
+  std::uniform_real_distribution<double> x(-1.5, 1.5), y(-2.5, 0.3), z(-0.3, 1.3);
+  std::vector<double> pts;
+  for (int k = 0; k < n; ++k) {
+    pts.push_back(x(rng));
+    pts.push_back(y(rng));
+    pts.push_back(z(rng));
+  }
+  return pts;
+}
+
+TEST(OccupancyGrid, ScansInOneBatchGiveTheLogOddsOfScanByScanAndNetFlips) {
+  const auto g = geometry({20, 20, 10}, 0.1);
+  SensorModel model;
+  model.max_range = 1.2;
+  OccupancyGrid one(g, model), batch(g, model);
+  std::mt19937 rng(3);
+  std::vector<std::vector<double>> pts;
+  std::vector<OccupancyGrid::Scan> scans;
+  for (int k = 0; k < 23; ++k) pts.push_back(random_points(rng, 400));  // several groups of scans
+  std::vector<Index> flipped;
+  std::vector<std::uint8_t> state;
+  for (int k = 0; k < 23; ++k) {
+    const std::array<double, 3> o{-0.3 + 0.03 * k, -1.0, 0.5};
+    one.insert_scan(pts[static_cast<std::size_t>(k)].data(), 400, o.data(), &flipped, &state, 1);
+    scans.push_back({pts[static_cast<std::size_t>(k)].data(), 400, o});
+  }
+  std::vector<Index> net;
+  std::vector<std::uint8_t> net_state;
+  const ScanStats s = batch.insert_scans(scans, &net, &net_state, 2);
+  EXPECT_EQ(s.points, 23 * 400);
+  ASSERT_EQ(batch.log_odds().size(), one.log_odds().size());
+  for (std::size_t i = 0; i < one.log_odds().size(); ++i) ASSERT_EQ(batch.log_odds()[i], one.log_odds()[i]) << i;
+  // Every voxel started free: the net flips are exactly the occupied voxels, once each, ascending.
+  std::vector<Index> occupied;
+  for (Index i = 0; i < batch.size(); ++i) {
+    if (batch.occupied(i)) occupied.push_back(i);
+  }
+  EXPECT_EQ(net, occupied);
+  EXPECT_EQ(s.flipped_voxels, static_cast<Index>(occupied.size()));
+  for (std::uint8_t v : net_state) EXPECT_EQ(v, 1);
+}
+
+TEST(OccupancyGrid, BeamsAlongFacesEdgesAndThroughCornersEndInTheirVoxelInsideTheGrid) {
+  // Segments whose crossing times tie or overflow: along the grid's faces and edges, exactly through
+  // voxel corners, sub-voxel and denormal extents. Each must hit its end voxel and free only voxels
+  // between its start and end voxels (the walk takes exactly |end - start| steps per axis).
+  const auto g = geometry({8, 8, 8}, 0.5);  // [-1, 3] x [-2, 2] x [0, 4]
+  const double ends[][6] = {
+      {-1.0, -2.0, 0.0, 3.0 - 1e-12, 2.0 - 1e-12, 4.0 - 1e-12},  // the main diagonal, corner to corner
+      {-1.0, -2.0, 0.0, 2.99, -2.0, 0.0},                        // along an edge
+      {0.0, 0.0, 1.0, 2.0, 2.0 - 1e-9, 3.0},                     // through voxel corners
+      {0.1, 0.1, 0.1, 0.1 + 1e-300, 0.1, 2.9},                   // a denormal extent along x
+      {0.2, 0.3, 0.4, 0.2000001, 0.3000001, 0.4000001},          // within one voxel
+      {2.75, 1.75, 3.75, -0.75, -1.75, 0.25},                    // backwards along the diagonal of centres
+  };
+  for (const auto& e : ends) {
+    OccupancyGrid grid(g, SensorModel{});
+    std::vector<Index> flipped;
+    std::vector<std::uint8_t> state;
+    const ScanStats s = grid.insert_scan(e + 3, 1, e, &flipped, &state, 1);
+    ASSERT_EQ(s.hit_voxels, 1);
+    Index lo[3], hi[3], end[3];
+    for (int a = 0; a < 3; ++a) {
+      const auto v0 = static_cast<Index>(std::floor((e[a] - g.origin_W[a]) / g.resolution));
+      end[a] = static_cast<Index>(std::floor((e[3 + a] - g.origin_W[a]) / g.resolution));
+      lo[a] = std::min(v0, end[a]);
+      hi[a] = std::max(v0, end[a]);
+    }
+    EXPECT_GT(grid.log_odds()[static_cast<std::size_t>(lin(g, end[0], end[1], end[2]))], 0.0f);
+    Index free = 0;
+    for (Index i = 0; i < grid.size(); ++i) {
+      if (grid.log_odds()[static_cast<std::size_t>(i)] >= 0.0f) continue;
+      ++free;
+      const Index v[3] = {i / 64, (i / 8) % 8, i % 8};
+      for (int a = 0; a < 3; ++a) EXPECT_TRUE(v[a] >= lo[a] && v[a] <= hi[a]) << i;
+    }
+    EXPECT_EQ(free, s.free_voxels);
+    EXPECT_LE(free, (hi[0] - lo[0]) + (hi[1] - lo[1]) + (hi[2] - lo[2]));
+  }
+}
+
+TEST(OccupancyGrid, MergedBeamsHitTheSameVoxelsAndFreeASubset) {
+  const auto g = geometry({30, 30, 12}, 0.1);
+  SensorModel model;
+  model.max_range = 1.5;
+  SensorModel merged_model = model;
+  merged_model.merge_beams = true;
+  std::mt19937 rng(11);
+  for (int scan = 0; scan < 4; ++scan) {
+    OccupancyGrid every(g, model), merged(g, merged_model);
+    const auto pts = random_points(rng, 5000);  // many points per voxel
+    const double o[3] = {0.1 * scan, -1.0, 0.6};
+    std::vector<Index> flipped;
+    std::vector<std::uint8_t> state;
+    const ScanStats a = every.insert_scan(pts.data(), 5000, o, &flipped, &state, 1);
+    const ScanStats b = merged.insert_scan(pts.data(), 5000, o, &flipped, &state, 2);
+    EXPECT_EQ(a.hit_voxels, b.hit_voxels);
+    EXPECT_LT(b.beams, a.beams);
+    EXPECT_LE(b.free_voxels, a.free_voxels);
+    for (Index i = 0; i < every.size(); ++i) {
+      const float la = every.log_odds()[static_cast<std::size_t>(i)], lb = merged.log_odds()[static_cast<std::size_t>(i)];
+      ASSERT_EQ(la > 0.0f, lb > 0.0f) << i;   // the same hits
+      ASSERT_TRUE(lb >= 0.0f || la < 0.0f) << i;  // freed by a merged beam: freed by some beam
+    }
+  }
+}
+
 TEST(EsdfMap, RandomScansKeepTheFieldEqualToARecompute) {
   const auto g = geometry({24, 20, 12}, 0.2);
   EsdfMap map(g, SensorModel{}, EsdfOptions{});
