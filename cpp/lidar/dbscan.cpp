@@ -42,82 +42,71 @@ std::int64_t dbscan(const double* points, std::size_t n, double eps, std::size_t
     keyed[i] = {cell_key(cell[3 * i], cell[3 * i + 1], cell[3 * i + 2]), static_cast<std::uint32_t>(i)};
   }
   std::sort(keyed.begin(), keyed.end());
-  // Neighbour lists, each point's own included, as the radius search reports them; cell by cell, so
-  // that the 27 cells around are looked up once per cell.
+  // Every pair closer than eps, once: within a cell, and with the 13 cells after it in key order.
   const double eps2 = eps * eps;
-  std::vector<std::vector<std::uint32_t>> near(n);
-  std::pair<std::size_t, std::size_t> ranges[27];
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  pairs.reserve(16 * n);
+  std::vector<std::uint32_t> degree(n, 1);  // the point itself counts, as in a radius search
+  auto close = [&](std::uint32_t i, std::uint32_t j) {
+    const double* p = points + 3 * std::size_t{i};
+    const double* q = points + 3 * std::size_t{j};
+    const double dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
+    if (dx * dx + dy * dy + dz * dz < eps2) {
+      pairs.emplace_back(i, j);
+      ++degree[i];
+      ++degree[j];
+    }
+  };
   for (std::size_t c0 = 0; c0 < n;) {
     std::size_t c1 = c0;
     while (c1 < n && keyed[c1].first == keyed[c0].first) ++c1;
+    for (std::size_t a = c0; a < c1; ++a) {
+      for (std::size_t b = a + 1; b < c1; ++b) close(keyed[a].second, keyed[b].second);
+    }
     const std::int64_t* ijk = cell.data() + 3 * std::size_t{keyed[c0].second};
-    int r = 0;
-    for (int di = -1; di <= 1; ++di) {
+    for (int di = 0; di <= 1; ++di) {
       for (int dj = -1; dj <= 1; ++dj) {
         for (int dk = -1; dk <= 1; ++dk) {
+          if (di == 0 && (dj < 0 || (dj == 0 && dk <= 0))) continue;  // the 13 cells after this one
           const std::uint64_t key = cell_key(ijk[0] + di, ijk[1] + dj, ijk[2] + dk);
-          auto lo_it = std::lower_bound(keyed.begin(), keyed.end(), std::make_pair(key, std::uint32_t{0}));
-          auto hi_it = lo_it;
-          while (hi_it != keyed.end() && hi_it->first == key) ++hi_it;
-          ranges[r++] = {static_cast<std::size_t>(lo_it - keyed.begin()), static_cast<std::size_t>(hi_it - keyed.begin())};
-        }
-      }
-    }
-    for (std::size_t a = c0; a < c1; ++a) {
-      const std::uint32_t i = keyed[a].second;
-      const double* p = points + 3 * std::size_t{i};
-      auto& row = near[i];
-      for (const auto& [lo_k, hi_k] : ranges) {
-        for (std::size_t b = lo_k; b < hi_k; ++b) {
-          const double* q = points + 3 * std::size_t{keyed[b].second};
-          const double dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
-          if (dx * dx + dy * dy + dz * dz < eps2) row.push_back(keyed[b].second);
+          auto it = std::lower_bound(keyed.begin() + static_cast<std::ptrdiff_t>(c1), keyed.end(),
+                                     std::make_pair(key, std::uint32_t{0}));
+          std::size_t e = static_cast<std::size_t>(it - keyed.begin());
+          std::size_t f = e;
+          while (f < n && keyed[f].first == key) ++f;
+          if (e == f) continue;
+          for (std::size_t a = c0; a < c1; ++a) {
+            for (std::size_t b = e; b < f; ++b) close(keyed[a].second, keyed[b].second);
+          }
         }
       }
     }
     c0 = c1;
   }
-  std::vector<std::uint32_t> start(n + 1, 0), nbr;
-  for (std::size_t i = 0; i < n; ++i) start[i + 1] = start[i] + static_cast<std::uint32_t>(near[i].size());
-  nbr.reserve(start[n]);
-  for (auto& row : near) {
-    nbr.insert(nbr.end(), row.begin(), row.end());
-    std::vector<std::uint32_t>().swap(row);
-  }
   std::vector<char> core(n);
-  for (std::size_t i = 0; i < n; ++i) core[i] = (start[i + 1] - start[i]) >= min_points;
+  for (std::size_t i = 0; i < n; ++i) core[i] = degree[i] >= min_points;
   // Union-find over core-core links; the root of a group is its lowest index.
   std::vector<std::uint32_t> parent(n);
   std::iota(parent.begin(), parent.end(), 0u);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (!core[i]) continue;
-    for (std::uint32_t e = start[i]; e < start[i + 1]; ++e) {
-      const std::uint32_t j = nbr[e];
-      if (j <= i || !core[j]) continue;
-      std::size_t a = find_root(parent, i), b = find_root(parent, j);
-      if (a == b) continue;
-      if (a > b) std::swap(a, b);
-      parent[b] = static_cast<std::uint32_t>(a);
-    }
+  for (const auto& [i, j] : pairs) {
+    if (!core[i] || !core[j]) continue;
+    std::size_t a = find_root(parent, i), b = find_root(parent, j);
+    if (a == b) continue;
+    if (a > b) std::swap(a, b);
+    parent[b] = static_cast<std::uint32_t>(a);
   }
   std::vector<std::int64_t> cluster_of_root(n, -1);
   std::int64_t clusters = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (core[i] && find_root(parent, i) == i) cluster_of_root[i] = clusters++;
   }
-  for (std::size_t i = 0; i < n; ++i) {
-    if (core[i]) {
-      labels[i] = cluster_of_root[find_root(parent, i)];
-      continue;
-    }
-    std::int64_t best = -1;
-    for (std::uint32_t e = start[i]; e < start[i + 1]; ++e) {
-      const std::uint32_t j = nbr[e];
-      if (!core[j]) continue;
-      const std::int64_t c = cluster_of_root[find_root(parent, j)];
-      if (best < 0 || c < best) best = c;
-    }
-    labels[i] = best;
+  for (std::size_t i = 0; i < n; ++i) labels[i] = core[i] ? cluster_of_root[find_root(parent, i)] : -1;
+  // A border point joins the lowest-numbered cluster among its core neighbours.
+  for (const auto& [i, j] : pairs) {
+    if (core[i] == core[j]) continue;
+    const std::uint32_t border = core[i] ? j : i;
+    const std::int64_t c = labels[core[i] ? i : j];
+    if (labels[border] < 0 || c < labels[border]) labels[border] = c;
   }
   return clusters;
 }
