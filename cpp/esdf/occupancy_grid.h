@@ -120,13 +120,20 @@ class OccupancyGrid {
   GridGeometry geometry_;
   SensorModel model_;
   HugePageVector<float> log_odds_;
-  std::vector<ScanMarks> marks_;  // one per scan traversed concurrently
+  // Scratch that a copy of the grid does not take (it is rebuilt on first use).
+  template <typename T>
+  struct Scratch : std::vector<T> {
+    Scratch() = default;
+    Scratch(const Scratch&) : std::vector<T>() {}
+    Scratch& operator=(const Scratch&) { return *this; }
+  };
+  Scratch<ScanMarks> marks_;  // one per scan traversed concurrently
   struct ChunkFlips {
     std::vector<Index> index;
     std::vector<std::uint8_t> state;
     std::vector<Index> hit_voxels, free_voxels;  // per scan of the group
   };
-  std::vector<ChunkFlips> chunk_flips_;  // per word range of the log-odds pass
+  Scratch<ChunkFlips> chunk_flips_;  // per word range of the log-odds pass
 };
 
 }  // namespace cufund::esdf
