@@ -2,6 +2,7 @@
 and frames/s of the LiDAR and camera models in the tunnel world.
 
     .venv/bin/python benchmarks/bench_lidar.py [--rays 1000000] [--repeats 5] [--threads 2]
+    .venv/bin/python benchmarks/bench_lidar.py --models-only      # the sensor models' frames/s and CPU ms/frame
 
 Scenes: a UV sphere of radius 3 m tessellated to about 10k, 100k and 1M triangles. Rays: "random"
 (origins uniform in the cube [-2, 2]^3 inside the sphere, directions uniform on the sphere) and
@@ -12,6 +13,7 @@ Each figure is the best of ``--repeats`` casts of all rays, ours and Open3D's in
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -58,7 +60,14 @@ def main() -> None:
     ap.add_argument("--rays", type=int, default=1_000_000)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--models-only", action="store_true", help="only the sensor models in the tunnel world")
     args = ap.parse_args()
+    if not args.models_only:
+        scenes(args)
+    models(args)
+
+
+def scenes(args: argparse.Namespace) -> None:
     rng = np.random.default_rng(0)
     print(f"cufund {cufund.__version__} vs open3d {o3d.__version__}, {args.rays} rays, {args.threads} threads, "
           f"best of {args.repeats}")
@@ -81,14 +90,24 @@ def main() -> None:
             print(f"{len(f):>10} {kind:>7} {n / t_ours / 1e6:>15.2f} {n / t_theirs / 1e6:>15.2f} "
                   f"{t_theirs / t_ours:>6.2f}{'' if agree else '  (hit/miss differ!)'}")
 
+
+
+def models(args: argparse.Namespace) -> None:
     world = cufund.worlds.load("imav2025_tunnel")
     pose = lambda t: (np.array([-1.5 + 0.5 * t, 0.0, 0.55]), np.array([1.0, 0.0, 0.0, 0.0]))  # noqa: E731
-    print(f"\nsensor models in imav2025_tunnel ({args.threads} threads), best of {args.repeats}:")
+    print(f"\nsensor models in imav2025_tunnel ({args.threads} threads), best of {args.repeats}, load "
+          f"{os.getloadavg()[0]:.1f}:")
     for name, pattern in (("Livox Mid-360", cufund.lidar.mid360()), ("Ouster OS1-64", cufund.lidar.os1_64())):
         lidar = cufund.lidar.Lidar(pattern, cufund.lidar.LidarParams(nthreads=args.threads, range_noise_std=0.02))
         (t,) = best_times([lambda: lidar.scan(world, pose, 0.0)], args.repeats)
+        frames = 50
+        c0 = time.process_time()
+        for _ in range(frames):
+            lidar.scan(world, pose, 0.0)  # a new frame of the pattern each time
+        cpu = (time.process_time() - c0) / frames
         n = len(pattern.frame(0).t)
-        print(f"  {name}: {1 / t:8.1f} frames/s ({n} rays/frame, {n / t / 1e6:.2f} Mrays/s incl. Python)")
+        print(f"  {name}: {1 / t:8.1f} frames/s ({n} rays/frame, {n / t / 1e6:.2f} Mrays/s incl. Python), "
+              f"{1e3 * cpu:.2f} ms CPU per frame")
     cam = cufund.sensors.DepthCamera(cufund.sensors.CameraIntrinsics.from_fov(640, 480, np.deg2rad(87.0)),
                                      nthreads=args.threads)
     (t,) = best_times([lambda: cam.render(world, [-1.5, 0.0, 0.55], [1.0, 0.0, 0.0, 0.0])], args.repeats)

@@ -356,7 +356,8 @@ unit, consecutive signs aligned) linearly in position and by slerp in rotation, 
         py::arg("noise") = py::none(), py::arg("keep_draw") = py::none(), py::arg("dropout") = 0.0,
         py::arg("reflectivity") = py::none(), py::arg("nthreads") = 0, R"doc(
 One LiDAR frame in one call: the rays of scan_rays (ray i at time t0 + t[i] [s]) cast into ``scene`` (in
-packets, channel by channel: the hits of single rays, bit for bit), and the returns the sensor reports.
+coherent packets, channel by channel: the hits of single rays, up to the last bits of distances, which
+Embree does not promise), and the returns the sensor reports.
 A ray returns when its true range is in [range_min, range_max] [m] and, with ``keep_draw`` (N,), when
 keep_draw[i] >= dropout; its measured range is max(true + noise[i], 0) with ``noise`` (N,) [m] (None: none).
 Intensity: reflectivity[geometry id] x |cos incidence| clipped to [0, 1], float64 (None: |cos incidence|,

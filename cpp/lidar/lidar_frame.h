@@ -46,8 +46,9 @@ struct CastFrame {
   std::uint32_t bad_geometry = kInvalidId;  // a hit geometry id without a reflectivity (else kInvalidId)
 };
 
-// Builds the rays at times t0 + t[i] (t0 [s]), casts them in packets ordered by channel (then firing
-// order) and selects the valid returns. Results equal scan_rays + RaycastScene::cast_rays ray for ray.
+// Builds the rays at times t0 + t[i] (t0 [s]), casts them in coherent packets ordered by channel (then
+// firing order) and selects the valid returns: scan_rays + RaycastScene::cast_rays ray for ray (see
+// cast_rays_ordered on the last bits of distances).
 void cast_frame(const RaycastScene& scene, const FrameRays& rays, double t0, const FrameKnots& knots,
                 const RangeModel& model, int nthreads, CastFrame& out);
 

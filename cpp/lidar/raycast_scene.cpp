@@ -343,7 +343,7 @@ void RaycastScene::cast_rays_ordered(const float* rays, std::size_t n, const std
   impl_->commit();
   RTCScene scene = impl_->scene;
   parallel_chunks(static_cast<std::ptrdiff_t>(n), kChunk, nthreads, [&](std::size_t begin, std::size_t end, std::size_t) {
-    cast_packets8(scene, rays, begin, end, out, order, false);
+    cast_packets8(scene, rays, begin, end, out, order, true);
   });
 }
 
