@@ -332,7 +332,9 @@ def test_wrong_type_bad_time_and_changed_shape_are_errors(tmp_path):
         with pytest.raises(TypeError, match="publish_time_ns must be non-negative integer"):
             log.write("/actuator/command", M.ActuatorCommand(0.0, np.ones(4)), 2, -1)
         log.write("/actuator/command", M.ActuatorCommand(0.1, np.ones(4)), 3, 3)
-    assert [r.log_time_ns for r in read_mcap(tmp_path / "b.mcap")] == [0, 3]  # the bad ones were not logged
+        log.write("/actuator/command", M.ActuatorCommand(0.2, np.ones(4)), 2**64 - 1, 2**63)  # checked path
+    assert [(r.log_time_ns, r.publish_time_ns) for r in read_mcap(tmp_path / "b.mcap")] == [
+        (0, 0), (3, 3), (2**64 - 1, 2**63)]  # the bad ones were not logged
     with pytest.raises(TypeError, match="cannot log a value of type object"):
         with McapLogger(tmp_path / "d.mcap") as log:
             log.write("/x", UserMessage(0.0, "", Color.RED, Inner(1.0, ""), np.zeros(1), (), {"k": object()}), 0, 0)
