@@ -160,6 +160,7 @@ py::dict scan_frame(const RaycastScene& scene, const py::handle& d_L, const py::
   const int nthreads = threads_arg(nthreads_obj);
   auto d = directions_arg(d_L);
   const py::ssize_t n = d.shape(0);
+  if (n >= (py::ssize_t{1} << 32) - 1) throw py::value_error("d_L must hold fewer than 2^32 - 1 rays");
   auto tt = as_float64(t, "t", {n});
   require_finite(tt.data(), n, "t");
   py::array ch_arr = checked_array(channel, "channel");
@@ -477,6 +478,10 @@ new_tall: the sorted keys of those new tall columns not in ``tall``).
                               finite_arg(spin_rate, "spin_rate"), finite_arg(sweep_ratio, "sweep_ratio"),
                               finite_arg(elevation_min, "elevation_min"), finite_arg(elevation_max, "elevation_max")};
         if (!(p.point_rate > 0)) throw py::value_error("point_rate must be > 0 [1/s]");
+        if (static_cast<double>(k + 1) * static_cast<double>(n) >= 9007199254740992.0) {  // 2^53: exact firing indices
+          throw py::value_error("k * n must stay below 2^53 (the frame's ray indices as exact float64), got k = " +
+                                std::to_string(k) + ", n = " + std::to_string(n));
+        }
         py::array_t<double> t(n), az(n), el(n), d({static_cast<py::ssize_t>(n), py::ssize_t{3}});
         py::array_t<std::int32_t> ch(n);
         {

@@ -426,3 +426,30 @@ def test_line_support_counts_distinct_bins_and_inliers_per_line():
             assert counts[j] == inlier[:, j].sum()
     with pytest.raises(ValueError, match="inlier"):
         _core.lidar.line_support(np.zeros((3, 2), np.int64), np.zeros((2, 3), bool))
+
+
+def test_the_accumulator_sums_each_voxel_as_a_full_rereduction_would_bit_for_bit():
+    from cufund.perception.detection import voxel_keys
+
+    rng = np.random.default_rng(9)
+    acc = VoxelAccumulator(0.05, 400)
+    keys, sums, seen = np.zeros(0, np.int64), np.zeros((0, 7)), np.zeros(0, np.int64)
+    for batch in range(1, 30):
+        pts = rng.normal(0, 0.4 if batch % 3 else 2.0, (int(rng.integers(0, 300)), 3))
+        rays = rng.normal(size=pts.shape)
+        acc.insert(pts, rays)
+        if len(pts):  # the reference: everything re-sorted and re-reduced
+            k = np.concatenate([keys, voxel_keys(pts, 0.05)])
+            rows = np.concatenate([sums, np.hstack([pts, rays, np.ones((len(pts), 1))])])
+            s = np.concatenate([seen, np.full(len(pts), batch)])
+            order = np.argsort(k, kind="stable")
+            k = k[order]
+            start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
+            keys, sums, seen = k[start], np.add.reduceat(rows[order], start, axis=0), np.maximum.reduceat(s[order], start)
+            if len(keys) > 400:
+                keep = np.sort(np.lexsort((keys, -seen))[:400])
+                keys, sums, seen = keys[keep], sums[keep], seen[keep]
+        np.testing.assert_array_equal(acc._keys, keys)
+        np.testing.assert_array_equal(acc._sums, sums)
+        np.testing.assert_array_equal(acc._seen, seen)
+    assert len(keys) == 400  # the bound was reached

@@ -43,15 +43,30 @@ class VoxelAccumulator:
         self.batches += 1
         if len(points_W) == 0:
             return
-        keys = np.concatenate([self._keys, voxel_keys(points_W, self.voxel)])
-        rows = np.concatenate([self._sums, np.hstack([points_W, rays_W, np.ones((len(points_W), 1))])])
-        seen = np.concatenate([self._seen, np.full(len(points_W), self.batches, dtype=np.int64)])
-        order = np.argsort(keys, kind="stable")
-        keys = keys[order]
-        start = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
-        self._keys = keys[start]
-        self._sums = np.add.reduceat(rows[order], start, axis=0)
-        self._seen = np.maximum.reduceat(seen[order], start)
+        # Only the voxels the batch touches are summed: each one's old sum (if any) then its new rows in input
+        # order, through np.add.reduceat as a full re-reduction would (the same bits); the rest stay as they are.
+        new = voxel_keys(points_W, self.voxel)
+        by_key = np.argsort(new, kind="stable")
+        keys = new[by_key]
+        rows = np.hstack([points_W, rays_W, np.ones((len(points_W), 1))])[by_key]
+        first = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+        touched = keys[first]
+        pos = np.searchsorted(self._keys, touched)
+        known = pos < len(self._keys)
+        known[known] = self._keys[pos[known]] == touched[known]
+        counts = np.diff(np.r_[first, len(keys)])
+        seg_len = counts + known
+        seg_start = np.r_[0, np.cumsum(seg_len)[:-1]]
+        block = np.empty((int(seg_len.sum()), 7))
+        block[seg_start[known]] = self._sums[pos[known]]
+        block[np.repeat(seg_start + known, counts) + (np.arange(len(keys)) - np.repeat(first, counts))] = rows
+        sums = np.add.reduceat(block, seg_start, axis=0)
+        self._sums[pos[known]] = sums[known]
+        self._seen[pos[known]] = self.batches
+        at = pos[~known]
+        self._keys = np.insert(self._keys, at, touched[~known])
+        self._sums = np.insert(self._sums, at, sums[~known], axis=0)
+        self._seen = np.insert(self._seen, at, self.batches)
         if len(self._keys) > self.max_voxels:
             keep = np.sort(np.lexsort((self._keys, -self._seen))[:self.max_voxels])
             self._keys, self._sums, self._seen = self._keys[keep], self._sums[keep], self._seen[keep]
