@@ -453,3 +453,20 @@ def test_the_accumulator_sums_each_voxel_as_a_full_rereduction_would_bit_for_bit
         np.testing.assert_array_equal(acc._sums, sums)
         np.testing.assert_array_equal(acc._seen, seen)
     assert len(keys) == 400  # the bound was reached
+
+
+def test_box_queries_read_the_same_points_in_map_order_as_a_full_scan():
+    from cufund.perception.detection import _in_box, _x_order
+
+    rng = np.random.default_rng(12)
+    cloud = voxel_means(rng.uniform(-3, 3, (20000, 3)), 0.02)  # voxel order: x voxel indices non-decreasing
+    shuffled = cloud[rng.permutation(len(cloud))]  # no order: sorted by x instead
+    for pts in (cloud, shuffled):
+        by_x = _x_order(pts, 0.02)
+        assert (by_x[0] is None) == (pts is cloud)
+        for _ in range(20):
+            lo = rng.uniform(-3.5, 2, 2)
+            hi = lo + rng.uniform(0, 2, 2)
+            want = np.flatnonzero(np.all((pts[:, :2] > lo) & (pts[:, :2] < hi), axis=1))
+            np.testing.assert_array_equal(_in_box(pts, lo, hi, by_x), want)
+            np.testing.assert_array_equal(_in_box(pts, lo, hi, None), want)

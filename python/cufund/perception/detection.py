@@ -318,7 +318,7 @@ def _read_bars(u: np.ndarray, v: np.ndarray, u_lo: float, u_hi: float, v_hi: flo
 
 
 def _measure(cluster: np.ndarray, cloud: np.ndarray, views: np.ndarray | None, p: TunnelDetectorParams,
-             rng: np.random.Generator, by_x: tuple[np.ndarray, np.ndarray] | None = None
+             rng: np.random.Generator, by_x: tuple | None = None
              ) -> tuple[FrameDetection | None, np.ndarray | None]:
     """The frame on the best vertical plane through a cluster, measured on the whole cloud (None if it is not a
     frame), and which of the cluster's points lie on that plane (None without a plane)."""
@@ -334,19 +334,29 @@ def _measure(cluster: np.ndarray, cloud: np.ndarray, views: np.ndarray | None, p
     return _measure_plane(cluster[on_plane], depth_c[on_plane], n, d, u_axis, cloud, views, p, by_x), on_plane
 
 
-def _x_order(cloud: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The cloud's points in order of x (stable) and their sorted x: a box query then reads a slice."""
+def _x_order(cloud: np.ndarray, voxel: float) -> tuple:
+    """An index for x-y box queries on ``cloud``: its x voxel indices (edge ``voxel``), non-decreasing when the
+    cloud is voxel means in key order (as :func:`voxel_means` and the accumulator give them; else the points are
+    sorted by x first, and that order is given back too)."""
+    xi = np.floor(cloud[:, 0] / voxel)
+    if np.all(xi[1:] >= xi[:-1]):
+        return None, xi, voxel
     order = np.argsort(cloud[:, 0], kind="stable")
-    return order, cloud[order, 0]
+    return order, cloud[order, 0], 0.0
 
 
-def _in_box(cloud: np.ndarray, lo: np.ndarray, hi: np.ndarray, by_x: tuple[np.ndarray, np.ndarray] | None
-            ) -> np.ndarray:
+def _in_box(cloud: np.ndarray, lo: np.ndarray, hi: np.ndarray, by_x: tuple | None) -> np.ndarray:
     """Indices, ascending, of the points strictly inside the x-y box (lo, hi); with ``by_x`` (:func:`_x_order`)
-    only the points in its x range are tested."""
+    only the points in a slice around its x range are tested."""
     if by_x is None:
         return np.flatnonzero(np.all((cloud[:, :2] > lo) & (cloud[:, :2] < hi), axis=1))
-    order, xs = by_x
+    order, xs, voxel = by_x
+    if order is None:  # voxel order: the voxels of x in (lo, hi) are a slice
+        a, b = np.searchsorted(xs, np.floor(lo[0] / voxel), side="left"), np.searchsorted(xs, np.floor(hi[0] / voxel),
+                                                                                        side="right")
+        sl = cloud[a:b]
+        inside = (sl[:, 0] > lo[0]) & (sl[:, 0] < hi[0]) & (sl[:, 1] > lo[1]) & (sl[:, 1] < hi[1])
+        return a + np.flatnonzero(inside)
     cand = order[np.searchsorted(xs, lo[0], side="right"):np.searchsorted(xs, hi[0], side="left")]
     y = cloud[cand, 1]
     return np.sort(cand[(y > lo[1]) & (y < hi[1])])
@@ -354,7 +364,7 @@ def _in_box(cloud: np.ndarray, lo: np.ndarray, hi: np.ndarray, by_x: tuple[np.nd
 
 def _measure_plane(cluster: np.ndarray, depth_c: np.ndarray, n: np.ndarray, d: float, u_axis: np.ndarray,
                    cloud: np.ndarray, views: np.ndarray | None, p: TunnelDetectorParams,
-                   by_x: tuple[np.ndarray, np.ndarray] | None = None) -> FrameDetection | None:
+                   by_x: tuple | None = None) -> FrameDetection | None:
     b = p.bar
     if len(cluster) < 2 * p.min_bar_points:
         return None
@@ -524,7 +534,7 @@ def detect_in_voxels(cloud_W: np.ndarray, views_W: np.ndarray | None, params: Tu
     coarse = voxel_means(cloud_W[cloud_W[:, 2] > p.floor_z + p.floor_cut], p.cluster_voxel)
     coarse = coarse[~_in_tall_columns(coarse, p.max_frame_top)]
     labels = _dbscan(coarse, p.eps, p.min_points)
-    by_x = _x_order(cloud_W)
+    by_x = _x_order(cloud_W, p.voxel)
     found: list[FrameDetection] = []
     # clusters in the order of their first voxel (coarse is sorted by voxel), each with its own RANSAC draws:
     # however the clustering numbers them, the same cloud gives the same detections
