@@ -409,7 +409,7 @@ struct WriteBinding {
 };
 
 void write_binding_free(PyObject* capsule) {
-  auto* b = static_cast<WriteBinding*>(PyCapsule_GetPointer(capsule, "cufund.LogCoreWrite"));
+  auto* b = static_cast<WriteBinding*>(PyCapsule_GetPointer(capsule, nullptr));
   if (b == nullptr) return;
   Py_XDECREF(b->owner);
   delete b;
@@ -421,7 +421,7 @@ PyObject* fast_write(PyObject* capsule, PyObject* const* args, Py_ssize_t nargs)
                  nargs);
     return nullptr;
   }
-  auto* b = static_cast<WriteBinding*>(PyCapsule_GetPointer(capsule, "cufund.LogCoreWrite"));
+  auto* b = static_cast<WriteBinding*>(PyCapsule_GetPointer(capsule, nullptr));
   if (b == nullptr) return nullptr;
   try {
     b->core->write(args[0], args[1], args[2], args[3]);
@@ -445,7 +445,9 @@ PyMethodDef fast_write_def = {
 py::object fast_writer(py::object self) {
   auto* b = new WriteBinding{self.cast<LogCore*>(), self.ptr()};
   Py_INCREF(self.ptr());
-  PyObject* capsule = PyCapsule_New(b, "cufund.LogCoreWrite", write_binding_free);
+  // unnamed: GetPointer then compares names by pointer, not with strcmp on every call (the capsule is only ever
+  // this builtin's self)
+  PyObject* capsule = PyCapsule_New(b, nullptr, write_binding_free);
   if (capsule == nullptr) {
     Py_DECREF(b->owner);
     delete b;
