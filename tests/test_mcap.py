@@ -441,3 +441,20 @@ def test_the_same_messages_give_the_same_file_byte_for_byte(tmp_path):
         files.append(path.read_bytes())
     assert files[0] == files[1] == files[2]
     assert len(list(read_mcap(tmp_path / "0.mcap"))) == len(stream)
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/dev/full"), reason="needs /dev/full")
+def test_a_failed_disk_write_is_an_oserror_never_silent():
+    """/dev/full fails every write with ENOSPC: the writer thread's error reaches the caller (at a later write or
+    at close), and close still ends the writer thread and releases the file."""
+    import contextlib
+
+    log = McapLogger("/dev/full", block_messages=1)
+    with pytest.raises(OSError, match="writing the log failed"):
+        for k in range(100):
+            log.write("/a", M.ActuatorCommand(k * 0.1, np.ones(4)), k, k)
+        log.close()
+    with contextlib.suppress(OSError):  # the summary cannot be written either
+        log.close()
+    assert log._closed
+    log.close()  # and then idempotent
