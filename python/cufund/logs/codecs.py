@@ -224,6 +224,10 @@ class _FoxgloveJsonCodec(Codec):
         raise NotImplementedError
 
 
+_SPLICE = "\x00cufund-point-data"
+_SPLICE_JSON = json.dumps(_SPLICE).encode()
+
+
 class PointCloudCodec(_FoxgloveJsonCodec):
     """``foxglove.PointCloud``: x, y, z from the (N, 3) ``xyz`` field and one packed field per per-point array."""
 
@@ -261,9 +265,11 @@ class PointCloudCodec(_FoxgloveJsonCodec):
                "pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
                         "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
                "point_stride": dtype.itemsize, "fields": fields,
-               "data": base64.b64encode(data.tobytes()).decode(),
+               "data": _SPLICE,
                "cufund": self._exact(message, topic, dtypes=dtypes)}
-        return _dumps(obj)
+        # base64 needs no JSON escaping: spliced in as bytes (the same file), not scanned by json.dumps (~4 ms/MB)
+        head, tail = _dumps(obj).split(_SPLICE_JSON, 1)
+        return b"".join((head, b'"', base64.b64encode(data.tobytes()), b'"', tail))
 
     def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
         dtype = np.dtype({"names": [f["name"] for f in obj["fields"]],
