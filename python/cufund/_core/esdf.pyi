@@ -2,6 +2,7 @@
 Occupancy mapping and exact Euclidean distance fields (paper §2.3).
 """
 from __future__ import annotations
+import collections.abc
 import numpy
 import numpy.typing
 import typing
@@ -11,7 +12,7 @@ class EsdfMap:
     Occupancy grid with an incrementally exact ESDF; use cufund.esdf.EsdfMap.
     """
     @typing.overload
-    def __init__(self, origin_W: typing.Any, shape: typing.Any, resolution: typing.SupportsFloat | typing.SupportsIndex, log_odds_hit: typing.SupportsFloat | typing.SupportsIndex, log_odds_miss: typing.SupportsFloat | typing.SupportsIndex, log_odds_min: typing.SupportsFloat | typing.SupportsIndex, log_odds_max: typing.SupportsFloat | typing.SupportsIndex, log_odds_occupied: typing.SupportsFloat | typing.SupportsIndex, max_range: typing.SupportsFloat | typing.SupportsIndex, signed: bool, nthreads: typing.SupportsInt | typing.SupportsIndex) -> None:
+    def __init__(self, origin_W: typing.Any, shape: typing.Any, resolution: typing.SupportsFloat | typing.SupportsIndex, log_odds_hit: typing.SupportsFloat | typing.SupportsIndex, log_odds_miss: typing.SupportsFloat | typing.SupportsIndex, log_odds_min: typing.SupportsFloat | typing.SupportsIndex, log_odds_max: typing.SupportsFloat | typing.SupportsIndex, log_odds_occupied: typing.SupportsFloat | typing.SupportsIndex, max_range: typing.SupportsFloat | typing.SupportsIndex, signed: bool, nthreads: typing.SupportsInt | typing.SupportsIndex, merge_beams: bool = False) -> None:
         ...
     @typing.overload
     def __init__(self, other: EsdfMap) -> None:
@@ -20,7 +21,11 @@ class EsdfMap:
         """
     def distances(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
         ...
+    def insert_frames(self, frames: collections.abc.Sequence, knots_t: typing.Any, knots_p: typing.Any, knots_q: typing.Any, R_BL: typing.Any, t_BL: typing.Any) -> dict:
+        ...
     def insert_scan(self, points_W: typing.Any, origin_W: typing.Any) -> dict:
+        ...
+    def insert_scans(self, scans: collections.abc.Sequence) -> dict:
         ...
     def inside_squared(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
         ...
