@@ -57,3 +57,46 @@ def test_recv_times_out_reads_and_sees_the_peer_leave():
             again.close()
     finally:
         link.close()
+
+
+def test_closing_with_the_peers_bytes_unread_still_delivers_everything_sent():
+    """A socket closed with unread input sends a reset, which discards what the peer had not read yet; the link
+    closes gracefully instead, so PX4 (here a plain socket) reads every HIL message sent before the end of a run."""
+    link = TcpServerLink("127.0.0.1", 0)
+    peer = socket.create_connection(("127.0.0.1", link.port))
+    try:
+        assert link.accept(5.0)
+        payload = bytes(range(256)) * 64  # 16 kB, read by the peer only after the link has closed
+        link.send(payload)
+        peer.sendall(b"controls the link never reads")
+        closer = threading.Thread(target=link.close, daemon=True)
+        closer.start()
+        peer.settimeout(5.0)
+        got = b""
+        while chunk := peer.recv(65536):
+            got += chunk
+        peer.close()  # ends the link's drain
+        closer.join(5.0)
+        assert not closer.is_alive()
+        assert got == payload
+    finally:
+        peer.close()
+        link.close()
+
+
+def test_a_link_pinned_to_one_cpu_blocks_at_once():
+    """Polling before blocking helps only when PX4 can run on another CPU at the same time."""
+    import os
+
+    mask = os.sched_getaffinity(0)
+    link = TcpServerLink("127.0.0.1", 0)
+    try:
+        os.sched_setaffinity(0, {min(mask)})
+        peer = socket.create_connection(("127.0.0.1", link.port))
+        assert link.accept(5.0) and link.spin_s == 0.0
+        peer.sendall(b"x")
+        assert _read(link, 1) == b"x"
+        peer.close()
+    finally:
+        os.sched_setaffinity(0, mask)
+        link.close()

@@ -8,12 +8,18 @@ import os
 import select
 import socket
 import struct
+import time
 from typing import Protocol
 
 __all__ = ["PX4_SITL_BASE_PORT", "GcsForward", "Link", "LinkClosed", "SerialLink", "TcpServerLink"]
 
 PX4_SITL_BASE_PORT = 4560  #: PX4's simulator_mavlink connects to TCP 4560 + instance
 _TIMEVAL = struct.Struct("@ll")  # struct timeval: seconds, microseconds (C longs)
+#: How long a lockstep wait polls the socket before blocking [s]: PX4 answers a HIL_SENSOR within tens of
+#: microseconds, and a blocked thread's wake-up on another CPU costs about as much again. Only when this process
+#: may run on more than one CPU: pinned to PX4's CPU (``--cpu``), polling would only delay PX4.
+_SPIN_S = 60e-6
+_DRAIN_S = 0.25  #: at most this long [s] a closing link reads PX4's last bytes while PX4 reads ours
 
 
 class LinkClosed(ConnectionError):
@@ -48,6 +54,7 @@ class TcpServerLink:
         self.host, self.port = host, self._server.getsockname()[1]
         self._conn: socket.socket | None = None
         self._rcvtimeo = 0.0  # the connection's SO_RCVTIMEO [s]
+        self.spin_s = 0.0  # how long recv polls before blocking [s]: _SPIN_S once connected, unless pinned
 
     @property
     def connected(self) -> bool:
@@ -65,6 +72,7 @@ class TcpServerLink:
         conn.settimeout(None)  # blocking: Python neither polls before each call nor sets O_NONBLOCK
         self._conn = conn
         self._set_rcvtimeo(1.0)
+        self.spin_s = _SPIN_S if len(os.sched_getaffinity(0)) > 1 else 0.0  # the CPUs allowed now (--cpu pins)
         return True
 
     def send(self, data: bytes) -> None:
@@ -88,9 +96,11 @@ class TcpServerLink:
             if timeout <= 0.0:
                 data = conn.recv(65536, socket.MSG_DONTWAIT)
             else:
-                if abs(timeout - self._rcvtimeo) > 1e-3:
-                    self._set_rcvtimeo(timeout)
-                data = conn.recv(65536)
+                data = self._poll(conn) if self.spin_s > 0.0 else None
+                if data is None:
+                    if abs(timeout - self._rcvtimeo) > 1e-3:
+                        self._set_rcvtimeo(timeout)
+                    data = conn.recv(65536)
         except BlockingIOError:  # EAGAIN: nothing within the timeout (or nothing waiting)
             return None
         except OSError:
@@ -99,6 +109,16 @@ class TcpServerLink:
             self._drop()
         return data
 
+    def _poll(self, conn: socket.socket) -> bytes | None:
+        """Non-blocking reads for up to :attr:`spin_s`; None if nothing arrived."""
+        deadline = time.perf_counter() + self.spin_s
+        while True:
+            try:
+                return conn.recv(65536, socket.MSG_DONTWAIT)
+            except BlockingIOError:
+                if time.perf_counter() >= deadline:
+                    return None
+
     def _set_rcvtimeo(self, timeout: float) -> None:
         usec = max(round(timeout * 1e6), 1)  # a zero timeval would mean "block forever"
         assert self._conn is not None
@@ -106,16 +126,27 @@ class TcpServerLink:
         self._rcvtimeo = usec * 1e-6
 
     def disconnect(self) -> None:
-        """Closes the PX4 connection; the server keeps listening for the next one."""
-        self._drop()
+        """Closes the PX4 connection (after PX4 has read what was sent); the server keeps listening for the next
+        one."""
+        self._drop(graceful=True)
 
-    def _drop(self) -> None:
-        if self._conn is not None:
-            self._conn.close()
-            self._conn = None
+    def _drop(self, graceful: bool = False) -> None:
+        conn, self._conn = self._conn, None
+        if conn is None:
+            return
+        if graceful:  # closing with PX4's bytes unread would send a reset, and PX4 would lose what it has not read
+            try:
+                conn.shutdown(socket.SHUT_WR)
+                conn.settimeout(_DRAIN_S)
+                end = time.perf_counter() + _DRAIN_S
+                while conn.recv(65536) and time.perf_counter() < end:
+                    pass
+            except OSError:
+                pass
+        conn.close()
 
     def close(self) -> None:
-        self._drop()
+        self._drop(graceful=True)
         self._server.close()
 
 
