@@ -505,18 +505,7 @@ class Simulator:
         if node % self.record_period or (self.collision is not None and node % self.collision_period == 0):
             return self._node_checks(now, done)
         t = now / NS
-        if self._n_block == 4096:
-            self._rows.append(self._block)
-            self._block = np.empty((4096, 18))
-            self._n_block = 0
-        row = self._block[self._n_block]
-        self._n_block += 1
-        row[0] = t
-        views = self._row_views
-        if len(views) == 1:  # the state's rows lie next to each other: one copy
-            row[1:18] = views[0]
-        else:
-            row[1:4], row[4:7], row[7:11], row[11:14], row[14:18] = views
+        row = self._write_row(t)
         x = row.tolist()  # Python floats: cheaper to compare than numpy scalars
         d, r = self.max_distance, self.max_body_rate
         if not math.isfinite(sum(x)) or abs(x[1]) > d or abs(x[2]) > d or abs(x[3]) > d or abs(x[11]) > r \
