@@ -172,7 +172,9 @@ def test_a_variant_whose_worker_dies_is_retried_once_then_failed(client, tmp_pat
     finally:
         registry.unregister("controller", "sweep_crash")
         client.unregister_worker_plugin("cufund-test-crash")
-    assert frame.loc["pid", "status"] == "timeout" and frame.loc["pid", "attempts"] == 1
+    # the good variant still completes; it takes a second attempt when the crash's retry lands on its worker and
+    # kills it mid-run (which of the two workers runs what is Dask's choice)
+    assert frame.loc["pid", "status"] == "timeout" and frame.loc["pid", "attempts"] in (1, 2)
     assert frame.loc["sweep_crash", "status"] == "failed" and frame.loc["sweep_crash", "attempts"] == 2
     assert "worker died twice" in frame.loc["sweep_crash", "message"]
     summary = (tmp_path / "sw" / "summary.md").read_text()
