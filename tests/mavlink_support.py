@@ -93,7 +93,7 @@ def vehicle(speed: float = SPEED, links: int = 1, extra_links: tuple[str, ...] |
         urls = [f"udpout:127.0.0.1:{p}" for p in ports] + list(extra_links)
         endpoint = VehicleEndpoint(live, urls, **endpoint_kw).start()
         for g in gcss:
-            g.recv("HEARTBEAT", 30.0)  # the first one waits for the live run to be built (slow on a busy CI machine)
+            g.recv("HEARTBEAT", 30.0)  # CI once saw none within 10 s (cause not found; 1 Hz, first at once here)
         yield live, endpoint, gcss
     finally:
         if endpoint is not None:
