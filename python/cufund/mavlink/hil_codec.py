@@ -72,7 +72,7 @@ class FrameWriter:
     def hil_sensor(self, time_usec: int, xacc: float, yacc: float, zacc: float, xgyro: float, ygyro: float,
                    zgyro: float, xmag: float, ymag: float, zmag: float, abs_pressure: float, diff_pressure: float,
                    pressure_alt: float, temperature: float, fields_updated: int, id_: int) -> bytes:
-        if self.mav.signing.sign_outgoing:
+        if not self.fast:
             return self.pack(self.mav.hil_sensor_encode(
                 time_usec, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag, abs_pressure, diff_pressure,
                 pressure_alt, temperature, fields_updated, id_))
