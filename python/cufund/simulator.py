@@ -114,7 +114,7 @@ def _joined(views: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
 class _DeferredTruth(Odometry):
     """Ground truth at one node, built on the first read of a state field: what ``done(t, truth)`` receives at a
     node where no snapshot was published (most ``done`` conditions test the time first and read the state only
-    near the end). A ``done`` that keeps it gets it built before the state moves on (see ``_record``)."""
+    near the end). A ``done`` that keeps it gets it built before the state moves on (see ``_node_checks``)."""
 
     __slots__ = ("_value", "_sim")
 
@@ -416,7 +416,7 @@ class Simulator:
         start_ns, span = now, max(end_ns - now, 1)
         last_bar = -1
         perf = time.perf_counter
-        snapshot, record = self._snapshot, self._record
+        snapshot, record = self._snapshot, self._node_checks
         # Ground truth is published at an instant before the first component that may read it. When nothing else
         # observes the topic (no log, no recording, no subscription), instants where only flight software runs
         # (which reads the estimate once one is attached) skip the snapshot: no reader could tell.
@@ -498,16 +498,33 @@ class Simulator:
         if progress:
             sys.stderr.write("\n")
 
-    def _record(self, now: int, done: Callable[[float, Odometry], bool] | None) -> bool:
-        """:meth:`_node_checks` with the common case (a record node without a collision check, nothing wrong)
-        inlined. True when the run ends here."""
+    def _next_event(self) -> float:
+        """The next instant at which a component runs or a message becomes visible [ns]."""
+        nxt = min([s.clock.next_ns for s in self._slots], default=math.inf)
+        pending = self.bus.next_visible_ns()
+        return pending if pending is not None and pending < nxt else nxt
+
+    def _node_checks(self, now: int, done: Callable[[float, Odometry], bool] | None) -> bool:
+        """What happens at a physics node: collision check, state record, divergence and ``done`` checks. True
+        when the run ends here."""
         node = self._node
-        if node % self.record_period or (self.collision is not None and node % self.collision_period == 0):
-            return self._node_checks(now, done)
         t = now / NS
+        if self.collision is not None and node % self.collision_period == 0:
+            state = self._state
+            hit = self.collision.check(state.p, state.q)
+            if hit is not None and hit.distance < 0.0:
+                self.contact = hit
+                self.status = RunStatus.CRASHED
+                self.message = (f"collided with {hit.label!r} (object {hit.object_id}) at ({hit.point_W[0]:.3f}, "
+                                f"{hit.point_W[1]:.3f}, {hit.point_W[2]:.3f}) m at t = {t:.3f} s")
+                self._write_row(t)
+                return True
+        if node % self.record_period:
+            return False
         row = self._write_row(t)
         x = row.tolist()  # Python floats: cheaper to compare than numpy scalars
         d, r = self.max_distance, self.max_body_rate
+        # the common case (nothing wrong) decided here; _check says what is wrong otherwise
         if not math.isfinite(sum(x)) or abs(x[1]) > d or abs(x[2]) > d or abs(x[3]) > d or abs(x[11]) > r \
                 or abs(x[12]) > r or abs(x[13]) > r or (x[3] <= 0.05 and self._ground_plane):
             bad = self._check(row)
@@ -529,40 +546,6 @@ class Simulator:
             if finished:
                 self.status, self.message = RunStatus.COMPLETED, "done condition met"
                 return True
-        return False
-
-    def _next_event(self) -> float:
-        """The next instant at which a component runs or a message becomes visible [ns]."""
-        nxt = min([s.clock.next_ns for s in self._slots], default=math.inf)
-        pending = self.bus.next_visible_ns()
-        return pending if pending is not None and pending < nxt else nxt
-
-    def _node_checks(self, now: int, done: Callable[[float, Odometry], bool] | None) -> bool:
-        """What happens at a physics node: collision check, state record, divergence and ``done`` checks. True
-        when the run ends here."""
-        t = now / NS
-        node = self._node
-        state = self._state
-        if self.collision is not None and node % self.collision_period == 0:
-            hit = self.collision.check(state.p, state.q)
-            if hit is not None and hit.distance < 0.0:
-                self.contact = hit
-                self.status = RunStatus.CRASHED
-                self.message = (f"collided with {hit.label!r} (object {hit.object_id}) at ({hit.point_W[0]:.3f}, "
-                                f"{hit.point_W[1]:.3f}, {hit.point_W[2]:.3f}) m at t = {t:.3f} s")
-                self._write_row(t)
-                return True
-        if node % self.record_period == 0:
-            row = self._write_row(t)
-            bad = self._check(row)
-            if bad is not None:
-                self.status, self.message = bad
-                return True
-            if done is not None:
-                at, truth = self._truth_at
-                if done(t, truth if at == now else self._snapshot(t)):
-                    self.status, self.message = RunStatus.COMPLETED, "done condition met"
-                    return True
         return False
 
     def result(self) -> SimulationResult:
