@@ -83,26 +83,41 @@ def test_camera_lidar_imu_and_physics_together_at_exact_times_and_latency_shifts
     assert [m.t for _, m in delayed[Topics.DEPTH_IMAGE]] == cam_t[: len(delayed[Topics.DEPTH_IMAGE])]
 
 
-def test_events_between_physics_nodes_see_the_exact_state():
-    """Free fall sampled by a 300 Hz component: the truth it reads is the state at its exact event time."""
+def _free_fall(z=100.0):
     import dataclasses
 
     params = dataclasses.replace(cufund.presets.cu_astro(), body_drag=(0.0, 0.0, 0.0), rotor_drag_xy=0.0,
                                  rotor_drag_z=0.0)
     quad = cufund.Quadrotor(params)
-    quad.state.p[:] = [0.0, 0.0, 100.0]
+    quad.state.p[:] = [0.0, 0.0, z]
     quad.state.rotor_speeds[:] = 0.0
+    return quad
+
+
+def _sample_truth(quad, rate_hz, duration, *others):
+    """(t, truth read) at each step of a ``rate_hz`` truth reader run for ``duration`` [s] beside ``others``."""
     seen = []
 
     class Sample(cufund.Component):
-        rate_hz, inputs, reads_truth = 300.0, (Topics.TRUTH_ODOMETRY,), True
+        inputs, reads_truth = (Topics.TRUTH_ODOMETRY,), True
 
         def step(self, t, bus):
             seen.append((t, bus.latest(Topics.TRUTH_ODOMETRY)))
 
+    sample = Sample()
+    sample.rate_hz = rate_hz
     sim = Simulator(quad)
-    sim.add(Sample())
-    sim.run(0.5)
+    for c in others:
+        sim.add(c)
+    sim.add(sample)
+    sim.run(duration)
+    return seen
+
+
+def test_events_between_physics_nodes_see_the_exact_state():
+    """Free fall sampled by a 300 Hz component: the truth it reads is the state at its exact event time."""
+    quad = _free_fall()
+    seen = _sample_truth(quad, 300.0, 0.5)
     g = quad.params.gravity
     for t, truth in seen:
         assert truth.t == t
@@ -318,22 +333,10 @@ def test_run_mcap_matches_the_histories_and_a_replayed_estimator_is_bit_identica
         assert out[field][:m].tobytes() == est[field][:m].tobytes(), field
 
 
-def _free_fall(z=100.0):
-    import dataclasses
-
-    params = dataclasses.replace(cufund.presets.cu_astro(), body_drag=(0.0, 0.0, 0.0), rotor_drag_xy=0.0,
-                                 rotor_drag_z=0.0)
-    quad = cufund.Quadrotor(params)
-    quad.state.p[:] = [0.0, 0.0, z]
-    quad.state.rotor_speeds[:] = 0.0
-    return quad
-
-
 def test_truth_readers_see_the_state_at_their_instant_when_flight_software_runs_between_them():
     """Truth is snapshotted only before components that may read it; a 400 Hz reader between 1 kHz instants of
     software that cannot read it still sees the exact state at its own time."""
     quad = _free_fall()
-    seen = []
 
     class Software(cufund.Component):  # no truth access: instants where only it runs need no snapshot
         rate_hz = 1000.0
@@ -341,16 +344,7 @@ def test_truth_readers_see_the_state_at_their_instant_when_flight_software_runs_
         def step(self, t, bus):
             pass
 
-    class Sample(cufund.Component):
-        rate_hz, inputs, reads_truth = 400.0, (Topics.TRUTH_ODOMETRY,), True
-
-        def step(self, t, bus):
-            seen.append((t, bus.latest(Topics.TRUTH_ODOMETRY)))
-
-    sim = Simulator(quad)
-    sim.add(Software())
-    sim.add(Sample())
-    sim.run(0.25)
+    seen = _sample_truth(quad, 400.0, 0.25, Software())
     g = quad.params.gravity
     assert len(seen) == 100
     for t, truth in seen:
