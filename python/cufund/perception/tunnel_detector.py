@@ -155,15 +155,17 @@ class TunnelDetector(Component):
         if len(tall):
             self._tall = np.union1d(self._tall, tall)
             self._tall_changed = True
+        self.scans += 1
+        self._last_stamp = cloud.t
+        keep_poses = max(0, int(np.searchsorted(self._t, cloud.t, side="right")) - 1)
+        del self._t[:keep_poses], self._p[:keep_poses], self._q[:keep_poses]
+        if p.roi_min_W is None and p.roi_max_W is None:
+            return points_W, rays_W  # fresh arrays from deskew_crop: no region of interest, no copy
         keep = np.ones(len(points_W), dtype=bool)
         if p.roi_min_W is not None:
             keep &= np.all(points_W >= np.asarray(p.roi_min_W), axis=1)
         if p.roi_max_W is not None:
             keep &= np.all(points_W <= np.asarray(p.roi_max_W), axis=1)
-        self.scans += 1
-        self._last_stamp = cloud.t
-        keep_poses = max(0, int(np.searchsorted(self._t, cloud.t, side="right")) - 1)
-        del self._t[:keep_poses], self._p[:keep_poses], self._q[:keep_poses]
         return points_W[keep], rays_W[keep]
 
     # -- tracking ----------------------------------------------------------------------------------------------
