@@ -184,36 +184,24 @@ def test_merge_beams_must_be_a_bool():
         esdf.EsdfMapParams(resolution=0.1, size=(1.0, 1.0, 1.0), merge_beams=1)
 
 
-class _Queue:
-    """A subscription replaying stamped messages: take() returns those visible by the current time."""
+def _replay_bus(mapper, poses, clouds):
+    """cufund's Bus with the mapper subscribed and the stamped messages ``(t, message)`` in flight, each to
+    become visible at its t (``bus.release(now_ns)`` makes those due visible)."""
+    from cufund.bus import Bus
+    from cufund.messages import Topics
 
-    def __init__(self, items):
-        self.items, self.i, self.now = items, 0, -np.inf
-
-    def take(self):
-        out = []
-        while self.i < len(self.items) and self.items[self.i][0] <= self.now:
-            out.append(self.items[self.i][1])
-            self.i += 1
-        return out
-
-
-class _ScriptedBus:
-    def __init__(self, poses, clouds):
-        self.queues = {"poses": _Queue(poses), "clouds": _Queue(clouds)}
-        self.published = []
-
-    def subscribe(self, topic):
-        return self.queues["clouds" if topic == "/clouds" else "poses"]
-
-    def publish(self, topic, message):
-        self.published.append(message)
+    bus = Bus(record=[Topics.ESDF_MAP])
+    mapper.setup(bus)
+    for topic, items in ((mapper.active_state_topic, poses), (mapper.cloud_topic, clouds)):
+        for t, message in items:
+            bus.publish(topic, message, latency_ns=round(t * 1e9))
+    return bus
 
 
 def test_the_mapper_stepped_slowly_batches_frames_into_the_same_map(rng):
     """Stepped at 2 Hz the mapper inserts the 10 frames that arrived by t = 0.5 s in one call; the map equals the one built
     stepping at the LiDAR's 20 Hz, one frame per call (the same pose stream and frames)."""
-    from cufund.messages import Odometry, PointCloud
+    from cufund.messages import Odometry, PointCloud, Topics
 
     T_BL = Transform((0.05, 0.0, 0.1), (0.999, 0.0, 0.04, 0.0))
     poses = []
@@ -235,16 +223,14 @@ def test_the_mapper_stepped_slowly_batches_frames_into_the_same_map(rng):
         params = esdf.EsdfMapParams(resolution=0.05, size=(4.0, 4.0, 2.0), origin_W=(-2.0, -2.0, -0.5), max_range=2.0,
                                     merge_beams=True)
         mapper = esdf.EsdfMapper(params, T_BL=T_BL, rate_hz=rate, cloud_topic="/clouds")
-        bus = _ScriptedBus(poses, clouds)
-        mapper.setup(bus)
+        bus = _replay_bus(mapper, poses, clouds)
         for k in range(int(1.2 * rate) + 1):
-            for q in bus.queues.values():
-                q.now = k / rate
+            bus.release(round(k / rate * 1e9))
             mapper.integrate(k / rate, bus)
-        mappers.append((mapper, bus))
-    (fast, fast_bus), (slow, slow_bus) = mappers
+        mappers.append((mapper, bus.recorded(Topics.ESDF_MAP)))
+    (fast, fast_published), (slow, slow_published) = mappers
     assert fast.frames == slow.frames == 11
-    assert [u.frames for u in slow_bus.published] == [10, 11] and len(fast_bus.published) >= 9
+    assert [u.frames for u in slow_published] == [10, 11] and len(fast_published) >= 9
     np.testing.assert_array_equal(fast.map.log_odds(), slow.map.log_odds())
     np.testing.assert_array_equal(fast.map.distances(), slow.map.distances())
     assert slow.map.occupied().sum() > 100
