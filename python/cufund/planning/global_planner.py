@@ -53,7 +53,7 @@ class GlobalPlannerParams:
     """Acceleration limit [m/s^2]."""
     optimize_times: bool = True
     """Optimise the segment times for least snap (Mellinger & Kumar) before scaling to the limits."""
-    heuristic_weight: float = 1.2
+    heuristic_weight: float = GridPathSearchParams.heuristic_weight
     """Grid A*: weighted A* factor (>= 1)."""
     max_expansions: int = 5_000_000
     """Grid A*: expansion limit."""
@@ -97,7 +97,7 @@ class GlobalPlan:
     """Wall time of the min-snap stage [s]."""
     plan_cpu_seconds: float
     """CPU time of both stages [s]."""
-    search_cpu_seconds: float = 0.0
+    search_cpu_seconds: float
     """CPU time of the path search alone [s]."""
 
     @property

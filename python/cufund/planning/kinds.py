@@ -11,6 +11,7 @@ import numpy as np
 from ..config import ConfigError
 from ..registry import Kind, register
 from .minimum_snap import MinimumSnapTrajectory
+from .path_search import GridPathSearchParams
 from .point_to_point import JerkLimitedMove
 from .sequence import Hold, TrajectorySequence
 from .trajectory_follower import TrajectoryFollower
@@ -175,7 +176,7 @@ class GlobalParams(LocalParams):
     """The path is searched with radius + path_margin [m]."""
     optimize_times: bool = True
     """Min-snap segment times optimised for least snap before scaling to v_max / a_max."""
-    heuristic_weight: float = 1.2
+    heuristic_weight: float = GridPathSearchParams.heuristic_weight
     """Grid A* heuristic weight (>= 1)."""
     time_limit: float = 1.0
     """OMPL: wall time for a first solution [s]."""
