@@ -204,14 +204,7 @@ class LogCore {
     py::ssize_t n;
     PyBytes_AsStringAndSize(records.ptr(), &data, &n);
     std::vector<std::uint8_t> v(data, data + n);
-    guarded([&] {
-      if (writer_->full()) {
-        py::gil_scoped_release release;
-        writer_->write(std::move(v));
-      } else {
-        writer_->write(std::move(v));
-      }
-    });
+    waiting_for_disk([&] { writer_->write(std::move(v)); });
   }
 
   // Hands a fixed topic's partial block to the writer.
@@ -227,18 +220,14 @@ class LogCore {
   std::size_t pending(std::size_t slot) const { return fixed_.at(slot)->block.size(); }
 
   void finish() {
-    guarded([&] {
-      py::gil_scoped_release release;
-      writer_->finish();
-    });
+    py::gil_scoped_release release;
+    writer_->finish();
   }
 
   void close() {
     topics_.clear();
-    guarded([&] {
-      py::gil_scoped_release release;
-      writer_->close();
-    });
+    py::gil_scoped_release release;
+    writer_->close();
   }
 
   std::uint64_t position() const { return writer_->position(); }
@@ -306,20 +295,20 @@ class LogCore {
   }
 
   void submit_block(Block b) {
-    guarded([&] {
-      if (writer_->full()) {  // waiting for the disk: let other Python threads run meanwhile
-        py::gil_scoped_release release;
-        writer_->chunk(std::move(b));
-      } else {
-        writer_->chunk(std::move(b));
-      }
-    });
+    waiting_for_disk([&] { writer_->chunk(std::move(b)); });
   }
 
-  // Runs f (the writer's std::system_error becomes OSError through the translator define_logs registers).
+  // Runs f (a hand-over to the writer), without the GIL when the writer's queue is full: f then waits for the
+  // disk, and other Python threads run meanwhile. (The writer's std::system_error becomes OSError through the
+  // translator define_logs registers.)
   template <typename F>
-  static void guarded(F&& f) {
-    f();
+  void waiting_for_disk(F&& f) {
+    if (writer_->full()) {
+      py::gil_scoped_release release;
+      f();
+    } else {
+      f();
+    }
   }
 
   // A time: a Python int in [0, 2^63) (anything else, up to 2^64 included, takes the checked path, which
