@@ -31,6 +31,7 @@ import numpy as np
 
 import cufund
 from cufund import esdf
+from cufund.bus import Bus
 from cufund.lidar import Lidar, mid360
 from cufund.messages import Odometry
 from cufund.sensors.pose import Transform, interpolate_poses
@@ -81,38 +82,17 @@ def before(frames, poses) -> esdf.EsdfMap:
     return m
 
 
-class _Queue:
-    def __init__(self, items):
-        self.items, self.i, self.now = items, 0, -np.inf
-
-    def take(self):
-        out = []
-        while self.i < len(self.items) and self.items[self.i][0] <= self.now:
-            out.append(self.items[self.i][1])
-            self.i += 1
-        return out
-
-
-class _Bus:
-    def __init__(self, poses, frames):
-        self.queues = {"poses": _Queue(poses), "clouds": _Queue(frames)}
-
-    def subscribe(self, topic):
-        return self.queues["clouds" if topic == "/clouds" else "poses"]
-
-    def publish(self, topic, message):
-        pass
-
-
 def mapper(frames, poses, merge: bool) -> esdf.EsdfMap:
     """The scenario's EsdfMapper stepped at 1 Hz on a scripted bus (frames visible at their end)."""
     mp = esdf.EsdfMapper(esdf.EsdfMapParams(**MAP, merge_beams=merge), T_BL=T_BL, rate_hz=MAPPER_HZ,
                          cloud_topic="/clouds")
-    bus = _Bus(poses, frames)
+    bus = Bus()  # the stamped messages in flight, each visible at its stamp
     mp.setup(bus)
+    for topic, items in ((mp.active_state_topic, poses), (mp.cloud_topic, frames)):
+        for t, message in items:
+            bus.publish(topic, message, latency_ns=round(t * 1e9))
     for k in range(int(DURATION * MAPPER_HZ) + 2):
-        for q in bus.queues.values():
-            q.now = k / MAPPER_HZ
+        bus.release(round(k / MAPPER_HZ * 1e9))
         mp.integrate(k / MAPPER_HZ, bus)
     assert mp.frames == len(frames), (mp.frames, len(frames))
     return mp.map
