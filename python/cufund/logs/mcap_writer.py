@@ -92,11 +92,11 @@ class McapLogger:
 
         self._core = LogCore(fd, compression, background, other)
         self.write = self._core.write  # the instance's write: one C call per message
-        position = len(MAGIC) + len(self._record_bytes(Header(profile="", library="cufund")))
-        self._core.write_records(MAGIC + self._record_bytes(Header(profile="", library="cufund")))
+        head = MAGIC + self._record_bytes(Header(profile="", library="cufund"))
+        self._core.write_records(head)
         if metadata:
             data = self._record_bytes(Metadata(name="cufund", metadata=dict(metadata)))
-            self._metadata_indexes.append(MetadataIndex(offset=position, length=len(data), name="cufund"))
+            self._metadata_indexes.append(MetadataIndex(offset=len(head), length=len(data), name="cufund"))
             self._core.write_records(data)
 
     # -- the hot path -------------------------------------------------------------------------------------------
