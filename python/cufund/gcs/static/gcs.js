@@ -210,8 +210,8 @@
     if (text !== shownTarget) { shownTarget = text; $("tel-target").textContent = text; }
     return tg;
   }
-  function toViewPose(t) {
-    toView({type: "pose", p: t.p_W, q: t.q_WB, sp: targetOf(t) || setpointOf(t)});
+  function toViewPose(t, sp) {  // sp: the target showTarget returned for t
+    toView({type: "pose", p: t.p_W, q: t.q_WB, sp: sp});
     follow(t.p_W);
   }
 
@@ -272,7 +272,7 @@
       }
       seen("telemetry");
       addPlot(m); dirtyPanel = true;
-      toViewPose(m);
+      toViewPose(m, tg);
     } else if (m.type === "hello") {
       stats.hellos += 1;
       newScene(m.scene);
@@ -283,7 +283,7 @@
       $("events").innerHTML = ""; stats.events = [];
       addEvents(m.events || []);
       toView({type: "esdf", esdf: m.esdf || null});  // the scene above dropped the old cloud and map
-      if (m.telemetry && m.telemetry.p_W) { stats.lastTelemetry = m.telemetry; showTelemetry(m.telemetry); showTarget(m.telemetry); toViewPose(m.telemetry); }
+      if (m.telemetry && m.telemetry.p_W) { stats.lastTelemetry = m.telemetry; showTelemetry(m.telemetry); toViewPose(m.telemetry, showTarget(m.telemetry)); }
     } else if (m.type === "events") {
       addEvents(m.events);
     } else if (m.type === "planned") {
