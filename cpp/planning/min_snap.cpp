@@ -110,7 +110,13 @@ std::vector<double> min_derivative_spline(const double* values, std::size_t m, s
   const std::size_t nc = 2 * k, n = m * nc;
   BandSystem A(n, 3 * k - 2, k);
   std::vector<double> b(n * dim, 0.0);
-  for (std::size_t r = 1; r < k; ++r) A.at(r - 1, r) = factorial(static_cast<int>(r));  // rest at the start
+  // r! and F[r][j] = d^r/ds^r s^j at s = 1, the same for every segment (order <= 8: nc <= 16)
+  double fact[16], F[16][16];
+  for (std::size_t r = 0; r < nc; ++r) {
+    fact[r] = factorial(static_cast<int>(r));
+    for (std::size_t j = 0; j < nc; ++j) F[r][j] = falling(static_cast<int>(j), static_cast<int>(r));
+  }
+  for (std::size_t r = 1; r < k; ++r) A.at(r - 1, r) = fact[r];  // rest at the start
   for (std::size_t i = 0; i < m; ++i) {
     const std::size_t base = i * nc, top = (k - 1) + i * nc;
     A.at(top, base) = 1.0;  // p_i(0) = w_i
@@ -123,8 +129,8 @@ std::vector<double> min_derivative_spline(const double* values, std::size_t m, s
     const std::size_t rmax = i + 1 < m ? 2 * k - 2 : k - 1;
     const double ratio = i + 1 < m ? T[i] / T[i + 1] : 0.0;
     for (std::size_t r = 1; r <= rmax; ++r) {
-      for (std::size_t j = r; j < nc; ++j) A.at(top + 1 + r, base + j) = falling(static_cast<int>(j), static_cast<int>(r));
-      if (i + 1 < m) A.at(top + 1 + r, base + nc + r) = -factorial(static_cast<int>(r)) * std::pow(ratio, static_cast<double>(r));
+      for (std::size_t j = r; j < nc; ++j) A.at(top + 1 + r, base + j) = F[r][j];
+      if (i + 1 < m) A.at(top + 1 + r, base + nc + r) = -fact[r] * std::pow(ratio, static_cast<double>(r));
     }
   }
   if (!A.solve(b.data(), dim)) std::fill(b.begin(), b.end(), std::numeric_limits<double>::quiet_NaN());
