@@ -192,7 +192,7 @@ void define_control(py::module_& m) {
           [](PositionControl& c, const py::handle& v) { c.vel_int = vec3(v, "vel_int"); },
           "Velocity integrator (3,) [m/s^2].")
       .def_property_readonly(
-          "acc_filt", [](const PositionControl& c) { return Eigen::Vector3d(c.acc_filt); },
+          "acc_filt", [](const PositionControl& c) { return Eigen::Vector3d(c.acc_filt()); },
           "Low-passed measured acceleration (3,) [m/s^2] that D acts on.");
 
   py::class_<AttitudeControl>(m, "AttitudeControl",

@@ -81,7 +81,8 @@ GeometricAttitudeCommand geometric_from_attitude(const Eigen::Matrix3d& J, const
 }
 
 GeometricControl::GeometricControl(const QuadrotorParams& params, double transfer_tau)
-    : allocator_(params), J_(params.inertia), mass_(params.mass), gravity_(params.gravity), tau_(transfer_tau) {}
+    : allocator_(params), J_(params.inertia), mass_(params.mass), gravity_(params.gravity),
+      handover_(transfer_tau) {}
 
 void GeometricControl::set_gains(double k_x, double k_v, const Eigen::Vector3d& k_R, const Eigen::Vector3d& k_W) {
   k_x_ = k_x;
@@ -103,17 +104,7 @@ GeometricStep GeometricControl::step_force(double t, const Eigen::Vector3d& p_W,
     const double k = k_x_ * mass_;
     for (int i = 0; i < 3; ++i) F[i] -= k * (p_W[i] - p_sp[i]);
   }
-  if (handover != nullptr) {
-    offset_ = *handover - F;
-    t0_ = t;
-    has_offset_ = true;
-  }
-  if (has_offset_) {
-    const double decay = std::exp(-(t - t0_) / tau_);
-    for (int i = 0; i < 3; ++i) F[i] += offset_[i] * decay;
-  } else {
-    for (int i = 0; i < 3; ++i) F[i] += 0.0;  // as `F + 0.0` (turns -0.0 into 0.0)
-  }
+  handover_.apply(t, handover, F);
   GeometricStep out;
   out.command = geometric_from_force(J_, mass_, k_R_, k_W_, q_WB, w_B, F, j_sp, yaw, yaw_rate);
   out.allocation = allocator_.allocate(out.command.thrust, out.command.torque_B);

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 
 #include "allocation.h"
+#include "loop_state.h"
 
 namespace cufund {
 
@@ -46,7 +47,7 @@ class GeometricControl {
 
   // k_x [m/s^2 per m], k_v [m/s^2 per m/s] (times the mass), k_R, k_W per body axis (times J).
   void set_gains(double k_x, double k_v, const Eigen::Vector3d& k_R, const Eigen::Vector3d& k_W);
-  void reset() { has_offset_ = false; }
+  void reset() { handover_.reset(); }
 
   // Position (position_mode) or velocity mode at time t [s]: F = m (a_sp - k_v (v - v_sp)) + m g e3
   // [- k_x m (p - p_sp)], plus the faded hand-over (handover, non-null at a mode switch: the force last
@@ -63,12 +64,10 @@ class GeometricControl {
  private:
   ControlAllocator allocator_;
   Eigen::Matrix3d J_;
-  double mass_, gravity_, tau_;
+  double mass_, gravity_;
   double k_x_ = 0.0, k_v_ = 0.0;
   Eigen::Vector3d k_R_ = Eigen::Vector3d::Zero(), k_W_ = Eigen::Vector3d::Zero();
-  Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();
-  double t0_ = 0.0;
-  bool has_offset_ = false;
+  BumplessHandover handover_;
 };
 
 }  // namespace cufund

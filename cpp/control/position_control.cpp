@@ -11,24 +11,17 @@ namespace ra = reference_arithmetic;
 
 PositionControl::PositionControl(double mass, double gravity, double max_thrust, double vel_d_cutoff_hz,
                                  double transfer_tau)
-    : mass_(mass), gravity_(gravity), max_thrust_(max_thrust), cutoff_hz_(vel_d_cutoff_hz), tau_(transfer_tau) {}
+    : mass_(mass), gravity_(gravity), max_thrust_(max_thrust), acc_filter_(vel_d_cutoff_hz),
+      handover_(transfer_tau) {}
 
 void PositionControl::reset() {
   vel_int.setZero();
-  acc_filt.setZero();
-  has_prev_ = false;
-  has_offset_ = false;
+  acc_filter_.reset();
+  handover_.reset();
 }
 
 const Eigen::Vector3d& PositionControl::filter_velocity(const Eigen::Vector3d& v_W, double dt) {
-  if (!has_prev_) {
-    v_prev_ = v_W;
-    has_prev_ = true;
-  }
-  const double alpha = cutoff_hz_ > 0 ? dt / (dt + 1.0 / (2.0 * M_PI * cutoff_hz_)) : 1.0;
-  for (int i = 0; i < 3; ++i) acc_filt[i] += alpha * ((v_W[i] - v_prev_[i]) / dt - acc_filt[i]);
-  v_prev_ = v_W;
-  return acc_filt;
+  return acc_filter_.update(v_W, dt);
 }
 
 Eigen::Vector3d PositionControl::limit_thrust(Eigen::Vector3d F, Eigen::Vector3i& sat) const {
@@ -87,19 +80,9 @@ PositionControlOutput PositionControl::step(double t, double dt, const Eigen::Ve
   Eigen::Vector3d v_err, acc;
   for (int i = 0; i < 3; ++i) {
     v_err[i] = v_sp[i] - v_W[i];
-    acc[i] = g.k_v[i] * v_err[i] + vel_int[i] - g.k_d[i] * acc_filt[i] + a_sp[i];
+    acc[i] = g.k_v[i] * v_err[i] + vel_int[i] - g.k_d[i] * acc_filter_.value[i] + a_sp[i];
   }
-  if (handover != nullptr) {
-    offset_ = *handover - acc;
-    t0_ = t;
-    has_offset_ = true;
-  }
-  if (has_offset_) {
-    const double decay = std::exp(-(t - t0_) / tau_);
-    for (int i = 0; i < 3; ++i) acc[i] += offset_[i] * decay;
-  } else {
-    for (int i = 0; i < 3; ++i) acc[i] += 0.0;  // as the reference's `acc + 0.0` (turns -0.0 into 0.0)
-  }
+  handover_.apply(t, handover, acc);
   const Eigen::Vector3d up(0.0, 0.0, gravity_);
   Eigen::Vector3d F0;
   for (int i = 0; i < 3; ++i) F0[i] = mass_ * (acc[i] + up[i]);

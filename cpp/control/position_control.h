@@ -6,6 +6,8 @@
 
 #include <Eigen/Core>
 
+#include "loop_state.h"
+
 namespace cufund {
 
 struct PositionControlGains {
@@ -48,16 +50,13 @@ class PositionControl {
   Eigen::Vector3d limit_thrust(Eigen::Vector3d F, Eigen::Vector3i& sat) const;
 
   Eigen::Vector3d vel_int = Eigen::Vector3d::Zero();  // velocity integrator [m/s^2]
-  Eigen::Vector3d acc_filt = Eigen::Vector3d::Zero();  // filtered measured acceleration [m/s^2]
+  const Eigen::Vector3d& acc_filt() const { return acc_filter_.value; }  // filtered measured acceleration [m/s^2]
 
  private:
   PositionControlGains gains_{};
-  double mass_, gravity_, max_thrust_, cutoff_hz_, tau_;
-  Eigen::Vector3d v_prev_ = Eigen::Vector3d::Zero();
-  bool has_prev_ = false;
-  Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();
-  double t0_ = 0.0;
-  bool has_offset_ = false;
+  double mass_, gravity_, max_thrust_;
+  LowPassDerivative acc_filter_;
+  BumplessHandover handover_;
 };
 
 // Unit quaternion [w, x, y, z] with w >= 0 of a rotation matrix (Shepperd's method), as the Python reference.

@@ -14,24 +14,17 @@ double (*volatile libm_pow)(double, double) = ::pow;
 }  // namespace
 
 RateControl::RateControl(const QuadrotorParams& params, double d_cutoff_hz, double i_scale)
-    : allocator_(params), J_(params.inertia), cutoff_hz_(d_cutoff_hz), i_scale_(i_scale) {}
+    : allocator_(params), J_(params.inertia), i_scale_(i_scale), dw_filter_(d_cutoff_hz) {}
 
 void RateControl::reset() {
   rate_int.setZero();
-  dw_filt.setZero();
-  has_prev_ = false;
+  dw_filter_.reset();
 }
 
 AllocationResult RateControl::step(const Eigen::Vector3d& w_B, const Eigen::Vector3d& w_sp, double thrust,
                                    double dt) {
   const RateControlGains& g = gains_;
-  if (!has_prev_) {
-    w_prev_ = w_B;
-    has_prev_ = true;
-  }
-  const double alpha = cutoff_hz_ > 0 ? dt / (dt + 1.0 / (2.0 * M_PI * cutoff_hz_)) : 1.0;
-  for (int i = 0; i < 3; ++i) dw_filt[i] += alpha * ((w_B[i] - w_prev_[i]) / dt - dw_filt[i]);
-  w_prev_ = w_B;
+  const Eigen::Vector3d& dw_filt = dw_filter_.update(w_B, dt);
   Eigen::Vector3d e, alpha_cmd, torque;
   for (int i = 0; i < 3; ++i) {
     e[i] = w_sp[i] - w_B[i];

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include "allocation.h"
+#include "loop_state.h"
 
 namespace cufund {
 
@@ -33,15 +34,15 @@ class RateControl {
   const ControlAllocator& allocator() const { return allocator_; }
 
   Eigen::Vector3d rate_int = Eigen::Vector3d::Zero();  // integrator [rad/s^2]
-  Eigen::Vector3d dw_filt = Eigen::Vector3d::Zero();   // filtered measured angular acceleration [rad/s^2]
+  // filtered measured angular acceleration [rad/s^2]
+  const Eigen::Vector3d& dw_filt() const { return dw_filter_.value; }
 
  private:
   ControlAllocator allocator_;
   Eigen::Matrix3d J_;
   RateControlGains gains_{};
-  double cutoff_hz_, i_scale_;
-  Eigen::Vector3d w_prev_ = Eigen::Vector3d::Zero();
-  bool has_prev_ = false;
+  double i_scale_;
+  LowPassDerivative dw_filter_;
 };
 
 }  // namespace cufund
