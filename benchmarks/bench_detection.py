@@ -16,15 +16,15 @@ import time
 
 import cufund
 import numpy as np
-from cufund.components import Component
-from cufund.lidar import Lidar, mid360
-from cufund.messages import Odometry, Topics
+from cufund.core.components import Component
+from cufund.sensors import Lidar, mid360
+from cufund.core.messages import Odometry, Topics
 from cufund.perception import TunnelDetector, TunnelDetectorParams, detect_in_voxels
 from cufund.sensors import LidarComponent
 from cufund.sensors.lidar import mid360_params
 from cufund.sensors.pose import yaw_quaternion
 from cufund.worlds.builtin import imav2025_tunnel
-from cufund.worlds.tunnel_course import tunnel_course_layout
+from cufund.missions.tunnel_course import tunnel_course_layout
 
 
 class ScriptedTruth(Component):

@@ -33,7 +33,7 @@ def rotorpy_steps_per_s() -> float:
     from rotorpy.vehicles.crazyflie_params import quad_params
     from rotorpy.vehicles.multirotor import Multirotor
 
-    w_h = cufund.presets.crazyflie().hover_rotor_speed
+    w_h = cufund.vehicle.presets.crazyflie().hover_rotor_speed
     state = {"x": np.array([0.0, 0.0, 1.0]), "v": np.zeros(3), "q": np.array([0.0, 0.0, 0.0, 1.0]),
              "w": np.zeros(3), "wind": np.zeros(3), "rotor_speeds": np.full(4, w_h)}
     vehicle = Multirotor(quad_params, initial_state=state, aero=True)
@@ -48,7 +48,7 @@ def rotorpy_steps_per_s() -> float:
 
 
 def single_steps_per_s() -> float:
-    params = cufund.presets.crazyflie()
+    params = cufund.vehicle.presets.crazyflie()
     quad = cufund.Quadrotor(params)
     quad.hover((0.0, 0.0, 1.0))
     cmd = np.full(4, params.hover_rotor_speed)
@@ -62,7 +62,7 @@ def single_steps_per_s() -> float:
 
 
 def batch_vehicle_steps_per_s(n: int) -> float:
-    params = cufund.presets.crazyflie()
+    params = cufund.vehicle.presets.crazyflie()
     batch = cufund.QuadrotorBatch(params, n)
     batch.hover(np.c_[np.zeros((n, 2)), np.full(n, 10.0)])
     cmd = np.full((n, 4), params.hover_rotor_speed) * (1 + 1e-3 * np.random.default_rng(0).standard_normal((n, 4)))

@@ -1,4 +1,4 @@
-"""ESDF benchmark (issue 6): cufund.esdf against the `edt` package (parallel=2) and scipy, same run.
+"""ESDF benchmark (issue 6): cufund.mapping against the `edt` package (parallel=2) and scipy, same run.
 
 Prints times and ratios for
   1. the full exact EDT of a 400 x 400 x 60 occupancy grid,
@@ -15,7 +15,7 @@ import edt as edt_pkg
 import numpy as np
 from scipy import ndimage
 
-from cufund import esdf
+from cufund import mapping as esdf
 
 SHAPE = (400, 400, 60)
 RES = 0.1
@@ -83,9 +83,9 @@ def full_edt(name, occ):
     err = np.max(np.abs(esdf.edt(occ, voxel_size=RES) - ref))
     print(f"   edt package (parallel={THREADS}, float32):    {t_edt * 1e3:8.1f} ms")
     print(f"   scipy distance_transform_edt (float64):  {t_scipy * 1e3:8.1f} ms")
-    print(f"   cufund.esdf.edt (nthreads={THREADS}, float32): {t32 * 1e3:8.1f} ms   "
+    print(f"   cufund.mapping.edt (nthreads={THREADS}, float32): {t32 * 1e3:8.1f} ms   "
           f"speed vs edt: {t_edt / t32:.2f}x   vs scipy: {t_scipy / t32:.1f}x")
-    print(f"   cufund.esdf.edt (nthreads={THREADS}, float64): {t64 * 1e3:8.1f} ms   "
+    print(f"   cufund.mapping.edt (nthreads={THREADS}, float64): {t64 * 1e3:8.1f} ms   "
           f"speed vs edt: {t_edt / t64:.2f}x   vs scipy: {t_scipy / t64:.1f}x   max |diff| vs scipy: {err:.1e} m")
 
 

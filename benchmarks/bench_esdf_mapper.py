@@ -30,12 +30,12 @@ import time
 import numpy as np
 
 import cufund
-from cufund import esdf
-from cufund.bus import Bus
-from cufund.lidar import Lidar, mid360
-from cufund.messages import Odometry
+from cufund import mapping as esdf
+from cufund.core.bus import Bus
+from cufund.sensors import Lidar, mid360
+from cufund.core.messages import Odometry
 from cufund.sensors.pose import Transform, interpolate_poses
-from cufund.worlds.tunnel_course import paper_tunnel_course
+from cufund.missions.tunnel_course import paper_tunnel_course
 
 T_BL = Transform((0.0, 0.0, 0.08))
 MAP = {"resolution": 0.1, "size": (12.0, 8.0, 3.2), "origin_W": (-3.5, -4.0, -0.2), "max_range": 8.0}

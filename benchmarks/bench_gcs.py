@@ -20,8 +20,8 @@ import shutil
 import statistics
 import time
 
-from cufund.gcs import GcsProcess
-from cufund.gcs.process import wait_for
+from cufund.apps.gcs import GcsProcess
+from cufund.apps.gcs.process import wait_for
 
 
 def cpu_seconds(pid: int) -> float:

@@ -1,4 +1,4 @@
-"""Rays/s of cufund.lidar.RaycastScene vs Open3D's RaycastingScene (same scene, same rays, 2 threads),
+"""Rays/s of cufund.sensors.RaycastScene vs Open3D's RaycastingScene (same scene, same rays, 2 threads),
 and frames/s of the LiDAR and camera models in the tunnel world.
 
     .venv/bin/python benchmarks/bench_lidar.py [--rays 1000000] [--repeats 5] [--threads 2]
@@ -74,7 +74,7 @@ def scenes(args: argparse.Namespace) -> None:
     print(f"{'triangles':>10} {'rays':>7} {'cufund Mrays/s':>15} {'open3d Mrays/s':>15} {'ratio':>6}")
     for target in (10_000, 100_000, 1_000_000):
         v, f = sphere_mesh(target)
-        ours = cufund.lidar.RaycastScene()
+        ours = cufund.sensors.RaycastScene()
         ours.add_triangles(v, f)
         theirs = o3d.t.geometry.RaycastingScene()
         theirs.add_triangles(o3d.core.Tensor(v), o3d.core.Tensor(f))
@@ -97,8 +97,8 @@ def models(args: argparse.Namespace) -> None:
     pose = lambda t: (np.array([-1.5 + 0.5 * t, 0.0, 0.55]), np.array([1.0, 0.0, 0.0, 0.0]))  # noqa: E731
     print(f"\nsensor models in imav2025_tunnel ({args.threads} threads), best of {args.repeats}, load "
           f"{os.getloadavg()[0]:.1f}:")
-    for name, pattern in (("Livox Mid-360", cufund.lidar.mid360()), ("Ouster OS1-64", cufund.lidar.os1_64())):
-        lidar = cufund.lidar.Lidar(pattern, cufund.lidar.LidarParams(nthreads=args.threads, range_noise_std=0.02))
+    for name, pattern in (("Livox Mid-360", cufund.sensors.mid360()), ("Ouster OS1-64", cufund.sensors.os1_64())):
+        lidar = cufund.sensors.Lidar(pattern, cufund.sensors.LidarParams(nthreads=args.threads, range_noise_std=0.02))
         (t,) = best_times([lambda: lidar.scan(world, pose, 0.0)], args.repeats)
         frames = 50
         c0 = time.process_time()

@@ -1,4 +1,4 @@
-"""The live runner (``cufund.live.LiveRun``, what ``cufund serve`` and ``cufund gcs`` fly): pacing, the cost of
+"""The live runner (``cufund.apps.live.LiveRun``, what ``cufund serve`` and ``cufund gcs`` fly): pacing, the cost of
 running live, and how fast a command is answered.
 
 1. Pacing: simulated seconds per wall second at speed 1 (target 1.000) while the vehicle hovers.
@@ -19,10 +19,10 @@ import math
 import statistics
 import time
 
-from cufund.live import LiveRun
+from cufund.apps.live import LiveRun
 from cufund.missions import Commander
-from cufund.scenario import load_scenario
-from cufund.scenario_build import build_simulation
+from cufund.scenarios import load_scenario
+from cufund.scenarios.build import build_simulation
 
 MISSION = {"command": "mission_upload", "items": [[-3.0, 2.0, 1.5], [-3.0, -2.0, 2.0], [-2.0, -2.0, 1.5]]}
 

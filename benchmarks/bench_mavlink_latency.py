@@ -22,8 +22,8 @@ import time
 from pathlib import Path
 
 import mavsdk_grpc as mavsdk
-from cufund.live import LiveRun
-from cufund.mavlink.vehicle_endpoint import VehicleEndpoint
+from cufund.apps.live import LiveRun
+from cufund.apps.mavlink.vehicle_endpoint import VehicleEndpoint
 from pymavlink import mavutil
 
 M = mavutil.mavlink

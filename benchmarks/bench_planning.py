@@ -30,7 +30,7 @@ import open3d as o3d
 
 from cufund.planning import (BsplineLocalPlanner, GlobalPlanner, GlobalPlannerParams, GridPathSearch, GridPathSearchParams, LocalPlannerParams,
                              OmplPathParams, OmplPathPlanner, clearance_from_world, esdf_from_world)
-from cufund.worlds import tunnel_course_layout
+from cufund.missions.tunnel_course import tunnel_course_layout
 from cufund.worlds.builtin import forest
 
 RADIUS_FOREST = 0.3

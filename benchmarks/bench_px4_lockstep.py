@@ -25,11 +25,11 @@ import sys
 import time
 from typing import Any
 
-from cufund.mavlink.px4_harness import Px4Harness
-from cufund.mavlink.px4_links import TcpServerLink
-from cufund.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
-from cufund.presets import iris
-from cufund.scenario import ScenarioConfig
+from cufund.apps.mavlink.px4_harness import Px4Harness
+from cufund.apps.mavlink.px4_links import TcpServerLink
+from cufund.apps.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
+from cufund.vehicle.presets import iris
+from cufund.scenarios import ScenarioConfig
 
 U_HOVER = (iris().hover_rotor_speed - 100.0) / 1000.0
 PARAMS = Px4BridgeParams(speed=None, wait_first_controls=True)

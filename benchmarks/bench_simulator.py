@@ -20,7 +20,7 @@ import time
 import cufund
 from cufund import Simulator, Topics
 
-PARAMS = cufund.presets.cu_astro()
+PARAMS = cufund.vehicle.presets.cu_astro()
 DURATION = 15.0
 REPEATS = 7
 
@@ -84,8 +84,8 @@ def bench_overhead() -> None:
 
 
 def bench_square_mocap() -> None:
-    from cufund.scenario import load_scenario
-    from cufund.scenario_build import build_simulation, run_built
+    from cufund.scenarios import load_scenario
+    from cufund.scenarios.build import build_simulation, run_built
 
     cfg = load_scenario("square_mocap")
     run_built(build_simulation(cfg))  # the first run pays one-time costs

@@ -28,7 +28,7 @@ def bench_real_time_factor() -> None:
     from rotorpy.vehicles.crazyflie_params import quad_params
     from rotorpy.vehicles.multirotor import Multirotor
 
-    from cufund.scenario import RatesConfig, build_reference, load_scenario, run_scenario
+    from cufund.scenarios import RatesConfig, build_reference, load_scenario, run_scenario
 
     base = load_scenario("square")
     base = base.replace(vehicle="crazyflie", controller=dataclasses.replace(base.controller, kind="geometric"))

@@ -1,4 +1,4 @@
-"""Sweep throughput: the square's variants per minute on Dask (`cufund.sweep.run` on a 2-worker LocalCluster)
+"""Sweep throughput: the square's variants per minute on Dask (`cufund.apps.sweep.run` on a 2-worker LocalCluster)
 against a plain `multiprocessing.Pool(2)` running the same task on the same variants, and Dask with 1 vs 2 workers.
 
 Both sides are warmed up first (workers started, cufund imported in each), so the figures are the steady-state
@@ -21,7 +21,7 @@ from functools import partial
 
 
 def _warm(_: int) -> int:
-    import cufund.scenario_build  # noqa: F401
+    import cufund.scenarios.build  # noqa: F401
 
     return os.getpid()
 
@@ -40,8 +40,8 @@ def main() -> None:
     os.environ.update({k: str(v) for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()})
     os.environ["CUFUND_NUM_THREADS"] = "1"
 
-    import cufund.sweep as sweep
-    from cufund.sweep.execute import run_variant
+    import cufund.apps.sweep as sweep
+    from cufund.apps.sweep.execute import run_variant
 
     gains = [2.0 + 2.0 * i / max(args.variants - 1, 1) for i in range(args.variants)]
     spec = sweep.load_spec({"scenario": "square", "set": {"duration": args.duration},

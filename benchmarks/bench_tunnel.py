@@ -23,8 +23,8 @@ import numpy as np
 
 def _one(job: tuple[int, list[str]]) -> dict:
     seed, overrides = job
-    from cufund.scenario import load_scenario, parse_overrides
-    from cufund.scenario_build import run_scenario
+    from cufund.scenarios import load_scenario, parse_overrides
+    from cufund.scenarios.build import run_scenario
 
     t0 = time.perf_counter()
     try:
@@ -41,8 +41,8 @@ def components(overrides: list[str]) -> int:
     CPU time per step counted beside the simulator's wall time per component (issue 14's targets, on the lead's
     quiet machine: LiDAR <= 1.5 s, detector <= 0.6 s of wall over the run)."""
     from cufund.perception.tunnel_detector import TunnelDetector
-    from cufund.scenario import load_scenario, parse_overrides
-    from cufund.scenario_build import run_scenario
+    from cufund.scenarios import load_scenario, parse_overrides
+    from cufund.scenarios.build import run_scenario
     from cufund.sensors.lidar_component import LidarComponent
 
     cpu: dict[str, float] = {}

@@ -138,9 +138,9 @@ py::array grid_array(const esdf::EsdfMap& m, const std::vector<T, Alloc>& data) 
 void define_esdf(py::module_& m) {
   m.def("edt", &edt, py::arg("occupied"), py::arg("voxel_size"), py::arg("signed"), py::arg("nthreads"),
         py::arg("single"),
-        "Exact Euclidean distance transform; use cufund.esdf.edt, which documents the arguments.");
+        "Exact Euclidean distance transform; use cufund.mapping.edt, which documents the arguments.");
 
-  py::class_<esdf::EsdfMap>(m, "EsdfMap", "Occupancy grid with an incrementally exact ESDF; use cufund.esdf.EsdfMap.")
+  py::class_<esdf::EsdfMap>(m, "EsdfMap", "Occupancy grid with an incrementally exact ESDF; use cufund.mapping.EsdfMap.")
       .def(py::init([](const py::handle& origin_W, const py::handle& shape_obj, double resolution, float hit, float miss,
                        float lmin, float lmax, float locc, double max_range, bool signed_distance, int nthreads,
                        bool merge_beams) {

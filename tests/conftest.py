@@ -6,7 +6,7 @@ import cufund
 
 @pytest.fixture
 def crazyflie() -> cufund.QuadrotorParams:
-    return cufund.presets.crazyflie()
+    return cufund.vehicle.presets.crazyflie()
 
 
 @pytest.fixture

@@ -99,8 +99,10 @@ class PositionReference:
         return F, sat
 
 
-def attitude_reference(q, qd, yaw_rate, k, rate_max, yaw_weight):
-    """AttitudeController.update's arithmetic."""
+def attitude_reference(q, qd, yaw_rate, k, rate_max, yaw_weight, alternatives=False):
+    """AttitudeController.update's arithmetic. With ``alternatives``, a list of the admissible outputs: an error
+    of 180 deg (the error quaternion's w within 1e-12 of 0) has two shortest ways round, and which one the last
+    bit of w picks is a rounding accident, so both are returned there."""
     R = quat_to_rotation(q)
     e_z, e_z_d = R[:, 2], quat_to_rotation(qd)[:, 2]
     qd_red = quat_from_two_vectors(e_z, e_z_d)
@@ -118,10 +120,13 @@ def attitude_reference(q, qd, yaw_rate, k, rate_max, yaw_weight):
     qe = quat_multiply(quat_conjugate(q), qd)
     if qe[0] < 0:
         qe = -qe
-    w_sp = 2.0 * qe[1:] * k
-    if yaw_rate:
-        w_sp += R[2, :] * yaw_rate
-    return np.minimum(np.maximum(w_sp, -rate_max), rate_max)
+    out = []
+    for e in ([qe, -qe] if alternatives and abs(qe[0]) < 1e-12 else [qe]):
+        w_sp = 2.0 * e[1:] * k
+        if yaw_rate:
+            w_sp += R[2, :] * yaw_rate
+        out.append(np.minimum(np.maximum(w_sp, -rate_max), rate_max))
+    return out if alternatives else out[0]
 
 
 class RateReference:

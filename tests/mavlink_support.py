@@ -82,8 +82,8 @@ def vehicle(speed: float = SPEED, links: int = 1, extra_links: tuple[str, ...] |
             scenario: Any = "vehicle", **endpoint_kw: Any) -> Iterator[tuple[Any, Any, list[Gcs]]]:
     """A live run of ``scenario`` (default: the ``vehicle`` scenario) behind a VehicleEndpoint with ``links``
     udpout links, each to its own Gcs, and ``extra_links`` (URLs) to other clients."""
-    from cufund.live import LiveRun
-    from cufund.mavlink.vehicle_endpoint import VehicleEndpoint
+    from cufund.apps.live import LiveRun
+    from cufund.apps.mavlink.vehicle_endpoint import VehicleEndpoint
 
     ports = [free_port() for _ in range(links)]
     gcss = [Gcs(p) for p in ports]

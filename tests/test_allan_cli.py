@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from cufund.cli import main
+from cufund.apps.cli import main
 from cufund.sensors import imu_preset
 
 

@@ -125,7 +125,7 @@ def test_bad_camera_input():
 
 
 def test_camera_component_publishes_images_at_its_rate():
-    quad = cufund.Quadrotor(cufund.presets.cu_astro())
+    quad = cufund.Quadrotor(cufund.vehicle.presets.cu_astro())
     quad.hover([0.0, 0.0, 0.0])
     sim = cufund.Simulator(quad, physics_rate_hz=1000, record_topics=("/sensors/depth_image",))
     K = CameraIntrinsics(32, 24, 20.0, 20.0, 15.5, 11.5)

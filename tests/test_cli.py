@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from cufund.cli import main
+from cufund.apps.cli import main
 
 
 def test_help_lists_scenarios(capsys):

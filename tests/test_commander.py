@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from cufund.config import ConfigError
-from cufund.messages import Topics
+from cufund.core.config import ConfigError
+from cufund.core.messages import Topics
 from cufund.missions import CommandAck, Commander, parse_command
-from cufund.scenario import ScenarioConfig
-from cufund.scenario_build import build_simulation, run_scenario
+from cufund.scenarios import ScenarioConfig
+from cufund.scenarios.build import build_simulation, run_scenario
 from hypothesis import given, settings
 from hypothesis import strategies as hs
 
@@ -201,7 +201,7 @@ def test_forced_disarm_in_flight_stops_the_rotors():
     assert cmd.apply({"command": "disarm", "force": True}).result == "accepted"
     w_hover = _rotors(sim).min()
     sim.advance_to(sim.t + 0.01)
-    from cufund.messages import Topics
+    from cufund.core.messages import Topics
 
     assert np.all(sim.bus.latest(Topics.ACTUATOR_COMMAND).rotor_speeds == 0.0)
     sim.advance_to(sim.t + 0.1)

@@ -10,10 +10,10 @@ from cufund import FlightMode, RunStatus, Simulator, Topics
 from cufund.control import (AttitudeController, ControlAllocator, GeometricController, PositionController,
                             RateController)
 from cufund.control.rotations import quat_to_rotation, rotation_to_quat
-from cufund.messages import AttitudeSetpoint, FlightModeCommand, TrajectorySetpoint
-from cufund.scenario import load_scenario
+from cufund.core.messages import AttitudeSetpoint, FlightModeCommand, TrajectorySetpoint
+from cufund.scenarios import load_scenario
 
-PARAMS = cufund.presets.cu_astro()
+PARAMS = cufund.vehicle.presets.cu_astro()
 GAINS = load_scenario("square").controller.params
 Z3 = np.zeros(3)
 

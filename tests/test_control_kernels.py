@@ -18,12 +18,12 @@ import cufund
 from cufund import _core
 from cufund.control import AttitudeControlParams, PositionControlParams
 from cufund.control.rate_control import _RATE_I_SCALE
-from cufund.scenario import load_scenario
+from cufund.scenarios import load_scenario
 
 from control_reference import (RATE_I_SCALE, GeometricReference, PositionReference, RateReference,
                                attitude_reference)
 
-PARAMS = cufund.presets.cu_astro()
+PARAMS = cufund.vehicle.presets.cu_astro()
 
 
 def _numpy_dots_are_fma_in_order() -> bool:
@@ -121,9 +121,9 @@ def test_attitude_kernel_matches_reference(gains):
             qd = unit_quaternion(rng) if i % 2 else q + rng.normal(size=4) * 0.05
             qd = qd / np.linalg.norm(qd)
         yaw_rate = 0.0 if i % 3 == 0 else rng.normal() * 2.0
-        w_ref = attitude_reference(q, qd, yaw_rate, k, rate_max, yaw_weight)
+        w_refs = attitude_reference(q, qd, yaw_rate, k, rate_max, yaw_weight, alternatives=True)
         w = core.rate_setpoint(q, qd, yaw_rate)
-        assert same(w, w_ref), (i, w, w_ref)
+        assert any(same(w, w_ref) for w_ref in w_refs), (i, w, w_refs)
     assert flipped == 500
 
 

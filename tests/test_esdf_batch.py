@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from cufund import esdf
+from cufund import mapping as esdf
 from cufund.sensors.pose import Transform, interpolate_poses, quat_mul, quat_to_matrix
 
 
@@ -187,8 +187,8 @@ def test_merge_beams_must_be_a_bool():
 def _replay_bus(mapper, poses, clouds):
     """cufund's Bus with the mapper subscribed and the stamped messages ``(t, message)`` in flight, each to
     become visible at its t (``bus.release(now_ns)`` makes those due visible)."""
-    from cufund.bus import Bus
-    from cufund.messages import Topics
+    from cufund.core.bus import Bus
+    from cufund.core.messages import Topics
 
     bus = Bus(record=[Topics.ESDF_MAP])
     mapper.setup(bus)
@@ -201,7 +201,7 @@ def _replay_bus(mapper, poses, clouds):
 def test_the_mapper_stepped_slowly_batches_frames_into_the_same_map(rng):
     """Stepped at 2 Hz the mapper inserts the 10 frames that arrived by t = 0.5 s in one call; the map equals the one built
     stepping at the LiDAR's 20 Hz, one frame per call (the same pose stream and frames)."""
-    from cufund.messages import Odometry, PointCloud, Topics
+    from cufund.core.messages import Odometry, PointCloud, Topics
 
     T_BL = Transform((0.05, 0.0, 0.1), (0.999, 0.0, 0.04, 0.0))
     poses = []

@@ -1,10 +1,10 @@
-"""cufund.esdf.edt against scipy.ndimage.distance_transform_edt (an independent exact EDT)."""
+"""cufund.mapping.edt against scipy.ndimage.distance_transform_edt (an independent exact EDT)."""
 
 import numpy as np
 import pytest
 from scipy import ndimage
 
-from cufund import esdf
+from cufund import mapping as esdf
 
 
 def scipy_edt(occ, sampling):

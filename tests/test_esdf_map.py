@@ -1,4 +1,4 @@
-"""cufund.esdf.EsdfMap: occupancy from point clouds, incremental == full recompute, queries, errors."""
+"""cufund.mapping.EsdfMap: occupancy from point clouds, incremental == full recompute, queries, errors."""
 
 import math
 
@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from cufund import ConfigError, esdf
+from cufund import ConfigError
+from cufund import mapping as esdf
 
 
 def make_map(**kw):
@@ -218,7 +219,7 @@ def test_sensor_outside_the_map_marks_the_part_of_the_beam_inside():
 
 def test_scanning_a_box_world_with_the_simulated_lidar_recovers_the_box():
     from cufund import World
-    from cufund.lidar import Lidar, mid360, mid360_params
+    from cufund.sensors import Lidar, mid360, mid360_params
 
     res = 0.05
     lo, hi = np.array([0.6, -0.4, 0.0]), np.array([1.2, 0.5, 1.2])
@@ -244,14 +245,14 @@ def test_scanning_a_box_world_with_the_simulated_lidar_recovers_the_box():
 
 def test_esdf_mapper_integrates_the_lidar_topic_in_the_simulator():
     import cufund
-    from cufund.lidar import Lidar, mid360
+    from cufund.sensors import Lidar, mid360
     from cufund.sensors import LidarComponent
     from cufund.sensors.pose import Transform
 
     lo, hi = np.array([0.6, -0.4, 0.0]), np.array([1.2, 0.5, 1.2])
     world = cufund.World("box")
     world.add_box(hi - lo, (lo + hi) / 2)
-    quad = cufund.Quadrotor(cufund.presets.cu_astro())
+    quad = cufund.Quadrotor(cufund.vehicle.presets.cu_astro())
     quad.hover([0.0, 0.0, 0.6])
     quad.state.v[:] = [0.3, 0.0, 0.0]  # drifting towards the box: the frames are motion-distorted
     sim = cufund.Simulator(quad, physics_rate_hz=1000, record_topics=())
@@ -312,10 +313,10 @@ def test_esdf_map_pickles_with_its_occupancy_and_distances(rng):
 
 
 def test_esdf_map_voxel_count_is_limited_and_configurable():
-    import cufund.limits
+    import cufund.core.limits
 
     with pytest.raises(ConfigError, match=r"at most grid_max_voxels = 134217728 voxels"):
         make_map(resolution=0.01, size=(100.0, 100.0, 10.0))  # 1e9 voxels, ~20 GB
-    with cufund.limits.override(grid_max_voxels=1000):
+    with cufund.core.limits.override(grid_max_voxels=1000):
         with pytest.raises(ConfigError, match=r"got \(20, 20, 20\) = 8000"):
             make_map(resolution=0.1, size=(2.0, 2.0, 2.0))

@@ -7,12 +7,12 @@ the clean run of the same seed: the sensor models' own streams are untouched, so
 import numpy as np
 import pytest
 
-from cufund.components import Component
-from cufund.config import ConfigError
-from cufund.faults import ImuBiasStep, LidarDegraded, LidarDropout, parse_faults
-from cufund.messages import Topics
-from cufund.scenario import ScenarioConfig, load_scenario
-from cufund.scenario_build import build_simulation
+from cufund.core.components import Component
+from cufund.core.config import ConfigError
+from cufund.sensors.faults import ImuBiasStep, LidarDegraded, LidarDropout, parse_faults
+from cufund.core.messages import Topics
+from cufund.scenarios import ScenarioConfig, load_scenario
+from cufund.scenarios.build import build_simulation
 
 DURATION = 3.0
 DROPOUT = (0.5, 0.8)  # start, duration [s]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cufund import load_scenario
-from cufund.scenario_build import run_scenario
+from cufund.scenarios.build import run_scenario
 
 open3d = pytest.importorskip("open3d")
 
@@ -38,7 +38,7 @@ def _trunk_distance(world, p):
 
 @pytest.mark.parametrize("seed", [1, 3])  # layouts whose straight line to the goal hits a trunk
 def test_forest_flight_reaches_the_goal_clear_of_the_trunks(seed):
-    from cufund.scenario_build import build_simulation
+    from cufund.scenarios.build import build_simulation
 
     cfg = _short_forest(seed)
     assert cfg.estimator is not None and cfg.estimator.kind == "lio"  # the map and the controller use the LIO

@@ -10,10 +10,10 @@ import urllib.request
 
 import numpy as np
 import pytest
-from cufund.gcs import GcsProcess, parse_speed
-from cufund.gcs.mission_preview import preview_mission
-from cufund.gcs.process import wait_for
-from cufund.gcs.server import IN_FLIGHT
+from cufund.apps.gcs import GcsProcess, parse_speed
+from cufund.apps.gcs.mission_preview import preview_mission
+from cufund.apps.gcs.process import wait_for
+from cufund.apps.gcs.server import IN_FLIGHT
 from cufund.planning.mission_spec import Region
 
 websocket = pytest.importorskip("websocket")  # websocket-client, installed with selenium (test extras)
@@ -287,7 +287,7 @@ def test_tunnel_start_restarts_the_run_and_every_tab_gets_the_new_scene():
             assert hello["scene"]["scenario"] == "tunnel"
             gates = {r["name"]: r["centre_W"] for r in hello["scene"]["regions"]}
             from cufund.missions.tunnel_kind import course_of
-            from cufund.scenario import load_scenario
+            from cufund.scenarios import load_scenario
 
             course = course_of(load_scenario("tunnel"))
             assert list(gates) == [f"gate{k + 1}" for k in range(len(course.frames))]
@@ -311,6 +311,6 @@ def test_bad_arguments_exit_2_naming_them(args, named):
     import subprocess
     import sys
 
-    r = subprocess.run([sys.executable, "-c", "import sys; from cufund.cli import main; sys.exit(main(sys.argv[1:]))",
+    r = subprocess.run([sys.executable, "-c", "import sys; from cufund.apps.cli import main; sys.exit(main(sys.argv[1:]))",
                         "gcs", *args, "--port", "0"], check=False, capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and named in r.stderr and r.stdout == ""

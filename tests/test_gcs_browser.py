@@ -6,8 +6,8 @@ import shutil
 
 import numpy as np
 import pytest
-from cufund.gcs import GcsProcess
-from cufund.gcs.process import wait_for
+from cufund.apps.gcs import GcsProcess
+from cufund.apps.gcs.process import wait_for
 
 webdriver = pytest.importorskip("selenium.webdriver")
 from selenium.webdriver.chrome.service import Service

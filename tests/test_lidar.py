@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import cufund
-from cufund import lidar as L
+from cufund import sensors as L
 from cufund.sensors.pose import Transform, quat_to_matrix, yaw_quaternion
 
 
@@ -206,7 +206,7 @@ def test_scan_rays_validates_knots():
 
 
 def test_lidar_component_publishes_distorted_frames_in_the_simulator():
-    quad = cufund.Quadrotor(cufund.presets.cu_astro())
+    quad = cufund.Quadrotor(cufund.vehicle.presets.cu_astro())
     quad.hover([0.0, 0.0, 1.0])
     quad.state.v[:] = [1.0, 0.0, 0.0]  # coasting towards the wall at x = 10 m
     sim = cufund.Simulator(quad, physics_rate_hz=1000, record_topics=())
@@ -239,7 +239,7 @@ def test_lidar_component_publishes_distorted_frames_in_the_simulator():
 
 
 def test_unsigned_triangle_indices_beyond_32_bits_are_rejected_not_wrapped():
-    scene = cufund.lidar.RaycastScene()
+    scene = cufund.sensors.RaycastScene()
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)
     with pytest.raises(ValueError, match="triangles must hold vertex indices in"):
         scene.add_triangles(v, np.array([[0, 1, 2 + 2**32]], np.uint64))
@@ -249,7 +249,7 @@ def test_adding_triangles_while_casting_on_another_thread_is_safe():
     """Embree forbids changing a scene during traversal: the scene serialises the two."""
     import threading
 
-    scene = cufund.lidar.RaycastScene()
+    scene = cufund.sensors.RaycastScene()
     v = np.array([[-5, -5, 0], [5, -5, 0], [0, 5, 0]], np.float32)
     scene.add_triangles(v, np.array([[0, 1, 2]], np.uint32))
     rays = np.tile(np.array([0, 0, 1, 0, 0, -1], np.float32), (200_000, 1))

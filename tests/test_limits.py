@@ -1,4 +1,4 @@
-"""cufund.limits and the YAML loader's bounds (issue 11): hostile or mistyped files fail fast."""
+"""cufund.core.limits and the YAML loader's bounds (issue 11): hostile or mistyped files fail fast."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import time
 
 import pytest
 
-import cufund.limits
+import cufund.core.limits
 from cufund import ConfigError
-from cufund.config import load_yaml
+from cufund.core.config import load_yaml
 
 LAUGHS = "\n".join(
     ['a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]']
@@ -53,10 +53,10 @@ def test_alias_count_and_file_size_limits_are_configurable(tmp_path):
     path = tmp_path / "aliases.yaml"
     path.write_text("a: &a 1\nb: [" + ", ".join(["*a"] * 20) + "]\n")
     assert load_yaml(path)["b"] == [1] * 20
-    with cufund.limits.override(yaml_max_aliases=10):
+    with cufund.core.limits.override(yaml_max_aliases=10):
         with pytest.raises(ConfigError, match="more than yaml_max_aliases = 10 alias uses"):
             load_yaml(path)
-    with cufund.limits.override(yaml_max_bytes=16):
+    with cufund.core.limits.override(yaml_max_bytes=16):
         with pytest.raises(ConfigError, match=r"aliases.yaml: the file is \d+ bytes, more than yaml_max_bytes = 16"):
             load_yaml(path)
     assert load_yaml(path)["a"] == 1  # restored
@@ -77,7 +77,7 @@ def test_non_utf8_file_is_a_config_error(tmp_path):
     ({"step_max_substeps": 10**10}, "step_max_substeps must be at most 1e9"),
 ])
 def test_configure_validates_its_arguments(changes, message):
-    before = cufund.limits.current()
+    before = cufund.core.limits.current()
     with pytest.raises(ConfigError, match=message):
-        cufund.limits.configure(**changes)
-    assert cufund.limits.current() == before
+        cufund.core.limits.configure(**changes)
+    assert cufund.core.limits.current() == before

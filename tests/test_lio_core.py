@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from cufund.config import ConfigError
+from cufund.core.config import ConfigError
 from cufund.estimation import FlatBodyMotion, LioCore, LioParams, record_flight, replay
 from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset

@@ -7,7 +7,7 @@ import pytest
 
 from cufund import Estimator
 from cufund.estimation import FlatBodyMotion, LioCore, LioEstimator, LioParams, record_flight, replay
-from cufund.messages import Imu, Topics
+from cufund.core.messages import Imu, Topics
 from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset
 from cufund.sensors.lidar import Lidar, mid360_params
@@ -82,7 +82,7 @@ def test_estimator_publishes_at_imu_rate_what_the_core_computes():
 def test_run_on_log_reproduces_the_online_figures_and_writes_the_files(tmp_path):
     from cufund.estimation import odometry_errors, read_tum, run_on_log
     from cufund.logs import McapLogger
-    from cufund.messages import Odometry, PointCloud
+    from cufund.core.messages import Odometry, PointCloud
 
     T_BL = Transform(t=(0.05, 0.0, 0.05))
     traj = MinimumSnapTrajectory(np.array([[-3, -1.5, 1.5], [-2.4, -1.2, 1.6]]), v_max=1.5, a_max=2.0, t_start=1.1)

@@ -8,8 +8,8 @@ import pytest
 
 from cufund.estimation import FlatBodyMotion, LioCore, LioParams, record_flight, replay
 from cufund.estimation.flight_data import LidarFrame
-from cufund.faults import degrade
-from cufund.messages import PointCloud
+from cufund.sensors.faults import degrade
+from cufund.core.messages import PointCloud
 from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset
 from cufund.sensors.lidar import Lidar, mid360_params

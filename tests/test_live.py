@@ -9,8 +9,8 @@ import threading
 import time
 
 import pytest
-from cufund.components import Component
-from cufund.live import LiveRun
+from cufund.core.components import Component
+from cufund.apps.live import LiveRun
 
 FAST = {"name": "live", "vehicle": "cu_astro", "planner": {"kind": "commander"}, "controller": "pid",
         "start_p_W": [0.0, 0.0, 0.0], "duration": 600.0}
@@ -142,7 +142,7 @@ def test_commands_are_answered_while_paused_and_the_plan_is_shown():
 
 
 def test_bad_arguments_fail_before_anything_runs():
-    from cufund.config import ConfigError
+    from cufund.core.config import ConfigError
 
     with pytest.raises(ValueError, match="speed"):
         LiveRun(FAST, speed=0)

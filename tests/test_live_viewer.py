@@ -15,7 +15,7 @@ from cufund.viz.replay import _RecordingWindow
 def test_live_viewer_streams_vehicle_poses():
     meshcat = import_meshcat()
     window = _RecordingWindow()
-    p = cufund.presets.cu_astro()
+    p = cufund.vehicle.presets.cu_astro()
     quad = cufund.Quadrotor(p)
     quad.hover([0, 0, 2.0])
     viewer = LiveViewer(p, rate_hz=25, speed=None, visualizer=meshcat.Visualizer(window=window))

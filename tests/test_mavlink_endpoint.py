@@ -11,8 +11,8 @@ import time
 
 import numpy as np
 import pytest
-from cufund.mavlink.link import LinkAddress, UdpLink
-from cufund.mavlink.vehicle_endpoint import VehicleEndpoint
+from cufund.apps.mavlink.link import LinkAddress, UdpLink
+from cufund.apps.mavlink.vehicle_endpoint import VehicleEndpoint
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla, lla_to_enu
 from mavlink_support import Gcs, free_port, vehicle
 from pymavlink import mavutil

@@ -1,12 +1,12 @@
-"""cufund.mavlink.frames against independent facts: scipy rotations, PX4's documented NED/FRD conventions
+"""cufund.apps.mavlink.frames against independent facts: scipy rotations, PX4's documented NED/FRD conventions
 (positive roll = right wing down, positive pitch = nose up, yaw clockwise from north), WGS-84 radii of curvature."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from cufund.config import ConfigError
-from cufund.mavlink import frames as F
+from cufund.core.config import ConfigError
+from cufund.apps.mavlink import frames as F
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla
 from scipy.spatial.transform import Rotation
 

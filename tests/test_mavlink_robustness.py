@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 import pytest
-from cufund.cli import main as cli_main
+from cufund.apps.cli import main as cli_main
 from mavlink_support import OPEN_FIELD, Gcs, free_port, vehicle
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
@@ -210,8 +210,8 @@ def test_serve_cli_sets_the_link_loss_timeout_and_exits_0():
 def test_a_stalled_run_gets_no_mission_behind_the_clients_back():
     """The simulation does not answer (here: it never started): the upload is answered MAV_MISSION_ERROR and the
     queued plan is withdrawn, so the vehicle never flies a plan its operator was told had failed."""
-    from cufund.live import LiveRun
-    from cufund.mavlink.vehicle_endpoint import VehicleEndpoint
+    from cufund.apps.live import LiveRun
+    from cufund.apps.mavlink.vehicle_endpoint import VehicleEndpoint
 
     port = free_port()
     g = Gcs(port)

@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from cufund import messages as M
 from cufund import presets
 from cufund.logs import McapLogger
-from cufund.viz import log_replay
+from cufund.apps import log_replay
 from cufund.viz.meshcat_scene import import_meshcat
 from cufund.viz.replay import _RecordingWindow
 

@@ -7,15 +7,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cufund import ScenarioConfig
-from cufund.components import Mapper
-from cufund.config import ConfigError
-from cufund.esdf import EsdfMap, EsdfMapParams
-from cufund.messages import MapUpdate, Topics
+from cufund.core.components import Mapper
+from cufund.core.config import ConfigError
+from cufund.mapping import EsdfMap, EsdfMapParams
+from cufund.core.messages import MapUpdate, Topics
 from cufund.planning.bspline import UniformBspline
 from cufund.planning.local_planner_component import LocalPlannerComponent
 from cufund.planning.sequence import Hold, TrajectorySequence
 from cufund.planning.trajectory_follower import stitched
-from cufund.scenario_build import build_simulation, run_built
+from cufund.scenarios.build import build_simulation, run_built
 
 RES = 0.1
 ORIGIN = np.array([-2.0, -3.0, 0.0])

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cufund.config import ConfigError
+from cufund.core.config import ConfigError
 from cufund.planning import (ClearanceQuery, GridPathSearch, GridPathSearchParams, OmplPathParams, OmplPathPlanner,
                              esdf_from_world)
 from cufund.worlds import World
@@ -69,7 +69,7 @@ def test_clearance_outside_the_map_is_minus_infinity_and_inputs_are_checked(sett
         q.segment_free([0.0, 0.0, 1.0], [1.0, 0.0], 0.1)
     with pytest.raises(ValueError, match=r"points_W must have shape \(N, 3\), got \(4, 2\)"):
         q.clearance(np.zeros((4, 2)))
-    with pytest.raises(TypeError, match="esdf_map must be a cufund.esdf.EsdfMap"):
+    with pytest.raises(TypeError, match="esdf_map must be a cufund.mapping.EsdfMap"):
         ClearanceQuery(np.zeros((3, 3, 3)))
 
 

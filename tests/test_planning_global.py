@@ -8,12 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from cufund import ScenarioConfig, load_scenario
-from cufund.components import Component
-from cufund.config import ConfigError
+from cufund.core.components import Component
+from cufund.core.config import ConfigError
 from cufund.planning import clearance_from_world
 from cufund.planning.diagnostics import PLANNER_DIAGNOSTICS
 from cufund.planning.global_planner import GlobalPlanner, GlobalPlannerParams
-from cufund.scenario_build import build_simulation, run_scenario
+from cufund.scenarios.build import build_simulation, run_scenario
 from cufund.worlds.builtin import forest
 
 o3d = pytest.importorskip("open3d")

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cufund.config import ConfigError
-from cufund.esdf import EsdfMap, EsdfMapParams
+from cufund.core.config import ConfigError
+from cufund.mapping import EsdfMap, EsdfMapParams
 from cufund.planning.bspline import UniformBspline, start_control_points
 from cufund.planning.local_planner import BsplineLocalPlanner, LocalPlannerParams
 
@@ -118,7 +118,7 @@ def test_params_are_checked():
         LocalPlannerParams(max_iterations=0)
     with pytest.raises(ConfigError, match="retries must be an integer in 0..8"):
         LocalPlannerParams(retries=-1)
-    with pytest.raises(TypeError, match="esdf_map must be a cufund.esdf.EsdfMap"):
+    with pytest.raises(TypeError, match="esdf_map must be a cufund.mapping.EsdfMap"):
         BsplineLocalPlanner(None)
 
 
@@ -165,7 +165,7 @@ def test_short_leg_between_offset_tunnel_frames_is_planned_from_rest():
     import open3d as o3d
 
     from cufund.planning import esdf_from_world
-    from cufund.worlds import tunnel_course_layout
+    from cufund.missions.tunnel_course import tunnel_course_layout
 
     c = tunnel_course_layout(61)
     start, goal = (np.asarray(c.frames[k].centre_W, float) for k in (3, 4))

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cufund.config import ConfigError
+from cufund.core.config import ConfigError
 from cufund.planning.mission_spec import MissionSpec, Region, compile_ltlf
 
 A, B, C = frozenset({"a"}), frozenset({"b"}), frozenset({"c"})
@@ -82,7 +82,7 @@ def test_mission_to_trajectory_through_a_tunnel_course():
     min-snap that keeps the radius from the course's triangles (Open3D) and threads every opening in turn."""
     o3d = pytest.importorskip("open3d")
     from cufund.planning import clearance_from_world, plan_mission_trajectory
-    from cufund.worlds import tunnel_course_layout
+    from cufund.missions.tunnel_course import tunnel_course_layout
 
     course = tunnel_course_layout(2)
     lo, hi = course.path_W.min(0) - 1.0, course.path_W.max(0) + 1.0

@@ -1,4 +1,4 @@
-"""The hand-packed lockstep codec (cufund.mavlink.hil_codec) against pymavlink's own encoder and parser: every
+"""The hand-packed lockstep codec (cufund.apps.mavlink.hil_codec) against pymavlink's own encoder and parser: every
 frame byte for byte, the sequence shared with pymavlink-packed frames, and the controls parser taking only what
 pymavlink would decode to the same values, leaving everything else to it."""
 
@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from cufund.mavlink.hil_codec import FrameWriter, take_controls
+from cufund.apps.mavlink.hil_codec import FrameWriter, take_controls
 from pymavlink.dialects.v20 import common as mavlink
 
 
@@ -110,8 +110,8 @@ def test_anything_else_is_left_for_pymavlink_from_its_first_byte():
 
 
 def test_bridge_takes_controls_split_across_reads_and_after_other_messages():
-    from cufund.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
-    from cufund.scenario import ScenarioConfig
+    from cufund.apps.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
+    from cufund.scenarios import ScenarioConfig
 
     class _NoLink:
         def send(self, data):

@@ -12,11 +12,11 @@ from contextlib import contextmanager
 
 import numpy as np
 import pytest
-from cufund.mavlink.px4_harness import Px4Harness
-from cufund.mavlink.px4_links import GcsForward, SerialLink
-from cufund.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
-from cufund.presets import iris
-from cufund.scenario import ScenarioConfig
+from cufund.apps.mavlink.px4_harness import Px4Harness
+from cufund.apps.mavlink.px4_links import GcsForward, SerialLink
+from cufund.apps.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
+from cufund.vehicle.presets import iris
+from cufund.scenarios import ScenarioConfig
 
 U_HOVER = (iris().hover_rotor_speed - 100.0) / 1000.0
 IDEAL = {"imu": "ideal_imu", "magnetometer": "magnetometer", "barometer": "ideal_barometer", "gps": "ideal_gps"}
@@ -98,7 +98,7 @@ def test_hitl_controls_take_effect_and_go_stale():
 
 def test_cli_hitl_on_a_pty():
     with _pty() as (master, device):
-        proc = subprocess.Popen([sys.executable, "-m", "cufund.cli", "px4-sim", "square_sensors", "--hitl", device,
+        proc = subprocess.Popen([sys.executable, "-m", "cufund.apps.cli", "px4-sim", "square_sensors", "--hitl", device,
                                  "--speed", "5", "--duration", "0.4", "--set", "vehicle=iris"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
@@ -126,7 +126,7 @@ def test_cli_hitl_on_a_pty():
     (["--cpu", "100000"], "--cpu must be one of the CPUs"),
 ])
 def test_cli_rejects_bad_usage(argv, message, capsys):
-    from cufund.cli import main
+    from cufund.apps.cli import main
 
     assert main(["px4-sim", "square_sensors", *argv]) == 2
     assert message in capsys.readouterr().err
@@ -171,7 +171,7 @@ def test_hitl_relays_the_flight_controller_to_a_ground_station():
 
 
 def test_pacing_holds_real_time_and_drops_a_stall_instead_of_bursting(monkeypatch):
-    from cufund.mavlink import px4_sim
+    from cufund.apps.mavlink import px4_sim
 
     class Clock:  # a fake wall clock: sleeping advances it
         now, slept = 100.0, []

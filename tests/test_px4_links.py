@@ -6,7 +6,7 @@ from __future__ import annotations
 import socket
 import threading
 
-from cufund.mavlink.px4_links import TcpServerLink
+from cufund.apps.mavlink.px4_links import TcpServerLink
 
 
 def _within(seconds: float, fn):

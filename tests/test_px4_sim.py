@@ -11,20 +11,20 @@ from contextlib import contextmanager
 
 import numpy as np
 import pytest
-from cufund.config import ConfigError
-from cufund.mavlink.frames import GeodeticOrigin, deg_to_e7
-from cufund.mavlink.px4_airframe import Px4Airframe
-from cufund.mavlink.px4_harness import Px4Harness
-from cufund.mavlink.px4_links import TcpServerLink
-from cufund.mavlink.px4_sim import (
+from cufund.core.config import ConfigError
+from cufund.apps.mavlink.frames import GeodeticOrigin, deg_to_e7
+from cufund.apps.mavlink.px4_airframe import Px4Airframe
+from cufund.apps.mavlink.px4_harness import Px4Harness
+from cufund.apps.mavlink.px4_links import TcpServerLink
+from cufund.apps.mavlink.px4_sim import (
     PX4_SENSOR_RATES,
     Px4BridgeParams,
     Px4SimulatorBridge,
     px4_scenario,
     sensor_instances,
 )
-from cufund.presets import iris
-from cufund.scenario import ScenarioConfig, load_scenario
+from cufund.vehicle.presets import iris
+from cufund.scenarios import ScenarioConfig, load_scenario
 
 NOISY = {"imu": "icm42688p", "magnetometer": "magnetometer", "barometer": "ms5611", "gps": "ublox_m8n"}
 IDEAL = {"imu": "ideal_imu", "magnetometer": "magnetometer", "barometer": "ideal_barometer", "gps": "ideal_gps"}
@@ -344,7 +344,7 @@ def test_pd_hover_loop_closed_through_the_bridge():
 def test_cli_serves_sitl_on_4560_plus_instance(capsys):
     import socket
 
-    from cufund.cli import main
+    from cufund.apps.cli import main
 
     with socket.socket() as probe:  # a free port above 4560 stands for the instance number
         probe.bind(("127.0.0.1", 0))

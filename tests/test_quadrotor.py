@@ -296,23 +296,23 @@ def test_step_arguments_are_named_in_errors(crazyflie, dt, nthreads, error, mess
 
 
 def test_step_dt_is_limited_and_the_limit_is_configurable(crazyflie):
-    import cufund.limits
+    import cufund.core.limits
 
     quad = cufund.Quadrotor(crazyflie)
     with pytest.raises(ValueError, match=r"dt must need at most 1000000 integration sub-steps"):
         quad.step(1e5, np.zeros(4))  # 1e8 sub-steps: 16 s before the limit
-    with cufund.limits.override(step_max_substeps=10):
+    with cufund.core.limits.override(step_max_substeps=10):
         with pytest.raises(ValueError, match="at most 10 integration sub-steps"):
             quad.step(0.011, np.zeros(4))
         quad.step(0.010, np.zeros(4))
     assert quad.t == pytest.approx(0.010)
-    assert cufund.limits.current().step_max_substeps == 1_000_000
+    assert cufund.core.limits.current().step_max_substeps == 1_000_000
 
 
 def test_batch_size_is_limited_and_the_limit_is_configurable(crazyflie):
-    import cufund.limits
+    import cufund.core.limits
 
-    with cufund.limits.override(batch_max_size=8):
+    with cufund.core.limits.override(batch_max_size=8):
         with pytest.raises(ValueError, match=r"n must be at most batch_max_size = 8"):
             cufund.QuadrotorBatch(crazyflie, 9)
         assert cufund.QuadrotorBatch(crazyflie, 8).n == 8

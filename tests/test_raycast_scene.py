@@ -1,10 +1,10 @@
-"""cufund.lidar.RaycastScene against analytic geometry and Open3D's RaycastingScene."""
+"""cufund.sensors.RaycastScene against analytic geometry and Open3D's RaycastingScene."""
 
 import numpy as np
 import pytest
 
 import cufund
-from cufund.lidar import INVALID_ID, RaycastScene
+from cufund.sensors import INVALID_ID, RaycastScene
 from cufund.worlds import primitives
 
 

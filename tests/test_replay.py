@@ -6,7 +6,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from cufund.scenario import load_scenario, run_scenario
+from cufund.scenarios import load_scenario, run_scenario
 from cufund.viz.replay import replay_html, viewer_page, write_replay_html
 
 

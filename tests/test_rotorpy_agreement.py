@@ -21,7 +21,7 @@ def test_open_loop_flight_agrees_with_rotorpy():
     from rotorpy.vehicles.crazyflie_params import quad_params
     from rotorpy.vehicles.multirotor import Multirotor
 
-    params = dataclasses.replace(cufund.presets.crazyflie(), gravity=9.81)  # RotorPy's g
+    params = dataclasses.replace(cufund.vehicle.presets.crazyflie(), gravity=9.81)  # RotorPy's g
     q0_wxyz = np.array([np.cos(0.1), 0.6 * np.sin(0.1), 0.8 * np.sin(0.1), 0.0])
     init = {"x": np.array([0.2, -0.1, 1.0]), "v": np.array([0.3, -0.2, 0.1]), "q": np.r_[q0_wxyz[1:], q0_wxyz[0]],
             "w": np.array([0.5, -0.4, 0.3]), "wind": np.array([1.0, 0.5, -0.2]), "rotor_speeds": np.full(4, 1800.0)}

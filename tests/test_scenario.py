@@ -14,8 +14,8 @@ import pytest
 
 import cufund
 from cufund import ConfigError, ScenarioConfig, available_scenarios, load_scenario
-from cufund.cli import main
-from cufund.registry import Kind, available, lookup, register, unregister
+from cufund.apps.cli import main
+from cufund.core.registry import Kind, available, lookup, register, unregister
 
 GOOD = """
 name: t
@@ -107,10 +107,10 @@ def test_a_good_pipeline_loads_and_round_trips(tmp_path):
     path.write_text(GOOD)
     cfg = load_scenario(path)
     assert cfg.sensors["lidar"].extrinsic.t == (0.0, 0.0, 0.08)
-    assert cfg.sensors["imu"].topic == "/sensors/imu" and cfg.sensors["imu"].topic.type is cufund.messages.Imu
+    assert cfg.sensors["imu"].topic == "/sensors/imu" and cfg.sensors["imu"].topic.type is cufund.core.messages.Imu
     assert ScenarioConfig.from_dict(cfg.to_dict()) == cfg
     assert pickle.loads(pickle.dumps(cfg)) == cfg
-    from cufund.scenario_build import build_simulation
+    from cufund.scenarios.build import build_simulation
 
     built = build_simulation(cfg)  # the whole graph wires up
     assert {type(c).__name__ for c in built.simulator.components} >= {"ImuSensor", "LidarComponent", "PoseSensor",
@@ -130,7 +130,7 @@ def test_unsatisfied_input_names_the_topic(tmp_path):
         path = tmp_path / "s.yaml"
         path.write_text("planner: needs_map\n")
         with pytest.raises(ConfigError, match="map_planner needs /map/esdf; nothing publishes it"):
-            from cufund.scenario_build import build_simulation
+            from cufund.scenarios.build import build_simulation
 
             build_simulation(load_scenario(path))
         assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
@@ -213,7 +213,7 @@ def test_registry_from_python_and_entry_points(tmp_path):
     (pkg / "myplugin").mkdir(parents=True)
     (pkg / "myplugin" / "__init__.py").write_text(textwrap.dedent("""
         import dataclasses
-        from cufund.registry import Kind
+        from cufund.core.registry import Kind
 
         @dataclasses.dataclass(frozen=True)
         class P:
@@ -225,7 +225,7 @@ def test_registry_from_python_and_entry_points(tmp_path):
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: myplugin\nVersion: 1.0\n")
     (dist / "entry_points.txt").write_text("[cufund.kinds]\nplugin = myplugin:KINDS\n")
-    code = ("import cufund.registry as r; k = r.lookup('estimator', 'plugin_ekf'); "
+    code = ("import cufund.core.registry as r; k = r.lookup('estimator', 'plugin_ekf'); "
             "print(k.doc, r.ScenarioConfig if False else '', k.parse({'gain': 2.0}, 'estimator').gain)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                        env={"PYTHONPATH": str(pkg), "PATH": "/usr/bin:/bin"})
@@ -249,7 +249,7 @@ def test_square_is_listed_and_loads():
 
 
 def test_the_run_summary_and_the_config_pickle():
-    from cufund.scenario_build import RunSummary, run_scenario
+    from cufund.scenarios.build import RunSummary, run_scenario
 
     run = run_scenario(load_scenario("square", {"duration": 1.0}))
     summary = run.summary({"metrics": "metrics.json"})
@@ -270,7 +270,7 @@ def _distance_to_polyline(q, corners):
 
 
 def test_a_trajectory_corridor_keeps_the_square_within_its_half_width():
-    from cufund.scenario_build import build_simulation
+    from cufund.scenarios.build import build_simulation
 
     corners = np.array([[0, 0, 1.5], [1, 0, 1.5], [1, 1, 1.5], [0, 1, 1.5], [0, 0, 1.5]], dtype=float)
     plain = build_simulation(load_scenario("square")).context.tracking_path
@@ -287,7 +287,7 @@ def test_a_trajectory_corridor_keeps_the_square_within_its_half_width():
 
 
 def test_tunnel_course_world_kind_follows_world_seed():
-    from cufund.scenario_build import build_simulation
+    from cufund.scenarios.build import build_simulation
 
     a = build_simulation(load_scenario("square", ["world.kind=tunnel_course", "world.seed=2", "start_p_W=[-20, 0, 0]"]))
     b = build_simulation(load_scenario("square", {"world": {"kind": "tunnel_course", "seed": 2}, "start_p_W": [-20, 0, 0]}))

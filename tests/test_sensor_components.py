@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from cufund.config import ConfigError
-from cufund.messages import Topics
-from cufund.scenario import ScenarioConfig, load_scenario, run_scenario
+from cufund.core.config import ConfigError
+from cufund.core.messages import Topics
+from cufund.scenarios import ScenarioConfig, load_scenario, run_scenario
 from cufund.sensors import GPS_PRESETS, imu_preset, lla_to_enu
 
 
@@ -110,7 +110,7 @@ def test_recorded_ragged_topics_stay_lists_and_sensor_components_reset():
     from cufund.simulator import Simulator
 
     world = cufund.worlds.load("imav2025_tunnel")
-    quad = cufund.Quadrotor(cufund.presets.cu_astro())
+    quad = cufund.Quadrotor(cufund.vehicle.presets.cu_astro())
     lidar = LidarComponent(Lidar(Mid360Pattern(), mid360_params(range_noise_std=0.02, dropout=0.1, seed=3)), world)
     sim = Simulator(quad, record_topics=(Topics.POINT_CLOUD,))
     sim.add(lidar)

@@ -46,7 +46,7 @@ def test_static_level_imu_reads_plus_g_on_body_z():
 
 
 def test_imu_on_a_landed_and_a_hovering_quadrotor_reads_plus_g():
-    params = cufund.presets.cu_astro()
+    params = cufund.vehicle.presets.cu_astro()
     quad = cufund.Quadrotor(params)
     imu = ImuModel(ImuParams(), gravity=params.gravity)
     quad.step(0.1, np.zeros(4))  # resting on the ground

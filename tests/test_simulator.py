@@ -21,7 +21,7 @@ class Counter(cufund.Component):
 
 
 def _quad(z=1.0):
-    q = cufund.Quadrotor(cufund.presets.cu_astro())
+    q = cufund.Quadrotor(cufund.vehicle.presets.cu_astro())
     q.hover([0, 0, z])
     return q
 
@@ -97,7 +97,7 @@ def test_done_condition_and_timeout():
 
 
 def test_controller_uses_estimator_output_once_attached():
-    p = cufund.presets.cu_astro()
+    p = cufund.vehicle.presets.cu_astro()
     sim = Simulator(_quad(z=1.0), record_topics=(Topics.ESTIMATE,))
     sim.add(MyPositionSensor(sigma_m=0.01, seed=3))
     sim.add(MyEstimator())
@@ -118,7 +118,7 @@ def test_controller_uses_estimator_output_once_attached():
 
 
 def test_template_controller_hovers_on_ground_truth():
-    p = cufund.presets.cu_astro()
+    p = cufund.vehicle.presets.cu_astro()
     sim = Simulator(_quad(z=1.0))
     ctrl = sim.add(MyController(p))
     r = sim.run(2.0)
@@ -128,7 +128,7 @@ def test_template_controller_hovers_on_ground_truth():
 
 def test_same_seed_identical_histories_and_records():
     def once(seed):
-        p = cufund.presets.cu_astro()
+        p = cufund.vehicle.presets.cu_astro()
         sim = Simulator(_quad(z=1.0), record_topics=(Topics.ACTUATOR_COMMAND,))
         sim.add(MyPositionSensor(sigma_m=0.02, seed=seed))
         sim.add(MyEstimator())
@@ -154,7 +154,7 @@ def test_rejects_non_components():
 def test_recorder_histories_in_result():
     from cufund.templates.recorder_template import MyRecorder
 
-    p = cufund.presets.cu_astro()
+    p = cufund.vehicle.presets.cu_astro()
     sim = Simulator(_quad(z=1.0))
     sim.add(MyPlanner(radius=0.3))
     sim.add(MyController(p))

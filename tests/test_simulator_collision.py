@@ -16,7 +16,7 @@ def _world(wall_y: float) -> cufund.World:
 
 
 def _coast(world: cufund.World, rate_hz: float = 1000.0):
-    params = cufund.presets.cu_astro()
+    params = cufund.vehicle.presets.cu_astro()
     quad = cufund.Quadrotor(params)
     quad.hover((0.0, 0.0, 1.0))
     quad.state.v[:] = (2.0, 0.0, 0.0)  # hover thrust, coasting towards +x (drag slows it a little)
@@ -43,7 +43,7 @@ def test_a_near_miss_and_the_floor_do_not_crash():
 
 
 def test_collision_rate_must_divide_physics_rate():
-    quad = cufund.Quadrotor(cufund.presets.cu_astro())
+    quad = cufund.Quadrotor(cufund.vehicle.presets.cu_astro())
     with pytest.raises(ValueError, match="collision_rate_hz must divide the physics rate"):
         Simulator(quad, collision=CollisionChecker(_world(0.0), radius=0.1), collision_rate_hz=300.0)
     with pytest.raises(TypeError, match="collision must be a cufund.worlds.CollisionChecker"):

@@ -7,10 +7,10 @@ import pytest
 
 import cufund
 from cufund import RunStatus, Simulator, Topics
-from cufund.bus import TopicAccessError
-from cufund.messages import Odometry
-from cufund.scenario import load_scenario
-from cufund.scenario_build import build_simulation, run_scenario
+from cufund.core.bus import TopicAccessError
+from cufund.core.messages import Odometry
+from cufund.scenarios import load_scenario
+from cufund.scenarios.build import build_simulation, run_scenario
 from cufund.sensors import CameraComponent, DepthCamera, ImuSensor, Lidar, LidarComponent, imu_preset
 from cufund.sensors.camera import CameraIntrinsics
 from cufund.sensors.patterns import mid360
@@ -19,7 +19,7 @@ NS = 1_000_000_000
 
 
 def _hover(z=1.0, params=None):
-    q = cufund.Quadrotor(params or cufund.presets.cu_astro())
+    q = cufund.Quadrotor(params or cufund.vehicle.presets.cu_astro())
     q.hover([0.0, 0.0, z])
     return q
 
@@ -86,7 +86,7 @@ def test_camera_lidar_imu_and_physics_together_at_exact_times_and_latency_shifts
 def _free_fall(z=100.0):
     import dataclasses
 
-    params = dataclasses.replace(cufund.presets.cu_astro(), body_drag=(0.0, 0.0, 0.0), rotor_drag_xy=0.0,
+    params = dataclasses.replace(cufund.vehicle.presets.cu_astro(), body_drag=(0.0, 0.0, 0.0), rotor_drag_xy=0.0,
                                  rotor_drag_z=0.0)
     quad = cufund.Quadrotor(params)
     quad.state.p[:] = [0.0, 0.0, z]
@@ -152,7 +152,7 @@ def test_estimator_added_last_runs_before_its_readers_within_an_instant():
 def mocap(request):
     cfg = load_scenario("square_mocap", {"controller.kind": request.param})
     built = build_simulation(cfg)
-    from cufund.scenario_build import odometry_metrics, tracking_metrics
+    from cufund.scenarios.build import odometry_metrics, tracking_metrics
 
     r = built.simulator.run(cfg.duration, done=lambda t, s: t >= built.landing_after and s.p_W[2] < 0.02
                             and np.linalg.norm(s.v_W) < 0.05)
@@ -203,7 +203,7 @@ def test_truth_is_refused_to_flight_software_once_an_estimator_is_configured():
 
     built = build_simulation(load_scenario("square_mocap"))
     built.simulator.add(Sneaky())
-    with pytest.raises(cufund.bus.TruthAccessError, match="sneaky read the ground-truth topic /truth/odometry"):
+    with pytest.raises(cufund.core.bus.TruthAccessError, match="sneaky read the ground-truth topic /truth/odometry"):
         built.simulator.run(0.1)
 
 
@@ -233,12 +233,12 @@ def test_undeclared_topics_and_wrong_message_types_are_refused():
 
 def test_published_arrays_are_read_only_and_unshared():
     p = np.zeros(3)
-    sp = cufund.messages.TrajectorySetpoint(0.0, p, p[:], np.zeros(3), np.zeros(3), 0.0, 0.0)
+    sp = cufund.core.messages.TrajectorySetpoint(0.0, p, p[:], np.zeros(3), np.zeros(3), 0.0, 0.0)
     with pytest.raises(ValueError, match="read-only"):
         sp.p_W[0] = 1.0
     p2 = np.ones(3)
     view = p2[:]
-    msg = cufund.messages.ActuatorCommand(0.0, view)
+    msg = cufund.core.messages.ActuatorCommand(0.0, view)
     p2[0] = 5.0  # the publisher changes its buffer after publishing a view of it ...
     assert msg.rotor_speeds[0] == 1.0  # ... and the message does not change
 

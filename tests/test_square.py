@@ -7,8 +7,8 @@ import pytest
 import yaml
 
 import cufund
-from cufund.run_folder import write_run_folder
-from cufund.scenario import ScenarioConfig, load_scenario, run_scenario
+from cufund.scenarios.run_folder import write_run_folder
+from cufund.scenarios import ScenarioConfig, load_scenario, run_scenario
 
 SQUARE = load_scenario("square")
 

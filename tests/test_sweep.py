@@ -16,10 +16,10 @@ import psutil
 import pytest
 
 import cufund
-from cufund.scenario import load_scenario
-from cufund.scenario_build import run_scenario
-from cufund.sweep import is_wall_metric, local_client, run
-from cufund.sweep.results import flatten
+from cufund.scenarios import load_scenario
+from cufund.scenarios.build import run_scenario
+from cufund.apps.sweep import is_wall_metric, local_client, run
+from cufund.apps.sweep.results import flatten
 
 from distributed.diagnostics.plugin import WorkerPlugin
 
@@ -100,7 +100,7 @@ def test_a_bad_override_fails_before_any_variant_runs(tmp_path):
         run(bad, _NoClient(), out=tmp_path / "sw")
     assert not (tmp_path / "sw").exists()
     (tmp_path / "bad.yaml").write_text("scenario: square\ngrid:\n  controller.position.xy_p: [3.0, fast]\n")
-    cli = subprocess.run([sys.executable, "-m", "cufund.cli", "sweep", str(tmp_path / "bad.yaml"), "--out",
+    cli = subprocess.run([sys.executable, "-m", "cufund.apps.cli", "sweep", str(tmp_path / "bad.yaml"), "--out",
                           str(tmp_path / "sw")], capture_output=True, text=True, timeout=120)
     assert cli.returncode == 2
     assert cli.stderr.count("\n") == 1 and "controller.position.xy_p" in cli.stderr and "fast" in cli.stderr
@@ -111,7 +111,7 @@ def test_killed_sweep_resumes_only_unfinished_variants(client, tmp_path):
     spec_file = tmp_path / "sweep.yaml"
     spec_file.write_text(json.dumps(SPEC))  # JSON is YAML
     out = tmp_path / "sw"
-    proc = subprocess.Popen([sys.executable, "-m", "cufund.cli", "sweep", str(spec_file), "--out", str(out),
+    proc = subprocess.Popen([sys.executable, "-m", "cufund.apps.cli", "sweep", str(spec_file), "--out", str(out),
                              "--workers", "2", "--no-plots"], start_new_session=True, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE)
     conns = []
@@ -147,7 +147,7 @@ class _CrashingKind(WorkerPlugin):
     def setup(self, worker):
         import os
 
-        from cufund import registry
+        from cufund.core import registry
         from cufund.control.kinds import ControllerParams
 
         def crash(params, ctx):
@@ -157,7 +157,7 @@ class _CrashingKind(WorkerPlugin):
 
 
 def test_a_variant_whose_worker_dies_is_retried_once_then_failed(client, tmp_path):
-    from cufund import registry
+    from cufund.core import registry
 
     pid = registry.lookup("controller", "pid")  # in this process the kind builds (validation passes)
     registry.register(registry.Kind("controller", "sweep_crash", pid.params, pid.build, pid.defaults), replace=True)
@@ -198,7 +198,7 @@ def test_ctrl_c_stops_cleanly_and_keeps_what_finished(tmp_path):
     spec_file = tmp_path / "sweep.yaml"
     spec_file.write_text(json.dumps(SPEC))
     out = tmp_path / "sw"
-    proc = subprocess.Popen([sys.executable, "-m", "cufund.cli", "sweep", str(spec_file), "--out", str(out),
+    proc = subprocess.Popen([sys.executable, "-m", "cufund.apps.cli", "sweep", str(spec_file), "--out", str(out),
                              "--workers", "2", "--no-plots"], start_new_session=True, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
     try:

@@ -7,9 +7,9 @@ import pytest
 from scipy import stats
 
 import cufund
-from cufund.scenario import load_scenario
-from cufund.sweep import config_key, load_spec
-from cufund.sweep.report import t_interval, wilson_interval
+from cufund.scenarios import load_scenario
+from cufund.apps.sweep import config_key, load_spec
+from cufund.apps.sweep.report import t_interval, wilson_interval
 
 
 def test_grid_times_draws_times_repeats_resolve_like_load_scenario():
@@ -81,9 +81,9 @@ def test_t_interval_matches_scipy():
 def test_report_bins_drawn_values_and_writes_mixed_columns(tmp_path):
     import pandas as pd
 
-    from cufund.sweep.report import groups, write_outputs
-    from cufund.sweep.results import results_frame
-    from cufund.sweep.spec import Variant
+    from cufund.apps.sweep.report import groups, write_outputs
+    from cufund.apps.sweep.results import results_frame
+    from cufund.apps.sweep.spec import Variant
 
     rng = np.random.default_rng(0)
     spec = load_spec({"scenario": "square", "grid": {"world.kind": ["empty", 3]},  # a mixed column (text, int)

@@ -39,7 +39,7 @@ def test_pool_size_defaults_to_the_cpus_this_process_may_use():
 def test_bad_cufund_num_threads_is_a_clear_error():
     r = _run("""
         import numpy as np, cufund
-        b = cufund.QuadrotorBatch(cufund.presets.crazyflie(), 1000)
+        b = cufund.QuadrotorBatch(cufund.vehicle.presets.crazyflie(), 1000)
         try:
             b.step(1e-3, np.zeros((1000, 4)))
         except ValueError as e:
@@ -55,7 +55,7 @@ def test_fork_while_another_thread_steps_a_large_batch_gives_a_working_child():
     r = _run("""
         import os, threading, time
         import numpy as np, cufund
-        params = cufund.presets.crazyflie()
+        params = cufund.vehicle.presets.crazyflie()
         big = cufund.QuadrotorBatch(params, 100_000)
         cmd = np.full((100_000, 4), params.hover_rotor_speed)
         stop = False

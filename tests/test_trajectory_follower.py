@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from cufund.components import Bus
-from cufund.messages import Topics
+from cufund.core.components import Bus
+from cufund.core.messages import Topics
 from cufund.planning import MinimumSnapTrajectory, TrajectoryFollower
 
 

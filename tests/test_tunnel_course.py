@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import cufund.worlds as worlds
-from cufund.worlds import TunnelCourseParams, tunnel_course_layout
+from cufund.missions.tunnel_course import TunnelCourseParams, tunnel_course, tunnel_course_layout
 
 o3d = pytest.importorskip("open3d")
 
@@ -33,7 +33,7 @@ def test_same_seed_same_course_and_seeds_differ():
         np.testing.assert_array_equal(oa.vertices, ob.vertices)
     assert a.frames != c.frames
     assert len(worlds.load("tunnel_course", seed=4).objects) == len(a.world.objects)
-    np.testing.assert_array_equal(worlds.tunnel_course(4).bounds(), a.world.bounds())
+    np.testing.assert_array_equal(tunnel_course(4).bounds(), a.world.bounds())
 
 
 def test_frames_within_their_bounds(course):

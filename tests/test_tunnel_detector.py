@@ -8,7 +8,7 @@ import itertools
 import cufund
 import numpy as np
 import pytest
-from cufund.messages import Odometry, Topics, TunnelEstimate
+from cufund.core.messages import Odometry, Topics, TunnelEstimate
 from cufund.perception import (
     TunnelDetector,
     TunnelDetectorParams,
@@ -22,7 +22,7 @@ from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import mid360
 from cufund.sensors.pose import Transform, quat_to_matrix, yaw_quaternion
 from cufund.worlds.builtin import imav2025_tunnel
-from cufund.worlds.tunnel_course import tunnel_course_layout
+from cufund.missions.tunnel_course import tunnel_course_layout
 
 PAPER_TRUTH = np.array([[0.5 * k, 0.0, 0.55] for k in range(5)])  # imav2025_tunnel: 0.5 x 1 m openings
 COURSE_ROI = TunnelDetectorParams(roi_min_W=(-3.85, -3.85, -0.5), roi_max_W=(7.85, 3.85, 3.0))
@@ -209,7 +209,7 @@ def test_voxel_means_and_the_bounded_accumulator_agree_with_a_direct_computation
     np.testing.assert_allclose(r[np.all(m >= 5.0, axis=1)], np.tile([0.0, 1.0, 0.0], (27, 1)), atol=1e-12)
 
 
-class OffsetEstimator(cufund.components.Estimator):
+class OffsetEstimator(cufund.core.components.Estimator):
     """A test double: the true pose shifted by ``offset`` (a truth reader, as a fake estimator must be)."""
 
     reads_truth = True
@@ -224,7 +224,7 @@ class OffsetEstimator(cufund.components.Estimator):
         return None if s is None else Odometry(t, s.p_W + self.offset, s.v_W, s.q_WB, s.w_B)
 
 
-class Keep(cufund.components.Component):
+class Keep(cufund.core.components.Component):
     """Keeps every TunnelEstimate."""
 
     inputs = (Topics.TUNNEL_ESTIMATE,)
@@ -244,7 +244,7 @@ class Keep(cufund.components.Component):
 def test_the_component_detects_in_the_estimated_frame_and_grows_confident(offset):
     c = tunnel_course_layout(2)
     f0 = c.frames[0]
-    quad = cufund.Quadrotor(cufund.presets.cu_astro())
+    quad = cufund.Quadrotor(cufund.vehicle.presets.cu_astro())
     start = np.asarray(f0.centre_W) - 2.0 * f0.axis_W
     quad.hover([start[0], start[1], 0.3])
     quad.state.v[:] = 0.2 * f0.axis_W  # drifting: the scans are motion-distorted
@@ -280,7 +280,7 @@ def test_the_component_detects_in_the_estimated_frame_and_grows_confident(offset
 def test_the_component_is_deterministic():
     def run() -> TunnelEstimate:
         c = tunnel_course_layout(2)
-        quad = cufund.Quadrotor(cufund.presets.cu_astro())
+        quad = cufund.Quadrotor(cufund.vehicle.presets.cu_astro())
         start = np.asarray(c.frames[0].centre_W) - 2.0 * c.frames[0].axis_W
         quad.hover([start[0], start[1], 0.3])
         sim = cufund.Simulator(quad, physics_rate_hz=1000)
@@ -298,7 +298,7 @@ def test_the_component_is_deterministic():
 def test_once_the_expected_frames_are_confident_detection_slows_down():
     def published(expected: int | None) -> list[TunnelEstimate]:
         c = tunnel_course_layout(2)
-        quad = cufund.Quadrotor(cufund.presets.cu_astro())
+        quad = cufund.Quadrotor(cufund.vehicle.presets.cu_astro())
         start = np.asarray(c.frames[0].centre_W) - 2.0 * c.frames[0].axis_W
         quad.hover([start[0], start[1], 0.3])
         sim = cufund.Simulator(quad, physics_rate_hz=1000)

@@ -10,10 +10,10 @@ import math
 import numpy as np
 import pytest
 from cufund import ConfigError
-from cufund.cli import main as cli_main
+from cufund.apps.cli import main as cli_main
 from cufund.missions.tunnel_geometry import frame_boxes, passages
-from cufund.scenario import load_scenario
-from cufund.scenario_build import build_simulation
+from cufund.scenarios import load_scenario
+from cufund.scenarios.build import build_simulation
 
 
 # -- geometry (cheap, exact) -------------------------------------------------------------------------------------
@@ -57,7 +57,7 @@ def test_unflyable_layout_is_rejected_before_flight(tmp_path, capsys):
 # -- flights ------------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def paper_run(tmp_path_factory):
-    from cufund.run_folder import run_into_folder
+    from cufund.scenarios.run_folder import run_into_folder
 
     out = tmp_path_factory.mktemp("tunnel")
     run = run_into_folder(load_scenario("tunnel"), out, log=True, replay=True)
@@ -91,7 +91,7 @@ def test_paper_run_published_mission_states(paper_run):
 
 
 def test_too_few_detections_lands_outside_the_course():
-    from cufund.scenario_build import run_built
+    from cufund.scenarios.build import run_built
 
     # The rules promise six frames; the course has five: the mission must not enter it.
     cfg = load_scenario("tunnel", ["mission.frames=6", "mission.detect_timeout_s=3.0", "duration=40"])
@@ -125,7 +125,7 @@ def test_same_seed_same_flight():
     {"lidar_degraded": {"t_start": 5.0, "fraction": 0.5, "noise_m": 0.05}},
 ], ids=["dropout_through", "dropout_hover", "imu_bias_step", "lidar_degraded"])
 def test_faults_in_flight_complete_or_land_safely(faults):
-    from cufund.scenario_build import run_built
+    from cufund.scenarios.build import run_built
 
     run = run_built(build_simulation(load_scenario("tunnel", {"faults": faults})))
     m = run.metrics

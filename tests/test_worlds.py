@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import cufund
-from cufund.config import ConfigError
+from cufund.core.config import ConfigError
 from cufund.worlds import primitives
 
 

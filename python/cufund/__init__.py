@@ -1,17 +1,22 @@
-"""cufund: simulation and autonomy for micro aerial vehicles, with a fast C++ core."""
+"""cufund: simulation and autonomy for micro aerial vehicles, with a fast C++ core.
 
-from . import control, esdf, lidar, messages, planning, presets, sensors, worlds
+The package is layered (docs/architecture.md): ``core`` → ``geometry`` → ``vehicle``, ``worlds``, ``logs`` →
+``simulator`` → ``sensors`` → ``estimation``, ``mapping``, ``perception`` → ``planning`` → ``control`` → ``viz``
+→ ``missions`` → ``scenarios`` → ``apps``; a module imports only from layers below its own.
+"""
+
+from typing import Any
+
+from . import _moved, control, planning, sensors, worlds
 from ._core import __version__
-from .bus import Bus, BusView, Subscription
-from .components import Component, Controller, Estimator, Mapper, Planner, Recorder, Sensor
-from .config import ConfigError
-from .messages import FlightMode, Topics
-from .topics import Topic
-from .params import QuadrotorParams
-from .quadrotor import Quadrotor, QuadrotorBatch, QuadrotorState
-from .scenario import ScenarioConfig, ScenarioRun, available_scenarios, load_scenario, run_scenario
+from .core import (Bus, BusView, Component, ConfigError, Controller, Estimator, FlightMode, Mapper, Planner,
+                   Recorder, Sensor, Subscription, Topic, Topics, messages)
+from .scenarios import ScenarioConfig, ScenarioRun, available_scenarios, load_scenario, run_scenario
 from .simulator import RunStatus, SimulationResult, Simulator
+from .vehicle import Quadrotor, QuadrotorBatch, QuadrotorParams, QuadrotorState, presets
 from .worlds import World
+
+_moved.install()
 
 __all__ = [
     "Bus",
@@ -41,8 +46,6 @@ __all__ = [
     "__version__",
     "available_scenarios",
     "control",
-    "esdf",
-    "lidar",
     "load_scenario",
     "messages",
     "planning",
@@ -51,3 +54,12 @@ __all__ = [
     "sensors",
     "worlds",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """``cufund.mapping`` and ``cufund.sensors`` (0.1's names for :mod:`cufund.mapping` and :mod:`cufund.sensors`)."""
+    if name in ("esdf", "lidar"):
+        import importlib
+
+        return importlib.import_module(f"cufund.{name}")
+    raise AttributeError(f"module 'cufund' has no attribute {name!r}")

@@ -20,7 +20,7 @@ ATOMS = ["1", "-1", "0", ".nan", ".inf", "1e400", "1e-320", "true", "null", "x",
 # The child runs cufund's CLI in-process with stderr captured and classifies the exit itself.
 RUN = """
 import contextlib, io, os
-from cufund import cli
+from cufund.apps import cli
 os.chdir(cwd)  # a relative or empty --out lands in the case's folder, never in the source tree
 err = io.StringIO()
 with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):

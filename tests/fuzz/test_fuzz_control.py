@@ -41,7 +41,7 @@ def test_geometric_from_attitude(server, which, value):
 @given(thrust=st.one_of(floats_any(), scalars()), torque=arrays([(3,), (4,)]))
 def test_allocation(server, thrust, torque):
     outcome, detail = server.run(
-        "control", "a = cufund._core.control.ControlAllocator(cufund.presets.crazyflie().to_core())",
+        "control", "a = cufund._core.control.ControlAllocator(cufund.vehicle.presets.crazyflie().to_core())",
         "result = a.allocate(thrust, torque)\nresult = np.concatenate([result[0], result[1]])",
         {"thrust": thrust, "torque": torque}, check="np.isfinite(result).all()")
     expect_good(outcome, detail)

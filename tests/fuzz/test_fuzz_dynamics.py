@@ -13,7 +13,7 @@ PARAM_FIELDS = ["mass", "inertia", "arm_length", "k_f", "c_m", "tau_m", "rotor_s
 
 FLY = """
 import dataclasses
-params = dataclasses.replace(cufund.presets.crazyflie(), **kw)
+params = dataclasses.replace(cufund.vehicle.presets.crazyflie(), **kw)
 quad = cufund.Quadrotor(params)
 quad.hover(np.array([0.0, 0.0, 1.0]))
 for _ in range(20):
@@ -35,7 +35,7 @@ def test_params_fields(server, field, value):
        cmd=arrays([(4,), (1, 4), (3,), (4, 1), ()], st.floats(-1e6, 1e6) | floats_any()))
 def test_quadrotor_step(server, dt, cmd):
     outcome, detail = server.run(
-        "dynamics", "quad = cufund.Quadrotor(cufund.presets.crazyflie())",
+        "dynamics", "quad = cufund.Quadrotor(cufund.vehicle.presets.crazyflie())",
         "quad.step(dt, cmd)\nresult = quad.state.as_vector()", {"dt": dt, "cmd": cmd},
         check="np.isfinite(result).all()")
     expect_good(outcome, detail)
@@ -44,7 +44,7 @@ def test_quadrotor_step(server, dt, cmd):
 @fuzz_settings
 @given(n=st.one_of(scalars(), st.sampled_from([2**32, 2**32 + 1, 2**40, 2**24 + 1, 100_000_000])))
 def test_batch_size(server, n):
-    outcome, detail = server.run("dynamics", "", "cufund.QuadrotorBatch(cufund.presets.crazyflie(), n).n", {"n": n})
+    outcome, detail = server.run("dynamics", "", "cufund.QuadrotorBatch(cufund.vehicle.presets.crazyflie(), n).n", {"n": n})
     expect_good(outcome, detail)
 
 
@@ -53,7 +53,7 @@ def test_batch_size(server, n):
        value=st.one_of(floats_any(), st.floats(-1e12, 1e12)), t=st.one_of(floats_any(), scalars()))
 def test_state_writes_then_step(server, view, value, t):
     code = f"""
-b = cufund.QuadrotorBatch(cufund.presets.crazyflie(), 3)
+b = cufund.QuadrotorBatch(cufund.vehicle.presets.crazyflie(), 3)
 b.hover(np.array([0.0, 0.0, 1.0]))
 b.{view}[1, 0] = value
 try:

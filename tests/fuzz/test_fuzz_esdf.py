@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 MAP = """
-m = cufund.esdf.EsdfMap(cufund.esdf.EsdfMapParams(resolution=0.1, size=(2.0, 2.0, 1.0), origin_W=(-1.0, -1.0, 0.0)))
+m = cufund.mapping.EsdfMap(cufund.mapping.EsdfMapParams(resolution=0.1, size=(2.0, 2.0, 1.0), origin_W=(-1.0, -1.0, 0.0)))
 m.set_occupied(np.array([[10, 10, 5]]))
 """
 
@@ -22,7 +22,7 @@ def test_map_params(server, field, value):
     code = """
 kw = {"resolution": 0.1, "size": (2.0, 2.0, 1.0)}
 kw[field] = value
-m = cufund.esdf.EsdfMap(cufund.esdf.EsdfMapParams(**kw))
+m = cufund.mapping.EsdfMap(cufund.mapping.EsdfMapParams(**kw))
 m.insert_scan(np.array([[0.5, 0.5, 0.5]]), np.array([0.0, 0.0, 0.1]))
 result = m.distance(np.array([0.2, 0.3, 0.4]))
 """
@@ -60,7 +60,7 @@ def test_set_occupied(server, ijk, occupied):
 @given(occupied=arrays([(4, 4), (3, 3, 3), (5,), (0, 2)], st.integers(0, 1).map(float)),
        voxel_size=st.one_of(floats_any(), arrays([(2,), (3,), (1,)])))
 def test_edt(server, occupied, voxel_size):
-    outcome, detail = server.run("esdf", "", "result = cufund.esdf.edt(occupied, voxel_size)",
+    outcome, detail = server.run("esdf", "", "result = cufund.mapping.edt(occupied, voxel_size)",
                                  {"occupied": occupied, "voxel_size": voxel_size},
                                  check="not np.isnan(result).any()")
     expect_good(outcome, detail)

@@ -30,7 +30,7 @@ def _write(tmp_path_factory, text: str | bytes) -> str:
 @fuzz_settings
 @given(text=st.one_of(st.sampled_from(HOSTILE), st.text(max_size=200), st.binary(max_size=64)))
 def test_load_yaml(server, tmp_path_factory, text):
-    outcome, detail = server.run("yaml", "from cufund.config import load_yaml", "load_yaml(path)",
+    outcome, detail = server.run("yaml", "from cufund.core.config import load_yaml", "load_yaml(path)",
                                  {"path": _write(tmp_path_factory, text)}, timeout=15)
     expect_good(outcome, detail)
 

@@ -9,7 +9,7 @@ import typing
 __all__: list[str] = ['EsdfMap', 'edt']
 class EsdfMap:
     """
-    Occupancy grid with an incrementally exact ESDF; use cufund.esdf.EsdfMap.
+    Occupancy grid with an incrementally exact ESDF; use cufund.mapping.EsdfMap.
     """
     @typing.overload
     def __init__(self, origin_W: typing.Any, shape: typing.Any, resolution: typing.SupportsFloat | typing.SupportsIndex, log_odds_hit: typing.SupportsFloat | typing.SupportsIndex, log_odds_miss: typing.SupportsFloat | typing.SupportsIndex, log_odds_min: typing.SupportsFloat | typing.SupportsIndex, log_odds_max: typing.SupportsFloat | typing.SupportsIndex, log_odds_occupied: typing.SupportsFloat | typing.SupportsIndex, max_range: typing.SupportsFloat | typing.SupportsIndex, signed: bool, nthreads: typing.SupportsInt | typing.SupportsIndex, merge_beams: bool = False) -> None:
@@ -47,5 +47,5 @@ class EsdfMap:
         ...
 def edt(occupied: typing.Any, voxel_size: typing.Any, signed: bool, nthreads: typing.SupportsInt | typing.SupportsIndex, single: bool) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
     """
-    Exact Euclidean distance transform; use cufund.esdf.edt, which documents the arguments.
+    Exact Euclidean distance transform; use cufund.mapping.edt, which documents the arguments.
     """

@@ -1,6 +1,6 @@
 """Flight control (paper §2.3): PX4-style cascaded PID, the SE(3) geometric controller, control allocation."""
 
-from ..components import Controller
+from cufund.core.components import Controller
 from .allocation import AllocationSaturation, ControlAllocator
 from .attitude_control import AttitudeControlParams, AttitudeController
 from .flight_mode import BumplessTransfer, ModeReferences

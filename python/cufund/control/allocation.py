@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _core
-from ..params import QuadrotorParams
+from cufund import _core
+from cufund.vehicle.params import QuadrotorParams
 
 __all__ = ["ControlAllocator", "AllocationSaturation"]
 

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..messages import ActuatorCommand, Topics, VehicleStatus
+from cufund.core.messages import ActuatorCommand, Topics, VehicleStatus
 
 __all__ = ["IDLE_FRACTION", "Gate", "gate", "gated", "make_armable"]
 

@@ -7,10 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _core
-from ..components import Bus, Controller
-from ..config import check_real_fields
-from ..messages import AttitudeSetpoint, Odometry, RateSetpoint, Topics
+from cufund import _core
+from cufund.core.components import Bus, Controller
+from cufund.core.config import check_real_fields
+from cufund.core.messages import AttitudeSetpoint, Odometry, RateSetpoint, Topics
 from .arming import Gate, gate
 
 __all__ = ["AttitudeControlParams", "AttitudeController"]

@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 
-from ..components import Bus
-from ..messages import AttitudeSetpoint, FlightMode, FlightModeCommand, Odometry, Topics, TrajectorySetpoint
+from cufund.core.components import Bus
+from cufund.core.messages import AttitudeSetpoint, FlightMode, FlightModeCommand, Odometry, Topics, TrajectorySetpoint
 from .rotations import yaw_of
 
 __all__ = ["BumplessTransfer", "ModeReferences"]

@@ -17,11 +17,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _core
-from ..config import check_real_fields
-from ..components import Bus, Controller
-from ..messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, ThrustTorqueSetpoint, Topics
-from ..params import QuadrotorParams
+from cufund import _core
+from cufund.core.config import check_real_fields
+from cufund.core.components import Bus, Controller
+from cufund.core.messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, ThrustTorqueSetpoint, Topics
+from cufund.vehicle.params import QuadrotorParams
 from .arming import gated
 from .flight_mode import BumplessTransfer, ModeReferences
 from .gyro_input import GyroInput

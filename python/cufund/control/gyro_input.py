@@ -7,15 +7,15 @@ import math
 
 import numpy as np
 
-from ..bus import BusView, Subscription
-from ..messages import Imu, Topics
-from ..sensors.pose import quat_to_matrix
+from cufund.core.bus import BusView, Subscription
+from cufund.core.messages import Imu, Topics
+from cufund.sensors.pose import quat_to_matrix
 
 __all__ = ["GyroInput"]
 
 
 class GyroInput:
-    """Filters every :class:`~cufund.messages.Imu` sample on ``topic``: ``w_B = R_BI w_I`` through a first-order
+    """Filters every :class:`~cufund.core.messages.Imu` sample on ``topic``: ``w_B = R_BI w_I`` through a first-order
     low-pass with cutoff ``cutoff_hz`` (0: no filter), stepped at each sample's own interval."""
 
     def __init__(self, q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0), cutoff_hz: float = 40.0,

@@ -11,8 +11,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..config import ConfigError, nested
-from ..registry import Kind, register
+from cufund.core.config import ConfigError, nested
+from cufund.core.registry import Kind, register
 from .arming import make_armable
 from .attitude_control import AttitudeControlParams, AttitudeController
 from .geometric_controller import GeometricControlParams, GeometricController

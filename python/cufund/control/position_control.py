@@ -8,11 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _core
-from ..components import Bus, Controller
-from ..config import check_real_fields
-from ..messages import AttitudeSetpoint, FlightMode, Odometry, Topics
-from ..params import QuadrotorParams
+from cufund import _core
+from cufund.core.components import Bus, Controller
+from cufund.core.config import check_real_fields
+from cufund.core.messages import AttitudeSetpoint, FlightMode, Odometry, Topics
+from cufund.vehicle.params import QuadrotorParams
 from .arming import Gate, gate
 from .flight_mode import BumplessTransfer, ModeReferences
 from .rotations import quat_to_rotation

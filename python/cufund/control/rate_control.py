@@ -7,11 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _core
-from ..components import Bus, Controller
-from ..config import check_real_fields
-from ..messages import ActuatorCommand, Odometry, RateSetpoint, ThrustTorqueSetpoint, Topics
-from ..params import QuadrotorParams
+from cufund import _core
+from cufund.core.components import Bus, Controller
+from cufund.core.config import check_real_fields
+from cufund.core.messages import ActuatorCommand, Odometry, RateSetpoint, ThrustTorqueSetpoint, Topics
+from cufund.vehicle.params import QuadrotorParams
 from .arming import gated
 from .gyro_input import GyroInput
 

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from .. import _core
+from cufund import _core
 
 __all__ = ["cross", "quat_multiply", "quat_conjugate", "quat_to_rotation", "rotation_to_quat", "quat_from_two_vectors",
            "attitude_from_thrust_and_yaw", "yaw_of"]

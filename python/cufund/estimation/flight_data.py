@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..sensors.imu import G0, ImuModel
+from cufund.sensors.imu import G0, ImuModel
 from .frames import quat_from_matrix, scan_frame
 
 __all__ = ["FlightRecord", "LidarFrame", "FlatBodyMotion", "record_flight", "replay"]

@@ -12,7 +12,7 @@ import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..sensors.pose import Transform
+from cufund.sensors.pose import Transform
 
 __all__ = ["quat_from_matrix", "matrix_from_quat", "pose3", "pose3_parts", "homogeneous", "scan_frame"]
 

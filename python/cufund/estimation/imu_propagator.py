@@ -16,11 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..bus import BusView, Subscription
-from ..components import Estimator
-from ..config import check_real_fields
-from ..messages import Imu, Odometry, Topics
-from ..sensors.pose import quat_mul, quat_to_matrix
+from cufund.core.bus import BusView, Subscription
+from cufund.core.components import Estimator
+from cufund.core.config import check_real_fields
+from cufund.core.messages import Imu, Odometry, Topics
+from cufund.sensors.pose import quat_mul, quat_to_matrix
 
 __all__ = ["ImuPropagator", "ImuPropagatorParams"]
 

@@ -6,8 +6,8 @@ from typing import Any
 
 import dataclasses
 
-from ..config import ConfigError
-from ..registry import Kind, register
+from cufund.core.config import ConfigError
+from cufund.core.registry import Kind, register
 from .imu_propagator import ImuPropagator, ImuPropagatorParams
 from .params import LioParams
 

@@ -16,8 +16,8 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import B, V, X
 
-from .. import _core
-from ..messages import Odometry
+from cufund import _core
+from cufund.core.messages import Odometry
 from .frames import homogeneous, matrix_from_quat, pose3, pose3_parts, quat_from_matrix
 from .params import LioParams
 from .registration import PlaneModel, fit_planes, observable_split, plane_terms, register

@@ -11,9 +11,9 @@ import math
 
 import numpy as np
 
-from ..components import Estimator
+from cufund.core.components import Estimator
 
-from ..messages import Odometry, OdometryDiagnostics, Topics
+from cufund.core.messages import Odometry, OdometryDiagnostics, Topics
 from .frames import scan_frame
 from .lio_core import LioCore, ScanDiagnostics
 from .params import LioParams

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from ..messages import Topics
+from cufund.core.messages import Topics
 from .evaluation import odometry_errors, write_tum
 from .params import LioParams
 
@@ -30,7 +30,7 @@ def run_on_log(path: str | Path, params: LioParams | None = None, out_dir: str |
     ``odometry.png``, ``estimate.tum`` and ``truth.tum`` there."""
     import dataclasses
 
-    from ..logs.mcap_reader import read_mcap
+    from cufund.logs.mcap_reader import read_mcap
     from .lio_estimator import LioEstimator
 
     params = params or LioParams()

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _core
+from cufund import _core
 from .params import LioParams
 
 __all__ = ["PlaneModel", "Registration", "register", "fit_planes", "plane_terms", "observable_split", "so3_exp"]

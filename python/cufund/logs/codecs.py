@@ -374,7 +374,7 @@ def codec_for(topic: str, message: Any) -> Codec:
     cls = type(message)
     if not dataclasses.is_dataclass(cls):
         raise TypeError(f"topic {topic!r}: only dataclass messages can be logged, got {cls.__name__}")
-    cufund = cls.__module__ == "cufund.messages"
+    cufund = cls.__module__ == "cufund.core.messages"
     name = cls.__name__
     if cufund and name == "PointCloud" and _has_fields(
             cls, ("t", "dt", "points_L", "ranges", "intensity", "channel", "frame")):

@@ -6,9 +6,9 @@ import os
 from pathlib import Path
 from typing import Iterable, Iterator
 
-from ..bus import BusView
-from ..components import Component
-from ..topics import Topic, is_truth
+from cufund.core.bus import BusView
+from cufund.core.components import Component
+from cufund.core.topics import Topic, is_truth
 from .mcap_reader import LogRecord, log_topics, read_mcap
 
 __all__ = ["LogPlayer"]
@@ -38,7 +38,7 @@ class LogPlayer(Component):
                 raise ValueError(f"topics: {missing[0]} is not in {self.path} (it has {', '.join(sorted(logged))})")
         if not window_s > 0:
             raise ValueError(f"window_s must be > 0 [s], got {window_s!r}")
-        from .. import messages
+        from cufund.core import messages
 
         self.topics = tuple(Topic(t, getattr(messages, logged[t], object)) for t in chosen)
         self.outputs = self.topics

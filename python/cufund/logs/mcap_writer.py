@@ -29,7 +29,7 @@ from mcap.opcode import Opcode
 from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata, MetadataIndex, Schema, Statistics,
                           SummaryOffset)
 
-from .._core.logs import LogCore
+from cufund._core.logs import LogCore
 from .codecs import CdrCodec, Codec, codec_for
 
 __all__ = ["MAGIC", "McapLogger"]

@@ -7,7 +7,7 @@ import numbers
 import numpy as np
 import numpy.typing as npt
 
-from .. import _core
+from cufund import _core
 
 
 def edt(

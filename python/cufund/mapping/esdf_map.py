@@ -11,9 +11,10 @@ from typing import Any, Sequence
 import numpy as np
 import numpy.typing as npt
 
-from .. import _core, limits
-from ..config import ConfigError, from_dict, real_number, vector3
-from ..sensors.pose import Transform
+from cufund import _core
+from cufund.core import limits
+from cufund.core.config import ConfigError, from_dict, real_number, vector3
+from cufund.sensors.pose import Transform
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -146,7 +147,7 @@ class EsdfMap:
     """Voxel occupancy map with an exact Euclidean signed distance field, updated after each scan.
 
     Voxel ``(i, j, k)`` covers ``origin_W + resolution * [i, j, k]`` to ``... + resolution``; distances
-    are between voxel centres and are exactly what :func:`cufund.esdf.edt` gives for the current
+    are between voxel centres and are exactly what :func:`cufund.mapping.edt` gives for the current
     occupancy (the incremental update recomputes only the grid lines whose input changed). Queries
     interpolate the voxel-centre distances trilinearly.
     """
@@ -158,7 +159,7 @@ class EsdfMap:
         cap = limits.current().grid_max_voxels
         if voxels > cap:
             raise ConfigError(f"size / resolution must give at most grid_max_voxels = {cap} voxels, got "
-                              f"{params.shape} = {voxels}; raise it with cufund.limits.configure(grid_max_voxels=...)")
+                              f"{params.shape} = {voxels}; raise it with cufund.core.limits.configure(grid_max_voxels=...)")
         self._params = params
         self._core = _core.esdf.EsdfMap(
             params.origin_W, params.shape, params.resolution, params.log_odds_hit, params.log_odds_miss,

@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..components import BusView, Mapper, Subscription
-from ..messages import MapUpdate, Odometry, PointCloud, Topics
-from ..sensors.pose import Transform
+from cufund.core.components import BusView, Mapper, Subscription
+from cufund.core.messages import MapUpdate, Odometry, PointCloud, Topics
+from cufund.sensors.pose import Transform
 from .esdf_map import EsdfMap, EsdfMapParams
 
 
 class EsdfMapper(Mapper):
-    """Keeps an :class:`EsdfMap` up to date from every :class:`~cufund.messages.PointCloud` frame on
+    """Keeps an :class:`EsdfMap` up to date from every :class:`~cufund.core.messages.PointCloud` frame on
     ``cloud_topic``, placed in the world with the vehicle poses on its state topic, and announces each update
-    as a :class:`~cufund.messages.MapUpdate` on ``Topics.ESDF_MAP``.
+    as a :class:`~cufund.core.messages.MapUpdate` on ``Topics.ESDF_MAP``.
 
     Its pose is the estimator's output when one is attached (ground truth otherwise, or ``state_topic`` if
     given), so the map carries the estimate's errors as a real one would. Every point is measured in the LiDAR

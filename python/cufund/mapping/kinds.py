@@ -6,8 +6,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from ..config import ConfigError, vector3
-from ..registry import Kind, register
+from cufund.core.config import ConfigError, vector3
+from cufund.core.registry import Kind, register
 from .esdf_map import EsdfMapParams
 from .esdf_mapper import EsdfMapper
 

@@ -35,9 +35,9 @@ from typing import Any
 
 import numpy as np
 
-from ..components import BusView, Planner
-from ..control.rotations import yaw_of
-from ..messages import (
+from cufund.core.components import BusView, Planner
+from cufund.control.rotations import yaw_of
+from cufund.core.messages import (
     AttitudeSetpoint,
     FlightMode,
     FlightModeCommand,
@@ -46,8 +46,8 @@ from ..messages import (
     TrajectorySetpoint,
     VehicleStatus,
 )
-from ..planning.point_to_point import JerkLimitedMove
-from ..planning.sequence import Hold
+from cufund.planning.point_to_point import JerkLimitedMove
+from cufund.planning.sequence import Hold
 from .commands import Command, CommandAck, MissionItem, parse_command
 from .events import EventLog
 from .inbox import CommandInbox

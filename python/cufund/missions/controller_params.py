@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from ..control import AttitudeController, GeometricController, PositionController, RateController
+from cufund.control import AttitudeController, GeometricController, PositionController, RateController
 
 __all__ = ["CONTROLLER_PARAMS", "controller_param_provider"]
 

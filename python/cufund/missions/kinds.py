@@ -5,10 +5,15 @@ MAVLink). With the scenario's controller ``pid`` or ``geometric``, the other one
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 from typing import Any
 
-from ..registry import Kind, register
+from cufund.core.registry import Kind, register
+from cufund.core.config import ConfigError
+from cufund.worlds.builtin import BUILTIN
+
 from .commander import Commander
+from .tunnel_course import TunnelCourseParams, paper_tunnel_course, tunnel_course, tunnel_course_layout
 from .params import CommanderParams
 
 _SWITCHABLE = ("pid", "geometric")
@@ -48,3 +53,28 @@ register(Kind("planner", "commander", CommanderParams, _commander, None,
               "the vehicle commander: arm, take off, go to, missions, offboard, land, return (script or live)"))
 
 from . import tunnel_kind  # noqa: F401  (the tunnel mission kind registers itself)
+
+
+def _tunnel_course_kind() -> None:
+    """The generated tunnel course as a world kind (the course generator is the tunnel mission's)."""
+    @dataclass(frozen=True)
+    class TunnelCourseWorldParams(TunnelCourseParams):
+        """A generated tunnel course: its layout seed and the generator's bounds (:class:`TunnelCourseParams`)."""
+
+        seed: int | None = 0
+        """Layout seed (independent of the scenario seed); null: the paper's IMAV 2025 layout."""
+
+        def __post_init__(self) -> None:
+            super().__post_init__()
+            if self.seed is not None and (isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0):
+                raise ConfigError(f"world.seed must be an integer >= 0 or null (the paper's layout), got {self.seed!r}")
+
+    def layout(p: TunnelCourseWorldParams) -> object:
+        return paper_tunnel_course(p) if p.seed is None else tunnel_course_layout(p.seed, p)
+
+    register(Kind("world", "tunnel_course", TunnelCourseWorldParams, lambda p, ctx: layout(p).world,  # type: ignore[attr-defined]
+                  None, "a seeded IMAV-style tunnel course (world.seed picks the layout), checked flyable"))
+
+
+_tunnel_course_kind()
+BUILTIN.setdefault("tunnel_course", tunnel_course)  # worlds.load("tunnel_course", seed=...)

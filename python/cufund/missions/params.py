@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, fields
 from typing import Any
 
-from ..config import ConfigError
+from cufund.core.config import ConfigError
 
 __all__ = ["PX4_NAMES", "CommanderParams"]
 

@@ -1,7 +1,7 @@
 """The tunnel mission (paper §3.2): a state machine that initialises on the pad, takes off, detects the course's
 frames, flies through them and lands beyond the last one — all on the LiDAR-inertial estimate.
 
-States (published as :class:`~cufund.messages.MissionState` on ``/mission/state``):
+States (published as :class:`~cufund.core.messages.MissionState` on ``/mission/state``):
 
 ``initialise``  on the pad, rotors idle, while the LIO initialises statically (``init_s``);
 ``takeoff``     a jerk-limited climb to ``takeoff_height``;
@@ -37,14 +37,14 @@ from typing import Any
 
 import numpy as np
 
-from ..components import BusView, Planner
-from ..config import ConfigError
-from ..messages import MissionState, Odometry, Topics, TrajectoryUpdate, TunnelEstimate
-from ..planning.min_snap_planner import MinSnapPlanner, MinSnapPlannerParams
-from ..planning.point_to_point import JerkLimitedMove
-from ..planning.sequence import Hold, TrajectorySequence
-from ..planning.trajectory import Trajectory
-from ..planning.trajectory_follower import stitched
+from cufund.core.components import BusView, Planner
+from cufund.core.config import ConfigError
+from cufund.core.messages import MissionState, Odometry, Topics, TrajectoryUpdate, TunnelEstimate
+from cufund.planning.min_snap_planner import MinSnapPlanner, MinSnapPlannerParams
+from cufund.planning.point_to_point import JerkLimitedMove
+from cufund.planning.sequence import Hold, TrajectorySequence
+from cufund.planning.trajectory import Trajectory
+from cufund.planning.trajectory_follower import stitched
 from .tunnel_geometry import frame_boxes
 
 __all__ = ["TunnelMission", "TunnelMissionParams"]

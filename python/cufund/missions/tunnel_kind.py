@@ -7,19 +7,19 @@ from typing import Any
 
 import numpy as np
 
-from ..config import ConfigError
-from ..messages import Topics
-from ..planning.trajectory_follower import TrajectoryFollower
-from ..registry import Kind, register
+from cufund.core.config import ConfigError
+from cufund.core.messages import Topics
+from cufund.planning.trajectory_follower import TrajectoryFollower
+from cufund.core.registry import Kind, register
 from .tunnel import TunnelMission, TunnelMissionParams
 
 __all__ = ["course_of"]
 
 
 def course_of(config: Any) -> Any:
-    """The true :class:`~cufund.worlds.TunnelCourse` of a scenario on the ``tunnel_course`` world (for metrics,
+    """The true :class:`~cufund.missions.tunnel_course.TunnelCourse` of a scenario on the ``tunnel_course`` world (for metrics,
     plots and the pre-flight check only; never a flight input), or None for another world."""
-    from ..worlds.tunnel_course import paper_tunnel_course, tunnel_course_layout
+    from .tunnel_course import paper_tunnel_course, tunnel_course_layout
 
     spec = config.world
     if spec is None or spec.kind != "tunnel_course":
@@ -31,7 +31,7 @@ def course_of(config: Any) -> Any:
 def _detector(ctx: Any, p: TunnelMissionParams, start: np.ndarray) -> Any:
     """Engineer D's detector on the scenario's LiDAR, in the estimated frame, keeping at most the expected frames
     and ordering them from the pad."""
-    from ..perception import TunnelDetector, TunnelDetectorParams
+    from cufund.perception import TunnelDetector, TunnelDetectorParams
 
     _, lidar = ctx.sensor_of_type("lidar", "", "mission")
     return TunnelDetector(TunnelDetectorParams(), T_BL=lidar.extrinsic, cloud_topic=lidar.topic, expected=p.frames,

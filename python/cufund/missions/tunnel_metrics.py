@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..messages import Topics
+from cufund.core.messages import Topics
 from .tunnel_geometry import frame_boxes, passages
 
 __all__ = ["component_split", "tracking_errors", "true_frames", "tunnel_metrics"]

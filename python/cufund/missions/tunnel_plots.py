@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..messages import Topics
+from cufund.core.messages import Topics
 from .tunnel_metrics import true_frames
 
 __all__ = ["plot_tunnel_trajectory", "write_tunnel_outputs", "write_tunnel_replay"]
@@ -87,14 +87,14 @@ def write_tunnel_replay(path: str | Path, result: Any, params: Any, world: Any, 
                         clouds: list[np.ndarray], fps: int = 20) -> Path:
     """A self-contained MeshCat replay: the world's meshes, the vehicle flying, the true (red), odometry (blue)
     and setpoint (green) paths, the detected centres, and point-cloud snapshots (world frame)."""
-    from ..viz.meshcat_scene import (
+    from cufund.viz.meshcat_scene import (
         VEHICLE,
         draw_path,
         draw_vehicle,
         import_meshcat,
         pose_matrix,
     )
-    from ..viz.replay import _RecordingWindow, viewer_page
+    from cufund.viz.replay import _RecordingWindow, viewer_page
 
     meshcat = import_meshcat()
     g = meshcat.geometry

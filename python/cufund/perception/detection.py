@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _core
+from cufund import _core
 
 __all__ = ["FrameDetection", "TunnelDetectorParams", "column_keys", "detect_frames", "detect_in_voxels", "order_along_course", "voxel_keys", "voxel_means"]
 

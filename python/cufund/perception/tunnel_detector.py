@@ -9,10 +9,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _core
-from ..components import BusView, Component, Subscription
-from ..messages import Odometry, PointCloud, Topics, TunnelEstimate
-from ..sensors.pose import Transform, interpolate_poses
+from cufund import _core
+from cufund.core.components import BusView, Component, Subscription
+from cufund.core.messages import Odometry, PointCloud, Topics, TunnelEstimate
+from cufund.sensors.pose import Transform, interpolate_poses
 from .detection import (
     COLUMN_CELL,
     FrameDetection,
@@ -56,7 +56,7 @@ class _Track:
 
 class TunnelDetector(Component):
     """Detects the tunnel's frames in the LiDAR scans on ``cloud_topic`` and publishes a
-    :class:`~cufund.messages.TunnelEstimate` on ``Topics.TUNNEL_ESTIMATE`` at ``params.rate_hz``.
+    :class:`~cufund.core.messages.TunnelEstimate` on ``Topics.TUNNEL_ESTIMATE`` at ``params.rate_hz``.
 
     Its pose is the estimator's output when one is attached (ground truth only without an estimator, or
     ``state_topic`` if given): every point, measured in the LiDAR frame at its own firing time, is moved to the

@@ -1,6 +1,6 @@
 """Trajectories and planners (paper §3.1)."""
 
-from ..components import Planner
+from cufund.core.components import Planner
 from .bspline import UniformBspline
 from .clearance import ClearanceQuery
 from .feasibility import TrajectoryFeasibility, feasibility

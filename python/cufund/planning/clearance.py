@@ -11,14 +11,14 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from .. import _core
-from ..mapping.esdf_map import EsdfMap
+from cufund import _core
+from cufund.mapping.esdf_map import EsdfMap
 
 __all__ = ["ClearanceQuery"]
 
 
 class ClearanceQuery:
-    """Clearance and motion checks on an :class:`~cufund.esdf.EsdfMap` (a live view: map updates show) or
+    """Clearance and motion checks on an :class:`~cufund.mapping.EsdfMap` (a live view: map updates show) or
     on a static distance array (:meth:`from_distances`, :func:`~cufund.planning.clearance_from_world`).
 
     ``clearance_xyz`` and ``segment_free_xyz`` take plain floats and cross into C++ without numpy, for
@@ -28,7 +28,7 @@ class ClearanceQuery:
 
     def __init__(self, esdf_map: EsdfMap) -> None:
         if not isinstance(esdf_map, EsdfMap):
-            raise TypeError(f"esdf_map must be a cufund.esdf.EsdfMap, got {type(esdf_map).__name__}")
+            raise TypeError(f"esdf_map must be a cufund.mapping.EsdfMap, got {type(esdf_map).__name__}")
         self.esdf_map: EsdfMap | None = esdf_map
         """The live map, or None for a static field (:meth:`from_distances`)."""
         mp = esdf_map.params
@@ -37,7 +37,7 @@ class ClearanceQuery:
     @classmethod
     def from_distances(cls, distances: npt.ArrayLike, origin_W: npt.ArrayLike, resolution: float) -> ClearanceQuery:
         """A static field: ``distances`` (nx, ny, nz) [m] from each voxel centre to the nearest occupied voxel
-        centre (as :func:`cufund.esdf.edt` gives; values <= 0 mark occupied voxels), voxel (0, 0, 0) with its
+        centre (as :func:`cufund.mapping.edt` gives; values <= 0 mark occupied voxels), voxel (0, 0, 0) with its
         minimum corner at ``origin_W`` [m], edge ``resolution`` [m]. Copied once."""
         d = np.asarray(distances, dtype=float)
         core = _core.planning.ClearanceQuery(np.asarray(origin_W, dtype=float), float(resolution), d)

@@ -3,8 +3,8 @@ the trajectory updates, and kept for the run's ``metrics.json``."""
 
 from __future__ import annotations
 
-from ..messages import message
-from ..topics import Topic
+from cufund.core.messages import message
+from cufund.core.topics import Topic
 
 __all__ = ["PLANNER_DIAGNOSTICS", "PlannerDiagnostics"]
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..config import ConfigError
+from cufund.core.config import ConfigError
 from .clearance import ClearanceQuery
 from .min_snap_planner import MinSnapPlanner, MinSnapPlannerParams, MinSnapResult
 from .minimum_snap import MinimumSnapTrajectory

@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from ..config import ConfigError
-from ..registry import Kind, register
+from cufund.core.config import ConfigError
+from cufund.core.registry import Kind, register
 from .minimum_snap import MinimumSnapTrajectory
 from .path_search import GridPathSearchParams
 from .point_to_point import JerkLimitedMove
@@ -24,7 +24,7 @@ class WaypointsParams:
 
 def build_reference(cfg: Any) -> tuple[TrajectorySequence, MinimumSnapTrajectory]:
     """Take-off from below the first waypoint, hover, minimum-snap through the waypoints, hover, landing below the
-    last one (``cfg`` is a :class:`cufund.scenario.TrajectoryConfig`). Returns the whole reference and its
+    last one (``cfg`` is a :class:`cufund.scenarios.TrajectoryConfig`). Returns the whole reference and its
     min-snap part."""
     w = np.asarray(cfg.waypoints)
     yaw = None if cfg.yaw is None else np.asarray(cfg.yaw)
@@ -103,7 +103,7 @@ class LocalParams:
     """Flight band of the replanner, highest height [m]."""
 
     def __post_init__(self) -> None:
-        from ..config import ConfigError, vector3
+        from cufund.core.config import ConfigError, vector3
 
         object.__setattr__(self, "goal", vector3("planner.goal", self.goal, " [m]", finite=True))
         if self.goal[2] <= 0.1:
@@ -117,7 +117,7 @@ class LocalParams:
             raise ConfigError(f"planner.hover_s must be a finite number >= 0 [s], got {self.hover_s!r}")
 
     def planner_params(self) -> Any:
-        from ..config import ConfigError
+        from cufund.core.config import ConfigError
         from .local_planner import LocalPlannerParams
 
         try:
@@ -135,7 +135,7 @@ def _start(ctx: Any) -> np.ndarray:
 
 
 def _local(p: LocalParams, ctx: Any, guide_W: np.ndarray | None = None) -> list[Any]:
-    from ..messages import Topics
+    from cufund.core.messages import Topics
     from .local_planner_component import LocalPlannerComponent
     from .metrics import planning_metrics
 

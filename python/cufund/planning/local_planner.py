@@ -23,9 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from .. import _core
-from ..config import ConfigError
-from ..mapping.esdf_map import EsdfMap
+from cufund import _core
+from cufund.core.config import ConfigError
+from cufund.mapping.esdf_map import EsdfMap
 from .bspline import UniformBspline, start_control_points
 from .clearance import ClearanceQuery
 from .path_search import GridPathSearch, GridPathSearchParams
@@ -115,11 +115,11 @@ class LocalPlan:
 
 
 class BsplineLocalPlanner:
-    """Replans a B-spline on a (growing) :class:`~cufund.esdf.EsdfMap` from the current state to ``goal_W``."""
+    """Replans a B-spline on a (growing) :class:`~cufund.mapping.EsdfMap` from the current state to ``goal_W``."""
 
     def __init__(self, esdf_map: EsdfMap, params: LocalPlannerParams | None = None) -> None:
         if not isinstance(esdf_map, EsdfMap):
-            raise TypeError(f"esdf_map must be a cufund.esdf.EsdfMap, got {type(esdf_map).__name__}")
+            raise TypeError(f"esdf_map must be a cufund.mapping.EsdfMap, got {type(esdf_map).__name__}")
         self.params = LocalPlannerParams() if params is None else params
         if not isinstance(self.params, LocalPlannerParams):
             raise TypeError(f"params must be a LocalPlannerParams, got {type(params).__name__}")

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..components import BusView, Planner
-from ..messages import MapUpdate, Odometry, Topics, TrajectoryUpdate
+from cufund.core.components import BusView, Planner
+from cufund.core.messages import MapUpdate, Odometry, Topics, TrajectoryUpdate
 from .bspline import UniformBspline, start_control_points
 from .diagnostics import PLANNER_DIAGNOSTICS, PlannerDiagnostics
 from .local_planner import BsplineLocalPlanner, LocalPlannerParams
@@ -45,7 +45,7 @@ class LocalPlannerComponent(Planner):
     replan time (not the measured state), so every update joins the reference with no jump in p, v or a.
 
     It follows ``initial`` (e.g. the take-off) until ``t_begin``; from then on it replans on the map of the
-    latest :class:`~cufund.messages.MapUpdate` towards ``goal_W``. A rejected replan keeps the previous
+    latest :class:`~cufund.core.messages.MapUpdate` towards ``goal_W``. A rejected replan keeps the previous
     trajectory. When the map shows the goal closer than the radius (plus ``goal_margin``) to an obstacle, the
     planner aims at the nearest point back along the line to the vehicle that is clear, at most
     ``max_goal_shift`` away (:attr:`active_goal`), as EGO-Planner does. Once the reference is within

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from .. import _core
+from cufund import _core
 from .trajectory import TrajectorySamples
 
 __all__ = ["MinimumSnapTrajectory", "allocate_segment_times", "min_derivative_spline", "optimize_segment_times",

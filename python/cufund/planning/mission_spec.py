@@ -28,7 +28,7 @@ from typing import Mapping
 import numpy as np
 import numpy.typing as npt
 
-from ..config import ConfigError, from_dict
+from cufund.core.config import ConfigError, from_dict
 
 __all__ = ["MissionPlan", "MissionSpec", "Region"]
 

@@ -14,7 +14,7 @@ from typing import Mapping
 import numpy as np
 import numpy.typing as npt
 
-from ..config import ConfigError
+from cufund.core.config import ConfigError
 from .clearance import ClearanceQuery
 from .min_snap_planner import MinSnapPlanner, MinSnapPlannerParams, MinSnapResult
 from .mission_spec import MissionPlan, MissionSpec, Region

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..config import ConfigError
+from cufund.core.config import ConfigError
 from .clearance import ClearanceQuery
 from .path_search import PathResult, _radius
 

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from .. import _core
-from ..config import ConfigError
+from cufund import _core
+from cufund.core.config import ConfigError
 from .clearance import ClearanceQuery
 
 __all__ = ["GridPathSearch", "GridPathSearchParams", "PathResult"]

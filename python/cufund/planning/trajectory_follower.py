@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..components import Bus, Planner
-from ..messages import Odometry, Topics, TrajectorySetpoint, TrajectoryUpdate
+from cufund.core.components import Bus, Planner
+from cufund.core.messages import Odometry, Topics, TrajectorySetpoint, TrajectoryUpdate
 from .sequence import TrajectorySequence
 from .trajectory import Trajectory, TrajectorySamples
 
@@ -19,7 +19,7 @@ class TrajectoryFollower(Planner):
     vectorised call, so each tick only looks its row up (off-grid times are sampled directly).
 
     With ``update_topic`` (e.g. ``Topics.TRAJECTORY_UPDATE``) it also stitches the
-    :class:`~cufund.messages.TrajectoryUpdate` messages of a replanner: each new trajectory replaces the followed
+    :class:`~cufund.core.messages.TrajectoryUpdate` messages of a replanner: each new trajectory replaces the followed
     one from its own ``t_start`` on (what was planned after that time is dropped; what came before is kept). The
     replanner makes the join continuous by starting the new trajectory from the old one's state at ``t_start``.
     """

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from .. import _core
-from ..mapping.edt import edt
-from ..mapping.esdf_map import EsdfMap, EsdfMapParams
+from cufund import _core
+from cufund.mapping.edt import edt
+from cufund.mapping.esdf_map import EsdfMap, EsdfMapParams
 from .clearance import ClearanceQuery
-from ..worlds.world import World
+from cufund.worlds.world import World
 
 __all__ = ["clearance_from_world", "esdf_from_world", "world_occupancy"]
 

@@ -4,9 +4,11 @@ Inertial and navigation sensors share one error model: white noise, bias random 
 bias (:mod:`cufund.sensors.noise`), each sensor with its own seeded stream.
 
 Ray-traced sensors — LiDARs (2-D, spinning 3-D, Livox) and pinhole depth / RGB cameras — work
-standalone: give them a ``cufund.World`` (or a ``cufund.lidar.RaycastScene``) and a body pose (or
+standalone: give them a ``cufund.World`` (or a ``cufund.sensors.RaycastScene``) and a body pose (or
 ``pose_fn(t) -> (p_W, q_WB)``) and they return numpy records.
 """
+
+from cufund._core.lidar import INVALID_ID, RaycastScene
 
 from . import patterns
 from .allan import AllanFit, allan_deviation, fit_allan
@@ -22,10 +24,11 @@ from .lidar_component import LidarComponent
 from .magnetometer import EarthField, MagnetometerModel, MagnetometerParams, MagnetometerSensor
 from .noise import ErrorProcess, NoiseSpec
 from .patterns import (CsvPattern, Mid360Pattern, PlanarPattern, RosettePattern, ScanPattern, ScanRays,
-                       SpinningPattern)
+                       SpinningPattern, avia, mid360, os1_64, vlp16)
 from .pose import Transform
 
 __all__ = [
+    "INVALID_ID", "RaycastScene", "avia", "mid360", "os1_64", "vlp16",
     "AllanFit", "BAROMETER_PRESETS", "BarometerModel", "BarometerParams", "BarometerSensor", "CameraComponent",
     "CameraImage", "CameraIntrinsics", "CsvPattern", "DepthCamera", "EarthField", "ErrorProcess", "GPS_PRESETS",
     "GeoPoint", "GpsModel", "GpsParams", "GpsSensor", "IMU_PRESETS", "ImuModel", "ImuParams", "ImuSensor", "Lidar",

@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, check_real_fields, nested
-from ..messages import AirPressure, Odometry, Topics
+from cufund.core.config import ConfigError, check_real_fields, nested
+from cufund.core.messages import AirPressure, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
 
@@ -114,7 +114,7 @@ class BarometerModel:
 
 
 class BarometerSensor(ModelSensor):
-    """Publishes :class:`~cufund.messages.AirPressure` samples at the sensor's rate."""
+    """Publishes :class:`~cufund.core.messages.AirPressure` samples at the sensor's rate."""
 
     name = "barometer"
 

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import _core
-from ..messages import CameraImage  # noqa: F401 - re-exported: cameras' message
-from ..worlds.world import World
+from cufund import _core
+from cufund.core.messages import CameraImage  # noqa: F401 - re-exported: cameras' message
+from cufund.worlds.world import World
 from .pose import Transform, quat_mul, quat_to_matrix
 
 # Optical frame O (x right, y down, z forward) -> camera frame C (x forward, y left, z up).
@@ -145,7 +145,7 @@ def _scene_of(target: object) -> _core.lidar.RaycastScene:
         return target.raycast_scene
     if isinstance(target, _core.lidar.RaycastScene):
         return target
-    raise ValueError(f"target must be a cufund.World or cufund.lidar.RaycastScene, got {type(target).__name__}")
+    raise ValueError(f"target must be a cufund.World or cufund.sensors.RaycastScene, got {type(target).__name__}")
 
 
 class DepthCamera(_RayCamera):

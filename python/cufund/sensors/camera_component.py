@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from ..components import BusView, Component
-from ..messages import CameraImage, Odometry, Topics
-from ..topics import Topic
-from ..worlds.world import World
+from cufund.core.components import BusView, Component
+from cufund.core.messages import CameraImage, Odometry, Topics
+from cufund.core.topics import Topic
+from cufund.worlds.world import World
 from .camera import DepthCamera, RgbCamera
 
 DEPTH_TOPIC = Topics.DEPTH_IMAGE
@@ -14,7 +14,7 @@ RGB_TOPIC = Topics.RGB_IMAGE
 
 class CameraComponent(Component):
     """Renders ``camera`` (a DepthCamera or RgbCamera) of ``world`` from the true pose at ``rate_hz`` (any rate,
-    e.g. 30 Hz) and publishes a :class:`~cufund.messages.CameraImage` on ``topic`` (default: /sensors/depth_image
+    e.g. 30 Hz) and publishes a :class:`~cufund.core.messages.CameraImage` on ``topic`` (default: /sensors/depth_image
     or /sensors/rgb_image), visible ``latency_s`` later. The shutter is global: the whole image is taken at the
     tick's pose."""
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import ConfigError
+from cufund.core.config import ConfigError
 
 __all__ = ["GeoPoint", "WGS84_A", "WGS84_F", "lla_to_ecef", "ecef_to_lla", "enu_to_lla", "lla_to_enu"]
 

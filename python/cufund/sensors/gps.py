@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, check_real_fields, nested
-from ..messages import GpsFix, Odometry, Topics
+from cufund.core.config import ConfigError, check_real_fields, nested
+from cufund.core.messages import GpsFix, Odometry, Topics
 from .geodesy import GeoPoint, enu_to_lla
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
@@ -131,7 +131,7 @@ class GpsModel:
 
 
 class GpsSensor(ModelSensor):
-    """Publishes :class:`~cufund.messages.GpsFix` es at the receiver's rate, each ``latency_s`` after its
+    """Publishes :class:`~cufund.core.messages.GpsFix` es at the receiver's rate, each ``latency_s`` after its
     measurement time (rounded to the receiver's period)."""
 
     name = "gps"

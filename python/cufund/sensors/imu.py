@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, check_real_fields, from_dict, nested
-from ..messages import Imu, Odometry, Topics
+from cufund.core.config import ConfigError, check_real_fields, from_dict, nested
+from cufund.core.messages import Imu, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
 from .pose import quat_to_matrix, world_to_body
@@ -187,7 +187,7 @@ class ImuModel:
 
 
 class ImuSensor(ModelSensor):
-    """Publishes :class:`~cufund.messages.Imu` samples (in the IMU frame, ``f_I`` and ``w_I``) at the part's
+    """Publishes :class:`~cufund.core.messages.Imu` samples (in the IMU frame, ``f_I`` and ``w_I``) at the part's
     rate from ground truth's true accelerations. ``gravity`` must be the vehicle's (``params.gravity``)."""
 
     name = "imu"

@@ -12,8 +12,8 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from ..config import ConfigError, check_real_fields
-from ..registry import Kind, register
+from cufund.core.config import ConfigError, check_real_fields
+from cufund.core.registry import Kind, register
 from .barometer import BAROMETER_PRESETS, BarometerParams, BarometerSensor
 from .camera import DepthCamera, RgbCamera, d435_depth, d435_rgb
 from .camera_component import CameraComponent

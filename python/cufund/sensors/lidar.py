@@ -7,9 +7,9 @@ from typing import Union
 
 import numpy as np
 
-from .. import _core
-from ..messages import LidarTruth, PointCloud
-from ..worlds.world import World
+from cufund import _core
+from cufund.core.messages import LidarTruth, PointCloud
+from cufund.worlds.world import World
 from .patterns import ScanPattern, ScanRays
 from .pose import PoseFn, Transform, quat_mul, quat_to_matrix, sample_poses
 
@@ -117,7 +117,7 @@ class Lidar:
         elif isinstance(target, _core.lidar.RaycastScene):
             scene, refl = target, None
         else:
-            raise ValueError(f"target must be a cufund.World or cufund.lidar.RaycastScene, got {type(target).__name__}")
+            raise ValueError(f"target must be a cufund.World or cufund.sensors.RaycastScene, got {type(target).__name__}")
         if not np.isfinite(t0):
             raise ValueError(f"t0 must be finite [s], got {t0}")
         k = self._frame if frame is None else int(frame)

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..components import BusView, Component
-from ..messages import LidarTruth, Odometry, PointCloud, Topics
-from ..topics import Topic
-from ..worlds.world import World
+from cufund.core.components import BusView, Component
+from cufund.core.messages import LidarTruth, Odometry, PointCloud, Topics
+from cufund.core.topics import Topic
+from cufund.worlds.world import World
 from .lidar import Lidar
 
 
@@ -16,9 +16,9 @@ class LidarComponent(Component):
 
     The component runs at ``rate_hz``, the rate at which it samples the true pose (a multiple of the LiDAR's
     frame rate). At the end of each frame it casts the whole frame, every ray from the pose at its own firing
-    time (interpolated between the sampled poses), and publishes the :class:`~cufund.messages.PointCloud`
+    time (interpolated between the sampled poses), and publishes the :class:`~cufund.core.messages.PointCloud`
     (stamped with the frame's start) on ``topic`` — at the frame's end, like a real driver, plus ``latency_s`` —
-    and the frame's ground truth (:class:`~cufund.messages.LidarTruth`) on ``truth_topic``.
+    and the frame's ground truth (:class:`~cufund.core.messages.LidarTruth`) on ``truth_topic``.
     """
 
     name = "lidar"

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import ConfigError, check_real_fields, nested
-from ..messages import MagneticField, Odometry, Topics
+from cufund.core.config import ConfigError, check_real_fields, nested
+from cufund.core.messages import MagneticField, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
 from .pose import quat_to_matrix, world_to_body
@@ -111,7 +111,7 @@ class MagnetometerModel:
 
 
 class MagnetometerSensor(ModelSensor):
-    """Publishes :class:`~cufund.messages.MagneticField` samples at the sensor's rate."""
+    """Publishes :class:`~cufund.core.messages.MagneticField` samples at the sensor's rate."""
 
     name = "magnetometer"
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..components import Sensor
+from cufund.core.components import Sensor
 
 
 class ModelSensor(Sensor):

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import ConfigError, real_number
+from cufund.core.config import ConfigError, real_number
 
 
 def real_fields(obj: object, where: str) -> None:

@@ -196,7 +196,7 @@ class Mid360Pattern:
         """Ray i of frame k fires at (k n + i) / point_rate (n rays per frame), laser i % lasers; azimuth
         2π (spin_rate t + channel / lasers) mod 2π; elevation (min + max) / 2 + (max - min) / 2 ·
         sin(2π spin_rate sweep_ratio t + π channel / lasers). Computed in C++ with the directions."""
-        from .. import _core
+        from cufund import _core
 
         n = int(round(self.point_rate * self.period))
         t, az, el, ch, d = _core.lidar.mid360_frame(int(k), n, self.point_rate, self.lasers, self.spin_rate,

@@ -1,4 +1,4 @@
-"""A pose source: motion capture, or any slow odometry, as :class:`~cufund.messages.Odometry` on a topic."""
+"""A pose source: motion capture, or any slow odometry, as :class:`~cufund.core.messages.Odometry` on a topic."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import check_real_fields
-from ..components import Sensor
-from ..messages import Odometry, Topics
+from cufund.core.config import check_real_fields
+from cufund.core.components import Sensor
+from cufund.core.messages import Odometry, Topics
 from .pose import quat_mul
 
 

@@ -12,7 +12,7 @@ import numpy as np
 
 import cufund
 from cufund.control import ControlAllocator
-from cufund.messages import ActuatorCommand, Odometry, Topics, TrajectorySetpoint
+from cufund.core.messages import ActuatorCommand, Odometry, Topics, TrajectorySetpoint
 
 
 class MyController(cufund.Controller):

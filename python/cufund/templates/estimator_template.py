@@ -10,7 +10,7 @@ however the rates compare), and passes the other fields through.
 from __future__ import annotations
 
 import cufund
-from cufund.messages import Odometry
+from cufund.core.messages import Odometry
 
 
 class MyEstimator(cufund.Estimator):

@@ -10,7 +10,7 @@ import math
 from collections import Counter
 
 import cufund
-from cufund.messages import Odometry, Topics
+from cufund.core.messages import Odometry, Topics
 
 
 class MyMapper(cufund.Mapper):

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 import cufund
-from cufund.messages import Odometry, Topics, TrajectorySetpoint
+from cufund.core.messages import Odometry, Topics, TrajectorySetpoint
 
 
 class MyPlanner(cufund.Planner):

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 import cufund
-from cufund.messages import Odometry, Topics, TrajectorySetpoint
+from cufund.core.messages import Odometry, Topics, TrajectorySetpoint
 
 
 class MyRecorder(cufund.Recorder):

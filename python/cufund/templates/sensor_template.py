@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 import cufund
-from cufund.messages import Odometry
+from cufund.core.messages import Odometry
 
 
 class MyPositionSensor(cufund.Sensor):

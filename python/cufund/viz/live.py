@@ -7,10 +7,10 @@ from typing import Any
 
 import numpy as np
 
-from ..components import Bus, Component
-from ..messages import Topics
-from ..params import QuadrotorParams
-from ..planning.trajectory import Trajectory
+from cufund.core.components import Bus, Component
+from cufund.core.messages import Topics
+from cufund.vehicle.params import QuadrotorParams
+from cufund.planning.trajectory import Trajectory
 from .meshcat_scene import FLOWN, PLANNED, SETPOINT, VEHICLE, draw_path, draw_vehicle, pose_matrix
 
 __all__ = ["LiveViewer"]

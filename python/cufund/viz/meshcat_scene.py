@@ -6,8 +6,8 @@ from typing import Any
 
 import numpy as np
 
-from ..control.rotations import quat_to_rotation
-from ..params import QuadrotorParams
+from cufund.control.rotations import quat_to_rotation
+from cufund.vehicle.params import QuadrotorParams
 
 __all__ = ["draw_vehicle", "draw_path", "import_meshcat", "pose_matrix", "VEHICLE", "SETPOINT", "PLANNED", "FLOWN"]
 

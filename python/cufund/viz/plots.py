@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..planning.trajectory import Trajectory
-from ..simulator import SimulationResult
+from cufund.planning.trajectory import Trajectory
+from cufund.simulator import SimulationResult
 
 __all__ = ["plot_tracking"]
 

@@ -8,9 +8,9 @@ from typing import Any
 
 import numpy as np
 
-from ..params import QuadrotorParams
-from ..planning.trajectory import Trajectory
-from ..simulator import SimulationResult
+from cufund.vehicle.params import QuadrotorParams
+from cufund.planning.trajectory import Trajectory
+from cufund.simulator import SimulationResult
 from .meshcat_scene import FLOWN, PLANNED, SETPOINT, VEHICLE, draw_path, draw_vehicle, import_meshcat, pose_matrix
 
 __all__ = ["replay_html", "viewer_page", "write_replay_html"]

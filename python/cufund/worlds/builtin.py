@@ -1,4 +1,5 @@
-"""Built-in worlds: ``load("imav2025_tunnel" | "empty" | "forest" | "corridor")``."""
+"""Built-in worlds: ``load("imav2025_tunnel" | "empty" | "forest" | "corridor")``, and those the registered kinds add
+(``tunnel_course``, from :mod:`cufund.missions`)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from typing import Callable
 
 import numpy as np
 
-from .tunnel_course import tunnel_course
+from cufund.core.registry import load_plugins
 from .world import World
 
 WALL = (0.75, 0.75, 0.72)
@@ -96,7 +97,6 @@ BUILTIN: dict[str, Callable[..., World]] = {
     "empty": empty,
     "forest": forest,
     "corridor": corridor,
-    "tunnel_course": tunnel_course,
 }
 
 
@@ -109,6 +109,8 @@ def load(name: str, **kwargs: object) -> World:
         if kwargs:
             raise ValueError("a YAML world takes no keyword arguments")
         return world_from_yaml(name)
+    if name not in BUILTIN:
+        load_plugins()  # kinds of upper layers and plug-ins add their worlds (e.g. the tunnel course)
     if name not in BUILTIN:
         raise ValueError(f"unknown world {name!r}; built-in worlds are: {', '.join(BUILTIN)}")
     return BUILTIN[name](**kwargs)

@@ -10,7 +10,7 @@ import dataclasses
 
 import numpy as np
 
-from .. import _core
+from cufund import _core
 from .world import World
 
 

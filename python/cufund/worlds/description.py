@@ -20,7 +20,7 @@ import inspect
 from pathlib import Path
 from typing import Any
 
-from ..config import ConfigError, load_yaml
+from cufund.core.config import ConfigError, load_yaml
 from .world import World
 
 _ADDERS = {

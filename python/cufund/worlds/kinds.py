@@ -6,8 +6,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..config import ConfigError, check_real_fields
-from ..registry import Kind, register
+from cufund.core.config import ConfigError, check_real_fields
+from cufund.core.registry import Kind, register
 from .builtin import corridor, empty, forest, imav2025_tunnel
 
 
@@ -85,28 +85,3 @@ register(Kind("world", "forest", ForestParams, lambda p, ctx: forest(p.seed, p.n
 register(Kind("world", "corridor", CorridorParams, lambda p, ctx: corridor(p.length, p.width, p.height), None,
               "a straight corridor"))
 register(Kind("world", "file", FileParams, _file, None, "a world YAML file (world.path)"))
-
-
-def _tunnel_course_kind() -> None:
-    from .tunnel_course import TunnelCourseParams, paper_tunnel_course, tunnel_course_layout
-
-    @dataclass(frozen=True)
-    class TunnelCourseWorldParams(TunnelCourseParams):
-        """A generated tunnel course: its layout seed and the generator's bounds (:class:`TunnelCourseParams`)."""
-
-        seed: int | None = 0
-        """Layout seed (independent of the scenario seed); null: the paper's IMAV 2025 layout."""
-
-        def __post_init__(self) -> None:
-            super().__post_init__()
-            if self.seed is not None and (isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0):
-                raise ConfigError(f"world.seed must be an integer >= 0 or null (the paper's layout), got {self.seed!r}")
-
-    def layout(p: TunnelCourseWorldParams) -> object:
-        return paper_tunnel_course(p) if p.seed is None else tunnel_course_layout(p.seed, p)
-
-    register(Kind("world", "tunnel_course", TunnelCourseWorldParams, lambda p, ctx: layout(p).world,  # type: ignore[attr-defined]
-                  None, "a seeded IMAV-style tunnel course (world.seed picks the layout), checked flyable"))
-
-
-_tunnel_course_kind()

@@ -21,11 +21,11 @@ def _positive(name: str, value: float) -> float:
 
 
 def _count(name: str, value: object, lo: int, hi: int, limit: str = "") -> int:
-    """An integer in [lo, hi]; ``limit`` names the cufund.limits field that sets hi."""
+    """An integer in [lo, hi]; ``limit`` names the cufund.core.limits field that sets hi."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise ValueError(f"{name} must be an integer, got {value!r}")
     if not lo <= int(value) <= hi:
-        hint = f" ({limit} = {hi}; raise it with cufund.limits.configure({limit}=...))" if limit else ""
+        hint = f" ({limit} = {hi}; raise it with cufund.core.limits.configure({limit}=...))" if limit else ""
         raise ValueError(f"{name} must be in [{lo}, {hi}], got {value}{hint}")
     return int(value)
 
@@ -55,7 +55,7 @@ def plane(size: tuple[float, float]) -> Mesh:
 
 def cylinder(radius: float, height: float, segments: int = 32) -> Mesh:
     """Capped cylinder about the z axis, from z = -height/2 to +height/2."""
-    from ..limits import current
+    from cufund.core.limits import current
 
     r, h = _positive("radius", radius), _positive("height", height)
     n = _count("segments", segments, 3, current().mesh_max_segments, "mesh_max_segments")

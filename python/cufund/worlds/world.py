@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import _core
+from cufund import _core
 from . import primitives
 
 
@@ -148,12 +148,12 @@ class World:
                              f"{e}") from None
         if faces.ndim != 2 or len(faces) == 0:
             raise ValueError(f"mesh file {str(path)!r} holds no triangles")
-        from ..limits import current
+        from cufund.core.limits import current
 
         cap = current().mesh_max_triangles
         if len(faces) > cap:
             raise ValueError(f"mesh file {str(path)!r} holds {len(faces)} triangles, more than mesh_max_triangles = "
-                             f"{cap} (cufund.limits.configure(mesh_max_triangles=...))")
+                             f"{cap} (cufund.core.limits.configure(mesh_max_triangles=...))")
         return self.add_mesh(vertices * scale, faces, label or path.stem, color, position, yaw)
 
     # --- queries ------------------------------------------------------------------------------

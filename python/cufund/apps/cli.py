@@ -1,0 +1,217 @@
+"""The ``cufund`` command line.
+
+Exit codes: 0 the run completed; 1 it ran but ended otherwise (crashed, diverged, timed out, aborted; the status is
+printed); 2 invalid configuration or usage (a message naming the field, no traceback), checked before anything
+runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+import time
+from pathlib import Path
+
+from cufund.core.config import ConfigError
+from cufund.scenarios.schema import available_scenarios, load_scenario, parse_overrides
+from cufund.sensors import allan_report
+
+EXIT_COMPLETED, EXIT_NOT_COMPLETED, EXIT_INVALID = 0, 1, 2
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # usage errors exit 2, as argparse does, with our prefix
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_INVALID, f"cufund: {message}\n")
+
+
+def _parser() -> argparse.ArgumentParser:
+    scenarios = "\n".join(f"  {name:<14} {desc}" for name, desc in available_scenarios().items())
+    p = _Parser(
+        prog="cufund", formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="cufund: quadrotor simulation and autonomy.",
+        epilog=f"built-in scenarios (cufund run NAME):\n{scenarios}\n\nA scenario may also be a YAML file, e.g. a "
+               "run folder's config.yaml.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    run = sub.add_parser("run", help="run a scenario and write a run folder",
+                         formatter_class=argparse.RawDescriptionHelpFormatter,
+                         epilog=f"built-in scenarios:\n{scenarios}\n\nexit codes: 0 completed, 1 ended otherwise, "
+                                "2 invalid configuration or usage")
+    run.add_argument("scenario", help="a built-in scenario name or a YAML file")
+    run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a field by its dotted key, e.g. --set controller.kind=geometric --set seed=3 "
+                          "(repeatable)")
+    run.add_argument("--controller", help="same as --set controller.kind=NAME")
+    run.add_argument("--seed", help="same as --set seed=N")
+    run.add_argument("--out", help="run folder (default: runs/<scenario>-<time>)")
+    run.add_argument("--viz", action="store_true", help="stream the run live to MeshCat (http on 127.0.0.1)")
+    run.add_argument("--no-replay", action="store_true", help="skip replay.html")
+    run.add_argument("--no-log", action="store_true", help="skip run.mcap")
+    sub.add_parser("list", help="list the built-in scenarios and registered kinds")
+    odo = sub.add_parser("odometry", help="run the LiDAR-inertial odometry open loop on a run.mcap log",
+                         description="Runs the LIO on the IMU and LiDAR messages of LOG (with the extrinsics of the "
+                                     "scenario recorded in it) and writes odometry.json (errors against the log's "
+                                     "ground truth), odometry.png and TUM files (estimate.tum, truth.tum) for evo.")
+    odo.add_argument("log", type=Path, help="a run.mcap written by cufund run")
+    odo.add_argument("--out", type=Path, required=True, help="folder for the results")
+    allan = sub.add_parser("allan", help="simulate a static IMU and compare its Allan deviation with its noise model",
+                           description="Simulates a static IMU and writes imu.npz (raw samples), allan.png and "
+                                       "allan.json (fitted vs configured noise density and bias random walk, per axis).")
+    allan_report.add_arguments(allan)
+    from .sweep import cli as sweep_cli
+
+    sweep = sub.add_parser("sweep", help="run many variants of a scenario on Dask (local cluster or a scheduler)",
+                           description="Runs every variant of a sweep file as a Dask task and writes results.parquet, "
+                                       "summary.md, plots/ and each variant's run folder; a re-run resumes. Exit "
+                                       "codes: 0 every variant ran, 1 some failed or interrupted, 2 invalid sweep.")
+    sweep_cli.add_arguments(sweep)
+    try:
+        from . import log_replay
+    except ImportError:  # pragma: no cover - the replay viewer is optional at import time
+        log_replay = None
+    if log_replay is not None:
+        rep = sub.add_parser("replay", help="re-open a run.mcap log in the MeshCat viewer")
+        log_replay.add_arguments(rep)
+    for name, (module, help_text) in _SERVERS.items():
+        mod = importlib.import_module(module)
+        mod.add_arguments(sub.add_parser(name, help=help_text, description=help_text))
+    return p
+
+
+# Long-running commands, each in its own module: add_arguments(parser) defines its options, run(args) -> exit code.
+_SERVERS = {
+    "px4-sim": ("cufund.apps.mavlink.px4_cli", "be PX4's simulator: serve a scenario to px4_sitl over MAVLink (TCP 4560 + "
+                                          "instance, lockstep) or to a flight controller over serial (HITL)"),
+    "serve": ("cufund.apps.mavlink.serve_cli", "fly a scenario in real time as a MAVLink vehicle that ground stations and "
+                                          "MAVSDK connect to"),
+    "gcs": ("cufund.apps.gcs.cli", "fly a scenario in real time behind a web ground station on 127.0.0.1"),
+}
+
+
+def _list() -> int:
+    from cufund.core.registry import GROUPS, available
+
+    print("scenarios:")
+    for name, desc in available_scenarios().items():
+        print(f"  {name:<16} {desc}")
+    for group in GROUPS:
+        print(f"{group} kinds:")
+        for name, kind in sorted(available(group).items()):
+            print(f"  {name:<16} {kind.doc}")
+    return EXIT_COMPLETED
+
+
+def _run(args: argparse.Namespace) -> int:
+    from cufund.scenarios.build import build_simulation, out_dir_problem
+
+    try:
+        overrides = parse_overrides(args.overrides)
+        if args.controller is not None:
+            overrides["controller.kind"] = args.controller
+        if args.seed is not None:
+            overrides.update(parse_overrides([f"seed={args.seed}"]))
+        cfg = load_scenario(args.scenario, overrides)
+        if args.out is not None and not args.out.strip():
+            raise ConfigError("--out must name a folder, got an empty string")
+        out = Path(args.out) if args.out is not None else Path("runs") / f"{cfg.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+        problem = out_dir_problem(out)
+        if problem:
+            raise ConfigError(problem)
+        built = build_simulation(cfg)  # the whole graph validated before anything runs
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise ConfigError(f"--out {out}: cannot create the folder: {e.strerror or e}") from None
+    except (ConfigError, OSError) as e:
+        print(f"cufund: {e}", file=sys.stderr)
+        return EXIT_INVALID
+    from cufund.scenarios.run_folder import run_into_folder
+
+    viewer = None
+    if args.viz:
+        from cufund.viz.live import LiveViewer
+
+        viewer = LiveViewer(cfg.vehicle_params(), built.context.reference)
+        print(f"MeshCat: open {viewer.url}", flush=True)
+        built.simulator.add(viewer)
+    run = run_into_folder(built, out, log=not args.no_log, replay=not args.no_replay,
+                          progress=sys.stderr.isatty() or args.viz)
+    print(json.dumps(run.metrics, indent=2, default=str))
+    status = run.result.status.value
+    print(f"status: {status} ({run.result.message})")
+    print(f"run folder: {out.resolve()}")
+    if args.viz and sys.stdin.isatty():
+        try:
+            input("The live view stays up until you press Enter (or Ctrl-C). ")
+        except (KeyboardInterrupt, EOFError):
+            pass
+    if viewer is not None:
+        viewer.close()
+    return EXIT_COMPLETED if status == "completed" else EXIT_NOT_COMPLETED
+
+
+def _odometry(args: argparse.Namespace) -> int:
+    import yaml
+
+    from cufund.scenarios.schema import ScenarioConfig
+    from cufund.scenarios.build import BuildContext, out_dir_problem
+
+    try:
+        from cufund.estimation.kinds import lio_params
+        from cufund.estimation.offline import run_on_log
+        from cufund.estimation.params import LioParams
+        from cufund.logs.mcap_reader import log_metadata
+
+        problem = out_dir_problem(args.out)
+        if problem:
+            raise ConfigError(problem)
+        meta = log_metadata(args.log)
+        params, imu, lidar = LioParams(), "/sensors/imu", "/sensors/lidar"
+        if "config" in meta:  # the scenario the log was recorded with: its extrinsics and IMU
+            cfg = ScenarioConfig.from_dict(yaml.safe_load(meta["config"]))
+            if cfg.estimator is not None and cfg.estimator.kind == "lio":
+                params = cfg.estimator.params
+            params, imu_spec, lidar_spec = lio_params(params, BuildContext(cfg))
+            imu, lidar = imu_spec.topic, lidar_spec.topic
+        figures = run_on_log(args.log, params, args.out, imu_topic=imu, lidar_topic=lidar)
+    except (ConfigError, ValueError, OSError) as e:
+        print(f"cufund: {e}", file=sys.stderr)
+        return EXIT_INVALID
+    print(json.dumps(figures, indent=2))
+    print(f"odometry folder: {args.out.resolve()}")
+    return EXIT_COMPLETED
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if args.command == "allan":
+        try:
+            return allan_report.run(args)
+        except ValueError as e:
+            print(f"cufund: {e}", file=sys.stderr)
+            return EXIT_INVALID
+    if args.command == "sweep":
+        from .sweep import cli as sweep_cli
+
+        return sweep_cli.run_cli(args)
+    if args.command == "list":
+        return _list()
+    if args.command in _SERVERS:
+        return importlib.import_module(_SERVERS[args.command][0]).run(args)
+    if args.command == "odometry":
+        return _odometry(args)
+    if args.command == "replay":
+        from . import log_replay
+
+        try:
+            return log_replay.run(args)
+        except (ConfigError, ValueError, OSError) as e:
+            print(f"cufund: {e}", file=sys.stderr)
+            return EXIT_INVALID
+    return _run(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

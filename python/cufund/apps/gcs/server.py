@@ -1,0 +1,421 @@
+"""The web ground station's server: one page, a websocket and an HTTP API in front of a live run (tornado).
+
+Routes (every one but the static assets needs the token, as ``?token=`` or ``Authorization: Bearer``; 403
+without it):
+
+- ``GET /`` the page; ``GET /static/...`` its scripts (``view.js``, the 3-D view, runs in a Web Worker) and style;
+  ``GET /meshcat/main.min.js`` MeshCat's bundle, for its three.js, served from the installed ``meshcat`` package
+  (MeshCat's own server is never started: it binds every interface).
+- ``GET /api/stats`` the server's own figures: CPU time of its event-loop thread (everything but the simulation),
+  open tabs, telemetry messages broadcast.
+- ``GET /api/state`` the telemetry as JSON; ``POST /api/command`` a JSON command (``{"command": "arm"}``, ...) →
+  its acknowledgement ``{"command", "result", "message"}`` (HTTP 400 for a malformed one).
+- ``GET /ws`` the page's websocket. Server → page: JSON ``hello`` (the scene and everything needed to catch up),
+  ``telemetry`` (at ``telemetry_hz``, and at once when the commander has applied a command), ``events``, ``planned``, ``esdf``, ``ack``, ``error``, ``pong``; binary
+  frames are LiDAR clouds (float32 ``[t, n, x, y, z, ...]``, world frame) for tabs with the cloud layer on.
+  Page → server: ``{"type": "command", "id": n, "command": {...}}``, ``{"type": "layers", "cloud": bool}``,
+  ``{"type": "ping", ...}``, ``{"type": "seen", "telemetry": n, "cloud": m}`` (messages of each stream processed
+  on this connection: from then on at most :data:`IN_FLIGHT` are unread, the rest skipped). Anything else gets an
+  ``error`` reply; the run goes on.
+
+Commands the ground station handles itself (the rest go to the vehicle's commander): ``sim_pause``,
+``sim_resume``, ``sim_speed {speed}`` (0.1-10, or "inf"), ``sim_restart {scenario}`` (a new live run, with the
+command line's overrides only if it is the command line's scenario; every tab gets its scene), ``tunnel_start`` (restart with the ``tunnel`` scenario), ``mission_preview {formula, regions}``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import math
+import secrets
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import tornado.httpserver
+import tornado.ioloop
+import tornado.netutil
+import tornado.web
+import tornado.websocket
+
+from .mission_preview import preview_mission
+from .session import GcsSession, jsonable, position_of
+
+__all__ = ["GcsServer", "parse_speed"]
+
+STATIC_DIR = Path(__file__).parent / "static"
+ACK_TIMEOUT_S = 3.0
+"""How long a command waits for the commander's acknowledgement before the reply says ``in_progress``."""
+IN_FLIGHT = {"telemetry": 8, "cloud": 2}
+"""Messages of each stream a tab that acknowledges them (``seen``) may have unread: a busy tab gets fresh data late
+rather than stale data in order."""
+LOCAL = ("sim_pause", "sim_resume", "sim_speed", "sim_restart", "tunnel_start", "mission_preview")
+
+
+def parse_speed(value: Any) -> float:
+    """A simulation speed: a number in [0.1, 10] times real time, or ``inf``/``max`` (as fast as possible)."""
+    if isinstance(value, str) and value.strip().lower() in ("inf", "max", "fast"):
+        return math.inf
+    try:
+        speed = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"speed must be a number in [0.1, 10] or 'inf', got {value!r}") from None
+    if not (math.isinf(speed) and speed > 0) and not 0.1 <= speed <= 10.0:
+        raise ValueError(f"speed must be a number in [0.1, 10] or 'inf', got {value!r}")
+    return speed
+
+
+def _meshcat_dist() -> Path:
+    from cufund.viz.meshcat_scene import import_meshcat
+
+    return Path(import_meshcat().__file__).parent / "viewer" / "dist"
+
+
+def _default_live(scenario: str, overrides: tuple[str, ...], speed: float) -> Any:
+    from ..live import LiveRun
+    from cufund.scenarios.schema import parse_overrides
+
+    return LiveRun(scenario, parse_overrides(list(overrides)), speed)
+
+
+class GcsServer:
+    """A live run of ``scenario`` and the ground station serving it (see the module docstring).
+
+    Call :meth:`start` inside a running asyncio loop; it returns the page's URL. ``live_factory(scenario,
+    overrides, speed)`` makes the live run (default :class:`cufund.apps.live.LiveRun`).
+    """
+
+    def __init__(self, scenario: str, overrides: tuple[str, ...] = (), speed: float = 1.0, host: str = "127.0.0.1",
+                 port: int = 0, token: str | None = None, telemetry_hz: float = 50.0,
+                 live_factory: Callable[[str, tuple[str, ...], float], Any] = _default_live,
+                 foxglove: Any = None) -> None:
+        if not (isinstance(telemetry_hz, (int, float)) and 1.0 <= telemetry_hz <= 200.0):
+            raise ValueError(f"telemetry_hz must be a number in [1, 200], got {telemetry_hz!r}")
+        self.scenario = self.first_scenario = scenario
+        self.overrides = tuple(overrides)
+        self.speed = parse_speed(speed)
+        self.host = host
+        self.port = int(port)
+        self.token = token or secrets.token_urlsafe(24)
+        self.telemetry_hz = float(telemetry_hz)
+        self.live_factory = live_factory
+        self.foxglove = foxglove
+        self.session: GcsSession | None = None
+        self.clients: set[SocketHandler] = set()
+        self.seq = 0
+        self._http: tornado.httpserver.HTTPServer | None = None
+        self._ticker: tornado.ioloop.PeriodicCallback | None = None
+        self._esdf_sent: Any = None
+        self._restarting = False
+        self._paused = False
+        self._last_error = ""
+
+    # ---- lifecycle -----------------------------------------------------------------------------------------
+    def start(self) -> str:
+        """Builds the live run, binds the port and starts broadcasting; returns the page's URL (with token)."""
+        self._open(self.live_factory(self.scenario, self.overrides, self.speed), self.scenario)
+        app = tornado.web.Application([
+            (r"/", PageHandler, {"gcs": self}),
+            (r"/api/state", StateHandler, {"gcs": self}),
+            (r"/api/stats", StatsHandler, {"gcs": self}),
+            (r"/api/command", CommandHandler, {"gcs": self}),
+            (r"/ws", SocketHandler, {"gcs": self}),
+            (r"/static/(.*)", tornado.web.StaticFileHandler, {"path": str(STATIC_DIR)}),
+            (r"/meshcat/(main\.min\.js)", tornado.web.StaticFileHandler, {"path": str(_meshcat_dist())}),
+        ], websocket_max_message_size=1 << 20)
+        sockets = tornado.netutil.bind_sockets(self.port, address=self.host)
+        self.port = sockets[0].getsockname()[1]
+        self._http = tornado.httpserver.HTTPServer(app, max_body_size=1 << 20)
+        self._http.add_sockets(sockets)
+        self._ticker = tornado.ioloop.PeriodicCallback(self._tick, 1000.0 / self.telemetry_hz)
+        self._ticker.start()
+        shown = "127.0.0.1" if self.host in ("", "0.0.0.0", "::") else self.host
+        return f"http://{shown}:{self.port}/?token={self.token}"
+
+    def _open(self, live: Any, scenario: str) -> None:
+        self.session = GcsSession(live, scenario)
+        add = getattr(live, "add_listener", None)
+        if add is not None:
+            add(self.session.sample_esdf, 1.0)
+        self._esdf_sent = None
+        self._paused = False
+
+    def stop(self) -> None:
+        """Stops broadcasting, closes every websocket and the port, and stops the live run."""
+        if self._ticker is not None:
+            self._ticker.stop()
+        for c in list(self.clients):
+            c.close()
+        if self._http is not None:
+            self._http.stop()
+        if self.session is not None:
+            self.session.live.stop()
+
+    # ---- broadcasting --------------------------------------------------------------------------------------
+    def _tick(self) -> None:
+        session = self.session
+        if session is None or self._restarting:
+            return
+        try:
+            tel = session.poll()
+            events = session.new_events()
+        except Exception as exc:  # noqa: BLE001 - a failing run must not stop the server; show why (once)
+            message = f"telemetry: {type(exc).__name__}: {exc}"
+            if message != self._last_error:
+                self._last_error = message
+                self.broadcast({"type": "error", "message": message})
+            return
+        self._last_error = ""
+        if not self.clients and self.foxglove is None:
+            return  # the path and history above still grow for the next tab
+        self.seq += 1
+        text = json.dumps({"type": "telemetry", "seq": self.seq, "wall": time.time(), "paused": self._paused,
+                           "speed": None if math.isinf(self.speed) else self.speed, **tel})
+        for c in list(self.clients):
+            c.send(text, stream="telemetry")
+        if events:
+            self.broadcast({"type": "events", "events": events})
+        if session.planned_changed:
+            session.planned_changed = False
+            self.broadcast({"type": "planned", "planned": session.planned, "planned_label": session.planned_label})
+        if any(c.cloud for c in self.clients) or self.foxglove is not None:
+            cloud = session.new_cloud()
+            if cloud is not None:
+                for c in list(self.clients):
+                    if c.cloud:
+                        c.send(cloud, stream="cloud")
+                if self.foxglove is not None:
+                    self.foxglove.cloud(cloud)
+        if session.esdf is not None and session.esdf is not self._esdf_sent:
+            self._esdf_sent = session.esdf
+            self.broadcast(session.esdf)
+        if self.foxglove is not None:
+            self.foxglove.telemetry(tel, events)
+
+    def broadcast(self, message: dict[str, Any]) -> None:
+        text = json.dumps(message)
+        for c in list(self.clients):
+            c.send(text)
+
+    # ---- commands ------------------------------------------------------------------------------------------
+    async def execute(self, command: Any) -> dict[str, Any]:
+        """Runs one command; returns its acknowledgement. A malformed command raises ``ValueError`` or
+        ``TypeError``."""
+        if not isinstance(command, dict) or not isinstance(command.get("command"), str):
+            raise TypeError(f"a command is an object with a 'command' name, got {command!r}")
+        name = command["command"]
+        session = self.session
+        if session is None or self._restarting:
+            return {"command": name, "result": "denied", "message": "the simulation is restarting"}
+        if name in LOCAL:
+            ack = await self._local(name, command)
+        else:
+            ack = await self._vehicle(name, command)
+        self.broadcast({"type": "events", "events": [session.log(
+            {"t": session.telemetry.get("t"), "kind": "command", "message":
+             f"{name}: {ack['result']}" + (f" ({ack['message']})" if ack.get("message") else "")})]})
+        return ack
+
+    async def _vehicle(self, name: str, command: dict[str, Any]) -> dict[str, Any]:
+        session = self.session
+        assert session is not None
+        future = session.live.submit(command)  # a malformed command raises ValueError here or in the future
+        # the commander's new state (a go-to's target) goes to every tab as soon as it is applied: scheduled on the
+        # event loop straight from the simulation thread, not with the next tick nor after the ack's way back here
+        loop = asyncio.get_running_loop()
+
+        def push(_: Any) -> None:
+            with contextlib.suppress(RuntimeError):  # the loop has closed: the server stopped meanwhile
+                loop.call_soon_threadsafe(self._tick)
+
+        future.add_done_callback(push)
+        try:
+            ack = await asyncio.wait_for(asyncio.wrap_future(future), ACK_TIMEOUT_S)
+        except asyncio.TimeoutError:
+            return {"command": name, "result": "in_progress",
+                    "message": "queued; the commander applies it when the simulation runs"}
+        reply = {"command": name, "result": str(getattr(ack, "result", ack)),
+                 "message": str(getattr(ack, "message", ""))}
+        extra = getattr(ack, "data", None)
+        if extra is not None:
+            reply["data"] = jsonable(extra)
+        return reply
+
+    async def _local(self, name: str, command: dict[str, Any]) -> dict[str, Any]:
+        session = self.session
+        assert session is not None
+        live = session.live
+        if name == "sim_pause":
+            live.pause()
+            self._paused = True
+        elif name == "sim_resume":
+            live.resume()
+            self._paused = False
+        elif name == "sim_speed":
+            self.speed = parse_speed(command.get("speed"))
+            live.set_speed(self.speed)
+        elif name == "mission_preview":
+            p = position_of(session.telemetry)
+            plan = preview_mission(command, session.regions(), p if p is not None else np.zeros(3))
+            start = [] if p is None else [p.tolist()]
+            self.broadcast(session.set_planned(start + plan["waypoints_W"], "LTLf: " + " → ".join(plan["regions"])))
+            return {"command": name, "result": "accepted", "message": f"{len(plan['regions'])} regions, "
+                    f"{plan['length']:.2f} m", "data": plan}
+        else:
+            scenario = "tunnel" if name == "tunnel_start" else command.get("scenario", session.scenario)
+            if not isinstance(scenario, str) or not scenario:
+                raise TypeError(f"sim_restart needs 'scenario', a scenario name or path, got {scenario!r}")
+            await self._restart(scenario)
+            return {"command": name, "result": "accepted", "message": f"running {scenario}"}
+        return {"command": name, "result": "accepted", "message": ""}
+
+    async def _restart(self, scenario: str) -> None:
+        """Replaces the live run by a new one of ``scenario`` (built off the event loop); every tab gets the new
+        scene. The old run goes on if the new one cannot be built."""
+        old = self.session
+        assert old is not None
+        self._restarting = True
+        loop = asyncio.get_running_loop()
+        try:
+            # the command line's --set overrides belong to its scenario, not to another one
+            overrides = self.overrides if scenario == self.first_scenario else ()
+            live = await loop.run_in_executor(None, self.live_factory, scenario, overrides, self.speed)
+        except Exception as exc:
+            self._restarting = False
+            raise ValueError(f"cannot start scenario {scenario!r}: {exc}") from exc
+        await loop.run_in_executor(None, old.live.stop)
+        self._open(live, scenario)
+        self.scenario = scenario
+        self._restarting = False
+        for c in list(self.clients):
+            c.send(json.dumps(self.session.catch_up()))  # type: ignore[union-attr]
+
+
+def authorized(handler: tornado.web.RequestHandler, token: str) -> bool:
+    given = handler.get_query_argument("token", None)
+    header = handler.request.headers.get("Authorization", "")
+    if given is None and header.lower().startswith("bearer "):
+        given = header[7:].strip()
+    return given is not None and secrets.compare_digest(given.encode(), token.encode())
+
+
+class _Guarded(tornado.web.RequestHandler):
+    def initialize(self, gcs: GcsServer) -> None:
+        self.gcs = gcs
+
+    def prepare(self) -> None:
+        if not authorized(self, self.gcs.token):
+            raise tornado.web.HTTPError(403, reason="token required (?token= or Authorization: Bearer)")
+
+    def set_default_headers(self) -> None:
+        self.set_header("Cache-Control", "no-store")
+
+
+class PageHandler(_Guarded):
+    def get(self) -> None:
+        self.set_header("Content-Type", "text/html; charset=utf-8")
+        self.write((STATIC_DIR / "index.html").read_bytes())
+
+
+class StateHandler(_Guarded):
+    def get(self) -> None:
+        session = self.gcs.session
+        self.write(jsonable(session.live.telemetry()) if session is not None else {})
+
+
+class CommandHandler(_Guarded):
+    async def post(self) -> None:
+        try:
+            command = json.loads(self.request.body or b"null")
+            ack = await self.gcs.execute(command)
+        except (ValueError, TypeError) as exc:  # JSON decoding errors and the commander's parsing too
+            self.set_status(400)
+            self.write({"result": "failed", "message": str(exc)})
+            return
+        self.write(ack)
+
+
+class StatsHandler(_Guarded):
+    def get(self) -> None:
+        self.write({"io_thread_cpu_s": time.thread_time(), "tabs": len(self.gcs.clients), "telemetry_sent": self.gcs.seq})
+
+
+class SocketHandler(tornado.websocket.WebSocketHandler):
+    def initialize(self, gcs: GcsServer) -> None:
+        self.gcs = gcs
+        self.cloud = False
+        self._pending: dict[str, Any] = {}
+        self.sent = dict.fromkeys(IN_FLIGHT, 0)
+        self.seen: dict[str, int] | None = None
+        """What the tab has processed of each stream (None until it says: then flow control applies)."""
+
+    async def get(self, *args: Any, **kwargs: Any) -> None:
+        if not authorized(self, self.gcs.token):
+            self.set_status(403)
+            self.finish("token required")
+            return
+        await super().get(*args, **kwargs)
+
+    def open(self, *args: Any, **kwargs: Any) -> None:
+        self.set_nodelay(True)
+        self.gcs.clients.add(self)
+        session = self.gcs.session
+        if session is not None:
+            self.send(json.dumps(session.catch_up()))
+
+    def on_close(self) -> None:
+        self.gcs.clients.discard(self)
+
+    def send(self, message: str | bytes, stream: str = "") -> None:
+        """Writes ``message``. On a named ``stream`` (telemetry, clouds) a message is skipped while the previous one
+        of that stream has not left yet: a slow or dead tab must not queue unbounded data."""
+        pending = self._pending.get(stream)
+        if stream and pending is not None and not pending.done():
+            return
+        if stream and self.seen is not None and self.sent[stream] - self.seen[stream] >= IN_FLIGHT[stream]:
+            return
+        try:
+            future = self.write_message(message, binary=isinstance(message, bytes))
+        except tornado.websocket.WebSocketClosedError:
+            self.gcs.clients.discard(self)
+            return
+        if stream:
+            self._pending[stream] = future
+            self.sent[stream] += 1
+
+    def on_message(self, message: str | bytes) -> None:
+        try:
+            if isinstance(message, bytes):
+                raise TypeError("messages must be JSON text, got a binary frame")
+            data = json.loads(message)
+            if not isinstance(data, dict) or not isinstance(data.get("type"), str):
+                raise TypeError("a message is a JSON object with a 'type' (command, layers or ping)")
+            kind = data["type"]
+            if kind == "command":
+                asyncio.ensure_future(self._command(data.get("id"), data.get("command")))
+            elif kind == "layers":
+                self.cloud = bool(data.get("cloud", self.cloud))
+            elif kind == "seen":
+                self.seen = {s: int(data.get(s, 0)) for s in IN_FLIGHT}
+            elif kind == "ping":
+                self.send(json.dumps({**data, "type": "pong", "wall": time.time()}))
+            else:
+                raise ValueError(f"unknown message type {kind!r}; expected command, layers, seen or ping")
+        except (ValueError, TypeError) as exc:
+            self.send(json.dumps({"type": "error", "message": str(exc)}))
+
+    async def _command(self, ident: Any, command: Any) -> None:
+        try:
+            ack = await self.gcs.execute(command)
+        except (ValueError, TypeError) as exc:
+            ack = {"command": command.get("command") if isinstance(command, dict) else None, "result": "failed",
+                   "message": str(exc)}
+        except Exception as exc:  # noqa: BLE001 - the page gets the reason; the server stays up
+            print(f"cufund gcs: {type(exc).__name__}: {exc}", file=sys.stderr)
+            ack = {"command": None, "result": "failed", "message": f"{type(exc).__name__}: {exc}"}
+        self.send(json.dumps({"type": "ack", "id": ident, **ack}))

@@ -1,0 +1,202 @@
+"""`cufund replay RUN.mcap`: re-opens a run's log in the MeshCat viewer (served on 127.0.0.1).
+
+Shows the vehicle at its true pose (``/truth/odometry``) with its flown path, the estimate (``/estimator/odometry``,
+a translucent green box and path) when the log has one, and each LiDAR frame (``/sensors/lidar``) in the world
+frame: its points, in the LiDAR frame, moved by the LiDAR's mounting ``T_BL`` and the body pose at the frame's
+stamp (the estimate when there is one — what a mapper would use — else the truth; per-point motion within a
+frame is not undone). The vehicle's shape and ``T_BL`` come from the run folder's ``config.yaml`` beside the
+log when there is one, else from ``--vehicle`` and the identity.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cufund.control.rotations import quat_to_rotation
+from cufund.logs import McapReadError, log_metadata, log_topics, read_mcap
+from cufund.vehicle.params import QuadrotorParams
+from cufund.viz.meshcat_scene import FLOWN, VEHICLE, draw_path, draw_vehicle, import_meshcat, pose_matrix
+
+__all__ = ["ReplayStats", "add_arguments", "replay_log", "run"]
+
+TRUTH, ESTIMATE, LIDAR = "/truth/odometry", "/estimator/odometry", "/sensors/lidar"
+ESTIMATE_VEHICLE, ESTIMATED, CLOUD = "estimate", "estimated", "lidar"
+"""MeshCat paths of the estimated pose, the estimated path and the current LiDAR frame."""
+
+
+@dataclass(frozen=True)
+class ReplayStats:
+    """What a replay drew."""
+
+    frames: int
+    """Viewer frames (vehicle poses) sent."""
+    clouds: int
+    """LiDAR frames drawn."""
+    duration_s: float
+    """Log time covered [s]."""
+
+
+def replay_log(path: str | Path, vis: Any, params: QuadrotorParams, *, speed: float = 1.0, rate_hz: float = 25.0,
+               T_BL: tuple[np.ndarray, np.ndarray] | None = None,
+               sleep: Callable[[float], None] = time.sleep,
+               clock: Callable[[], float] = time.perf_counter) -> ReplayStats:
+    """Plays the log at ``path`` into the MeshCat visualizer ``vis`` at ``rate_hz`` viewer frames per second of
+    log time, ``speed`` times real time (0: as fast as possible; ``sleep`` and ``clock`` pace it). ``T_BL``: the
+    LiDAR's mounting (p_BL, q_BL [w, x, y, z]); identity when None."""
+    if not (np.isfinite(speed) and speed >= 0):
+        raise ValueError(f"speed must be a finite number >= 0 (0: as fast as possible), got {speed!r}")
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
+    available = log_topics(path)
+    topics = [t for t in (TRUTH, ESTIMATE, LIDAR) if t in available]
+    if TRUTH not in topics and ESTIMATE not in topics:
+        raise ValueError(f"{str(path)!r} has neither {TRUTH} nor {ESTIMATE}; it has {sorted(available)}")
+    p_BL, R_BL = (np.zeros(3), np.eye(3)) if T_BL is None else (np.asarray(T_BL[0], float),
+                                                                 quat_to_rotation(np.asarray(T_BL[1], float)))
+    meshcat = import_meshcat()
+    g = meshcat.geometry
+    vis.delete()
+    draw_vehicle(vis, params)
+    # the camera of replay.html: 2.6 m south-east of the origin and 2.6 m up (MeshCat's y-up camera frame)
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [2.0, 2.6, 2.6])
+    if ESTIMATE in topics:
+        d = params.arm_length
+        vis[ESTIMATE_VEHICLE].set_object(g.Box([2 * d, 2 * d, 0.3 * d]),
+                                         g.MeshLambertMaterial(color=0x2ca02c, opacity=0.4, transparent=True))
+
+    period_ns = int(round(1e9 / rate_hz))
+    latest: dict[str, Any] = {}
+    paths: dict[str, list[np.ndarray]] = {TRUTH: [], ESTIMATE: []}
+    frames = clouds = 0
+    next_frame: int | None = None
+    first_ns = last_ns = 0
+    wall0 = clock()
+
+    def draw_frame(now_ns: int) -> None:
+        nonlocal frames
+        for topic, node, path_node, color in ((TRUTH, VEHICLE, FLOWN, 0xd62728),
+                                              (ESTIMATE, ESTIMATE_VEHICLE, ESTIMATED, 0x2ca02c)):
+            odometry = latest.get(topic)
+            if odometry is None:
+                continue
+            vis[node].set_transform(pose_matrix(odometry.p_W, odometry.q_WB))
+            paths[topic].append(np.asarray(odometry.p_W, dtype=float))
+            if len(paths[topic]) >= 2 and frames % 5 == 4:
+                draw_path(vis, path_node, np.array(paths[topic]), color)
+        frames += 1
+        if speed > 0:
+            ahead = (now_ns - first_ns) / 1e9 / speed - (clock() - wall0)
+            if ahead > 0:
+                sleep(ahead)
+
+    for record in read_mcap(path, topics=topics):
+        if next_frame is None:
+            first_ns = next_frame = record.log_time_ns
+        while record.log_time_ns >= next_frame + period_ns and latest:
+            draw_frame(next_frame)
+            next_frame += period_ns
+        last_ns = record.log_time_ns
+        if record.topic == LIDAR:
+            body = latest.get(ESTIMATE) or latest.get(TRUTH)
+            if body is not None and len(record.message.points_L):
+                R_WB = quat_to_rotation(np.asarray(body.q_WB, dtype=float))
+                points_B = record.message.points_L.astype(np.float64) @ R_BL.T + p_BL
+                points_W = points_B @ R_WB.T + body.p_W
+                shade = np.clip(0.3 + 0.7 * np.asarray(record.message.intensity, dtype=np.float64), 0.0, 1.0)
+                colors = np.repeat(shade[None, :], 3, axis=0).astype(np.float32)
+                vis[CLOUD].set_object(g.PointCloud(points_W.T.astype(np.float32), colors, size=0.03))
+                clouds += 1
+        else:
+            latest[record.topic] = record.message
+    if latest and next_frame is not None:
+        draw_frame(last_ns)
+        for topic, path_node, color in ((TRUTH, FLOWN, 0xd62728), (ESTIMATE, ESTIMATED, 0x2ca02c)):
+            if len(paths[topic]) >= 2:
+                draw_path(vis, path_node, np.array(paths[topic]), color)
+    return ReplayStats(frames, clouds, (last_ns - first_ns) / 1e9)
+
+
+def _speed(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--speed must be a number, got {text!r}") from None
+    if not (np.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"--speed must be >= 0 (0: as fast as possible), got {text!r}")
+    return value
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The ``cufund replay`` arguments."""
+    parser.add_argument("log", help="a run.mcap written by `cufund run`")
+    parser.add_argument("--speed", type=_speed, default=1.0, help="times real time; 0: as fast as possible")
+    parser.add_argument("--rate", type=float, default=25.0, help="viewer frames per second of log time")
+    parser.add_argument("--vehicle", default=None,
+                        help="vehicle preset to draw (default: the run folder's config.yaml, else cu_astro)")
+    parser.add_argument("--no-wait", action="store_true", help="do not keep the viewer up after the replay")
+
+
+def run_context(path: Path, vehicle: str | None) -> tuple[QuadrotorParams, tuple[np.ndarray, np.ndarray] | None]:
+    """The vehicle to draw and the LiDAR's mounting, from the run folder's ``config.yaml`` when it loads."""
+    from cufund.vehicle import presets
+
+    T_BL = None
+    params = None
+    config_path = path.parent / "config.yaml"
+    if config_path.is_file():
+        try:
+            from cufund.scenarios.schema import load_scenario
+
+            config = load_scenario(config_path)
+            params = config.vehicle_params()
+            for spec in (getattr(config, "sensors", None) or {}).values():
+                if str(getattr(spec, "topic", "")) == LIDAR and getattr(spec, "extrinsic", None) is not None:
+                    T_BL = (np.array(spec.extrinsic.t), np.array(spec.extrinsic.q))
+        except Exception as exc:  # noqa: BLE001 - a config from another version: draw the default vehicle
+            print(f"cufund replay: not using {config_path} ({exc})", file=sys.stderr)
+    if vehicle is not None:
+        factory = getattr(presets, vehicle, None)
+        if factory is None or not callable(factory) or vehicle.startswith("_"):
+            raise ValueError(f"unknown vehicle preset {vehicle!r}; try crazyflie, cu_astro or iris")
+        params = factory()
+    return params or presets.cu_astro(), T_BL
+
+
+def run(args: argparse.Namespace) -> int:
+    """``cufund replay``: 0 when the log was replayed, 2 when it cannot be read."""
+    path = Path(args.log)
+    try:
+        metadata = log_metadata(path)
+        params, T_BL = run_context(path, args.vehicle)
+    except (McapReadError, ValueError) as exc:
+        print(f"cufund replay: {exc}", file=sys.stderr)
+        return 2
+    from cufund.viz.meshcat_server import start_server
+
+    vis, server = start_server()
+    print(f"MeshCat: open {vis.window.web_url}", flush=True)
+    try:
+        stats = replay_log(path, vis, params, speed=args.speed, rate_hz=args.rate, T_BL=T_BL)
+        print(f"replayed {stats.duration_s:.1f} s of {metadata.get('scenario', path.name)}: {stats.frames} frames, "
+              f"{stats.clouds} LiDAR frames")
+        if not args.no_wait and sys.stdin.isatty():
+            try:
+                input("The viewer stays up until you press Enter (or Ctrl-C). ")
+            except (KeyboardInterrupt, EOFError):
+                pass
+    except (McapReadError, ValueError) as exc:
+        print(f"cufund replay: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        vis.window.zmq_socket.close()
+        server.terminate()
+        server.wait(timeout=10)
+    return 0

@@ -1,0 +1,164 @@
+"""Loading typed, frozen configuration dataclasses from plain dicts and YAML, with clear errors."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+import yaml
+
+from .errors import ConfigError
+from .limits import current
+
+T = TypeVar("T")
+
+
+def from_dict(cls: type[T], data: Any, where: str | None = None) -> T:
+    """Builds dataclass ``cls`` from a mapping, rejecting unknown keys by name.
+
+    Field conversion and validation are the dataclass's own (its ``__post_init__``); this only checks
+    that ``data`` is a mapping whose keys are fields of ``cls``.
+    """
+    where = where or cls.__name__
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where} must be a mapping of field names to values, got {type(data).__name__}")
+    names = [f.name for f in dataclasses.fields(cls) if f.init]  # type: ignore[arg-type]
+    unknown = sorted(set(data) - set(names))
+    if unknown:
+        raise ConfigError(f"unknown key {unknown[0]!r} in {where}; expected one of: {', '.join(names)}")
+    required = [f.name for f in dataclasses.fields(cls)  # type: ignore[arg-type]
+                if f.init and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    missing = [name for name in required if name not in data]
+    if missing:
+        raise ConfigError(f"missing key {missing[0]!r} in {where}; required: {', '.join(required)}")
+    return cls(**data)
+
+
+def nested(cls: type[T], value: Any, where: str) -> T:
+    """A dataclass field that holds another dataclass: ``value`` itself if it is a ``cls``, else ``cls`` built
+    from the mapping ``value`` by :func:`from_dict` (None: all defaults)."""
+    if isinstance(value, cls):
+        return value
+    return from_dict(cls, {} if value is None else value, where)
+
+
+def check_real_fields(obj: Any, where: str, positive: bool = False, unit: str = "",
+                      names: tuple[str, ...] | None = None) -> None:
+    """Makes the fields ``names`` (default: every field) of the frozen dataclass ``obj`` floats, requiring a
+    finite number >= 0 (> 0 when ``positive``); the error names ``where.field``."""
+    bound = "> 0" if positive else ">= 0"
+    for name in names if names is not None else [f.name for f in dataclasses.fields(obj)]:
+        v = getattr(obj, name)
+        if (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                or v < 0 or (positive and v == 0)):
+            raise ConfigError(f"{where}.{name} must be a finite number {bound}{unit}, got {v!r}")
+        object.__setattr__(obj, name, float(v))
+
+
+def real_number(name: str, value: Any) -> float:
+    """``value`` as a float if it is a real number (not a bool); else a ConfigError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
+        raise ConfigError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
+    return float(value)
+
+
+def vector3(name: str, value: Any, unit: str = "", finite: bool = False) -> tuple[float, float, float]:
+    """``value`` as 3 floats (``finite``: all finite); else a ConfigError naming ``name`` and ``unit``."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise ConfigError(f"{name} must be 3 real numbers{unit}: {e}") from None
+    if a.shape != (3,) or (finite and not np.all(np.isfinite(a))):
+        what = "finite real numbers" if finite else "real numbers"
+        raise ConfigError(f"{name} must be 3 {what}{unit}, got {value!r}")
+    return (float(a[0]), float(a[1]), float(a[2]))
+
+
+def load_yaml(path: str | Path) -> Any:
+    """Parses a YAML file; a syntax error names the file and line.
+
+    Bounded (see :mod:`cufund.core.limits`): the file size, the nesting depth, alias uses and the size of the
+    document with its aliases expanded, so that a "billion laughs" or self-referencing file fails fast
+    with :class:`ConfigError` instead of filling the memory.
+    """
+    lim = current()
+    path = Path(path)
+    size = path.stat().st_size
+    if size > lim.yaml_max_bytes:
+        raise ConfigError(f"{path}: the file is {size} bytes, more than yaml_max_bytes = {lim.yaml_max_bytes} "
+                          "(cufund.core.limits.configure(yaml_max_bytes=...))")
+    try:
+        text = path.read_text(encoding="utf-8")
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        if node is None:
+            return None
+        _check_yaml_graph(node, path, lim)
+        return yaml.safe_load(text)
+    except RecursionError:
+        raise ConfigError(f"{path}: nesting deeper than yaml_max_depth = {lim.yaml_max_depth}") from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"{path}: not UTF-8 text: {e}") from None
+    except yaml.YAMLError as e:
+        raise ConfigError(f"{path}: invalid YAML: {e}") from e
+
+
+def _check_yaml_graph(root: yaml.Node, path: Path, lim: Any) -> None:
+    """Depth, alias uses, expanded size and cycles of a composed YAML node graph (an alias is the anchored
+    node itself, reached a second time), walked iteratively in time linear in the distinct nodes."""
+
+    def children(n: yaml.Node) -> list[yaml.Node]:
+        if isinstance(n, yaml.MappingNode):
+            return [x for kv in n.value for x in kv]
+        if isinstance(n, yaml.SequenceNode):
+            return list(n.value)
+        return []
+
+    where = f"{path}"
+    done: dict[int, tuple[int, int]] = {}  # id -> (nodes with aliases expanded, depth)
+    on_path: set[int] = set()
+    aliases = 0
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        n, finished = stack.pop()
+        key = id(n)
+        if finished:
+            on_path.discard(key)
+            kids = children(n)
+            size = 1 + sum(done[id(c)][0] for c in kids)
+            depth = 1 + max((done[id(c)][1] for c in kids), default=0)
+            if depth > lim.yaml_max_depth:
+                raise ConfigError(f"{where}: nesting deeper than yaml_max_depth = {lim.yaml_max_depth} "
+                                  f"(line {n.start_mark.line + 1})")
+            if size > lim.yaml_max_nodes:
+                raise ConfigError(f"{where}: more than yaml_max_nodes = {lim.yaml_max_nodes} values with aliases "
+                                  f"expanded (line {n.start_mark.line + 1}: a 'billion laughs' file?)")
+            done[key] = (size, depth)
+            continue
+        if key in done:
+            aliases += 1
+            if aliases > lim.yaml_max_aliases:
+                raise ConfigError(f"{where}: more than yaml_max_aliases = {lim.yaml_max_aliases} alias uses")
+            continue
+        if key in on_path:
+            raise ConfigError(f"{where}: an alias refers to a value that contains it (line {n.start_mark.line + 1})")
+        on_path.add(key)
+        stack.append((n, True))
+        stack.extend((c, False) for c in children(n))
+
+
+def to_dict(obj: Any) -> dict[str, Any]:
+    """A dataclass as plain Python data (nested dataclasses become dicts, tuples lists) suitable for
+    ``yaml.safe_dump``."""
+
+    def plain(x: Any) -> Any:
+        if dataclasses.is_dataclass(x) and not isinstance(x, type):
+            return {f.name: plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
+        if isinstance(x, (tuple, list)):
+            return [plain(v) for v in x]
+        return x
+
+    return {f.name: plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}

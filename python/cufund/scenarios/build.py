@@ -1,0 +1,312 @@
+"""Building a scenario's component graph, validating it, running it, and measuring what its parts allow."""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cufund.core.config import ConfigError
+from cufund.sensors.faults import fault_summary, inject_faults
+from cufund.core.messages import Odometry, Topics
+from cufund.vehicle.quadrotor import Quadrotor
+from cufund.core.registry import lookup
+from .schema import PartSpec, ScenarioConfig, TrajectoryConfig
+from cufund.simulator import SimulationResult, Simulator
+from cufund.worlds.collision import CollisionChecker
+
+__all__ = ["BuildContext", "Built", "RunSummary", "ScenarioRun", "build_simulation", "odometry_metrics", "run_built",
+           "run_scenario",
+           "tracking_metrics"]
+
+
+class BuildContext:
+    """What a kind's ``build(params, ctx)`` may use: the scenario, the vehicle's params, the world, the sensors
+    and their extrinsics, and the part being built (``part``, ``where``, ``seed``)."""
+
+    def __init__(self, config: ScenarioConfig) -> None:
+        self.config = config
+        self.vehicle = config.vehicle_params()
+        self.base_dir = config.base_dir
+        self.world: Any = None
+        self.part: PartSpec | None = None
+        self.where = ""
+        self.seed = 0
+        self.reference: Any = None
+        self.tracking_path: Any = None
+        self.done: Any = None
+        """``done(t, truth) -> bool`` ending a run whose landing time a planner only learns in flight."""
+        self.metric_hooks: list[Any] = []
+        """``hook(result) -> dict`` merged into the run's metrics (e.g. a replanner's planning metrics)."""
+        self.output_hooks: list[Any] = []
+        """``hook(run, out)`` writes a part's own files into the run folder ``out`` (e.g. a mission's plots)."""
+
+    def seed_for(self, where: str) -> int:
+        """The seed of the random stream of the part at ``where`` (e.g. ``sensors.lidar``): derived from the
+        scenario seed and the name, so adding a part does not change another's stream."""
+        return int(np.random.SeedSequence([self.config.seed, zlib.crc32(where.encode())]).generate_state(1)[0])
+
+    def require_world(self) -> Any:
+        if self.world is None:
+            raise ConfigError(f"{self.where} needs a world to sense (set world: ..., e.g. world: empty)")
+        return self.world
+
+    def sensor_of_type(self, sensor_type: str, name: str = "", where: str = "") -> tuple[str, PartSpec]:
+        """The sensor called ``name``, or the only sensor of ``sensor_type`` (or the one named after the type)."""
+        sensors = self.config.sensors
+        where = where or self.where
+        if name:
+            spec = sensors.get(name)
+            if spec is None or spec.sensor_type != sensor_type:
+                raise ConfigError(f"{where}: no {sensor_type} sensor named {name!r} in sensors")
+            return name, spec
+        found = [(n, s) for n, s in sensors.items() if s.sensor_type == sensor_type]
+        if len(found) > 1:
+            named = [(n, s) for n, s in found if n == sensor_type]
+            if named:
+                return named[0]
+            raise ConfigError(f"{where}: several {sensor_type} sensors ({', '.join(n for n, _ in found)}); name one")
+        if not found:
+            raise ConfigError(f"{where} needs a {sensor_type} sensor; add one under sensors")
+        return found[0]
+
+    def imu_params(self) -> Any:
+        """The IMU's params with its mounting applied (None without an IMU)."""
+        try:
+            _, spec = self.sensor_of_type("imu")
+        except ConfigError:
+            return None
+        p = spec.params
+        if spec.extrinsic is not None:
+            import dataclasses
+
+            p = dataclasses.replace(p, p_BI=spec.extrinsic.t, q_BI=spec.extrinsic.q)
+        return p
+
+    def trajectory(self) -> TrajectoryConfig:
+        return self.config.trajectory
+
+    def set_reference(self, reference: Any, tracking_path: Any = None) -> None:
+        """A planner declares the reference it flies (and the part of it tracking error is measured over)."""
+        self.reference, self.tracking_path = reference, tracking_path
+
+    def build(self, group: str, spec: PartSpec, where: str) -> Any:
+        kind = lookup(group, spec.kind, where)
+        self.part, self.where, self.seed = spec, where, self.seed_for(where)
+        try:
+            out = kind.build(spec.params, self)
+        except ConfigError:
+            raise
+        except (TypeError, ValueError) as e:
+            raise ConfigError(f"{where} ({spec.kind}): {e}") from None
+        if group == "world":
+            return out
+        components = list(out)
+        for c in components:
+            if spec.latency_s:
+                c.latency_s = spec.latency_s
+            if spec.phase_s:
+                c.phase_s = spec.phase_s
+        return components
+
+
+@dataclass
+class Built:
+    """A scenario ready to run."""
+
+    config: ScenarioConfig
+    simulator: Simulator
+    context: BuildContext
+    landing_after: float | None
+    """The reference ends (landed) at this time [s]; None without a reference."""
+
+
+def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logger: Any = None) -> Built:
+    """The vehicle, world, components and simulator of ``config``, validated: unknown kinds, bad params, an
+    unsatisfied input ("planner needs /map/esdf; nothing publishes it"), ground truth read by flight software,
+    or a zero-latency cycle raise :class:`ConfigError` naming the part — before anything runs."""
+    ctx = BuildContext(config)
+    if config.world is not None:
+        ctx.world = ctx.build("world", config.world, "world")
+    quad = Quadrotor(ctx.vehicle)
+    start = config.start_p_W or (config.trajectory.waypoints[0][0], config.trajectory.waypoints[0][1], 0.0)
+    quad.state.p[:] = start  # standing, rotors stopped
+    collision = None
+    if ctx.world is not None:
+        collision = CollisionChecker(ctx.world, box_size=config.collision_box, ignore_labels=("floor", "ground"))
+    record = [Topics.TRAJECTORY_SETPOINT, Topics.ATTITUDE_SETPOINT, Topics.ACTUATOR_COMMAND]
+    components: list[Any] = []
+    for name, spec in config.sensors.items():
+        components += ctx.build("sensor", spec, f"sensors.{name}")
+        record.append(spec.topic)
+    components = inject_faults(config.faults, config.sensors, components, ctx.seed_for)
+    for group in ("estimator", "mapper", "planner", "controller", "mission"):
+        spec = getattr(config, group)
+        if spec is not None:
+            components += ctx.build(group, spec, group)
+    if config.estimator is not None:
+        record += [Topics.ESTIMATE, Topics.ESTIMATOR_DIAGNOSTICS]
+    sim = Simulator(quad, physics_rate_hz=config.rates.physics_hz, record_topics=_recordable(record, components),
+                    collision=collision, logger=logger)
+    for c in (*components, *extra_components):
+        sim.add(c)
+    problems = sim.wiring()
+    if problems:
+        raise ConfigError("; ".join(problems))
+    landing_after = ctx.reference.t_end if ctx.reference is not None else None
+    return Built(config, sim, ctx, landing_after)
+
+
+def _recordable(record: list[Any], components: list[Any]) -> list[Any]:
+    """The topics worth keeping in memory for the run's plots and metrics (not point clouds or images)."""
+    published = {str(t) for c in components for t in c.outputs}
+    keep = []
+    for t in record:
+        if str(t) in published and str(t) not in {str(k) for k in keep} and not str(t).startswith(
+                ("/sensors/lidar", "/sensors/depth", "/sensors/rgb")) and getattr(t, "type", None).__name__ not in (
+                "PointCloud", "CameraImage"):
+            keep.append(t)
+    return keep
+
+
+@dataclass
+class RunSummary:
+    """What a run leaves behind, small and picklable: metrics, status, message and the run folder's files."""
+
+    metrics: dict[str, Any]
+    status: str
+    message: str
+    paths: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass
+class ScenarioRun:
+    """A finished scenario: the simulator's result, the flown reference, and the metrics of its parts."""
+
+    config: ScenarioConfig
+    result: SimulationResult
+    reference: Any
+    path: Any
+    """The part of the reference tracking error is measured over (the min-snap path), or None."""
+    metrics: dict[str, Any]
+    output_hooks: list[Any] = field(default_factory=list)
+    """The parts' ``hook(run, out)`` writing their own files into the run folder."""
+
+    def summary(self, paths: dict[str, str] | None = None) -> RunSummary:
+        return RunSummary(dict(self.metrics), self.result.status.value, self.result.message, dict(paths or {}))
+
+
+def run_scenario(config: ScenarioConfig, progress: bool = False, extra_components: tuple = (),
+                 logger: Any = None) -> ScenarioRun:
+    """Builds ``config`` (:func:`build_simulation`), runs it until the vehicle has landed after its reference (or
+    the duration elapses), and measures it: tracking error when there is a reference, odometry error when there is
+    an estimator (both against ground truth, which only these metrics read)."""
+    return run_built(build_simulation(config, extra_components, logger), progress)
+
+
+def run_built(built: Built, progress: bool = False) -> ScenarioRun:
+    """Runs a scenario made by :func:`build_simulation` (see :func:`run_scenario`)."""
+    config = built.config
+    t_landed = built.landing_after
+
+    def landed(t: float, truth: Odometry) -> bool:
+        return t_landed is not None and t >= t_landed and truth.p_W[2] < 0.02 and float(np.linalg.norm(truth.v_W)) < 0.05
+
+    ctx = built.context
+    result = built.simulator.run(config.duration, done=landed if t_landed is not None else ctx.done, progress=progress)
+    metrics = run_metrics(result)
+    if config.faults:
+        metrics["faults"] = fault_summary(config.faults)
+    if ctx.tracking_path is not None:
+        metrics.update(tracking_metrics(result, ctx.tracking_path))
+    if config.estimator is not None:
+        metrics.update(odometry_metrics(result))
+        diag = result.topics.get(str(Topics.ESTIMATOR_DIAGNOSTICS))
+        if diag:
+            used = np.asarray([s == "" for s in diag["skipped"]], dtype=bool)  # frames with a LiDAR constraint
+            ms = np.asarray(diag["time_ms"], dtype=float)[used]
+            if len(ms):
+                metrics.update({"lio_ms_per_scan_median": float(np.median(ms)), "lio_ms_per_scan_p99":
+                                float(np.percentile(ms, 99)), "lio_cpu_ms_per_scan_median":
+                                float(np.median(np.asarray(diag["cpu_ms"], dtype=float)[used]))})
+            metrics["lio_scans"] = int(len(ms))
+            metrics["lio_unhealthy_reports"] = int(np.count_nonzero(~np.asarray(diag["healthy"], dtype=bool)))
+    for hook in ctx.metric_hooks:  # last: a part may refine a generic figure (e.g. over its flight window only)
+        metrics.update(hook(result))
+    return ScenarioRun(config, result, ctx.reference, ctx.tracking_path, metrics, list(ctx.output_hooks))
+
+
+def run_metrics(result: SimulationResult) -> dict[str, Any]:
+    out: dict[str, Any] = {
+        "status": result.status.value,
+        "message": result.message,
+        "sim_time_s": result.sim_time_s,
+        "wall_time_s": result.wall_time_s,
+        "real_time_factor": result.real_time_factor,
+        "component_seconds": {k: round(v, 6) for k, v in result.component_seconds.items()},
+    }
+    if result.dropped:
+        out["dropped_messages"] = dict(result.dropped)
+    return out
+
+
+def tracking_metrics(result: SimulationResult, path: Any) -> dict[str, Any]:
+    """|true position - reference position| at every recorded state within the path's time span."""
+    t = result.states["t"]
+    m = (t >= path.t_knots[0]) & (t <= path.t_end)
+    err = np.linalg.norm(result.states["p_W"][m] - path.sample(t[m]).p_W, axis=1) if np.any(m) else None
+    return {  # None: the run ended before the path began
+        "tracking_rmse_m": None if err is None else float(np.sqrt(np.mean(err ** 2))),
+        "tracking_max_m": None if err is None else float(np.max(err)),
+        "tracking_min_m": None if err is None else float(np.min(err)),
+        "tracking_window_s": [float(path.t_knots[0]), float(path.t_end)],
+        "tracking_samples": int(np.count_nonzero(m)),
+    }
+
+
+def odometry_metrics(result: SimulationResult) -> dict[str, Any]:
+    """|p_true - p_est| and the attitude error angle at each estimator output, the true state interpolated at the
+    estimate's stamp (no alignment: the estimator starts from the known pad pose)."""
+    est = result.topics.get(str(Topics.ESTIMATE), {})
+    if not est:
+        return {"odometry_samples": 0}
+    t_est = np.asarray(est["t"], dtype=float)
+    ts, p, q = result.states["t"], result.states["p_W"], result.states["q_WB"]
+    ok = (t_est >= ts[0]) & (t_est <= ts[-1])
+    t_est = t_est[ok]
+    p_est = np.asarray(est["p_W"], dtype=float)[ok]
+    q_est = np.asarray(est["q_WB"], dtype=float)[ok]
+    p_true = np.stack([np.interp(t_est, ts, p[:, i]) for i in range(3)], axis=1)
+    i = np.clip(np.searchsorted(ts, t_est), 0, len(ts) - 1)  # the state record at (or right after) the stamp
+    dot = np.abs(np.sum(q[i] * q_est, axis=1)) / np.linalg.norm(q_est, axis=1)
+    ang = np.degrees(2 * np.arccos(np.clip(dot, 0.0, 1.0)))
+    err = np.linalg.norm(p_true - p_est, axis=1)
+    return {
+        "odometry_min_m": float(np.min(err)),
+        "odometry_rmse_m": float(np.sqrt(np.mean(err ** 2))),
+        "odometry_max_m": float(np.max(err)),
+        "odometry_rot_rmse_deg": float(np.sqrt(np.mean(ang ** 2))),
+        "odometry_samples": int(len(err)),
+    }
+
+
+def out_dir_problem(out: str | Path) -> str | None:
+    """Why a run folder cannot be written at ``out`` (None when it can), checked before a run starts."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        return f"--out {out}: exists and is not a folder"
+    parent = out
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"--out {out}: {parent} is not a folder"
+    import os
+
+    if not os.access(parent, os.W_OK | os.X_OK):
+        return f"--out {out}: {parent} is not writable"
+    return None
+
+

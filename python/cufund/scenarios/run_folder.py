@@ -1,0 +1,90 @@
+"""Writing a run folder: metrics.json, config.yaml (reproduces the run), trajectory.png and replay.html (when the
+run flew a reference); ``run.mcap`` is written while the run goes (see :func:`cufund.scenarios.build.run_scenario`'s
+``logger``)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from .build import ScenarioRun
+
+__all__ = ["run_into_folder", "write_run_folder"]
+
+
+def _json_safe(x: Any) -> Any:
+    if isinstance(x, float) and not math.isfinite(x):
+        return None if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    if isinstance(x, dict):
+        return {k: _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_json_safe(v) for v in x]
+    return x
+
+
+def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, replay: bool = True) -> Path:
+    """Writes the run's files into ``out`` (created if needed); returns the folder."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "metrics.json").write_text(json.dumps(_json_safe(run.metrics), indent=2) + "\n", encoding="utf-8")
+    with (out / "config.yaml").open("w", encoding="utf-8") as f:
+        f.write(f"# Reproduce with: cufund run {out / 'config.yaml'}\n")
+        yaml.safe_dump(run.config.to_dict(), f, sort_keys=False)
+    params = run.config.vehicle_params()
+    if plots and run.reference is not None and run.path is not None and run.metrics.get("tracking_rmse_m") is not None:
+        from cufund.viz.plots import plot_tracking
+
+        window = (float(run.path.t_knots[0]), run.path.t_end)
+        title = (f"{run.config.name}, {run.config.controller.kind if run.config.controller else 'no controller'}: "
+                 f"RMSE {100 * run.metrics['tracking_rmse_m']:.2f} cm, max {100 * run.metrics['tracking_max_m']:.2f} cm")
+        plot_tracking(out / "trajectory.png", run.result, run.reference, window, title)
+    if replay:
+        from cufund.viz.replay import write_replay_html
+
+        write_replay_html(out / "replay.html", run.result, params, run.reference)
+    for hook in run.output_hooks:
+        hook(run, out, plots=plots, replay=replay)
+    return out
+
+
+def run_into_folder(config: Any, out: str | Path, *, log: bool = True, plots: bool = True, replay: bool = True,
+                    progress: bool = False, extra_components: tuple = ()) -> ScenarioRun:
+    """Runs ``config`` (a :class:`cufund.ScenarioConfig`, or a scenario already made by
+    :func:`cufund.scenarios.build.build_simulation`) into the run folder ``out``: ``run.mcap`` while it goes (when
+    ``log`` and the scenario's ``log.mcap``; its metadata holds the scenario's config), then
+    :func:`write_run_folder`. Returns the run."""
+    from .build import Built, build_simulation, run_built
+
+    built = config if isinstance(config, Built) else build_simulation(config, extra_components)
+    config = built.config
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    logger = None
+    if log and config.log.mcap:
+        from cufund.logs import McapLogger
+
+        logger = McapLogger(out / "run.mcap", metadata={"scenario": config.name, "seed": str(config.seed),
+                                                        "config": yaml.safe_dump(config.to_dict(), sort_keys=False)})
+        built.simulator.logger = _Excluding(logger, config.log.exclude) if config.log.exclude else logger
+    try:
+        run = run_built(built, progress=progress)
+    finally:
+        if logger is not None:
+            logger.close()
+    write_run_folder(run, out, plots=plots, replay=replay)
+    return run
+
+
+class _Excluding:
+    """The logger without the topics of ``log.exclude``."""
+
+    def __init__(self, logger: Any, exclude: tuple[str, ...]) -> None:
+        self.logger, self.exclude = logger, frozenset(exclude)
+
+    def write(self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int) -> None:
+        if str(topic) not in self.exclude:
+            self.logger.write(topic, message, log_time_ns, publish_time_ns)
