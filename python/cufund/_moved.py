@@ -83,4 +83,5 @@ class _Finder(importlib.abc.MetaPathFinder):
 def install() -> None:
     """Makes the old paths importable (once)."""
     if not any(isinstance(f, _Finder) for f in sys.meta_path):
-        sys.meta_path.append(_Finder())
+        sys.meta_path.insert(0, _Finder())  # before the path finder, which would load a second copy of a
+        # moved package's submodule through the old package's __path__
