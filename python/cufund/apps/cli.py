@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+from cufund._core import __version__
 from cufund.core.config import ConfigError
 from cufund.scenarios.schema import available_scenarios, load_scenario, parse_overrides
 from cufund.sensors import allan_report
@@ -34,6 +35,8 @@ def _parser() -> argparse.ArgumentParser:
         description="cufund: quadrotor simulation and autonomy.",
         epilog=f"built-in scenarios (cufund run NAME):\n{scenarios}\n\nA scenario may also be a YAML file, e.g. a "
                "run folder's config.yaml.")
+    p.add_argument("--version", action="version", version=f"cufund {__version__}",
+                   help="print cufund's version (cufund.__version__) and exit")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     run = sub.add_parser("run", help="run a scenario and write a run folder",
                          formatter_class=argparse.RawDescriptionHelpFormatter,
