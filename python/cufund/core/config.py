@@ -11,7 +11,7 @@ from typing import Any, TypeVar
 import numpy as np
 import yaml
 
-from .errors import ConfigError
+from .errors import ConfigError as ConfigError  # re-exported: ConfigError was defined here in 0.1
 from .limits import current
 
 T = TypeVar("T")

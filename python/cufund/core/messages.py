@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, fields
-from typing import Any, TypeVar
+from typing import Any, TypeVar, dataclass_transform
 
 import numpy as np
 
@@ -35,6 +35,7 @@ def _readonly(value: Any) -> Any:
     return value
 
 
+@dataclass_transform(frozen_default=True)
 def message(cls: type[_M]) -> type[_M]:
     """Makes ``cls`` a frozen, slotted dataclass whose ``np.ndarray`` fields are read-only after construction."""
     array_fields = tuple(name for name, kind in cls.__annotations__.items() if "ndarray" in str(kind))
@@ -53,7 +54,7 @@ def message(cls: type[_M]) -> type[_M]:
 
         cls.__post_init__ = __post_init__  # type: ignore[attr-defined]
     cls = dataclass(frozen=True, slots=True)(cls)
-    names = [f.name for f in fields(cls)]
+    names = [f.name for f in fields(cls)]  # type: ignore[arg-type]  # a dataclass from the line above
     # trusted(...): the message from arrays the caller guarantees are read-only and unshared (no checks, no
     # copies), for producers of many messages per second like the simulator's ground truth. Generated with one
     # plain assignment per field: a loop over the fields costs more than the message itself.

@@ -15,7 +15,7 @@ import types
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from .config import ConfigError
+from .errors import ConfigError
 
 __all__ = ["ENTRY_POINT_GROUP", "GROUPS", "Kind", "available", "load_plugins", "lookup", "register", "unregister"]
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import builtins
+
 from typing import Any
 
 __all__ = ["TRUTH_PREFIX", "Topic", "is_truth"]
@@ -20,10 +22,10 @@ class Topic(str):
     """A topic name with its message type: ``Topic("/sensors/imu", Imu)``. The bus checks every message
     published on a typed topic against ``type``; it compares and hashes as its name."""
 
-    type: type
+    type: builtins.type
     """The message class published on it (``object``: any)."""
 
-    def __new__(cls, name: str, type: type = object) -> Topic:  # noqa: A002 - the natural name
+    def __new__(cls, name: str, type: builtins.type = object) -> Topic:  # noqa: A002 - the natural name
         if not isinstance(name, str) or not name.startswith("/") or name.endswith("/") or "//" in name:
             raise ValueError(f"a topic name must be an absolute path like '/sensors/imu', got {name!r}")
         self = super().__new__(cls, name)
