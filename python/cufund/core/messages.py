@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, fields
-from typing import Any, TypeVar, dataclass_transform
+from typing import Any, Callable, ClassVar, TypeVar, dataclass_transform
 
 import numpy as np
 
 from .topics import Topic
 
-_M = TypeVar("_M")
+_M = TypeVar("_M", bound="Message")
 
 
 def _readonly(value: Any) -> Any:
@@ -33,6 +33,14 @@ def _readonly(value: Any) -> Any:
         value = np.array(value, dtype=float)
     value.setflags(write=False)
     return value
+
+
+class Message:
+    """Base of cufund's message types (no fields, no instance dict): declares what :func:`message` adds."""
+
+    __slots__ = ()
+    trusted: ClassVar[Callable[..., Any]]
+    """``Cls.trusted(*fields)``: the message from arrays the caller guarantees read-only and unshared."""
 
 
 @dataclass_transform(frozen_default=True)
@@ -78,7 +86,7 @@ class FlightMode(enum.Enum):
 
 
 @message
-class Odometry:
+class Odometry(Message):
     """Vehicle state estimate (or ground truth)."""
 
     t: float
@@ -98,7 +106,7 @@ class Odometry:
 
 
 @message
-class Imu:
+class Imu(Message):
     """Specific force and angular rate in the IMU's own frame I (the body frame when the IMU is mounted
     without rotation; its mounting, ``q_BI`` and lever arm ``p_BI``, is the estimator's extrinsic)."""
 
@@ -110,7 +118,7 @@ class Imu:
 
 
 @message
-class MagneticField:
+class MagneticField(Message):
     """Magnetometer sample in the body frame (the magnetometer is mounted along the body axes)."""
 
     t: float
@@ -119,7 +127,7 @@ class MagneticField:
 
 
 @message
-class AirPressure:
+class AirPressure(Message):
     """Barometer sample."""
 
     t: float
@@ -132,7 +140,7 @@ class AirPressure:
 
 
 @message
-class GpsFix:
+class GpsFix(Message):
     """One GNSS receiver output (like PX4's ``sensor_gps``)."""
 
     t: float
@@ -153,7 +161,7 @@ class GpsFix:
 
 
 @message
-class PointCloud:
+class PointCloud(Message):
     """One LiDAR frame as a driver reports it: the valid returns, one stamp for the frame and a time offset
     per point (what :class:`cufund.sensors.LidarComponent` publishes). No ground truth: the true hit points
     travel separately as :class:`LidarTruth` on ``/truth/point_cloud``."""
@@ -179,7 +187,7 @@ class PointCloud:
 
 
 @message
-class LidarTruth:
+class LidarTruth(Message):
     """Ground truth of one LiDAR frame, point for point with its :class:`PointCloud` (a ``/truth/`` topic)."""
 
     t: float
@@ -191,7 +199,7 @@ class LidarTruth:
 
 
 @message
-class CameraImage:
+class CameraImage(Message):
     """One camera frame (global shutter)."""
 
     t: float
@@ -201,7 +209,7 @@ class CameraImage:
 
 
 @message
-class OdometryDiagnostics:
+class OdometryDiagnostics(Message):
     """How an odometry processed one LiDAR frame (published per frame next to the estimate)."""
 
     variable_length = True
@@ -233,7 +241,7 @@ class OdometryDiagnostics:
 
 
 @message
-class MapUpdate:
+class MapUpdate(Message):
     """A map a mapper maintains, announced after each update: planners read the map object itself (it stays
     owned and updated by the mapper; read it only inside a component's step)."""
 
@@ -246,7 +254,7 @@ class MapUpdate:
 
 
 @message
-class TrajectorySetpoint:
+class TrajectorySetpoint(Message):
     """A point of a trajectory, PX4's ``trajectory_setpoint``: position mode uses all fields, velocity mode
     ignores ``p_W``."""
 
@@ -266,7 +274,7 @@ class TrajectorySetpoint:
 
 
 @message
-class TrajectoryUpdate:
+class TrajectoryUpdate(Message):
     """A new trajectory from a (re)planner, to be followed from ``trajectory.t_start`` on; a follower keeps
     the trajectory it had before that time (the planner makes the two join)."""
 
@@ -277,7 +285,7 @@ class TrajectoryUpdate:
 
 
 @message
-class AttitudeSetpoint:
+class AttitudeSetpoint(Message):
     """Attitude and collective thrust, PX4's ``vehicle_attitude_setpoint``."""
 
     t: float
@@ -290,7 +298,7 @@ class AttitudeSetpoint:
 
 
 @message
-class RateSetpoint:
+class RateSetpoint(Message):
     """Body rates and collective thrust, PX4's ``vehicle_rates_setpoint``."""
 
     t: float
@@ -301,7 +309,7 @@ class RateSetpoint:
 
 
 @message
-class ThrustTorqueSetpoint:
+class ThrustTorqueSetpoint(Message):
     """Collective thrust and body torque, the input of control allocation."""
 
     t: float
@@ -312,7 +320,7 @@ class ThrustTorqueSetpoint:
 
 
 @message
-class ActuatorCommand:
+class ActuatorCommand(Message):
     """Rotor speed commands, PX4 numbering; the simulator holds the latest one over each physics step."""
 
     t: float
@@ -321,7 +329,7 @@ class ActuatorCommand:
 
 
 @message
-class FlightModeCommand:
+class FlightModeCommand(Message):
     """Switches the flight controller's mode."""
 
     t: float
@@ -329,7 +337,7 @@ class FlightModeCommand:
 
 
 @message
-class TunnelEstimate:
+class TunnelEstimate(Message):
     """What a tunnel detector knows of the course's frames so far, in the estimated world frame; it improves as
     frames accumulate (paper §3.2, Fig. 9). Frames are ordered along the course (nearest the start first)."""
 
@@ -351,7 +359,7 @@ class TunnelEstimate:
 
 
 @message
-class VehicleStatus:
+class VehicleStatus(Message):
     """The vehicle's command state as a commander keeps it: what ground stations, MAVLink and the web GCS show."""
 
     t: float
@@ -378,7 +386,7 @@ class VehicleStatus:
 
 
 @message
-class MissionState:
+class MissionState(Message):
     """A mission state machine's state (published on each transition and at its rate)."""
 
     t: float

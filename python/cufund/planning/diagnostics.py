@@ -3,14 +3,14 @@ the trajectory updates, and kept for the run's ``metrics.json``."""
 
 from __future__ import annotations
 
-from cufund.core.messages import message
+from cufund.core.messages import Message, message
 from cufund.core.topics import Topic
 
 __all__ = ["PLANNER_DIAGNOSTICS", "PlannerDiagnostics"]
 
 
 @message
-class PlannerDiagnostics:
+class PlannerDiagnostics(Message):
     """One (re)plan of a planner."""
 
     t: float
