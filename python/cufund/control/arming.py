@@ -30,7 +30,7 @@ class Gate(enum.Enum):
     INACTIVE = "inactive"
 
 
-def gate(bus, kind: str) -> Gate:  # type: ignore[no-untyped-def]
+def gate(bus, kind: str) -> Gate:
     """What the controller of ``kind`` ('pid' or 'geometric') does now, from the latest vehicle status."""
     s: VehicleStatus | None = bus.latest(Topics.VEHICLE_STATUS)
     if s is None:
@@ -44,7 +44,7 @@ def gate(bus, kind: str) -> Gate:  # type: ignore[no-untyped-def]
     return Gate.FLY
 
 
-def make_armable(components) -> None:  # type: ignore[no-untyped-def]
+def make_armable(components) -> None:
     """Lets a commander's vehicle status gate ``components`` (those with an ``armable`` flag)."""
     for c in components:
         if hasattr(c, "armable") and not c.armable:

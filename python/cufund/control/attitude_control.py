@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cufund import _core
-from cufund.core.components import Bus, Controller
+from cufund.core.components import BusView, Controller
 from cufund.core.config import check_real_fields
 from cufund.core.messages import AttitudeSetpoint, Odometry, RateSetpoint, Topics
 from .arming import Gate, gate
@@ -65,7 +65,7 @@ class AttitudeController(Controller):
         self._core.set_gains(np.array([g.roll_p, g.pitch_p, rp]),
                              np.array([g.roll_rate_max, g.pitch_rate_max, g.yaw_rate_max]), self.yaw_weight)
 
-    def update(self, t: float, state: Odometry, bus: Bus) -> None:
+    def update(self, t: float, state: Odometry, bus: BusView) -> None:
         if self.armable and gate(bus, "pid") is not Gate.FLY:  # disarmed, idle on the ground, or geometric flies
             return
         sp: AttitudeSetpoint | None = bus.latest(Topics.ATTITUDE_SETPOINT)

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from cufund.core.components import Bus
+from cufund.core.components import BusView
 from cufund.core.messages import AttitudeSetpoint, FlightMode, FlightModeCommand, Odometry, Topics, TrajectorySetpoint
 from .rotations import yaw_of
 
@@ -47,7 +47,7 @@ class ModeReferences:
         self._hold_traj: TrajectorySetpoint | None = None
         self._hold_att: AttitudeSetpoint | None = None
 
-    def update(self, t: float, state: Odometry, bus: Bus, last_attitude: AttitudeSetpoint | None) -> FlightMode:
+    def update(self, t: float, state: Odometry, bus: BusView, last_attitude: AttitudeSetpoint | None) -> FlightMode:
         """Reads a pending mode command and, on a switch, captures the hold references."""
         cmd: FlightModeCommand | None = bus.latest(Topics.FLIGHT_MODE)
         self.switched = False
@@ -62,7 +62,7 @@ class ModeReferences:
                 t, state.q_WB.copy(), math.nan)
         return self.mode
 
-    def trajectory(self, t: float, bus: Bus) -> TrajectorySetpoint:
+    def trajectory(self, t: float, bus: BusView) -> TrajectorySetpoint:
         """The trajectory reference at time ``t`` for position and velocity modes."""
         sp: TrajectorySetpoint | None = bus.latest(self.trajectory_topic)
         if sp is not None and self.switch_t is not None and sp.t >= self.switch_t:
@@ -77,7 +77,7 @@ class ModeReferences:
         return TrajectorySetpoint(t, h.p_W + v0 * (2 * tau - (2 * tau + s) * e), v0 * ((1 + s / tau) * e),
                                   v0 * (-(s / tau ** 2) * e), v0 * (-(1 - s / tau) * e / tau ** 2), h.yaw, 0.0)
 
-    def attitude(self, bus: Bus) -> AttitudeSetpoint:
+    def attitude(self, bus: BusView) -> AttitudeSetpoint:
         """The attitude reference for attitude mode (thrust NaN: hover thrust, chosen by the controller)."""
         sp: AttitudeSetpoint | None = bus.latest(self.attitude_topic)
         if sp is not None and self.switch_t is not None and sp.t >= self.switch_t:

@@ -19,7 +19,7 @@ import numpy as np
 
 from cufund import _core
 from cufund.core.config import check_real_fields
-from cufund.core.components import Bus, Controller
+from cufund.core.components import BusView, Controller
 from cufund.core.messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, ThrustTorqueSetpoint, Topics
 from cufund.vehicle.params import QuadrotorParams
 from .arming import gated
@@ -97,7 +97,7 @@ class GeometricController(Controller):
         self.gyro.reset()
         self.last = None
 
-    def setup(self, bus: Bus) -> None:
+    def setup(self, bus: BusView) -> None:
         if self.use_gyro:
             self.gyro.setup(bus)
 
@@ -105,7 +105,7 @@ class GeometricController(Controller):
     def mode(self) -> FlightMode:
         return self.refs.mode
 
-    def update(self, t: float, state: Odometry, bus: Bus) -> None:
+    def update(self, t: float, state: Odometry, bus: BusView) -> None:
         if gated(self, t, bus, "geometric"):
             return
         w_B = state.w_B

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cufund import _core
-from cufund.core.components import Bus, Controller
+from cufund.core.components import BusView, Controller
 from cufund.core.config import check_real_fields
 from cufund.core.messages import AttitudeSetpoint, FlightMode, Odometry, Topics
 from cufund.vehicle.params import QuadrotorParams
@@ -117,7 +117,7 @@ class PositionController(Controller):
     def mode(self) -> FlightMode:
         return self.refs.mode
 
-    def update(self, t: float, state: Odometry, bus: Bus) -> None:
+    def update(self, t: float, state: Odometry, bus: BusView) -> None:
         if self.armable and gate(bus, "pid") is not Gate.FLY:  # disarmed, idle on the ground, or geometric flies
             self.reset()
             return

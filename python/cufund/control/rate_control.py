@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cufund import _core
-from cufund.core.components import Bus, Controller
+from cufund.core.components import BusView, Controller
 from cufund.core.config import check_real_fields
 from cufund.core.messages import ActuatorCommand, Odometry, RateSetpoint, ThrustTorqueSetpoint, Topics
 from cufund.vehicle.params import QuadrotorParams
@@ -110,11 +110,11 @@ class RateController(Controller):
         """Rate integrator [rad/s^2] (a copy)."""
         return self._core.rate_int
 
-    def setup(self, bus: Bus) -> None:
+    def setup(self, bus: BusView) -> None:
         if self.use_gyro:
             self.gyro.setup(bus)
 
-    def step(self, t: float, bus: Bus) -> None:
+    def step(self, t: float, bus: BusView) -> None:
         if gated(self, t, bus, "pid"):
             return
         if self.use_gyro:
@@ -125,10 +125,10 @@ class RateController(Controller):
         if w is not None:
             self.control(t, w, bus)
 
-    def update(self, t: float, state: Odometry, bus: Bus) -> None:
+    def update(self, t: float, state: Odometry, bus: BusView) -> None:
         self.control(t, state.w_B, bus)
 
-    def control(self, t: float, w: np.ndarray, bus: Bus) -> None:
+    def control(self, t: float, w: np.ndarray, bus: BusView) -> None:
         """One step of the rate loop with measured body rate ``w`` [rad/s]."""
         sp: RateSetpoint | None = bus.latest(Topics.RATE_SETPOINT)
         if sp is None:

@@ -9,6 +9,7 @@ LiDAR (:class:`cufund.sensors.Lidar`) then sample that motion.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -44,7 +45,7 @@ class FlightRecord:
 class FlatBodyMotion:
     """Body pose, velocity, rates and accelerations of a quadrotor flying ``trajectory``'s position and yaw."""
 
-    def __init__(self, trajectory: object, gravity: float = G0, h: float = 1e-4) -> None:
+    def __init__(self, trajectory: Any, gravity: float = G0, h: float = 1e-4) -> None:
         self.trajectory = trajectory
         self.gravity = float(gravity)
         self.h = float(h)
@@ -79,7 +80,7 @@ class FlatBodyMotion:
         return st["p_W"][0], st["q_WB"][0]
 
 
-def record_flight(motion: FlatBodyMotion, imu: ImuModel, lidar: object, world: object, t_start: float,
+def record_flight(motion: FlatBodyMotion, imu: ImuModel, lidar: Any, world: Any, t_start: float,
                   t_end: float) -> FlightRecord:
     """IMU samples at the IMU's rate and consecutive LiDAR frames over [t_start, t_end)."""
     rate = imu.params.rate_hz
@@ -98,7 +99,7 @@ def record_flight(motion: FlatBodyMotion, imu: ImuModel, lidar: object, world: o
 
 
 
-def replay(core: object, record: FlightRecord) -> tuple[list, list]:
+def replay(core: Any, record: FlightRecord) -> tuple[list[Any], list[Any]]:
     """Feeds a record to a :class:`LioCore` in time order (each frame after the IMU samples up to its end).
     Returns (odometry at each frame end, odometry at each IMU sample)."""
     at_scans, at_imu = [], []

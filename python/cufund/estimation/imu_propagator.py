@@ -124,8 +124,8 @@ class ImuPropagator(Estimator):
 
     def estimate(self, t: float, bus: BusView) -> Odometry | None:
         new = self._imu.take()
+        m: Imu
         for m in new:
-            m: Imu
             f_B, w_B = self.R_BI @ m.f_I, self.R_BI @ m.w_I
             self._samples.append((m.t, f_B, w_B))
             self._w_B = w_B

@@ -9,6 +9,7 @@ deskewed scan. Between frames the last estimate is propagated through each IMU s
 from __future__ import annotations
 
 import math
+from typing import Any
 import time
 from dataclasses import dataclass, field
 
@@ -189,6 +190,7 @@ class LioCore:
         if self._node is None:
             self._try_initialise()
             return self._odometry(self._now) if self._now is not None else None
+        assert self._now is not None  # set with the node
         prev_t = self._now.t
         if self._last_sample is not None and t > prev_t:
             acc, gyr = self._last_sample
@@ -395,6 +397,7 @@ class LioCore:
     def _catch_up(self) -> None:
         """The IMU-rate state restarts from the new node and re-integrates the samples after it."""
         node = self._node
+        assert node is not None
         ts = np.asarray(self._imu.t)
         if ts[-1] <= node.t:
             self._now = NavEstimate(node.t, node.R_WI, node.p_W, node.v_W, node.bias_acc, node.bias_gyr)
@@ -417,7 +420,7 @@ class LioCore:
         model, params = self._model, self.params
         # Noise-aware: residuals wider than range_sigma (a degraded LiDAR) weaken the factor accordingly.
         s = math.sqrt(params.lidar_information_scale) * min(1.0, params.range_sigma / max(reg.residual_sigma, 1e-9))
-        cache: dict[str, object] = {"planes": reg.planes, "fit_R": reg.R_WI, "fit_p": reg.p_W, "M": None}
+        cache: dict[str, Any] = {"planes": reg.planes, "fit_R": reg.R_WI, "fit_p": reg.p_W, "M": None}
 
         def error(this: gtsam.CustomFactor, values: gtsam.Values, jacobians) -> np.ndarray:
             M = values.atPose3(this.keys()[0]).matrix()

@@ -8,6 +8,7 @@ past its end have arrived (so its IMU factor and deskewing use measured motion, 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -28,7 +29,7 @@ class LioEstimator(Estimator):
     """LiDAR-inertial odometry on GTSAM (see :mod:`cufund.estimation.lio_core`)."""
 
     name = "lio"
-    inputs = (Topics.IMU, Topics.POINT_CLOUD)
+    inputs: tuple[str, ...] = (Topics.IMU, Topics.POINT_CLOUD)
 
     def __init__(self, params: LioParams | dict | None = None, rate_hz: float | None = None,
                  imu_topic: str = Topics.IMU, lidar_topic: str = Topics.POINT_CLOUD) -> None:
@@ -43,9 +44,10 @@ class LioEstimator(Estimator):
 
     def reset(self) -> None:
         self.core = LioCore(self.params)
-        self._frames: list[tuple[float, object, object, float]] = []  # (start, dt, points, end)
+        self._frames: list[tuple[float, Any, Any, float]] = []  # (start, dt, points, end)
         self._latest: Odometry | None = None
-        self._imu_sub = self._lidar_sub = None
+        self._imu_sub: Any = None
+        self._lidar_sub: Any = None
         self._diagnosed = 0
         self._gap_reported = -math.inf
 

@@ -43,7 +43,7 @@ class EventLog:
         with self._lock:
             return self._offset + len(self._events)
 
-    def __iter__(self):  # type: ignore[no-untyped-def]
+    def __iter__(self):
         return iter(self.since(0))
 
     def __getitem__(self, i: int) -> dict[str, Any]:

@@ -31,10 +31,10 @@ _FLOOR = (0.45, 0.45, 0.45)
 
 
 def _pair(name: str, v: object, lo: float = 0.0) -> tuple[float, float]:
-    a = tuple(float(x) for x in v)  # type: ignore[union-attr]
+    a = tuple(float(x) for x in v)
     if len(a) != 2 or not all(math.isfinite(x) for x in a) or not lo <= a[0] <= a[1]:
         raise ValueError(f"{name} must be two finite numbers (min, max) with {lo} <= min <= max, got {v!r}")
-    return a  # type: ignore[return-value]
+    return a
 
 
 def _bound(name: str, v: object) -> float:

@@ -45,7 +45,7 @@ class TrajectorySequence:
     def __init__(self, parts: Sequence[Trajectory]) -> None:
         if not parts:
             raise ValueError("parts must hold at least one trajectory")
-        starts = [float(p.t_start) for p in parts]  # type: ignore[attr-defined]
+        starts = [float(p.t_start) for p in parts]
         if any(b < a for a, b in zip(starts, starts[1:])):
             raise ValueError(f"parts must start in time order, got start times {starts}")
         self.parts = list(parts)
@@ -60,7 +60,7 @@ class TrajectorySequence:
     @property
     def t_end(self) -> float:
         last = self.parts[-1]
-        return float(last.t_start + last.duration)  # type: ignore[attr-defined]
+        return float(last.t_start + last.duration)
 
     def sample(self, t: np.ndarray | float) -> TrajectorySamples:
         if isinstance(t, (float, int)):

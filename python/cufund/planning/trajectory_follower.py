@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cufund.core.components import Bus, Planner
+from cufund.core.components import BusView, Planner
 from cufund.core.messages import Odometry, Topics, TrajectorySetpoint, TrajectoryUpdate
 from .sequence import TrajectorySequence
 from .trajectory import Trajectory, TrajectorySamples
@@ -62,7 +62,7 @@ class TrajectoryFollower(Planner):
             self._rows = rows
         return self._rows, j - self._j0
 
-    def setup(self, bus: Bus) -> None:
+    def setup(self, bus: BusView) -> None:
         if self.update_topic is not None:
             self._updates = bus.subscribe(self.update_topic)
 
@@ -72,7 +72,7 @@ class TrajectoryFollower(Planner):
         self.updates += 1
         self._rows = None  # the sampled block belongs to the old trajectory
 
-    def update(self, t: float, state: Odometry, bus: Bus) -> None:
+    def update(self, t: float, state: Odometry, bus: BusView) -> None:
         if self.update_topic is not None:
             for msg in self._updates.take():
                 msg: TrajectoryUpdate
@@ -94,8 +94,8 @@ def stitched(current: Trajectory, new: Trajectory, t: float) -> Trajectory:
         raise TypeError(f"a trajectory update must carry a cufund.planning.Trajectory, got {type(new).__name__}")
     t_new = float(new.t_start)
     parts = current.parts if isinstance(current, TrajectorySequence) else [current]
-    kept = [p for p in parts if float(p.t_start) < t_new]  # type: ignore[attr-defined]
-    starts = [float(p.t_start) for p in kept] + [t_new]  # type: ignore[attr-defined]
+    kept = [p for p in parts if float(p.t_start) < t_new]
+    starts = [float(p.t_start) for p in kept] + [t_new]
     first = 0
     while first < len(kept) and starts[first + 1] <= t:  # superseded before t
         first += 1

@@ -265,14 +265,14 @@ class FaultySensor(Component):
     """A sensor component whose publications on some topics pass through faults first. It runs, is named and
     timed exactly as the sensor it wraps."""
 
-    name = _delegate("name")  # type: ignore[assignment]
-    rate_hz = _delegate("rate_hz")  # type: ignore[assignment]
-    phase_s = _delegate("phase_s")  # type: ignore[assignment]
-    latency_s = _delegate("latency_s")  # type: ignore[assignment]
-    inputs = _delegate("inputs")  # type: ignore[assignment]
-    optional_inputs = _delegate("optional_inputs")  # type: ignore[assignment]
-    outputs = _delegate("outputs")  # type: ignore[assignment]
-    reads_truth = _delegate("reads_truth")  # type: ignore[assignment]
+    name = _delegate("name")
+    rate_hz = _delegate("rate_hz")
+    phase_s = _delegate("phase_s")
+    latency_s = _delegate("latency_s")
+    inputs = _delegate("inputs")
+    optional_inputs = _delegate("optional_inputs")
+    outputs = _delegate("outputs")
+    reads_truth = _delegate("reads_truth")
 
     def __init__(self, inner: Component, faults: dict[str, list[_Active]]) -> None:
         self.inner, self.faults = inner, faults

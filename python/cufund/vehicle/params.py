@@ -24,7 +24,7 @@ def _matrix3(name: str, value: Any) -> tuple[tuple[float, float, float], ...]:
         a = np.diag(a)
     if a.shape != (3, 3):
         raise ConfigError(f"{name} must be a 3x3 matrix or 3 diagonal entries, got shape {a.shape}")
-    return tuple(tuple(float(x) for x in row) for row in a)  # type: ignore[return-value]
+    return tuple(tuple(float(x) for x in row) for row in a)
 
 
 @dataclass(frozen=True)
