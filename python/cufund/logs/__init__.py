@@ -20,10 +20,17 @@ What a log holds (one channel per topic, named as the topic):
 - Anything else (enums, strings, nested dataclasses): JSON of the fields (``cufund.<Class>``).
 
 Chunks are lz4 (or zstd) with CRCs, indexed; the same messages give the same file byte for byte; the ``cufund`` metadata record holds what the logger was given.
+
+Reading a log never imports or calls a class the file names: only cufund's messages, classes this process logged
+and classes given to :func:`register_message_class` are rebuilt (anything else is a :class:`McapReadError`
+naming the channel). A log whose run was killed (no summary) is read up to its last complete chunk, with one
+:class:`TruncatedLogWarning`.
 """
 
 from .log_player import LogPlayer
-from .mcap_reader import LogRecord, McapReadError, log_metadata, log_topics, read_mcap
+from .mcap_reader import LogRecord, McapReadError, TruncatedLogWarning, log_metadata, log_topics, read_mcap
 from .mcap_writer import McapLogger
+from .message_classes import register_message_class
 
-__all__ = ["LogPlayer", "LogRecord", "McapLogger", "McapReadError", "log_metadata", "log_topics", "read_mcap"]
+__all__ = ["LogPlayer", "LogRecord", "McapLogger", "McapReadError", "TruncatedLogWarning", "log_metadata",
+           "log_topics", "read_mcap", "register_message_class"]

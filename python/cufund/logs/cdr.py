@@ -13,6 +13,7 @@ The ros2msg text of each layout is what Foxglove Studio and ``mcap-ros2-support`
 from __future__ import annotations
 
 import dataclasses
+import math
 import types
 import typing
 from dataclasses import dataclass
@@ -164,8 +165,27 @@ class MessageLayout:
 
     @classmethod
     def from_description(cls, message_cls: type, description: list[list[Any]]) -> MessageLayout:
-        return cls(message_cls, [_Column(a, r, code, tuple(shape), bool(opt))
-                                 for a, r, code, shape, opt in description])
+        """Inverse of :meth:`describe`; ValueError when the description (read from a file) is not one: fields of
+        ``message_cls``, numeric codes, shapes of at most 2**24 elements."""
+        names = {f.name for f in dataclasses.fields(message_cls)}
+        if not isinstance(description, list) or len(description) > len(names):
+            raise ValueError(f"the CDR layout of {message_cls.__name__} must list at most its {len(names)} fields")
+        columns = []
+        for item in description:
+            if not (isinstance(item, list) and len(item) == 5):
+                raise ValueError(f"a CDR layout column must be [attr, name, code, shape, optional], got {item!r}")
+            a, r, code, shape, opt = item
+            if a not in names or not isinstance(r, str) or not r.isidentifier() or code not in _ROS_TYPES:
+                raise ValueError(f"a CDR layout column of {message_cls.__name__} names an unknown field or type: "
+                                 f"{item!r}")
+            if not (isinstance(shape, list) and len(shape) <= 4 and all(
+                    isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 2**24 for n in shape)
+                    and math.prod(shape) <= 2**24):
+                raise ValueError(f"a CDR layout column of {message_cls.__name__} has a bad shape: {item!r}")
+            columns.append(_Column(a, r, code, tuple(shape), bool(opt)))
+        if len({c.ros_name for c in columns}) != len(columns):
+            raise ValueError(f"the CDR layout of {message_cls.__name__} repeats a field")
+        return cls(message_cls, columns)
 
     def _rows(self, values_of: list[tuple[Any, ...]], topic: str) -> np.ndarray:
         """The general path: rows from every field value of each message (validates shapes and dtypes)."""

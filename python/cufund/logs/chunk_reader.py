@@ -27,18 +27,31 @@ class ChunkError(ValueError):
     """A chunk that does not decompress, fails its CRC or holds a malformed record."""
 
 
+MAX_CHUNK_BYTES = 1 << 30
+"""Largest uncompressed chunk read (a chunk claiming more is damage: nothing is allocated for it)."""
+
+
 def _decompress(compression: str, data: bytes, size: int) -> bytes:
+    """``data`` decompressed, never to more than ``size`` bytes (the size the chunk declares)."""
     if compression == "":
         return data
     if compression == "lz4":
         import lz4.frame
 
-        return lz4.frame.decompress(data)
+        decompressor = lz4.frame.LZ4FrameDecompressor()
+        out = decompressor.decompress(data, max_length=size)
+        if not decompressor.eof:
+            raise ChunkError(f"the lz4 frame holds more than the {size} bytes the chunk declares, or is cut short")
+        return out
     if compression == "zstd":
         import zstandard
 
-        return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-    raise ChunkError(f"unsupported chunk compression {compression!r}")
+        reader = zstandard.ZstdDecompressor().stream_reader(data)
+        out = reader.read(size + 1)
+        if len(out) > size:
+            raise ChunkError(f"the zstd frame holds more than the {size} bytes the chunk declares")
+        return out
+    raise ChunkError(f"unsupported chunk compression {compression[:64]!r}")
 
 
 def _chunk_messages(stream: IO[bytes], index: Any, wanted: set[int], order: int) -> list[tuple[Any, ...]]:
@@ -50,6 +63,9 @@ def _chunk_messages(stream: IO[bytes], index: Any, wanted: set[int], order: int)
     opcode, _, _, _, size, crc, name_length = _CHUNK_HEADER.unpack_from(record, 0)
     if opcode != _CHUNK:
         raise ChunkError(f"no chunk at byte {index.chunk_start_offset} (opcode {opcode:#x})")
+    if size > MAX_CHUNK_BYTES:
+        raise ChunkError(f"the chunk at byte {index.chunk_start_offset} claims {size} bytes uncompressed, more "
+                         f"than {MAX_CHUNK_BYTES}")
     at = _CHUNK_HEADER.size
     compression = record[at:at + name_length].decode()
     (data_length,) = struct.unpack_from("<Q", record, at + name_length)
@@ -73,6 +89,9 @@ def _chunk_messages(stream: IO[bytes], index: Any, wanted: set[int], order: int)
             if at > end:
                 raise ChunkError(f"a record overruns the chunk at byte {index.chunk_start_offset}")
             if opcode == _MESSAGE:
+                if length < _MESSAGE_HEADER.size:
+                    raise ChunkError(f"a message record of {length} bytes in the chunk at byte "
+                                     f"{index.chunk_start_offset}")
                 channel, sequence, log, publish = _MESSAGE_HEADER.unpack_from(raw, body)
                 if channel in wanted:
                     out.append((log, sequence, order, body, channel, publish, view[body + 22:at]))

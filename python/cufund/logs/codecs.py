@@ -26,7 +26,8 @@ import numpy as np
 
 from . import schemas
 from .cdr import CdrLayout, MessageLayout, infer_message_layout, stamp_sec_nsec
-from .jsonvalue import class_path, decode_fields, encode_fields, encode_value, resolve_class
+from .jsonvalue import numeric_dtype, class_path, decode_fields, encode_fields, encode_value
+from .message_classes import message_class, note_logged
 
 __all__ = ["Codec", "View", "codec_for", "codec_from_channel"]
 
@@ -85,6 +86,8 @@ class Codec:
 
     def __init__(self, cls: type):
         self.cls = cls
+        self.where = f"message {cls.__name__}"
+        """What decoding errors name (the channel, once the reader knows it)."""
 
     def metadata(self) -> dict[str, str]:
         return {"cufund.codec": self.name, "cufund.class": class_path(self.cls)}
@@ -171,7 +174,7 @@ class JsonCodec(Codec):
         return [_dumps(encode_fields(m, f"topic {topic!r}: {self.cls.__name__}")) for m in messages]
 
     def decode(self, data: bytes | memoryview) -> Any:
-        return self.cls(**decode_fields(json.loads(bytes(data))))
+        return self.cls(**decode_fields(json.loads(bytes(data)), self.where))
 
 
 def _dumps(obj: Any) -> bytes:
@@ -217,8 +220,10 @@ class _FoxgloveJsonCodec(Codec):
 
     def decode(self, data: bytes | memoryview) -> Any:
         obj = json.loads(bytes(data))
+        if not isinstance(obj, dict) or not isinstance(obj.get("cufund"), dict):
+            raise ValueError(f"{self.where}: a {self.schema_name} message without its 'cufund' object")
         exact = obj["cufund"]
-        return self.cls(**decode_fields(exact["fields"]), **self._decode_bulk(obj, exact))
+        return self.cls(**decode_fields(exact.get("fields"), self.where), **self._decode_bulk(obj, exact))
 
     def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
         raise NotImplementedError
@@ -275,8 +280,10 @@ class PointCloudCodec(_FoxgloveJsonCodec):
         dtype = np.dtype({"names": [f["name"] for f in obj["fields"]],
                           "formats": [_NUMPY_OF_TYPE[f["type"]] for f in obj["fields"]],
                           "offsets": [f["offset"] for f in obj["fields"]], "itemsize": obj["point_stride"]})
-        data = np.frombuffer(base64.b64decode(obj["data"]), dtype)
-        dtypes = exact["dtypes"]
+        if not 0 < dtype.itemsize <= 4096:
+            raise ValueError(f"{self.where}: point_stride {obj['point_stride']!r} is out of range")
+        data = np.frombuffer(base64.b64decode(obj["data"], validate=True), dtype)
+        dtypes = {k: numeric_dtype(v, self.where) for k, v in exact["dtypes"].items()}
         out = {self.xyz: np.stack([data[k].astype(dtypes[k]) for k in "xyz"], axis=1)}
         for attr, name in self.per_point:
             out[attr] = data[name].astype(dtypes[name])
@@ -331,7 +338,8 @@ class RawImageCodec(_FoxgloveJsonCodec):
         return out
 
     def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
-        image = np.frombuffer(base64.b64decode(obj["data"]), np.dtype(exact["dtype"])).reshape(exact["shape"])
+        image = np.frombuffer(base64.b64decode(obj["data"], validate=True),
+                              numeric_dtype(exact["dtype"], self.where)).reshape(exact["shape"])
         return {"image": image.copy()}
 
 
@@ -374,6 +382,7 @@ def codec_for(topic: str, message: Any) -> Codec:
     cls = type(message)
     if not dataclasses.is_dataclass(cls):
         raise TypeError(f"topic {topic!r}: only dataclass messages can be logged, got {cls.__name__}")
+    note_logged(cls)  # a class this process logs may be read back
     cufund = cls.__module__ == "cufund.core.messages"
     name = cls.__name__
     if cufund and name == "PointCloud" and _has_fields(
@@ -392,22 +401,32 @@ def codec_for(topic: str, message: Any) -> Codec:
     return JsonCodec(cls)
 
 
-def codec_from_channel(metadata: dict[str, str]) -> Codec:
-    """The codec a channel was written with, from its metadata (ValueError when it names none)."""
+def codec_from_channel(metadata: dict[str, str], where: str = "the channel") -> Codec:
+    """The codec a channel was written with, from its metadata; ValueError naming ``where`` (the channel) when
+    it names none, an unknown codec or a class that is not an allowed message class
+    (:func:`cufund.logs.message_classes.message_class`: nothing the file names is imported)."""
     kind, path = metadata.get("cufund.codec"), metadata.get("cufund.class")
     if kind is None or path is None:
-        raise ValueError("the channel was not written by cufund (no cufund.codec / cufund.class metadata)")
-    cls = resolve_class(path)
-    if kind == "cdr":
-        return CdrCodec(MessageLayout.from_description(cls, json.loads(metadata["cufund.layout"])))
-    if kind == "json":
-        return JsonCodec(cls)
-    if kind == "foxglove.PointCloud":
-        fields = tuple(f.name for f in dataclasses.fields(cls))
-        return _lidar_codec(cls) if "points_L" in fields else _lidar_truth_codec(cls)
-    if kind == "foxglove.RawImage":
-        return RawImageCodec(cls, schemas.RAW_IMAGE_SCHEMA, "camera")
-    if kind == "foxglove.LocationFix":
-        return LocationFixCodec(cls, schemas.LOCATION_FIX_SCHEMA, "gps")
-    raise ValueError(f"unknown cufund codec {kind!r}")
+        raise ValueError(f"{where} was not written by cufund (no cufund.codec / cufund.class metadata)")
+    cls = message_class(path, where)
+    if not dataclasses.is_dataclass(cls):
+        raise ValueError(f"{where}: its class {path!r} is not a dataclass message")
+    try:
+        if kind == "cdr":
+            codec: Codec = CdrCodec(MessageLayout.from_description(cls, json.loads(metadata["cufund.layout"])))
+        elif kind == "json":
+            codec = JsonCodec(cls)
+        elif kind == "foxglove.PointCloud":
+            fields = tuple(f.name for f in dataclasses.fields(cls))
+            codec = _lidar_codec(cls) if "points_L" in fields else _lidar_truth_codec(cls)
+        elif kind == "foxglove.RawImage":
+            codec = RawImageCodec(cls, schemas.RAW_IMAGE_SCHEMA, "camera")
+        elif kind == "foxglove.LocationFix":
+            codec = LocationFixCodec(cls, schemas.LOCATION_FIX_SCHEMA, "gps")
+        else:
+            raise ValueError(f"unknown cufund codec {str(kind)[:100]!r}")
+    except (ValueError, TypeError, KeyError, IndexError, AttributeError, RecursionError) as exc:
+        raise ValueError(f"{where}: {exc}") from None
+    codec.where = where
+    return codec
 

@@ -3,14 +3,20 @@
 The official ``mcap`` reader checks the file and reads its summary; the chunks are then merged in log-time order
 by :mod:`cufund.logs.chunk_reader` (CRCs checked), ties in the order they were written. Each channel's metadata
 names its codec and message class, which rebuild the same frozen dataclasses (float64 bit for bit, array dtypes
-and shapes, enums as enums). Foxglove view channels
+and shapes, enums as enums); only allowed classes are used (:mod:`cufund.logs.message_classes`: a log never
+imports or calls what it names). Foxglove view channels
 (``<topic>/pose``, ``<topic>/tf``) are derived data and are not returned.
+
+A log whose run was killed has no summary: its records are then scanned from the start
+(:mod:`cufund.logs.truncated`) and read up to the last complete one, with one :class:`TruncatedLogWarning`.
 """
 
 from __future__ import annotations
 
+import io
 import os
 import struct
+import warnings
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -21,8 +27,9 @@ from mcap.reader import make_reader
 
 from .chunk_reader import iter_chunk_messages
 from .codecs import Codec, codec_from_channel
+from .truncated import MAGIC, Recovered, scan_records
 
-__all__ = ["LogRecord", "McapReadError", "log_metadata", "log_topics", "read_mcap"]
+__all__ = ["LogRecord", "McapReadError", "TruncatedLogWarning", "log_metadata", "log_topics", "read_mcap"]
 
 
 class LogRecord(NamedTuple):
@@ -37,36 +44,79 @@ class LogRecord(NamedTuple):
 
 
 class McapReadError(ValueError):
-    """The file is not a complete, intact MCAP log (truncated, corrupt, or not MCAP)."""
+    """The file is not an intact MCAP log (corrupt, not MCAP, cut before its first records) or a channel names a
+    class or codec cufund does not allow."""
+
+
+class TruncatedLogWarning(UserWarning):
+    """The log has no summary (its run was killed): it is read up to its last complete record."""
 
 
 _ERRORS = (McapError, OSError, EOFError, ValueError, KeyError, IndexError, UnicodeDecodeError, struct.error,
-           zstandard.ZstdError, RuntimeError)  # lz4 reports corrupt frames as RuntimeError
+           zstandard.ZstdError, RuntimeError, TypeError, AttributeError, OverflowError, RecursionError,
+           MemoryError)  # lz4 reports corrupt frames as RuntimeError; TypeError: a message without its fields
+
+_warned: set[tuple[str, int, int]] = set()
 
 
-def _open(path: Path) -> tuple[Any, Any, dict[int, tuple[str, Codec]]]:
+def _warn_truncated(path: Path, stream: Any, recovered: Recovered) -> None:
+    """One line per truncated file per process (a LogPlayer opens its log more than once)."""
+    st = os.fstat(stream.fileno())
+    key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    if key in _warned:
+        return
+    _warned.add(key)
+    warnings.warn(TruncatedLogWarning(
+        f"{path} is truncated (no summary: was its run killed?): reading its {len(recovered.chunks)} complete "
+        f"chunks, up to byte {recovered.end} of {st.st_size}"), stacklevel=4)
+
+
+def _summary_of(path: Path, stream: Any) -> tuple[Any, Any]:
+    """(channels by id, chunk indexes) from the summary, or from a scan of a log without one."""
+    try:
+        reader = make_reader(stream, validate_crcs=True)
+        summary = reader.get_summary()
+    except _ERRORS as exc:
+        summary, error = None, exc
+    else:
+        error = None
+    if summary is not None:
+        if not summary.chunk_indexes and summary.statistics and summary.statistics.message_count:
+            raise McapReadError(f"{str(path)!r} has no chunk index (not written by cufund.logs.McapLogger)")
+        return summary.channels, summary.chunk_indexes
+    stream.seek(0)
+    if stream.read(len(MAGIC)) != MAGIC:
+        raise McapReadError(f"{str(path)!r} is not an MCAP log: {error or 'no summary'}")
+    try:
+        recovered = scan_records(stream)
+    except _ERRORS as exc:
+        raise McapReadError(f"{str(path)!r} is not a complete MCAP log and cannot be scanned: {exc}") from exc
+    _warn_truncated(path, stream, recovered)
+    return recovered.channels, recovered.chunks
+
+
+def _open(path: Path) -> tuple[Any, list[Any], dict[int, tuple[str, Codec]]]:
     try:
         stream = open(path, "rb")  # noqa: SIM115 - the generator closes it
     except OSError as exc:
         raise McapReadError(f"cannot open log {str(path)!r}: {exc}") from exc
     try:
-        reader = make_reader(stream, validate_crcs=True)
-        summary = reader.get_summary()
-    except _ERRORS as exc:
-        stream.close()
-        raise McapReadError(f"{str(path)!r} is not a complete MCAP log (truncated or corrupt?): {exc}") from exc
-    if summary is None:
-        stream.close()
-        raise McapReadError(f"{str(path)!r} has no summary section: the logger that wrote it was not closed")
-    codecs = {}
-    try:
-        for channel in summary.channels.values():
+        channels, chunks = _summary_of(path, stream)
+        codecs = {}
+        for channel in channels.values():
             if "cufund.codec" in channel.metadata:
-                codecs[channel.id] = (channel.topic, codec_from_channel(channel.metadata))
+                where = f"{str(path)!r}: channel {channel.topic[:200]!r} (id {channel.id})"
+                codecs[channel.id] = (channel.topic, codec_from_channel(channel.metadata, where))
+    except McapReadError:
+        stream.close()
+        raise
     except ValueError as exc:
         stream.close()
-        raise McapReadError(f"{str(path)!r}: {exc}") from exc
-    return stream, reader, codecs
+        raise McapReadError(str(exc)) from exc
+    except BaseException:
+        stream.close()
+        raise
+    return stream, chunks, codecs
 
 
 def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
@@ -77,12 +127,28 @@ def log_topics(path: str | os.PathLike[str]) -> dict[str, str]:
 
 
 def log_metadata(path: str | os.PathLike[str]) -> dict[str, str]:
-    """The ``cufund`` metadata record of a log (what :class:`McapLogger` was given), or {}."""
-    stream, reader, _ = _open(Path(path))
+    """The ``cufund`` metadata record of a log (what :class:`McapLogger` was given; it follows the header), or
+    {}."""
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Metadata
+
+    stream, _, _ = _open(Path(path))
     try:
-        for record in reader.iter_metadata():
-            if record.name == "cufund":
-                return dict(record.metadata)
+        stream.seek(len(MAGIC))
+        for _ in range(2):  # the header, then (when given) the cufund metadata
+            head = stream.read(9)
+            if len(head) < 9:
+                return {}
+            opcode, length = struct.unpack("<BQ", head)
+            if opcode == 0x0C and length <= 64 << 20:
+                body = stream.read(length)
+                record = Metadata.read(ReadDataStream(io.BytesIO(body)))
+                if record.name == "cufund":
+                    return {str(k): str(v) for k, v in record.metadata.items()}
+                return {}
+            if opcode != 0x01:
+                return {}
+            stream.seek(length, 1)
     except _ERRORS as exc:
         raise McapReadError(f"{str(path)!r} is corrupt: {exc}") from exc
     finally:
@@ -97,7 +163,7 @@ def read_mcap(path: str | os.PathLike[str], topics: Iterable[str] | str | None =
     ``ValueError`` naming the topics a log has when a requested topic is not in it; a chunk found corrupt while
     iterating raises :class:`McapReadError` then."""
     path = Path(path)
-    stream, reader, codecs = _open(path)
+    stream, chunks, codecs = _open(path)
     if topics is not None:
         wanted = {str(topics)} if isinstance(topics, str) else {str(t) for t in topics}
         present = {topic for topic, _ in codecs.values()}
@@ -106,21 +172,25 @@ def read_mcap(path: str | os.PathLike[str], topics: Iterable[str] | str | None =
             stream.close()
             raise ValueError(f"topics {sorted(missing)} are not in {str(path)!r}; it has {sorted(present)}")
         codecs = {cid: tc for cid, tc in codecs.items() if tc[0] in wanted}
-    return _iterate(path, stream, reader, codecs)
+    return _iterate(path, stream, chunks, codecs)
 
 
-def _iterate(path: Path, stream: Any, reader: Any, codecs: dict[int, tuple[str, Codec]]) -> Iterator[LogRecord]:
+def _iterate(path: Path, stream: Any, chunks: list[Any], codecs: dict[int, tuple[str, Codec]]) -> Iterator[LogRecord]:
     try:
         if not codecs:
             return
-        summary = reader.get_summary()
-        if not summary.chunk_indexes and summary.statistics and summary.statistics.message_count:
-            raise McapReadError(f"{str(path)!r} has no chunk index (not written by cufund.logs.McapLogger)")
         try:
-            for log, _, _, _, channel, publish, data in iter_chunk_messages(stream, summary.chunk_indexes,
-                                                                              set(codecs)):
+            for log, _, _, _, channel, publish, data in iter_chunk_messages(stream, chunks, set(codecs)):
                 topic, codec = codecs[channel]
-                yield LogRecord(topic, log, publish, codec.decode(data))
+                try:
+                    message = codec.decode(data)
+                except _ERRORS as exc:
+                    text = str(exc)[:1000]
+                    text = text if codec.where in text else f"{codec.where}: {text}"
+                    raise McapReadError(f"{text} (the message at log time {log} ns)") from None
+                yield LogRecord(topic, log, publish, message)
+        except McapReadError:
+            raise
         except _ERRORS as exc:
             raise McapReadError(f"{str(path)!r} is corrupt: {exc}") from exc
     finally:
