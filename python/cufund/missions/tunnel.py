@@ -115,12 +115,12 @@ class TunnelMissionParams:
                      "v_max", "a_max", "corridor", "clearance", "bar", "move_v_max", "move_a_max",
                      "move_j_max", "rate_hz", "stale_s", "lidar_silence_s", "health_wait_s"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and float(v) > 0):
                 raise ConfigError(f"mission.{name} must be a finite number > 0, got {v!r}")
             object.__setattr__(self, name, float(v))
         for name in ("min_confidence", "hold_s"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and float(v) >= 0):
                 raise ConfigError(f"mission.{name} must be a finite number >= 0, got {v!r}")
             object.__setattr__(self, name, float(v))
         if self.init_s < 1.0:
@@ -250,6 +250,7 @@ class TunnelMission(Planner):
             return
         at_rest = self.state == "detect" or (self.state in ("align", "enter") and t_r >= self._t_leg_end)
         if not healthy and at_rest:
+            assert self._t_unhealthy is not None  # _health set it when it found the estimator unhealthy
             # At a rest point: hover (the reference holds) and wait for the estimator; land if it does not recover.
             if t - self._t_unhealthy > self.params.health_wait_s:
                 back = self._align_point(self.used) if self.state == "enter" and self.used is not None else None
@@ -290,7 +291,9 @@ class TunnelMission(Planner):
             return
         if self.state == "enter":  # at the first centre: re-plan through every opening with the newest detections
             if t_r >= self._t_leg_end + pp.hold_s:
-                self._plan_through(t, t_r, self.complete or self.used, bus)
+                detections = self.complete or self.used
+                assert detections is not None  # the enter leg is planned from detections
+                self._plan_through(t, t_r, detections, bus)
             return
         if self.state == "through":
             self._count_progress(state)
@@ -480,7 +483,8 @@ class TunnelMission(Planner):
         pts.append(d.centres[-1] + pp.exit_m * nl)
         rec = self._plan(t, t_r, "through", np.array(pts), d)
         if not rec.ok:
-            self._abort(t, t_r, f"no safe path through the frames: {rec.reason}", bus, back_W=self._align_point(self.used))
+            back = self._align_point(self.used) if self.used is not None else None
+            self._abort(t, t_r, f"no safe path through the frames: {rec.reason}", bus, back_W=back)
             return
         self.used = d
         self.progress = 1

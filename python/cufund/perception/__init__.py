@@ -1,5 +1,7 @@
 """Perception: tunnel frames from the LiDAR (paper §3.2, Fig. 9)."""
 
+from typing import Any
+
 from .detection import (
     FrameDetection,
     TunnelDetectorParams,
@@ -15,7 +17,7 @@ __all__ = ["FrameDetection", "TunnelDetector", "TunnelDetectorParams", "VoxelAcc
            "detect_in_voxels", "order_along_course", "plot_detection", "voxel_means"]
 
 
-def plot_detection(*args: object, **kwargs: object) -> object:
+def plot_detection(*args: Any, **kwargs: Any) -> Any:
     """Fig. 9-style plot of detections (see :func:`cufund.perception.plot.plot_detection`); imports matplotlib
     only when called."""
     from .plot import plot_detection as _plot

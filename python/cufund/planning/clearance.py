@@ -8,6 +8,8 @@ diagonal), so ``clearance(p) >= r`` proves a sphere of radius ``r`` at ``p`` fre
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import numpy.typing as npt
 
@@ -46,7 +48,7 @@ class ClearanceQuery:
         self._init(core, tuple(float(x) for x in np.asarray(origin_W, dtype=float)), d.shape, float(resolution))
         return self
 
-    def _init(self, core: object, origin_W: tuple, shape: tuple, resolution: float) -> None:
+    def _init(self, core: Any, origin_W: tuple[float, ...], shape: tuple[int, ...], resolution: float) -> None:
         self._core = core
         self._resolution = float(resolution)
         lo = np.asarray(origin_W, dtype=float)

@@ -31,7 +31,7 @@ RRTConnect then an optimising planner for ``improve_time`` seconds."""
 
 
 def _number(name: str, v: object, lo: float, strict: bool) -> float:
-    ok = not isinstance(v, bool) and isinstance(v, numbers.Real) and math.isfinite(v) and (v > lo if strict else v >= lo)
+    ok = not isinstance(v, bool) and isinstance(v, numbers.Real) and math.isfinite(v) and (float(v) > lo if strict else float(v) >= lo)
     if not ok:
         raise ConfigError(f"{name} must be a finite number {'>' if strict else '>='} {lo:g}, got {v!r}")
     return float(v)  # type: ignore[arg-type]

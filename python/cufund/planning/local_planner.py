@@ -76,7 +76,7 @@ class LocalPlannerParams:
         for name in ("radius", "margin", "v_max", "a_max", "dt", "horizon", "w_smooth", "w_collision",
                      "w_feasibility", "w_end"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and v > 0):
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and float(v) > 0):
                 raise ConfigError(f"{name} must be a finite number > 0, got {v!r}")
             object.__setattr__(self, name, float(v))
         if isinstance(self.max_iterations, bool) or not isinstance(self.max_iterations, numbers.Integral) \
@@ -170,7 +170,7 @@ class BsplineLocalPlanner:
         traj = UniformBspline(q, par.dt, t_start=t, yaw=yaw)
         ts = np.linspace(traj.t_start, traj.t_end, max(2, int(traj.duration / 0.01) + 1))
         curve = traj.sample(ts).p_W
-        clearance = float(self.query.clearance(curve).min())
+        clearance = float(np.min(self.query.clearance(curve)))
         if curve[:, 2].min() < lo - 0.05 or curve[:, 2].max() > hi + 0.05:
             return "altitude", None, clearance, 0.0, reaches
         # Certified between the samples too: every chord of the 10 ms polyline is traced (the curve is

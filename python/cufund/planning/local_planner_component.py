@@ -69,7 +69,7 @@ class LocalPlannerComponent(Planner):
         if not isinstance(initial, Trajectory):
             raise TypeError(f"initial must be a cufund.planning.Trajectory, got {type(initial).__name__}")
         for name, v in (("rate_hz", rate_hz), ("goal_tolerance", goal_tolerance)):
-            if not (math.isfinite(v) and v > 0):
+            if not (math.isfinite(v) and float(v) > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
         self.params, self.goal_W, self.initial = params, goal, initial
         self.t_begin, self.rate_hz, self.goal_tolerance = float(t_begin), float(rate_hz), float(goal_tolerance)

@@ -29,7 +29,7 @@ __all__ = ["MinSnapPlanner", "MinSnapPlannerParams", "MinSnapResult", "polyline_
 def _positive(name: str, v: object, allow_none: bool = False) -> float | None:
     if v is None and allow_none:
         return None
-    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and v > 0):
+    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and float(v) > 0):
         raise ConfigError(f"{name} must be a finite number > 0, got {v!r}")
     return float(v)
 
@@ -143,7 +143,7 @@ class MinSnapPlanner:
         min_clear = math.inf
         if query is not None:
             c = query.clearance(x)
-            min_clear = float(c.min())
+            min_clear = float(np.min(c))
             if p.radius is not None:  # the samples and the chords between them (certified)
                 bad_sample |= c < p.radius
                 bad_sample[:-1] |= ~query.path_free(x, p.radius)

@@ -80,6 +80,7 @@ class Region:
         p = np.asarray(p_W, dtype=float) - self.centre_W
         if self.size is not None:
             return bool(np.all(np.abs(p) <= 0.5 * np.asarray(self.size)))
+        assert self.radius is not None  # a region is a box (size) or a sphere (radius), checked at construction
         return bool(np.linalg.norm(p) <= self.radius)
 
 
@@ -262,7 +263,11 @@ class MissionSpec:
         self.sequence = None if sequence is None else tuple(sequence)
         """The regions in order when the mission is a plain sequence (no DFA needed)."""
         self.dfa = dfa
-        self.propositions = frozenset(self.sequence) if dfa is None else frozenset(_names(formula))
+        if dfa is None:
+            assert self.sequence is not None  # a mission without a DFA is a plain sequence
+            self.propositions = frozenset(self.sequence)
+        else:
+            self.propositions = frozenset(_names(formula))
 
     @classmethod
     def parse(cls, formula: str) -> MissionSpec:

@@ -15,6 +15,8 @@ import numbers
 import time
 from dataclasses import dataclass
 
+from typing import Any
+
 import numpy as np
 import numpy.typing as npt
 
@@ -48,7 +50,7 @@ class OmplPathParams:
         object.__setattr__(self, "radius", _radius(self.radius))
         for name in ("time_limit", "improve_time", "range"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and v >= 0):
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and float(v) >= 0):
                 raise ConfigError(f"{name} must be a finite number >= 0 [s or m], got {v!r}")
             object.__setattr__(self, name, float(v))
         if self.time_limit <= 0:
@@ -100,7 +102,7 @@ class OmplPathPlanner:
             def checkMotion(self, s1: object, s2: object, *last_valid: object) -> bool:  # noqa: N802 (OMPL's name)
                 return seg(s1[0], s1[1], s1[2], s2[0], s2[1], s2[2], r)  # type: ignore[index]
 
-        def setup(planner_cls: object) -> tuple[object, object]:
+        def setup(planner_cls: Any) -> tuple[Any, Any]:
             ss = og.SimpleSetup(space)
             ss.setStateValidityChecker(valid)
             si = ss.getSpaceInformation()
@@ -109,7 +111,7 @@ class OmplPathPlanner:
             for i in range(3):
                 a[i], b[i] = float(start[i]), float(goal[i])
             ss.setStartAndGoalStates(a, b)
-            planner = planner_cls(si)  # type: ignore[operator]
+            planner = planner_cls(si)
             if p.range > 0:
                 planner.setRange(p.range)
             ss.setPlanner(planner)

@@ -43,7 +43,7 @@ class PathResult:
 
 
 def _radius(value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (math.isfinite(value) and value >= 0):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (math.isfinite(value) and float(value) >= 0):
         raise ConfigError(f"radius must be a finite number >= 0 [m], got {value!r}")
     return float(value)
 
@@ -85,7 +85,7 @@ class GridPathSearchParams:
                 or self.max_expansions < 1:
             raise ConfigError(f"max_expansions must be an integer >= 1, got {self.max_expansions!r}")
         w = self.heuristic_weight
-        if isinstance(w, bool) or not isinstance(w, numbers.Real) or not (math.isfinite(w) and w >= 1):
+        if isinstance(w, bool) or not isinstance(w, numbers.Real) or not (math.isfinite(w) and float(w) >= 1):
             raise ConfigError(f"heuristic_weight must be a finite number >= 1, got {w!r}")
         object.__setattr__(self, "heuristic_weight", float(w))
         if not isinstance(self.shortcut, (bool, np.bool_)):

@@ -23,7 +23,7 @@ class JerkLimitedMove:
                  start_a_W: np.ndarray | None = None) -> None:
         from ruckig import InputParameter, Result, Ruckig, Trajectory
 
-        points = []
+        points: list[np.ndarray] = []
         for name, x in (("start_W", start_W), ("goal_W", goal_W), ("start_v_W", start_v_W), ("start_a_W", start_a_W)):
             if x is None:
                 points.append(np.zeros(3))
@@ -36,10 +36,10 @@ class JerkLimitedMove:
                 raise ValueError(f"{name} must be 3 finite numbers [m], got {x!r}")
             points.append(p)
         a, b, v0, a0 = points
-        for name, x in (("v_max", v_max), ("a_max", a_max), ("j_max", j_max)):
-            if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) \
-                    or not (np.isfinite(x) and x > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {x!r}")
+        for name, lim in (("v_max", v_max), ("a_max", a_max), ("j_max", j_max)):
+            if isinstance(lim, bool) or not isinstance(lim, (int, float, np.integer, np.floating)) \
+                    or not (np.isfinite(lim) and lim > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {lim!r}")
         inp = InputParameter(3)
         inp.current_position, inp.target_position = a.tolist(), b.tolist()
         inp.current_velocity, inp.current_acceleration = v0.tolist(), a0.tolist()

@@ -74,8 +74,8 @@ class TrajectoryFollower(Planner):
 
     def update(self, t: float, state: Odometry, bus: BusView) -> None:
         if self.update_topic is not None:
+            msg: TrajectoryUpdate
             for msg in self._updates.take():
-                msg: TrajectoryUpdate
                 self.stitch(t, msg.trajectory)
         s, i = self._lookup(t)
         if i == 0 and s is not self._rows:  # sampled off the grid: fresh arrays, checked as usual

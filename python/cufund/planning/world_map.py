@@ -30,10 +30,10 @@ def world_occupancy(world: World, resolution: float = 0.1, bounds_W: npt.ArrayLi
     if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[1] <= b[0]):
         raise ValueError(f"bounds_W must be finite [min, max] corners of shape (2, 3) with max > min, got {bounds_W!r}")
     if isinstance(resolution, bool) or not isinstance(resolution, (int, float)) \
-            or not (math.isfinite(resolution) and resolution > 0):
+            or not (math.isfinite(resolution) and float(resolution) > 0):
         raise ValueError(f"resolution must be finite and > 0 [m], got {resolution!r}")
     shape = tuple(max(1, math.ceil(s / resolution - 1e-9)) for s in (b[1] - b[0]))
-    origin = tuple(float(x) for x in b[0])
+    origin = (float(b[0][0]), float(b[0][1]), float(b[0][2]))
     occ = np.zeros(shape, dtype=bool)
     for o in world.objects:
         index = _core.planning.voxelize_triangles(origin, shape, float(resolution), o.vertices, o.triangles)

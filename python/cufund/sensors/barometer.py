@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from typing import Any
+
 import numpy as np
 
 from cufund.core.config import ConfigError, check_real_fields, nested
@@ -93,7 +95,7 @@ class BarometerModel:
         p = self.params
         return p.sea_level_temperature_k - LAPSE * (p.home_altitude_m + _real(z_W))
 
-    def measure(self, z_W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def measure(self, z_W: float | np.ndarray) -> tuple[Any, Any]:
         """(pressure [Pa], altitude above home [m]) for heights z_W (K,) or a scalar."""
         p = self.params
         if np.ndim(z_W) == 0:  # the per-tick path, in scalar arithmetic

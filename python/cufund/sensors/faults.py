@@ -286,12 +286,12 @@ class FaultySensor(Component):
 
     def setup(self, bus: Any) -> None:
         self._bus = _FaultBus(bus, self.faults)
-        self.inner.setup(self._bus)
+        self.inner.setup(self._bus)  # type: ignore[arg-type]  # duck-types the BusView it wraps
 
     def step(self, t: float, bus: Any) -> None:
         if self._bus is None or self._bus._view is not bus:
             self._bus = _FaultBus(bus, self.faults)
-        self.inner.step(t, self._bus)
+        self.inner.step(t, self._bus)  # type: ignore[arg-type]  # duck-types the BusView it wraps
 
     def __getattr__(self, name: str) -> Any:  # the wrapped sensor's own attributes (lidar, model, topic, ...)
         if name == "inner":

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from typing import Any
+
 import numpy as np
 
 from cufund.core.config import ConfigError
@@ -32,7 +34,7 @@ class GeoPoint:
             raise ConfigError(f"altitude_m must be finite, got {self.altitude_m!r}")
 
 
-def lla_to_ecef(lat_rad: np.ndarray, lon_rad: np.ndarray, h: np.ndarray) -> np.ndarray:
+def lla_to_ecef(lat_rad: Any, lon_rad: Any, h: Any) -> np.ndarray:
     """ECEF [m] (..., 3) of geodetic latitude, longitude [rad] and ellipsoidal height [m]."""
     sl, cl = np.sin(lat_rad), np.cos(lat_rad)
     n = WGS84_A / np.sqrt(1.0 - _E2 * sl * sl)  # prime-vertical radius of curvature

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from typing import Any
+
 import numpy as np
 
 from cufund.core.config import ConfigError, real_number
@@ -33,7 +35,7 @@ def real_fields(obj: object, where: str) -> None:
 __all__ = ["ErrorProcess", "NoiseSpec"]
 
 
-def _nonneg_vector(name: str, value: object, dim: int) -> tuple[float, ...]:
+def _nonneg_vector(name: str, value: Any, dim: int) -> tuple[float, ...]:
     try:
         a = np.broadcast_to(np.asarray(value, dtype=float), (dim,)) if np.ndim(value) == 0 else np.asarray(value, float)
     except (TypeError, ValueError, OverflowError):

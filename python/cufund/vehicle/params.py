@@ -24,7 +24,8 @@ def _matrix3(name: str, value: Any) -> tuple[tuple[float, float, float], ...]:
         a = np.diag(a)
     if a.shape != (3, 3):
         raise ConfigError(f"{name} must be a 3x3 matrix or 3 diagonal entries, got shape {a.shape}")
-    return tuple(tuple(float(x) for x in row) for row in a)
+    r0, r1, r2 = (tuple(float(x) for x in row) for row in a)
+    return ((r0[0], r0[1], r0[2]), (r1[0], r1[1], r1[2]), (r2[0], r2[1], r2[2]))
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from cufund.core.components import Bus, Component
+from cufund.core.components import BusView, Component
 from cufund.core.messages import Topics
 from cufund.vehicle.params import QuadrotorParams
 from cufund.planning.trajectory import Trajectory
@@ -62,7 +62,7 @@ class LiveViewer(Component):
         self._flown = []
         self._wall0 = None
 
-    def step(self, t: float, bus: Bus) -> None:
+    def step(self, t: float, bus: BusView) -> None:
         truth = bus.latest(Topics.TRUTH_ODOMETRY)
         if truth is None:
             return

@@ -51,7 +51,7 @@ def _main() -> None:
     def listen_local(self: Any, port: int, address: str = "127.0.0.1", **kwargs: Any) -> Any:
         return listen(self, port, address="127.0.0.1", **kwargs)
 
-    tornado.web.Application.listen = listen_local  # type: ignore[method-assign]
+    tornado.web.Application.listen = listen_local  # type: ignore[assignment]  # a patch with a narrower signature
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", category=DeprecationWarning)
         from meshcat.servers.zmqserver import main

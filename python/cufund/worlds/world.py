@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -101,12 +102,12 @@ class World:
         self._scene = None
         return obj
 
-    def add_box(self, size: object, position: object, yaw: float = 0.0, label: str = "box",
+    def add_box(self, size: Any, position: object, yaw: float = 0.0, label: str = "box",
                 color: object = (0.7, 0.7, 0.7)) -> WorldObject:
         """Box of edge lengths ``size`` (sx, sy, sz) [m] centred at ``position``."""
         return self.add_mesh(*primitives.box(size), label, color, position, yaw)
 
-    def add_plane(self, size: object, position: object, yaw: float = 0.0, label: str = "floor",
+    def add_plane(self, size: Any, position: object, yaw: float = 0.0, label: str = "floor",
                   color: object = (0.5, 0.5, 0.5)) -> WorldObject:
         """Horizontal rectangle (sx, sy) [m] at ``position``, facing up."""
         return self.add_mesh(*primitives.plane(size), label, color, position, yaw)
@@ -141,7 +142,7 @@ class World:
         if path.suffix.lower() == ".obj":
             _check_obj_faces(path)
         try:
-            mesh = trimesh.load(path, force="mesh", process=False)
+            mesh: Any = trimesh.load(path, force="mesh", process=False)
             faces, vertices = np.asarray(mesh.faces), np.asarray(mesh.vertices, dtype=float)
         except Exception as e:  # trimesh raises IndexError, KeyError, NotImplementedError, ... on bad files
             raise ValueError(f"mesh file {str(path)!r} must be a readable OBJ, STL or PLY mesh: {type(e).__name__}: "
