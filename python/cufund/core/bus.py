@@ -143,6 +143,15 @@ class Bus:
         self.subscriptions.append(sub)
         return sub
 
+    def has_consumer(self, topic: str) -> bool:
+        """Whether a message on ``topic`` reaches anything beyond :meth:`latest`: the topic is recorded, subscribed
+        to, or logged. (A producer may skip a message no consumer could tell apart from the last one, e.g. the
+        simulator's ground truth at instants where no component reads it.)"""
+        t = str(topic)
+        if t in self._recorded or self._subs.get(t):
+            return True
+        return self.logger is not None and (self._log_topics is None or t in self._log_topics)
+
     def recorded(self, topic: str) -> list[Any]:
         """Every visible message on a recorded topic, in order."""
         return self._recorded[topic]
@@ -168,6 +177,11 @@ class BusView:
         self._deny_truth = deny_truth
         self.reads: set[str] = set()
         """Every topic this component has read (latest or subscribed)."""
+
+    @property
+    def inputs(self) -> frozenset[str]:
+        """The topics this component may read (its declared inputs)."""
+        return self._readable
 
     def _check_read(self, topic: str) -> None:
         if self._deny_truth and is_truth(topic):

@@ -148,7 +148,7 @@ class _Slot:
         self.component, self.name, self.clock, self.view = component, name, clock, view
         self.run = component.step
         self.seconds = 0.0
-        self.reads_truth = str(Topics.TRUTH_ODOMETRY) in view._readable
+        self.reads_truth = str(Topics.TRUTH_ODOMETRY) in view.inputs
         """It may read ground truth: the snapshot is published before it runs."""
 
 
@@ -420,11 +420,8 @@ class Simulator:
         # Ground truth is published at an instant before the first component that may read it. When nothing else
         # observes the topic (no log, no recording, no subscription), instants where only flight software runs
         # (which reads the estimate once one is attached) skip the snapshot: no reader could tell.
-        always_truth = (bus.logger is not None or truth_topic in bus._recorded or bool(bus._subs.get(truth_topic)))
-        if quad is not None and getattr(quad, "step", None) == getattr(Quadrotor, "step", None).__get__(quad):
-            batch, core_step = quad._batch, quad._step  # Quadrotor.step without its Python layer (no wind function)
-        else:
-            batch, core_step = None, None
+        always_truth = bus.has_consumer(truth_topic)
+        core_step = quad.fast_step() if quad is not None else None  # Quadrotor.step without its Python layer
         physics_seconds = self._physics_seconds
         processed = self._processed_ns
         # the physics clock's arithmetic inlined (EventClock.advance): t_k = start + k * NS * den // num
@@ -473,7 +470,7 @@ class Simulator:
                     break
                 if quad is not None:
                     w0 = perf()
-                    if batch is not None and batch._wind_fn is None:
+                    if core_step is not None and quad.wind_function is None:
                         core_step((target - now) / NS, cmd, 1)
                     else:
                         quad.step((target - now) / NS, cmd)

@@ -177,6 +177,20 @@ class Quadrotor:
         """Constant wind (3,) [m/s], a function ``wind(t, p_W)``, or None."""
         self._batch.set_wind(wind)
 
+    @property
+    def wind_function(self) -> Callable[[float, np.ndarray], np.ndarray] | None:
+        """The wind function :meth:`step` evaluates before each step, or None (still air or a constant wind)."""
+        return self._batch._wind_fn
+
+    def fast_step(self) -> Callable[[float, np.ndarray, int], None] | None:
+        """:meth:`step` without its Python layer, for a caller's inner loop (the simulator's): the C++ integrator's
+        ``step(dt, rotor_speed_cmd, nthreads)``, same arithmetic, the held wind ``wind_W`` applied. It does not
+        evaluate a wind *function*: call :meth:`step` while :attr:`wind_function` is set. None when ``step`` is
+        overridden (a subclass or a patched instance), whose own ``step`` must then run."""
+        if self.step != Quadrotor.step.__get__(self):
+            return None
+        return self._step
+
     def reset(self) -> None:
         """At the origin, level, at rest, rotors stopped; time 0."""
         self._batch.reset()
