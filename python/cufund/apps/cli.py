@@ -2,17 +2,22 @@
 
 Exit codes: 0 the run completed; 1 it ran but ended otherwise (crashed, diverged, timed out, aborted; the status is
 printed); 2 invalid configuration or usage (a message naming the field, no traceback), checked before anything
-runs.
+runs; 130 / 143 ``cufund run`` stopped by SIGINT / SIGTERM (the run folder keeps config.yaml, the closed run.mcap
+and metrics.json with status ``interrupted``; no traceback).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import contextlib
 import json
+import signal
 import sys
 import time
+import warnings
 from pathlib import Path
+from typing import Iterator
 
 from cufund._core import __version__
 from cufund.core.config import ConfigError
@@ -106,7 +111,38 @@ def _list() -> int:
     return EXIT_COMPLETED
 
 
+@contextlib.contextmanager
+def _interruptible() -> Iterator[None]:
+    """SIGINT and SIGTERM raise :class:`RunInterrupted` in the main thread (the run folder is finished, then the
+    command exits 128 + the signal); a second signal while that cleanup runs is ignored (SIGKILL still works)."""
+    from cufund.scenarios.run_folder import RunInterrupted
+
+    def stop(signum: int, frame: object) -> None:
+        for s in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(s, signal.SIG_IGN)
+        raise RunInterrupted(signum)
+
+    previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
 def _run(args: argparse.Namespace) -> int:
+    from cufund.scenarios.run_folder import RunInterrupted
+
+    with _interruptible():
+        try:
+            return _run_scenario(args)
+        except RunInterrupted as stop:
+            print(f"cufund: interrupted by {stop.args[0]}; the run folder holds what was run up to then",
+                  file=sys.stderr)
+            return 128 + stop.signum
+
+
+def _run_scenario(args: argparse.Namespace) -> int:
     from cufund.scenarios.build import build_simulation, out_dir_problem
 
     try:
@@ -159,7 +195,7 @@ def _odometry(args: argparse.Namespace) -> int:
     import yaml
 
     from cufund.scenarios.schema import ScenarioConfig
-    from cufund.scenarios.build import BuildContext, out_dir_problem
+    from cufund.scenarios.build import ScenarioBuildContext, out_dir_problem
 
     try:
         from cufund.estimation.kinds import lio_params
@@ -176,7 +212,7 @@ def _odometry(args: argparse.Namespace) -> int:
             cfg = ScenarioConfig.from_dict(yaml.safe_load(meta["config"]))
             if cfg.estimator is not None and cfg.estimator.kind == "lio":
                 params = cfg.estimator.params
-            params, imu_spec, lidar_spec = lio_params(params, BuildContext(cfg))
+            params, imu_spec, lidar_spec = lio_params(params, ScenarioBuildContext(cfg))
             imu, lidar = imu_spec.topic, lidar_spec.topic
         figures = run_on_log(args.log, params, args.out, imu_topic=imu, lidar_topic=lidar)
     except (ConfigError, ValueError, OSError) as e:
@@ -187,7 +223,13 @@ def _odometry(args: argparse.Namespace) -> int:
     return EXIT_COMPLETED
 
 
+def _one_line_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                      file: object = None, line: str | None = None) -> str:
+    return f"cufund: warning: {message}\n"
+
+
 def main(argv: list[str] | None = None) -> int:
+    warnings.formatwarning = _one_line_warning  # e.g. a truncated log: one line, not a source excerpt
     args = _parser().parse_args(argv)
     if args.command == "allan":
         try:

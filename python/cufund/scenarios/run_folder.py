@@ -1,11 +1,16 @@
 """Writing a run folder: metrics.json, config.yaml (reproduces the run), trajectory.png and replay.html (when the
 run flew a reference); ``run.mcap`` is written while the run goes (see :func:`cufund.scenarios.build.run_scenario`'s
-``logger``)."""
+``logger``).
+
+``config.yaml`` is written before the run starts, so a killed run's folder still says what it ran. A run stopped by
+:class:`RunInterrupted` (``cufund run`` raises it on SIGINT and SIGTERM) closes its log (complete, with its
+summary) and writes ``metrics.json`` with status ``interrupted``."""
 
 from __future__ import annotations
 
 import json
 import math
+import signal
 from pathlib import Path
 from typing import Any
 
@@ -13,7 +18,16 @@ import yaml
 
 from .build import ScenarioRun
 
-__all__ = ["run_into_folder", "write_run_folder"]
+__all__ = ["RunInterrupted", "run_into_folder", "write_config", "write_run_folder"]
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """A run stopped by a signal (``signum``: SIGINT or SIGTERM); a KeyboardInterrupt, so code that lets Ctrl-C
+    through lets it through."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = int(signum)
 
 
 def _json_safe(x: Any) -> Any:
@@ -30,10 +44,8 @@ def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, repl
     """Writes the run's files into ``out`` (created if needed); returns the folder."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "metrics.json").write_text(json.dumps(_json_safe(run.metrics), indent=2) + "\n", encoding="utf-8")
-    with (out / "config.yaml").open("w", encoding="utf-8") as f:
-        f.write(f"# Reproduce with: cufund run {out / 'config.yaml'}\n")
-        yaml.safe_dump(run.config.to_dict(), f, sort_keys=False)
+    _write_metrics(run.metrics, out)
+    write_config(run.config, out)
     params = run.config.vehicle_params()
     if plots and run.reference is not None and run.path is not None and run.metrics.get("tracking_rmse_m") is not None:
         from cufund.viz.plots import plot_tracking
@@ -51,18 +63,31 @@ def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, repl
     return out
 
 
+def write_config(config: Any, out: Path) -> None:
+    """``out/config.yaml``: the scenario as run (``cufund run`` on it reproduces the run)."""
+    text = f"# Reproduce with: cufund run {out / 'config.yaml'}\n" + yaml.safe_dump(config.to_dict(), sort_keys=False)
+    (out / "config.yaml").write_text(text, encoding="utf-8")
+
+
+def _write_metrics(metrics: dict[str, Any], out: Path) -> None:
+    (out / "metrics.json").write_text(json.dumps(_json_safe(metrics), indent=2) + "\n", encoding="utf-8")
+
+
 def run_into_folder(config: Any, out: str | Path, *, log: bool = True, plots: bool = True, replay: bool = True,
                     progress: bool = False, extra_components: tuple = ()) -> ScenarioRun:
     """Runs ``config`` (a :class:`cufund.ScenarioConfig`, or a scenario already made by
     :func:`cufund.scenarios.build.build_simulation`) into the run folder ``out``: ``run.mcap`` while it goes (when
     ``log`` and the scenario's ``log.mcap``; its metadata holds the scenario's config), then
-    :func:`write_run_folder`. Returns the run."""
+    :func:`write_run_folder`; ``config.yaml`` first, before the run starts. Interrupted (a KeyboardInterrupt, e.g.
+    :class:`RunInterrupted`): the log is closed, ``metrics.json`` says status ``interrupted`` (with the simulated
+    time reached) and the exception goes on. Returns the run."""
     from .build import Built, build_simulation, run_built
 
     built = config if isinstance(config, Built) else build_simulation(config, extra_components)
     config = built.config
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    write_config(config, out)
     logger = None
     if log and config.log.mcap:
         from cufund.logs import McapLogger
@@ -72,6 +97,13 @@ def run_into_folder(config: Any, out: str | Path, *, log: bool = True, plots: bo
         built.simulator.logger = _Excluding(logger, config.log.exclude) if config.log.exclude else logger
     try:
         run = run_built(built, progress=progress)
+    except KeyboardInterrupt as exc:
+        if logger is not None:
+            logger.close()
+        reason = exc.args[0] if isinstance(exc, RunInterrupted) else "SIGINT"
+        _write_metrics({"status": "interrupted", "message": f"stopped by {reason}",
+                        "sim_time_s": float(built.simulator.t)}, out)
+        raise
     finally:
         if logger is not None:
             logger.close()
