@@ -86,7 +86,7 @@ def _summary_of(path: Path, stream: Any) -> tuple[Any, Any]:
         return summary.channels, summary.chunk_indexes
     stream.seek(0)
     if stream.read(len(MAGIC)) != MAGIC:
-        raise McapReadError(f"{str(path)!r} is not an MCAP log: {error or 'no summary'}")
+        raise McapReadError(f"{str(path)!r} is not a complete MCAP log (not MCAP at all): {error or 'no summary'}")
     try:
         recovered = scan_records(stream)
     except _ERRORS as exc:
