@@ -1,5 +1,9 @@
 """A MAVLink 2 link over UDP: ``udpout:HOST:PORT`` (send to a listening client) or ``udpin:HOST:PORT`` (listen).
 
+A ``udpin`` link answers the first address that writes to it and keeps that peer until it has been silent for
+``peer_timeout_s``, as MAVProxy's and mavlink-router's UDP servers do: datagrams from anyone else meanwhile are
+dropped (counted in :attr:`LinkStats.foreign`), so a stray packet cannot take the ground station's stream.
+
 One non-blocking socket and one pymavlink codec per link. Parsing never raises: malformed bytes, bad CRCs and
 unknown message ids are counted in :attr:`UdpLink.stats` and dropped. Sockets bind 127.0.0.1 unless the URL names
 another address (a ``udpout`` to another host binds the one interface its route leaves by).
@@ -9,6 +13,7 @@ from __future__ import annotations
 
 import ipaddress
 import socket
+import time
 from dataclasses import dataclass, field
 
 from pymavlink.dialects.v20 import common as mavlink
@@ -81,14 +86,22 @@ class LinkStats:
     bad_data: int = 0
     """Datagrams or frames dropped: bad CRC, unknown id, truncated, garbage."""
     send_errors: int = 0
+    foreign: int = 0
+    """udpin: datagrams dropped because they came from another address than the current peer."""
     by_type: dict[str, int] = field(default_factory=dict)
 
 
 class UdpLink:
     """One MAVLink 2 UDP link. ``recv()`` returns the messages that arrived; ``send(msg)`` packs with our ids."""
 
-    def __init__(self, url: str, system_id: int = 1, component_id: int = 1, name: str = "link") -> None:
+    def __init__(self, url: str, system_id: int = 1, component_id: int = 1, name: str = "link",
+                 peer_timeout_s: float = 5.0) -> None:
+        if isinstance(peer_timeout_s, bool) or not isinstance(peer_timeout_s, (int, float)) or \
+                not (peer_timeout_s > 0 and peer_timeout_s < float("inf")):
+            raise ValueError(f"{name}: peer_timeout_s must be a finite time > 0 [s], got {peer_timeout_s!r}")
         self.name = name
+        self.peer_timeout_s = float(peer_timeout_s)
+        self._peer_heard = -float("inf")  # udpin: when the peer last wrote (monotonic) [s]
         self.address = LinkAddress.parse(url, name)
         self.mav = mavlink.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
         self.mav.robust_parsing = True
@@ -124,7 +137,11 @@ class UdpLink:
                 self.stats.send_errors += 1
                 continue
             if self.address.mode == "udpin":
-                self.peer = addr
+                now = time.monotonic()
+                if self.peer is not None and addr != self.peer and now - self._peer_heard <= self.peer_timeout_s:
+                    self.stats.foreign += 1  # not our peer, which is still there
+                    continue
+                self.peer, self._peer_heard = addr, now
             try:
                 msgs = self.mav.parse_buffer(data) or []
             except Exception:  # noqa: BLE001 - pymavlink raises a variety of errors on garbage
