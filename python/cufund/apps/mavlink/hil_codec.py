@@ -11,13 +11,14 @@ Unsigned frames only: a signed outgoing link falls back to pymavlink, a signed i
 
 from __future__ import annotations
 
+import re
 import struct
 from typing import Any
 
 from fastcrc.crc16 import mcrf4xx
 from pymavlink.dialects.v20 import common as mavlink
 
-__all__ = ["MAVLINK2_MAGIC", "ControlsFrame", "FrameWriter", "take_controls"]
+__all__ = ["MAVLINK2_MAGIC", "ControlsFrame", "FrameWriter", "scan_frames", "take_controls"]
 
 MAVLINK2_MAGIC = 0xFD
 _MAGIC = bytes((MAVLINK2_MAGIC,))
@@ -116,3 +117,64 @@ def take_controls(data: bytes) -> tuple[list[ControlsFrame], bytes]:
         frames.append((data[i:end + 2], (c0, c1, c2, c3), mode))
         i = end + 2
     return frames, data[i:] if i else data
+
+
+_STARTS = re.compile(b"[\xfd\xfe]")  # MAVLink 2 and MAVLink 1 frame starts
+_OK, _SHORT, _BAD = 0, 1, 2
+
+
+def _frame_at(buf: bytes, j: int) -> tuple[int, int]:
+    """(_OK, end) when a whole CRC-valid frame of a known message starts at ``buf[j]``; (_SHORT, 0) when one may
+    start there but the bytes end first; (_BAD, 0) when none starts there."""
+    n = len(buf)
+    if buf[j] == MAVLINK2_MAGIC:
+        if n - j < 10:
+            return _SHORT, 0
+        plen, incompat = buf[j + 1], buf[j + 2]
+        if incompat & ~1:
+            return _BAD, 0
+        msg_id = buf[j + 7] | buf[j + 8] << 8 | buf[j + 9] << 16
+        end = j + 12 + plen + (13 if incompat & 1 else 0)
+        crc_end = j + 10 + plen
+    else:  # MAVLink 1
+        if n - j < 6:
+            return _SHORT, 0
+        plen, msg_id = buf[j + 1], buf[j + 5]
+        end = j + 8 + plen
+        crc_end = j + 6 + plen
+    cls = mavlink.mavlink_map.get(msg_id)
+    if cls is None:
+        return _BAD, 0
+    if end > n:
+        return _SHORT, 0
+    if mcrf4xx(bytes((cls.crc_extra,)), mcrf4xx(buf[j + 1:crc_end], 0xFFFF)) != buf[crc_end] | buf[crc_end + 1] << 8:
+        return _BAD, 0
+    return _OK, end
+
+
+def scan_frames(buf: bytes) -> tuple[list[bytes], int, bytes]:
+    """Whole, CRC-valid MAVLink frames (of messages the dialect knows) in a byte stream, resynchronising past
+    anything else byte by byte: a false frame start in noise never swallows the real frame behind it (unlike a
+    parser that trusts the first length byte it meets). Returns (frames, bad pieces skipped, rest): ``rest`` is
+    a frame start cut off by the end of ``buf``, to be completed by what comes next (it is given up as noise
+    when a whole frame follows it in ``buf``)."""
+    frames: list[bytes] = []
+    bad = 0
+    i, n = 0, len(buf)
+    while i < n:
+        m = _STARTS.search(buf, i)
+        j = m.start() if m is not None else n
+        if j > i:
+            bad += 1  # bytes that start no frame
+        if j == n:
+            break
+        status, end = _frame_at(buf, j)
+        if status == _OK:
+            frames.append(bytes(buf[j:end]))
+            i = end
+            continue
+        if status == _SHORT and not any(_frame_at(buf, k.start())[0] == _OK for k in _STARTS.finditer(buf, j + 1)):
+            return frames, bad, bytes(buf[j:])
+        bad += 1  # a false start: look again from the next byte
+        i = j + 1
+    return frames, bad, b""

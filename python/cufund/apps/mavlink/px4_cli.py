@@ -1,6 +1,7 @@
 """``cufund px4-sim SCENARIO``: serve a scenario to PX4 as its simulator — SITL over TCP 4560 + instance (lockstep)
-or HITL over a serial port (``--hitl DEVICE``, lockstep off). Exit codes: 0 the session ended (PX4 left or the
-duration elapsed), 1 the vehicle crashed or diverged, 2 invalid configuration or usage."""
+or HITL over a serial port (``--hitl DEVICE``, lockstep off). Exit codes: 0 the session ended (PX4 left in order or
+the duration elapsed), 1 the vehicle crashed or diverged, or the link failed (e.g. PX4 reset the connection; the
+reason on stderr), 2 invalid configuration or usage."""
 
 from __future__ import annotations
 
@@ -110,4 +111,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"status: {result.status.value} ({result.message}) after {result.sim_time_s:.3f} s simulated; "
           f"HIL_SENSOR {s['hil_sensor']}, HIL_GPS {s['hil_gps']}, HIL_STATE_QUATERNION {s['hil_state_quaternion']}, "
           f"controls {s['controls']}, timeouts {s['controls_timeouts']}, bad packets {s['bad_packets']}")
+    if result.status.value == "aborted":
+        print(f"cufund px4-sim: {result.message}", file=sys.stderr)
     return EXIT_OK if result.status.value == "completed" else EXIT_NOT_COMPLETED

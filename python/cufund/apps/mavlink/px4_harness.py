@@ -70,7 +70,19 @@ class Px4Harness:
             except OSError:
                 return b""
 
-        return cls(sock.sendall, read, sock.close)
+        def close() -> None:  # an orderly leave: FIN, then what the simulator still sends is read, then close (a
+            try:  # close with unread bytes would reset the connection, which the simulator reports as a failure)
+                sock.shutdown(socket.SHUT_WR)
+                end = time.monotonic() + 1.0
+                while time.monotonic() < end:
+                    ready, _, _ = select.select([sock], [], [], max(end - time.monotonic(), 0.0))
+                    if not ready or not sock.recv(65536):
+                        break
+            except OSError:
+                pass
+            sock.close()
+
+        return cls(sock.sendall, read, close)
 
     @classmethod
     def fd(cls, fd: int) -> Px4Harness:

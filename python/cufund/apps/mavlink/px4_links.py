@@ -1,9 +1,11 @@
 """Byte links between cufund and PX4: the SITL TCP server (PX4 connects to 4560 + instance) and a serial port
 for HITL (pyserial). Both: ``send(data)``, ``recv(timeout) -> bytes | None`` (None: nothing arrived within the
-timeout; ``b""``: the peer closed the link), ``close()``."""
+timeout; ``b""``: the peer closed the link; :class:`LinkClosed` raised: the link failed, e.g. the peer reset it),
+``close()``."""
 
 from __future__ import annotations
 
+import logging
 import os
 import select
 import socket
@@ -20,10 +22,13 @@ _TIMEVAL = struct.Struct("@ll")  # struct timeval: seconds, microseconds (C long
 #: may run on more than one CPU: pinned to PX4's CPU (``--cpu``), polling would only delay PX4.
 _SPIN_S = 60e-6
 _DRAIN_S = 0.25  #: at most this long [s] a closing link reads PX4's last bytes while PX4 reads ours
+#: What a second simulator client reads before its connection is closed (one PX4 per bridge).
+BUSY_MESSAGE = b"cufund px4-sim: already serving a PX4 connection; this one is refused\n"
+_log = logging.getLogger("cufund.px4_sim")
 
 
 class LinkClosed(ConnectionError):
-    """The peer closed the link (or it failed)."""
+    """The link failed (the peer reset it, a send failed); the message says why."""
 
 
 class Link(Protocol):
@@ -36,7 +41,9 @@ class Link(Protocol):
 
 class TcpServerLink:
     """Listens on ``host:port`` (127.0.0.1 unless told otherwise; port 0 picks a free one, see :attr:`port`) and
-    serves one PX4 connection at a time, with TCP_NODELAY as Gazebo's plugin does."""
+    serves one PX4 connection at a time, with TCP_NODELAY as Gazebo's plugin does. Another client connecting
+    meanwhile is refused by :meth:`refuse_pending` (:data:`BUSY_MESSAGE`, a log line, counted in ``refused``)
+    instead of waiting unanswered in the listen backlog."""
 
     def __init__(self, host: str = "127.0.0.1", port: int = PX4_SITL_BASE_PORT) -> None:
         if not isinstance(host, str) or not host:
@@ -55,6 +62,7 @@ class TcpServerLink:
         self._conn: socket.socket | None = None
         self._rcvtimeo = 0.0  # the connection's SO_RCVTIMEO [s]
         self.spin_s = 0.0  # how long recv polls before blocking [s]: _SPIN_S once connected, unless pinned
+        self.refused = 0
 
     @property
     def connected(self) -> bool:
@@ -74,6 +82,31 @@ class TcpServerLink:
         self._set_rcvtimeo(1.0)
         self.spin_s = _SPIN_S if len(os.sched_getaffinity(0)) > 1 else 0.0  # the CPUs allowed now (--cpu pins)
         return True
+
+    def refuse_pending(self) -> int:
+        """While connected: accepts and closes every other client waiting (after :data:`BUSY_MESSAGE` and a
+        log line), without waiting. Returns how many were refused."""
+        n = 0
+        while self._conn is not None:
+            ready, _, _ = select.select([self._server], [], [], 0.0)
+            if not ready:
+                break
+            try:
+                other, addr = self._server.accept()
+            except OSError:
+                break
+            try:
+                other.settimeout(0.5)
+                other.sendall(BUSY_MESSAGE)
+                other.shutdown(socket.SHUT_WR)
+            except OSError:
+                pass
+            finally:
+                other.close()
+            n += 1
+            _log.warning("px4-sim: refused a second simulator connection from %s:%d (already serving one)", *addr)
+        self.refused += n
+        return n
 
     def send(self, data: bytes) -> None:
         if self._conn is None:
@@ -103,8 +136,9 @@ class TcpServerLink:
                     data = conn.recv(65536)
         except BlockingIOError:  # EAGAIN: nothing within the timeout (or nothing waiting)
             return None
-        except OSError:
-            data = b""
+        except OSError as e:  # ECONNRESET and the like: not an orderly close
+            self._drop()
+            raise LinkClosed(f"PX4 connection failed: {e.strerror or e}") from None
         if not data:
             self._drop()
         return data

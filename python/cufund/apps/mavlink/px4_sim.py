@@ -32,7 +32,7 @@ from cufund.scenarios.schema import ScenarioConfig
 from cufund.scenarios.build import build_simulation
 from cufund.simulator import RunStatus, SimulationResult
 from .frames import GeodeticOrigin
-from .hil_codec import FrameWriter, take_controls
+from .hil_codec import FrameWriter, scan_frames, take_controls
 from .hil_messages import HilEncoder
 from .px4_airframe import Px4Airframe
 from .px4_links import GcsForward, Link, LinkClosed, TcpServerLink
@@ -248,6 +248,7 @@ class Px4SimulatorBridge:
         self._wall0: float | None = None
         self._closed = False
         self.close_reason = ""
+        self._pending = b""  # the start of a frame the next read completes
 
     @property
     def port_number(self) -> int | None:
@@ -265,6 +266,9 @@ class Px4SimulatorBridge:
         out = []
         if t >= self._next_heartbeat:
             self._next_heartbeat = t + p.heartbeat_period_s - 1e-9
+            refuse = getattr(self.link, "refuse_pending", None)
+            if refuse is not None:
+                refuse()  # a second simulator client is told so, not left waiting in the backlog
             out.append(self.writer.heartbeat(MAV_TYPE_GENERIC, MAV_AUTOPILOT_INVALID, 0, 0, 0))
             self.stats["heartbeats_sent"] += 1
         stats = self.stats
@@ -293,7 +297,7 @@ class Px4SimulatorBridge:
                 if from_gcs:
                     self.link.send(from_gcs)
         except LinkClosed as e:
-            self._close(str(e))
+            self._close(str(e), failed=True)
         return self._command(t)
 
     def _pace(self, t: float) -> None:
@@ -337,8 +341,12 @@ class Px4SimulatorBridge:
             timeout = max(start + p.controls_timeout_s - time.perf_counter(), 0.0)
 
     def _handle(self, data: bytes, t: float) -> bool:
+        """Takes what arrived: HIL_ACTUATOR_CONTROLS (True if any came), heartbeats, commands. Whole controls
+        frames at the front take the fast path; anything else is split into CRC-valid frames, resynchronising
+        past noise byte by byte (:func:`~cufund.apps.mavlink.hil_codec.scan_frames`), so garbage never costs the
+        controls frame behind it."""
         got = False
-        if not self._rx.buf_len():  # pymavlink holds no partial frame: controls at the front take the fast path
+        if not self._pending:
             controls, data = take_controls(data)
             for frame, u, mode in controls:
                 if self.gcs is not None:
@@ -347,26 +355,42 @@ class Px4SimulatorBridge:
                 got = True
             if not data:
                 return got
-        try:
-            messages = self._rx.parse_buffer(data) or ()
-        except (ValueError, TypeError, IndexError, struct.error, mavlink.MAVError):  # pymavlink's robust mode can still raise
-            self.stats["bad_packets"] += 1
-            return False
-        for msg in messages:
-            kind = msg.get_type()
-            if self.gcs is not None and kind != "BAD_DATA":
-                self.gcs.send(bytes(msg.get_msgbuf()))
-            if kind == "HIL_ACTUATOR_CONTROLS":
-                self._on_controls(msg.controls[:4], msg.mode, t)
+        frames, bad, self._pending = scan_frames(self._pending + data)
+        self.stats["bad_packets"] += bad
+        for frame in frames:
+            controls, _ = take_controls(frame)
+            if controls:
+                _, u, mode = controls[0]
+                self._on_controls(u, mode, t)
                 got = True
-            elif kind == "HEARTBEAT":
-                self.stats["heartbeats_received"] += 1
-            elif kind == "COMMAND_LONG" and msg.target_system in (0, self.params.system_id) and \
-                    msg.target_component in (0, self.params.component_id):
-                self._on_command(msg)
-            elif kind in ("BAD_DATA", "UNKNOWN") or kind.startswith("UNKNOWN"):
-                self.stats["bad_packets"] += 1
+            else:
+                try:
+                    messages = self._rx.parse_buffer(frame) or ()
+                except (ValueError, TypeError, IndexError, struct.error, mavlink.MAVError):
+                    self.stats["bad_packets"] += 1  # a valid frame whose payload pymavlink cannot decode
+                    continue
+                for msg in messages:
+                    got = self._on_message(msg, t) or got
+                continue
+            if self.gcs is not None:
+                self.gcs.send(frame)
         return got
+
+    def _on_message(self, msg: Any, t: float) -> bool:
+        kind = msg.get_type()
+        if self.gcs is not None and kind != "BAD_DATA":
+            self.gcs.send(bytes(msg.get_msgbuf()))
+        if kind == "HIL_ACTUATOR_CONTROLS":  # a signed or MAVLink 1 frame: pymavlink decoded it
+            self._on_controls(msg.controls[:4], msg.mode, t)
+            return True
+        if kind == "HEARTBEAT":
+            self.stats["heartbeats_received"] += 1
+        elif kind == "COMMAND_LONG" and msg.target_system in (0, self.params.system_id) and \
+                msg.target_component in (0, self.params.component_id):
+            self._on_command(msg)
+        elif kind in ("BAD_DATA", "UNKNOWN") or kind.startswith("UNKNOWN"):
+            self.stats["bad_packets"] += 1
+        return False
 
     def _on_controls(self, u: Any, mode: int, t: float) -> None:
         isfinite = math.isfinite
@@ -400,10 +424,11 @@ class Px4SimulatorBridge:
         read-only."""
         return self._cmd if t - self._controls_t <= self.params.stale_controls_s + 1e-9 else self._cmd_disarmed
 
-    def _close(self, reason: str) -> None:
+    def _close(self, reason: str, failed: bool = False) -> None:
+        """Ends the run: COMPLETED when PX4 left in order, ABORTED (with the reason) when the link failed."""
         self._closed = True
         self.close_reason = reason
-        self.simulator.stop(RunStatus.COMPLETED, reason)
+        self.simulator.stop(RunStatus.ABORTED if failed else RunStatus.COMPLETED, reason)
 
     # -- running -----------------------------------------------------------------------------------------------
     def run(self, duration: float | None = None, connect_timeout: float | None = None,
