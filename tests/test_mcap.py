@@ -458,3 +458,19 @@ def test_a_failed_disk_write_is_an_oserror_never_silent():
         log.close()
     assert log._closed
     log.close()  # and then idempotent
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/dev/full"), reason="needs /dev/full")
+def test_a_write_error_stays_reported_by_every_later_write_and_close():
+    """Once the writer has reported a write error it reports it again at every later write and at close: it never
+    resumes writing after a failed write (the file's offsets would be wrong)."""
+    log = McapLogger("/dev/full", block_messages=1)
+    with pytest.raises(OSError, match="writing the log failed"):
+        for k in range(100):
+            log.write("/a", M.ActuatorCommand(k * 0.1, np.ones(4)), k, k)
+    for k in range(5):
+        with pytest.raises(OSError, match="writing the log failed"):
+            log.write("/a", M.ActuatorCommand(k * 0.1, np.ones(4)), k, k)
+    with pytest.raises(OSError, match="writing the log failed"):
+        log.close()
+    assert log._closed

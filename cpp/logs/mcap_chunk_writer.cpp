@@ -243,10 +243,16 @@ void ChunkWriter::submit(Job job) {
   if (::getpid() != pid_) {
     throw std::logic_error("an McapLogger cannot write from a forked child process; open one there");
   }
+  rethrow();  // a write error stays reported: nothing is written after it (later offsets would be wrong)
   if (fd_ < 0) throw std::logic_error("the log is closed");
   if (thread_ == nullptr) {
-    rethrow();
-    process(job);
+    try {
+      process(job);
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      error_ = std::current_exception();
+      throw;
+    }
     return;
   }
   std::unique_lock<std::mutex> lock(mutex_);
@@ -267,11 +273,12 @@ void ChunkWriter::run() {
     Job job = std::move(queue_.front());
     queue_.pop_front();
     busy_ = true;
+    const bool failed = error_ != nullptr;  // read under the lock
     space_.notify_all();
     lock.unlock();
     std::exception_ptr error;
     try {
-      if (!error_) process(job);  // after an error, later jobs are dropped (their offsets would be wrong)
+      if (!failed) process(job);  // after an error, later jobs are dropped (their offsets would be wrong)
     } catch (...) {
       error = std::current_exception();
     }
@@ -318,7 +325,7 @@ void ChunkWriter::rethrow() {
   std::exception_ptr error;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    std::swap(error, error_);
+    error = error_;  // kept: every later call reports it again
   }
   if (error) std::rethrow_exception(error);
 }

@@ -102,7 +102,8 @@ void encode_chunk(const Block& block, Compression compression, std::uint64_t pos
 
 // Writes raw records and chunks to a file descriptor (owned, closed by close()) in submission order, on a
 // background thread when `background` (at most `max_pending` jobs wait: a producer that outruns the disk
-// waits). An error of the thread is rethrown by the next call as std::runtime_error.
+// waits). A write error (or any other of the thread) is sticky: it is rethrown by every later write, chunk,
+// finish and close, and nothing more is written to the file.
 class ChunkWriter {
  public:
   ChunkWriter(int fd, Compression compression, bool background, std::size_t max_pending = 8);

@@ -1,9 +1,18 @@
-// encode_chunk against the MCAP record layout, read back field by field; the ROS stamp's rounding and flooring.
+// encode_chunk against the MCAP record layout, read back field by field; the ROS stamp's rounding and flooring;
+// ChunkWriter's write errors (sticky: reported by every later call, nothing written after them).
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
+#include <string>
+#include <system_error>
 
 #include "mcap_chunk_writer.h"
 
@@ -91,6 +100,96 @@ TEST(EncodeChunk, MessagesViewsAndIndexesAreWhereTheRecordsSay) {
   }
   EXPECT_EQ(index, out.size());
   EXPECT_EQ(info.message_index_length, out.size() - info.chunk_length);
+}
+
+// A block of one 8-byte row.
+Block one_row_block() {
+  Block b;
+  b.channel = 1;
+  b.row_bytes = 8;
+  b.data.assign(8, 0x5A);
+  b.log.push_back(1);
+  b.publish.push_back(1);
+  b.sequence.push_back(0);
+  return b;
+}
+
+// Whether f throws std::system_error with ENOSPC (the error /dev/full gives every write).
+template <typename F>
+bool throws_enospc(F&& f) {
+  try {
+    f();
+  } catch (const std::system_error& e) {
+    return e.code().value() == ENOSPC;
+  }
+  return false;
+}
+
+// The writer's descriptor first refers to /dev/full (every write fails with ENOSPC); after the first reported
+// error it is pointed (dup2) at an empty regular file that would accept writes: the error must stay reported by
+// every later write, chunk, finish and close, and the file must stay empty.
+void check_write_error_is_sticky(bool background) {
+  const int full = ::open("/dev/full", O_WRONLY);
+  if (full < 0) GTEST_SKIP() << "needs /dev/full";
+  char path[] = "/tmp/cufund_chunk_writer_XXXXXX";
+  const int file = ::mkstemp(path);
+  ASSERT_GE(file, 0);
+  ::unlink(path);
+  {
+    ChunkWriter writer(full, Compression::kNone, background);
+    if (background) {
+      writer.write({1, 2, 3});  // handed to the thread; its error reaches finish()
+      EXPECT_TRUE(throws_enospc([&] { writer.finish(); }));
+    } else {
+      EXPECT_TRUE(throws_enospc([&] { writer.write({1, 2, 3}); }));
+    }
+    EXPECT_EQ(writer.position(), 0u);
+    ASSERT_EQ(::dup2(file, full), full);  // the "disk" recovers
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_TRUE(throws_enospc([&] { writer.write({4, 5, 6}); })) << "write " << k;
+      EXPECT_TRUE(throws_enospc([&] { writer.chunk(one_row_block()); })) << "chunk " << k;
+      EXPECT_TRUE(throws_enospc([&] { writer.finish(); })) << "finish " << k;
+    }
+    EXPECT_TRUE(throws_enospc([&] { writer.close(); }));
+    EXPECT_TRUE(throws_enospc([&] { writer.close(); }));  // and again
+    EXPECT_TRUE(throws_enospc([&] { writer.write({7}); }));  // after close: still the write error
+    EXPECT_TRUE(writer.chunks().empty());
+    EXPECT_EQ(writer.position(), 0u);
+  }  // the destructor reports nothing
+  struct stat st {};
+  ASSERT_EQ(::fstat(file, &st), 0);
+  EXPECT_EQ(st.st_size, 0) << "bytes were written after a reported write error";
+  ::close(file);
+}
+
+TEST(ChunkWriter, AWriteErrorStaysReportedAndNothingMoreIsWritten) { check_write_error_is_sticky(false); }
+
+TEST(ChunkWriter, AWriteErrorOfTheThreadStaysReportedAndNothingMoreIsWritten) { check_write_error_is_sticky(true); }
+
+// The same writer on a working file writes what it is given (the test above can tell an empty file from a full one).
+TEST(ChunkWriter, WritesRecordsAndChunksInOrder) {
+  char path[] = "/tmp/cufund_chunk_writer_XXXXXX";
+  const int file = ::mkstemp(path);
+  ASSERT_GE(file, 0);
+  for (const bool background : {false, true}) {
+    ASSERT_EQ(::ftruncate(file, 0), 0);
+    ASSERT_EQ(::lseek(file, 0, SEEK_SET), 0);
+    const int fd = ::dup(file);
+    ChunkWriter writer(fd, Compression::kNone, background);
+    writer.write({1, 2, 3});
+    writer.chunk(one_row_block());
+    writer.finish();
+    ASSERT_EQ(writer.chunks().size(), 1u);
+    EXPECT_EQ(writer.chunks()[0].chunk_start, 3u);
+    const std::uint64_t end = writer.position();
+    writer.close();
+    struct stat st {};
+    ASSERT_EQ(::fstat(file, &st), 0);
+    EXPECT_EQ(static_cast<std::uint64_t>(st.st_size), end);
+    EXPECT_GT(end, 3u);
+  }
+  ::close(file);
+  ::unlink(path);
 }
 
 }  // namespace
