@@ -2,8 +2,8 @@
 programs (MAVSDK) connect to a live run (:class:`cufund.apps.live.LiveRun`) through :class:`VehicleEndpoint`.
 
 One thread serves every link: it reads datagrams (malformed ones counted and dropped), answers each request on
-the link it came from, streams telemetry to all links at the configured rates (SET_MESSAGE_INTERVAL changes
-them) and forwards commands to the run's commander, answering COMMAND_ACK when the commander has decided.
+the link it came from, streams telemetry to each link at that link's rates (SET_MESSAGE_INTERVAL changes them for
+the link it came on, as PX4's per-instance streams) and forwards commands to the run's commander, answering COMMAND_ACK when the commander has decided.
 Commands, setpoints and parameters cross into the simulation thread only through ``run.submit``; nothing in the
 loop raises out of it (an error in a handler is counted in ``stats['handler_errors']``).
 
@@ -27,26 +27,21 @@ import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 from typing_extensions import Self
 
-from cufund.control.rotations import yaw_of
+from cufund.geometry import yaw_of
 from . import command_protocol as cp
 from . import frames
 from . import telemetry_streams as ts
 from .link import UdpLink
-from .mission_protocol import MissionItem, MissionProtocol
-from .param_protocol import ParamTable, decode_id
+from .mission_protocol import CommanderPlan
+from .param_protocol import ParamProtocol
 
 _RESULT = {"accepted": mavlink.MAV_RESULT_ACCEPTED, "denied": mavlink.MAV_RESULT_DENIED,
            "unsupported": mavlink.MAV_RESULT_UNSUPPORTED, "failed": mavlink.MAV_RESULT_FAILED,
            "in_progress": mavlink.MAV_RESULT_IN_PROGRESS}
 
-_NAV_COMMANDS = (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_NAV_LOITER_TIME,
-                 mavlink.MAV_CMD_NAV_LOITER_UNLIM)
 _GLOBAL_FRAMES = (mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_FRAME_GLOBAL,
                   mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT)
 _INT32_UNSET = 2**31 - 1  # COMMAND_INT's "no value" for x/y
-
-_RELATIVE_FRAMES = (mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT)
-
 
 def _msg_name(msg_id: int) -> str | None:
     cls = mavlink.mavlink_map.get(int(msg_id))
@@ -92,15 +87,17 @@ class VehicleEndpoint:
             self.close()
             raise
         self.intervals: dict[str, float | None] = {k: 1.0 / v for k, v in {**ts.DEFAULT_RATES_HZ, **(rates_hz or {})}.items()}
-        self._next_due: dict[str, float] = {}
+        """The streams' configured intervals [s] (None: off): each link starts with them."""
+        self.link_intervals: dict[UdpLink, dict[str, float | None]] = {lk: dict(self.intervals) for lk in self.links}
+        """Each link's stream intervals [s] (None: off), as its client set them."""
+        self._next_due: dict[UdpLink, dict[str, float]] = {lk: {} for lk in self.links}
         self._outbox: queue.SimpleQueue = queue.SimpleQueue()
-        self.params = ParamTable()
-        self.missions = MissionProtocol(self._accept_mission, self._clear_mission, self._set_mission_current,
-                                        self._mission_seq)
-        self._item_seq: list[int] = []  # commander item index -> MAVLink mission seq
-        self._plan_seqs: list[int] = []  # the whole plan's waypoints: MAVLink seqs ...
-        self._plan_wps: list[dict[str, Any]] = []  # ... and as the commander's items
-        self._mission_done = False  # the plan was flown to its end (MISSION_CURRENT: complete)
+        self.param_protocol = ParamProtocol(run.submit if hasattr(run, "submit") else _no_submit,
+                                            lambda fn, *a: self._outbox.put((None, (fn, *a))))
+        self.params = self.param_protocol.table
+        self.plan = CommanderPlan(self._decide, lambda: self._snap or self._snapshot(), self.origin,
+                                  lambda: self._due_now("MISSION_CURRENT"))
+        self.missions = self.plan.protocol
         self._event_index = len(getattr(run, "events", ()) or ())
         self._snap: ts.VehicleSnapshot | None = None
         self._offboard: tuple[dict[str, Any], float] | None = None  # the latest offboard setpoint and its wall time
@@ -113,7 +110,7 @@ class VehicleEndpoint:
 
     # -- lifecycle --------------------------------------------------------------------------------------------
     def start(self) -> VehicleEndpoint:
-        self._refresh_params()
+        self.param_protocol.refresh()
         self._thread = threading.Thread(target=self.serve_forever, name="mavlink-endpoint", daemon=True)
         self._thread.start()
         return self
@@ -187,20 +184,27 @@ class VehicleEndpoint:
         self._snap = ts.VehicleSnapshot.from_telemetry(self.run.telemetry())
         return self._snap
 
+    def _due_now(self, name: str) -> None:
+        """Stream ``name`` goes out on every link at the next poll (a change to tell at once)."""
+        for due in self._next_due.values():
+            due[name] = 0.0
+
     def _poll(self, now: float) -> None:
         self.missions.poll(now)
         self._check_link(now)
-        due = [k for k, dt in self.intervals.items() if dt is not None and now >= self._next_due.get(k, 0.0)]
         self._follow_events()
-        if not due:
-            return
-        s = self._snapshot()
-        for name in due:
-            dt = self.intervals[name]
-            self._next_due[name] = max(self._next_due.get(name, now) + dt, now) if dt else now
-            factory = self._stream(name, s)
-            if factory is not None:
-                self._send(None, factory)
+        s = None
+        for link in self.links:
+            next_due = self._next_due[link]
+            intervals = self.link_intervals[link]
+            for name, dt in intervals.items():
+                if dt is None or now < next_due.get(name, 0.0):
+                    continue
+                next_due[name] = max(next_due.get(name, now) + dt, now)
+                s = s or self._snapshot()
+                factory = self._stream(name, s)
+                if factory is not None:
+                    self._send(link, factory)
 
     def _stream(self, name: str, s: ts.VehicleSnapshot) -> Callable | None:
         o = self.origin
@@ -217,8 +221,8 @@ class VehicleEndpoint:
             "HOME_POSITION": lambda mav: ts.encode_home_position(mav, s, o),
             "ALTITUDE": lambda mav: ts.encode_altitude(mav, s, o),
             "VFR_HUD": lambda mav: ts.encode_vfr_hud(mav, s, o),
-            "MISSION_CURRENT": lambda mav: ts.encode_mission_current(mav, s, self._mission_seq(s),
-                                                                     len(self.missions.items), self._mission_done),
+            "MISSION_CURRENT": lambda mav: ts.encode_mission_current(mav, s, self.plan.seq(s),
+                                                                     len(self.missions.items), self.plan.done),
             "AUTOPILOT_VERSION": lambda mav: ts.encode_autopilot_version(mav, self.system_id),
         }
         return builders.get(name)
@@ -246,12 +250,12 @@ class VehicleEndpoint:
             self._event_index = e["index"] + 1
             kind, text = e.get("kind", ""), str(e.get("message", ""))
             if kind == "mission_complete":
-                self._mission_done = True
-                self._next_due["MISSION_CURRENT"] = 0.0  # tell at once (MAVSDK's is_mission_finished reads it)
+                self.plan.done = True
+                self._due_now("MISSION_CURRENT")  # tell at once (MAVSDK's is_mission_finished reads it)
             elif kind == "mission" or (kind == "mode" and e.get("mode") == "mission"):
-                self._mission_done = False  # a new plan, or the plan flown again
+                self.plan.done = False  # a new plan, or the plan flown again
             if kind == "mission_item_reached" and isinstance(e.get("seq"), int):
-                for seq in self._reached_seqs(e["seq"]):
+                for seq in self.plan.reached_seqs(e["seq"]):
                     self._send(None, lambda mav, q=seq: mav.mission_item_reached_encode(q))
             severity = {"warning": mavlink.MAV_SEVERITY_WARNING, "denied": mavlink.MAV_SEVERITY_WARNING,
                         "error": mavlink.MAV_SEVERITY_ERROR, "collision": mavlink.MAV_SEVERITY_CRITICAL}.get(
@@ -275,7 +279,8 @@ class VehicleEndpoint:
         elif kind.startswith("MISSION_"):
             self.missions.handle(msg, lambda factory: self._send(link, factory), now)
         elif kind in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"):
-            self._param(link, msg)
+            self.param_protocol.handle(msg, lambda factory: self._send(link, factory), lambda text: self._send(
+                link, lambda mav: ts.encode_statustext(mav, text, mavlink.MAV_SEVERITY_WARNING)))
         elif kind in ("SET_POSITION_TARGET_LOCAL_NED", "SET_ATTITUDE_TARGET"):
             try:  # a setpoint has no ack: one that cannot be flown is counted and dropped
                 if kind == "SET_ATTITUDE_TARGET":
@@ -366,10 +371,10 @@ class VehicleEndpoint:
             elif c == mavlink.MAV_CMD_MISSION_START:
                 self._forward(link, msg, c, {"command": "mission_start"})
             elif c == mavlink.MAV_CMD_DO_SET_MISSION_CURRENT:
-                ok = self._set_mission_current(int(p[0]))
+                ok = self.plan.set_current(int(p[0]))
                 self._ack(link, msg, c, mavlink.MAV_RESULT_ACCEPTED if ok else mavlink.MAV_RESULT_DENIED)
             elif c == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL:
-                self._ack(link, msg, c, self._set_interval(int(p[0]), p[1]))
+                self._ack(link, msg, c, self._set_interval(link, p[0], p[1]))
             elif c == mavlink.MAV_CMD_REQUEST_MESSAGE:
                 self._request_message(link, msg, c, int(p[0]))
             elif c == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
@@ -382,18 +387,27 @@ class VehicleEndpoint:
         except (ValueError, TypeError, OverflowError) as e:  # NaN or absurd parameters
             self._ack(link, msg, c, mavlink.MAV_RESULT_DENIED, f"bad parameters: {e}")
 
-    def _set_interval(self, msg_id: int, interval_us: float) -> int:
-        name = _msg_name(msg_id)
+    def _set_interval(self, link: UdpLink, msg_id: float, interval_us: float) -> int:
+        """SET_MESSAGE_INTERVAL on ``link`` only: -1 stops the stream, 0 restores the default, > 0 is the interval
+        [us] (at most 1 kHz). HEARTBEAT's interval is fixed (FAILED, as PX4's set_message_interval refuses it);
+        a non-finite or negative interval other than -1 is DENIED; an unknown message UNSUPPORTED."""
+        if not (math.isfinite(msg_id) and msg_id == int(msg_id)):
+            return mavlink.MAV_RESULT_DENIED
+        name = _msg_name(int(msg_id))
         if name is None or (name not in self.intervals and name not in ts.DEFAULT_RATES_HZ):
             return mavlink.MAV_RESULT_UNSUPPORTED
+        if name == "HEARTBEAT":
+            return mavlink.MAV_RESULT_FAILED
+        if not math.isfinite(interval_us) or (interval_us < 0 and interval_us != -1):
+            return mavlink.MAV_RESULT_DENIED
+        intervals = self.link_intervals[link]
         if interval_us == 0:
-            rate = ts.DEFAULT_RATES_HZ.get(name)
-            self.intervals[name] = None if rate is None else 1.0 / rate
+            intervals[name] = self.intervals.get(name)
         elif interval_us < 0:
-            self.intervals[name] = None
+            intervals[name] = None
         else:
-            self.intervals[name] = max(float(interval_us) * 1e-6, 1e-3)
-        self._next_due[name] = 0.0
+            intervals[name] = max(float(interval_us) * 1e-6, 1e-3)
+        self._next_due[link][name] = 0.0
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _request_message(self, link: UdpLink, msg: Any, command: int, msg_id: int) -> None:
@@ -405,68 +419,6 @@ class VehicleEndpoint:
             return
         self._ack(link, msg, command, mavlink.MAV_RESULT_ACCEPTED)
         self._send(link, factory)
-
-    # -- parameters -------------------------------------------------------------------------------------------
-    def _refresh_params(self, then: Callable | None = None) -> None:
-        def done(f: Any) -> None:
-            try:
-                ack = f.result()
-            except Exception:  # noqa: BLE001
-                return
-            if isinstance(ack.data, dict):
-                self._outbox.put((None, (self.params.update, ack.data)))
-            if then is not None:
-                self._outbox.put((None, (then,)))
-
-        try:
-            self.run.submit({"command": "get_params"}).add_done_callback(done)
-        except ValueError:
-            pass
-
-    def _send_all_params(self, link: UdpLink) -> None:
-        for name in list(self.params.values):
-            self._send(link, lambda mav, n=name: self.params.param_value(mav, n))
-
-    def _param(self, link: UdpLink, msg: Any) -> None:
-        kind = msg.get_type()
-        if kind == "PARAM_REQUEST_LIST":
-            self._refresh_params(lambda: self._send_all_params(link))
-            return
-        if kind == "PARAM_REQUEST_READ":
-            name = decode_id(msg.param_id) if msg.param_index < 0 else self.params.name_at(msg.param_index)
-
-            def reply() -> None:
-                if name is not None and name in self.params.values:
-                    self._send(link, lambda mav: self.params.param_value(mav, name))
-
-            self._refresh_params(reply)
-            return
-        name = decode_id(msg.param_id)  # PARAM_SET
-        run = self.params.to_run(name, msg.param_value)
-        if run is None or not math.isfinite(msg.param_value):
-            text = f"unknown parameter {name}" if run is None else f"{name}: not a finite value"
-            self._send(link, lambda mav: ts.encode_statustext(mav, text, mavlink.MAV_SEVERITY_WARNING))
-            if run is not None:
-                self._send(link, lambda mav: self.params.param_value(mav, name))
-            return
-
-        def applied(ack: Any) -> None:
-            if ack.result == "accepted" and isinstance(ack.data, dict):
-                for k, v in ack.data.items():
-                    wire = self.params.from_run(k, v)
-                    if wire is not None:
-                        self.params.values[wire[0]] = wire[1]
-            elif ack.message:
-                self._send(link, lambda mav: ts.encode_statustext(mav, ack.message[:50],
-                                                                   mavlink.MAV_SEVERITY_WARNING))
-            self._send(link, lambda mav: self.params.param_value(mav, name))
-
-        try:
-            fut = self.run.submit({"command": "set_param", "name": run[0], "value": run[1]})
-        except ValueError:
-            return
-        fut.add_done_callback(lambda f: self._outbox.put((None, (applied, f.result()))) if not f.exception()
-                              else None)
 
     # -- missions ---------------------------------------------------------------------------------------------
     def _decide(self, cmd: dict[str, Any], timeout: float = 2.0) -> Any:
@@ -486,91 +438,9 @@ class VehicleEndpoint:
         except Exception:  # noqa: BLE001 - a stopped run, a refused command
             return None
 
-    def _accept_mission(self, items: list[MissionItem]) -> int:
-        """Waypoints of a MAVLink plan -> the commander's mission (NAV items; other items are kept for download
-        but not flown). Refused when a waypoint has a frame we cannot place."""
-        s = self._snap or self._snapshot()
-        home = s.home_p_W if np.all(np.isfinite(s.home_p_W)) else s.p_W
-        home_amsl = float(self.origin.enu_to_lla(home)[2])
-        wps, seqs = [], []
-        for it in items:
-            if it.command not in _NAV_COMMANDS:
-                continue
-            if it.frame in (mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
-                if abs(it.x) > 90 * 10**7:
-                    return mavlink.MAV_MISSION_INVALID_PARAM5_X  # latitude beyond a pole
-                if abs(it.y) > 180 * 10**7:
-                    return mavlink.MAV_MISSION_INVALID_PARAM6_Y
-                amsl = it.z + (home_amsl if it.frame in _RELATIVE_FRAMES else 0.0)
-                p = self.origin.lla_to_enu(np.array([frames.e7_to_deg(it.x), frames.e7_to_deg(it.y), amsl]))
-            elif it.frame == mavlink.MAV_FRAME_LOCAL_NED:
-                p = frames.ned_to_enu(np.array([it.x * 1e-4, it.y * 1e-4, it.z]))
-            else:
-                return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
-            if not np.all(np.isfinite(p)):
-                return mavlink.MAV_MISSION_INVALID
-            if p[2] < home[2]:  # below home: in the ground
-                return mavlink.MAV_MISSION_INVALID_PARAM7
-            yaw = None if not math.isfinite(it.param4) else float(frames.yaw_ned_to_enu(math.radians(it.param4)))
-            hold = it.param1 if it.command in (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME) \
-                and math.isfinite(it.param1) and it.param1 > 0 else 0.0
-            wps.append({"p_W": [float(c) for c in p], "yaw": yaw, "hold_s": float(hold)})
-            seqs.append(it.seq)
-        ack = self._decide({"command": "mission_upload", "items": wps})
-        if ack is None:
-            return mavlink.MAV_MISSION_ERROR
-        if ack.result != "accepted":
-            return mavlink.MAV_MISSION_DENIED
-        self._item_seq = self._plan_seqs = seqs
-        self._plan_wps = wps
-        return mavlink.MAV_MISSION_ACCEPTED
 
-    def _clear_mission(self) -> bool:
-        ack = self._decide({"command": "mission_clear"})
-        if ack is None:
-            return False
-        if ack.result == "accepted":
-            self._item_seq, self._plan_seqs, self._plan_wps = [], [], []
-            self._mission_done = False
-        return ack.result == "accepted"
-
-    def _set_mission_current(self, seq: int) -> bool:
-        """Makes MAVLink item ``seq`` (or the first waypoint after it) the next one flown: the commander gets the
-        plan from there on (holding first and flying on if a mission is running, as PX4 jumps)."""
-        i = next((k for k, q in enumerate(self._plan_seqs) if q >= seq), None)
-        if i is None:
-            return seq == 0 and not self._plan_seqs
-        running = self._snap is not None and self._snap.mode == "mission"
-        steps = ([{"command": "hold"}] if running else []) + [
-            {"command": "mission_upload", "items": self._plan_wps[i:]}] + (
-            [{"command": "mission_start"}] if running else [])
-        for cmd in steps:
-            ack = self._decide(cmd)
-            if ack is None or ack.result != "accepted":
-                return False
-        self._item_seq = self._plan_seqs[i:]
-        self._mission_done = False
-        self._next_due["MISSION_CURRENT"] = 0.0
-        return True
-
-    def _reached_seqs(self, index: int) -> range:
-        """MAVLink seqs reached with the commander's item ``index``: its NAV item and the non-NAV items up to the
-        next NAV item (those before the first NAV item with item 0), as PX4 executes them on the way."""
-        nav = self._item_seq
-        if not 0 <= index < len(nav):
-            return range(0)
-        start = 0 if index == 0 and nav[0] == self._plan_seqs[0] else nav[index]
-        end = nav[index + 1] if index + 1 < len(nav) else max(len(self.missions.items), nav[index] + 1)
-        return range(start, end)
-
-    def _seq_of(self, index: int) -> int:
-        return self._item_seq[index] if 0 <= index < len(self._item_seq) else max(index, 0)
-
-    def _mission_seq(self, s: ts.VehicleSnapshot | None = None) -> int:
-        s = s or self._snap
-        if s is None or s.mission_current < 0:  # not started: the item it would start with
-            return self._item_seq[0] if self._item_seq else 0
-        return self._seq_of(s.mission_current)
+def _no_submit(cmd: Any) -> Any:
+    raise ValueError("the run takes no commands")
 
 
 def _origin_of(run: Any) -> frames.GeodeticOrigin:
