@@ -284,34 +284,21 @@ void define_esdf(py::module_& m) {
               t_origin.push_back(finite_arg(f[2], "t_origin"));
             }
             // Raw views taken with the GIL held; the arrays stay alive in `points` and `times`.
-            std::vector<const double*> points_L(points.size()), t_points(points.size());
-            std::vector<Index> sizes(points.size());
+            std::vector<esdf::LidarFrame> views(points.size());
             for (std::size_t k = 0; k < points.size(); ++k) {
-              points_L[k] = points[k].data();
-              t_points[k] = times[k].data();
-              sizes[k] = points[k].shape(0);
+              views[k] = {points[k].data(), times[k].data(), points[k].shape(0), t_origin[k]};
             }
             esdf::EsdfUpdateStats s;
             {
               py::gil_scoped_release release;
               ForkSafeSection no_fork;
               const esdf::PoseKnots knots{kt.data(), kp.data(), kq.data(), nk};
-              std::vector<std::vector<double>> placed(points.size());
-              std::vector<esdf::EsdfMap::Scan> batch(points.size());  // filled below
-              const int nt = self.options().nthreads > 0 ? self.options().nthreads : ThreadPool::instance().size();
-              // Frames placed in parallel (each on its own: the result does not depend on the threads).
-              parallel_chunks(static_cast<Index>(points.size()), 1, nt, [&](Index k, Index, Index) {
-                const auto f = static_cast<std::size_t>(k);
-                const Index n = sizes[f];
-                placed[f].resize(static_cast<std::size_t>(3 * n));
-                esdf::place_points(knots, T_BL, points_L[f], t_points[f], n, placed[f].data());
-                const esdf::RigidTransform T_WB = esdf::body_pose_at(knots, t_origin[f]);
-                std::array<double, 3> o;
-                for (int r = 0; r < 3; ++r) {
-                  o[r] = T_WB.t[r] + T_WB.R[3 * r] * T_BL.t[0] + T_WB.R[3 * r + 1] * T_BL.t[1] + T_WB.R[3 * r + 2] * T_BL.t[2];
-                }
-                batch[f] = {placed[f].data(), n, o};
-              });
+              const std::vector<esdf::PlacedFrame> placed =
+                  esdf::place_frames(knots, T_BL, views.data(), views.size(), self.options().nthreads);
+              std::vector<esdf::EsdfMap::Scan> batch(placed.size());
+              for (std::size_t k = 0; k < placed.size(); ++k) {
+                batch[k] = {placed[k].points_W.data(), views[k].n, placed[k].origin_W};
+              }
               std::unique_lock<std::shared_mutex> write(self.access_mutex());
               s = self.insert_scans(batch);
             }

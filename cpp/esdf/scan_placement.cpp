@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "parallel.h"
+
 namespace cufund::esdf {
 
 namespace {
@@ -87,6 +89,24 @@ void place_points(const PoseKnots& knots, const RigidTransform& T_BL, const doub
     double* o = points_W + 3 * k;
     for (int r = 0; r < 3; ++r) o[r] = p_WL[r] + (R_WL[3 * r] * p[0] + R_WL[3 * r + 1] * p[1] + R_WL[3 * r + 2] * p[2]);
   }
+}
+
+std::vector<PlacedFrame> place_frames(const PoseKnots& knots, const RigidTransform& T_BL, const LidarFrame* frames,
+                                      std::size_t count, int nthreads) {
+  std::vector<PlacedFrame> placed(count);
+  parallel_chunks(static_cast<std::ptrdiff_t>(count), 1, resolve_threads(nthreads),
+                  [&](std::ptrdiff_t k, std::ptrdiff_t, std::ptrdiff_t) {
+                    const LidarFrame& f = frames[k];
+                    PlacedFrame& out = placed[static_cast<std::size_t>(k)];
+                    out.points_W.resize(static_cast<std::size_t>(3 * f.n));
+                    place_points(knots, T_BL, f.points_L, f.t, f.n, out.points_W.data());
+                    const RigidTransform T_WB = body_pose_at(knots, f.t_origin);
+                    for (int r = 0; r < 3; ++r) {
+                      out.origin_W[r] = T_WB.t[r] + T_WB.R[3 * r] * T_BL.t[0] + T_WB.R[3 * r + 1] * T_BL.t[1] +
+                                        T_WB.R[3 * r + 2] * T_BL.t[2];
+                    }
+                  });
+  return placed;
 }
 
 }  // namespace cufund::esdf

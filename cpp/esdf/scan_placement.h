@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstddef>
+#include <vector>
 
 namespace cufund::esdf {
 
@@ -23,7 +24,7 @@ struct RigidTransform {
 };
 
 // The body pose at time t: linear in position, normalised linear in the quaternion (the short way
-// round), clamped at the first and last knot (cufund.sensors.pose.interpolate_poses).
+// round), clamped at the first and last knot (cufund.geometry.interpolate_poses).
 RigidTransform body_pose_at(const PoseKnots& knots, double t);
 // The same, with `*hint` the interval (knots i, i + 1) to try first; updated to the one used.
 RigidTransform body_pose_at(const PoseKnots& knots, double t, std::ptrdiff_t* hint);
@@ -32,5 +33,25 @@ RigidTransform body_pose_at(const PoseKnots& knots, double t, std::ptrdiff_t* hi
 // stays non-finite (the map skips it).
 void place_points(const PoseKnots& knots, const RigidTransform& T_BL, const double* points_L, const double* t,
                   std::ptrdiff_t n, double* points_W);
+
+// One LiDAR frame: n points points_L[3k..3k+2] [m, LiDAR frame] fired at t[k] [s]; its scan origin is the
+// LiDAR's position at t_origin [s].
+struct LidarFrame {
+  const double* points_L = nullptr;
+  const double* t = nullptr;
+  std::ptrdiff_t n = 0;
+  double t_origin = 0.0;
+};
+
+// A frame placed in the world: its points (place_points) and its scan origin p_WB + R_WB t_BL at t_origin.
+struct PlacedFrame {
+  std::vector<double> points_W;  // 3n
+  std::array<double, 3> origin_W{};
+};
+
+// Places `count` frames, each on its own, in parallel on up to `nthreads` threads of the shared pool (<= 0: all);
+// the result does not depend on the threads.
+std::vector<PlacedFrame> place_frames(const PoseKnots& knots, const RigidTransform& T_BL, const LidarFrame* frames,
+                                      std::size_t count, int nthreads);
 
 }  // namespace cufund::esdf
