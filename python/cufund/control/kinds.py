@@ -11,13 +11,15 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError, nested
 from cufund.core.registry import Kind, register
+
 from .arming import make_armable
-from .attitude_control import AttitudeControlParams, AttitudeController
-from .geometric_controller import GeometricControlParams, GeometricController
-from .position_control import PositionControlParams, PositionController
-from .rate_control import RateControlParams, RateController
+from .attitude_control import AttitudeController, AttitudeControlParams
+from .geometric_controller import GeometricController, GeometricControlParams
+from .position_control import PositionController, PositionControlParams
+from .rate_control import RateController, RateControlParams
 
 __all__ = ["ControllerParams"]
 
@@ -45,19 +47,19 @@ class ControllerParams:
             raise ConfigError(f"controller.gyro_cutoff_hz must be a finite number >= 0 [Hz], got {v!r}")
 
 
-def _q_BI(ctx: Any) -> tuple[float, float, float, float]:
+def _q_BI(ctx: BuildContext) -> tuple[float, float, float, float]:
     imu = ctx.imu_params()
     return tuple(imu.q_BI) if imu is not None else (1.0, 0.0, 0.0, 0.0)
 
 
-def _armable(components: list[Any], ctx: Any) -> list[Any]:
+def _armable(components: list[Any], ctx: BuildContext) -> list[Any]:
     """With a commander as planner (built before the controllers), its vehicle status gates the controllers."""
-    if getattr(ctx, "commander", None) is not None:
+    if ctx.commander is not None:
         make_armable(components)
     return components
 
 
-def _pid(p: ControllerParams, ctx: Any) -> list[Any]:
+def _pid(p: ControllerParams, ctx: BuildContext) -> list[Any]:
     r, v = ctx.config.rates, ctx.vehicle
     return _armable([PositionController(v, p.position, rate_hz=r.position_hz),
                      AttitudeController(p.attitude, rate_hz=r.attitude_hz),
@@ -65,7 +67,7 @@ def _pid(p: ControllerParams, ctx: Any) -> list[Any]:
                     ctx)
 
 
-def _geometric(p: ControllerParams, ctx: Any) -> list[Any]:
+def _geometric(p: ControllerParams, ctx: BuildContext) -> list[Any]:
     return _armable([GeometricController(ctx.vehicle, p.geometric, rate_hz=ctx.config.rates.geometric_hz,
                                          q_BI=_q_BI(ctx), gyro_cutoff_hz=p.gyro_cutoff_hz)], ctx)
 

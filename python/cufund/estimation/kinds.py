@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
-import dataclasses
-
+from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError
 from cufund.core.registry import Kind, register
+
 from .imu_propagator import ImuPropagator, ImuPropagatorParams
 from .params import LioParams
 
@@ -15,7 +16,7 @@ _FROM_SCENARIO = {"imu": "sensors.<imu> (its kind and T_BI)", "T_BL": "sensors.<
                   "p_WB0": "start_p_W", "gravity": "vehicle"}
 
 
-def _imu_propagator(p: ImuPropagatorParams, ctx: Any) -> list[Any]:
+def _imu_propagator(p: ImuPropagatorParams, ctx: BuildContext) -> list[Any]:
     _, imu = ctx.sensor_of_type("imu", "", "estimator")
     _, pose = ctx.sensor_of_type("pose", "", "estimator")
     imu_params = ctx.imu_params()
@@ -26,7 +27,7 @@ register(Kind("estimator", "imu_propagator", ImuPropagatorParams, _imu_propagato
               "IMU-rate odometry between slow pose corrections (sensors: an IMU and a pose source)"))
 
 
-def lio_params(p: LioParams, ctx: Any) -> tuple[LioParams, Any, Any]:
+def lio_params(p: LioParams, ctx: BuildContext) -> tuple[LioParams, Any, Any]:
     """The LIO's params completed from the scenario (IMU part and mounting, LiDAR extrinsic, pad position,
     gravity: each given once, in the scenario), with the IMU and LiDAR specs."""
     default = LioParams()
@@ -41,7 +42,7 @@ def lio_params(p: LioParams, ctx: Any) -> tuple[LioParams, Any, Any]:
     return params, imu, lidar
 
 
-def _lio(p: LioParams, ctx: Any) -> list[Any]:
+def _lio(p: LioParams, ctx: BuildContext) -> list[Any]:
     from .lio_estimator import LioEstimator  # GTSAM loads only when a scenario uses the LIO
 
     params, imu, lidar = lio_params(p, ctx)

@@ -6,8 +6,10 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError, vector3
 from cufund.core.registry import Kind, register
+
 from .esdf_map import EsdfMapParams
 from .esdf_mapper import EsdfMapper
 
@@ -43,7 +45,7 @@ class EsdfMapperParams:
             raise ConfigError(f"mapper.merge_beams must be true or false, got {self.merge_beams!r}")
 
 
-def _esdf(p: EsdfMapperParams, ctx: Any) -> list[Any]:
+def _esdf(p: EsdfMapperParams, ctx: BuildContext) -> list[Any]:
     name, spec = ctx.sensor_of_type("lidar", p.lidar, "mapper.lidar")
     try:
         map_params = EsdfMapParams(resolution=p.resolution, size=p.size, origin_W=p.origin_W, max_range=p.max_range,

@@ -8,41 +8,37 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from cufund.core.registry import Kind, register
+from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError
+from cufund.core.registry import Kind, register
 from cufund.worlds.builtin import BUILTIN
 
 from .commander import Commander
-from .tunnel_course import TunnelCourseParams, paper_tunnel_course, tunnel_course, tunnel_course_layout
 from .params import CommanderParams
+from .tunnel_course import TunnelCourseParams, paper_tunnel_course, tunnel_course, tunnel_course_layout
 
 _SWITCHABLE = ("pid", "geometric")
 
 
-def _commander(p: CommanderParams, ctx: Any) -> list[Any]:
+def _commander(p: CommanderParams, ctx: BuildContext) -> list[Any]:
     cfg = ctx.config
     if p.rate_hz == CommanderParams.rate_hz:  # not set: the scenario's trajectory rate
         p = dataclasses.replace(p, rate_hz=cfg.rates.trajectory_hz)
     spec = cfg.controller
     kind = spec.kind if spec is not None else ""
     components: list[Any] = []
-    kinds: tuple[str, ...] = (kind,)
-    ctx.commander = True  # the controllers built from here on are gated by the commander's status
-    if kind in _SWITCHABLE:
-        other = _SWITCHABLE[1 - _SWITCHABLE.index(kind)]
-        part, where, seed = ctx.part, ctx.where, ctx.seed
+    other = _SWITCHABLE[1 - _SWITCHABLE.index(kind)] if kind in _SWITCHABLE else None
+    commander = Commander(p, controller=kind, controllers=(kind,) if other is None else (kind, other))
+    ctx.set_commander(commander)  # the controllers built from here on are gated by the commander's status
+    if other is not None:
         components += ctx.build("controller", dataclasses.replace(spec, kind=other), "controller")
-        ctx.part, ctx.where, ctx.seed = part, where, seed
-        kinds = (kind, other)
-    commander = Commander(p, controller=kind, controllers=kinds)
 
     def done(t: float, truth: Any) -> bool:  # a scripted run ends once the script is through and it has landed
         return bool(p.script) and commander.script_done and not commander.armed and commander.landed \
             and t > p.script[-1][0] + 1.0
 
-    ctx.done = done
-    ctx.commander = commander
-    ctx.metric_hooks.append(lambda result: {
+    ctx.set_done_condition(done)
+    ctx.add_metric_hook(lambda result: {
         "commander_events": [f"{e['t']:.2f} s {e['message']}" for e in commander.events],
         "commander_denied": len(commander.events.of_kind("denied")),
         "mission_items_reached": len(commander.events.of_kind("mission_item_reached"))})

@@ -7,10 +7,12 @@ from typing import Any
 
 import numpy as np
 
+from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError
 from cufund.core.messages import Topics
-from cufund.planning.trajectory_follower import TrajectoryFollower
 from cufund.core.registry import Kind, register
+from cufund.planning.trajectory_follower import TrajectoryFollower
+
 from .tunnel import TunnelMission, TunnelMissionParams
 
 __all__ = ["course_of"]
@@ -28,7 +30,7 @@ def course_of(config: Any) -> Any:
     return paper_tunnel_course(p) if p.seed is None else tunnel_course_layout(p.seed, p)
 
 
-def _detector(ctx: Any, p: TunnelMissionParams, start: np.ndarray) -> Any:
+def _detector(ctx: BuildContext, p: TunnelMissionParams, start: np.ndarray) -> Any:
     """Engineer D's detector on the scenario's LiDAR, in the estimated frame, keeping at most the expected frames
     and ordering them from the pad."""
     from cufund.perception import TunnelDetector, TunnelDetectorParams
@@ -38,7 +40,7 @@ def _detector(ctx: Any, p: TunnelMissionParams, start: np.ndarray) -> Any:
                           origin_W=start)
 
 
-def _tunnel(p: TunnelMissionParams, ctx: Any) -> list[Any]:
+def _tunnel(p: TunnelMissionParams, ctx: BuildContext) -> list[Any]:
     from .tunnel_metrics import tunnel_metrics
     from .tunnel_plots import write_tunnel_outputs
 
@@ -60,10 +62,10 @@ def _tunnel(p: TunnelMissionParams, ctx: Any) -> list[Any]:
         return mission.finished and mission.t_end is not None and t >= mission.t_end + 0.5 \
             and truth.p_W[2] < start[2] + 0.03 and float(np.linalg.norm(truth.v_W)) < 0.05
 
-    ctx.done = done
-    ctx.metric_hooks.append(lambda result: tunnel_metrics(result, mission, course))
+    ctx.set_done_condition(done)
+    ctx.add_metric_hook(lambda result: tunnel_metrics(result, mission, course))
     detector = _detector(ctx, p, start)
-    ctx.output_hooks.append(lambda run, out, **kw: write_tunnel_outputs(run, out, mission, course, detector, **kw))
+    ctx.add_output_hook(lambda run, out, **kw: write_tunnel_outputs(run, out, mission, course, detector, **kw))
     return [detector, mission, follower]
 
 

@@ -8,8 +8,10 @@ from typing import Any
 
 import numpy as np
 
+from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError
 from cufund.core.registry import Kind, register
+
 from .minimum_snap import MinimumSnapTrajectory
 from .path_search import GridPathSearchParams
 from .point_to_point import JerkLimitedMove
@@ -51,8 +53,8 @@ def build_reference(cfg: Any) -> tuple[TrajectorySequence, MinimumSnapTrajectory
     return TrajectorySequence([takeoff, hover1, path, hover2, landing]), path
 
 
-def _waypoints(p: WaypointsParams, ctx: Any) -> list[Any]:
-    reference, path = build_reference(ctx.trajectory())
+def _waypoints(p: WaypointsParams, ctx: BuildContext) -> list[Any]:
+    reference, path = build_reference(ctx.config.trajectory)
     follower = TrajectoryFollower(reference, rate_hz=ctx.config.rates.trajectory_hz)
     ctx.set_reference(reference, path)
     return [follower]
@@ -118,6 +120,7 @@ class LocalParams:
 
     def planner_params(self) -> Any:
         from cufund.core.config import ConfigError
+
         from .local_planner import LocalPlannerParams
 
         try:
@@ -128,14 +131,15 @@ class LocalParams:
             raise ConfigError(f"planner.{e}") from None
 
 
-def _start(ctx: Any) -> np.ndarray:
+def _start(ctx: BuildContext) -> np.ndarray:
     cfg = ctx.config
     w0 = cfg.trajectory.waypoints[0]
     return np.array(cfg.start_p_W if cfg.start_p_W is not None else (w0[0], w0[1], 0.0), dtype=float)
 
 
-def _local(p: LocalParams, ctx: Any, guide_W: np.ndarray | None = None) -> list[Any]:
+def _local(p: LocalParams, ctx: BuildContext, guide_W: np.ndarray | None = None) -> list[Any]:
     from cufund.core.messages import Topics
+
     from .local_planner_component import LocalPlannerComponent
     from .metrics import planning_metrics
 
@@ -154,8 +158,9 @@ def _local(p: LocalParams, ctx: Any, guide_W: np.ndarray | None = None) -> list[
         return planner.t_landed is not None and t >= planner.t_landed and truth.p_W[2] < start[2] + 0.02 \
             and float(np.linalg.norm(truth.v_W)) < 0.05
 
-    ctx.done = landed
-    ctx.metric_hooks.append(lambda result: planning_metrics(result, planner, ctx.world, start))
+    ctx.set_done_condition(landed)
+    world = ctx.world
+    ctx.add_metric_hook(lambda result: planning_metrics(result, planner, world, start))
     return [planner, follower]
 
 
@@ -212,7 +217,7 @@ class GlobalParams(LocalParams):
             raise ConfigError(f"planner.{'path_' + msg if msg.startswith('margin') else msg}") from None
 
 
-def _global(p: GlobalParams, ctx: Any) -> list[Any]:
+def _global(p: GlobalParams, ctx: BuildContext) -> list[Any]:
     from .global_planner import GlobalPlanner
     from .local_planner_component import ReplanRecord
     from .metrics import planning_metrics
@@ -243,7 +248,7 @@ def _global(p: GlobalParams, ctx: Any) -> list[Any]:
              "global_peak_jerk_mps3": motion.feasibility.peak_jerk, "global_max_tilt_deg": motion.feasibility.max_tilt_deg}
     if p.local:
         parts = _local(p, ctx, guide_W=plan.path.path_W)
-        ctx.metric_hooks.append(lambda result: stats)
+        ctx.add_metric_hook(lambda result: stats)
         return parts
     path = motion.trajectory
     hover2 = Hold(goal, p.hover_s, 0.0, t_start=path.t_end)
@@ -257,7 +262,7 @@ def _global(p: GlobalParams, ctx: Any) -> list[Any]:
     record = ReplanRecord(hover1.t_end, plan.status, 1e3 * plan.plan_seconds, motion.min_clearance,
                           float(np.sum(np.linalg.norm(np.diff(curve, axis=0), axis=1))), 1e3 * plan.plan_cpu_seconds)
     once = SimpleNamespace(active_goal=goal, goal_W=goal, params=SimpleNamespace(radius=p.radius), replans=[record])
-    ctx.metric_hooks.append(lambda result: {**planning_metrics(result, once, world, start), **stats})
+    ctx.add_metric_hook(lambda result: {**planning_metrics(result, once, world, start), **stats})
     return [follower]
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -9,40 +10,54 @@ from typing import Any
 
 import numpy as np
 
+from cufund.core.build_context import BuildContext, DoneCondition, MetricHook, OutputHook, PartView
 from cufund.core.config import ConfigError
-from cufund.sensors.faults import fault_summary, inject_faults
 from cufund.core.messages import Odometry, Topics
-from cufund.vehicle.quadrotor import Quadrotor
 from cufund.core.registry import lookup
-from .schema import PartSpec, ScenarioConfig, TrajectoryConfig
+from cufund.sensors.faults import fault_summary, inject_faults
 from cufund.simulator import SimulationResult, Simulator
+from cufund.vehicle.quadrotor import Quadrotor
 from cufund.worlds.collision import CollisionChecker
 
-__all__ = ["BuildContext", "Built", "RunSummary", "ScenarioRun", "build_simulation", "odometry_metrics", "run_built",
+from .schema import PartSpec, ScenarioConfig
+
+__all__ = ["BuildContext", "Built", "ScenarioBuildContext", "RunSummary", "ScenarioRun", "build_simulation", "odometry_metrics", "run_built",
            "run_scenario",
            "tracking_metrics"]
 
 
-class BuildContext:
-    """What a kind's ``build(params, ctx)`` may use: the scenario, the vehicle's params, the world, the sensors
-    and their extrinsics, and the part being built (``part``, ``where``, ``seed``)."""
+class ScenarioBuildContext:
+    """The :class:`~cufund.core.build_context.BuildContext` of one scenario being built: what a kind's
+    ``build(params, ctx)`` may read (the scenario, the vehicle's params, the world, the sensors and their
+    extrinsics, the part being built) and the declared calls through which a part adds to the run (its reference,
+    its end condition, its commander, its metrics and run-folder files). Slotted: a kind that writes an attribute
+    the protocol does not declare gets an AttributeError, not a silent new field."""
+
+    __slots__ = ("config", "vehicle", "base_dir", "world", "_part", "where", "seed", "reference", "tracking_path",
+                 "commander", "_done", "_done_by", "_metric_hooks", "_output_hooks")
 
     def __init__(self, config: ScenarioConfig) -> None:
         self.config = config
         self.vehicle = config.vehicle_params()
         self.base_dir = config.base_dir
         self.world: Any = None
-        self.part: PartSpec | None = None
+        self._part: PartView | None = None
         self.where = ""
         self.seed = 0
         self.reference: Any = None
         self.tracking_path: Any = None
-        self.done: Any = None
-        """``done(t, truth) -> bool`` ending a run whose landing time a planner only learns in flight."""
-        self.metric_hooks: list[Any] = []
-        """``hook(result) -> dict`` merged into the run's metrics (e.g. a replanner's planning metrics)."""
-        self.output_hooks: list[Any] = []
-        """``hook(run, out)`` writes a part's own files into the run folder ``out`` (e.g. a mission's plots)."""
+        self.commander: Any = None
+        self._done: DoneCondition | None = None
+        self._done_by = ""
+        self._metric_hooks: list[MetricHook] = []
+        self._output_hooks: list[OutputHook] = []
+
+    @property
+    def part(self) -> PartView:
+        """The part being built (only while a kind's ``build`` runs)."""
+        if self._part is None:
+            raise RuntimeError("no part is being built: ctx.part is read inside a kind's build(params, ctx)")
+        return self._part
 
     def seed_for(self, where: str) -> int:
         """The seed of the random stream of the part at ``where`` (e.g. ``sensors.lidar``): derived from the
@@ -81,27 +96,70 @@ class BuildContext:
             return None
         p = spec.params
         if spec.extrinsic is not None:
-            import dataclasses
-
             p = dataclasses.replace(p, p_BI=spec.extrinsic.t, q_BI=spec.extrinsic.q)
         return p
-
-    def trajectory(self) -> TrajectoryConfig:
-        return self.config.trajectory
 
     def set_reference(self, reference: Any, tracking_path: Any = None) -> None:
         """A planner declares the reference it flies (and the part of it tracking error is measured over)."""
         self.reference, self.tracking_path = reference, tracking_path
 
-    def build(self, group: str, spec: PartSpec, where: str) -> Any:
+    def set_done_condition(self, done: DoneCondition) -> None:
+        """Declares when the run ends; a second part declaring one is a ConfigError naming both."""
+        if not callable(done):
+            raise TypeError(f"{self.where}: set_done_condition takes done(t, truth) -> bool, got {done!r}")
+        if self._done is not None:
+            raise ConfigError(f"{self.where}: the run's end condition is declared already by {self._done_by}; one "
+                              "part per scenario may end the run")
+        self._done, self._done_by = done, self.where
+
+    def set_commander(self, commander: Any) -> None:
+        """Declares the vehicle commander: the controllers built from here on are gated by its status."""
+        if commander is None:
+            raise TypeError(f"{self.where}: set_commander takes the commander component, got None")
+        if self.commander is not None and self.commander is not commander:
+            raise ConfigError(f"{self.where}: a commander is declared already; a scenario has one")
+        self.commander = commander
+
+    def add_metric_hook(self, hook: MetricHook) -> None:
+        """``hook(result) -> dict`` merged into the run's metrics (e.g. a replanner's planning metrics)."""
+        if not callable(hook):
+            raise TypeError(f"{self.where}: add_metric_hook takes hook(result) -> dict, got {hook!r}")
+        self._metric_hooks.append(hook)
+
+    def add_output_hook(self, hook: OutputHook) -> None:
+        """``hook(run, out, **kw)`` writes a part's own files into the run folder ``out`` (e.g. a mission's plots)."""
+        if not callable(hook):
+            raise TypeError(f"{self.where}: add_output_hook takes hook(run, out, **kw), got {hook!r}")
+        self._output_hooks.append(hook)
+
+    @property
+    def done_condition(self) -> DoneCondition | None:
+        """The end condition a part declared, or None."""
+        return self._done
+
+    @property
+    def metric_hooks(self) -> tuple[MetricHook, ...]:
+        return tuple(self._metric_hooks)
+
+    @property
+    def output_hooks(self) -> tuple[OutputHook, ...]:
+        return tuple(self._output_hooks)
+
+    def build(self, group: str, spec: PartView, where: str) -> Any:
+        """Builds the part ``spec`` of ``group`` at ``where``: the world, or its list of components (with the
+        part's latency and phase set). ``part``, ``where`` and ``seed`` are the caller's again afterwards (a part
+        may build another, e.g. a second controller)."""
         kind = lookup(group, spec.kind, where)
-        self.part, self.where, self.seed = spec, where, self.seed_for(where)
+        saved = self._part, self.where, self.seed
+        self._part, self.where, self.seed = spec, where, self.seed_for(where)
         try:
             out = kind.build(spec.params, self)
         except ConfigError:
             raise
         except (TypeError, ValueError) as e:
             raise ConfigError(f"{where} ({spec.kind}): {e}") from None
+        finally:
+            self._part, self.where, self.seed = saved
         if group == "world":
             return out
         components = list(out)
@@ -113,13 +171,16 @@ class BuildContext:
         return components
 
 
+_CONFORMS: type[BuildContext] = ScenarioBuildContext  # mypy checks the class against the protocol here
+
+
 @dataclass
 class Built:
     """A scenario ready to run."""
 
     config: ScenarioConfig
     simulator: Simulator
-    context: BuildContext
+    context: ScenarioBuildContext
     landing_after: float | None
     """The reference ends (landed) at this time [s]; None without a reference."""
 
@@ -128,7 +189,7 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
     """The vehicle, world, components and simulator of ``config``, validated: unknown kinds, bad params, an
     unsatisfied input ("planner needs /map/esdf; nothing publishes it"), ground truth read by flight software,
     or a zero-latency cycle raise :class:`ConfigError` naming the part — before anything runs."""
-    ctx = BuildContext(config)
+    ctx = ScenarioBuildContext(config)
     if config.world is not None:
         ctx.world = ctx.build("world", config.world, "world")
     quad = Quadrotor(ctx.vehicle)
@@ -216,7 +277,7 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
         return t_landed is not None and t >= t_landed and truth.p_W[2] < 0.02 and float(np.linalg.norm(truth.v_W)) < 0.05
 
     ctx = built.context
-    result = built.simulator.run(config.duration, done=landed if t_landed is not None else ctx.done, progress=progress)
+    result = built.simulator.run(config.duration, done=landed if t_landed is not None else ctx.done_condition, progress=progress)
     metrics = run_metrics(result)
     if config.faults:
         metrics["faults"] = fault_summary(config.faults)

@@ -22,9 +22,8 @@ import yaml
 from cufund.vehicle import presets
 from cufund.core.config import ConfigError, check_real_fields, from_dict, load_yaml, nested, to_dict
 from cufund.sensors.faults import faults_to_data, parse_faults
-from cufund.core.messages import AirPressure, CameraImage, GpsFix, Imu, MagneticField, Odometry, PointCloud
 from cufund.vehicle.params import QuadrotorParams
-from cufund.core.registry import lookup
+from cufund.core.registry import extrinsic_keys, lookup, sensor_type
 from cufund.sensors.pose import Transform
 from cufund.core.topics import Topic
 
@@ -32,9 +31,6 @@ __all__ = ["LogConfig", "PartSpec", "RatesConfig", "ScenarioConfig", "Trajectory
            "available_scenarios", "load_scenario", "parse_overrides"]
 
 _PRESETS = {"crazyflie": presets.crazyflie, "iris": presets.iris, "cu_astro": presets.cu_astro}
-_MESSAGE_OF = {"imu": Imu, "magnetometer": MagneticField, "barometer": AirPressure, "gps": GpsFix,
-               "lidar": PointCloud, "camera": CameraImage, "pose": Odometry}
-_EXTRINSIC_OF = {"imu": "T_BI", "lidar": "T_BL", "camera": "T_BC"}
 # the old shorthand `sensors: {magnetometer: default, imu: ideal}`
 _SHORTHAND = {("magnetometer", "default"): "magnetometer", ("imu", "ideal"): "ideal_imu",
               ("barometer", "ideal"): "ideal_barometer", ("gps", "ideal"): "ideal_gps"}
@@ -159,8 +155,9 @@ class PartSpec:
     topic: Topic | None = None
     """Sensors: the topic it publishes on."""
     extrinsic: Transform | None = None
-    """Mounted sensors: the sensor's pose in the body frame (T_BI, T_BL or T_BC)."""
+    """Mounted sensors: the sensor's pose in the body frame (under its sensor type's key: T_BI, T_BL, T_BC, ...)."""
     sensor_type: str | None = None
+    """Sensors: the name of its kind's :class:`cufund.core.registry.SensorType`."""
 
 
 def _transform(value: Any, where: str) -> Transform:
@@ -218,16 +215,16 @@ def parse_part(group: str, value: Any, where: str, sensor_name: str | None = Non
     latency, phase = _timing(values, where, {f.name for f in dataclasses.fields(kind.params)})
     topic = extrinsic = None
     if group == "sensor":
-        stype = kind.sensor_type or "sensor"
+        stype = sensor_type(kind.sensor_type)  # a sensor kind's type is registered (register checks)
         t = values.pop("topic", f"/sensors/{sensor_name}")
         try:
-            topic = Topic(t, _MESSAGE_OF.get(stype, object))
+            topic = Topic(t, stype.message)
         except ValueError as e:
             raise ConfigError(f"{where}.topic: {e}") from None
-        key = _EXTRINSIC_OF.get(stype)
-        for other in set(_EXTRINSIC_OF.values()) - {key}:
+        key = stype.extrinsic_key
+        for other in sorted(extrinsic_keys() - {key}):
             if other in values:
-                raise ConfigError(f"{where}.{other}: a {stype} sensor's extrinsic is "
+                raise ConfigError(f"{where}.{other}: a {stype.name} sensor's extrinsic is "
                                   f"{key or 'not configurable'}, got {other}")
         if key is not None and key in values:
             extrinsic = _transform(values.pop(key), f"{where}.{key}")
@@ -247,7 +244,7 @@ def part_to_dict(spec: PartSpec | None) -> Any:
     if spec.topic is not None:
         out["topic"] = str(spec.topic)
     if spec.extrinsic is not None:
-        out[_EXTRINSIC_OF[spec.sensor_type]] = {"p": list(spec.extrinsic.t), "q": list(spec.extrinsic.q)}
+        out[sensor_type(spec.sensor_type).extrinsic_key] = {"p": list(spec.extrinsic.t), "q": list(spec.extrinsic.q)}
     out.update(to_dict(spec.params))
     return out
 

@@ -4,6 +4,10 @@ Every sensor entry takes, besides its kind's params: ``topic`` (default ``/senso
 ``phase_s`` and, for mounted sensors, its extrinsic given once — ``T_BI`` (IMU), ``T_BL`` (LiDAR), ``T_BC``
 (camera) as ``{p: [x, y, z], q: [w, x, y, z]}`` (sensor frame to body). Each sensor's random stream is derived
 from the scenario seed and the sensor's name.
+
+Each sensor type is registered once here (:class:`cufund.core.registry.SensorType`: the message its topic carries
+and its mounting key); the scenario schema looks both up from the registry. A new sensor type is its own module
+plus one registration of its type and kinds.
 """
 
 from __future__ import annotations
@@ -12,8 +16,11 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
+from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError, check_real_fields
-from cufund.core.registry import Kind, register
+from cufund.core.messages import AirPressure, CameraImage, GpsFix, Imu, MagneticField, Odometry, PointCloud
+from cufund.core.registry import Kind, SensorType, register
+
 from .barometer import BAROMETER_PRESETS, BarometerParams, BarometerSensor
 from .camera import DepthCamera, RgbCamera, d435_depth, d435_rgb
 from .camera_component import CameraComponent
@@ -25,13 +32,19 @@ from .magnetometer import MagnetometerParams, MagnetometerSensor
 from .patterns import avia, mid360, os1_64, vlp16
 from .pose_sensor import PoseSensor, PoseSensorParams
 
-EXTRINSIC_KEYS = {"imu": "T_BI", "lidar": "T_BL", "camera": "T_BC"}
-"""The extrinsic key of each mounted sensor type (sensor frame to body)."""
+for _type in (SensorType("imu", Imu, "T_BI", "accelerometer and gyroscope, in the IMU frame I"),
+              SensorType("magnetometer", MagneticField, None, "magnetic field along the body axes"),
+              SensorType("barometer", AirPressure, None, "static pressure and pressure altitude"),
+              SensorType("gps", GpsFix, None, "GNSS fix (position, velocity) of the vehicle"),
+              SensorType("lidar", PointCloud, "T_BL", "ray-traced point clouds, in the LiDAR frame L"),
+              SensorType("camera", CameraImage, "T_BC", "ray-traced depth or colour images, camera frame C"),
+              SensorType("pose", Odometry, None, "a pose source (motion capture, a slow odometry)")):
+    register(_type)
 
 _PATTERNS = {"mid360": mid360, "os1_64": os1_64, "vlp16": vlp16, "avia": avia}
 
 
-def _imu(params: ImuParams, ctx: Any) -> list[Any]:
+def _imu(params: ImuParams, ctx: BuildContext) -> list[Any]:
     T = ctx.part.extrinsic
     if T is not None:
         if params.p_BI != (0.0, 0.0, 0.0) or params.q_BI != (1.0, 0.0, 0.0, 0.0):
@@ -89,7 +102,7 @@ class LidarSensorParams:
                     dropout=self.dropout)  # validates the range model
 
 
-def _lidar(p: LidarSensorParams, ctx: Any) -> list[Any]:
+def _lidar(p: LidarSensorParams, ctx: BuildContext) -> list[Any]:
     world = ctx.require_world()
     lidar = Lidar(_PATTERNS[p.pattern](), LidarParams(range_min=p.range_min, range_max=p.range_max,
                                                       range_noise_std=p.range_noise_std, dropout=p.dropout,
@@ -131,7 +144,7 @@ class CameraSensorParams:
 
 
 def _camera(depth: bool) -> Any:
-    def build(p: CameraSensorParams, ctx: Any) -> list[Any]:
+    def build(p: CameraSensorParams, ctx: BuildContext) -> list[Any]:
         world = ctx.require_world()
         try:
             cam = (DepthCamera(d435_depth(), ctx.part.extrinsic, p.depth_min, p.depth_max, p.noise_coeff, ctx.seed,

@@ -6,8 +6,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError, check_real_fields
 from cufund.core.registry import Kind, register
+
 from .builtin import corridor, empty, forest, imav2025_tunnel
 
 
@@ -66,7 +68,7 @@ class FileParams:
             raise ConfigError(f"world.path must name a world YAML file, got {self.path!r}")
 
 
-def _file(p: FileParams, ctx: Any) -> Any:
+def _file(p: FileParams, ctx: BuildContext) -> Any:
     from .description import world_from_yaml
 
     path = Path(p.path)
