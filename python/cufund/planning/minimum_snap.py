@@ -27,14 +27,6 @@ __all__ = ["MinimumSnapTrajectory", "allocate_segment_times", "min_derivative_sp
 _POWERS8 = np.arange(8.0)
 
 
-def _falling(j: np.ndarray, r: int) -> np.ndarray:
-    """j (j-1) ... (j-r+1), zero where j < r."""
-    out = np.ones_like(j, dtype=float)
-    for i in range(r):
-        out *= j - i
-    return np.where(j >= r, out, 0.0)
-
-
 def min_derivative_spline(values: np.ndarray, durations: np.ndarray, order: int) -> np.ndarray:
     """Coefficients of the piecewise polynomial through ``values`` minimising ``int |p^(order)|^2 dt``.
 
@@ -52,12 +44,6 @@ def allocate_segment_times(waypoints: np.ndarray, v_max: float, a_max: float) ->
     d = np.linalg.norm(np.diff(np.asarray(waypoints, dtype=float), axis=0), axis=1)
     tri = d < v_max * v_max / a_max
     return np.where(tri, 2.0 * np.sqrt(d / a_max), d / v_max + v_max / a_max)
-
-
-def snap_cost_of(waypoints: np.ndarray, durations: np.ndarray) -> float:
-    """Snap cost [m^2/s^7] of the minimum-snap spline through ``waypoints`` with segment ``durations``."""
-    T = np.asarray(durations, dtype=float)
-    return _derivative_cost(min_derivative_spline(waypoints, T, 4), T, 4)
 
 
 def snap_cost_and_gradient(waypoints: np.ndarray, durations: np.ndarray) -> tuple[float, np.ndarray]:
@@ -146,16 +132,11 @@ class MinimumSnapTrajectory:
         self.coeffs = min_derivative_spline(self.waypoints_W, T, 4)  # (M, 8, 3)
         self.yaw_coeffs = min_derivative_spline(self.yaw_waypoints[:, None], T, 2)  # (M, 4, 1)
         self._knots_list = self.t_knots.tolist()
-        self._pos_tables = self._tables(self.coeffs)
-        self._yaw_tables = self._tables(self.yaw_coeffs)
-        # per segment, derivatives 0..3 (position) and 0..1 (yaw) side by side: (M, r, 8, d) -> one matmul per sample
-        self._pos_stack = np.ascontiguousarray(self._pos_tables[:4].transpose(1, 0, 2, 3))
-        self._yaw_stack = np.ascontiguousarray(self._yaw_tables[:2].transpose(1, 0, 2, 3))
-        # For vectorised sampling, per segment one (8, 14) table: p, v, a, j (3 columns each), yaw, yaw rate (the
-        # cubic's rows padded with zeros), so a run of samples in one segment is one matmul.
-        yaw = np.zeros((len(T), 8, 2))
-        yaw[:, :4] = np.concatenate(list(self._yaw_tables[:2]), axis=2)
-        self._table = np.concatenate(list(self._pos_tables[:4]) + [yaw], axis=2)
+        # The derivative tables, one form: per segment and derivative order r, the coefficients of the r-th time
+        # derivative in powers of s, (M, 8, 8, 3) for position and (M, 4, 4, 1) for yaw, each segment's block
+        # contiguous so that a sample's derivatives 0..3 (or 0..1) are one product (8,) @ (4, 8, 3).
+        self._pos_tables = np.ascontiguousarray(_derivative_tables(self.coeffs, T).transpose(1, 0, 2, 3))
+        self._yaw_tables = np.ascontiguousarray(_derivative_tables(self.yaw_coeffs, T).transpose(1, 0, 2, 3))
 
     def _dense_times(self, per_segment: int = 16) -> np.ndarray:
         s = np.linspace(0.0, 1.0, per_segment, endpoint=False)
@@ -171,17 +152,12 @@ class MinimumSnapTrajectory:
         """Time of the last waypoint [s]."""
         return float(self.t_knots[-1])
 
-    def _tables(self, c: np.ndarray) -> np.ndarray:
-        """Per derivative order r, coefficients (M, nc, d) of p^(r) in powers of s, scaled to time units:
-        (nc, M, nc, d), indexed by r."""
-        nc = c.shape[1]
-        src, factor = _derivative_gather(nc)
-        T_r = np.stack([self.durations ** r for r in range(nc)])  # scalar powers (as sampled one by one)
-        return c[:, src].transpose(1, 0, 2, 3) * factor[:, None, :, None] / T_r[:, :, None, None]
-
     def derivative(self, t: np.ndarray | float, r: int, which: str = "position") -> np.ndarray:
         """The r-th time derivative at times ``t``: (N, 3) for position, (N,) for yaw; rest outside the span."""
-        tab = (self._pos_tables if which == "position" else self._yaw_tables)[r]
+        tables = self._pos_tables if which == "position" else self._yaw_tables
+        if which not in ("position", "yaw") or not 0 <= r < tables.shape[1]:
+            raise ValueError(f"r must be a derivative order in 0..7 for position or 0..3 for yaw, got {r} for {which!r}")
+        tab = tables[:, r]  # (M, nc, d)
         t = np.atleast_1d(np.asarray(t, dtype=float))
         i, s = self._locate(t)
         c = tab[i]  # (N, nc, d)
@@ -203,13 +179,19 @@ class MinimumSnapTrajectory:
         i, s = self._locate(t)
         inside = ((t >= self.t_knots[0]) & (t <= self.t_knots[-1]))[:, None]
         S = np.vander(s, 8, increasing=True)  # powers of s, (N, 8)
+        # Per segment the tables' columns a sample takes side by side, (M, 8, 14): p, v, a, j (3 columns each), yaw,
+        # yaw rate (the cubic's rows padded with zeros), so a run of samples in one segment is one matmul.
+        m = len(self.durations)
+        table = np.zeros((m, 8, 14))
+        table[:, :, :12] = self._pos_tables[:, :4].transpose(0, 2, 1, 3).reshape(m, 8, 12)
+        table[:, :4, 12:] = self._yaw_tables[:, :2, :, 0].transpose(0, 2, 1)
         out = np.empty((t.size, 14))
         if t.size > 1 and np.all(i[1:] >= i[:-1]):  # sorted times: one matmul per segment
-            bounds = np.searchsorted(i, np.arange(len(self.durations) + 1))
+            bounds = np.searchsorted(i, np.arange(m + 1))
             for k in np.flatnonzero(bounds[1:] > bounds[:-1]).tolist():
-                np.matmul(S[bounds[k]:bounds[k + 1]], self._table[k], out=out[bounds[k]:bounds[k + 1]])
+                np.matmul(S[bounds[k]:bounds[k + 1]], table[k], out=out[bounds[k]:bounds[k + 1]])
         else:
-            np.einsum("nj,njc->nc", S, self._table[i], out=out)
+            np.einsum("nj,njc->nc", S, table[i], out=out)
         rest = lambda a: np.where(inside, a, 0.0)  # derivatives are zero outside the span
         return TrajectorySamples(t=t, p_W=np.ascontiguousarray(out[:, 0:3]), v_W=rest(out[:, 3:6]),
                                  a_W=rest(out[:, 6:9]), j_W=rest(out[:, 9:12]), yaw=out[:, 12].copy(),
@@ -221,8 +203,8 @@ class MinimumSnapTrajectory:
         i = min(max(bisect.bisect_right(knots, t) - 1, 0), len(knots) - 2)
         s = min(max((t - knots[i]) / (knots[i + 1] - knots[i]), 0.0), 1.0)
         S = s ** _POWERS8
-        pos = S @ self._pos_stack[i]  # (4, 3): position, velocity, acceleration, jerk
-        yaw = S[:4] @ self._yaw_stack[i]  # (2, 1): yaw, yaw rate
+        pos = S @ self._pos_tables[i, :4]  # (4, 3): position, velocity, acceleration, jerk
+        yaw = S[:4] @ self._yaw_tables[i, :2]  # (2, 1): yaw, yaw rate
         if not knots[0] <= t <= knots[-1]:
             pos[1:] = 0.0
             yaw[1] = 0.0
@@ -230,8 +212,17 @@ class MinimumSnapTrajectory:
                                  yaw=yaw[0], yaw_rate=yaw[1])
 
     def snap_cost(self) -> float:
-        """``sum_i int |p''''(t)|^2 dt`` over all segments, exact [m^2/s^7]."""
-        return _derivative_cost(self.coeffs, self.durations, 4)
+        """``sum_i int |p''''(t)|^2 dt`` over all segments, exact [m^2/s^7] (:func:`snap_cost_and_gradient`)."""
+        return snap_cost_and_gradient(self.waypoints_W, self.durations)[0]
+
+
+def _derivative_tables(c: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """Per derivative order r, the coefficients (M, nc, d) of p^(r) in powers of s, scaled to time units:
+    (nc, M, nc, d), indexed by r."""
+    nc = c.shape[1]
+    src, factor = _derivative_gather(nc)
+    T_r = np.stack([T ** r for r in range(nc)])  # scalar powers (as sampled one by one)
+    return c[:, src].transpose(1, 0, 2, 3) * factor[:, None, :, None] / T_r[:, :, None, None]
 
 
 @functools.lru_cache(maxsize=8)
@@ -245,20 +236,3 @@ def _derivative_gather(nc: int) -> tuple[np.ndarray, np.ndarray]:
     for a in (src, factor):
         a.flags.writeable = False
     return src, factor
-
-
-@functools.lru_cache(maxsize=16)
-def _cost_matrix(nc: int, r: int) -> np.ndarray:
-    """int_0^1 of the products of the r-th derivatives of s^a and s^b, a, b < nc (read-only)."""
-    j = np.arange(nc)
-    f = _falling(j, r)
-    e = np.maximum(j - r, 0)
-    H = np.outer(f, f) / np.where((f[:, None] * f[None, :]) > 0, e[:, None] + e[None, :] + 1, 1)
-    H.flags.writeable = False
-    return H
-
-
-def _derivative_cost(c: np.ndarray, T: np.ndarray, r: int) -> float:
-    H = _cost_matrix(c.shape[1], r)
-    per_seg = np.einsum("mad,ab,mbd->m", c, H, c)
-    return float(np.sum(per_seg / T ** (2 * r - 1)))
