@@ -192,8 +192,7 @@ def _run_scenario(args: argparse.Namespace) -> int:
 
 
 def _odometry(args: argparse.Namespace) -> int:
-    import yaml
-
+    from cufund.core.config import load_yaml_text
     from cufund.scenarios.schema import ScenarioConfig
     from cufund.scenarios.build import ScenarioBuildContext, out_dir_problem
 
@@ -209,7 +208,7 @@ def _odometry(args: argparse.Namespace) -> int:
         meta = log_metadata(args.log)
         params, imu, lidar = LioParams(), "/sensors/imu", "/sensors/lidar"
         if "config" in meta:  # the scenario the log was recorded with: its extrinsics and IMU
-            cfg = ScenarioConfig.from_dict(yaml.safe_load(meta["config"]))
+            cfg = ScenarioConfig.from_dict(load_yaml_text(meta["config"], f"{args.log}: its recorded config"))
             if cfg.estimator is not None and cfg.estimator.kind == "lio":
                 params = cfg.estimator.params
             params, imu_spec, lidar_spec = lio_params(params, ScenarioBuildContext(cfg))

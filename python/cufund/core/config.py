@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+import re
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -78,8 +79,20 @@ def vector3(name: str, value: Any, unit: str = "", finite: bool = False) -> tupl
     return (float(a[0]), float(a[1]), float(a[2]))
 
 
+class CufundLoader(yaml.SafeLoader):
+    """PyYAML's safe loader (plain data only: no ``!!python`` tags, nothing imported or called) that also reads
+    YAML 1.2 numbers like ``1e9``, ``1e-3``, ``-2E5`` and ``1.5e3`` as floats (YAML 1.1 needs a dot and a signed
+    exponent, so those were strings and a bound check said "got '1e9'")."""
+
+
+CufundLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9][0-9_]*)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."))
+
+
 def load_yaml(path: str | Path) -> Any:
-    """Parses a YAML file; a syntax error names the file and line.
+    """Parses a YAML file with :class:`CufundLoader`; a syntax error names the file and line.
 
     Bounded (see :mod:`cufund.core.limits`): the file size, the nesting depth, alias uses and the size of the
     document with its aliases expanded, so that a "billion laughs" or self-referencing file fails fast
@@ -93,20 +106,30 @@ def load_yaml(path: str | Path) -> Any:
                           "(cufund.core.limits.configure(yaml_max_bytes=...))")
     try:
         text = path.read_text(encoding="utf-8")
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-        if node is None:
-            return None
-        _check_yaml_graph(node, path, lim)
-        return yaml.safe_load(text)
-    except RecursionError:
-        raise ConfigError(f"{path}: nesting deeper than yaml_max_depth = {lim.yaml_max_depth}") from None
     except UnicodeDecodeError as e:
         raise ConfigError(f"{path}: not UTF-8 text: {e}") from None
+    return load_yaml_text(text, str(path))
+
+
+def load_yaml_text(text: str, where: str) -> Any:
+    """Parses YAML ``text`` (a ``--set`` value, the config a log records) as :func:`load_yaml` parses a file, with
+    the same bounds; errors name ``where``."""
+    lim = current()
+    if len(text) > lim.yaml_max_bytes:
+        raise ConfigError(f"{where}: {len(text)} characters of YAML, more than yaml_max_bytes = {lim.yaml_max_bytes}")
+    try:
+        node = yaml.compose(text, Loader=CufundLoader)
+        if node is None:
+            return None
+        _check_yaml_graph(node, where, lim)
+        return yaml.load(text, Loader=CufundLoader)  # noqa: S506 - CufundLoader is a SafeLoader
+    except RecursionError:
+        raise ConfigError(f"{where}: nesting deeper than yaml_max_depth = {lim.yaml_max_depth}") from None
     except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: invalid YAML: {e}") from e
+        raise ConfigError(f"{where}: invalid YAML: {e}") from e
 
 
-def _check_yaml_graph(root: yaml.Node, path: Path, lim: Any) -> None:
+def _check_yaml_graph(root: yaml.Node, path: Path | str, lim: Any) -> None:
     """Depth, alias uses, expanded size and cycles of a composed YAML node graph (an alias is the anchored
     node itself, reached a second time), walked iteratively in time linear in the distinct nodes."""
 

@@ -17,14 +17,13 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 import numpy as np
-import yaml
 
 from cufund.vehicle import presets
-from cufund.core.config import ConfigError, check_real_fields, from_dict, load_yaml, nested, to_dict
+from cufund.core.config import ConfigError, check_real_fields, from_dict, load_yaml, load_yaml_text, nested, to_dict
 from cufund.sensors.faults import faults_to_data, parse_faults
 from cufund.vehicle.params import QuadrotorParams
 from cufund.core.registry import extrinsic_keys, lookup, sensor_type
-from cufund.sensors.pose import Transform
+from cufund.geometry import Transform
 from cufund.core.topics import Topic
 
 __all__ = ["LogConfig", "PartSpec", "RatesConfig", "ScenarioConfig", "TrajectoryConfig", "apply_overrides",
@@ -398,11 +397,7 @@ def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
             raise ConfigError(f"--set takes KEY=VALUE with a dotted KEY (e.g. controller.kind=geometric), got {item!r}")
         key, text = item.split("=", 1)
         key = key.strip()
-        try:
-            value = yaml.safe_load(text) if text.strip() else ""
-        except yaml.YAMLError as e:
-            raise ConfigError(f"--set {key}: cannot read the value {text!r}: {e}") from None
-        out[key] = value
+        out[key] = load_yaml_text(text, f"--set {key}") if text.strip() else ""  # bounded; 1e9 is a number
     return out
 
 
