@@ -22,15 +22,6 @@ using lidar::RayOrder;
 using lidar::SceneResult;
 using lidar::SceneStatus;
 
-py::array checked_array(const py::handle& obj, const char* field) {
-  py::array arr = py::array::ensure(obj);
-  if (!arr) {
-    throw py::value_error(std::string(field) + " must be an array, got " +
-                          std::string(py::str(py::type::of(obj).attr("__name__"))));
-  }
-  return arr;
-}
-
 // (N, 3) real -> C-contiguous float32.
 py::array_t<float, py::array::c_style> vertices_array(const py::handle& obj) {
   py::array arr = checked_array(obj, "vertices");
@@ -87,13 +78,6 @@ py::array_t<std::uint32_t, py::array::c_style> triangles_array(const py::handle&
     case SceneStatus::kOk: os << ": ok"; break;
   }
   throw py::value_error(os.str());
-}
-
-
-void require_finite(const double* p, py::ssize_t size, const char* field) {
-  for (py::ssize_t i = 0; i < size; ++i) {
-    if (!std::isfinite(p[i])) throw py::value_error(std::string(field) + " must be finite, got a NaN or inf");
-  }
 }
 
 // Pose knots of a moving sensor, checked: K >= 2 strictly increasing finite times, finite positions,

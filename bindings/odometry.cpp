@@ -18,12 +18,6 @@ namespace {
 
 using namespace cufund::odometry;
 
-void require_finite(const double* p, py::ssize_t n, const char* field) {
-  for (py::ssize_t i = 0; i < n; ++i) {
-    if (!std::isfinite(p[i])) throw py::value_error(std::string(field) + " must be finite, got a NaN or inf");
-  }
-}
-
 py::array_t<double, py::array::c_style> finite(const py::handle& obj, const char* field,
                                                std::initializer_list<py::ssize_t> shape) {
   auto a = as_float64(obj, field, shape);
@@ -33,8 +27,7 @@ py::array_t<double, py::array::c_style> finite(const py::handle& obj, const char
 
 // (rows, cols) with rows free (-1 in `shape` cannot be expressed by as_float64, so check here).
 py::array_t<double, py::array::c_style> finite_rows(const py::handle& obj, const char* field, py::ssize_t cols) {
-  py::array arr = py::array::ensure(obj);
-  if (!arr) throw py::value_error(std::string(field) + " must be an array of real numbers");
+  py::array arr = checked_array(obj, field);
   const py::ssize_t rows = arr.ndim() >= 1 ? arr.shape(0) : -1;
   if (cols == 0) return finite(obj, field, {rows});
   return finite(obj, field, {rows, cols});
@@ -141,7 +134,7 @@ PlaneParams residual_params(double max_residual, const std::string& robust, doub
 
 // deskew's inputs, validated (shared by deskew and prepare_scan).
 struct DeskewInputs {
-  py::array_t<float, py::array::c_style | py::array::forcecast> pts;
+  carray<float> pts;
   py::array_t<double, py::array::c_style> tp, kt, st, rt;
   Eigen::Isometry3d bi, bl;
   py::ssize_t n = 0, k = 0;
@@ -149,9 +142,15 @@ struct DeskewInputs {
   DeskewInputs(const py::handle& points_L, const py::handle& t_points, const py::handle& knot_t,
                const py::handle& states, const py::handle& rates, double t_ref, const py::handle& T_BI,
                const py::handle& T_BL) {
-    py::array pa = py::array::ensure(points_L);
-    if (!pa || pa.ndim() != 2 || pa.shape(1) != 3) throw py::value_error("points_L must have shape (N, 3)");
-    pts = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(pa);
+    py::array pa = checked_array(points_L, "points_L");
+    const char kind = pa.dtype().kind();
+    if (kind != 'f' && kind != 'i' && kind != 'u') {
+      throw py::value_error("points_L must have a real numeric dtype, got " + std::string(py::str(pa.dtype())));
+    }
+    if (pa.ndim() != 2 || pa.shape(1) != 3) {
+      throw py::value_error("points_L must have shape (N, 3), got " + shape_str(pa));
+    }
+    pts = contiguous<float>(pa, "points_L");
     n = pts.shape(0);
     for (py::ssize_t i = 0; i < 3 * n; ++i) {
       if (!std::isfinite(pts.data()[i])) throw py::value_error("points_L must be finite, got a NaN or inf");
@@ -285,11 +284,12 @@ void define_odometry(py::module_& m) {
         auto p = finite_rows(points_I, "points_I", 3);
         const py::ssize_t n = p.shape(0);
         auto pl = finite(planes, "planes", {n, 4});
-        py::array va = py::array::ensure(valid);
-        if (!va || va.dtype().kind() != 'b' || va.ndim() != 1 || va.shape(0) != n) {
-          throw py::value_error("valid must be a bool array of shape (" + std::to_string(n) + ",)");
+        py::array va = checked_array(valid, "valid");
+        if (va.dtype().kind() != 'b' || va.ndim() != 1 || va.shape(0) != n) {
+          throw py::value_error("valid must be a bool array of shape (" + std::to_string(n) + ",), got " +
+                                std::string(py::str(va.dtype())) + " " + shape_str(va));
         }
-        auto v = py::array_t<bool, py::array::c_style | py::array::forcecast>::ensure(va);
+        auto v = contiguous<bool>(va, "valid");
         const Eigen::Matrix3d R = rotation_matrix(R_WI, "R_WI");
         const Eigen::Vector3d t = vec3(p_W, "p_W");
         const PlaneParams prm = residual_params(max_residual, robust, robust_scale, sigma);

@@ -80,9 +80,9 @@ py::array_t<double> path_array(const std::vector<Vec3>& path) {
 }
 
 std::vector<Vec3> path_vector(const py::handle& obj, const char* field) {
-  py::array arr = py::array::ensure(obj);
-  if (!arr || arr.ndim() != 2 || arr.shape(1) != 3) {
-    throw py::value_error(std::string(field) + " must have shape (K, 3), got " + (arr ? shape_str(arr) : std::string("a non-array")));
+  py::array arr = checked_array(obj, field);
+  if (arr.ndim() != 2 || arr.shape(1) != 3) {
+    throw py::value_error(std::string(field) + " must have shape (K, 3), got " + shape_str(arr));
   }
   auto a = as_float64(obj, field, {arr.shape(0), 3});
   std::vector<Vec3> out(static_cast<std::size_t>(a.shape(0)));
@@ -203,9 +203,9 @@ struct SplineArgs {
 };
 
 SplineArgs spline_args(const py::handle& values_obj, const py::handle& durations_obj) {
-  py::array arr = py::array::ensure(values_obj);
-  if (!arr || arr.ndim() != 2 || arr.shape(0) < 2 || arr.shape(1) < 1) {
-    throw py::value_error("values must have shape (K, d) with K >= 2, got " + (arr ? shape_str(arr) : std::string("a non-array")));
+  py::array arr = checked_array(values_obj, "values");
+  if (arr.ndim() != 2 || arr.shape(0) < 2 || arr.shape(1) < 1) {
+    throw py::value_error("values must have shape (K, d) with K >= 2, got " + shape_str(arr));
   }
   SplineArgs a;
   a.values = as_float64(values_obj, "values", {arr.shape(0), arr.shape(1)});
@@ -231,10 +231,9 @@ void define_planning(py::module_& m) {
                              "Certified clearance on an ESDF map; use cufund.planning.ClearanceQuery.")
       .def(py::init<const esdf::EsdfMap&>(), py::arg("esdf_map"), py::keep_alive<1, 2>())
       .def(py::init([](const py::handle& origin_W, double resolution, const py::handle& distances_obj) {
-             py::array arr = py::array::ensure(distances_obj);
-             if (!arr || arr.ndim() != 3) {
-               throw py::value_error("distances must be a 3-D array (nx, ny, nz) [m], got " +
-                                     (arr ? shape_str(arr) : std::string("a non-array")));
+             py::array arr = checked_array(distances_obj, "distances");
+             if (arr.ndim() != 3) {
+               throw py::value_error("distances must be a 3-D array (nx, ny, nz) [m], got " + shape_str(arr));
              }
              auto d = as_float64(distances_obj, "distances", {arr.shape(0), arr.shape(1), arr.shape(2)});
              const auto g = geometry_arg(origin_W, py::make_tuple(arr.shape(0), arr.shape(1), arr.shape(2)), resolution);
@@ -255,10 +254,9 @@ void define_planning(py::module_& m) {
       .def(
           "clearance_many",
           [](const ClearanceQuery& self, const py::handle& points_W) {
-            py::array arr = py::array::ensure(points_W);
-            if (!arr || arr.ndim() != 2 || arr.shape(1) != 3) {
-              throw py::value_error("points_W must have shape (N, 3), got " +
-                                    (arr ? shape_str(arr) : std::string("a non-array")));
+            py::array arr = checked_array(points_W, "points_W");
+            if (arr.ndim() != 2 || arr.shape(1) != 3) {
+              throw py::value_error("points_W must have shape (N, 3), got " + shape_str(arr));
             }
             auto p = as_float64(points_W, "points_W", {arr.shape(0), 3});
             const py::ssize_t n = p.shape(0);
@@ -407,16 +405,22 @@ void define_planning(py::module_& m) {
       [](const py::handle& origin_W, const py::handle& shape_obj, double resolution, const py::handle& vertices_obj,
          const py::handle& triangles_obj) {
         const esdf::GridGeometry g = geometry_arg(origin_W, shape_obj, resolution);
-        py::array varr = py::array::ensure(vertices_obj);
-        if (!varr || varr.ndim() != 2 || varr.shape(1) != 3) {
-          throw py::value_error("vertices must have shape (V, 3), got " + (varr ? shape_str(varr) : std::string("a non-array")));
+        py::array varr = checked_array(vertices_obj, "vertices");
+        if (varr.ndim() != 2 || varr.shape(1) != 3) {
+          throw py::value_error("vertices must have shape (V, 3), got " + shape_str(varr));
         }
         auto v = as_float64(vertices_obj, "vertices", {varr.shape(0), 3});
         for (py::ssize_t i = 0; i < v.size(); ++i) {
           if (!std::isfinite(v.data()[i])) throw py::value_error("vertices must be finite");
         }
-        auto t = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(triangles_obj);
-        if (!t || t.ndim() != 2 || t.shape(1) != 3) throw py::value_error("triangles must be an integer array of shape (T, 3)");
+        py::array tarr = checked_array(triangles_obj, "triangles");
+        if (tarr.dtype().kind() != 'i' && tarr.dtype().kind() != 'u') {
+          throw py::value_error("triangles must have an integer dtype, got " + std::string(py::str(tarr.dtype())));
+        }
+        if (tarr.ndim() != 2 || tarr.shape(1) != 3) {
+          throw py::value_error("triangles must have shape (T, 3), got " + shape_str(tarr));
+        }
+        auto t = contiguous<std::int64_t>(tarr, "triangles");
         for (py::ssize_t i = 0; i < t.size(); ++i) {
           if (t.data()[i] < 0 || t.data()[i] >= v.shape(0)) {
             throw py::value_error("triangles must index vertices (0 <= index < " + std::to_string(v.shape(0)) + "), got " +

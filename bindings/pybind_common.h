@@ -60,6 +60,30 @@ carray<T> contiguous(const py::handle& obj, const std::string& field) {
   }
 }
 
+// `obj` as a numpy array of its own dtype (no copy when it already is one), for checking its dtype and shape
+// before contiguous<T>(). Unlike array::ensure (which returns null and drops the error), an object numpy cannot
+// convert raises ValueError naming `field` and its type, a failed allocation MemoryError.
+inline py::array checked_array(const py::handle& obj, const std::string& field) {
+  if (py::isinstance<py::array>(obj)) return py::reinterpret_borrow<py::array>(obj);
+  try {
+    return py::array(py::reinterpret_borrow<py::object>(obj));
+  } catch (py::error_already_set& e) {
+    if (e.matches(PyExc_MemoryError)) {
+      PyErr_SetString(PyExc_MemoryError, ("not enough memory for an array of " + field).c_str());
+      throw py::error_already_set();
+    }
+    throw py::value_error(field + " must be an array, got " + type_name(obj) + " (" + std::string(py::str(e.value())) +
+                          ")");
+  }
+}
+
+// ValueError naming `field` when any of the `size` values at `p` is NaN or infinite.
+inline void require_finite(const double* p, py::ssize_t size, const char* field) {
+  for (py::ssize_t i = 0; i < size; ++i) {
+    if (!std::isfinite(p[i])) throw py::value_error(std::string(field) + " must be finite, got a NaN or inf");
+  }
+}
+
 // Scalar arguments taken as py::handle and checked here, so a wrong type raises TypeError naming the
 // argument (pybind11's own conversion says only "incompatible function arguments").
 inline double real_arg(const py::handle& obj, const char* field) {
@@ -118,8 +142,7 @@ inline bool bool_arg(const py::handle& obj, const char* field) {
 // floating inputs; anything else raises ValueError naming `field`. (Finiteness is the caller's.)
 inline py::array_t<double, py::array::c_style> as_float64(const py::handle& obj, const char* field,
                                                            std::initializer_list<py::ssize_t> shape) {
-  py::array arr = py::array::ensure(obj);
-  if (!arr) throw py::value_error(std::string(field) + " must be an array of real numbers, got " + type_name(obj));
+  py::array arr = checked_array(obj, field);
   const char kind = arr.dtype().kind();
   if (kind != 'f' && kind != 'i' && kind != 'u') {
     throw py::value_error(std::string(field) + " must have a real numeric dtype (float or int), got " +

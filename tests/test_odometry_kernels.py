@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 from cufund import _core
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import Mid360Pattern
-from cufund.sensors.pose import Transform
+from cufund.geometry import Transform
 from cufund.worlds import load
 
 odo = _core.odometry
@@ -207,3 +207,26 @@ def test_bad_input_raises_value_error_naming_the_argument():
         vmap.point_to_plane(np.zeros((3, 3)), np.eye(3), np.zeros(3), robust="tukey")
     with pytest.raises(ValueError, match="points_W"):
         vmap.insert(np.full((2, 3), np.inf), np.zeros(3))
+
+
+def test_bad_arrays_raise_value_error_naming_the_argument():
+    """Wrong dtypes, shapes and objects numpy cannot convert (the odometry bindings read arrays through the checked
+    helpers of pybind_common.h, not array::ensure, which dropped the conversion error)."""
+    knot_t = np.array([0.0, 0.1])
+    states = np.tile([0, 0, 0, 0, 0, 0, 1.0, 0, 0, 0], (2, 1))
+    rates = np.zeros((1, 6))
+    t = np.zeros(4)
+    with pytest.raises(ValueError, match="points_L must have a real numeric dtype, got <U1"):
+        odo.deskew(np.full((4, 3), "a"), t, knot_t, states, rates, 0.1, np.eye(4), np.eye(4))
+    with pytest.raises(ValueError, match=r"points_L must have shape \(N, 3\), got \(4, 2\)"):
+        odo.deskew(np.ones((4, 2)), t, knot_t, states, rates, 0.1, np.eye(4), np.eye(4))
+    with pytest.raises(ValueError, match="points_L must be an array, got list"):
+        odo.deskew([[0, 0, 0], [1, 1]], t, knot_t, states, rates, 0.1, np.eye(4), np.eye(4))
+    points_I = np.zeros((3, 3))
+    planes = np.tile([0, 0, 1.0, 0], (3, 1))
+    with pytest.raises(ValueError, match=r"valid must be a bool array of shape \(3,\), got float64 \(3,\)"):
+        odo.plane_terms(points_I, planes, np.ones(3), np.eye(3), np.zeros(3))
+    with pytest.raises(ValueError, match="valid must be an array, got list"):
+        odo.plane_terms(points_I, planes, [[True], [True, False]], np.eye(3), np.zeros(3))
+    with pytest.raises(ValueError, match="points_I must be an array, got list"):
+        odo.plane_terms([[0, 0, 0], [1, 1]], planes, np.ones(3, bool), np.eye(3), np.zeros(3))

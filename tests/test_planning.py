@@ -215,3 +215,33 @@ def test_static_field_from_the_world_equals_the_live_map(setting):
     assert static.esdf_map is None
     with pytest.raises(ValueError, match=r"distances must be a 3-D array"):
         ClearanceQuery.from_distances(np.zeros((4, 4)), [0, 0, 0], 0.1)
+
+
+def test_binding_array_arguments_get_clear_errors():
+    """Wrong dtypes, shapes and objects numpy cannot convert raise a ValueError naming the argument (the planning
+    bindings read arrays through the checked helpers of pybind_common.h, not array::ensure, which dropped the
+    conversion error and cast float triangles to int silently)."""
+    from cufund import _core
+
+    pl = _core.planning
+    cq = pl.ClearanceQuery(np.zeros(3), 0.1, np.ones((4, 4, 4)))
+    with pytest.raises(ValueError, match="points_W must be an array, got list"):
+        cq.clearance_many([[0, 0, 0], [1, 2]])
+    with pytest.raises(ValueError, match="points_W must have a real numeric dtype .* got complex128"):
+        cq.clearance_many(np.zeros((2, 3), complex))
+    with pytest.raises(ValueError, match=r"path_W must have shape \(K, 3\), got \(\)"):
+        cq.segments_free(object(), 0.1)
+    with pytest.raises(ValueError, match=r"distances must be a 3-D array .* got \(2,\)"):
+        pl.ClearanceQuery(np.zeros(3), 0.1, [1.0, 2.0])
+    with pytest.raises(ValueError, match="distances must be an array, got list"):
+        pl.ClearanceQuery(np.zeros(3), 0.1, [[[1.0]], [[1.0, 2.0]]])
+    with pytest.raises(ValueError, match=r"values must have shape \(K, d\) with K >= 2, got \(1, 3\)"):
+        pl.min_derivative_spline(np.zeros((1, 3)), np.ones(0), 4)
+    with pytest.raises(ValueError, match="values must be an array, got list"):
+        pl.snap_cost_and_gradient([[0, 0, 0], [1, 1]], [1.0])
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    with pytest.raises(ValueError, match="triangles must have an integer dtype, got float64"):
+        pl.voxelize_triangles(np.zeros(3), (10, 10, 10), 0.1, verts, np.array([[0.0, 1.0, 2.0]]))
+    with pytest.raises(ValueError, match=r"triangles must have shape \(T, 3\), got \(3,\)"):
+        pl.voxelize_triangles(np.zeros(3), (10, 10, 10), 0.1, verts, np.array([0, 1, 2]))
+    assert len(pl.voxelize_triangles(np.zeros(3), (10, 10, 10), 0.1, verts, np.array([[0, 1, 2]], np.uint8))) > 0
