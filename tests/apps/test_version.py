@@ -44,3 +44,18 @@ def test_a_subcommand_is_still_required_without_version(capsys: pytest.CaptureFi
         cli.main([])
     assert exit_info.value.code == cli.EXIT_INVALID
     assert "required" in capsys.readouterr().err
+
+
+def test_citation_names_the_version_and_license_the_package_declares() -> None:
+    """CITATION.cff (read as YAML) cites the version ``cufund --version`` prints, under pyproject's licence."""
+    import tomllib
+
+    import yaml
+
+    root = Path(__file__).resolve().parents[2]
+    citation = yaml.safe_load((root / "CITATION.cff").read_text(encoding="utf-8"))
+    project = tomllib.loads((root / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    assert citation["cff-version"] == "1.2.0"
+    assert str(citation["version"]) == project["version"] == importlib.metadata.version("cufund")
+    assert citation["license"] == project["license"]["text"] == "BSD-3-Clause"
+    assert "BSD 3-Clause License" in (root / "LICENSE").read_text(encoding="utf-8")
