@@ -1,0 +1,444 @@
+"""Rotations and rigid transforms: every quaternion, rotation-matrix and transform function of cufund, once.
+
+Conventions (as Drake's ``RigidTransform``): a frame pair is written in the name, ``R_AB`` is the rotation matrix
+of frame B in frame A (``v_A = R_AB v_B``), ``q_AB`` the same rotation as a quaternion, ``p_A`` a point or vector
+in A, ``T_AB`` the rigid transform taking points in B to A (``p_A = R_AB p_B + t_AB``). Quaternions are
+[w, x, y, z] (Hamilton, scalar first) at every cufund API; ``q_AB ⊗ q_BC = q_AC``. World ENU, body FLU, SI units.
+
+Functions take one quaternion (4,) / matrix (3, 3) or a batch (…, 4) / (…, 3, 3). The single-element forms run in
+plain float arithmetic (they are on per-sample paths); both forms give the same numbers bit for bit. Bad input
+(a wrong shape, NaN or inf, a zero quaternion, a matrix that is not a rotation) raises :class:`ValueError` naming
+the argument and what was expected.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from cufund import _core
+
+__all__ = [
+    "PoseFn",
+    "Transform",
+    "attitude_from_thrust_and_yaw",
+    "cross",
+    "homogeneous",
+    "interpolate_poses",
+    "quat_conjugate",
+    "quat_from_matrix",
+    "quat_from_two_vectors",
+    "quat_mul",
+    "quat_to_matrix",
+    "sample_poses",
+    "unit_quaternion",
+    "world_to_body",
+    "yaw_of",
+    "yaw_quaternion",
+]
+
+Array = NDArray[np.float64]
+
+PoseFn = Callable[[float], tuple[object, object]]
+"""``pose_fn(t) -> (p_W (3,), q_WB (4,) [w, x, y, z])``: the body pose at time t [s]."""
+
+_MIN_NORM2 = 1e-18
+"""A quaternion whose squared norm is below this (norm 1e-9) has no direction: it is refused."""
+_UNIT_TOL = 1e-3
+"""How far from 1 a quaternion's norm, and from the identity R_AB^T R_AB, may be before it is not a rotation."""
+
+
+# --- input checks --------------------------------------------------------------------------------------------------
+
+
+def _floats(value: ArrayLike, field: str, shape: str) -> Array:
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{field} must be an array of numbers of shape {shape}, got {value!r}") from e
+
+
+def _quaternions(q: ArrayLike, field: str) -> Array:
+    """(…, 4) finite float64 quaternions with a direction (norm above 1e-9); not normalised."""
+    a = _floats(q, field, "(…, 4) [w, x, y, z]")
+    if a.ndim == 0 or a.shape[-1] != 4:
+        raise ValueError(f"{field} must have shape (4,) or (…, 4) [w, x, y, z], got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{field} must be finite quaternions [w, x, y, z], got NaN or inf in {a!r}")
+    if np.any(np.sum(a * a, axis=-1) < _MIN_NORM2):
+        raise ValueError(f"{field} must be non-zero quaternions [w, x, y, z] (a zero quaternion is no rotation)")
+    return a
+
+
+def _check_unit(norm2: Array | float, field: str) -> None:
+    if np.any(np.abs(np.asarray(norm2) - 1.0) > 2 * _UNIT_TOL):
+        raise ValueError(
+            f"{field} must be unit quaternions [w, x, y, z] (|q|² = {norm2}); normalise them "
+            "(unit_quaternion, or normalize=True)"
+        )
+
+
+def _vectors(v: ArrayLike, field: str) -> Array:
+    a = _floats(v, field, "(3,)")
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{field} must be 3 finite numbers, got shape {a.shape} {a!r}")
+    return a
+
+
+def _normalized(q: Array) -> Array:
+    """q / |q| over the last axis (one quaternion: numpy's 1-D norm, the dot product's square root)."""
+    out: Array = q / (np.linalg.norm(q) if q.ndim == 1 else np.linalg.norm(q, axis=-1, keepdims=True))
+    return out
+
+
+def unit_quaternion(q: ArrayLike, field: str = "q") -> Array:
+    """The unit quaternion (4,) [w, x, y, z] in the direction of ``q``; ValueError naming ``field`` if ``q`` is not
+    4 finite numbers or is zero."""
+    a = _floats(q, field, "(4,) [w, x, y, z]")
+    if a.shape != (4,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{field} must be 4 finite numbers [w, x, y, z], got {a.shape} {a!r}")
+    if np.linalg.norm(a) < 1e-9:
+        raise ValueError(f"{field} must be a non-zero quaternion [w, x, y, z]")
+    return _normalized(a)
+
+
+# --- quaternions and rotation matrices ------------------------------------------------------------------------------
+
+
+def quat_to_matrix(q_AB: ArrayLike, normalize: bool = False) -> Array:
+    """R_AB (…, 3, 3) of unit quaternions q_AB (…, 4) [w, x, y, z]. With ``normalize`` the quaternions are divided
+    by their norm first; without, a norm more than 1e-3 from 1 is refused (the matrix would not be a rotation)."""
+    q = _floats(q_AB, "q_AB", "(…, 4) [w, x, y, z]")
+    if q.shape == (4,):  # one quaternion in float arithmetic (per-sample paths)
+        w, x, y, z = q.tolist()
+        n2 = w * w + x * x + y * y + z * z
+        if not _MIN_NORM2 <= n2 < math.inf:
+            _quaternions(q, "q_AB")  # raises the error that says which
+        if normalize:
+            w, x, y, z = _normalized(q).tolist()
+        else:
+            _check_unit(n2, "q_AB")
+        return np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+    q = _quaternions(q, "q_AB")
+    if normalize:
+        q = _normalized(q)
+    else:
+        _check_unit(np.sum(q * q, axis=-1), "q_AB")
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
+
+
+def _rotation_matrices(R_AB: ArrayLike) -> Array:
+    R = _floats(R_AB, "R_AB", "(…, 3, 3)")
+    if R.ndim < 2 or R.shape[-2:] != (3, 3):
+        raise ValueError(f"R_AB must have shape (3, 3) or (…, 3, 3), got shape {R.shape}")
+    if not np.all(np.isfinite(R)):
+        raise ValueError(f"R_AB must be finite rotation matrices, got NaN or inf in {R!r}")
+    off = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(initial=0.0)
+    if off > _UNIT_TOL or np.any(np.linalg.det(R) <= 0):
+        raise ValueError(
+            f"R_AB must be rotation matrices (orthonormal, determinant +1); |R_AB^T R_AB - I| reaches {off:.3g}"
+        )
+    return R
+
+
+def quat_from_matrix(R_AB: ArrayLike) -> Array:
+    """q_AB (…, 4) [w, x, y, z] with w >= 0 of rotation matrices R_AB (…, 3, 3) (Shepperd's method: the branch
+    of the largest of trace, R_xx, R_yy, R_zz, so no division by a small number)."""
+    R = _rotation_matrices(R_AB)
+    if R.shape == (3, 3):  # one matrix in float arithmetic (per-scan paths)
+        (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R.tolist()
+        tr = m00 + m11 + m22
+        if tr > 0:
+            s = 2.0 * math.sqrt(tr + 1.0)
+            q = (0.25 * s, (m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s)
+        elif m00 > m11 and m00 > m22:
+            s = 2.0 * math.sqrt(1.0 + m00 - m11 - m22)
+            q = ((m21 - m12) / s, 0.25 * s, (m01 + m10) / s, (m02 + m20) / s)
+        elif m11 > m22:
+            s = 2.0 * math.sqrt(1.0 + m11 - m00 - m22)
+            q = ((m02 - m20) / s, (m01 + m10) / s, 0.25 * s, (m12 + m21) / s)
+        else:
+            s = 2.0 * math.sqrt(1.0 + m22 - m00 - m11)
+            q = ((m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s)
+        out = np.array(q)
+        out /= np.linalg.norm(out)
+        return -out if out[0] < 0 else out
+    m = [[R[..., i, j] for j in range(3)] for i in range(3)]
+    trace = m[0][0] + m[1][1] + m[2][2]
+    # the four branches for every matrix (the unused ones may take the root of a negative number: silenced,
+    # then not selected), the same expressions as above so one matrix and a batch agree bit for bit
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s0 = 2.0 * np.sqrt(trace + 1.0)
+        s1 = 2.0 * np.sqrt(1.0 + m[0][0] - m[1][1] - m[2][2])
+        s2 = 2.0 * np.sqrt(1.0 + m[1][1] - m[0][0] - m[2][2])
+        s3 = 2.0 * np.sqrt(1.0 + m[2][2] - m[0][0] - m[1][1])
+        branches = [
+            np.stack([0.25 * s0, (m[2][1] - m[1][2]) / s0, (m[0][2] - m[2][0]) / s0, (m[1][0] - m[0][1]) / s0], -1),
+            np.stack([(m[2][1] - m[1][2]) / s1, 0.25 * s1, (m[0][1] + m[1][0]) / s1, (m[0][2] + m[2][0]) / s1], -1),
+            np.stack([(m[0][2] - m[2][0]) / s2, (m[0][1] + m[1][0]) / s2, 0.25 * s2, (m[1][2] + m[2][1]) / s2], -1),
+            np.stack([(m[1][0] - m[0][1]) / s3, (m[0][2] + m[2][0]) / s3, (m[1][2] + m[2][1]) / s3, 0.25 * s3], -1),
+        ]
+    first = trace > 0
+    second = ~first & (m[0][0] > m[1][1]) & (m[0][0] > m[2][2])
+    third = ~first & ~second & (m[1][1] > m[2][2])
+    out = np.select([first[..., None], second[..., None], third[..., None]], branches[:3], branches[3])
+    out = out / np.linalg.norm(out, axis=-1, keepdims=True)
+    q_AB: Array = np.where(out[..., :1] < 0, -out, out)
+    return q_AB
+
+
+def quat_mul(q_AB: ArrayLike, q_BC: ArrayLike) -> Array:
+    """Hamilton product q_AC = q_AB ⊗ q_BC of (…, 4) quaternions [w, x, y, z] (broadcast against each other)."""
+    a = _floats(q_AB, "q_AB", "(…, 4) [w, x, y, z]")
+    b = _floats(q_BC, "q_BC", "(…, 4) [w, x, y, z]")
+    if a.shape == (4,) and b.shape == (4,):  # one product in float arithmetic
+        aw, ax, ay, az = a.tolist()
+        bw, bx, by, bz = b.tolist()
+        if not math.isfinite(aw + ax + ay + az + bw + bx + by + bz):
+            _quaternions(a, "q_AB")
+            _quaternions(b, "q_BC")
+        return np.array(
+            [
+                aw * bw - ax * bx - ay * by - az * bz,
+                aw * bx + ax * bw + ay * bz - az * by,
+                aw * by - ax * bz + ay * bw + az * bx,
+                aw * bz + ax * by - ay * bx + az * bw,
+            ]
+        )
+    for v, field in ((a, "q_AB"), (b, "q_BC")):
+        if v.ndim == 0 or v.shape[-1] != 4:
+            raise ValueError(f"{field} must have shape (4,) or (…, 4) [w, x, y, z], got shape {v.shape}")
+        if not np.all(np.isfinite(v)):
+            raise ValueError(f"{field} must be finite quaternions [w, x, y, z], got NaN or inf in {v!r}")
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        -1,
+    )
+
+
+def quat_conjugate(q_AB: ArrayLike) -> Array:
+    """q_BA (…, 4): the conjugate [w, -x, -y, -z], the inverse rotation of a unit quaternion q_AB."""
+    q = _floats(q_AB, "q_AB", "(…, 4) [w, x, y, z]")
+    if q.ndim == 0 or q.shape[-1] != 4:
+        raise ValueError(f"q_AB must have shape (4,) or (…, 4) [w, x, y, z], got shape {q.shape}")
+    if not np.all(np.isfinite(q)):
+        raise ValueError(f"q_AB must be finite quaternions [w, x, y, z], got NaN or inf in {q!r}")
+    q_BA: Array = q * np.array([1.0, -1.0, -1.0, -1.0])
+    return q_BA
+
+
+def yaw_quaternion(yaw: float) -> Array:
+    """q_WB [w, x, y, z] of a rotation by ``yaw`` [rad] about world z."""
+    if not math.isfinite(yaw):
+        raise ValueError(f"yaw must be a finite angle [rad], got {yaw!r}")
+    return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+
+
+def yaw_of(q_WB: ArrayLike) -> float:
+    """Heading of body x about world z [rad], in (-π, π], of a unit quaternion q_WB [w, x, y, z]."""
+    q = _floats(q_WB, "q_WB", "(4,) [w, x, y, z]")
+    if q.shape != (4,):
+        raise ValueError(f"q_WB must have shape (4,) [w, x, y, z], got shape {q.shape}")
+    w, x, y, z = q.tolist()
+    if not _MIN_NORM2 <= w * w + x * x + y * y + z * z < math.inf:
+        _quaternions(q, "q_WB")
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def world_to_body(
+    qw: float, qx: float, qy: float, qz: float, x: float, y: float, z: float
+) -> tuple[float, float, float]:
+    """v_B = R_WB^T v_W for one unit quaternion q_WB [w, x, y, z] and a world vector v_W, in scalar arithmetic (a
+    per-sample fast path: the same numbers as ``quat_to_matrix(q_WB).T @ v_W`` up to rounding)."""
+    if not math.isfinite(qw + qx + qy + qz + x + y + z):
+        raise ValueError(f"world_to_body needs finite numbers, got q_WB {[qw, qx, qy, qz]} v_W {[x, y, z]}")
+    return (
+        (1 - 2 * (qy * qy + qz * qz)) * x + 2 * (qx * qy + qw * qz) * y + 2 * (qx * qz - qw * qy) * z,
+        2 * (qx * qy - qw * qz) * x + (1 - 2 * (qx * qx + qz * qz)) * y + 2 * (qy * qz + qw * qx) * z,
+        2 * (qx * qz + qw * qy) * x + 2 * (qy * qz - qw * qx) * y + (1 - 2 * (qx * qx + qy * qy)) * z,
+    )
+
+
+def cross(a: ArrayLike, b: ArrayLike) -> Array:
+    """a × b of two 3-vectors in the same frame (np.cross is slow for single vectors)."""
+    a0, a1, a2 = _vectors(a, "a").tolist()
+    b0, b1, b2 = _vectors(b, "b").tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
+def quat_from_two_vectors(u_A: ArrayLike, v_A: ArrayLike) -> Array:
+    """The shortest rotation q [w, x, y, z] taking unit vector u_A to unit vector v_A (both in frame A), as PX4's
+    ``Quatf(u, v)``; for opposite vectors a half turn about an axis orthogonal to u_A."""
+    u, v = _vectors(u_A, "u_A"), _vectors(v_A, "v_A")
+    c = cross(u, v)
+    d = float(np.dot(u, v))
+    if d < -1.0 + 1e-6:  # opposite: any axis orthogonal to u
+        axis = cross(u, np.array([1.0, 0.0, 0.0])) if abs(u[0]) < 0.9 else cross(u, np.array([0.0, 1.0, 0.0]))
+        axis /= np.linalg.norm(axis)
+        return np.array([0.0, axis[0], axis[1], axis[2]])
+    q = np.array([1.0 + d, c[0], c[1], c[2]])
+    n = np.linalg.norm(q)
+    if not n > 1e-9:
+        raise ValueError(f"u_A and v_A must be unit vectors, got {u!r} and {v!r}")
+    out: Array = q / n
+    return out
+
+
+def attitude_from_thrust_and_yaw(z_B: ArrayLike, yaw: float) -> Array:
+    """R_WB whose body z axis is ``z_B`` (a unit vector in world coordinates) and whose x axis points along
+    ``yaw`` [rad] projected (PX4's ``bodyzToAttitude`` in ENU/FLU). Computed in C++, shared with the geometric
+    controller."""
+    out: Array = _core.control.attitude_from_thrust_and_yaw(z_B, yaw)
+    return out
+
+
+# --- rigid transforms ---------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Transform:
+    """Rigid transform T_AB: maps points from frame B to frame A (p_A = R_AB p_B + t_AB). ``T_AC = T_AB @ T_BC``."""
+
+    t: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Translation t_AB, origin of B in A [m]."""
+    q: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    """Rotation q_AB [w, x, y, z] (normalised on construction)."""
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.t, dtype=float)
+        if t.shape != (3,) or not np.all(np.isfinite(t)):
+            raise ValueError(f"t must be 3 finite numbers [m], got {self.t!r}")
+        object.__setattr__(self, "t", tuple(float(v) for v in t))
+        object.__setattr__(self, "q", tuple(float(v) for v in unit_quaternion(self.q, "q")))
+
+    @property
+    def R(self) -> Array:
+        """R_AB (3, 3)."""
+        return quat_to_matrix(np.array(self.q))
+
+    def inverse(self) -> Transform:
+        """T_BA: p_B = R_AB^T (p_A - t_AB)."""
+        q_BA = quat_conjugate(np.array(self.q))
+        t_BA = -(self.R.T @ np.array(self.t))
+        return Transform(
+            (float(t_BA[0]), float(t_BA[1]), float(t_BA[2])),
+            (float(q_BA[0]), float(q_BA[1]), float(q_BA[2]), float(q_BA[3])),
+        )
+
+    def __matmul__(self, other: Transform) -> Transform:
+        """T_AC = T_AB @ T_BC."""
+        if not isinstance(other, Transform):
+            return NotImplemented
+        t_AC = np.array(self.t) + self.R @ np.array(other.t)
+        q_AC = quat_mul(np.array(self.q), np.array(other.q))
+        return Transform(
+            (float(t_AC[0]), float(t_AC[1]), float(t_AC[2])),
+            (float(q_AC[0]), float(q_AC[1]), float(q_AC[2]), float(q_AC[3])),
+        )
+
+
+def homogeneous(T_AB: Transform) -> Array:
+    """The 4x4 homogeneous matrix [[R_AB, t_AB], [0, 1]] of a Transform T_AB (B -> A)."""
+    if not isinstance(T_AB, Transform):
+        raise TypeError(f"T_AB must be a cufund.geometry.Transform, got {type(T_AB).__name__}")
+    M = np.eye(4)
+    M[:3, :3] = quat_to_matrix(np.asarray(T_AB.q), normalize=True)
+    M[:3, 3] = T_AB.t
+    return M
+
+
+# --- pose trajectories --------------------------------------------------------------------------------------------
+
+
+def sample_poses(pose_fn: PoseFn, times: Array, T_BS: Transform) -> tuple[Array, Array]:
+    """Sensor poses at ``times``: p_WS (K, 3) and q_WS (K, 4), from the body poses pose_fn(t) composed with the
+    mounting T_BS. Quaternion signs are aligned so interpolation takes the short way."""
+    p_WB = np.empty((len(times), 3))
+    q_WB = np.empty((len(times), 4))
+    for k, t in enumerate(times):
+        p, q = pose_fn(float(t))
+        p = np.asarray(p, dtype=float)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"pose_fn({t}) must return p_W as 3 finite numbers [m], got {p!r}")
+        p_WB[k] = p
+        q_WB[k] = unit_quaternion(q, f"pose_fn({t}) q_WB")  # type: ignore[arg-type]
+        if k and np.dot(q_WB[k], q_WB[k - 1]) < 0:
+            q_WB[k] = -q_WB[k]
+    q_WS = quat_mul(q_WB, np.array(T_BS.q))
+    p_WS = p_WB + quat_to_matrix(q_WB) @ np.array(T_BS.t)
+    return p_WS, q_WS
+
+
+def interpolate_poses(t_knots: ArrayLike, p_knots: ArrayLike, q_knots: ArrayLike, t: ArrayLike) -> tuple[Array, Array]:
+    """Body positions p_W (N, 3) and rotations R_WB (N, 3, 3) at times ``t`` [s] from pose knots (stamps (K,)
+    ascending, positions (K, 3), quaternions q_WB (K, 4) [w, x, y, z]): linear in position, normalised linear in the
+    quaternion (short way round), clamped at the ends."""
+    ts, p, q = np.asarray(t_knots), np.asarray(p_knots), np.asarray(q_knots)
+    t = np.asarray(t)
+    if len(ts) == 0 or p.shape != (len(ts), 3) or q.shape != (len(ts), 4):
+        raise ValueError(
+            f"pose knots must be stamps (K,) with K >= 1, p_knots (K, 3) and q_knots (K, 4), got "
+            f"{ts.shape}, {p.shape}, {q.shape}"
+        )
+    if len(ts) == 1:
+        return np.repeat(p, len(t), axis=0), np.repeat(quat_to_matrix(q), len(t), axis=0)
+    i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
+    s = np.clip((t - ts[i]) / (ts[i + 1] - ts[i]), 0.0, 1.0)[:, None]
+    q0, q1 = q[i], q[i + 1]
+    q1 = np.where(np.sum(q0 * q1, axis=1, keepdims=True) < 0, -q1, q1)
+    qs = (1 - s) * q0 + s * q1
+    return (1 - s) * p[i] + s * p[i + 1], quat_to_matrix(_normalized(qs))
+
+
+# --- names of cufund 0.1 that were duplicates ---------------------------------------------------------------------
+
+
+def _matrix_from_quat(q_AB: ArrayLike) -> Array:
+    return quat_to_matrix(q_AB, normalize=True)
+
+
+_DEPRECATED: dict[str, tuple[str, Callable[..., Any]]] = {
+    "quat_multiply": ("quat_mul", quat_mul),
+    "quat_to_rotation": ("quat_to_matrix", quat_to_matrix),
+    "rotation_to_quat": ("quat_from_matrix", quat_from_matrix),
+    "matrix_from_quat": ("quat_to_matrix(q, normalize=True)", _matrix_from_quat),
+}
+"""0.1's second names for the same function (in cufund.control.rotations and cufund.estimation.frames) -> the one
+name here; they import with a DeprecationWarning and go in the next release."""
+
+
+def __getattr__(name: str) -> Any:
+    if name in _DEPRECATED:
+        new, fn = _DEPRECATED[name]
+        warnings.warn(
+            f"cufund.geometry.{name} is {new}; the old name goes in the next release", DeprecationWarning, stacklevel=2
+        )
+        return fn
+    raise AttributeError(f"module 'cufund.geometry' has no attribute {name!r}")
