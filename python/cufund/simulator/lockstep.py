@@ -421,7 +421,8 @@ class Simulator:
         # observes the topic (no log, no recording, no subscription), instants where only flight software runs
         # (which reads the estimate once one is attached) skip the snapshot: no reader could tell.
         always_truth = bus.has_consumer(truth_topic)
-        core_step = quad.fast_step() if quad is not None else None  # Quadrotor.step without its Python layer
+        # Quadrotor.step without its Python layer (quad.fast_step) unless step is overridden
+        fast = quad is not None and quad.step == Quadrotor.step.__get__(quad)
         physics_seconds = self._physics_seconds
         processed = self._processed_ns
         # the physics clock's arithmetic inlined (EventClock.advance): t_k = start + k * NS * den // num
@@ -470,7 +471,8 @@ class Simulator:
                     break
                 if quad is not None:
                     w0 = perf()
-                    if core_step is not None and quad.wind_function is None:
+                    core_step = quad.fast_step if fast else None  # None while a wind function is set
+                    if core_step is not None:
                         core_step((target - now) / NS, cmd, 1)
                     else:
                         quad.step((target - now) / NS, cmd)

@@ -158,6 +158,15 @@ class Quadrotor:
         self._batch = b = batch
         self.state = QuadrotorState(b.p[0], b.v[0], b.q[0], b.w[0], b.rotor_speeds[0])
         self._step = b._core.step
+        self._sync_fast_step()
+
+    def _sync_fast_step(self) -> None:
+        self.fast_step: Callable[[float, np.ndarray, int], None] | None = (
+            self._step if self._batch._wind_fn is None else None)
+        """:meth:`step` without its Python layer, for a caller's inner loop (the simulator's): the C++
+        integrator's ``step(dt, rotor_speed_cmd, nthreads)``, the same arithmetic, the held wind ``wind_W``
+        applied; None while a wind *function* is set (:meth:`step` evaluates it). Read it before each step (it
+        follows :meth:`set_wind` and :meth:`reset`); never assign it."""
 
     def __getstate__(self) -> dict[str, Any]:
         return {"batch": self._batch}
@@ -176,24 +185,12 @@ class Quadrotor:
     def set_wind(self, wind: WindField) -> None:
         """Constant wind (3,) [m/s], a function ``wind(t, p_W)``, or None."""
         self._batch.set_wind(wind)
-
-    @property
-    def wind_function(self) -> Callable[[float, np.ndarray], np.ndarray] | None:
-        """The wind function :meth:`step` evaluates before each step, or None (still air or a constant wind)."""
-        return self._batch._wind_fn
-
-    def fast_step(self) -> Callable[[float, np.ndarray, int], None] | None:
-        """:meth:`step` without its Python layer, for a caller's inner loop (the simulator's): the C++ integrator's
-        ``step(dt, rotor_speed_cmd, nthreads)``, same arithmetic, the held wind ``wind_W`` applied. It does not
-        evaluate a wind *function*: call :meth:`step` while :attr:`wind_function` is set. None when ``step`` is
-        overridden (a subclass or a patched instance), whose own ``step`` must then run."""
-        if self.step != Quadrotor.step.__get__(self):
-            return None
-        return self._step
+        self._sync_fast_step()
 
     def reset(self) -> None:
         """At the origin, level, at rest, rotors stopped; time 0."""
         self._batch.reset()
+        self._sync_fast_step()
 
     def hover(self, p_W: np.ndarray | None = None) -> None:
         """Steady hover at ``p_W`` [m]: rotors at hover speed, at rest, level."""
