@@ -15,6 +15,8 @@ PYBIND11_MODULE(_core, m) {
   cufund::py_bind::define_control(control);
   py::module_ lidar = m.def_submodule("lidar", "Embree ray casting for LiDAR and depth cameras (paper §2.2).");
   cufund::py_bind::define_lidar(lidar);
+  py::module_ perception = m.def_submodule("perception", "The tunnel detector's kernels: DBSCAN, line support, deskew-crop.");
+  cufund::py_bind::define_perception(perception);
   py::module_ esdf = m.def_submodule("esdf", "Occupancy mapping and exact Euclidean distance fields (paper §2.3).");
   cufund::py_bind::define_esdf(esdf);
   { py::module_ odometry = m.def_submodule("odometry", "LiDAR-inertial odometry kernels (issue 12)."); cufund::py_bind::define_odometry(odometry); }

@@ -169,6 +169,7 @@ inline py::array soa_view(double* data, std::size_t n, int rows, py::handle owne
 void define_dynamics(py::module_& m);
 void define_control(py::module_& m);
 void define_lidar(py::module_& m);
+void define_perception(py::module_& m);  // bindings/perception.cpp
 void define_collision(py::module_& m);  // in dynamics.cpp: Bullet collision checks
 void define_esdf(py::module_& m);
 void define_odometry(py::module_& m);  // odometry.cpp

@@ -369,13 +369,13 @@ def test_dbscan_labels_are_open3ds():
     for pts, eps, min_points in itertools.product(clouds, (0.05, 0.12), (1, 4, 10)):
         want = np.asarray(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts)).cluster_dbscan(
             eps=eps, min_points=min_points), dtype=np.int64)
-        np.testing.assert_array_equal(_core.lidar.dbscan(pts, eps, min_points), want)
-    labels = _core.lidar.dbscan(clouds[0], 0.12, 4)
+        np.testing.assert_array_equal(_core.perception.dbscan(pts, eps, min_points), want)
+    labels = _core.perception.dbscan(clouds[0], 0.12, 4)
     assert labels.max() >= 1 and np.any(labels == -1)  # the case is not trivial
     with pytest.raises(ValueError, match="eps"):
-        _core.lidar.dbscan(clouds[1], 0.0, 4)
+        _core.perception.dbscan(clouds[1], 0.0, 4)
     with pytest.raises(ValueError, match="points"):
-        _core.lidar.dbscan(np.full((3, 3), np.nan), 0.1, 4)
+        _core.perception.dbscan(np.full((3, 3), np.nan), 0.1, 4)
 
 
 def test_deskew_crop_moves_each_point_with_the_blended_poses_of_its_time_and_drops_tall_columns():
@@ -406,12 +406,12 @@ def test_deskew_crop_moves_each_point_with_the_blended_poses_of_its_time_and_dro
     keep = base & ~np.isin(cols, np.union1d(known, tall_here))
     assert 0 < keep.sum() < base.sum() and len(np.setdiff1d(tall_here, known)) > 0
     for args in ((points_L[::2], dt[::2], 1), (points_L, dt, 2)):  # every row, or every other one
-        points_W, rays_W, new_tall = _core.lidar.deskew_crop(*args, span, p, R, 6.0, 0.02, 3.0, 2.6, 0.1, known)
+        points_W, rays_W, new_tall = _core.perception.deskew_crop(*args, span, p, R, 6.0, 0.02, 3.0, 2.6, 0.1, known)
         np.testing.assert_allclose(points_W, w[keep], atol=1e-12)
         np.testing.assert_allclose(rays_W, (w - sensor)[keep] / rng_[keep, None], atol=1e-12)
         np.testing.assert_array_equal(new_tall, np.setdiff1d(tall_here, known))
     with pytest.raises(ValueError, match="tall"):
-        _core.lidar.deskew_crop(points_L, dt, 1, span, p, R, 6.0, 0.02, 3.0, 2.6, 0.1, known[::-1])
+        _core.perception.deskew_crop(points_L, dt, 1, span, p, R, 6.0, 0.02, 3.0, 2.6, 0.1, known[::-1])
 
 
 def test_line_support_counts_distinct_bins_and_inliers_per_line():
@@ -420,12 +420,12 @@ def test_line_support_counts_distinct_bins_and_inliers_per_line():
     rng = np.random.default_rng(4)
     for along in (rng.integers(-60, 60, (400, 64)), rng.integers(-2**40, 2**40, (50, 7)), np.zeros((0, 3), np.int64)):
         inlier = rng.random(along.shape) < 0.3
-        covered, counts = _core.lidar.line_support(along, inlier)
+        covered, counts = _core.perception.line_support(along, inlier)
         for j in range(along.shape[1]):
             assert covered[j] == len(np.unique(along[inlier[:, j], j]))
             assert counts[j] == inlier[:, j].sum()
     with pytest.raises(ValueError, match="inlier"):
-        _core.lidar.line_support(np.zeros((3, 2), np.int64), np.zeros((2, 3), bool))
+        _core.perception.line_support(np.zeros((3, 2), np.int64), np.zeros((2, 3), bool))
 
 
 def test_the_accumulator_sums_each_voxel_as_a_full_rereduction_would_bit_for_bit():

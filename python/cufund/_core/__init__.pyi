@@ -5,11 +5,12 @@ from __future__ import annotations
 from . import dynamics
 from . import control
 from . import lidar
+from . import perception
 from . import esdf
 from . import odometry
 from . import planning
 from . import logs
-__all__: list[str] = ['control', 'dynamics', 'esdf', 'lidar', 'logs', 'odometry', 'planning', 'thread_pool_size']
+__all__: list[str] = ['control', 'dynamics', 'esdf', 'lidar', 'logs', 'odometry', 'perception', 'planning', 'thread_pool_size']
 def thread_pool_size() -> int:
     """
     Threads of the shared C++ pool, the caller included (CUFUND_NUM_THREADS, else the CPUs this process may use).

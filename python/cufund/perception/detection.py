@@ -221,7 +221,7 @@ def voxel_means(points: np.ndarray, voxel: float, extra: np.ndarray | None = Non
 def _dbscan(points: np.ndarray, eps: float, min_points: int) -> np.ndarray:
     """Open3D's ``PointCloud.cluster_dbscan`` labels (the same labels, tested against it), computed in C++ on a
     grid of eps cells: no Open3D import (0.8 s) and no KD-tree per call."""
-    return _core.lidar.dbscan(np.asarray(points, dtype=float).reshape(-1, 3), eps, min_points)
+    return _core.perception.dbscan(np.asarray(points, dtype=float).reshape(-1, 3), eps, min_points)
 
 
 def _vertical_plane(xy: np.ndarray, threshold: float, iterations: int, rng: np.random.Generator
@@ -243,7 +243,7 @@ def _vertical_plane(xy: np.ndarray, threshold: float, iterations: int, rng: np.r
     # Score: the length of line the inliers cover (distinct bins along it), then their count. Vertical bars
     # project to a spot each, so counts alone would favour a line through two posts or a post and a box.
     along = np.floor((xy @ np.stack([normals[:, 1], -normals[:, 0]])) / threshold).astype(np.int64)
-    covered, counts = _core.lidar.line_support(along, inliers)  # distinct bins among the inliers, inliers
+    covered, counts = _core.perception.line_support(along, inliers)  # distinct bins among the inliers, inliers
     best = int(np.lexsort((np.arange(len(counts))[::-1], counts, covered))[-1])  # most covered, most, first
     mask = inliers[:, best]
     for _ in range(2):  # PCA on the inliers, then the inliers of that line

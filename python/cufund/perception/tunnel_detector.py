@@ -142,14 +142,14 @@ class TunnelDetector(Component):
         with both poses around its firing time, the two results blended linearly (the pose interpolated, to
         second order). Points farther than ``max_range`` from where the LiDAR was, above ``ceiling_z`` or in the
         floor band are dropped, then those in x-y columns reaching above any frame, then those outside the region
-        of interest (one C++ pass, :func:`cufund._core.lidar.deskew_crop`, then the column bookkeeping here)."""
+        of interest (one C++ pass, :func:`cufund._core.perception.deskew_crop`, then the column bookkeeping here)."""
         p = self.params
         span = max(float(np.max(cloud.dt[::p.point_stride], initial=0.0)), 1e-9)
         p_WB, R_WB = self._poses(cloud.t + np.linspace(0.0, span, _KNOTS + 1))
         R_WL = R_WB @ self._R_BL
         p_WL = p_WB + R_WB @ self._t_BL
         # x-y columns reaching above any frame are walls or poles: never accumulated
-        points_W, rays_W, tall = _core.lidar.deskew_crop(
+        points_W, rays_W, tall = _core.perception.deskew_crop(
             cloud.points_L, cloud.dt, p.point_stride, span, p_WL, R_WL, p.max_range, p.floor_z + p.floor_band,
             p.ceiling_z, p.max_frame_top, COLUMN_CELL, self._tall)
         if len(tall):

@@ -6,7 +6,7 @@
 #include <utility>
 #include <vector>
 
-namespace cufund::lidar {
+namespace cufund::perception {
 
 namespace {
 
@@ -111,4 +111,4 @@ std::int64_t dbscan(const double* points, std::size_t n, double eps, std::size_t
   return clusters;
 }
 
-}  // namespace cufund::lidar
+}  // namespace cufund::perception

@@ -1,9 +1,9 @@
-#include "deskew.h"
+#include "deskew_crop.h"
 
 #include <algorithm>
 #include <cmath>
 
-namespace cufund::lidar {
+namespace cufund::perception {
 
 void deskew_crop(const float* points_L, const double* dt, std::size_t n, std::size_t stride, const DeskewKnots& knots,
                  const CropBox& box, const std::int64_t* tall, std::size_t n_tall, CroppedScan& out) {
@@ -68,4 +68,4 @@ void deskew_crop(const float* points_L, const double* dt, std::size_t n, std::si
   out.columns.resize(kept);
 }
 
-}  // namespace cufund::lidar
+}  // namespace cufund::perception

@@ -4,7 +4,7 @@
 #include <limits>
 #include <vector>
 
-namespace cufund::lidar {
+namespace cufund::perception {
 
 void line_support(const std::int64_t* along, const bool* inlier, std::size_t n, std::size_t k, std::int64_t* covered,
                   std::int64_t* counts) {
@@ -47,4 +47,4 @@ void line_support(const std::int64_t* along, const bool* inlier, std::size_t n, 
   }
 }
 
-}  // namespace cufund::lidar
+}  // namespace cufund::perception

@@ -9,9 +9,9 @@
 #include <cstddef>
 #include <cstdint>
 
-namespace cufund::lidar {
+namespace cufund::perception {
 
 // points: n x 3 (finite). labels: n. Returns the number of clusters.
 std::int64_t dbscan(const double* points, std::size_t n, double eps, std::size_t min_points, std::int64_t* labels);
 
-}  // namespace cufund::lidar
+}  // namespace cufund::perception

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace cufund::lidar {
+namespace cufund::perception {
 
 struct DeskewKnots {
   std::size_t segments = 0;  // K: K + 1 knots evenly over [0, span]
@@ -38,4 +38,4 @@ struct CroppedScan {
 void deskew_crop(const float* points_L, const double* dt, std::size_t n, std::size_t stride, const DeskewKnots& knots,
                  const CropBox& box, const std::int64_t* tall, std::size_t n_tall, CroppedScan& out);
 
-}  // namespace cufund::lidar
+}  // namespace cufund::perception

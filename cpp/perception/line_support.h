@@ -5,7 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 
-namespace cufund::lidar {
+namespace cufund::perception {
 
 // along: (n, k) row-major bin index of point i along candidate line j; inlier: (n, k) whether point i is
 // an inlier of line j. Writes, per line j, the number of distinct bins among its inliers (covered[j]) and
@@ -13,4 +13,4 @@ namespace cufund::lidar {
 void line_support(const std::int64_t* along, const bool* inlier, std::size_t n, std::size_t k, std::int64_t* covered,
                   std::int64_t* counts);
 
-}  // namespace cufund::lidar
+}  // namespace cufund::perception
