@@ -22,7 +22,7 @@ from cufund.core.messages import Odometry, Topics
 from cufund.perception import TunnelDetector, TunnelDetectorParams, detect_in_voxels
 from cufund.sensors import LidarComponent
 from cufund.sensors.lidar import mid360_params
-from cufund.sensors.pose import yaw_quaternion
+from cufund.geometry import yaw_quaternion
 from cufund.worlds.builtin import imav2025_tunnel
 from cufund.missions.tunnel_course import tunnel_course_layout
 

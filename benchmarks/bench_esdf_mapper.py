@@ -34,7 +34,7 @@ from cufund import mapping as esdf
 from cufund.core.bus import Bus
 from cufund.sensors import Lidar, mid360
 from cufund.core.messages import Odometry
-from cufund.sensors.pose import Transform, interpolate_poses
+from cufund.geometry import Transform, interpolate_poses
 from cufund.missions.tunnel_course import paper_tunnel_course
 
 T_BL = Transform((0.0, 0.0, 0.08))

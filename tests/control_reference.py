@@ -8,13 +8,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from cufund.control.rotations import (
+from cufund.geometry import (
     attitude_from_thrust_and_yaw,
     quat_conjugate,
+    quat_from_matrix,
     quat_from_two_vectors,
-    quat_multiply,
-    quat_to_rotation,
-    rotation_to_quat,
+    quat_mul,
+    quat_to_matrix,
 )
 
 RATE_I_SCALE = math.radians(400.0)
@@ -69,7 +69,7 @@ class PositionReference:
         self.vel_int = np.minimum(np.maximum(self.vel_int, -grav), grav)
         thrust = float(np.linalg.norm(F))
         R_d = attitude_from_thrust_and_yaw(F / thrust, yaw)
-        return rotation_to_quat(R_d), thrust
+        return quat_from_matrix(R_d), thrust
 
     def thrust_vector(self, F):
         g = self.g
@@ -103,21 +103,21 @@ def attitude_reference(q, qd, yaw_rate, k, rate_max, yaw_weight, alternatives=Fa
     """AttitudeController.update's arithmetic. With ``alternatives``, a list of the admissible outputs: an error
     of 180 deg (the error quaternion's w within 1e-12 of 0) has two shortest ways round, and which one the last
     bit of w picks is a rounding accident, so both are returned there."""
-    R = quat_to_rotation(q)
-    e_z, e_z_d = R[:, 2], quat_to_rotation(qd)[:, 2]
+    R = quat_to_matrix(q)
+    e_z, e_z_d = R[:, 2], quat_to_matrix(qd)[:, 2]
     qd_red = quat_from_two_vectors(e_z, e_z_d)
     if abs(qd_red[1]) > 1 - 1e-5 or abs(qd_red[2]) > 1 - 1e-5:
         qd_red = qd
     else:
-        qd_red = quat_multiply(qd_red, q)
-    q_mix = quat_multiply(quat_conjugate(qd_red), qd)
+        qd_red = quat_mul(qd_red, q)
+    q_mix = quat_mul(quat_conjugate(qd_red), qd)
     if q_mix[0] < 0:
         q_mix = -q_mix
     w_mix = min(max(q_mix[0], -1.0), 1.0)
     z_mix = min(max(q_mix[3], -1.0), 1.0)
     yw = yaw_weight
-    qd = quat_multiply(qd_red, np.array([math.cos(yw * math.acos(w_mix)), 0.0, 0.0, math.sin(yw * math.asin(z_mix))]))
-    qe = quat_multiply(quat_conjugate(q), qd)
+    qd = quat_mul(qd_red, np.array([math.cos(yw * math.acos(w_mix)), 0.0, 0.0, math.sin(yw * math.asin(z_mix))]))
+    qe = quat_mul(quat_conjugate(q), qd)
     if qe[0] < 0:
         qe = -qe
     out = []

@@ -9,7 +9,7 @@ import cufund
 from cufund import FlightMode, RunStatus, Simulator, Topics
 from cufund.control import (AttitudeController, ControlAllocator, GeometricController, PositionController,
                             RateController)
-from cufund.control.rotations import quat_to_rotation, rotation_to_quat
+from cufund.geometry import quat_from_matrix, quat_to_matrix
 from cufund.core.messages import AttitudeSetpoint, FlightModeCommand, TrajectorySetpoint
 from cufund.scenarios import load_scenario
 
@@ -46,7 +46,7 @@ def traj_sp(p=Z3, v=Z3, a=Z3, yaw=0.0):
 def att_sp(roll=0.0, pitch=0.0, thrust=float("nan")):
     cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
     R = np.array([[cp, sr * sp, cr * sp], [0, cr, -sr], [-sp, sr * cp, cr * cp]])  # R_y(pitch) R_x(roll)
-    q = rotation_to_quat(R)
+    q = quat_from_matrix(R)
     return lambda t: AttitudeSetpoint(t, q, thrust)
 
 
@@ -199,9 +199,9 @@ def test_rotation_helpers_round_trip():
         q /= np.linalg.norm(q)
         q = q if q[0] >= 0 else -q
         R = Rotation.from_quat(q[[1, 2, 3, 0]]).as_matrix()  # scipy: [x, y, z, w], independent of ours
-        np.testing.assert_allclose(quat_to_rotation(q), R, atol=1e-12)
-        np.testing.assert_allclose(rotation_to_quat(R), q, atol=1e-12)
-        np.testing.assert_allclose(rotation_to_quat(quat_to_rotation(q)), q, atol=1e-12)
+        np.testing.assert_allclose(quat_to_matrix(q), R, atol=1e-12)
+        np.testing.assert_allclose(quat_from_matrix(R), q, atol=1e-12)
+        np.testing.assert_allclose(quat_from_matrix(quat_to_matrix(q)), q, atol=1e-12)
 
 
 @pytest.mark.parametrize("kind", KINDS)

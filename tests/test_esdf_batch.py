@@ -1,7 +1,7 @@
 """Batched ESDF updates: several scans per call, merged beams, LiDAR frames placed in C++ (issue 14's speed).
 
 References: the per-scan, per-point ``insert_scan`` (the map the batch must equal, or bound), numpy's pose
-interpolation (``cufund.sensors.pose.interpolate_poses``) and scipy's EDT of the resulting occupancy.
+interpolation (``cufund.geometry.interpolate_poses``) and scipy's EDT of the resulting occupancy.
 """
 
 import numpy as np
@@ -9,7 +9,7 @@ import pytest
 from scipy import ndimage
 
 from cufund import mapping as esdf
-from cufund.sensors.pose import Transform, interpolate_poses, quat_mul, quat_to_matrix
+from cufund.geometry import Transform, interpolate_poses, quat_mul, quat_to_matrix
 
 
 def make_map(**kw):
@@ -164,7 +164,7 @@ def test_insert_frames_places_points_as_interpolate_poses_does(rng):
         (lambda m: m.insert_frames([(np.zeros((4, 3)), np.zeros(4))], (np.array([0.0]), np.zeros((1, 3)),
                                    np.array([[1.0, 0, 0, 0]])), Transform()), ValueError, r"frames\[0\] must be a tuple"),
         (lambda m: m.insert_frames([], (np.array([0.0]), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]])), "T"),
-         TypeError, "T_BL must be a cufund.sensors.pose.Transform"),
+         TypeError, "T_BL must be a cufund.geometry.Transform"),
         (lambda m: m.insert_frames([], (np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4))), Transform()), ValueError,
          "knots_t must be a non-empty"),
     ],

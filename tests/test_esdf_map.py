@@ -247,7 +247,7 @@ def test_esdf_mapper_integrates_the_lidar_topic_in_the_simulator():
     import cufund
     from cufund.sensors import Lidar, mid360
     from cufund.sensors import LidarComponent
-    from cufund.sensors.pose import Transform
+    from cufund.geometry import Transform
 
     lo, hi = np.array([0.6, -0.4, 0.0]), np.array([1.2, 0.5, 1.2])
     world = cufund.World("box")

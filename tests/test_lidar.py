@@ -6,7 +6,7 @@ import pytest
 
 import cufund
 from cufund import sensors as L
-from cufund.sensors.pose import Transform, quat_to_matrix, yaw_quaternion
+from cufund.geometry import Transform, quat_to_matrix, yaw_quaternion
 
 
 def covered_cells(pattern, frames, cell_deg=1.0):
@@ -376,7 +376,7 @@ def test_mid360_pattern_is_the_documented_formula():
 
 def test_lidar_component_samples_its_poses_as_the_scalar_pose_function_does():
     from cufund.sensors.lidar_component import LidarComponent
-    from cufund.sensors.pose import sample_poses
+    from cufund.geometry import sample_poses
     from cufund.worlds.builtin import imav2025_tunnel
 
     comp = LidarComponent(L.Lidar(L.mid360(), T_BL=Transform((0.0, 0.0, 0.08), yaw_quaternion(0.2))),

@@ -12,7 +12,7 @@ from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import Mid360Pattern
-from cufund.sensors.pose import Transform
+from cufund.geometry import Transform
 from cufund.worlds import load
 
 T_BL = Transform(t=(0.05, 0.0, 0.05))

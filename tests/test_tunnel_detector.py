@@ -20,7 +20,7 @@ from cufund.perception import (
 from cufund.perception.detection import column_keys
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import mid360
-from cufund.sensors.pose import Transform, quat_to_matrix, yaw_quaternion
+from cufund.geometry import Transform, quat_to_matrix, yaw_quaternion
 from cufund.worlds.builtin import imav2025_tunnel
 from cufund.missions.tunnel_course import tunnel_course_layout
 

@@ -35,6 +35,9 @@ MOVED: dict[str, str] = {
     "cufund.live": "cufund.apps.live",
     "cufund.viz.log_replay": "cufund.apps.log_replay",
     "cufund.worlds.tunnel_course": "cufund.missions.tunnel_course",
+    "cufund.sensors.pose": "cufund.geometry",
+    "cufund.control.rotations": "cufund.geometry",
+    "cufund.estimation.frames": "cufund.estimation.boundary",
 }
 """Old module path -> new module path."""
 

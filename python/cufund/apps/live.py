@@ -27,7 +27,7 @@ from typing import Any, Self
 import numpy as np
 
 from cufund.core.components import Component
-from cufund.control.rotations import yaw_of
+from cufund.geometry import yaw_of
 from cufund.core.messages import Topics
 from cufund.missions.commander import Commander
 from cufund.missions.commands import CommandAck, parse_command

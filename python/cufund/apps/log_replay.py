@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from cufund.control.rotations import quat_to_rotation
+from cufund.geometry import quat_to_matrix
 from cufund.logs import McapReadError, log_metadata, log_topics, read_mcap
 from cufund.vehicle.params import QuadrotorParams
 from cufund.viz.meshcat_scene import FLOWN, VEHICLE, draw_path, draw_vehicle, import_meshcat, pose_matrix
@@ -60,7 +60,7 @@ def replay_log(path: str | Path, vis: Any, params: QuadrotorParams, *, speed: fl
     if TRUTH not in topics and ESTIMATE not in topics:
         raise ValueError(f"{str(path)!r} has neither {TRUTH} nor {ESTIMATE}; it has {sorted(available)}")
     p_BL, R_BL = (np.zeros(3), np.eye(3)) if T_BL is None else (np.asarray(T_BL[0], float),
-                                                                 quat_to_rotation(np.asarray(T_BL[1], float)))
+                                                                 quat_to_matrix(np.asarray(T_BL[1], float)))
     meshcat = import_meshcat()
     g = meshcat.geometry
     vis.delete()
@@ -107,7 +107,7 @@ def replay_log(path: str | Path, vis: Any, params: QuadrotorParams, *, speed: fl
         if record.topic == LIDAR:
             body = latest.get(ESTIMATE) or latest.get(TRUTH)
             if body is not None and len(record.message.points_L):
-                R_WB = quat_to_rotation(np.asarray(body.q_WB, dtype=float))
+                R_WB = quat_to_matrix(np.asarray(body.q_WB, dtype=float))
                 points_B = record.message.points_L.astype(np.float64) @ R_BL.T + p_BL
                 points_W = points_B @ R_WB.T + body.p_W
                 shade = np.clip(0.3 + 0.7 * np.asarray(record.message.intensity, dtype=np.float64), 0.0, 1.0)

@@ -9,7 +9,7 @@ import numpy as np
 
 from cufund.core.components import BusView
 from cufund.core.messages import AttitudeSetpoint, FlightMode, FlightModeCommand, Odometry, Topics, TrajectorySetpoint
-from .rotations import yaw_of
+from cufund.geometry import yaw_of
 
 __all__ = ["BumplessTransfer", "ModeReferences"]
 

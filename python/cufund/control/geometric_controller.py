@@ -25,7 +25,7 @@ from cufund.vehicle.params import QuadrotorParams
 from .arming import gated
 from .flight_mode import BumplessTransfer, ModeReferences
 from .gyro_input import GyroInput
-from .rotations import quat_to_rotation
+from cufund.geometry import quat_to_matrix
 
 __all__ = ["GeometricControlParams", "GeometricController"]
 
@@ -125,7 +125,7 @@ class GeometricController(Controller):
             handover = None
             if self.refs.switched and self.last is not None:
                 # the force last commanded continues and fades into the new one
-                handover = self.last.thrust * quat_to_rotation(self.last.q_WB)[:, 2]
+                handover = self.last.thrust * quat_to_matrix(self.last.q_WB)[:, 2]
             q_d, thrust, speeds, f_a, torque = self._core.step_force(
                 t, state.p_W, state.v_W, state.q_WB, w_B, sp.p_W, sp.v_W, sp.a_W, sp.j_W, sp.yaw, sp.yaw_rate,
                 mode is FlightMode.POSITION, handover)

@@ -9,7 +9,7 @@ import numpy as np
 
 from cufund.core.bus import BusView, Subscription
 from cufund.core.messages import Imu, Topics
-from cufund.sensors.pose import quat_to_matrix
+from cufund.geometry import quat_to_matrix
 
 __all__ = ["GyroInput"]
 

@@ -15,7 +15,7 @@ from cufund.core.messages import AttitudeSetpoint, FlightMode, Odometry, Topics
 from cufund.vehicle.params import QuadrotorParams
 from .arming import Gate, gate
 from .flight_mode import BumplessTransfer, ModeReferences
-from .rotations import quat_to_rotation
+from cufund.geometry import quat_to_matrix
 
 __all__ = ["PositionControlParams", "PositionController"]
 
@@ -137,7 +137,7 @@ class PositionController(Controller):
         handover = None
         if refs.switched and self.last is not None:
             # hand over: the acceleration last commanded (in any mode) continues and fades into the new one
-            z_prev = quat_to_rotation(self.last.q_WB)[:, 2]
+            z_prev = quat_to_matrix(self.last.q_WB)[:, 2]
             handover = self.last.thrust / self.params.mass * z_prev - np.array([0.0, 0.0, self.params.gravity])
         q, thrust = self._core.step(t, dt, state.p_W, state.v_W, sp.p_W, sp.v_W, sp.a_W, sp.yaw,
                                     mode is FlightMode.POSITION, handover)

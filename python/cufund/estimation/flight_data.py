@@ -14,7 +14,9 @@ from typing import Any
 import numpy as np
 
 from cufund.sensors.imu import G0, ImuModel
-from .frames import quat_from_matrix, scan_frame
+from cufund.geometry import quat_from_matrix
+
+from .boundary import scan_frame
 
 __all__ = ["FlightRecord", "LidarFrame", "FlatBodyMotion", "record_flight", "replay"]
 

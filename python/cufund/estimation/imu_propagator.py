@@ -20,7 +20,7 @@ from cufund.core.bus import BusView, Subscription
 from cufund.core.components import Estimator
 from cufund.core.config import check_real_fields
 from cufund.core.messages import Imu, Odometry, Topics
-from cufund.sensors.pose import quat_mul, quat_to_matrix
+from cufund.geometry import quat_mul, quat_to_matrix
 
 __all__ = ["ImuPropagator", "ImuPropagatorParams"]
 

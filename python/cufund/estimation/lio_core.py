@@ -19,7 +19,9 @@ from gtsam.symbol_shorthand import B, V, X
 
 from cufund import _core
 from cufund.core.messages import Odometry
-from .frames import homogeneous, matrix_from_quat, pose3, pose3_parts, quat_from_matrix
+from cufund.geometry import homogeneous, quat_from_matrix, quat_to_matrix
+
+from .boundary import pose3, pose3_parts
 from .params import LioParams
 from .registration import PlaneModel, fit_planes, observable_split, plane_terms, register
 
@@ -113,7 +115,7 @@ class LioCore:
     def __init__(self, params: LioParams | None = None) -> None:
         self.params = params or LioParams()
         p = self.params
-        self._R_BI = matrix_from_quat(np.asarray(p.imu.q_BI))
+        self._R_BI = quat_to_matrix(np.asarray(p.imu.q_BI), normalize=True)
         self._p_BI = np.asarray(p.imu.p_BI, dtype=float)
         self._T_BI = np.eye(4)
         self._T_BI[:3, :3], self._T_BI[:3, 3] = self._R_BI, self._p_BI
@@ -212,7 +214,7 @@ class LioCore:
                 f"the vehicle moved during static initialisation (first {ts[-1] - ts[0]:.2f} s): gyro deviation "
                 f"{dev_w:.3g} rad/s (limit {p.init_max_gyro_dev}), accelerometer deviation {dev_f:.3g} m/s^2 "
                 f"(limit {p.init_max_accel_dev}); keep it still on the pad or raise the limits in LioParams")
-        R_WB = matrix_from_quat(np.asarray(p.q_WB0))
+        R_WB = quat_to_matrix(np.asarray(p.q_WB0), normalize=True)
         R_WI = R_WB @ self._R_BI
         if p.pad_attitude_known:
             bias_acc = f_mean - R_WI.T @ np.array([0.0, 0.0, p.gravity])
@@ -260,7 +262,7 @@ class LioCore:
         if with_rates:
             return states, rates
         t = s.t + np.concatenate([[0.0], np.cumsum(dt)])
-        return [NavEstimate(float(t[i]), matrix_from_quat(states[i, 6:]), states[i, :3], states[i, 3:6],
+        return [NavEstimate(float(t[i]), quat_to_matrix(states[i, 6:], normalize=True), states[i, :3], states[i, 3:6],
                             s.bias_acc, s.bias_gyr) for i in range(len(t))]
 
     # ---------------------------------------------------------------- LiDAR
@@ -302,7 +304,7 @@ class LioCore:
         ins_I, scan_I = _core.odometry.prepare_scan(pts, t + d, knots, states, rates, t_end, self._T_BI, self._T_BL,
                                                     self.params.min_range, self.params.map_insert_voxel,
                                                     self.params.scan_voxel, nthreads=self.params.nthreads)
-        R_pred, p_pred = matrix_from_quat(states[-1, 6:]), states[-1, :3]
+        R_pred, p_pred = quat_to_matrix(states[-1, 6:], normalize=True), states[-1, :3]
         v_pred = states[-1, 3:6]
         k = self._k + 1
         graph = gtsam.NonlinearFactorGraph()

@@ -15,7 +15,7 @@ import numpy as np
 from cufund.core.components import Estimator
 
 from cufund.core.messages import Odometry, OdometryDiagnostics, Topics
-from .frames import scan_frame
+from .boundary import scan_frame
 from .lio_core import LioCore, ScanDiagnostics
 from .params import LioParams
 

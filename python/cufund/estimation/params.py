@@ -9,7 +9,7 @@ import numpy as np
 
 from cufund.core.config import ConfigError, check_real_fields, from_dict, nested
 from cufund.sensors.imu import G0, ImuParams, imu_preset
-from cufund.sensors.pose import Transform
+from cufund.geometry import Transform
 
 __all__ = ["LioParams"]
 

@@ -14,7 +14,7 @@ import numpy.typing as npt
 from cufund import _core
 from cufund.core import limits
 from cufund.core.config import ConfigError, from_dict, real_number, vector3
-from cufund.sensors.pose import Transform
+from cufund.geometry import Transform
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -199,13 +199,13 @@ class EsdfMap:
         Each frame is ``(points_L, t, t_origin)``: points (N, 3) [m] in the LiDAR frame, each fired at its
         own time ``t`` (N,) [s], cast from the LiDAR position at ``t_origin`` [s]. ``poses`` are body pose
         knots ``(t (K,) [s] strictly ascending, p_W (K, 3) [m], q_WB (K, 4) [w, x, y, z])``, interpolated as
-        :func:`cufund.sensors.pose.interpolate_poses` does (linear, normalised linear quaternion, clamped at
+        :func:`cufund.geometry.interpolate_poses` does (linear, normalised linear quaternion, clamped at
         the ends); ``T_BL`` is the LiDAR's mounting on the body. A point's world position is
         ``p_WB(t) + R_WB(t) (R_BL p_L + t_BL)``; placing, ray casting and the field update all run in C++
         with the GIL released.
         """
         if not isinstance(T_BL, Transform):
-            raise TypeError(f"T_BL must be a cufund.sensors.pose.Transform, got {type(T_BL).__name__}")
+            raise TypeError(f"T_BL must be a cufund.geometry.Transform, got {type(T_BL).__name__}")
         if not isinstance(poses, tuple) or len(poses) != 3:
             raise ValueError("poses must be a tuple (t, p_W, q_WB) of pose knots")
         t, p, q = poses

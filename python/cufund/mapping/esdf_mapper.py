@@ -6,7 +6,7 @@ import numpy as np
 
 from cufund.core.components import BusView, Mapper, Subscription
 from cufund.core.messages import MapUpdate, Odometry, PointCloud, Topics
-from cufund.sensors.pose import Transform
+from cufund.geometry import Transform
 from .esdf_map import EsdfMap, EsdfMapParams
 
 

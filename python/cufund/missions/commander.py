@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from cufund.core.components import BusView, Planner
-from cufund.control.rotations import yaw_of
+from cufund.geometry import yaw_of
 from cufund.core.messages import (
     AttitudeSetpoint,
     FlightMode,

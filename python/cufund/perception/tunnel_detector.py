@@ -12,7 +12,7 @@ import numpy as np
 from cufund import _core
 from cufund.core.components import BusView, Component, Subscription
 from cufund.core.messages import Odometry, PointCloud, Topics, TunnelEstimate
-from cufund.sensors.pose import Transform, interpolate_poses
+from cufund.geometry import Transform, interpolate_poses
 from .detection import (
     COLUMN_CELL,
     FrameDetection,

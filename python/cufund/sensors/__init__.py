@@ -25,7 +25,7 @@ from .magnetometer import EarthField, MagnetometerModel, MagnetometerParams, Mag
 from .noise import ErrorProcess, NoiseSpec
 from .patterns import (CsvPattern, Mid360Pattern, PlanarPattern, RosettePattern, ScanPattern, ScanRays,
                        SpinningPattern, avia, mid360, os1_64, vlp16)
-from .pose import Transform
+from cufund.geometry import Transform
 
 __all__ = [
     "INVALID_ID", "RaycastScene", "avia", "mid360", "os1_64", "vlp16",

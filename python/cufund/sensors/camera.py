@@ -18,7 +18,7 @@ import numpy as np
 from cufund import _core
 from cufund.core.messages import CameraImage  # noqa: F401 - re-exported: cameras' message
 from cufund.worlds.world import World
-from .pose import Transform, quat_mul, quat_to_matrix
+from cufund.geometry import Transform, quat_mul, quat_to_matrix
 
 # Optical frame O (x right, y down, z forward) -> camera frame C (x forward, y left, z up).
 R_CO = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])

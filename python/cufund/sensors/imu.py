@@ -22,7 +22,7 @@ from cufund.core.config import ConfigError, check_real_fields, from_dict, nested
 from cufund.core.messages import Imu, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
-from .pose import quat_to_matrix, world_to_body
+from cufund.geometry import quat_to_matrix, world_to_body
 
 __all__ = ["IMU_PRESETS", "ImuModel", "ImuParams", "ImuSensor", "imu_preset"]
 

@@ -11,7 +11,7 @@ from cufund import _core
 from cufund.core.messages import LidarTruth, PointCloud
 from cufund.worlds.world import World
 from .patterns import ScanPattern, ScanRays
-from .pose import PoseFn, Transform, quat_mul, quat_to_matrix, sample_poses
+from cufund.geometry import PoseFn, Transform, quat_mul, quat_to_matrix, sample_poses
 
 Target = Union[World, "_core.lidar.RaycastScene"]
 
@@ -141,5 +141,5 @@ class Lidar:
 
 def _compose(p_WB: np.ndarray, q_WB: np.ndarray, T_BS: Transform) -> tuple[np.ndarray, np.ndarray]:
     """Sensor poses p_WS (K, 3), q_WS (K, 4) from body poses already unit and sign-aligned (``pose_fn.many``):
-    the numbers :func:`~cufund.sensors.pose.sample_poses` gives for the same body poses."""
+    the numbers :func:`~cufund.geometry.sample_poses` gives for the same body poses."""
     return p_WB + quat_to_matrix(q_WB) @ np.array(T_BS.t), quat_mul(q_WB, np.array(T_BS.q))

@@ -18,7 +18,7 @@ from cufund.core.config import ConfigError, check_real_fields, nested
 from cufund.core.messages import MagneticField, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
-from .pose import quat_to_matrix, world_to_body
+from cufund.geometry import quat_to_matrix, world_to_body
 
 __all__ = ["EarthField", "MagnetometerParams", "MagnetometerModel", "MagnetometerSensor"]
 

@@ -10,7 +10,7 @@ import numpy as np
 from cufund.core.config import check_real_fields
 from cufund.core.components import Sensor
 from cufund.core.messages import Odometry, Topics
-from .pose import quat_mul
+from cufund.geometry import quat_mul
 
 
 @dataclass(frozen=True)

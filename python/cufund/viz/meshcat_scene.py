@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from cufund.control.rotations import quat_to_rotation
+from cufund.geometry import quat_to_matrix
 from cufund.vehicle.params import QuadrotorParams
 
 __all__ = ["draw_vehicle", "draw_path", "import_meshcat", "pose_matrix", "VEHICLE", "SETPOINT", "PLANNED", "FLOWN"]
@@ -31,7 +31,7 @@ def import_meshcat() -> Any:
 def pose_matrix(p_W: np.ndarray, q_WB: np.ndarray) -> np.ndarray:
     """T_WB (4, 4) from a position and a [w, x, y, z] quaternion."""
     T = np.eye(4)
-    T[:3, :3] = quat_to_rotation(np.asarray(q_WB, dtype=float))
+    T[:3, :3] = quat_to_matrix(np.asarray(q_WB, dtype=float))
     T[:3, 3] = p_W
     return T
 

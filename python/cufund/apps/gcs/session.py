@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from cufund.control.rotations import quat_to_rotation
+from cufund.geometry import quat_to_matrix
 from cufund.core.messages import Topics
 
 __all__ = ["GcsSession", "jsonable", "position_of"]
@@ -137,7 +137,7 @@ class GcsSession:
     def _lidar_mount(self) -> tuple[np.ndarray, np.ndarray]:
         for spec in (getattr(self.config, "sensors", None) or {}).values():
             if str(getattr(spec, "topic", "")) == Topics.POINT_CLOUD and getattr(spec, "extrinsic", None) is not None:
-                return np.array(spec.extrinsic.t, dtype=float), quat_to_rotation(np.array(spec.extrinsic.q, float))
+                return np.array(spec.extrinsic.t, dtype=float), quat_to_matrix(np.array(spec.extrinsic.q, float))
         return np.zeros(3), np.eye(3)
 
     # ---- live state ----------------------------------------------------------------------------------------
@@ -228,7 +228,7 @@ class GcsSession:
             p, q = position_of(tel), tel.get("q_WB")
             if p is None or q is None:
                 return None
-            R_WB = quat_to_rotation(np.asarray(q, dtype=float))
+            R_WB = quat_to_matrix(np.asarray(q, dtype=float))
             p_BL, R_BL = self.T_BL
             pts = (np.asarray(msg.points_L, float) @ (R_WB @ R_BL).T + (R_WB @ p_BL + p)).astype(np.float32)
         pts = pts[np.all(np.isfinite(pts), axis=1)]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cufund.control.rotations import quat_to_rotation
+from cufund.geometry import quat_to_matrix
 from cufund.core.messages import AirPressure, GpsFix, Imu, MagneticField, Odometry
 from cufund.sensors.barometer import isa_altitude
 from . import frames
@@ -41,7 +41,7 @@ class HilEncoder:
         self.writer = writer
         self.origin = origin
         q = np.asarray((1.0, 0.0, 0.0, 0.0) if q_BI is None else q_BI, dtype=float)
-        self.R_BI = None if np.allclose(q, (1.0, 0.0, 0.0, 0.0)) else quat_to_rotation(q)
+        self.R_BI = None if np.allclose(q, (1.0, 0.0, 0.0, 0.0)) else quat_to_matrix(q)
         if isinstance(sensor_id, bool) or not isinstance(sensor_id, int) or not 0 <= sensor_id <= 255:
             raise ValueError(f"sensor_id must be an integer in [0, 255], got {sensor_id!r}")
         self.sensor_id = sensor_id
@@ -98,7 +98,7 @@ class HilEncoder:
         lat, lon, alt = self.origin.enu_to_lla(truth.p_W)
         vx, vy, vz = frames.m_s_to_cm_s(frames.enu_to_ned(truth.v_W))
         a_W = truth.a_W if truth.a_W is not None else np.zeros(3)
-        a_B = frames.flu_to_frd(quat_to_rotation(truth.q_WB).T @ a_W)
+        a_B = frames.flu_to_frd(quat_to_matrix(truth.q_WB).T @ a_W)
         ax, ay, az = frames.m_s2_to_mg(a_B)
         speed = frames.m_to_cm_u16(float(np.linalg.norm(truth.v_W)))
         return self.writer.pack(self.writer.mav.hil_state_quaternion_encode(

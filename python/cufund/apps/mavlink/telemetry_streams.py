@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
-from cufund.control.rotations import yaw_of
+from cufund.geometry import yaw_of
 from . import frames
 from .px4_modes import heartbeat_mode
 
