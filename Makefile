@@ -24,7 +24,7 @@ SOURCES := $(shell find cpp bindings -type f \( -name '*.cpp' -o -name '*.h' -o 
 CPP_BUILD := build/cpp
 SAN_BUILD := build/sanitize
 
-.PHONY: demo test test-cpp test-python bench sanitize fuzz deps stubs clean wheel
+.PHONY: demo test test-cpp test-python bench sanitize fuzz deps stubs clean wheel docs
 
 # The paper's headline case study (§3.2): the tunnel mission on the paper's layout, on LiDAR-inertial odometry;
 # prints the metrics, the run folder, and Table 1 beside the paper's simulation column.
@@ -131,6 +131,16 @@ wheel: $(VENV)/.wheel-tools
 	  -C build-dir=$(abspath $(WHEEL_BUILD))/cmake -C cmake.define.CUFUND_STATIC_COMPRESSION=ON
 	PATH="$(abspath $(VENV))/bin:$$PATH" $(VENV)/bin/auditwheel repair -w dist $(WHEEL_BUILD)/raw/cufund-*.whl
 	$(VENV)/bin/auditwheel show dist/cufund-*.whl
+
+# The documentation site (docs/, mkdocs.yml) into build/docs. --strict: a broken link, a missing page or an API
+# reference to a name that does not exist fails the build. The docs extra of pyproject.toml goes into the venv first
+# (its packages only: cufund itself stays the editable install).
+$(VENV)/.docs: pyproject.toml | $(VENV)/.tools
+	$(VPY) -c "import subprocess, sys, tomllib; deps = tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['docs']; subprocess.check_call([sys.executable, '-m', 'pip', 'install', '-q', *deps])"
+	touch $@
+
+docs: $(VENV)/.docs
+	$(VENV)/bin/mkdocs build --strict --site-dir build/docs
 
 # Regenerates the checked-in type stubs from the compiled module (tests/test_stubs.py checks them).
 stubs: $(VENV)/.installed
