@@ -57,6 +57,16 @@ from .params import CommanderParams, as_dict, field_of
 __all__ = ["Commander"]
 
 _Z3 = np.zeros(3)
+_OFFBOARD_MODES = {"offboard_position": FlightMode.POSITION, "offboard_velocity": FlightMode.VELOCITY,
+                   "offboard_attitude": FlightMode.ATTITUDE}
+
+
+def _ok(c: Command, message: str = "") -> CommandAck:
+    return CommandAck(c.command, "accepted", message)
+
+
+def _deny(c: Command, message: str) -> CommandAck:
+    return CommandAck(c.command, "denied", message)
 
 
 class Commander(CommandInbox, Planner):
@@ -277,154 +287,209 @@ class Commander(CommandInbox, Planner):
                 self._last_refusal = (text, self.t, 0)
         return ack
 
+    # Each command: the state it needs (its gate) and its handler. Gates, checked in this order:
+    #   free     - always applied
+    #   state    - a vehicle state has arrived ("no vehicle state yet")
+    #   hold     - state; on the ground it is a no-op (accepted); else armed
+    #   armed    - state and armed ("disarmed; arm first")
+    #   airborne - armed and off the ground ("on the ground; take off first")
+    # Commands not in the table are unsupported, once they pass the airborne gate.
+    _DISPATCH: dict[str, tuple[str, str]] = {
+        "_link_lost": ("free", "_cmd_link_lost"), "_link_regained": ("free", "_cmd_link_regained"),
+        "get_params": ("free", "_cmd_get_params"), "set_param": ("free", "_cmd_set_param"),
+        "controller": ("free", "_cmd_controller"), "mission_upload": ("free", "_cmd_mission_upload"),
+        "mission_clear": ("free", "_cmd_mission_clear"),
+        "arm": ("state", "_cmd_arm"), "disarm": ("state", "_cmd_disarm"),
+        "hold": ("hold", "_cmd_hold"),
+        "takeoff": ("armed", "_cmd_takeoff"), "mission_start": ("armed", "_cmd_mission_start"),
+        "land": ("armed", "_cmd_land"), "flight_mode": ("armed", "_cmd_flight_mode"),
+        "offboard_position": ("armed", "_cmd_offboard"), "offboard_velocity": ("armed", "_cmd_offboard"),
+        "offboard_attitude": ("armed", "_cmd_offboard"),
+        "goto": ("airborne", "_cmd_goto"), "rtl": ("airborne", "_cmd_rtl"),
+    }
+
     def _apply(self, c: Command, t: float) -> CommandAck:
-        name, p, s = c.command, self.params, self.state
-        ok = lambda msg="": CommandAck(name, "accepted", msg)
-        deny = lambda msg: CommandAck(name, "denied", msg)
-        if name == "_link_lost":
-            self._event("warning", "link lost")
-            if self.airborne and self.mode not in ("land", "rtl"):
-                self._hold(t, "link lost")
-                self._link_lost_at = t
-            return ok()
-        if name == "_link_regained":
-            if self._link_lost_at is not None:
-                self._event("info", "link regained")
-            self._link_lost_at = None
-            return ok()
-        if name == "get_params":
-            values = as_dict(p)
-            for get, _ in self.param_providers:
-                values.update(get())
-            return CommandAck(name, "accepted", "", values)
-        if name == "set_param":
-            return self._set_param(c)
-        if name == "controller":
-            if c.kind not in self.controllers:
-                return CommandAck(name, "unsupported", f"controller {c.kind!r} is not built into this simulation "
-                                  f"(built: {', '.join(self.controllers)})")
-            if c.kind != self.controller:
-                self.controller = c.kind  # type: ignore[assignment]
-                self._event("controller", f"controller {c.kind}", controller=c.kind)
-            return ok()
-        if name == "mission_upload":
-            if self.mode == "mission":
-                return deny("a mission is running; hold or land first")
-            self.mission, self.mission_current = c.items, -1
-            self._status_dirty = True
-            self._event("mission", f"mission of {len(c.items)} items uploaded", count=len(c.items))
-            return ok()
-        if name == "mission_clear":
-            if self.mode == "mission":
-                self._hold(t, "mission cleared")
-            self.mission, self.mission_current = (), -1
-            self._status_dirty = True
-            return ok()
-        if s is None:
-            return deny("no vehicle state yet")
-        if name == "arm":
-            if self.armed:
-                return ok("already armed")
-            if not self.landed:
-                return deny("not on the ground")
-            if t - float(s.t) > 0.5 or not np.all(np.isfinite(s.p_W)):  # PX4's preflight check, in short
-                return deny(f"state estimate unhealthy (last at {float(s.t):.2f} s)")
-            self.armed, self._armed_since = True, t
-            self.home_p_W = np.array(s.p_W, float)
-            self._ref = None
-            self._turn(t, yaw_of(s.q_WB), instant=True)
-            self._event("armed", "armed")
-            return ok()
-        if name == "disarm":
-            if not self.armed:
-                return ok("already disarmed")
-            if not self.landed and not c.force:
-                return deny("in flight (land first, or force)")
-            self._disarm("forced in flight" if not self.landed else "command")
-            if c.force:
-                self.landed = False
-            return ok()
-        if name == "hold" and self.landed:  # PX4 switches to Hold on the ground too: nothing to do
-            return ok("on the ground")
+        gate, handler = self._DISPATCH.get(c.command, ("airborne", "_cmd_unsupported"))
+        refusal = self._gate(gate, c)
+        if refusal is not None:
+            return refusal
+        return getattr(self, handler)(c, t)
+
+    def _gate(self, gate: str, c: Command) -> CommandAck | None:
+        """The ack of a command its gate stops (None: it passes)."""
+        if gate == "free":
+            return None
+        if self.state is None:
+            return _deny(c, "no vehicle state yet")
+        if gate == "state":
+            return None
+        if gate == "hold" and self.landed:  # PX4 switches to Hold on the ground too: nothing to do
+            return _ok(c, "on the ground")
         if not self.armed:
-            return deny("disarmed; arm first")
-        if name == "takeoff":
-            if not self.landed:
-                return deny("already airborne")
-            alt = c.altitude if c.altitude is not None else p.takeoff_altitude
-            self._begin_flight(t)
-            target = np.array([s.p_W[0], s.p_W[1], self.home_p_W[2] + alt])
-            self._start_legs(t, [Leg(target, self._ref_yaw, "takeoff", slow=True)], "takeoff", "hold")
-            return ok()
-        if name == "mission_start":
-            if not self.mission:
-                return deny("no mission uploaded")
-            if c.seq >= len(self.mission):
-                return deny(f"seq {c.seq} is past the mission's {len(self.mission)} items")
-            legs = []
-            if self.landed:
-                self._begin_flight(t)
-                first = self.mission[c.seq].p_W
-                legs.append(Leg(np.array([s.p_W[0], s.p_W[1], max(first[2], self.home_p_W[2] + 0.5)]),
-                                 self._ref_yaw, "takeoff", slow=True))
-            yaw = self._ref_yaw
-            for i, it in enumerate(self.mission[c.seq:], start=c.seq):
-                yaw = yaw if it.yaw is None else it.yaw
-                legs.append(Leg(np.array(it.p_W), yaw, "item", it.hold_s, i))
-            self._start_legs(t, legs, "mission", "hold")
-            return ok()
-        if name == "land":
-            if self.landed:
-                self._disarm("land on the ground")
-                return ok("on the ground: disarmed")
-            if self.mode == "land":
-                return ok("already landing")
-            self._land(t)
-            return ok()
+            return _deny(c, "disarmed; arm first")
+        if gate == "airborne" and self.landed:
+            return _deny(c, "on the ground; take off first")
+        return None
+
+    # -- command handlers (each after its gate) ---------------------------------------------------------------
+    def _cmd_link_lost(self, c: Command, t: float) -> CommandAck:
+        self._event("warning", "link lost")
+        if self.airborne and self.mode not in ("land", "rtl"):
+            self._hold(t, "link lost")
+            self._link_lost_at = t
+        return _ok(c)
+
+    def _cmd_link_regained(self, c: Command, t: float) -> CommandAck:
+        if self._link_lost_at is not None:
+            self._event("info", "link regained")
+        self._link_lost_at = None
+        return _ok(c)
+
+    def _cmd_get_params(self, c: Command, t: float) -> CommandAck:
+        values = as_dict(self.params)
+        for get, _ in self.param_providers:
+            values.update(get())
+        return CommandAck(c.command, "accepted", "", values)
+
+    def _cmd_set_param(self, c: Command, t: float) -> CommandAck:
+        return self._set_param(c)
+
+    def _cmd_controller(self, c: Command, t: float) -> CommandAck:
+        if c.kind not in self.controllers:
+            return CommandAck(c.command, "unsupported", f"controller {c.kind!r} is not built into this simulation "
+                              f"(built: {', '.join(self.controllers)})")
+        if c.kind != self.controller:
+            self.controller = c.kind  # type: ignore[assignment]
+            self._event("controller", f"controller {c.kind}", controller=c.kind)
+        return _ok(c)
+
+    def _cmd_mission_upload(self, c: Command, t: float) -> CommandAck:
+        if self.mode == "mission":
+            return _deny(c, "a mission is running; hold or land first")
+        self.mission, self.mission_current = c.items, -1
+        self._status_dirty = True
+        self._event("mission", f"mission of {len(c.items)} items uploaded", count=len(c.items))
+        return _ok(c)
+
+    def _cmd_mission_clear(self, c: Command, t: float) -> CommandAck:
+        if self.mode == "mission":
+            self._hold(t, "mission cleared")
+        self.mission, self.mission_current = (), -1
+        self._status_dirty = True
+        return _ok(c)
+
+    def _cmd_arm(self, c: Command, t: float) -> CommandAck:
+        s = self.state
+        assert s is not None
+        if self.armed:
+            return _ok(c, "already armed")
+        if not self.landed:
+            return _deny(c, "not on the ground")
+        if t - float(s.t) > 0.5 or not np.all(np.isfinite(s.p_W)):  # PX4's preflight check, in short
+            return _deny(c, f"state estimate unhealthy (last at {float(s.t):.2f} s)")
+        self.armed, self._armed_since = True, t
+        self.home_p_W = np.array(s.p_W, float)
+        self._ref = None
+        self._turn(t, yaw_of(s.q_WB), instant=True)
+        self._event("armed", "armed")
+        return _ok(c)
+
+    def _cmd_disarm(self, c: Command, t: float) -> CommandAck:
+        if not self.armed:
+            return _ok(c, "already disarmed")
+        if not self.landed and not c.force:
+            return _deny(c, "in flight (land first, or force)")
+        self._disarm("forced in flight" if not self.landed else "command")
+        if c.force:
+            self.landed = False
+        return _ok(c)
+
+    def _cmd_hold(self, c: Command, t: float) -> CommandAck:
+        self._hold(t)
+        return _ok(c)
+
+    def _cmd_takeoff(self, c: Command, t: float) -> CommandAck:
+        s = self.state
+        assert s is not None
+        if not self.landed:
+            return _deny(c, "already airborne")
+        alt = c.altitude if c.altitude is not None else self.params.takeoff_altitude
+        self._begin_flight(t)
+        target = np.array([s.p_W[0], s.p_W[1], self.home_p_W[2] + alt])
+        self._start_legs(t, [Leg(target, self._ref_yaw, "takeoff", slow=True)], "takeoff", "hold")
+        return _ok(c)
+
+    def _cmd_mission_start(self, c: Command, t: float) -> CommandAck:
+        s = self.state
+        assert s is not None
+        if not self.mission:
+            return _deny(c, "no mission uploaded")
+        if c.seq >= len(self.mission):
+            return _deny(c, f"seq {c.seq} is past the mission's {len(self.mission)} items")
+        legs = []
         if self.landed:
-            if name.startswith("offboard_"):
-                self._begin_flight(t)
-            elif name == "flight_mode":
-                self.flight_mode = FlightMode(c.mode)
-                self._status_dirty = True
-                return ok("on the ground: applies to offboard control")
-            else:
-                return deny("on the ground; take off first")
-        if name == "hold":
-            self._hold(t)
-            return ok()
-        if name == "goto":
-            yaw = self._ref_yaw if c.yaw is None else c.yaw
-            self._start_legs(t, [Leg(np.array(c.p_W), yaw, "goto")], "goto", "hold")
-            return ok()
-        if name == "rtl":
-            if not np.all(np.isfinite(self.home_p_W)):
-                return deny("no home position")
-            p0, _, _, _ = self._ref_at(t)
-            z = max(float(p0[2]), self.home_p_W[2] + p.rtl_altitude)
-            legs = [Leg(np.array([p0[0], p0[1], z]), self._ref_yaw, "rtl_climb"),
-                    Leg(np.array([self.home_p_W[0], self.home_p_W[1], z]), self._ref_yaw, "rtl_home")]
-            self._start_legs(t, legs, "rtl", "land")
-            return ok()
-        if name == "flight_mode":
-            mode = FlightMode(c.mode)
-            self._hold(t, f"flight mode {mode.value}")
-            self.flight_mode = self._hold_flight_mode = mode
+            self._begin_flight(t)
+            first = self.mission[c.seq].p_W
+            legs.append(Leg(np.array([s.p_W[0], s.p_W[1], max(first[2], self.home_p_W[2] + 0.5)]),
+                            self._ref_yaw, "takeoff", slow=True))
+        yaw = self._ref_yaw
+        for i, it in enumerate(self.mission[c.seq:], start=c.seq):
+            yaw = yaw if it.yaw is None else it.yaw
+            legs.append(Leg(np.array(it.p_W), yaw, "item", it.hold_s, i))
+        self._start_legs(t, legs, "mission", "hold")
+        return _ok(c)
+
+    def _cmd_land(self, c: Command, t: float) -> CommandAck:
+        if self.landed:
+            self._disarm("land on the ground")
+            return _ok(c, "on the ground: disarmed")
+        if self.mode == "land":
+            return _ok(c, "already landing")
+        self._land(t)
+        return _ok(c)
+
+    def _cmd_flight_mode(self, c: Command, t: float) -> CommandAck:
+        mode = FlightMode(c.mode)
+        if self.landed:
+            self.flight_mode = mode
             self._status_dirty = True
-            return ok()
-        if name.startswith("offboard_"):
-            self.flight_mode = {"offboard_position": FlightMode.POSITION, "offboard_velocity": FlightMode.VELOCITY,
-                                "offboard_attitude": FlightMode.ATTITUDE}[name]
-            self._legs.clear()
-            self._leg = None
-            self._offboard = (c, t)
-            if c.p_W is not None:
-                self.target_p_W = np.array(c.p_W)
-            if c.yaw is not None:
-                self._turn(t, c.yaw, instant=True)  # offboard: the client's heading as it comes
-            self._set_mode("offboard")
-            return ok()
-        return CommandAck(name, "unsupported", f"{name} is not handled")
+            return _ok(c, "on the ground: applies to offboard control")
+        self._hold(t, f"flight mode {mode.value}")
+        self.flight_mode = self._hold_flight_mode = mode
+        self._status_dirty = True
+        return _ok(c)
+
+    def _cmd_offboard(self, c: Command, t: float) -> CommandAck:
+        if self.landed:
+            self._begin_flight(t)
+        self.flight_mode = _OFFBOARD_MODES[c.command]
+        self._legs.clear()
+        self._leg = None
+        self._offboard = (c, t)
+        if c.p_W is not None:
+            self.target_p_W = np.array(c.p_W)
+        if c.yaw is not None:
+            self._turn(t, c.yaw, instant=True)  # offboard: the client's heading as it comes
+        self._set_mode("offboard")
+        return _ok(c)
+
+    def _cmd_goto(self, c: Command, t: float) -> CommandAck:
+        yaw = self._ref_yaw if c.yaw is None else c.yaw
+        self._start_legs(t, [Leg(np.array(c.p_W), yaw, "goto")], "goto", "hold")
+        return _ok(c)
+
+    def _cmd_rtl(self, c: Command, t: float) -> CommandAck:
+        if not np.all(np.isfinite(self.home_p_W)):
+            return _deny(c, "no home position")
+        p0, _, _, _ = self._ref_at(t)
+        z = max(float(p0[2]), self.home_p_W[2] + self.params.rtl_altitude)
+        legs = [Leg(np.array([p0[0], p0[1], z]), self._ref_yaw, "rtl_climb"),
+                Leg(np.array([self.home_p_W[0], self.home_p_W[1], z]), self._ref_yaw, "rtl_home")]
+        self._start_legs(t, legs, "rtl", "land")
+        return _ok(c)
+
+    def _cmd_unsupported(self, c: Command, t: float) -> CommandAck:
+        return CommandAck(c.command, "unsupported", f"{c.command} is not handled")
 
     def _begin_flight(self, t: float) -> None:
         s = self.state
