@@ -9,26 +9,22 @@ import logging
 import math
 import socket
 import struct
-import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as M
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/mavlink_support.py
-
-from cufund.apps.mavlink.frames import GeodeticOrigin  # noqa: E402
-from cufund.apps.mavlink.mission_protocol import MissionProtocol  # noqa: E402
-from cufund.apps.mavlink.px4_harness import Px4Harness  # noqa: E402
-from cufund.apps.mavlink.px4_links import TcpServerLink  # noqa: E402
-from cufund.apps.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge  # noqa: E402
-from cufund.scenarios import ScenarioConfig  # noqa: E402
-from cufund.sensors.gps import GpsParams  # noqa: E402
-from mavlink_support import free_port, vehicle  # noqa: E402
+from cufund.apps.mavlink.frames import GeodeticOrigin
+from cufund.apps.mavlink.mission_protocol import MissionProtocol
+from cufund.apps.mavlink.px4_harness import Px4Harness
+from cufund.apps.mavlink.px4_links import TcpServerLink
+from cufund.apps.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
+from cufund.scenarios import ScenarioConfig
+from cufund.sensors.gps import GpsParams
+from mavlink_support import free_port, vehicle
 
 HOME = GeodeticOrigin.from_geo_point(GpsParams().home)
 
@@ -231,7 +227,7 @@ def _bridge(params):
     def run():
         try:
             outcome["result"] = bridge.run(duration=30.0, connect_timeout=10.0)
-        except BaseException as e:  # noqa: BLE001
+        except BaseException as e:
             outcome["error"] = e
 
     thread = threading.Thread(target=run, daemon=True)

@@ -20,7 +20,6 @@ from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink
 
-
 _INF = math.inf
 
 # cufund's rate-loop gains act on angular acceleration, PX4's on a normalised torque (see
