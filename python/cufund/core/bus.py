@@ -97,7 +97,7 @@ class Bus:
         if kind is not object and not isinstance(message, kind):
             raise TypeError(f"{topic} carries {kind.__name__} messages, got {type(message).__name__}")
         if latency_ns <= 0:
-            self._deliver(topic, message, self.now_ns, self.now_ns)
+            self.deliver(topic, message, self.now_ns, self.now_ns)
         else:
             self._enqueue(topic, message, latency_ns)
 
@@ -105,7 +105,11 @@ class Bus:
         self._seq += 1
         heapq.heappush(self._pending, (self.now_ns + latency_ns, self._seq, topic, message, self.now_ns))
 
-    def _deliver(self, topic: str, message: Any, visible_ns: int, publish_ns: int) -> None:
+    def deliver(self, topic: str, message: Any, visible_ns: int, publish_ns: int) -> None:
+        """Makes ``message`` visible on ``topic`` now: the topic's latest, queued for its subscriptions, recorded,
+        logged with ``visible_ns`` as its log time. No type check and no latency: for a producer that delivers at
+        the bus's current time a message it guarantees to be of the topic's type (the simulator's ground truth;
+        :meth:`publish` and :meth:`release` end here)."""
         self._latest[topic] = message
         subs = self._subs.get(topic)
         if subs:
@@ -127,7 +131,7 @@ class Bus:
         pending = self._pending
         while pending and pending[0][0] <= now_ns:
             visible, _, topic, message, published = heapq.heappop(pending)
-            self._deliver(topic, message, visible, published)
+            self.deliver(topic, message, visible, published)
 
     # -- reading -----------------------------------------------------------------------------------------------
     def latest(self, topic: str) -> Any:
@@ -218,7 +222,7 @@ class BusView:
         if self._latency_ns:
             bus._enqueue(typed, message, self._latency_ns)
         else:
-            bus._deliver(typed, message, bus.now_ns, bus.now_ns)
+            bus.deliver(typed, message, bus.now_ns, bus.now_ns)
 
     def publish_at(self, topic: str, message: Any, visible_ns: int, publish_ns: int | None = None) -> None:
         """Schedules ``message`` (on a declared output) to become visible at ``visible_ns`` (>= now), as if it had

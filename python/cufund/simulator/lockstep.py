@@ -411,7 +411,7 @@ class Simulator:
     def _advance(self, end_ns: int, done: Callable[[float, Odometry], bool] | None, progress: bool) -> None:
         quad, bus, slots, physics = self.vehicle, self.bus, self._slots, self._physics
         truth_topic, actuator = Topics.TRUTH_ODOMETRY, str(Topics.ACTUATOR_COMMAND)
-        latest, pending, deliver = bus._latest, bus._pending, bus._deliver
+        latest, next_visible, deliver = bus.latest, bus.next_visible_ns, bus.deliver
         now, cmd, at_node = self._now_ns, self._cmd, self._at_node
         start_ns, span = now, max(end_ns - now, 1)
         last_bar = -1
@@ -437,7 +437,8 @@ class Simulator:
                     processed = self._processed_ns = now
                     if now >= next_event:
                         bus.now_ns = now
-                        if pending and pending[0][0] <= now:
+                        visible = next_visible()
+                        if visible is not None and visible <= now:
                             bus.release(now)
                         t = now / NS
                         truth = None
@@ -455,9 +456,10 @@ class Simulator:
                                 clock.advance()
                             if clock.next_ns < next_event:
                                 next_event = clock.next_ns
-                        if pending and pending[0][0] < next_event:
-                            next_event = pending[0][0]
-                        act: ActuatorCommand | None = latest.get(actuator)
+                        visible = next_visible()
+                        if visible is not None and visible < next_event:
+                            next_event = visible
+                        act: ActuatorCommand | None = latest(actuator)
                         if act is not None:
                             cmd = act.rotor_speeds
                         if self.status is not None:  # a component stopped the run
