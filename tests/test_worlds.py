@@ -126,7 +126,7 @@ def test_yaml_world_with_mesh_file(tmp_path):
         ("objects:\n  - {type: box, size: [1, -1, 1], position: [0, 0, 0]}\n", "size\\[1\\] must be a finite number > 0"),
         ("walls: []\n", "unknown key 'walls'"),
         ("objects:\n  - {type: cylinder, radius: 1, height: 1, position: [0, 0, 0], segments: 1e8}\n",
-         "segments must be an integer, got '1e8'"),
+         "segments must be an integer, got 100000000.0"),
         ("objects:\n  - {type: cylinder, radius: 1, height: 1, position: [0, 0, 0], segments: 100000000}\n",
          r"segments must be in \[3, 4096\], got 100000000 \(mesh_max_segments = 4096"),
         ("objects:\n  - {type: sphere, radius: 1, position: [0, 0, 0], subdivisions: 2.5}\n",

@@ -60,6 +60,16 @@ def check_real_fields(obj: Any, where: str, positive: bool = False, unit: str = 
         object.__setattr__(obj, name, float(v))
 
 
+def check_at_most(obj: Any, where: str, **bounds: float) -> None:
+    """Upper bounds on fields of ``obj`` (field name = its bound; numbers already checked finite): a rate or size
+    past its bound is a ConfigError naming ``where.field``, the bound and the value, before anything is built (a
+    1e9 Hz sensor would otherwise fill the disk with its log)."""
+    for name, bound in bounds.items():
+        v = getattr(obj, name)
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and v > bound:
+            raise ConfigError(f"{where}.{name} must be at most {bound:g}, got {v!r}")
+
+
 def real_number(name: str, value: Any) -> float:
     """``value`` as a float if it is a real number (not a bool); else a ConfigError naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.floating, np.integer)):

@@ -18,7 +18,7 @@ import numpy as np
 
 from cufund.core.bus import BusView, Subscription
 from cufund.core.components import Estimator
-from cufund.core.config import check_real_fields
+from cufund.core.config import check_at_most, check_real_fields
 from cufund.core.messages import Imu, Odometry, Topics
 from cufund.geometry import quat_mul, quat_to_matrix
 
@@ -38,6 +38,7 @@ class ImuPropagatorParams:
 
     def __post_init__(self) -> None:
         check_real_fields(self, "estimator")
+        check_at_most(self, "estimator", buffer_s=60.0)  # IMU samples kept: at most 60 s of them
 
 
 def _exp_q(phi: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cufund.core.config import ConfigError, check_real_fields, from_dict, nested
+from cufund.core.config import ConfigError, check_at_most, check_real_fields, from_dict, nested
 from cufund.sensors.imu import G0, ImuParams, imu_preset
 from cufund.geometry import Transform
 
@@ -130,6 +130,9 @@ class LioParams:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
                 raise ConfigError(f"LioParams.{name} must be an integer >= {lo}, got {v!r}")
+        check_at_most(self, "LioParams", init_duration_s=3600.0, map_points_per_voxel=1000, map_max_voxels=10**8,
+                      neighbours=1000, max_iterations=1000, max_refits=100, smoother_iterations=100,
+                      health_relock_frames=1000)
         p = np.asarray(self.p_WB0, dtype=float)
         q = np.asarray(self.q_WB0, dtype=float)
         if p.shape != (3,) or not np.all(np.isfinite(p)):

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from cufund.core.build_context import BuildContext
-from cufund.core.config import ConfigError, vector3
+from cufund.core.config import ConfigError, check_at_most, vector3
 from cufund.core.registry import Kind, register
 
 from .esdf_map import EsdfMapParams
@@ -41,6 +41,7 @@ class EsdfMapperParams:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ConfigError(f"mapper.{name} must be a finite number > 0, got {v!r}")
+        check_at_most(self, "mapper", rate_hz=1e3, max_range=1e3)
         if not isinstance(self.merge_beams, bool):
             raise ConfigError(f"mapper.merge_beams must be true or false, got {self.merge_beams!r}")
 

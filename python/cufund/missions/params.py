@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, fields
 from typing import Any
 
-from cufund.core.config import ConfigError
+from cufund.core.config import ConfigError, check_at_most
 
 __all__ = ["PX4_NAMES", "CommanderParams"]
 
@@ -64,6 +64,7 @@ class CommanderParams:
                     or (v == 0 and f.name not in ("auto_disarm_s",)):
                 raise ConfigError(f"planner.{f.name} must be a finite number > 0, got {v!r}")
             object.__setattr__(self, f.name, float(v))
+        check_at_most(self, "planner", rate_hz=1e4, status_hz=1e3)
         from .commands import parse_command
 
         script = []

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from cufund.core.components import BusView, Planner
-from cufund.core.config import ConfigError
+from cufund.core.config import ConfigError, check_at_most
 from cufund.core.messages import MissionState, Odometry, Topics, TrajectoryUpdate, TunnelEstimate
 from cufund.planning.min_snap_planner import MinSnapPlanner, MinSnapPlannerParams
 from cufund.planning.point_to_point import JerkLimitedMove
@@ -118,6 +118,7 @@ class TunnelMissionParams:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and float(v) > 0):
                 raise ConfigError(f"mission.{name} must be a finite number > 0, got {v!r}")
             object.__setattr__(self, name, float(v))
+        check_at_most(self, "mission", rate_hz=1e3, frames=1000)
         for name in ("min_confidence", "hold_s"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and float(v) >= 0):

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from cufund.core.build_context import BuildContext
-from cufund.core.config import ConfigError
+from cufund.core.config import ConfigError, check_at_most
 from cufund.core.registry import Kind, register
 
 from .minimum_snap import MinimumSnapTrajectory
@@ -117,6 +117,7 @@ class LocalParams:
         if isinstance(self.hover_s, bool) or not isinstance(self.hover_s, (int, float)) \
                 or not (np.isfinite(self.hover_s) and self.hover_s >= 0):
             raise ConfigError(f"planner.hover_s must be a finite number >= 0 [s], got {self.hover_s!r}")
+        check_at_most(self, "planner", rate_hz=1e3, horizon=1e3, max_iterations=10_000)
 
     def planner_params(self) -> Any:
         from cufund.core.config import ConfigError

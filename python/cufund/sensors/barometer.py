@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from cufund.core.config import ConfigError, check_real_fields, nested
+from cufund.core.config import ConfigError, check_at_most, check_real_fields, nested
 from cufund.core.messages import AirPressure, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
@@ -59,6 +59,7 @@ class BarometerParams:
     def __post_init__(self) -> None:
         real_fields(self, "BarometerParams")
         check_real_fields(self, "BarometerParams", positive=True, unit=" [Hz]", names=("rate_hz",))
+        check_at_most(self, "BarometerParams", rate_hz=1e3)
         object.__setattr__(self, "noise", nested(NoiseSpec, self.noise, "BarometerParams.noise"))
         self.noise.per_axis(1)
         if not (math.isfinite(self.home_altitude_m) and -500 <= self.home_altitude_m <= 10000):

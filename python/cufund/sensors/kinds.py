@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from cufund.core.build_context import BuildContext
-from cufund.core.config import ConfigError, check_real_fields
+from cufund.core.config import ConfigError, check_at_most, check_real_fields
 from cufund.core.messages import AirPressure, CameraImage, GpsFix, Imu, MagneticField, Odometry, PointCloud
 from cufund.core.registry import Kind, SensorType, register
 
@@ -96,6 +96,7 @@ class LidarSensorParams:
             raise ConfigError(f"LidarSensorParams.pattern must be one of {', '.join(_PATTERNS)}, got {self.pattern!r}")
         check_real_fields(self, "LidarSensorParams", names=("pose_rate_hz", "range_min", "range_max",
                                                             "range_noise_std", "dropout"))
+        check_at_most(self, "LidarSensorParams", pose_rate_hz=1e4, range_max=1e4)
         if isinstance(self.nthreads, bool) or not isinstance(self.nthreads, int) or self.nthreads < 0:
             raise ConfigError(f"LidarSensorParams.nthreads must be an integer >= 0, got {self.nthreads!r}")
         LidarParams(range_min=self.range_min, range_max=self.range_max, range_noise_std=self.range_noise_std,
@@ -141,6 +142,7 @@ class CameraSensorParams:
         check_real_fields(self, "CameraSensorParams", names=("rate_hz", "depth_min", "depth_max", "noise_coeff"))
         if self.rate_hz <= 0:
             raise ConfigError(f"CameraSensorParams.rate_hz must be > 0 [Hz], got {self.rate_hz!r}")
+        check_at_most(self, "CameraSensorParams", rate_hz=1e3, depth_max=1e4)
 
 
 def _camera(depth: bool) -> Any:

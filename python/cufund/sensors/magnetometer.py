@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cufund.core.config import ConfigError, check_real_fields, nested
+from cufund.core.config import ConfigError, check_at_most, check_real_fields, nested
 from cufund.core.messages import MagneticField, Odometry, Topics
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
@@ -67,6 +67,7 @@ class MagnetometerParams:
     def __post_init__(self) -> None:
         real_fields(self, "MagnetometerParams")
         check_real_fields(self, "MagnetometerParams", positive=True, unit=" [Hz]", names=("rate_hz",))
+        check_at_most(self, "MagnetometerParams", rate_hz=1e3)
         object.__setattr__(self, "noise", nested(NoiseSpec, self.noise, "MagnetometerParams.noise"))
         object.__setattr__(self, "earth", nested(EarthField, self.earth, "MagnetometerParams.earth"))
         self.noise.per_axis(3)

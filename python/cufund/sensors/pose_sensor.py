@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cufund.core.config import check_real_fields
+from cufund.core.config import check_at_most, check_real_fields
 from cufund.core.components import Sensor
 from cufund.core.messages import Odometry, Topics
 from cufund.geometry import quat_mul
@@ -30,6 +30,7 @@ class PoseSensorParams:
         check_real_fields(self, "PoseSensorParams")
         if self.rate_hz <= 0:
             raise ValueError(f"PoseSensorParams.rate_hz must be > 0 [Hz], got {self.rate_hz!r}")
+        check_at_most(self, "PoseSensorParams", rate_hz=1e3)
 
 
 class PoseSensor(Sensor):

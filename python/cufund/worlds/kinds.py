@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from cufund.core.build_context import BuildContext
-from cufund.core.config import ConfigError, check_real_fields
+from cufund.core.config import ConfigError, check_at_most, check_real_fields
 from cufund.core.registry import Kind, register
 
 from .builtin import corridor, empty, forest, imav2025_tunnel
@@ -38,6 +38,7 @@ class ForestParams:
                 raise ConfigError(f"world.{name} must be an integer >= 0, got {v!r}")
         check_real_fields(self, "world", positive=True, unit=" [m]", names=("size",))
         check_real_fields(self, "world", unit=" [m]", names=("clearing",))
+        check_at_most(self, "world", n_trees=100_000, size=1e4)
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,7 @@ class CorridorParams:
 
     def __post_init__(self) -> None:
         check_real_fields(self, "world", positive=True, unit=" [m]")
+        check_at_most(self, "world", length=1e4, width=1e3, height=1e3)
 
 
 @dataclass(frozen=True)
