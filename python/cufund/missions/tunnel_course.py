@@ -101,6 +101,10 @@ class TunnelCourseParams:
         if isinstance(self.max_attempts, bool) or not isinstance(self.max_attempts, numbers.Integral) \
                 or self.max_attempts < 1:
             raise ValueError(f"max_attempts must be an integer >= 1, got {self.max_attempts!r}")
+        for name, most in (("n_frames", 1000), ("max_attempts", 100_000), ("arena", 1e4)):
+            value = max(getattr(self, name)) if name == "arena" else getattr(self, name)
+            if value > most:
+                raise ValueError(f"{name} must be at most {most:g}, got {getattr(self, name)!r}")
 
 
 @dataclass(frozen=True)
