@@ -140,3 +140,23 @@ def test_a_sensor_kind_names_a_registered_type():
         unregister("sensor_type", "imu")
     with pytest.raises(ValueError, match="a sensor type named 'imu' is registered already"):
         register(SensorType("imu", Range, "T_BI"))
+
+
+def test_the_sensor_template_registers_as_a_pose_kind():
+    from cufund.templates.sensor_template import KINDS
+
+    for k in KINDS:
+        register(k)
+    try:
+        cfg = ScenarioConfig.from_dict({"sensors": {"mocap": {"kind": "my_position_sensor", "sigma_m": 0.0,
+                                                              "rate_hz": 50.0}}, "duration": 1.0})
+        assert cfg.sensors["mocap"].topic.type is Odometry and cfg.sensors["mocap"].sensor_type == "pose"
+        run = run_built(build_simulation(cfg))
+        got = run.result.topics["/sensors/mocap"]
+        states = run.result.states
+        assert 50 <= len(got["t"]) <= 51
+        i = np.searchsorted(states["t"], got["t"])
+        np.testing.assert_array_equal(got["p_W"], states["p_W"][i])  # sigma 0: the true position
+    finally:
+        for k in KINDS:
+            unregister(k.group, k.name)
