@@ -92,7 +92,7 @@ class VehicleEndpoint:
         """Each link's stream intervals [s] (None: off), as its client set them."""
         self._next_due: dict[UdpLink, dict[str, float]] = {lk: {} for lk in self.links}
         self._outbox: queue.SimpleQueue = queue.SimpleQueue()
-        self.param_protocol = ParamProtocol(run.submit if hasattr(run, "submit") else _no_submit,
+        self.param_protocol = ParamProtocol(lambda cmd: self.run.submit(cmd),
                                             lambda fn, *a: self._outbox.put((None, (fn, *a))))
         self.params = self.param_protocol.table
         self.plan = CommanderPlan(self._decide, lambda: self._snap or self._snapshot(), self.origin,
@@ -437,10 +437,6 @@ class VehicleEndpoint:
                 return None
         except Exception:  # noqa: BLE001 - a stopped run, a refused command
             return None
-
-
-def _no_submit(cmd: Any) -> Any:
-    raise ValueError("the run takes no commands")
 
 
 def _origin_of(run: Any) -> frames.GeodeticOrigin:
