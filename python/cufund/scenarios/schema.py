@@ -214,7 +214,8 @@ def parse_part(group: str, value: Any, where: str, sensor_name: str | None = Non
     latency, phase = _timing(values, where, {f.name for f in dataclasses.fields(kind.params)})
     topic = extrinsic = None
     if group == "sensor":
-        stype = sensor_type(kind.sensor_type)  # a sensor kind's type is registered (register checks)
+        assert kind.sensor_type is not None  # a sensor kind names a registered type (Kind and register check)
+        stype = sensor_type(kind.sensor_type)
         t = values.pop("topic", f"/sensors/{sensor_name}")
         try:
             topic = Topic(t, stype.message)
@@ -243,7 +244,10 @@ def part_to_dict(spec: PartSpec | None) -> Any:
     if spec.topic is not None:
         out["topic"] = str(spec.topic)
     if spec.extrinsic is not None:
-        out[sensor_type(spec.sensor_type).extrinsic_key] = {"p": list(spec.extrinsic.t), "q": list(spec.extrinsic.q)}
+        assert spec.sensor_type is not None  # only a sensor of a type with a mounting key has an extrinsic
+        key = sensor_type(spec.sensor_type).extrinsic_key
+        assert key is not None
+        out[key] = {"p": list(spec.extrinsic.t), "q": list(spec.extrinsic.q)}
     out.update(to_dict(spec.params))
     return out
 

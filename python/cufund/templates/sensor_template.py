@@ -28,7 +28,8 @@ class MyPositionSensor(cufund.Sensor):
     name = "my_position_sensor"
     topic = cufund.Topic("/sensors/position", Odometry)  # a typed topic: the bus checks what is published
 
-    def __init__(self, sigma_m: float = 0.01, rate_hz: float = 100.0, seed: int = 0, topic: str | None = None) -> None:
+    def __init__(self, sigma_m: float = 0.01, rate_hz: float = 100.0, seed: int = 0,
+                 topic: cufund.Topic | None = None) -> None:
         self.sigma, self.rate_hz, self.seed = sigma_m, rate_hz, seed
         if topic is not None:
             self.topic = topic
