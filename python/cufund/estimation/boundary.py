@@ -26,7 +26,7 @@ def pose3_parts(T_WB: gtsam.Pose3) -> tuple[np.ndarray, np.ndarray]:
     return T_WB.rotation().matrix(), np.asarray(T_WB.translation(), dtype=float)
 
 
-def scan_frame(cloud: object) -> tuple[float, np.ndarray, np.ndarray]:
+def scan_frame(cloud: Any) -> tuple[float, np.ndarray, np.ndarray]:
     """(frame start t [s], per-point offsets dt (N,) [s], points_L (N, 3)) of a PointCloud, from either its
     current shape (t, dt) or the older one (t0, absolute per-point t)."""
     if hasattr(cloud, "dt"):
