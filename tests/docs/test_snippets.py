@@ -69,7 +69,7 @@ def blocks(page: Path, text: str | None = None) -> list[Block]:
         body: list[str] = []
         i += 1
         while i < len(lines) and not (lines[i].strip().startswith(fence) and lines[i].strip().strip(fence[0]) == ""):
-            body.append(lines[i][len(indent):] if lines[i].startswith(indent) else lines[i].lstrip())
+            body.append(lines[i][len(indent) :] if lines[i].startswith(indent) else lines[i].lstrip())
             i += 1
         if i == len(lines):
             raise AssertionError(f"{page}:{start + 1}: a code fence is never closed")
@@ -80,8 +80,16 @@ def blocks(page: Path, text: str | None = None) -> list[Block]:
         while prev >= 0 and not lines[prev].strip():
             prev -= 1
         marker = NO_RUN.match(lines[prev]) if prev >= 0 else None
-        out.append(Block(page, start + 1, lang, title[1] if title else None, textwrap.dedent("\n".join(body)) + "\n",
-                         marker["reason"] if marker else None))
+        out.append(
+            Block(
+                page,
+                start + 1,
+                lang,
+                title[1] if title else None,
+                textwrap.dedent("\n".join(body)) + "\n",
+                marker["reason"] if marker else None,
+            )
+        )
     return out
 
 
@@ -98,8 +106,10 @@ def shell_commands(block: Block) -> list[tuple[list[str], int]]:
         expected = EXITS.search(stripped)
         argv = shlex.split(stripped, comments=True)
         if not argv or argv[0] != "cufund":
-            raise AssertionError(f"{block.where}: only `cufund ...` commands run in a shell block, got {stripped!r}; "
-                                 "mark the block <!-- no-run: REASON --> if it must not run")
+            raise AssertionError(
+                f"{block.where}: only `cufund ...` commands run in a shell block, got {stripped!r}; "
+                "mark the block <!-- no-run: REASON --> if it must not run"
+            )
         commands.append((argv, int(expected["code"]) if expected else 0))
     return commands
 
@@ -123,19 +133,21 @@ def run_page(page_blocks: list[Block], workdir: Path) -> int:
                 (workdir / block.title).write_text(block.code, encoding="utf-8")
             if block.lang in PYTHON:
                 try:
-                    exec(compile(block.code, block.where, "exec"), namespace)  # noqa: S102 - the docs' own code
+                    exec(compile(block.code, block.where, "exec"), namespace)
                 except Exception as e:
                     raise AssertionError(f"{block.where}: the python block raised {type(e).__name__}: {e}") from e
                 ran += 1
             elif block.lang in SHELL:
                 for argv, expected in shell_commands(block):
                     exe = [str(CUFUND) if CUFUND.exists() else "cufund", *argv[1:]]
-                    done = subprocess.run(exe, cwd=workdir, env=env, capture_output=True, text=True, timeout=600,
-                                          check=False)
+                    done = subprocess.run(
+                        exe, cwd=workdir, env=env, capture_output=True, text=True, timeout=600, check=False
+                    )
                     if done.returncode != expected:
                         raise AssertionError(
                             f"{block.where}: `{shlex.join(argv)}` exited {done.returncode}, expected {expected}\n"
-                            f"stdout:\n{done.stdout[-3000:]}\nstderr:\n{done.stderr[-3000:]}")
+                            f"stdout:\n{done.stdout[-3000:]}\nstderr:\n{done.stderr[-3000:]}"
+                        )
                     ran += 1
     finally:
         os.chdir(cwd)
@@ -166,7 +178,7 @@ def test_every_marker_stands_before_a_code_block() -> None:
         lines = page.read_text(encoding="utf-8").splitlines()
         for n, line in enumerate(lines):
             if NO_RUN.match(line):
-                following = next((x for x in lines[n + 1:] if x.strip()), "")
+                following = next((x for x in lines[n + 1 :] if x.strip()), "")
                 assert FENCE.match(following), f"{_id(page)}:{n + 1}: a no-run marker that marks no code block"
 
 
@@ -176,13 +188,19 @@ def test_the_docs_have_runnable_snippets() -> None:
 
 
 # The runner must be able to fail: a page whose snippet is wrong, in each kind of block.
-@pytest.mark.parametrize("text, message", [
-    ("```python\nx = 1\n```\n\n```python\nassert x == 2, 'x is 1'\n```\n", "AssertionError: x is 1"),
-    ("```python\nimport sys\nsys.modules.pop('cufund.bus', None)\nimport cufund.bus\n```\n", "moved to cufund.core.bus"),
-    ("```sh\ncufund run no_such_scenario\n```\n", "exited 2, expected 0"),
-    ("```sh\ncufund --version  # exits 1\n```\n", "exited 0, expected 1"),
-    ("```sh\nmake demo\n```\n", "only `cufund ...` commands run"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("```python\nx = 1\n```\n\n```python\nassert x == 2, 'x is 1'\n```\n", "AssertionError: x is 1"),
+        (
+            "```python\nimport sys\nsys.modules.pop('cufund.bus', None)\nimport cufund.bus\n```\n",
+            "moved to cufund.core.bus",
+        ),
+        ("```sh\ncufund run no_such_scenario\n```\n", "exited 2, expected 0"),
+        ("```sh\ncufund --version  # exits 1\n```\n", "exited 0, expected 1"),
+        ("```sh\nmake demo\n```\n", "only `cufund ...` commands run"),
+    ],
+)
 def test_a_wrong_snippet_fails(text: str, message: str, tmp_path: Path) -> None:
     page = tmp_path / "page.md"
     page.write_text(text, encoding="utf-8")
@@ -193,8 +211,10 @@ def test_a_wrong_snippet_fails(text: str, message: str, tmp_path: Path) -> None:
 
 
 def test_titled_blocks_are_written_and_marked_blocks_skipped(tmp_path: Path) -> None:
-    text = ('```yaml title="a/b.yaml"\nkey: 1\n```\n\n<!-- no-run: a server -->\n```python\nraise SystemExit\n```\n\n'
-            "```python\nfrom pathlib import Path\nassert Path('a/b.yaml').read_text() == 'key: 1\\n'\n```\n")
+    text = (
+        '```yaml title="a/b.yaml"\nkey: 1\n```\n\n<!-- no-run: a server -->\n```python\nraise SystemExit\n```\n\n'
+        "```python\nfrom pathlib import Path\nassert Path('a/b.yaml').read_text() == 'key: 1\\n'\n```\n"
+    )
     page = tmp_path / "page.md"
     page.write_text(text, encoding="utf-8")
     found = blocks(page)
