@@ -132,3 +132,23 @@ def test_the_cli_reads_a_truncated_log(runs, tmp_path):
     assert "Traceback" not in replay.stderr
     assert len([line for line in replay.stderr.splitlines() if "truncated" in line]) == 1, replay.stderr
     assert "replayed" in replay.stdout
+
+
+def test_log_player_replays_a_truncated_log(runs, tmp_path):
+    """LogPlayer opens its log three times (topics, first time, reset): one warning, every recovered IMU sample."""
+    import shutil
+
+    from cufund import Simulator, Topics
+    from cufund.logs import LogPlayer
+
+    log = tmp_path / "copy.mcap"  # a fresh path: the warning is once per file and process
+    shutil.copyfile(runs["kill"][0] / "run.mcap", log)
+    with pytest.warns(TruncatedLogWarning) as caught:
+        player = LogPlayer(log, topics=[Topics.IMU])
+        assert player.first_time >= 0.0  # a second open of the file
+        replay = Simulator(None, record_topics=(Topics.IMU,))
+        replay.add(player)
+        imu = replay.run(600.0).topics[Topics.IMU]
+    assert len(caught) == 1
+    expected = _stream_counts(log)["/sensors/imu"]
+    assert player.played == len(imu["t"]) == expected
