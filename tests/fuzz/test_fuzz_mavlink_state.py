@@ -48,14 +48,16 @@ class MavlinkState(RuleBasedStateMachine):
     """Two clients (0 and 1), each with an upload it may be in the middle of."""
 
     shared: tuple = ()
+    upload = {0: 0, 1: 0}
+    """Each client's upload number (param2 of its items), kept across examples as the vehicle keeps its state."""
 
     def __init__(self) -> None:
         super().__init__()
         self.live, self.ep, self.gcs = self.shared
         self.plan = {0: 0, 1: 0}  # the count each client announced last
         self.cursor = {0: 0, 1: 0}  # its next item
-        self.upload = {0: 0, 1: 0}  # its upload number (param2 of its items)
-        for g in self.gcs:
+        for g in self.gcs:  # an upload the last example left open ends: examples replay alike when shrunk
+            g.mav.mission_ack_send(1, 1, M.MAV_MISSION_OPERATION_CANCELLED, 0)
             g.drain()
 
     def _step(self) -> None:
