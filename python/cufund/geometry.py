@@ -64,20 +64,29 @@ def _floats(value: ArrayLike, field: str, shape: str) -> Array:
         raise ValueError(f"{field} must be an array of numbers of shape {shape}, got {value!r}") from e
 
 
-def _quaternions(q: ArrayLike, field: str) -> Array:
-    """(…, 4) finite float64 quaternions with a direction (norm above 1e-9); not normalised."""
+def _finite_quaternions(q: ArrayLike, field: str) -> Array:
+    """(…, 4) finite float64 quaternions (any norm)."""
     a = _floats(q, field, "(…, 4) [w, x, y, z]")
     if a.ndim == 0 or a.shape[-1] != 4:
         raise ValueError(f"{field} must have shape (4,) or (…, 4) [w, x, y, z], got shape {a.shape}")
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{field} must be finite quaternions [w, x, y, z], got NaN or inf in {a!r}")
-    if np.any(np.sum(a * a, axis=-1) < _MIN_NORM2):
-        raise ValueError(f"{field} must be non-zero quaternions [w, x, y, z] (a zero quaternion is no rotation)")
     return a
 
 
+def _quaternions(q: ArrayLike, field: str) -> tuple[Array, Array]:
+    """(…, 4) finite float64 quaternions with a direction (norm above 1e-9), not normalised, and |q|² (…)."""
+    a = _finite_quaternions(q, field)
+    norm2 = np.sum(a * a, axis=-1)
+    if np.any(norm2 < _MIN_NORM2):
+        raise ValueError(f"{field} must be non-zero quaternions [w, x, y, z] (a zero quaternion is no rotation)")
+    return a, norm2
+
+
 def _check_unit(norm2: Array | float, field: str) -> None:
-    if np.any(np.abs(np.asarray(norm2) - 1.0) > 2 * _UNIT_TOL):
+    """|q|² within 2e-3 of 1 (|q| within 1e-3), for one quaternion (a float, no numpy call) or a batch."""
+    bad = abs(norm2 - 1.0) > 2 * _UNIT_TOL if isinstance(norm2, float) else np.any(np.abs(norm2 - 1.0) > 2 * _UNIT_TOL)
+    if bad:
         raise ValueError(
             f"{field} must be unit quaternions [w, x, y, z] (|q|² = {norm2}); normalise them "
             "(unit_quaternion, or normalize=True)"
@@ -131,11 +140,11 @@ def quat_to_matrix(q_AB: ArrayLike, normalize: bool = False) -> Array:
                 [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
             ]
         )
-    q = _quaternions(q, "q_AB")
+    q, norm2 = _quaternions(q, "q_AB")
     if normalize:
         q = _normalized(q)
     else:
-        _check_unit(np.sum(q * q, axis=-1), "q_AB")
+        _check_unit(norm2, "q_AB")
     w, x, y, z = np.moveaxis(q, -1, 0)
     return np.stack(
         [
@@ -151,9 +160,22 @@ def _rotation_matrices(R_AB: ArrayLike) -> Array:
     R = _floats(R_AB, "R_AB", "(…, 3, 3)")
     if R.ndim < 2 or R.shape[-2:] != (3, 3):
         raise ValueError(f"R_AB must have shape (3, 3) or (…, 3, 3), got shape {R.shape}")
+    if R.shape == (3, 3):  # one matrix: R_AB^T R_AB - I and the determinant in float arithmetic
+        (a, b, c), (d, e, f), (g, h, i) = R.tolist()
+        det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+        off = max(
+            abs(a * a + d * d + g * g - 1.0),
+            abs(b * b + e * e + h * h - 1.0),
+            abs(c * c + f * f + i * i - 1.0),
+            abs(a * b + d * e + g * h),
+            abs(a * c + d * f + g * i),
+            abs(b * c + e * f + h * i),
+        )
+        if off <= _UNIT_TOL and det > 0:  # NaN fails both comparisons
+            return R
     if not np.all(np.isfinite(R)):
         raise ValueError(f"R_AB must be finite rotation matrices, got NaN or inf in {R!r}")
-    off = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(initial=0.0)
+    off = float(np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(initial=0.0))
     if off > _UNIT_TOL or np.any(np.linalg.det(R) <= 0):
         raise ValueError(
             f"R_AB must be rotation matrices (orthonormal, determinant +1); |R_AB^T R_AB - I| reaches {off:.3g}"
@@ -215,8 +237,8 @@ def quat_mul(q_AB: ArrayLike, q_BC: ArrayLike) -> Array:
         aw, ax, ay, az = a.tolist()
         bw, bx, by, bz = b.tolist()
         if not math.isfinite(aw + ax + ay + az + bw + bx + by + bz):
-            _quaternions(a, "q_AB")
-            _quaternions(b, "q_BC")
+            _finite_quaternions(a, "q_AB")
+            _finite_quaternions(b, "q_BC")
         return np.array(
             [
                 aw * bw - ax * bx - ay * by - az * bz,
@@ -225,11 +247,7 @@ def quat_mul(q_AB: ArrayLike, q_BC: ArrayLike) -> Array:
                 aw * bz + ax * by - ay * bx + az * bw,
             ]
         )
-    for v, field in ((a, "q_AB"), (b, "q_BC")):
-        if v.ndim == 0 or v.shape[-1] != 4:
-            raise ValueError(f"{field} must have shape (4,) or (…, 4) [w, x, y, z], got shape {v.shape}")
-        if not np.all(np.isfinite(v)):
-            raise ValueError(f"{field} must be finite quaternions [w, x, y, z], got NaN or inf in {v!r}")
+    a, b = _finite_quaternions(a, "q_AB"), _finite_quaternions(b, "q_BC")
     aw, ax, ay, az = np.moveaxis(a, -1, 0)
     bw, bx, by, bz = np.moveaxis(b, -1, 0)
     return np.stack(
@@ -245,11 +263,7 @@ def quat_mul(q_AB: ArrayLike, q_BC: ArrayLike) -> Array:
 
 def quat_conjugate(q_AB: ArrayLike) -> Array:
     """q_BA (…, 4): the conjugate [w, -x, -y, -z], the inverse rotation of a unit quaternion q_AB."""
-    q = _floats(q_AB, "q_AB", "(…, 4) [w, x, y, z]")
-    if q.ndim == 0 or q.shape[-1] != 4:
-        raise ValueError(f"q_AB must have shape (4,) or (…, 4) [w, x, y, z], got shape {q.shape}")
-    if not np.all(np.isfinite(q)):
-        raise ValueError(f"q_AB must be finite quaternions [w, x, y, z], got NaN or inf in {q!r}")
+    q = _finite_quaternions(q_AB, "q_AB")
     q_BA: Array = q * np.array([1.0, -1.0, -1.0, -1.0])
     return q_BA
 
