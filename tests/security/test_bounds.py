@@ -68,11 +68,11 @@ def _params_classes() -> list[tuple[str, type]]:
         out.append((where, cls))
         try:
             hints = typing.get_type_hints(cls)
-        except Exception:  # noqa: BLE001 - forward references to other layers: the defaults tell
+        except Exception:  # forward references to other layers: the defaults tell
             hints = {}
         try:
             defaults = cls()
-        except Exception:  # noqa: BLE001 - a params class with required fields (a world file's path)
+        except Exception:  # a params class with required fields (a world file's path)
             continue
         for f in dataclasses.fields(cls):
             value = getattr(defaults, f.name)

@@ -124,8 +124,7 @@ def test_a_registered_user_class_is_read_back(tmp_path):
     """The public way to read user messages in a fresh process: register the class."""
     import dataclasses
 
-    from cufund.logs import McapLogger, register_message_class
-    from cufund.logs import message_classes
+    from cufund.logs import McapLogger, message_classes, register_message_class
 
     @dataclasses.dataclass(frozen=True)
     class UserMessage:

@@ -9,15 +9,15 @@ and metrics.json with status ``interrupted``; no traceback).
 from __future__ import annotations
 
 import argparse
-import importlib
 import contextlib
+import importlib
 import json
 import signal
 import sys
 import time
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
 
 from cufund._core import __version__
 from cufund.core.config import ConfigError

@@ -132,7 +132,7 @@ def load_yaml_text(text: str, where: str) -> Any:
         if node is None:
             return None
         _check_yaml_graph(node, where, lim)
-        return yaml.load(text, Loader=CufundLoader)  # noqa: S506 - CufundLoader is a SafeLoader
+        return yaml.load(text, Loader=CufundLoader)  # CufundLoader is a SafeLoader
     except RecursionError:
         raise ConfigError(f"{where}: nesting deeper than yaml_max_depth = {lim.yaml_max_depth}") from None
     except yaml.YAMLError as e:
