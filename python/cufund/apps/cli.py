@@ -223,7 +223,7 @@ def _odometry(args: argparse.Namespace) -> int:
 
 
 def _one_line_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
-                      file: object = None, line: str | None = None) -> str:
+                      line: str | None = None) -> str:
     return f"cufund: warning: {message}\n"
 
 

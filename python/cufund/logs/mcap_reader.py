@@ -73,13 +73,11 @@ def _warn_truncated(path: Path, stream: Any, recovered: Recovered) -> None:
 
 def _summary_of(path: Path, stream: Any) -> tuple[Any, Any]:
     """(channels by id, chunk indexes) from the summary, or from a scan of a log without one."""
+    error: BaseException | None = None
     try:
-        reader = make_reader(stream, validate_crcs=True)
-        summary = reader.get_summary()
+        summary = make_reader(stream, validate_crcs=True).get_summary()
     except _ERRORS as exc:
         summary, error = None, exc
-    else:
-        error = None
     if summary is not None:
         if not summary.chunk_indexes and summary.statistics and summary.statistics.message_count:
             raise McapReadError(f"{str(path)!r} has no chunk index (not written by cufund.logs.McapLogger)")
