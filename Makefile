@@ -147,4 +147,4 @@ stubs: $(VENV)/.installed
 	$(VPY) -m pybind11_stubgen cufund._core -o python --numpy-array-use-type-var
 
 clean:
-	rm -rf build $(VENV) *.egg-info
+	rm -rf build dist $(VENV) *.egg-info
