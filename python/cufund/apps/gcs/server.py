@@ -1,7 +1,8 @@
 """The web ground station's server: one page, a websocket and an HTTP API in front of a live run (tornado).
 
 Routes (every one but the static assets needs the token, as ``?token=`` or ``Authorization: Bearer``; 403
-without it):
+without it, with a ``Host`` that does not name this server, or with another site's ``Origin`` on a POST or the
+websocket — see :mod:`cufund.apps.gcs.guard`):
 
 - ``GET /`` the page; ``GET /static/...`` its scripts (``view.js``, the 3-D view, runs in a Web Worker) and style;
   ``GET /meshcat/main.min.js`` MeshCat's bundle, for its three.js, served from the installed ``meshcat`` package
@@ -18,9 +19,15 @@ without it):
   on this connection: from then on at most :data:`IN_FLIGHT` are unread, the rest skipped). Anything else gets an
   ``error`` reply; the run goes on.
 
+Bounds: a message or body larger than :data:`MAX_MESSAGE_BYTES` is refused (the websocket closed with 1009, the
+request with 400); a tab that leaves more than :data:`~cufund.apps.gcs.guard.MAX_UNSENT_BYTES` or
+:data:`~cufund.apps.gcs.guard.MAX_UNSENT_MESSAGES` unsent is dropped (one line on stderr; counted in ``/api/stats`` as ``dropped_clients``). Errors are ``error`` replies or 4xx
+with a JSON ``message``, never a traceback; no log line carries the token (see :mod:`cufund.apps.gcs.guard`).
+
 Commands the ground station handles itself (the rest go to the vehicle's commander): ``sim_pause``,
 ``sim_resume``, ``sim_speed {speed}`` (0.1-10, or "inf"), ``sim_restart {scenario}`` (a new live run, with the
-command line's overrides only if it is the command line's scenario; every tab gets its scene), ``tunnel_start`` (restart with the ``tunnel`` scenario), ``mission_preview {formula, regions}``.
+command line's overrides only if it is the command line's scenario; every tab gets its scene; a built-in
+scenario name, the command line's scenario or a YAML file inside the run directory, nothing else), ``tunnel_start`` (restart with the ``tunnel`` scenario), ``mission_preview {formula, regions}``.
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ import asyncio
 import contextlib
 import json
 import math
+import os
 import secrets
 import sys
 import time
@@ -43,6 +51,15 @@ import tornado.netutil
 import tornado.web
 import tornado.websocket
 
+from .guard import (
+    BoundedSender,
+    Hosts,
+    authorized,
+    loads_strict,
+    log_request,
+    origin_host,
+    quiet_errors,
+)
 from .mission_preview import preview_mission
 from .session import GcsSession, jsonable, position_of
 
@@ -54,6 +71,10 @@ ACK_TIMEOUT_S = 3.0
 IN_FLIGHT = {"telemetry": 8, "cloud": 2}
 """Messages of each stream a tab that acknowledges them (``seen``) may have unread: a busy tab gets fresh data late
 rather than stale data in order."""
+MAX_MESSAGE_BYTES = 64 * 1024
+"""The largest websocket message or HTTP body accepted (a command or a mission is a few kB)."""
+INPUT_ERRORS = (ValueError, TypeError, OverflowError, RecursionError)
+"""What a malformed command or message raises (a 4xx or an ``error`` reply, with its message)."""
 LOCAL = ("sim_pause", "sim_resume", "sim_speed", "sim_restart", "tunnel_start", "mission_preview")
 
 
@@ -63,11 +84,20 @@ def parse_speed(value: Any) -> float:
         return math.inf
     try:
         speed = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"speed must be a number in [0.1, 10] or 'inf', got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"speed must be a number in [0.1, 10] or 'inf', got {_short(value)}") from None
     if not (math.isinf(speed) and speed > 0) and not 0.1 <= speed <= 10.0:
-        raise ValueError(f"speed must be a number in [0.1, 10] or 'inf', got {value!r}")
+        raise ValueError(f"speed must be a number in [0.1, 10] or 'inf', got {_short(value)}")
     return speed
+
+
+def _short(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters (a 4000-digit number is not echoed whole)."""
+    try:
+        text = repr(value)
+    except ValueError:  # an int too long for str()
+        return f"<{type(value).__name__} too long to show>"
+    return text if len(text) <= limit else text[:limit] + "..."
 
 
 def _meshcat_dist() -> Path:
@@ -77,8 +107,9 @@ def _meshcat_dist() -> Path:
 
 
 def _default_live(scenario: str, overrides: tuple[str, ...], speed: float) -> Any:
-    from ..live import LiveRun
     from cufund.scenarios.schema import parse_overrides
+
+    from ..live import LiveRun
 
     return LiveRun(scenario, parse_overrides(list(overrides)), speed)
 
@@ -87,13 +118,15 @@ class GcsServer:
     """A live run of ``scenario`` and the ground station serving it (see the module docstring).
 
     Call :meth:`start` inside a running asyncio loop; it returns the page's URL. ``live_factory(scenario,
-    overrides, speed)`` makes the live run (default :class:`cufund.apps.live.LiveRun`).
+    overrides, speed)`` makes the live run (default :class:`cufund.apps.live.LiveRun`). ``run_dir`` (default: the
+    current directory) is where ``sim_restart`` may load scenario files from. ``foxglove``, a
+    :class:`~cufund.apps.gcs.foxglove_bridge.FoxgloveBridge`, is started with this server's token.
     """
 
     def __init__(self, scenario: str, overrides: tuple[str, ...] = (), speed: float = 1.0, host: str = "127.0.0.1",
                  port: int = 0, token: str | None = None, telemetry_hz: float = 50.0,
                  live_factory: Callable[[str, tuple[str, ...], float], Any] = _default_live,
-                 foxglove: Any = None) -> None:
+                 foxglove: Any = None, run_dir: str | os.PathLike[str] | None = None) -> None:
         if not (isinstance(telemetry_hz, (int, float)) and 1.0 <= telemetry_hz <= 200.0):
             raise ValueError(f"telemetry_hz must be a number in [1, 200], got {telemetry_hz!r}")
         self.scenario = self.first_scenario = scenario
@@ -114,6 +147,10 @@ class GcsServer:
         self._restarting = False
         self._paused = False
         self._last_error = ""
+        self.run_dir = Path(run_dir if run_dir is not None else os.getcwd()).resolve()
+        self.hosts: Hosts | None = None
+        self.dropped_clients = 0
+        """Tabs dropped because they did not read what was sent to them."""
 
     # ---- lifecycle -----------------------------------------------------------------------------------------
     def start(self) -> str:
@@ -127,11 +164,14 @@ class GcsServer:
             (r"/ws", SocketHandler, {"gcs": self}),
             (r"/static/(.*)", tornado.web.StaticFileHandler, {"path": str(STATIC_DIR)}),
             (r"/meshcat/(main\.min\.js)", tornado.web.StaticFileHandler, {"path": str(_meshcat_dist())}),
-        ], websocket_max_message_size=1 << 20)
+        ], websocket_max_message_size=MAX_MESSAGE_BYTES, log_function=log_request)
         sockets = tornado.netutil.bind_sockets(self.port, address=self.host)
         self.port = sockets[0].getsockname()[1]
-        self._http = tornado.httpserver.HTTPServer(app, max_body_size=1 << 20)
+        self.hosts = Hosts(self.host, self.port)
+        self._http = tornado.httpserver.HTTPServer(app, max_body_size=MAX_MESSAGE_BYTES)
         self._http.add_sockets(sockets)
+        if self.foxglove is not None and hasattr(self.foxglove, "start"):
+            self.foxglove.start(self.token)
         self._ticker = tornado.ioloop.PeriodicCallback(self._tick, 1000.0 / self.telemetry_hz)
         self._ticker.start()
         shown = "127.0.0.1" if self.host in ("", "0.0.0.0", "::") else self.host
@@ -164,7 +204,7 @@ class GcsServer:
         try:
             tel = session.poll()
             events = session.new_events()
-        except Exception as exc:  # noqa: BLE001 - a failing run must not stop the server; show why (once)
+        except Exception as exc:
             message = f"telemetry: {type(exc).__name__}: {exc}"
             if message != self._last_error:
                 self._last_error = message
@@ -207,7 +247,7 @@ class GcsServer:
         """Runs one command; returns its acknowledgement. A malformed command raises ``ValueError`` or
         ``TypeError``."""
         if not isinstance(command, dict) or not isinstance(command.get("command"), str):
-            raise TypeError(f"a command is an object with a 'command' name, got {command!r}")
+            raise TypeError(f"a command is an object with a 'command' name, got {_short(command)}")
         name = command["command"]
         session = self.session
         if session is None or self._restarting:
@@ -269,25 +309,52 @@ class GcsServer:
         else:
             scenario = "tunnel" if name == "tunnel_start" else command.get("scenario", session.scenario)
             if not isinstance(scenario, str) or not scenario:
-                raise TypeError(f"sim_restart needs 'scenario', a scenario name or path, got {scenario!r}")
-            await self._restart(scenario)
+                raise TypeError(f"sim_restart needs 'scenario', a scenario name or path, got {_short(scenario)}")
+            await self._restart(scenario, self._scenario_source(scenario))
             return {"command": name, "result": "accepted", "message": f"running {scenario}"}
         return {"command": name, "result": "accepted", "message": ""}
 
-    async def _restart(self, scenario: str) -> None:
-        """Replaces the live run by a new one of ``scenario`` (built off the event loop); every tab gets the new
-        scene. The old run goes on if the new one cannot be built."""
+    def _scenario_source(self, scenario: str) -> str:
+        """What the live run is built from for ``sim_restart {scenario}``: a built-in name or the command line's
+        scenario as given, a YAML file inside :attr:`run_dir` as its resolved path; anything else is refused
+        (``ValueError``) without reading it."""
+        from cufund.scenarios.schema import available_scenarios
+
+        builtin = available_scenarios()
+        if scenario == self.first_scenario or scenario in builtin:
+            return scenario
+        refused = ValueError(f"sim_restart takes a built-in scenario ({', '.join(builtin)}) or a .yaml file in the "
+                             f"run directory {self.run_dir}; got {_short(scenario, 200)}")
+        try:
+            path = (self.run_dir / scenario).resolve()
+        except (OSError, RuntimeError, ValueError):
+            raise refused from None
+        if path.suffix not in (".yaml", ".yml") or not path.is_relative_to(self.run_dir) or not path.is_file():
+            raise refused
+        return str(path)
+
+    async def _restart(self, scenario: str, source: str | None = None) -> None:
+        """Replaces the live run by a new one of ``scenario`` (built off the event loop from ``source``, default
+        ``scenario``); every tab gets the new scene. The old run goes on if the new one cannot be built: the reply
+        names why for a built-in scenario, only the kind of error for a file (its reason, which may quote the file,
+        goes to the server's stderr)."""
         old = self.session
         assert old is not None
+        source = scenario if source is None else source
         self._restarting = True
         loop = asyncio.get_running_loop()
         try:
             # the command line's --set overrides belong to its scenario, not to another one
             overrides = self.overrides if scenario == self.first_scenario else ()
-            live = await loop.run_in_executor(None, self.live_factory, scenario, overrides, self.speed)
+            live = await loop.run_in_executor(None, self.live_factory, source, overrides, self.speed)
         except Exception as exc:
             self._restarting = False
-            raise ValueError(f"cannot start scenario {scenario!r}: {exc}") from exc
+            if source == scenario and not Path(scenario).suffix:  # a built-in name: its own text may be shown
+                raise ValueError(f"cannot start scenario {scenario!r}: {exc}") from exc
+            print(f"cufund gcs: cannot start scenario {source}: {type(exc).__name__}: {exc}", file=sys.stderr,
+                  flush=True)
+            raise ValueError(f"cannot start scenario {_short(scenario, 200)}: {type(exc).__name__} (the reason is on "
+                             "the ground station's console)") from exc
         await loop.run_in_executor(None, old.live.stop)
         self._open(live, scenario)
         self.scenario = scenario
@@ -296,21 +363,31 @@ class GcsServer:
             c.send(json.dumps(self.session.catch_up()))  # type: ignore[union-attr]
 
 
-def authorized(handler: tornado.web.RequestHandler, token: str) -> bool:
-    given = handler.get_query_argument("token", None)
-    header = handler.request.headers.get("Authorization", "")
-    if given is None and header.lower().startswith("bearer "):
-        given = header[7:].strip()
-    return given is not None and secrets.compare_digest(given.encode(), token.encode())
+def _same_origin(handler: tornado.web.RequestHandler, origin: str | None) -> bool:
+    """An ``Origin`` (when the client sent one) that is this server as the request's ``Host`` names it."""
+    return origin is None or origin_host(origin) == handler.request.host.lower()
 
 
-class _Guarded(tornado.web.RequestHandler):
+def _refusal(handler: tornado.web.RequestHandler, gcs: GcsServer) -> str:
+    """Why a request is refused ("" when it is not): no token, a ``Host`` that is not this server, another
+    site's ``Origin`` on anything but a GET."""
+    if gcs.hosts is not None and handler.request.host not in gcs.hosts:
+        return "Host does not name this server"
+    if not authorized(handler, gcs.token):
+        return "token required (?token= or Authorization: Bearer)"
+    if handler.request.method != "GET" and not _same_origin(handler, handler.request.headers.get("Origin")):
+        return "cross-origin request refused"
+    return ""
+
+
+class _Guarded(quiet_errors, tornado.web.RequestHandler):
     def initialize(self, gcs: GcsServer) -> None:
         self.gcs = gcs
 
     def prepare(self) -> None:
-        if not authorized(self, self.gcs.token):
-            raise tornado.web.HTTPError(403, reason="token required (?token= or Authorization: Bearer)")
+        why = _refusal(self, self.gcs)
+        if why:
+            raise tornado.web.HTTPError(403, reason=why)
 
     def set_default_headers(self) -> None:
         self.set_header("Cache-Control", "no-store")
@@ -331,21 +408,29 @@ class StateHandler(_Guarded):
 class CommandHandler(_Guarded):
     async def post(self) -> None:
         try:
-            command = json.loads(self.request.body or b"null")
+            command = loads_strict(self.request.body or b"null")
             ack = await self.gcs.execute(command)
-        except (ValueError, TypeError) as exc:  # JSON decoding errors and the commander's parsing too
+        except INPUT_ERRORS as exc:  # JSON decoding errors and the commander's parsing too
             self.set_status(400)
-            self.write({"result": "failed", "message": str(exc)})
+            self.write({"result": "failed", "message": _message(exc)})
             return
         self.write(ack)
 
 
 class StatsHandler(_Guarded):
     def get(self) -> None:
-        self.write({"io_thread_cpu_s": time.thread_time(), "tabs": len(self.gcs.clients), "telemetry_sent": self.gcs.seq})
+        self.write({"io_thread_cpu_s": time.thread_time(), "tabs": len(self.gcs.clients), "telemetry_sent": self.gcs.seq,
+                    "dropped_clients": self.gcs.dropped_clients})
 
 
-class SocketHandler(tornado.websocket.WebSocketHandler):
+def _message(exc: BaseException) -> str:
+    """An exception as the reply's message: its text, or its kind when it has none."""
+    if isinstance(exc, RecursionError):
+        return "the message is nested too deeply"
+    return str(exc) or type(exc).__name__
+
+
+class SocketHandler(quiet_errors, BoundedSender, tornado.websocket.WebSocketHandler):
     def initialize(self, gcs: GcsServer) -> None:
         self.gcs = gcs
         self.cloud = False
@@ -353,13 +438,18 @@ class SocketHandler(tornado.websocket.WebSocketHandler):
         self.sent = dict.fromkeys(IN_FLIGHT, 0)
         self.seen: dict[str, int] | None = None
         """What the tab has processed of each stream (None until it says: then flow control applies)."""
+        self._tasks: set[asyncio.Task[Any]] = set()
 
     async def get(self, *args: Any, **kwargs: Any) -> None:
-        if not authorized(self, self.gcs.token):
+        why = _refusal(self, self.gcs)
+        if why:
             self.set_status(403)
-            self.finish("token required")
+            self.finish(why)
             return
         await super().get(*args, **kwargs)
+
+    def check_origin(self, origin: str) -> bool:
+        return _same_origin(self, origin)
 
     def open(self, *args: Any, **kwargs: Any) -> None:
         self.set_nodelay(True)
@@ -373,49 +463,62 @@ class SocketHandler(tornado.websocket.WebSocketHandler):
 
     def send(self, message: str | bytes, stream: str = "") -> None:
         """Writes ``message``. On a named ``stream`` (telemetry, clouds) a message is skipped while the previous one
-        of that stream has not left yet: a slow or dead tab must not queue unbounded data."""
+        of that stream has not left yet: a slow or dead tab must not queue unbounded data. Any message that would
+        leave more than :data:`MAX_UNSENT_BYTES` or :data:`MAX_UNSENT_MESSAGES` unsent drops the tab."""
         pending = self._pending.get(stream)
         if stream and pending is not None and not pending.done():
             return
         if stream and self.seen is not None and self.sent[stream] - self.seen[stream] >= IN_FLIGHT[stream]:
             return
-        try:
-            future = self.write_message(message, binary=isinstance(message, bytes))
-        except tornado.websocket.WebSocketClosedError:
-            self.gcs.clients.discard(self)
-            return
-        if stream:
+        future = self.send_bounded(message)
+        if future is not None and stream:
             self._pending[stream] = future
             self.sent[stream] += 1
 
+    def count_drop(self) -> str:
+        self.gcs.dropped_clients += 1
+        return f"ground station tab ({self.gcs.dropped_clients} dropped so far)"
+
     def on_message(self, message: str | bytes) -> None:
+        if self.dropped:
+            return
         try:
             if isinstance(message, bytes):
                 raise TypeError("messages must be JSON text, got a binary frame")
-            data = json.loads(message)
+            data = loads_strict(message)
             if not isinstance(data, dict) or not isinstance(data.get("type"), str):
-                raise TypeError("a message is a JSON object with a 'type' (command, layers or ping)")
+                raise TypeError("a message is a JSON object with a 'type' (command, layers, seen or ping)")
             kind = data["type"]
             if kind == "command":
-                asyncio.ensure_future(self._command(data.get("id"), data.get("command")))
+                task = asyncio.ensure_future(self._command(data.get("id"), data.get("command")))
+                self._tasks.add(task)
+                task.add_done_callback(self._tasks.discard)
             elif kind == "layers":
                 self.cloud = bool(data.get("cloud", self.cloud))
             elif kind == "seen":
-                self.seen = {s: int(data.get(s, 0)) for s in IN_FLIGHT}
+                self.seen = {s: _count(data.get(s, 0), s) for s in IN_FLIGHT}
             elif kind == "ping":
                 self.send(json.dumps({**data, "type": "pong", "wall": time.time()}))
             else:
-                raise ValueError(f"unknown message type {kind!r}; expected command, layers, seen or ping")
-        except (ValueError, TypeError) as exc:
-            self.send(json.dumps({"type": "error", "message": str(exc)}))
+                raise ValueError(f"unknown message type {_short(kind)}; expected command, layers, seen or ping")
+        except Exception as exc:
+            self.send(json.dumps({"type": "error", "message": _message(exc) if isinstance(exc, INPUT_ERRORS)
+                                  else f"{type(exc).__name__}: {exc}"}))
 
     async def _command(self, ident: Any, command: Any) -> None:
         try:
             ack = await self.gcs.execute(command)
-        except (ValueError, TypeError) as exc:
+        except INPUT_ERRORS as exc:
             ack = {"command": command.get("command") if isinstance(command, dict) else None, "result": "failed",
-                   "message": str(exc)}
-        except Exception as exc:  # noqa: BLE001 - the page gets the reason; the server stays up
+                   "message": _message(exc)}
+        except Exception as exc:
             print(f"cufund gcs: {type(exc).__name__}: {exc}", file=sys.stderr)
             ack = {"command": None, "result": "failed", "message": f"{type(exc).__name__}: {exc}"}
         self.send(json.dumps({"type": "ack", "id": ident, **ack}))
+
+
+def _count(value: Any, name: str) -> int:
+    """A ``seen`` count: a whole number of messages >= 0."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value <= 2**53 or value != int(value):
+        raise ValueError(f"seen.{name} must be a whole number of messages >= 0, got {_short(value)}")
+    return int(value)
