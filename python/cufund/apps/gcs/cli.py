@@ -1,6 +1,8 @@
 """``cufund gcs [SCENARIO]``: a live run of SCENARIO and the web ground station serving it on 127.0.0.1.
 
-The first line of output is ``GCS: http://127.0.0.1:PORT/?token=TOKEN``; open it in a browser. Ctrl-C stops.
+The first line of output is ``GCS: http://127.0.0.1:PORT/?token=TOKEN``; open it in a browser. With
+``--foxglove`` the second is ``Foxglove: ws://127.0.0.1:PORT/?token=TOKEN`` (the same token) for Foxglove.
+Ctrl-C stops.
 """
 
 from __future__ import annotations
@@ -10,12 +12,12 @@ import asyncio
 import signal
 import sys
 
+from .guard import LOOPBACK
 from .server import GcsServer, parse_speed
 
 __all__ = ["add_arguments", "run"]
 
 DEFAULT_SCENARIO = "vehicle"
-LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -27,7 +29,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--speed", default="1", help="simulation speed: 0.1 to 10 times real time, or inf (default 1)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario field by its dotted key (repeatable)")
-    p.add_argument("--foxglove", action="store_true", help="also serve the topics over a Foxglove WebSocket server")
+    p.add_argument("--foxglove", action="store_true",
+                   help="also serve the topics over a Foxglove WebSocket server (needs the same token)")
     p.add_argument("--foxglove-port", type=int, default=8765, help="the Foxglove server's port (default 8765)")
     p.add_argument("--telemetry-hz", type=float, default=50.0, help="telemetry rate to the page (default 50)")
 
@@ -64,7 +67,7 @@ async def _serve(args: argparse.Namespace, speed: float) -> int:
         return 2
     print(f"GCS: {url}", flush=True)
     if foxglove is not None:
-        print(f"Foxglove: ws://127.0.0.1:{foxglove.port}", flush=True)
+        print(f"Foxglove: {foxglove.url}", flush=True)
     done = asyncio.Event()
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
