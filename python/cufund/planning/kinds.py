@@ -239,6 +239,7 @@ def _global(p: GlobalParams, ctx: BuildContext) -> list[Any]:
         raise ConfigError(f"planner: no {p.search} plan from {top.tolist()} to {list(p.goal)} keeping "
                           f"{p.radius} m (+ {p.path_margin} m for the path) on the world's geometry ({plan.status})")
     motion = plan.motion
+    assert motion is not None  # a plan that succeeded has its motion (checked just above)
     stats = {"global_status": plan.status, "global_search": p.search, "global_plan_ms": 1e3 * plan.plan_seconds,
              "global_search_ms": 1e3 * plan.search_seconds, "global_motion_ms": 1e3 * plan.motion_seconds,
              "global_plan_cpu_ms": 1e3 * plan.plan_cpu_seconds, "global_path_length_m": plan.path.length,

@@ -224,10 +224,10 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
 def _recordable(record: list[Any], components: list[Any]) -> list[Any]:
     """The topics worth keeping in memory for the run's plots and metrics (not point clouds or images)."""
     published = {str(t) for c in components for t in c.outputs}
-    keep = []
+    keep: list[Any] = []
     for t in record:
         if str(t) in published and str(t) not in {str(k) for k in keep} and not str(t).startswith(
-                ("/sensors/lidar", "/sensors/depth", "/sensors/rgb")) and getattr(t, "type", None).__name__ not in (
+                ("/sensors/lidar", "/sensors/depth", "/sensors/rgb")) and getattr(getattr(t, "type", None), "__name__", "") not in (
                 "PointCloud", "CameraImage"):
             keep.append(t)
     return keep

@@ -204,7 +204,7 @@ def parse_part(group: str, value: Any, where: str, sensor_name: str | None = Non
         lookup(group, value.kind, where)
         return value
     if isinstance(value, str):
-        value = {"kind": _SHORTHAND.get((sensor_name, value), value)}
+        value = {"kind": _SHORTHAND.get((sensor_name or "", value), value)}
     if not isinstance(value, dict):
         raise ConfigError(f"{where} must be a kind name or a mapping with a 'kind' key, got {type(value).__name__}")
     values = dict(value)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError, check_at_most, check_real_fields
@@ -29,7 +29,7 @@ from .imu import IMU_PRESETS, ImuParams, ImuSensor
 from .lidar import Lidar, LidarParams
 from .lidar_component import LidarComponent
 from .magnetometer import MagnetometerParams, MagnetometerSensor
-from .patterns import avia, mid360, os1_64, vlp16
+from .patterns import ScanPattern, avia, mid360, os1_64, vlp16
 from .pose_sensor import PoseSensor, PoseSensorParams
 
 for _type in (SensorType("imu", Imu, "T_BI", "accelerometer and gyroscope, in the IMU frame I"),
@@ -41,7 +41,7 @@ for _type in (SensorType("imu", Imu, "T_BI", "accelerometer and gyroscope, in th
               SensorType("pose", Odometry, None, "a pose source (motion capture, a slow odometry)")):
     register(_type)
 
-_PATTERNS = {"mid360": mid360, "os1_64": os1_64, "vlp16": vlp16, "avia": avia}
+_PATTERNS: dict[str, Callable[[], ScanPattern]] = {"mid360": mid360, "os1_64": os1_64, "vlp16": vlp16, "avia": avia}
 
 
 def _imu(params: ImuParams, ctx: BuildContext) -> list[Any]:
@@ -59,13 +59,13 @@ for _name, _preset in IMU_PRESETS.items():
 register(Kind("sensor", "magnetometer", MagnetometerParams,
               lambda p, ctx: [MagnetometerSensor(p, ctx.seed, ctx.part.topic)], None,
               "magnetometer (cufund.sensors.MagnetometerParams)", sensor_type="magnetometer"))
-for _name, _preset in BAROMETER_PRESETS.items():
+for _name, _baro_preset in BAROMETER_PRESETS.items():
     register(Kind("sensor", "ideal_barometer" if _name == "ideal" else _name, BarometerParams,
-                  lambda p, ctx: [BarometerSensor(p, ctx.seed, ctx.part.topic)], _preset,
+                  lambda p, ctx: [BarometerSensor(p, ctx.seed, ctx.part.topic)], _baro_preset,
                   f"barometer, {_name} preset (cufund.sensors.BarometerParams)", sensor_type="barometer"))
-for _name, _preset in GPS_PRESETS.items():
+for _name, _gps_preset in GPS_PRESETS.items():
     register(Kind("sensor", "ideal_gps" if _name == "ideal" else _name, GpsParams,
-                  lambda p, ctx: [GpsSensor(p, ctx.seed, ctx.part.topic)], _preset,
+                  lambda p, ctx: [GpsSensor(p, ctx.seed, ctx.part.topic)], _gps_preset,
                   f"GNSS receiver, {_name} preset (cufund.sensors.GpsParams)", sensor_type="gps"))
 register(Kind("sensor", "pose", PoseSensorParams, lambda p, ctx: [PoseSensor(p, ctx.seed, ctx.part.topic)], None,
               "pose source (motion capture or a slow odometry): Odometry at rate_hz with noise", sensor_type="pose"))
@@ -118,8 +118,12 @@ _LIDARS = {"mid360": LidarSensorParams(), "os1_64": LidarSensorParams("os1_64", 
                                                                       range_noise_std=0.03),
            "vlp16": LidarSensorParams("vlp16", range_min=0.5, range_max=100.0, range_noise_std=0.03),
            "avia": LidarSensorParams("avia", range_min=0.5, range_max=190.0, range_noise_std=0.02)}
+def _fixed(p: LidarSensorParams) -> Callable[[], LidarSensorParams]:
+    return lambda: p
+
+
 for _name, _p in _LIDARS.items():
-    register(Kind("sensor", _name, LidarSensorParams, _lidar, (lambda p=_p: p),
+    register(Kind("sensor", _name, LidarSensorParams, _lidar, _fixed(_p),
                   f"LiDAR, {_name} scan pattern and range model", sensor_type="lidar"))
 
 

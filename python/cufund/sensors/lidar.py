@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Union
+from typing import Any, Union
 
 import numpy as np
 
@@ -60,7 +60,7 @@ class LidarParams:
             raise ValueError(f"seed must be >= 0, got {self.seed}")
 
 
-def mid360_params(**overrides: object) -> LidarParams:
+def mid360_params(**overrides: Any) -> LidarParams:
     """Livox Mid-360 range model: 0.1–40 m, 2 cm noise (1σ, Livox spec at 10 m)."""
     return dataclasses.replace(LidarParams(range_min=0.1, range_max=40.0, range_noise_std=0.02), **overrides)
 
@@ -126,7 +126,11 @@ class Lidar:
         p = self.params
         knots = t0 + np.linspace(0.0, self.period, int(p.pose_samples))
         many = getattr(pose_fn, "many", None)
-        p_WL_k, q_WL_k = sample_poses(pose_fn, knots, self.T_BL) if many is None else _compose(*many(knots), self.T_BL)
+        if many is None:
+            p_WL_k, q_WL_k = sample_poses(pose_fn, knots, self.T_BL)
+        else:
+            p_WB_k, q_WB_k = many(knots)
+            p_WL_k, q_WL_k = _compose(p_WB_k, q_WB_k, self.T_BL)
         # Noise and dropout are drawn for every ray so a frame's draws do not depend on the scene.
         n = len(rays_L.t)
         keep = self._rng.random(n) if p.dropout > 0 else None

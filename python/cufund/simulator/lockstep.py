@@ -117,6 +117,8 @@ class _DeferredTruth(Odometry):
     near the end). A ``done`` that keeps it gets it built before the state moves on (see ``_node_checks``)."""
 
     __slots__ = ("_value", "_sim")
+    _value: Odometry | None
+    _sim: Any
 
     def _resolve(self) -> Odometry:
         value = self._sim._snapshot(self.t)
@@ -233,8 +235,9 @@ class Simulator:
         for c in self.components:
             if not isinstance(c, _StateUser) and not hasattr(c, "active_state_topic"):
                 continue
-            if getattr(c, "state_topic", None) is not None:
-                c.active_state_topic = c.state_topic
+            state_topic = getattr(c, "state_topic", None)
+            if state_topic is not None:
+                c.active_state_topic = state_topic
             elif len(estimators) == 1:
                 c.active_state_topic = estimators[0].topic
             elif not estimators:
@@ -247,7 +250,8 @@ class Simulator:
                 on_estimate(bool(estimators))
 
     def _names(self) -> list[str]:
-        names, seen = [], {}
+        names: list[str] = []
+        seen: dict[str, int] = {}
         for c in self.components:
             base = getattr(c, "name", type(c).__name__) or type(c).__name__
             k = seen.get(base, 0)
@@ -315,7 +319,7 @@ class Simulator:
             self._state = s = self.vehicle.state  # views into the C++ state, valid for the vehicle's lifetime
             self._truth_views = _joined((s.p, s.v, s.q, s.w, self.vehicle.accel_W, self.vehicle.alpha_B))
             self._row_views = _joined((s.p, s.v, s.q, s.w, s.rotor_speeds))
-            self._cmd = s.rotor_speeds.copy()
+            self._cmd: np.ndarray | None = s.rotor_speeds.copy()
             self._ground_plane = bool(self.vehicle.params.ground_plane)
         else:
             self._cmd = None
@@ -412,9 +416,10 @@ class Simulator:
         quad, bus, slots, physics = self.vehicle, self.bus, self._slots, self._physics
         truth_topic, actuator = Topics.TRUTH_ODOMETRY, str(Topics.ACTUATOR_COMMAND)
         latest, next_visible, deliver = bus.latest, bus.next_visible_ns, bus.deliver
-        now, cmd, at_node = self._now_ns, self._cmd, self._at_node
+        cmd: Any = self._cmd  # not None whenever there is a vehicle to step
+        now, at_node = self._now_ns, self._at_node
         start_ns, span = now, max(end_ns - now, 1)
-        last_bar = -1
+        last_bar: float = -1
         perf = time.perf_counter
         snapshot, record = self._snapshot, self._node_checks
         # Ground truth is published at an instant before the first component that may read it. When nothing else
@@ -489,7 +494,7 @@ class Simulator:
                     bar = (400 * (now - start_ns)) // span
                     if bar != last_bar:
                         last_bar = bar
-                        chars = bar // 10
+                        chars = int(bar) // 10
                         sys.stderr.write(f"\r[{'#' * chars}{'.' * (40 - chars)}] {now / NS:7.2f} s")
                         sys.stderr.flush()
         finally:
@@ -543,6 +548,7 @@ class Simulator:
                 if truth._value is None and sys.getrefcount(truth) > 2:  # kept by done: build it while it is true
                     object.__setattr__(truth, "_value", self._snapshot(t))
             else:
+                assert truth is not None  # published at this node
                 finished = done(t, truth)
             if finished:
                 self.status, self.message = RunStatus.COMPLETED, "done condition met"
