@@ -244,17 +244,23 @@ def main(argv: list[str] | None = None) -> int:
         return _list()
     if args.command in _SERVERS:
         return importlib.import_module(_SERVERS[args.command][0]).run(args)
-    if args.command == "odometry":
-        return _odometry(args)
-    if args.command == "replay":
-        from . import log_replay
-
+    if args.command in ("odometry", "replay"):
         try:
-            return log_replay.run(args)
-        except (ConfigError, ValueError, OSError) as e:
-            print(f"cufund: {e}", file=sys.stderr)
-            return EXIT_INVALID
+            return _odometry(args) if args.command == "odometry" else _replay(args)
+        except KeyboardInterrupt:  # Ctrl-C: a message and 130, not a traceback
+            print(f"cufund {args.command}: interrupted", file=sys.stderr)
+            return 128 + signal.SIGINT
     return _run(args)
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from . import log_replay
+
+    try:
+        return log_replay.run(args)
+    except (ConfigError, ValueError, OSError) as e:
+        print(f"cufund: {e}", file=sys.stderr)
+        return EXIT_INVALID
 
 
 if __name__ == "__main__":
