@@ -66,7 +66,7 @@ def groups(frame: Any, key: str) -> list[tuple[str, float | None, Any]]:
     if numeric and len(values) > _MAX_CATEGORIES:
         edges = np.unique(np.quantile(col.dropna().to_numpy(float), np.linspace(0, 1, _MAX_CATEGORIES + 1)))
         idx = np.clip(np.searchsorted(edges, col.to_numpy(float), side="right") - 1, 0, len(edges) - 2)
-        out = []
+        out: list[tuple[str, float | None, Any]] = []
         for i in range(len(edges) - 1):
             rows = frame[idx == i]
             if len(rows):
@@ -144,7 +144,8 @@ def _plot(folder: Path, frame: Any, swept: list[str]) -> list[Path]:
         fig, axes = plt.subplots(1 + len(metrics), 1, figsize=(max(5.0, 1.1 * len(parts) + 2), 2.6 * (1 + len(metrics))),
                                  sharex=True, squeeze=False)
         ax = axes[0, 0]
-        rates, err = [], [[], []]
+        rates: list[float] = []
+        err: list[list[float]] = [[], []]
         for _, _, rows in parts:
             k, n = _success(rows)
             lo, hi = wilson_interval(k, n)
