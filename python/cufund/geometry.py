@@ -120,6 +120,15 @@ def unit_quaternion(q: ArrayLike, field: str = "q") -> Array:
 # --- quaternions and rotation matrices ------------------------------------------------------------------------------
 
 
+def _matrix_rows(w: Any, x: Any, y: Any, z: Any) -> list[list[Any]]:
+    """The rows of R of the unit quaternion [w, x, y, z], for floats or arrays alike (one expression for both)."""
+    return [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ]
+
+
 def quat_to_matrix(q_AB: ArrayLike, normalize: bool = False) -> Array:
     """R_AB (…, 3, 3) of unit quaternions q_AB (…, 4) [w, x, y, z]. With ``normalize`` the quaternions are divided
     by their norm first; without, a norm more than 1e-3 from 1 is refused (the matrix would not be a rotation)."""
@@ -133,27 +142,13 @@ def quat_to_matrix(q_AB: ArrayLike, normalize: bool = False) -> Array:
             w, x, y, z = _normalized(q).tolist()
         else:
             _check_unit(n2, "q_AB")
-        return np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-            ]
-        )
+        return np.array(_matrix_rows(w, x, y, z))
     q, norm2 = _quaternions(q, "q_AB")
     if normalize:
         q = _normalized(q)
     else:
         _check_unit(norm2, "q_AB")
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        -2,
-    )
+    return np.stack([np.stack(row, -1) for row in _matrix_rows(*np.moveaxis(q, -1, 0))], -2)
 
 
 def _rotation_matrices(R_AB: ArrayLike) -> Array:
@@ -183,50 +178,60 @@ def _rotation_matrices(R_AB: ArrayLike) -> Array:
     return R
 
 
+def _shepperd(branch: int, m: list[list[Any]], sqrt: Callable[[Any], Any]) -> tuple[Any, Any, Any, Any]:
+    """The quaternion [w, x, y, z] (not normalised) of the rotation matrix ``m`` (rows of floats or of arrays) by
+    Shepperd's branch 0 (from the trace), 1, 2 or 3 (from R_xx, R_yy, R_zz): one expression for both."""
+    if branch == 0:
+        s = 2.0 * sqrt(m[0][0] + m[1][1] + m[2][2] + 1.0)
+        return 0.25 * s, (m[2][1] - m[1][2]) / s, (m[0][2] - m[2][0]) / s, (m[1][0] - m[0][1]) / s
+    if branch == 1:
+        s = 2.0 * sqrt(1.0 + m[0][0] - m[1][1] - m[2][2])
+        return (m[2][1] - m[1][2]) / s, 0.25 * s, (m[0][1] + m[1][0]) / s, (m[0][2] + m[2][0]) / s
+    if branch == 2:
+        s = 2.0 * sqrt(1.0 + m[1][1] - m[0][0] - m[2][2])
+        return (m[0][2] - m[2][0]) / s, (m[0][1] + m[1][0]) / s, 0.25 * s, (m[1][2] + m[2][1]) / s
+    s = 2.0 * sqrt(1.0 + m[2][2] - m[0][0] - m[1][1])
+    return (m[1][0] - m[0][1]) / s, (m[0][2] + m[2][0]) / s, (m[1][2] + m[2][1]) / s, 0.25 * s
+
+
 def quat_from_matrix(R_AB: ArrayLike) -> Array:
     """q_AB (…, 4) [w, x, y, z] with w >= 0 of rotation matrices R_AB (…, 3, 3) (Shepperd's method: the branch
     of the largest of trace, R_xx, R_yy, R_zz, so no division by a small number)."""
     R = _rotation_matrices(R_AB)
     if R.shape == (3, 3):  # one matrix in float arithmetic (per-scan paths)
-        (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R.tolist()
-        tr = m00 + m11 + m22
-        if tr > 0:
-            s = 2.0 * math.sqrt(tr + 1.0)
-            q = (0.25 * s, (m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s)
-        elif m00 > m11 and m00 > m22:
-            s = 2.0 * math.sqrt(1.0 + m00 - m11 - m22)
-            q = ((m21 - m12) / s, 0.25 * s, (m01 + m10) / s, (m02 + m20) / s)
-        elif m11 > m22:
-            s = 2.0 * math.sqrt(1.0 + m11 - m00 - m22)
-            q = ((m02 - m20) / s, (m01 + m10) / s, 0.25 * s, (m12 + m21) / s)
+        m = R.tolist()
+        if m[0][0] + m[1][1] + m[2][2] > 0:
+            branch = 0
+        elif m[0][0] > m[1][1] and m[0][0] > m[2][2]:
+            branch = 1
         else:
-            s = 2.0 * math.sqrt(1.0 + m22 - m00 - m11)
-            q = ((m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s)
-        out = np.array(q)
+            branch = 2 if m[1][1] > m[2][2] else 3
+        out = np.array(_shepperd(branch, m, math.sqrt))
         out /= np.linalg.norm(out)
         return -out if out[0] < 0 else out
-    m = [[R[..., i, j] for j in range(3)] for i in range(3)]
-    trace = m[0][0] + m[1][1] + m[2][2]
-    # the four branches for every matrix (the unused ones may take the root of a negative number: silenced,
-    # then not selected), the same expressions as above so one matrix and a batch agree bit for bit
+    rows = [[R[..., i, j] for j in range(3)] for i in range(3)]
+    first = rows[0][0] + rows[1][1] + rows[2][2] > 0
+    second = ~first & (rows[0][0] > rows[1][1]) & (rows[0][0] > rows[2][2])
+    third = ~first & ~second & (rows[1][1] > rows[2][2])
+    # every branch for every matrix (an unused one may take the root of a negative number: silenced, not selected)
     with np.errstate(invalid="ignore", divide="ignore"):
-        s0 = 2.0 * np.sqrt(trace + 1.0)
-        s1 = 2.0 * np.sqrt(1.0 + m[0][0] - m[1][1] - m[2][2])
-        s2 = 2.0 * np.sqrt(1.0 + m[1][1] - m[0][0] - m[2][2])
-        s3 = 2.0 * np.sqrt(1.0 + m[2][2] - m[0][0] - m[1][1])
-        branches = [
-            np.stack([0.25 * s0, (m[2][1] - m[1][2]) / s0, (m[0][2] - m[2][0]) / s0, (m[1][0] - m[0][1]) / s0], -1),
-            np.stack([(m[2][1] - m[1][2]) / s1, 0.25 * s1, (m[0][1] + m[1][0]) / s1, (m[0][2] + m[2][0]) / s1], -1),
-            np.stack([(m[0][2] - m[2][0]) / s2, (m[0][1] + m[1][0]) / s2, 0.25 * s2, (m[1][2] + m[2][1]) / s2], -1),
-            np.stack([(m[1][0] - m[0][1]) / s3, (m[0][2] + m[2][0]) / s3, (m[1][2] + m[2][1]) / s3, 0.25 * s3], -1),
-        ]
-    first = trace > 0
-    second = ~first & (m[0][0] > m[1][1]) & (m[0][0] > m[2][2])
-    third = ~first & ~second & (m[1][1] > m[2][2])
+        branches = [np.stack(_shepperd(b, rows, np.sqrt), -1) for b in range(4)]
     out = np.select([first[..., None], second[..., None], third[..., None]], branches[:3], branches[3])
     out = out / np.linalg.norm(out, axis=-1, keepdims=True)
     q_AB: Array = np.where(out[..., :1] < 0, -out, out)
     return q_AB
+
+
+def _hamilton(a: Any, b: Any) -> list[Any]:
+    """a ⊗ b of quaternions given as 4 components [w, x, y, z] each (floats or arrays alike)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return [
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ]
 
 
 def quat_mul(q_AB: ArrayLike, q_BC: ArrayLike) -> Array:
@@ -234,31 +239,13 @@ def quat_mul(q_AB: ArrayLike, q_BC: ArrayLike) -> Array:
     a = _floats(q_AB, "q_AB", "(…, 4) [w, x, y, z]")
     b = _floats(q_BC, "q_BC", "(…, 4) [w, x, y, z]")
     if a.shape == (4,) and b.shape == (4,):  # one product in float arithmetic
-        aw, ax, ay, az = a.tolist()
-        bw, bx, by, bz = b.tolist()
-        if not math.isfinite(aw + ax + ay + az + bw + bx + by + bz):
+        a_wxyz, b_wxyz = a.tolist(), b.tolist()
+        if not math.isfinite(sum(a_wxyz) + sum(b_wxyz)):
             _finite_quaternions(a, "q_AB")
             _finite_quaternions(b, "q_BC")
-        return np.array(
-            [
-                aw * bw - ax * bx - ay * by - az * bz,
-                aw * bx + ax * bw + ay * bz - az * by,
-                aw * by - ax * bz + ay * bw + az * bx,
-                aw * bz + ax * by - ay * bx + az * bw,
-            ]
-        )
+        return np.array(_hamilton(a_wxyz, b_wxyz))
     a, b = _finite_quaternions(a, "q_AB"), _finite_quaternions(b, "q_BC")
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        -1,
-    )
+    return np.stack(_hamilton(np.moveaxis(a, -1, 0), np.moveaxis(b, -1, 0)), -1)
 
 
 def quat_conjugate(q_AB: ArrayLike) -> Array:
