@@ -27,12 +27,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from cufund.estimation import FlatBodyMotion, LioCore, LioParams, odometry_errors, record_flight, replay
-from cufund.geometry import homogeneous
+from cufund.geometry import Transform, homogeneous
 from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import Mid360Pattern
-from cufund.geometry import Transform
 from cufund.worlds import load
 
 T_BL = Transform(t=(0.0, 0.0, 0.08))  # Mid-360 on top of the frame

@@ -375,8 +375,8 @@ def test_mid360_pattern_is_the_documented_formula():
 
 
 def test_lidar_component_samples_its_poses_as_the_scalar_pose_function_does():
-    from cufund.sensors.lidar_component import LidarComponent
     from cufund.geometry import sample_poses
+    from cufund.sensors.lidar_component import LidarComponent
     from cufund.worlds.builtin import imav2025_tunnel
 
     comp = LidarComponent(L.Lidar(L.mid360(), T_BL=Transform((0.0, 0.0, 0.08), yaw_quaternion(0.2))),

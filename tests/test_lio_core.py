@@ -8,11 +8,11 @@ from scipy.spatial.transform import Rotation
 
 from cufund.core.config import ConfigError
 from cufund.estimation import FlatBodyMotion, LioCore, LioParams, record_flight, replay
+from cufund.geometry import Transform
 from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import Mid360Pattern
-from cufund.geometry import Transform
 from cufund.worlds import load
 
 T_BL = Transform(t=(0.05, 0.0, 0.05))

@@ -8,9 +8,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from cufund import _core
+from cufund.geometry import Transform
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import Mid360Pattern
-from cufund.geometry import Transform
 from cufund.worlds import load
 
 odo = _core.odometry

@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cufund.core.config import ConfigError, check_at_most, check_real_fields, from_dict, nested
-from cufund.sensors.imu import G0, ImuParams, imu_preset
 from cufund.geometry import Transform
+from cufund.sensors.imu import G0, ImuParams, imu_preset
 
 __all__ = ["LioParams"]
 

@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from cufund.geometry import quat_to_matrix
 from cufund.core.messages import Topics
+from cufund.geometry import quat_to_matrix
 
 __all__ = ["GcsSession", "jsonable", "position_of"]
 
