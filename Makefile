@@ -15,7 +15,7 @@ BUILD_PACKAGES := python3 python3-venv python3-dev g++ make pkg-config git ca-ce
 # mona: needed by later issues.
 APT_PACKAGES := $(BUILD_PACKAGES) libeigen3-dev libembree-dev libbullet-dev libgtest-dev libbenchmark-dev \
                 liblz4-dev libzstd-dev libdeflate-dev \
-                libusb-1.0-0 libgl1 libegl1 libx11-6 libtbb12 chromium chromium-driver mona
+                libusb-1.0-0 libgl1 libegl1 libx11-6 libtbb12 chromium chromium-driver mona clang-format
 # Build tools installed into the venv (no build isolation, so rebuilds are incremental).
 BUILD_TOOLS := "scikit-build-core>=0.10" "pybind11>=3.1,<3.2" "cmake>=3.18" ninja
 
@@ -145,6 +145,14 @@ docs: $(VENV)/.docs
 # Regenerates the checked-in type stubs from the compiled module (tests/test_stubs.py checks them).
 stubs: $(VENV)/.installed
 	$(VPY) -m pybind11_stubgen cufund._core -o python --numpy-array-use-type-var
+
+# Every C++ file of cpp/ and bindings/ formatted as .clang-format says (Debian's clang-format, from `make deps`);
+# `clang-format -i FILE` formats one.
+CPP_FORMATTED := $(shell find cpp bindings -type f \( -name '*.cpp' -o -name '*.h' \))
+.PHONY: lint-cpp
+lint-cpp:
+	@command -v clang-format >/dev/null || $(MAKE) deps
+	clang-format --dry-run --Werror $(CPP_FORMATTED)
 
 clean:
 	rm -rf build dist $(VENV) *.egg-info

@@ -121,17 +121,16 @@ py::tuple command_tuple(const GeometricAttitudeCommand& c) {
 void define_control(py::module_& m) {
   py::class_<ControlAllocator>(m, "ControlAllocator",
                                "Prioritising allocation: roll/pitch first, then collective thrust, then yaw.")
-      .def(py::init([](const py::handle& params) { return ControlAllocator(params_arg(params)); }),
-           py::arg("params"))
-      .def("allocate",
-           [](const ControlAllocator& a, const py::handle& thrust, const py::handle& torque_B) {
-             const AllocationResult r = a.allocate(finite(thrust, "thrust"), vec3(torque_B, "torque_B"));
-             return py::make_tuple(Eigen::Vector4d(r.rotor_speeds), Eigen::Vector4d(r.achieved),
-                                   py::make_tuple(r.saturation[0], r.saturation[1], r.saturation[2],
-                                                  r.saturation[3]));
-           },
-           py::arg("thrust"), py::arg("torque_B"),
-           "(rotor_speeds (4,) [rad/s], achieved [f, Mx, My, Mz] (4,), saturation signs (4 ints)).")
+      .def(py::init([](const py::handle& params) { return ControlAllocator(params_arg(params)); }), py::arg("params"))
+      .def(
+          "allocate",
+          [](const ControlAllocator& a, const py::handle& thrust, const py::handle& torque_B) {
+            const AllocationResult r = a.allocate(finite(thrust, "thrust"), vec3(torque_B, "torque_B"));
+            return py::make_tuple(Eigen::Vector4d(r.rotor_speeds), Eigen::Vector4d(r.achieved),
+                                  py::make_tuple(r.saturation[0], r.saturation[1], r.saturation[2], r.saturation[3]));
+          },
+          py::arg("thrust"), py::arg("torque_B"),
+          "(rotor_speeds (4,) [rad/s], achieved [f, Mx, My, Mz] (4,), saturation signs (4 ints)).")
       .def_property_readonly("max_thrust", &ControlAllocator::max_thrust, "All rotors at full speed [N].");
 
   py::class_<PositionControl>(
@@ -156,12 +155,12 @@ void define_control(py::module_& m) {
              const py::handle& thr_max) {
             c.set_gains({vec3(k_p, "k_p"), vec3(k_v, "k_v"), vec3(k_i, "k_i"), vec3(k_d, "k_d"),
                          finite(xy_vel_max, "xy_vel_max"), finite(z_vel_max_up, "z_vel_max_up"),
-                         finite(z_vel_max_dn, "z_vel_max_dn"), finite(tilt_max, "tilt_max"),
-                         finite(thr_min, "thr_min"), finite(thr_max, "thr_max")});
+                         finite(z_vel_max_dn, "z_vel_max_dn"), finite(tilt_max, "tilt_max"), finite(thr_min, "thr_min"),
+                         finite(thr_max, "thr_max")});
           },
           py::arg("k_p"), py::arg("k_v"), py::arg("k_i"), py::arg("k_d"), py::arg("xy_vel_max"),
-          py::arg("z_vel_max_up"), py::arg("z_vel_max_dn"), py::arg("tilt_max"), py::arg("thr_min"),
-          py::arg("thr_max"), "Gains (x, y, z) and limits as in cufund.control.PositionControlParams.")
+          py::arg("z_vel_max_up"), py::arg("z_vel_max_dn"), py::arg("tilt_max"), py::arg("thr_min"), py::arg("thr_max"),
+          "Gains (x, y, z) and limits as in cufund.control.PositionControlParams.")
       .def("reset", &PositionControl::reset, "Integrator, derivative filter and hand-over to their initial state.")
       .def(
           "filter_velocity",
@@ -177,10 +176,9 @@ void define_control(py::module_& m) {
             Eigen::Vector3d h;
             if (!handover.is_none()) h = vec3(handover, "handover");
             const PositionControlOutput out =
-                c.step(finite(t, "t"), positive(dt, "dt"), vec3(p_W, "p_W"), vec3(v_W, "v_W"),
-                       vec3(p_sp, "p_sp"), vec3(v_sp, "v_sp"), vec3(a_sp, "a_sp"),
-                       finite(yaw, "yaw"), bool_arg(position_mode, "position_mode"),
-                       handover.is_none() ? nullptr : &h);
+                c.step(finite(t, "t"), positive(dt, "dt"), vec3(p_W, "p_W"), vec3(v_W, "v_W"), vec3(p_sp, "p_sp"),
+                       vec3(v_sp, "v_sp"), vec3(a_sp, "a_sp"), finite(yaw, "yaw"),
+                       bool_arg(position_mode, "position_mode"), handover.is_none() ? nullptr : &h);
             return py::make_tuple(readonly_array<4>(out.q_WB), out.thrust);
           },
           py::arg("t"), py::arg("dt"), py::arg("p_W"), py::arg("v_W"), py::arg("p_sp"), py::arg("v_sp"),
@@ -212,8 +210,7 @@ void define_control(py::module_& m) {
       .def(
           "rate_setpoint",
           [](const AttitudeControl& c, const py::handle& q_WB, const py::handle& q_WB_d, const py::handle& yaw_rate) {
-            return readonly_array<3>(attitude_rate_setpoint(vec4(q_WB, "q_WB"),
-                                                            vec4(q_WB_d, "q_WB_d"),
+            return readonly_array<3>(attitude_rate_setpoint(vec4(q_WB, "q_WB"), vec4(q_WB_d, "q_WB_d"),
                                                             finite(yaw_rate, "yaw_rate"), c.k, c.rate_max,
                                                             c.yaw_weight));
           },
@@ -245,12 +242,10 @@ void define_control(py::module_& m) {
           [](RateControl& c, const py::handle& w_B, const py::handle& w_sp, const py::handle& thrust,
              const py::handle& dt) {
             const AllocationResult r =
-                c.step(vec3(w_B, "w_B"), vec3(w_sp, "w_sp"), finite(thrust, "thrust"),
-                       positive(dt, "dt"));
+                c.step(vec3(w_B, "w_B"), vec3(w_sp, "w_sp"), finite(thrust, "thrust"), positive(dt, "dt"));
             return py::make_tuple(readonly_array<4>(r.rotor_speeds), r.achieved[0],
                                   readonly_array<3>(Eigen::Vector3d(r.achieved.tail<3>())),
-                                  py::make_tuple(r.saturation[0], r.saturation[1], r.saturation[2],
-                                                 r.saturation[3]));
+                                  py::make_tuple(r.saturation[0], r.saturation[1], r.saturation[2], r.saturation[3]));
           },
           py::arg("w_B"), py::arg("w_sp"), py::arg("thrust"), py::arg("dt"),
           "One step with measured rate w_B (3,) [rad/s], setpoint w_sp (3,) [rad/s], collective thrust [N], dt [s] "
@@ -262,8 +257,8 @@ void define_control(py::module_& m) {
           "Rate integrator (3,) [rad/s^2].");
 
   py::class_<GeometricControl>(m, "GeometricControl",
-                                "The SE(3) controller's force law, attitude law and allocation, one call per step "
-                                "(cufund.control.GeometricController keeps the flight-mode logic).")
+                               "The SE(3) controller's force law, attitude law and allocation, one call per step "
+                               "(cufund.control.GeometricController keeps the flight-mode logic).")
       .def(py::init([](const py::handle& params, const py::handle& transfer_tau) {
              return GeometricControl(params_arg(params), positive(transfer_tau, "transfer_tau"));
            }),
@@ -286,12 +281,11 @@ void define_control(py::module_& m) {
              const py::handle& position_mode, const py::handle& handover) {
             Eigen::Vector3d h;
             if (!handover.is_none()) h = vec3(handover, "handover");
-            return geometric_step_tuple(c.step_force(
-                finite(t, "t"), vec3(p_W, "p_W"), vec3(v_W, "v_W"),
-                unit_quaternion(q_WB, "q_WB"), vec3(w_B, "w_B"),
-                vec3(p_sp, "p_sp"), vec3(v_sp, "v_sp"), vec3(a_sp, "a_sp"),
-                vec3(j_sp, "j_sp"), finite(yaw, "yaw"), finite(yaw_rate, "yaw_rate"),
-                bool_arg(position_mode, "position_mode"), handover.is_none() ? nullptr : &h));
+            return geometric_step_tuple(
+                c.step_force(finite(t, "t"), vec3(p_W, "p_W"), vec3(v_W, "v_W"), unit_quaternion(q_WB, "q_WB"),
+                             vec3(w_B, "w_B"), vec3(p_sp, "p_sp"), vec3(v_sp, "v_sp"), vec3(a_sp, "a_sp"),
+                             vec3(j_sp, "j_sp"), finite(yaw, "yaw"), finite(yaw_rate, "yaw_rate"),
+                             bool_arg(position_mode, "position_mode"), handover.is_none() ? nullptr : &h));
           },
           py::arg("t"), py::arg("p_W"), py::arg("v_W"), py::arg("q_WB"), py::arg("w_B"), py::arg("p_sp"),
           py::arg("v_sp"), py::arg("a_sp"), py::arg("j_sp"), py::arg("yaw"), py::arg("yaw_rate"),
@@ -303,10 +297,9 @@ void define_control(py::module_& m) {
           "step_attitude",
           [](const GeometricControl& c, const py::handle& q_WB, const py::handle& w_B, const py::handle& q_WB_d,
              const py::handle& thrust, const py::handle& yaw_rate) {
-            return geometric_step_tuple(c.step_attitude(
-                unit_quaternion(q_WB, "q_WB"), vec3(w_B, "w_B"),
-                unit_quaternion(q_WB_d, "q_WB_d"), finite(thrust, "thrust"),
-                finite(yaw_rate, "yaw_rate")));
+            return geometric_step_tuple(c.step_attitude(unit_quaternion(q_WB, "q_WB"), vec3(w_B, "w_B"),
+                                                        unit_quaternion(q_WB_d, "q_WB_d"), finite(thrust, "thrust"),
+                                                        finite(yaw_rate, "yaw_rate")));
           },
           py::arg("q_WB"), py::arg("w_B"), py::arg("q_WB_d"), py::arg("thrust"), py::arg("yaw_rate"),
           "Attitude mode: as step_force's result for a desired attitude q_WB_d, thrust [N] and yaw rate [rad/s].");
@@ -328,8 +321,7 @@ void define_control(py::module_& m) {
         const Eigen::Matrix3d Jm = inertia_arg(J);
         return command_tuple(geometric_from_force(Jm, mass_arg(mass), vec3(k_R, "k_R"), vec3(k_W, "k_W"),
                                                   unit_quaternion(q_WB, "q_WB"), vec3(w_B, "w_B"), vec3(F_W, "F_W"),
-                                                  vec3(j_W, "j_W"), finite(yaw, "yaw"),
-                                                  finite(yaw_rate, "yaw_rate")));
+                                                  vec3(j_W, "j_W"), finite(yaw, "yaw"), finite(yaw_rate, "yaw_rate")));
       },
       py::arg("J"), py::arg("mass"), py::arg("k_R"), py::arg("k_W"), py::arg("q_WB"), py::arg("w_B"), py::arg("F_W"),
       py::arg("j_W"), py::arg("yaw"), py::arg("yaw_rate"),
@@ -339,10 +331,9 @@ void define_control(py::module_& m) {
       [](const py::handle& J, const py::handle& k_R, const py::handle& k_W, const py::handle& q_WB,
          const py::handle& w_B, const py::handle& q_WB_d, const py::handle& thrust, const py::handle& yaw_rate) {
         const Eigen::Matrix3d Jm = inertia_arg(J);
-        return command_tuple(geometric_from_attitude(Jm, vec3(k_R, "k_R"), vec3(k_W, "k_W"),
-                                                     unit_quaternion(q_WB, "q_WB"), vec3(w_B, "w_B"),
-                                                     unit_quaternion(q_WB_d, "q_WB_d"),
-                                                     finite(thrust, "thrust"), finite(yaw_rate, "yaw_rate")));
+        return command_tuple(geometric_from_attitude(
+            Jm, vec3(k_R, "k_R"), vec3(k_W, "k_W"), unit_quaternion(q_WB, "q_WB"), vec3(w_B, "w_B"),
+            unit_quaternion(q_WB_d, "q_WB_d"), finite(thrust, "thrust"), finite(yaw_rate, "yaw_rate")));
       },
       py::arg("J"), py::arg("k_R"), py::arg("k_W"), py::arg("q_WB"), py::arg("w_B"), py::arg("q_WB_d"),
       py::arg("thrust"), py::arg("yaw_rate"),

@@ -35,15 +35,15 @@ const char* row_name(int row) {
 void raise_step_error(const StepResult& r, double dt, const py::array& cmd, std::size_t n) {
   std::ostringstream os;
   switch (r.status) {
-    case StepStatus::kOk:
-      return;
+    case StepStatus::kOk: return;
     case StepStatus::kBadTimeStep:
       os << "dt must be a finite number > 0 [s], got " << dt;
       throw py::value_error(os.str());
     case StepStatus::kTooManySubsteps:
       os << "dt must need at most " << QuadrotorBatch::max_substeps()
          << " integration sub-steps (dt / max_integration_step; raise cufund.limits.configure(step_max_substeps=...)),"
-            " got dt = " << dt << " s";
+            " got dt = "
+         << dt << " s";
       throw py::value_error(os.str());
     case StepStatus::kNonFiniteCommand: {
       const double bad = static_cast<const double*>(cmd.data())[r.index];
@@ -166,24 +166,29 @@ void define_dynamics(py::module_& m) {
           "Simulated time [s].")
       .def_property_readonly("hover_rotor_speed", &QuadrotorBatch::hover_rotor_speed)
       .def("reset", &QuadrotorBatch::reset, "All vehicles at the origin, level, at rest; time 0.")
-#define CUFUND_VIEW(name, field, rows, doc)                                                       \
-  .def_property_readonly(                                                                          \
-      name,                                                                                        \
-      [](py::object self) {                                                                        \
-        auto& b = self.cast<QuadrotorBatch&>();                                                    \
-        return soa_view(b.row(QuadrotorBatch::field), b.size(), rows, self);                      \
-      },                                                                                           \
+#define CUFUND_VIEW(name, field, rows, doc)                                  \
+  .def_property_readonly(                                                    \
+      name,                                                                  \
+      [](py::object self) {                                                  \
+        auto& b = self.cast<QuadrotorBatch&>();                              \
+        return soa_view(b.row(QuadrotorBatch::field), b.size(), rows, self); \
+      },                                                                     \
       doc)
-      CUFUND_VIEW("p", kP, 3, "Position p_W [m], (N, 3) view.")
-      CUFUND_VIEW("v", kV, 3, "Velocity v_W [m/s], (N, 3) view.")
-      CUFUND_VIEW("q", kQ, 4, "Attitude q_WB [w, x, y, z], (N, 4) view.")
-      CUFUND_VIEW("w", kW, 3, "Body rate w_B [rad/s], (N, 3) view.")
-      CUFUND_VIEW("rotor_speeds", kRotor, 4, "Rotor speeds [rad/s], (N, 4) view, PX4 numbering.")
-      CUFUND_VIEW("wind_W", kWind, 3, "Wind velocity in world frame [m/s], (N, 3) view, held over a step.")
-      CUFUND_VIEW("force_ext_W", kForceExt, 3, "External force, world frame [N], (N, 3) view, held over a step.")
-      CUFUND_VIEW("torque_ext_B", kTorqueExt, 3, "External torque, body frame [N m], (N, 3) view, held over a step.")
-      CUFUND_VIEW("accel_W", kAccel, 3, "Acceleration dv_W/dt at the end of the last step [m/s^2], (N, 3) view.")
-      CUFUND_VIEW("alpha_B", kAlpha, 3, "Angular acceleration dw_B/dt at the end of the last step [rad/s^2], (N, 3).")
+          CUFUND_VIEW("p", kP, 3, "Position p_W [m], (N, 3) view.") CUFUND_VIEW(
+              "v", kV, 3, "Velocity v_W [m/s], (N, 3) view.") CUFUND_VIEW("q", kQ, 4,
+                                                                          "Attitude q_WB [w, x, y, z], (N, 4) view.")
+              CUFUND_VIEW("w", kW, 3, "Body rate w_B [rad/s], (N, 3) view.") CUFUND_VIEW(
+                  "rotor_speeds", kRotor, 4, "Rotor speeds [rad/s], (N, 4) view, PX4 numbering.")
+                  CUFUND_VIEW("wind_W", kWind, 3, "Wind velocity in world frame [m/s], (N, 3) view, held over a step.")
+                      CUFUND_VIEW("force_ext_W", kForceExt, 3,
+                                  "External force, world frame [N], (N, 3) view, held over a step.")
+                          CUFUND_VIEW("torque_ext_B", kTorqueExt, 3,
+                                      "External torque, body frame [N m], (N, 3) view, held over a step.")
+                              CUFUND_VIEW("accel_W", kAccel, 3,
+                                          "Acceleration dv_W/dt at the end of the last step [m/s^2], (N, 3) view.")
+                                  CUFUND_VIEW(
+                                      "alpha_B", kAlpha, 3,
+                                      "Angular acceleration dw_B/dt at the end of the last step [rad/s^2], (N, 3).")
 #undef CUFUND_VIEW
       .def(
           "step",
@@ -206,8 +211,9 @@ void define_dynamics(py::module_& m) {
           "Advance by dt [s] holding rotor_speed_cmd (N, 4) [rad/s]; nthreads 0 = all cores. Concurrent calls from "
           "several threads run one after the other (an internal lock).");
   m.def(
-      "set_max_step_substeps", [](const py::handle& n) { QuadrotorBatch::set_max_substeps(int_arg(n, "n", 1, 1000000000)); },
-      py::arg("n"), "Most RK4 sub-steps one QuadrotorBatch.step may take (process-wide).");
+      "set_max_step_substeps",
+      [](const py::handle& n) { QuadrotorBatch::set_max_substeps(int_arg(n, "n", 1, 1000000000)); }, py::arg("n"),
+      "Most RK4 sub-steps one QuadrotorBatch.step may take (process-wide).");
   m.def("max_step_substeps", &QuadrotorBatch::max_substeps, "Most RK4 sub-steps one QuadrotorBatch.step may take.");
 }
 
@@ -291,7 +297,8 @@ Use cufund.worlds.CollisionChecker, which builds it from a cufund.World.
               if (!std::isfinite(p.data()[k])) throw py::value_error("p_W must be finite [m]");
             }
             if (!(std::isfinite(qn) && qn > 1e-12)) throw py::value_error("q_WB must be a finite non-zero quaternion");
-            if (!(std::isfinite(margin) && margin >= 0)) throw py::value_error("margin must be a finite number >= 0 [m]");
+            if (!(std::isfinite(margin) && margin >= 0))
+              throw py::value_error("margin must be a finite number >= 0 [m]");
             double qu[4];
             for (int k = 0; k < 4; ++k) qu[k] = q.data()[k] / std::sqrt(qn);
             const Contact c = w.check(p.data(), qu, margin);

@@ -1,13 +1,13 @@
 // Bindings of cpp/esdf: the exact Euclidean distance transform and the incremental ESDF map.
 #include <cmath>
-#include <shared_mutex>
 #include <limits>
 #include <memory>
+#include <shared_mutex>
 
 #include "edt.h"
 #include "esdf_map.h"
-#include "scan_placement.h"
 #include "pybind_common.h"
+#include "scan_placement.h"
 #include "thread_pool.h"
 
 namespace cufund::py_bind {
@@ -53,7 +53,8 @@ py::array_t<std::uint8_t, py::array::c_style> occupancy_array(const py::handle& 
   }
   const char kind = arr.dtype().kind();
   if (kind != 'b' && kind != 'i' && kind != 'u') {
-    throw py::value_error("occupied must be a boolean (or integer) array, got dtype " + std::string(py::str(arr.dtype())));
+    throw py::value_error("occupied must be a boolean (or integer) array, got dtype " +
+                          std::string(py::str(arr.dtype())));
   }
   if (arr.ndim() < 1 || arr.ndim() > 3) {
     throw py::value_error("occupied must be a 1-D, 2-D or 3-D array, got shape " + shape_str(arr));
@@ -140,10 +141,11 @@ void define_esdf(py::module_& m) {
         py::arg("single"),
         "Exact Euclidean distance transform; use cufund.mapping.edt, which documents the arguments.");
 
-  py::class_<esdf::EsdfMap>(m, "EsdfMap", "Occupancy grid with an incrementally exact ESDF; use cufund.mapping.EsdfMap.")
-      .def(py::init([](const py::handle& origin_W, const py::handle& shape_obj, double resolution, float hit, float miss,
-                       float lmin, float lmax, float locc, double max_range, bool signed_distance, int nthreads,
-                       bool merge_beams) {
+  py::class_<esdf::EsdfMap>(m, "EsdfMap",
+                            "Occupancy grid with an incrementally exact ESDF; use cufund.mapping.EsdfMap.")
+      .def(py::init([](const py::handle& origin_W, const py::handle& shape_obj, double resolution, float hit,
+                       float miss, float lmin, float lmax, float locc, double max_range, bool signed_distance,
+                       int nthreads, bool merge_beams) {
              esdf::GridGeometry g;
              g.origin_W = finite3(origin_W, "origin_W");
              auto s = as_float64(shape_obj, "shape", {3});
@@ -160,10 +162,13 @@ void define_esdf(py::module_& m) {
                throw py::value_error("shape must hold at most 2e9 voxels, got " + std::string(py::str(shape_obj)));
              }
              double diagonal2 = 0.0;  // squared distances are kept exactly as int32
-             for (int i = 0; i < 3; ++i) diagonal2 += std::pow(static_cast<double>(g.shape[static_cast<std::size_t>(i)] - 1), 2);
+             for (int i = 0; i < 3; ++i)
+               diagonal2 += std::pow(static_cast<double>(g.shape[static_cast<std::size_t>(i)] - 1), 2);
              if (diagonal2 > esdf::EsdfMap::kMaxSquaredDiagonal) {
-               throw py::value_error("shape must have a diagonal of at most 46340 voxels (squared distances are exact "
-                                     "32-bit integers), got " + std::string(py::str(shape_obj)));
+               throw py::value_error(
+                   "shape must have a diagonal of at most 46340 voxels (squared distances are exact "
+                   "32-bit integers), got " +
+                   std::string(py::str(shape_obj)));
              }
              if (!(std::isfinite(resolution) && resolution > 0.0)) {
                throw py::value_error("resolution must be finite and > 0 [m], got " + std::to_string(resolution));
@@ -238,7 +243,8 @@ void define_esdf(py::module_& m) {
             // Pose knots: (K,) strictly ascending finite stamps, (K, 3) positions, (K, 4) non-zero quaternions.
             py::array kt_arr = py::array::ensure(knots_t);
             const py::ssize_t nk = kt_arr && kt_arr.ndim() == 1 ? kt_arr.shape(0) : -1;
-            if (nk < 1) throw py::value_error("knots_t must be a non-empty 1-D array of times [s], got " + type_name(knots_t));
+            if (nk < 1)
+              throw py::value_error("knots_t must be a non-empty 1-D array of times [s], got " + type_name(knots_t));
             auto kt = as_float64(knots_t, "knots_t", {nk});
             auto kp = as_float64(knots_p, "knots_p", {nk, 3});
             auto kq = as_float64(knots_q, "knots_q", {nk, 4});
@@ -250,7 +256,8 @@ void define_esdf(py::module_& m) {
               for (int a = 0; a < 4; ++a) finite = finite && std::isfinite(q[a]);
               if (!finite) throw py::value_error("pose knot " + std::to_string(i) + " must be finite");
               if (!(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] > 1e-18)) {
-                throw py::value_error("knots_q row " + std::to_string(i) + " must be a non-zero quaternion [w, x, y, z]");
+                throw py::value_error("knots_q row " + std::to_string(i) +
+                                      " must be a non-zero quaternion [w, x, y, z]");
               }
               if (i && !(kt.data()[i] > kt.data()[i - 1])) {
                 throw py::value_error("knots_t must be strictly ascending, got " + std::to_string(kt.data()[i - 1]) +
@@ -270,8 +277,8 @@ void define_esdf(py::module_& m) {
             for (std::size_t k = 0; k < frames.size(); ++k) {
               const py::object item = frames[k];
               if (!py::isinstance<py::tuple>(item) || py::len(item) != 3) {
-                throw py::value_error("frames[" + std::to_string(k) + "] must be a tuple (points_L, t, t_origin), got " +
-                                      type_name(item));
+                throw py::value_error("frames[" + std::to_string(k) +
+                                      "] must be a tuple (points_L, t, t_origin), got " + type_name(item));
               }
               const py::tuple f = item.cast<py::tuple>();
               points.push_back(points_array(f[0], "points_L"));
@@ -329,14 +336,13 @@ void define_esdf(py::module_& m) {
             return stats_dict(s);
           },
           py::arg("index"), py::arg("value"))
-      .def(
-          "recompute",
-          [](esdf::EsdfMap& self) {
-            py::gil_scoped_release release;
-            ForkSafeSection no_fork;
-            std::unique_lock<std::shared_mutex> write(self.access_mutex());
-            self.recompute();
-          })
+      .def("recompute",
+           [](esdf::EsdfMap& self) {
+             py::gil_scoped_release release;
+             ForkSafeSection no_fork;
+             std::unique_lock<std::shared_mutex> write(self.access_mutex());
+             self.recompute();
+           })
       .def(
           "query",
           [](const esdf::EsdfMap& self, const py::handle& points_W, bool gradient) -> py::object {
@@ -393,7 +399,8 @@ void define_esdf(py::module_& m) {
            [](const esdf::EsdfMap& self) {
              std::shared_lock<std::shared_mutex> read(self.access_mutex());
              std::vector<double> v(static_cast<std::size_t>(self.occupancy().size()));
-             for (Index i = 0; i < self.occupancy().size(); ++i) v[static_cast<std::size_t>(i)] = self.voxel_distance(i);
+             for (Index i = 0; i < self.occupancy().size(); ++i)
+               v[static_cast<std::size_t>(i)] = self.voxel_distance(i);
              return grid_array(self, v);
            })
       .def("occupied",

@@ -68,8 +68,9 @@ py::array_t<std::uint32_t, py::array::c_style> triangles_array(const py::handle&
   switch (r.status) {
     case SceneStatus::kNoTriangles: os << " must hold at least one triangle, got (0, 3)"; break;
     case SceneStatus::kNonFiniteVertex: os << " must be finite, got a NaN or inf in vertex " << r.index; break;
-    case SceneStatus::kIndexOutOfRange: os << " must index existing vertices; triangle " << r.index
-                                            << " references a vertex index >= V"; break;
+    case SceneStatus::kIndexOutOfRange:
+      os << " must index existing vertices; triangle " << r.index << " references a vertex index >= V";
+      break;
     case SceneStatus::kNonFiniteRay: os << " must be finite, got a NaN or inf in ray " << r.index; break;
     case SceneStatus::kZeroDirection: os << " must have non-zero directions, got (0, 0, 0) in ray " << r.index; break;
     case SceneStatus::kOk: os << ": ok"; break;
@@ -178,9 +179,8 @@ py::dict scan_frame(const RaycastScene& scene, const py::handle& d_L, const py::
     lidar::cast_frame(scene, rays, t0, knots, model, nthreads, cast);
   }
   if (cast.bad_geometry != lidar::kInvalidId) {
-    throw py::value_error("reflectivity must have one entry per geometry, got " +
-                          std::to_string(model.n_reflectivity) + " and a hit on geometry " +
-                          std::to_string(cast.bad_geometry));
+    throw py::value_error("reflectivity must have one entry per geometry, got " + std::to_string(model.n_reflectivity) +
+                          " and a hit on geometry " + std::to_string(cast.bad_geometry));
   }
   const auto m = static_cast<py::ssize_t>(cast.returns.size());
   py::array_t<double> dt(m), ranges(m);
@@ -188,10 +188,14 @@ py::dict scan_frame(const RaycastScene& scene, const py::handle& d_L, const py::
   py::array_t<std::int32_t> channels(m);
   py::array_t<std::uint32_t> ids(m);
   py::array intensity = model.reflectivity ? py::array(py::array_t<double>(m)) : py::array(py::array_t<float>(m));
-  lidar::FrameReturns out{dt.mutable_data(), points_L.mutable_data(), ranges.mutable_data(),
+  lidar::FrameReturns out{dt.mutable_data(),
+                          points_L.mutable_data(),
+                          ranges.mutable_data(),
                           model.reflectivity ? static_cast<double*>(intensity.mutable_data()) : nullptr,
                           model.reflectivity ? nullptr : static_cast<float*>(intensity.mutable_data()),
-                          channels.mutable_data(), points_W.mutable_data(), ids.mutable_data()};
+                          channels.mutable_data(),
+                          points_W.mutable_data(),
+                          ids.mutable_data()};
   {
     py::gil_scoped_release release;
     lidar::write_returns(rays, model, cast, out);
@@ -208,7 +212,7 @@ py::dict scan_frame(const RaycastScene& scene, const py::handle& d_L, const py::
 }
 
 py::dict cast(const RaycastScene& scene, const py::handle& rays_obj, const py::handle& nthreads_obj,
-             const py::object& coherent) {
+              const py::object& coherent) {
   const int nthreads = threads_arg(nthreads_obj);
   py::array arr = checked_array(rays_obj, "rays");
   const char kind = arr.dtype().kind();
@@ -262,8 +266,9 @@ Add meshes with ``add_triangles``, then ``cast_rays``; the acceleration structur
 first cast after a change. Casting is multithreaded and releases the GIL.
 )doc")
       .def(py::init<>())
-      .def_property_readonly_static("INVALID_ID", [](py::object) { return lidar::kInvalidId; },
-                                    "geometry_ids / primitive_ids of a ray that hit nothing (4294967295).")
+      .def_property_readonly_static(
+          "INVALID_ID", [](py::object) { return lidar::kInvalidId; },
+          "geometry_ids / primitive_ids of a ray that hit nothing (4294967295).")
       .def(
           "add_triangles",
           [](RaycastScene& self, const py::handle& vertices, const py::handle& triangles) {
@@ -356,8 +361,8 @@ hits and ``object_ids`` (M,) uint32.
         const int nthreads = threads_arg(nthreads_obj);
         const std::int64_t k = int_arg(k_obj, "k", 0, std::int64_t{1} << 40);
         const std::int64_t n = int_arg(n_obj, "n", 0, std::int64_t{1} << 31);
-        lidar::Mid360Params p{finite_arg(point_rate, "point_rate"), int_arg(lasers, "lasers", 1, 1 << 20),
-                              finite_arg(spin_rate, "spin_rate"), finite_arg(sweep_ratio, "sweep_ratio"),
+        lidar::Mid360Params p{finite_arg(point_rate, "point_rate"),       int_arg(lasers, "lasers", 1, 1 << 20),
+                              finite_arg(spin_rate, "spin_rate"),         finite_arg(sweep_ratio, "sweep_ratio"),
                               finite_arg(elevation_min, "elevation_min"), finite_arg(elevation_max, "elevation_max")};
         if (!(p.point_rate > 0)) throw py::value_error("point_rate must be > 0 [1/s]");
         if (static_cast<double>(k + 1) * static_cast<double>(n) >= 9007199254740992.0) {  // 2^53: exact firing indices
@@ -368,8 +373,8 @@ hits and ``object_ids`` (M,) uint32.
         py::array_t<std::int32_t> ch(n);
         {
           py::gil_scoped_release release;
-          lidar::mid360_frame(p, k, static_cast<std::size_t>(n), t.mutable_data(), az.mutable_data(),
-                              el.mutable_data(), ch.mutable_data(), d.mutable_data(), nthreads);
+          lidar::mid360_frame(p, k, static_cast<std::size_t>(n), t.mutable_data(), az.mutable_data(), el.mutable_data(),
+                              ch.mutable_data(), d.mutable_data(), nthreads);
         }
         return py::make_tuple(t, az, el, ch, d);
       },

@@ -95,14 +95,15 @@ class LogCore {
   }
 
   // Registers a topic of fixed-size messages; returns its slot.
-  std::size_t add_fixed_topic(py::object topic, py::object cls, std::uint16_t channel, py::bytes row_template,
-                              const std::vector<std::tuple<std::string, char, std::size_t>>& scalars,
-                              const std::vector<std::tuple<std::string, py::object, std::size_t, std::size_t>>& arrays,
-                              const std::vector<std::string>& absent,
-                              const std::vector<std::tuple<std::uint16_t, py::bytes,
-                                                           std::vector<std::tuple<std::size_t, std::size_t, std::size_t>>,
-                                                           std::vector<std::tuple<std::size_t, std::size_t, std::size_t>>>>& views,
-                              std::size_t limit, py::object slow) {
+  std::size_t add_fixed_topic(
+      py::object topic, py::object cls, std::uint16_t channel, py::bytes row_template,
+      const std::vector<std::tuple<std::string, char, std::size_t>>& scalars,
+      const std::vector<std::tuple<std::string, py::object, std::size_t, std::size_t>>& arrays,
+      const std::vector<std::string>& absent,
+      const std::vector<
+          std::tuple<std::uint16_t, py::bytes, std::vector<std::tuple<std::size_t, std::size_t, std::size_t>>,
+                     std::vector<std::tuple<std::size_t, std::size_t, std::size_t>>>>& views,
+      std::size_t limit, py::object slow) {
     auto t = std::make_unique<FixedTopic>();
     t->cls = std::move(cls);
     const std::string tmpl = row_template;
@@ -122,8 +123,8 @@ class LogCore {
         throw py::value_error("arrays: each > 0 bytes, a multiple of its itemsize, inside the row");
       }
       py::str attr(name);
-      t->arrays.push_back({attr, dtype, static_cast<py::ssize_t>(nbytes / itemsize), nbytes, offset,
-                           slot_offset(t->cls, attr)});
+      t->arrays.push_back(
+          {attr, dtype, static_cast<py::ssize_t>(nbytes / itemsize), nbytes, offset, slot_offset(t->cls, attr)});
     }
     for (const auto& n : absent) t->absent.push_back(py::str(n));
     auto specs = std::make_shared<std::vector<ViewSpec>>();
@@ -133,7 +134,8 @@ class LogCore {
       const std::string vt = view_template;
       v.row_template.assign(vt.begin(), vt.end());
       for (const auto& [dst, src, bytes] : copies) {
-        if (dst + bytes > v.row_template.size() || src + bytes > size) throw py::value_error("views: copy outside a row");
+        if (dst + bytes > v.row_template.size() || src + bytes > size)
+          throw py::value_error("views: copy outside a row");
         v.copies.push_back({dst, src, bytes});
       }
       for (const auto& [sec, nsec, src] : stamps) {
@@ -427,9 +429,8 @@ PyObject* fast_write(PyObject* capsule, PyObject* const* args, Py_ssize_t nargs)
   }
 }
 
-PyMethodDef fast_write_def = {
-    "write", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)(void)>(fast_write)), METH_FASTCALL,
-    "write(topic, message, log_time_ns, publish_time_ns): logs one message."};
+PyMethodDef fast_write_def = {"write", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)(void)>(fast_write)),
+                              METH_FASTCALL, "write(topic, message, log_time_ns, publish_time_ns): logs one message."};
 
 py::object fast_writer(py::object self) {
   auto* b = new WriteBinding{self.cast<LogCore*>(), self.ptr()};

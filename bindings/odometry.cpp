@@ -63,7 +63,8 @@ Eigen::Isometry3d rigid_transform(const py::handle& obj, const char* field) {
   const Eigen::Matrix4d M = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(a.data());
   const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
   if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6 || R.determinant() < 0.0) {
-    throw py::value_error(std::string(field) + " must be a rigid transform: its 3x3 block is not a rotation "
+    throw py::value_error(std::string(field) +
+                          " must be a rigid transform: its 3x3 block is not a rotation "
                           "(orthonormal, det +1)");
   }
   if (std::abs(M(3, 0)) + std::abs(M(3, 1)) + std::abs(M(3, 2)) + std::abs(M(3, 3) - 1.0) > 1e-12) {
@@ -202,8 +203,8 @@ void define_odometry(py::module_& m) {
         }
         return py::make_tuple(states, rates);
       },
-      py::arg("p_W"), py::arg("v_W"), py::arg("q_WI"), py::arg("bias_acc"), py::arg("bias_gyr"),
-      py::arg("gravity_W"), py::arg("dt"), py::arg("acc"), py::arg("gyr"),
+      py::arg("p_W"), py::arg("v_W"), py::arg("q_WI"), py::arg("bias_acc"), py::arg("bias_gyr"), py::arg("gravity_W"),
+      py::arg("dt"), py::arg("acc"), py::arg("gyr"),
       "Propagates an IMU-frame state through samples held over dt (n,) [s] with accelerometer acc (n, 3) "
       "[m/s^2] and gyroscope gyr (n, 3) [rad/s] readings, exactly as GTSAM's tangent-space preintegration. "
       "Returns (states (n+1, 10) [p_W, v_W, q_WI (w, x, y, z)], rates (n, 6) [a_W, w_I] held over each sample).");
@@ -243,12 +244,14 @@ void define_odometry(py::module_& m) {
         PreparedScan out;
         {
           py::gil_scoped_release release;
-          out = prepare_scan(in.pts.data(), in.tp.data(), static_cast<std::size_t>(in.n), in.trajectory(), t_ref,
-                             in.bi, in.bl, min_range, insert_voxel, scan_voxel, threads);
+          out = prepare_scan(in.pts.data(), in.tp.data(), static_cast<std::size_t>(in.n), in.trajectory(), t_ref, in.bi,
+                             in.bl, min_range, insert_voxel, scan_voxel, threads);
         }
         auto ins = matrix(out.insert_I.size() / 3, 3), scan = matrix(out.scan_I.size() / 3, 3);
-        if (!out.insert_I.empty()) std::memcpy(ins.mutable_data(), out.insert_I.data(), out.insert_I.size() * sizeof(double));
-        if (!out.scan_I.empty()) std::memcpy(scan.mutable_data(), out.scan_I.data(), out.scan_I.size() * sizeof(double));
+        if (!out.insert_I.empty())
+          std::memcpy(ins.mutable_data(), out.insert_I.data(), out.insert_I.size() * sizeof(double));
+        if (!out.scan_I.empty())
+          std::memcpy(scan.mutable_data(), out.scan_I.data(), out.scan_I.size() * sizeof(double));
         return py::make_tuple(ins, scan);
       },
       py::arg("points_L"), py::arg("t_points"), py::arg("knot_t"), py::arg("states"), py::arg("rates"),
@@ -344,18 +347,21 @@ void define_odometry(py::module_& m) {
             self.map->evict(o);
           },
           py::arg("origin"))
-      .def("clear", [](PyVoxelMap& self) {
-        std::lock_guard<std::mutex> lock(self.m);
-        self.map->clear();
-      })
-      .def("__len__", [](const PyVoxelMap& self) {
-        std::lock_guard<std::mutex> lock(self.m);
-        return self.map->size();
-      })
-      .def_property_readonly("voxel_count", [](const PyVoxelMap& self) {
-        std::lock_guard<std::mutex> lock(self.m);
-        return self.map->voxel_count();
-      })
+      .def("clear",
+           [](PyVoxelMap& self) {
+             std::lock_guard<std::mutex> lock(self.m);
+             self.map->clear();
+           })
+      .def("__len__",
+           [](const PyVoxelMap& self) {
+             std::lock_guard<std::mutex> lock(self.m);
+             return self.map->size();
+           })
+      .def_property_readonly("voxel_count",
+                             [](const PyVoxelMap& self) {
+                               std::lock_guard<std::mutex> lock(self.m);
+                               return self.map->voxel_count();
+                             })
       .def_property_readonly("voxel_size", [](const PyVoxelMap& self) { return self.map->voxel_size(); })
       .def(
           "points",
@@ -414,7 +420,8 @@ void define_odometry(py::module_& m) {
               std::lock_guard<std::mutex> lock(self.m);
               static_assert(sizeof(bool) == sizeof(std::uint8_t), "bool arrays are written as bytes");
               self.map->fit_planes(p.data(), static_cast<std::size_t>(n), R, t, prm,
-                                   reinterpret_cast<std::uint8_t*>(valid.mutable_data()), planes.mutable_data(), threads);
+                                   reinterpret_cast<std::uint8_t*>(valid.mutable_data()), planes.mutable_data(),
+                                   threads);
             }
             return py::make_tuple(valid, planes);
           },
@@ -448,8 +455,7 @@ void define_odometry(py::module_& m) {
           },
           py::arg("points_I"), py::arg("R_WI"), py::arg("p_W"), py::arg("neighbours") = 5,
           py::arg("max_neighbour_distance") = 1.0, py::arg("max_plane_rms") = 0.05, py::arg("max_residual") = 0.5,
-          py::arg("robust") = "huber", py::arg("robust_scale") = 0.05, py::arg("sigma") = 0.02,
-          py::arg("nthreads") = 0,
+          py::arg("robust") = "huber", py::arg("robust_scale") = 0.05, py::arg("sigma") = 0.02, py::arg("nthreads") = 0,
           "Point-to-plane terms of points_I (N, 3) seen from the pose (R_WI (3, 3), p_W (3,)): a plane is fitted "
           "to each point's `neighbours` nearest map points. Returns a dict: valid (N,), residual (N,) [m], normal "
           "(N, 3), weight (N,) (robust 'none' | 'huber' | 'cauchy' at robust_scale [m]), H (6, 6) and b (6,) "

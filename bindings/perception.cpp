@@ -73,8 +73,9 @@ cluster near it; noise is -1.
         knots.segments = static_cast<std::size_t>(k - 1);
         knots.p_WL = p.data();
         knots.R_WL = R.data();
-        perception::CropBox box{finite_arg(max_range, "max_range"), finite_arg(z_min, "z_min"), finite_arg(z_max, "z_max"),
-                           finite_arg(tall_z, "tall_z"), finite_arg(column_cell, "column_cell")};
+        perception::CropBox box{finite_arg(max_range, "max_range"), finite_arg(z_min, "z_min"),
+                                finite_arg(z_max, "z_max"), finite_arg(tall_z, "tall_z"),
+                                finite_arg(column_cell, "column_cell")};
         if (!(box.column_cell > 0)) throw py::value_error("column_cell must be > 0 [m]");
         py::array t_arr = checked_array(tall_obj, "tall");
         if (t_arr.ndim() != 1 || t_arr.dtype().kind() != 'i') {
@@ -88,8 +89,8 @@ cluster near it; noise is -1.
         thread_local perception::CroppedScan out;
         {
           py::gil_scoped_release release;
-          perception::deskew_crop(pts.data(), times.data(), static_cast<std::size_t>(n), stride, knots, box, tall.data(),
-                             static_cast<std::size_t>(tall.shape(0)), out);
+          perception::deskew_crop(pts.data(), times.data(), static_cast<std::size_t>(n), stride, knots, box,
+                                  tall.data(), static_cast<std::size_t>(tall.shape(0)), out);
         }
         const auto m = static_cast<py::ssize_t>(out.columns.size());
         py::array_t<double> points_W({m, py::ssize_t{3}}), rays_W({m, py::ssize_t{3}});
@@ -132,8 +133,8 @@ new_tall: the sorted keys of those new tall columns not in ``tall``).
         py::array_t<std::int64_t> covered(k), counts(k);
         {
           py::gil_scoped_release release;
-          perception::line_support(along.data(), inlier.data(), static_cast<std::size_t>(n), static_cast<std::size_t>(k),
-                              covered.mutable_data(), counts.mutable_data());
+          perception::line_support(along.data(), inlier.data(), static_cast<std::size_t>(n),
+                                   static_cast<std::size_t>(k), covered.mutable_data(), counts.mutable_data());
         }
         return py::make_tuple(covered, counts);
       },

@@ -31,7 +31,8 @@ Vec3 point3(const py::handle& obj, const char* field) {
 }
 
 double radius_arg(double r) {
-  if (!(std::isfinite(r) && r >= 0.0)) throw py::value_error("radius must be finite and >= 0 [m], got " + std::to_string(r));
+  if (!(std::isfinite(r) && r >= 0.0))
+    throw py::value_error("radius must be finite and >= 0 [m], got " + std::to_string(r));
   return r;
 }
 
@@ -89,7 +90,8 @@ std::vector<Vec3> path_vector(const py::handle& obj, const char* field) {
   for (py::ssize_t i = 0; i < a.shape(0); ++i) {
     out[static_cast<std::size_t>(i)] = {a.at(i, 0), a.at(i, 1), a.at(i, 2)};
     for (double x : out[static_cast<std::size_t>(i)]) {
-      if (!std::isfinite(x)) throw py::value_error(std::string(field) + " must be finite, row " + std::to_string(i) + " is not");
+      if (!std::isfinite(x))
+        throw py::value_error(std::string(field) + " must be finite, row " + std::to_string(i) + " is not");
     }
   }
   return out;
@@ -170,9 +172,10 @@ PyObject* fast_segment_free(PyObject* capsule, PyObject* const* args, Py_ssize_t
   return PyBool_FromLong(free ? 1 : 0);
 }
 
-PyMethodDef fast_clearance_def = {"clearance", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)(void)>(fast_clearance)),
-                                  METH_FASTCALL | METH_KEYWORDS,
-                                  "clearance(x, y, z) -> float [m]: certified clearance at one point (scalar fast path)."};
+PyMethodDef fast_clearance_def = {
+    "clearance", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)(void)>(fast_clearance)),
+    METH_FASTCALL | METH_KEYWORDS,
+    "clearance(x, y, z) -> float [m]: certified clearance at one point (scalar fast path)."};
 PyMethodDef fast_segment_free_def = {
     "segment_free", reinterpret_cast<PyCFunction>(reinterpret_cast<void (*)(void)>(fast_segment_free)),
     METH_FASTCALL | METH_KEYWORDS,
@@ -218,7 +221,8 @@ SplineArgs spline_args(const py::handle& values_obj, const py::handle& durations
   for (py::ssize_t i = 0; i < a.durations.size(); ++i) {
     const double t = a.durations.data()[i];
     if (!(std::isfinite(t) && t > 0.0)) {
-      throw py::value_error("durations must be finite times > 0 [s], got " + std::to_string(t) + " at " + std::to_string(i));
+      throw py::value_error("durations must be finite times > 0 [s], got " + std::to_string(t) + " at " +
+                            std::to_string(i));
     }
   }
   return a;
@@ -236,7 +240,8 @@ void define_planning(py::module_& m) {
                throw py::value_error("distances must be a 3-D array (nx, ny, nz) [m], got " + shape_str(arr));
              }
              auto d = as_float64(distances_obj, "distances", {arr.shape(0), arr.shape(1), arr.shape(2)});
-             const auto g = geometry_arg(origin_W, py::make_tuple(arr.shape(0), arr.shape(1), arr.shape(2)), resolution);
+             const auto g =
+                 geometry_arg(origin_W, py::make_tuple(arr.shape(0), arr.shape(1), arr.shape(2)), resolution);
              const double* p = d.data();
              for (py::ssize_t i = 0; i < d.size(); ++i) {
                if (std::isnan(p[i])) throw py::value_error("distances must not hold NaN");
@@ -273,7 +278,8 @@ void define_planning(py::module_& m) {
           py::arg("points_W"))
       .def(
           "segment_free",
-          [](const ClearanceQuery& self, double x0, double y0, double z0, double x1, double y1, double z1, double radius) {
+          [](const ClearanceQuery& self, double x0, double y0, double z0, double x1, double y1, double z1,
+             double radius) {
             radius_arg(radius);
             const auto lock = self.read();
             return self.view.segment_free({x0, y0, z0}, {x1, y1, z1}, radius);
@@ -288,7 +294,8 @@ void define_planning(py::module_& m) {
             bool* o = out.mutable_data();
             py::gil_scoped_release release;
             const auto lock = self.read();
-            for (std::size_t i = 1; i < path.size(); ++i) o[i - 1] = self.view.segment_free(path[i - 1], path[i], radius);
+            for (std::size_t i = 1; i < path.size(); ++i)
+              o[i - 1] = self.view.segment_free(path[i - 1], path[i], radius);
             return out;
           },
           py::arg("path_W"), py::arg("radius"))
@@ -316,7 +323,8 @@ void define_planning(py::module_& m) {
           "dispatch (each keeps this query alive)")
       .def_property_readonly("min_step", [](const ClearanceQuery& self) { return self.view.min_step(); });
 
-  py::class_<planning::GridAStar>(m, "GridAStar", "Deterministic A* on the ESDF grid; use cufund.planning.GridPathSearch.")
+  py::class_<planning::GridAStar>(m, "GridAStar",
+                                  "Deterministic A* on the ESDF grid; use cufund.planning.GridPathSearch.")
       .def(py::init<>())
       .def(
           "plan",
@@ -324,11 +332,13 @@ void define_planning(py::module_& m) {
              double radius, Index max_expansions, bool shortcut, double heuristic_weight, double z_min, double z_max) {
             planning::AStarOptions opt;
             opt.radius = radius_arg(radius);
-            if (max_expansions < 1) throw py::value_error("max_expansions must be >= 1, got " + std::to_string(max_expansions));
+            if (max_expansions < 1)
+              throw py::value_error("max_expansions must be >= 1, got " + std::to_string(max_expansions));
             opt.max_expansions = max_expansions;
             opt.shortcut = shortcut;
             if (!(std::isfinite(heuristic_weight) && heuristic_weight >= 1.0)) {
-              throw py::value_error("heuristic_weight must be finite and >= 1, got " + std::to_string(heuristic_weight));
+              throw py::value_error("heuristic_weight must be finite and >= 1, got " +
+                                    std::to_string(heuristic_weight));
             }
             opt.heuristic_weight = heuristic_weight;
             if (std::isnan(z_min) || std::isnan(z_max) || !(z_max > z_min)) {
@@ -423,8 +433,8 @@ void define_planning(py::module_& m) {
         auto t = contiguous<std::int64_t>(tarr, "triangles");
         for (py::ssize_t i = 0; i < t.size(); ++i) {
           if (t.data()[i] < 0 || t.data()[i] >= v.shape(0)) {
-            throw py::value_error("triangles must index vertices (0 <= index < " + std::to_string(v.shape(0)) + "), got " +
-                                  std::to_string(t.data()[i]));
+            throw py::value_error("triangles must index vertices (0 <= index < " + std::to_string(v.shape(0)) +
+                                  "), got " + std::to_string(t.data()[i]));
           }
         }
         std::vector<Index> idx;
@@ -448,7 +458,8 @@ void define_planning(py::module_& m) {
           py::gil_scoped_release release;
           c = planning::min_derivative_spline(a.values.data(), a.m, a.dim, a.durations.data(), order);
         }
-        py::array_t<double> out({static_cast<py::ssize_t>(a.m), static_cast<py::ssize_t>(2 * order), static_cast<py::ssize_t>(a.dim)});
+        py::array_t<double> out(
+            {static_cast<py::ssize_t>(a.m), static_cast<py::ssize_t>(2 * order), static_cast<py::ssize_t>(a.dim)});
         std::copy(c.begin(), c.end(), out.mutable_data());
         return out;
       },
@@ -472,8 +483,10 @@ void define_planning(py::module_& m) {
       "optimize_segment_times",
       [](const py::handle& values, const py::handle& durations, int max_iterations, double gtol) {
         const SplineArgs a = spline_args(values, durations);
-        if (max_iterations < 0) throw py::value_error("max_iterations must be >= 0, got " + std::to_string(max_iterations));
-        if (!(std::isfinite(gtol) && gtol >= 0.0)) throw py::value_error("gtol must be finite and >= 0, got " + std::to_string(gtol));
+        if (max_iterations < 0)
+          throw py::value_error("max_iterations must be >= 0, got " + std::to_string(max_iterations));
+        if (!(std::isfinite(gtol) && gtol >= 0.0))
+          throw py::value_error("gtol must be finite and >= 0, got " + std::to_string(gtol));
         planning::TimeOptimizationResult r;
         {
           py::gil_scoped_release release;

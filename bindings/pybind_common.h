@@ -40,9 +40,7 @@ inline std::string expected_shape_str(std::initializer_list<py::ssize_t> shape) 
 template <typename T>
 using carray = py::array_t<T, py::array::c_style | py::array::forcecast>;
 
-inline std::string type_name(const py::handle& obj) {
-  return std::string(py::str(py::type::of(obj).attr("__name__")));
-}
+inline std::string type_name(const py::handle& obj) { return std::string(py::str(py::type::of(obj).attr("__name__"))); }
 
 // `obj` as a C-contiguous array of T, copied only when needed. Unlike array_t::ensure (which returns
 // null and drops the error), a failed allocation raises MemoryError naming `field`, and a failed
@@ -141,7 +139,7 @@ inline bool bool_arg(const py::handle& obj, const char* field) {
 // Converts `obj` to a C-contiguous float64 array of exactly `shape`, accepting real integer and
 // floating inputs; anything else raises ValueError naming `field`. (Finiteness is the caller's.)
 inline py::array_t<double, py::array::c_style> as_float64(const py::handle& obj, const char* field,
-                                                           std::initializer_list<py::ssize_t> shape) {
+                                                          std::initializer_list<py::ssize_t> shape) {
   py::array arr = checked_array(obj, field);
   const char kind = arr.dtype().kind();
   if (kind != 'f' && kind != 'i' && kind != 'u') {
@@ -170,7 +168,7 @@ void define_dynamics(py::module_& m);
 void define_control(py::module_& m);
 void define_lidar(py::module_& m);
 void define_perception(py::module_& m);  // bindings/perception.cpp
-void define_collision(py::module_& m);  // in dynamics.cpp: Bullet collision checks
+void define_collision(py::module_& m);   // in dynamics.cpp: Bullet collision checks
 void define_esdf(py::module_& m);
 void define_odometry(py::module_& m);  // odometry.cpp
 void define_planning(py::module_& m);  // bindings/planning.cpp

@@ -14,8 +14,8 @@
 namespace cufund {
 namespace {
 
-thread_local int tls_region_depth = 0;   // > 0 while this thread runs a chunk of a parallel_for
-thread_local int tls_section_depth = 0;  // ForkSafeSections alive on this thread
+thread_local int tls_region_depth = 0;      // > 0 while this thread runs a chunk of a parallel_for
+thread_local int tls_section_depth = 0;     // ForkSafeSections alive on this thread
 thread_local bool tls_fork_locked = false;  // this thread's fork holds the gate (between prepare and parent/child)
 
 // The shared pool (created on first use) and the pools a forked child abandoned: their workers do not

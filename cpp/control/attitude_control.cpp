@@ -40,8 +40,8 @@ Eigen::Vector4d quat_from_two_vectors(const Eigen::Vector3d& u, const Eigen::Vec
   const Eigen::Vector3d c = cross(u, v);
   const double d = ra::dot<3>(u, v);
   if (d < -1.0 + 1e-6) {  // opposite: any axis orthogonal to u
-    Eigen::Vector3d axis = std::abs(u[0]) < 0.9 ? cross(u, Eigen::Vector3d(1.0, 0.0, 0.0))
-                                                : cross(u, Eigen::Vector3d(0.0, 1.0, 0.0));
+    Eigen::Vector3d axis =
+        std::abs(u[0]) < 0.9 ? cross(u, Eigen::Vector3d(1.0, 0.0, 0.0)) : cross(u, Eigen::Vector3d(0.0, 1.0, 0.0));
     const double n = ra::norm<3>(axis);
     for (int i = 0; i < 3; ++i) axis[i] /= n;
     return Eigen::Vector4d(0.0, axis[0], axis[1], axis[2]);

@@ -81,8 +81,7 @@ GeometricAttitudeCommand geometric_from_attitude(const Eigen::Matrix3d& J, const
 }
 
 GeometricControl::GeometricControl(const QuadrotorParams& params, double transfer_tau)
-    : allocator_(params), J_(params.inertia), mass_(params.mass), gravity_(params.gravity),
-      handover_(transfer_tau) {}
+    : allocator_(params), J_(params.inertia), mass_(params.mass), gravity_(params.gravity), handover_(transfer_tau) {}
 
 void GeometricControl::set_gains(double k_x, double k_v, const Eigen::Vector3d& k_R, const Eigen::Vector3d& k_W) {
   k_x_ = k_x;

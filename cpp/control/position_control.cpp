@@ -11,8 +11,7 @@ namespace ra = reference_arithmetic;
 
 PositionControl::PositionControl(double mass, double gravity, double max_thrust, double vel_d_cutoff_hz,
                                  double transfer_tau)
-    : mass_(mass), gravity_(gravity), max_thrust_(max_thrust), acc_filter_(vel_d_cutoff_hz),
-      handover_(transfer_tau) {}
+    : mass_(mass), gravity_(gravity), max_thrust_(max_thrust), acc_filter_(vel_d_cutoff_hz), handover_(transfer_tau) {}
 
 void PositionControl::reset() {
   vel_int.setZero();
@@ -62,10 +61,10 @@ Eigen::Vector3d PositionControl::limit_thrust(Eigen::Vector3d F, Eigen::Vector3i
   return F;
 }
 
-PositionControlOutput PositionControl::step(double t, double dt, const Eigen::Vector3d& p_W,
-                                            const Eigen::Vector3d& v_W, const Eigen::Vector3d& p_sp,
-                                            const Eigen::Vector3d& v_sp_in, const Eigen::Vector3d& a_sp, double yaw,
-                                            bool position_mode, const Eigen::Vector3d* handover) {
+PositionControlOutput PositionControl::step(double t, double dt, const Eigen::Vector3d& p_W, const Eigen::Vector3d& v_W,
+                                            const Eigen::Vector3d& p_sp, const Eigen::Vector3d& v_sp_in,
+                                            const Eigen::Vector3d& a_sp, double yaw, bool position_mode,
+                                            const Eigen::Vector3d* handover) {
   const PositionControlGains& g = gains_;
   filter_velocity(v_W, dt);
   Eigen::Vector3d v_sp;

@@ -11,16 +11,16 @@
 namespace cufund {
 
 struct PositionControlGains {
-  Eigen::Vector3d k_p;   // position [1/s]
-  Eigen::Vector3d k_v;   // velocity P [m/s^2 per m/s]
-  Eigen::Vector3d k_i;   // velocity I [m/s^3 per m/s]
-  Eigen::Vector3d k_d;   // velocity D on the measured acceleration [m/s^2 per m/s^2]
-  double xy_vel_max;     // [m/s]
-  double z_vel_max_up;   // [m/s]
-  double z_vel_max_dn;   // [m/s]
-  double tilt_max;       // [rad]
-  double thr_min;        // fraction of the maximum thrust
-  double thr_max;        // fraction of the maximum thrust
+  Eigen::Vector3d k_p;  // position [1/s]
+  Eigen::Vector3d k_v;  // velocity P [m/s^2 per m/s]
+  Eigen::Vector3d k_i;  // velocity I [m/s^3 per m/s]
+  Eigen::Vector3d k_d;  // velocity D on the measured acceleration [m/s^2 per m/s^2]
+  double xy_vel_max;    // [m/s]
+  double z_vel_max_up;  // [m/s]
+  double z_vel_max_dn;  // [m/s]
+  double tilt_max;      // [rad]
+  double thr_min;       // fraction of the maximum thrust
+  double thr_max;       // fraction of the maximum thrust
 };
 
 struct PositionControlOutput {
@@ -49,7 +49,7 @@ class PositionControl {
   // Limits thrust magnitude and tilt; writes the per-axis saturation signs.
   Eigen::Vector3d limit_thrust(Eigen::Vector3d F, Eigen::Vector3i& sat) const;
 
-  Eigen::Vector3d vel_int = Eigen::Vector3d::Zero();  // velocity integrator [m/s^2]
+  Eigen::Vector3d vel_int = Eigen::Vector3d::Zero();                     // velocity integrator [m/s^2]
   const Eigen::Vector3d& acc_filt() const { return acc_filter_.value; }  // filtered measured acceleration [m/s^2]
 
  private:

@@ -21,8 +21,7 @@ void RateControl::reset() {
   dw_filter_.reset();
 }
 
-AllocationResult RateControl::step(const Eigen::Vector3d& w_B, const Eigen::Vector3d& w_sp, double thrust,
-                                   double dt) {
+AllocationResult RateControl::step(const Eigen::Vector3d& w_B, const Eigen::Vector3d& w_sp, double thrust, double dt) {
   const RateControlGains& g = gains_;
   const Eigen::Vector3d& dw_filt = dw_filter_.update(w_B, dt);
   Eigen::Vector3d e, alpha_cmd, torque;

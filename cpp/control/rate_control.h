@@ -11,10 +11,10 @@
 namespace cufund {
 
 struct RateControlGains {
-  Eigen::Vector3d k_p;  // [rad/s^2 per rad/s]
-  Eigen::Vector3d k_i;  // [rad/s^2 per rad]
-  Eigen::Vector3d k_d;  // [rad/s^2 per rad/s^2]
-  double feed_forward;  // [rad/s^2 per rad/s]
+  Eigen::Vector3d k_p;      // [rad/s^2 per rad/s]
+  Eigen::Vector3d k_i;      // [rad/s^2 per rad]
+  Eigen::Vector3d k_d;      // [rad/s^2 per rad/s^2]
+  double feed_forward;      // [rad/s^2 per rad/s]
   double integrator_limit;  // [rad/s^2]
 };
 

@@ -11,10 +11,10 @@ namespace cufund {
 // The deepest contact of a query; hit == false when the shapes are farther apart than the margin.
 struct Contact {
   bool hit = false;
-  int object_id = -1;               // id returned by add_mesh
-  double point_W[3] = {0, 0, 0};    // contact point on the world mesh [m]
-  double normal_W[3] = {0, 0, 0};   // unit normal at the contact, pointing from the mesh to the vehicle
-  double distance = 0.0;            // signed gap [m]: negative = penetration depth
+  int object_id = -1;              // id returned by add_mesh
+  double point_W[3] = {0, 0, 0};   // contact point on the world mesh [m]
+  double normal_W[3] = {0, 0, 0};  // unit normal at the contact, pointing from the mesh to the vehicle
+  double distance = 0.0;           // signed gap [m]: negative = penetration depth
 };
 
 class CollisionWorld {

@@ -19,35 +19,35 @@ namespace cufund {
 
 enum class StepStatus : int {
   kOk = 0,
-  kBadTimeStep = 1,          // dt not finite, <= 0, or more than 1e9 integration sub-steps
-  kNonFiniteCommand = 2,     // a commanded rotor speed is NaN or infinite
-  kNonFiniteState = 3,       // a state or held-input entry (rows kP..kTorqueExt) is NaN or infinite
-  kZeroQuaternion = 4,       // an attitude quaternion of norm < 1e-6
-  kTooManySubsteps = 5,      // dt / max_integration_step exceeds the configured limit
-  kDiverged = 6,             // the step ran, but the new state is NaN or inf (inputs beyond the model's range);
-                             // index as for kNonFiniteState (row * N + vehicle), time advanced
+  kBadTimeStep = 1,       // dt not finite, <= 0, or more than 1e9 integration sub-steps
+  kNonFiniteCommand = 2,  // a commanded rotor speed is NaN or infinite
+  kNonFiniteState = 3,    // a state or held-input entry (rows kP..kTorqueExt) is NaN or infinite
+  kZeroQuaternion = 4,    // an attitude quaternion of norm < 1e-6
+  kTooManySubsteps = 5,   // dt / max_integration_step exceeds the configured limit
+  kDiverged = 6,          // the step ran, but the new state is NaN or inf (inputs beyond the model's range);
+                          // index as for kNonFiniteState (row * N + vehicle), time advanced
 };
 
 struct StepResult {
   StepStatus status = StepStatus::kOk;
-  std::int64_t index = -1;   // kNonFiniteCommand: vehicle * 4 + rotor; kNonFiniteState: row * N + vehicle;
-                             // kZeroQuaternion: the vehicle
+  std::int64_t index = -1;  // kNonFiniteCommand: vehicle * 4 + rotor; kNonFiniteState: row * N + vehicle;
+                            // kZeroQuaternion: the vehicle
 };
 
 class QuadrotorBatch {
  public:
   // Field layout inside the state buffer, in units of N doubles.
   enum Field : int {
-    kP = 0,          // position p_W [m], 3 rows
-    kV = 3,          // velocity v_W [m/s], 3 rows
-    kQ = 6,          // attitude q_WB [w, x, y, z], 4 rows
-    kW = 10,         // body rate w_B [rad/s], 3 rows
-    kRotor = 13,     // rotor speeds [rad/s], 4 rows
-    kWind = 17,      // wind velocity in world frame [m/s], 3 rows (held over a step)
-    kForceExt = 20,  // external force in world frame [N], 3 rows (held over a step)
-    kTorqueExt = 23, // external torque in body frame [N m], 3 rows (held over a step)
-    kAccel = 26,     // acceleration a_W = dv_W/dt at the end of the last step [m/s^2], 3 rows (output)
-    kAlpha = 29,     // angular acceleration dw_B/dt at the end of the last step [rad/s^2], 3 rows (output)
+    kP = 0,           // position p_W [m], 3 rows
+    kV = 3,           // velocity v_W [m/s], 3 rows
+    kQ = 6,           // attitude q_WB [w, x, y, z], 4 rows
+    kW = 10,          // body rate w_B [rad/s], 3 rows
+    kRotor = 13,      // rotor speeds [rad/s], 4 rows
+    kWind = 17,       // wind velocity in world frame [m/s], 3 rows (held over a step)
+    kForceExt = 20,   // external force in world frame [N], 3 rows (held over a step)
+    kTorqueExt = 23,  // external torque in body frame [N m], 3 rows (held over a step)
+    kAccel = 26,      // acceleration a_W = dv_W/dt at the end of the last step [m/s^2], 3 rows (output)
+    kAlpha = 29,      // angular acceleration dw_B/dt at the end of the last step [rad/s^2], 3 rows (output)
     kRows = 32,
   };
 

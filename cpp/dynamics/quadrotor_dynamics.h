@@ -26,13 +26,13 @@ namespace cufund {
 // Parameters folded into the numbers the right-hand side uses.
 struct DynamicsConstants {
   double inv_mass, gravity;
-  double J[9], J_inv[9];        // row-major, body FLU
+  double J[9], J_inv[9];  // row-major, body FLU
   double k_f, inv_tau_m;
   double omega_min, omega_max;
-  double r[kNumRotors][3];      // rotor positions, body FLU
+  double r[kNumRotors][3];        // rotor positions, body FLU
   double yaw_moment[kNumRotors];  // -s_i * c_m: M_z contribution per newton of rotor thrust
-  double kd_xy, kd_z;           // rotor drag
-  double cd[3];                 // body drag
+  double kd_xy, kd_z;             // rotor drag
+  double cd[3];                   // body drag
 };
 
 DynamicsConstants make_constants(const QuadrotorParams& params);

@@ -23,25 +23,25 @@ enum class RotorLayout {
 };
 
 struct QuadrotorParams {
-  double mass = 1.0;                                   // [kg]
+  double mass = 1.0;                                      // [kg]
   Eigen::Matrix3d inertia = Eigen::Matrix3d::Identity();  // J about the CoM, body FLU [kg m^2]
-  double arm_length = 0.2;                             // d: CoM to rotor centre [m]
+  double arm_length = 0.2;                                // d: CoM to rotor centre [m]
   RotorLayout layout = RotorLayout::kX;
-  double k_f = 1e-5;             // rotor thrust f_i = k_f * omega_i^2 [N/(rad/s)^2]
-  double c_m = 0.02;             // reaction torque per unit thrust (paper's c_M) [N m / N = m]
-  double tau_m = 0.02;           // first-order motor time constant [s]
-  double rotor_speed_min = 0.0;  // [rad/s]
+  double k_f = 1e-5;                // rotor thrust f_i = k_f * omega_i^2 [N/(rad/s)^2]
+  double c_m = 0.02;                // reaction torque per unit thrust (paper's c_M) [N m / N = m]
+  double tau_m = 0.02;              // first-order motor time constant [s]
+  double rotor_speed_min = 0.0;     // [rad/s]
   double rotor_speed_max = 1000.0;  // [rad/s]
   // Rotor drag ("H-force"), per rotor, linear in rotor speed and in the rotor's
   // air-relative velocity in the body frame: H_i = -omega_i * diag(kxy, kxy, kz) * v_air_i.
-  double rotor_drag_xy = 0.0;    // [N/((rad/s)(m/s))] = [kg/rad]
-  double rotor_drag_z = 0.0;     // [N/((rad/s)(m/s))] = [kg/rad]
+  double rotor_drag_xy = 0.0;  // [N/((rad/s)(m/s))] = [kg/rad]
+  double rotor_drag_z = 0.0;   // [N/((rad/s)(m/s))] = [kg/rad]
   // Quadratic body (parasitic) drag on the body-frame air velocity:
   // D = -|v_air| * diag(c_d) * v_air.
   Eigen::Vector3d body_drag = Eigen::Vector3d::Zero();  // [N/(m/s)^2]
-  double gravity = 9.80665;      // [m/s^2]
-  bool ground_plane = true;      // rigid ground at z = 0
-  double max_integration_step = 1e-3;  // RK4 sub-step upper bound [s] (1 kHz default)
+  double gravity = 9.80665;                             // [m/s^2]
+  bool ground_plane = true;                             // rigid ground at z = 0
+  double max_integration_step = 1e-3;                   // RK4 sub-step upper bound [s] (1 kHz default)
 };
 
 // Bounds on the principal moments of inertia over mass * arm_length^2 (a plausibility check).

@@ -16,8 +16,8 @@ enum class EdtStatus {
 
 struct EdtOptions {
   std::array<double, 3> voxel_size{1.0, 1.0, 1.0};  // per axis, same order as the shape [m]
-  bool signed_distance = false;  // negative inside: -(distance to the nearest non-site voxel centre)
-  int nthreads = 0;              // <= 0: all hardware threads
+  bool signed_distance = false;                     // negative inside: -(distance to the nearest non-site voxel centre)
+  int nthreads = 0;                                 // <= 0: all hardware threads
 };
 
 // out[i] = distance from voxel i's centre to the nearest voxel centre with sites[i] != 0, for a C-order

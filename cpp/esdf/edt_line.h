@@ -15,8 +15,10 @@ inline constexpr double kInf = std::numeric_limits<double>::infinity();
 // and output d, and one line's envelope (parabola vertices v, boundaries z).
 struct LineBuffers {
   LineBuffers(std::ptrdiff_t lines, std::ptrdiff_t n)
-      : f(static_cast<std::size_t>(lines * n)), d(static_cast<std::size_t>(lines * n)),
-        v(static_cast<std::size_t>(n)), z(static_cast<std::size_t>(n + 1)) {}
+      : f(static_cast<std::size_t>(lines * n)),
+        d(static_cast<std::size_t>(lines * n)),
+        v(static_cast<std::size_t>(n)),
+        z(static_cast<std::size_t>(n + 1)) {}
   std::vector<double> f, d;
   std::vector<std::ptrdiff_t> v;
   std::vector<double> z;

@@ -20,11 +20,11 @@ struct EsdfOptions {
 };
 
 struct EsdfUpdateStats {
-  ScanStats scan;               // zero for set_occupied
-  IncrementalEdtStats outside;  // the field outside obstacles (sites: occupied voxels)
-  IncrementalEdtStats inside;   // the field inside obstacles (sites: free voxels); zero if unsigned
-  double raycast_seconds = 0.0; // wall time of the occupancy update (beam traversal, log-odds)
-  double field_seconds = 0.0;   // wall time of the incremental distance-field update
+  ScanStats scan;                // zero for set_occupied
+  IncrementalEdtStats outside;   // the field outside obstacles (sites: occupied voxels)
+  IncrementalEdtStats inside;    // the field inside obstacles (sites: free voxels); zero if unsigned
+  double raycast_seconds = 0.0;  // wall time of the occupancy update (beam traversal, log-odds)
+  double field_seconds = 0.0;    // wall time of the incremental distance-field update
 };
 
 // A reader-writer lock that a copy of its owner does not share (a copy gets its own, unlocked).

@@ -58,7 +58,9 @@ void IncrementalEdt::column(Index c, std::vector<double>& buf, std::vector<Chang
     const std::int32_t nv = to_int(buf[static_cast<std::size_t>(q)]);
     std::int32_t& old = g1_[static_cast<std::size_t>((ix * nz + q) * ny + iy)];
     if (nv != old) {
-      if (changed) changed->push_back({q * nx + ix, static_cast<std::int32_t>(iy), std::min(old, nv)});  // stage-2 line (iz = q, ix)
+      if (changed)
+        changed->push_back(
+            {q * nx + ix, static_cast<std::int32_t>(iy), std::min(old, nv)});  // stage-2 line (iz = q, ix)
       old = nv;
     }
   }
@@ -206,7 +208,8 @@ void IncrementalEdt::update_line(int stage, const LineWork& work, const std::vec
   {
     const auto pos = [&](Index j) { return shrunk[static_cast<std::size_t>(j)].pos; };
     const auto val = [&](Index j) { return static_cast<double>(shrunk[static_cast<std::size_t>(j)].low); };
-    for (Index j = 0; j < static_cast<Index>(shrunk.size()); ++j) envelope_push(j, 1.0, s.v.data(), s.z.data(), top, pos, val);
+    for (Index j = 0; j < static_cast<Index>(shrunk.size()); ++j)
+      envelope_push(j, 1.0, s.v.data(), s.z.data(), top, pos, val);
   }
   const auto lower = [&](const Position& c, Index lo, Index hi) {
     const auto w = reach(c.pos, c.low, true, lo, hi, old);
@@ -305,7 +308,8 @@ void IncrementalEdt::merge(Changes& changes, Work& w) {
   // bucket is left unused).
   for (LineWork& l : w.lines) {
     auto b = w.positions.begin() + l.begin, e = w.positions.begin() + l.end;
-    std::sort(b, e, [](const Position& x, const Position& y) { return x.pos < y.pos || (x.pos == y.pos && x.low < y.low); });
+    std::sort(b, e,
+              [](const Position& x, const Position& y) { return x.pos < y.pos || (x.pos == y.pos && x.low < y.low); });
     l.end = l.begin + (std::unique(b, e, [](const Position& x, const Position& y) { return x.pos == y.pos; }) - b);
   }
 }
@@ -349,8 +353,8 @@ void IncrementalEdt::update_slices(const Work& work, int nthreads, Index* x_line
   // Several slices per work item, so their buffers are allocated once per item, not per slice.
   parallel_chunks(n_runs, chunk_size(n_runs, nthreads, 1), nthreads, [&](Index r_begin, Index r_end, Index) {
     Scratch s(1, longest);
-    std::vector<Change> out;   // the slice's stage-2 output changes = its stage-3 input changes
-    Work slice;                // the same, bucketed by stage-3 line
+    std::vector<Change> out;  // the slice's stage-2 output changes = its stage-3 input changes
+    Work slice;               // the same, bucketed by stage-3 line
     std::vector<Index> start(static_cast<std::size_t>(ny + 1));
     for (Index r = r_begin; r < r_end; ++r) {
       const auto [first, last] = runs[static_cast<std::size_t>(r)];
@@ -358,7 +362,8 @@ void IncrementalEdt::update_slices(const Work& work, int nthreads, Index* x_line
       out.clear();
       Index stage2_changed = 0;
       for (Index k = first; k < last; ++k) {
-        if (k + kPrefetchLines < last) prefetch_line(2, work.lines[static_cast<std::size_t>(k + kPrefetchLines)], work.positions);
+        if (k + kPrefetchLines < last)
+          prefetch_line(2, work.lines[static_cast<std::size_t>(k + kPrefetchLines)], work.positions);
         update_line(2, work.lines[static_cast<std::size_t>(k)], work.positions, s, &out, &stage2_changed);
       }
       // Counting sort by stage-3 line (iy). It is stable, and the stage-2 lines ran in ascending ix,
@@ -379,7 +384,8 @@ void IncrementalEdt::update_slices(const Work& work, int nthreads, Index* x_line
       for (auto& l : slice.lines) l.end = start[static_cast<std::size_t>(l.line - iz * ny)];
       const Index n_lines = static_cast<Index>(slice.lines.size());
       for (Index k = 0; k < n_lines; ++k) {
-        if (k + kPrefetchLines < n_lines) prefetch_line(3, slice.lines[static_cast<std::size_t>(k + kPrefetchLines)], slice.positions);
+        if (k + kPrefetchLines < n_lines)
+          prefetch_line(3, slice.lines[static_cast<std::size_t>(k + kPrefetchLines)], slice.positions);
         update_line(3, slice.lines[static_cast<std::size_t>(k)], slice.positions, s, nullptr,
                     &changed[static_cast<std::size_t>(r)]);
       }

@@ -21,11 +21,11 @@
 namespace cufund::esdf {
 
 struct IncrementalEdtStats {
-  std::ptrdiff_t changed_sites = 0;     // voxels whose site state toggled
-  std::ptrdiff_t columns = 0;           // z-columns recomputed (stage 1)
-  std::ptrdiff_t y_lines = 0;           // y-lines recomputed (stage 2)
-  std::ptrdiff_t x_lines = 0;           // x-lines recomputed (stage 3)
-  std::ptrdiff_t changed_distances = 0; // voxels whose final distance changed
+  std::ptrdiff_t changed_sites = 0;      // voxels whose site state toggled
+  std::ptrdiff_t columns = 0;            // z-columns recomputed (stage 1)
+  std::ptrdiff_t y_lines = 0;            // y-lines recomputed (stage 2)
+  std::ptrdiff_t x_lines = 0;            // x-lines recomputed (stage 3)
+  std::ptrdiff_t changed_distances = 0;  // voxels whose final distance changed
 };
 
 class IncrementalEdt {

@@ -76,9 +76,7 @@ bool OccupancyGrid::clip(const double* a, const double* b, Clip* c) const {
   }
   if (t0 > t1) return false;
   for (int i = 0; i < 3; ++i) {
-    const auto clampi = [&](double u) {
-      return std::clamp(static_cast<Index>(std::floor(u)), Index{0}, n[i] - 1);
-    };
+    const auto clampi = [&](double u) { return std::clamp(static_cast<Index>(std::floor(u)), Index{0}, n[i] - 1); };
     c->cur[i] = clampi(a[i] + t0 * d[i]);
     c->end[i] = clampi(t1 >= 1.0 ? b[i] : a[i] + t1 * d[i]);
   }
@@ -157,8 +155,7 @@ void OccupancyGrid::set(Index i, float value, std::vector<Index>* flipped, std::
   }
 }
 
-bool OccupancyGrid::beam_end(const double* p, const double* origin_W, double* e, Index* voxel,
-                            ScanStats* stats) const {
+bool OccupancyGrid::beam_end(const double* p, const double* origin_W, double* e, Index* voxel, ScanStats* stats) const {
   const auto& g = geometry_;
   const double dx = p[0] - origin_W[0], dy = p[1] - origin_W[1], dz = p[2] - origin_W[2];
   const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
@@ -350,8 +347,8 @@ ScanStats OccupancyGrid::insert_scans(const std::vector<Scan>& scans, std::vecto
   // Scans traversed at a time: one per thread, a few per thread for balance, marks within ~64 MB.
   const std::size_t words = (log_odds_.size() + 63) / 64;
   const std::size_t by_memory = std::max<std::size_t>(1, (std::size_t{64} << 20) / (80 * words + 1));
-  const auto group = static_cast<std::size_t>(
-      std::min<std::size_t>({scans.size(), static_cast<std::size_t>(4 * nt), by_memory}));
+  const auto group =
+      static_cast<std::size_t>(std::min<std::size_t>({scans.size(), static_cast<std::size_t>(4 * nt), by_memory}));
   if (marks_.size() < group) marks_.resize(group);
   std::vector<ScanMarks*> marks(group);
   for (std::size_t k = 0; k < group; ++k) marks[k] = &marks_[k];

@@ -20,11 +20,11 @@ struct GridGeometry {
 };
 
 struct SensorModel {
-  float log_odds_hit = 0.85f;      // added to a voxel holding a beam end (p = 0.7)
-  float log_odds_miss = -0.4f;     // added to a voxel a beam crosses (p = 0.4)
-  float log_odds_min = -2.0f;      // clamping bounds
+  float log_odds_hit = 0.85f;   // added to a voxel holding a beam end (p = 0.7)
+  float log_odds_miss = -0.4f;  // added to a voxel a beam crosses (p = 0.4)
+  float log_odds_min = -2.0f;   // clamping bounds
   float log_odds_max = 3.5f;
-  float log_odds_occupied = 0.0f;  // a voxel is occupied when its log-odds exceeds this
+  float log_odds_occupied = 0.0f;                              // a voxel is occupied when its log-odds exceeds this
   double max_range = std::numeric_limits<double>::infinity();  // beams are cut here, the end free [m]
   // Casts one beam per distinct end voxel and scan (the scan's first point ending there) rather than one
   // per point. A beam cut at the grid's border or at max_range ends in the last voxel it reaches inside.
@@ -34,15 +34,15 @@ struct SensorModel {
 };
 
 struct ScanStats {
-  std::ptrdiff_t points = 0;         // points given
-  std::ptrdiff_t nan_points = 0;     // skipped: a coordinate not finite
-  std::ptrdiff_t outside = 0;        // beam end outside the grid: only the part inside marks free
-  std::ptrdiff_t beyond_range = 0;   // longer than max_range: cut there, no hit
-  std::ptrdiff_t beams = 0;          // beams cast: finite points whose beam crosses the grid (with
-                                     // merge_beams, one per distinct end voxel)
-  std::ptrdiff_t hit_voxels = 0;     // distinct voxels updated as hit
-  std::ptrdiff_t free_voxels = 0;    // distinct voxels updated as free
-  std::ptrdiff_t flipped_voxels = 0; // voxels whose occupied state changed
+  std::ptrdiff_t points = 0;          // points given
+  std::ptrdiff_t nan_points = 0;      // skipped: a coordinate not finite
+  std::ptrdiff_t outside = 0;         // beam end outside the grid: only the part inside marks free
+  std::ptrdiff_t beyond_range = 0;    // longer than max_range: cut there, no hit
+  std::ptrdiff_t beams = 0;           // beams cast: finite points whose beam crosses the grid (with
+                                      // merge_beams, one per distinct end voxel)
+  std::ptrdiff_t hit_voxels = 0;      // distinct voxels updated as hit
+  std::ptrdiff_t free_voxels = 0;     // distinct voxels updated as free
+  std::ptrdiff_t flipped_voxels = 0;  // voxels whose occupied state changed
 };
 
 class OccupancyGrid {

@@ -29,7 +29,8 @@ void channel_order(const std::int32_t* channel, std::size_t n, std::vector<std::
   std::vector<std::uint32_t> start(static_cast<std::size_t>(span) + 1, 0);
   for (std::size_t i = 0; i < n; ++i) ++start[static_cast<std::size_t>(channel[i] - lo) + 1];
   for (std::size_t c = 1; c < start.size(); ++c) start[c] += start[c - 1];
-  for (std::size_t i = 0; i < n; ++i) order[start[static_cast<std::size_t>(channel[i] - lo)]++] = static_cast<std::uint32_t>(i);
+  for (std::size_t i = 0; i < n; ++i)
+    order[start[static_cast<std::size_t>(channel[i] - lo)]++] = static_cast<std::uint32_t>(i);
 }
 
 }  // namespace
@@ -79,7 +80,8 @@ void write_returns(const FrameRays& rays, const RangeModel& model, const CastFra
     const float* nrm = cast.normals.data() + 3 * i;
     for (int c = 0; c < 3; ++c) {
       out.points_L[3 * j + c] = static_cast<float>(d[c] * r);
-      out.points_W[3 * j + c] = static_cast<float>(static_cast<double>(ray[c]) + static_cast<double>(ray[3 + c]) * r_true);
+      out.points_W[3 * j + c] =
+          static_cast<float>(static_cast<double>(ray[c]) + static_cast<double>(ray[3 + c]) * r_true);
     }
     const float cos_inc = std::fabs((nrm[0] * ray[3] + nrm[1] * ray[4]) + nrm[2] * ray[5]);
     if (model.reflectivity) {

@@ -95,7 +95,6 @@ inline std::uint32_t cell(float x, float lo, float scale) {
   return static_cast<std::uint32_t>(static_cast<int>(q));
 }
 
-
 // Where ray r meets the box [lo, hi] that holds the scene: where it leaves the box when it starts
 // inside (the far end of the stretch that can hit anything), where it enters when it starts outside
 // and points at it, else its origin.
@@ -121,8 +120,8 @@ inline std::array<float, 3> heading_point(const float* r, float reach) {
 // Morton key of point(ray) for each ray in [begin, end), quantised to kAxisBits per axis in the
 // cube [q0, q0 + 2^kAxisBits / scale)^3, paired with the ray's index.
 template <typename Point>
-void point_keys(const float* rays, std::size_t begin, std::size_t end, const Point& point, const float* q0,
-                float scale, std::uint64_t* e) {
+void point_keys(const float* rays, std::size_t begin, std::size_t end, const Point& point, const float* q0, float scale,
+                std::uint64_t* e) {
   for (std::size_t i = begin; i < end; ++i) {
     const std::array<float, 3> p = point(rays + 6 * i);
     const std::uint32_t c = kSpread3.v[cell(p[0], q0[0], scale)] | (kSpread3.v[cell(p[1], q0[1], scale)] << 1) |

@@ -99,8 +99,8 @@ void cast_single(RTCScene scene, const float* rays, std::size_t begin, std::size
 // differ from the single-ray path's in the last bits, so sorted batches leave it off and match
 // single rays exactly.
 template <typename Emit>
-void trace_packets8(RTCScene scene, const float* rays, std::size_t begin, std::size_t end,
-                    const std::uint32_t* index, bool coherent, const Emit& emit) {
+void trace_packets8(RTCScene scene, const float* rays, std::size_t begin, std::size_t end, const std::uint32_t* index,
+                    bool coherent, const Emit& emit) {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   if (coherent) ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
@@ -136,8 +136,8 @@ void trace_packets8(RTCScene scene, const float* rays, std::size_t begin, std::s
 void cast_packets8(RTCScene scene, const float* rays, std::size_t begin, std::size_t end, const RayHits& out,
                    const std::uint32_t* index = nullptr, bool coherent = true) {
   trace_packets8(scene, rays, begin, end, index, coherent, [&](std::size_t j, const RTCRayHit8& rh, int k) {
-    write_hit(out, index ? index[j] : j, rh.ray.tfar[k], rh.hit.geomID[k], rh.hit.primID[k], rh.hit.u[k],
-              rh.hit.v[k], rh.hit.Ng_x[k], rh.hit.Ng_y[k], rh.hit.Ng_z[k]);
+    write_hit(out, index ? index[j] : j, rh.ray.tfar[k], rh.hit.geomID[k], rh.hit.primID[k], rh.hit.u[k], rh.hit.v[k],
+              rh.hit.Ng_x[k], rh.hit.Ng_y[k], rh.hit.Ng_z[k]);
   });
 }
 
@@ -164,8 +164,8 @@ void cast_sorted(RTCScene scene, const float* rays, const std::uint32_t* index, 
     position[i] = static_cast<std::uint32_t>(begin + k);
   }
   trace_packets8(scene, local, 0, m, nullptr, false, [&](std::size_t k, const RTCRayHit8& rh, int lane) {
-    staged[begin + k] = {rh.ray.tfar[lane], rh.hit.u[lane], rh.hit.v[lane],
-                         {rh.hit.Ng_x[lane], rh.hit.Ng_y[lane], rh.hit.Ng_z[lane]},
+    staged[begin + k] = {rh.ray.tfar[lane],   rh.hit.u[lane],
+                         rh.hit.v[lane],      {rh.hit.Ng_x[lane], rh.hit.Ng_y[lane], rh.hit.Ng_z[lane]},
                          rh.hit.geomID[lane], rh.hit.primID[lane]};
   });
 }
@@ -211,8 +211,9 @@ struct RaycastScene::Impl {
 
   Impl() {
     device = rtcNewDevice(nullptr);
-    if (!device) throw std::runtime_error("Embree: rtcNewDevice failed (error " +
-                                          std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) + ")");
+    if (!device)
+      throw std::runtime_error("Embree: rtcNewDevice failed (error " +
+                               std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) + ")");
     scene = rtcNewScene(device);
     // A better BVH costs build time once and pays back on every ray of every frame.
     rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
@@ -336,15 +337,16 @@ SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayH
   return {};
 }
 
-void RaycastScene::cast_rays_ordered(const float* rays, std::size_t n, const std::uint32_t* order,
-                                     const RayHits& out, int nthreads) const {
+void RaycastScene::cast_rays_ordered(const float* rays, std::size_t n, const std::uint32_t* order, const RayHits& out,
+                                     int nthreads) const {
   ForkSafeSection no_fork;  // a child must not inherit the scene's locks held
   std::shared_lock<std::shared_mutex> no_additions(impl_->scene_mutex);
   impl_->commit();
   RTCScene scene = impl_->scene;
-  parallel_chunks(static_cast<std::ptrdiff_t>(n), kChunk, nthreads, [&](std::size_t begin, std::size_t end, std::size_t) {
-    cast_packets8(scene, rays, begin, end, out, order, true);
-  });
+  parallel_chunks(static_cast<std::ptrdiff_t>(n), kChunk, nthreads,
+                  [&](std::size_t begin, std::size_t end, std::size_t) {
+                    cast_packets8(scene, rays, begin, end, out, order, true);
+                  });
 }
 
 std::size_t RaycastScene::num_geometries() const { return impl_->geometries; }

@@ -13,26 +13,26 @@ inline constexpr std::uint32_t kInvalidId = 0xFFFFFFFFu;
 
 enum class SceneStatus {
   kOk,
-  kNoTriangles,        // a mesh with zero triangles
-  kNonFiniteVertex,    // index: the vertex
-  kIndexOutOfRange,    // index: the triangle
-  kNonFiniteRay,       // index: the ray (origin or direction not finite)
-  kZeroDirection,      // index: the ray (direction of zero length)
+  kNoTriangles,      // a mesh with zero triangles
+  kNonFiniteVertex,  // index: the vertex
+  kIndexOutOfRange,  // index: the triangle
+  kNonFiniteRay,     // index: the ray (origin or direction not finite)
+  kZeroDirection,    // index: the ray (direction of zero length)
 };
 
 struct SceneResult {
   SceneStatus status = SceneStatus::kOk;
-  std::size_t index = 0;  // offending element, when status != kOk
+  std::size_t index = 0;          // offending element, when status != kOk
   std::uint32_t id = kInvalidId;  // geometry id from add_triangles
 };
 
 // Where cast_rays writes, one element (or row) per ray; any pointer but t_hit may be null to skip it.
 struct RayHits {
-  float* t_hit = nullptr;                 // (N,) distance in units of |direction|; +inf on a miss
-  std::uint32_t* geometry_ids = nullptr;  // (N,) kInvalidId on a miss
-  std::uint32_t* primitive_ids = nullptr; // (N,) triangle index within its geometry; kInvalidId on a miss
-  float* primitive_uvs = nullptr;         // (N, 2) barycentric (u, v) of the hit; 0 on a miss
-  float* normals = nullptr;               // (N, 3) unit geometric normal, (v1-v0)x(v2-v0) side; 0 on a miss
+  float* t_hit = nullptr;                  // (N,) distance in units of |direction|; +inf on a miss
+  std::uint32_t* geometry_ids = nullptr;   // (N,) kInvalidId on a miss
+  std::uint32_t* primitive_ids = nullptr;  // (N,) triangle index within its geometry; kInvalidId on a miss
+  float* primitive_uvs = nullptr;          // (N, 2) barycentric (u, v) of the hit; 0 on a miss
+  float* normals = nullptr;                // (N, 3) unit geometric normal, (v1-v0)x(v2-v0) side; 0 on a miss
 };
 
 // How cast_rays groups rays for traversal. The hit (or miss), ids, distance and normal of every ray
@@ -61,8 +61,7 @@ class RaycastScene {
 
   // Copies a mesh of nv vertices (xyz, row-major) and nt triangles (3 vertex indices each) into the
   // scene. Degenerate (zero-area) triangles are kept but can never be hit (Embree skips them).
-  SceneResult add_triangles(const float* vertices, std::size_t nv, const std::uint32_t* triangles,
-                            std::size_t nt);
+  SceneResult add_triangles(const float* vertices, std::size_t nv, const std::uint32_t* triangles, std::size_t nt);
 
   // Casts n rays (ox, oy, oz, dx, dy, dz per row) in [0, +inf) along their direction.
   // nthreads <= 0 uses every core. Rays are checked first: a non-finite or zero-direction ray

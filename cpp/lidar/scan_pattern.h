@@ -14,7 +14,7 @@ namespace cufund::lidar {
 struct Mid360Params {
   double point_rate = 0.0;  // [1/s]
   std::int64_t lasers = 1;
-  double spin_rate = 0.0;   // [Hz]
+  double spin_rate = 0.0;  // [Hz]
   double sweep_ratio = 0.0;
   double elevation_min = 0.0, elevation_max = 0.0;  // [rad]
 };

@@ -112,8 +112,9 @@ void stamp_sec_nsec(double t, std::int32_t* sec, std::uint32_t* nsec) {
   const double r = std::nearbyint(t * 1e9);  // the default rounding mode: half to even, as numpy's round
   std::int64_t ns = 0;
   if (std::isfinite(r)) {
-    ns = r >= 9.2e18 ? std::int64_t{9200000000000000000} : r <= -9.2e18 ? -std::int64_t{9200000000000000000}
-                                                                           : static_cast<std::int64_t>(r);
+    ns = r >= 9.2e18    ? std::int64_t{9200000000000000000}
+         : r <= -9.2e18 ? -std::int64_t{9200000000000000000}
+                        : static_cast<std::int64_t>(r);
   }
   std::int64_t s = ns / 1000000000;
   if (ns % 1000000000 < 0) --s;  // floor

@@ -72,9 +72,9 @@ void stamp_sec_nsec(double t, std::int32_t* sec, std::uint32_t* nsec);
 // One topic's messages for one chunk, in write order.
 struct Block {
   std::uint16_t channel = 0;
-  std::size_t row_bytes = 0;         // > 0: every payload has this size; payload i is data[i * row_bytes ...]
-  Bytes data;                        // the payloads, back to back
-  std::vector<std::uint64_t> ends;   // row_bytes == 0: where each payload ends in data
+  std::size_t row_bytes = 0;        // > 0: every payload has this size; payload i is data[i * row_bytes ...]
+  Bytes data;                       // the payloads, back to back
+  std::vector<std::uint64_t> ends;  // row_bytes == 0: where each payload ends in data
   std::vector<std::uint64_t> log, publish;
   std::vector<std::uint32_t> sequence;
   std::shared_ptr<const std::vector<ViewSpec>> views;  // only with row_bytes > 0

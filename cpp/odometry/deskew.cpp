@@ -67,32 +67,33 @@ void deskew(const float* points_L, const double* t_points, std::size_t n, const 
   }
   const double* kt = traj.knot_t;
   const auto last = static_cast<std::ptrdiff_t>(K) - 2;
-  parallel_chunks(static_cast<std::ptrdiff_t>(n), 4096, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t) {
-    std::ptrdiff_t k = -1;
-    for (std::ptrdiff_t i = b; i < e; ++i) {
-      const double tau = t_points[i];
-      // Interval: the last knot at or before tau, clamped to [0, K-2]; kept from the previous point while it
-      // still holds (the points of a frame come in time order).
-      if (k < 0 || !((k == 0 || tau >= kt[k]) && (k == last || tau < kt[k + 1]))) {
-        k = std::upper_bound(kt, kt + K, tau) - kt - 1;
-        k = std::clamp<std::ptrdiff_t>(k, 0, last);
-      }
-      const Interval& I = iv[static_cast<std::size_t>(k)];
-      const double h = tau - kt[k];
-      const Eigen::Vector3d x_I = T_IL * Eigen::Vector3d(points_L[3 * i], points_L[3 * i + 1], points_L[3 * i + 2]);
-      const Eigen::Vector3d phi = I.w * h;
-      const double t2 = phi.squaredNorm();
-      const Eigen::Vector3d px = phi.cross(x_I), ppx = phi.cross(px);
-      Eigen::Vector3d rx;
-      if (t2 < 1e-16) {
-        rx = x_I + px + 0.5 * ppx;
-      } else {
-        const double t = std::sqrt(t2);
-        rx = x_I + (std::sin(t) / t) * px + ((1.0 - std::cos(t)) / t2) * ppx;
-      }
-      Eigen::Map<Eigen::Vector3d>(out + 3 * i) = I.A * rx + I.b + I.c * h + I.d * (h * h);
-    }
-  });
+  parallel_chunks(
+      static_cast<std::ptrdiff_t>(n), 4096, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t) {
+        std::ptrdiff_t k = -1;
+        for (std::ptrdiff_t i = b; i < e; ++i) {
+          const double tau = t_points[i];
+          // Interval: the last knot at or before tau, clamped to [0, K-2]; kept from the previous point while it
+          // still holds (the points of a frame come in time order).
+          if (k < 0 || !((k == 0 || tau >= kt[k]) && (k == last || tau < kt[k + 1]))) {
+            k = std::upper_bound(kt, kt + K, tau) - kt - 1;
+            k = std::clamp<std::ptrdiff_t>(k, 0, last);
+          }
+          const Interval& I = iv[static_cast<std::size_t>(k)];
+          const double h = tau - kt[k];
+          const Eigen::Vector3d x_I = T_IL * Eigen::Vector3d(points_L[3 * i], points_L[3 * i + 1], points_L[3 * i + 2]);
+          const Eigen::Vector3d phi = I.w * h;
+          const double t2 = phi.squaredNorm();
+          const Eigen::Vector3d px = phi.cross(x_I), ppx = phi.cross(px);
+          Eigen::Vector3d rx;
+          if (t2 < 1e-16) {
+            rx = x_I + px + 0.5 * ppx;
+          } else {
+            const double t = std::sqrt(t2);
+            rx = x_I + (std::sin(t) / t) * px + ((1.0 - std::cos(t)) / t2) * ppx;
+          }
+          Eigen::Map<Eigen::Vector3d>(out + 3 * i) = I.A * rx + I.b + I.c * h + I.d * (h * h);
+        }
+      });
 }
 
 }  // namespace cufund::odometry

@@ -37,17 +37,24 @@ Eigen::Vector3d apply_inv_right_jacobian(const Eigen::Vector3d& theta, const Eig
 
 void write_state(const NavState& s, double* out) {
   const Eigen::Quaterniond q(s.R_WI);
-  out[0] = s.p_W.x(); out[1] = s.p_W.y(); out[2] = s.p_W.z();
-  out[3] = s.v_W.x(); out[4] = s.v_W.y(); out[5] = s.v_W.z();
+  out[0] = s.p_W.x();
+  out[1] = s.p_W.y();
+  out[2] = s.p_W.z();
+  out[3] = s.v_W.x();
+  out[4] = s.v_W.y();
+  out[5] = s.v_W.z();
   const double sign = q.w() < 0.0 ? -1.0 : 1.0;
-  out[6] = sign * q.w(); out[7] = sign * q.x(); out[8] = sign * q.y(); out[9] = sign * q.z();
+  out[6] = sign * q.w();
+  out[7] = sign * q.x();
+  out[8] = sign * q.y();
+  out[9] = sign * q.z();
 }
 
 }  // namespace
 
 void propagate(const NavState& start, const Eigen::Vector3d& bias_acc, const Eigen::Vector3d& bias_gyr,
-               const Eigen::Vector3d& gravity_W, const double* dt, const double* acc, const double* gyr,
-               std::size_t n, double* states, double* rates) {
+               const Eigen::Vector3d& gravity_W, const double* dt, const double* acc, const double* gyr, std::size_t n,
+               double* states, double* rates) {
   Eigen::Vector3d theta = Eigen::Vector3d::Zero(), dP = Eigen::Vector3d::Zero(), dV = Eigen::Vector3d::Zero();
   double t = 0.0;
   write_state(start, states);

@@ -28,7 +28,7 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& w);
 // rates (optional, may be null): (n, 6) row-major [a_W, w_I], the bias-corrected world acceleration (gravity
 // included) and IMU-frame angular rate held over sample k: what deskewing interpolates with.
 void propagate(const NavState& start, const Eigen::Vector3d& bias_acc, const Eigen::Vector3d& bias_gyr,
-               const Eigen::Vector3d& gravity_W, const double* dt, const double* acc, const double* gyr,
-               std::size_t n, double* states, double* rates);
+               const Eigen::Vector3d& gravity_W, const double* dt, const double* acc, const double* gyr, std::size_t n,
+               double* states, double* rates);
 
 }  // namespace cufund::odometry

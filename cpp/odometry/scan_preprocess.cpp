@@ -13,7 +13,8 @@ std::vector<double> to_imu(const std::vector<double>& points_L, const Eigen::Iso
   const Eigen::Matrix3d R = T_IL.linear();
   const Eigen::Vector3d t = T_IL.translation();
   for (std::size_t i = 0; i < points_L.size() / 3; ++i) {
-    Eigen::Map<Eigen::Vector3d>(out.data() + 3 * i) = R * Eigen::Map<const Eigen::Vector3d>(points_L.data() + 3 * i) + t;
+    Eigen::Map<Eigen::Vector3d>(out.data() + 3 * i) =
+        R * Eigen::Map<const Eigen::Vector3d>(points_L.data() + 3 * i) + t;
   }
   return out;
 }
@@ -21,8 +22,8 @@ std::vector<double> to_imu(const std::vector<double>& points_L, const Eigen::Iso
 }  // namespace
 
 PreparedScan prepare_scan(const float* points_L, const double* t_points, std::size_t n, const Trajectory& traj,
-                          double t_ref, const Eigen::Isometry3d& T_BI, const Eigen::Isometry3d& T_BL,
-                          double min_range, double insert_voxel, double scan_voxel, int threads) {
+                          double t_ref, const Eigen::Isometry3d& T_BI, const Eigen::Isometry3d& T_BL, double min_range,
+                          double insert_voxel, double scan_voxel, int threads) {
   std::vector<double> deskewed(3 * n);
   deskew(points_L, t_points, n, traj, t_ref, T_BI, T_BL, deskewed.data(), threads);
   std::size_t kept = 0;

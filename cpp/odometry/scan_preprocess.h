@@ -16,7 +16,7 @@ struct PreparedScan {
 };
 
 PreparedScan prepare_scan(const float* points_L, const double* t_points, std::size_t n, const Trajectory& traj,
-                          double t_ref, const Eigen::Isometry3d& T_BI, const Eigen::Isometry3d& T_BL,
-                          double min_range, double insert_voxel, double scan_voxel, int threads);
+                          double t_ref, const Eigen::Isometry3d& T_BI, const Eigen::Isometry3d& T_BL, double min_range,
+                          double insert_voxel, double scan_voxel, int threads);
 
 }  // namespace cufund::odometry

@@ -33,8 +33,8 @@ bool voxel_index(const Eigen::Vector3d& p, double inv_voxel, Eigen::Matrix<std::
 }
 
 // Offsets o = 9 (dx + 1) + 3 (dy + 1) + (dz + 1) of the 27 voxels around a voxel, by |dx| + |dy| + |dz|.
-constexpr int kNeighbourOrder[27] = {13, 4, 10, 12, 14, 16, 22, 1, 3, 5, 7, 9, 11, 15, 17, 19, 21, 23, 25,
-                                     0, 2, 6, 8, 18, 20, 24, 26};
+constexpr int kNeighbourOrder[27] = {13, 4,  10, 12, 14, 16, 22, 1, 3, 5,  7,  9,  11, 15,
+                                     17, 19, 21, 23, 25, 0,  2,  6, 8, 18, 20, 24, 26};
 
 double robust_weight(Robust kind, double r, double c) {
   const double a = std::abs(r);
@@ -114,7 +114,6 @@ std::vector<double> voxel_downsample(const double* points, std::size_t n, double
   return out;
 }
 
-
 VoxelMap::VoxelMap(double voxel_size, int max_points_per_voxel, double min_point_distance, double max_distance,
                    std::size_t max_voxels)
     : voxel_(voxel_size),
@@ -184,9 +183,11 @@ std::size_t VoxelMap::insert(const double* points_W, std::size_t n, const Eigen:
     if (count >= max_per_voxel_) continue;
     const double* base = slots_.data() + static_cast<std::size_t>(v) * 3 * per;
     bool near = false;
-    for (int j = 0; j < count && !near; ++j) near = (Eigen::Map<const Eigen::Vector3d>(base + 3 * j) - p).squaredNorm() < min_d2_;
+    for (int j = 0; j < count && !near; ++j)
+      near = (Eigen::Map<const Eigen::Vector3d>(base + 3 * j) - p).squaredNorm() < min_d2_;
     if (near) continue;
-    Eigen::Map<Eigen::Vector3d>(slots_.data() + static_cast<std::size_t>(v) * 3 * per + 3 * static_cast<std::size_t>(count)) = p;
+    Eigen::Map<Eigen::Vector3d>(slots_.data() + static_cast<std::size_t>(v) * 3 * per +
+                                3 * static_cast<std::size_t>(count)) = p;
     ++count;
     ++points_;
     ++kept;
@@ -231,7 +232,8 @@ void VoxelMap::evict(const Eigen::Vector3d& origin) {
       keys_[w] = keys_[i];
       counts_[w] = counts_[i];
       centres_[w] = centres_[i];
-      std::copy(slots_.begin() + static_cast<std::ptrdiff_t>(i * per3), slots_.begin() + static_cast<std::ptrdiff_t>((i + 1) * per3),
+      std::copy(slots_.begin() + static_cast<std::ptrdiff_t>(i * per3),
+                slots_.begin() + static_cast<std::ptrdiff_t>((i + 1) * per3),
                 slots_.begin() + static_cast<std::ptrdiff_t>(w * per3));
     }
     ++w;
@@ -299,26 +301,29 @@ int VoxelMap::nearest(const Eigen::Vector3d& query, int k, double max_d2, Eigen:
   return found;
 }
 
-void VoxelMap::knn(const double* queries, std::size_t q, int k, double max_distance, double* neighbours,
-                   double* dist2, int threads) const {
+void VoxelMap::knn(const double* queries, std::size_t q, int k, double max_distance, double* neighbours, double* dist2,
+                   int threads) const {
   if (k < 1 || k > kMaxNeighbours) throw std::invalid_argument("knn: k must be in [1, 64]");
   const double md = std::min(max_distance, voxel_);
-  parallel_chunks(static_cast<std::ptrdiff_t>(q), 256, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t) {
-    std::vector<Eigen::Vector3d> nb(static_cast<std::size_t>(k));
-    for (std::ptrdiff_t i = b; i < e; ++i) {
-      double* d2 = dist2 + i * k;
-      const int found = nearest(Eigen::Map<const Eigen::Vector3d>(queries + 3 * i), k, md * md, nb.data(), d2);
-      for (int j = 0; j < k; ++j) {
-        double* o = neighbours + (i * k + j) * 3;
-        if (j < found) {
-          o[0] = nb[j].x(); o[1] = nb[j].y(); o[2] = nb[j].z();
-        } else {
-          d2[j] = std::numeric_limits<double>::infinity();
-          o[0] = o[1] = o[2] = std::numeric_limits<double>::quiet_NaN();
+  parallel_chunks(
+      static_cast<std::ptrdiff_t>(q), 256, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t) {
+        std::vector<Eigen::Vector3d> nb(static_cast<std::size_t>(k));
+        for (std::ptrdiff_t i = b; i < e; ++i) {
+          double* d2 = dist2 + i * k;
+          const int found = nearest(Eigen::Map<const Eigen::Vector3d>(queries + 3 * i), k, md * md, nb.data(), d2);
+          for (int j = 0; j < k; ++j) {
+            double* o = neighbours + (i * k + j) * 3;
+            if (j < found) {
+              o[0] = nb[j].x();
+              o[1] = nb[j].y();
+              o[2] = nb[j].z();
+            } else {
+              d2[j] = std::numeric_limits<double>::infinity();
+              o[0] = o[1] = o[2] = std::numeric_limits<double>::quiet_NaN();
+            }
+          }
         }
-      }
-    }
-  });
+      });
 }
 
 void VoxelMap::fit_planes(const double* points_I, std::size_t n, const Eigen::Matrix3d& R_WI,
@@ -327,31 +332,35 @@ void VoxelMap::fit_planes(const double* points_I, std::size_t n, const Eigen::Ma
   const int k = prm.neighbours;
   if (k < 1 || k > kMaxNeighbours) throw std::invalid_argument("fit_planes: neighbours must be in [1, 64]");
   const double md = std::min(prm.max_neighbour_distance, voxel_);
-  parallel_chunks(static_cast<std::ptrdiff_t>(n), 256, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t) {
-    std::vector<Eigen::Vector3d> nb(static_cast<std::size_t>(k));
-    std::vector<double> d2(static_cast<std::size_t>(k));
-    for (std::ptrdiff_t i = b; i < e; ++i) {
-      valid[i] = 0;
-      double* pl = planes + 4 * i;
-      pl[0] = pl[1] = pl[2] = pl[3] = 0.0;
-      const Eigen::Vector3d x = R_WI * Eigen::Map<const Eigen::Vector3d>(points_I + 3 * i) + t_W;
-      if (nearest(x, k, md * md, nb.data(), d2.data()) < k) continue;
-      Eigen::Vector3d c0 = Eigen::Vector3d::Zero();
-      for (const auto& p : nb) c0 += p;
-      c0 /= k;
-      Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
-      for (const auto& p : nb) C += (p - c0) * (p - c0).transpose();
-      C /= k;
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-      es.computeDirect(C);
-      if (!(es.eigenvalues()[0] <= prm.max_plane_rms * prm.max_plane_rms)) continue;
-      // A line (two small eigenvalues) has no plane.
-      if (es.eigenvalues()[1] < 4.0 * es.eigenvalues()[0] + 1e-12) continue;
-      const Eigen::Vector3d nrm = es.eigenvectors().col(0).normalized();
-      valid[i] = 1;
-      pl[0] = nrm.x(); pl[1] = nrm.y(); pl[2] = nrm.z(); pl[3] = -nrm.dot(c0);
-    }
-  });
+  parallel_chunks(static_cast<std::ptrdiff_t>(n), 256, threads,
+                  [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t) {
+                    std::vector<Eigen::Vector3d> nb(static_cast<std::size_t>(k));
+                    std::vector<double> d2(static_cast<std::size_t>(k));
+                    for (std::ptrdiff_t i = b; i < e; ++i) {
+                      valid[i] = 0;
+                      double* pl = planes + 4 * i;
+                      pl[0] = pl[1] = pl[2] = pl[3] = 0.0;
+                      const Eigen::Vector3d x = R_WI * Eigen::Map<const Eigen::Vector3d>(points_I + 3 * i) + t_W;
+                      if (nearest(x, k, md * md, nb.data(), d2.data()) < k) continue;
+                      Eigen::Vector3d c0 = Eigen::Vector3d::Zero();
+                      for (const auto& p : nb) c0 += p;
+                      c0 /= k;
+                      Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+                      for (const auto& p : nb) C += (p - c0) * (p - c0).transpose();
+                      C /= k;
+                      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+                      es.computeDirect(C);
+                      if (!(es.eigenvalues()[0] <= prm.max_plane_rms * prm.max_plane_rms)) continue;
+                      // A line (two small eigenvalues) has no plane.
+                      if (es.eigenvalues()[1] < 4.0 * es.eigenvalues()[0] + 1e-12) continue;
+                      const Eigen::Vector3d nrm = es.eigenvectors().col(0).normalized();
+                      valid[i] = 1;
+                      pl[0] = nrm.x();
+                      pl[1] = nrm.y();
+                      pl[2] = nrm.z();
+                      pl[3] = -nrm.dot(c0);
+                    }
+                  });
 }
 
 PlaneTerms plane_terms(const double* points_I, const double* planes, const std::uint8_t* fitted, std::size_t n,
@@ -371,29 +380,30 @@ PlaneTerms plane_terms(const double* points_I, const double* planes, const std::
     std::size_t inliers = 0;
   };
   std::vector<Partial> parts(chunks);
-  parallel_chunks(static_cast<std::ptrdiff_t>(n), kChunk, threads, [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t c) {
-    Partial& part = parts[static_cast<std::size_t>(c)];
-    for (std::ptrdiff_t i = b; i < e; ++i) {
-      if (!fitted[i]) continue;
-      const Eigen::Vector3d q = Eigen::Map<const Eigen::Vector3d>(points_I + 3 * i);
-      const Eigen::Vector3d nrm = Eigen::Map<const Eigen::Vector3d>(planes + 4 * i);
-      const double r = nrm.dot(R_WI * q + t_W) + planes[4 * i + 3];
-      if (!(std::abs(r) <= prm.max_residual)) continue;
-      const double w = robust_weight(prm.robust, r, prm.robust_scale);
-      const Eigen::Vector3d n_I = R_WI.transpose() * nrm;
-      Eigen::Matrix<double, 6, 1> J;
-      J.head<3>() = q.cross(n_I);
-      J.tail<3>() = n_I;
-      part.H.noalias() += (w * inv_s2) * J * J.transpose();
-      part.b.noalias() += (w * inv_s2 * r) * J;
-      part.cost += w * inv_s2 * r * r;
-      ++part.inliers;
-      out.valid[i] = 1;
-      out.residual[i] = r;
-      out.weight[i] = w;
-      for (int j = 0; j < 3; ++j) out.normal[3 * i + j] = nrm[j];
-    }
-  });
+  parallel_chunks(static_cast<std::ptrdiff_t>(n), kChunk, threads,
+                  [&](std::ptrdiff_t b, std::ptrdiff_t e, std::ptrdiff_t c) {
+                    Partial& part = parts[static_cast<std::size_t>(c)];
+                    for (std::ptrdiff_t i = b; i < e; ++i) {
+                      if (!fitted[i]) continue;
+                      const Eigen::Vector3d q = Eigen::Map<const Eigen::Vector3d>(points_I + 3 * i);
+                      const Eigen::Vector3d nrm = Eigen::Map<const Eigen::Vector3d>(planes + 4 * i);
+                      const double r = nrm.dot(R_WI * q + t_W) + planes[4 * i + 3];
+                      if (!(std::abs(r) <= prm.max_residual)) continue;
+                      const double w = robust_weight(prm.robust, r, prm.robust_scale);
+                      const Eigen::Vector3d n_I = R_WI.transpose() * nrm;
+                      Eigen::Matrix<double, 6, 1> J;
+                      J.head<3>() = q.cross(n_I);
+                      J.tail<3>() = n_I;
+                      part.H.noalias() += (w * inv_s2) * J * J.transpose();
+                      part.b.noalias() += (w * inv_s2 * r) * J;
+                      part.cost += w * inv_s2 * r * r;
+                      ++part.inliers;
+                      out.valid[i] = 1;
+                      out.residual[i] = r;
+                      out.weight[i] = w;
+                      for (int j = 0; j < 3; ++j) out.normal[3 * i + j] = nrm[j];
+                    }
+                  });
   for (const auto& part : parts) {
     out.H += part.H;
     out.b += part.b;

@@ -22,13 +22,13 @@ std::vector<double> voxel_downsample(const double* points, std::size_t n, double
 enum class Robust { kNone = 0, kHuber = 1, kCauchy = 2 };
 
 struct PlaneParams {
-  int neighbours = 5;          // points fitted per plane
+  int neighbours = 5;                   // points fitted per plane
   double max_neighbour_distance = 1.0;  // [m], capped at the voxel size
-  double max_plane_rms = 0.05;  // RMS of the neighbours' distances to their plane [m]
-  double max_residual = 0.5;    // point-to-plane distances beyond this are outliers [m]
+  double max_plane_rms = 0.05;          // RMS of the neighbours' distances to their plane [m]
+  double max_residual = 0.5;            // point-to-plane distances beyond this are outliers [m]
   Robust robust = Robust::kHuber;
-  double robust_scale = 0.05;   // [m]
-  double sigma = 0.02;          // residual standard deviation: H and b are divided by sigma^2
+  double robust_scale = 0.05;  // [m]
+  double sigma = 0.02;         // residual standard deviation: H and b are divided by sigma^2
 };
 
 struct PlaneTerms {

@@ -13,8 +13,8 @@ namespace {
 // A cell's integer coordinates packed in one key (21 bits per axis, offset to stay positive).
 inline std::uint64_t cell_key(std::int64_t i, std::int64_t j, std::int64_t k) {
   constexpr std::int64_t kOff = std::int64_t{1} << 20, kMask = (std::int64_t{1} << 21) - 1;
-  return (static_cast<std::uint64_t>((i + kOff) & kMask) << 42) | (static_cast<std::uint64_t>((j + kOff) & kMask) << 21) |
-         static_cast<std::uint64_t>((k + kOff) & kMask);
+  return (static_cast<std::uint64_t>((i + kOff) & kMask) << 42) |
+         (static_cast<std::uint64_t>((j + kOff) & kMask) << 21) | static_cast<std::uint64_t>((k + kOff) & kMask);
 }
 
 std::size_t find_root(std::vector<std::uint32_t>& parent, std::size_t i) {
@@ -38,7 +38,8 @@ std::int64_t dbscan(const double* points, std::size_t n, double eps, std::size_t
   std::vector<std::int64_t> cell(3 * n);
   std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);
   for (std::size_t i = 0; i < n; ++i) {
-    for (int c = 0; c < 3; ++c) cell[3 * i + c] = static_cast<std::int64_t>(std::floor((points[3 * i + c] - lo[c]) / cell_edge));
+    for (int c = 0; c < 3; ++c)
+      cell[3 * i + c] = static_cast<std::int64_t>(std::floor((points[3 * i + c] - lo[c]) / cell_edge));
     keyed[i] = {cell_key(cell[3 * i], cell[3 * i + 1], cell[3 * i + 2]), static_cast<std::uint32_t>(i)};
   }
   std::sort(keyed.begin(), keyed.end());

@@ -10,23 +10,23 @@
 namespace cufund::perception {
 
 struct DeskewKnots {
-  std::size_t segments = 0;  // K: K + 1 knots evenly over [0, span]
-  double span = 0.0;         // [s] > 0
+  std::size_t segments = 0;      // K: K + 1 knots evenly over [0, span]
+  double span = 0.0;             // [s] > 0
   const double* p_WL = nullptr;  // (K + 1, 3) [m]
   const double* R_WL = nullptr;  // (K + 1, 3, 3) row-major
 };
 
 struct CropBox {
-  double max_range = 0.0;      // points farther from the sensor are dropped [m]
+  double max_range = 0.0;           // points farther from the sensor are dropped [m]
   double z_min = 0.0, z_max = 0.0;  // points outside [z_min, z_max] are dropped [m]
-  double tall_z = 0.0;         // points above this are flagged (walls, poles) [m]
-  double column_cell = 0.1;    // edge of the x-y columns keyed [m]
+  double tall_z = 0.0;              // points above this are flagged (walls, poles) [m]
+  double column_cell = 0.1;         // edge of the x-y columns keyed [m]
 };
 
 struct CroppedScan {
-  std::vector<double> points_W;  // (m, 3) [m]
-  std::vector<double> rays_W;    // (m, 3) unit direction from the sensor to each point
-  std::vector<std::int64_t> columns;  // (m,) x-y column key (cufund.perception.detection.column_keys)
+  std::vector<double> points_W;        // (m, 3) [m]
+  std::vector<double> rays_W;          // (m, 3) unit direction from the sensor to each point
+  std::vector<std::int64_t> columns;   // (m,) x-y column key (cufund.perception.detection.column_keys)
   std::vector<std::int64_t> new_tall;  // sorted column keys above tall_z in this scan, not in the given set
 };
 

@@ -24,7 +24,7 @@ struct BsplineProblem {
   std::vector<Vec3> start;  // fixed leading control points (the state at the start)
   std::vector<Vec3> tail;   // fixed trailing control points (e.g. the goal three times), may be empty
   Vec3 end_target{0.0, 0.0, 0.0};
-  bool pull_end = false;    // pull the last free control point to end_target
+  bool pull_end = false;  // pull the last free control point to end_target
 };
 
 struct LbfgsOptions {

@@ -55,7 +55,7 @@ double ClearanceMap::clearance(const Vec3& p) const {
     if (dx >= cnt[0] || dy >= cnt[1] || dz >= cnt[2]) continue;
     const Index i = lo[0] + dx, j = lo[1] + dy, k = lo[2] + dz;
     const double d = centre_distance((i * ny + j) * nz + k);
-    if (d <= best) continue;  // d - |p - c| cannot beat the best
+    if (d <= best) continue;                                     // d - |p - c| cannot beat the best
     if (d == std::numeric_limits<double>::infinity()) return d;  // nothing occupied
     const double cx = geometry_.origin_W[0] + (static_cast<double>(i) + 0.5) * h - p[0];
     const double cy = geometry_.origin_W[1] + (static_cast<double>(j) + 0.5) * h - p[1];

@@ -23,7 +23,8 @@ double octile(Index dx, Index dy, Index dz) {
   if (a < b) std::swap(a, b);
   if (b < c) std::swap(b, c);
   if (a < b) std::swap(a, b);  // a >= b >= c
-  return static_cast<double>(a - b) + std::sqrt(2.0) * static_cast<double>(b - c) + std::sqrt(3.0) * static_cast<double>(c);
+  return static_cast<double>(a - b) + std::sqrt(2.0) * static_cast<double>(b - c) +
+         std::sqrt(3.0) * static_cast<double>(c);
 }
 
 struct Entry {
@@ -273,7 +274,8 @@ std::vector<Vec3> relax_path(const ClearanceMap& map, const std::vector<Vec3>& p
       Vec3 ab{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
       const double ab2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
       double u = 0.0;
-      if (ab2 > 0.0) u = std::clamp(((c[0] - a[0]) * ab[0] + (c[1] - a[1]) * ab[1] + (c[2] - a[2]) * ab[2]) / ab2, 0.0, 1.0);
+      if (ab2 > 0.0)
+        u = std::clamp(((c[0] - a[0]) * ab[0] + (c[1] - a[1]) * ab[1] + (c[2] - a[2]) * ab[2]) / ab2, 0.0, 1.0);
       const Vec3 d{a[0] + u * ab[0] - c[0], a[1] + u * ab[1] - c[1], a[2] + u * ab[2] - c[2]};
       if (std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) < tiny) continue;
       for (double t = 1.0; t >= 0.125; t *= 0.5) {

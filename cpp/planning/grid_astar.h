@@ -6,8 +6,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
-#include <memory>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "clearance.h"
@@ -16,17 +16,17 @@ namespace cufund::planning {
 
 enum class PathStatus : int {
   kFound = 0,
-  kStartBlocked = 1,     // the start is outside the map or closer than the radius to an obstacle
-  kGoalBlocked = 2,      // the same for the goal
-  kNoPath = 3,           // every reachable voxel was expanded
-  kExpansionLimit = 4,   // max_expansions reached first
+  kStartBlocked = 1,    // the start is outside the map or closer than the radius to an obstacle
+  kGoalBlocked = 2,     // the same for the goal
+  kNoPath = 3,          // every reachable voxel was expanded
+  kExpansionLimit = 4,  // max_expansions reached first
 };
 
 struct AStarOptions {
-  double radius = 0.2;                    // required clearance [m] of every point of the path
+  double radius = 0.2;                      // required clearance [m] of every point of the path
   std::ptrdiff_t max_expansions = 5000000;  // stop after this many node expansions
-  bool shortcut = true;                   // greedy line-of-sight shortcutting of the voxel path
-  double heuristic_weight = 1.0;          // >= 1: weighted A* (f = g + w h), at most w times the grid optimum
+  bool shortcut = true;                     // greedy line-of-sight shortcutting of the voxel path
+  double heuristic_weight = 1.0;            // >= 1: weighted A* (f = g + w h), at most w times the grid optimum
   // Height band [m]: voxels whose centre lies outside [z_min, z_max] are not nodes (e.g. a flight band above
   // ground the map has not observed yet). The start and goal points themselves may lie outside it.
   double z_min = -std::numeric_limits<double>::infinity();
@@ -35,9 +35,9 @@ struct AStarOptions {
 
 struct AStarResult {
   PathStatus status = PathStatus::kNoPath;
-  std::vector<Vec3> path;           // start, waypoints, goal [m] (empty unless found)
-  double length = 0.0;              // [m] of `path`
-  std::ptrdiff_t expansions = 0;    // nodes expanded
+  std::vector<Vec3> path;         // start, waypoints, goal [m] (empty unless found)
+  double length = 0.0;            // [m] of `path`
+  std::ptrdiff_t expansions = 0;  // nodes expanded
   std::ptrdiff_t clearance_queries = 0;
 };
 

@@ -119,7 +119,7 @@ std::vector<double> min_derivative_spline(const double* values, std::size_t m, s
   for (std::size_t r = 1; r < k; ++r) A.at(r - 1, r) = fact[r];  // rest at the start
   for (std::size_t i = 0; i < m; ++i) {
     const std::size_t base = i * nc, top = (k - 1) + i * nc;
-    A.at(top, base) = 1.0;  // p_i(0) = w_i
+    A.at(top, base) = 1.0;                                               // p_i(0) = w_i
     for (std::size_t j = 0; j < nc; ++j) A.at(top + 1, base + j) = 1.0;  // p_i(1) = w_{i+1}
     for (std::size_t d = 0; d < dim; ++d) {
       b[top * dim + d] = values[i * dim + d];

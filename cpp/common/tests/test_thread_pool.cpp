@@ -10,8 +10,8 @@
 
 #include <atomic>
 #include <chrono>
-#include <stdexcept>
 #include <set>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
@@ -55,7 +55,8 @@ TEST(ThreadPool, ConcurrentCallersAreSerialisedSafely) {
   std::vector<std::thread> callers;
   for (int c = 0; c < 4; ++c) {
     callers.emplace_back([&] {
-      for (int rep = 0; rep < 50; ++rep) pool.parallel_for(100, 0, [&](std::size_t i) { total += static_cast<long>(i); });
+      for (int rep = 0; rep < 50; ++rep)
+        pool.parallel_for(100, 0, [&](std::size_t i) { total += static_cast<long>(i); });
     });
   }
   for (auto& t : callers) t.join();
@@ -121,7 +122,10 @@ TEST(ThreadPool, DefaultSizeIsTheEnvironmentVariableElseTheAffinityMask) {
     setenv("CUFUND_NUM_THREADS", bad, 1);
     EXPECT_THROW(ThreadPool::default_size(), std::invalid_argument) << bad;
   }
-  if (saved) setenv("CUFUND_NUM_THREADS", keep.c_str(), 1); else unsetenv("CUFUND_NUM_THREADS");
+  if (saved)
+    setenv("CUFUND_NUM_THREADS", keep.c_str(), 1);
+  else
+    unsetenv("CUFUND_NUM_THREADS");
 }
 
 TEST(ThreadPool, AffinityMaskOfOneCpuGivesAPoolOfOne) {
@@ -135,7 +139,10 @@ TEST(ThreadPool, AffinityMaskOfOneCpuGivesAPoolOfOne) {
     cpu_set_t all;
     sched_getaffinity(0, sizeof(all), &all);
     for (int c = 0; c < CPU_SETSIZE; ++c) {
-      if (CPU_ISSET(c, &all)) { CPU_SET(c, &one); break; }
+      if (CPU_ISSET(c, &all)) {
+        CPU_SET(c, &one);
+        break;
+      }
     }
     sched_setaffinity(0, sizeof(one), &one);
     _exit(ThreadPool::default_size() == 1 && ThreadPool::instance().size() == 1 ? 0 : 1);

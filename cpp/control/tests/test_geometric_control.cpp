@@ -23,9 +23,9 @@ TEST(GeometricControl, HoverIsAnEquilibrium) {
 TEST(GeometricControl, RestoringTorqueForRollError) {
   // rolled +0.3 rad about body x, desired level: torque about -x; thrust is the projection on body z
   const Eigen::Quaterniond q(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()));
-  const auto c = geometric_from_force(kJ, 1.0, kR, kW, Eigen::Vector4d(q.w(), q.x(), q.y(), q.z()),
-                                      Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 10.0), Eigen::Vector3d::Zero(),
-                                      0.0, 0.0);
+  const auto c =
+      geometric_from_force(kJ, 1.0, kR, kW, Eigen::Vector4d(q.w(), q.x(), q.y(), q.z()), Eigen::Vector3d::Zero(),
+                           Eigen::Vector3d(0, 0, 10.0), Eigen::Vector3d::Zero(), 0.0, 0.0);
   EXPECT_NEAR(c.torque_B.x(), -kJ(0, 0) * kR.x() * std::sin(0.3), 1e-12);  // e_R = sin(angle) about x
   EXPECT_NEAR(c.torque_B.y(), 0.0, 1e-12);
   EXPECT_NEAR(c.thrust, 10.0 * std::cos(0.3), 1e-12);

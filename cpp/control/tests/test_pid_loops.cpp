@@ -25,8 +25,16 @@ QuadrotorParams vehicle() {  // cufund.presets.cu_astro()
 }
 
 PositionControlGains position_gains() {
-  return {Eigen::Vector3d(3, 3, 3), Eigen::Vector3d(8, 8, 8), Eigen::Vector3d(2, 2, 2), Eigen::Vector3d(0.3, 0.3, 0),
-          2.0, 3.0, 1.5, 45.0 * M_PI / 180.0, 0.12, 1.0};
+  return {Eigen::Vector3d(3, 3, 3),
+          Eigen::Vector3d(8, 8, 8),
+          Eigen::Vector3d(2, 2, 2),
+          Eigen::Vector3d(0.3, 0.3, 0),
+          2.0,
+          3.0,
+          1.5,
+          45.0 * M_PI / 180.0,
+          0.12,
+          1.0};
 }
 
 TEST(ReferenceArithmetic, HypotIsCorrectlyRoundedOnExactCases) {

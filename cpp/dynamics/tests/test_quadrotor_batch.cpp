@@ -181,7 +181,7 @@ TEST(QuadrotorBatch, BatchEqualsSingleVehiclesBitForBit) {
   for (std::size_t i = 0; i < n; ++i) {
     for (int r = 0; r < B::kRows; ++r) {
       double x = u(rng);
-      if (r == B::kP + 2) x = 1.0 + x;                   // airborne
+      if (r == B::kP + 2) x = 1.0 + x;  // airborne
       if (r >= B::kRotor && r < B::kRotor + 4) x = 1800 + 200 * x;
       batch.row(r)[i] = x;
       singles[i].row(r)[0] = x;
@@ -245,7 +245,7 @@ TEST(QuadrotorBatch, AStepThatOverflowsReportsDivergenceNotSilentNaN) {
   b.row(B::kTorqueExt + 0)[1] = 1e300;  // finite, but w overflows within the step
   const StepResult r = b.step(1e-3, cmd.data());
   EXPECT_EQ(r.status, StepStatus::kDiverged);
-  EXPECT_EQ(r.index % 2, 1);  // vehicle 1
+  EXPECT_EQ(r.index % 2, 1);                    // vehicle 1
   EXPECT_TRUE(std::isfinite(b.row(B::kW)[0]));  // vehicle 0 is fine
 }
 
@@ -268,7 +268,8 @@ TEST(QuadrotorBatch, ConcurrentStepsFromManyThreadsEqualTheSameStepsInSequence) 
   EXPECT_EQ(shared.time(), serial.time());
   for (int r = 0; r < B::kRows; ++r) {
     for (std::size_t i = 0; i < n; ++i) {
-      ASSERT_EQ(std::memcmp(&shared.row(r)[i], &serial.row(r)[i], sizeof(double)), 0) << "row " << r << " vehicle " << i;
+      ASSERT_EQ(std::memcmp(&shared.row(r)[i], &serial.row(r)[i], sizeof(double)), 0)
+          << "row " << r << " vehicle " << i;
     }
   }
 }

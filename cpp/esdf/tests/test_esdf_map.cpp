@@ -28,10 +28,10 @@ TEST(OccupancyGrid, BeamMarksFreeAlongAndHitAtEnd) {
   OccupancyGrid grid(g, SensorModel{});
   // Origin in voxel (2, 5, 5), end in voxel (15, 5, 5), along +x through voxel centres' row.
   const double o[3] = {-1.0 + 0.25, -2.0 + 0.55, 0.55};
-  const double p[3 * 4] = {-1.0 + 1.55, -2.0 + 0.55, 0.55,   // hit
-                           std::nan(""), 0.0, 0.0,           // skipped
-                           5.0, -2.0 + 0.55, 0.55,           // outside: free to the border
-                           -1.0 + 1.55, -2.0 + 0.55, 0.55};  // same voxel again: one update
+  const double p[3 * 4] = {-1.0 + 1.55,  -2.0 + 0.55, 0.55,   // hit
+                           std::nan(""), 0.0,         0.0,    // skipped
+                           5.0,          -2.0 + 0.55, 0.55,   // outside: free to the border
+                           -1.0 + 1.55,  -2.0 + 0.55, 0.55};  // same voxel again: one update
   std::vector<Index> flipped;
   std::vector<std::uint8_t> state;
   const ScanStats s = grid.insert_scan(p, 4, o, &flipped, &state);
@@ -174,8 +174,9 @@ TEST(OccupancyGrid, MergedBeamsHitTheSameVoxelsAndFreeASubset) {
     EXPECT_LT(b.beams, a.beams);
     EXPECT_LE(b.free_voxels, a.free_voxels);
     for (Index i = 0; i < every.size(); ++i) {
-      const float la = every.log_odds()[static_cast<std::size_t>(i)], lb = merged.log_odds()[static_cast<std::size_t>(i)];
-      ASSERT_EQ(la > 0.0f, lb > 0.0f) << i;   // the same hits
+      const float la = every.log_odds()[static_cast<std::size_t>(i)],
+                  lb = merged.log_odds()[static_cast<std::size_t>(i)];
+      ASSERT_EQ(la > 0.0f, lb > 0.0f) << i;       // the same hits
       ASSERT_TRUE(lb >= 0.0f || la < 0.0f) << i;  // freed by a merged beam: freed by some beam
     }
   }

@@ -102,9 +102,9 @@ TEST(IncrementalEdt, BoxesAppearingAndVanishingInOpenSpaceEqualFullRecompute) {
 // switch back and forth between line windows and full passes.
 TEST(IncrementalEdt, MidSizedBatchesOnSmallGridsEqualFullRecompute) {
   std::mt19937 rng(3);
-  for (const std::array<Index, 3>& n : {std::array<Index, 3>{7, 1, 33}, std::array<Index, 3>{40, 3, 1},
-                                        std::array<Index, 3>{64, 64, 1}, std::array<Index, 3>{90, 5, 4},
-                                        std::array<Index, 3>{30, 20, 10}}) {
+  for (const std::array<Index, 3>& n :
+       {std::array<Index, 3>{7, 1, 33}, std::array<Index, 3>{40, 3, 1}, std::array<Index, 3>{64, 64, 1},
+        std::array<Index, 3>{90, 5, 4}, std::array<Index, 3>{30, 20, 10}}) {
     const Index size = n[0] * n[1] * n[2];
     IncrementalEdt inc(n);
     for (int step = 0; step < 60; ++step) {

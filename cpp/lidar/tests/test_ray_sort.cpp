@@ -100,8 +100,8 @@ TEST(SpatialOrder, RaysFromOutsideKeyByWhereTheyEnter) {
   // Rays 0 and 1 start 10 m apart on the -x side and enter the box at almost the same point; rays
   // 2-4 start between them and point away, so they key by their origins. Keyed by origin, 0 and 1
   // would have the others between them; keyed by where they enter, they are neighbours.
-  const std::vector<float> rays = {-10, 0, 0, 1, 0, 0,  -20, 0.01f, 0, 1, 0, 0,  -12, 0, 0, -1, 0, 0,
-                                   -15, 0, 0, -1, 0, 0, -18, 0, 0, -1, 0, 0};
+  const std::vector<float> rays = {-10, 0, 0, 1,   0, 0, -20, 0.01f, 0, 1,   0, 0, -12, 0, 0,
+                                   -1,  0, 0, -15, 0, 0, -1,  0,     0, -18, 0, 0, -1,  0, 0};
   std::vector<std::uint32_t> order(5);
   spatial_order(rays.data(), 5, kLo, kHi, RayKey::kBoxCrossing, order.data(), 1);
   EXPECT_TRUE(is_permutation_of_iota(order));

@@ -108,8 +108,12 @@ TEST(RaycastScene, PlaneRangesMatchAnalyticForManyRays) {
   for (std::size_t i = 0; i < n; ++i) {
     const float a = ang(rng), e = el(rng);
     float* r = &rays[6 * i];
-    r[0] = 0; r[1] = 0; r[2] = h;
-    r[3] = std::cos(e) * std::cos(a); r[4] = std::cos(e) * std::sin(a); r[5] = -std::sin(e);
+    r[0] = 0;
+    r[1] = 0;
+    r[2] = h;
+    r[3] = std::cos(e) * std::cos(a);
+    r[4] = std::cos(e) * std::sin(a);
+    r[5] = -std::sin(e);
   }
   for (RayOrder order : {RayOrder::kIncoherent, RayOrder::kCoherent, RayOrder::kSorted}) {
     Result r(n);
@@ -134,8 +138,12 @@ TEST(RaycastScene, PacketAndSingleRayPathsAgree) {
   std::vector<float> rays(6 * n);
   for (std::size_t i = 0; i < n; ++i) {
     float* r = &rays[6 * i];
-    r[0] = 0.1f; r[1] = 0.2f; r[2] = 0.3f;
-    r[3] = g(rng); r[4] = g(rng); r[5] = g(rng);
+    r[0] = 0.1f;
+    r[1] = 0.2f;
+    r[2] = 0.3f;
+    r[3] = g(rng);
+    r[4] = g(rng);
+    r[5] = g(rng);
   }
   Result s(n), p(n);
   scene.cast_rays(rays.data(), n, s.hits(), 1, RayOrder::kIncoherent);

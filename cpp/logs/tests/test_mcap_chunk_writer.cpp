@@ -151,7 +151,7 @@ void check_write_error_is_sticky(bool background) {
       EXPECT_TRUE(throws_enospc([&] { writer.finish(); })) << "finish " << k;
     }
     EXPECT_TRUE(throws_enospc([&] { writer.close(); }));
-    EXPECT_TRUE(throws_enospc([&] { writer.close(); }));  // and again
+    EXPECT_TRUE(throws_enospc([&] { writer.close(); }));     // and again
     EXPECT_TRUE(throws_enospc([&] { writer.write({7}); }));  // after close: still the write error
     EXPECT_TRUE(writer.chunks().empty());
     EXPECT_EQ(writer.position(), 0u);

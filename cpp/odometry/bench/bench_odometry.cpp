@@ -62,8 +62,8 @@ void BM_Deskew(benchmark::State& state) {
   std::vector<double> t(n), out(3 * n);
   for (std::size_t i = 0; i < n; ++i) t[i] = 0.1 * static_cast<double>(i) / n;
   for (auto _ : state) {
-    deskew(pts.data(), t.data(), n, traj, 0.1, Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity(),
-           out.data(), static_cast<int>(state.range(0)));
+    deskew(pts.data(), t.data(), n, traj, 0.1, Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity(), out.data(),
+           static_cast<int>(state.range(0)));
     benchmark::DoNotOptimize(out.data());
   }
   state.SetItemsProcessed(state.iterations() * static_cast<long>(n));

@@ -25,7 +25,8 @@ TEST(VoxelDownsample, CentroidsEqualBruteForceGrouping) {
   const auto out = voxel_downsample(pts.data(), 2000, v);
   std::map<std::tuple<long, long, long>, std::pair<Eigen::Vector3d, int>> groups;
   for (std::size_t i = 0; i < 2000; ++i) {
-    auto key = std::make_tuple(static_cast<long>(std::floor(pts[3 * i] / v)), static_cast<long>(std::floor(pts[3 * i + 1] / v)),
+    auto key = std::make_tuple(static_cast<long>(std::floor(pts[3 * i] / v)),
+                               static_cast<long>(std::floor(pts[3 * i + 1] / v)),
                                static_cast<long>(std::floor(pts[3 * i + 2] / v)));
     auto& g = groups[key];
     if (g.second == 0) g.first.setZero();
@@ -61,13 +62,16 @@ TEST(VoxelMap, KnnEqualsBruteForceOverStoredPoints) {
     std::vector<double> all;
     for (std::size_t j = 0; j < map.size(); ++j) {
       const double d = (Eigen::Map<const Eigen::Vector3d>(stored.data() + 3 * j) -
-                        Eigen::Map<const Eigen::Vector3d>(queries.data() + 3 * i)).squaredNorm();
+                        Eigen::Map<const Eigen::Vector3d>(queries.data() + 3 * i))
+                           .squaredNorm();
       if (d <= 0.16) all.push_back(d);
     }
     std::sort(all.begin(), all.end());
     for (int j = 0; j < k; ++j) {
-      if (j < static_cast<int>(all.size())) EXPECT_DOUBLE_EQ(d2[i * k + j], all[j]);
-      else EXPECT_TRUE(std::isinf(d2[i * k + j]));
+      if (j < static_cast<int>(all.size()))
+        EXPECT_DOUBLE_EQ(d2[i * k + j], all[j]);
+      else
+        EXPECT_TRUE(std::isinf(d2[i * k + j]));
     }
   }
 }
@@ -91,13 +95,16 @@ TEST(VoxelMap, SearchesStayExactAfterEvictionsCompactTheMap) {
     std::vector<double> all;
     for (std::size_t j = 0; j < map.size(); ++j) {
       const double d = (Eigen::Map<const Eigen::Vector3d>(stored.data() + 3 * j) -
-                        Eigen::Map<const Eigen::Vector3d>(queries.data() + 3 * i)).squaredNorm();
+                        Eigen::Map<const Eigen::Vector3d>(queries.data() + 3 * i))
+                           .squaredNorm();
       if (d <= 0.25) all.push_back(d);
     }
     std::sort(all.begin(), all.end());
     for (std::size_t j = 0; j < 4; ++j) {
-      if (j < all.size()) EXPECT_DOUBLE_EQ(d2[i * 4 + j], all[j]);
-      else EXPECT_TRUE(std::isinf(d2[i * 4 + j]));
+      if (j < all.size())
+        EXPECT_DOUBLE_EQ(d2[i * 4 + j], all[j]);
+      else
+        EXPECT_TRUE(std::isinf(d2[i * 4 + j]));
     }
   }
 }
@@ -160,8 +167,8 @@ TEST(VoxelMap, PointToPlaneGradientMatchesFiniteDifferences) {
   }
   // A Gauss-Newton step from H and b brings the scan back onto the walls.
   const Eigen::Matrix<double, 6, 1> step = -terms.H.ldlt().solve(terms.b);
-  const PlaneTerms after = map.point_to_plane(scan.data(), scan.size() / 3, R * so3_exp(step.head<3>()),
-                                              t + R * step.tail<3>(), prm, 2);
+  const PlaneTerms after =
+      map.point_to_plane(scan.data(), scan.size() / 3, R * so3_exp(step.head<3>()), t + R * step.tail<3>(), prm, 2);
   EXPECT_LT(after.cost, 0.05 * terms.cost);
 }
 

@@ -73,9 +73,9 @@ TEST(Dbscan, MatchesTheBruteForceDefinitionOnRandomClouds) {
 
 TEST(Dbscan, TwoSeparatedBlobsAndAnOutlier) {
   std::vector<double> p;
-  for (int i = 0; i < 10; ++i) p.insert(p.end(), {0.01 * i, 0.0, 0.0});       // cluster 0: a row 1 cm apart
+  for (int i = 0; i < 10; ++i) p.insert(p.end(), {0.01 * i, 0.0, 0.0});        // cluster 0: a row 1 cm apart
   for (int i = 0; i < 10; ++i) p.insert(p.end(), {5.0, 5.0 + 0.01 * i, 1.0});  // cluster 1
-  p.insert(p.end(), {-3.0, 2.0, 0.5});                                        // noise
+  p.insert(p.end(), {-3.0, 2.0, 0.5});                                         // noise
   std::vector<std::int64_t> labels(21);
   EXPECT_EQ(dbscan(p.data(), 21, 0.015, 2, labels.data()), 2);
   for (int i = 0; i < 10; ++i) EXPECT_EQ(labels[i], 0);

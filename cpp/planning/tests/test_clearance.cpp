@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <algorithm>
 #include <memory>
 #include <random>
 
@@ -116,7 +115,8 @@ TEST(Clearance, SegmentFreeIsCertifiedAndNotTooConservative) {
     double worst = std::numeric_limits<double>::infinity();
     for (int s = 0; s <= 400; ++s) {
       const double u = s / 400.0;
-      worst = std::min(worst, brute(f.g, f.occ, {a[0] + u * (b[0] - a[0]), a[1] + u * (b[1] - a[1]), a[2] + u * (b[2] - a[2])}));
+      worst = std::min(
+          worst, brute(f.g, f.occ, {a[0] + u * (b[0] - a[0]), a[1] + u * (b[1] - a[1]), a[2] + u * (b[2] - a[2])}));
     }
     if (free) {
       ++free_count;
@@ -148,7 +148,10 @@ TEST(Voxelize, CoversEverySurfacePointAndOnlyTouchedVoxels) {
     std::uniform_real_distribution<double> w(0.0, 1.0);
     for (int s = 0; s < 2000; ++s) {
       double a = w(rng), b = w(rng);
-      if (a + b > 1.0) { a = 1.0 - a; b = 1.0 - b; }
+      if (a + b > 1.0) {
+        a = 1.0 - a;
+        b = 1.0 - b;
+      }
       const Vec3 p{verts[0] + a * (verts[3] - verts[0]) + b * (verts[6] - verts[0]),
                    verts[1] + a * (verts[4] - verts[1]) + b * (verts[7] - verts[1]),
                    verts[2] + a * (verts[5] - verts[2]) + b * (verts[8] - verts[2])};
@@ -165,8 +168,10 @@ TEST(Voxelize, CoversEverySurfacePointAndOnlyTouchedVoxels) {
     const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     for (Index i : occ) {
       const Index k = i % 20, j = (i / 20) % 20, ii = i / 400;
-      const double c[3] = {g.origin_W[0] + (ii + 0.5) * 0.1, g.origin_W[1] + (j + 0.5) * 0.1, g.origin_W[2] + (k + 0.5) * 0.1};
-      const double dist = std::fabs(n[0] * (c[0] - verts[0]) + n[1] * (c[1] - verts[1]) + n[2] * (c[2] - verts[2])) / len;
+      const double c[3] = {g.origin_W[0] + (ii + 0.5) * 0.1, g.origin_W[1] + (j + 0.5) * 0.1,
+                           g.origin_W[2] + (k + 0.5) * 0.1};
+      const double dist =
+          std::fabs(n[0] * (c[0] - verts[0]) + n[1] * (c[1] - verts[1]) + n[2] * (c[2] - verts[2])) / len;
       const double reach = 0.05 * (std::fabs(n[0]) + std::fabs(n[1]) + std::fabs(n[2])) / len;
       ASSERT_LE(dist, reach + 1e-9);
     }
