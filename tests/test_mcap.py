@@ -460,17 +460,40 @@ def test_a_failed_disk_write_is_an_oserror_never_silent():
     log.close()  # and then idempotent
 
 
-@pytest.mark.skipif(not __import__("os").path.exists("/dev/full"), reason="needs /dev/full")
-def test_a_write_error_stays_reported_by_every_later_write_and_close():
-    """Once the writer has reported a write error it reports it again at every later write and at close: it never
-    resumes writing after a failed write (the file's offsets would be wrong)."""
-    log = McapLogger("/dev/full", block_messages=1)
+@pytest.mark.skipif(not (__import__("os").path.exists("/dev/full") and __import__("os").path.isdir("/proc/self/fd")),
+                    reason="needs /dev/full and /proc")
+@pytest.mark.parametrize("background", [True, False])
+def test_a_write_error_stays_reported_by_every_later_write_and_close(tmp_path, background):
+    """Once the writer has reported a write error it reports it again at every later write and at close, and writes
+    nothing more (the file's offsets would be wrong). The logger's descriptor is pointed (dup2) at /dev/full until
+    a write fails, then at a working file, which must stay empty."""
+    import os
+
+    def point_at(fd: int, target: str | os.PathLike[str]) -> None:
+        other = os.open(target, os.O_WRONLY | os.O_CREAT)
+        os.dup2(other, fd)
+        os.close(other)
+
+    path = tmp_path / "run.mcap"
+    log = McapLogger(path, block_messages=1, background=background)
+    fds = [int(n) for n in os.listdir("/proc/self/fd") if _link(f"/proc/self/fd/{n}") == str(path)]
+    assert len(fds) == 1
+    point_at(fds[0], "/dev/full")
     with pytest.raises(OSError, match="writing the log failed"):
         for k in range(100):
             log.write("/a", M.ActuatorCommand(k * 0.1, np.ones(4)), k, k)
+    point_at(fds[0], tmp_path / "after.bin")  # the "disk" recovers
     for k in range(5):
         with pytest.raises(OSError, match="writing the log failed"):
             log.write("/a", M.ActuatorCommand(k * 0.1, np.ones(4)), k, k)
     with pytest.raises(OSError, match="writing the log failed"):
         log.close()
     assert log._closed
+    assert os.path.getsize(tmp_path / "after.bin") == 0
+
+
+def _link(path: str) -> str | None:
+    try:
+        return __import__("os").readlink(path)
+    except OSError:  # the listing's own descriptor, closed by now
+        return None
