@@ -24,7 +24,7 @@ SOURCES := $(shell find cpp bindings -type f \( -name '*.cpp' -o -name '*.h' -o 
 CPP_BUILD := build/cpp
 SAN_BUILD := build/sanitize
 
-.PHONY: demo test test-cpp test-python bench sanitize fuzz deps stubs clean wheel docs
+.PHONY: demo test test-cpp test-python bench sanitize fuzz deps stubs clean lint wheel docs
 
 # The paper's headline case study (§3.2): the tunnel mission on the paper's layout, on LiDAR-inertial odometry;
 # prints the metrics, the run folder, and Table 1 beside the paper's simulation column.
@@ -131,6 +131,14 @@ wheel: $(VENV)/.wheel-tools
 	  -C build-dir=$(abspath $(WHEEL_BUILD))/cmake -C cmake.define.CUFUND_STATIC_COMPRESSION=ON
 	PATH="$(abspath $(VENV))/bin:$$PATH" $(VENV)/bin/auditwheel repair -w dist $(WHEEL_BUILD)/raw/cufund-*.whl
 	$(VENV)/bin/auditwheel show dist/cufund-*.whl
+
+# Static checks: ruff (lint and format) on the Python, mypy on the package (strict on cufund.core and
+# cufund.geometry, pyproject.toml), clang-format on the C++ (lint-cpp).
+lint: $(VENV)/.installed
+	$(VENV)/bin/ruff check python tests benchmarks
+	$(VENV)/bin/ruff format --check python tests benchmarks
+	$(VENV)/bin/mypy
+	$(MAKE) lint-cpp
 
 # The documentation site (docs/, mkdocs.yml) into build/docs. --strict: a broken link, a missing page or an API
 # reference to a name that does not exist fails the build. The docs extra of pyproject.toml goes into the venv first

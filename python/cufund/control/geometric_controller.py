@@ -110,9 +110,10 @@ class GeometricController(Controller):
             return
         w_B = state.w_B
         if self.use_gyro:
-            w_B = self.gyro.update()
-            if w_B is None:
+            w_gyro = self.gyro.update()
+            if w_gyro is None:
                 return
+            w_B = w_gyro
         mode = self.refs.update(t, state, bus, self.last)
         if mode is FlightMode.ATTITUDE:
             att = self.refs.attitude(bus)

@@ -20,7 +20,7 @@ class GyroInput:
 
     def __init__(self, q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0), cutoff_hz: float = 40.0,
                  topic: str = Topics.IMU) -> None:
-        if not (math.isfinite(cutoff_hz) and cutoff_hz >= 0):
+        if not (math.isfinite(cutoff_hz) and float(cutoff_hz) >= 0):
             raise ValueError(f"cutoff_hz must be a finite number >= 0 [Hz], got {cutoff_hz!r}")
         self.topic = topic
         self.cutoff_hz = float(cutoff_hz)
@@ -40,8 +40,8 @@ class GyroInput:
     def update(self) -> np.ndarray | None:
         """Takes the samples that arrived since the last call; returns the filtered body rate."""
         assert self._sub is not None, "GyroInput.setup(bus) must run first"
+        m: Imu
         for m in self._sub.take():
-            m: Imu
             w = m.w_I if self._identity else self._R_BI @ m.w_I
             if self.w_B is None or self.cutoff_hz == 0 or self._t is None:
                 self.w_B = np.array(w, dtype=float)

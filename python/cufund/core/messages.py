@@ -70,7 +70,7 @@ def message(cls: type[_M]) -> type[_M]:
            + "".join(f"    _set(obj, {n!r}, {n})\n" for n in names) + "    return obj\n")
     env: dict[str, Any] = {"_new": object.__new__, "_set": object.__setattr__, "_cls": cls}
     exec(src, env)  # noqa: S102 - built from the dataclass's own field names
-    cls.trusted = staticmethod(env["trusted"])  # type: ignore[attr-defined]
+    cls.trusted = staticmethod(env["trusted"])
     return cls
 
 

@@ -59,7 +59,7 @@ class EsdfMapParams:
 
     def __post_init__(self) -> None:
         res = real_number("resolution", self.resolution)
-        if not (math.isfinite(res) and res > 0):
+        if not (math.isfinite(res) and float(res) > 0):
             raise ConfigError(f"resolution must be finite and > 0 [m], got {self.resolution!r}")
         size = vector3("size", self.size, " [m]", finite=True)
         if min(size) <= 0:

@@ -54,8 +54,8 @@ class EsdfMapper(Mapper):
         self._clouds_sub: Subscription = bus.subscribe(self.cloud_topic)
 
     def integrate(self, t: float, bus: BusView) -> None:
+        state: Odometry
         for state in self._poses_sub.take():
-            state: Odometry
             if not self._t or state.t > self._t[-1]:
                 self._t.append(state.t)
                 self._p.append(state.p_W)

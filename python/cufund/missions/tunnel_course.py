@@ -15,6 +15,7 @@ the generator draws again (the same seed always gives the same course).
 from __future__ import annotations
 
 import math
+from typing import Any
 import numbers
 from dataclasses import dataclass, field
 
@@ -30,7 +31,7 @@ _WALL = (0.75, 0.75, 0.72)
 _FLOOR = (0.45, 0.45, 0.45)
 
 
-def _pair(name: str, v: object, lo: float = 0.0) -> tuple[float, float]:
+def _pair(name: str, v: Any, lo: float = 0.0) -> tuple[float, float]:
     a = tuple(float(x) for x in v)
     if len(a) != 2 or not all(math.isfinite(x) for x in a) or not lo <= a[0] <= a[1]:
         raise ValueError(f"{name} must be two finite numbers (min, max) with {lo} <= min <= max, got {v!r}")
@@ -38,7 +39,7 @@ def _pair(name: str, v: object, lo: float = 0.0) -> tuple[float, float]:
 
 
 def _bound(name: str, v: object) -> float:
-    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and v >= 0):
+    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and float(v) >= 0):
         raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
     return float(v)
 
@@ -95,7 +96,7 @@ class TunnelCourseParams:
             if _bound(name, getattr(self, name)) <= 0:
                 raise ValueError(f"{name} must be > 0 [m], got {getattr(self, name)!r}")
         a = tuple(float(x) for x in self.arena)
-        if len(a) != 3 or not all(math.isfinite(x) and x > 0 for x in a):
+        if len(a) != 3 or not all(math.isfinite(x) and float(x) > 0 for x in a):
             raise ValueError(f"arena must be 3 finite sizes > 0 [m], got {self.arena!r}")
         object.__setattr__(self, "arena", a)
         if isinstance(self.max_attempts, bool) or not isinstance(self.max_attempts, numbers.Integral) \

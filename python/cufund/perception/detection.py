@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from typing import Any, overload
 from dataclasses import dataclass
 
 import numpy as np
@@ -198,6 +199,14 @@ def voxel_keys(points: np.ndarray, voxel: float) -> np.ndarray:
     if len(idx) and (idx.min() < 0 or idx.max() >= 1 << 21):
         raise ValueError(f"points must lie within {(1 << 20) * voxel:g} m of the origin for voxels of {voxel} m")
     return (idx[:, 0] << 42) | (idx[:, 1] << 21) | idx[:, 2]
+
+
+@overload
+def voxel_means(points: np.ndarray, voxel: float, extra: None = None) -> np.ndarray: ...
+
+
+@overload
+def voxel_means(points: np.ndarray, voxel: float, extra: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
 
 def voxel_means(points: np.ndarray, voxel: float, extra: np.ndarray | None = None
@@ -436,7 +445,7 @@ def order_along_course(detections: list[FrameDetection], origin_W: object = None
     if origin_W is None:
         order = list(np.lexsort((centres[:, 1], centres[:, 0])))
     else:
-        here, left, order = _points("origin_W", np.reshape(origin_W, (1, 3)))[0], list(range(len(detections))), []
+        here, left, order = _points("origin_W", np.reshape(np.asarray(origin_W, dtype=float), (1, 3)))[0], list(range(len(detections))), []
         while left:
             k = min(left, key=lambda i: (float(np.linalg.norm(centres[i] - here)), i))
             order.append(k)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Any
 from dataclasses import dataclass
 
 import numpy as np
@@ -133,7 +134,7 @@ class TunnelDetector(Component):
     # -- poses -------------------------------------------------------------------------------------------------
     def _poses(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Body positions (N, 3) and rotations (N, 3, 3) at times t, interpolated (clamped at the ends)."""
-        return interpolate_poses(self._t, self._p, self._q, t)
+        return interpolate_poses(np.asarray(self._t), np.asarray(self._p), np.asarray(self._q), t)
 
     def _crop(self, cloud: PointCloud) -> tuple[np.ndarray, np.ndarray]:
         """The scan's points to accumulate (N, 3) [m] and the unit directions of their rays (N, 3).
@@ -228,7 +229,7 @@ class TunnelDetector(Component):
         """The tracked frames in flying order (their newest detections)."""
         return order_along_course([tr.detection for tr in self.tracks], self.origin_W)
 
-    def plot(self, path: object = None, truth: object = None) -> object:
+    def plot(self, path: Any = None, truth: Any = None) -> Any:
         """:func:`~cufund.perception.plot.plot_detection` of the accumulated map and the tracked frames."""
         from .plot import plot_detection
 
@@ -237,8 +238,8 @@ class TunnelDetector(Component):
     # -- the step ----------------------------------------------------------------------------------------------
     def step(self, t: float, bus: BusView) -> None:
         start, cpu = time.perf_counter(), time.process_time()
+        state: Odometry
         for state in self._poses_sub.take():
-            state: Odometry
             if not self._t or state.t > self._t[-1]:
                 self._t.append(state.t)
                 self._p.append(np.asarray(state.p_W, dtype=float))
