@@ -145,3 +145,15 @@ def test_set_values_are_bounded_like_files():
     laughs = "[" + ",".join(["&a [1,1,1,1,1,1,1,1,1,1]"] + ["*a"] * 1200) + "]"
     with pytest.raises(ConfigError, match="--set x: more than yaml_max_aliases"):
         parse_overrides([f"x={laughs}"])
+
+
+@pytest.mark.parametrize("scenario, key, value, part", [("tunnel", "world.resolution", 1e-3, "world (tunnel_course)"),
+                                                        ("forest_global", "planner.resolution", 2e-3, "planner (global)")])
+def test_a_known_geometry_grid_past_the_voxel_limit_is_refused_before_allocating(scenario, key, value, part):
+    """A fine resolution over the course or the planner's box asked numpy for 20-205 GiB; now the voxel limit."""
+    import re
+
+    from cufund.scenarios.build import build_simulation
+
+    with pytest.raises(ConfigError, match=re.escape(part) + r": resolution .* voxels, more than grid_max_voxels"):
+        build_simulation(load_scenario(scenario, {key: value}))

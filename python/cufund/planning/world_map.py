@@ -8,6 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cufund import _core
+from cufund.core.limits import current
 from cufund.mapping.edt import edt
 from cufund.mapping.esdf_map import EsdfMap, EsdfMapParams
 from .clearance import ClearanceQuery
@@ -33,6 +34,11 @@ def world_occupancy(world: World, resolution: float = 0.1, bounds_W: npt.ArrayLi
             or not (math.isfinite(resolution) and float(resolution) > 0):
         raise ValueError(f"resolution must be finite and > 0 [m], got {resolution!r}")
     shape = tuple(max(1, math.ceil(s / resolution - 1e-9)) for s in (b[1] - b[0]))
+    cap = current().grid_max_voxels
+    if math.prod(shape) > cap:
+        raise ValueError(f"resolution {resolution} m over a {' x '.join(f'{s:g}' for s in b[1] - b[0])} m box gives "
+                          f"{' x '.join(map(str, shape))} = {math.prod(shape)} voxels, more than grid_max_voxels = "
+                          f"{cap} (cufund.core.limits.configure(grid_max_voxels=...))")
     origin = (float(b[0][0]), float(b[0][1]), float(b[0][2]))
     occ = np.zeros(shape, dtype=bool)
     for o in world.objects:
