@@ -27,24 +27,85 @@ finally:
 """
 SETUP = "import sys\nfrom cufund.logs import log_metadata, log_topics, read_mcap\n"
 
-CLASS_NAMES = [f"{GADGET}:Gadget", f"{GADGET}:GadgetEnum", "subprocess:Popen", "logging:FileHandler", "os:system",
-               "builtins:eval", "cufund.core.messages:MissionState", "cufund.core.messages:FlightMode",
-               "cufund.core.messages:Odometry", "cufund.core.messages:PointCloud", "cufund.core.messages:Imu",
-               "cufund.core.messages:Topics", "cufund.core.messages:np", "cufund.planning.diagnostics:PlannerDiagnostics",
-               "cufund.logs.message_classes:_registered", "", ":", "x" * 300, "cufund.core.messages:Odometry.__init__"]
-TAGS = ["$dataclass", "$enum", "$ndarray", "$scalar", "$tuple", "$dict", "$float", "fields", "value", "dtype", "shape",
-        "values", "base64", "t", "state", "reason", "progress", "cufund", "data", "point_stride", "dtypes",
-        "frame", "__class__"]
-STRINGS = CLASS_NAMES + ["<f8", "<i4", "|b1", "O", "V8", "|S3", "<U4", "[('a', 'O')]", "<c16", "nan", "inf", "1e309",
-                         "AAAA", "////", "fly"]
+CLASS_NAMES = [
+    f"{GADGET}:Gadget",
+    f"{GADGET}:GadgetEnum",
+    "subprocess:Popen",
+    "logging:FileHandler",
+    "os:system",
+    "builtins:eval",
+    "cufund.core.messages:MissionState",
+    "cufund.core.messages:FlightMode",
+    "cufund.core.messages:Odometry",
+    "cufund.core.messages:PointCloud",
+    "cufund.core.messages:Imu",
+    "cufund.core.messages:Topics",
+    "cufund.core.messages:np",
+    "cufund.planning.diagnostics:PlannerDiagnostics",
+    "cufund.logs.message_classes:_registered",
+    "",
+    ":",
+    "x" * 300,
+    "cufund.core.messages:Odometry.__init__",
+]
+TAGS = [
+    "$dataclass",
+    "$enum",
+    "$ndarray",
+    "$scalar",
+    "$tuple",
+    "$dict",
+    "$float",
+    "fields",
+    "value",
+    "dtype",
+    "shape",
+    "values",
+    "base64",
+    "t",
+    "state",
+    "reason",
+    "progress",
+    "cufund",
+    "data",
+    "point_stride",
+    "dtypes",
+    "frame",
+    "__class__",
+]
+STRINGS = CLASS_NAMES + [
+    "<f8",
+    "<i4",
+    "|b1",
+    "O",
+    "V8",
+    "|S3",
+    "<U4",
+    "[('a', 'O')]",
+    "<c16",
+    "nan",
+    "inf",
+    "1e309",
+    "AAAA",
+    "////",
+    "fly",
+]
 CODECS = ["json", "cdr", "foxglove.PointCloud", "foxglove.RawImage", "foxglove.LocationFix", "pickle", ""]
 
 json_values = st.recursive(
-    st.one_of(st.none(), st.booleans(), st.integers(-(2**70), 2**70), st.floats(allow_nan=False, allow_infinity=False),
-              st.sampled_from(STRINGS), st.text(max_size=8)),
-    lambda children: st.one_of(st.lists(children, max_size=4),
-                               st.dictionaries(st.sampled_from(TAGS), children, max_size=4)),
-    max_leaves=24)
+    st.one_of(
+        st.none(),
+        st.booleans(),
+        st.integers(-(2**70), 2**70),
+        st.floats(allow_nan=False, allow_infinity=False),
+        st.sampled_from(STRINGS),
+        st.text(max_size=8),
+    ),
+    lambda children: st.one_of(
+        st.lists(children, max_size=4), st.dictionaries(st.sampled_from(TAGS), children, max_size=4)
+    ),
+    max_leaves=24,
+)
 
 
 def _gadget_dir(tmp_path_factory) -> tuple[str, str]:
@@ -53,7 +114,8 @@ def _gadget_dir(tmp_path_factory) -> tuple[str, str]:
     (folder / f"{GADGET}.py").write_text(
         f"import dataclasses, enum, pathlib\npathlib.Path({str(marker)!r}).write_text('imported')\n"
         "@dataclasses.dataclass\nclass Gadget:\n    t: float = 0.0\n"
-        "class GadgetEnum(enum.Enum):\n    A = 'a'\n")
+        "class GadgetEnum(enum.Enum):\n    A = 'a'\n"
+    )
     return str(folder), str(marker)
 
 
@@ -76,30 +138,44 @@ def _crafted(channels: list[tuple[str, dict[str, str], list[bytes]]], chunked: b
 def channel_metadata(draw) -> dict[str, str]:
     meta = {"cufund.codec": draw(st.sampled_from(CODECS)), "cufund.class": draw(st.sampled_from(CLASS_NAMES))}
     if draw(st.booleans()):
-        meta["cufund.layout"] = draw(st.one_of(
-            st.just(json.dumps([["t", "t", "f8", [], False]])),
-            json_values.map(json.dumps),
-            st.text(max_size=20)))
+        meta["cufund.layout"] = draw(
+            st.one_of(
+                st.just(json.dumps([["t", "t", "f8", [], False]])), json_values.map(json.dumps), st.text(max_size=20)
+            )
+        )
     if draw(st.booleans()):
         del meta[draw(st.sampled_from(sorted(meta)))]
     return meta
 
 
-payloads = st.one_of(json_values.map(lambda v: json.dumps(v).encode()), st.binary(max_size=64),
-                     st.just(b"[" * 100_000 + b"]" * 100_000), st.just(b"\0\1\0\0" + bytes(8)))
+payloads = st.one_of(
+    json_values.map(lambda v: json.dumps(v).encode()),
+    st.binary(max_size=64),
+    st.just(b"[" * 100_000 + b"]" * 100_000),
+    st.just(b"\0\1\0\0" + bytes(8)),
+)
 
 
 @fuzz_settings
-@given(channels=st.lists(st.tuples(st.sampled_from(["/mission/state", "/sensors/imu", "/sensors/lidar", "/x"]),
-                                   channel_metadata(), st.lists(payloads, min_size=1, max_size=3)),
-                         min_size=1, max_size=3),
-       chunked=st.booleans())
+@given(
+    channels=st.lists(
+        st.tuples(
+            st.sampled_from(["/mission/state", "/sensors/imu", "/sensors/lidar", "/x"]),
+            channel_metadata(),
+            st.lists(payloads, min_size=1, max_size=3),
+        ),
+        min_size=1,
+        max_size=3,
+    ),
+    chunked=st.booleans(),
+)
 def test_crafted_channels(server, tmp_path_factory, channels, chunked):
     folder, marker = _gadget_dir(tmp_path_factory)
     path = tmp_path_factory.mktemp("mcap") / "run.mcap"
     path.write_bytes(_crafted(channels, chunked))
-    outcome, detail = server.run("mcap", SETUP + f"sys.path.insert(0, {folder!r})\n", CALL,
-                                 {"path": str(path), "marker": marker})
+    outcome, detail = server.run(
+        "mcap", SETUP + f"sys.path.insert(0, {folder!r})\n", CALL, {"path": str(path), "marker": marker}
+    )
     expect_good(outcome, detail)
 
 
@@ -116,22 +192,40 @@ def _base_log(tmp_path_factory) -> bytes:
         with McapLogger(path, {"scenario": "fuzz", "config": "name: fuzz\n"}, block_messages=4) as log:
             for k in range(12):
                 t = 0.01 * k
-                log.write("/truth/odometry", M.Odometry(t, np.ones(3), np.zeros(3), np.array([1.0, 0, 0, 0]),
-                                                        np.zeros(3)), k, k)
+                log.write(
+                    "/truth/odometry",
+                    M.Odometry(t, np.ones(3), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3)),
+                    k,
+                    k,
+                )
                 log.write("/sensors/imu", M.Imu(t, np.zeros(3), np.zeros(3)), k, k)
                 log.write("/mission/state", M.MissionState(t, "fly", "", k), k, k)
                 if k % 4 == 0:
                     n = 5
-                    log.write("/sensors/lidar", M.PointCloud(t, np.zeros(n), np.zeros((n, 3), np.float32),
-                                                             np.ones(n, np.float32), np.zeros(n, np.float32),
-                                                             np.zeros(n, np.uint8), 0), k, k)
+                    log.write(
+                        "/sensors/lidar",
+                        M.PointCloud(
+                            t,
+                            np.zeros(n),
+                            np.zeros((n, 3), np.float32),
+                            np.ones(n, np.float32),
+                            np.zeros(n, np.float32),
+                            np.zeros(n, np.uint8),
+                            0,
+                        ),
+                        k,
+                        k,
+                    )
                     log.write("/commander/flight_mode", M.FlightModeCommand(t, M.FlightMode.POSITION), k, k)
         _BASE["log"] = path.read_bytes()
     return _BASE["log"]
 
 
-damage = st.lists(st.tuples(st.sampled_from(["cut", "flip", "u64", "u32", "insert"]), st.floats(0, 1),
-                            st.integers(0, 2**64 - 1)), min_size=1, max_size=4)
+damage = st.lists(
+    st.tuples(st.sampled_from(["cut", "flip", "u64", "u32", "insert"]), st.floats(0, 1), st.integers(0, 2**64 - 1)),
+    min_size=1,
+    max_size=4,
+)
 
 
 def _damage(data: bytes, ops: list[tuple[str, float, int]]) -> bytes:
@@ -143,9 +237,9 @@ def _damage(data: bytes, ops: list[tuple[str, float, int]]) -> bytes:
         elif op == "flip" and buf:
             buf[at] ^= (value % 255) + 1
         elif op == "u64":
-            buf[at:at + 8] = struct.pack("<Q", value)
+            buf[at : at + 8] = struct.pack("<Q", value)
         elif op == "u32":
-            buf[at:at + 4] = struct.pack("<I", value % 2**32)
+            buf[at : at + 4] = struct.pack("<I", value % 2**32)
         elif op == "insert":
             buf[at:at] = value.to_bytes(8, "little")
     return bytes(buf)
@@ -157,8 +251,9 @@ def test_damaged_logs(server, tmp_path_factory, ops):
     folder, marker = _gadget_dir(tmp_path_factory)
     path = tmp_path_factory.mktemp("mcap") / "run.mcap"
     path.write_bytes(_damage(_base_log(tmp_path_factory), ops))
-    outcome, detail = server.run("mcap", SETUP + f"sys.path.insert(0, {folder!r})\n", CALL,
-                                 {"path": str(path), "marker": marker})
+    outcome, detail = server.run(
+        "mcap", SETUP + f"sys.path.insert(0, {folder!r})\n", CALL, {"path": str(path), "marker": marker}
+    )
     expect_good(outcome, detail)
 
 
@@ -179,8 +274,11 @@ def test_a_gadget_is_noticed(tmp_path_factory):
     import sys
 
     folder, marker = _gadget_dir(tmp_path_factory)
-    code = (SETUP + f"sys.path.insert(0, {folder!r})\npath, marker = '/nonexistent', {marker!r}\n"
-            + CALL.replace("    result = (", f"    import {GADGET}\n    result = ("))
+    code = (
+        SETUP
+        + f"sys.path.insert(0, {folder!r})\npath, marker = '/nonexistent', {marker!r}\n"
+        + CALL.replace("    result = (", f"    import {GADGET}\n    result = (")
+    )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode != 0 and "imported the gadget module" in done.stderr, done.stderr
 

@@ -44,8 +44,17 @@ BOUNDED = [
     ("vehicle", "planner.status_hz", "planner.status_hz must be at most 1000"),
 ]
 
-INTEGER_FIELDS = {"map_max_voxels", "map_points_per_voxel", "max_iterations", "max_refits", "smoother_iterations",
-                  "n_trees", "frames", "n_frames", "max_attempts"}
+INTEGER_FIELDS = {
+    "map_max_voxels",
+    "map_points_per_voxel",
+    "max_iterations",
+    "max_refits",
+    "smoother_iterations",
+    "n_trees",
+    "frames",
+    "n_frames",
+    "max_attempts",
+}
 
 
 @pytest.mark.parametrize("scenario, key, message", BOUNDED)
@@ -58,8 +67,11 @@ def test_a_huge_rate_or_size_is_refused_by_name(scenario, key, message):
 
 def _params_classes() -> list[tuple[str, type]]:
     """Every params dataclass a scenario can reach through a registered kind (nested ones too)."""
-    out, todo, seen = [], [(f"{group}:{name}", kind.params) for group in GROUPS
-                           for name, kind in sorted(available(group).items())], set()
+    out, todo, seen = (
+        [],
+        [(f"{group}:{name}", kind.params) for group in GROUPS for name, kind in sorted(available(group).items())],
+        set(),
+    )
     while todo:
         where, cls = todo.pop()
         if cls in seen or not dataclasses.is_dataclass(cls):
@@ -84,14 +96,23 @@ def _params_classes() -> list[tuple[str, type]]:
 
 def _rate_fields() -> list[tuple[str, type, str]]:
     """Every event rate [Hz] of every kind's params (a filter's cut-off frequency is not an event rate)."""
-    return [(where, cls, f.name) for where, cls in _params_classes() for f in dataclasses.fields(cls)
-            if f.name.endswith("_hz") and "cutoff" not in f.name]
+    return [
+        (where, cls, f.name)
+        for where, cls in _params_classes()
+        for f in dataclasses.fields(cls)
+        if f.name.endswith("_hz") and "cutoff" not in f.name
+    ]
 
 
 def test_the_audit_sees_the_rates():
     names = {f"{cls.__name__}.{name}" for _, cls, name in _rate_fields()}
-    assert {"LidarSensorParams.pose_rate_hz", "EsdfMapperParams.rate_hz", "CommanderParams.status_hz",
-            "ImuParams.rate_hz", "GpsParams.rate_hz"} <= names
+    assert {
+        "LidarSensorParams.pose_rate_hz",
+        "EsdfMapperParams.rate_hz",
+        "CommanderParams.status_hz",
+        "ImuParams.rate_hz",
+        "GpsParams.rate_hz",
+    } <= names
 
 
 @pytest.mark.parametrize("where, cls, name", _rate_fields(), ids=lambda v: v if isinstance(v, str) else "")
@@ -109,9 +130,22 @@ def test_cli_refuses_the_probe_s_lidar_rate_before_running(tmp_path, capsys):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("text, value", [("1e9", 1e9), ("1e-3", 1e-3), ("-2E5", -2e5), ("1.5e3", 1500.0),
-                                         (".5e1", 5.0), ("+3e2", 300.0), ("1.0e+9", 1e9), ("12", 12),
-                                         ("1e", "1e"), ("e9", "e9"), ("0x10", 16)])
+@pytest.mark.parametrize(
+    "text, value",
+    [
+        ("1e9", 1e9),
+        ("1e-3", 1e-3),
+        ("-2E5", -2e5),
+        ("1.5e3", 1500.0),
+        (".5e1", 5.0),
+        ("+3e2", 300.0),
+        ("1.0e+9", 1e9),
+        ("12", 12),
+        ("1e", "1e"),
+        ("e9", "e9"),
+        ("0x10", 16),
+    ],
+)
 def test_yaml_exponent_numbers_are_numbers(text, value):
     parsed = parse_overrides([f"duration={text}"])["duration"]
     assert parsed == value and type(parsed) is type(value)
@@ -147,8 +181,13 @@ def test_set_values_are_bounded_like_files():
         parse_overrides([f"x={laughs}"])
 
 
-@pytest.mark.parametrize("scenario, key, value, part", [("tunnel", "world.resolution", 1e-3, "world (tunnel_course)"),
-                                                        ("forest_global", "planner.resolution", 2e-3, "planner (global)")])
+@pytest.mark.parametrize(
+    "scenario, key, value, part",
+    [
+        ("tunnel", "world.resolution", 1e-3, "world (tunnel_course)"),
+        ("forest_global", "planner.resolution", 2e-3, "planner (global)"),
+    ],
+)
 def test_a_known_geometry_grid_past_the_voxel_limit_is_refused_before_allocating(scenario, key, value, part):
     """A fine resolution over the course or the planner's box asked numpy for 20-205 GiB; now the voxel limit."""
     import re

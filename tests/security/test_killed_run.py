@@ -40,9 +40,24 @@ survive config.yaml, a separate bug)."""
 
 
 def _start(name: str, out: Path) -> subprocess.Popen:
-    return subprocess.Popen([*CLI, "run", SCENARIO[name], "--set", "duration=600", "--set",
-                             "log.exclude=[/truth/point_cloud]", "--no-replay", "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    return subprocess.Popen(
+        [
+            *CLI,
+            "run",
+            SCENARIO[name],
+            "--set",
+            "duration=600",
+            "--set",
+            "log.exclude=[/truth/point_cloud]",
+            "--no-replay",
+            "--out",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=ENV,
+    )
 
 
 def _kill_mid_run(tmp: Path, name: str, signum: int) -> tuple[Path, int, str]:
@@ -62,8 +77,10 @@ def _kill_mid_run(tmp: Path, name: str, signum: int) -> tuple[Path, int, str]:
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("killed")
-    return {name: _kill_mid_run(tmp, name, signum) for name, signum in
-            (("term", signal.SIGTERM), ("int", signal.SIGINT), ("kill", signal.SIGKILL))}
+    return {
+        name: _kill_mid_run(tmp, name, signum)
+        for name, signum in (("term", signal.SIGTERM), ("int", signal.SIGINT), ("kill", signal.SIGKILL))
+    }
 
 
 def _stream_counts(path: Path) -> collections.Counter:
@@ -118,16 +135,27 @@ def test_sigkill_leaves_config_and_a_readable_truncated_log(runs):
 
 def test_the_cli_reads_a_truncated_log(runs, tmp_path):
     log = runs["kill"][0] / "run.mcap"
-    odometry = subprocess.run([*CLI, "odometry", str(log), "--out", str(tmp_path / "odo")], capture_output=True,
-                              text=True, env=ENV, timeout=600)
+    odometry = subprocess.run(
+        [*CLI, "odometry", str(log), "--out", str(tmp_path / "odo")],
+        capture_output=True,
+        text=True,
+        env=ENV,
+        timeout=600,
+    )
     assert odometry.returncode == 0, odometry.stderr
     assert "Traceback" not in odometry.stderr
     warning_lines = [line for line in odometry.stderr.splitlines() if "truncated" in line]
     assert len(warning_lines) == 1 and warning_lines[0].startswith("cufund: warning:"), odometry.stderr
     figures = json.loads((tmp_path / "odo" / "odometry.json").read_text())
     assert figures  # the LIO ran on the recovered IMU and LiDAR
-    replay = subprocess.run([*CLI, "replay", str(log), "--no-wait", "--speed", "0"], capture_output=True, text=True,
-                            env=ENV, timeout=600, stdin=subprocess.DEVNULL)
+    replay = subprocess.run(
+        [*CLI, "replay", str(log), "--no-wait", "--speed", "0"],
+        capture_output=True,
+        text=True,
+        env=ENV,
+        timeout=600,
+        stdin=subprocess.DEVNULL,
+    )
     assert replay.returncode == 0, replay.stderr
     assert "Traceback" not in replay.stderr
     assert len([line for line in replay.stderr.splitlines() if "truncated" in line]) == 1, replay.stderr

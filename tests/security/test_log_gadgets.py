@@ -33,7 +33,8 @@ def gadget(tmp_path, monkeypatch):
         "    def __post_init__(self):\n"
         "        MARKER.write_text('called')\n"
         "class GadgetEnum(enum.Enum):\n"
-        "    A = 'a'\n")
+        "    A = 'a'\n"
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     sys.modules.pop(GADGET, None)
     yield marker
@@ -51,8 +52,7 @@ def _write_log(path: Path, channels: list[tuple[str, dict[str, str], list[bytes]
         writer.start(profile="", library="test")
         schema = writer.register_schema(name="cufund.Probe", encoding="jsonschema", data=b"{}")
         for topic, metadata, payloads in channels:
-            channel = writer.register_channel(topic=topic, message_encoding="json", schema_id=schema,
-                                              metadata=metadata)
+            channel = writer.register_channel(topic=topic, message_encoding="json", schema_id=schema, metadata=metadata)
             for k, payload in enumerate(payloads):
                 writer.add_message(channel, log_time=k, data=payload, publish_time=k)
         writer.finish()
@@ -61,24 +61,78 @@ def _write_log(path: Path, channels: list[tuple[str, dict[str, str], list[bytes]
 JSON_STATE = {"cufund.codec": "json", "cufund.class": "cufund.core.messages:MissionState"}
 
 CASES: dict[str, list[tuple[str, dict[str, str], list[bytes]]]] = {
-    "point cloud body": [("/mission/state", {"cufund.codec": "foxglove.PointCloud",
-                                             "cufund.class": "cufund.core.messages:PointCloud"},
-                          [json.dumps({"fields": [], "point_stride": 4, "data": "", "cufund": {
-                              "dtypes": {}, "fields": {"frame": {"$dataclass": f"{GADGET}:Gadget", "fields": {}}}}
-                                       }).encode()])],
-    "body field": [("/mission/state", JSON_STATE, [json.dumps(_mission_state(
-        state={"$dataclass": f"{GADGET}:Gadget", "fields": {}})).encode()])],
-    "channel metadata": [("/mission/state", {"cufund.codec": "json", "cufund.class": f"{GADGET}:Gadget"},
-                          [json.dumps({"t": 0.0}).encode()])],
-    "enum tag": [("/mission/state", JSON_STATE, [json.dumps(_mission_state(
-        state={"$enum": f"{GADGET}:GadgetEnum", "value": "a"})).encode()])],
-    "nested field": [("/mission/state", JSON_STATE, [json.dumps(_mission_state(
-        reason={"$tuple": [1, {"$dict": {"x": [{"$dataclass": f"{GADGET}:Gadget", "fields": {}}]}}]})).encode()])],
-    "stdlib class": [("/mission/state", JSON_STATE, [json.dumps(_mission_state(
-        state={"$dataclass": "logging:FileHandler", "fields": {"filename": "MARKER"}})).encode()])],
-    "cdr metadata": [("/sensors/imu", {"cufund.codec": "cdr", "cufund.class": f"{GADGET}:Gadget",
-                                       "cufund.layout": json.dumps([["t", "t", "f8", [], False]])},
-                      [b"\0\1\0\0" + bytes(8)])],
+    "point cloud body": [
+        (
+            "/mission/state",
+            {"cufund.codec": "foxglove.PointCloud", "cufund.class": "cufund.core.messages:PointCloud"},
+            [
+                json.dumps(
+                    {
+                        "fields": [],
+                        "point_stride": 4,
+                        "data": "",
+                        "cufund": {"dtypes": {}, "fields": {"frame": {"$dataclass": f"{GADGET}:Gadget", "fields": {}}}},
+                    }
+                ).encode()
+            ],
+        )
+    ],
+    "body field": [
+        (
+            "/mission/state",
+            JSON_STATE,
+            [json.dumps(_mission_state(state={"$dataclass": f"{GADGET}:Gadget", "fields": {}})).encode()],
+        )
+    ],
+    "channel metadata": [
+        (
+            "/mission/state",
+            {"cufund.codec": "json", "cufund.class": f"{GADGET}:Gadget"},
+            [json.dumps({"t": 0.0}).encode()],
+        )
+    ],
+    "enum tag": [
+        (
+            "/mission/state",
+            JSON_STATE,
+            [json.dumps(_mission_state(state={"$enum": f"{GADGET}:GadgetEnum", "value": "a"})).encode()],
+        )
+    ],
+    "nested field": [
+        (
+            "/mission/state",
+            JSON_STATE,
+            [
+                json.dumps(
+                    _mission_state(
+                        reason={"$tuple": [1, {"$dict": {"x": [{"$dataclass": f"{GADGET}:Gadget", "fields": {}}]}}]}
+                    )
+                ).encode()
+            ],
+        )
+    ],
+    "stdlib class": [
+        (
+            "/mission/state",
+            JSON_STATE,
+            [
+                json.dumps(
+                    _mission_state(state={"$dataclass": "logging:FileHandler", "fields": {"filename": "MARKER"}})
+                ).encode()
+            ],
+        )
+    ],
+    "cdr metadata": [
+        (
+            "/sensors/imu",
+            {
+                "cufund.codec": "cdr",
+                "cufund.class": f"{GADGET}:Gadget",
+                "cufund.layout": json.dumps([["t", "t", "f8", [], False]]),
+            },
+            [b"\0\1\0\0" + bytes(8)],
+        )
+    ],
 }
 
 
@@ -111,8 +165,11 @@ def test_the_cli_refuses_a_crafted_log(tmp_path, gadget, command, case):
     path = _write_log_on(tmp_path, case, gadget, ("/sensors/imu", "/sensors/lidar", "/truth/odometry"))
     args = [sys.executable, "-m", "cufund.apps.cli", command, str(path)]
     args += ["--no-wait"] if command == "replay" else ["--out", str(tmp_path / "odo")]
-    env = {**os.environ, "PYTHONPATH": f"{tmp_path}{os.pathsep}{os.environ.get('PYTHONPATH', '')}",
-           "PYTHONWARNINGS": "ignore"}
+    env = {
+        **os.environ,
+        "PYTHONPATH": f"{tmp_path}{os.pathsep}{os.environ.get('PYTHONPATH', '')}",
+        "PYTHONWARNINGS": "ignore",
+    }
     done = subprocess.run(args, capture_output=True, text=True, env=env, timeout=120)
     assert done.returncode == 2, done.stderr
     assert "not an allowed message class" in done.stderr and "channel" in done.stderr
@@ -154,6 +211,7 @@ def _write_log_on(tmp_path: Path, case: str, marker: Path, topics: tuple[str, ..
     """The case's channel on each of ``topics`` (what ``cufund odometry`` and ``replay`` read)."""
     path = tmp_path / "run.mcap"
     _, metadata, payloads = CASES[case][0]
-    _write_log(path, [(topic, metadata, [p.replace(b"MARKER", str(marker).encode()) for p in payloads])
-                      for topic in topics])
+    _write_log(
+        path, [(topic, metadata, [p.replace(b"MARKER", str(marker).encode()) for p in payloads]) for topic in topics]
+    )
     return path

@@ -21,9 +21,11 @@ from typing import Any
 
 __all__ = ["class_path", "message_class", "note_logged", "register_message_class"]
 
-_CUFUND_ELSEWHERE = frozenset({
-    "cufund.planning.diagnostics:PlannerDiagnostics",
-})
+_CUFUND_ELSEWHERE = frozenset(
+    {
+        "cufund.planning.diagnostics:PlannerDiagnostics",
+    }
+)
 """cufund's message classes defined above the logs layer (imported, by these exact names only, when a log
 names them)."""
 
@@ -47,7 +49,7 @@ def _nested(cls: type) -> list[type]:
         return []
     try:
         hints = typing.get_type_hints(cls)
-    except Exception:  # noqa: BLE001 - unresolvable annotations name nothing we can trust
+    except Exception:  # unresolvable annotations name nothing we can trust
         return []
     out: list[type] = []
     stack = list(hints.values())
@@ -112,8 +114,10 @@ def message_class(path: Any, where: str) -> type:
         cls = obj
     if cls is None:
         shown = path if len(path) <= 200 else path[:200] + "..."
-        raise ValueError(f"{where} names the class {shown!r}, which is not an allowed message class (cufund's "
-                         "messages and classes registered with cufund.logs.register_message_class)")
+        raise ValueError(
+            f"{where} names the class {shown!r}, which is not an allowed message class (cufund's "
+            "messages and classes registered with cufund.logs.register_message_class)"
+        )
     return cls
 
 

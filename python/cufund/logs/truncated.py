@@ -67,11 +67,19 @@ def scan_records(stream: IO[bytes]) -> Recovered:
             if name_length > 64 or _CHUNK_START.size + name_length + 8 > length:
                 break
             compression = stream.read(name_length).decode("utf-8", "replace")
-            out.chunks.append(ChunkIndex(
-                message_start_time=start, message_end_time=end, chunk_start_offset=pos,
-                chunk_length=_RECORD.size + length, message_index_offsets={}, message_index_length=0,
-                compression=compression, compressed_size=length - _CHUNK_START.size - name_length - 8,
-                uncompressed_size=uncompressed))
+            out.chunks.append(
+                ChunkIndex(
+                    message_start_time=start,
+                    message_end_time=end,
+                    chunk_start_offset=pos,
+                    chunk_length=_RECORD.size + length,
+                    message_index_offsets={},
+                    message_index_length=0,
+                    compression=compression,
+                    compressed_size=length - _CHUNK_START.size - name_length - 8,
+                    uncompressed_size=uncompressed,
+                )
+            )
         pos = body + length
         out.end = pos
         stream.seek(pos)
