@@ -29,6 +29,7 @@ __all__ = [
     "Transform",
     "attitude_from_thrust_and_yaw",
     "cross",
+    "euler_zyx",
     "homogeneous",
     "interpolate_poses",
     "quat_conjugate",
@@ -262,15 +263,34 @@ def yaw_quaternion(yaw: float) -> Array:
     return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
 
 
-def yaw_of(q_WB: ArrayLike) -> float:
-    """Heading of body x about world z [rad], in (-π, π], of a unit quaternion q_WB [w, x, y, z]."""
+def _unit_quaternion_floats(q_WB: ArrayLike) -> tuple[float, float, float, float]:
+    """One quaternion [w, x, y, z] as four Python floats, checked (shape, finite, non-zero)."""
     q = _floats(q_WB, "q_WB", "(4,) [w, x, y, z]")
     if q.shape != (4,):
         raise ValueError(f"q_WB must have shape (4,) [w, x, y, z], got shape {q.shape}")
     w, x, y, z = q.tolist()
     if not _MIN_NORM2 <= w * w + x * x + y * y + z * z < math.inf:
         _quaternions(q, "q_WB")
+    return w, x, y, z
+
+
+def _yaw(w: float, x: float, y: float, z: float) -> float:
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def yaw_of(q_WB: ArrayLike) -> float:
+    """Heading of body x about world z [rad], in (-π, π], of a unit quaternion q_WB [w, x, y, z]."""
+    return _yaw(*_unit_quaternion_floats(q_WB))
+
+
+def euler_zyx(q_WB: ArrayLike) -> tuple[float, float, float]:
+    """Roll, pitch, yaw [rad] of a unit quaternion q_WB [w, x, y, z]: the intrinsic Z-Y-X (Tait-Bryan) angles with
+    R_WB = Rz(yaw) Ry(pitch) Rx(roll), as MAVLink's ATTITUDE and scipy's ``as_euler("ZYX")`` (reversed) give them.
+    Pitch is in [-π/2, π/2] (its sine clamped to [-1, 1] against rounding); roll and yaw in (-π, π]."""
+    w, x, y, z = _unit_quaternion_floats(q_WB)
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    return roll, pitch, _yaw(w, x, y, z)
 
 
 def world_to_body(

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -434,3 +435,26 @@ def test_old_module_paths_keep_their_names():
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-2000:]
+
+
+def test_euler_zyx_against_scipy():
+    """Roll, pitch, yaw as scipy's intrinsic "ZYX" angles (reversed), including near gimbal lock."""
+    rng = np.random.default_rng(31)
+    qs = rng.normal(size=(500, 4))
+    qs /= np.linalg.norm(qs, axis=1, keepdims=True)
+    near_lock = np.array([[np.cos(a / 2), 0.0, np.sin(a / 2), 0.0] for a in (np.pi / 2 - 1e-9, -np.pi / 2 + 1e-9)])
+    for q in np.vstack([qs, near_lock]):
+        roll, pitch, yaw = geometry.euler_zyx(q)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", "Gimbal lock", UserWarning)  # scipy's, at the two near-lock cases
+            ypr = Rotation.from_quat(q[[1, 2, 3, 0]]).as_euler("ZYX")
+        assert abs(pitch - ypr[1]) < 1e-9
+        if abs(abs(pitch) - np.pi / 2) > 1e-6:  # away from gimbal lock roll and yaw are defined
+            np.testing.assert_allclose([roll, yaw], [ypr[2], ypr[0]], atol=1e-9)
+        # the angles rebuild the rotation (also at gimbal lock, where only their sum or difference is defined)
+        R = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_matrix()
+        np.testing.assert_allclose(R, geometry.quat_to_matrix(q), atol=1e-7)
+    assert geometry.euler_zyx([1, 0, 0, 0]) == (0.0, 0.0, 0.0)
+    assert geometry.euler_zyx(geometry.yaw_quaternion(0.5))[2] == geometry.yaw_of(geometry.yaw_quaternion(0.5))
+    with pytest.raises(ValueError, match="q_WB"):
+        geometry.euler_zyx([0, 0, 0, 0])

@@ -27,7 +27,7 @@ from typing import Any, Self
 import numpy as np
 
 from cufund.core.components import Component
-from cufund.geometry import yaw_of
+from cufund.geometry import euler_zyx
 from cufund.core.messages import Topics
 from cufund.missions.commander import Commander
 from cufund.missions.commands import CommandAck, parse_command
@@ -47,10 +47,7 @@ _KEEP_BLOCKS = 64
 
 def _rpy(q: np.ndarray) -> list[float]:
     """Roll, pitch, yaw [rad] (ZYX Euler angles of body to world)."""
-    w, x, y, z = (float(v) for v in q)
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    return [roll, pitch, float(yaw_of(q))]
+    return list(euler_zyx(q))
 
 
 def _vec(a: Any) -> list[float] | None:
