@@ -448,7 +448,8 @@ def test_euler_zyx_against_scipy():
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", "Gimbal lock", UserWarning)  # scipy's, at the two near-lock cases
             ypr = Rotation.from_quat(q[[1, 2, 3, 0]]).as_euler("ZYX")
-        assert abs(pitch - ypr[1]) < 1e-9
+        # asin loses precision as its argument nears +-1: within sqrt(eps) ~ 1.5e-8 of a half pi
+        assert abs(pitch - ypr[1]) < (1e-9 if abs(abs(pitch) - np.pi / 2) > 1e-4 else 3e-8)
         if abs(abs(pitch) - np.pi / 2) > 1e-6:  # away from gimbal lock roll and yaw are defined
             np.testing.assert_allclose([roll, yaw], [ypr[2], ypr[0]], atol=1e-9)
         # the angles rebuild the rotation (also at gimbal lock, where only their sum or difference is defined)
