@@ -29,16 +29,18 @@ class Gcs:
     """A pymavlink ground station listening on 127.0.0.1:port (the endpoint's udpout target)."""
 
     def __init__(self, port: int, system_id: int = 255) -> None:
-        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=system_id,
-                                               source_component=190, dialect="common")
+        self.conn = mavutil.mavlink_connection(
+            f"udpin:127.0.0.1:{port}", source_system=system_id, source_component=190, dialect="common"
+        )
         # MAVLink 2 whatever MAVLINK20 says (MAVLink 1 drops extension fields such as mission_type)
         self.conn.mav = mavlink2.MAVLink(self.conn, srcSystem=system_id, srcComponent=190)
         self.conn.mav.robust_parsing = True
         self.conn.port.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)  # floods of acks while we send
         self.mav = self.conn.mav
 
-    def recv(self, types: str | list[str] | None = None, timeout: float = 5.0,
-             cond: Callable[[Any], bool] | None = None) -> Any:
+    def recv(
+        self, types: str | list[str] | None = None, timeout: float = 5.0, cond: Callable[[Any], bool] | None = None
+    ) -> Any:
         """The next message of ``types`` satisfying ``cond``; AssertionError after ``timeout`` s."""
         end = time.monotonic() + timeout
         while time.monotonic() < end:
@@ -60,8 +62,7 @@ class Gcs:
         self.mav.command_long_send(1, 1, command, 0, *p)
         return self.recv("COMMAND_ACK", timeout, cond=lambda m: m.command == command)
 
-    def wait(self, types: str | list[str], cond: Callable[[Any], bool], timeout: float,
-             keepalive: bool = True) -> Any:
+    def wait(self, types: str | list[str], cond: Callable[[Any], bool], timeout: float, keepalive: bool = True) -> Any:
         """Waits for a message satisfying ``cond``, sending a heartbeat every 0.5 s (a live link)."""
         end = time.monotonic() + timeout
         next_hb = 0.0
@@ -78,8 +79,13 @@ class Gcs:
 
 
 @contextlib.contextmanager
-def vehicle(speed: float = SPEED, links: int = 1, extra_links: tuple[str, ...] | list[str] = (),
-            scenario: Any = "vehicle", **endpoint_kw: Any) -> Iterator[tuple[Any, Any, list[Gcs]]]:
+def vehicle(
+    speed: float = SPEED,
+    links: int = 1,
+    extra_links: tuple[str, ...] | list[str] = (),
+    scenario: Any = "vehicle",
+    **endpoint_kw: Any,
+) -> Iterator[tuple[Any, Any, list[Gcs]]]:
     """A live run of ``scenario`` (default: the ``vehicle`` scenario) behind a VehicleEndpoint with ``links``
     udpout links, each to its own Gcs, and ``extra_links`` (URLs) to other clients."""
     from cufund.apps.live import LiveRun
@@ -103,8 +109,14 @@ def vehicle(speed: float = SPEED, links: int = 1, extra_links: tuple[str, ...] |
             g.close()
 
 
-OPEN_FIELD = {"name": "open_field", "vehicle": "cu_astro", "planner": {"kind": "commander"}, "controller": "pid",
-              "start_p_W": [0.0, 0.0, 0.0], "duration": 600.0}
+OPEN_FIELD = {
+    "name": "open_field",
+    "vehicle": "cu_astro",
+    "planner": {"kind": "commander"},
+    "controller": "pid",
+    "start_p_W": [0.0, 0.0, 0.0],
+    "duration": 600.0,
+}
 """A commander's vehicle with nothing to hit (the vehicle scenario's arena is 12 m x 8 m with frames in it): for
 tests whose flight distance depends on wall-clock timing."""
 

@@ -22,11 +22,30 @@ from mavlink_support import OPEN_FIELD, vehicle
 
 AREA = "mavlink_state"
 BASE = {0: 10.0, 1: 20.0}  # the height of client c's item k: BASE[c] + k [m]
-PARAMS = ["MIS_TAKEOFF_ALT", "MC_ROLLRATE_P", "MPC_XY_P", "MPC_TILTMAX_AIR", "NAV_ACC_RAD", "COM_DL_LOSS_T",
-          "MPC_THR_MAX", "GEO_K_X", "NO_SUCH_PARAM"]
-COMMANDS = [M.MAV_CMD_COMPONENT_ARM_DISARM, M.MAV_CMD_NAV_TAKEOFF, M.MAV_CMD_NAV_LAND, M.MAV_CMD_NAV_RETURN_TO_LAUNCH,
-            M.MAV_CMD_DO_SET_MODE, M.MAV_CMD_MISSION_START, M.MAV_CMD_DO_SET_MISSION_CURRENT,
-            M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAV_CMD_REQUEST_MESSAGE, M.MAV_CMD_DO_PAUSE_CONTINUE, 12345]
+PARAMS = [
+    "MIS_TAKEOFF_ALT",
+    "MC_ROLLRATE_P",
+    "MPC_XY_P",
+    "MPC_TILTMAX_AIR",
+    "NAV_ACC_RAD",
+    "COM_DL_LOSS_T",
+    "MPC_THR_MAX",
+    "GEO_K_X",
+    "NO_SUCH_PARAM",
+]
+COMMANDS = [
+    M.MAV_CMD_COMPONENT_ARM_DISARM,
+    M.MAV_CMD_NAV_TAKEOFF,
+    M.MAV_CMD_NAV_LAND,
+    M.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+    M.MAV_CMD_DO_SET_MODE,
+    M.MAV_CMD_MISSION_START,
+    M.MAV_CMD_DO_SET_MISSION_CURRENT,
+    M.MAV_CMD_SET_MESSAGE_INTERVAL,
+    M.MAV_CMD_REQUEST_MESSAGE,
+    M.MAV_CMD_DO_PAUSE_CONTINUE,
+    12345,
+]
 ITEM_COMMANDS = [M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LOITER_TIME, M.MAV_CMD_DO_CHANGE_SPEED, 12345, 0]
 STEPS = 40 if CAMPAIGN else 20
 SCALE = 8  # examples per fuzz example of the suite: a step is a few milliseconds of loopback round trips
@@ -78,13 +97,27 @@ class MavlinkState(RuleBasedStateMachine):
             k = self.cursor[c]
             if k >= self.plan[c]:
                 break
-            g.mav.mission_item_int_send(1, 1, k, M.MAV_FRAME_LOCAL_NED, M.MAV_CMD_NAV_WAYPOINT, 0, 1, 0,
-                                        self.upload[c], c + 1, math.nan, 0, 0, -(BASE[c] + k), 0)
+            g.mav.mission_item_int_send(
+                1,
+                1,
+                k,
+                M.MAV_FRAME_LOCAL_NED,
+                M.MAV_CMD_NAV_WAYPOINT,
+                0,
+                1,
+                0,
+                self.upload[c],
+                c + 1,
+                math.nan,
+                0,
+                0,
+                -(BASE[c] + k),
+                0,
+            )
             self.cursor[c] = k + 1
         self._step()
 
-    @rule(first=st.integers(0, 1), n=st.integers(1, 4), k=st.integers(0, 4), m=st.integers(0, 4),
-          j=st.integers(0, 4))
+    @rule(first=st.integers(0, 1), n=st.integers(1, 4), k=st.integers(0, 4), m=st.integers(0, 4), j=st.integers(0, 4))
     def race(self, first, n, k, m, j):
         """Two uploads racing: one client announces n items and sends k, the other announces m and sends j,
         then the first sends the rest of its own."""
@@ -95,13 +128,19 @@ class MavlinkState(RuleBasedStateMachine):
         self.next_items(other, j)
         self.next_items(first, n)
 
-    @rule(c=st.integers(0, 1), seq=st.integers(0, 5), command=st.sampled_from(ITEM_COMMANDS),
-          frame=st.sampled_from([M.MAV_FRAME_LOCAL_NED, M.MAV_FRAME_GLOBAL_INT, M.MAV_FRAME_MISSION, 99]),
-          p1=floats_any(), z=floats_any())
+    @rule(
+        c=st.integers(0, 1),
+        seq=st.integers(0, 5),
+        command=st.sampled_from(ITEM_COMMANDS),
+        frame=st.sampled_from([M.MAV_FRAME_LOCAL_NED, M.MAV_FRAME_GLOBAL_INT, M.MAV_FRAME_MISSION, 99]),
+        p1=floats_any(),
+        z=floats_any(),
+    )
     def stray_item(self, c, seq, command, frame, p1, z):
         """An item out of turn: any seq, command, frame, values (an accepted one must still carry its seq)."""
-        self.gcs[c].mav.mission_item_int_send(1, 1, seq, frame, command, 0, 1, f32(p1), self.upload[c], c + 1,
-                                              math.nan, 0, 0, f32(z), 0)
+        self.gcs[c].mav.mission_item_int_send(
+            1, 1, seq, frame, command, 0, 1, f32(p1), self.upload[c], c + 1, math.nan, 0, 0, f32(z), 0
+        )
         self._step()
 
     @rule(c=st.integers(0, 1), kind=st.sampled_from(["clear", "cancel", "list", "request"]), seq=st.integers(0, 5))
@@ -144,8 +183,9 @@ class MavlinkState(RuleBasedStateMachine):
 
         g = self.gcs[0]
         try:
-            g.mav.command_long_send(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
-                                    0, 0, 0, 0, 0, 0)
+            g.mav.command_long_send(
+                1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION, 0, 0, 0, 0, 0, 0
+            )
             g.recv("COMMAND_ACK", 10.0, cond=lambda m: m.command == M.MAV_CMD_REQUEST_MESSAGE)
         except AssertionError:
             FAILURES.append((AREA, "hang", "REQUEST_MESSAGE after the steps", "no COMMAND_ACK within 10 s"))
@@ -153,8 +193,9 @@ class MavlinkState(RuleBasedStateMachine):
             raise
         items = list(self.ep.missions.items)
         origins = {(it.param3, it.param2) for it in items}  # (client, upload)
-        assert len(origins) <= 1 and [it.seq for it in items] == list(range(len(items))), \
+        assert len(origins) <= 1 and [it.seq for it in items] == list(range(len(items))), (
             f"stored mission mixes uploads: {[(it.seq, it.param3, it.param2) for it in items]}"
+        )
         ack = self.live.submit({"command": "get_params"}).result(timeout=10)
         for name, value in ack.data.items():
             lo, hi = PX4_BOUNDS.get(name, (-math.inf, math.inf))
@@ -164,6 +205,14 @@ class MavlinkState(RuleBasedStateMachine):
 
 def test_two_clients_interleaving_mission_parameter_and_command_protocols(live_vehicle):
     MavlinkState.shared = live_vehicle
-    run_state_machine_as_test(MavlinkState, settings=settings(
-        max_examples=EXAMPLES * SCALE, stateful_step_count=STEPS, deadline=None, database=None,
-        derandomize=EXAMPLES <= 50, suppress_health_check=list(HealthCheck)))
+    run_state_machine_as_test(
+        MavlinkState,
+        settings=settings(
+            max_examples=EXAMPLES * SCALE,
+            stateful_step_count=STEPS,
+            deadline=None,
+            database=None,
+            derandomize=EXAMPLES <= 50,
+            suppress_health_check=list(HealthCheck),
+        ),
+    )

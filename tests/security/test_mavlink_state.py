@@ -31,8 +31,23 @@ HOME = GeodeticOrigin.from_geo_point(GpsParams().home)
 
 def _item(g, seq: int, z: float, command: int = M.MAV_CMD_NAV_WAYPOINT) -> None:
     lat, lon, _ = HOME.enu_to_lla(np.array([0.0, 0.0, 0.0]))
-    g.mav.mission_item_int_send(1, 1, seq, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, command, 0, 1, 0, 0, 0, math.nan,
-                                round(lat * 1e7), round(lon * 1e7), z, 0)
+    g.mav.mission_item_int_send(
+        1,
+        1,
+        seq,
+        M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+        command,
+        0,
+        1,
+        0,
+        0,
+        0,
+        math.nan,
+        round(lat * 1e7),
+        round(lon * 1e7),
+        z,
+        0,
+    )
 
 
 def _download(g) -> list:
@@ -46,6 +61,7 @@ def _download(g) -> list:
 
 
 # --- missions ------------------------------------------------------------------------------------------------
+
 
 def test_two_clients_uploading_at_once_do_not_mix_their_items():
     with vehicle(links=2) as (_live, ep, (a, b)):
@@ -119,22 +135,30 @@ def test_a_mission_item_with_an_unknown_command_is_unsupported():
 
 # --- message intervals -----------------------------------------------------------------------------------------
 
+
 def test_message_intervals_are_per_link_and_non_finite_ones_are_refused():
     with vehicle(links=2) as (_live, _ep, (a, b)):
-        for msg_id, interval in ((M.MAVLINK_MSG_ID_HEARTBEAT, math.nan), (M.MAVLINK_MSG_ID_HEARTBEAT, math.inf),
-                                 (M.MAVLINK_MSG_ID_HEARTBEAT, -1.0)):
+        for msg_id, interval in (
+            (M.MAVLINK_MSG_ID_HEARTBEAT, math.nan),
+            (M.MAVLINK_MSG_ID_HEARTBEAT, math.inf),
+            (M.MAVLINK_MSG_ID_HEARTBEAT, -1.0),
+        ):
             assert a.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, interval).result == M.MAV_RESULT_FAILED
         for interval in (math.nan, math.inf, -math.inf, -5.0):
-            assert a.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, interval).result == \
-                M.MAV_RESULT_DENIED
+            assert (
+                a.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, interval).result
+                == M.MAV_RESULT_DENIED
+            )
         assert a.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, math.nan, 1e5).result == M.MAV_RESULT_DENIED
         a.drain()
         b.drain()
         for g in (a, b):  # the heartbeat still goes out on every link, ...
             g.recv("HEARTBEAT", 3.0)
             g.recv("ATTITUDE", 2.0)  # ... and ATTITUDE at its rate
-        assert a.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, -1).result == \
-            M.MAV_RESULT_ACCEPTED
+        assert (
+            a.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, -1).result
+            == M.MAV_RESULT_ACCEPTED
+        )
         a.drain()
         b.drain()
         b.recv("GLOBAL_POSITION_INT", 2.0)  # the other link keeps its stream
@@ -143,6 +167,7 @@ def test_message_intervals_are_per_link_and_non_finite_ones_are_refused():
 
 
 # --- udpin ---------------------------------------------------------------------------------------------------------
+
 
 def test_udpin_keeps_its_first_peer_against_a_stray_packet():
     port = free_port()
@@ -156,8 +181,9 @@ def test_udpin_keeps_its_first_peer_against_a_stray_packet():
             assert gcs.recv_match(type="HEARTBEAT", blocking=True, timeout=5) is not None
             mav = M.MAVLink(None, srcSystem=66, srcComponent=1)
             gcs.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)  # the peer, heard just now
-            stray.sendto(mav.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0).pack(mav),
-                         ("127.0.0.1", port))
+            stray.sendto(
+                mav.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0).pack(mav), ("127.0.0.1", port)
+            )
             with pytest.raises(socket.timeout):
                 stray.recv(65536)  # nothing goes to the stray sender, ...
             while gcs.recv_match(blocking=False) is not None:
@@ -166,8 +192,9 @@ def test_udpin_keeps_its_first_peer_against_a_stray_packet():
             assert ep.links[0].stats.foreign == 1
             ep.links[0].peer_timeout_s = 0.2  # the GCS falls silent for longer than this: the next one is the peer
             time.sleep(0.4)
-            stray.sendto(mav.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0).pack(mav),
-                         ("127.0.0.1", port))
+            stray.sendto(
+                mav.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0).pack(mav), ("127.0.0.1", port)
+            )
             stray.settimeout(5.0)
             assert stray.recv(65536)
         finally:
@@ -176,6 +203,7 @@ def test_udpin_keeps_its_first_peer_against_a_stray_packet():
 
 
 # --- parameters ------------------------------------------------------------------------------------------------
+
 
 def _all_params(g) -> dict[str, float]:
     g.mav.param_request_list_send(1, 1)
@@ -191,13 +219,20 @@ def test_out_of_range_parameters_are_not_applied():
     with vehicle() as (live, _ep, (g,)):
         values = _all_params(g)
         rate = next(c for c in live.simulator.components if type(c).__name__ == "RateController")
-        for name, bad in (("MC_ROLLRATE_P", 0.0), ("MIS_TAKEOFF_ALT", 1e38), ("MPC_TILTMAX_AIR", 95.0),
-                          ("NAV_ACC_RAD", -1.0), ("MPC_THR_MAX", 1.5)):
+        for name, bad in (
+            ("MC_ROLLRATE_P", 0.0),
+            ("MIS_TAKEOFF_ALT", 1e38),
+            ("MPC_TILTMAX_AIR", 95.0),
+            ("NAV_ACC_RAD", -1.0),
+            ("MPC_THR_MAX", 1.5),
+        ):
             g.mav.param_set_send(1, 1, name.encode(), bad, M.MAV_PARAM_TYPE_REAL32)
             got = {}
             while len(got) < 2:  # a warning naming the parameter, and the value in force
-                m = g.recv(["PARAM_VALUE", "STATUSTEXT"], cond=lambda m, n=name: n in (
-                    m.param_id if m.get_type() == "PARAM_VALUE" else m.text))
+                m = g.recv(
+                    ["PARAM_VALUE", "STATUSTEXT"],
+                    cond=lambda m, n=name: n in (m.param_id if m.get_type() == "PARAM_VALUE" else m.text),
+                )
                 got[m.get_type()] = m
             assert got["PARAM_VALUE"].param_value == pytest.approx(values[name]), name
         assert rate.gains.roll_p == pytest.approx(values["MC_ROLLRATE_P"])
@@ -319,9 +354,28 @@ def test_cli_exits_non_zero_with_the_reason_after_a_reset(capsys):
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     code: dict = {}
-    thread = threading.Thread(target=lambda: code.setdefault("exit", main(
-        ["px4-sim", "square_sensors", "--instance", str(port - 4560), "--speed", "max", "--duration", "30",
-         "--set", "vehicle=iris", "--connect-timeout", "20"])), daemon=True)
+    thread = threading.Thread(
+        target=lambda: code.setdefault(
+            "exit",
+            main(
+                [
+                    "px4-sim",
+                    "square_sensors",
+                    "--instance",
+                    str(port - 4560),
+                    "--speed",
+                    "max",
+                    "--duration",
+                    "30",
+                    "--set",
+                    "vehicle=iris",
+                    "--connect-timeout",
+                    "20",
+                ]
+            ),
+        ),
+        daemon=True,
+    )
     thread.start()
     px4 = Px4Harness.tcp("127.0.0.1", port, timeout=20.0)
     s = px4.step(timeout=10.0)

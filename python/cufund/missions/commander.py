@@ -36,7 +36,6 @@ from typing import Any
 import numpy as np
 
 from cufund.core.components import BusView, Planner
-from cufund.geometry import yaw_of
 from cufund.core.messages import (
     AttitudeSetpoint,
     FlightMode,
@@ -46,8 +45,10 @@ from cufund.core.messages import (
     TrajectorySetpoint,
     VehicleStatus,
 )
+from cufund.geometry import yaw_of
 from cufund.planning.point_to_point import JerkLimitedMove
 from cufund.planning.sequence import Hold
+
 from .commands import Command, CommandAck, MissionItem, parse_command
 from .events import EventLog
 from .inbox import CommandInbox
@@ -57,8 +58,11 @@ from .params import CommanderParams, as_dict, field_of
 __all__ = ["Commander"]
 
 _Z3 = np.zeros(3)
-_OFFBOARD_MODES = {"offboard_position": FlightMode.POSITION, "offboard_velocity": FlightMode.VELOCITY,
-                   "offboard_attitude": FlightMode.ATTITUDE}
+_OFFBOARD_MODES = {
+    "offboard_position": FlightMode.POSITION,
+    "offboard_velocity": FlightMode.VELOCITY,
+    "offboard_attitude": FlightMode.ATTITUDE,
+}
 
 
 def _ok(c: Command, message: str = "") -> CommandAck:
@@ -80,8 +84,13 @@ class Commander(CommandInbox, Planner):
     name = "commander"
     writes = (Topics.TRAJECTORY_SETPOINT, Topics.MANUAL_ATTITUDE_SETPOINT, Topics.FLIGHT_MODE, Topics.VEHICLE_STATUS)
 
-    def __init__(self, params: CommanderParams | None = None, controller: str = "pid",
-                 controllers: tuple[str, ...] | None = None, events: EventLog | None = None) -> None:
+    def __init__(
+        self,
+        params: CommanderParams | None = None,
+        controller: str = "pid",
+        controllers: tuple[str, ...] | None = None,
+        events: EventLog | None = None,
+    ) -> None:
         self.params = params or CommanderParams()
         self.rate_hz = self.params.rate_hz
         self.initial_controller = controller
@@ -169,8 +178,9 @@ class Commander(CommandInbox, Planner):
             start, v0, a0 = np.array(self.state.p_W), _Z3, _Z3  # type: ignore[union-attr]
         v, a = (p.takeoff_speed if slow else p.v_max), p.a_max
         try:
-            self._ref = JerkLimitedMove(np.array(start, float), target, v, a, p.j_max, yaw, t_start=t,
-                                        start_v_W=v0, start_a_W=a0)
+            self._ref = JerkLimitedMove(
+                np.array(start, float), target, v, a, p.j_max, yaw, t_start=t, start_v_W=v0, start_a_W=a0
+            )
         except ValueError:  # a state ruckig cannot start from (beyond the limits): from rest at the reference
             self._ref = JerkLimitedMove(np.array(start, float), target, v, a, p.j_max, yaw, t_start=t)
         self._turn(t, yaw)
@@ -272,7 +282,7 @@ class Commander(CommandInbox, Planner):
             self.t = float(t)
         try:
             ack = self._apply(command, self.t)
-        except Exception as e:  # noqa: BLE001 - a command never takes the commander down
+        except Exception as e:  # a command never takes the commander down
             ack = CommandAck(command.command, "failed", f"{type(e).__name__}: {e}")
         if ack.result != "accepted":
             kind = "denied" if ack.result == "denied" else "warning"
@@ -295,17 +305,25 @@ class Commander(CommandInbox, Planner):
     #   airborne - armed and off the ground ("on the ground; take off first")
     # Commands not in the table are unsupported, once they pass the airborne gate.
     _DISPATCH: dict[str, tuple[str, str]] = {
-        "_link_lost": ("free", "_cmd_link_lost"), "_link_regained": ("free", "_cmd_link_regained"),
-        "get_params": ("free", "_cmd_get_params"), "set_param": ("free", "_cmd_set_param"),
-        "controller": ("free", "_cmd_controller"), "mission_upload": ("free", "_cmd_mission_upload"),
+        "_link_lost": ("free", "_cmd_link_lost"),
+        "_link_regained": ("free", "_cmd_link_regained"),
+        "get_params": ("free", "_cmd_get_params"),
+        "set_param": ("free", "_cmd_set_param"),
+        "controller": ("free", "_cmd_controller"),
+        "mission_upload": ("free", "_cmd_mission_upload"),
         "mission_clear": ("free", "_cmd_mission_clear"),
-        "arm": ("state", "_cmd_arm"), "disarm": ("state", "_cmd_disarm"),
+        "arm": ("state", "_cmd_arm"),
+        "disarm": ("state", "_cmd_disarm"),
         "hold": ("hold", "_cmd_hold"),
-        "takeoff": ("armed", "_cmd_takeoff"), "mission_start": ("armed", "_cmd_mission_start"),
-        "land": ("armed", "_cmd_land"), "flight_mode": ("armed", "_cmd_flight_mode"),
-        "offboard_position": ("armed", "_cmd_offboard"), "offboard_velocity": ("armed", "_cmd_offboard"),
+        "takeoff": ("armed", "_cmd_takeoff"),
+        "mission_start": ("armed", "_cmd_mission_start"),
+        "land": ("armed", "_cmd_land"),
+        "flight_mode": ("armed", "_cmd_flight_mode"),
+        "offboard_position": ("armed", "_cmd_offboard"),
+        "offboard_velocity": ("armed", "_cmd_offboard"),
         "offboard_attitude": ("armed", "_cmd_offboard"),
-        "goto": ("airborne", "_cmd_goto"), "rtl": ("airborne", "_cmd_rtl"),
+        "goto": ("airborne", "_cmd_goto"),
+        "rtl": ("airborne", "_cmd_rtl"),
     }
 
     def _apply(self, c: Command, t: float) -> CommandAck:
@@ -356,10 +374,13 @@ class Commander(CommandInbox, Planner):
 
     def _cmd_controller(self, c: Command, t: float) -> CommandAck:
         if c.kind not in self.controllers:
-            return CommandAck(c.command, "unsupported", f"controller {c.kind!r} is not built into this simulation "
-                              f"(built: {', '.join(self.controllers)})")
+            return CommandAck(
+                c.command,
+                "unsupported",
+                f"controller {c.kind!r} is not built into this simulation (built: {', '.join(self.controllers)})",
+            )
         if c.kind != self.controller:
-            self.controller = c.kind  # type: ignore[assignment]
+            self.controller = c.kind
             self._event("controller", f"controller {c.kind}", controller=c.kind)
         return _ok(c)
 
@@ -430,10 +451,16 @@ class Commander(CommandInbox, Planner):
         if self.landed:
             self._begin_flight(t)
             first = self.mission[c.seq].p_W
-            legs.append(Leg(np.array([s.p_W[0], s.p_W[1], max(first[2], self.home_p_W[2] + 0.5)]),
-                            self._ref_yaw, "takeoff", slow=True))
+            legs.append(
+                Leg(
+                    np.array([s.p_W[0], s.p_W[1], max(first[2], self.home_p_W[2] + 0.5)]),
+                    self._ref_yaw,
+                    "takeoff",
+                    slow=True,
+                )
+            )
         yaw = self._ref_yaw
-        for i, it in enumerate(self.mission[c.seq:], start=c.seq):
+        for i, it in enumerate(self.mission[c.seq :], start=c.seq):
             yaw = yaw if it.yaw is None else it.yaw
             legs.append(Leg(np.array(it.p_W), yaw, "item", it.hold_s, i))
         self._start_legs(t, legs, "mission", "hold")
@@ -483,8 +510,10 @@ class Commander(CommandInbox, Planner):
             return _deny(c, "no home position")
         p0, _, _, _ = self._ref_at(t)
         z = max(float(p0[2]), self.home_p_W[2] + self.params.rtl_altitude)
-        legs = [Leg(np.array([p0[0], p0[1], z]), self._ref_yaw, "rtl_climb"),
-                Leg(np.array([self.home_p_W[0], self.home_p_W[1], z]), self._ref_yaw, "rtl_home")]
+        legs = [
+            Leg(np.array([p0[0], p0[1], z]), self._ref_yaw, "rtl_climb"),
+            Leg(np.array([self.home_p_W[0], self.home_p_W[1], z]), self._ref_yaw, "rtl_home"),
+        ]
         self._start_legs(t, legs, "rtl", "land")
         return _ok(c)
 
@@ -504,7 +533,7 @@ class Commander(CommandInbox, Planner):
         if f is not None:
             try:
                 self.params = dataclasses.replace(self.params, **{f: c.value})
-            except Exception as e:  # noqa: BLE001 - ConfigError, TypeError: the ack names the field
+            except Exception as e:  # ConfigError, TypeError: the ack names the field
                 return CommandAck("set_param", "denied", str(e))
             self._event("param", f"{c.name} = {getattr(self.params, f)!r}", name=c.name)
             return CommandAck("set_param", "accepted", "", {c.name: getattr(self.params, f)})
@@ -553,8 +582,11 @@ class Commander(CommandInbox, Planner):
     def _supervise(self, t: float, s: Odometry) -> None:
         p = self.params
         if not self.armed:
-            self.landed = self.landed or float(np.linalg.norm(s.v_W)) < 0.2 and s.p_W[2] < 0.1 + (
-                self.home_p_W[2] if np.isfinite(self.home_p_W[2]) else 0.0)
+            self.landed = (
+                self.landed
+                or float(np.linalg.norm(s.v_W)) < 0.2
+                and s.p_W[2] < 0.1 + (self.home_p_W[2] if np.isfinite(self.home_p_W[2]) else 0.0)
+            )
             return
         if self.landed:
             if p.auto_disarm_s > 0 and t - self._armed_since > p.auto_disarm_s and self.mode == "idle":
@@ -609,8 +641,10 @@ class Commander(CommandInbox, Planner):
         if self.mode == "offboard" and self._offboard is not None:
             c = self._offboard[0]
             if c.command == "offboard_attitude":
-                bus.publish(Topics.MANUAL_ATTITUDE_SETPOINT, AttitudeSetpoint(
-                    t, np.array(c.q_WB), math.nan if c.thrust is None else c.thrust))
+                bus.publish(
+                    Topics.MANUAL_ATTITUDE_SETPOINT,
+                    AttitudeSetpoint(t, np.array(c.q_WB), math.nan if c.thrust is None else c.thrust),
+                )
                 return
             if c.command == "offboard_velocity":
                 sp = TrajectorySetpoint(t, np.array(s.p_W), np.array(c.v_W), _Z3, _Z3, yaw, 0.0)
@@ -619,8 +653,10 @@ class Commander(CommandInbox, Planner):
                 sp = TrajectorySetpoint(t, np.array(c.p_W), v, _Z3, _Z3, yaw, 0.0)
         elif self._hold_flight_mode is FlightMode.ATTITUDE:
             h = 0.5 * yaw
-            bus.publish(Topics.MANUAL_ATTITUDE_SETPOINT, AttitudeSetpoint(
-                t, np.array([math.cos(h), 0.0, 0.0, math.sin(h)]), math.nan))
+            bus.publish(
+                Topics.MANUAL_ATTITUDE_SETPOINT,
+                AttitudeSetpoint(t, np.array([math.cos(h), 0.0, 0.0, math.sin(h)]), math.nan),
+            )
             return
         elif self._hold_flight_mode is FlightMode.VELOCITY:
             sp = TrajectorySetpoint(t, np.array(s.p_W), _Z3, _Z3, _Z3, yaw, 0.0)
@@ -633,11 +669,24 @@ class Commander(CommandInbox, Planner):
         bus.publish(Topics.TRAJECTORY_SETPOINT, sp)
 
     def status(self, t: float | None = None) -> VehicleStatus:
-        target = self.target_p_W if np.all(np.isfinite(self.target_p_W)) else (
-            np.array(self.state.p_W) if self.state is not None else np.full(3, np.nan))
-        return VehicleStatus(self.t if t is None else t, self.armed, self.mode, self.landed, self.flight_mode,
-                             self.controller, self.mission_current, len(self.mission), np.array(self.home_p_W),
-                             np.array(target), self.message)
+        target = (
+            self.target_p_W
+            if np.all(np.isfinite(self.target_p_W))
+            else (np.array(self.state.p_W) if self.state is not None else np.full(3, np.nan))
+        )
+        return VehicleStatus(
+            self.t if t is None else t,
+            self.armed,
+            self.mode,
+            self.landed,
+            self.flight_mode,
+            self.controller,
+            self.mission_current,
+            len(self.mission),
+            np.array(self.home_p_W),
+            np.array(target),
+            self.message,
+        )
 
     def _publish_status(self, t: float, bus: BusView) -> None:
         self._update_plan()

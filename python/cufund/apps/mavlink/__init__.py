@@ -8,8 +8,14 @@ from typing import Any
 
 __all__ = ["Px4Airframe", "Px4BridgeParams", "Px4Harness", "Px4SimulatorBridge", "VehicleEndpoint", "px4_scenario"]
 
-_LAZY = {"Px4SimulatorBridge": "px4_sim", "Px4BridgeParams": "px4_sim", "px4_scenario": "px4_sim",
-         "Px4Airframe": "px4_airframe", "Px4Harness": "px4_harness", "VehicleEndpoint": "vehicle_endpoint"}
+_LAZY = {
+    "Px4SimulatorBridge": "px4_sim",
+    "Px4BridgeParams": "px4_sim",
+    "px4_scenario": "px4_sim",
+    "Px4Airframe": "px4_airframe",
+    "Px4Harness": "px4_harness",
+    "VehicleEndpoint": "vehicle_endpoint",
+}
 
 
 def __getattr__(name: str) -> Any:

@@ -43,8 +43,16 @@ def takeoff(param7: float, home_p_W: np.ndarray, origin: frames.GeodeticOrigin) 
     return {"command": "takeoff", "altitude": height}
 
 
-def reposition(lat_deg: float, lon_deg: float, alt_m: float, yaw_deg: float, frame: int, current_p_W: np.ndarray,
-               home_p_W: np.ndarray, origin: frames.GeodeticOrigin) -> dict[str, Any]:
+def reposition(
+    lat_deg: float,
+    lon_deg: float,
+    alt_m: float,
+    yaw_deg: float,
+    frame: int,
+    current_p_W: np.ndarray,
+    home_p_W: np.ndarray,
+    origin: frames.GeodeticOrigin,
+) -> dict[str, Any]:
     """DO_REPOSITION to (lat, lon, alt): alt AMSL, or above home in a relative frame; NaN lat/lon or alt keeps
     that part of the current position. A target below home is refused (it is in the ground)."""
     p = np.array(current_p_W, float)
@@ -70,8 +78,13 @@ def set_mode(base_mode: float, main: float, sub: float, has_offboard_setpoint: b
         raise Refused(mavlink.MAV_RESULT_UNSUPPORTED, "only PX4 custom modes are supported")
     main, sub = int(main), int(sub)
     if main == modes.MAIN_AUTO:
-        cmd = {modes.SUB_LOITER: "hold", modes.SUB_MISSION: "mission_start", modes.SUB_RTL: "rtl",
-               modes.SUB_LAND: "land", modes.SUB_TAKEOFF: "takeoff"}.get(sub)
+        cmd = {
+            modes.SUB_LOITER: "hold",
+            modes.SUB_MISSION: "mission_start",
+            modes.SUB_RTL: "rtl",
+            modes.SUB_LAND: "land",
+            modes.SUB_TAKEOFF: "takeoff",
+        }.get(sub)
         if cmd is None:
             raise Refused(mavlink.MAV_RESULT_UNSUPPORTED, f"AUTO sub-mode {sub} is not supported")
         return {"command": cmd}
@@ -90,8 +103,15 @@ _VEL_IGNORE = 0b111 << 3
 _YAW_IGNORE = 1 << 10
 
 
-def position_target(type_mask: int, frame: int, p_NED: np.ndarray, v_NED: np.ndarray, yaw_NED: float,
-                    current_p_W: np.ndarray, current_yaw_W: float) -> dict[str, Any]:
+def position_target(
+    type_mask: int,
+    frame: int,
+    p_NED: np.ndarray,
+    v_NED: np.ndarray,
+    yaw_NED: float,
+    current_p_W: np.ndarray,
+    current_yaw_W: float,
+) -> dict[str, Any]:
     """SET_POSITION_TARGET_LOCAL_NED -> offboard_position or offboard_velocity (world ENU)."""
     use_pos = not type_mask & _POS_IGNORE
     use_vel = not type_mask & _VEL_IGNORE

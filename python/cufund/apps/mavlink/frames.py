@@ -183,6 +183,7 @@ class GeodeticOrigin:
 
 # --- MAVLink integer encodings: round to nearest, saturate to the field's range; 0-d in -> Python int out ---
 
+
 def _encode(x: np.ndarray, scale: float, lo: int, hi: int, name: str) -> int | np.ndarray:
     a = np.asarray(x, dtype=float)
     if not np.all(np.isfinite(a)):
@@ -198,7 +199,7 @@ def _decode(x: np.ndarray, scale: float) -> float | np.ndarray:
 
 def deg_to_e7(deg: np.ndarray) -> int | np.ndarray:
     """Degrees -> degE7 (int32), MAVLink's lat/lon encoding."""
-    return _encode(deg, 1e7, -2**31, 2**31 - 1, "deg")
+    return _encode(deg, 1e7, -(2**31), 2**31 - 1, "deg")
 
 
 def e7_to_deg(e7: np.ndarray) -> float | np.ndarray:
@@ -207,7 +208,7 @@ def e7_to_deg(e7: np.ndarray) -> float | np.ndarray:
 
 def m_to_mm(m: np.ndarray) -> int | np.ndarray:
     """Metres -> millimetres (int32), MAVLink's altitude encoding."""
-    return _encode(m, 1e3, -2**31, 2**31 - 1, "m")
+    return _encode(m, 1e3, -(2**31), 2**31 - 1, "m")
 
 
 def mm_to_m(mm: np.ndarray) -> float | np.ndarray:

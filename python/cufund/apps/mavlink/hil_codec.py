@@ -49,8 +49,9 @@ class FrameWriter:
         seq = mav.seq
         mav.seq = (seq + 1) & 0xFF
         msg_id = msg.id
-        body = _HEADER.pack(n, 0, 0, seq, mav.srcSystem, mav.srcComponent, msg_id & 0xFFFF, msg_id >> 16) + \
-            payload[:n]  # the CRC covers the frame after the magic byte, then CRC_EXTRA
+        body = (
+            _HEADER.pack(n, 0, 0, seq, mav.srcSystem, mav.srcComponent, msg_id & 0xFFFF, msg_id >> 16) + payload[:n]
+        )  # the CRC covers the frame after the magic byte, then CRC_EXTRA
         return _MAGIC + body + _CRC.pack(mcrf4xx(_EXTRA[msg_id], mcrf4xx(body, 0xFFFF)))
 
     def pack(self, msg: Any) -> bytes:
@@ -70,25 +71,93 @@ class FrameWriter:
         payload = _HEARTBEAT.unpacker.pack(custom_mode, type_, autopilot, base_mode, system_status, 3)
         return self._frame(_HEARTBEAT, payload)
 
-    def hil_sensor(self, time_usec: int, xacc: float, yacc: float, zacc: float, xgyro: float, ygyro: float,
-                   zgyro: float, xmag: float, ymag: float, zmag: float, abs_pressure: float, diff_pressure: float,
-                   pressure_alt: float, temperature: float, fields_updated: int, id_: int) -> bytes:
+    def hil_sensor(
+        self,
+        time_usec: int,
+        xacc: float,
+        yacc: float,
+        zacc: float,
+        xgyro: float,
+        ygyro: float,
+        zgyro: float,
+        xmag: float,
+        ymag: float,
+        zmag: float,
+        abs_pressure: float,
+        diff_pressure: float,
+        pressure_alt: float,
+        temperature: float,
+        fields_updated: int,
+        id_: int,
+    ) -> bytes:
         if not self.fast:
-            return self.pack(self.mav.hil_sensor_encode(
-                time_usec, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag, abs_pressure, diff_pressure,
-                pressure_alt, temperature, fields_updated, id_))
-        payload = _HIL_SENSOR.unpacker.pack(time_usec, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag,
-                                            abs_pressure, diff_pressure, pressure_alt, temperature, fields_updated,
-                                            id_)
+            return self.pack(
+                self.mav.hil_sensor_encode(
+                    time_usec,
+                    xacc,
+                    yacc,
+                    zacc,
+                    xgyro,
+                    ygyro,
+                    zgyro,
+                    xmag,
+                    ymag,
+                    zmag,
+                    abs_pressure,
+                    diff_pressure,
+                    pressure_alt,
+                    temperature,
+                    fields_updated,
+                    id_,
+                )
+            )
+        payload = _HIL_SENSOR.unpacker.pack(
+            time_usec,
+            xacc,
+            yacc,
+            zacc,
+            xgyro,
+            ygyro,
+            zgyro,
+            xmag,
+            ymag,
+            zmag,
+            abs_pressure,
+            diff_pressure,
+            pressure_alt,
+            temperature,
+            fields_updated,
+            id_,
+        )
         return self._frame(_HIL_SENSOR, payload)
 
-    def hil_gps(self, time_usec: int, fix_type: int, lat: int, lon: int, alt: int, eph: int, epv: int, vel: int,
-                vn: int, ve: int, vd: int, cog: int, satellites_visible: int, id_: int, yaw: int = 0) -> bytes:
+    def hil_gps(
+        self,
+        time_usec: int,
+        fix_type: int,
+        lat: int,
+        lon: int,
+        alt: int,
+        eph: int,
+        epv: int,
+        vel: int,
+        vn: int,
+        ve: int,
+        vd: int,
+        cog: int,
+        satellites_visible: int,
+        id_: int,
+        yaw: int = 0,
+    ) -> bytes:
         if not self.fast:
-            return self.pack(self.mav.hil_gps_encode(time_usec, fix_type, lat, lon, alt, eph, epv, vel, vn, ve, vd,
-                                                     cog, satellites_visible, id_, yaw))
-        payload = _HIL_GPS.unpacker.pack(time_usec, lat, lon, alt, eph, epv, vel, vn, ve, vd, cog, fix_type,
-                                         satellites_visible, id_, yaw)
+            return self.pack(
+                self.mav.hil_gps_encode(
+                    time_usec, fix_type, lat, lon, alt, eph, epv, vel, vn, ve, vd, cog, satellites_visible, id_, yaw
+                )
+            )
+        payload = _HIL_GPS.unpacker.pack(
+            time_usec, lat, lon, alt, eph, epv, vel, vn, ve, vd, cog, fix_type, satellites_visible, id_, yaw
+        )
         return self._frame(_HIL_GPS, payload)
 
 
@@ -102,19 +171,25 @@ def take_controls(data: bytes) -> tuple[list[ControlsFrame], bytes]:
     MAVLink 1 or signed frame, a partial frame, a bad CRC, noise) and is for pymavlink's parser."""
     frames: list[ControlsFrame] = []
     i, n = 0, len(data)
-    while n - i >= 12 and data[i] == MAVLINK2_MAGIC and data[i + 2] == 0 and data[i + 7] == _CONTROLS_ID and \
-            data[i + 8] == 0 and data[i + 9] == 0:
+    while (
+        n - i >= 12
+        and data[i] == MAVLINK2_MAGIC
+        and data[i + 2] == 0
+        and data[i + 7] == _CONTROLS_ID
+        and data[i + 8] == 0
+        and data[i + 9] == 0
+    ):
         plen = data[i + 1]
         end = i + 10 + plen
         if plen > _CONTROLS_LEN or plen == 0 or end + 2 > n:
             break
-        if mcrf4xx(_CONTROLS_EXTRA, mcrf4xx(data[i + 1:end], 0xFFFF)) != data[end] | data[end + 1] << 8:
+        if mcrf4xx(_CONTROLS_EXTRA, mcrf4xx(data[i + 1 : end], 0xFFFF)) != data[end] | data[end + 1] << 8:
             break
-        payload = data[i + 10:end]
+        payload = data[i + 10 : end]
         if plen < _CONTROLS_LEN:
             payload += _ZEROS[plen:]
         c0, c1, c2, c3, mode = _CONTROLS_UNPACK.unpack(payload)
-        frames.append((data[i:end + 2], (c0, c1, c2, c3), mode))
+        frames.append((data[i : end + 2], (c0, c1, c2, c3), mode))
         i = end + 2
     return frames, data[i:] if i else data
 
@@ -147,7 +222,7 @@ def _frame_at(buf: bytes, j: int) -> tuple[int, int]:
         return _BAD, 0
     if end > n:
         return _SHORT, 0
-    if mcrf4xx(bytes((cls.crc_extra,)), mcrf4xx(buf[j + 1:crc_end], 0xFFFF)) != buf[crc_end] | buf[crc_end + 1] << 8:
+    if mcrf4xx(bytes((cls.crc_extra,)), mcrf4xx(buf[j + 1 : crc_end], 0xFFFF)) != buf[crc_end] | buf[crc_end + 1] << 8:
         return _BAD, 0
     return _OK, end
 

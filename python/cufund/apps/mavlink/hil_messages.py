@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from cufund.geometry import quat_to_matrix
 from cufund.core.messages import AirPressure, GpsFix, Imu, MagneticField, Odometry
+from cufund.geometry import quat_to_matrix
 from cufund.sensors.barometer import isa_altitude
+
 from . import frames
 from .hil_codec import FrameWriter
 
@@ -36,8 +37,9 @@ class HilEncoder:
     ``sensor_id``: HIL_SENSOR/HIL_GPS ``id`` (PX4 steps its lockstep clock on id 0, the primary IMU).
     """
 
-    def __init__(self, writer: FrameWriter, origin: frames.GeodeticOrigin, q_BI: np.ndarray | None = None,
-                 sensor_id: int = 0) -> None:
+    def __init__(
+        self, writer: FrameWriter, origin: frames.GeodeticOrigin, q_BI: np.ndarray | None = None, sensor_id: int = 0
+    ) -> None:
         self.writer = writer
         self.origin = origin
         q = np.asarray((1.0, 0.0, 0.0, 0.0) if q_BI is None else q_BI, dtype=float)
@@ -49,8 +51,9 @@ class HilEncoder:
         self._mag = (0.0,) * 3  # FRD [gauss]
         self._baro = (0.0, 0.0, 0.0)
 
-    def hil_sensor(self, time_usec: int, imu: Imu | None, mag: MagneticField | None,
-                   baro: AirPressure | None) -> tuple[bytes, int]:
+    def hil_sensor(
+        self, time_usec: int, imu: Imu | None, mag: MagneticField | None, baro: AirPressure | None
+    ) -> tuple[bytes, int]:
         """(HIL_SENSOR frame, its ``fields_updated``): the groups whose sample is given are marked (the others
         repeat their last values, as Gazebo does, with their bits clear)."""
         bits = 0
@@ -73,22 +76,48 @@ class HilEncoder:
         ax, ay, az, gx, gy, gz = self._imu
         mx, my, mz = self._mag
         hpa, alt, temp_c = self._baro
-        return self.writer.hil_sensor(time_usec, ax, ay, az, gx, gy, gz, mx, my, mz, hpa, 0.0, alt, temp_c, bits,
-                                      self.sensor_id), bits
+        return self.writer.hil_sensor(
+            time_usec, ax, ay, az, gx, gy, gz, mx, my, mz, hpa, 0.0, alt, temp_c, bits, self.sensor_id
+        ), bits
 
     def hil_gps(self, time_usec: int, fix: GpsFix) -> bytes:
         """HIL_GPS of a fix (degE7, mm, cm/s NED, eph/epv cm, cog cdeg); no fix -> fix_type 1, unknowns."""
         unknown = frames.UINT16_UNKNOWN
         if fix.fix_type < 2 or not np.isfinite(fix.latitude_deg):
-            return self.writer.hil_gps(time_usec, GPS_FIX_TYPE_NO_FIX, 0, 0, 0, unknown, unknown, unknown,
-                                       0, 0, 0, unknown, int(fix.satellites), self.sensor_id)
+            return self.writer.hil_gps(
+                time_usec,
+                GPS_FIX_TYPE_NO_FIX,
+                0,
+                0,
+                0,
+                unknown,
+                unknown,
+                unknown,
+                0,
+                0,
+                0,
+                unknown,
+                int(fix.satellites),
+                self.sensor_id,
+            )
         v_N = frames.enu_to_ned(fix.v_W)
         vn, ve, vd = (int(x) for x in frames.m_s_to_cm_s(v_N))
         return self.writer.hil_gps(
-            time_usec, int(fix.fix_type), frames.deg_to_e7(fix.latitude_deg), frames.deg_to_e7(fix.longitude_deg),
-            frames.m_to_mm(fix.altitude_m), frames.m_to_cm_u16(fix.eph), frames.m_to_cm_u16(fix.epv),
-            frames.m_to_cm_u16(float(np.hypot(v_N[0], v_N[1]))), vn, ve, vd, frames.course_cdeg(v_N),
-            int(fix.satellites), self.sensor_id)
+            time_usec,
+            int(fix.fix_type),
+            frames.deg_to_e7(fix.latitude_deg),
+            frames.deg_to_e7(fix.longitude_deg),
+            frames.m_to_mm(fix.altitude_m),
+            frames.m_to_cm_u16(fix.eph),
+            frames.m_to_cm_u16(fix.epv),
+            frames.m_to_cm_u16(float(np.hypot(v_N[0], v_N[1]))),
+            vn,
+            ve,
+            vd,
+            frames.course_cdeg(v_N),
+            int(fix.satellites),
+            self.sensor_id,
+        )
 
     def hil_state_quaternion(self, time_usec: int, truth: Odometry) -> bytes:
         """HIL_STATE_QUATERNION (ground truth): attitude NED/FRD, body rates FRD, position degE7/mm, velocity
@@ -101,7 +130,23 @@ class HilEncoder:
         a_B = frames.flu_to_frd(quat_to_matrix(truth.q_WB).T @ a_W)
         ax, ay, az = frames.m_s2_to_mg(a_B)
         speed = frames.m_to_cm_u16(float(np.linalg.norm(truth.v_W)))
-        return self.writer.pack(self.writer.mav.hil_state_quaternion_encode(
-            time_usec, [float(x) for x in q], float(p), float(r), float(y), frames.deg_to_e7(lat),
-            frames.deg_to_e7(lon), frames.m_to_mm(alt), int(vx), int(vy), int(vz), speed, speed, int(ax), int(ay),
-            int(az)))
+        return self.writer.pack(
+            self.writer.mav.hil_state_quaternion_encode(
+                time_usec,
+                [float(x) for x in q],
+                float(p),
+                float(r),
+                float(y),
+                frames.deg_to_e7(lat),
+                frames.deg_to_e7(lon),
+                frames.m_to_mm(alt),
+                int(vx),
+                int(vy),
+                int(vz),
+                speed,
+                speed,
+                int(ax),
+                int(ay),
+                int(az),
+            )
+        )

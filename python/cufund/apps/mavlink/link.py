@@ -94,10 +94,14 @@ class LinkStats:
 class UdpLink:
     """One MAVLink 2 UDP link. ``recv()`` returns the messages that arrived; ``send(msg)`` packs with our ids."""
 
-    def __init__(self, url: str, system_id: int = 1, component_id: int = 1, name: str = "link",
-                 peer_timeout_s: float = 5.0) -> None:
-        if isinstance(peer_timeout_s, bool) or not isinstance(peer_timeout_s, (int, float)) or \
-                not (peer_timeout_s > 0 and peer_timeout_s < float("inf")):
+    def __init__(
+        self, url: str, system_id: int = 1, component_id: int = 1, name: str = "link", peer_timeout_s: float = 5.0
+    ) -> None:
+        if (
+            isinstance(peer_timeout_s, bool)
+            or not isinstance(peer_timeout_s, (int, float))
+            or not (peer_timeout_s > 0 and peer_timeout_s < float("inf"))
+        ):
             raise ValueError(f"{name}: peer_timeout_s must be a finite time > 0 [s], got {peer_timeout_s!r}")
         self.name = name
         self.peer_timeout_s = float(peer_timeout_s)
@@ -144,7 +148,7 @@ class UdpLink:
                 self.peer, self._peer_heard = addr, now
             try:
                 msgs = self.mav.parse_buffer(data) or []
-            except Exception:  # noqa: BLE001 - pymavlink raises a variety of errors on garbage
+            except Exception:  # pymavlink raises a variety of errors on garbage
                 msgs = [None]
             if self.mav.buf_len() > 0:  # a datagram holds whole frames: a partial one is garbage, not a prefix
                 msgs.append(None)

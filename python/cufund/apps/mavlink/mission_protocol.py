@@ -49,23 +49,52 @@ class MissionItem:
     def from_message(m) -> MissionItem:
         """From MISSION_ITEM_INT, or the legacy float MISSION_ITEM (lat/lon in degrees)."""
         if m.get_type() == "MISSION_ITEM":
-            global_frame = m.frame in (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
-                                       mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT)
+            global_frame = m.frame in (
+                mavlink.MAV_FRAME_GLOBAL,
+                mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+            )
             scale = 1e7 if global_frame else 1e4
             x, y = _scaled_int32(m.x, scale, "x"), _scaled_int32(m.y, scale, "y")
-            frame = {mavlink.MAV_FRAME_GLOBAL: mavlink.MAV_FRAME_GLOBAL_INT,
-                     mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT: mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-                     mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT: mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT}.get(m.frame,
-                                                                                                      m.frame)
+            frame = {
+                mavlink.MAV_FRAME_GLOBAL: mavlink.MAV_FRAME_GLOBAL_INT,
+                mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT: mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT: mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,
+            }.get(m.frame, m.frame)
         else:
             x, y, frame = int(m.x), int(m.y), m.frame
-        return MissionItem(int(m.seq), int(frame), int(m.command), int(m.autocontinue), float(m.param1),
-                           float(m.param2), float(m.param3), float(m.param4), x, y, float(m.z))
+        return MissionItem(
+            int(m.seq),
+            int(frame),
+            int(m.command),
+            int(m.autocontinue),
+            float(m.param1),
+            float(m.param2),
+            float(m.param3),
+            float(m.param4),
+            x,
+            y,
+            float(m.z),
+        )
 
     def encode(self, mav: mavlink.MAVLink, target_system: int, target_component: int, current: bool):
-        return mav.mission_item_int_encode(target_system, target_component, self.seq, self.frame, self.command,
-                                           int(current), self.autocontinue, self.param1, self.param2, self.param3,
-                                           self.param4, self.x, self.y, self.z, MISSION)
+        return mav.mission_item_int_encode(
+            target_system,
+            target_component,
+            self.seq,
+            self.frame,
+            self.command,
+            int(current),
+            self.autocontinue,
+            self.param1,
+            self.param2,
+            self.param3,
+            self.param4,
+            self.x,
+            self.y,
+            self.z,
+            MISSION,
+        )
 
 
 class BadItem(ValueError):
@@ -85,15 +114,54 @@ def _scaled_int32(v: float, scale: float, name: str) -> int:
     return round(scaled)
 
 
-SUPPORTED_COMMANDS = frozenset(getattr(mavlink, "MAV_CMD_" + n) for n in (
-    "NAV_WAYPOINT", "NAV_LOITER_UNLIM", "NAV_LOITER_TIME", "NAV_LOITER_TURNS", "NAV_LAND", "NAV_TAKEOFF",
-    "NAV_LOITER_TO_ALT", "NAV_VTOL_TAKEOFF", "NAV_VTOL_LAND", "NAV_DELAY", "NAV_RETURN_TO_LAUNCH", "NAV_ROI",
-    "DO_JUMP", "DO_CHANGE_SPEED", "DO_SET_HOME", "DO_SET_SERVO", "DO_SET_ACTUATOR", "DO_LAND_START",
-    "DO_TRIGGER_CONTROL", "DO_DIGICAM_CONTROL", "DO_MOUNT_CONFIGURE", "DO_MOUNT_CONTROL", "IMAGE_START_CAPTURE",
-    "IMAGE_STOP_CAPTURE", "VIDEO_START_CAPTURE", "VIDEO_STOP_CAPTURE", "DO_CONTROL_VIDEO", "DO_SET_CAM_TRIGG_DIST",
-    "DO_SET_CAM_TRIGG_INTERVAL", "SET_CAMERA_MODE", "SET_CAMERA_ZOOM", "SET_CAMERA_FOCUS", "DO_VTOL_TRANSITION",
-    "DO_SET_ROI", "DO_SET_ROI_LOCATION", "DO_SET_ROI_WPNEXT_OFFSET", "DO_SET_ROI_NONE", "CONDITION_DELAY",
-    "CONDITION_DISTANCE", "DO_GIMBAL_MANAGER_PITCHYAW", "DO_GIMBAL_MANAGER_CONFIGURE", "DO_WINCH", "DO_GRIPPER"))
+SUPPORTED_COMMANDS = frozenset(
+    getattr(mavlink, "MAV_CMD_" + n)
+    for n in (
+        "NAV_WAYPOINT",
+        "NAV_LOITER_UNLIM",
+        "NAV_LOITER_TIME",
+        "NAV_LOITER_TURNS",
+        "NAV_LAND",
+        "NAV_TAKEOFF",
+        "NAV_LOITER_TO_ALT",
+        "NAV_VTOL_TAKEOFF",
+        "NAV_VTOL_LAND",
+        "NAV_DELAY",
+        "NAV_RETURN_TO_LAUNCH",
+        "NAV_ROI",
+        "DO_JUMP",
+        "DO_CHANGE_SPEED",
+        "DO_SET_HOME",
+        "DO_SET_SERVO",
+        "DO_SET_ACTUATOR",
+        "DO_LAND_START",
+        "DO_TRIGGER_CONTROL",
+        "DO_DIGICAM_CONTROL",
+        "DO_MOUNT_CONFIGURE",
+        "DO_MOUNT_CONTROL",
+        "IMAGE_START_CAPTURE",
+        "IMAGE_STOP_CAPTURE",
+        "VIDEO_START_CAPTURE",
+        "VIDEO_STOP_CAPTURE",
+        "DO_CONTROL_VIDEO",
+        "DO_SET_CAM_TRIGG_DIST",
+        "DO_SET_CAM_TRIGG_INTERVAL",
+        "SET_CAMERA_MODE",
+        "SET_CAMERA_ZOOM",
+        "SET_CAMERA_FOCUS",
+        "DO_VTOL_TRANSITION",
+        "DO_SET_ROI",
+        "DO_SET_ROI_LOCATION",
+        "DO_SET_ROI_WPNEXT_OFFSET",
+        "DO_SET_ROI_NONE",
+        "CONDITION_DELAY",
+        "CONDITION_DISTANCE",
+        "DO_GIMBAL_MANAGER_PITCHYAW",
+        "DO_GIMBAL_MANAGER_CONFIGURE",
+        "DO_WINCH",
+        "DO_GRIPPER",
+    )
+)
 """Mission item commands PX4's parser takes (mavlink_mission.cpp, ``parse_mavlink_mission_item``: any other is
 MAV_MISSION_UNSUPPORTED); cufund flies the NAV items among them and keeps the others for download."""
 
@@ -117,8 +185,15 @@ class MissionProtocol:
     the commander; ``current()`` gives the item being flown (-1: none).
     """
 
-    def __init__(self, accept: Callable, clear: Callable, set_current: Callable, current: Callable,
-                 retry_s: float = 0.25, timeout_s: float = 5.0) -> None:
+    def __init__(
+        self,
+        accept: Callable,
+        clear: Callable,
+        set_current: Callable,
+        current: Callable,
+        retry_s: float = 0.25,
+        timeout_s: float = 5.0,
+    ) -> None:
         self.items: list[MissionItem] = []
         self._accept, self._clear, self._set_current, self._current = accept, clear, set_current, current
         self.retry_s, self.timeout_s = retry_s, timeout_s
@@ -156,16 +231,20 @@ class MissionProtocol:
         kind = m.get_type()
         target = (m.get_srcSystem(), m.get_srcComponent())
         mission_type = getattr(m, "mission_type", MISSION)
-        if kind in ("MISSION_COUNT", "MISSION_CLEAR_ALL", "MISSION_ITEM_INT", "MISSION_ITEM") and \
-                mission_type == MISSION and self._busy(target):
+        if (
+            kind in ("MISSION_COUNT", "MISSION_CLEAR_ALL", "MISSION_ITEM_INT", "MISSION_ITEM")
+            and mission_type == MISSION
+            and self._busy(target)
+        ):
             self.refused_busy += 1  # another client's transfer is under way: it stays whole
             self._ack(send, target, mavlink.MAV_MISSION_DENIED, mission_type)
             return
         if kind == "MISSION_COUNT":
             if mission_type != MISSION:
                 ok = m.count == 0
-                self._ack(send, target, mavlink.MAV_MISSION_ACCEPTED if ok else mavlink.MAV_MISSION_UNSUPPORTED,
-                          mission_type)
+                self._ack(
+                    send, target, mavlink.MAV_MISSION_ACCEPTED if ok else mavlink.MAV_MISSION_UNSUPPORTED, mission_type
+                )
                 return
             self._upload = None  # the partner starting again
             if m.count == 0:
@@ -199,7 +278,7 @@ class MissionProtocol:
             self._upload = None
             try:
                 result = int(self._accept(list(up.items)))
-            except Exception:  # noqa: BLE001 - a plan the commander cannot take is an error, not a crash
+            except Exception:  # a plan the commander cannot take is an error, not a crash
                 result = mavlink.MAV_MISSION_ERROR
             if result == mavlink.MAV_MISSION_ACCEPTED:
                 self.items = up.items
@@ -246,19 +325,42 @@ class MissionProtocol:
 
 
 def _legacy_item(mav: mavlink.MAVLink, item: MissionItem, target: tuple[int, int], current: bool):
-    global_frame = item.frame in (mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-                                  mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT)
+    global_frame = item.frame in (
+        mavlink.MAV_FRAME_GLOBAL_INT,
+        mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+        mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,
+    )
     scale = 1e7 if global_frame else 1e4
-    frame = {mavlink.MAV_FRAME_GLOBAL_INT: mavlink.MAV_FRAME_GLOBAL,
-             mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
-             mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT: mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT}.get(item.frame, item.frame)
-    return mav.mission_item_encode(target[0], target[1], item.seq, frame, item.command, int(current),
-                                   item.autocontinue, item.param1, item.param2, item.param3, item.param4,
-                                   item.x / scale, item.y / scale, item.z, MISSION)
+    frame = {
+        mavlink.MAV_FRAME_GLOBAL_INT: mavlink.MAV_FRAME_GLOBAL,
+        mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT: mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+    }.get(item.frame, item.frame)
+    return mav.mission_item_encode(
+        target[0],
+        target[1],
+        item.seq,
+        frame,
+        item.command,
+        int(current),
+        item.autocontinue,
+        item.param1,
+        item.param2,
+        item.param3,
+        item.param4,
+        item.x / scale,
+        item.y / scale,
+        item.z,
+        MISSION,
+    )
 
 
-_NAV_COMMANDS = (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_NAV_LOITER_TIME,
-                 mavlink.MAV_CMD_NAV_LOITER_UNLIM)
+_NAV_COMMANDS = (
+    mavlink.MAV_CMD_NAV_WAYPOINT,
+    mavlink.MAV_CMD_NAV_TAKEOFF,
+    mavlink.MAV_CMD_NAV_LOITER_TIME,
+    mavlink.MAV_CMD_NAV_LOITER_UNLIM,
+)
 _RELATIVE_FRAMES = (mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT)
 
 
@@ -307,8 +409,13 @@ class CommanderPlan:
             if p[2] < home[2]:  # below home: in the ground
                 return mavlink.MAV_MISSION_INVALID_PARAM7
             yaw = None if not math.isfinite(it.param4) else float(frames.yaw_ned_to_enu(math.radians(it.param4)))
-            hold = it.param1 if it.command in (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME) \
-                and math.isfinite(it.param1) and it.param1 > 0 else 0.0
+            hold = (
+                it.param1
+                if it.command in (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME)
+                and math.isfinite(it.param1)
+                and it.param1 > 0
+                else 0.0
+            )
             wps.append({"p_W": [float(c) for c in p], "yaw": yaw, "hold_s": float(hold)})
             seqs.append(it.seq)
         ack = self._decide({"command": "mission_upload", "items": wps})
@@ -336,9 +443,11 @@ class CommanderPlan:
         if i is None:
             return seq == 0 and not self.plan_seqs
         running = self._snapshot().mode == "mission"
-        steps = ([{"command": "hold"}] if running else []) + [
-            {"command": "mission_upload", "items": self.plan_wps[i:]}] + (
-            [{"command": "mission_start"}] if running else [])
+        steps = (
+            ([{"command": "hold"}] if running else [])
+            + [{"command": "mission_upload", "items": self.plan_wps[i:]}]
+            + ([{"command": "mission_start"}] if running else [])
+        )
         for cmd in steps:
             ack = self._decide(cmd)
             if ack is None or ack.result != "accepted":

@@ -33,16 +33,21 @@ PX4_BOUNDS: dict[str, tuple[float, float]] = {
     # mc_pos_control/multicopter_takeoff_land_params.c: MPC_TKO_SPEED @min 1 @max 5 [m/s]; MPC_LAND_SPEED
     # @min 0.6 (no max); MPC_LAND_ALT2 @min 0 @max 122 [m]. cufund's small vehicles climb at 0.5 m/s and land at
     # 0.3 m/s by default, below PX4's minima: the lower bounds are cufund's (> 0), the upper ones PX4's.
-    "MPC_TKO_SPEED": (0.05, 5.0), "MPC_LAND_SPEED": (0.05, _INF), "MPC_LAND_ALT2": (0.0, 122.0),
+    "MPC_TKO_SPEED": (0.05, 5.0),
+    "MPC_LAND_SPEED": (0.05, _INF),
+    "MPC_LAND_ALT2": (0.0, 122.0),
     # mc_pos_control/multicopter_autonomous_params.c: MPC_XY_CRUISE @min 3 @max 20 [m/s] (cufund's default
     # 1 m/s: lower bound cufund's); MPC_ACC_HOR @min 2 @max 15 [m/s^2]; MPC_JERK_AUTO @min 1 @max 80 [m/s^3]
-    "MPC_XY_CRUISE": (0.1, 20.0), "MPC_ACC_HOR": (2.0, 15.0), "MPC_JERK_AUTO": (1.0, 80.0),
+    "MPC_XY_CRUISE": (0.1, 20.0),
+    "MPC_ACC_HOR": (2.0, 15.0),
+    "MPC_JERK_AUTO": (1.0, 80.0),
     # navigator/navigator_params.c: NAV_ACC_RAD @min 0.05 @max 200 [m]
     "NAV_ACC_RAD": (0.05, 200.0),
     # commander/commander_params.c: COM_OF_LOSS_T @min 0 @max 60 [s]; COM_DL_LOSS_T @min 0 @max 300 [s] (an
     # older release's bound; newer ones say @min 5, which would refuse the short losses cufund's indoor tests
     # fly); COM_DISARM_PRFLT has no bounds in PX4 (cufund's CommanderParams: >= 0)
-    "COM_OF_LOSS_T": (0.0, 60.0), "COM_DL_LOSS_T": (0.0, 300.0),
+    "COM_OF_LOSS_T": (0.0, 60.0),
+    "COM_DL_LOSS_T": (0.0, 300.0),
     # navigator/rtl_params.c: RTL_RETURN_ALT @min 0 @max 150 [m]
     "RTL_RETURN_ALT": (0.0, 150.0),
     # mc_pos_control/multicopter_position_control_gain_params.c: MPC_XY_P @min 0 @max 2, MPC_Z_P @min 0 @max 1.5,
@@ -50,24 +55,42 @@ PX4_BOUNDS: dict[str, tuple[float, float]] = {
     # MPC_Z_VEL_I_ACC @min 0.2 @max 3, MPC_XY_VEL_D_ACC @min 0.1 @max 2, MPC_Z_VEL_D_ACC @min 0 @max 2. cufund's
     # built-in scenarios fly stiffer position loops (xy_p = z_p = 3, xy_vel_p = 8): those upper bounds are doubled
     # from the scenarios' values (6, 6, 16); and xy_vel_d may be 0 (cufund's default).
-    "MPC_XY_P": (0.0, 6.0), "MPC_Z_P": (0.0, 6.0), "MPC_XY_VEL_P_ACC": (1.2, 16.0), "MPC_Z_VEL_P_ACC": (2.0, 15.0),
-    "MPC_XY_VEL_I_ACC": (0.0, 60.0), "MPC_Z_VEL_I_ACC": (0.2, 3.0), "MPC_XY_VEL_D_ACC": (0.0, 2.0),
+    "MPC_XY_P": (0.0, 6.0),
+    "MPC_Z_P": (0.0, 6.0),
+    "MPC_XY_VEL_P_ACC": (1.2, 16.0),
+    "MPC_Z_VEL_P_ACC": (2.0, 15.0),
+    "MPC_XY_VEL_I_ACC": (0.0, 60.0),
+    "MPC_Z_VEL_I_ACC": (0.2, 3.0),
+    "MPC_XY_VEL_D_ACC": (0.0, 2.0),
     "MPC_Z_VEL_D_ACC": (0.0, 2.0),
     # mc_pos_control/multicopter_position_control_limits_params.c: MPC_XY_VEL_MAX @min 0 @max 20,
     # MPC_Z_VEL_MAX_UP @min 0.5 @max 8, MPC_Z_VEL_MAX_DN @min 0.5 @max 4 [m/s]; MPC_TILTMAX_AIR @min 20 @max 89
     # [deg]; MPC_THR_MIN @min 0.05 @max 0.5, MPC_THR_MAX @min 0 @max 1
-    "MPC_XY_VEL_MAX": (0.0, 20.0), "MPC_Z_VEL_MAX_UP": (0.5, 8.0), "MPC_Z_VEL_MAX_DN": (0.5, 4.0),
-    "MPC_TILTMAX_AIR": (20.0, 89.0), "MPC_THR_MIN": (0.05, 0.5), "MPC_THR_MAX": (0.0, 1.0),
+    "MPC_XY_VEL_MAX": (0.0, 20.0),
+    "MPC_Z_VEL_MAX_UP": (0.5, 8.0),
+    "MPC_Z_VEL_MAX_DN": (0.5, 4.0),
+    "MPC_TILTMAX_AIR": (20.0, 89.0),
+    "MPC_THR_MIN": (0.05, 0.5),
+    "MPC_THR_MAX": (0.0, 1.0),
     # mc_att_control/mc_att_control_params.c: MC_ROLL_P, MC_PITCH_P @min 0 @max 12, MC_YAW_P @min 0 @max 5 [1/s];
     # MC_ROLLRATE_MAX, MC_PITCHRATE_MAX, MC_YAWRATE_MAX @min 0 @max 1800 [deg/s]
-    "MC_ROLL_P": (0.0, 12.0), "MC_PITCH_P": (0.0, 12.0), "MC_YAW_P": (0.0, 5.0),
-    "MC_ROLLRATE_MAX": (0.0, 1800.0), "MC_PITCHRATE_MAX": (0.0, 1800.0), "MC_YAWRATE_MAX": (0.0, 1800.0),
+    "MC_ROLL_P": (0.0, 12.0),
+    "MC_PITCH_P": (0.0, 12.0),
+    "MC_YAW_P": (0.0, 5.0),
+    "MC_ROLLRATE_MAX": (0.0, 1800.0),
+    "MC_PITCHRATE_MAX": (0.0, 1800.0),
+    "MC_YAWRATE_MAX": (0.0, 1800.0),
     # mc_rate_control/mc_rate_control_params.c (PX4 default 0.15 / 0.2 / 0.003 for roll and pitch P / I / D, 0.2
     # / 0.1 / 0 for yaw): MC_ROLLRATE_P @min 0.01 @max 0.5, MC_PITCHRATE_P @min 0.01 @max 0.6, MC_YAWRATE_P
     # @min 0 @max 0.6, MC_ROLLRATE_D @min 0 @max 0.01, the I gains and the other D gains @min 0 (no max); scaled
-    "MC_ROLLRATE_P": (0.01 * _RATE_P, 0.5 * _RATE_P), "MC_PITCHRATE_P": (0.01 * _RATE_P, 0.6 * _RATE_P),
-    "MC_YAWRATE_P": (0.0, 0.6 * _YAW_P), "MC_ROLLRATE_I": (0.0, _INF), "MC_PITCHRATE_I": (0.0, _INF),
-    "MC_YAWRATE_I": (0.0, _INF), "MC_ROLLRATE_D": (0.0, 0.01 * _RATE_D), "MC_PITCHRATE_D": (0.0, _INF),
+    "MC_ROLLRATE_P": (0.01 * _RATE_P, 0.5 * _RATE_P),
+    "MC_PITCHRATE_P": (0.01 * _RATE_P, 0.6 * _RATE_P),
+    "MC_YAWRATE_P": (0.0, 0.6 * _YAW_P),
+    "MC_ROLLRATE_I": (0.0, _INF),
+    "MC_PITCHRATE_I": (0.0, _INF),
+    "MC_YAWRATE_I": (0.0, _INF),
+    "MC_ROLLRATE_D": (0.0, 0.01 * _RATE_D),
+    "MC_PITCHRATE_D": (0.0, _INF),
     "MC_YAWRATE_D": (0.0, _INF),
 }
 """PX4's parameter metadata (``@min`` / ``@max`` in PX4-Autopilot's ``*_params.c``, v1.14-v1.15) for the
@@ -151,8 +174,13 @@ class ParamTable:
         """PARAM_VALUE of one parameter (None if unknown)."""
         if name not in self.values:
             return None
-        return mav.param_value_encode(encode_id(name), float(self.values[name]), mavlink.MAV_PARAM_TYPE_REAL32,
-                                      len(self.values), self.index_of(name))
+        return mav.param_value_encode(
+            encode_id(name),
+            float(self.values[name]),
+            mavlink.MAV_PARAM_TYPE_REAL32,
+            len(self.values),
+            self.index_of(name),
+        )
 
 
 class ParamProtocol:
@@ -163,18 +191,18 @@ class ParamProtocol:
     ``send(factory)`` sends on the link the request came from, ``warn(text)`` a STATUSTEXT warning there.
     """
 
-    def __init__(self, submit: Callable, defer: Callable, aliases: dict[str, tuple[str, float]] | None = None
-                 ) -> None:
+    def __init__(self, submit: Callable, defer: Callable, aliases: dict[str, tuple[str, float]] | None = None) -> None:
         self.table = ParamTable(aliases)
         self._submit, self._defer = submit, defer
         self.refused = 0
 
     def refresh(self, then: Callable | None = None) -> None:
         """Asks the commander for its parameters; the table is updated (and ``then()`` called) on the loop."""
+
         def done(f: Any) -> None:
             try:
                 ack = f.result()
-            except Exception:  # noqa: BLE001
+            except Exception:
                 return
             if isinstance(ack.data, dict):
                 self._defer(self.table.update, ack.data)
@@ -194,12 +222,18 @@ class ParamProtocol:
         kind = msg.get_type()
         table = self.table
         if kind == "PARAM_REQUEST_LIST":
-            self.refresh(lambda: [self._value(send, n) for n in list(table.values)])
+
+            def send_all() -> None:
+                for n in list(table.values):
+                    self._value(send, n)
+
+            self.refresh(send_all)
             return
         if kind == "PARAM_REQUEST_READ":
-            name = decode_id(msg.param_id) if msg.param_index < 0 else table.name_at(msg.param_index)
-            if name is not None:
-                self.refresh(lambda: self._value(send, name))
+            found = decode_id(msg.param_id) if msg.param_index < 0 else table.name_at(msg.param_index)
+            if found is not None:
+                read: str = found
+                self.refresh(lambda: self._value(send, read))
             return
         if kind != "PARAM_SET":
             return

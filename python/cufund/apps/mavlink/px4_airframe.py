@@ -81,16 +81,21 @@ class Px4Airframe:
         non-finite output (PX4's "disabled") commands the disarmed speed."""
         return np.array(self.rotor_speed_list(controls, armed))
 
-    def rotor_speed_list(self, controls: Sequence[float], armed: bool,
-                         outputs: Sequence[int] = (0, 1, 2, 3)) -> list[float]:
+    def rotor_speed_list(
+        self, controls: Sequence[float], armed: bool, outputs: Sequence[int] = (0, 1, 2, 3)
+    ) -> list[float]:
         """:meth:`rotor_speeds` as a list of plain floats (four channels: no numpy overhead per call), for the
         motor ``outputs`` (0-based) in the order given: all four by default, or reordered (e.g. into cufund's
         rotor order) in the same pass."""
         if not armed:
             dis = self.zero_position_disarmed
             return [dis[i] for i in outputs]
-        off, scale, zero, dis = self.input_offset, self.input_scaling, self.zero_position_armed, \
-            self.zero_position_disarmed
+        off, scale, zero, dis = (
+            self.input_offset,
+            self.input_scaling,
+            self.zero_position_armed,
+            self.zero_position_disarmed,
+        )
         out = []
         for i in outputs:
             w = (float(controls[i]) + off[i]) * scale[i] + zero[i]
@@ -109,8 +114,10 @@ class Px4Airframe:
             diff = np.abs((ang_cufund - ang + np.pi) % (2 * np.pi) - np.pi)
             j = int(np.argmin(diff))
             if diff[j] > np.radians(10.0) or spins[j] != spin:
-                raise ConfigError(f"PX4 {self.geometry} motor {i + 1} (spin {'CCW' if spin > 0 else 'CW'}) has no "
-                                  f"matching rotor on vehicle {params.name!r} (layout {params.layout!r})")
+                raise ConfigError(
+                    f"PX4 {self.geometry} motor {i + 1} (spin {'CCW' if spin > 0 else 'CW'}) has no "
+                    f"matching rotor on vehicle {params.name!r} (layout {params.layout!r})"
+                )
             out[i] = j
         if len(set(out.tolist())) != 4:
             raise ConfigError(f"PX4 {self.geometry} motors do not map one-to-one onto {params.name!r}'s rotors")

@@ -19,23 +19,53 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", help="a built-in scenario name or a YAML file (its flight software is replaced by PX4)")
     p.add_argument("--instance", type=int, default=0, help="PX4 instance: listen on TCP 4560 + N (default 0)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
-    p.add_argument("--hitl", metavar="DEVICE", help="HITL: talk to a flight controller on this serial port "
-                                                    "(e.g. /dev/ttyACM0) instead of px4_sitl over TCP")
+    p.add_argument(
+        "--hitl",
+        metavar="DEVICE",
+        help="HITL: talk to a flight controller on this serial port (e.g. /dev/ttyACM0) instead of px4_sitl over TCP",
+    )
     p.add_argument("--baud", type=int, default=921600, help="HITL serial baud rate (default 921600)")
-    p.add_argument("--gcs", default="127.0.0.1:14550", metavar="HOST:PORT",
-                   help="HITL: relay the flight controller's MAVLink to a ground station over UDP and back "
-                        "(default 127.0.0.1:14550, QGroundControl's port; 'none' to disable)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario field by its dotted key, e.g. --set vehicle=iris (repeatable)")
-    p.add_argument("--speed", default="1", metavar="FACTOR",
-                   help="simulated seconds per wall second (PX4_SIM_SPEED_FACTOR's role; default 1), or 'max'")
-    p.add_argument("--duration", type=float, default=None,
-                   help="stop after this much simulated time [s] (default: until PX4 disconnects)")
-    p.add_argument("--connect-timeout", type=float, default=None,
-                   help="give up if PX4 has not connected after this many seconds (default: wait forever)")
-    p.add_argument("--cpu", type=int, default=None, metavar="N",
-                   help="run on CPU N only (Linux); lockstep is serial, so with PX4 on the same CPU (taskset -c N) "
-                        "neither side waits for the other to be woken on another CPU")
+    p.add_argument(
+        "--gcs",
+        default="127.0.0.1:14550",
+        metavar="HOST:PORT",
+        help="HITL: relay the flight controller's MAVLink to a ground station over UDP and back "
+        "(default 127.0.0.1:14550, QGroundControl's port; 'none' to disable)",
+    )
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario field by its dotted key, e.g. --set vehicle=iris (repeatable)",
+    )
+    p.add_argument(
+        "--speed",
+        default="1",
+        metavar="FACTOR",
+        help="simulated seconds per wall second (PX4_SIM_SPEED_FACTOR's role; default 1), or 'max'",
+    )
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        help="stop after this much simulated time [s] (default: until PX4 disconnects)",
+    )
+    p.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=None,
+        help="give up if PX4 has not connected after this many seconds (default: wait forever)",
+    )
+    p.add_argument(
+        "--cpu",
+        type=int,
+        default=None,
+        metavar="N",
+        help="run on CPU N only (Linux); lockstep is serial, so with PX4 on the same CPU (taskset -c N) "
+        "neither side waits for the other to be woken on another CPU",
+    )
 
 
 def _speed(text: str) -> float | None:
@@ -61,6 +91,7 @@ def _gcs(text: str) -> tuple[str, int] | None:
 
 def run(args: argparse.Namespace) -> int:
     from cufund.scenarios.schema import load_scenario, parse_overrides
+
     from .px4_links import GcsForward, SerialLink, TcpServerLink
     from .px4_sim import Px4BridgeParams, Px4SimulatorBridge
 
@@ -68,8 +99,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         speed = _speed(args.speed)
         if args.hitl and speed is None:
-            raise ConfigError("--speed max needs lockstep; HITL runs against the flight controller's clock, give a "
-                              "factor (1 is real time)")
+            raise ConfigError(
+                "--speed max needs lockstep; HITL runs against the flight controller's clock, give a "
+                "factor (1 is real time)"
+            )
         if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
             raise ConfigError(f"--duration must be a number of seconds > 0, got {args.duration!r}")
         if not 0 <= args.instance <= 60000:
@@ -92,11 +125,16 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     if args.cpu is not None:
         os.sched_setaffinity(0, {args.cpu})  # before any thread starts: they inherit it
-    where = f"serial {args.hitl} at {args.baud} baud (HITL, lockstep off" + \
-        (f"; ground station relay udp://{gcs.address[0]}:{gcs.address[1]})" if gcs else ")") if args.hitl else \
-        f"tcp://{args.host}:{bridge.port_number} (SITL, lockstep)"
-    print(f"cufund px4-sim: {config.name} on {bridge.simulator.vehicle.params.name}, waiting for PX4 on {where}",
-          flush=True)
+    where = (
+        f"serial {args.hitl} at {args.baud} baud (HITL, lockstep off"
+        + (f"; ground station relay udp://{gcs.address[0]}:{gcs.address[1]})" if gcs else ")")
+        if args.hitl
+        else f"tcp://{args.host}:{bridge.port_number} (SITL, lockstep)"
+    )
+    print(
+        f"cufund px4-sim: {config.name} on {bridge.simulator.vehicle.params.name}, waiting for PX4 on {where}",
+        flush=True,
+    )
     try:
         result = bridge.run(duration=args.duration, connect_timeout=args.connect_timeout)
     except TimeoutError as e:
@@ -108,9 +146,11 @@ def run(args: argparse.Namespace) -> int:
     finally:
         bridge.close()
     s = bridge.stats
-    print(f"status: {result.status.value} ({result.message}) after {result.sim_time_s:.3f} s simulated; "
-          f"HIL_SENSOR {s['hil_sensor']}, HIL_GPS {s['hil_gps']}, HIL_STATE_QUATERNION {s['hil_state_quaternion']}, "
-          f"controls {s['controls']}, timeouts {s['controls_timeouts']}, bad packets {s['bad_packets']}")
+    print(
+        f"status: {result.status.value} ({result.message}) after {result.sim_time_s:.3f} s simulated; "
+        f"HIL_SENSOR {s['hil_sensor']}, HIL_GPS {s['hil_gps']}, HIL_STATE_QUATERNION {s['hil_state_quaternion']}, "
+        f"controls {s['controls']}, timeouts {s['controls_timeouts']}, bad packets {s['bad_packets']}"
+    )
     if result.status.value == "aborted":
         print(f"cufund px4-sim: {result.message}", file=sys.stderr)
     return EXIT_OK if result.status.value == "completed" else EXIT_NOT_COMPLETED

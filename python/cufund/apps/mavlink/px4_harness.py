@@ -36,8 +36,14 @@ class Px4Harness:
     """A MAVLink peer acting as PX4 over raw byte I/O: ``write(bytes)`` and ``read(timeout) -> bytes | None``
     (b"" when the link closed). Use :meth:`tcp` (SITL) or :meth:`fd` (a serial line, e.g. a pty's master)."""
 
-    def __init__(self, write: Callable[[bytes], None], read: Callable[[float], bytes | None],
-                 close: Callable[[], None], system_id: int = 1, component_id: int = 1) -> None:
+    def __init__(
+        self,
+        write: Callable[[bytes], None],
+        read: Callable[[float], bytes | None],
+        close: Callable[[], None],
+        system_id: int = 1,
+        component_id: int = 1,
+    ) -> None:
         from pymavlink.dialects.v20 import common as mavlink
 
         self._write, self._read, self._close = write, read, close
@@ -87,6 +93,7 @@ class Px4Harness:
     @classmethod
     def fd(cls, fd: int) -> Px4Harness:
         """Talks over a file descriptor (the master end of a pseudo-terminal standing in for a serial port)."""
+
         def read(t: float) -> bytes | None:
             ready, _, _ = select.select([fd], [], [], max(t, 0.0))
             if not ready:
@@ -99,7 +106,7 @@ class Px4Harness:
         def write(data: bytes) -> None:
             view = memoryview(data)
             while view:
-                view = view[os.write(fd, view):]
+                view = view[os.write(fd, view) :]
 
         return cls(write, read, lambda: None)
 

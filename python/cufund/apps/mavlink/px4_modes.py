@@ -12,17 +12,25 @@ MAIN_MANUAL, MAIN_ALTCTL, MAIN_POSCTL, MAIN_AUTO, MAIN_ACRO, MAIN_OFFBOARD, MAIN
 SUB_READY, SUB_TAKEOFF, SUB_LOITER, SUB_MISSION, SUB_RTL, SUB_LAND = 1, 2, 3, 4, 5, 6
 
 _NAMES = {
-    (MAIN_MANUAL, 0): "MANUAL", (MAIN_ALTCTL, 0): "ALTCTL", (MAIN_POSCTL, 0): "POSCTL",
-    (MAIN_ACRO, 0): "ACRO", (MAIN_OFFBOARD, 0): "OFFBOARD", (MAIN_STABILIZED, 0): "STABILIZED",
-    (MAIN_AUTO, SUB_READY): "READY", (MAIN_AUTO, SUB_TAKEOFF): "TAKEOFF", (MAIN_AUTO, SUB_LOITER): "LOITER",
-    (MAIN_AUTO, SUB_MISSION): "MISSION", (MAIN_AUTO, SUB_RTL): "RTL", (MAIN_AUTO, SUB_LAND): "LAND",
+    (MAIN_MANUAL, 0): "MANUAL",
+    (MAIN_ALTCTL, 0): "ALTCTL",
+    (MAIN_POSCTL, 0): "POSCTL",
+    (MAIN_ACRO, 0): "ACRO",
+    (MAIN_OFFBOARD, 0): "OFFBOARD",
+    (MAIN_STABILIZED, 0): "STABILIZED",
+    (MAIN_AUTO, SUB_READY): "READY",
+    (MAIN_AUTO, SUB_TAKEOFF): "TAKEOFF",
+    (MAIN_AUTO, SUB_LOITER): "LOITER",
+    (MAIN_AUTO, SUB_MISSION): "MISSION",
+    (MAIN_AUTO, SUB_RTL): "RTL",
+    (MAIN_AUTO, SUB_LAND): "LAND",
 }
 
 COMMANDER_TO_PX4: dict[str, tuple[int, int]] = {
-    "idle": (MAIN_AUTO, SUB_LOITER),      # PX4 sits in Hold on the ground
+    "idle": (MAIN_AUTO, SUB_LOITER),  # PX4 sits in Hold on the ground
     "takeoff": (MAIN_AUTO, SUB_TAKEOFF),
     "hold": (MAIN_AUTO, SUB_LOITER),
-    "goto": (MAIN_AUTO, SUB_LOITER),      # PX4 flies DO_REPOSITION in Hold
+    "goto": (MAIN_AUTO, SUB_LOITER),  # PX4 flies DO_REPOSITION in Hold
     "mission": (MAIN_AUTO, SUB_MISSION),
     "external": (MAIN_AUTO, SUB_MISSION),  # a mission state machine (e.g. the tunnel mission) in command
     "offboard": (MAIN_OFFBOARD, 0),
@@ -53,8 +61,11 @@ def heartbeat_mode(commander_mode: str, armed: bool) -> tuple[int, int]:
     main, sub = COMMANDER_TO_PX4.get(commander_mode, (MAIN_AUTO, SUB_LOITER))
     base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
     if main == MAIN_AUTO or main == MAIN_OFFBOARD:
-        base |= (mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
-                 | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED)
+        base |= (
+            mavlink.MAV_MODE_FLAG_AUTO_ENABLED
+            | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
+            | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
+        )
     if armed:
         base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
     return base, custom_mode(main, sub)

@@ -28,17 +28,24 @@ from pymavlink.dialects.v20 import common as mavlink
 from cufund.core.components import BusView, Component
 from cufund.core.config import ConfigError
 from cufund.core.messages import ActuatorCommand, Topics
-from cufund.scenarios.schema import ScenarioConfig
 from cufund.scenarios.build import build_simulation
+from cufund.scenarios.schema import ScenarioConfig
 from cufund.simulator import RunStatus, SimulationResult
+
 from .frames import GeodeticOrigin
 from .hil_codec import FrameWriter, scan_frames, take_controls
 from .hil_messages import HilEncoder
 from .px4_airframe import Px4Airframe
 from .px4_links import GcsForward, Link, LinkClosed, TcpServerLink
 
-__all__ = ["PX4_MAX_INSTANCES", "PX4_SENSOR_RATES", "Px4BridgeParams", "Px4SimulatorBridge", "px4_scenario",
-           "sensor_instances"]
+__all__ = [
+    "PX4_MAX_INSTANCES",
+    "PX4_SENSOR_RATES",
+    "Px4BridgeParams",
+    "Px4SimulatorBridge",
+    "px4_scenario",
+    "sensor_instances",
+]
 
 #: The sensor rates PX4's simulator contract uses [Hz]; px4_scenario runs the scenario's sensors at them.
 PX4_SENSOR_RATES = {"imu": 250.0, "magnetometer": 100.0, "barometer": 50.0, "gps": 5.0}
@@ -83,8 +90,13 @@ class Px4BridgeParams:
     kept: a PX4 session may run for hours."""
 
     def __post_init__(self) -> None:
-        for name in ("hil_sensor_rate_hz", "controls_timeout_s", "stale_controls_s", "heartbeat_period_s",
-                     "record_rate_hz"):
+        for name in (
+            "hil_sensor_rate_hz",
+            "controls_timeout_s",
+            "stale_controls_s",
+            "heartbeat_period_s",
+            "record_rate_hz",
+        ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ConfigError(f"{name} must be a number > 0, got {v!r}")
@@ -128,8 +140,10 @@ def sensor_instances(config: ScenarioConfig, stype: str) -> list[str]:
     found = [n for n, s in config.sensors.items() if s.sensor_type == stype]
     found.sort(key=lambda n: n != stype)  # stable: the named one first, the rest as declared
     if len(found) > PX4_MAX_INSTANCES[stype]:
-        raise ConfigError(f"sensors: PX4 takes at most {PX4_MAX_INSTANCES[stype]} {stype} sensors, got "
-                          f"{len(found)} ({', '.join(found)})")
+        raise ConfigError(
+            f"sensors: PX4 takes at most {PX4_MAX_INSTANCES[stype]} {stype} sensors, got "
+            f"{len(found)} ({', '.join(found)})"
+        )
     return found
 
 
@@ -185,9 +199,16 @@ class Px4SimulatorBridge:
     back, since the board's USB port is the simulator's.
     """
 
-    def __init__(self, config: ScenarioConfig, link: Link | None = None, params: Px4BridgeParams | None = None,
-                 instance: int = 0, host: str = "127.0.0.1", airframe: Px4Airframe | None = None,
-                 gcs: GcsForward | None = None) -> None:
+    def __init__(
+        self,
+        config: ScenarioConfig,
+        link: Link | None = None,
+        params: Px4BridgeParams | None = None,
+        instance: int = 0,
+        host: str = "127.0.0.1",
+        airframe: Px4Airframe | None = None,
+        gcs: GcsForward | None = None,
+    ) -> None:
         self.params = params if params is not None else Px4BridgeParams()
         if not isinstance(self.params, Px4BridgeParams):
             raise TypeError(f"params must be a Px4BridgeParams, got {type(self.params).__name__}")
@@ -198,8 +219,10 @@ class Px4SimulatorBridge:
         self.simulator = sim = self.built.simulator
         nodes = sim.physics_rate_hz / self.params.record_rate_hz
         if abs(nodes - round(nodes)) > 1e-9 or nodes < 1:
-            raise ConfigError(f"record_rate_hz must divide the physics rate {sim.physics_rate_hz:g} Hz, "
-                              f"got {self.params.record_rate_hz:g}")
+            raise ConfigError(
+                f"record_rate_hz must divide the physics rate {sim.physics_rate_hz:g} Hz, "
+                f"got {self.params.record_rate_hz:g}"
+            )
         sim.record_period, sim.record_topics = round(nodes), ()
         vehicle = self.simulator.vehicle.params
         self.airframe = airframe if airframe is not None else Px4Airframe.for_vehicle(vehicle)
@@ -223,18 +246,30 @@ class Px4SimulatorBridge:
                 if stype == "imu":
                     q_BI[sid] = spec.extrinsic.q if spec.extrinsic is not None else spec.params.q_BI
         self.origin = GeodeticOrigin.from_geo_point(
-            self.config.sensors[sensor_instances(self.config, "gps")[0]].params.home)
+            self.config.sensors[sensor_instances(self.config, "gps")[0]].params.home
+        )
         self._ids = sorted({sid for _, sid in topics}, reverse=True)  # instance 0 last: it closes the period
-        self.encoders = {sid: HilEncoder(self.writer, self.origin, np.asarray(q_BI.get(sid, (1.0, 0.0, 0.0, 0.0))), sid)
-                         for sid in self._ids}
+        self.encoders = {
+            sid: HilEncoder(self.writer, self.origin, np.asarray(q_BI.get(sid, (1.0, 0.0, 0.0, 0.0))), sid)
+            for sid in self._ids
+        }
         self._gps_keys = [(("gps", sid), self.encoders[sid]) for sid in self._ids]
-        self._sensor_keys = [(sid, self.encoders[sid], ("imu", sid), ("magnetometer", sid), ("barometer", sid))
-                             for sid in self._ids]
+        self._sensor_keys = [
+            (sid, self.encoders[sid], ("imu", sid), ("magnetometer", sid), ("barometer", sid)) for sid in self._ids
+        ]
         self.port = _Px4Port(self, topics, self.params.hil_sensor_rate_hz)
         self.simulator.add(self.port)
-        self.stats = {"hil_sensor": 0, "hil_gps": 0, "hil_state_quaternion": 0, "heartbeats_sent": 0,
-                      "heartbeats_received": 0, "controls": 0, "controls_timeouts": 0, "bad_packets": 0,
-                      "commands": 0}
+        self.stats = {
+            "hil_sensor": 0,
+            "hil_gps": 0,
+            "hil_state_quaternion": 0,
+            "heartbeats_sent": 0,
+            "heartbeats_received": 0,
+            "controls": 0,
+            "controls_timeouts": 0,
+            "bad_packets": 0,
+            "commands": 0,
+        }
         self.armed = False
         self._reset_link_state()
 
@@ -385,8 +420,11 @@ class Px4SimulatorBridge:
             return True
         if kind == "HEARTBEAT":
             self.stats["heartbeats_received"] += 1
-        elif kind == "COMMAND_LONG" and msg.target_system in (0, self.params.system_id) and \
-                msg.target_component in (0, self.params.component_id):
+        elif (
+            kind == "COMMAND_LONG"
+            and msg.target_system in (0, self.params.system_id)
+            and msg.target_component in (0, self.params.component_id)
+        ):
             self._on_command(msg)
         elif kind in ("BAD_DATA", "UNKNOWN") or kind.startswith("UNKNOWN"):
             self.stats["bad_packets"] += 1
@@ -431,13 +469,18 @@ class Px4SimulatorBridge:
         self.simulator.stop(RunStatus.ABORTED if failed else RunStatus.COMPLETED, reason)
 
     # -- running -----------------------------------------------------------------------------------------------
-    def run(self, duration: float | None = None, connect_timeout: float | None = None,
-            progress: bool = False) -> SimulationResult:
+    def run(
+        self, duration: float | None = None, connect_timeout: float | None = None, progress: bool = False
+    ) -> SimulationResult:
         """Waits for PX4 (TCP: up to ``connect_timeout`` [s], None forever), then simulates until PX4 closes the
         link, the vehicle crashes or ``duration`` [s] of simulated time passes. Raises TimeoutError when nobody
         connects in time."""
-        if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
-                                     or not math.isfinite(duration) or duration <= 0):
+        if duration is not None and (
+            isinstance(duration, bool)
+            or not isinstance(duration, (int, float))
+            or not math.isfinite(duration)
+            or duration <= 0
+        ):
             raise ValueError(f"duration must be a number of seconds > 0 or None, got {duration!r}")
         accept = getattr(self.link, "accept", None)
         if accept is not None and not accept(connect_timeout):

@@ -21,25 +21,60 @@ DEFAULT_SCENARIO = "vehicle"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", nargs="?", default=DEFAULT_SCENARIO,
-                   help=f"scenario name or YAML path (default: {DEFAULT_SCENARIO}, the commander's vehicle)")
-    p.add_argument("--mavlink", default="udpout:127.0.0.1:14550",
-                   help="ground-station link (default udpout:127.0.0.1:14550; 'none' to leave it out)")
-    p.add_argument("--api", default="udpout:127.0.0.1:14540",
-                   help="offboard-API link, e.g. MAVSDK (default udpout:127.0.0.1:14540; 'none' to leave it out)")
+    p.add_argument(
+        "scenario",
+        nargs="?",
+        default=DEFAULT_SCENARIO,
+        help=f"scenario name or YAML path (default: {DEFAULT_SCENARIO}, the commander's vehicle)",
+    )
+    p.add_argument(
+        "--mavlink",
+        default="udpout:127.0.0.1:14550",
+        help="ground-station link (default udpout:127.0.0.1:14550; 'none' to leave it out)",
+    )
+    p.add_argument(
+        "--api",
+        default="udpout:127.0.0.1:14540",
+        help="offboard-API link, e.g. MAVSDK (default udpout:127.0.0.1:14540; 'none' to leave it out)",
+    )
     p.add_argument("--speed", default="1", help="simulation speed: times real time (> 0, default 1)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario field by its dotted key (repeatable)")
-    p.add_argument("--link-loss-timeout", type=float, default=None, metavar="S",
-                   help="after a link loss the vehicle holds, then lands after S seconds (COM_DL_LOSS_T)")
-    p.add_argument("--heartbeat-timeout", type=float, default=3.0, metavar="S",
-                   help="no message from any client for S wall-clock seconds is a link loss (default 3)")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario field by its dotted key (repeatable)",
+    )
+    p.add_argument(
+        "--link-loss-timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="after a link loss the vehicle holds, then lands after S seconds (COM_DL_LOSS_T)",
+    )
+    p.add_argument(
+        "--heartbeat-timeout",
+        type=float,
+        default=3.0,
+        metavar="S",
+        help="no message from any client for S wall-clock seconds is a link loss (default 3)",
+    )
     p.add_argument("--system-id", type=int, default=1, help="MAVLink system id (default 1)")
-    p.add_argument("--telemetry-hz", type=float, default=250.0,
-                   help="rate of the run's state snapshots the streams read [Hz of simulated time] (default 250: "
-                        "~4 ms median state-to-client latency)")
-    p.add_argument("--duration", type=float, default=None, metavar="S",
-                   help="stop after S wall-clock seconds (default: run until interrupted)")
+    p.add_argument(
+        "--telemetry-hz",
+        type=float,
+        default=250.0,
+        help="rate of the run's state snapshots the streams read [Hz of simulated time] (default 250: "
+        "~4 ms median state-to-client latency)",
+    )
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="stop after S wall-clock seconds (default: run until interrupted)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -50,8 +85,11 @@ def run(args: argparse.Namespace) -> int:
     except ValueError:
         print(f"cufund serve: --speed must be a number > 0, got {args.speed!r}", file=sys.stderr)
         return 2
-    for option, value in (("--link-loss-timeout", args.link_loss_timeout), ("--heartbeat-timeout",
-                          args.heartbeat_timeout), ("--telemetry-hz", args.telemetry_hz)):
+    for option, value in (
+        ("--link-loss-timeout", args.link_loss_timeout),
+        ("--heartbeat-timeout", args.heartbeat_timeout),
+        ("--telemetry-hz", args.telemetry_hz),
+    ):
         if value is not None and not (math.isfinite(value) and value > 0):
             print(f"cufund serve: {option} must be a number > 0, got {value!r}", file=sys.stderr)
             return 2
@@ -60,13 +98,14 @@ def run(args: argparse.Namespace) -> int:
         print("cufund serve: give at least one of --mavlink and --api", file=sys.stderr)
         return 2
     from cufund.scenarios.schema import parse_overrides
+
     from .link import LinkAddress
 
     try:
         for u in urls:
             LinkAddress.parse(u, "--mavlink/--api")
         overrides = parse_overrides(list(args.overrides))
-    except Exception as exc:  # noqa: BLE001 - bad usage: say so, exit 2
+    except Exception as exc:  # bad usage: say so, exit 2
         print(f"cufund serve: {exc}", file=sys.stderr)
         return 2
     from ..live import LiveRun
@@ -74,28 +113,35 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         live = LiveRun(args.scenario, overrides, speed, telemetry_hz=args.telemetry_hz)
-    except Exception as exc:  # noqa: BLE001 - an invalid scenario: exit 2, no traceback
+    except Exception as exc:  # an invalid scenario: exit 2, no traceback
         print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     endpoint = None
     previous: dict[int, Any] = {}
     try:
         if args.link_loss_timeout is not None:
-            ack = live.submit({"command": "set_param", "name": "COM_DL_LOSS_T",
-                               "value": float(args.link_loss_timeout)}).result(timeout=10.0)
+            ack = live.submit(
+                {"command": "set_param", "name": "COM_DL_LOSS_T", "value": float(args.link_loss_timeout)}
+            ).result(timeout=10.0)
             if ack.result != "accepted":
                 print(f"cufund serve: --link-loss-timeout: {ack.message}", file=sys.stderr)
                 return 2
         endpoint = VehicleEndpoint(live, urls, system_id=args.system_id, heartbeat_timeout_s=args.heartbeat_timeout)
         endpoint.start()
-        links = ", ".join(f"{lk.address.mode}:{lk.address.host}:{lk.address.port} (local "
-                          f"{lk.local_address[0]}:{lk.local_address[1]})" for lk in endpoint.links)
+        links = ", ".join(
+            f"{lk.address.mode}:{lk.address.host}:{lk.address.port} (local {lk.local_address[0]}:{lk.local_address[1]})"
+            for lk in endpoint.links
+        )
         print(f"MAVLink vehicle {args.system_id}: {links}; scenario {args.scenario}, speed {speed:g}", flush=True)
         for lk in endpoint.links:
             host = lk.local_address[0]
             if not host.startswith("127."):
-                print(f"cufund serve: warning: {lk.address.mode}:{lk.address.host}:{lk.address.port} listens on "
-                      f"{host or '0.0.0.0'}: other machines can command this vehicle", file=sys.stderr, flush=True)
+                print(
+                    f"cufund serve: warning: {lk.address.mode}:{lk.address.host}:{lk.address.port} listens on "
+                    f"{host or '0.0.0.0'}: other machines can command this vehicle",
+                    file=sys.stderr,
+                    flush=True,
+                )
         stop = threading.Event()
         if threading.current_thread() is threading.main_thread():  # (restored on the way out)
             for sig in (signal.SIGINT, signal.SIGTERM):
@@ -104,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
         while not stop.is_set() and time.monotonic() < deadline:
             stop.wait(0.2)
         return 0
-    except Exception as exc:  # noqa: BLE001 - e.g. an address in use
+    except Exception as exc:  # e.g. an address in use
         print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     finally:

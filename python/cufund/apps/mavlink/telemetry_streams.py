@@ -16,32 +16,54 @@ import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
 from cufund.geometry import yaw_of
+
 from . import frames
 from .px4_modes import heartbeat_mode
 
-SENSORS = (mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
-           | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-           | mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
-           | mavlink.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION | mavlink.MAV_SYS_STATUS_SENSOR_YAW_POSITION
-           | mavlink.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL | mavlink.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
-           | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
-           | mavlink.MAV_SYS_STATUS_PREARM_CHECK)
+SENSORS = (
+    mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG
+    | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | mavlink.MAV_SYS_STATUS_SENSOR_GPS
+    | mavlink.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
+    | mavlink.MAV_SYS_STATUS_SENSOR_YAW_POSITION
+    | mavlink.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+    | mavlink.MAV_SYS_STATUS_PREARM_CHECK
+)
 """SYS_STATUS sensor bits: present, enabled and healthy (MAVSDK's health checks read GPS and PREARM_CHECK)."""
 
-CAPABILITIES = (mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
-                | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
-                | mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
-                | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
-                | mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2)
+CAPABILITIES = (
+    mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
+    | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+)
 """AUTOPILOT_VERSION capabilities: what this endpoint implements."""
 
 FLIGHT_SW_VERSION = (1 << 24) | (15 << 16) | (0 << 8) | 255
 """Reported as PX4 v1.15.0 release: the PX4 behaviour the endpoint follows (MAVSDK reads it)."""
 
 DEFAULT_RATES_HZ: dict[str, float] = {
-    "HEARTBEAT": 1.0, "SYS_STATUS": 2.0, "EXTENDED_SYS_STATE": 2.0, "HOME_POSITION": 0.5,
-    "ATTITUDE_QUATERNION": 20.0, "ATTITUDE": 20.0, "LOCAL_POSITION_NED": 20.0, "GLOBAL_POSITION_INT": 20.0,
-    "ALTITUDE": 10.0, "GPS_RAW_INT": 2.0, "VFR_HUD": 4.0, "MISSION_CURRENT": 1.0, "BATTERY_STATUS": 1.0,
+    "HEARTBEAT": 1.0,
+    "SYS_STATUS": 2.0,
+    "EXTENDED_SYS_STATE": 2.0,
+    "HOME_POSITION": 0.5,
+    "ATTITUDE_QUATERNION": 20.0,
+    "ATTITUDE": 20.0,
+    "LOCAL_POSITION_NED": 20.0,
+    "GLOBAL_POSITION_INT": 20.0,
+    "ALTITUDE": 10.0,
+    "GPS_RAW_INT": 2.0,
+    "VFR_HUD": 4.0,
+    "MISSION_CURRENT": 1.0,
+    "BATTERY_STATUS": 1.0,
 }
 
 _LANDED = {"takeoff": mavlink.MAV_LANDED_STATE_TAKEOFF, "land": mavlink.MAV_LANDED_STATE_LANDING}
@@ -83,13 +105,18 @@ class VehicleSnapshot:
         current = mission.get("current", -1)
         return VehicleSnapshot(
             t=float(tel.get("t", 0.0) or 0.0),
-            p_W=p_W, v_W=vec(tel.get("v_W"), 3, zero),
-            q_WB=vec(tel.get("q_WB"), 4, np.array([1.0, 0, 0, 0])), w_B=vec(tel.get("w_B"), 3, zero),
-            armed=bool(tel.get("armed", False)), landed=bool(tel.get("landed", True)),
+            p_W=p_W,
+            v_W=vec(tel.get("v_W"), 3, zero),
+            q_WB=vec(tel.get("q_WB"), 4, np.array([1.0, 0, 0, 0])),
+            w_B=vec(tel.get("w_B"), 3, zero),
+            armed=bool(tel.get("armed", False)),
+            landed=bool(tel.get("landed", True)),
             mode=str(tel.get("mode", "idle") or "idle"),
             mission_current=int(current) if isinstance(current, (int, np.integer)) else -1,
-            mission_count=int(mission.get("count", 0) or 0), home_p_W=vec(tel.get("home_p_W"), 3, p_W),
-            message=str(tel.get("message", "") or ""))
+            mission_count=int(mission.get("count", 0) or 0),
+            home_p_W=vec(tel.get("home_p_W"), 3, p_W),
+            message=str(tel.get("message", "") or ""),
+        )
 
     @property
     def time_boot_ms(self) -> int:
@@ -125,8 +152,9 @@ def encode_sys_status(mav, s: VehicleSnapshot):
 
 def encode_battery_status(mav, s: VehicleSnapshot):
     cells = [4050] * 4 + [65535] * 6
-    return mav.battery_status_encode(0, mavlink.MAV_BATTERY_FUNCTION_ALL, mavlink.MAV_BATTERY_TYPE_LIPO, 2500,
-                                     cells, -1, -1, -1, 100)
+    return mav.battery_status_encode(
+        0, mavlink.MAV_BATTERY_FUNCTION_ALL, mavlink.MAV_BATTERY_TYPE_LIPO, 2500, cells, -1, -1, -1, 100
+    )
 
 
 def encode_attitude_quaternion(mav, s: VehicleSnapshot):
@@ -153,17 +181,32 @@ def encode_global_position_int(mav, s: VehicleSnapshot, origin: frames.GeodeticO
     lat, lon, alt = origin.enu_to_lla(s.p_W)
     v = frames.enu_to_ned(s.v_W)
     hdg = round(math.degrees(yaw_ned(s)) * 100) % 36000
-    return mav.global_position_int_encode(s.time_boot_ms, frames.deg_to_e7(lat), frames.deg_to_e7(lon),
-                                          frames.m_to_mm(alt), frames.m_to_mm(s.p_W[2] - s.home_p_W[2]),
-                                          *(int(c) for c in frames.m_s_to_cm_s(v)), hdg)
+    return mav.global_position_int_encode(
+        s.time_boot_ms,
+        frames.deg_to_e7(lat),
+        frames.deg_to_e7(lon),
+        frames.m_to_mm(alt),
+        frames.m_to_mm(s.p_W[2] - s.home_p_W[2]),
+        *(int(c) for c in frames.m_s_to_cm_s(v)),
+        hdg,
+    )
 
 
 def encode_gps_raw_int(mav, s: VehicleSnapshot, origin: frames.GeodeticOrigin):
     lat, lon, alt = origin.enu_to_lla(s.p_W)
     v = frames.enu_to_ned(s.v_W)
-    return mav.gps_raw_int_encode(s.time_usec, mavlink.GPS_FIX_TYPE_3D_FIX, frames.deg_to_e7(lat),
-                                  frames.deg_to_e7(lon), frames.m_to_mm(alt), 80, 120,
-                                  frames.m_to_cm_u16(math.hypot(v[0], v[1])), frames.course_cdeg(v, 0.2), 12)
+    return mav.gps_raw_int_encode(
+        s.time_usec,
+        mavlink.GPS_FIX_TYPE_3D_FIX,
+        frames.deg_to_e7(lat),
+        frames.deg_to_e7(lon),
+        frames.m_to_mm(alt),
+        80,
+        120,
+        frames.m_to_cm_u16(math.hypot(v[0], v[1])),
+        frames.course_cdeg(v, 0.2),
+        12,
+    )
 
 
 def encode_extended_sys_state(mav, s: VehicleSnapshot):
@@ -173,8 +216,17 @@ def encode_extended_sys_state(mav, s: VehicleSnapshot):
 def encode_home_position(mav, s: VehicleSnapshot, origin: frames.GeodeticOrigin):
     lat, lon, alt = origin.enu_to_lla(s.home_p_W)
     h = frames.enu_to_ned(s.home_p_W)
-    return mav.home_position_encode(frames.deg_to_e7(lat), frames.deg_to_e7(lon), frames.m_to_mm(alt),
-                                    *(float(c) for c in h), [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, s.time_usec)
+    return mav.home_position_encode(
+        frames.deg_to_e7(lat),
+        frames.deg_to_e7(lon),
+        frames.m_to_mm(alt),
+        *(float(c) for c in h),
+        [1.0, 0.0, 0.0, 0.0],
+        0.0,
+        0.0,
+        0.0,
+        s.time_usec,
+    )
 
 
 def encode_altitude(mav, s: VehicleSnapshot, origin: frames.GeodeticOrigin):
@@ -185,8 +237,14 @@ def encode_altitude(mav, s: VehicleSnapshot, origin: frames.GeodeticOrigin):
 
 def encode_vfr_hud(mav, s: VehicleSnapshot, origin: frames.GeodeticOrigin):
     heading = round(math.degrees(yaw_ned(s))) % 360
-    return mav.vfr_hud_encode(0.0, float(math.hypot(s.v_W[0], s.v_W[1])), heading, 50 if s.armed else 0,
-                              float(origin.enu_to_lla(s.p_W)[2]), float(s.v_W[2]))
+    return mav.vfr_hud_encode(
+        0.0,
+        float(math.hypot(s.v_W[0], s.v_W[1])),
+        heading,
+        50 if s.armed else 0,
+        float(origin.enu_to_lla(s.p_W)[2]),
+        float(s.v_W[2]),
+    )
 
 
 def mission_state(s: VehicleSnapshot, done: bool) -> int:
@@ -206,8 +264,9 @@ def encode_mission_current(mav, s: VehicleSnapshot, seq: int, total: int, done: 
 
 
 def encode_autopilot_version(mav, system_id: int):
-    return mav.autopilot_version_encode(CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8,
-                                        0, 0, 0xC0F00D0000000000 | system_id)
+    return mav.autopilot_version_encode(
+        CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0xC0F00D0000000000 | system_id
+    )
 
 
 def encode_statustext(mav, text: str, severity: int = mavlink.MAV_SEVERITY_INFO):

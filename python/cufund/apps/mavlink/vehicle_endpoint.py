@@ -28,6 +28,7 @@ from pymavlink.dialects.v20 import common as mavlink
 from typing_extensions import Self
 
 from cufund.geometry import yaw_of
+
 from . import command_protocol as cp
 from . import frames
 from . import telemetry_streams as ts
@@ -35,13 +36,22 @@ from .link import UdpLink
 from .mission_protocol import CommanderPlan
 from .param_protocol import ParamProtocol
 
-_RESULT = {"accepted": mavlink.MAV_RESULT_ACCEPTED, "denied": mavlink.MAV_RESULT_DENIED,
-           "unsupported": mavlink.MAV_RESULT_UNSUPPORTED, "failed": mavlink.MAV_RESULT_FAILED,
-           "in_progress": mavlink.MAV_RESULT_IN_PROGRESS}
+_RESULT = {
+    "accepted": mavlink.MAV_RESULT_ACCEPTED,
+    "denied": mavlink.MAV_RESULT_DENIED,
+    "unsupported": mavlink.MAV_RESULT_UNSUPPORTED,
+    "failed": mavlink.MAV_RESULT_FAILED,
+    "in_progress": mavlink.MAV_RESULT_IN_PROGRESS,
+}
 
-_GLOBAL_FRAMES = (mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_FRAME_GLOBAL,
-                  mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT)
+_GLOBAL_FRAMES = (
+    mavlink.MAV_FRAME_GLOBAL_INT,
+    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+    mavlink.MAV_FRAME_GLOBAL,
+    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+)
 _INT32_UNSET = 2**31 - 1  # COMMAND_INT's "no value" for x/y
+
 
 def _msg_name(msg_id: int) -> str | None:
     cls = mavlink.mavlink_map.get(int(msg_id))
@@ -58,9 +68,18 @@ class VehicleEndpoint:
     stops it and closes the sockets; :meth:`spin_once` runs one iteration (tests drive it directly).
     """
 
-    def __init__(self, run: Any, links: Sequence[str], *, system_id: int = 1, component_id: int = 1,
-                 origin: frames.GeodeticOrigin | None = None, max_thrust_N: float | None = None,
-                 heartbeat_timeout_s: float = 3.0, rates_hz: dict[str, float] | None = None) -> None:
+    def __init__(
+        self,
+        run: Any,
+        links: Sequence[str],
+        *,
+        system_id: int = 1,
+        component_id: int = 1,
+        origin: frames.GeodeticOrigin | None = None,
+        max_thrust_N: float | None = None,
+        heartbeat_timeout_s: float = 3.0,
+        rates_hz: dict[str, float] | None = None,
+    ) -> None:
         if not isinstance(system_id, int) or not 1 <= system_id <= 255:
             raise ValueError(f"system_id must be an integer in [1, 255], got {system_id!r}")
         if not isinstance(component_id, int) or not 1 <= component_id <= 255:
@@ -86,25 +105,34 @@ class VehicleEndpoint:
         except Exception:
             self.close()
             raise
-        self.intervals: dict[str, float | None] = {k: 1.0 / v for k, v in {**ts.DEFAULT_RATES_HZ, **(rates_hz or {})}.items()}
+        self.intervals: dict[str, float | None] = {
+            k: 1.0 / v for k, v in {**ts.DEFAULT_RATES_HZ, **(rates_hz or {})}.items()
+        }
         """The streams' configured intervals [s] (None: off): each link starts with them."""
         self.link_intervals: dict[UdpLink, dict[str, float | None]] = {lk: dict(self.intervals) for lk in self.links}
         """Each link's stream intervals [s] (None: off), as its client set them."""
         self._next_due: dict[UdpLink, dict[str, float]] = {lk: {} for lk in self.links}
         self._outbox: queue.SimpleQueue = queue.SimpleQueue()
-        self.param_protocol = ParamProtocol(lambda cmd: self.run.submit(cmd),
-                                            lambda fn, *a: self._outbox.put((None, (fn, *a))))
+        self.param_protocol = ParamProtocol(
+            lambda cmd: self.run.submit(cmd), lambda fn, *a: self._outbox.put((None, (fn, *a)))
+        )
         self.params = self.param_protocol.table
-        self.plan = CommanderPlan(self._decide, lambda: self._snap or self._snapshot(), self.origin,
-                                  lambda: self._due_now("MISSION_CURRENT"))
+        self.plan = CommanderPlan(
+            self._decide, lambda: self._snap or self._snapshot(), self.origin, lambda: self._due_now("MISSION_CURRENT")
+        )
         self.missions = self.plan.protocol
         self._event_index = len(getattr(run, "events", ()) or ())
         self._snap: ts.VehicleSnapshot | None = None
         self._offboard: tuple[dict[str, Any], float] | None = None  # the latest offboard setpoint and its wall time
         self._last_rx: float | None = None
         self.link_lost = False
-        self.stats: dict[str, int] = {"commands": 0, "handler_errors": 0, "link_losses": 0, "setpoints": 0,
-                                      "setpoints_refused": 0}
+        self.stats: dict[str, int] = {
+            "commands": 0,
+            "handler_errors": 0,
+            "link_losses": 0,
+            "setpoints": 0,
+            "setpoints_refused": 0,
+        }
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -153,7 +181,7 @@ class VehicleEndpoint:
                 self._last_rx = now
                 try:
                     self._handle(link, msg, now)
-                except Exception:  # noqa: BLE001 - one bad request must not stop the vehicle's link
+                except Exception:  # one bad request must not stop the vehicle's link
                     self.stats["handler_errors"] += 1
         self._guarded(self._drain_outbox)
         self._guarded(self._poll, now)
@@ -161,12 +189,12 @@ class VehicleEndpoint:
     def _guarded(self, fn: Callable, *args: Any) -> None:
         try:
             fn(*args)
-        except Exception:  # noqa: BLE001
+        except Exception:
             self.stats["handler_errors"] += 1
 
     def _send(self, link: UdpLink | None, factory: Callable) -> None:
         """Send ``factory(mav)`` on ``link`` (None: on every link), each packed with its own codec."""
-        for lk in ([link] if link is not None else self.links):
+        for lk in [link] if link is not None else self.links:
             lk.send(factory(lk.mav))
 
     def _drain_outbox(self) -> None:
@@ -221,8 +249,9 @@ class VehicleEndpoint:
             "HOME_POSITION": lambda mav: ts.encode_home_position(mav, s, o),
             "ALTITUDE": lambda mav: ts.encode_altitude(mav, s, o),
             "VFR_HUD": lambda mav: ts.encode_vfr_hud(mav, s, o),
-            "MISSION_CURRENT": lambda mav: ts.encode_mission_current(mav, s, self.plan.seq(s),
-                                                                     len(self.missions.items), self.plan.done),
+            "MISSION_CURRENT": lambda mav: ts.encode_mission_current(
+                mav, s, self.plan.seq(s), len(self.missions.items), self.plan.done
+            ),
             "AUTOPILOT_VERSION": lambda mav: ts.encode_autopilot_version(mav, self.system_id),
         }
         return builders.get(name)
@@ -257,9 +286,12 @@ class VehicleEndpoint:
             if kind == "mission_item_reached" and isinstance(e.get("seq"), int):
                 for seq in self.plan.reached_seqs(e["seq"]):
                     self._send(None, lambda mav, q=seq: mav.mission_item_reached_encode(q))
-            severity = {"warning": mavlink.MAV_SEVERITY_WARNING, "denied": mavlink.MAV_SEVERITY_WARNING,
-                        "error": mavlink.MAV_SEVERITY_ERROR, "collision": mavlink.MAV_SEVERITY_CRITICAL}.get(
-                kind, mavlink.MAV_SEVERITY_INFO)
+            severity = {
+                "warning": mavlink.MAV_SEVERITY_WARNING,
+                "denied": mavlink.MAV_SEVERITY_WARNING,
+                "error": mavlink.MAV_SEVERITY_ERROR,
+                "collision": mavlink.MAV_SEVERITY_CRITICAL,
+            }.get(kind, mavlink.MAV_SEVERITY_INFO)
             if text:
                 self._send(None, lambda mav, t=text, sv=severity: ts.encode_statustext(mav, t, sv))
 
@@ -279,16 +311,28 @@ class VehicleEndpoint:
         elif kind.startswith("MISSION_"):
             self.missions.handle(msg, lambda factory: self._send(link, factory), now)
         elif kind in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"):
-            self.param_protocol.handle(msg, lambda factory: self._send(link, factory), lambda text: self._send(
-                link, lambda mav: ts.encode_statustext(mav, text, mavlink.MAV_SEVERITY_WARNING)))
+            self.param_protocol.handle(
+                msg,
+                lambda factory: self._send(link, factory),
+                lambda text: self._send(
+                    link, lambda mav: ts.encode_statustext(mav, text, mavlink.MAV_SEVERITY_WARNING)
+                ),
+            )
         elif kind in ("SET_POSITION_TARGET_LOCAL_NED", "SET_ATTITUDE_TARGET"):
             try:  # a setpoint has no ack: one that cannot be flown is counted and dropped
                 if kind == "SET_ATTITUDE_TARGET":
                     cmd = cp.attitude_target(msg.type_mask, np.array(msg.q), msg.thrust, self.max_thrust_N)
                 else:
                     s = self._snap or self._snapshot()
-                    cmd = cp.position_target(msg.type_mask, msg.coordinate_frame, np.array([msg.x, msg.y, msg.z]),
-                                             np.array([msg.vx, msg.vy, msg.vz]), msg.yaw, s.p_W, yaw_of(s.q_WB))
+                    cmd = cp.position_target(
+                        msg.type_mask,
+                        msg.coordinate_frame,
+                        np.array([msg.x, msg.y, msg.z]),
+                        np.array([msg.vx, msg.vy, msg.vz]),
+                        msg.yaw,
+                        s.p_W,
+                        yaw_of(s.q_WB),
+                    )
             except cp.Refused:
                 self.stats["setpoints_refused"] += 1
                 return
@@ -308,8 +352,9 @@ class VehicleEndpoint:
         if text and result != mavlink.MAV_RESULT_ACCEPTED:
             self._send(link, lambda mav: ts.encode_statustext(mav, text[:50], mavlink.MAV_SEVERITY_WARNING))
 
-    def _forward(self, link: UdpLink, msg: Any, command: int, cmd: dict[str, Any],
-                 then: Callable | None = None) -> None:
+    def _forward(
+        self, link: UdpLink, msg: Any, command: int, cmd: dict[str, Any], then: Callable | None = None
+    ) -> None:
         """Submit ``cmd``; COMMAND_ACK (and ``then(ack)`` on the loop thread) once the commander answers."""
         try:
             fut = self.run.submit(cmd)
@@ -321,7 +366,7 @@ class VehicleEndpoint:
             try:
                 ack = f.result()
                 result, text = _RESULT.get(ack.result, mavlink.MAV_RESULT_FAILED), ack.message
-            except Exception as e:  # noqa: BLE001 - the run ended under the command
+            except Exception as e:  # the run ended under the command
                 ack, result, text = None, mavlink.MAV_RESULT_FAILED, str(e)
             self._outbox.put((None, (self._ack, link, msg, command, result, text)))
             if then is not None and ack is not None:
@@ -362,8 +407,21 @@ class VehicleEndpoint:
                 if is_int and frame not in _GLOBAL_FRAMES:
                     raise cp.Refused(mavlink.MAV_RESULT_UNSUPPORTED, f"reposition frame {frame} not supported")
                 lat_ok = not (is_int and (x == y == 0 or x == _INT32_UNSET or y == _INT32_UNSET))
-                self._forward(link, msg, c, cp.reposition(lat if lat_ok else math.nan, lon if lat_ok else math.nan,
-                                                          z, p[3], frame, s.p_W, s.home_p_W, self.origin))
+                self._forward(
+                    link,
+                    msg,
+                    c,
+                    cp.reposition(
+                        lat if lat_ok else math.nan,
+                        lon if lat_ok else math.nan,
+                        z,
+                        p[3],
+                        frame,
+                        s.p_W,
+                        s.home_p_W,
+                        self.origin,
+                    ),
+                )
             elif c == mavlink.MAV_CMD_DO_SET_MODE:
                 fresh = self._offboard is not None and now - self._offboard[1] < 1.0
                 cmd = cp.set_mode(p[0], p[1], p[2], fresh)
@@ -433,9 +491,9 @@ class VehicleEndpoint:
                 return None
             try:  # being applied right now: its ack is a moment away
                 return fut.result(timeout=timeout)
-            except Exception:  # noqa: BLE001
+            except Exception:
                 return None
-        except Exception:  # noqa: BLE001 - a stopped run, a refused command
+        except Exception:  # a stopped run, a refused command
             return None
 
 
