@@ -107,16 +107,18 @@ def _read_counts(path: Path) -> collections.Counter:
 def test_sigterm_and_sigint_finish_the_folder(runs, name, code):
     out, returncode, stderr = runs[name]
     assert returncode == code, stderr
-    assert "Traceback" not in stderr
-    assert f"interrupted by {'SIGTERM' if name == 'term' else 'SIGINT'}" in stderr
+    assert "Traceback" not in stderr, stderr
+    assert f"interrupted by {'SIGTERM' if name == 'term' else 'SIGINT'}" in stderr, stderr
     metrics = json.loads((out / "metrics.json").read_text())
-    assert metrics["status"] == "interrupted" and 0 < metrics["sim_time_s"] < 600
+    assert metrics["status"] == "interrupted" and 0 < metrics["sim_time_s"] < 600, metrics
+    assert "log_error" not in metrics, metrics
     config = yaml.safe_load((out / "config.yaml").read_text())
     assert config["name"] == "vehicle_lio" and config["duration"] == 600
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # closed: a complete log, no truncation warning
         counts = _read_counts(out / "run.mcap")
-    assert counts == _stream_counts(out / "run.mcap") and counts["/sensors/imu"] > 100
+    assert counts == _stream_counts(out / "run.mcap"), stderr
+    assert counts["/sensors/imu"] > 100, counts
 
 
 def test_sigkill_leaves_config_and_a_readable_truncated_log(runs):
@@ -180,3 +182,43 @@ def test_log_player_replays_a_truncated_log(runs, tmp_path):
     assert len(caught) == 1
     expected = _stream_counts(log)["/sensors/imu"]
     assert player.played == len(imu["t"]) == expected
+
+
+def test_a_signal_that_comes_back_as_another_exception_still_finishes_the_folder(tmp_path):
+    """An exception raised in a Python callback of compiled code may reach the run as another type: the signal the
+    handler recorded still makes the run interrupted (metrics.json, a closed log, RunInterrupted raised)."""
+    from cufund.core.components import Component
+    from cufund.logs import read_mcap
+    from cufund.scenarios.run_folder import RunInterrupted, run_into_folder
+    from cufund.scenarios.schema import load_scenario
+
+    class Converting(Component):
+        name = "converting"
+        rate_hz = 10.0
+
+        def step(self, t, bus):
+            if t >= 0.5:
+                try:
+                    RunInterrupted.raise_for(signal.SIGTERM)
+                except RunInterrupted:
+                    raise RuntimeError("an error a compiled layer made of it") from None
+
+    out = tmp_path / "run"
+    try:
+        with pytest.raises(RunInterrupted) as stop:
+            run_into_folder(
+                load_scenario("square", {"duration": 5.0}),
+                out,
+                extra_components=(Converting(),),
+                plots=False,
+                replay=False,
+            )
+    finally:
+        RunInterrupted.received = None
+    assert stop.value.signum == signal.SIGTERM and isinstance(stop.value.__cause__, RuntimeError)
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics == {"status": "interrupted", "message": "stopped by SIGTERM", "sim_time_s": metrics["sim_time_s"]}
+    assert 0.5 <= metrics["sim_time_s"] < 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert max(r.log_time_ns for r in read_mcap(out / "run.mcap")) <= 1e9

@@ -120,14 +120,16 @@ def _interruptible() -> Iterator[None]:
     def stop(signum: int, frame: object) -> None:
         for s in (signal.SIGINT, signal.SIGTERM):
             signal.signal(s, signal.SIG_IGN)
-        raise RunInterrupted(signum)
+        RunInterrupted.raise_for(signum)
 
+    RunInterrupted.received = None
     previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
+        RunInterrupted.received = None
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -136,10 +138,13 @@ def _run(args: argparse.Namespace) -> int:
     with _interruptible():
         try:
             return _run_scenario(args)
-        except RunInterrupted as stop:
-            print(f"cufund: interrupted by {stop.args[0]}; the run folder holds what was run up to then",
-                  file=sys.stderr)
-            return 128 + stop.signum
+        except BaseException as exc:
+            signum = exc.signum if isinstance(exc, RunInterrupted) else RunInterrupted.received
+            if signum is None:
+                raise
+            print(f"cufund: interrupted by {signal.Signals(signum).name}; the run folder holds what was run up to "
+                  "then", file=sys.stderr)
+            return 128 + signum
 
 
 def _run_scenario(args: argparse.Namespace) -> int:

@@ -25,9 +25,19 @@ class RunInterrupted(KeyboardInterrupt):
     """A run stopped by a signal (``signum``: SIGINT or SIGTERM); a KeyboardInterrupt, so code that lets Ctrl-C
     through lets it through."""
 
+    received: int | None = None
+    """The signal :meth:`raise_for` was called for (None: none yet). Kept because an exception raised inside a
+    Python callback of compiled code may reach the caller as another type."""
+
     def __init__(self, signum: int) -> None:
         super().__init__(signal.Signals(signum).name)
         self.signum = int(signum)
+
+    @classmethod
+    def raise_for(cls, signum: int) -> None:
+        """What a signal handler calls: records ``signum``, then raises."""
+        cls.received = int(signum)
+        raise cls(signum)
 
 
 def _json_safe(x: Any) -> Any:
@@ -97,13 +107,23 @@ def run_into_folder(config: Any, out: str | Path, *, log: bool = True, plots: bo
         built.simulator.logger = _Excluding(logger, config.log.exclude) if config.log.exclude else logger
     try:
         run = run_built(built, progress=progress)
-    except KeyboardInterrupt as exc:
+    except BaseException as exc:
+        signum = exc.signum if isinstance(exc, RunInterrupted) else RunInterrupted.received
+        if signum is None and not isinstance(exc, KeyboardInterrupt):
+            raise
+        signum = signal.SIGINT if signum is None else signum  # a plain KeyboardInterrupt: Ctrl-C
+        metrics: dict[str, Any] = {"status": "interrupted", "message": f"stopped by {signal.Signals(signum).name}",
+                                   "sim_time_s": float(built.simulator.t)}
         if logger is not None:
-            logger.close()
-        reason = exc.args[0] if isinstance(exc, RunInterrupted) else "SIGINT"
-        _write_metrics({"status": "interrupted", "message": f"stopped by {reason}",
-                        "sim_time_s": float(built.simulator.t)}, out)
-        raise
+            try:
+                logger.close()
+            except Exception as close_error:  # the folder is finished whatever the log says
+                metrics["log_error"] = f"{type(close_error).__name__}: {close_error}"
+            logger = None
+        _write_metrics(metrics, out)
+        if isinstance(exc, KeyboardInterrupt):
+            raise
+        raise RunInterrupted(signum) from exc  # the signal's exception came back as another type
     finally:
         if logger is not None:
             logger.close()
