@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from typing import Any
+
 import numpy as np
 
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla, lla_to_enu
@@ -128,14 +130,14 @@ def q_ned_frd_to_enu_flu(q_NED_FRD: np.ndarray) -> np.ndarray:
     return _SQRT_HALF * np.stack([w + z, x + y, x - y, w - z], -1)
 
 
-def yaw_enu_to_ned(yaw_ENU: np.ndarray) -> float | np.ndarray:
+def yaw_enu_to_ned(yaw_ENU: Any) -> Any:  # a scalar for a scalar, an array for an array
     """Heading [rad] of a body x axis: cufund's yaw (from east, counter-clockwise) -> NED yaw (from north,
     clockwise), wrapped to [-pi, pi)."""
     out = (np.pi / 2 - np.asarray(yaw_ENU, dtype=float) + np.pi) % (2 * np.pi) - np.pi
     return float(out) if out.ndim == 0 else out
 
 
-def yaw_ned_to_enu(yaw_NED: np.ndarray) -> float | np.ndarray:
+def yaw_ned_to_enu(yaw_NED: Any) -> Any:  # a scalar for a scalar, an array for an array
     """NED yaw [rad] -> cufund yaw, wrapped to [-pi, pi) (the same reflection: its own inverse)."""
     return yaw_enu_to_ned(yaw_NED)
 
@@ -184,7 +186,7 @@ class GeodeticOrigin:
 # --- MAVLink integer encodings: round to nearest, saturate to the field's range; 0-d in -> Python int out ---
 
 
-def _encode(x: np.ndarray, scale: float, lo: int, hi: int, name: str) -> int | np.ndarray:
+def _encode(x: Any, scale: float, lo: int, hi: int, name: str) -> Any:  # scalar in, scalar out
     a = np.asarray(x, dtype=float)
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{name} must be finite, got {x!r}")
@@ -192,53 +194,53 @@ def _encode(x: np.ndarray, scale: float, lo: int, hi: int, name: str) -> int | n
     return int(out) if out.ndim == 0 else out
 
 
-def _decode(x: np.ndarray, scale: float) -> float | np.ndarray:
+def _decode(x: Any, scale: float) -> Any:  # a scalar for a scalar, an array for an array
     out = np.asarray(x, dtype=float) / scale
     return float(out) if out.ndim == 0 else out
 
 
-def deg_to_e7(deg: np.ndarray) -> int | np.ndarray:
+def deg_to_e7(deg: Any) -> Any:  # a scalar for a scalar, an array for an array
     """Degrees -> degE7 (int32), MAVLink's lat/lon encoding."""
     return _encode(deg, 1e7, -(2**31), 2**31 - 1, "deg")
 
 
-def e7_to_deg(e7: np.ndarray) -> float | np.ndarray:
+def e7_to_deg(e7: Any) -> Any:  # a scalar for a scalar, an array for an array
     return _decode(e7, 1e7)
 
 
-def m_to_mm(m: np.ndarray) -> int | np.ndarray:
+def m_to_mm(m: Any) -> Any:  # a scalar for a scalar, an array for an array
     """Metres -> millimetres (int32), MAVLink's altitude encoding."""
     return _encode(m, 1e3, -(2**31), 2**31 - 1, "m")
 
 
-def mm_to_m(mm: np.ndarray) -> float | np.ndarray:
+def mm_to_m(mm: Any) -> Any:  # a scalar for a scalar, an array for an array
     return _decode(mm, 1e3)
 
 
-def m_s_to_cm_s(v: np.ndarray) -> int | np.ndarray:
+def m_s_to_cm_s(v: Any) -> Any:  # a scalar for a scalar, an array for an array
     """m/s -> cm/s (int16, saturated at +-32767), HIL_GPS vn/ve/vd and HIL_STATE_QUATERNION vx/vy/vz."""
     return _encode(v, 1e2, -INT16_MAX, INT16_MAX, "v")
 
 
-def cm_s_to_m_s(cm_s: np.ndarray) -> float | np.ndarray:
+def cm_s_to_m_s(cm_s: Any) -> Any:  # a scalar for a scalar, an array for an array
     return _decode(cm_s, 1e2)
 
 
-def m_to_cm_u16(m: np.ndarray) -> int | np.ndarray:
+def m_to_cm_u16(m: Any) -> Any:  # a scalar for a scalar, an array for an array
     """Non-negative metres or m/s -> centi-units uint16 (HIL_GPS eph/epv/vel), saturated below 65535 (unknown)."""
     return _encode(m, 1e2, 0, UINT16_UNKNOWN - 1, "m")
 
 
-def m_s2_to_mg(a: np.ndarray) -> int | np.ndarray:
+def m_s2_to_mg(a: Any) -> Any:  # a scalar for a scalar, an array for an array
     """m/s^2 -> milli-g (int16), HIL_STATE_QUATERNION xacc/yacc/zacc."""
     return _encode(a, 1e3 / STANDARD_GRAVITY, -INT16_MAX, INT16_MAX, "a")
 
 
-def mg_to_m_s2(mg: np.ndarray) -> float | np.ndarray:
+def mg_to_m_s2(mg: Any) -> Any:  # a scalar for a scalar, an array for an array
     return _decode(mg, 1e3 / STANDARD_GRAVITY)
 
 
-def course_cdeg(v_NED: np.ndarray, min_speed_m_s: float = 0.0) -> int | np.ndarray:
+def course_cdeg(v_NED: Any, min_speed_m_s: float = 0.0) -> Any:  # a scalar for a scalar, an array for an array
     """Course over ground [cdeg] (uint16, 0..35999, clockwise from north) of NED velocities (..., 3);
     65535 (unknown) where the horizontal speed is <= ``min_speed_m_s``."""
     v = _vec3(v_NED, "v_NED")

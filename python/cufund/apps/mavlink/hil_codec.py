@@ -43,7 +43,7 @@ class FrameWriter:
     def __init__(self, mav: Any) -> None:
         self.mav = mav
 
-    def _frame(self, msg: type, payload: bytes) -> bytes:
+    def _frame(self, msg: Any, payload: bytes) -> bytes:
         mav = self.mav
         n = len(payload.rstrip(b"\x00")) or 1  # MAVLink 2 drops trailing zeros (at least one byte stays)
         seq = mav.seq

@@ -82,7 +82,7 @@ class Px4Airframe:
         return np.array(self.rotor_speed_list(controls, armed))
 
     def rotor_speed_list(
-        self, controls: Sequence[float], armed: bool, outputs: Sequence[int] = (0, 1, 2, 3)
+        self, controls: Sequence[float] | np.ndarray, armed: bool, outputs: Sequence[int] = (0, 1, 2, 3)
     ) -> list[float]:
         """:meth:`rotor_speeds` as a list of plain floats (four channels: no numpy overhead per call), for the
         motor ``outputs`` (0-based) in the order given: all four by default, or reordered (e.g. into cufund's

@@ -131,8 +131,10 @@ def run(args: argparse.Namespace) -> int:
         if args.hitl
         else f"tcp://{args.host}:{bridge.port_number} (SITL, lockstep)"
     )
+    vehicle = bridge.simulator.vehicle
+    vehicle_name = vehicle.params.name if vehicle is not None else "no vehicle"
     print(
-        f"cufund px4-sim: {config.name} on {bridge.simulator.vehicle.params.name}, waiting for PX4 on {where}",
+        f"cufund px4-sim: {config.name} on {vehicle_name}, waiting for PX4 on {where}",
         flush=True,
     )
     try:

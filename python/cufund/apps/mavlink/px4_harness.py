@@ -142,7 +142,10 @@ class Px4Harness:
         """Reads until the next HIL_SENSOR of instance 0. Raises TimeoutError (nothing within ``timeout`` [s])
         or ConnectionError (the simulator closed the link)."""
         deadline = time.monotonic() + timeout
-        sensors, gps, state, other = [], [], [], []
+        sensors: list[Any] = []
+        gps: list[Any] = []
+        state: list[Any] = []
+        other: list[Any] = []
         while True:
             while self._queue:
                 msg = self._queue.pop(0)

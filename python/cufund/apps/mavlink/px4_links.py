@@ -125,6 +125,7 @@ class TcpServerLink:
         conn = self._conn
         if conn is None:
             return b""
+        data: bytes | None
         try:
             if timeout <= 0.0:
                 data = conn.recv(65536, socket.MSG_DONTWAIT)

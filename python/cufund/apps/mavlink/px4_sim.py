@@ -224,6 +224,7 @@ class Px4SimulatorBridge:
                 f"got {self.params.record_rate_hz:g}"
             )
         sim.record_period, sim.record_topics = round(nodes), ()
+        assert self.simulator.vehicle is not None  # a PX4 bridge flies a vehicle (checked when it was built)
         vehicle = self.simulator.vehicle.params
         self.airframe = airframe if airframe is not None else Px4Airframe.for_vehicle(vehicle)
         rotor_of_output = self.airframe.rotor_of_output(vehicle)
@@ -339,14 +340,16 @@ class Px4SimulatorBridge:
         """Holds simulated time to ``speed`` x wall time. After a stall (a slow peer, a busy machine) it does not
         race to catch up more than 0.1 s: a flight controller in HITL would get a burst of stale periods."""
         now = time.perf_counter()
+        speed = self.params.speed
+        assert speed is not None  # paced runs only
         if self._wall0 is None:
-            self._wall0 = now - t / self.params.speed
+            self._wall0 = now - t / speed
             return
-        wait = self._wall0 + t / self.params.speed - now
+        wait = self._wall0 + t / speed - now
         if wait > 0:
             time.sleep(wait)
         elif wait < -0.1:
-            self._wall0 = now - t / self.params.speed
+            self._wall0 = now - t / speed
 
     def _receive(self, t: float) -> None:
         """Lockstep (once controls flow, or always with wait_first_controls): blocks until HIL_ACTUATOR_CONTROLS

@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     endpoint = None
-    previous: dict[int, Any] = {}
+    previous: dict[signal.Signals, Any] = {}
     try:
         if args.link_loss_timeout is not None:
             ack = live.submit(

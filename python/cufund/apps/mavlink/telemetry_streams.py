@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
 
-from cufund.geometry import yaw_of
+from cufund.geometry import euler_zyx, yaw_of
 
 from . import frames
 from .px4_modes import heartbeat_mode
@@ -164,10 +164,7 @@ def encode_attitude_quaternion(mav, s: VehicleSnapshot):
 
 
 def encode_attitude(mav, s: VehicleSnapshot):
-    qw, qx, qy, qz = (float(c) for c in frames.q_enu_flu_to_ned_frd(s.q_WB))
-    roll = math.atan2(2 * (qw * qx + qy * qz), 1 - 2 * (qx * qx + qy * qy))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (qw * qy - qz * qx))))
-    yaw = math.atan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz))
+    roll, pitch, yaw = euler_zyx(frames.q_enu_flu_to_ned_frd(s.q_WB))
     w = frames.rates_flu_to_frd(s.w_B)
     return mav.attitude_encode(s.time_boot_ms, roll, pitch, yaw, *(float(c) for c in w))
 

@@ -25,7 +25,6 @@ from typing import Any
 
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink
-from typing_extensions import Self
 
 from cufund.geometry import yaw_of
 
@@ -154,7 +153,7 @@ class VehicleEndpoint:
         for link in self.links:
             link.close()
 
-    def __enter__(self) -> Self:
+    def __enter__(self) -> VehicleEndpoint:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
@@ -424,8 +423,11 @@ class VehicleEndpoint:
                 )
             elif c == mavlink.MAV_CMD_DO_SET_MODE:
                 fresh = self._offboard is not None and now - self._offboard[1] < 1.0
-                cmd = cp.set_mode(p[0], p[1], p[2], fresh)
-                self._forward(link, msg, c, cmd if cmd is not None else self._offboard[0])  # type: ignore[index]
+                mode_cmd = cp.set_mode(p[0], p[1], p[2], fresh)
+                if mode_cmd is None:  # offboard, which set_mode allows only with a fresh setpoint: the latest one
+                    assert self._offboard is not None
+                    mode_cmd = self._offboard[0]
+                self._forward(link, msg, c, mode_cmd)
             elif c == mavlink.MAV_CMD_MISSION_START:
                 self._forward(link, msg, c, {"command": "mission_start"})
             elif c == mavlink.MAV_CMD_DO_SET_MISSION_CURRENT:
