@@ -574,7 +574,7 @@ class Commander(CommandInbox, Planner):
         if plan and (self._after == "land" or self._leg is not None and self._leg.tag == "land"):
             ground = self.home_p_W[2] if np.isfinite(self.home_p_W[2]) else 0.0
             plan.append(np.array([plan[-1][0], plan[-1][1], ground]))
-        self.plan_W = tuple(tuple(float(x) for x in p) for p in plan)
+        self.plan_W = tuple((float(p[0]), float(p[1]), float(p[2])) for p in plan)
 
     def update(self, t: float, state: Odometry, bus: BusView) -> None:  # Planner's hook (step does it all)
         pass
