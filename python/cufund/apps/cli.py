@@ -17,6 +17,7 @@ import sys
 import time
 import warnings
 from collections.abc import Iterator
+from typing import NoReturn
 from pathlib import Path
 
 from cufund._core import __version__
@@ -28,7 +29,7 @@ EXIT_COMPLETED, EXIT_NOT_COMPLETED, EXIT_INVALID = 0, 1, 2
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # usage errors exit 2, as argparse does, with our prefix
+    def error(self, message: str) -> NoReturn:  # usage errors exit 2, as argparse does, with our prefix
         self.print_usage(sys.stderr)
         self.exit(EXIT_INVALID, f"cufund: {message}\n")
 
@@ -78,7 +79,7 @@ def _parser() -> argparse.ArgumentParser:
     try:
         from . import log_replay
     except ImportError:  # pragma: no cover - the replay viewer is optional at import time
-        log_replay = None
+        log_replay = None  # type: ignore[assignment]
     if log_replay is not None:
         rep = sub.add_parser("replay", help="re-open a run.mcap log in the MeshCat viewer")
         log_replay.add_arguments(rep)

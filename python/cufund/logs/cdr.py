@@ -53,7 +53,8 @@ class CdrLayout:
     """Byte layout of one fixed-size CDR message: a numpy dtype with explicit offsets and a row template."""
 
     def __init__(self, fields: list[CdrField]):
-        names, formats, offsets = ["_header"], ["V4"], [0]
+        names, offsets = ["_header"], [0]
+        formats: list[Any] = ["V4"]
         consts: list[tuple[str, bytes]] = []
         pos = 0  # relative to the end of the encapsulation header (CDR alignment origin)
         for f in fields:
@@ -140,6 +141,7 @@ class MessageLayout:
         straight into a CDR row: (template row, scalars (attribute, struct code, offset), arrays (attribute, dtype,
         bytes, offset), attributes that must be None). Any other message takes :meth:`row`."""
         fields = self.layout.dtype.fields
+        assert fields is not None  # a structured dtype
         template = self.layout.empty(1)
         scalars, arrays, absent = [], [], []
         for c in self.columns:

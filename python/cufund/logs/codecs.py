@@ -56,7 +56,9 @@ class View:
     def spec(self, source: CdrLayout) -> tuple[bytes, list[tuple[int, int, int]], list[tuple[int, int, int]]]:
         """(template row, byte copies (dst, src, bytes), stamps (sec, nsec, src t offsets)) against ``source``."""
         def at(layout: CdrLayout, field: str, element: int) -> tuple[int, int]:
-            dtype, offset = layout.dtype.fields[field][:2]
+            fields = layout.dtype.fields
+            assert fields is not None  # a structured dtype
+            dtype, offset = fields[field][:2]
             item = dtype.base.itemsize
             return offset + element * item, item
 
@@ -152,8 +154,9 @@ def _odometry_views(topic: str) -> tuple[View, ...]:
 
     stamp = (("timestamp.sec", "timestamp.nanosec", "t"),)
     quaternion = (("{0}", 0, "q_wb", 1, 3), ("{0}", 3, "q_wb", 0, 1))  # [w, x, y, z] -> Foxglove's x, y, z, w
-    pose = (("pose.position", 0, "p_w", 0, 3), *((d.format("pose.orientation"), *r) for d, *r in quaternion))
-    tf = (("translation", 0, "p_w", 0, 3), *((d.format("rotation"), *r) for d, *r in quaternion))
+    pose = (("pose.position", 0, "p_w", 0, 3),
+            *((d.format("pose.orientation"), a, b, c, e) for d, a, b, c, e in quaternion))
+    tf = (("translation", 0, "p_w", 0, 3), *((d.format("rotation"), a, b, c, e) for d, a, b, c, e in quaternion))
     return (View("/pose", *schemas.POSE_IN_FRAME, schemas.pose_in_frame_layout(WORLD_FRAME), pose, stamp),
             View("/tf", *schemas.FRAME_TRANSFORM, schemas.frame_transform_layout(WORLD_FRAME, child), tf, stamp))
 
@@ -186,9 +189,9 @@ def _json_schema(cls: type) -> dict[str, Any]:
         hints = typing.get_type_hints(cls)
     except Exception:  # noqa: BLE001 - unresolvable annotations: untyped properties
         hints = {}
-    kinds = {float: {"type": ["number", "object"]}, int: {"type": "integer"}, bool: {"type": "boolean"},
+    kinds: dict[Any, dict[str, Any]] = {float: {"type": ["number", "object"]}, int: {"type": "integer"}, bool: {"type": "boolean"},
              str: {"type": "string"}}
-    properties = {f.name: dict(kinds.get(hints.get(f.name), {}), description=f"{cls.__name__}.{f.name}")
+    properties = {f.name: {**kinds.get(hints.get(f.name, object), {}), "description": f"{cls.__name__}.{f.name}"}
                   for f in dataclasses.fields(cls)}
     return {"title": f"cufund.{cls.__name__}", "type": "object", "properties": properties,
             "description": "cufund message: non-finite floats, arrays, enums and nested dataclasses are objects "

@@ -91,7 +91,7 @@ class McapLogger:
             logger._write_other(*args)
 
         self._core = LogCore(fd, compression, background, other)
-        self.write = self._core.write  # the instance's write: one C call per message
+        self.write = self._core.write  # type: ignore[method-assign]  # the instance's write: one C call per message
         head = MAGIC + self._record_bytes(Header(profile="", library="cufund"))
         self._core.write_records(head)
         if metadata:
@@ -100,7 +100,7 @@ class McapLogger:
             self._core.write_records(data)
 
     # -- the hot path -------------------------------------------------------------------------------------------
-    def write(self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int) -> None:  # type: ignore[no-redef]
+    def write(self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int) -> None:
         """Logs ``message`` on ``topic`` at ``log_time_ns`` (when it became visible) and ``publish_time_ns`` [ns].
 
         A topic's codec is chosen from its first message; a later message of another type raises TypeError, a
@@ -229,7 +229,7 @@ class McapLogger:
             channel_count=len(self._channels), attachment_count=0, metadata_count=len(self._metadata_indexes),
             chunk_count=len(chunk_indexes), message_start_time=start, message_end_time=end,
             channel_message_counts=counts)
-        groups = [(Opcode.SCHEMA, self._schemas), (Opcode.CHANNEL, self._channels), (Opcode.STATISTICS, [statistics]),
+        groups: list[tuple[Opcode, Any]] = [(Opcode.SCHEMA, self._schemas), (Opcode.CHANNEL, self._channels), (Opcode.STATISTICS, [statistics]),
                   (Opcode.CHUNK_INDEX, chunk_indexes), (Opcode.METADATA_INDEX, self._metadata_indexes)]
         for opcode, records in groups:
             if not records:
