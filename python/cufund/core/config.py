@@ -185,9 +185,15 @@ def _check_yaml_graph(root: yaml.Node, path: Path | str, lim: Any) -> None:
 
 def to_dict(obj: Any) -> dict[str, Any]:
     """A dataclass as plain Python data (nested dataclasses become dicts, tuples lists) suitable for
-    ``yaml.safe_dump``."""
+    ``yaml.safe_dump``. A nested object with a ``to_data()`` method is written as what that returns (the form its
+    parser reads back, e.g. a commander script's commands)."""
 
     def plain(x: Any) -> Any:
+        to_data = getattr(x, "to_data", None)
+        if callable(to_data) and not isinstance(x, type):
+            return plain(to_data())
+        if isinstance(x, dict):
+            return {k: plain(v) for k, v in x.items()}
         if dataclasses.is_dataclass(x) and not isinstance(x, type):
             return {f.name: plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
         if isinstance(x, (tuple, list)):

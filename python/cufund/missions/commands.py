@@ -79,6 +79,19 @@ class Command:
     def from_dict(cls, data: Any) -> Command:
         return parse_command(data)
 
+    def to_data(self) -> dict[str, Any]:
+        """The command as the plain data :func:`parse_command` reads back: ``command`` and the fields it sets (a
+        scenario's ``planner.script`` written to a run folder's config.yaml reloads as the same commands)."""
+        out: dict[str, Any] = {"command": self.command}
+        for name in _KEYS[self.command]:
+            value = getattr(self, name)
+            if name == "items":
+                out[name] = [item.to_dict() for item in value]
+            elif value is not None:
+                out[name] = list(value) if isinstance(value, tuple) else value
+        out.update(self.extra)
+        return out
+
 
 @dataclass(frozen=True)
 class CommandAck:
