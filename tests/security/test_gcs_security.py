@@ -59,8 +59,14 @@ def ws_connect(gcs, **kw):
 
 
 def receive(ws, kind, timeout=10.0, pred=lambda m: True):
-    ws.settimeout(timeout)
+    """The next text message of ``kind`` satisfying ``pred``; fails when none comes within ``timeout`` [s] (other
+    messages, which keep coming, do not extend it)."""
+    end = time.monotonic() + timeout
     while True:
+        left = end - time.monotonic()
+        if left <= 0:
+            raise AssertionError(f"no {kind!r} message within {timeout} s")
+        ws.settimeout(left)
         raw = ws.recv()
         if isinstance(raw, bytes):
             continue
