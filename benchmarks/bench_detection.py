@@ -14,17 +14,17 @@ import argparse
 import itertools
 import time
 
-import cufund
 import numpy as np
+
+import cufund
 from cufund.core.components import Component
-from cufund.sensors import Lidar, mid360
 from cufund.core.messages import Odometry, Topics
-from cufund.perception import TunnelDetector, TunnelDetectorParams, detect_in_voxels
-from cufund.sensors import LidarComponent
-from cufund.sensors.lidar import mid360_params
 from cufund.geometry import yaw_quaternion
-from cufund.worlds.builtin import imav2025_tunnel
 from cufund.missions.tunnel_course import tunnel_course_layout
+from cufund.perception import TunnelDetector, TunnelDetectorParams, detect_in_voxels
+from cufund.sensors import Lidar, LidarComponent, mid360
+from cufund.sensors.lidar import mid360_params
+from cufund.worlds.builtin import imav2025_tunnel
 
 
 class ScriptedTruth(Component):
@@ -41,14 +41,15 @@ class ScriptedTruth(Component):
         p = np.array([np.interp(t, self.t, self.p[:, k]) for k in range(3)])
         k = int(np.clip(np.searchsorted(self.t, t) - 1, 0, len(self.t) - 2))
         v = (self.p[k + 1] - self.p[k]) / (self.t[k + 1] - self.t[k])
-        bus.publish(Topics.TRUTH_ODOMETRY, Odometry(t, p, v, yaw_quaternion(float(np.interp(t, self.t, self.yaw))),
-                                                    np.zeros(3)))
+        bus.publish(
+            Topics.TRUTH_ODOMETRY, Odometry(t, p, v, yaw_quaternion(float(np.interp(t, self.t, self.yaw))), np.zeros(3))
+        )
 
 
 def flight(centres: np.ndarray, axes: np.ndarray, speed: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     pad = centres[0] - 1.5 * axes[0]
     pts = [np.r_[pad[:2], 0.15], np.r_[pad[:2], 0.15], pad]
-    pts += [c - 0.5 * a for c, a in zip(centres, axes)] + [centres[-1] + 1.0 * axes[-1]]
+    pts += [c - 0.5 * a for c, a in zip(centres, axes, strict=True)] + [centres[-1] + 1.0 * axes[-1]]
     pts = np.array(pts)
     t = [0.0, 2.0, 3.0]
     for a, b in itertools.pairwise(pts[2:]):
@@ -71,22 +72,34 @@ def paper_means(points: np.ndarray, floor_cut: float = 0.1) -> tuple[np.ndarray,
     return means, time.process_time() - start
 
 
-def run(name: str, world: cufund.World, centres: np.ndarray, axes: np.ndarray, sizes: np.ndarray,
-        roi: tuple | None, degraded: bool = False) -> None:
+def run(
+    name: str,
+    world: cufund.World,
+    centres: np.ndarray,
+    axes: np.ndarray,
+    sizes: np.ndarray,
+    roi: tuple | None,
+    degraded: bool = False,
+) -> None:
     t, p, yaw = flight(centres, axes)
     sim = cufund.Simulator(None, physics_rate_hz=1000)
     sim.add(ScriptedTruth(t, p, yaw))
     noise = {"range_noise_std": 0.05, "dropout": 0.5} if degraded else {}
     sim.add(LidarComponent(Lidar(mid360(), mid360_params(seed=7, **noise)), world, rate_hz=100.0))
-    det = sim.add(TunnelDetector(TunnelDetectorParams(roi_min_W=roi[0], roi_max_W=roi[1]) if roi else None,
-                                 origin_W=p[0]))
+    det = sim.add(
+        TunnelDetector(TunnelDetectorParams(roi_min_W=roi[0], roi_max_W=roi[1]) if roi else None, origin_W=p[0])
+    )
     start = time.perf_counter()
     sim.run(float(t[-1]))
     wall = time.perf_counter() - start
     est = det.estimate()
     ours = [np.min(np.linalg.norm(est.centres_W - c, axis=1)) if len(est.centres_W) else np.inf for c in centres]
-    size = [np.abs(est.opening_sizes[np.argmin(np.linalg.norm(est.centres_W - c, axis=1))] - s).max()
-            if len(est.centres_W) else np.inf for c, s in zip(centres, sizes)]
+    size = [
+        np.abs(est.opening_sizes[np.argmin(np.linalg.norm(est.centres_W - c, axis=1))] - s).max()
+        if len(est.centres_W)
+        else np.inf
+        for c, s in zip(centres, sizes, strict=True)
+    ]
     cloud = det.map.means()[0]
     means, peer_s = paper_means(cloud)
     theirs = [np.min(np.linalg.norm(means - c, axis=1)) for c in centres]
@@ -94,11 +107,13 @@ def run(name: str, world: cufund.World, centres: np.ndarray, axes: np.ndarray, s
     t0 = time.process_time()
     detect_in_voxels(cl, rays, det.params, None, det.origin_W)
     ours_s = time.process_time() - t0
-    print(f"{name:>10} | {len(est.centres_W)}/{len(centres)} | ours max {1e3 * max(ours):6.1f} mm | "
-          f"cluster mean max {1e3 * max(theirs):6.1f} mm | size max {1e3 * max(size):5.1f} mm | "
-          f"detector {1e3 * det.update_cpu_seconds / t[-1]:5.1f} ms CPU per sim s ({det.updates} steps, {det.scans} scans, "
-          f"{len(cloud)} voxels) | one detection {1e3 * ours_s:5.1f} ms CPU vs paper's {1e3 * peer_s:5.1f} ms "
-          f"(x{ours_s / max(peer_s, 1e-9):.1f}) | run {t[-1]:.0f} s sim in {wall:.1f} s")
+    print(
+        f"{name:>10} | {len(est.centres_W)}/{len(centres)} | ours max {1e3 * max(ours):6.1f} mm | "
+        f"cluster mean max {1e3 * max(theirs):6.1f} mm | size max {1e3 * max(size):5.1f} mm | "
+        f"detector {1e3 * det.update_cpu_seconds / t[-1]:5.1f} ms CPU per sim s ({det.updates} steps, {det.scans} scans, "
+        f"{len(cloud)} voxels) | one detection {1e3 * ours_s:5.1f} ms CPU vs paper's {1e3 * peer_s:5.1f} ms "
+        f"(x{ours_s / max(peer_s, 1e-9):.1f}) | run {t[-1]:.0f} s sim in {wall:.1f} s"
+    )
 
 
 def main() -> None:
@@ -111,13 +126,26 @@ def main() -> None:
 
     print("layout | found | centre error (ours, paper's cluster means) | opening size | cost")
     paper = np.array([[0.5 * k, 0.0, 0.55] for k in range(5)])
-    run("paper", imav2025_tunnel(), paper, np.tile([1.0, 0.0, 0.0], (5, 1)), np.tile([0.5, 1.0], (5, 1)),
-        None if args.no_roi else ((-4.85, -3.85, -0.5), (6.85, 3.85, 3.0)), args.degraded)
+    run(
+        "paper",
+        imav2025_tunnel(),
+        paper,
+        np.tile([1.0, 0.0, 0.0], (5, 1)),
+        np.tile([0.5, 1.0], (5, 1)),
+        None if args.no_roi else ((-4.85, -3.85, -0.5), (6.85, 3.85, 3.0)),
+        args.degraded,
+    )
     for seed in range(args.layouts):
         c = tunnel_course_layout(seed)
-        run(f"seed {seed}", c.world, np.array([f.centre_W for f in c.frames]), np.array([f.axis_W for f in c.frames]),
+        run(
+            f"seed {seed}",
+            c.world,
+            np.array([f.centre_W for f in c.frames]),
+            np.array([f.axis_W for f in c.frames]),
             np.array([[f.width, f.height] for f in c.frames]),
-            None if args.no_roi else ((-3.85, -3.85, -0.5), (7.85, 3.85, 3.0)), args.degraded)
+            None if args.no_roi else ((-3.85, -3.85, -0.5), (7.85, 3.85, 3.0)),
+            args.degraded,
+        )
 
 
 if __name__ == "__main__":

@@ -34,8 +34,14 @@ def rotorpy_steps_per_s() -> float:
     from rotorpy.vehicles.multirotor import Multirotor
 
     w_h = cufund.vehicle.presets.crazyflie().hover_rotor_speed
-    state = {"x": np.array([0.0, 0.0, 1.0]), "v": np.zeros(3), "q": np.array([0.0, 0.0, 0.0, 1.0]),
-             "w": np.zeros(3), "wind": np.zeros(3), "rotor_speeds": np.full(4, w_h)}
+    state = {
+        "x": np.array([0.0, 0.0, 1.0]),
+        "v": np.zeros(3),
+        "q": np.array([0.0, 0.0, 0.0, 1.0]),
+        "w": np.zeros(3),
+        "wind": np.zeros(3),
+        "rotor_speeds": np.full(4, w_h),
+    }
     vehicle = Multirotor(quad_params, initial_state=state, aero=True)
     control = {"cmd_motor_speeds": np.full(4, w_h)}
 
@@ -79,12 +85,16 @@ def main() -> None:
     ref = rotorpy_steps_per_s()
     print(f"  RotorPy Multirotor.step (scipy RK45)   {ref:14,.0f} steps/s")
     single = single_steps_per_s()
-    print(f"  cufund.Quadrotor.step                   {single:14,.0f} steps/s     {single / ref:8.0f}x RotorPy"
-          "   (target >= 100x)")
+    print(
+        f"  cufund.Quadrotor.step                   {single:14,.0f} steps/s     {single / ref:8.0f}x RotorPy"
+        "   (target >= 100x)"
+    )
     for n in (4096, 100_000):
         b = batch_vehicle_steps_per_s(n)
-        print(f"  cufund.QuadrotorBatch.step, n = {n:<7} {b:14,.0f} vehicle-steps/s {b / ref:8.0f}x RotorPy"
-              + ("   (target >= 10 M/s)" if n == 4096 else ""))
+        print(
+            f"  cufund.QuadrotorBatch.step, n = {n:<7} {b:14,.0f} vehicle-steps/s {b / ref:8.0f}x RotorPy"
+            + ("   (target >= 10 M/s)" if n == 4096 else "")
+        )
 
 
 if __name__ == "__main__":

@@ -45,7 +45,7 @@ def make_world(rng, n_boxes=150):
 def world_occupancy(lo, hi):
     occ = np.zeros(SHAPE, dtype=bool)
     occ[:, :, : int(round(0.5 / RES))] = True  # ground below z = 0
-    for a, b in zip(lo, hi):
+    for a, b in zip(lo, hi, strict=True):
         i0 = np.clip(np.floor((a - ORIGIN) / RES).astype(int), 0, SHAPE)
         i1 = np.clip(np.ceil((b - ORIGIN) / RES).astype(int), 0, SHAPE)
         occ[i0[0] : i1[0], i0[1] : i1[1], i0[2] : i1[2]] = True
@@ -61,7 +61,7 @@ def mid360_frame(rng, origin, lo, hi, n=20000, max_range=40.0):
     with np.errstate(divide="ignore", invalid="ignore"):
         t_best = np.where(d[:, 2] < 0, -origin[2] / d[:, 2], np.inf)
         inv = 1.0 / d
-        for a, b in zip(lo, hi):
+        for a, b in zip(lo, hi, strict=True):
             t1 = (a - origin) * inv
             t2 = (b - origin) * inv
             tn = np.max(np.minimum(t1, t2), axis=1)
@@ -83,10 +83,14 @@ def full_edt(name, occ):
     err = np.max(np.abs(esdf.edt(occ, voxel_size=RES) - ref))
     print(f"   edt package (parallel={THREADS}, float32):    {t_edt * 1e3:8.1f} ms")
     print(f"   scipy distance_transform_edt (float64):  {t_scipy * 1e3:8.1f} ms")
-    print(f"   cufund.mapping.edt (nthreads={THREADS}, float32): {t32 * 1e3:8.1f} ms   "
-          f"speed vs edt: {t_edt / t32:.2f}x   vs scipy: {t_scipy / t32:.1f}x")
-    print(f"   cufund.mapping.edt (nthreads={THREADS}, float64): {t64 * 1e3:8.1f} ms   "
-          f"speed vs edt: {t_edt / t64:.2f}x   vs scipy: {t_scipy / t64:.1f}x   max |diff| vs scipy: {err:.1e} m")
+    print(
+        f"   cufund.mapping.edt (nthreads={THREADS}, float32): {t32 * 1e3:8.1f} ms   "
+        f"speed vs edt: {t_edt / t32:.2f}x   vs scipy: {t_scipy / t32:.1f}x"
+    )
+    print(
+        f"   cufund.mapping.edt (nthreads={THREADS}, float64): {t64 * 1e3:8.1f} ms   "
+        f"speed vs edt: {t_edt / t64:.2f}x   vs scipy: {t_scipy / t64:.1f}x   max |diff| vs scipy: {err:.1e} m"
+    )
 
 
 def main():
@@ -98,16 +102,17 @@ def main():
 
     print("2) incremental update after one Mid-360 frame (~20000 beams, max range 40 m) vs full recompute")
     print("   (map built over 40 frames, then 10 more frames timed one by one: median; full recompute: best of 5)")
-    params = esdf.EsdfMapParams(resolution=RES, size=(40.0, 40.0, 6.0), origin_W=tuple(ORIGIN), max_range=40.0,
-                                nthreads=THREADS)
+    params = esdf.EsdfMapParams(
+        resolution=RES, size=(40.0, 40.0, 6.0), origin_W=tuple(ORIGIN), max_range=40.0, nthreads=THREADS
+    )
     for scenario, step in (("moving 0.3 m/frame", 0.3), ("hovering", 0.0)):
         m = esdf.EsdfMap(params)
         path = [np.array([-15.0 + step * i, 0.5 * np.sin(0.2 * i) if step else 0.0, 1.2]) for i in range(50)]
         frames = [mid360_frame(rng, p, lo, hi) for p in path]
-        for p, f in zip(path[:40], frames[:40]):  # build the map along the path
+        for p, f in zip(path[:40], frames[:40], strict=True):  # build the map along the path
             m.insert_scan(f, p)
         total, field, stats = [], [], []
-        for p, f in zip(path[40:], frames[40:]):
+        for p, f in zip(path[40:], frames[40:], strict=True):
             t = time.perf_counter()
             s = m.insert_scan(f, p)
             total.append(time.perf_counter() - t)
@@ -117,12 +122,18 @@ def main():
         t_full = best_of(m.recompute, repeat=5)
         flipped = int(np.median([s.flipped_voxels for s in stats]))
         changed = int(np.median([s.changed_distances for s in stats]))
-        print(f"   [{scenario}] {len(frames[-1])} returns/frame, median {flipped} voxels flipped, {changed} distances changed")
+        print(
+            f"   [{scenario}] {len(frames[-1])} returns/frame, median {flipped} voxels flipped, {changed} distances changed"
+        )
         print(f"   [{scenario}] full recompute of the signed field:        {t_full * 1e3:7.1f} ms")
-        print(f"   [{scenario}] incremental field update:                  {t_field * 1e3:7.1f} ms"
-              f"   incremental / full: {t_field / t_full:.1%}")
-        print(f"   [{scenario}] whole insert_scan (ray casting + field):   {t_total * 1e3:7.1f} ms"
-              f"   (ray casting + incremental) / full: {t_total / t_full:.1%}")
+        print(
+            f"   [{scenario}] incremental field update:                  {t_field * 1e3:7.1f} ms"
+            f"   incremental / full: {t_field / t_full:.1%}"
+        )
+        print(
+            f"   [{scenario}] whole insert_scan (ray casting + field):   {t_total * 1e3:7.1f} ms"
+            f"   (ray casting + incremental) / full: {t_total / t_full:.1%}"
+        )
 
     print("3) queries: distance + gradient (trilinear), 1e6 random points")
     q = rng.uniform(ORIGIN, ORIGIN + [40, 40, 6], size=(1_000_000, 3))

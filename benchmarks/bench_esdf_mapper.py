@@ -29,13 +29,12 @@ import time
 
 import numpy as np
 
-import cufund
 from cufund import mapping as esdf
 from cufund.core.bus import Bus
-from cufund.sensors import Lidar, mid360
 from cufund.core.messages import Odometry
 from cufund.geometry import Transform, interpolate_poses
 from cufund.missions.tunnel_course import paper_tunnel_course
+from cufund.sensors import Lidar, mid360
 
 T_BL = Transform((0.0, 0.0, 0.08))
 MAP = {"resolution": 0.1, "size": (12.0, 8.0, 3.2), "origin_W": (-3.5, -4.0, -0.2), "max_range": 8.0}
@@ -77,15 +76,18 @@ def before(frames, poses) -> esdf.EsdfMap:
         t_points = cloud.t + np.asarray(cloud.dt, dtype=float)
         p_WB, R_WB = interpolate_poses(t_k, p_k, q_k, t_points)
         points_W = p_WB + R_WB @ t_BL + np.einsum("nij,nj->ni", R_WB @ R_BL, np.asarray(cloud.points_L, dtype=float))
-        mid_p, mid_R = interpolate_poses(t_k, p_k, q_k, np.array([cloud.t + 0.5 * float(np.max(cloud.dt, initial=0.0))]))
+        mid_p, mid_R = interpolate_poses(
+            t_k, p_k, q_k, np.array([cloud.t + 0.5 * float(np.max(cloud.dt, initial=0.0))])
+        )
         m.insert_scan(points_W, mid_p[0] + mid_R[0] @ t_BL)
     return m
 
 
 def mapper(frames, poses, merge: bool) -> esdf.EsdfMap:
     """The scenario's EsdfMapper stepped at 1 Hz on a scripted bus (frames visible at their end)."""
-    mp = esdf.EsdfMapper(esdf.EsdfMapParams(**MAP, merge_beams=merge), T_BL=T_BL, rate_hz=MAPPER_HZ,
-                         cloud_topic="/clouds")
+    mp = esdf.EsdfMapper(
+        esdf.EsdfMapParams(**MAP, merge_beams=merge), T_BL=T_BL, rate_hz=MAPPER_HZ, cloud_topic="/clouds"
+    )
     bus = Bus()  # the stamped messages in flight, each visible at its stamp
     mp.setup(bus)
     for topic, items in ((mp.active_state_topic, poses), (mp.cloud_topic, frames)):
@@ -115,8 +117,10 @@ def run_tunnel() -> None:
         l0 = load()
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         m = json.load(open(os.path.join(out, "metrics.json")))
-    print(f"cufund run tunnel ({l0} before, {load()} after): success {m['success']}, sim {m['sim_time_s']:.1f} s in "
-          f"{m['wall_time_s']:.1f} s wall = {m['real_time_factor']:.2f}x real time, CPU {m['cpu_time_s']:.1f} s")
+    print(
+        f"cufund run tunnel ({l0} before, {load()} after): success {m['success']}, sim {m['sim_time_s']:.1f} s in "
+        f"{m['wall_time_s']:.1f} s wall = {m['real_time_factor']:.2f}x real time, CPU {m['cpu_time_s']:.1f} s"
+    )
     print(f"  esdf_mapper component_seconds: {m['component_seconds']['esdf_mapper']:.3f} s (target <= 0.6 s)")
 
 
@@ -126,8 +130,10 @@ def main() -> None:
     args = ap.parse_args()
     frames, poses = make_data()
     n = len(frames)
-    print(f"{n} Mid-360 frames ({sum(len(c.dt) for _, c in frames)} points) over {DURATION} s, tunnel course, "
-          f"map {MAP['size']} m at {MAP['resolution']} m; {load()}")
+    print(
+        f"{n} Mid-360 frames ({sum(len(c.dt) for _, c in frames)} points) over {DURATION} s, tunnel course, "
+        f"map {MAP['size']} m at {MAP['resolution']} m; {load()}"
+    )
     ref, c0, w0 = timed(before, frames, poses)
     rows = [("before: numpy placement, insert_scan per frame, every point", c0, w0)]
     exact, c1, w1 = timed(mapper, frames, poses, False)
@@ -135,13 +141,17 @@ def main() -> None:
     merged, c2, w2 = timed(mapper, frames, poses, True)
     rows.append(("EsdfMapper 1 Hz, insert_frames, merged beams (scenario)", c2, w2))
     for name, c, w in rows:
-        print(f"  {name:58s} CPU {c:6.3f} s ({1e3 * c / n:5.2f} ms/frame, {c0 / c:4.1f}x)  wall {w:6.3f} s ({w0 / w:4.1f}x)")
+        print(
+            f"  {name:58s} CPU {c:6.3f} s ({1e3 * c / n:5.2f} ms/frame, {c0 / c:4.1f}x)  wall {w:6.3f} s ({w0 / w:4.1f}x)"
+        )
     same = np.array_equal(exact.log_odds(), ref.log_odds()) and np.array_equal(exact.distances(), ref.distances())
     occ_ref, occ_m = ref.occupied(), merged.occupied()
     print(f"  per-point batched map == before (log-odds and distances): {same}")
-    print(f"  merged: log-odds >= before everywhere: {bool(np.all(merged.log_odds() >= ref.log_odds()))}; occupied "
-          f"{int(occ_m.sum())} vs {int(occ_ref.sum())} ({int((occ_m & ~occ_ref).sum())} extra, "
-          f"{int((occ_ref & ~occ_m).sum())} missing); {load()}")
+    print(
+        f"  merged: log-odds >= before everywhere: {bool(np.all(merged.log_odds() >= ref.log_odds()))}; occupied "
+        f"{int(occ_m.sum())} vs {int(occ_ref.sum())} ({int((occ_m & ~occ_ref).sum())} extra, "
+        f"{int((occ_ref & ~occ_m).sum())} missing); {load()}"
+    )
     if args.tunnel:
         run_tunnel()
 

@@ -96,7 +96,7 @@ def scripted_latency(gcs: GcsProcess, n: int) -> tuple[list[float], list[float]]
                     got += 1
                     ws.send(json.dumps({"type": "seen", "telemetry": got, "cloud": 0}))
                     tg = m.get("target_p_W")
-                    if seen_at is None and tg and max(abs(a - b) for a, b in zip(tg, goal)) < 1e-6:
+                    if seen_at is None and tg and max(abs(a - b) for a, b in zip(tg, goal, strict=True)) < 1e-6:
                         seen_at = now
                 elif m["type"] == "ack" and m["id"] == 100 + k:
                     assert m["result"] == "accepted", m
@@ -115,12 +115,15 @@ def percentile(values: list[float], q: float) -> float:
 
 
 def spread(values: list[float]) -> str:
-    return (f"median {statistics.median(values):.1f} ms, p90 {percentile(values, 90):.1f} ms, max {max(values):.1f} ms "
-            f"over {len(values)}")
+    return (
+        f"median {statistics.median(values):.1f} ms, p90 {percentile(values, 90):.1f} ms, max {max(values):.1f} ms "
+        f"over {len(values)}"
+    )
 
 
 def main_thread_busy(d, seconds: float) -> float:
     """Share of wall time the page's main thread spent running tasks (Chrome's Performance.getMetrics)."""
+
     def task() -> tuple[float, float]:
         m = {x["name"]: x["value"] for x in d.execute_cdp_cmd("Performance.getMetrics", {})["metrics"]}
         return m["TaskDuration"], m["Timestamp"]
@@ -136,9 +139,17 @@ def browser():
     from selenium.webdriver.chrome.service import Service
 
     options = webdriver.ChromeOptions()
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
-              "--window-size=1300,800", "--disable-background-timer-throttling",
-              "--disable-renderer-backgrounding", "--disable-backgrounding-occluded-windows"):
+    for a in (
+        "--headless=new",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--use-gl=swiftshader",
+        "--enable-unsafe-swiftshader",
+        "--window-size=1300,800",
+        "--disable-background-timer-throttling",
+        "--disable-renderer-backgrounding",
+        "--disable-backgrounding-occluded-windows",
+    ):
         options.add_argument(a)
     options.binary_location = shutil.which("chromium")
     return webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
@@ -156,17 +167,30 @@ def main() -> None:
     from selenium.webdriver.common.by import By
 
     print(f"load average at the start: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
-    with GcsProcess("vehicle", "--speed", args.speed, "--set", "sensors.lidar.kind=mid360",
-                    "--set", "sensors.lidar.T_BL.p=[0,0,0.08]", "--set", "planner.auto_disarm_s=0") as gcs:
+    with GcsProcess(
+        "vehicle",
+        "--speed",
+        args.speed,
+        "--set",
+        "sensors.lidar.kind=mid360",
+        "--set",
+        "sensors.lidar.T_BL.p=[0,0,0.08]",
+        "--set",
+        "planner.auto_disarm_s=0",
+    ) as gcs:
         time.sleep(2.0)
         idle, idle_io = cpu_share(gcs, args.seconds)
         d = browser()
         try:
             url = f"{gcs.url}&fps={args.fps}" + (f"&{args.query}" if args.query else "")
             d.get(url)
-            assert wait_for(lambda: d.execute_script("return window.gcs.stats.telemetry > 10 && window.gcs.stats.frames > 0"), 30)
-            stats = ("return [window.gcs.stats.telemetry, window.gcs.stats.clouds, performance.now(), "
-                     "window.gcs.stats.frames]")
+            assert wait_for(
+                lambda: d.execute_script("return window.gcs.stats.telemetry > 10 && window.gcs.stats.frames > 0"), 30
+            )
+            stats = (
+                "return [window.gcs.stats.telemetry, window.gcs.stats.clouds, performance.now(), "
+                "window.gcs.stats.frames]"
+            )
             n0, c0, w0, f0 = d.execute_script(stats)
             b0 = tree_cpu_seconds(d.service.process.pid)
             time.sleep(args.seconds)
@@ -175,11 +199,15 @@ def main() -> None:
             rate, clouds = (n1 - n0) / ((w1 - w0) / 1e3), (c1 - c0) / ((w1 - w0) / 1e3)
             frames = (f1 - f0) / ((w1 - w0) / 1e3)
             fps, aa = d.execute_script("return [window.gcs.stats.fps, window.gcs.stats.antialias]")
-            print(f"telemetry in the browser, cloud layer on: {rate:.1f} Hz (target >= 30); clouds {clouds:.1f} Hz; "
-                  f"3-D frames {frames:.1f} /s (capped at {fps:.0f} fps by the view's congestion control; "
-                  f"multisampling {'on' if aa else 'off'})")
-            print(f"the browser's CPU (all its processes): {(b1 - b0) / ((w1 - w0) / 1e3):.2f} cores, "
-                  f"{(b1 - b0) * 1e3 / max(1, f1 - f0):.0f} ms per 3-D frame")
+            print(
+                f"telemetry in the browser, cloud layer on: {rate:.1f} Hz (target >= 30); clouds {clouds:.1f} Hz; "
+                f"3-D frames {frames:.1f} /s (capped at {fps:.0f} fps by the view's congestion control; "
+                f"multisampling {'on' if aa else 'off'})"
+            )
+            print(
+                f"the browser's CPU (all its processes): {(b1 - b0) / ((w1 - w0) / 1e3):.2f} cores, "
+                f"{(b1 - b0) * 1e3 / max(1, f1 - f0):.0f} ms per 3-D frame"
+            )
             d.execute_cdp_cmd("Performance.enable", {})
             busy = main_thread_busy(d, min(args.seconds, 5.0))
             print(f"the page's main thread busy {busy * 100:.0f} % of the time (the 3-D view draws in a worker)")
@@ -187,11 +215,18 @@ def main() -> None:
             d.execute_script("window.gcs.send({command: 'arm'})")
             time.sleep(0.5)
             d.execute_script("window.gcs.send({command: 'takeoff', altitude: 1.5})")
-            assert wait_for(lambda: (t := d.execute_script("return window.gcs.stats.lastTelemetry"))["mode"] == "hold"
-                            and t["p_W"][2] > 1.3, 60), "take-off did not finish"
+            assert wait_for(
+                lambda: (
+                    (t := d.execute_script("return window.gcs.stats.lastTelemetry"))["mode"] == "hold"
+                    and t["p_W"][2] > 1.3
+                ),
+                60,
+            ), "take-off did not finish"
             rtt = [d.execute_async_script("window.gcs.ping().then(arguments[0])") for _ in range(20)]
-            print(f"websocket round trip page -> server -> page: median {statistics.median(rtt):.1f} ms, "
-                  f"max {max(rtt):.1f} ms")
+            print(
+                f"websocket round trip page -> server -> page: median {statistics.median(rtt):.1f} ms, "
+                f"max {max(rtt):.1f} ms"
+            )
             d.find_element(By.ID, "click-goto").click()
             d.find_element(By.ID, "follow").click()  # a still camera: the clicked pixels stay where they were
             canvas = d.execute_script("return window.gcs.canvas")
@@ -200,10 +235,17 @@ def main() -> None:
                 goal = [-2.0 + 0.4 * ((k % 3) - 1), 0.4 * ((k % 2) * 2 - 1), 0.0]
                 px = d.execute_script("return window.gcs.screenOf(arguments[0])", goal)
                 r = d.execute_script("return arguments[0].getBoundingClientRect()", canvas)
-                ActionChains(d).move_to_element_with_offset(canvas, int(px["x"] - r["x"] - r["width"] / 2),
-                                                            int(px["y"] - r["y"] - r["height"] / 2)).click().perform()
-                click = wait_for(lambda: (c := d.execute_script("return window.gcs.lastClick")) and
-                                 all(c.get(k) is not None for k in ("seenAt", "ackAt", "paintedAt", "drawnAt")) and c, 10)
+                ActionChains(d).move_to_element_with_offset(
+                    canvas, int(px["x"] - r["x"] - r["width"] / 2), int(px["y"] - r["y"] - r["height"] / 2)
+                ).click().perform()
+                click = wait_for(
+                    lambda: (
+                        (c := d.execute_script("return window.gcs.lastClick"))
+                        and all(c.get(k) is not None for k in ("seenAt", "ackAt", "paintedAt", "drawnAt"))
+                        and c
+                    ),
+                    10,
+                )
                 assert click, "the click did not reach the commander"
                 acks.append(click["ackAt"] - click["t0"])
                 seen.append(click["seenAt"] - click["t0"])
@@ -219,8 +261,10 @@ def main() -> None:
             print(f"click to the 3-D view's frame with the new setpoint marker (drawn by its worker): {spread(drawn)}")
 
             acks, seen = scripted_latency(gcs, args.clicks)
-            print(f"the same from a Python websocket client: ack median {statistics.median(acks):.1f} ms, "
-                  f"target in telemetry {spread(seen)}")
+            print(
+                f"the same from a Python websocket client: ack median {statistics.median(acks):.1f} ms, "
+                f"target in telemetry {spread(seen)}"
+            )
 
             for _ in range(2):
                 d.switch_to.new_window("tab")
@@ -228,10 +272,14 @@ def main() -> None:
             time.sleep(2.0)
             three, three_io = cpu_share(gcs, args.seconds)
             tel = d.execute_script("return window.gcs.stats.lastTelemetry")
-            print(f"server process CPU (simulation included): {idle:.2f} cores with no tab, {three:.2f} with three "
-                  f"tabs; real-time factor {tel['real_time_factor']:.2f}")
-            print(f"server event-loop thread (all but the simulation): {idle_io * 100:.1f} % of a core with no tab, "
-                  f"{three_io * 100:.1f} % with three tabs (cloud layer on)")
+            print(
+                f"server process CPU (simulation included): {idle:.2f} cores with no tab, {three:.2f} with three "
+                f"tabs; real-time factor {tel['real_time_factor']:.2f}"
+            )
+            print(
+                f"server event-loop thread (all but the simulation): {idle_io * 100:.1f} % of a core with no tab, "
+                f"{three_io * 100:.1f} % with three tabs (cloud layer on)"
+            )
         finally:
             d.quit()
         print(f"load average during the run: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")

@@ -69,8 +69,10 @@ def main() -> None:
 
 def scenes(args: argparse.Namespace) -> None:
     rng = np.random.default_rng(0)
-    print(f"cufund {cufund.__version__} vs open3d {o3d.__version__}, {args.rays} rays, {args.threads} threads, "
-          f"best of {args.repeats}")
+    print(
+        f"cufund {cufund.__version__} vs open3d {o3d.__version__}, {args.rays} rays, {args.threads} threads, "
+        f"best of {args.repeats}"
+    )
     print(f"{'triangles':>10} {'rays':>7} {'cufund Mrays/s':>15} {'open3d Mrays/s':>15} {'ratio':>6}")
     for target in (10_000, 100_000, 1_000_000):
         v, f = sphere_mesh(target)
@@ -84,19 +86,27 @@ def scenes(args: argparse.Namespace) -> None:
             a = ours.cast_rays(rays, nthreads=args.threads)
             b = theirs.cast_rays(rays_o3d, nthreads=args.threads)
             agree = np.array_equal(np.isfinite(a["t_hit"]), np.isfinite(b["t_hit"].numpy()))
-            t_ours, t_theirs = best_times([lambda: ours.cast_rays(rays, nthreads=args.threads),
-                                           lambda: theirs.cast_rays(rays_o3d, nthreads=args.threads)], args.repeats)
+            t_ours, t_theirs = best_times(
+                [
+                    lambda: ours.cast_rays(rays, nthreads=args.threads),
+                    lambda: theirs.cast_rays(rays_o3d, nthreads=args.threads),
+                ],
+                args.repeats,
+            )
             n = len(rays)
-            print(f"{len(f):>10} {kind:>7} {n / t_ours / 1e6:>15.2f} {n / t_theirs / 1e6:>15.2f} "
-                  f"{t_theirs / t_ours:>6.2f}{'' if agree else '  (hit/miss differ!)'}")
-
+            print(
+                f"{len(f):>10} {kind:>7} {n / t_ours / 1e6:>15.2f} {n / t_theirs / 1e6:>15.2f} "
+                f"{t_theirs / t_ours:>6.2f}{'' if agree else '  (hit/miss differ!)'}"
+            )
 
 
 def models(args: argparse.Namespace) -> None:
     world = cufund.worlds.load("imav2025_tunnel")
     pose = lambda t: (np.array([-1.5 + 0.5 * t, 0.0, 0.55]), np.array([1.0, 0.0, 0.0, 0.0]))  # noqa: E731
-    print(f"\nsensor models in imav2025_tunnel ({args.threads} threads), best of {args.repeats}, load "
-          f"{os.getloadavg()[0]:.1f}:")
+    print(
+        f"\nsensor models in imav2025_tunnel ({args.threads} threads), best of {args.repeats}, load "
+        f"{os.getloadavg()[0]:.1f}:"
+    )
     for name, pattern in (("Livox Mid-360", cufund.sensors.mid360()), ("Ouster OS1-64", cufund.sensors.os1_64())):
         lidar = cufund.sensors.Lidar(pattern, cufund.sensors.LidarParams(nthreads=args.threads, range_noise_std=0.02))
         (t,) = best_times([lambda: lidar.scan(world, pose, 0.0)], args.repeats)
@@ -106,10 +116,13 @@ def models(args: argparse.Namespace) -> None:
             lidar.scan(world, pose, 0.0)  # a new frame of the pattern each time
         cpu = (time.process_time() - c0) / frames
         n = len(pattern.frame(0).t)
-        print(f"  {name}: {1 / t:8.1f} frames/s ({n} rays/frame, {n / t / 1e6:.2f} Mrays/s incl. Python), "
-              f"{1e3 * cpu:.2f} ms CPU per frame")
-    cam = cufund.sensors.DepthCamera(cufund.sensors.CameraIntrinsics.from_fov(640, 480, np.deg2rad(87.0)),
-                                     nthreads=args.threads)
+        print(
+            f"  {name}: {1 / t:8.1f} frames/s ({n} rays/frame, {n / t / 1e6:.2f} Mrays/s incl. Python), "
+            f"{1e3 * cpu:.2f} ms CPU per frame"
+        )
+    cam = cufund.sensors.DepthCamera(
+        cufund.sensors.CameraIntrinsics.from_fov(640, 480, np.deg2rad(87.0)), nthreads=args.threads
+    )
     (t,) = best_times([lambda: cam.render(world, [-1.5, 0.0, 0.55], [1.0, 0.0, 0.0, 0.0])], args.repeats)
     print(f"  depth camera 640x480: {1 / t:8.1f} frames/s")
 

@@ -40,8 +40,19 @@ FAST_LIO2_PAPER = {"odometry_min_m": 0.0217, "odometry_rmse_m": 0.0962, "odometr
 
 def make_flight(duration: float, seed: int = 0):
     z = 0.55
-    waypoints = np.array([[-3.0, 0.0, z], [-1.0, 0.0, z], [1.0, 0.0, z], [3.0, 0.0, z], [4.0, 0.6, z + 0.3],
-                          [3.0, 0.0, z], [1.0, 0.0, z], [-1.0, 0.0, z], [-3.0, 0.0, z]])
+    waypoints = np.array(
+        [
+            [-3.0, 0.0, z],
+            [-1.0, 0.0, z],
+            [1.0, 0.0, z],
+            [3.0, 0.0, z],
+            [4.0, 0.6, z + 0.3],
+            [3.0, 0.0, z],
+            [1.0, 0.0, z],
+            [-1.0, 0.0, z],
+            [-3.0, 0.0, z],
+        ]
+    )
     yaw = np.array([0.0, 0.0, 0.0, 0.0, np.pi / 2, np.pi, np.pi, np.pi, np.pi])
     t_pad = 2.0
     traj = MinimumSnapTrajectory(waypoints, yaw=yaw, v_max=1.0, a_max=1.5, t_start=t_pad)
@@ -61,8 +72,9 @@ def truth_body(motion, t):
 
 def run_lio(rec, imu_params, threads):
     st = rec.motion.state(np.zeros(1))
-    params = LioParams(imu=imu_params, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]),
-                       nthreads=threads)
+    params = LioParams(
+        imu=imu_params, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]), nthreads=threads
+    )
     core = LioCore(params)
     at_scans, _ = replay(core, rec)
     ms = np.array([[d.time_ms, d.cpu_ms] for d in core.diagnostics if not d.skipped])
@@ -145,8 +157,10 @@ def run_small_gicp(rec, threads):
         poses.append(T.copy())
         t.append(f.t + f.dt.max())
     t = np.array(t)
-    return (*_lidar_to_body(t, _pad_lidar_pose(rec.motion, rec.frames[0].t + rec.frames[0].dt.max()),
-                            np.array(poses)), np.array(ms))
+    return (
+        *_lidar_to_body(t, _pad_lidar_pose(rec.motion, rec.frames[0].t + rec.frames[0].dt.max()), np.array(poses)),
+        np.array(ms),
+    )
 
 
 def figures(motion, t, p, q, ms):
@@ -167,9 +181,11 @@ def main() -> None:
     args = ap.parse_args()
     w = time.perf_counter()
     rec, imu_params = make_flight(args.duration, args.seed)
-    print(f"flight: {args.duration:.0f} s, {len(rec.frames)} Mid-360 frames "
-          f"({np.mean([len(f.dt) for f in rec.frames]):.0f} points each), {len(rec.t_imu)} IMU samples; "
-          f"generated in {time.perf_counter() - w:.0f} s")
+    print(
+        f"flight: {args.duration:.0f} s, {len(rec.frames)} Mid-360 frames "
+        f"({np.mean([len(f.dt) for f in rec.frames]):.0f} points each), {len(rec.t_imu)} IMU samples; "
+        f"generated in {time.perf_counter() - w:.0f} s"
+    )
     rows = {}
     t, p, q, ms, core = run_lio(rec, imu_params, args.threads)
     rows["cufund LIO (GTSAM)"] = figures(rec.motion, t, p, q, ms)
@@ -177,18 +193,26 @@ def main() -> None:
     if not args.lio_only:
         rows["KISS-ICP"] = figures(rec.motion, *run_kiss(rec, args.threads))
         rows["small_gicp VGICP"] = figures(rec.motion, *run_small_gicp(rec, args.threads))
-    head = (f"{'method':<22}{'min [m]':>10}{'RMSE [m]':>10}{'max [m]':>10}{'rot RMSE [deg]':>16}{'ms median':>11}"
-            f"{'ms p99':>9}{'CPU ms median':>15}")
+    head = (
+        f"{'method':<22}{'min [m]':>10}{'RMSE [m]':>10}{'max [m]':>10}{'rot RMSE [deg]':>16}{'ms median':>11}"
+        f"{'ms p99':>9}{'CPU ms median':>15}"
+    )
     print(head)
     print("-" * len(head))
     for name, r in rows.items():
-        print(f"{name:<22}{r['odometry_min_m']:>10.4f}{r['odometry_rmse_m']:>10.4f}{r['odometry_max_m']:>10.4f}"
-              f"{r['odometry_rot_rmse_deg']:>16.4f}{r['ms_median']:>11.1f}{r['ms_p99']:>9.1f}{r['cpu_ms_median']:>15.1f}")
+        print(
+            f"{name:<22}{r['odometry_min_m']:>10.4f}{r['odometry_rmse_m']:>10.4f}{r['odometry_max_m']:>10.4f}"
+            f"{r['odometry_rot_rmse_deg']:>16.4f}{r['ms_median']:>11.1f}{r['ms_p99']:>9.1f}{r['cpu_ms_median']:>15.1f}"
+        )
     r = FAST_LIO2_PAPER
-    print(f"{'FAST-LIO2 (paper T.1)':<22}{r['odometry_min_m']:>10.4f}{r['odometry_rmse_m']:>10.4f}"
-          f"{r['odometry_max_m']:>10.4f}{'-':>16}{'-':>11}{'-':>9}{'-':>15}")
-    print(f"targets: RMSE <= 0.005 m, max <= 0.015 m, rotation RMSE <= 0.1 deg, <= 10 ms median, <= 25 ms p99 "
-          f"({args.threads} threads); LIO frames flagged degenerate: {deg} of {len(core.diagnostics)}")
+    print(
+        f"{'FAST-LIO2 (paper T.1)':<22}{r['odometry_min_m']:>10.4f}{r['odometry_rmse_m']:>10.4f}"
+        f"{r['odometry_max_m']:>10.4f}{'-':>16}{'-':>11}{'-':>9}{'-':>15}"
+    )
+    print(
+        f"targets: RMSE <= 0.005 m, max <= 0.015 m, rotation RMSE <= 0.1 deg, <= 10 ms median, <= 25 ms p99 "
+        f"({args.threads} threads); LIO frames flagged degenerate: {deg} of {len(core.diagnostics)}"
+    )
 
 
 if __name__ == "__main__":

@@ -60,8 +60,9 @@ def main() -> None:
         live_rate = (run.telemetry()["sim_t"] - t0) / (time.perf_counter() - w0)
 
     cfg = load_scenario(args.scenario)  # without its script, as LiveRun flies it
-    cfg = cfg.replace(planner=dataclasses.replace(cfg.planner, params=dataclasses.replace(cfg.planner.params,
-                                                                                          script=())))
+    cfg = cfg.replace(
+        planner=dataclasses.replace(cfg.planner, params=dataclasses.replace(cfg.planner.params, script=()))
+    )
     sim = build_simulation(cfg).simulator
     sim.reset()
     cmd = next(c for c in sim.components if isinstance(c, Commander))
@@ -79,10 +80,14 @@ def main() -> None:
 
     print(f"scenario {args.scenario}")
     print(f"pacing at speed 1 (hover):        {pace:.3f} sim s per wall s")
-    print(f"command ack latency at speed 1:   median {1e3 * statistics.median(lat):.1f} ms, "
-          f"p95 {1e3 * lat[int(0.95 * len(lat)) - 1]:.1f} ms")
-    print(f"speed inf, flying a mission:      LiveRun {live_rate:.2f}x real time, bare simulator "
-          f"{bare_rate:.2f}x; ratio {live_rate / bare_rate:.2f}")
+    print(
+        f"command ack latency at speed 1:   median {1e3 * statistics.median(lat):.1f} ms, "
+        f"p95 {1e3 * lat[int(0.95 * len(lat)) - 1]:.1f} ms"
+    )
+    print(
+        f"speed inf, flying a mission:      LiveRun {live_rate:.2f}x real time, bare simulator "
+        f"{bare_rate:.2f}x; ratio {live_rate / bare_rate:.2f}"
+    )
 
 
 if __name__ == "__main__":

@@ -22,9 +22,10 @@ import time
 from pathlib import Path
 
 import mavsdk_grpc as mavsdk
+from pymavlink import mavutil
+
 from cufund.apps.live import LiveRun
 from cufund.apps.mavlink.vehicle_endpoint import VehicleEndpoint
-from pymavlink import mavutil
 
 M = mavutil.mavlink
 
@@ -61,8 +62,10 @@ class SimClock:
 def _summary(name: str, xs: list[float]) -> str:
     xs = sorted(xs)
     p95 = xs[min(len(xs) - 1, int(0.95 * len(xs)))]
-    return (f"{name:<38} n={len(xs):4d}  median {statistics.median(xs) * 1e3:6.1f} ms  p95 {p95 * 1e3:6.1f} ms  "
-            f"max {xs[-1] * 1e3:6.1f} ms")
+    return (
+        f"{name:<38} n={len(xs):4d}  median {statistics.median(xs) * 1e3:6.1f} ms  p95 {p95 * 1e3:6.1f} ms  "
+        f"max {xs[-1] * 1e3:6.1f} ms"
+    )
 
 
 async def _mavsdk(grpc: int, clock: SimClock, seconds: float, commands: int) -> tuple[list[float], list[float]]:
@@ -96,8 +99,9 @@ async def _mavsdk(grpc: int, clock: SimClock, seconds: float, commands: int) -> 
 def _pymavlink(port: int, clock: SimClock, seconds: float, commands: int) -> tuple[list[float], list[float]]:
     conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=254, dialect="common")
     conn.recv_match(type="HEARTBEAT", blocking=True, timeout=10)
-    conn.mav.command_long_send(1, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
-                               20000, 0, 0, 0, 0, 0)
+    conn.mav.command_long_send(
+        1, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION, 20000, 0, 0, 0, 0, 0
+    )
     lat: list[float] = []
     end = time.perf_counter() + seconds
     while time.perf_counter() < end:
@@ -125,27 +129,35 @@ def main() -> None:
     ap.add_argument("--telemetry-hz", type=float, default=250.0, help="the live run's telemetry snapshot rate")
     args = ap.parse_args()
     api, gcs, grpc = _free(socket.SOCK_DGRAM), _free(socket.SOCK_DGRAM), _free(socket.SOCK_STREAM)
-    server = subprocess.Popen([str(Path(mavsdk.__file__).parent / "bin" / "mavsdk_server"), "-p", str(grpc),
-                               f"udpin://127.0.0.1:{api}"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    server = subprocess.Popen(
+        [str(Path(mavsdk.__file__).parent / "bin" / "mavsdk_server"), "-p", str(grpc), f"udpin://127.0.0.1:{api}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     live = LiveRun("vehicle", speed=1.0, telemetry_hz=args.telemetry_hz)
     clock = SimClock(live)
     endpoint = VehicleEndpoint(live, [f"udpout:127.0.0.1:{api}", f"udpout:127.0.0.1:{gcs}"]).start()
     try:
         results = {}
         results["pymavlink"] = _pymavlink(gcs, clock, args.seconds, args.commands)
-        results["MAVSDK"] = asyncio.run(asyncio.wait_for(_mavsdk(grpc, clock, args.seconds, args.commands),
-                                                         args.seconds + 60 * args.commands))
+        results["MAVSDK"] = asyncio.run(
+            asyncio.wait_for(_mavsdk(grpc, clock, args.seconds, args.commands), args.seconds + 60 * args.commands)
+        )
         tel = live.telemetry()
-        print(f"vehicle scenario at speed 1 (measured real-time factor {tel['real_time_factor']:.2f}); "
-              f"telemetry snapshots {args.telemetry_hz:g} Hz, ATTITUDE_QUATERNION at 50 Hz")
+        print(
+            f"vehicle scenario at speed 1 (measured real-time factor {tel['real_time_factor']:.2f}); "
+            f"telemetry snapshots {args.telemetry_hz:g} Hz, ATTITUDE_QUATERNION at 50 Hz"
+        )
         for name, (lat, rtt) in results.items():
             print(_summary(f"{name}: sim state -> client (telemetry)", lat))
             print(_summary(f"{name}: COMMAND_LONG -> COMMAND_ACK", rtt))
         m_lat, p_lat = statistics.median(results["MAVSDK"][0]), statistics.median(results["pymavlink"][0])
         m_rtt, p_rtt = statistics.median(results["MAVSDK"][1]), statistics.median(results["pymavlink"][1])
-        print(f"MAVSDK / bare pymavlink: telemetry latency x{m_lat / p_lat:.2f}, command round trip "
-              f"x{m_rtt / p_rtt:.2f} (MAVSDK adds the mavsdk_server + gRPC hop; the pymavlink client shares this "
-              "process's GIL with the simulation)")
+        print(
+            f"MAVSDK / bare pymavlink: telemetry latency x{m_lat / p_lat:.2f}, command round trip "
+            f"x{m_rtt / p_rtt:.2f} (MAVSDK adds the mavsdk_server + gRPC hop; the pymavlink client shares this "
+            "process's GIL with the simulation)"
+        )
     finally:
         endpoint.close()
         clock.remove()

@@ -61,10 +61,14 @@ def _as_ros(message: object, layout) -> dict:
 def bench_types(tmp: Path) -> None:
     from mcap_ros2.writer import Writer as Ros2Writer
 
-    print(f"1. logging {N} messages of one type (built beforehand), per message: main-thread CPU, wall, the writer "
-          "thread's CPU; mcap_ros2's CPU")
-    print(f"   {'type':22s} {'cufund us':>10s} {'wall us':>8s} {'writer us':>10s} {'mcap_ros2 us':>13s} {'ratio':>6s} "
-          f"{'bytes/msg':>9s}")
+    print(
+        f"1. logging {N} messages of one type (built beforehand), per message: main-thread CPU, wall, the writer "
+        "thread's CPU; mcap_ros2's CPU"
+    )
+    print(
+        f"   {'type':22s} {'cufund us':>10s} {'wall us':>8s} {'writer us':>10s} {'mcap_ros2 us':>13s} {'ratio':>6s} "
+        f"{'bytes/msg':>9s}"
+    )
     for name, make in _makers(np.random.default_rng(0)).items():
         codec = codec_for("/x", make(0.0))
         messages = [make(k * 1e-3) for k in range(N)]  # built beforehand: building one costs more than logging it
@@ -90,8 +94,10 @@ def bench_types(tmp: Path) -> None:
                 writer.finish()
                 peer = min(peer, time.thread_time() - c0)
         ours, wall = best[0], best[1]
-        print(f"   {name:22s} {ours / N * 1e6:10.2f} {wall / N * 1e6:8.2f} {best[2] / N * 1e6:10.2f} {peer / N * 1e6:13.2f} "
-              f"{peer / ours:5.0f}x {size / N:9.0f}")
+        print(
+            f"   {name:22s} {ours / N * 1e6:10.2f} {wall / N * 1e6:8.2f} {best[2] / N * 1e6:10.2f} {peer / N * 1e6:13.2f} "
+            f"{peer / ours:5.0f}x {size / N:9.0f}"
+        )
 
 
 def bench_square(tmp: Path, repeats: int) -> Path | None:
@@ -117,16 +123,20 @@ def bench_square(tmp: Path, repeats: int) -> Path | None:
             processes[kind].append(time.process_time() - p0)
     load1 = os.getloadavg()[0]
     n = sum(1 for _ in read_mcap(path))
-    print(f"2. the square ({run.result.sim_time_s:.1f} s simulated, {n} messages logged, {repeats} alternating runs, "
-          f"file {path.stat().st_size / 1e6:.1f} MB; load average {load0:.2f} before, {load1:.2f} after, "
-          f"{os.cpu_count()} CPUs)")
+    print(
+        f"2. the square ({run.result.sim_time_s:.1f} s simulated, {n} messages logged, {repeats} alternating runs, "
+        f"file {path.stat().st_size / 1e6:.1f} MB; load average {load0:.2f} before, {load1:.2f} after, "
+        f"{os.cpu_count()} CPUs)"
+    )
     for name, values in (("wall", walls), ("simulation-thread CPU", threads), ("process CPU (all threads)", processes)):
         without, with_log = statistics.median(values["without"]), statistics.median(values["with"])
-        paired = statistics.median(w / wo for w, wo in zip(values["with"], values["without"]))
-        print(f"   {name}: median without log {without:.3f} s, with run.mcap {with_log:.3f} s: "
-              f"{(with_log / without - 1) * 100:+.1f} % ({(with_log - without) / n * 1e6:+.2f} us per message); "
-              f"median of the {repeats} paired ratios {(paired - 1) * 100:+.1f} %; best {min(values['without']):.3f} s "
-              f"vs {min(values['with']):.3f} s ({(min(values['with']) / min(values['without']) - 1) * 100:+.1f} %)")
+        paired = statistics.median(w / wo for w, wo in zip(values["with"], values["without"], strict=True))
+        print(
+            f"   {name}: median without log {without:.3f} s, with run.mcap {with_log:.3f} s: "
+            f"{(with_log / without - 1) * 100:+.1f} % ({(with_log - without) / n * 1e6:+.2f} us per message); "
+            f"median of the {repeats} paired ratios {(paired - 1) * 100:+.1f} %; best {min(values['without']):.3f} s "
+            f"vs {min(values['with']):.3f} s ({(min(values['with']) / min(values['without']) - 1) * 100:+.1f} %)"
+        )
     return path
 
 

@@ -28,9 +28,19 @@ import timeit
 import numpy as np
 import open3d as o3d
 
-from cufund.planning import (BsplineLocalPlanner, GlobalPlanner, GlobalPlannerParams, GridPathSearch, GridPathSearchParams, LocalPlannerParams,
-                             OmplPathParams, OmplPathPlanner, clearance_from_world, esdf_from_world)
 from cufund.missions.tunnel_course import tunnel_course_layout
+from cufund.planning import (
+    BsplineLocalPlanner,
+    GlobalPlanner,
+    GlobalPlannerParams,
+    GridPathSearch,
+    GridPathSearchParams,
+    LocalPlannerParams,
+    OmplPathParams,
+    OmplPathPlanner,
+    clearance_from_world,
+    esdf_from_world,
+)
 from cufund.worlds.builtin import forest
 
 RADIUS_FOREST = 0.3
@@ -45,8 +55,12 @@ def truth_distance(world):
 
 
 def dense(path, step=0.01):
-    return np.vstack([a + np.linspace(0, 1, max(2, int(np.linalg.norm(b - a) / step) + 1))[:, None] * (b - a)
-                      for a, b in zip(path[:-1], path[1:])])
+    return np.vstack(
+        [
+            a + np.linspace(0, 1, max(2, int(np.linalg.norm(b - a) / step) + 1))[:, None] * (b - a)
+            for a, b in zip(path[:-1], path[1:], strict=True)
+        ]
+    )
 
 
 def safe(result, truth, radius):
@@ -60,8 +74,10 @@ def forest_case(seed):
     ends = []
     for x in (-15.0, 15.0):
         for y in np.arange(0.0, 4.0, 0.1):
-            p = next((np.array([x, s * y, 1.5]) for s in (1, -1) if q.clearance([x, s * y, 1.5]) >= RADIUS_FOREST + 0.2),
-                     None)
+            p = next(
+                (np.array([x, s * y, 1.5]) for s in (1, -1) if q.clearance([x, s * y, 1.5]) >= RADIUS_FOREST + 0.2),
+                None,
+            )
             if p is not None:
                 ends.append(p)
                 break
@@ -103,9 +119,11 @@ def run(cases, ref_time, label, split=False):
     for name, d in (("grid A*", astar), ("RRTConnect+simplify", rrtc)):
         t = np.array(d["t"]) * 1e3
         ratio = np.array(d["ratio"])
-        print(f"{label:8s} {name:20s} success {d['ok']}/{n} = {100.0 * d['ok'] / n:5.1f} %   "
-              f"length / InformedRRT*({ref_time:g} s{' per layout' if split else ''}): median {np.nanmedian(ratio):.3f} max {np.nanmax(ratio):.3f}   "
-              f"plan ms: median {np.median(t):.1f} p99 {np.percentile(t, 99):.1f}")
+        print(
+            f"{label:8s} {name:20s} success {d['ok']}/{n} = {100.0 * d['ok'] / n:5.1f} %   "
+            f"length / InformedRRT*({ref_time:g} s{' per layout' if split else ''}): median {np.nanmedian(ratio):.3f} max {np.nanmax(ratio):.3f}   "
+            f"plan ms: median {np.median(t):.1f} p99 {np.percentile(t, 99):.1f}"
+        )
         worst = np.argsort(-np.nan_to_num(ratio, nan=-1.0))[:5]
         print(f"{'':8s} {'':20s} worst: " + ", ".join(f"seed {seeds[i]} {ratio[i]:.3f}" for i in worst))
 
@@ -152,10 +170,12 @@ def run_local(cases, label):
         if not success:
             failed.append(seed)
     t, c = np.array(times) * 1e3, np.array(cpu) * 1e3
-    print(f"{label:8s} local B-spline       success {ok}/{n} = {100.0 * ok / n:5.1f} %   "
-          f"replan ms: median {np.median(t):.2f} p99 {np.percentile(t, 99):.2f} "
-          f"(CPU: median {np.median(c):.2f} p99 {np.percentile(c, 99):.2f}; {t.size} replans; load "
-          f"{os.getloadavg()[0]:.1f})" + (f"   failed: {failed}" if failed else ""))
+    print(
+        f"{label:8s} local B-spline       success {ok}/{n} = {100.0 * ok / n:5.1f} %   "
+        f"replan ms: median {np.median(t):.2f} p99 {np.percentile(t, 99):.2f} "
+        f"(CPU: median {np.median(c):.2f} p99 {np.percentile(c, 99):.2f}; {t.size} replans; load "
+        f"{os.getloadavg()[0]:.1f})" + (f"   failed: {failed}" if failed else "")
+    )
 
 
 def local_forests(seeds):
@@ -178,8 +198,16 @@ def local_tunnels(seeds):
         esdf = esdf_from_world(c.world, RES_TUNNEL_LOCAL, np.stack([lo, hi]))
         pts = [c.entry_W] + [np.asarray(f.centre_W) for f in c.frames] + [c.exit_W]
         z = np.array(pts)[:, 2]
-        params = LocalPlannerParams(radius=0.15, margin=0.15, v_max=1.5, a_max=2.0, dt=0.1, horizon=4.0,
-                                    z_min=max(0.2, float(z.min()) - 0.5), z_max=float(z.max()) + 0.5)
+        params = LocalPlannerParams(
+            radius=0.15,
+            margin=0.15,
+            v_max=1.5,
+            a_max=2.0,
+            dt=0.1,
+            horizon=4.0,
+            z_min=max(0.2, float(z.min()) - 0.5),
+            z_max=float(z.max()) + 0.5,
+        )
         yield seed, (c.world, esdf, pts, 0.15, params)
 
 
@@ -188,23 +216,35 @@ def run_global(cases):
     wall and CPU time of the search alone and of search + min-snap (target: global plan <= 20 ms median)."""
     planner = GlobalPlanner(GlobalPlannerParams(search="astar", radius=RADIUS_FOREST))
     rows, ok, n = [], 0, 0
-    for _, (world, q, legs, radius) in cases:
-        (start, goal), = legs
+    for _, (_world, q, legs, _radius) in cases:
+        ((start, goal),) = legs
         g = planner.plan(q, start, goal)
         n += 1
         ok += g.ok
-        rows.append((g.search_seconds, g.search_cpu_seconds, g.plan_seconds, g.plan_cpu_seconds,
-                     0 if g.motion is None else g.motion.inserted, g.path.path_W.shape[0],
-                     np.nan if g.trajectory is None else g.trajectory.snap_cost(),
-                     np.nan if g.motion is None else g.motion.min_clearance))
+        rows.append(
+            (
+                g.search_seconds,
+                g.search_cpu_seconds,
+                g.plan_seconds,
+                g.plan_cpu_seconds,
+                0 if g.motion is None else g.motion.inserted,
+                g.path.path_W.shape[0],
+                np.nan if g.trajectory is None else g.trajectory.snap_cost(),
+                np.nan if g.motion is None else g.motion.min_clearance,
+            )
+        )
     a = np.array(rows)
     ms = lambda x: f"median {np.median(x) * 1e3:6.1f} p99 {np.percentile(x, 99) * 1e3:6.1f}"  # noqa: E731
-    print(f"forest   global plan          ok {ok}/{n}; load {os.getloadavg()[0]:.1f}; waypoints median "
-          f"{np.median(a[:, 5]):.0f}, inserted median {np.median(a[:, 4]):.0f} max {a[:, 4].max():.0f}")
+    print(
+        f"forest   global plan          ok {ok}/{n}; load {os.getloadavg()[0]:.1f}; waypoints median "
+        f"{np.median(a[:, 5]):.0f}, inserted median {np.median(a[:, 4]):.0f} max {a[:, 4].max():.0f}"
+    )
     print(f"{'':8s} search only ms       wall {ms(a[:, 0])}   CPU {ms(a[:, 1])}")
     print(f"{'':8s} search + min-snap ms wall {ms(a[:, 2])}   CPU {ms(a[:, 3])}")
-    print(f"{'':8s} snap cost [m^2/s^7]  median {np.nanmedian(a[:, 6]):.4f} sum {np.nansum(a[:, 6]):.4f}; "
-          f"min clearance {np.nanmin(a[:, 7]):.3f} m (radius {RADIUS_FOREST})")
+    print(
+        f"{'':8s} snap cost [m^2/s^7]  median {np.nanmedian(a[:, 6]):.4f} sum {np.nansum(a[:, 6]):.4f}; "
+        f"min clearance {np.nanmin(a[:, 7]):.3f} m (radius {RADIUS_FOREST})"
+    )
 
 
 def run_scalar():
@@ -220,10 +260,12 @@ def run_scalar():
         return min(timeit.repeat(stmt, globals=names, number=n, repeat=7, timer=time.thread_time)) / n * 1e9
 
     base = per_call("hypot(1.0, 2.0, 0.5)", hypot=math.hypot)
-    for name, ns in (("clearance_xyz(x, y, z)", per_call("f(1.0, 2.0, 0.5)", f=f)),
-                     ("pybind11 method (old)", per_call("g(1.0, 2.0, 0.5)", g=q._core.clearance)),
-                     ("clearance(p) numpy (3,)", per_call("c(p)", c=q.clearance, p=p)),
-                     ("segment_free_xyz 10 cm", per_call("s(1.0, 2.0, 0.5, 1.1, 2.0, 0.5, 0.1)", s=s))):
+    for name, ns in (
+        ("clearance_xyz(x, y, z)", per_call("f(1.0, 2.0, 0.5)", f=f)),
+        ("pybind11 method (old)", per_call("g(1.0, 2.0, 0.5)", g=q._core.clearance)),
+        ("clearance(p) numpy (3,)", per_call("c(p)", c=q.clearance, p=p)),
+        ("segment_free_xyz 10 cm", per_call("s(1.0, 2.0, 0.5, 1.1, 2.0, 0.5, 0.1)", s=s)),
+    ):
         print(f"scalar   {name:24s} {ns:7.0f} ns per call ({ns / base:4.1f}x math.hypot's {base:.0f} ns)")
 
 
@@ -234,13 +276,17 @@ def main():
     ap.add_argument("--ref-time", type=float, default=5.0)
     ap.add_argument("--local", type=int, default=200)
     ap.add_argument("--local-tunnels", type=int, default=200, help="the local replanner through N tunnel courses")
-    ap.add_argument("--global", dest="global_", type=int, default=0,
-                    help="only the global plan (A* + min-snap) timing on N forests")
+    ap.add_argument(
+        "--global", dest="global_", type=int, default=0, help="only the global plan (A* + min-snap) timing on N forests"
+    )
     ap.add_argument("--scalar", action="store_true", help="only the scalar clearance call's cost")
     ap.add_argument("--first-seed", type=int, default=0, help="layouts first-seed .. first-seed + N - 1")
     ap.add_argument("--seeds", type=int, nargs="*", help="only these layouts (overrides --first-seed and the counts)")
-    ap.add_argument("--split-ref", action="store_true",
-                    help="tunnels: --ref-time per layout, shared by its 6 legs (else per leg: 6x longer)")
+    ap.add_argument(
+        "--split-ref",
+        action="store_true",
+        help="tunnels: --ref-time per layout, shared by its 6 legs (else per leg: 6x longer)",
+    )
     args = ap.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     if args.scalar:
@@ -260,7 +306,7 @@ def main():
             lo[2] = 0.0
             q = clearance_from_world(c.world, 0.025, np.stack([lo, hi]))
             pts = [c.entry_W] + [np.asarray(f.centre_W) for f in c.frames] + [c.exit_W]
-            yield seed, (c.world, q, list(zip(pts[:-1], pts[1:])), r)
+            yield seed, (c.world, q, list(zip(pts[:-1], pts[1:], strict=True)), r)
 
     t0 = time.perf_counter()
     if args.global_:

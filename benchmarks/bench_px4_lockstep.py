@@ -28,16 +28,22 @@ from typing import Any
 from cufund.apps.mavlink.px4_harness import Px4Harness
 from cufund.apps.mavlink.px4_links import TcpServerLink
 from cufund.apps.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
-from cufund.vehicle.presets import iris
 from cufund.scenarios import ScenarioConfig
+from cufund.vehicle.presets import iris
 
 U_HOVER = (iris().hover_rotor_speed - 100.0) / 1000.0
 PARAMS = Px4BridgeParams(speed=None, wait_first_controls=True)
 
 
 def _config() -> ScenarioConfig:
-    return ScenarioConfig.from_dict({"name": "bench_px4", "vehicle": "iris", "seed": 1, "sensors": {
-        "imu": "icm42688p", "magnetometer": "magnetometer", "barometer": "ms5611", "gps": "ublox_m8n"}})
+    return ScenarioConfig.from_dict(
+        {
+            "name": "bench_px4",
+            "vehicle": "iris",
+            "seed": 1,
+            "sensors": {"imu": "icm42688p", "magnetometer": "magnetometer", "barometer": "ms5611", "gps": "ublox_m8n"},
+        }
+    )
 
 
 def _controls_bytes() -> bytes:
@@ -73,9 +79,16 @@ def _c_speed_peer(port: int, cpu_s: Any = None) -> None:
     from fastcrc.crc16 import mcrf4xx
     from pymavlink.dialects.v20 import common as mavlink
 
-    extra = {m.id: m.crc_extra for m in (mavlink.MAVLink_heartbeat_message, mavlink.MAVLink_hil_sensor_message,
-                                         mavlink.MAVLink_hil_gps_message, mavlink.MAVLink_command_ack_message,
-                                         mavlink.MAVLink_hil_state_quaternion_message)}
+    extra = {
+        m.id: m.crc_extra
+        for m in (
+            mavlink.MAVLink_heartbeat_message,
+            mavlink.MAVLink_hil_sensor_message,
+            mavlink.MAVLink_hil_gps_message,
+            mavlink.MAVLink_command_ack_message,
+            mavlink.MAVLink_hil_state_quaternion_message,
+        )
+    }
     hil_sensor, ctl = mavlink.MAVLink_hil_sensor_message, mavlink.MAVLink_hil_actuator_controls_message
     header, u64 = struct.Struct("<BBBBBBBHB"), struct.Struct("<Q")
     sensor_unpack, sensor_size = hil_sensor.unpacker.unpack, hil_sensor.unpacker.size
@@ -98,18 +111,23 @@ def _c_speed_peer(port: int, cpu_s: Any = None) -> None:
             n = buf[i + 1]
             msg_id = buf[i + 7] | buf[i + 8] << 8 | buf[i + 9] << 16
             end = i + 10 + n
-            if msg_id not in extra or mcrf4xx(bytes((extra[msg_id],)), mcrf4xx(buf[i + 1:end])) != \
-                    buf[end] | buf[end + 1] << 8:
+            if (
+                msg_id not in extra
+                or mcrf4xx(bytes((extra[msg_id],)), mcrf4xx(buf[i + 1 : end])) != buf[end] | buf[end + 1] << 8
+            ):
                 i += 1
                 continue
             if msg_id == hil_sensor.id:  # decoded whole, as PX4's simulator_mavlink does (trailing zeros restored)
-                payload = buf[i + 10:end]
+                payload = buf[i + 10 : end]
                 fields = sensor_unpack(payload + zeros[n:] if n < sensor_size else payload)
                 if fields[-1] != 0:  # answered for the primary IMU (id 0) only
                     i = end + 2
                     continue
-                body = header.pack(0xFD, ctl.unpacker.size, 0, 0, seq, 1, 1, ctl.id, 0) + \
-                    u64.pack(fields[0]) + controls_tail
+                body = (
+                    header.pack(0xFD, ctl.unpacker.size, 0, 0, seq, 1, 1, ctl.id, 0)
+                    + u64.pack(fields[0])
+                    + controls_tail
+                )
                 out.append(body + struct.pack("<H", mcrf4xx(bytes((ctl.crc_extra,)), mcrf4xx(body[1:]))))
                 seq = (seq + 1) & 0xFF
             i = end + 2
@@ -211,26 +229,36 @@ def _tcp(peer, seconds: float, cpu: int | None = None) -> tuple[float, float, fl
 
 def main() -> None:
     seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 20.0
-    print(f"PX4 lockstep round trips per second over {seconds:g} s simulated ({int(seconds * 250)} periods); "
-          f"real time needs 250/s, target >= 5000/s")
+    print(
+        f"PX4 lockstep round trips per second over {seconds:g} s simulated ({int(seconds * 250)} periods); "
+        f"real time needs 250/s, target >= 5000/s"
+    )
     load0 = os.getloadavg()[0]
     results = {}
     results["in-process"] = (*_run(Px4SimulatorBridge(_config(), _Loopback(), PARAMS), seconds), math.nan)
     one_cpu = max(os.sched_getaffinity(0))
-    for name, peer, cpu in (("tcp, C-speed peer", _c_speed_peer, None),
-                            ("tcp, C-speed, one CPU", _c_speed_peer, one_cpu),
-                            ("tcp, pymavlink harness", _harness_peer, None)):
+    for name, peer, cpu in (
+        ("tcp, C-speed peer", _c_speed_peer, None),
+        ("tcp, C-speed, one CPU", _c_speed_peer, one_cpu),
+        ("tcp, pymavlink harness", _harness_peer, None),
+    ):
         results[name] = _tcp(peer, seconds, cpu)
     results["tcp ping-pong, no sim"] = (_ping_pong(seconds), math.nan, math.nan, math.nan)
-    print(f"  {'peer':<24} {'per wall s':>10} {'x real time':>11} {'x target':>8} {'per cufund CPU s':>16} "
-          f"{'us/trip: wall':>13} {'cufund CPU':>10} {'peer CPU':>8} {'peer start s':>12}")
+    print(
+        f"  {'peer':<24} {'per wall s':>10} {'x real time':>11} {'x target':>8} {'per cufund CPU s':>16} "
+        f"{'us/trip: wall':>13} {'cufund CPU':>10} {'peer CPU':>8} {'peer start s':>12}"
+    )
     for name, (rate, cpu_rate, t_connect, peer_cpu) in results.items():
-        print(f"  {name:<24} {rate:10.0f} {rate / 250:11.1f} {rate / 5000:8.2f} {cpu_rate:16.0f} {1e6 / rate:13.0f} "
-              f"{1e6 / cpu_rate:10.0f} {peer_cpu * 1e6:8.0f} {t_connect:12.2f}")
-    print(f"  (load average {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on {os.cpu_count()} cores: "
-          f"wall rates fall with other work; per CPU s is cufund's own cost. Clocks start once the peer is "
-          f"connected. 'one CPU': cufund and the peer pinned to CPU {one_cpu}, as "
-          f"`cufund px4-sim --cpu {one_cpu}` with `taskset -c {one_cpu} px4 ...` would be)")
+        print(
+            f"  {name:<24} {rate:10.0f} {rate / 250:11.1f} {rate / 5000:8.2f} {cpu_rate:16.0f} {1e6 / rate:13.0f} "
+            f"{1e6 / cpu_rate:10.0f} {peer_cpu * 1e6:8.0f} {t_connect:12.2f}"
+        )
+    print(
+        f"  (load average {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on {os.cpu_count()} cores: "
+        f"wall rates fall with other work; per CPU s is cufund's own cost. Clocks start once the peer is "
+        f"connected. 'one CPU': cufund and the peer pinned to CPU {one_cpu}, as "
+        f"`cufund px4-sim --cpu {one_cpu}` with `taskset -c {one_cpu} px4 ...` would be)"
+    )
 
 
 if __name__ == "__main__":

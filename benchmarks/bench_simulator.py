@@ -71,13 +71,21 @@ def simulated(spec: list, done: bool) -> float:
 
 def bench_overhead() -> None:
     square = [(Software, 250.0), (Software, 250.0), (Software, 250.0), (Software, 500.0)]
-    configs = [("no components", [], False), ("rate loop 500 Hz", [(Software, 500.0)], False),
-               ("square: 500 + 3 x 250 Hz, done", square, True),
-               ("+ estimator 200 Hz, IMU 200 Hz and pose 10 Hz (truth readers)",
-                [(TruthReader, 200.0), (TruthReader, 10.0), (Software, 200.0), *square], True)]
+    configs = [
+        ("no components", [], False),
+        ("rate loop 500 Hz", [(Software, 500.0)], False),
+        ("square: 500 + 3 x 250 Hz, done", square, True),
+        (
+            "+ estimator 200 Hz, IMU 200 Hz and pose 10 Hz (truth readers)",
+            [(TruthReader, 200.0), (TruthReader, 10.0), (Software, 200.0), *square],
+            True,
+        ),
+    ]
     phys = min(physics_alone() for _ in range(REPEATS))
-    print(f"Simulator overhead per 1 kHz physics node (CPU, best of {REPEATS}; physics alone "
-          f"{1e6 * phys / (DURATION * 1000):.2f} us/step)")
+    print(
+        f"Simulator overhead per 1 kHz physics node (CPU, best of {REPEATS}; physics alone "
+        f"{1e6 * phys / (DURATION * 1000):.2f} us/step)"
+    )
     for name, spec, done in configs:
         cpu = min(simulated(spec, done) for _ in range(REPEATS))
         print(f"  {name:64s} {1e6 * (cpu - phys) / (DURATION * 1000):6.2f} us/node")
@@ -99,8 +107,10 @@ def bench_square_mocap() -> None:
             best = (cpu, run, built)
     cpu, run, built = best
     sim_s = run.metrics["sim_time_s"]
-    print(f"square_mocap: {sim_s:.2f} s simulated in {cpu:.3f} s process CPU ({sim_s / cpu:.1f}x real time per CPU "
-          f"second); wall per call of each component:")
+    print(
+        f"square_mocap: {sim_s:.2f} s simulated in {cpu:.3f} s process CPU ({sim_s / cpu:.1f}x real time per CPU "
+        f"second); wall per call of each component:"
+    )
     res = run.result
     calls = {s["name"]: s["rate_hz"] * sim_s for s in built.simulator.schedule}
     for name, seconds in res.component_seconds.items():

@@ -44,12 +44,15 @@ def main() -> None:
     from cufund.apps.sweep.execute import run_variant
 
     gains = [2.0 + 2.0 * i / max(args.variants - 1, 1) for i in range(args.variants)]
-    spec = sweep.load_spec({"scenario": "square", "set": {"duration": args.duration},
-                            "grid": {"controller.position.xy_p": gains}})
+    spec = sweep.load_spec(
+        {"scenario": "square", "set": {"duration": args.duration}, "grid": {"controller.position.xy_p": gains}}
+    )
     configs = [v.config for v in spec.variants()]
     per_min = lambda seconds: 60.0 * len(configs) / seconds  # noqa: E731
-    print(f"{len(configs)} variants of the square, {args.duration:g} s simulated each, CUFUND_NUM_THREADS=1; "
-          f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}")
+    print(
+        f"{len(configs)} variants of the square, {args.duration:g} s simulated each, CUFUND_NUM_THREADS=1; "
+        f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}"
+    )
 
     labels = {"pool2": "Pool(2)", "dask2": "Dask 2 workers", "dask1": "Dask 1 worker"}
     wall: dict[str, list[float]] = {k: [] for k in labels}
@@ -66,19 +69,25 @@ def main() -> None:
             with mp.get_context("spawn").Pool(2) as pool:
                 pool.map(_warm, range(2))
                 pids = {"pool2": [p.pid for p in pool._pool], "dask2": _pids(c2), "dask1": _pids(c1)}
-                sides = {"pool2": lambda: pool.map(partial(run_variant, files=False), configs, chunksize=1),
-                         "dask2": lambda: sweep.run(spec, c2, progress=False),
-                         "dask1": lambda: sweep.run(spec, c1, progress=False)}
+                sides = {
+                    "pool2": lambda: pool.map(partial(run_variant, files=False), configs, chunksize=1),
+                    "dask2": lambda: sweep.run(spec, c2, progress=False),
+                    "dask1": lambda: sweep.run(spec, c1, progress=False),
+                }
                 order = list(sides)
                 for r in range(args.rounds):
-                    for name in order[r % 3:] + order[:r % 3]:  # rotated: no side always runs after another
+                    for name in order[r % 3 :] + order[: r % 3]:  # rotated: no side always runs after another
                         cpu = _cpu(pids[name])
                         t = time.perf_counter()
                         outputs[name] = sides[name]()
                         wall[name].append(time.perf_counter() - t)
                         cpu_s[name].append(_cpu(pids[name]) - cpu)
-                    print(f"round {r + 1}: " + ", ".join(f"{labels[k]} {per_min(wall[k][-1]):.1f}/min" for k in order)
-                          + f" (load average {os.getloadavg()[0]:.1f})", flush=True)
+                    print(
+                        f"round {r + 1}: "
+                        + ", ".join(f"{labels[k]} {per_min(wall[k][-1]):.1f}/min" for k in order)
+                        + f" (load average {os.getloadavg()[0]:.1f})",
+                        flush=True,
+                    )
     frame, pool_out = outputs["dask2"], outputs["pool2"]
     for name in ("dask1", "dask2"):
         failed = outputs[name][outputs[name]["status"] == "failed"]
@@ -87,13 +96,18 @@ def main() -> None:
     med = {k: statistics.median(v) for k, v in wall.items()}
     cpu_med = {k: statistics.median(v) / len(configs) for k, v in cpu_s.items()}
     print(f"cluster start-up: 2 workers {start2:.1f} s, 1 worker {start1:.1f} s (not in the rates)")
-    print(f"median of {args.rounds} rounds: " + ", ".join(f"{labels[k]} {per_min(med[k]):.1f} variants/min"
-                                                          for k in wall))
-    print("CPU seconds per variant (this process + the workers' processes, median): "
-          + ", ".join(f"{labels[k]} {cpu_med[k]:.3f}" for k in wall))
-    print(f"Dask overhead vs Pool(2): wall {100 * (med['dask2'] / med['pool2'] - 1):+.1f} %, CPU "
-          f"{100 * (cpu_med['dask2'] / cpu_med['pool2'] - 1):+.1f} % (target <= 10 %; negative: Dask cheaper); "
-          f"speed-up 1 -> 2 workers: {med['dask1'] / med['dask2']:.2f}x; same metrics as the Pool: {same}")
+    print(
+        f"median of {args.rounds} rounds: " + ", ".join(f"{labels[k]} {per_min(med[k]):.1f} variants/min" for k in wall)
+    )
+    print(
+        "CPU seconds per variant (this process + the workers' processes, median): "
+        + ", ".join(f"{labels[k]} {cpu_med[k]:.3f}" for k in wall)
+    )
+    print(
+        f"Dask overhead vs Pool(2): wall {100 * (med['dask2'] / med['pool2'] - 1):+.1f} %, CPU "
+        f"{100 * (cpu_med['dask2'] / cpu_med['pool2'] - 1):+.1f} % (target <= 10 %; negative: Dask cheaper); "
+        f"speed-up 1 -> 2 workers: {med['dask1'] / med['dask2']:.2f}x; same metrics as the Pool: {same}"
+    )
 
 
 def _pids(client) -> list[int]:
@@ -108,6 +122,7 @@ def _cpu(pids: list[int]) -> float:
         t = psutil.Process(pid).cpu_times()
         total += t.user + t.system
     return total
+
 
 if __name__ == "__main__":
     main()

@@ -30,7 +30,7 @@ def _one(job: tuple[int, list[str]]) -> dict:
     try:
         run = run_scenario(load_scenario("tunnel", parse_overrides([f"world.seed={seed}", *overrides])))
         m = dict(run.metrics)
-    except Exception as e:  # noqa: BLE001 - a crash is a failed layout, reported
+    except Exception as e:
         m = {"status": f"exception: {type(e).__name__}: {e}", "success": False}
     m["seed"], m["wall_s"] = seed, time.perf_counter() - t0
     return m
@@ -67,12 +67,16 @@ def components(overrides: list[str]) -> int:
     cpu_all, wall = time.process_time() - c0, time.perf_counter() - w0
     m = run.metrics
     wall_s = m.get("component_seconds", {})
-    print(f"tunnel {' '.join(overrides) or '(paper layout)'}: success={m.get('success')} "
-          f"sim {m.get('sim_time_s'):.1f} s, wall {wall:.1f} s, process CPU {cpu_all:.1f} s, "
-          f"load {load0:.1f} -> {os.getloadavg()[0]:.1f} (2 cores)")
+    print(
+        f"tunnel {' '.join(overrides) or '(paper layout)'}: success={m.get('success')} "
+        f"sim {m.get('sim_time_s'):.1f} s, wall {wall:.1f} s, process CPU {cpu_all:.1f} s, "
+        f"load {load0:.1f} -> {os.getloadavg()[0]:.1f} (2 cores)"
+    )
     for name, target in (("lidar", 1.5), ("tunnel_detector", 0.6)):
-        print(f"  {name:16s} wall {wall_s.get(name, float('nan')):6.2f} s  CPU {cpu.get(name, float('nan')):6.2f} s  "
-              f"(target <= {target} s wall on a quiet machine)")
+        print(
+            f"  {name:16s} wall {wall_s.get(name, float('nan')):6.2f} s  CPU {cpu.get(name, float('nan')):6.2f} s  "
+            f"(target <= {target} s wall on a quiet machine)"
+        )
     print("  all components (wall s): " + ", ".join(f"{k} {v:.2f}" for k, v in wall_s.items()))
     return 0
 
@@ -84,23 +88,32 @@ def main() -> int:
     ap.add_argument("--jobs", type=int, default=1, help="processes in parallel (default 1)")
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--json", help="write every layout's metrics here")
-    ap.add_argument("--components", action="store_true",
-                    help="one run in this process: the LiDAR's and the detector's wall and CPU seconds")
+    ap.add_argument(
+        "--components",
+        action="store_true",
+        help="one run in this process: the LiDAR's and the detector's wall and CPU seconds",
+    )
     args = ap.parse_args()
     if args.components:
         return components(args.overrides)
     jobs = [(s, args.overrides) for s in range(args.first, args.first + args.layouts)]
-    print(f"tunnel benchmark: {args.layouts} layouts, {args.jobs} job(s), {os.cpu_count()} cores, load "
-          f"{os.getloadavg()[0]:.1f}", flush=True)
+    print(
+        f"tunnel benchmark: {args.layouts} layouts, {args.jobs} job(s), {os.cpu_count()} cores, load "
+        f"{os.getloadavg()[0]:.1f}",
+        flush=True,
+    )
     results = []
     with mp.get_context("spawn").Pool(args.jobs) as pool:
         for m in pool.imap_unordered(_one, jobs):
             results.append(m)
-            print(f"  seed {m['seed']:3d}: {m.get('status')!s:9} success={m.get('success')!s:5} "
-                  f"track rmse/max {m.get('tracking_rmse_m') or float('nan'):.4f}/{m.get('tracking_max_m') or float('nan'):.4f} "
-                  f"odo rmse/max {m.get('odometry_rmse_m') or float('nan'):.4f}/{m.get('odometry_max_m') or float('nan'):.4f} "
-                  f"clear {m.get('min_clearance_m') or float('nan'):.3f} RTF {m.get('real_time_factor') or float('nan'):.2f} "
-                  f"{m.get('reason') or ''}", flush=True)
+            print(
+                f"  seed {m['seed']:3d}: {m.get('status')!s:9} success={m.get('success')!s:5} "
+                f"track rmse/max {m.get('tracking_rmse_m') or float('nan'):.4f}/{m.get('tracking_max_m') or float('nan'):.4f} "
+                f"odo rmse/max {m.get('odometry_rmse_m') or float('nan'):.4f}/{m.get('odometry_max_m') or float('nan'):.4f} "
+                f"clear {m.get('min_clearance_m') or float('nan'):.3f} RTF {m.get('real_time_factor') or float('nan'):.2f} "
+                f"{m.get('reason') or ''}",
+                flush=True,
+            )
     results.sort(key=lambda m: m["seed"])
     if args.json:
         with open(args.json, "w", encoding="utf-8") as f:
@@ -111,8 +124,14 @@ def main() -> int:
     if failed:
         print("failed layouts:", "; ".join(failed))
     print("\n| metric (m) | paper, simulation | median | worst | target |\n|---|---|---|---|---|")
-    paper = {"odometry_min_m": 0.0217, "odometry_rmse_m": 0.0962, "odometry_max_m": 0.2577, "tracking_min_m": 0.0037,
-             "tracking_rmse_m": 0.0316, "tracking_max_m": 0.0575}
+    paper = {
+        "odometry_min_m": 0.0217,
+        "odometry_rmse_m": 0.0962,
+        "odometry_max_m": 0.2577,
+        "tracking_min_m": 0.0037,
+        "tracking_rmse_m": 0.0316,
+        "tracking_max_m": 0.0575,
+    }
     target = {"odometry_rmse_m": 0.01, "odometry_max_m": 0.03, "tracking_rmse_m": 0.02, "tracking_max_m": 0.04}
     for key, ref in paper.items():
         v = np.array([m[key] for m in results if m.get(key) is not None], dtype=float)
@@ -125,8 +144,10 @@ def main() -> int:
             print(f"| {key} | - | {np.median(v):.4f} | {worst:.4f} | - |")
     rtf = np.array([m["real_time_factor"] for m in results if m.get("real_time_factor")], dtype=float)
     if rtf.size:
-        print(f"\nreal-time factor (wall): median {np.median(rtf):.2f}x, min {rtf.min():.2f}x, max {rtf.max():.2f}x "
-              f"(target >= 3x; load {os.getloadavg()[0]:.1f} at the end)")
+        print(
+            f"\nreal-time factor (wall): median {np.median(rtf):.2f}x, min {rtf.min():.2f}x, max {rtf.max():.2f}x "
+            f"(target >= 3x; load {os.getloadavg()[0]:.1f} at the end)"
+        )
     cpu = np.array([m["cpu_real_time_factor"] for m in results if m.get("cpu_real_time_factor")], dtype=float)
     if cpu.size:
         print(f"simulated seconds per process CPU second: median {np.median(cpu):.2f}x, min {cpu.min():.2f}x")
@@ -136,7 +157,9 @@ def main() -> int:
             split[k] = split.get(k, 0.0) + v
     total = sum(split.values())
     if total:
-        print("time per part (wall, all layouts): " + ", ".join(f"{k} {100 * v / total:.1f} %" for k, v in split.items()))
+        print(
+            "time per part (wall, all layouts): " + ", ".join(f"{k} {100 * v / total:.1f} %" for k, v in split.items())
+        )
     return 0
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from cufund.geometry import (
     attitude_from_thrust_and_yaw,
     quat_conjugate,
@@ -121,7 +122,7 @@ def attitude_reference(q, qd, yaw_rate, k, rate_max, yaw_weight, alternatives=Fa
     if qe[0] < 0:
         qe = -qe
     out = []
-    for e in ([qe, -qe] if alternatives and abs(qe[0]) < 1e-12 else [qe]):
+    for e in [qe, -qe] if alternatives and abs(qe[0]) < 1e-12 else [qe]:
         w_sp = 2.0 * e[1:] * k
         if yaw_rate:
             w_sp += R[2, :] * yaw_rate

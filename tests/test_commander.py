@@ -5,19 +5,28 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as hs
+
 from cufund.core.config import ConfigError
 from cufund.core.messages import Topics
 from cufund.missions import CommandAck, Commander, parse_command
 from cufund.scenarios import ScenarioConfig
 from cufund.scenarios.build import build_simulation, run_scenario
-from hypothesis import given, settings
-from hypothesis import strategies as hs
 
 
 def _flight(**planner):
     """A truth-flown cu_astro on the ground at the origin with the commander as planner (no world: fast)."""
-    cfg = ScenarioConfig.from_dict({"name": "cmd", "vehicle": "cu_astro", "planner": {"kind": "commander", **planner},
-                                    "controller": "pid", "start_p_W": [0.0, 0.0, 0.0], "duration": 120.0})
+    cfg = ScenarioConfig.from_dict(
+        {
+            "name": "cmd",
+            "vehicle": "cu_astro",
+            "planner": {"kind": "commander", **planner},
+            "controller": "pid",
+            "start_p_W": [0.0, 0.0, 0.0],
+            "duration": 120.0,
+        }
+    )
     built = build_simulation(cfg)
     sim = built.simulator
     sim.reset()
@@ -41,27 +50,38 @@ def _airborne(sim, cmd, alt=1.5):
 
 
 # -- parsing --------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("bad, field", [
-    ({"command": "fly"}, "command"), ({}, "command"), (3, "dict"),
-    ({"command": "takeoff", "altitude": -1}, "altitude"), ({"command": "takeoff", "altitude": "high"}, "altitude"),
-    ({"command": "goto"}, "p_W"), ({"command": "goto", "p_W": [1, 2]}, "p_W"),
-    ({"command": "goto", "p_W": [1, 2, float("nan")]}, "p_W"),
-    ({"command": "goto", "p_W": [0, 0, 1], "yaw": "n"}, "yaw"),
-    ({"command": "mission_upload", "items": [[0, 0, 1], [1, 1]]}, "items[1]"),
-    ({"command": "mission_upload", "items": "abc"}, "items"),
-    ({"command": "flight_mode", "mode": "acro"}, "mode"), ({"command": "controller", "kind": "mpc"}, "kind"),
-    ({"command": "offboard_attitude", "q_WB": [0, 0, 0, 0]}, "q_WB"),
-    ({"command": "offboard_velocity"}, "v_W"), ({"command": "arm", "altitude": 3}, "altitude"),
-    ({"command": "disarm", "force": "yes"}, "force"), ({"command": "set_param", "value": 1}, "name"),
-])
+@pytest.mark.parametrize(
+    "bad, field",
+    [
+        ({"command": "fly"}, "command"),
+        ({}, "command"),
+        (3, "dict"),
+        ({"command": "takeoff", "altitude": -1}, "altitude"),
+        ({"command": "takeoff", "altitude": "high"}, "altitude"),
+        ({"command": "goto"}, "p_W"),
+        ({"command": "goto", "p_W": [1, 2]}, "p_W"),
+        ({"command": "goto", "p_W": [1, 2, float("nan")]}, "p_W"),
+        ({"command": "goto", "p_W": [0, 0, 1], "yaw": "n"}, "yaw"),
+        ({"command": "mission_upload", "items": [[0, 0, 1], [1, 1]]}, "items[1]"),
+        ({"command": "mission_upload", "items": "abc"}, "items"),
+        ({"command": "flight_mode", "mode": "acro"}, "mode"),
+        ({"command": "controller", "kind": "mpc"}, "kind"),
+        ({"command": "offboard_attitude", "q_WB": [0, 0, 0, 0]}, "q_WB"),
+        ({"command": "offboard_velocity"}, "v_W"),
+        ({"command": "arm", "altitude": 3}, "altitude"),
+        ({"command": "disarm", "force": "yes"}, "force"),
+        ({"command": "set_param", "value": 1}, "name"),
+    ],
+)
 def test_bad_commands_name_the_field(bad, field):
     with pytest.raises(ValueError, match=field.replace("[", r"\[").replace("]", r"\]")):
         parse_command(bad)
 
 
 def test_commands_parse_into_typed_fields():
-    c = parse_command({"command": "mission_upload", "items": [[0, 0, 1], {"p_W": [1, 0, 1], "yaw": 0.5, "hold_s": 2},
-                                                              [2, 0, 1, 1.0]]})
+    c = parse_command(
+        {"command": "mission_upload", "items": [[0, 0, 1], {"p_W": [1, 0, 1], "yaw": 0.5, "hold_s": 2}, [2, 0, 1, 1.0]]}
+    )
     assert [it.p_W for it in c.items] == [(0, 0, 1), (1, 0, 1), (2, 0, 1)]
     assert c.items[1].yaw == 0.5 and c.items[1].hold_s == 2.0 and c.items[2].yaw == 1.0
     q = parse_command({"command": "offboard_attitude", "q_WB": [2, 0, 0, 0], "thrust": 3}).q_WB
@@ -145,7 +165,7 @@ def test_rtl_climbs_returns_and_lands_at_home():
 def test_offboard_stale_setpoints_hold():
     sim, cmd = _flight()
     _airborne(sim, cmd, 1.5)
-    for k in range(50):  # 1 s of setpoints at 50 Hz towards x = 1
+    for _k in range(50):  # 1 s of setpoints at 50 Hz towards x = 1
         cmd.apply({"command": "offboard_position", "p_W": [1.0, 0.0, 1.5]}, sim.t)
         sim.advance_to(sim.t + 0.02)
     assert cmd.mode == "offboard"
@@ -161,7 +181,7 @@ def test_offboard_stale_setpoints_hold():
 def test_offboard_velocity_flies_the_velocity():
     sim, cmd = _flight()
     _airborne(sim, cmd, 1.5)
-    for k in range(150):
+    for _k in range(150):
         cmd.apply({"command": "offboard_velocity", "v_W": [0.5, 0.0, 0.0]}, sim.t)
         sim.advance_to(sim.t + 0.02)
     v = np.array(sim.vehicle.state.v)
@@ -222,11 +242,22 @@ def test_params_by_px4_name():
 
 
 def test_scripted_scenario_runs_to_the_end():
-    cfg = ScenarioConfig.from_dict({
-        "name": "scripted", "planner": {"kind": "commander", "script": [
-            [0.2, {"command": "arm"}], [0.5, {"command": "takeoff", "altitude": 1.0}],
-            [4.0, {"command": "goto", "p_W": [1.0, 0.0, 1.0]}], [7.0, {"command": "land"}]]},
-        "start_p_W": [0.0, 0.0, 0.0], "duration": 30.0})
+    cfg = ScenarioConfig.from_dict(
+        {
+            "name": "scripted",
+            "planner": {
+                "kind": "commander",
+                "script": [
+                    [0.2, {"command": "arm"}],
+                    [0.5, {"command": "takeoff", "altitude": 1.0}],
+                    [4.0, {"command": "goto", "p_W": [1.0, 0.0, 1.0]}],
+                    [7.0, {"command": "land"}],
+                ],
+            },
+            "start_p_W": [0.0, 0.0, 0.0],
+            "duration": 30.0,
+        }
+    )
     run = run_scenario(cfg)
     assert run.result.status.value == "completed" and run.result.sim_time_s < 20.0
     p_end = run.result.states["p_W"][-1]
@@ -266,7 +297,7 @@ def test_offboard_attitude_thrust_above_weight_climbs():
     _airborne(sim, cmd, 1.0)
     weight = sim.vehicle.params.mass * sim.vehicle.params.gravity
     z0 = _p(sim)[2]
-    for k in range(50):  # 1 s level at 1.2 x weight: a = 0.2 g up (less the drag and the thrust lag)
+    for _k in range(50):  # 1 s level at 1.2 x weight: a = 0.2 g up (less the drag and the thrust lag)
         cmd.apply({"command": "offboard_attitude", "q_WB": [1, 0, 0, 0], "thrust": 1.2 * weight}, sim.t)
         sim.advance_to(sim.t + 0.02)
     assert cmd.flight_mode.value == "attitude"
@@ -275,8 +306,11 @@ def test_offboard_attitude_thrust_above_weight_climbs():
 
 
 def test_same_script_same_flight_bit_for_bit():
-    script = [[0.2, {"command": "arm"}], [0.4, {"command": "takeoff", "altitude": 0.8}],
-              [2.0, {"command": "goto", "p_W": [0.5, 0.5, 1.0]}]]
+    script = [
+        [0.2, {"command": "arm"}],
+        [0.4, {"command": "takeoff", "altitude": 0.8}],
+        [2.0, {"command": "goto", "p_W": [0.5, 0.5, 1.0]}],
+    ]
     runs = []
     for _ in range(2):
         sim, _ = _flight(script=script)
@@ -299,14 +333,34 @@ def test_goto_with_yaw_turns_smoothly():
     assert np.max(np.abs(st["w_B"][m, 2])) > 0.6
 
 
-
-_json = hs.recursive(hs.none() | hs.booleans() | hs.integers() | hs.floats() | hs.text(max_size=8),
-                     lambda inner: hs.lists(inner, max_size=5) | hs.dictionaries(hs.text(max_size=8), inner,
-                                                                                max_size=5), max_leaves=20)
-_names = hs.sampled_from(["arm", "disarm", "takeoff", "goto", "mission_upload", "flight_mode", "controller",
-                          "offboard_position", "offboard_velocity", "offboard_attitude", "set_param", "x"])
-_fields = hs.dictionaries(hs.sampled_from(["altitude", "p_W", "v_W", "yaw", "items", "mode", "kind", "q_WB", "thrust",
-                                           "name", "value", "force", "other"]), _json, max_size=4)
+_json = hs.recursive(
+    hs.none() | hs.booleans() | hs.integers() | hs.floats() | hs.text(max_size=8),
+    lambda inner: hs.lists(inner, max_size=5) | hs.dictionaries(hs.text(max_size=8), inner, max_size=5),
+    max_leaves=20,
+)
+_names = hs.sampled_from(
+    [
+        "arm",
+        "disarm",
+        "takeoff",
+        "goto",
+        "mission_upload",
+        "flight_mode",
+        "controller",
+        "offboard_position",
+        "offboard_velocity",
+        "offboard_attitude",
+        "set_param",
+        "x",
+    ]
+)
+_fields = hs.dictionaries(
+    hs.sampled_from(
+        ["altitude", "p_W", "v_W", "yaw", "items", "mode", "kind", "q_WB", "thrust", "name", "value", "force", "other"]
+    ),
+    _json,
+    max_size=4,
+)
 
 
 @settings(max_examples=200, deadline=None)

@@ -7,10 +7,9 @@ import pytest
 
 import cufund
 from cufund import FlightMode, RunStatus, Simulator, Topics
-from cufund.control import (AttitudeController, ControlAllocator, GeometricController, PositionController,
-                            RateController)
-from cufund.geometry import quat_from_matrix, quat_to_matrix
+from cufund.control import AttitudeController, ControlAllocator, GeometricController, PositionController, RateController
 from cufund.core.messages import AttitudeSetpoint, FlightModeCommand, TrajectorySetpoint
+from cufund.geometry import quat_from_matrix, quat_to_matrix
 from cufund.scenarios import load_scenario
 
 PARAMS = cufund.vehicle.presets.cu_astro()
@@ -40,7 +39,9 @@ class Script(cufund.Component):
 
 
 def traj_sp(p=Z3, v=Z3, a=Z3, yaw=0.0):
-    return lambda t: TrajectorySetpoint(t, np.asarray(p, float), np.asarray(v, float), np.asarray(a, float), Z3, yaw, 0.0)
+    return lambda t: TrajectorySetpoint(
+        t, np.asarray(p, float), np.asarray(v, float), np.asarray(a, float), Z3, yaw, 0.0
+    )
 
 
 def att_sp(roll=0.0, pitch=0.0, thrust=float("nan")):
@@ -96,8 +97,13 @@ def test_position_step(kind):
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_velocity_step(kind):
-    r = make_sim(kind, [(0.0, Topics.FLIGHT_MODE, mode(FlightMode.VELOCITY)),
-                        (0.0, Topics.TRAJECTORY_SETPOINT, traj_sp(v=[1.0, -0.5, 0.2]))]).run(5.0)
+    r = make_sim(
+        kind,
+        [
+            (0.0, Topics.FLIGHT_MODE, mode(FlightMode.VELOCITY)),
+            (0.0, Topics.TRAJECTORY_SETPOINT, traj_sp(v=[1.0, -0.5, 0.2])),
+        ],
+    ).run(5.0)
     v, t = r.states["v_W"], r.states["t"]
     late = t >= 4.0
     np.testing.assert_allclose(v[late], np.tile([1.0, -0.5, 0.2], (np.count_nonzero(late), 1)), atol=0.03)
@@ -107,8 +113,13 @@ def test_velocity_step(kind):
 def test_attitude_step(kind):
     roll = math.radians(15)
     thrust = PARAMS.mass * PARAMS.gravity / math.cos(roll)
-    r = make_sim(kind, [(0.0, Topics.FLIGHT_MODE, mode(FlightMode.ATTITUDE)),
-                        (0.0, Topics.MANUAL_ATTITUDE_SETPOINT, att_sp(roll=roll, thrust=thrust))]).run(1.5)
+    r = make_sim(
+        kind,
+        [
+            (0.0, Topics.FLIGHT_MODE, mode(FlightMode.ATTITUDE)),
+            (0.0, Topics.MANUAL_ATTITUDE_SETPOINT, att_sp(roll=roll, thrust=thrust)),
+        ],
+    ).run(1.5)
     t, q = r.states["t"], r.states["q_WB"]
     assert np.abs(tilt_deg(q[t >= 0.8]) - 15).max() < 1.0
     # thrust tilted to +roll (body y to world z) accelerates towards -y, holding height
@@ -128,10 +139,12 @@ def _jumps(r, t_switch, window=0.1):
 def test_mode_switches_without_jump(kind):
     """Flying at 1 m/s in velocity mode, then attitude mode (holding the last attitude), then position mode
     (holding where it is): the commanded attitude and thrust stay continuous and the vehicle does not lurch."""
-    events = [(0.0, Topics.FLIGHT_MODE, mode(FlightMode.VELOCITY)),
-              (0.0, Topics.TRAJECTORY_SETPOINT, traj_sp(v=[1.0, 0, 0]), 2.0),
-              (2.0, Topics.FLIGHT_MODE, mode(FlightMode.ATTITUDE)),
-              (2.5, Topics.FLIGHT_MODE, mode(FlightMode.POSITION))]
+    events = [
+        (0.0, Topics.FLIGHT_MODE, mode(FlightMode.VELOCITY)),
+        (0.0, Topics.TRAJECTORY_SETPOINT, traj_sp(v=[1.0, 0, 0]), 2.0),
+        (2.0, Topics.FLIGHT_MODE, mode(FlightMode.ATTITUDE)),
+        (2.5, Topics.FLIGHT_MODE, mode(FlightMode.POSITION)),
+    ]
     r = make_sim(kind, events).run(4.5)
     assert r.status is RunStatus.COMPLETED
     for ts in (2.0, 2.5):
@@ -153,12 +166,12 @@ def test_allocator_keeps_roll_pitch_under_saturation():
     A = PARAMS.allocation_matrix()
     # roll torque plus a yaw torque far beyond what fits: roll is delivered exactly, yaw reduced
     w = alloc.rotor_speeds(hover, np.array([0.3, 0.0, 0.5]))
-    achieved = A @ (PARAMS.k_f * w ** 2)
+    achieved = A @ (PARAMS.k_f * w**2)
     assert achieved[1] == pytest.approx(0.3, rel=1e-9)
     assert 0 < achieved[3] < 0.5 and alloc.last_saturation.torque == (0, 0, 1)
     # at full collective thrust, roll still comes through by lowering the collective
     w = alloc.rotor_speeds(alloc.max_thrust, np.array([0.2, -0.1, 0.0]))
-    achieved = A @ (PARAMS.k_f * w ** 2)
+    achieved = A @ (PARAMS.k_f * w**2)
     np.testing.assert_allclose(achieved[1:3], [0.2, -0.1], rtol=1e-9)
     assert achieved[0] < alloc.max_thrust and alloc.last_saturation.thrust == 1
     assert np.all(w <= PARAMS.rotor_speed_max + 1e-9) and np.all(w >= 0)
@@ -210,9 +223,11 @@ def test_switch_out_of_a_tilted_attitude_is_smooth(kind):
     velocity loop wants instead of snapping back level."""
     roll = math.radians(10)
     thrust = PARAMS.mass * PARAMS.gravity / math.cos(roll)
-    events = [(0.0, Topics.FLIGHT_MODE, mode(FlightMode.ATTITUDE)),
-              (0.0, Topics.MANUAL_ATTITUDE_SETPOINT, att_sp(roll=roll, thrust=thrust), 1.0),
-              (1.0, Topics.FLIGHT_MODE, mode(FlightMode.VELOCITY))]
+    events = [
+        (0.0, Topics.FLIGHT_MODE, mode(FlightMode.ATTITUDE)),
+        (0.0, Topics.MANUAL_ATTITUDE_SETPOINT, att_sp(roll=roll, thrust=thrust), 1.0),
+        (1.0, Topics.FLIGHT_MODE, mode(FlightMode.VELOCITY)),
+    ]
     r = make_sim(kind, events).run(2.5)
     dang, dthrust = _jumps(r, 1.0)
     assert dang < 1.0 and dthrust < 0.3, (dang, dthrust)

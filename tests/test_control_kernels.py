@@ -15,13 +15,11 @@ import numpy as np
 import pytest
 
 import cufund
+from control_reference import RATE_I_SCALE, GeometricReference, PositionReference, RateReference, attitude_reference
 from cufund import _core
 from cufund.control import AttitudeControlParams, PositionControlParams
 from cufund.control.rate_control import _RATE_I_SCALE
 from cufund.scenarios import load_scenario
-
-from control_reference import (RATE_I_SCALE, GeometricReference, PositionReference, RateReference,
-                               attitude_reference)
 
 PARAMS = cufund.vehicle.presets.cu_astro()
 
@@ -48,6 +46,8 @@ def same(x, y) -> bool:
     """Bit for bit where the reference's dot products are reproducible (EXACT), else to 1e-9 relative."""
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     return np.array_equal(x, y) if EXACT else bool(np.allclose(x, y, rtol=1e-9, atol=1e-12))
+
+
 SQUARE = load_scenario("square").controller.params
 
 
@@ -60,20 +60,32 @@ def vec(rng, scale):
     return rng.normal(size=3) * scale
 
 
-POSITION_GAINS = [SQUARE.position, PositionControlParams(),
-                  PositionControlParams(xy_vel_max=0.5, z_vel_d=0.4, vel_d_cutoff_hz=0.0, thr_max=0.6, thr_min=0.3,
-                                        tilt_max=0.3)]
+POSITION_GAINS = [
+    SQUARE.position,
+    PositionControlParams(),
+    PositionControlParams(xy_vel_max=0.5, z_vel_d=0.4, vel_d_cutoff_hz=0.0, thr_max=0.6, thr_min=0.3, tilt_max=0.3),
+]
 
 
 @pytest.mark.parametrize("gains", POSITION_GAINS)
 def test_position_kernel_matches_reference(gains):
     rng = np.random.default_rng(7)
     mass, grav = PARAMS.mass, PARAMS.gravity
-    max_thrust = 4.0 * PARAMS.k_f * PARAMS.rotor_speed_max ** 2
+    max_thrust = 4.0 * PARAMS.k_f * PARAMS.rotor_speed_max**2
     ref = PositionReference(gains, mass, grav, max_thrust)
     core = _core.control.PositionControl(mass, grav, max_thrust, gains.vel_d_cutoff_hz, 0.2)
-    core.set_gains(ref.kp, ref.kv, ref.ki, ref.kd, gains.xy_vel_max, gains.z_vel_max_up, gains.z_vel_max_dn,
-                   gains.tilt_max, gains.thr_min, gains.thr_max)
+    core.set_gains(
+        ref.kp,
+        ref.kv,
+        ref.ki,
+        ref.kd,
+        gains.xy_vel_max,
+        gains.z_vel_max_up,
+        gains.z_vel_max_dn,
+        gains.tilt_max,
+        gains.thr_min,
+        gains.thr_max,
+    )
     t, dt = 0.0, 1.0 / 250.0
     saturated = {"tilt": 0, "max": 0, "min": 0}
     for k in range(3000):
@@ -156,7 +168,7 @@ def test_rate_kernel_matches_reference(J):
             assert same(core.rate_int, ref.rate_int), i
         else:
             # compared as rotor thrusts (speed^2): a rotor at the bottom of its range is sqrt of a rounding error
-            np.testing.assert_allclose(speeds ** 2, speeds_ref ** 2, rtol=1e-12, atol=1e-12 * PARAMS.rotor_speed_max ** 2)
+            np.testing.assert_allclose(speeds**2, speeds_ref**2, rtol=1e-12, atol=1e-12 * PARAMS.rotor_speed_max**2)
             np.testing.assert_allclose(achieved, achieved_ref, rtol=1e-12, atol=1e-15)
             np.testing.assert_allclose(core.rate_int, ref.rate_int, rtol=1e-12, atol=1e-15)
         assert not speeds.flags.writeable and not torque.flags.writeable

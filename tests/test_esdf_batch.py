@@ -60,7 +60,7 @@ def test_insert_scans_equals_one_insert_scan_per_scan(rng):
     singles = [one.insert_scan(p, o) for p, o in scans]
     s = batch.insert_scans(scans)
     np.testing.assert_array_equal(batch.log_odds(), one.log_odds())
-    for a, b in zip(batch.squared_distances(), one.squared_distances()):
+    for a, b in zip(batch.squared_distances(), one.squared_distances(), strict=True):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_allclose(batch.distances(), scipy_signed(batch), rtol=1e-12)
     for name in ("points", "nan_points", "outside", "beyond_range", "beams", "hit_voxels", "free_voxels"):
@@ -117,7 +117,9 @@ def random_knots(rng, t0, t1, n):
 
 def test_insert_frames_places_points_as_interpolate_poses_does(rng):
     """LiDAR frames placed in C++ with per-point pose interpolation == numpy placement + insert_scans."""
-    T_BL = Transform((0.05, -0.02, 0.08), tuple(quat_mul(np.array([0.99, 0.0, 0.1, 0.0]), np.array([1.0, 0.0, 0.0, 0.1]))))
+    T_BL = Transform(
+        (0.05, -0.02, 0.08), tuple(quat_mul(np.array([0.99, 0.0, 0.1, 0.0]), np.array([1.0, 0.0, 0.0, 0.1])))
+    )
     knots = random_knots(rng, -0.05, 0.35, 40)
     frames, scans = [], []
     for k in range(3):
@@ -150,23 +152,68 @@ def test_insert_frames_places_points_as_interpolate_poses_does(rng):
 @pytest.mark.parametrize(
     ("call", "error", "message"),
     [
-        (lambda m: m.insert_scans([(np.zeros((4, 3)),)]), ValueError, r"scans\[0\] must be a tuple \(points_W, origin_W\)"),
+        (
+            lambda m: m.insert_scans([(np.zeros((4, 3)),)]),
+            ValueError,
+            r"scans\[0\] must be a tuple \(points_W, origin_W\)",
+        ),
         (lambda m: m.insert_scans([(np.zeros((4, 2)), [0, 0, 0])]), ValueError, r"points_W must have shape \(N, 3\)"),
         (lambda m: m.insert_scans([(np.zeros((4, 3)), [0, np.inf, 0])]), ValueError, "origin_W must be finite"),
-        (lambda m: m.insert_frames([(np.zeros((4, 3)), np.zeros(4), 0.0)], (np.array([1.0, 0.5]), np.zeros((2, 3)),
-                                   np.tile([1.0, 0, 0, 0], (2, 1))), Transform()), ValueError, "strictly ascending"),
-        (lambda m: m.insert_frames([(np.zeros((4, 3)), np.zeros(4), 0.0)], (np.array([0.0]), np.zeros((1, 3)),
-                                   np.zeros((1, 4))), Transform()), ValueError, "non-zero quaternion"),
-        (lambda m: m.insert_frames([(np.zeros((4, 3)), np.zeros(3), 0.0)], (np.array([0.0]), np.zeros((1, 3)),
-                                   np.array([[1.0, 0, 0, 0]])), Transform()), ValueError, r"t must have shape \(4,\)"),
-        (lambda m: m.insert_frames([(np.zeros((4, 3)), np.zeros(4), np.nan)], (np.array([0.0]), np.zeros((1, 3)),
-                                   np.array([[1.0, 0, 0, 0]])), Transform()), ValueError, "t_origin must be finite"),
-        (lambda m: m.insert_frames([(np.zeros((4, 3)), np.zeros(4))], (np.array([0.0]), np.zeros((1, 3)),
-                                   np.array([[1.0, 0, 0, 0]])), Transform()), ValueError, r"frames\[0\] must be a tuple"),
-        (lambda m: m.insert_frames([], (np.array([0.0]), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]])), "T"),
-         TypeError, "T_BL must be a cufund.geometry.Transform"),
-        (lambda m: m.insert_frames([], (np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4))), Transform()), ValueError,
-         "knots_t must be a non-empty"),
+        (
+            lambda m: m.insert_frames(
+                [(np.zeros((4, 3)), np.zeros(4), 0.0)],
+                (np.array([1.0, 0.5]), np.zeros((2, 3)), np.tile([1.0, 0, 0, 0], (2, 1))),
+                Transform(),
+            ),
+            ValueError,
+            "strictly ascending",
+        ),
+        (
+            lambda m: m.insert_frames(
+                [(np.zeros((4, 3)), np.zeros(4), 0.0)],
+                (np.array([0.0]), np.zeros((1, 3)), np.zeros((1, 4))),
+                Transform(),
+            ),
+            ValueError,
+            "non-zero quaternion",
+        ),
+        (
+            lambda m: m.insert_frames(
+                [(np.zeros((4, 3)), np.zeros(3), 0.0)],
+                (np.array([0.0]), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]])),
+                Transform(),
+            ),
+            ValueError,
+            r"t must have shape \(4,\)",
+        ),
+        (
+            lambda m: m.insert_frames(
+                [(np.zeros((4, 3)), np.zeros(4), np.nan)],
+                (np.array([0.0]), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]])),
+                Transform(),
+            ),
+            ValueError,
+            "t_origin must be finite",
+        ),
+        (
+            lambda m: m.insert_frames(
+                [(np.zeros((4, 3)), np.zeros(4))],
+                (np.array([0.0]), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]])),
+                Transform(),
+            ),
+            ValueError,
+            r"frames\[0\] must be a tuple",
+        ),
+        (
+            lambda m: m.insert_frames([], (np.array([0.0]), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]])), "T"),
+            TypeError,
+            "T_BL must be a cufund.geometry.Transform",
+        ),
+        (
+            lambda m: m.insert_frames([], (np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4))), Transform()),
+            ValueError,
+            "knots_t must be a non-empty",
+        ),
     ],
 )
 def test_batched_inserts_reject_bad_input_clearly(call, error, message):
@@ -208,20 +255,38 @@ def test_the_mapper_stepped_slowly_batches_frames_into_the_same_map(rng):
     for k in range(241):  # 200 Hz, moving and turning
         t = 0.005 * k
         yaw = 0.3 * t
-        poses.append((t, Odometry(t=t, p_W=np.array([0.3 * t, 0.1 * np.sin(t), 0.6]), v_W=np.zeros(3),
-                                  q_WB=np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]), w_B=np.zeros(3))))
+        poses.append(
+            (
+                t,
+                Odometry(
+                    t=t,
+                    p_W=np.array([0.3 * t, 0.1 * np.sin(t), 0.6]),
+                    v_W=np.zeros(3),
+                    q_WB=np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]),
+                    w_B=np.zeros(3),
+                ),
+            )
+        )
     clouds = []
     for f in range(11):  # 20 Hz frames of 0.05 s, published at their end
         n = 1500
         dt = np.sort(rng.uniform(0.0, 0.05, n))
         points_L = (rng.normal(size=(n, 3)) * [1.2, 1.0, 0.4]).astype(np.float32)
-        cloud = PointCloud(t=0.05 * f, dt=dt, points_L=points_L, ranges=np.linalg.norm(points_L, axis=1),
-                           intensity=np.zeros(n), channel=np.zeros(n, dtype=np.int32), frame=f)
+        cloud = PointCloud(
+            t=0.05 * f,
+            dt=dt,
+            points_L=points_L,
+            ranges=np.linalg.norm(points_L, axis=1),
+            intensity=np.zeros(n),
+            channel=np.zeros(n, dtype=np.int32),
+            frame=f,
+        )
         clouds.append((0.05 * f + 0.05, cloud))
     mappers = []
     for rate in (20.0, 2.0):
-        params = esdf.EsdfMapParams(resolution=0.05, size=(4.0, 4.0, 2.0), origin_W=(-2.0, -2.0, -0.5), max_range=2.0,
-                                    merge_beams=True)
+        params = esdf.EsdfMapParams(
+            resolution=0.05, size=(4.0, 4.0, 2.0), origin_W=(-2.0, -2.0, -0.5), max_range=2.0, merge_beams=True
+        )
         mapper = esdf.EsdfMapper(params, T_BL=T_BL, rate_hz=rate, cloud_topic="/clouds")
         bus = _replay_bus(mapper, poses, clouds)
         for k in range(int(1.2 * rate) + 1):

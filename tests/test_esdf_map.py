@@ -28,7 +28,10 @@ def ray_box_hits(origin, directions, lo, hi):
     return p
 
 
-def mid360_directions(n_az=360, elevations_deg=np.linspace(-7.0, 52.0, 40)):
+MID360_ELEVATIONS_DEG = np.linspace(-7.0, 52.0, 40)
+
+
+def mid360_directions(n_az=360, elevations_deg=MID360_ELEVATIONS_DEG):
     az = np.linspace(0, 2 * np.pi, n_az, endpoint=False)
     a, e = np.meshgrid(az, np.radians(elevations_deg), indexing="ij")
     return np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)], axis=-1).reshape(-1, 3)
@@ -103,7 +106,7 @@ def test_incremental_equals_full_recompute_after_random_scans():
         assert stats.nan_points == 5 and stats.outside + stats.beyond_range > 0
         full = m.copy()
         full.recompute()
-        for a, b in zip(m.squared_distances(), full.squared_distances()):
+        for a, b in zip(m.squared_distances(), full.squared_distances(), strict=True):
             np.testing.assert_array_equal(a, b)
     assert m.occupied().any() and (~m.occupied()).any()
     occ = m.occupied()
@@ -139,7 +142,10 @@ def test_slices_and_occupied_points():
     assert s[5, 6] < 0 and s[10, 2] < 0
     np.testing.assert_allclose(m.voxel_centers("y")[:2], [-1.15, -1.05])
     pts = m.occupied_points()
-    np.testing.assert_allclose(sorted(pts.tolist()), sorted((np.array([[5, 6, 7], [10, 2, 7], [3, 3, 3]]) * 0.1 + [-0.95, -1.15, -0.15]).tolist()))
+    np.testing.assert_allclose(
+        sorted(pts.tolist()),
+        sorted((np.array([[5, 6, 7], [10, 2, 7], [3, 3, 3]]) * 0.1 + [-0.95, -1.15, -0.15]).tolist()),
+    )
     with pytest.raises(ValueError, match='axis must be "x", "y" or "z"'):
         m.slice("w", 0.0)
 
@@ -245,9 +251,8 @@ def test_scanning_a_box_world_with_the_simulated_lidar_recovers_the_box():
 
 def test_esdf_mapper_integrates_the_lidar_topic_in_the_simulator():
     import cufund
-    from cufund.sensors import Lidar, mid360
-    from cufund.sensors import LidarComponent
     from cufund.geometry import Transform
+    from cufund.sensors import Lidar, LidarComponent, mid360
 
     lo, hi = np.array([0.6, -0.4, 0.0]), np.array([1.2, 0.5, 1.2])
     world = cufund.World("box")
@@ -259,8 +264,13 @@ def test_esdf_mapper_integrates_the_lidar_topic_in_the_simulator():
     T_BL = Transform((0.05, 0.0, 0.1))
     sim.add(LidarComponent(Lidar(mid360(), T_BL=T_BL), world, rate_hz=200.0))
     res = 0.05
-    mapper = sim.add(esdf.EsdfMapper(esdf.EsdfMapParams(resolution=res, size=(4.0, 4.0, 2.0), origin_W=(-2.0, -2.0, -0.5)),
-                                     T_BL=T_BL, rate_hz=200.0))
+    mapper = sim.add(
+        esdf.EsdfMapper(
+            esdf.EsdfMapParams(resolution=res, size=(4.0, 4.0, 2.0), origin_W=(-2.0, -2.0, -0.5)),
+            T_BL=T_BL,
+            rate_hz=200.0,
+        )
+    )
     sim.run(0.45)
     assert mapper.frames == 4
     m = mapper.map
@@ -302,7 +312,7 @@ def test_esdf_map_pickles_with_its_occupancy_and_distances(rng):
     assert np.array_equal(c.log_odds(), m.log_odds())
     assert np.array_equal(c.occupied(), m.occupied())
     assert c.distances().tobytes() == m.distances().tobytes()
-    for a, b in zip(c.squared_distances(), m.squared_distances()):
+    for a, b in zip(c.squared_distances(), m.squared_distances(), strict=True):
         assert np.array_equal(a, b)
     # Both continue identically: the same scan on each gives the same statistics and fields.
     scan = origin + rng.uniform(-1.0, 1.5, (300, 3))

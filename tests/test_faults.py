@@ -9,10 +9,10 @@ import pytest
 
 from cufund.core.components import Component
 from cufund.core.config import ConfigError
-from cufund.sensors.faults import ImuBiasStep, LidarDegraded, LidarDropout, parse_faults
 from cufund.core.messages import Topics
 from cufund.scenarios import ScenarioConfig, load_scenario
 from cufund.scenarios.build import build_simulation
+from cufund.sensors.faults import ImuBiasStep, LidarDegraded, LidarDropout, parse_faults
 
 DURATION = 3.0
 DROPOUT = (0.5, 0.8)  # start, duration [s]
@@ -41,9 +41,11 @@ def _run(faults):
     return rec
 
 
-FAULTS = {"lidar_dropout": {"t_start": DROPOUT[0], "duration": DROPOUT[1]},
-          "imu_bias_step": {"t_start": STEP_T, "accel": list(STEP_ACC), "gyro": list(STEP_GYR)},
-          "lidar_degraded": {"t_start": DEGRADE_T, "fraction": FRACTION, "noise_m": NOISE}}
+FAULTS = {
+    "lidar_dropout": {"t_start": DROPOUT[0], "duration": DROPOUT[1]},
+    "imu_bias_step": {"t_start": STEP_T, "accel": list(STEP_ACC), "gyro": list(STEP_GYR)},
+    "lidar_degraded": {"t_start": DEGRADE_T, "fraction": FRACTION, "noise_m": NOISE},
+}
 
 
 @pytest.fixture(scope="module")
@@ -59,8 +61,11 @@ def test_lidar_topic_is_silent_during_a_dropout_and_unchanged_around_it(runs):
     assert np.count_nonzero(in_window) >= 7  # the clean LiDAR did publish in the window
     assert not np.any((t_faulty >= DROPOUT[0]) & (t_faulty < DROPOUT[0] + DROPOUT[1]))
     np.testing.assert_array_equal(t_faulty, t_clean[~in_window])
-    for (_, a), (_, b) in zip([c for c in clean.clouds if c[0] < DEGRADE_T and not
-                               DROPOUT[0] <= c[0] < sum(DROPOUT)], faulty.clouds):
+    for (_, a), (_, b) in zip(
+        [c for c in clean.clouds if c[0] < DEGRADE_T and not DROPOUT[0] <= c[0] < sum(DROPOUT)],
+        faulty.clouds,
+        strict=True,
+    ):
         if b.t + 0.1 > DEGRADE_T:
             break
         np.testing.assert_array_equal(a.points_L, b.points_L)
@@ -111,37 +116,47 @@ def test_faulty_runs_repeat_bit_for_bit(runs):
     _, faulty = runs
     again = _run(FAULTS)
     assert len(again.clouds) == len(faulty.clouds)
-    for (ta, a), (tb, b) in zip(faulty.clouds, again.clouds):
+    for (ta, a), (tb, b) in zip(faulty.clouds, again.clouds, strict=True):
         assert ta == tb
         np.testing.assert_array_equal(a.points_L, b.points_L)
         np.testing.assert_array_equal(a.ranges, b.ranges)
 
 
 def test_faults_parse_from_a_map_or_a_list_and_round_trip():
-    cfg = load_scenario("square_lio", ["faults.lidar_dropout.t_start=12", "faults.imu_bias_step.t_start=20",
-                                       "faults.imu_bias_step.gyro=[0, 0, 0.05]"])
+    cfg = load_scenario(
+        "square_lio",
+        [
+            "faults.lidar_dropout.t_start=12",
+            "faults.imu_bias_step.t_start=20",
+            "faults.imu_bias_step.gyro=[0, 0, 0.05]",
+        ],
+    )
     assert cfg.faults == (LidarDropout(12.0), ImuBiasStep(20.0, gyro=(0.0, 0.0, 0.05)))
     assert ScenarioConfig.from_dict(cfg.to_dict()) == cfg
-    two = cfg.replace(faults=[{"kind": "lidar_dropout", "t_start": 3}, {"kind": "lidar_dropout", "t_start": 9,
-                                                                          "duration": 2.5}])
+    two = cfg.replace(
+        faults=[{"kind": "lidar_dropout", "t_start": 3}, {"kind": "lidar_dropout", "t_start": 9, "duration": 2.5}]
+    )
     assert two.faults == (LidarDropout(3.0), LidarDropout(9.0, 2.5))
     assert ScenarioConfig.from_dict(two.to_dict()) == two
     assert parse_faults({"lidar_degraded": {"t_start": 1}}) == (LidarDegraded(1.0, 0.5, 0.05),)
     assert load_scenario("square_lio").faults == ()
 
 
-@pytest.mark.parametrize("faults, message", [
-    ({"lidar_dropout": {"t_start": 1, "durations": 2}}, "unknown key 'durations' in faults.lidar_dropout"),
-    ({"lidar_dropout": {"duration": 2}}, "missing key 't_start'"),
-    ({"lidar_blackout": {"t_start": 1}}, "unknown fault kind 'lidar_blackout'"),
-    ([{"t_start": 1}], "faults[0] must be a mapping with a 'kind' key"),
-    ({"lidar_degraded": {"t_start": 1, "fraction": 0}}, "fraction must be a share of points in (0, 1]"),
-    ({"lidar_degraded": {"t_start": 1, "noise_m": -0.1}}, "noise_m must be a range noise"),
-    ({"imu_bias_step": {"t_start": 1, "gyro": [0, 0]}}, "faults.imu_bias_step.gyro"),
-    ({"lidar_dropout": {"t_start": float("nan")}}, "t_start must be a number of seconds"),
-    ({"lidar_dropout": {"t_start": 1, "duration": 0}}, "duration must be a number of seconds in (0"),
-    ("lidar_dropout", "faults must be a map"),
-])
+@pytest.mark.parametrize(
+    "faults, message",
+    [
+        ({"lidar_dropout": {"t_start": 1, "durations": 2}}, "unknown key 'durations' in faults.lidar_dropout"),
+        ({"lidar_dropout": {"duration": 2}}, "missing key 't_start'"),
+        ({"lidar_blackout": {"t_start": 1}}, "unknown fault kind 'lidar_blackout'"),
+        ([{"t_start": 1}], "faults[0] must be a mapping with a 'kind' key"),
+        ({"lidar_degraded": {"t_start": 1, "fraction": 0}}, "fraction must be a share of points in (0, 1]"),
+        ({"lidar_degraded": {"t_start": 1, "noise_m": -0.1}}, "noise_m must be a range noise"),
+        ({"imu_bias_step": {"t_start": 1, "gyro": [0, 0]}}, "faults.imu_bias_step.gyro"),
+        ({"lidar_dropout": {"t_start": float("nan")}}, "t_start must be a number of seconds"),
+        ({"lidar_dropout": {"t_start": 1, "duration": 0}}, "duration must be a number of seconds in (0"),
+        ("lidar_dropout", "faults must be a map"),
+    ],
+)
 def test_bad_faults_are_rejected_by_name(faults, message):
     with pytest.raises(ConfigError) as e:
         load_scenario("square_lio").replace(faults=faults)

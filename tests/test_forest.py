@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from cufund import load_scenario
 from cufund.scenarios.build import run_scenario
 
@@ -20,19 +21,28 @@ GOAL = [12.0, 0.0, 1.5]
 
 def _short_forest(seed: int):
     cfg = load_scenario("forest")
-    density = cfg.world.params.n_trees / cfg.world.params.size ** 2
+    density = cfg.world.params.n_trees / cfg.world.params.size**2
     assert density >= 0.15  # the scenario's density, kept below
-    return cfg.with_overrides({"world.seed": seed, "world.size": 24.0, "world.n_trees": int(np.ceil(density * 24 ** 2)),
-                               "planner.goal": GOAL, "mapper.size": [18.0, 12.0, 4.0],
-                               "mapper.origin_W": [-3.0, -6.0, -0.5], "duration": 30.0})
+    return cfg.with_overrides(
+        {
+            "world.seed": seed,
+            "world.size": 24.0,
+            "world.n_trees": int(np.ceil(density * 24**2)),
+            "planner.goal": GOAL,
+            "mapper.size": [18.0, 12.0, 4.0],
+            "mapper.origin_W": [-3.0, -6.0, -0.5],
+            "duration": 30.0,
+        }
+    )
 
 
 def _trunk_distance(world, p):
     scene = open3d.t.geometry.RaycastingScene()
     for obj in world.objects:
         if obj.label == "tree":
-            scene.add_triangles(open3d.core.Tensor(obj.vertices.astype(np.float32)),
-                                open3d.core.Tensor(obj.triangles.astype(np.uint32)))
+            scene.add_triangles(
+                open3d.core.Tensor(obj.vertices.astype(np.float32)), open3d.core.Tensor(obj.triangles.astype(np.uint32))
+            )
     return scene.compute_distance(open3d.core.Tensor(p.astype(np.float32))).numpy()
 
 

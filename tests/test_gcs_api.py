@@ -10,6 +10,7 @@ import urllib.request
 
 import numpy as np
 import pytest
+
 from cufund.apps.gcs import GcsProcess, parse_speed
 from cufund.apps.gcs.mission_preview import preview_mission
 from cufund.apps.gcs.process import wait_for

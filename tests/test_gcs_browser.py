@@ -6,6 +6,7 @@ import shutil
 
 import numpy as np
 import pytest
+
 from cufund.apps.gcs import GcsProcess
 from cufund.apps.gcs.process import wait_for
 

@@ -1,6 +1,8 @@
 """LiDAR scan patterns and the range model: FOV, points per frame, Livox coverage growth, per-point
 timestamps and motion distortion, noise, dropout, intensity, determinism, bad input."""
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
 
@@ -15,7 +17,7 @@ def covered_cells(pattern, frames, cell_deg=1.0):
         r = pattern.frame(k)
         a = np.floor(np.rad2deg(r.azimuth) / cell_deg).astype(int)
         e = np.floor(np.rad2deg(r.elevation) / cell_deg).astype(int)
-        cells |= set(zip(a.tolist(), e.tolist()))
+        cells |= set(zip(a.tolist(), e.tolist(), strict=True))
         counts.append(len(cells))
     return counts
 
@@ -49,7 +51,7 @@ def test_planar_pattern_spans_270_degrees():
 
 def test_mid360_coverage_grows_over_frames_while_a_spinning_lidar_repeats():
     mid = covered_cells(L.mid360(), 10)
-    assert all(b > a for a, b in zip(mid, mid[1:5]))  # strictly growing early on
+    assert all(b > a for a, b in zip(mid, mid[1:5], strict=True))  # strictly growing early on
     full = 360 * 59
     assert mid[0] < 0.5 * full and mid[-1] > 0.95 * full
     vlp = covered_cells(L.vlp16(), 5)
@@ -60,7 +62,7 @@ def test_mid360_coverage_grows_over_frames_while_a_spinning_lidar_repeats():
 
 def test_avia_rosette_coverage_grows():
     c = covered_cells(L.avia(), 6, cell_deg=0.5)
-    assert all(b > a for a, b in zip(c, c[1:]))
+    assert all(b > a for a, b in pairwise(c))
     assert c[-1] > 1.2 * c[0]
 
 
@@ -135,7 +137,8 @@ def test_noise_dropout_and_determinism():
     a, a_truth = L.Lidar(L.os1_64(), params).scan_with_truth(world, static_pose(), 0.0)
     b = L.Lidar(L.os1_64(), params).scan(world, static_pose(), 0.0)
     c = L.Lidar(L.os1_64(), L.LidarParams(range_noise_std=0.05, dropout=0.3, seed=8, range_max=100.0)).scan(
-        world, static_pose(), 0.0)
+        world, static_pose(), 0.0
+    )
     clean = L.Lidar(L.os1_64(), L.LidarParams(range_max=100.0)).scan(world, static_pose(), 0.0)
     np.testing.assert_array_equal(a.ranges, b.ranges)
     np.testing.assert_array_equal(a.points_L, b.points_L)
@@ -211,8 +214,11 @@ def test_lidar_component_publishes_distorted_frames_in_the_simulator():
     quad.state.v[:] = [1.0, 0.0, 0.0]  # coasting towards the wall at x = 10 m
     sim = cufund.Simulator(quad, physics_rate_hz=1000, record_topics=())
     T_BL = Transform((0.05, 0.0, 0.1))
-    comp = sim.add(cufund.sensors.LidarComponent(L.Lidar(L.mid360(), L.LidarParams(range_max=100.0), T_BL),
-                                                 wall_world(), rate_hz=200.0))
+    comp = sim.add(
+        cufund.sensors.LidarComponent(
+            L.Lidar(L.mid360(), L.LidarParams(range_max=100.0), T_BL), wall_world(), rate_hz=200.0
+        )
+    )
     frames = []
 
     class Grab(cufund.Component):
@@ -259,7 +265,7 @@ def test_adding_triangles_while_casting_on_another_thread_is_safe():
         try:
             for _ in range(20):
                 assert np.all(scene.cast_rays(rays)["t_hit"] <= 1.0 + 1e-5)
-        except Exception as e:  # noqa: BLE001 - reported below
+        except Exception as e:
             errors.append(e)
 
     t = threading.Thread(target=cast)
@@ -270,16 +276,24 @@ def test_adding_triangles_while_casting_on_another_thread_is_safe():
     assert not errors and scene.num_triangles == 201
 
 
-@pytest.mark.parametrize(("change", "message"), [
-    ({"t": np.array([np.nan])}, "t must be finite"),
-    ({"knot_q": np.array([[0.0, 0, 0, 0], [1.0, 0, 0, 0]])}, "knot_q must hold unit quaternions"),
-    ({"d_L": np.zeros((1, 3))}, "d_L must hold non-zero directions"),
-])
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"t": np.array([np.nan])}, "t must be finite"),
+        ({"knot_q": np.array([[0.0, 0, 0, 0], [1.0, 0, 0, 0]])}, "knot_q must hold unit quaternions"),
+        ({"d_L": np.zeros((1, 3))}, "d_L must hold non-zero directions"),
+    ],
+)
 def test_scan_rays_rejects_non_finite_and_degenerate_input(change, message):
     from cufund import _core
 
-    args = {"d_L": np.array([[1.0, 0, 0]]), "t": np.array([0.05]), "knot_t": np.array([0.0, 0.1]),
-            "knot_p": np.zeros((2, 3)), "knot_q": np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]])}
+    args = {
+        "d_L": np.array([[1.0, 0, 0]]),
+        "t": np.array([0.05]),
+        "knot_t": np.array([0.0, 0.1]),
+        "knot_p": np.zeros((2, 3)),
+        "knot_q": np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]]),
+    }
     args.update(change)
     with pytest.raises(ValueError, match=message):
         _core.lidar.scan_rays(**args)
@@ -300,10 +314,15 @@ def _numpy_frame(scene, d_L, t, channel, t0, knots, p_k, q_k, rmin, rmax, noise,
     r_meas = r_true[idx] if noise is None else np.maximum(r_true[idx] + noise[idx], 0.0)
     ids = hit["geometry_ids"][idx]
     cos_inc = np.abs(np.sum(hit["normals"][idx] * rays[idx, 3:], axis=1))
-    return {"dt": t[idx], "points_L": (d_L[idx] * r_meas[:, None]).astype(np.float32), "ranges": r_meas,
-            "intensity": np.clip((refl[ids] if refl is not None else 1.0) * cos_inc, 0.0, 1.0),
-            "channel": channel[idx], "points_W": (rays[idx, :3] + rays[idx, 3:] * r_true[idx, None]).astype(np.float32),
-            "object_ids": ids}
+    return {
+        "dt": t[idx],
+        "points_L": (d_L[idx] * r_meas[:, None]).astype(np.float32),
+        "ranges": r_meas,
+        "intensity": np.clip((refl[ids] if refl is not None else 1.0) * cos_inc, 0.0, 1.0),
+        "channel": channel[idx],
+        "points_W": (rays[idx, :3] + rays[idx, 3:] * r_true[idx, None]).astype(np.float32),
+        "object_ids": ids,
+    }
 
 
 @pytest.mark.parametrize("with_model", [False, True])
@@ -345,11 +364,26 @@ def test_scan_frame_checks_its_arguments():
     rays_L = L.mid360().frame(0)
     d_L, n = rays_L.directions(), len(rays_L.t)
     knots, p_k, q_k = np.array([0.0, 0.1]), np.tile([-2.5, 0.0, 1.0], (2, 1)), np.tile([1.0, 0, 0, 0], (2, 1))
-    base = dict(scene=world.raycast_scene, d_L=d_L, t=rays_L.t, channel=rays_L.channel, t0=0.0, knot_t=knots,
-                knot_p=p_k, knot_q=q_k, range_min=0.1, range_max=40.0)
-    for change, message in [({"noise": np.zeros(n - 1)}, "noise"), ({"channel": rays_L.t}, "channel"),
-                            ({"keep_draw": np.full(n, np.nan)}, "keep_draw"), ({"t0": np.inf}, "t0"),
-                            ({"reflectivity": np.ones(1)}, "reflectivity"), ({"knot_q": 2 * q_k}, "knot_q")]:
+    base = dict(
+        scene=world.raycast_scene,
+        d_L=d_L,
+        t=rays_L.t,
+        channel=rays_L.channel,
+        t0=0.0,
+        knot_t=knots,
+        knot_p=p_k,
+        knot_q=q_k,
+        range_min=0.1,
+        range_max=40.0,
+    )
+    for change, message in [
+        ({"noise": np.zeros(n - 1)}, "noise"),
+        ({"channel": rays_L.t}, "channel"),
+        ({"keep_draw": np.full(n, np.nan)}, "keep_draw"),
+        ({"t0": np.inf}, "t0"),
+        ({"reflectivity": np.ones(1)}, "reflectivity"),
+        ({"knot_q": 2 * q_k}, "knot_q"),
+    ]:
         with pytest.raises(ValueError, match=message):
             cufund._core.lidar.scan_frame(**{**base, **change})
 
@@ -364,7 +398,8 @@ def test_mid360_pattern_is_the_documented_formula():
         ch = i % p.lasers
         az = np.mod(2 * np.pi * (p.spin_rate * t_abs + ch / p.lasers), 2 * np.pi)
         el = (p.elevation_max + p.elevation_min) / 2 + (p.elevation_max - p.elevation_min) / 2 * np.sin(
-            2 * np.pi * p.spin_rate * p.sweep_ratio * t_abs + np.pi * ch / p.lasers)
+            2 * np.pi * p.spin_rate * p.sweep_ratio * t_abs + np.pi * ch / p.lasers
+        )
         np.testing.assert_allclose(r.t, i / p.point_rate, rtol=0, atol=1e-15)
         np.testing.assert_allclose(r.azimuth, az, rtol=0, atol=1e-12)
         np.testing.assert_allclose(r.elevation, el, rtol=0, atol=1e-12)
@@ -379,8 +414,7 @@ def test_lidar_component_samples_its_poses_as_the_scalar_pose_function_does():
     from cufund.sensors.lidar_component import LidarComponent
     from cufund.worlds.builtin import imav2025_tunnel
 
-    comp = LidarComponent(L.Lidar(L.mid360(), T_BL=Transform((0.0, 0.0, 0.08), yaw_quaternion(0.2))),
-                          imav2025_tunnel())
+    comp = LidarComponent(L.Lidar(L.mid360(), T_BL=Transform((0.0, 0.0, 0.08), yaw_quaternion(0.2))), imav2025_tunnel())
     rng = np.random.default_rng(5)
     for k in range(12):  # 100 Hz samples of a tumbling body, one sign flipped on purpose
         q = rng.normal(size=4)

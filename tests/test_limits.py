@@ -12,7 +12,7 @@ from cufund.core.config import load_yaml
 
 LAUGHS = "\n".join(
     ['a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]']
-    + [f"{c}: &{c} [{', '.join(['*' + p] * 9)}]" for p, c in zip("abcdefgh", "bcdefghi")]
+    + [f"{c}: &{c} [{', '.join(['*' + p] * 9)}]" for p, c in zip("abcdefgh", "bcdefghi", strict=True)]
 )
 
 
@@ -69,13 +69,16 @@ def test_non_utf8_file_is_a_config_error(tmp_path):
         load_yaml(path)
 
 
-@pytest.mark.parametrize(("changes", "message"), [
-    ({"grid_max_voxel": 10}, "unknown limit 'grid_max_voxel'"),
-    ({"grid_max_voxels": 0}, "grid_max_voxels must be an integer >= 1, got 0"),
-    ({"batch_max_size": 2.5}, "batch_max_size must be an integer >= 1, got 2.5"),
-    ({"yaml_max_depth": True}, "yaml_max_depth must be an integer >= 1, got True"),
-    ({"step_max_substeps": 10**10}, "step_max_substeps must be at most 1e9"),
-])
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"grid_max_voxel": 10}, "unknown limit 'grid_max_voxel'"),
+        ({"grid_max_voxels": 0}, "grid_max_voxels must be an integer >= 1, got 0"),
+        ({"batch_max_size": 2.5}, "batch_max_size must be an integer >= 1, got 2.5"),
+        ({"yaml_max_depth": True}, "yaml_max_depth must be an integer >= 1, got True"),
+        ({"step_max_substeps": 10**10}, "step_max_substeps must be at most 1e9"),
+    ],
+)
 def test_configure_validates_its_arguments(changes, message):
     before = cufund.core.limits.current()
     with pytest.raises(ConfigError, match=message):

@@ -19,8 +19,9 @@ T_BL = Transform(t=(0.05, 0.0, 0.05))
 
 
 def _flight(world, waypoints, yaw, t_end, seed=1, point_rate=60_000):
-    traj = MinimumSnapTrajectory(np.asarray(waypoints, float), yaw=np.asarray(yaw, float), v_max=1.5, a_max=2.0,
-                                 t_start=1.2)
+    traj = MinimumSnapTrajectory(
+        np.asarray(waypoints, float), yaw=np.asarray(yaw, float), v_max=1.5, a_max=2.0, t_start=1.2
+    )
     motion = FlatBodyMotion(traj)
     imu_params = imu_preset("icm42688p")
     lidar = Lidar(Mid360Pattern(point_rate=point_rate), mid360_params(seed=seed), T_BL)
@@ -35,7 +36,9 @@ def _errors(outputs, motion):
     truth = motion.state(t)
     pos = np.linalg.norm(np.array([o.p_W for o in outputs]) - truth["p_W"], axis=1)
     q = np.array([o.q_WB for o in outputs])
-    rot = (Rotation.from_quat(q[:, [1, 2, 3, 0]]).inv() * Rotation.from_quat(truth["q_WB"][:, [1, 2, 3, 0]])).magnitude()
+    rot = (
+        Rotation.from_quat(q[:, [1, 2, 3, 0]]).inv() * Rotation.from_quat(truth["q_WB"][:, [1, 2, 3, 0]])
+    ).magnitude()
     return pos, np.degrees(rot)
 
 
@@ -73,14 +76,15 @@ def test_moving_during_initialisation_is_an_error():
     acc, gyr = imu.measure(st["q_WB"], st["w_B"], st["a_W"], st["alpha_B"])
     core = LioCore(LioParams(p_WB0=(-3, -1.5, 1.5)))
     with pytest.raises(ValueError, match="moved during static initialisation"):
-        for t, f, w in zip(np.arange(0, 1.2, 0.005), acc, gyr):
+        for t, f, w in zip(np.arange(0, 1.2, 0.005), acc, gyr, strict=True):
             core.add_imu(t, f, w)
     # The same samples with the vehicle held still for the first second initialise fine.
     still = LioCore(LioParams(p_WB0=(-3, -1.5, 1.5)))
     rest = motion.state(np.zeros(1))
-    f0, w0 = ImuModel(imu_preset("icm42688p"), seed=0).measure(np.repeat(rest["q_WB"], 240, 0), np.zeros((240, 3)),
-                                                                 np.zeros((240, 3)), np.zeros((240, 3)))
-    for t, f, w in zip(np.arange(0, 1.2, 0.005), f0, w0):
+    f0, w0 = ImuModel(imu_preset("icm42688p"), seed=0).measure(
+        np.repeat(rest["q_WB"], 240, 0), np.zeros((240, 3)), np.zeros((240, 3)), np.zeros((240, 3))
+    )
+    for t, f, w in zip(np.arange(0, 1.2, 0.005), f0, w0, strict=True):
         still.add_imu(t, f, w)
     assert still.initialised
 
@@ -152,8 +156,9 @@ def test_our_odometry_figures_equal_evo_ape_on_the_tum_files(tunnel_flight, tmp_
     write_tum(ref_file, t, truth["p_W"], truth["q_WB"])
     t_back, p_back, q_back = read_tum(est_file)
     ours = odometry_errors(p_back, q_back, *read_tum(ref_file)[1:])
-    ref, est = sync.associate_trajectories(file_interface.read_tum_trajectory_file(ref_file),
-                                           file_interface.read_tum_trajectory_file(est_file))
+    ref, est = sync.associate_trajectories(
+        file_interface.read_tum_trajectory_file(ref_file), file_interface.read_tum_trajectory_file(est_file)
+    )
     ape = metrics.APE(metrics.PoseRelation.translation_part)
     ape.process_data((ref, est))
     stats = ape.get_all_statistics()
@@ -170,8 +175,9 @@ def test_an_ideal_imu_with_zero_noise_densities_still_works():
     traj = MinimumSnapTrajectory(np.array([[-3, -1.5, 1.5], [-2.5, -1.2, 1.5]]), v_max=1.5, a_max=2.0, t_start=1.1)
     motion = FlatBodyMotion(traj)
     ideal = imu_preset("ideal")
-    rec = record_flight(motion, ImuModel(ideal, seed=0), Lidar(Mid360Pattern(point_rate=40_000), mid360_params(), T_BL),
-                        world, 0.0, 2.2)
+    rec = record_flight(
+        motion, ImuModel(ideal, seed=0), Lidar(Mid360Pattern(point_rate=40_000), mid360_params(), T_BL), world, 0.0, 2.2
+    )
     st = motion.state(np.zeros(1))
     core = LioCore(LioParams(imu=ideal, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0])))
     at_scans, _ = replay(core, rec)

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from cufund import Estimator
-from cufund.estimation import FlatBodyMotion, LioCore, LioEstimator, LioParams, record_flight, replay
 from cufund.core.messages import Imu, Topics
+from cufund.estimation import FlatBodyMotion, LioCore, LioEstimator, LioParams, record_flight, replay
+from cufund.geometry import Transform
 from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import Mid360Pattern
-from cufund.geometry import Transform
 from cufund.worlds import load
 
 
@@ -41,19 +41,28 @@ def test_estimator_publishes_at_imu_rate_what_the_core_computes():
     T_BL = Transform(t=(0.05, 0.0, 0.05))
     traj = MinimumSnapTrajectory(np.array([[-3, -1.5, 1.5], [-2.2, -1.3, 1.6]]), v_max=1.5, a_max=2.0, t_start=1.1)
     motion = FlatBodyMotion(traj)
-    rec = record_flight(motion, ImuModel(imu_preset("icm42688p"), seed=2),
-                        Lidar(Mid360Pattern(point_rate=60_000), mid360_params(seed=2), T_BL), load("imav2025_tunnel"),
-                        0.0, 2.2)
+    rec = record_flight(
+        motion,
+        ImuModel(imu_preset("icm42688p"), seed=2),
+        Lidar(Mid360Pattern(point_rate=60_000), mid360_params(seed=2), T_BL),
+        load("imav2025_tunnel"),
+        0.0,
+        2.2,
+    )
     st = motion.state(np.zeros(1))
     params = LioParams(T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]))
     est = LioEstimator(params)
     assert isinstance(est, Estimator) and est.rate_hz == 200.0
-    assert Topics.IMU in est.inputs and Topics.POINT_CLOUD in est.inputs and est.outputs == (Topics.ESTIMATE, Topics.ESTIMATOR_DIAGNOSTICS)
+    assert (
+        Topics.IMU in est.inputs
+        and Topics.POINT_CLOUD in est.inputs
+        and est.outputs == (Topics.ESTIMATE, Topics.ESTIMATOR_DIAGNOSTICS)
+    )
     bus = _Bus()
     est.setup(bus)
     frames = list(rec.frames)
     outputs = []
-    for t, f, w in zip(rec.t_imu, rec.acc_I, rec.gyr_I):
+    for t, f, w in zip(rec.t_imu, rec.acc_I, rec.gyr_I, strict=True):
         while frames and frames[0].t + frames[0].dt.max() <= t:  # a frame is published when it ends
             fr = frames.pop(0)
             bus.queues[Topics.POINT_CLOUD].items.append(SimpleNamespace(t=fr.t, dt=fr.dt, points_L=fr.points_L))
@@ -80,26 +89,44 @@ def test_estimator_publishes_at_imu_rate_what_the_core_computes():
 
 
 def test_run_on_log_reproduces_the_online_figures_and_writes_the_files(tmp_path):
+    from cufund.core.messages import Odometry, PointCloud
     from cufund.estimation import odometry_errors, read_tum, run_on_log
     from cufund.logs import McapLogger
-    from cufund.core.messages import Odometry, PointCloud
 
     T_BL = Transform(t=(0.05, 0.0, 0.05))
     traj = MinimumSnapTrajectory(np.array([[-3, -1.5, 1.5], [-2.4, -1.2, 1.6]]), v_max=1.5, a_max=2.0, t_start=1.1)
     motion = FlatBodyMotion(traj)
-    rec = record_flight(motion, ImuModel(imu_preset("icm42688p"), seed=4),
-                        Lidar(Mid360Pattern(point_rate=60_000), mid360_params(seed=4), T_BL), load("imav2025_tunnel"),
-                        0.0, 2.4)
+    rec = record_flight(
+        motion,
+        ImuModel(imu_preset("icm42688p"), seed=4),
+        Lidar(Mid360Pattern(point_rate=60_000), mid360_params(seed=4), T_BL),
+        load("imav2025_tunnel"),
+        0.0,
+        2.4,
+    )
     truth = motion.state(rec.t_imu)
     events = []
     for k, t in enumerate(rec.t_imu):
-        events.append((t, 0, Topics.TRUTH_ODOMETRY, Odometry(t=t, p_W=truth["p_W"][k], v_W=truth["v_W"][k],
-                                                             q_WB=truth["q_WB"][k], w_B=truth["w_B"][k])))
+        events.append(
+            (
+                t,
+                0,
+                Topics.TRUTH_ODOMETRY,
+                Odometry(t=t, p_W=truth["p_W"][k], v_W=truth["v_W"][k], q_WB=truth["q_WB"][k], w_B=truth["w_B"][k]),
+            )
+        )
         events.append((t, 1, Topics.IMU, Imu(t=t, f_I=rec.acc_I[k], w_I=rec.gyr_I[k])))
     for i, f in enumerate(rec.frames):
         n = len(f.dt)
-        cloud = PointCloud(t=f.t, dt=f.dt, points_L=f.points_L, ranges=np.linalg.norm(f.points_L, axis=1).astype(float),
-                           intensity=np.ones(n), channel=np.zeros(n, dtype=np.int64), frame=i)
+        cloud = PointCloud(
+            t=f.t,
+            dt=f.dt,
+            points_L=f.points_L,
+            ranges=np.linalg.norm(f.points_L, axis=1).astype(float),
+            intensity=np.ones(n),
+            channel=np.zeros(n, dtype=np.int64),
+            frame=i,
+        )
         events.append((f.t + f.dt.max(), 2, Topics.POINT_CLOUD, cloud))
     events.sort(key=lambda e: (e[0], e[1]))
     log = tmp_path / "run.mcap"
@@ -113,8 +140,7 @@ def test_run_on_log_reproduces_the_online_figures_and_writes_the_files(tmp_path)
         assert (tmp_path / "out" / name).stat().st_size > 0
     # The same data straight into the core (pad pose given, truth exact): the same figures.
     st = motion.state(np.zeros(1))
-    at_scans, at_imu = replay(LioCore(LioParams(T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]))),
-                              rec)
+    at_scans, at_imu = replay(LioCore(LioParams(T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]))), rec)
     t, p, q = read_tum(tmp_path / "out" / "estimate.tum")
     ref = motion.state(t)
     direct = odometry_errors(p, q, ref["p_W"], ref["q_WB"])

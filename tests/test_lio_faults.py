@@ -6,15 +6,15 @@ import dataclasses
 import numpy as np
 import pytest
 
+from cufund.core.messages import PointCloud
 from cufund.estimation import FlatBodyMotion, LioCore, LioParams, record_flight, replay
 from cufund.estimation.flight_data import LidarFrame
-from cufund.sensors.faults import degrade
-from cufund.core.messages import PointCloud
+from cufund.geometry import Transform
 from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset
+from cufund.sensors.faults import degrade
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import Mid360Pattern
-from cufund.geometry import Transform
 from cufund.worlds import load
 
 T_BL = Transform(t=(0.05, 0.0, 0.05))
@@ -23,8 +23,13 @@ T_FAULT = 2.5
 
 @pytest.fixture(scope="module")
 def flight():
-    traj = MinimumSnapTrajectory(np.array([[-3, -1.5, 1.5], [-2.0, -1.0, 1.6], [-2.8, -0.6, 1.5]]),
-                                 yaw=np.array([0.0, 0.6, 0.2]), v_max=1.2, a_max=2.0, t_start=1.2)
+    traj = MinimumSnapTrajectory(
+        np.array([[-3, -1.5, 1.5], [-2.0, -1.0, 1.6], [-2.8, -0.6, 1.5]]),
+        yaw=np.array([0.0, 0.6, 0.2]),
+        v_max=1.2,
+        a_max=2.0,
+        t_start=1.2,
+    )
     motion = FlatBodyMotion(traj)
     imu_params = imu_preset("icm42688p")
     lidar = Lidar(Mid360Pattern(point_rate=60_000), mid360_params(seed=3), T_BL)
@@ -89,11 +94,10 @@ def test_lidar_dropout_propagates_on_the_imu_and_relocks(flight, clean):
     assert t_g[long].max() < T_FAULT + 1.15 and gaps.max() > 1.0
     after = [d for d in core.diagnostics if d.t > T_FAULT + 1.0]
     assert not after[0].healthy and "re-locking" in after[0].reason
-    assert all(d.healthy for d in after[params.health_relock_frames:])
+    assert all(d.healthy for d in after[params.health_relock_frames :])
 
 
-@pytest.mark.parametrize("gyro, accel", [((0.0, 0.0, 0.07), (0.0, 0.0, 0.0)),
-                                         ((0.04, -0.03, 0.05), (0.2, -0.15, 0.1))])
+@pytest.mark.parametrize("gyro, accel", [((0.0, 0.0, 0.07), (0.0, 0.0, 0.0)), ((0.04, -0.03, 0.05), (0.2, -0.15, 0.1))])
 def test_imu_bias_step_is_absorbed_by_the_bias_states(flight, clean, gyro, accel):
     rec, params = flight
     after = rec.t_imu >= T_FAULT
@@ -105,8 +109,9 @@ def test_imu_bias_step_is_absorbed_by_the_bias_states(flight, clean, gyro, accel
     assert err.max() < 0.03
     assert err[t > T_FAULT + 1.5].max() < 0.015
     d = [x for x in core.diagnostics if x.t > T_FAULT]
-    assert not all(x.healthy for x in d[:3]) and "IMU prediction and LiDAR registration disagree" in \
-        next(x.reason for x in d if not x.healthy)
+    assert not all(x.healthy for x in d[:3]) and "IMU prediction and LiDAR registration disagree" in next(
+        x.reason for x in d if not x.healthy
+    )
     assert all(x.healthy for x in d if x.t > T_FAULT + 2.0)
     # the gyro bias state followed the step (compared with the same flight without it)
     np.testing.assert_allclose(core.estimate.bias_gyr - clean[0].estimate.bias_gyr, gyro, atol=0.004)

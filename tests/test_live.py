@@ -9,11 +9,18 @@ import threading
 import time
 
 import pytest
-from cufund.core.components import Component
-from cufund.apps.live import LiveRun
 
-FAST = {"name": "live", "vehicle": "cu_astro", "planner": {"kind": "commander"}, "controller": "pid",
-        "start_p_W": [0.0, 0.0, 0.0], "duration": 600.0}
+from cufund.apps.live import LiveRun
+from cufund.core.components import Component
+
+FAST = {
+    "name": "live",
+    "vehicle": "cu_astro",
+    "planner": {"kind": "commander"},
+    "controller": "pid",
+    "start_p_W": [0.0, 0.0, 0.0],
+    "duration": 600.0,
+}
 
 
 def _sim_rate(run: LiveRun, wall_s: float) -> float:

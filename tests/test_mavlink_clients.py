@@ -17,12 +17,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla
 from mavlink_support import SPEED, free_port, vehicle
 
 mavsdk = pytest.importorskip("mavsdk_grpc")
-from mavsdk_grpc.mission import MissionItem, MissionPlan
-from mavsdk_grpc.offboard import PositionNedYaw
+from mavsdk_grpc.mission import MissionItem, MissionPlan  # noqa: E402  (after the importorskip)
+from mavsdk_grpc.offboard import PositionNedYaw  # noqa: E402
 
 HOME = GeoPoint(22.4196, 114.2068, 30.0)
 BIN = Path(sys.executable).parent
@@ -48,8 +49,22 @@ def _kill(p: subprocess.Popen, pumped: bool = False) -> str:
 
 def _item(lat: float, lon: float, rel_alt: float) -> MissionItem:
     nan = math.nan
-    return MissionItem(lat, lon, rel_alt, 1.0, False, nan, nan, MissionItem.CameraAction.NONE, nan, nan, 0.2, nan,
-                       nan, MissionItem.VehicleAction.NONE)
+    return MissionItem(
+        lat,
+        lon,
+        rel_alt,
+        1.0,
+        False,
+        nan,
+        nan,
+        MissionItem.CameraAction.NONE,
+        nan,
+        nan,
+        0.2,
+        nan,
+        nan,
+        MissionItem.VehicleAction.NONE,
+    )
 
 
 async def _first(stream, cond, timeout: float):
@@ -64,9 +79,12 @@ async def _first(stream, cond, timeout: float):
 
 def test_mavsdk_connects_takes_off_flies_a_mission_offboard_and_lands():
     api, grpc = free_port(), free_port(socket.SOCK_STREAM)
-    server = subprocess.Popen([str(Path(mavsdk.__file__).parent / "bin" / "mavsdk_server"), "-p", str(grpc),
-                               f"udpin://127.0.0.1:{api}"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                              text=True)
+    server = subprocess.Popen(
+        [str(Path(mavsdk.__file__).parent / "bin" / "mavsdk_server"), "-p", str(grpc), f"udpin://127.0.0.1:{api}"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     path: list[np.ndarray] = []
     try:
         with vehicle(links=0, extra_links=[f"udpout:127.0.0.1:{api}"]) as (live, _ep, _):
@@ -76,8 +94,11 @@ def test_mavsdk_connects_takes_off_flies_a_mission_offboard_and_lands():
                 drone = mavsdk.System(mavsdk_server_address="127.0.0.1", port=grpc)
                 await drone.connect()
                 await _first(drone.core.connection_state(), lambda s: s.is_connected, 15)
-                await _first(drone.telemetry.health(), lambda h: h.is_global_position_ok and h.is_home_position_ok
-                             and h.is_armable, 10)
+                await _first(
+                    drone.telemetry.health(),
+                    lambda h: h.is_global_position_ok and h.is_home_position_ok and h.is_armable,
+                    10,
+                )
                 assert (await _first(drone.telemetry.flight_mode(), lambda m: True, 5)).name == "HOLD"
                 await drone.action.arm()
                 await _first(drone.telemetry.armed(), bool, 5)
@@ -98,9 +119,12 @@ def test_mavsdk_connects_takes_off_flies_a_mission_offboard_and_lands():
                 target = (ned.position.north_m - 1.0, ned.position.east_m, ned.position.down_m + 0.5, 180.0)
                 await drone.offboard.set_position_ned(PositionNedYaw(*target))
                 await drone.offboard.start()
-                assert (await _first(drone.telemetry.flight_mode(), lambda m: m.name == "OFFBOARD", 5))
-                at = await _first(drone.telemetry.position_velocity_ned(), lambda p: abs(
-                    p.position.north_m - target[0]) < 0.1 and abs(p.position.down_m - target[2]) < 0.1, 20)
+                assert await _first(drone.telemetry.flight_mode(), lambda m: m.name == "OFFBOARD", 5)
+                at = await _first(
+                    drone.telemetry.position_velocity_ned(),
+                    lambda p: abs(p.position.north_m - target[0]) < 0.1 and abs(p.position.down_m - target[2]) < 0.1,
+                    20,
+                )
                 heading = await _first(drone.telemetry.heading(), lambda h: abs(h.heading_deg - 180) < 3, 10)
                 await drone.offboard.stop()  # PX4 holds
                 await _first(drone.telemetry.flight_mode(), lambda m: m.name == "HOLD", 5)
@@ -152,19 +176,48 @@ class _Output:
                 self.text += self.q.get(timeout=max(end - time.monotonic(), 0.01))
             except queue.Empty:
                 if time.monotonic() >= end:
-                    raise AssertionError(f"{pattern!r} not seen within {timeout} s; output:\n{self.text[-3000:]}")
+                    raise AssertionError(
+                        f"{pattern!r} not seen within {timeout} s; output:\n{self.text[-3000:]}"
+                    ) from None
 
 
 def test_mavproxy_drives_cufund_serve(tmp_path):
     port = free_port()
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    serve = subprocess.Popen([str(BIN / "cufund"), "serve", "vehicle", "--mavlink", f"udpout:127.0.0.1:{port}",
-                              "--api", "none", "--speed", str(SPEED), "--duration", "60"],
-                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
-    proxy = subprocess.Popen([str(BIN / "mavproxy.py"), f"--master=udpin:127.0.0.1:{port}", "--mav20",
-                              f"--state-basedir={tmp_path}", "--default-modules=link,cmdlong,arm,mode"],
-                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                             env=env, cwd=tmp_path)
+    serve = subprocess.Popen(
+        [
+            str(BIN / "cufund"),
+            "serve",
+            "vehicle",
+            "--mavlink",
+            f"udpout:127.0.0.1:{port}",
+            "--api",
+            "none",
+            "--speed",
+            str(SPEED),
+            "--duration",
+            "60",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+    )
+    proxy = subprocess.Popen(
+        [
+            str(BIN / "mavproxy.py"),
+            f"--master=udpin:127.0.0.1:{port}",
+            "--mav20",
+            f"--state-basedir={tmp_path}",
+            "--default-modules=link,cmdlong,arm,mode",
+        ],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+    )
     try:
         out = _Output(proxy)
 

@@ -11,11 +11,12 @@ import time
 
 import numpy as np
 import pytest
+from pymavlink import mavutil
+
 from cufund.apps.mavlink.link import LinkAddress, UdpLink
 from cufund.apps.mavlink.vehicle_endpoint import VehicleEndpoint
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla, lla_to_enu
 from mavlink_support import Gcs, free_port, vehicle
-from pymavlink import mavutil
 
 M = mavutil.mavlink
 HOME = GeoPoint(22.4196, 114.2068, 30.0)  # the GPS model's default home = the endpoint's default origin
@@ -28,8 +29,10 @@ def _px4_mode(hb) -> str:
 def _take_off(g: Gcs, alt: float = 1.5) -> None:
     assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
     # PX4's NAV_TAKEOFF param7 is AMSL: home (30 m AMSL) + alt
-    assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 30.0 + alt).result == \
-        M.MAV_RESULT_ACCEPTED
+    assert (
+        g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 30.0 + alt).result
+        == M.MAV_RESULT_ACCEPTED
+    )
     g.wait("GLOBAL_POSITION_INT", lambda m: abs(m.relative_alt / 1e3 - alt) < 0.05, 20)
     g.wait("HEARTBEAT", lambda m: _px4_mode(m) == "LOITER", 10)
 
@@ -63,7 +66,7 @@ def test_telemetry_is_px4_frames_and_units():
         assert math.remainder(att.yaw - (math.pi / 2 - yaw_enu), 2 * math.pi) == pytest.approx(0, abs=1e-5)
         assert gp.hdg == round(math.degrees(math.pi / 2 - yaw_enu) * 100) % 36000
         aq = g.recv("ATTITUDE_QUATERNION")  # its yaw agrees with ATTITUDE's (PX4's FRD -> NED quaternion)
-        yaw_q = math.atan2(2 * (aq.q1 * aq.q4 + aq.q2 * aq.q3), 1 - 2 * (aq.q3 ** 2 + aq.q4 ** 2))
+        yaw_q = math.atan2(2 * (aq.q1 * aq.q4 + aq.q2 * aq.q3), 1 - 2 * (aq.q3**2 + aq.q4**2))
         assert yaw_q == pytest.approx(att.yaw, abs=1e-5)
         assert g.recv("EXTENDED_SYS_STATE").landed_state == M.MAV_LANDED_STATE_IN_AIR
         assert g.recv("ALTITUDE").altitude_relative == pytest.approx(p[2] - home[2], abs=1e-4)
@@ -73,32 +76,80 @@ def test_telemetry_is_px4_frames_and_units():
 
 def test_commands_reposition_land_and_refusals():
     with vehicle() as (live, _ep, (g,)):
-        assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 32).result == \
-            M.MAV_RESULT_DENIED  # disarmed
-        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 1).result == \
-            M.MAV_RESULT_DENIED  # MANUAL: no sticks
+        assert (
+            g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 32).result == M.MAV_RESULT_DENIED
+        )  # disarmed
+        assert (
+            g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 1).result == M.MAV_RESULT_DENIED
+        )  # MANUAL: no sticks
         assert g.command(31999).result == M.MAV_RESULT_UNSUPPORTED
         _take_off(g, 1.5)
         home = np.array(live.telemetry()["home_p_W"])
         target = home + np.array([1.0, 0.5, 0.5])  # 1 m east, 0.5 m north, 0.5 m up
         lat, lon, alt = enu_to_lla(target, HOME)
-        g.mav.command_int_send(1, 1, M.MAV_FRAME_GLOBAL_INT, M.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0, math.nan,
-                               round(lat * 1e7), round(lon * 1e7), float(alt))
-        assert g.recv("COMMAND_ACK", cond=lambda m: m.command == M.MAV_CMD_DO_REPOSITION).result == \
-            M.MAV_RESULT_ACCEPTED
-        g.wait("LOCAL_POSITION_NED", lambda m: np.hypot(m.y - target[0], m.x - target[1]) < 0.1
-               and abs(-m.z - target[2]) < 0.1, 20)
+        g.mav.command_int_send(
+            1,
+            1,
+            M.MAV_FRAME_GLOBAL_INT,
+            M.MAV_CMD_DO_REPOSITION,
+            0,
+            0,
+            -1,
+            0,
+            0,
+            math.nan,
+            round(lat * 1e7),
+            round(lon * 1e7),
+            float(alt),
+        )
+        assert (
+            g.recv("COMMAND_ACK", cond=lambda m: m.command == M.MAV_CMD_DO_REPOSITION).result == M.MAV_RESULT_ACCEPTED
+        )
+        g.wait(
+            "LOCAL_POSITION_NED",
+            lambda m: np.hypot(m.y - target[0], m.x - target[1]) < 0.1 and abs(-m.z - target[2]) < 0.1,
+            20,
+        )
         unset = 2**31 - 1  # COMMAND_INT's "no value": keep lat/lon, change the height above home only
-        g.mav.command_int_send(1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0,
-                               math.nan, unset, unset, 1.0)
-        assert g.recv("COMMAND_ACK", cond=lambda m: m.command == M.MAV_CMD_DO_REPOSITION).result == \
-            M.MAV_RESULT_ACCEPTED
-        g.wait("LOCAL_POSITION_NED", lambda m: abs(-m.z - (home[2] + 1.0)) < 0.05
-               and np.hypot(m.y - target[0], m.x - target[1]) < 0.1, 20)
-        g.mav.command_int_send(1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0,
-                               math.nan, unset, unset, -1.0)  # into the ground
-        assert g.recv("COMMAND_ACK", cond=lambda m: m.command == M.MAV_CMD_DO_REPOSITION).result == \
-            M.MAV_RESULT_DENIED
+        g.mav.command_int_send(
+            1,
+            1,
+            M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            M.MAV_CMD_DO_REPOSITION,
+            0,
+            0,
+            -1,
+            0,
+            0,
+            math.nan,
+            unset,
+            unset,
+            1.0,
+        )
+        assert (
+            g.recv("COMMAND_ACK", cond=lambda m: m.command == M.MAV_CMD_DO_REPOSITION).result == M.MAV_RESULT_ACCEPTED
+        )
+        g.wait(
+            "LOCAL_POSITION_NED",
+            lambda m: abs(-m.z - (home[2] + 1.0)) < 0.05 and np.hypot(m.y - target[0], m.x - target[1]) < 0.1,
+            20,
+        )
+        g.mav.command_int_send(
+            1,
+            1,
+            M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            M.MAV_CMD_DO_REPOSITION,
+            0,
+            0,
+            -1,
+            0,
+            0,
+            math.nan,
+            unset,
+            unset,
+            -1.0,
+        )  # into the ground
+        assert g.recv("COMMAND_ACK", cond=lambda m: m.command == M.MAV_CMD_DO_REPOSITION).result == M.MAV_RESULT_DENIED
         assert g.command(M.MAV_CMD_NAV_LAND).result == M.MAV_RESULT_ACCEPTED
         assert _px4_mode(g.wait("HEARTBEAT", lambda m: True, 5)) == "LAND"
         g.wait("EXTENDED_SYS_STATE", lambda m: m.landed_state == M.MAV_LANDED_STATE_ON_GROUND, 30)
@@ -113,8 +164,9 @@ def _upload(g: Gcs, items: list[tuple[int, int, int, float]], mission_type: int 
         if m.get_type() == "MISSION_ACK":
             return m.type
         frame, x, y, z = items[m.seq]
-        g.mav.mission_item_int_send(1, 1, m.seq, frame, M.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0, math.nan, x, y, z,
-                                    mission_type)
+        g.mav.mission_item_int_send(
+            1, 1, m.seq, frame, M.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0, math.nan, x, y, z, mission_type
+        )
 
 
 def test_mission_upload_download_clear_and_fly():
@@ -124,7 +176,9 @@ def test_mission_upload_download_clear_and_fly():
         items = []
         for w in wps:
             lat, lon, _ = enu_to_lla(w, HOME)
-            items.append((M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, round(lat * 1e7), round(lon * 1e7), float(w[2] - home[2])))
+            items.append(
+                (M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, round(lat * 1e7), round(lon * 1e7), float(w[2] - home[2]))
+            )
         assert _upload(g, items[:1] + [(99, 0, 0, 0.0)]) == M.MAV_MISSION_UNSUPPORTED_FRAME
         assert _upload(g, items[:1], mission_type=M.MAV_MISSION_TYPE_FENCE) == M.MAV_MISSION_UNSUPPORTED
         assert _upload(g, [items[0][:3] + (-0.5,)]) == M.MAV_MISSION_INVALID_PARAM7  # below home
@@ -140,8 +194,9 @@ def test_mission_upload_download_clear_and_fly():
         g.mav.mission_ack_send(1, 1, 0, 0)
         assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
         # start as MAVSDK does: DO_SET_MODE AUTO/MISSION
-        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 4).result == \
-            M.MAV_RESULT_ACCEPTED
+        assert (
+            g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 4).result == M.MAV_RESULT_ACCEPTED
+        )
         reached = []
         while len(reached) < 3:
             reached.append(g.wait("MISSION_ITEM_REACHED", lambda m: True, 30).seq)
@@ -165,25 +220,61 @@ def test_mission_upload_rerequests_lost_items():
         assert g.recv("MISSION_REQUEST_INT", 3).seq == 0  # asked again
         p = enu_to_lla(np.array([-2.0, 0.0, 1.0]), HOME)
         for seq in (1, 0):  # out of order first: the vehicle asks for the one it needs
-            g.mav.mission_item_int_send(1, 1, seq, M.MAV_FRAME_GLOBAL_INT, M.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0,
-                                        math.nan, round(p[0] * 1e7), round(p[1] * 1e7), float(p[2]), 0)
+            g.mav.mission_item_int_send(
+                1,
+                1,
+                seq,
+                M.MAV_FRAME_GLOBAL_INT,
+                M.MAV_CMD_NAV_WAYPOINT,
+                0,
+                1,
+                0,
+                0,
+                0,
+                math.nan,
+                round(p[0] * 1e7),
+                round(p[1] * 1e7),
+                float(p[2]),
+                0,
+            )
         assert g.recv("MISSION_REQUEST_INT", cond=lambda m: m.seq == 1).seq == 1
-        g.mav.mission_item_int_send(1, 1, 1, M.MAV_FRAME_GLOBAL_INT, M.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0,
-                                    math.nan, round(p[0] * 1e7), round(p[1] * 1e7), float(p[2]), 0)
+        g.mav.mission_item_int_send(
+            1,
+            1,
+            1,
+            M.MAV_FRAME_GLOBAL_INT,
+            M.MAV_CMD_NAV_WAYPOINT,
+            0,
+            1,
+            0,
+            0,
+            0,
+            math.nan,
+            round(p[0] * 1e7),
+            round(p[1] * 1e7),
+            float(p[2]),
+            0,
+        )
         assert g.recv("MISSION_ACK").type == M.MAV_MISSION_ACCEPTED
         np.testing.assert_allclose(live.telemetry()["mission"]["items"][0], [-2.0, 0.0, 1.0], atol=0.02)
         g.mav.mission_request_send(1, 1, 1, 0)  # the legacy float download: degrees, not degE7
         it = g.recv("MISSION_ITEM", cond=lambda m: m.seq == 1)
-        assert (it.frame, it.x, it.y, it.z) == (M.MAV_FRAME_GLOBAL, pytest.approx(p[0], abs=2e-5),  # float32
-                                                 pytest.approx(p[1], abs=2e-5), pytest.approx(p[2], abs=1e-3))
+        assert (it.frame, it.x, it.y, it.z) == (
+            M.MAV_FRAME_GLOBAL,
+            pytest.approx(p[0], abs=2e-5),  # float32
+            pytest.approx(p[1], abs=2e-5),
+            pytest.approx(p[2], abs=1e-3),
+        )
 
 
 def test_mission_set_current_starts_from_that_item():
     with vehicle() as (live, _ep, (g,)):
         home = np.array(live.telemetry()["p_W"])
         wps = [home + d for d in ([1.0, 0, 1.5], [1.0, 1.0, 1.5], [0, 1.0, 2.0])]
-        items = [(M.MAV_FRAME_GLOBAL_INT, *(round(c * 1e7) for c in enu_to_lla(w, HOME)[:2]),
-                  float(enu_to_lla(w, HOME)[2])) for w in wps]
+        items = [
+            (M.MAV_FRAME_GLOBAL_INT, *(round(c * 1e7) for c in enu_to_lla(w, HOME)[:2]), float(enu_to_lla(w, HOME)[2]))
+            for w in wps
+        ]
         assert _upload(g, items) == M.MAV_MISSION_ACCEPTED
         assert g.command(M.MAV_CMD_DO_SET_MISSION_CURRENT, 2).result == M.MAV_RESULT_ACCEPTED
         assert g.wait("MISSION_CURRENT", lambda m: True, 5).seq == 2
@@ -224,16 +315,24 @@ def test_message_intervals_and_requests():
         ack = g.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
         assert ack.result == M.MAV_RESULT_ACCEPTED
         caps = g.recv("AUTOPILOT_VERSION").capabilities
-        for bit in (M.MAV_PROTOCOL_CAPABILITY_MISSION_INT, M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT,
-                    M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT, M.MAV_PROTOCOL_CAPABILITY_MAVLINK2):
+        for bit in (
+            M.MAV_PROTOCOL_CAPABILITY_MISSION_INT,
+            M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT,
+            M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT,
+            M.MAV_PROTOCOL_CAPABILITY_MAVLINK2,
+        ):
             assert caps & bit
-        assert g.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, -1).result == \
-            M.MAV_RESULT_ACCEPTED
+        assert (
+            g.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, -1).result
+            == M.MAV_RESULT_ACCEPTED
+        )
         g.drain()
         with pytest.raises(AssertionError):
             g.recv("GLOBAL_POSITION_INT", 1.0)  # disabled
-        assert g.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 0).result == \
-            M.MAV_RESULT_ACCEPTED
+        assert (
+            g.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 0).result
+            == M.MAV_RESULT_ACCEPTED
+        )
         g.recv("GLOBAL_POSITION_INT", 2.0)  # back at its default rate
         assert g.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 60000, 1e5).result == M.MAV_RESULT_UNSUPPORTED
 
@@ -241,20 +340,22 @@ def test_message_intervals_and_requests():
 def test_offboard_position_setpoints():
     with vehicle() as (live, _ep, (g,)):
         _take_off(g, 1.5)
-        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6).result == \
-            M.MAV_RESULT_DENIED  # no setpoint stream yet, as PX4
+        assert (
+            g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6).result == M.MAV_RESULT_DENIED
+        )  # no setpoint stream yet, as PX4
         p = np.array(live.telemetry()["p_W"]) + np.array([0.0, 0.8, 0.3])  # 0.8 m north, 0.3 m up
         mask = 0x9F8  # position and yaw used (velocity, acceleration, yaw rate ignored)
         yaw_ned = 0.0  # nose north = ENU yaw pi/2
 
         def send() -> None:
-            g.mav.set_position_target_local_ned_send(0, 1, 1, M.MAV_FRAME_LOCAL_NED, mask, p[1], p[0], -p[2], 0, 0, 0,
-                                                     0, 0, 0, yaw_ned, 0)
+            g.mav.set_position_target_local_ned_send(
+                0, 1, 1, M.MAV_FRAME_LOCAL_NED, mask, p[1], p[0], -p[2], 0, 0, 0, 0, 0, 0, yaw_ned, 0
+            )
 
         for _ in range(5):
             send()
-        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6).result == \
-            M.MAV_RESULT_ACCEPTED
+        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6).result == M.MAV_RESULT_ACCEPTED
+
         def offboard(m) -> bool:
             send()  # a stream, as offboard needs (every telemetry message here: ~50 Hz)
             return m.get_type() == "HEARTBEAT" and _px4_mode(m) == "OFFBOARD"
@@ -263,8 +364,11 @@ def test_offboard_position_setpoints():
 
         def there(m) -> bool:
             send()  # a stream, as offboard needs
-            return np.hypot(m.x - p[1], m.y - p[0]) < 0.1 and abs(-m.z - p[2]) < 0.1 and abs(
-                math.remainder(live.telemetry()["rpy"][2] - math.pi / 2, 2 * math.pi)) < 0.05
+            return (
+                np.hypot(m.x - p[1], m.y - p[0]) < 0.1
+                and abs(-m.z - p[2]) < 0.1
+                and abs(math.remainder(live.telemetry()["rpy"][2] - math.pi / 2, 2 * math.pi)) < 0.05
+            )
 
         g.wait("LOCAL_POSITION_NED", there, 20)
         # the stream stops: the commander holds (COM_OF_LOSS_T), PX4's offboard loss failsafe
@@ -275,20 +379,23 @@ def test_offboard_attitude_target_turns_the_vehicle():
     with vehicle() as (live, _ep, (g,)):
         _take_off(g, 1.5)
         vp = live.built.context.vehicle
-        hover = vp.mass * 9.81 / (4 * vp.k_f * vp.rotor_speed_max ** 2)  # normalised thrust that carries the weight
+        hover = vp.mass * 9.81 / (4 * vp.k_f * vp.rotor_speed_max**2)  # normalised thrust that carries the weight
 
         def send() -> None:  # level, nose north (PX4 q_NED_FRD = identity), hover thrust
             g.mav.set_attitude_target_send(0, 1, 1, 0b0000_0111, [1.0, 0.0, 0.0, 0.0], 0, 0, 0, hover)
 
         for _ in range(5):
             send()
-        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6).result == \
-            M.MAV_RESULT_ACCEPTED
+        assert g.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6).result == M.MAV_RESULT_ACCEPTED
 
         def turned(m) -> bool:
             send()
-            return m.get_type() == "ATTITUDE" and abs(m.yaw) < math.radians(2) and abs(m.roll) < math.radians(2) \
+            return (
+                m.get_type() == "ATTITUDE"
+                and abs(m.yaw) < math.radians(2)
+                and abs(m.roll) < math.radians(2)
                 and abs(m.pitch) < math.radians(2)
+            )
 
         g.wait(["ATTITUDE", "LOCAL_POSITION_NED"], turned, 15)
         tel = live.telemetry()
@@ -320,8 +427,11 @@ def test_link_urls_and_binding():
         VehicleEndpoint(object(), ["udpout:127.0.0.1:14550"], system_id=0)
     with pytest.raises(ValueError, match="component_id"):
         VehicleEndpoint(object(), ["udpout:127.0.0.1:14550"], component_id=300)
-    for rates, match in (({"HEARTBEAT": 0.0}, "HEARTBEAT"), ({"ATTITUDE": float("nan")}, "ATTITUDE"),
-                         ({"NO_SUCH_STREAM": 1.0}, "NO_SUCH_STREAM")):
+    for rates, match in (
+        ({"HEARTBEAT": 0.0}, "HEARTBEAT"),
+        ({"ATTITUDE": float("nan")}, "ATTITUDE"),
+        ({"NO_SUCH_STREAM": 1.0}, "NO_SUCH_STREAM"),
+    ):
         with pytest.raises(ValueError, match=match):
             VehicleEndpoint(object(), ["udpout:127.0.0.1:14550"], rates_hz=rates)
     ep = VehicleEndpoint(object(), ["udpout:127.0.0.1:14550"], max_thrust_N=10.0, rates_hz={"ATTITUDE": 50.0})

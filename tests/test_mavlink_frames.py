@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from cufund.core.config import ConfigError
-from cufund.apps.mavlink import frames as F
-from cufund.sensors.geodesy import GeoPoint, enu_to_lla
 from scipy.spatial.transform import Rotation
+
+from cufund.apps.mavlink import frames as F
+from cufund.core.config import ConfigError
+from cufund.sensors.geodesy import GeoPoint, enu_to_lla
 
 R_NED_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 R_FLU_FRD = np.diag([1.0, -1.0, -1.0])
@@ -57,18 +58,21 @@ def test_attitude_against_scipy_composition():
     np.testing.assert_allclose(F.q_ned_frd_to_enu_flu(q), q_WB, atol=1e-15)
 
 
-@pytest.mark.parametrize("q_WB, euler_px4", [
-    # level, nose east: yaw +90 (clockwise from north)
-    (_wxyz(Rotation.identity()), (0.0, 0.0, 90.0)),
-    # level, nose north (cufund yaw +90 about ENU z): PX4 yaw 0
-    (_wxyz(Rotation.from_euler("z", 90, degrees=True)), (0.0, 0.0, 0.0)),
-    # nose west: PX4 yaw -90
-    (_wxyz(Rotation.from_euler("z", 180, degrees=True)), (0.0, 0.0, -90.0)),
-    # nose north, nose up 10 deg (about FLU +y = left, a negative angle): PX4 pitch +10
-    (_wxyz(Rotation.from_euler("ZY", [90, -10], degrees=True)), (0.0, 10.0, 0.0)),
-    # nose north, right wing down 20 deg (about FLU +x): PX4 roll +20
-    (_wxyz(Rotation.from_euler("ZX", [90, 20], degrees=True)), (20.0, 0.0, 0.0)),
-])
+@pytest.mark.parametrize(
+    "q_WB, euler_px4",
+    [
+        # level, nose east: yaw +90 (clockwise from north)
+        (_wxyz(Rotation.identity()), (0.0, 0.0, 90.0)),
+        # level, nose north (cufund yaw +90 about ENU z): PX4 yaw 0
+        (_wxyz(Rotation.from_euler("z", 90, degrees=True)), (0.0, 0.0, 0.0)),
+        # nose west: PX4 yaw -90
+        (_wxyz(Rotation.from_euler("z", 180, degrees=True)), (0.0, 0.0, -90.0)),
+        # nose north, nose up 10 deg (about FLU +y = left, a negative angle): PX4 pitch +10
+        (_wxyz(Rotation.from_euler("ZY", [90, -10], degrees=True)), (0.0, 10.0, 0.0)),
+        # nose north, right wing down 20 deg (about FLU +x): PX4 roll +20
+        (_wxyz(Rotation.from_euler("ZX", [90, 20], degrees=True)), (20.0, 0.0, 0.0)),
+    ],
+)
 def test_attitude_matches_px4_euler_conventions(q_WB, euler_px4):
     np.testing.assert_allclose(_px4_euler_deg(F.q_enu_flu_to_ned_frd(q_WB)), euler_px4, atol=1e-9)
 
@@ -140,8 +144,11 @@ def test_bad_input_raises():
 
 
 def test_yaw_conversions_match_the_attitude_conversion():
-    np.testing.assert_allclose(F.yaw_enu_to_ned(np.array([0.0, np.pi / 2, np.pi, -np.pi / 2])),
-                               [np.pi / 2, 0.0, -np.pi / 2, np.pi - 2 * np.pi], atol=1e-12)  # east, north, west, south
+    np.testing.assert_allclose(
+        F.yaw_enu_to_ned(np.array([0.0, np.pi / 2, np.pi, -np.pi / 2])),
+        [np.pi / 2, 0.0, -np.pi / 2, np.pi - 2 * np.pi],
+        atol=1e-12,
+    )  # east, north, west, south
     yaw = np.random.default_rng(5).uniform(-np.pi, np.pi, 50)
     q_WB = _wxyz(Rotation.from_euler("z", yaw[:, None]))
     yaw_px4 = _scipy(F.q_enu_flu_to_ned_frd(q_WB)).as_euler("ZYX")[:, 0]

@@ -13,18 +13,21 @@ import time
 
 import numpy as np
 import pytest
-from cufund.apps.cli import main as cli_main
-from mavlink_support import OPEN_FIELD, Gcs, free_port, vehicle
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
+
+from cufund.apps.cli import main as cli_main
+from mavlink_support import OPEN_FIELD, Gcs, free_port, vehicle
 
 M = mavutil.mavlink
 
 
 def _take_off(g, alt: float = 1.5) -> None:
     assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
-    assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 30.0 + alt).result == \
-        M.MAV_RESULT_ACCEPTED
+    assert (
+        g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 30.0 + alt).result
+        == M.MAV_RESULT_ACCEPTED
+    )
     g.wait("GLOBAL_POSITION_INT", lambda m: abs(m.relative_alt / 1e3 - alt) < 0.05, 20)
 
 
@@ -33,8 +36,9 @@ def test_garbage_bad_crc_unknown_ids_and_nonsense_values():
         dest = ep.links[0].local_address
         raw = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         codec = mavlink2.MAVLink(None, srcSystem=255, srcComponent=190)
-        good = codec.command_long_encode(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, M.MAVLINK_MSG_ID_HEARTBEAT,
-                                         0, 0, 0, 0, 0, 0).pack(codec)
+        good = codec.command_long_encode(
+            1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, M.MAVLINK_MSG_ID_HEARTBEAT, 0, 0, 0, 0, 0, 0
+        ).pack(codec)
         bad_crc = bytearray(good)
         bad_crc[-1] ^= 0xFF
         unknown = bytearray(good)
@@ -58,19 +62,23 @@ def test_garbage_bad_crc_unknown_ids_and_nonsense_values():
         assert g.recv("MISSION_ACK").type == M.MAV_MISSION_INVALID_SEQUENCE
         g.mav.mission_item_int_send(1, 1, 3, 0, 16, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0)  # no upload in progress: ignored
         for send_item in (  # a NaN latitude (legacy float item), a latitude beyond the pole: refused by name
-                lambda: g.mav.mission_item_send(1, 1, 0, M.MAV_FRAME_GLOBAL, 16, 0, 1, 0, 0, 0, 0, nan, 114.2, 40, 0),
-                lambda: g.mav.mission_item_int_send(1, 1, 0, M.MAV_FRAME_GLOBAL_INT, 16, 0, 1, 0, 0, 0, 0,
-                                                    95 * 10**7, 1142068000, 40.0, 0)):
+            lambda: g.mav.mission_item_send(1, 1, 0, M.MAV_FRAME_GLOBAL, 16, 0, 1, 0, 0, 0, 0, nan, 114.2, 40, 0),
+            lambda: g.mav.mission_item_int_send(
+                1, 1, 0, M.MAV_FRAME_GLOBAL_INT, 16, 0, 1, 0, 0, 0, 0, 95 * 10**7, 1142068000, 40.0, 0
+            ),
+        ):
             g.mav.mission_count_send(1, 1, 1, 0)
             assert g.recv("MISSION_REQUEST_INT").seq == 0
             send_item()
             assert g.recv("MISSION_ACK").type == M.MAV_MISSION_INVALID_PARAM5_X
         assert live.telemetry()["mission"]["count"] == 0
-        g.mav.set_position_target_local_ned_send(0, 1, 1, M.MAV_FRAME_LOCAL_NED, 0x9F8, nan, 0, 0, 0, 0, 0, 0, 0, 0,
-                                                 0, 0)
+        g.mav.set_position_target_local_ned_send(
+            0, 1, 1, M.MAV_FRAME_LOCAL_NED, 0x9F8, nan, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0
+        )
         g.mav.set_attitude_target_send(0, 1, 1, 0, [0, 0, 0, 0], 0, 0, 0, 2.0)
-        g.mav.command_long_send(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION, 0, 0, 0, 0,
-                                0, 0)
+        g.mav.command_long_send(
+            1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION, 0, 0, 0, 0, 0, 0
+        )
         g.recv("AUTOPILOT_VERSION")  # still answering
         assert ep.bad_data >= 300  # each garbage datagram counted
         assert ep.stats["setpoints_refused"] == 2
@@ -86,8 +94,12 @@ def test_vanished_client_mid_mission_holds_then_lands():
         assert g.recv("PARAM_VALUE", cond=lambda m: m.param_id == "COM_DL_LOSS_T").param_value == 3.0
         _take_off(g, 1.5)
         p0 = np.array(live.telemetry()["p_W"])
-        assert live.submit({"command": "mission_upload", "items": [list(p0 + [20, 0, 0]), list(p0 + [20, 20, 0])]}
-                           ).result(5).result == "accepted"
+        assert (
+            live.submit({"command": "mission_upload", "items": [list(p0 + [20, 0, 0]), list(p0 + [20, 20, 0])]})
+            .result(5)
+            .result
+            == "accepted"
+        )
         assert g.command(M.MAV_CMD_MISSION_START).result == M.MAV_RESULT_ACCEPTED
         g.wait("LOCAL_POSITION_NED", lambda m: m.y - p0[0] > 1.0, 20)  # on its way east
         since = len(live.events)
@@ -105,8 +117,10 @@ def test_vanished_client_mid_mission_holds_then_lands():
             time.sleep(0.02)
         assert modes[:2] == ["hold", "land"], modes  # hold first, then land after COM_DL_LOSS_T
         tel = live.telemetry()
-        assert tel["landed"], ({k: tel.get(k) for k in ("t", "mode", "armed", "p_W", "truth_p_W", "v_W",
-                                                         "real_time_factor")}, live.events.since(since))
+        assert tel["landed"], (
+            {k: tel.get(k) for k in ("t", "mode", "armed", "p_W", "truth_p_W", "v_W", "real_time_factor")},
+            live.events.since(since),
+        )
         p = np.array(live.telemetry()["truth_p_W"])
         assert 1.0 < p[0] - p0[0] < 15.0 and abs(p[1] - p0[1]) < 0.3  # it stopped where it was, short of the waypoint
         lost = next(e for e in live.events.since(since) if e["message"] == "link lost")
@@ -193,9 +207,26 @@ def test_serve_cli_sets_the_link_loss_timeout_and_exits_0():
     port = free_port()
     g = Gcs(port)
     rc: list[int] = []
-    t = threading.Thread(target=lambda: rc.append(cli_main([
-        "serve", "vehicle", "--mavlink", f"udpout:127.0.0.1:{port}", "--api", "none", "--speed", "3",
-        "--duration", "3", "--link-loss-timeout", "7"])))
+    t = threading.Thread(
+        target=lambda: rc.append(
+            cli_main(
+                [
+                    "serve",
+                    "vehicle",
+                    "--mavlink",
+                    f"udpout:127.0.0.1:{port}",
+                    "--api",
+                    "none",
+                    "--speed",
+                    "3",
+                    "--duration",
+                    "3",
+                    "--link-loss-timeout",
+                    "7",
+                ]
+            )
+        )
+    )
     t.start()
     try:
         g.recv("HEARTBEAT", 15)
@@ -231,8 +262,23 @@ def test_a_stalled_run_gets_no_mission_behind_the_clients_back():
         spin_until("HEARTBEAT")
         g.mav.mission_count_send(1, 1, 1, 0)
         assert spin_until("MISSION_REQUEST_INT").seq == 0
-        g.mav.mission_item_int_send(1, 1, 0, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0,
-                                    0, math.nan, 224196000, 1142068000, 1.0, 0)
+        g.mav.mission_item_int_send(
+            1,
+            1,
+            0,
+            M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            M.MAV_CMD_NAV_WAYPOINT,
+            0,
+            1,
+            0,
+            0,
+            0,
+            math.nan,
+            224196000,
+            1142068000,
+            1.0,
+            0,
+        )
         assert spin_until("MISSION_ACK").type == M.MAV_MISSION_ERROR
         live.commander.process_pending(0.0)  # the simulation wakes up: nothing of that upload is left to apply
         assert len(live.commander.mission) == 0 and ep.stats["handler_errors"] == 0

@@ -68,31 +68,62 @@ def _stream(rng: np.random.Generator) -> list[tuple[str, object]]:
             ("/sensors/imu", M.Imu(t, v3(), v3())),
             ("/sensors/magnetometer", M.MagneticField(t, v3() * 1e-5)),
             ("/sensors/barometer", M.AirPressure(t, 101325.0 + rng.normal(), rng.normal(), 288.15)),
-            ("/sensors/gps", M.GpsFix(t, 47.3 + rng.random(), 8.5, 500.0 + rng.random(), v3(), 3, 11, 0.8, 1.3)
-             if i % 3 else M.GpsFix(t, np.nan, np.nan, np.nan, np.full(3, np.nan), 0, 0, np.inf, np.inf)),
+            (
+                "/sensors/gps",
+                M.GpsFix(t, 47.3 + rng.random(), 8.5, 500.0 + rng.random(), v3(), 3, 11, 0.8, 1.3)
+                if i % 3
+                else M.GpsFix(t, np.nan, np.nan, np.nan, np.full(3, np.nan), 0, 0, np.inf, np.inf),
+            ),
             ("/setpoint/trajectory", M.TrajectorySetpoint(t, v3(), v3(), v3(), v3(), rng.normal(), 0.0)),
             ("/setpoint/attitude", M.AttitudeSetpoint(t, q, 0.3 + rng.random(), -0.1)),
             ("/setpoint/rates", M.RateSetpoint(t, v3(), 0.31)),
             ("/setpoint/thrust_torque", M.ThrustTorqueSetpoint(t, 0.29, v3() * 1e-3)),
             ("/actuator/command", M.ActuatorCommand(t, 2000.0 + rng.random(4))),
-            ("/user/fixed", UserFixed(t, -(2**62) + i, i % 2 == 0, rng.normal(size=(3, 3)),
-                                      rng.integers(-5, 5, 4).astype(np.int32))),
+            (
+                "/user/fixed",
+                UserFixed(
+                    t, -(2**62) + i, i % 2 == 0, rng.normal(size=(3, 3)), rng.integers(-5, 5, 4).astype(np.int32)
+                ),
+            ),
         ]
         if i % 3 == 0:
             n = 50 + 7 * i
             out += [
                 ("/commander/flight_mode", M.FlightModeCommand(t, list(M.FlightMode)[i % 3])),
-                ("/sensors/lidar", M.PointCloud(t, np.sort(rng.random(n)) * 0.1,
-                                                rng.normal(size=(n, 3)).astype(np.float32), rng.random(n) * 40,
-                                                rng.random(n), rng.integers(0, 32, n), i)),
-                ("/truth/point_cloud", M.LidarTruth(t, rng.normal(size=(n, 3)).astype(np.float32),
-                                                    rng.integers(0, 2**40, n))),
-                ("/sensors/depth_image", M.CameraImage(t, np.where(rng.random((6, 8)) < 0.2, np.nan,
-                                                                   rng.random((6, 8))).astype(np.float32))),
+                (
+                    "/sensors/lidar",
+                    M.PointCloud(
+                        t,
+                        np.sort(rng.random(n)) * 0.1,
+                        rng.normal(size=(n, 3)).astype(np.float32),
+                        rng.random(n) * 40,
+                        rng.random(n),
+                        rng.integers(0, 32, n),
+                        i,
+                    ),
+                ),
+                (
+                    "/truth/point_cloud",
+                    M.LidarTruth(t, rng.normal(size=(n, 3)).astype(np.float32), rng.integers(0, 2**40, n)),
+                ),
+                (
+                    "/sensors/depth_image",
+                    M.CameraImage(t, np.where(rng.random((6, 8)) < 0.2, np.nan, rng.random((6, 8))).astype(np.float32)),
+                ),
                 ("/sensors/rgb_image", M.CameraImage(t, rng.integers(0, 256, (6, 8, 3)).astype(np.uint8))),
-                ("/user/json", UserMessage(t, "a \"label\" ünïcode", Color.BLUE if i else Color.RED,
-                                           Inner(-np.inf, "x"), rng.normal(size=(2, 40)), (1, 2.5, "s"),
-                                           {"k": [1, None]}, None if i else 3.5)),
+                (
+                    "/user/json",
+                    UserMessage(
+                        t,
+                        'a "label" ünïcode',
+                        Color.BLUE if i else Color.RED,
+                        Inner(-np.inf, "x"),
+                        rng.normal(size=(2, 40)),
+                        (1, 2.5, "s"),
+                        {"k": [1, None]},
+                        None if i else 3.5,
+                    ),
+                ),
             ]
     return out
 
@@ -108,7 +139,7 @@ def _same(a: object, b: object) -> bool:
     if dataclasses.is_dataclass(a):
         return all(_same(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a))
     if isinstance(a, (tuple, list)):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
     if isinstance(a, dict):
         return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
     return a == b
@@ -136,7 +167,7 @@ def test_every_message_type_round_trips_exactly_in_log_time_then_write_order(log
     records = list(read_mcap(path))
     expected = sorted(written, key=lambda w: w[2])  # stable: ties keep the write order
     assert [(r.topic, r.log_time_ns, r.publish_time_ns) for r in records] == [(t, a, b) for t, _, a, b in expected]
-    for record, (topic, message, _, _) in zip(records, expected):
+    for record, (topic, message, _, _) in zip(records, expected, strict=True):
         assert isinstance(record, LogRecord)
         assert _same(record.message, message), (topic, record.message, message)
     assert isinstance(records[0].message.p_W, np.ndarray) and not records[0].message.p_W.flags.writeable
@@ -145,8 +176,9 @@ def test_every_message_type_round_trips_exactly_in_log_time_then_write_order(log
 def test_topic_selection_and_topic_listing(log_file):
     path, written = log_file
     only = list(read_mcap(path, topics=["/sensors/imu", "/user/json"]))
-    assert [r.topic for r in only] == [t for t, *_ in sorted(written, key=lambda w: w[2])
-                                       if t in ("/sensors/imu", "/user/json")]
+    assert [r.topic for r in only] == [
+        t for t, *_ in sorted(written, key=lambda w: w[2]) if t in ("/sensors/imu", "/user/json")
+    ]
     topics = log_topics(path)
     assert topics["/truth/odometry"] == "Odometry" and topics["/user/json"] == "UserMessage"
     assert "/truth/odometry/tf" not in topics  # a Foxglove view, not a logged topic
@@ -238,7 +270,7 @@ def test_cdr_channels_decode_with_the_ros2_decoder_to_the_logged_values(log_file
             if channel.message_encoding == "cdr":
                 decode = factory.decoder_for("cdr", schema)
                 seen.setdefault(channel.topic, []).append(decode(message.data))
-    for odometry, tf, pose in zip(truth, seen["/truth/odometry/tf"], seen["/truth/odometry/pose"]):
+    for odometry, tf, pose in zip(truth, seen["/truth/odometry/tf"], seen["/truth/odometry/pose"], strict=True):
         assert (tf.parent_frame_id, tf.child_frame_id) == ("world", "base_link")
         p, q = odometry.p_W, odometry.q_WB
         assert [tf.translation.x, tf.translation.y, tf.translation.z] == list(p)
@@ -246,12 +278,12 @@ def test_cdr_channels_decode_with_the_ros2_decoder_to_the_logged_values(log_file
         assert pose.frame_id == "world" and [pose.pose.position.x, pose.pose.orientation.w] == [p[0], q[0]]
         assert tf.timestamp.sec + tf.timestamp.nanosec * 1e-9 == pytest.approx(odometry.t, abs=1e-9)
     assert seen["/estimator/odometry/tf"][0].child_frame_id == "base_link_estimate"
-    for odometry, exact in zip(estimate, seen["/estimator/odometry"]):
+    for odometry, exact in zip(estimate, seen["/estimator/odometry"], strict=True):
         assert exact.t == odometry.t and list(exact.q_wb) == list(odometry.q_WB)
         assert bool(exact.has_a_w) == (odometry.a_W is not None)
         if odometry.a_W is not None:
             assert list(exact.a_w) == list(odometry.a_W)
-    for user, exact in zip(fixed, seen["/user/fixed"]):
+    for user, exact in zip(fixed, seen["/user/fixed"], strict=True):
         assert (exact.k, exact.ok) == (user.k, user.ok)
         assert list(exact.r_wb) == list(user.R_WB.ravel()) and list(exact.ids) == list(user.ids)
 
@@ -264,12 +296,12 @@ def test_json_channels_follow_their_schemas_and_carry_the_foxglove_fields(log_fi
     fixes = [m for t, m, *_ in written if t == "/sensors/gps"]
     got: dict[str, list] = {}
     with open(path, "rb") as f:
-        for schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
+        for _schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
             if channel.message_encoding == "json":
                 obj = json.loads(message.data)  # strict JSON: no NaN literals
                 jsonschema.validate(obj, json.loads(schemas[channel.topic].data))
                 got.setdefault(channel.topic, []).append(obj)
-    for cloud, obj in zip(clouds, got["/sensors/lidar"]):
+    for cloud, obj in zip(clouds, got["/sensors/lidar"], strict=True):
         assert obj["frame_id"] == "lidar"
         fields = {f["name"]: f for f in obj["fields"]}
         assert {"x", "y", "z", "dt", "range", "intensity", "channel"} <= set(fields)
@@ -277,13 +309,13 @@ def test_json_channels_follow_their_schemas_and_carry_the_foxglove_fields(log_fi
         raw = np.frombuffer(base64.b64decode(obj["data"]), np.uint8).reshape(len(cloud), obj["point_stride"])
         for axis, name in enumerate("xyz"):
             off = fields[name]["offset"]
-            assert np.array_equal(raw[:, off:off + 4].copy().view("<f4")[:, 0], cloud.points_L[:, axis])
+            assert np.array_equal(raw[:, off : off + 4].copy().view("<f4")[:, 0], cloud.points_L[:, axis])
         off = fields["range"]["offset"]
-        assert np.array_equal(raw[:, off:off + 8].copy().view("<f8")[:, 0], cloud.ranges)
-    for image, obj in zip(images, got["/sensors/rgb_image"]):
+        assert np.array_equal(raw[:, off : off + 8].copy().view("<f8")[:, 0], cloud.ranges)
+    for image, obj in zip(images, got["/sensors/rgb_image"], strict=True):
         assert (obj["width"], obj["height"], obj["encoding"], obj["step"]) == (8, 6, "rgb8", 24)
         assert base64.b64decode(obj["data"]) == image.image.tobytes()
-    for fix, obj in zip(fixes, got["/sensors/gps"]):
+    for fix, obj in zip(fixes, got["/sensors/gps"], strict=True):
         if fix.fix_type == 3:
             assert (obj["latitude"], obj["longitude"]) == (fix.latitude_deg, fix.longitude_deg)
             assert obj["position_covariance"][0] == fix.eph**2 and obj["position_covariance_type"] == 2
@@ -301,8 +333,12 @@ def test_memory_stays_bounded_while_a_long_log_is_written(tmp_path):
     base, _ = tracemalloc.get_traced_memory()
     sizes = []
     for k in range(10_000):
-        log.write("/truth/odometry", M.Odometry(k * 1e-3, *arrays[:2], np.array([1.0, 0, 0, 0]), *arrays[2:5]),
-                  k * 1_000_000, k * 1_000_000)
+        log.write(
+            "/truth/odometry",
+            M.Odometry(k * 1e-3, *arrays[:2], np.array([1.0, 0, 0, 0]), *arrays[2:5]),
+            k * 1_000_000,
+            k * 1_000_000,
+        )
         if k % 2500 == 2499:
             sizes.append(path.stat().st_size)
     _, peak = tracemalloc.get_traced_memory()
@@ -334,7 +370,10 @@ def test_wrong_type_bad_time_and_changed_shape_are_errors(tmp_path):
         log.write("/actuator/command", M.ActuatorCommand(0.1, np.ones(4)), 3, 3)
         log.write("/actuator/command", M.ActuatorCommand(0.2, np.ones(4)), 2**64 - 1, 2**63)  # checked path
     assert [(r.log_time_ns, r.publish_time_ns) for r in read_mcap(tmp_path / "b.mcap")] == [
-        (0, 0), (3, 3), (2**64 - 1, 2**63)]  # the bad ones were not logged
+        (0, 0),
+        (3, 3),
+        (2**64 - 1, 2**63),
+    ]  # the bad ones were not logged
     with pytest.raises(TypeError, match="cannot log a value of type object"):
         with McapLogger(tmp_path / "d.mcap") as log:
             log.write("/x", UserMessage(0.0, "", Color.RED, Inner(1.0, ""), np.zeros(1), (), {"k": object()}), 0, 0)
@@ -411,20 +450,27 @@ def _write_in_child() -> str:
 def test_variable_length_messages_are_logged_as_json_and_round_trip(tmp_path):
     """A tunnel estimate grows a row per frame found and a diagnostics message has a row per weak direction: such
     messages (``variable_length``) get the JSON codec, so a later message of another size is no error."""
-    estimates = [M.TunnelEstimate(0.1 * k, np.full((k, 3), k * 0.5), np.tile([1.0, 0, 0], (k, 1)), np.ones((k, 2)),
-                                  np.linspace(0, 1, k), k) for k in range(1, 5)]
-    diagnostics = [M.OdometryDiagnostics(0.1 * k, 10, 5, 3, np.arange(6.0), np.ones((k % 2, 6)), 1.0, 1.0, "")
-                   for k in range(4)]
+    estimates = [
+        M.TunnelEstimate(
+            0.1 * k, np.full((k, 3), k * 0.5), np.tile([1.0, 0, 0], (k, 1)), np.ones((k, 2)), np.linspace(0, 1, k), k
+        )
+        for k in range(1, 5)
+    ]
+    diagnostics = [
+        M.OdometryDiagnostics(0.1 * k, 10, 5, 3, np.arange(6.0), np.ones((k % 2, 6)), 1.0, 1.0, "") for k in range(4)
+    ]
     with McapLogger(tmp_path / "a.mcap") as log:
-        for k, (e, d) in enumerate(zip(estimates, diagnostics)):
+        for k, (e, d) in enumerate(zip(estimates, diagnostics, strict=True)):
             log.write("/perception/tunnel", e, k, k)
             log.write("/estimator/diagnostics", d, k, k)
     records = list(read_mcap(tmp_path / "a.mcap"))
-    back = {topic: [r.message for r in records if r.topic == topic]
-            for topic in ("/perception/tunnel", "/estimator/diagnostics")}
+    back = {
+        topic: [r.message for r in records if r.topic == topic]
+        for topic in ("/perception/tunnel", "/estimator/diagnostics")
+    }
     for sent, got in ((estimates, back["/perception/tunnel"]), (diagnostics, back["/estimator/diagnostics"])):
         assert len(got) == len(sent)
-        for a, b in zip(sent, got):
+        for a, b in zip(sent, got, strict=True):
             for f in dataclasses.fields(a):
                 x, y = getattr(a, f.name), getattr(b, f.name)
                 assert np.array_equal(x, y) if isinstance(x, np.ndarray) else x == y, f.name
@@ -460,8 +506,10 @@ def test_a_failed_disk_write_is_an_oserror_never_silent():
     log.close()  # and then idempotent
 
 
-@pytest.mark.skipif(not (__import__("os").path.exists("/dev/full") and __import__("os").path.isdir("/proc/self/fd")),
-                    reason="needs /dev/full and /proc")
+@pytest.mark.skipif(
+    not (__import__("os").path.exists("/dev/full") and __import__("os").path.isdir("/proc/self/fd")),
+    reason="needs /dev/full and /proc",
+)
 @pytest.mark.parametrize("background", [True, False])
 def test_a_write_error_stays_reported_by_every_later_write_and_close(tmp_path, background):
     """Once the writer has reported a write error it reports it again at every later write and at close, and writes

@@ -11,8 +11,8 @@ from scipy.spatial.transform import Rotation
 
 from cufund import messages as M
 from cufund import presets
-from cufund.logs import McapLogger
 from cufund.apps import log_replay
+from cufund.logs import McapLogger
 from cufund.viz.meshcat_scene import import_meshcat
 from cufund.viz.replay import _RecordingWindow
 
@@ -38,8 +38,15 @@ def _write_log(path, with_estimate: bool = True) -> list[tuple[int, M.PointCloud
                 log.write("/estimator/odometry", M.Odometry(t, estimate[0], np.zeros(3), q, np.zeros(3)), ns, ns)
             if k % 10 == 5:  # 10 Hz LiDAR
                 n = 40
-                cloud = M.PointCloud(t, np.linspace(0, 0.09, n), rng.normal(size=(n, 3)).astype(np.float32),
-                                     rng.random(n) * 10, rng.random(n), np.arange(n) % 16, k // 10)
+                cloud = M.PointCloud(
+                    t,
+                    np.linspace(0, 0.09, n),
+                    rng.normal(size=(n, 3)).astype(np.float32),
+                    rng.random(n) * 10,
+                    rng.random(n),
+                    np.arange(n) % 16,
+                    k // 10,
+                )
                 log.write("/sensors/lidar", cloud, ns, ns)
                 clouds.append((ns, cloud, estimate or (p, q)))
     return clouds
@@ -91,8 +98,9 @@ def test_replay_without_estimate_uses_truth_for_clouds(tmp_path):
     assert stats.frames == 20 and not any(c.get("path") == "/meshcat/estimate" for c in commands)
     _, cloud, (p_WB, q_WB) = clouds[0]
     first = next(c for c in commands if c["type"] == "set_object" and c["path"] == "/meshcat/lidar")
-    got = np.frombuffer(first["object"]["geometries"][0]["data"]["attributes"]["position"]["array"].data,
-                        np.float32).reshape(-1, 3)
+    got = np.frombuffer(
+        first["object"]["geometries"][0]["data"]["attributes"]["position"]["array"].data, np.float32
+    ).reshape(-1, 3)
     expected = Rotation.from_quat(q_WB, scalar_first=True).apply(cloud.points_L.astype(np.float64)) + p_WB
     assert np.allclose(got, expected, atol=1e-5)
 
@@ -108,8 +116,15 @@ def test_replay_paces_to_the_requested_speed(tmp_path):
         now[0] += seconds
 
     window = _RecordingWindow()
-    log_replay.replay_log(path, import_meshcat().Visualizer(window=window), presets.cu_astro(), speed=4.0,
-                          rate_hz=10.0, sleep=sleep, clock=lambda: now[0])
+    log_replay.replay_log(
+        path,
+        import_meshcat().Visualizer(window=window),
+        presets.cu_astro(),
+        speed=4.0,
+        rate_hz=10.0,
+        sleep=sleep,
+        clock=lambda: now[0],
+    )
     assert len(slept) == 19 and all(s == pytest.approx(0.1 / 4.0) for s in slept[:-1])  # a 100 ms frame: 25 ms
     assert sum(slept) == pytest.approx(1.99 / 4.0)  # 2 s of log at 4x real time
 

@@ -30,7 +30,7 @@ def test_passes_through_waypoints_at_rest_ends():
     assert tr.sample(tr.t_knots[[0, -1]]).yaw_rate == pytest.approx([0.0, 0.0], abs=1e-12)
 
 
-@pytest.mark.parametrize("r", range(0, 7))
+@pytest.mark.parametrize("r", range(7))
 def test_continuous_through_snap_and_beyond(r):
     """The optimum is C^6 at interior waypoints (Euler-Lagrange); in particular continuous to snap (r = 4)."""
     rng = np.random.default_rng(1)
@@ -62,7 +62,9 @@ def test_snap_cost_matches_numerical_integral():
     tr = MinimumSnapTrajectory(SQUARE, durations=[1.0, 2.0, 1.5, 1.0])
     t = np.linspace(tr.t_knots[0], tr.t_end, 200001)
     snap = tr.derivative(t, 4)
-    numeric = np.trapezoid(np.sum(snap ** 2, axis=1), t) if hasattr(np, "trapezoid") else np.trapz(np.sum(snap ** 2, axis=1), t)
+    numeric = (
+        np.trapezoid(np.sum(snap**2, axis=1), t) if hasattr(np, "trapezoid") else np.trapz(np.sum(snap**2, axis=1), t)
+    )
     assert tr.snap_cost() == pytest.approx(numeric, rel=1e-6)
 
 
@@ -89,15 +91,18 @@ def test_vectorised_equals_scalar():
     np.testing.assert_allclose(s.v_W[-1], 0.0)
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(waypoints_W=np.zeros((1, 3))), "shape"),
-    (dict(waypoints_W=np.zeros((3, 2))), "shape"),
-    (dict(waypoints_W=SQUARE, durations=[1, 1, 1]), "durations"),
-    (dict(waypoints_W=SQUARE, durations=[1, 1, -1, 1]), "durations"),
-    (dict(waypoints_W=SQUARE, yaw=[0, 1]), "yaw"),
-    (dict(waypoints_W=np.array([[0, 0, 1], [0, 0, 1.0]])), "differ"),
-    (dict(waypoints_W=np.array([[0, 0, np.nan], [0, 0, 1.0]])), "finite"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(waypoints_W=np.zeros((1, 3))), "shape"),
+        (dict(waypoints_W=np.zeros((3, 2))), "shape"),
+        (dict(waypoints_W=SQUARE, durations=[1, 1, 1]), "durations"),
+        (dict(waypoints_W=SQUARE, durations=[1, 1, -1, 1]), "durations"),
+        (dict(waypoints_W=SQUARE, yaw=[0, 1]), "yaw"),
+        (dict(waypoints_W=np.array([[0, 0, 1], [0, 0, 1.0]])), "differ"),
+        (dict(waypoints_W=np.array([[0, 0, np.nan], [0, 0, 1.0]])), "finite"),
+    ],
+)
 def test_bad_input(kwargs, match):
     with pytest.raises(ValueError, match=match):
         MinimumSnapTrajectory(**kwargs)
@@ -135,7 +140,7 @@ def test_optimised_times_beat_rotorpy_at_its_own_total_time(n):
         assert MinimumSnapTrajectory(w, durations=T + d).snap_cost() >= ours.snap_cost() * (1 - 1e-6)
 
 
-@pytest.mark.parametrize("r", range(0, 5))
+@pytest.mark.parametrize("r", range(5))
 def test_optimised_times_continuous_to_snap_and_within_limits(r):
     rng = np.random.default_rng(4)
     w = np.cumsum(rng.uniform(-1.5, 1.5, (7, 3)), axis=0)
@@ -164,7 +169,9 @@ def test_corridor_keeps_the_square_near_its_edges(corridor, optimize):
     free = MinSnapPlanner(MinSnapPlannerParams(v_max=1.0, a_max=2.0, optimize_times=optimize)).plan(SQUARE)
     t = np.linspace(free.trajectory.t_knots[0], free.trajectory.t_end, 20001)
     assert _square_edge_distance(free.trajectory.sample(t).p_W).max() > 0.2  # without it: the bulge
-    res = MinSnapPlanner(MinSnapPlannerParams(v_max=1.0, a_max=2.0, corridor=corridor, optimize_times=optimize)).plan(SQUARE)
+    res = MinSnapPlanner(MinSnapPlannerParams(v_max=1.0, a_max=2.0, corridor=corridor, optimize_times=optimize)).plan(
+        SQUARE
+    )
     assert res.status == "ok" and res.inserted > 0
     tr = res.trajectory
     s = tr.sample(np.linspace(tr.t_knots[0], tr.t_end, 20001))
@@ -197,22 +204,29 @@ def test_snap_cost_gradient_is_exact():
     J, g = snap_cost_and_gradient(w, T)
     assert J == pytest.approx(MinimumSnapTrajectory(w, durations=T).snap_cost(), rel=1e-12)
     h = 1e-6
-    fd = [(snap_cost_and_gradient(w, T + h * e)[0] - snap_cost_and_gradient(w, T - h * e)[0]) / (2 * h) for e in np.eye(6)]
+    fd = [
+        (snap_cost_and_gradient(w, T + h * e)[0] - snap_cost_and_gradient(w, T - h * e)[0]) / (2 * h) for e in np.eye(6)
+    ]
     np.testing.assert_allclose(g, fd, rtol=1e-6)
 
 
-@pytest.mark.parametrize("values, durations, match", [
-    (np.zeros((1, 3)), np.ones(0), "values"),
-    (np.zeros((3, 3)), np.ones(3), "durations"),
-    (np.zeros((3, 3)), [1.0, 0.0], "durations"),
-    (np.zeros((3, 3)), [1.0, np.inf], "durations"),
-    (np.array([[0, 0, 0], [1, np.nan, 0], [2, 0, 0.0]]), [1.0, 1.0], "finite"),
-])
+@pytest.mark.parametrize(
+    "values, durations, match",
+    [
+        (np.zeros((1, 3)), np.ones(0), "values"),
+        (np.zeros((3, 3)), np.ones(3), "durations"),
+        (np.zeros((3, 3)), [1.0, 0.0], "durations"),
+        (np.zeros((3, 3)), [1.0, np.inf], "durations"),
+        (np.array([[0, 0, 0], [1, np.nan, 0], [2, 0, 0.0]]), [1.0, 1.0], "finite"),
+    ],
+)
 def test_core_spline_functions_reject_bad_input(values, durations, match):
     from cufund import _core
 
-    for f in (lambda: _core.planning.min_derivative_spline(values, durations, 4),
-              lambda: _core.planning.snap_cost_and_gradient(values, durations),
-              lambda: _core.planning.optimize_segment_times(values, durations, 10, 1e-6)):
+    for f in (
+        lambda: _core.planning.min_derivative_spline(values, durations, 4),
+        lambda: _core.planning.snap_cost_and_gradient(values, durations),
+        lambda: _core.planning.optimize_segment_times(values, durations, 10, 1e-6),
+    ):
         with pytest.raises(ValueError, match=match):
             f()

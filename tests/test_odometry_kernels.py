@@ -46,8 +46,10 @@ def test_imu_propagation_equals_gtsam_predict(seed):
 
 def _level_yaw_motion(p0, v, yaw_rate):
     """Body at constant velocity and yaw rate, level: an IMU at the body reads (0, 0, g) and (0, 0, yaw_rate)."""
+
     def pose(t):
         return p0 + v * t, np.r_[np.cos(yaw_rate * t / 2), 0.0, 0.0, np.sin(yaw_rate * t / 2)]
+
     return pose
 
 
@@ -55,7 +57,9 @@ def test_deskewed_moving_scan_matches_the_scene_seen_at_rest():
     world = load("imav2025_tunnel")
     p0, v, yaw_rate = np.array([-3.0, -1.5, 1.5]), np.array([1.5, 0.4, 0.1]), 1.0
     pose = _level_yaw_motion(p0, v, yaw_rate)
-    T_BL = Transform(t=(0.05, 0.02, 0.06), q=tuple(Rotation.from_euler("xyz", [0.1, 0.2, -0.3]).as_quat()[[3, 0, 1, 2]]))
+    T_BL = Transform(
+        t=(0.05, 0.02, 0.06), q=tuple(Rotation.from_euler("xyz", [0.1, 0.2, -0.3]).as_quat()[[3, 0, 1, 2]])
+    )
     sigma = 0.02
     lidar = Lidar(Mid360Pattern(point_rate=50_000), mid360_params(range_noise_std=sigma, seed=3), T_BL)
     cloud = lidar.scan(world, pose, 0.0)
@@ -64,9 +68,17 @@ def test_deskewed_moving_scan_matches_the_scene_seen_at_rest():
     n_imu = 24
     knot_t = -0.01 + 0.005 * np.arange(n_imu + 1)
     p_start, q_start = pose(knot_t[0])
-    states, rates = odo.imu_propagate(p_start, v, q_start, np.zeros(3), np.zeros(3), [0, 0, -G],
-                                      np.full(n_imu, 0.005), np.tile([0.0, 0.0, G], (n_imu, 1)),
-                                      np.tile([0.0, 0.0, yaw_rate], (n_imu, 1)))
+    states, rates = odo.imu_propagate(
+        p_start,
+        v,
+        q_start,
+        np.zeros(3),
+        np.zeros(3),
+        [0, 0, -G],
+        np.full(n_imu, 0.005),
+        np.tile([0.0, 0.0, G], (n_imu, 1)),
+        np.tile([0.0, 0.0, yaw_rate], (n_imu, 1)),
+    )
     M_BL = np.eye(4)
     M_BL[:3, :3] = Rotation.from_quat(np.r_[T_BL.q[1:], T_BL.q[0]]).as_matrix()
     M_BL[:3, 3] = T_BL.t
@@ -101,9 +113,17 @@ def test_prepare_scan_equals_deskew_range_filter_and_two_downsamples():
     t = np.sort(rng.uniform(0.0, 0.1, n))
     n_imu = 22
     knot_t = -0.005 + 0.005 * np.arange(n_imu + 1)
-    states, rates = odo.imu_propagate([1.0, 2.0, 1.5], [0.8, -0.3, 0.1], np.array([0.9, 0.1, -0.2, 0.3]) / np.sqrt(0.95),
-                                      np.zeros(3), np.zeros(3), [0, 0, -G], np.full(n_imu, 0.005),
-                                      rng.normal([0, 0, G], 0.5, (n_imu, 3)), rng.normal(0, 0.4, (n_imu, 3)))
+    states, rates = odo.imu_propagate(
+        [1.0, 2.0, 1.5],
+        [0.8, -0.3, 0.1],
+        np.array([0.9, 0.1, -0.2, 0.3]) / np.sqrt(0.95),
+        np.zeros(3),
+        np.zeros(3),
+        [0, 0, -G],
+        np.full(n_imu, 0.005),
+        rng.normal([0, 0, G], 0.5, (n_imu, 3)),
+        rng.normal(0, 0.4, (n_imu, 3)),
+    )
     M_BI, M_BL = np.eye(4), np.eye(4)
     M_BI[:3, :3] = Rotation.from_rotvec([0.02, -0.01, 0.3]).as_matrix()
     M_BI[:3, 3] = [0.01, 0.02, -0.01]
@@ -162,8 +182,9 @@ def test_knn_and_normals_match_open3d():
         np.testing.assert_allclose(d2[i][found], np.asarray(dist2), rtol=1e-9, atol=1e-12)
         assert found.sum() == len(idx)
     # Normals: the smallest principal axis of the 5 nearest neighbours (Open3D's search, numpy PCA).
-    terms = vmap.point_to_plane(queries, np.eye(3), np.zeros(3), neighbours=5, max_neighbour_distance=0.5,
-                                max_plane_rms=0.05, max_residual=0.3)
+    terms = vmap.point_to_plane(
+        queries, np.eye(3), np.zeros(3), neighbours=5, max_neighbour_distance=0.5, max_plane_rms=0.05, max_residual=0.3
+    )
     valid = terms["valid"]
     assert valid.mean() > 0.9
     for i in np.nonzero(valid)[0][::7]:
@@ -195,11 +216,29 @@ def test_bad_input_raises_value_error_naming_the_argument():
     with pytest.raises(ValueError, match="knot_t"):
         odo.deskew(pts, t, knot_t[::-1], states, rates, 0.1, np.eye(4), np.eye(4))
     with pytest.raises(ValueError, match="q_WI"):
-        odo.imu_propagate(np.zeros(3), np.zeros(3), [1.0, 1.0, 0, 0], np.zeros(3), np.zeros(3), [0, 0, -G],
-                          [0.01], [[0, 0, G]], [[0, 0, 0]])
+        odo.imu_propagate(
+            np.zeros(3),
+            np.zeros(3),
+            [1.0, 1.0, 0, 0],
+            np.zeros(3),
+            np.zeros(3),
+            [0, 0, -G],
+            [0.01],
+            [[0, 0, G]],
+            [[0, 0, 0]],
+        )
     with pytest.raises(ValueError, match="dt"):
-        odo.imu_propagate(np.zeros(3), np.zeros(3), [1.0, 0, 0, 0], np.zeros(3), np.zeros(3), [0, 0, -G],
-                          [0.0], [[0, 0, G]], [[0, 0, 0]])
+        odo.imu_propagate(
+            np.zeros(3),
+            np.zeros(3),
+            [1.0, 0, 0, 0],
+            np.zeros(3),
+            np.zeros(3),
+            [0, 0, -G],
+            [0.0],
+            [[0, 0, G]],
+            [[0, 0, 0]],
+        )
     vmap = odo.VoxelMap()
     with pytest.raises(ValueError, match="R_WI"):
         vmap.point_to_plane(np.zeros((3, 3)), 2 * np.eye(3), np.zeros(3))

@@ -24,8 +24,11 @@ def test_crazyflie_matches_rotorpy_numbers():
 
     p = presets.crazyflie()
     assert p.mass == q["mass"]
-    assert p.inertia_matrix.tolist() == [[q["Ixx"], q["Ixy"], q["Ixz"]], [q["Ixy"], q["Iyy"], q["Iyz"]],
-                                         [q["Ixz"], q["Iyz"], q["Izz"]]]
+    assert p.inertia_matrix.tolist() == [
+        [q["Ixx"], q["Ixy"], q["Ixz"]],
+        [q["Ixy"], q["Iyy"], q["Iyz"]],
+        [q["Ixz"], q["Iyz"], q["Izz"]],
+    ]
     assert p.k_f == q["k_eta"]
     assert p.c_m * p.k_f == pytest.approx(q["k_m"], rel=1e-15)
     assert (p.tau_m, p.rotor_speed_min, p.rotor_speed_max) == (q["tau_m"], q["rotor_speed_min"], q["rotor_speed_max"])
@@ -61,16 +64,20 @@ def test_yaml_round_trip(tmp_path, crazyflie):
 
 def test_yaml_accepts_diagonal_inertia(tmp_path):
     path = tmp_path / "q.yaml"
-    path.write_text("mass: 1.0\ninertia: [0.01, 0.01, 0.02]\narm_length: 0.2\nk_f: 1.0e-5\nc_m: 0.02\n"
-                    "tau_m: 0.02\nrotor_speed_max: 1200\n")
+    path.write_text(
+        "mass: 1.0\ninertia: [0.01, 0.01, 0.02]\narm_length: 0.2\nk_f: 1.0e-5\nc_m: 0.02\n"
+        "tau_m: 0.02\nrotor_speed_max: 1200\n"
+    )
     p = cufund.QuadrotorParams.from_yaml(path)
     np.testing.assert_array_equal(p.inertia_matrix, np.diag([0.01, 0.01, 0.02]))
 
 
 def test_unknown_yaml_key_is_named(tmp_path):
     path = tmp_path / "q.yaml"
-    path.write_text("mass: 1.0\ninertia: [0.01, 0.01, 0.02]\narm_length: 0.2\nk_f: 1.0e-5\nc_m: 0.02\n"
-                    "tau_m: 0.02\nrotor_speed_max: 1200\nmotor_constant: 3\n")
+    path.write_text(
+        "mass: 1.0\ninertia: [0.01, 0.01, 0.02]\narm_length: 0.2\nk_f: 1.0e-5\nc_m: 0.02\n"
+        "tau_m: 0.02\nrotor_speed_max: 1200\nmotor_constant: 3\n"
+    )
     with pytest.raises(ValueError, match="unknown key 'motor_constant' in QuadrotorParams"):
         cufund.QuadrotorParams.from_yaml(path)
 
@@ -110,7 +117,8 @@ def test_params_are_frozen(crazyflie):
 
 def test_missing_yaml_key_is_named(tmp_path):
     path = tmp_path / "q.yaml"
-    path.write_text("mass: 1.0\ninertia: [0.01, 0.01, 0.02]\narm_length: 0.2\nc_m: 0.02\ntau_m: 0.02\n"
-                    "rotor_speed_max: 1200\n")
+    path.write_text(
+        "mass: 1.0\ninertia: [0.01, 0.01, 0.02]\narm_length: 0.2\nc_m: 0.02\ntau_m: 0.02\nrotor_speed_max: 1200\n"
+    )
     with pytest.raises(cufund.ConfigError, match="missing key 'k_f' in QuadrotorParams"):
         cufund.QuadrotorParams.from_yaml(path)

@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from cufund import ScenarioConfig
 from cufund.core.components import Mapper
 from cufund.core.config import ConfigError
-from cufund.mapping import EsdfMap, EsdfMapParams
 from cufund.core.messages import MapUpdate, Topics
+from cufund.mapping import EsdfMap, EsdfMapParams
 from cufund.planning.bspline import UniformBspline
 from cufund.planning.local_planner_component import LocalPlannerComponent
 from cufund.planning.sequence import Hold, TrajectorySequence
@@ -20,11 +21,29 @@ from cufund.scenarios.build import build_simulation, run_built
 RES = 0.1
 ORIGIN = np.array([-2.0, -3.0, 0.0])
 PILLAR = (np.array([4.0, -0.4, 0.0]), np.array([4.6, 0.4, 3.0]))  # [min, max] corners, whole voxels
-GAINS = {"position": {"xy_p": 3.0, "z_p": 3.0, "xy_vel_p": 8.0, "xy_vel_i": 2.0, "xy_vel_d": 0.3, "z_vel_p": 8.0,
-                      "z_vel_i": 2.0, "xy_vel_max": 3.0},
-         "attitude": {"roll_p": 10.0, "pitch_p": 10.0, "yaw_p": 2.8},
-         "rate": {"roll_p": 25.0, "roll_i": 10.0, "roll_d": 0.2, "pitch_p": 25.0, "pitch_i": 10.0, "pitch_d": 0.2,
-                  "yaw_p": 12.0, "yaw_i": 5.0}}
+GAINS = {
+    "position": {
+        "xy_p": 3.0,
+        "z_p": 3.0,
+        "xy_vel_p": 8.0,
+        "xy_vel_i": 2.0,
+        "xy_vel_d": 0.3,
+        "z_vel_p": 8.0,
+        "z_vel_i": 2.0,
+        "xy_vel_max": 3.0,
+    },
+    "attitude": {"roll_p": 10.0, "pitch_p": 10.0, "yaw_p": 2.8},
+    "rate": {
+        "roll_p": 25.0,
+        "roll_i": 10.0,
+        "roll_d": 0.2,
+        "pitch_p": 25.0,
+        "pitch_i": 10.0,
+        "pitch_d": 0.2,
+        "yaw_p": 12.0,
+        "yaw_i": 5.0,
+    },
+}
 
 
 class ScriptedMap(Mapper):
@@ -52,12 +71,17 @@ class ScriptedMap(Mapper):
 
 
 def _config(**planner):
-    return ScenarioConfig.from_dict({
-        "name": "local_test", "vehicle": "cu_astro", "start_p_W": [0.0, 0.0, 0.0], "duration": 25.0,
-        "planner": {"kind": "local", "goal": [8.0, 0.0, 1.5], "v_max": 1.5, **planner},
-        "controller": {"kind": "pid", **GAINS},
-        "rates": {"physics_hz": 1000, "trajectory_hz": 250, "position_hz": 250, "attitude_hz": 250, "rate_hz": 500},
-    })
+    return ScenarioConfig.from_dict(
+        {
+            "name": "local_test",
+            "vehicle": "cu_astro",
+            "start_p_W": [0.0, 0.0, 0.0],
+            "duration": 25.0,
+            "planner": {"kind": "local", "goal": [8.0, 0.0, 1.5], "v_max": 1.5, **planner},
+            "controller": {"kind": "pid", **GAINS},
+            "rates": {"physics_hz": 1000, "trajectory_hz": 250, "position_hz": 250, "attitude_hz": 250, "rate_hz": 500},
+        }
+    )
 
 
 class UpdateLog(Mapper):
@@ -104,9 +128,12 @@ def test_stitched_setpoints_are_continuous(pillar_flight):
     assert len(probe.updates) > 50  # replanned at 10 Hz all the way
     dt = np.diff(t)
     assert np.allclose(dt, 1 / 250, atol=1e-9)
+
     # Between consecutive setpoints each quantity can change by at most its derivative's bound times the tick
     # (mean value theorem): a jump at a stitch would break these.
-    n = lambda x: np.linalg.norm(x, axis=1)
+    def n(x):
+        return np.linalg.norm(x, axis=1)
+
     a_max, j_max = n(a).max(), n(j).max()
     assert np.all(n(np.diff(p, axis=0)) <= (np.maximum(n(v)[:-1], n(v)[1:]) + a_max * dt) * dt + 1e-9)
     assert np.all(n(np.diff(v, axis=0)) <= (np.maximum(n(a)[:-1], n(a)[1:]) + j_max * dt) * dt + 1e-9)

@@ -7,8 +7,14 @@ import numpy as np
 import pytest
 
 from cufund.core.config import ConfigError
-from cufund.planning import (ClearanceQuery, GridPathSearch, GridPathSearchParams, OmplPathParams, OmplPathPlanner,
-                             esdf_from_world)
+from cufund.planning import (
+    ClearanceQuery,
+    GridPathSearch,
+    GridPathSearchParams,
+    OmplPathParams,
+    OmplPathPlanner,
+    esdf_from_world,
+)
 from cufund.worlds import World
 from cufund.worlds.builtin import forest
 
@@ -38,7 +44,7 @@ def setting():
 
 def _dense(path: np.ndarray, step: float = 0.01) -> np.ndarray:
     out = [path[:1]]
-    for a, b in zip(path[:-1], path[1:]):
+    for a, b in zip(path[:-1], path[1:], strict=True):
         n = max(2, int(np.ceil(np.linalg.norm(b - a) / step)) + 1)
         out.append(a + np.linspace(0.0, 1.0, n)[:, None] * (b - a))
     return np.vstack(out)
@@ -81,7 +87,7 @@ def test_scalar_fast_path_is_the_bound_query_with_checked_arguments(setting):
     assert [q.clearance_xyz(*x) for x in p] == [q._core.clearance(*x) for x in p]
     assert q.clearance_xyz(1, np.float32(0.5), np.float64(1.0)) == q._core.clearance(1.0, 0.5, 1.0)
     assert q.clearance_xyz(x=1.0, y=0.5, z=1.0) == q._core.clearance(1.0, 0.5, 1.0)
-    for a, b in zip(p[:-1], p[1:]):
+    for a, b in zip(p[:-1], p[1:], strict=True):
         assert q.segment_free_xyz(*a, *b, 0.2) is q._core.segment_free(*a, *b, 0.2)
     with pytest.raises(TypeError, match="y must be a real number"):
         q.clearance_xyz(1.0, "2", 3.0)

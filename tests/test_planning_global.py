@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from cufund import ScenarioConfig, load_scenario
 from cufund.core.components import Component
 from cufund.core.config import ConfigError
@@ -59,8 +60,9 @@ def test_astar_chain_keeps_the_radius_and_is_deterministic(setting):
     a = planner.plan(q, START, GOAL)
     pa = _check(a, truth)
     b = GlobalPlanner(GlobalPlannerParams(radius=RADIUS)).plan(q, START, GOAL)
-    np.testing.assert_array_equal(pa, b.trajectory.sample(np.arange(b.trajectory.t_start, b.trajectory.t_end + 1e-9,
-                                                                    0.005)).p_W)
+    np.testing.assert_array_equal(
+        pa, b.trajectory.sample(np.arange(b.trajectory.t_start, b.trajectory.t_end + 1e-9, 0.005)).p_W
+    )
 
 
 @pytest.mark.parametrize("search", ["rrt_connect", "informed_rrt_star"])
@@ -86,12 +88,16 @@ def test_chain_failures_and_params(setting):
 
 def _yaml_scenario(**planner):
     """A forest with no sensors: the min-snap from the known geometry is flown as it is."""
-    return ScenarioConfig.from_dict({
-        "name": "global_test", "vehicle": "cu_astro",
-        "world": {"kind": "forest", "seed": 3, "n_trees": 60, "size": 16.0, "clearing": 1.0},
-        "planner": {"kind": "global", "goal": GOAL.tolist(), **planner},
-        "start_p_W": [START[0], START[1], 0.0], "duration": 40.0,
-    })
+    return ScenarioConfig.from_dict(
+        {
+            "name": "global_test",
+            "vehicle": "cu_astro",
+            "world": {"kind": "forest", "seed": 3, "n_trees": 60, "size": 16.0, "clearing": 1.0},
+            "planner": {"kind": "global", "goal": GOAL.tolist(), **planner},
+            "start_p_W": [START[0], START[1], 0.0],
+            "duration": 40.0,
+        }
+    )
 
 
 def _trunks(world):
@@ -155,9 +161,18 @@ def test_forest_global_scenario_guides_the_local_replanner():
     by the global path, crosses to the goal clear of the trunks."""
     cfg = load_scenario("forest_global")
     assert cfg.planner.params.local and cfg.estimator is not None  # the scenario itself flies on the LIO
-    cfg = cfg.with_overrides({"estimator": None, "world.seed": 1, "world.size": 24.0, "world.n_trees": 87,
-                              "planner.goal": [12.0, 0.0, 1.5], "mapper.size": [18.0, 12.0, 4.0],
-                              "mapper.origin_W": [-3.0, -6.0, -0.5], "duration": 30.0})
+    cfg = cfg.with_overrides(
+        {
+            "estimator": None,
+            "world.seed": 1,
+            "world.size": 24.0,
+            "world.n_trees": 87,
+            "planner.goal": [12.0, 0.0, 1.5],
+            "mapper.size": [18.0, 12.0, 4.0],
+            "mapper.origin_W": [-3.0, -6.0, -0.5],
+            "duration": 30.0,
+        }
+    )
     world = build_simulation(cfg).context.world
     log = DiagnosticsLog()
     run = run_scenario(cfg, extra_components=(log,))

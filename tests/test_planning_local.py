@@ -50,8 +50,9 @@ def test_bspline_starts_at_the_given_state_and_is_c2():
     for r in range(3):  # continuous position, velocity, acceleration at the knots
         np.testing.assert_allclose(tr.derivative(knots - 1e-9, r), tr.derivative(knots + 1e-9, r), atol=1e-6)
     t = np.linspace(1.1, tr.t_end - 0.1, 50)
-    np.testing.assert_allclose((tr.derivative(t + 1e-6, 0) - tr.derivative(t - 1e-6, 0)) / 2e-6, tr.derivative(t, 1),
-                               atol=1e-6)
+    np.testing.assert_allclose(
+        (tr.derivative(t + 1e-6, 0) - tr.derivative(t - 1e-6, 0)) / 2e-6, tr.derivative(t, 1), atol=1e-6
+    )
 
 
 def test_replan_avoids_an_obstacle_that_appears_mid_flight():
@@ -130,10 +131,13 @@ def test_guide_stays_in_the_flight_band_over_unobserved_ground():
     # round is its end at y = -1.5
     m.set_occupied(np.argwhere(np.ones((4, 45, 17), bool)) + [50, 15, 13])
     start, goal = np.array([0.0, 0.0, 1.0]), np.array([9.0, 0.0, 1.0])
-    low = BsplineLocalPlanner(m, LocalPlannerParams(radius=0.3, z_min=-1.0)).replan(0.0, start, np.zeros(3),
-                                                                                      np.zeros(3), goal)
-    assert low.status == "ok" and low.trajectory.sample(
-        np.linspace(low.trajectory.t_start, low.trajectory.t_end, 500)).p_W[:, 2].min() < 0.3  # ducks under
+    low = BsplineLocalPlanner(m, LocalPlannerParams(radius=0.3, z_min=-1.0)).replan(
+        0.0, start, np.zeros(3), np.zeros(3), goal
+    )
+    assert (
+        low.status == "ok"
+        and low.trajectory.sample(np.linspace(low.trajectory.t_start, low.trajectory.t_end, 500)).p_W[:, 2].min() < 0.3
+    )  # ducks under
     lp = BsplineLocalPlanner(m, LocalPlannerParams(radius=0.3))
     t, p, v, a = 0.0, start, np.zeros(3), np.zeros(3)
     flown = []
@@ -164,15 +168,16 @@ def test_short_leg_between_offset_tunnel_frames_is_planned_from_rest():
     to the frames' triangles."""
     import open3d as o3d
 
-    from cufund.planning import esdf_from_world
     from cufund.missions.tunnel_course import tunnel_course_layout
+    from cufund.planning import esdf_from_world
 
     c = tunnel_course_layout(61)
     start, goal = (np.asarray(c.frames[k].centre_W, float) for k in (3, 4))
     lo, hi = np.minimum(start, goal) - 1.0, np.maximum(start, goal) + 1.0
     esdf = esdf_from_world(c.world, 0.025, np.stack([lo, hi]))
-    params = LocalPlannerParams(radius=0.15, margin=0.15, v_max=1.5, a_max=2.0, dt=0.1, horizon=4.0,
-                                z_min=lo[2] + 0.5, z_max=hi[2] - 0.5)
+    params = LocalPlannerParams(
+        radius=0.15, margin=0.15, v_max=1.5, a_max=2.0, dt=0.1, horizon=4.0, z_min=lo[2] + 0.5, z_max=hi[2] - 0.5
+    )
     r = BsplineLocalPlanner(esdf, params).replan(0.0, start, np.zeros(3), np.zeros(3), goal)
     assert r.status == "ok" and r.reaches_goal
     scene = o3d.t.geometry.RaycastingScene()

@@ -13,27 +13,32 @@ A, B, C = frozenset({"a"}), frozenset({"b"}), frozenset({"c"})
 AB, NONE = frozenset({"a", "b"}), frozenset()
 
 
-@pytest.mark.parametrize("formula, word, accepted", [
-    ("F(a & F(b))", [A, B], True),
-    ("F(a & F(b))", [B, A], False),
-    ("F(a & F(b))", [AB], True),          # F includes the present: a and then (now) b
-    ("F(a & F(b))", [A, NONE, NONE], False),
-    ("F(a) & G(!c)", [NONE, A], True),
-    ("F(a) & G(!c)", [A, C], False),
-    ("a U b", [A, A, B], True),
-    ("a U b", [A, NONE, B], False),
-    ("X(a)", [NONE, A], True),
-    ("X(a)", [A, NONE], False),
-])
+@pytest.mark.parametrize(
+    "formula, word, accepted",
+    [
+        ("F(a & F(b))", [A, B], True),
+        ("F(a & F(b))", [B, A], False),
+        ("F(a & F(b))", [AB], True),  # F includes the present: a and then (now) b
+        ("F(a & F(b))", [A, NONE, NONE], False),
+        ("F(a) & G(!c)", [NONE, A], True),
+        ("F(a) & G(!c)", [A, C], False),
+        ("a U b", [A, A, B], True),
+        ("a U b", [A, NONE, B], False),
+        ("X(a)", [NONE, A], True),
+        ("X(a)", [A, NONE], False),
+    ],
+)
 def test_dfa_against_hand_worked_traces(formula, word, accepted):
     assert compile_ltlf(formula).accepts(word) is accepted
 
 
 def _regions():
-    return [Region("a", (4.0, 0.0, 1.0), size=(1.0, 1.0, 1.0)),
-            Region("b", (1.0, 0.0, 1.0), radius=0.5),
-            Region("c", (0.0, 5.0, 1.0), size=(1.0, 1.0, 1.0)),
-            Region("home", (0.0, 0.0, 0.5), radius=0.3)]
+    return [
+        Region("a", (4.0, 0.0, 1.0), size=(1.0, 1.0, 1.0)),
+        Region("b", (1.0, 0.0, 1.0), radius=0.5),
+        Region("c", (0.0, 5.0, 1.0), size=(1.0, 1.0, 1.0)),
+        Region("home", (0.0, 0.0, 0.5), radius=0.3),
+    ]
 
 
 def test_product_search_takes_the_shortest_accepted_order():
@@ -81,8 +86,8 @@ def test_mission_to_trajectory_through_a_tunnel_course():
     """Task -> path -> motion: the gates of a seeded tunnel course in an order the DFA forces, flown by a
     min-snap that keeps the radius from the course's triangles (Open3D) and threads every opening in turn."""
     o3d = pytest.importorskip("open3d")
-    from cufund.planning import clearance_from_world, plan_mission_trajectory
     from cufund.missions.tunnel_course import tunnel_course_layout
+    from cufund.planning import clearance_from_world, plan_mission_trajectory
 
     course = tunnel_course_layout(2)
     lo, hi = course.path_W.min(0) - 1.0, course.path_W.max(0) + 1.0

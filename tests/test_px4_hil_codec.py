@@ -8,8 +8,9 @@ import math
 
 import numpy as np
 import pytest
-from cufund.apps.mavlink.hil_codec import FrameWriter, take_controls
 from pymavlink.dialects.v20 import common as mavlink
+
+from cufund.apps.mavlink.hil_codec import FrameWriter, take_controls
 
 
 def _mav(seq=0):
@@ -32,7 +33,7 @@ SENSOR_CASES = [
 GPS_CASES = [
     (200000, 3, 473977418, 85455939, 488000, 120, 180, 35, 12, -30, 4, 35_00, 10, 0),
     (200000, 1, 0, 0, 0, 65535, 65535, 65535, 0, 0, 0, 65535, 0, 1),
-    (1, 6, -2**31, 2**31 - 1, -5, 0, 0, 0, -32768, 32767, 0, 0, 255, 0),
+    (1, 6, -(2**31), 2**31 - 1, -5, 0, 0, 0, -32768, 32767, 0, 0, 255, 0),
 ]
 
 
@@ -54,10 +55,17 @@ def test_hil_gps_frames_are_pymavlinks_bytes(args):
 def test_heartbeat_and_shared_sequence_wraps_like_mavlink():
     mav, ref = _mav(seq=254), _mav(seq=254)
     w = FrameWriter(mav)
-    got = [w.heartbeat(0, 8, 0, 0, 0), w.pack(mav.command_ack_encode(511, 0, 0, 0, 1, 1)), w.heartbeat(2, 12, 129, 7, 4)]
+    got = [
+        w.heartbeat(0, 8, 0, 0, 0),
+        w.pack(mav.command_ack_encode(511, 0, 0, 0, 1, 1)),
+        w.heartbeat(2, 12, 129, 7, 4),
+    ]
     want = []
-    for msg in (ref.heartbeat_encode(0, 8, 0, 0, 0), ref.command_ack_encode(511, 0, 0, 0, 1, 1),
-                ref.heartbeat_encode(2, 12, 129, 7, 4)):
+    for msg in (
+        ref.heartbeat_encode(0, 8, 0, 0, 0),
+        ref.command_ack_encode(511, 0, 0, 0, 1, 1),
+        ref.heartbeat_encode(2, 12, 129, 7, 4),
+    ):
         want.append(_reference(ref, msg))
         ref.seq = (ref.seq + 1) % 256
     assert got == want
@@ -79,8 +87,10 @@ def _controls(peer, u, mode, time_usec=4000):
     return bytes(peer.hil_actuator_controls_encode(time_usec, values, mode, 1).pack(peer))
 
 
-@pytest.mark.parametrize("u, mode", [([0.5, 0.25, -1.0, 1.0], 129), ([0.0, 0.0, 0.0, 0.0], 0),
-                                     ([math.nan, 0.1, 0.2, 0.3], 128), ([0.7] * 16, 1)])
+@pytest.mark.parametrize(
+    "u, mode",
+    [([0.5, 0.25, -1.0, 1.0], 129), ([0.0, 0.0, 0.0, 0.0], 0), ([math.nan, 0.1, 0.2, 0.3], 128), ([0.7] * 16, 1)],
+)
 def test_controls_parse_to_what_pymavlink_decodes(u, mode):
     peer = _mav()
     frame = _controls(peer, u, mode)
@@ -100,8 +110,12 @@ def test_anything_else_is_left_for_pymavlink_from_its_first_byte():
     bad[-1] ^= 0xFF
     frames, rest = take_controls(c + hb + c)
     assert len(frames) == 1 and rest == hb + c  # stops at the heartbeat, order kept
-    for tail in (bytes(bad), c[:-1], b"\x00" + c, bytes(peer.hil_actuator_controls_encode(
-            0, [0.5] * 16, 129, 1).pack(peer, force_mavlink1=True))):
+    for tail in (
+        bytes(bad),
+        c[:-1],
+        b"\x00" + c,
+        bytes(peer.hil_actuator_controls_encode(0, [0.5] * 16, 129, 1).pack(peer, force_mavlink1=True)),
+    ):
         frames, rest = take_controls(c + tail)
         assert len(frames) == 1 and rest == tail
     rx = _mav()  # and pymavlink rejects the bad CRC the fast path left to it

@@ -12,11 +12,12 @@ from contextlib import contextmanager
 
 import numpy as np
 import pytest
+
 from cufund.apps.mavlink.px4_harness import Px4Harness
 from cufund.apps.mavlink.px4_links import GcsForward, SerialLink
 from cufund.apps.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
-from cufund.vehicle.presets import iris
 from cufund.scenarios import ScenarioConfig
+from cufund.vehicle.presets import iris
 
 U_HOVER = (iris().hover_rotor_speed - 100.0) / 1000.0
 IDEAL = {"imu": "ideal_imu", "magnetometer": "magnetometer", "barometer": "ideal_barometer", "gps": "ideal_gps"}
@@ -36,8 +37,9 @@ def _pty():
 def _hitl(duration, hover_at=None, speed=4.0, gcs=None):
     with _pty() as (master, device):
         cfg = ScenarioConfig.from_dict({"name": "hitl", "vehicle": "iris", "seed": 2, "sensors": IDEAL})
-        bridge = Px4SimulatorBridge(cfg, SerialLink(device, 921600), Px4BridgeParams(lockstep=False, speed=speed),
-                                    gcs=gcs)
+        bridge = Px4SimulatorBridge(
+            cfg, SerialLink(device, 921600), Px4BridgeParams(lockstep=False, speed=speed), gcs=gcs
+        )
         if hover_at is not None:
             bridge.simulator.vehicle.hover(np.asarray(hover_at, dtype=float))
         outcome: dict = {}
@@ -45,7 +47,7 @@ def _hitl(duration, hover_at=None, speed=4.0, gcs=None):
         def run():
             try:
                 outcome["result"] = bridge.run(duration=duration)
-            except BaseException as e:  # noqa: BLE001 - surfaced in the test thread
+            except BaseException as e:
                 outcome["error"] = e
 
         thread = threading.Thread(target=run, daemon=True)
@@ -98,9 +100,26 @@ def test_hitl_controls_take_effect_and_go_stale():
 
 def test_cli_hitl_on_a_pty():
     with _pty() as (master, device):
-        proc = subprocess.Popen([sys.executable, "-m", "cufund.apps.cli", "px4-sim", "square_sensors", "--hitl", device,
-                                 "--speed", "5", "--duration", "0.4", "--set", "vehicle=iris"],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "cufund.apps.cli",
+                "px4-sim",
+                "square_sensors",
+                "--hitl",
+                device,
+                "--speed",
+                "5",
+                "--duration",
+                "0.4",
+                "--set",
+                "vehicle=iris",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         try:
             px4 = Px4Harness.fd(master)
             sensors = []
@@ -117,14 +136,17 @@ def test_cli_hitl_on_a_pty():
     assert len(sensors) >= 90 and sensors[0].time_usec == 4000
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--speed=-2"], "--speed must be"),
-    (["--hitl", "/nonexistent/tty"], "cannot open serial port /nonexistent/tty"),
-    (["--set", "vehicle=nope"], "vehicle"),
-    (["--duration", "0"], "--duration must be"),
-    (["--hitl", "/dev/null", "--speed", "max"], "--speed max needs lockstep"),
-    (["--cpu", "100000"], "--cpu must be one of the CPUs"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--speed=-2"], "--speed must be"),
+        (["--hitl", "/nonexistent/tty"], "cannot open serial port /nonexistent/tty"),
+        (["--set", "vehicle=nope"], "vehicle"),
+        (["--duration", "0"], "--duration must be"),
+        (["--hitl", "/dev/null", "--speed", "max"], "--speed max needs lockstep"),
+        (["--cpu", "100000"], "--cpu must be one of the CPUs"),
+    ],
+)
 def test_cli_rejects_bad_usage(argv, message, capsys):
     from cufund.apps.cli import main
 

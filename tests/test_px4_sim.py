@@ -11,7 +11,7 @@ from contextlib import contextmanager
 
 import numpy as np
 import pytest
-from cufund.core.config import ConfigError
+
 from cufund.apps.mavlink.frames import GeodeticOrigin, deg_to_e7
 from cufund.apps.mavlink.px4_airframe import Px4Airframe
 from cufund.apps.mavlink.px4_harness import Px4Harness
@@ -23,8 +23,9 @@ from cufund.apps.mavlink.px4_sim import (
     px4_scenario,
     sensor_instances,
 )
-from cufund.vehicle.presets import iris
+from cufund.core.config import ConfigError
 from cufund.scenarios import ScenarioConfig, load_scenario
+from cufund.vehicle.presets import iris
 
 NOISY = {"imu": "icm42688p", "magnetometer": "magnetometer", "barometer": "ms5611", "gps": "ublox_m8n"}
 IDEAL = {"imu": "ideal_imu", "magnetometer": "magnetometer", "barometer": "ideal_barometer", "gps": "ideal_gps"}
@@ -33,8 +34,9 @@ STEP_US = 4000
 
 
 def _config(sensors=NOISY, seed=3):
-    return ScenarioConfig.from_dict({"name": "px4_test", "vehicle": "iris", "seed": seed, "duration": 60.0,
-                                     "sensors": dict(sensors)})
+    return ScenarioConfig.from_dict(
+        {"name": "px4_test", "vehicle": "iris", "seed": seed, "duration": 60.0, "sensors": dict(sensors)}
+    )
 
 
 @contextmanager
@@ -51,7 +53,7 @@ def _serve(config=None, params=None, duration=30.0, hover_at=None, v_W=None):
     def run():
         try:
             outcome["result"] = bridge.run(duration=duration, connect_timeout=10.0)
-        except BaseException as e:  # noqa: BLE001 - surfaced in the test thread
+        except BaseException as e:
             outcome["error"] = e
 
     thread = threading.Thread(target=run, daemon=True)
@@ -84,6 +86,7 @@ def _isa_pressure_hpa(h_m):  # the 1976 standard atmosphere's troposphere, writt
 
 # --- the scenario PX4 gets --------------------------------------------------------------------------------------
 
+
 def test_px4_scenario_strips_flight_software_and_sets_px4_rates():
     cfg = px4_scenario(load_scenario("square_sensors"))
     for group in ("estimator", "mapper", "planner", "controller", "mission"):
@@ -114,6 +117,7 @@ def test_airframe_mapping_and_motor_order():
 
 # --- the wire contract ------------------------------------------------------------------------------------------
 
+
 def test_free_run_until_first_controls_then_lockstep():
     """PX4 starts only once time flows: sensors stream before any controls; after the first controls every
     HIL_SENSOR waits for the answer to the previous one."""
@@ -134,7 +138,7 @@ def test_free_run_until_first_controls_then_lockstep():
                 break
             seen += [m for m in msgs if m.get_type() == "HIL_SENSOR"]
         last = seen[-1].time_usec if seen else stamps[-1]
-        for k in range(3):  # now strictly one HIL_SENSOR per answer
+        for _k in range(3):  # now strictly one HIL_SENSOR per answer
             px4.controls([0.0] * 4, armed=False, time_usec=last)
             s = px4.step(timeout=5.0)
             assert s.sensor.time_usec == last + STEP_US
@@ -204,11 +208,14 @@ def test_hover_thrust_holds_more_thrust_climbs_disarmed_falls():
         assert fall[-1].state[-1].vz > 100
 
 
-@pytest.mark.parametrize("name, u, axis, sign", [
-    ("yaw right: CCW motors 1, 2 faster", [0.1, 0.1, -0.1, -0.1], 2, +1),
-    ("roll right: left motors 2, 3 faster", [-0.03, 0.03, 0.03, -0.03], 0, +1),
-    ("pitch up: front motors 1, 3 faster", [0.03, -0.03, 0.03, -0.03], 1, +1),
-])
+@pytest.mark.parametrize(
+    "name, u, axis, sign",
+    [
+        ("yaw right: CCW motors 1, 2 faster", [0.1, 0.1, -0.1, -0.1], 2, +1),
+        ("roll right: left motors 2, 3 faster", [-0.03, 0.03, 0.03, -0.03], 0, +1),
+        ("pitch up: front motors 1, 3 faster", [0.03, -0.03, 0.03, -0.03], 1, +1),
+    ],
+)
 def test_motor_order_and_gyro_signs(name, u, axis, sign):
     with _serve(config=_config(IDEAL), hover_at=(0.0, 0.0, 30.0)) as (_, px4, outcome):
         px4.request_state(4000)
@@ -350,9 +357,28 @@ def test_cli_serves_sitl_on_4560_plus_instance(capsys):
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     code: dict = {}
-    thread = threading.Thread(target=lambda: code.setdefault("exit", main(
-        ["px4-sim", "square_sensors", "--instance", str(port - 4560), "--speed", "max", "--duration", "0.2",
-         "--set", "vehicle=iris", "--connect-timeout", "20"])), daemon=True)
+    thread = threading.Thread(
+        target=lambda: code.setdefault(
+            "exit",
+            main(
+                [
+                    "px4-sim",
+                    "square_sensors",
+                    "--instance",
+                    str(port - 4560),
+                    "--speed",
+                    "max",
+                    "--duration",
+                    "0.2",
+                    "--set",
+                    "vehicle=iris",
+                    "--connect-timeout",
+                    "20",
+                ]
+            ),
+        ),
+        daemon=True,
+    )
     thread.start()
     px4 = Px4Harness.tcp("127.0.0.1", port, timeout=20.0)
     try:

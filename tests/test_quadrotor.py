@@ -27,8 +27,16 @@ def test_state_arrays_are_views_into_the_simulation(crazyflie):
 
 def test_batch_shapes_and_zero_copy_views(crazyflie):
     b = cufund.QuadrotorBatch(crazyflie, n=5)
-    for name, k in [("p", 3), ("v", 3), ("q", 4), ("w", 3), ("rotor_speeds", 4), ("wind_W", 3),
-                    ("force_ext_W", 3), ("torque_ext_B", 3)]:
+    for name, k in [
+        ("p", 3),
+        ("v", 3),
+        ("q", 4),
+        ("w", 3),
+        ("rotor_speeds", 4),
+        ("wind_W", 3),
+        ("force_ext_W", 3),
+        ("torque_ext_B", 3),
+    ]:
         a = getattr(b, name)
         assert a.shape == (5, k) and a.dtype == np.float64
         assert not a.flags.owndata  # a view onto the C++ buffer
@@ -119,15 +127,18 @@ def test_ground_contact_in_python(crazyflie):
 # ---- bad input ---------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("cmd", "message"), [
-    (np.zeros(3), r"rotor_speed_cmd must have shape \(4,\), got \(3,\)"),
-    (np.zeros((2, 4)), r"rotor_speed_cmd must have shape \(1, 4\), got \(2, 4\)"),
-    (np.array([1, 2, 3, np.nan]), "rotor_speed_cmd must be finite .* vehicle 0, rotor 4"),
-    (np.array([1, np.inf, 3, 4]), "rotor_speed_cmd must be finite .* vehicle 0, rotor 2"),
-    (np.zeros(4, dtype=complex), "rotor_speed_cmd must have a real numeric dtype"),
-    (np.array(["a", "b", "c", "d"]), "rotor_speed_cmd must have a real numeric dtype"),
-    ("fast", "rotor_speed_cmd must have a real numeric dtype"),
-])
+@pytest.mark.parametrize(
+    ("cmd", "message"),
+    [
+        (np.zeros(3), r"rotor_speed_cmd must have shape \(4,\), got \(3,\)"),
+        (np.zeros((2, 4)), r"rotor_speed_cmd must have shape \(1, 4\), got \(2, 4\)"),
+        (np.array([1, 2, 3, np.nan]), "rotor_speed_cmd must be finite .* vehicle 0, rotor 4"),
+        (np.array([1, np.inf, 3, 4]), "rotor_speed_cmd must be finite .* vehicle 0, rotor 2"),
+        (np.zeros(4, dtype=complex), "rotor_speed_cmd must have a real numeric dtype"),
+        (np.array(["a", "b", "c", "d"]), "rotor_speed_cmd must have a real numeric dtype"),
+        ("fast", "rotor_speed_cmd must have a real numeric dtype"),
+    ],
+)
 def test_bad_commands_raise(crazyflie, cmd, message):
     quad = cufund.Quadrotor(crazyflie)
     before = quad.state.as_vector()
@@ -177,10 +188,13 @@ def test_core_batch_params_are_a_copy(crazyflie):
     assert b.params.mass == crazyflie.mass
 
 
-@pytest.mark.parametrize(("wind", "message"), [
-    (np.zeros(2), r"wind must have shape \(3,\) or \(1, 3\)"),
-    (np.array([np.nan, 0, 0]), "wind must be finite"),
-])
+@pytest.mark.parametrize(
+    ("wind", "message"),
+    [
+        (np.zeros(2), r"wind must have shape \(3,\) or \(1, 3\)"),
+        (np.array([np.nan, 0, 0]), "wind must be finite"),
+    ],
+)
 def test_bad_wind_raises(crazyflie, wind, message):
     with pytest.raises(ValueError, match=message):
         cufund.Quadrotor(crazyflie, wind=wind)
@@ -215,6 +229,7 @@ def test_reported_accelerations_match_central_differences(crazyflie, rng):
 
 
 # --- Pickling, thread safety, fork safety and limits (issues 10 and 11) ---------------------------
+
 
 def _fly(quad, steps, k0=0):
     """A deterministic, varying command sequence (so that a wrong restore shows)."""
@@ -283,12 +298,15 @@ def test_batch_time_and_state_writes_must_be_finite(crazyflie):
     assert b.t == 0.0  # nothing advanced
 
 
-@pytest.mark.parametrize(("dt", "nthreads", "error", "message"), [
-    ("0.001", 0, TypeError, "dt must be a real number, got str"),
-    (None, 0, TypeError, "dt must be a real number, got NoneType"),
-    (1e-3, "2", TypeError, "nthreads must be an integer, got str"),
-    (1e-3, -1, ValueError, "nthreads must be >= 0"),
-])
+@pytest.mark.parametrize(
+    ("dt", "nthreads", "error", "message"),
+    [
+        ("0.001", 0, TypeError, "dt must be a real number, got str"),
+        (None, 0, TypeError, "dt must be a real number, got NoneType"),
+        (1e-3, "2", TypeError, "nthreads must be an integer, got str"),
+        (1e-3, -1, ValueError, "nthreads must be >= 0"),
+    ],
+)
 def test_step_arguments_are_named_in_errors(crazyflie, dt, nthreads, error, message):
     b = cufund.QuadrotorBatch(crazyflie, 2)
     with pytest.raises(error, match=message):

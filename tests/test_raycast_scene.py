@@ -27,8 +27,9 @@ def test_plane_ranges_are_height_over_sine_of_depression():
     el = rng.uniform(0.1, 1.5, n)
     az = rng.uniform(0, 2 * np.pi, n)
     h = 2.5
-    rays = np.column_stack([np.zeros(n), np.zeros(n), np.full(n, h),
-                            np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)]).astype(np.float32)
+    rays = np.column_stack(
+        [np.zeros(n), np.zeros(n), np.full(n, h), np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)]
+    ).astype(np.float32)
     out = scene.cast_rays(rays)
     np.testing.assert_allclose(out["t_hit"], h / -rays[:, 5].astype(np.float64), rtol=2e-6)
     np.testing.assert_allclose(out["normals"], np.tile([0.0, 0.0, 1.0], (n, 1)), atol=1e-6)  # plane() faces +z
@@ -57,10 +58,21 @@ def test_sphere_ranges_match_the_analytic_sphere_within_tessellation_error():
 
 
 def test_box_face_distances_ids_and_outward_normals():
-    scene = _scene(primitives.box((2.0, 4.0, 6.0)), (primitives.box((1.0, 1.0, 1.0))[0] + [10, 0, 0],
-                                                      primitives.box((1.0, 1.0, 1.0))[1]))
-    rays = np.array([[0, 0, 0, 1, 0, 0], [0, 0, 0, 0, -1, 0], [0, 0, 0, 0, 0, 2], [5, 0, 0, 1, 0, 0],
-                     [5, 0, 0, -1, 0, 0], [5, 5, 5, 0, 0, 1]], np.float32)
+    scene = _scene(
+        primitives.box((2.0, 4.0, 6.0)),
+        (primitives.box((1.0, 1.0, 1.0))[0] + [10, 0, 0], primitives.box((1.0, 1.0, 1.0))[1]),
+    )
+    rays = np.array(
+        [
+            [0, 0, 0, 1, 0, 0],
+            [0, 0, 0, 0, -1, 0],
+            [0, 0, 0, 0, 0, 2],
+            [5, 0, 0, 1, 0, 0],
+            [5, 0, 0, -1, 0, 0],
+            [5, 5, 5, 0, 0, 1],
+        ],
+        np.float32,
+    )
     out = scene.cast_rays(rays)
     np.testing.assert_allclose(out["t_hit"][:5], [1.0, 2.0, 1.5, 4.5, 4.0], rtol=1e-6)
     assert np.isinf(out["t_hit"][5])
@@ -124,8 +136,12 @@ def _both(vertices, triangles):
 
 @pytest.mark.parametrize("ordered", [False, True])
 def test_matches_open3d_on_the_same_mesh_and_rays(ordered):
-    v, f = primitives.merge([primitives.sphere(1.5, 4), (primitives.box((1.0, 2.0, 0.5))[0] + [3, 0, 0],
-                                                         primitives.box((1.0, 2.0, 0.5))[1])])
+    v, f = primitives.merge(
+        [
+            primitives.sphere(1.5, 4),
+            (primitives.box((1.0, 2.0, 0.5))[0] + [3, 0, 0], primitives.box((1.0, 2.0, 0.5))[1]),
+        ]
+    )
     ours, theirs = _both(v, f)
     rng = np.random.default_rng(5)
     n = 20000
@@ -154,7 +170,7 @@ def test_open3d_agreement_on_a_builtin_world():
     w = cufund.worlds.load("imav2025_tunnel")
     v = np.vstack([o.vertices for o in w.objects])
     offsets = np.cumsum([0] + [len(o.vertices) for o in w.objects[:-1]])
-    f = np.vstack([o.triangles + off for o, off in zip(w.objects, offsets)])
+    f = np.vstack([o.triangles + off for o, off in zip(w.objects, offsets, strict=True)])
     ours, theirs = _both(v, f)
     rng = np.random.default_rng(9)
     rays = np.column_stack([np.tile([-1.0, 0.0, 0.55], (10000, 1)), rng.normal(size=(10000, 3))]).astype(np.float32)

@@ -22,10 +22,24 @@ def _chromium() -> str:
 
 
 def _screenshot(html_path, png_path, tmp_path):
-    subprocess.run([_chromium(), "--headless=new", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader",
-                    "--enable-unsafe-swiftshader", f"--user-data-dir={tmp_path / 'profile'}", "--window-size=800,600",
-                    "--virtual-time-budget=4000", f"--screenshot={png_path}", html_path.as_uri()],
-                   check=True, capture_output=True, timeout=180)
+    subprocess.run(
+        [
+            _chromium(),
+            "--headless=new",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--use-gl=swiftshader",
+            "--enable-unsafe-swiftshader",
+            f"--user-data-dir={tmp_path / 'profile'}",
+            "--window-size=800,600",
+            "--virtual-time-budget=4000",
+            f"--screenshot={png_path}",
+            html_path.as_uri(),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=180,
+    )
     import matplotlib.image
 
     return (matplotlib.image.imread(png_path)[..., :3] * 255).astype(int)

@@ -23,10 +23,22 @@ def test_open_loop_flight_agrees_with_rotorpy():
 
     params = dataclasses.replace(cufund.vehicle.presets.crazyflie(), gravity=9.81)  # RotorPy's g
     q0_wxyz = np.array([np.cos(0.1), 0.6 * np.sin(0.1), 0.8 * np.sin(0.1), 0.0])
-    init = {"x": np.array([0.2, -0.1, 1.0]), "v": np.array([0.3, -0.2, 0.1]), "q": np.r_[q0_wxyz[1:], q0_wxyz[0]],
-            "w": np.array([0.5, -0.4, 0.3]), "wind": np.array([1.0, 0.5, -0.2]), "rotor_speeds": np.full(4, 1800.0)}
-    ref = Multirotor(quad_params, initial_state=init, control_abstraction="cmd_motor_speeds", aero=True,
-                     enable_ground=False, integrator_kwargs={"method": "RK45", "rtol": 1e-11, "atol": 1e-12})
+    init = {
+        "x": np.array([0.2, -0.1, 1.0]),
+        "v": np.array([0.3, -0.2, 0.1]),
+        "q": np.r_[q0_wxyz[1:], q0_wxyz[0]],
+        "w": np.array([0.5, -0.4, 0.3]),
+        "wind": np.array([1.0, 0.5, -0.2]),
+        "rotor_speeds": np.full(4, 1800.0),
+    }
+    ref = Multirotor(
+        quad_params,
+        initial_state=init,
+        control_abstraction="cmd_motor_speeds",
+        aero=True,
+        enable_ground=False,
+        integrator_kwargs={"method": "RK45", "rtol": 1e-11, "atol": 1e-12},
+    )
     quad = cufund.Quadrotor(params, wind=init["wind"])
     s = quad.state
     s.p[:], s.v[:], s.q[:], s.w[:], s.rotor_speeds[:] = init["x"], init["v"], q0_wxyz, init["w"], 1800.0
@@ -40,9 +52,15 @@ def test_open_loop_flight_agrees_with_rotorpy():
         state = ref.step(state, {"cmd_motor_speeds": cmd[ROTORPY_FROM_PX4]}, dt)
         quad.step(dt, cmd)
         q_ref = np.r_[state["q"][3], state["q"][:3]]
-        worst = np.maximum(worst, [np.linalg.norm(state["x"] - s.p), np.linalg.norm(state["v"] - s.v),
-                                   np.linalg.norm(state["w"] - s.w), min(np.linalg.norm(q_ref - s.q),
-                                                                         np.linalg.norm(q_ref + s.q))])
+        worst = np.maximum(
+            worst,
+            [
+                np.linalg.norm(state["x"] - s.p),
+                np.linalg.norm(state["v"] - s.v),
+                np.linalg.norm(state["w"] - s.w),
+                min(np.linalg.norm(q_ref - s.q), np.linalg.norm(q_ref + s.q)),
+            ],
+        )
         np.testing.assert_allclose(state["rotor_speeds"], s.rotor_speeds[ROTORPY_FROM_PX4], rtol=0, atol=1e-5)
     # The flight goes somewhere: it turns and drifts by decimetres, not a trivial hover.
     assert np.linalg.norm(s.p - init["x"]) > 0.3

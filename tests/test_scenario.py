@@ -9,7 +9,6 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
-
 import pytest
 
 import cufund
@@ -62,8 +61,10 @@ INVALID = [
     ("trajectory: {v_max: 0}", "trajectory.v_max must be a number > 0"),
     ("trajectory: {yaw: [.nan, 0, 0, 0, 0]}", "trajectory.yaw must have one finite angle per waypoint"),
     ("sensors: {imu: {kind: icm42688p, T_BI: {p: [0, 0], q: [1, 0, 0, 0]}}}", "sensors.imu.T_BI"),
-    ("sensors: {imu: {kind: icm42688p, T_BI: {p: [0, 0, 0], q: [1, 1, 0, 0]}}}",
-     "sensors.imu.T_BI.q must be a unit quaternion"),
+    (
+        "sensors: {imu: {kind: icm42688p, T_BI: {p: [0, 0, 0], q: [1, 1, 0, 0]}}}",
+        "sensors.imu.T_BI.q must be a unit quaternion",
+    ),
     ("sensors: {imu: {kind: icm42688p, T_BL: {p: [0, 0, 0]}}}", "sensors.imu.T_BL: a imu sensor's extrinsic is T_BI"),
     ("sensors: {imu: {kind: icm42688p, T_BI: {p: [0, 0, 0], r: [1, 0, 0, 0]}}}", "unknown key 'r' in sensors.imu.T_BI"),
     ("sensors: {imu: {kind: icm42688p, rate_hz: 0}}", "rate_hz must be between 100 and 1000"),
@@ -72,8 +73,10 @@ INVALID = [
     ("world: empty\nsensors: {lidar: {kind: mid360, range_noise_std: .nan}}", "LidarSensorParams.range_noise_std"),
     ("sensors: {pose: {kind: pose}}\nestimator: imu_propagator", "estimator needs a imu sensor"),
     ("world: empty\nmapper: esdf", "mapper.lidar needs a lidar sensor"),
-    ("sensors: {imu: icm42688p, pose: pose}\nestimator: {kind: imu_propagator, accel_bias_gain: .nan}",
-     "estimator.accel_bias_gain must be a finite number"),
+    (
+        "sensors: {imu: icm42688p, pose: pose}\nestimator: {kind: imu_propagator, accel_bias_gain: .nan}",
+        "estimator.accel_bias_gain must be a finite number",
+    ),
     ("sensors: {imu: icm42688p, pose: {kind: pose, topic: /sensors/imu}}", "two sensors publish on /sensors/imu"),
     ("sensors: {imu: {kind: icm42688p, topic: no_slash}}", "sensors.imu.topic: a topic name must be an absolute path"),
     ("sensors: [imu]", "sensors must be a mapping"),
@@ -113,8 +116,14 @@ def test_a_good_pipeline_loads_and_round_trips(tmp_path):
     from cufund.scenarios.build import build_simulation
 
     built = build_simulation(cfg)  # the whole graph wires up
-    assert {type(c).__name__ for c in built.simulator.components} >= {"ImuSensor", "LidarComponent", "PoseSensor",
-                                                                       "ImuPropagator", "EsdfMapper", "RateController"}
+    assert {type(c).__name__ for c in built.simulator.components} >= {
+        "ImuSensor",
+        "LidarComponent",
+        "PoseSensor",
+        "ImuPropagator",
+        "EsdfMapper",
+        "RateController",
+    }
 
 
 def test_unsatisfied_input_names_the_topic(tmp_path):
@@ -158,8 +167,23 @@ def test_overrides_from_python_and_the_cli(tmp_path, capsys):
         load_scenario("square", ["vehicle.mass=2"])
     assert main(["run", "square", "--set", "controller.kind=lqr"]) == 2
     assert "controller.kind must be one of" in capsys.readouterr().err
-    assert main(["run", "square", "--set", "duration=0.5", "--set", "seed=2", "--out", str(tmp_path / "o"),
-                 "--no-replay", "--no-log"]) == 1  # ran, did not land in 0.5 s: timeout
+    assert (
+        main(
+            [
+                "run",
+                "square",
+                "--set",
+                "duration=0.5",
+                "--set",
+                "seed=2",
+                "--out",
+                str(tmp_path / "o"),
+                "--no-replay",
+                "--no-log",
+            ]
+        )
+        == 1
+    )  # ran, did not land in 0.5 s: timeout
     out = capsys.readouterr().out
     assert "status: timeout" in out
     again = load_scenario(tmp_path / "o" / "config.yaml")
@@ -211,7 +235,8 @@ def test_registry_from_python_and_entry_points(tmp_path):
     # an installed package adds kinds through the entry-point group "cufund.kinds"
     pkg = tmp_path / "site"
     (pkg / "myplugin").mkdir(parents=True)
-    (pkg / "myplugin" / "__init__.py").write_text(textwrap.dedent("""
+    (pkg / "myplugin" / "__init__.py").write_text(
+        textwrap.dedent("""
         import dataclasses
         from cufund.core.registry import Kind
 
@@ -220,15 +245,23 @@ def test_registry_from_python_and_entry_points(tmp_path):
             gain: float = 1.0
 
         KINDS = [Kind("estimator", "plugin_ekf", P, lambda p, ctx: [], doc="from a plug-in")]
-    """))
+    """)
+    )
     dist = pkg / "myplugin-1.0.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: myplugin\nVersion: 1.0\n")
     (dist / "entry_points.txt").write_text("[cufund.kinds]\nplugin = myplugin:KINDS\n")
-    code = ("import cufund.core.registry as r; k = r.lookup('estimator', 'plugin_ekf'); "
-            "print(k.doc, r.ScenarioConfig if False else '', k.parse({'gain': 2.0}, 'estimator').gain)")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                       env={"PYTHONPATH": str(pkg), "PATH": "/usr/bin:/bin"})
+    code = (
+        "import cufund.core.registry as r; k = r.lookup('estimator', 'plugin_ekf'); "
+        "print(k.doc, r.ScenarioConfig if False else '', k.parse({'gain': 2.0}, 'estimator').gain)"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={"PYTHONPATH": str(pkg), "PATH": "/usr/bin:/bin"},
+    )
     assert r.returncode == 0, r.stderr
     assert "from a plug-in" in r.stdout and "2.0" in r.stdout
 
@@ -262,7 +295,7 @@ def test_the_run_summary_and_the_config_pickle():
 
 def _distance_to_polyline(q, corners):
     d = []
-    for a, b in zip(corners[:-1], corners[1:]):
+    for a, b in zip(corners[:-1], corners[1:], strict=True):
         ab = b - a
         t = np.clip(((q - a) @ ab) / (ab @ ab), 0.0, 1.0)
         d.append(np.linalg.norm(q - (a + np.outer(t, ab)), axis=1))
@@ -290,8 +323,12 @@ def test_tunnel_course_world_kind_follows_world_seed():
     from cufund.scenarios.build import build_simulation
 
     a = build_simulation(load_scenario("square", ["world.kind=tunnel_course", "world.seed=2", "start_p_W=[-20, 0, 0]"]))
-    b = build_simulation(load_scenario("square", {"world": {"kind": "tunnel_course", "seed": 2}, "start_p_W": [-20, 0, 0]}))
-    c = build_simulation(load_scenario("square", {"world": {"kind": "tunnel_course", "seed": 5}, "start_p_W": [-20, 0, 0]}))
+    b = build_simulation(
+        load_scenario("square", {"world": {"kind": "tunnel_course", "seed": 2}, "start_p_W": [-20, 0, 0]})
+    )
+    c = build_simulation(
+        load_scenario("square", {"world": {"kind": "tunnel_course", "seed": 5}, "start_p_W": [-20, 0, 0]})
+    )
     verts = [np.concatenate([o.vertices for o in x.context.world.objects]) for x in (a, b, c)]
     assert np.array_equal(verts[0], verts[1]) and not np.array_equal(verts[0], verts[2])
 

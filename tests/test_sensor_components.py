@@ -46,9 +46,14 @@ def test_imu_agrees_with_ground_truth_within_its_noise(flight):
     a_W = (s["v_W"][idx + 1] - s["v_W"][idx - 1]) / (2 * dt)  # independent of the model's own derivative
     q = s["q_WB"][idx]
     w, x, y, z = q.T
-    R = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-                  np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-                  np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
+    R = np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
     f_B = np.einsum("kji,kj->ki", R, a_W + [0, 0, 9.80665])
     moving = np.linalg.norm(a_W, axis=1).max()
     assert moving > 0.5  # the flight accelerates, so this is not just a static check
@@ -98,7 +103,9 @@ def test_sensor_configuration_errors_name_the_field():
         ScenarioConfig.from_dict({"sensors": {"gps": {"kind": "ublox_m8n", "rate": 5}}})
     with pytest.raises(ConfigError, match="sensors.lidar.kind must be one of"):
         ScenarioConfig.from_dict({"sensors": {"lidar": "os1"}})
-    cfg = ScenarioConfig.from_dict({"sensors": {"gps": {"kind": "ideal_gps", "rate_hz": 5.0, "horizontal_sigma_m": 1.0}}})
+    cfg = ScenarioConfig.from_dict(
+        {"sensors": {"gps": {"kind": "ideal_gps", "rate_hz": 5.0, "horizontal_sigma_m": 1.0}}}
+    )
     assert ScenarioConfig.from_dict(cfg.to_dict()) == cfg
 
 
@@ -124,7 +131,7 @@ def test_recorded_ragged_topics_stay_lists_and_sensor_components_reset():
     assert len({len(r) for r in first["ranges"]}) > 1  # frames differ in size
     np.testing.assert_array_equal(first["frame"], [0, 1, 2])
     np.testing.assert_array_equal(second["frame"], [0, 1, 2])
-    for a, b in zip(first["ranges"], second["ranges"]):
+    for a, b in zip(first["ranges"], second["ranges"], strict=True):
         assert a.tobytes() == b.tobytes()
 
 

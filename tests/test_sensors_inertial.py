@@ -7,8 +7,17 @@ import numpy as np
 import pytest
 
 import cufund
-from cufund.sensors import (EarthField, ImuModel, ImuParams, MagnetometerModel, MagnetometerParams, NoiseSpec,
-                            allan_deviation, fit_allan, imu_preset)
+from cufund.sensors import (
+    EarthField,
+    ImuModel,
+    ImuParams,
+    MagnetometerModel,
+    MagnetometerParams,
+    NoiseSpec,
+    allan_deviation,
+    fit_allan,
+    imu_preset,
+)
 
 G = 9.80665
 
@@ -100,13 +109,16 @@ def test_same_seed_same_stream_other_seed_different_and_chunking_invariant():
     assert m.measure_static(1000)[1].tobytes() == one[1].tobytes()
 
 
-@pytest.mark.parametrize(("change", "message"), [
-    ({"rate_hz": 50.0}, "rate_hz must be between 100 and 1000"),
-    ({"q_BI": (1.0, 1.0, 0.0, 0.0)}, "q_BI must be a unit quaternion"),
-    ({"p_BI": (0.0, 0.0)}, "p_BI must be 3 finite numbers"),
-    ({"gyro": NoiseSpec(-1.0)}, "white_noise_density must be a finite number >= 0"),
-    ({"accel": {"white_noise_density": 1e-3, "colour": "pink"}}, "unknown key 'colour' in ImuParams.accel"),
-])
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"rate_hz": 50.0}, "rate_hz must be between 100 and 1000"),
+        ({"q_BI": (1.0, 1.0, 0.0, 0.0)}, "q_BI must be a unit quaternion"),
+        ({"p_BI": (0.0, 0.0)}, "p_BI must be 3 finite numbers"),
+        ({"gyro": NoiseSpec(-1.0)}, "white_noise_density must be a finite number >= 0"),
+        ({"accel": {"white_noise_density": 1e-3, "colour": "pink"}}, "unknown key 'colour' in ImuParams.accel"),
+    ],
+)
 def test_bad_imu_parameters_raise(change, message):
     with pytest.raises(ValueError, match=message):
         ImuParams(**change)

@@ -5,13 +5,26 @@ import math
 import numpy as np
 import pytest
 
-from cufund.sensors import (BAROMETER_PRESETS, GPS_PRESETS, BarometerModel, BarometerParams, GeoPoint, GpsModel,
-                            GpsParams, enu_to_lla, isa_altitude, isa_pressure, lla_to_enu)
+from cufund.sensors import (
+    BAROMETER_PRESETS,
+    GPS_PRESETS,
+    BarometerModel,
+    BarometerParams,
+    GeoPoint,
+    GpsModel,
+    GpsParams,
+    enu_to_lla,
+    isa_altitude,
+    isa_pressure,
+    lla_to_enu,
+)
 from cufund.sensors.geodesy import WGS84_A, WGS84_F, lla_to_ecef
 
 
-@pytest.mark.parametrize(("altitude", "pressure"), [
-    (0.0, 101325.0), (1000.0, 89874.6), (2000.0, 79495.2), (5000.0, 54019.9), (11000.0, 22632.1)])
+@pytest.mark.parametrize(
+    ("altitude", "pressure"),
+    [(0.0, 101325.0), (1000.0, 89874.6), (2000.0, 79495.2), (5000.0, 54019.9), (11000.0, 22632.1)],
+)
 def test_isa_pressure_matches_the_standard_atmosphere_table(altitude, pressure):
     # ISO 2533 / ICAO standard atmosphere table values [Pa].
     assert isa_pressure(altitude) == pytest.approx(pressure, abs=0.6)
@@ -54,8 +67,9 @@ def test_enu_to_lla_follows_the_meridian_and_parallel_radii():
     north = enu_to_lla(np.array([0.0, 100.0, 0.0]), home)
     east = enu_to_lla(np.array([100.0, 0.0, 0.0]), home)
     assert math.radians(north[0] - home.latitude_deg) * (meridian + home.altitude_m) == pytest.approx(100.0, rel=1e-6)
-    assert math.radians(east[1] - home.longitude_deg) * (prime + home.altitude_m) * math.cos(lat) == \
-        pytest.approx(100.0, rel=1e-6)
+    assert math.radians(east[1] - home.longitude_deg) * (prime + home.altitude_m) * math.cos(lat) == pytest.approx(
+        100.0, rel=1e-6
+    )
     assert north[2] - home.altitude_m == pytest.approx(100.0**2 / (2 * meridian), rel=1e-3)  # Earth curves away
 
 
@@ -94,8 +108,9 @@ def test_gps_latency_and_outage():
     assert fixes[0.0] is None and fixes[0.1] is None  # nothing before the latency has elapsed
     f = fixes[0.5]
     assert f.t == pytest.approx(0.3)  # measured 0.2 s before it arrives
-    assert lla_to_enu(np.array([f.latitude_deg, f.longitude_deg, f.altitude_m]), params.home)[0] == \
-        pytest.approx(0.3, abs=1e-3)
+    assert lla_to_enu(np.array([f.latitude_deg, f.longitude_deg, f.altitude_m]), params.home)[0] == pytest.approx(
+        0.3, abs=1e-3
+    )
     lost = fixes[1.4]  # measured at 1.2 s, inside the outage
     assert lost.fix_type == 0 and math.isnan(lost.latitude_deg) and lost.satellites < params.min_satellites
     assert fixes[1.9].fix_type == 3  # measured at 1.7 s, after it
@@ -111,13 +126,16 @@ def test_gps_seed_determinism():
     assert lat[0] == lat[1] and lat[0] != lat[2]
 
 
-@pytest.mark.parametrize(("kwargs", "message"), [
-    ({"rate_hz": 0.0}, "rate_hz must be in"),
-    ({"horizontal_sigma_m": -1.0}, "horizontal_sigma_m must be a finite number >= 0"),
-    ({"outages": ((2.0, 1.0),)}, "outages must have end > start"),
-    ({"home": {"latitude_deg": 95.0, "longitude_deg": 0.0}}, "latitude_deg must be in"),
-    ({"home": {"latitude_deg": 5.0, "lon": 0.0}}, "unknown key 'lon' in GpsParams.home"),
-])
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"rate_hz": 0.0}, "rate_hz must be in"),
+        ({"horizontal_sigma_m": -1.0}, "horizontal_sigma_m must be a finite number >= 0"),
+        ({"outages": ((2.0, 1.0),)}, "outages must have end > start"),
+        ({"home": {"latitude_deg": 95.0, "longitude_deg": 0.0}}, "latitude_deg must be in"),
+        ({"home": {"latitude_deg": 5.0, "lon": 0.0}}, "unknown key 'lon' in GpsParams.home"),
+    ],
+)
 def test_bad_gps_parameters_raise(kwargs, message):
     with pytest.raises(ValueError, match=message):
         GpsParams(**kwargs)

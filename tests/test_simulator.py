@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 import cufund
-from cufund import Simulator, RunStatus, Topics
-from cufund.templates.estimator_template import MyEstimator
-from cufund.templates.sensor_template import MyPositionSensor
+from cufund import RunStatus, Simulator, Topics
 from cufund.templates.controller_template import MyController
+from cufund.templates.estimator_template import MyEstimator
 from cufund.templates.mapper_template import MyMapper
 from cufund.templates.planner_template import MyPlanner
+from cufund.templates.sensor_template import MyPositionSensor
 
 
 class Counter(cufund.Component):
@@ -109,7 +109,9 @@ def test_controller_uses_estimator_output_once_attached():
     assert r.topics[Topics.ESTIMATE]["p_W"].shape == (100, 3)
     # an explicit choice wins, but flight software may not fly on ground truth once an estimator is attached
     ctrl.state_topic = Topics.TRUTH_ODOMETRY
-    with pytest.raises(ValueError, match="my_controller reads ground truth .*/truth/odometry.* estimator is configured"):
+    with pytest.raises(
+        ValueError, match="my_controller reads ground truth .*/truth/odometry.* estimator is configured"
+    ):
         sim.run(0.01)
     ctrl.state_topic = None
     sim.add(MyEstimator())
@@ -139,8 +141,9 @@ def test_same_seed_identical_histories_and_records():
     a, b, c = once(7), once(7), once(8)
     for k in a.states:
         np.testing.assert_array_equal(a.states[k], b.states[k])
-    np.testing.assert_array_equal(a.topics[Topics.ACTUATOR_COMMAND]["rotor_speeds"],
-                                  b.topics[Topics.ACTUATOR_COMMAND]["rotor_speeds"])
+    np.testing.assert_array_equal(
+        a.topics[Topics.ACTUATOR_COMMAND]["rotor_speeds"], b.topics[Topics.ACTUATOR_COMMAND]["rotor_speeds"]
+    )
     assert not np.array_equal(a.states["p_W"], c.states["p_W"])
 
 

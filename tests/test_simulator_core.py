@@ -1,7 +1,6 @@
 """The simulator core: every message delivered, exact event times at any rate, latency, topological order,
 flight software on the estimate (never on truth), advancing from outside, logs replayed bit for bit."""
 
-
 import numpy as np
 import pytest
 
@@ -78,16 +77,18 @@ def test_camera_lidar_imu_and_physics_together_at_exact_times_and_latency_shifts
     assert [vis for vis, _ in got[Topics.IMU]] == [k / 200 for k in range(172)]  # up to the probe's last run
     assert r.states["t"].shape == (1001,)  # the physics grid stays 1 kHz: events split steps, not the record
     delayed, _ = run(0.0125)
-    assert [vis for vis, _ in delayed[Topics.DEPTH_IMAGE]] == [(k * NS // 30 + 12_500_000) / NS
-                                                                for k in range(len(delayed[Topics.DEPTH_IMAGE]))]
+    assert [vis for vis, _ in delayed[Topics.DEPTH_IMAGE]] == [
+        (k * NS // 30 + 12_500_000) / NS for k in range(len(delayed[Topics.DEPTH_IMAGE]))
+    ]
     assert [m.t for _, m in delayed[Topics.DEPTH_IMAGE]] == cam_t[: len(delayed[Topics.DEPTH_IMAGE])]
 
 
 def _free_fall(z=100.0):
     import dataclasses
 
-    params = dataclasses.replace(cufund.vehicle.presets.cu_astro(), body_drag=(0.0, 0.0, 0.0), rotor_drag_xy=0.0,
-                                 rotor_drag_z=0.0)
+    params = dataclasses.replace(
+        cufund.vehicle.presets.cu_astro(), body_drag=(0.0, 0.0, 0.0), rotor_drag_xy=0.0, rotor_drag_z=0.0
+    )
     quad = cufund.Quadrotor(params)
     quad.state.p[:] = [0.0, 0.0, z]
     quad.state.rotor_speeds[:] = 0.0
@@ -154,8 +155,9 @@ def mocap(request):
     built = build_simulation(cfg)
     from cufund.scenarios.build import odometry_metrics, tracking_metrics
 
-    r = built.simulator.run(cfg.duration, done=lambda t, s: t >= built.landing_after and s.p_W[2] < 0.02
-                            and np.linalg.norm(s.v_W) < 0.05)
+    r = built.simulator.run(
+        cfg.duration, done=lambda t, s: t >= built.landing_after and s.p_W[2] < 0.02 and np.linalg.norm(s.v_W) < 0.05
+    )
     m = {**tracking_metrics(r, built.context.tracking_path), **odometry_metrics(r)}
     return built.simulator, r, m
 

@@ -7,8 +7,8 @@ import pytest
 import yaml
 
 import cufund
-from cufund.scenarios.run_folder import write_run_folder
 from cufund.scenarios import ScenarioConfig, load_scenario, run_scenario
+from cufund.scenarios.run_folder import write_run_folder
 
 SQUARE = load_scenario("square")
 
@@ -39,10 +39,13 @@ def test_tracking_error_definition(run):
     m = (t >= t0) & (t <= t1)
     assert run.metrics["tracking_samples"] == np.count_nonzero(m) == pytest.approx((t1 - t0) * 1000, abs=2)
     err = np.linalg.norm(p[m] - run.path.sample(t[m]).p_W, axis=1)
-    assert run.metrics["tracking_rmse_m"] == pytest.approx(np.sqrt(np.mean(err ** 2)), rel=1e-12)
+    assert run.metrics["tracking_rmse_m"] == pytest.approx(np.sqrt(np.mean(err**2)), rel=1e-12)
     # the path really is the square at 1.5 m: through the four corners, back to the start
-    np.testing.assert_allclose(run.path.sample(run.path.t_knots).p_W,
-                               [[0, 0, 1.5], [1, 0, 1.5], [1, 1, 1.5], [0, 1, 1.5], [0, 0, 1.5]], atol=1e-12)
+    np.testing.assert_allclose(
+        run.path.sample(run.path.t_knots).p_W,
+        [[0, 0, 1.5], [1, 0, 1.5], [1, 1, 1.5], [0, 1, 1.5], [0, 0, 1.5]],
+        atol=1e-12,
+    )
 
 
 def test_takes_off_and_lands(run):
@@ -54,8 +57,15 @@ def test_takes_off_and_lands(run):
 def test_run_folder_reproduces(run, tmp_path):
     out = write_run_folder(run, tmp_path / "run", replay=False)
     metrics = json.loads((out / "metrics.json").read_text())
-    for key in ("status", "tracking_rmse_m", "tracking_max_m", "tracking_min_m", "sim_time_s", "wall_time_s",
-                "real_time_factor"):
+    for key in (
+        "status",
+        "tracking_rmse_m",
+        "tracking_max_m",
+        "tracking_min_m",
+        "sim_time_s",
+        "wall_time_s",
+        "real_time_factor",
+    ):
         assert key in metrics
     assert (out / "trajectory.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     cfg = ScenarioConfig.from_dict(yaml.safe_load((out / "config.yaml").read_text()))

@@ -14,18 +14,20 @@ import cloudpickle
 import pandas as pd
 import psutil
 import pytest
-
-import cufund
-from cufund.scenarios import load_scenario
-from cufund.scenarios.build import run_scenario
-from cufund.apps.sweep import is_wall_metric, local_client, run
-from cufund.apps.sweep.results import flatten
-
 from distributed.diagnostics.plugin import WorkerPlugin
 
+import cufund
+from cufund.apps.sweep import is_wall_metric, local_client, run
+from cufund.apps.sweep.results import flatten
+from cufund.scenarios import load_scenario
+from cufund.scenarios.build import run_scenario
+
 # 3 gains x 2 seeds of the square, cut at 5 s (the min-snap segment starts at 3.4 s: tracking metrics exist).
-SPEC = {"scenario": "square", "set": {"duration": 5},
-        "grid": {"controller.position.xy_p": [2.5, 3.0, 3.5], "seed": [3, 8]}}
+SPEC = {
+    "scenario": "square",
+    "set": {"duration": 5},
+    "grid": {"controller.position.xy_p": [2.5, 3.0, 3.5], "seed": [3, 8]},
+}
 
 
 @pytest.fixture(scope="module")
@@ -55,19 +57,26 @@ def _assert_loopback(conns):
 def _same(a, b):
     if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
         return True
-    return a == b or (a is None and isinstance(b, float) and math.isnan(b)) or (
-        b is None and isinstance(a, float) and math.isnan(a))
+    return (
+        a == b
+        or (a is None and isinstance(b, float) and math.isnan(b))
+        or (b is None and isinstance(a, float) and math.isnan(a))
+    )
 
 
 def test_dask_sweep_equals_serial_runs_and_stays_on_loopback(client):
     frame = run(SPEC, client)
     assert len(frame) == 6 and set(frame["status"]) == {"timeout"}
-    assert sorted(zip(frame["controller.position.xy_p"], frame["seed"])) == sorted(
-        (g, s) for g in (2.5, 3.0, 3.5) for s in (3, 8))
+    assert sorted(zip(frame["controller.position.xy_p"], frame["seed"], strict=True)) == sorted(
+        (g, s) for g in (2.5, 3.0, 3.5) for s in (3, 8)
+    )
     compared = 0
     for _, row in frame.iterrows():
-        overrides = {"duration": 5, "controller.position.xy_p": row["controller.position.xy_p"],
-                     "seed": int(row["seed"])}
+        overrides = {
+            "duration": 5,
+            "controller.position.xy_p": row["controller.position.xy_p"],
+            "seed": int(row["seed"]),
+        }
         serial = run_scenario(load_scenario("square", overrides))
         metrics = flatten({k: v for k, v in serial.metrics.items() if k not in ("status", "message")})
         assert row["status"] == serial.result.status.value and row["message"] == serial.result.message
@@ -100,8 +109,12 @@ def test_a_bad_override_fails_before_any_variant_runs(tmp_path):
         run(bad, _NoClient(), out=tmp_path / "sw")
     assert not (tmp_path / "sw").exists()
     (tmp_path / "bad.yaml").write_text("scenario: square\ngrid:\n  controller.position.xy_p: [3.0, fast]\n")
-    cli = subprocess.run([sys.executable, "-m", "cufund.apps.cli", "sweep", str(tmp_path / "bad.yaml"), "--out",
-                          str(tmp_path / "sw")], capture_output=True, text=True, timeout=120)
+    cli = subprocess.run(
+        [sys.executable, "-m", "cufund.apps.cli", "sweep", str(tmp_path / "bad.yaml"), "--out", str(tmp_path / "sw")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert cli.returncode == 2
     assert cli.stderr.count("\n") == 1 and "controller.position.xy_p" in cli.stderr and "fast" in cli.stderr
     assert not (tmp_path / "sw").exists()
@@ -111,9 +124,23 @@ def test_killed_sweep_resumes_only_unfinished_variants(client, tmp_path):
     spec_file = tmp_path / "sweep.yaml"
     spec_file.write_text(json.dumps(SPEC))  # JSON is YAML
     out = tmp_path / "sw"
-    proc = subprocess.Popen([sys.executable, "-m", "cufund.apps.cli", "sweep", str(spec_file), "--out", str(out),
-                             "--workers", "2", "--no-plots"], start_new_session=True, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "cufund.apps.cli",
+            "sweep",
+            str(spec_file),
+            "--out",
+            str(out),
+            "--workers",
+            "2",
+            "--no-plots",
+        ],
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     conns = []
     try:
         deadline = time.monotonic() + 240
@@ -147,8 +174,8 @@ class _CrashingKind(WorkerPlugin):
     def setup(self, worker):
         import os
 
-        from cufund.core import registry
         from cufund.control.kinds import ControllerParams
+        from cufund.core import registry
 
         def crash(params, ctx):
             os._exit(17)
@@ -198,9 +225,24 @@ def test_ctrl_c_stops_cleanly_and_keeps_what_finished(tmp_path):
     spec_file = tmp_path / "sweep.yaml"
     spec_file.write_text(json.dumps(SPEC))
     out = tmp_path / "sw"
-    proc = subprocess.Popen([sys.executable, "-m", "cufund.apps.cli", "sweep", str(spec_file), "--out", str(out),
-                             "--workers", "2", "--no-plots"], start_new_session=True, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "cufund.apps.cli",
+            "sweep",
+            str(spec_file),
+            "--out",
+            str(out),
+            "--workers",
+            "2",
+            "--no-plots",
+        ],
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + 240
         while not list(out.glob("variants/*/result.json")):

@@ -7,17 +7,25 @@ import pytest
 from scipy import stats
 
 import cufund
-from cufund.scenarios import load_scenario
 from cufund.apps.sweep import config_key, load_spec
 from cufund.apps.sweep.report import t_interval, wilson_interval
+from cufund.scenarios import load_scenario
 
 
 def test_grid_times_draws_times_repeats_resolve_like_load_scenario():
-    spec = load_spec({"scenario": "square", "set": {"duration": 3},
-                      "grid": {"controller.kind": ["pid", "geometric"], "seed": [3, 8]},
-                      "random": {"n": 3, "seed": 5, "draws": {"controller.position.xy_p": {"uniform": [0.8, 1.2]},
-                                                               "trajectory.hover_s": {"range": [1, 4]}}},
-                      "repeats": 2})
+    spec = load_spec(
+        {
+            "scenario": "square",
+            "set": {"duration": 3},
+            "grid": {"controller.kind": ["pid", "geometric"], "seed": [3, 8]},
+            "random": {
+                "n": 3,
+                "seed": 5,
+                "draws": {"controller.position.xy_p": {"uniform": [0.8, 1.2]}, "trajectory.hover_s": {"range": [1, 4]}},
+            },
+            "repeats": 2,
+        }
+    )
     variants = spec.variants()
     assert len(variants) == 2 * 2 * 3 * 2
     assert spec.swept_keys == ["controller.kind", "seed", "controller.position.xy_p", "trajectory.hover_s"]
@@ -42,17 +50,20 @@ def test_key_is_the_resolved_configuration():
     assert config_key(a) != config_key(a.with_overrides({"controller.position.xy_p": 3.0001}))
 
 
-@pytest.mark.parametrize("spec, field", [
-    ({"scenario": "square", "grid": {"controller.position.xy_pp": [1.0, 2.0]}}, "xy_pp"),
-    ({"scenario": "square", "grid": {"controller.position.xy_p": [3.0, "fast"]}}, "xy_p"),
-    ({"scenario": "square", "grid": {"controller.kind": ["pid", "lqr"]}}, "lqr"),
-    ({"scenario": "square", "random": {"n": 2, "draws": {"seed": {"uniform": [2, 1]}}}}, "sweep.random.draws.seed"),
-    ({"scenario": "square", "random": {"n": 2, "draws": {"seed": {"gauss": [0, 1]}}}}, "sweep.random.draws.seed"),
-    ({"scenario": "square", "grid": {"seed": []}}, "sweep.grid.seed"),
-    ({"scenario": "square", "repeats": 0}, "sweep.repeats"),
-    ({"scenario": "square", "grids": {}}, "grids"),
-    ({"scenario": "no_such_scenario"}, "no_such_scenario"),
-])
+@pytest.mark.parametrize(
+    "spec, field",
+    [
+        ({"scenario": "square", "grid": {"controller.position.xy_pp": [1.0, 2.0]}}, "xy_pp"),
+        ({"scenario": "square", "grid": {"controller.position.xy_p": [3.0, "fast"]}}, "xy_p"),
+        ({"scenario": "square", "grid": {"controller.kind": ["pid", "lqr"]}}, "lqr"),
+        ({"scenario": "square", "random": {"n": 2, "draws": {"seed": {"uniform": [2, 1]}}}}, "sweep.random.draws.seed"),
+        ({"scenario": "square", "random": {"n": 2, "draws": {"seed": {"gauss": [0, 1]}}}}, "sweep.random.draws.seed"),
+        ({"scenario": "square", "grid": {"seed": []}}, "sweep.grid.seed"),
+        ({"scenario": "square", "repeats": 0}, "sweep.repeats"),
+        ({"scenario": "square", "grids": {}}, "grids"),
+        ({"scenario": "no_such_scenario"}, "no_such_scenario"),
+    ],
+)
 def test_a_bad_sweep_names_the_field(spec, field):
     with pytest.raises(cufund.ConfigError, match=field.replace(".", r"\.")):
         load_spec(spec).variants()
@@ -86,17 +97,27 @@ def test_report_bins_drawn_values_and_writes_mixed_columns(tmp_path):
     from cufund.apps.sweep.spec import Variant
 
     rng = np.random.default_rng(0)
-    spec = load_spec({"scenario": "square", "grid": {"world.kind": ["empty", 3]},  # a mixed column (text, int)
-                      "random": {"n": 20, "draws": {"controller.position.xy_p": {"uniform": [2.0, 4.0]}}}})
+    spec = load_spec(
+        {
+            "scenario": "square",
+            "grid": {"world.kind": ["empty", 3]},  # a mixed column (text, int)
+            "random": {"n": 20, "draws": {"controller.position.xy_p": {"uniform": [2.0, 4.0]}}},
+        }
+    )
     variants, records = [], {}
     for i in range(40):
         key = f"{i:016x}"
         overrides = {"world.kind": ["empty", 3][i % 2], "controller.position.xy_p": float(rng.uniform(2, 4))}
         variants.append(Variant(i, overrides, 0, None, key))
         ok = overrides["controller.position.xy_p"] > 3
-        records[key] = {"key": key, "status": "completed" if ok else "crashed", "message": "", "attempts": 1,
-                        "variant_wall_s": 1.0, "metrics": {"tracking_rmse_m": None if not ok else i * 1e-3,
-                                                           "tracking_window_s": [3.4, 12.0]}}
+        records[key] = {
+            "key": key,
+            "status": "completed" if ok else "crashed",
+            "message": "",
+            "attempts": 1,
+            "variant_wall_s": 1.0,
+            "metrics": {"tracking_rmse_m": None if not ok else i * 1e-3, "tracking_window_s": [3.4, 12.0]},
+        }
     frame = results_frame(variants, records, spec.swept_keys, 1, tmp_path)
     parts = groups(frame, "controller.position.xy_p")
     assert len(parts) == 8 and sum(len(rows) for _, _, rows in parts) == 40

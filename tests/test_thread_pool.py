@@ -11,8 +11,13 @@ import pytest
 
 
 def _run(code: str, env: dict[str, str] | None = None, timeout: float = 120) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-W", "ignore", "-c", textwrap.dedent(code)], capture_output=True,
-                          text=True, timeout=timeout, env={**os.environ, **(env or {})})
+    return subprocess.run(
+        [sys.executable, "-W", "ignore", "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env={**os.environ, **(env or {})},
+    )
 
 
 @pytest.mark.parametrize("n", ["1", "3"])
@@ -31,20 +36,25 @@ def test_pool_size_defaults_to_the_cpus_this_process_may_use():
         print(_core.thread_pool_size(), len(os.sched_getaffinity(0)))
     """
     env = {k: v for k, v in os.environ.items() if k != "CUFUND_NUM_THREADS"}
-    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, timeout=60, env=env)
+    r = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, timeout=60, env=env
+    )
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["1", "1"]
 
 
 def test_bad_cufund_num_threads_is_a_clear_error():
-    r = _run("""
+    r = _run(
+        """
         import numpy as np, cufund
         b = cufund.QuadrotorBatch(cufund.vehicle.presets.crazyflie(), 1000)
         try:
             b.step(1e-3, np.zeros((1000, 4)))
         except ValueError as e:
             print("ValueError:", e)
-    """, {"CUFUND_NUM_THREADS": "many"})
+    """,
+        {"CUFUND_NUM_THREADS": "many"},
+    )
     assert r.returncode == 0, r.stderr
     assert "CUFUND_NUM_THREADS must be an integer in [1, 1024], got 'many'" in r.stdout
 
@@ -52,7 +62,8 @@ def test_bad_cufund_num_threads_is_a_clear_error():
 def test_fork_while_another_thread_steps_a_large_batch_gives_a_working_child():
     # Without the pool's fork handlers the child inherits a lock held by a thread that does not exist
     # there, and its first parallel loop hangs (9 forks of 10 in the issue's measurement).
-    r = _run("""
+    r = _run(
+        """
         import os, threading, time
         import numpy as np, cufund
         params = cufund.vehicle.presets.crazyflie()
@@ -88,7 +99,9 @@ def test_fork_while_another_thread_steps_a_large_batch_gives_a_working_child():
         stop = True
         t.join()
         print("hung", hung)
-    """, timeout=300)
+    """,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "hung 0"
 

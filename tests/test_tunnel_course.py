@@ -29,7 +29,7 @@ def course(request):
 def test_same_seed_same_course_and_seeds_differ():
     a, b, c = tunnel_course_layout(4), tunnel_course_layout(4), tunnel_course_layout(5)
     assert a.frames == b.frames
-    for oa, ob in zip(a.world.objects, b.world.objects):
+    for oa, ob in zip(a.world.objects, b.world.objects, strict=True):
         np.testing.assert_array_equal(oa.vertices, ob.vertices)
     assert a.frames != c.frames
     assert len(worlds.load("tunnel_course", seed=4).objects) == len(a.world.objects)
@@ -43,7 +43,7 @@ def test_frames_within_their_bounds(course):
     assert all((fr.width, fr.height) in p.openings for fr in f)
     assert f[0].centre_W[0] == 0.0 and abs(f[0].centre_W[1]) <= p.entrance_offset
     assert abs(math.degrees(f[0].yaw)) <= p.entrance_yaw
-    for a, b in zip(f[:-1], f[1:]):
+    for a, b in zip(f[:-1], f[1:], strict=True):
         d = np.subtract(b.centre_W, a.centre_W)
         ahead = d[:2] @ a.axis_W[:2]
         side = d[0] * -math.sin(a.yaw) + d[1] * math.cos(a.yaw)
@@ -62,7 +62,7 @@ def test_flyability_path_clears_the_triangles_and_threads_every_opening(course):
     path = course.path_W
     np.testing.assert_array_equal(path[0], course.entry_W)
     np.testing.assert_array_equal(path[-1], course.exit_W)
-    dense = np.vstack([a + np.linspace(0, 1, 200)[:, None] * (b - a) for a, b in zip(path[:-1], path[1:])])
+    dense = np.vstack([a + np.linspace(0, 1, 200)[:, None] * (b - a) for a, b in zip(path[:-1], path[1:], strict=True)])
     assert _distance(course.world)(dense).min() >= r - 1e-5
     for fr in course.frames:
         # Crossing the frame's plane (signed distance along its axis changes sign) inside the opening.

@@ -5,10 +5,13 @@ from __future__ import annotations
 
 import itertools
 
-import cufund
 import numpy as np
 import pytest
+
+import cufund
 from cufund.core.messages import Odometry, Topics, TunnelEstimate
+from cufund.geometry import Transform, quat_to_matrix, yaw_quaternion
+from cufund.missions.tunnel_course import tunnel_course_layout
 from cufund.perception import (
     TunnelDetector,
     TunnelDetectorParams,
@@ -20,17 +23,16 @@ from cufund.perception import (
 from cufund.perception.detection import column_keys
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import mid360
-from cufund.geometry import Transform, quat_to_matrix, yaw_quaternion
 from cufund.worlds.builtin import imav2025_tunnel
-from cufund.missions.tunnel_course import tunnel_course_layout
 
 PAPER_TRUTH = np.array([[0.5 * k, 0.0, 0.55] for k in range(5)])  # imav2025_tunnel: 0.5 x 1 m openings
 COURSE_ROI = TunnelDetectorParams(roi_min_W=(-3.85, -3.85, -0.5), roi_max_W=(7.85, 3.85, 3.0))
 PAPER_ROI = TunnelDetectorParams(roi_min_W=(-4.85, -3.85, -0.5), roi_max_W=(6.85, 3.85, 3.0))
 
 
-def scan_from(world: cufund.World, poses: list[tuple[np.ndarray, float]], frames: int = 5, seed: int = 1,
-              **noise: float) -> tuple[np.ndarray, np.ndarray]:
+def scan_from(
+    world: cufund.World, poses: list[tuple[np.ndarray, float]], frames: int = 5, seed: int = 1, **noise: float
+) -> tuple[np.ndarray, np.ndarray]:
     """World points and the LiDAR position of each, from ``frames`` Mid-360 scans at each (p_W, yaw) pose."""
     lidar = Lidar(mid360(), mid360_params(seed=seed, **noise))
     points, sensors = [], []
@@ -68,7 +70,7 @@ def test_centres_sizes_and_normals_match_the_generated_course(course):
     truth = np.array([f.centre_W for f in c.frames])
     assert len(dets) == len(c.frames) == 5
     assert match(dets, truth) == [0, 1, 2, 3, 4]  # in flying order
-    for d, f in zip(dets, c.frames):
+    for d, f in zip(dets, c.frames, strict=True):
         assert np.linalg.norm(d.centre_W - f.centre_W) < 0.02
         assert abs(d.width - f.width) < 0.03 and abs(d.height - f.height) < 0.03
         # normals along the course (the flying direction), within 2 degrees
@@ -79,7 +81,7 @@ def test_detection_is_deterministic(course):
     _c, points, sensors, origin, dets = course
     again = detect_frames(points, COURSE_ROI, origin_W=origin, sensor_W=sensors)
     assert len(again) == len(dets)
-    for a, b in zip(again, dets):
+    for a, b in zip(again, dets, strict=True):
         np.testing.assert_array_equal(a.centre_W, b.centre_W)
         np.testing.assert_array_equal(a.normal_W, b.normal_W)
         assert (a.width, a.height, a.support) == (b.width, b.height, b.support)
@@ -89,7 +91,7 @@ def test_without_sensor_positions_the_depth_is_biased_towards_the_sensor_but_the
     c, points, _, origin, _ = course
     dets = detect_frames(points, COURSE_ROI, origin_W=origin)
     assert match(dets, np.array([f.centre_W for f in c.frames])) == [0, 1, 2, 3, 4]
-    for d, f in zip(dets, c.frames):
+    for d, f in zip(dets, c.frames, strict=True):
         err = d.centre_W - np.asarray(f.centre_W)
         along = err @ f.axis_W
         assert -0.035 < along < -0.01  # the faces seen are half a bar (2.5 cm) before the frame's middle
@@ -101,7 +103,7 @@ def test_order_follows_the_course_from_the_origin_not_the_input(course):
     beyond = np.asarray(c.frames[-1].centre_W) + 2.0 * c.frames[-1].axis_W
     backwards = detect_frames(points[::-1], COURSE_ROI, origin_W=beyond, sensor_W=sensors[::-1])
     assert match(backwards, np.array([f.centre_W for f in c.frames])) == [4, 3, 2, 1, 0]
-    for d, f in zip(backwards, reversed(c.frames)):
+    for d, f in zip(backwards, reversed(c.frames), strict=True):
         assert d.normal_W @ f.axis_W < -0.99  # flying the other way
 
 
@@ -120,7 +122,7 @@ def test_paper_layout_centres_within_2cm(paper_scans):
     (points, sensors), _ = paper_scans
     dets = detect_frames(points, PAPER_ROI, origin_W=[-2.0, 0.0, 0.15], sensor_W=sensors)
     assert match(dets, PAPER_TRUTH) == [0, 1, 2, 3, 4]
-    for d, true in zip(dets, PAPER_TRUTH):
+    for d, true in zip(dets, PAPER_TRUTH, strict=True):
         assert np.linalg.norm(d.centre_W - true) < 0.02
         assert abs(d.width - 0.5) < 0.03 and abs(d.height - 1.0) < 0.03
         assert d.normal_W @ [1.0, 0.0, 0.0] > np.cos(np.radians(2.0))
@@ -128,8 +130,10 @@ def test_paper_layout_centres_within_2cm(paper_scans):
 
 def test_a_partly_occluded_bar_moves_the_cluster_mean_not_the_percentile_centre(paper_scans):
     (clean, clean_s), (points, sensors) = paper_scans
-    first = [detect_frames(p, PAPER_ROI, origin_W=[-2.0, 0.0, 0.15], sensor_W=s)[0] for p, s in
-             ((clean, clean_s), (points, sensors))]
+    first = [
+        detect_frames(p, PAPER_ROI, origin_W=[-2.0, 0.0, 0.15], sensor_W=s)[0]
+        for p, s in ((clean, clean_s), (points, sensors))
+    ]
     assert np.linalg.norm(first[1].centre_W - PAPER_TRUTH[0]) < 0.03
     # The paper's cluster mean: pulled ~10 cm away from the hidden part of the post (towards -y and up).
     off = first[1].cluster_mean_W - PAPER_TRUTH[0]
@@ -145,7 +149,7 @@ def test_the_degraded_lidar_fault_still_gives_every_frame_within_3cm():
     points, sensors = scan_from(imav2025_tunnel(), poses, frames=8, range_noise_std=0.05, dropout=0.5)
     dets = detect_frames(points, TunnelDetectorParams(), origin_W=poses[0][0], sensor_W=sensors)
     assert match(dets, PAPER_TRUTH) == [0, 1, 2, 3, 4]
-    for d, true in zip(dets, PAPER_TRUTH):
+    for d, true in zip(dets, PAPER_TRUTH, strict=True):
         assert np.linalg.norm(d.centre_W - true) < 0.03
 
 
@@ -181,9 +185,14 @@ def test_bad_input_is_rejected_with_the_argument_named():
         detect_frames(np.zeros((4, 3)), expected=0)
     with pytest.raises(TypeError, match="params must be a TunnelDetectorParams"):
         detect_frames(np.zeros((4, 3)), params={"voxel": 0.02})
-    for kwargs, text in (({"voxel": 0.0}, "voxel"), ({"eps": float("nan")}, "eps"), ({"percentile": 50}, "percentile"),
-                         ({"roi_min_W": (0, 0)}, "roi_min_W"), ({"min_points": 1.5}, "min_points"),
-                         ({"roi_min_W": (1, 1, 1), "roi_max_W": (0, 2, 2)}, "roi_min_W")):
+    for kwargs, text in (
+        ({"voxel": 0.0}, "voxel"),
+        ({"eps": float("nan")}, "eps"),
+        ({"percentile": 50}, "percentile"),
+        ({"roi_min_W": (0, 0)}, "roi_min_W"),
+        ({"min_points": 1.5}, "min_points"),
+        ({"roi_min_W": (1, 1, 1), "roi_max_W": (0, 2, 2)}, "roi_min_W"),
+    ):
         with pytest.raises(ValueError, match=text):
             TunnelDetectorParams(**kwargs)
     assert detect_frames(np.zeros((0, 3))) == []
@@ -267,7 +276,7 @@ def test_the_component_detects_in_the_estimated_frame_and_grows_confident(offset
     truth = np.array([f.centre_W for f in c.frames]) + shift
     k = match([type("D", (), {"centre_W": x}) for x in last.centres_W], truth)
     assert k == sorted(k) and k[0] == 0  # flying order
-    for x, n, size, j in zip(last.centres_W, last.normals_W, last.opening_sizes, k):
+    for x, n, size, j in zip(last.centres_W, last.normals_W, last.opening_sizes, k, strict=True):
         assert np.linalg.norm(x - truth[j]) < 0.02
         assert n @ c.frames[j].axis_W > np.cos(np.radians(3.0))
         np.testing.assert_allclose(size, [c.frames[j].width, c.frames[j].height], atol=0.03)
@@ -325,7 +334,7 @@ def test_an_established_track_takes_an_odd_reading_only_when_it_repeats():
     det = TunnelDetector(expected=1, origin_W=(-2.0, 0.0, 0.0))
     for _ in range(3):
         det._associate([frame(0.0, 1.0)])
-    for k in range(2):  # a misread (the bottom bar taken 40 cm too high): ignored twice
+    for _k in range(2):  # a misread (the bottom bar taken 40 cm too high): ignored twice
         det._associate([frame(0.0, 0.6)])
         assert det.estimate().opening_sizes[0, 1] == 1.0
     det._associate([frame(0.0, 0.6)])  # the third time in a row it is believed
@@ -364,11 +373,17 @@ def test_dbscan_labels_are_open3ds():
 
     rng = np.random.default_rng(11)
     blobs = [rng.normal(c, 0.05, (300, 3)) for c in ([0, 0, 1], [0.5, 0, 1], [3, 2, 0.5])]  # two touching, one apart
-    clouds = [np.concatenate(blobs + [rng.uniform(-1, 4, (200, 3))]), rng.uniform(0, 1, (1500, 3)), np.zeros((0, 3)),
-              np.zeros((5, 3))]
+    clouds = [
+        np.concatenate(blobs + [rng.uniform(-1, 4, (200, 3))]),
+        rng.uniform(0, 1, (1500, 3)),
+        np.zeros((0, 3)),
+        np.zeros((5, 3)),
+    ]
     for pts, eps, min_points in itertools.product(clouds, (0.05, 0.12), (1, 4, 10)):
-        want = np.asarray(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts)).cluster_dbscan(
-            eps=eps, min_points=min_points), dtype=np.int64)
+        want = np.asarray(
+            o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts)).cluster_dbscan(eps=eps, min_points=min_points),
+            dtype=np.int64,
+        )
         np.testing.assert_array_equal(_core.perception.dbscan(pts, eps, min_points), want)
     labels = _core.perception.dbscan(clouds[0], 0.12, 4)
     assert labels.max() >= 1 and np.any(labels == -1)  # the case is not trivial
@@ -418,7 +433,7 @@ def test_line_support_counts_distinct_bins_and_inliers_per_line():
     from cufund import _core
 
     rng = np.random.default_rng(4)
-    for along in (rng.integers(-60, 60, (400, 64)), rng.integers(-2**40, 2**40, (50, 7)), np.zeros((0, 3), np.int64)):
+    for along in (rng.integers(-60, 60, (400, 64)), rng.integers(-(2**40), 2**40, (50, 7)), np.zeros((0, 3), np.int64)):
         inlier = rng.random(along.shape) < 0.3
         covered, counts = _core.perception.line_support(along, inlier)
         for j in range(along.shape[1]):
@@ -445,7 +460,11 @@ def test_the_accumulator_sums_each_voxel_as_a_full_rereduction_would_bit_for_bit
             order = np.argsort(k, kind="stable")
             k = k[order]
             start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
-            keys, sums, seen = k[start], np.add.reduceat(rows[order], start, axis=0), np.maximum.reduceat(s[order], start)
+            keys, sums, seen = (
+                k[start],
+                np.add.reduceat(rows[order], start, axis=0),
+                np.maximum.reduceat(s[order], start),
+            )
             if len(keys) > 400:
                 keep = np.sort(np.lexsort((keys, -seen))[:400])
                 keys, sums, seen = keys[keep], sums[keep], seen[keep]

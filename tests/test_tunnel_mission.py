@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+
 from cufund import ConfigError
 from cufund.apps.cli import main as cli_main
 from cufund.missions.tunnel_geometry import frame_boxes, passages
@@ -27,8 +28,9 @@ def test_frame_boxes_distance_matches_hand_computed_values():
     # yawed by 90 deg and lifted: the posts are now across x, legs reach the floor
     b = frame_boxes([[1.0, 2.0, 1.5]], [[0.0, 1.0, 0.0]], [[0.5, 0.5]], 0.05)
     assert b.centres.shape[0] == 6
-    np.testing.assert_allclose(b.distance([[1.2, 2.0, 1.5], [1.0, 2.0, 1.5], [1.3, 2.0, 0.5]]),
-                               [0.05, 0.25, 0.0], atol=1e-12)
+    np.testing.assert_allclose(
+        b.distance([[1.2, 2.0, 1.5], [1.0, 2.0, 1.5], [1.3, 2.0, 0.5]]), [0.05, 0.25, 0.0], atol=1e-12
+    )
 
 
 def test_passages_need_the_opening_and_the_direction():
@@ -114,16 +116,20 @@ def test_same_seed_same_flight():
 
     a, b = first_seconds(), first_seconds()
     np.testing.assert_array_equal(a[0], b[0])
-    assert len(a[1]) == len(b[1]) and all(np.array_equal(x, y) for x, y in zip(a[1], b[1]))
+    assert len(a[1]) == len(b[1]) and all(np.array_equal(x, y) for x, y in zip(a[1], b[1], strict=True))
     assert a[2] == b[2]
 
 
-@pytest.mark.parametrize("faults", [
-    {"lidar_dropout": {"t_start": 15.0, "duration": 1.0}},  # while flying through the course
-    {"lidar_dropout": {"t_start": 6.0, "duration": 1.0}},  # while hovering before the course
-    {"imu_bias_step": {"t_start": 10.0, "gyro": [0.0, 0.0, 0.05], "accel": [0.2, 0.0, 0.0]}},
-    {"lidar_degraded": {"t_start": 5.0, "fraction": 0.5, "noise_m": 0.05}},
-], ids=["dropout_through", "dropout_hover", "imu_bias_step", "lidar_degraded"])
+@pytest.mark.parametrize(
+    "faults",
+    [
+        {"lidar_dropout": {"t_start": 15.0, "duration": 1.0}},  # while flying through the course
+        {"lidar_dropout": {"t_start": 6.0, "duration": 1.0}},  # while hovering before the course
+        {"imu_bias_step": {"t_start": 10.0, "gyro": [0.0, 0.0, 0.05], "accel": [0.2, 0.0, 0.0]}},
+        {"lidar_degraded": {"t_start": 5.0, "fraction": 0.5, "noise_m": 0.05}},
+    ],
+    ids=["dropout_through", "dropout_hover", "imu_bias_step", "lidar_degraded"],
+)
 def test_faults_in_flight_complete_or_land_safely(faults):
     from cufund.scenarios.build import run_built
 

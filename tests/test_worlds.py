@@ -14,8 +14,15 @@ def cast(world, origin, direction):
     return float(out["t_hit"][0]), int(out["geometry_ids"][0])
 
 
-@pytest.mark.parametrize("mesh", [primitives.box((1.0, 2.0, 3.0)), primitives.cylinder(0.5, 2.0, 24),
-                                  primitives.sphere(1.0, 2), primitives.tunnel_frame(0.5, 1.0, 0.05, 0.05)])
+@pytest.mark.parametrize(
+    "mesh",
+    [
+        primitives.box((1.0, 2.0, 3.0)),
+        primitives.cylinder(0.5, 2.0, 24),
+        primitives.sphere(1.0, 2),
+        primitives.tunnel_frame(0.5, 1.0, 0.05, 0.05),
+    ],
+)
 def test_primitives_are_closed_and_outward_wound(mesh):
     v, f = mesh
     # Closed: every edge is shared by exactly two triangles, once in each direction.
@@ -119,18 +126,29 @@ def test_yaml_world_with_mesh_file(tmp_path):
 @pytest.mark.parametrize(
     "text, message",
     [
-        ("objects:\n  - {type: box, size: [1, 1, 1], position: [0, 0, 0], colour: [1, 0, 0]}\n",
-         "unknown key 'colour' in objects\\[0\\] \\(box\\)"),
+        (
+            "objects:\n  - {type: box, size: [1, 1, 1], position: [0, 0, 0], colour: [1, 0, 0]}\n",
+            "unknown key 'colour' in objects\\[0\\] \\(box\\)",
+        ),
         ("objects:\n  - {type: cone}\n", "objects\\[0\\].type must be one of"),
         ("objects:\n  - {type: box, position: [0, 0, 0]}\n", "objects\\[0\\] \\(box\\).*size"),
-        ("objects:\n  - {type: box, size: [1, -1, 1], position: [0, 0, 0]}\n", "size\\[1\\] must be a finite number > 0"),
+        (
+            "objects:\n  - {type: box, size: [1, -1, 1], position: [0, 0, 0]}\n",
+            "size\\[1\\] must be a finite number > 0",
+        ),
         ("walls: []\n", "unknown key 'walls'"),
-        ("objects:\n  - {type: cylinder, radius: 1, height: 1, position: [0, 0, 0], segments: 1e8}\n",
-         "segments must be an integer, got 100000000.0"),
-        ("objects:\n  - {type: cylinder, radius: 1, height: 1, position: [0, 0, 0], segments: 100000000}\n",
-         r"segments must be in \[3, 4096\], got 100000000 \(mesh_max_segments = 4096"),
-        ("objects:\n  - {type: sphere, radius: 1, position: [0, 0, 0], subdivisions: 2.5}\n",
-         "subdivisions must be an integer, got 2.5"),
+        (
+            "objects:\n  - {type: cylinder, radius: 1, height: 1, position: [0, 0, 0], segments: 1e8}\n",
+            "segments must be an integer, got 100000000.0",
+        ),
+        (
+            "objects:\n  - {type: cylinder, radius: 1, height: 1, position: [0, 0, 0], segments: 100000000}\n",
+            r"segments must be in \[3, 4096\], got 100000000 \(mesh_max_segments = 4096",
+        ),
+        (
+            "objects:\n  - {type: sphere, radius: 1, position: [0, 0, 0], subdivisions: 2.5}\n",
+            "subdivisions must be an integer, got 2.5",
+        ),
         ("objects:\n  - {type: mesh, path: 7, position: [0, 0, 0]}\n", r"objects\[0\].path must be a file name"),
     ],
 )
@@ -170,18 +188,22 @@ def test_forest_with_an_impossible_clearing_fails_fast():
     # Room for only a sliver: the bounded number of draws ends it with a message.
     with pytest.raises(ValueError, match="could not place 50 trees outside a clearing of 0.7 m in a 1.0 m square"):
         cufund.worlds.load("forest", n_trees=50, size=1.0, clearing=0.7)
-    for kwargs, message in [({"n_trees": 2.5}, "n_trees must be an integer"),
-                            ({"size": float("nan")}, "size must be a finite number > 0"),
-                            ({"clearing": -1.0}, "clearing must be a finite number >= 0")]:
+    for kwargs, message in [
+        ({"n_trees": 2.5}, "n_trees must be an integer"),
+        ({"size": float("nan")}, "size must be a finite number > 0"),
+        ({"clearing": -1.0}, "clearing must be a finite number >= 0"),
+    ]:
         with pytest.raises(ValueError, match=message):
             cufund.worlds.load("forest", **kwargs)
 
 
 def test_obj_face_index_zero_and_out_of_range_are_rejected(tmp_path):
     verts = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
-    for face, message in [("f 0 1 2", "bad.obj:4: face index 0 must be in \\[1, 3\\]"),
-                          ("f 1 2 4", "bad.obj:4: face index 4 must be in \\[1, 3\\]"),
-                          ("f 1 2 x", "bad.obj:4: face index 'x' is not an integer")]:
+    for face, message in [
+        ("f 0 1 2", "bad.obj:4: face index 0 must be in \\[1, 3\\]"),
+        ("f 1 2 4", "bad.obj:4: face index 4 must be in \\[1, 3\\]"),
+        ("f 1 2 x", "bad.obj:4: face index 'x' is not an integer"),
+    ]:
         (tmp_path / "bad.obj").write_text(verts + face + "\n")
         with pytest.raises(ValueError, match=message):
             cufund.World().load_mesh(tmp_path / "bad.obj")
@@ -192,8 +214,12 @@ def test_obj_face_index_zero_and_out_of_range_are_rejected(tmp_path):
 
 def test_unreadable_mesh_files_raise_value_error_naming_the_file(tmp_path):
     pytest.importorskip("trimesh")
-    cases = {"junk.stl": b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n", "junk.ply": b"ply\nformat ascii 1.0\n",
-             "empty.obj": b"# nothing\n", "junk.glb": b"glTF\x02\x00\x00\x00"}
+    cases = {
+        "junk.stl": b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n",
+        "junk.ply": b"ply\nformat ascii 1.0\n",
+        "empty.obj": b"# nothing\n",
+        "junk.glb": b"glTF\x02\x00\x00\x00",
+    }
     for name, data in cases.items():
         (tmp_path / name).write_bytes(data)
         with pytest.raises(ValueError, match=f"mesh file .*{name}"):

@@ -9,8 +9,23 @@ from typing import Any
 
 from . import _moved, control, planning, sensors, worlds
 from ._core import __version__
-from .core import (Bus, BusView, Component, ConfigError, Controller, Estimator, FlightMode, Mapper, Planner,
-                   Recorder, Sensor, Subscription, Topic, Topics, messages)
+from .core import (
+    Bus,
+    BusView,
+    Component,
+    ConfigError,
+    Controller,
+    Estimator,
+    FlightMode,
+    Mapper,
+    Planner,
+    Recorder,
+    Sensor,
+    Subscription,
+    Topic,
+    Topics,
+    messages,
+)
 from .scenarios import ScenarioConfig, ScenarioRun, available_scenarios, load_scenario, run_scenario
 from .simulator import RunStatus, SimulationResult, Simulator
 from .vehicle import Quadrotor, QuadrotorBatch, QuadrotorParams, QuadrotorState, presets

@@ -55,7 +55,7 @@ def new_path(old: str) -> str | None:
         return MOVED[old]
     for a, b in MOVED_PACKAGES.items():
         if old == a or old.startswith(a + "."):
-            return b + old[len(a):]
+            return b + old[len(a) :]
     return None
 
 
@@ -65,8 +65,9 @@ class _Alias(importlib.abc.Loader):
         self.spec: importlib.machinery.ModuleSpec | None = None
 
     def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType:
-        warnings.warn(f"{self.old} moved to {self.new}; the old path goes in the next release",
-                      DeprecationWarning, stacklevel=2)
+        warnings.warn(
+            f"{self.old} moved to {self.new}; the old path goes in the next release", DeprecationWarning, stacklevel=2
+        )
         module = importlib.import_module(self.new)
         self.spec = module.__spec__
         return module
@@ -76,7 +77,9 @@ class _Alias(importlib.abc.Loader):
 
 
 class _Finder(importlib.abc.MetaPathFinder):
-    def find_spec(self, fullname: str, path: object = None, target: object = None) -> importlib.machinery.ModuleSpec | None:
+    def find_spec(
+        self, fullname: str, path: object = None, target: object = None
+    ) -> importlib.machinery.ModuleSpec | None:
         new = new_path(fullname) if fullname.startswith("cufund.") else None
         if new is None:
             return None

@@ -105,8 +105,10 @@ def test_imports_only_go_down():
         for target, line in imports:
             t_area = _area(target)
             if t_area != area and RANK[t_area] >= RANK[area]:
-                upward.append(f"{MODULES[module][0].relative_to(ROOT.parent)}:{line} {module} ({area}, layer "
-                              f"{RANK[area]}) imports {target} ({t_area}, layer {RANK[t_area]})")
+                upward.append(
+                    f"{MODULES[module][0].relative_to(ROOT.parent)}:{line} {module} ({area}, layer "
+                    f"{RANK[area]}) imports {target} ({t_area}, layer {RANK[t_area]})"
+                )
     assert not upward, "imports that do not go down a layer:\n" + "\n".join(sorted(upward))
 
 
@@ -117,6 +119,7 @@ def _package_of(module: str) -> str | None:
 def test_no_import_circle():
     """No module reaches itself through imports (a package's ``__init__`` importing its own submodules, and a
     submodule importing a sibling through the package, are the normal shape of a package and not counted)."""
+
     def edges(m: str) -> list[str]:
         out = []
         for t, _ in GRAPH[m]:
@@ -134,7 +137,7 @@ def test_no_import_circle():
         stack.append(m)
         for t in edges(m):
             if state.get(t) == 1:
-                circles.append(stack[stack.index(t):] + [t])
+                circles.append(stack[stack.index(t) :] + [t])
             elif t not in state:
                 visit(t)
         stack.pop()

@@ -13,9 +13,22 @@ import pytest
 import cufund
 from cufund import _moved
 
-PUBLIC_PACKAGES = ["cufund", "cufund.core", "cufund.vehicle", "cufund.worlds", "cufund.logs", "cufund.simulator",
-                   "cufund.sensors", "cufund.estimation", "cufund.mapping", "cufund.perception", "cufund.planning",
-                   "cufund.control", "cufund.missions", "cufund.scenarios"]
+PUBLIC_PACKAGES = [
+    "cufund",
+    "cufund.core",
+    "cufund.vehicle",
+    "cufund.worlds",
+    "cufund.logs",
+    "cufund.simulator",
+    "cufund.sensors",
+    "cufund.estimation",
+    "cufund.mapping",
+    "cufund.perception",
+    "cufund.planning",
+    "cufund.control",
+    "cufund.missions",
+    "cufund.scenarios",
+]
 
 
 @pytest.mark.parametrize("package", PUBLIC_PACKAGES)
@@ -29,11 +42,42 @@ def test_every_public_name_imports(package):
 
 
 def test_the_top_level_api_is_what_0_1_offered():
-    for name in ["Bus", "BusView", "Component", "ConfigError", "Controller", "Estimator", "FlightMode", "Mapper",
-                 "Planner", "Quadrotor", "QuadrotorBatch", "QuadrotorParams", "QuadrotorState", "Recorder",
-                 "RunStatus", "ScenarioConfig", "ScenarioRun", "Sensor", "SimulationResult", "Simulator",
-                 "Subscription", "Topic", "Topics", "World", "__version__", "available_scenarios", "control",
-                 "load_scenario", "messages", "planning", "presets", "run_scenario", "sensors", "worlds"]:
+    for name in [
+        "Bus",
+        "BusView",
+        "Component",
+        "ConfigError",
+        "Controller",
+        "Estimator",
+        "FlightMode",
+        "Mapper",
+        "Planner",
+        "Quadrotor",
+        "QuadrotorBatch",
+        "QuadrotorParams",
+        "QuadrotorState",
+        "Recorder",
+        "RunStatus",
+        "ScenarioConfig",
+        "ScenarioRun",
+        "Sensor",
+        "SimulationResult",
+        "Simulator",
+        "Subscription",
+        "Topic",
+        "Topics",
+        "World",
+        "__version__",
+        "available_scenarios",
+        "control",
+        "load_scenario",
+        "messages",
+        "planning",
+        "presets",
+        "run_scenario",
+        "sensors",
+        "worlds",
+    ]:
         assert hasattr(cufund, name), name
     assert cufund.QuadrotorParams is cufund.vehicle.QuadrotorParams
     assert cufund.Topics is cufund.core.messages.Topics
@@ -63,12 +107,14 @@ def test_old_module_paths_import_with_a_deprecation_warning(old):
 
 def test_old_submodule_of_a_moved_package_imports():
     """One module object, not a second copy loaded through the old package's path."""
-    code = ("import importlib, warnings\n"
-            "with warnings.catch_warnings(record=True) as w:\n"
-            "    warnings.simplefilter('always')\n"
-            "    old = importlib.import_module('cufund.mavlink.frames')\n"
-            "assert old is importlib.import_module('cufund.apps.mavlink.frames')\n"
-            "assert any('cufund.apps.mavlink.frames' in str(x.message) for x in w), [str(x.message) for x in w]\n")
+    code = (
+        "import importlib, warnings\n"
+        "with warnings.catch_warnings(record=True) as w:\n"
+        "    warnings.simplefilter('always')\n"
+        "    old = importlib.import_module('cufund.mavlink.frames')\n"
+        "assert old is importlib.import_module('cufund.apps.mavlink.frames')\n"
+        "assert any('cufund.apps.mavlink.frames' in str(x.message) for x in w), [str(x.message) for x in w]\n"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-2000:]
 

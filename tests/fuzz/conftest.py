@@ -7,7 +7,6 @@ import os
 from pathlib import Path
 
 import pytest
-
 from fuzz_support import CAMPAIGN, FAILURES, GOOD, STATS, ForkServer, write_report
 
 
@@ -18,7 +17,7 @@ def server():
     s.close()
 
 
-def pytest_terminal_summary(terminalreporter, exitstatus, config):  # noqa: ARG001
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
     if not STATS:
         return
     tr = terminalreporter
@@ -34,7 +33,7 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):  # noqa: ARG0
         write_report(Path(report))
 
 
-def pytest_sessionfinish(session, exitstatus):  # noqa: ARG001
+def pytest_sessionfinish(session, exitstatus):
     # A campaign records instead of asserting; it still fails when any case ended badly.
     if CAMPAIGN and any(k not in GOOD for c in STATS.values() for k in c):
         session.exitstatus = 1

@@ -47,11 +47,28 @@ def _write(stream, obj: object) -> None:
 
 
 # Messages Python or numpy produce on their own: they name no cufund argument or field.
-_INTERNAL = ("could not convert", "invalid literal", "object of type", "unsupported operand", "not subscriptable",
-             "has no len", "only integer scalar", "setting an array element with a sequence", "unhashable",
-             "object is not iterable", "cannot convert float", "must be real number, not", "takes no keyword",
-             "got an unexpected keyword", "missing 1 required", "object cannot be interpreted",
-             "could not broadcast", "truth value of an array", "Cannot cast ufunc", "ufunc '")
+_INTERNAL = (
+    "could not convert",
+    "invalid literal",
+    "object of type",
+    "unsupported operand",
+    "not subscriptable",
+    "has no len",
+    "only integer scalar",
+    "setting an array element with a sequence",
+    "unhashable",
+    "object is not iterable",
+    "cannot convert float",
+    "must be real number, not",
+    "takes no keyword",
+    "got an unexpected keyword",
+    "missing 1 required",
+    "object cannot be interpreted",
+    "could not broadcast",
+    "truth value of an array",
+    "Cannot cast ufunc",
+    "ufunc '",
+)
 
 
 def _classify(exc: BaseException) -> tuple[str, str]:
@@ -91,14 +108,14 @@ def _child(setup: str, call: str, args: dict, check: str | None, cap: int, wfd: 
                     exec(call, ns)
                 else:
                     ns["result"] = eval(call, ns)
-        except BaseException as e:  # noqa: BLE001 - classifying is the point
+        except BaseException as e:
             outcome = _classify(e)
         else:
             if check is None or eval(check, ns):
                 outcome = ("ok", "")
             else:
                 outcome = ("garbage", repr(ns.get("result"))[:300])
-    except BaseException as e:  # noqa: BLE001 - the setup itself failed
+    except BaseException as e:
         outcome = ("setup_error", f"{type(e).__name__}: {e}"[:300])
     os.write(wfd, pickle.dumps(outcome))
     os._exit(0)
@@ -140,7 +157,7 @@ def _run(setup: str, call: str, args: dict, check: str | None, timeout: float, c
         return "crash", f"signal {os.WTERMSIG(status)} ({signal.Signals(os.WTERMSIG(status)).name})", seconds
     try:
         outcome, detail = pickle.loads(b"".join(chunks))
-    except Exception:  # noqa: BLE001 - the child died before reporting
+    except Exception:
         return "crash", f"exit status {os.waitstatus_to_exitcode(status)} without a report", seconds
     return outcome, detail, seconds
 

@@ -54,11 +54,19 @@ class Code(str):
 class ForkServer:
     def __init__(self) -> None:
         env = {**os.environ, "PYTHONWARNINGS": "ignore"}
-        self.proc = subprocess.Popen([sys.executable, str(HERE / "forkserver.py")], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, env=env)
+        self.proc = subprocess.Popen(
+            [sys.executable, str(HERE / "forkserver.py")], stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env
+        )
 
-    def run(self, area: str, setup: str, call: str, args: dict[str, Any] | None = None, check: str | None = None,
-            timeout: float = TIMEOUT) -> tuple[str, str]:
+    def run(
+        self,
+        area: str,
+        setup: str,
+        call: str,
+        args: dict[str, Any] | None = None,
+        check: str | None = None,
+        timeout: float = TIMEOUT,
+    ) -> tuple[str, str]:
         wire = {k: ("__code__", str(v)) if isinstance(v, Code) else v for k, v in (args or {}).items()}
         data = pickle.dumps((setup, call, wire, check, timeout, CAP))
         assert self.proc.stdin is not None and self.proc.stdout is not None
@@ -91,17 +99,38 @@ def _short(args: dict[str, Any] | None) -> str:
 
 def write_report(path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps({"stats": {a: dict(c) for a, c in sorted(STATS.items())},
-                                "failures": FAILURES[:200]}, indent=1, default=str))
+    path.write_text(
+        json.dumps(
+            {"stats": {a: dict(c) for a, c in sorted(STATS.items())}, "failures": FAILURES[:200]}, indent=1, default=str
+        )
+    )
 
 
 # --- strategies: what a user who makes mistakes types -----------------------------------------------
 
+
 def floats_any() -> st.SearchStrategy[float]:
     """Any float64, with the edge cases made likely."""
     return st.one_of(
-        st.sampled_from([0.0, -0.0, 1.0, -1.0, 1e-300, 5e-324, -5e-324, 1e300, 1e308, float("nan"), float("inf"),
-                         float("-inf"), 1.5e16, 2.0**31, 2.0**53]),
+        st.sampled_from(
+            [
+                0.0,
+                -0.0,
+                1.0,
+                -1.0,
+                1e-300,
+                5e-324,
+                -5e-324,
+                1e300,
+                1e308,
+                float("nan"),
+                float("inf"),
+                float("-inf"),
+                1.5e16,
+                2.0**31,
+                2.0**53,
+            ]
+        ),
         st.floats(allow_nan=True, allow_infinity=True),
         st.floats(-1e3, 1e3),
     )
@@ -109,13 +138,25 @@ def floats_any() -> st.SearchStrategy[float]:
 
 def scalars() -> st.SearchStrategy[Any]:
     """Wrong-typed and right-typed scalars."""
-    return st.one_of(floats_any(), st.integers(-(2**70), 2**70), st.booleans(), st.none(), st.text(max_size=8),
-                     st.binary(max_size=4), st.just([]), st.just({}), st.just(np.float32(1.0)), st.just(np.int64(3)),
-                     st.just(np.nan), st.just(complex(1, 1)))
+    return st.one_of(
+        floats_any(),
+        st.integers(-(2**70), 2**70),
+        st.booleans(),
+        st.none(),
+        st.text(max_size=8),
+        st.binary(max_size=4),
+        st.just([]),
+        st.just({}),
+        st.just(np.float32(1.0)),
+        st.just(np.int64(3)),
+        st.just(np.nan),
+        st.just(complex(1, 1)),
+    )
 
 
-def arrays(shapes: list[tuple[int, ...]] | None = None, elements: st.SearchStrategy[float] | None = None
-           ) -> st.SearchStrategy[Any]:
+def arrays(
+    shapes: list[tuple[int, ...]] | None = None, elements: st.SearchStrategy[float] | None = None
+) -> st.SearchStrategy[Any]:
     """Arrays of the right and wrong shapes and dtypes (small), plus non-arrays."""
     from hypothesis.extra import numpy as hnp
 
@@ -128,10 +169,17 @@ def arrays(shapes: list[tuple[int, ...]] | None = None, elements: st.SearchStrat
         dt = draw(dtype)
         shp = draw(shape)
         if dt in (np.float64, np.float32):
-            return draw(hnp.arrays(dt, shp, elements=elems.map(lambda x: x if abs(x) < 1e37 or not np.isfinite(x)
-                                                                  or dt is np.float64 else 0.0)))
+            return draw(
+                hnp.arrays(
+                    dt,
+                    shp,
+                    elements=elems.map(lambda x: x if abs(x) < 1e37 or not np.isfinite(x) or dt is np.float64 else 0.0),
+                )
+            )
         if dt is np.complex128:
             return np.zeros(shp, dt)
         return draw(hnp.arrays(dt, shp))
 
-    return st.one_of(make(), scalars(), st.lists(floats_any(), max_size=7), st.just("abc"), st.just(np.array([], object)))
+    return st.one_of(
+        make(), scalars(), st.lists(floats_any(), max_size=7), st.just("abc"), st.just(np.array([], object))
+    )

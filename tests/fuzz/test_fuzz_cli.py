@@ -14,8 +14,28 @@ from hypothesis import strategies as st
 import cufund
 
 SQUARE = yaml.safe_load((Path(cufund.__file__).parent / "scenarios" / "square.yaml").read_text())
-ATOMS = ["1", "-1", "0", ".nan", ".inf", "1e400", "1e-320", "true", "null", "x", "[]", "{}", "[1, 2]", "[1, 2, 3]",
-         "{kind: nope}", "geometric", "'1e3'", "300", "1e9", "-.inf"]
+ATOMS = [
+    "1",
+    "-1",
+    "0",
+    ".nan",
+    ".inf",
+    "1e400",
+    "1e-320",
+    "true",
+    "null",
+    "x",
+    "[]",
+    "{}",
+    "[1, 2]",
+    "[1, 2, 3]",
+    "{kind: nope}",
+    "geometric",
+    "'1e3'",
+    "300",
+    "1e9",
+    "-.inf",
+]
 
 # The child runs cufund's CLI in-process with stderr captured and classifies the exit itself.
 RUN = """
@@ -67,9 +87,11 @@ cli_settings = settings(fuzz_settings, max_examples=EXAMPLES if EXAMPLES > 50 el
 
 
 @cli_settings
-@given(path=st.sampled_from(PATHS + ["unknown_key", "controller.unknown", "trajectory.extra"]),
-       atom=st.one_of(st.none(), st.sampled_from(ATOMS)),
-       override=st.one_of(st.none(), st.tuples(st.sampled_from(PATHS + ["nope.key", ""]), st.sampled_from(ATOMS))))
+@given(
+    path=st.sampled_from(PATHS + ["unknown_key", "controller.unknown", "trajectory.extra"]),
+    atom=st.one_of(st.none(), st.sampled_from(ATOMS)),
+    override=st.one_of(st.none(), st.tuples(st.sampled_from(PATHS + ["nope.key", ""]), st.sampled_from(ATOMS))),
+)
 def test_cufund_run(server, tmp_path_factory, path, atom, override):
     folder = tmp_path_factory.mktemp("cli")
     scenario = folder / "scenario.yaml"
@@ -80,21 +102,43 @@ def test_cufund_run(server, tmp_path_factory, path, atom, override):
         argv += ["--set", f"{override[0]}={override[1]}"]
     if path != "duration" and (override is None or override[0] != "duration"):
         argv += ["--set", "duration=0.3"]  # a valid mutation flies briefly, not 40 s
-    outcome, detail = server.run("cli", "", RUN, {"argv": argv, "cwd": str(folder)}, check="result in (0, 1)",
-                                 timeout=120)
+    outcome, detail = server.run(
+        "cli", "", RUN, {"argv": argv, "cwd": str(folder)}, check="result in (0, 1)", timeout=120
+    )
     expect_good(outcome, detail)
 
 
 @cli_settings
-@given(out=st.sampled_from(["", "/proc/nope/run", "/dev/null", "scenario.yaml", "/", "a\x00b"]),
-       extra=st.sampled_from([[], ["--seed", "x"], ["--seed", "-1"], ["--controller", "nope"], ["--set", "noequals"],
-                              ["--set", "=3"], ["--bogus"]]))
+@given(
+    out=st.sampled_from(["", "/proc/nope/run", "/dev/null", "scenario.yaml", "/", "a\x00b"]),
+    extra=st.sampled_from(
+        [
+            [],
+            ["--seed", "x"],
+            ["--seed", "-1"],
+            ["--controller", "nope"],
+            ["--set", "noequals"],
+            ["--set", "=3"],
+            ["--bogus"],
+        ]
+    ),
+)
 def test_cufund_run_arguments(server, tmp_path_factory, out, extra):
     folder = tmp_path_factory.mktemp("cliargs")
     (folder / "scenario.yaml").write_text(yaml.safe_dump(SQUARE))
     out_path = out if out.startswith("/") or not out else str(folder / out)
-    argv = ["run", str(folder / "scenario.yaml"), "--out", out_path, "--no-replay", "--no-log",
-            "--set", "duration=0.3", *extra]
-    outcome, detail = server.run("cli", "", RUN, {"argv": argv, "cwd": str(folder)}, check="result in (0, 1)",
-                                 timeout=120)
+    argv = [
+        "run",
+        str(folder / "scenario.yaml"),
+        "--out",
+        out_path,
+        "--no-replay",
+        "--no-log",
+        "--set",
+        "duration=0.3",
+        *extra,
+    ]
+    outcome, detail = server.run(
+        "cli", "", RUN, {"argv": argv, "cwd": str(folder)}, check="result in (0, 1)", timeout=120
+    )
     expect_good(outcome, detail)

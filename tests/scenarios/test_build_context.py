@@ -37,8 +37,11 @@ def _writes_attribute(p: EndAt, ctx: BuildContext) -> list[Component]:
 
 @pytest.fixture
 def kinds():
-    made = [Kind("mission", "test_end_at", EndAt, _ends), Kind("planner", "test_end_at", EndAt, _ends),
-            Kind("mission", "test_writes_attribute", EndAt, _writes_attribute)]
+    made = [
+        Kind("mission", "test_end_at", EndAt, _ends),
+        Kind("planner", "test_end_at", EndAt, _ends),
+        Kind("mission", "test_writes_attribute", EndAt, _writes_attribute),
+    ]
     for k in made:
         register(k)
     try:
@@ -49,8 +52,9 @@ def kinds():
 
 
 def test_a_part_ends_the_run_and_adds_metrics_and_files(kinds, tmp_path):
-    cfg = ScenarioConfig.from_dict({"planner": None, "controller": None, "mission": {"kind": "test_end_at",
-                                                                                     "t_end": 0.25}, "duration": 5})
+    cfg = ScenarioConfig.from_dict(
+        {"planner": None, "controller": None, "mission": {"kind": "test_end_at", "t_end": 0.25}, "duration": 5}
+    )
     run = run_into_folder(cfg, tmp_path, log=False, plots=False, replay=False)
     assert run.result.status.value == "completed" and run.result.message == "done condition met"
     assert run.result.sim_time_s == 0.25  # the first record at or after t_end (every physics node, 1 kHz)
@@ -97,8 +101,11 @@ def test_the_commander_gates_the_controllers_built_after_it():
     ctx = built.context
     assert type(ctx.commander).__name__ == "Commander" and ctx.commander in built.simulator.components
     # both controllers (pid and the geometric one to switch to) read the commander's vehicle status
-    gated = {type(c).__name__ for c in built.simulator.components if getattr(c, "armable", False)
-             and "/vehicle/status" in {str(t) for t in c.optional_inputs}}
+    gated = {
+        type(c).__name__
+        for c in built.simulator.components
+        if getattr(c, "armable", False) and "/vehicle/status" in {str(t) for t in c.optional_inputs}
+    }
     assert gated == {"PositionController", "AttitudeController", "RateController", "GeometricController"}, gated
     plain = build_simulation(ScenarioConfig.from_dict({"controller": "pid"}))  # no commander: never gated
     assert not any(getattr(c, "armable", False) for c in plain.simulator.components)

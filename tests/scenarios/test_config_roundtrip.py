@@ -21,10 +21,14 @@ def test_written_config_reads_back_the_same(name):
 
 
 def test_a_command_writes_only_what_it_sets():
-    for data in ({"command": "arm"}, {"command": "takeoff", "altitude": 2.0}, {"command": "disarm", "force": True},
-                 {"command": "goto", "p_W": [1.0, 2.0, 1.5], "yaw": 0.5, "id": 7},
-                 {"command": "mission_upload", "items": [{"p_W": [1.0, 0.0, 1.0], "yaw": None, "hold_s": 2.0}]},
-                 {"command": "mission_start", "seq": 0}):
+    for data in (
+        {"command": "arm"},
+        {"command": "takeoff", "altitude": 2.0},
+        {"command": "disarm", "force": True},
+        {"command": "goto", "p_W": [1.0, 2.0, 1.5], "yaw": 0.5, "id": 7},
+        {"command": "mission_upload", "items": [{"p_W": [1.0, 0.0, 1.0], "yaw": None, "hold_s": 2.0}]},
+        {"command": "mission_start", "seq": 0},
+    ):
         cmd = parse_command(data)
         assert parse_command(cmd.to_data()) == cmd
         assert cmd.to_data() == data

@@ -70,10 +70,14 @@ T_BR = {"p": [0.12, -0.05, -0.04], "q": [math.cos(A / 2), 0.0, math.sin(A / 2), 
 
 
 def _scenario(**sensor: object) -> ScenarioConfig:
-    return ScenarioConfig.from_dict({
-        "name": "range", "sensors": {"range": {"kind": "test_rangefinder", **sensor}},
-        "trajectory": {"waypoints": [[0.0, 0.0, 0.4], [0.8, 0.3, 0.6]], "hover_s": 0.2, "move_v_max": 2.0},
-        "duration": 3.0})
+    return ScenarioConfig.from_dict(
+        {
+            "name": "range",
+            "sensors": {"range": {"kind": "test_rangefinder", **sensor}},
+            "trajectory": {"waypoints": [[0.0, 0.0, 0.4], [0.8, 0.3, 0.6]], "hover_s": 0.2, "move_v_max": 2.0},
+            "duration": 3.0,
+        }
+    )
 
 
 def test_a_registered_sensor_type_flies_with_its_message_and_mounting(rangefinder):
@@ -148,8 +152,9 @@ def test_the_sensor_template_registers_as_a_pose_kind():
     for k in KINDS:
         register(k)
     try:
-        cfg = ScenarioConfig.from_dict({"sensors": {"mocap": {"kind": "my_position_sensor", "sigma_m": 0.0,
-                                                              "rate_hz": 50.0}}, "duration": 1.0})
+        cfg = ScenarioConfig.from_dict(
+            {"sensors": {"mocap": {"kind": "my_position_sensor", "sigma_m": 0.0, "rate_hz": 50.0}}, "duration": 1.0}
+        )
         assert cfg.sensors["mocap"].topic.type is Odometry and cfg.sensors["mocap"].sensor_type == "pose"
         run = run_built(build_simulation(cfg))
         got = run.result.topics["/sensors/mocap"]

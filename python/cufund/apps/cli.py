@@ -17,8 +17,8 @@ import sys
 import time
 import warnings
 from collections.abc import Iterator
-from typing import NoReturn
 from pathlib import Path
+from typing import NoReturn
 
 from cufund._core import __version__
 from cufund.core.config import ConfigError
@@ -37,21 +37,35 @@ class _Parser(argparse.ArgumentParser):
 def _parser() -> argparse.ArgumentParser:
     scenarios = "\n".join(f"  {name:<14} {desc}" for name, desc in available_scenarios().items())
     p = _Parser(
-        prog="cufund", formatter_class=argparse.RawDescriptionHelpFormatter,
+        prog="cufund",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
         description="cufund: quadrotor simulation and autonomy.",
         epilog=f"built-in scenarios (cufund run NAME):\n{scenarios}\n\nA scenario may also be a YAML file, e.g. a "
-               "run folder's config.yaml.")
-    p.add_argument("--version", action="version", version=f"cufund {__version__}",
-                   help="print cufund's version (cufund.__version__) and exit")
+        "run folder's config.yaml.",
+    )
+    p.add_argument(
+        "--version",
+        action="version",
+        version=f"cufund {__version__}",
+        help="print cufund's version (cufund.__version__) and exit",
+    )
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    run = sub.add_parser("run", help="run a scenario and write a run folder",
-                         formatter_class=argparse.RawDescriptionHelpFormatter,
-                         epilog=f"built-in scenarios:\n{scenarios}\n\nexit codes: 0 completed, 1 ended otherwise, "
-                                "2 invalid configuration or usage")
+    run = sub.add_parser(
+        "run",
+        help="run a scenario and write a run folder",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=f"built-in scenarios:\n{scenarios}\n\nexit codes: 0 completed, 1 ended otherwise, "
+        "2 invalid configuration or usage",
+    )
     run.add_argument("scenario", help="a built-in scenario name or a YAML file")
-    run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                     help="override a field by its dotted key, e.g. --set controller.kind=geometric --set seed=3 "
-                          "(repeatable)")
+    run.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a field by its dotted key, e.g. --set controller.kind=geometric --set seed=3 (repeatable)",
+    )
     run.add_argument("--controller", help="same as --set controller.kind=NAME")
     run.add_argument("--seed", help="same as --set seed=N")
     run.add_argument("--out", help="run folder (default: runs/<scenario>-<time>)")
@@ -59,22 +73,31 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--no-replay", action="store_true", help="skip replay.html")
     run.add_argument("--no-log", action="store_true", help="skip run.mcap")
     sub.add_parser("list", help="list the built-in scenarios and registered kinds")
-    odo = sub.add_parser("odometry", help="run the LiDAR-inertial odometry open loop on a run.mcap log",
-                         description="Runs the LIO on the IMU and LiDAR messages of LOG (with the extrinsics of the "
-                                     "scenario recorded in it) and writes odometry.json (errors against the log's "
-                                     "ground truth), odometry.png and TUM files (estimate.tum, truth.tum) for evo.")
+    odo = sub.add_parser(
+        "odometry",
+        help="run the LiDAR-inertial odometry open loop on a run.mcap log",
+        description="Runs the LIO on the IMU and LiDAR messages of LOG (with the extrinsics of the "
+        "scenario recorded in it) and writes odometry.json (errors against the log's "
+        "ground truth), odometry.png and TUM files (estimate.tum, truth.tum) for evo.",
+    )
     odo.add_argument("log", type=Path, help="a run.mcap written by cufund run")
     odo.add_argument("--out", type=Path, required=True, help="folder for the results")
-    allan = sub.add_parser("allan", help="simulate a static IMU and compare its Allan deviation with its noise model",
-                           description="Simulates a static IMU and writes imu.npz (raw samples), allan.png and "
-                                       "allan.json (fitted vs configured noise density and bias random walk, per axis).")
+    allan = sub.add_parser(
+        "allan",
+        help="simulate a static IMU and compare its Allan deviation with its noise model",
+        description="Simulates a static IMU and writes imu.npz (raw samples), allan.png and "
+        "allan.json (fitted vs configured noise density and bias random walk, per axis).",
+    )
     allan_report.add_arguments(allan)
     from .sweep import cli as sweep_cli
 
-    sweep = sub.add_parser("sweep", help="run many variants of a scenario on Dask (local cluster or a scheduler)",
-                           description="Runs every variant of a sweep file as a Dask task and writes results.parquet, "
-                                       "summary.md, plots/ and each variant's run folder; a re-run resumes. Exit "
-                                       "codes: 0 every variant ran, 1 some failed or interrupted, 2 invalid sweep.")
+    sweep = sub.add_parser(
+        "sweep",
+        help="run many variants of a scenario on Dask (local cluster or a scheduler)",
+        description="Runs every variant of a sweep file as a Dask task and writes results.parquet, "
+        "summary.md, plots/ and each variant's run folder; a re-run resumes. Exit "
+        "codes: 0 every variant ran, 1 some failed or interrupted, 2 invalid sweep.",
+    )
     sweep_cli.add_arguments(sweep)
     try:
         from . import log_replay
@@ -91,10 +114,15 @@ def _parser() -> argparse.ArgumentParser:
 
 # Long-running commands, each in its own module: add_arguments(parser) defines its options, run(args) -> exit code.
 _SERVERS = {
-    "px4-sim": ("cufund.apps.mavlink.px4_cli", "be PX4's simulator: serve a scenario to px4_sitl over MAVLink (TCP 4560 + "
-                                          "instance, lockstep) or to a flight controller over serial (HITL)"),
-    "serve": ("cufund.apps.mavlink.serve_cli", "fly a scenario in real time as a MAVLink vehicle that ground stations and "
-                                          "MAVSDK connect to"),
+    "px4-sim": (
+        "cufund.apps.mavlink.px4_cli",
+        "be PX4's simulator: serve a scenario to px4_sitl over MAVLink (TCP 4560 + "
+        "instance, lockstep) or to a flight controller over serial (HITL)",
+    ),
+    "serve": (
+        "cufund.apps.mavlink.serve_cli",
+        "fly a scenario in real time as a MAVLink vehicle that ground stations and MAVSDK connect to",
+    ),
     "gcs": ("cufund.apps.gcs.cli", "fly a scenario in real time behind a web ground station on 127.0.0.1"),
 }
 
@@ -143,8 +171,10 @@ def _run(args: argparse.Namespace) -> int:
             signum = exc.signum if isinstance(exc, RunInterrupted) else RunInterrupted.received
             if signum is None:
                 raise
-            print(f"cufund: interrupted by {signal.Signals(signum).name}; the run folder holds what was run up to "
-                  "then", file=sys.stderr)
+            print(
+                f"cufund: interrupted by {signal.Signals(signum).name}; the run folder holds what was run up to then",
+                file=sys.stderr,
+            )
             return 128 + signum
 
 
@@ -181,8 +211,9 @@ def _run_scenario(args: argparse.Namespace) -> int:
         viewer = LiveViewer(cfg.vehicle_params(), built.context.reference)
         print(f"MeshCat: open {viewer.url}", flush=True)
         built.simulator.add(viewer)
-    run = run_into_folder(built, out, log=not args.no_log, replay=not args.no_replay,
-                          progress=sys.stderr.isatty() or args.viz)
+    run = run_into_folder(
+        built, out, log=not args.no_log, replay=not args.no_replay, progress=sys.stderr.isatty() or args.viz
+    )
     print(json.dumps(run.metrics, indent=2, default=str))
     status = run.result.status.value
     print(f"status: {status} ({run.result.message})")
@@ -199,8 +230,8 @@ def _run_scenario(args: argparse.Namespace) -> int:
 
 def _odometry(args: argparse.Namespace) -> int:
     from cufund.core.config import load_yaml_text
-    from cufund.scenarios.schema import ScenarioConfig
     from cufund.scenarios.build import ScenarioBuildContext, out_dir_problem
+    from cufund.scenarios.schema import ScenarioConfig
 
     try:
         from cufund.estimation.kinds import lio_params
@@ -228,8 +259,9 @@ def _odometry(args: argparse.Namespace) -> int:
     return EXIT_COMPLETED
 
 
-def _one_line_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
-                      line: str | None = None) -> str:
+def _one_line_warning(
+    message: Warning | str, category: type[Warning], filename: str, lineno: int, line: str | None = None
+) -> str:
     return f"cufund: warning: {message}\n"
 
 

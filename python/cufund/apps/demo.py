@@ -23,9 +23,11 @@ def main() -> None:
         for _ in range(steps):
             quad.step(1e-3, cmd)
         wall = time.perf_counter() - t0
-        print(f"{params.name:>9}: hover {omega_h:7.1f} rad/s; after 2 s at 1.05x hover speed "
-              f"z = {quad.state.p[2]:.3f} m, v_z = {quad.state.v[2]:.3f} m/s "
-              f"({steps / wall / 1e3:.0f} k steps/s single vehicle)")
+        print(
+            f"{params.name:>9}: hover {omega_h:7.1f} rad/s; after 2 s at 1.05x hover speed "
+            f"z = {quad.state.p[2]:.3f} m, v_z = {quad.state.v[2]:.3f} m/s "
+            f"({steps / wall / 1e3:.0f} k steps/s single vehicle)"
+        )
 
     n = 4096
     batch = QuadrotorBatch(presets.crazyflie(), n)
@@ -37,8 +39,10 @@ def main() -> None:
         batch.step(1e-3, cmd)
     wall = time.perf_counter() - t0
     tilt = 2 * np.degrees(np.arccos(np.clip(np.abs(batch.q[:, 0]), 0, 1)))
-    print(f"batch of {n} Crazyflies, 0.5 s with 1 % random rotor-speed errors: mean rotation {tilt.mean():.1f} deg, "
-          f"{n * 500 / wall / 1e6:.1f} M vehicle-steps/s")
+    print(
+        f"batch of {n} Crazyflies, 0.5 s with 1 % random rotor-speed errors: mean rotation {tilt.mean():.1f} deg, "
+        f"{n * 500 / wall / 1e6:.1f} M vehicle-steps/s"
+    )
 
 
 if __name__ == "__main__":

@@ -27,14 +27,14 @@ from typing import Any, Self
 import numpy as np
 
 from cufund.core.components import Component
-from cufund.geometry import euler_zyx
 from cufund.core.messages import Topics
+from cufund.geometry import euler_zyx
 from cufund.missions.commander import Commander
 from cufund.missions.commands import CommandAck, parse_command
 from cufund.missions.controller_params import controller_param_provider
 from cufund.missions.events import EventLog
-from cufund.scenarios.schema import ScenarioConfig, load_scenario
 from cufund.scenarios.build import build_simulation
+from cufund.scenarios.schema import ScenarioConfig, load_scenario
 
 __all__ = ["LiveRun"]
 
@@ -96,21 +96,32 @@ class LiveRun:
     append-only :class:`EventLog`.
     """
 
-    def __init__(self, scenario_or_config: Any, overrides: Iterable[str] | dict[str, Any] = (), speed: float = 1.0,
-                 start: bool = True, telemetry_hz: float = 50.0, script: bool = False,
-                 extra_components: Iterable[Component] = ()) -> None:
+    def __init__(
+        self,
+        scenario_or_config: Any,
+        overrides: Iterable[str] | dict[str, Any] = (),
+        speed: float = 1.0,
+        start: bool = True,
+        telemetry_hz: float = 50.0,
+        script: bool = False,
+        extra_components: Iterable[Component] = (),
+    ) -> None:
         self._speed = self._check_speed(speed)
         self.config = self._config(scenario_or_config, overrides)
         if not script and self.config.planner is not None and hasattr(self.config.planner.params, "script"):
             # a live vehicle waits for its operator: the scenario's scripted commands are for `cufund run`
-            planner = dataclasses.replace(self.config.planner,
-                                          params=dataclasses.replace(self.config.planner.params, script=()))
+            planner = dataclasses.replace(
+                self.config.planner, params=dataclasses.replace(self.config.planner.params, script=())
+            )
             self.config = self.config.replace(planner=planner)
         self._tap = _Tap(telemetry_hz)
         self.built = build_simulation(self.config, extra_components=(*extra_components, self._tap))
         self.simulator = sim = self.built.simulator
-        self._tap.topics = tuple(sorted({str(t) for c in sim.components if c is not self._tap for t in c.outputs}
-                                        | {str(Topics.TRUTH_ODOMETRY)}))
+        self._tap.topics = tuple(
+            sorted(
+                {str(t) for c in sim.components if c is not self._tap for t in c.outputs} | {str(Topics.TRUTH_ODOMETRY)}
+            )
+        )
         found = [c for c in sim.components if isinstance(c, Commander)]
         self.commander: Commander | None = found[0] if found else None
         self.events: EventLog = self.commander.events if self.commander is not None else EventLog()
@@ -130,7 +141,7 @@ class LiveRun:
         self._wall_started = 0.0
         self._rate_window: collections.deque[tuple[float, float]] = collections.deque(maxlen=400)
         vp = self.built.context.vehicle
-        self._max_thrust = 4.0 * vp.k_f * vp.rotor_speed_max ** 2
+        self._max_thrust = 4.0 * vp.k_f * vp.rotor_speed_max**2
         self._estimated = self.config.estimator is not None
         # a live run may last hours: keep no message history and the true state at RECORD_HZ only (its crash and
         # divergence checks run at the recorded nodes), trimmed to the last ~20 minutes
@@ -147,17 +158,23 @@ class LiveRun:
         if isinstance(src, ScenarioConfig):
             return src.with_overrides(overrides) if overrides else src
         if isinstance(src, dict):
-            return ScenarioConfig.from_dict(src).with_overrides(overrides) if overrides else \
-                ScenarioConfig.from_dict(src)
+            return (
+                ScenarioConfig.from_dict(src).with_overrides(overrides) if overrides else ScenarioConfig.from_dict(src)
+            )
         if isinstance(src, (str, Path)):
             return load_scenario(src, overrides)
-        raise TypeError(f"scenario_or_config must be a scenario name, a path, a dict or a ScenarioConfig, "
-                        f"got {type(src).__name__}")
+        raise TypeError(
+            f"scenario_or_config must be a scenario name, a path, a dict or a ScenarioConfig, got {type(src).__name__}"
+        )
 
     @staticmethod
     def _check_speed(x: Any) -> float:
-        if isinstance(x, bool) or not isinstance(x, (int, float)) or math.isnan(x) or \
-                not (x == math.inf or SPEED_MIN <= x <= SPEED_MAX):
+        if (
+            isinstance(x, bool)
+            or not isinstance(x, (int, float))
+            or math.isnan(x)
+            or not (x == math.inf or SPEED_MIN <= x <= SPEED_MAX)
+        ):
             raise ValueError(f"speed must be in [{SPEED_MIN}, {SPEED_MAX}] or math.inf, got {x!r}")
         return float(x)
 
@@ -169,13 +186,18 @@ class LiveRun:
         def guarded(t: float, bus: Any) -> None:
             try:
                 step(t, bus)
-            except Exception as e:  # noqa: BLE001 - the run must go on
+            except Exception as e:
                 n = self._errors.get(name, 0) + 1
                 self._errors[name] = n
                 if n == 1 or n in (10, 100, 1000) or n % 10000 == 0:
                     tb = traceback.extract_tb(e.__traceback__)[-1]
-                    self.events.append(t, "error", f"{name}: {type(e).__name__}: {e} ({Path(tb.filename).name}:"
-                                       f"{tb.lineno}; {n} so far)", component=name, count=n)
+                    self.events.append(
+                        t,
+                        "error",
+                        f"{name}: {type(e).__name__}: {e} ({Path(tb.filename).name}:{tb.lineno}; {n} so far)",
+                        component=name,
+                        count=n,
+                    )
                 cmd = self.commander
                 if n == 1 and cmd is not None and c is not cmd and cmd.airborne and cmd.mode != "hold":
                     cmd.submit({"command": "hold"})
@@ -293,7 +315,7 @@ class LiveRun:
                 alive = sim.advance_to(target)
                 rows = getattr(sim, "_rows", None)
                 if rows is not None and len(rows) > _KEEP_BLOCKS:
-                    del rows[:len(rows) - _KEEP_BLOCKS]
+                    del rows[: len(rows) - _KEEP_BLOCKS]
                 now = time.perf_counter()
                 window = self._rate_window
                 window.append((now, sim.t))
@@ -301,11 +323,12 @@ class LiveRun:
                     window.popleft()
                 self._notify()
                 if not alive:
-                    self._end(f"{sim.status.value if sim.status else 'ended'}: {sim.message}",
-                              "crash" if sim.status is not None and sim.status.value in ("crashed", "diverged")
-                              else "ended")
+                    self._end(
+                        f"{sim.status.value if sim.status else 'ended'}: {sim.message}",
+                        "crash" if sim.status is not None and sim.status.value in ("crashed", "diverged") else "ended",
+                    )
                     break
-        except Exception as e:  # noqa: BLE001 - never escape the thread
+        except Exception as e:
             self._end(f"error: {type(e).__name__}: {e}", "error")
         finally:
             if self.ended is None:
@@ -330,7 +353,7 @@ class LiveRun:
         for fn, _, _ in due:
             try:
                 fn(snap)
-            except Exception as e:  # noqa: BLE001 - a listener never stops the run
+            except Exception as e:
                 self.events.append(self.simulator.t, "warning", f"telemetry listener failed: {type(e).__name__}: {e}")
 
     def add_listener(self, fn: Callable[[dict[str, Any]], None], rate_hz: float = 30.0) -> Callable[[], None]:
@@ -367,40 +390,73 @@ class LiveRun:
         sp = snap.get(str(Topics.TRAJECTORY_SETPOINT))
         tt = snap.get(str(Topics.THRUST_TORQUE_SETPOINT))
         t = float(self.simulator.t) if t_snap is None else float(t_snap)  # the snapshot's time
-        out: dict[str, Any] = {"t": t, "sim_t": float(self.simulator.t),
-                               "speed": None if self._speed == math.inf else self._speed,
-                               "paused": self._paused, "ended": self.ended,
-                               "real_time_factor": None}
+        out: dict[str, Any] = {
+            "t": t,
+            "sim_t": float(self.simulator.t),
+            "speed": None if self._speed == math.inf else self._speed,
+            "paused": self._paused,
+            "ended": self.ended,
+            "real_time_factor": None,
+        }
         window = list(self._rate_window)
         if len(window) >= 2 and window[-1][0] > window[0][0] and not self._paused:
             out["real_time_factor"] = (window[-1][1] - window[0][1]) / (window[-1][0] - window[0][0])
         # real_time_factor: simulated seconds per wall second over the last ~2 s
         c = self.commander
         if c is not None:
-            out.update({"mode": c.mode, "armed": c.armed, "landed": c.landed, "flight_mode": c.flight_mode.value,
-                        "controller": c.controller, "home_p_W": _vec(c.home_p_W) if np.all(np.isfinite(c.home_p_W))
-                        else None, "target_p_W": _vec(c.target_p_W) if np.all(np.isfinite(c.target_p_W)) else None,
-                        "mission": {"current": c.mission_current, "count": len(c.mission),
-                                    "items": [list(it.p_W) for it in c.mission]},
-                        "plan_W": [list(p) for p in c.plan_W],
-                        "message": c.message})
+            out.update(
+                {
+                    "mode": c.mode,
+                    "armed": c.armed,
+                    "landed": c.landed,
+                    "flight_mode": c.flight_mode.value,
+                    "controller": c.controller,
+                    "home_p_W": _vec(c.home_p_W) if np.all(np.isfinite(c.home_p_W)) else None,
+                    "target_p_W": _vec(c.target_p_W) if np.all(np.isfinite(c.target_p_W)) else None,
+                    "mission": {
+                        "current": c.mission_current,
+                        "count": len(c.mission),
+                        "items": [list(it.p_W) for it in c.mission],
+                    },
+                    "plan_W": [list(p) for p in c.plan_W],
+                    "message": c.message,
+                }
+            )
         else:
-            out.update({"mode": "external", "armed": True, "landed": False, "flight_mode": "position",
-                        "controller": self.config.controller.kind if self.config.controller else None})
+            out.update(
+                {
+                    "mode": "external",
+                    "armed": True,
+                    "landed": False,
+                    "flight_mode": "position",
+                    "controller": self.config.controller.kind if self.config.controller else None,
+                }
+            )
         if state is not None:
-            out.update({"p_W": _vec(state.p_W), "v_W": _vec(state.v_W), "q_WB": _vec(state.q_WB),
-                        "w_B": _vec(state.w_B), "rpy": _rpy(state.q_WB)})
+            out.update(
+                {
+                    "p_W": _vec(state.p_W),
+                    "v_W": _vec(state.v_W),
+                    "q_WB": _vec(state.q_WB),
+                    "w_B": _vec(state.w_B),
+                    "rpy": _rpy(state.q_WB),
+                }
+            )
         if truth is not None:
             out.update({"truth_p_W": _vec(truth.p_W), "truth_v_W": _vec(truth.v_W), "truth_q_WB": _vec(truth.q_WB)})
         out["setpoint_p_W"] = _vec(sp.p_W) if sp is not None else None
-        out["tracking_error_m"] = float(np.linalg.norm(truth.p_W - sp.p_W)) if sp is not None and truth is not None \
-            else None
-        out["odometry_error_m"] = float(np.linalg.norm(truth.p_W - est.p_W)) if est is not None and truth is not None \
-            else None
+        out["tracking_error_m"] = (
+            float(np.linalg.norm(truth.p_W - sp.p_W)) if sp is not None and truth is not None else None
+        )
+        out["odometry_error_m"] = (
+            float(np.linalg.norm(truth.p_W - est.p_W)) if est is not None and truth is not None else None
+        )
         out["thrust_margin"] = float(1.0 - tt.thrust / self._max_thrust) if tt is not None else None
         if self._estimated:
-            out["estimator"] = {"ok": est is not None and bool(np.all(np.isfinite(est.p_W))) and t - est.t < 0.5,
-                                "age_s": None if est is None else t - float(est.t)}
+            out["estimator"] = {
+                "ok": est is not None and bool(np.all(np.isfinite(est.p_W))) and t - est.t < 0.5,
+                "age_s": None if est is None else t - float(est.t),
+            }
         else:
             out["estimator"] = {"ok": True, "age_s": 0.0, "source": "ground truth"}
         out["events_count"] = len(self.events)

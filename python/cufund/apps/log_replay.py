@@ -44,10 +44,17 @@ class ReplayStats:
     """Log time covered [s]."""
 
 
-def replay_log(path: str | Path, vis: Any, params: QuadrotorParams, *, speed: float = 1.0, rate_hz: float = 25.0,
-               T_BL: tuple[np.ndarray, np.ndarray] | None = None,
-               sleep: Callable[[float], None] = time.sleep,
-               clock: Callable[[], float] = time.perf_counter) -> ReplayStats:
+def replay_log(
+    path: str | Path,
+    vis: Any,
+    params: QuadrotorParams,
+    *,
+    speed: float = 1.0,
+    rate_hz: float = 25.0,
+    T_BL: tuple[np.ndarray, np.ndarray] | None = None,
+    sleep: Callable[[float], None] = time.sleep,
+    clock: Callable[[], float] = time.perf_counter,
+) -> ReplayStats:
     """Plays the log at ``path`` into the MeshCat visualizer ``vis`` at ``rate_hz`` viewer frames per second of
     log time, ``speed`` times real time (0: as fast as possible; ``sleep`` and ``clock`` pace it). ``T_BL``: the
     LiDAR's mounting (p_BL, q_BL [w, x, y, z]); identity when None."""
@@ -59,8 +66,11 @@ def replay_log(path: str | Path, vis: Any, params: QuadrotorParams, *, speed: fl
     topics = [t for t in (TRUTH, ESTIMATE, LIDAR) if t in available]
     if TRUTH not in topics and ESTIMATE not in topics:
         raise ValueError(f"{str(path)!r} has neither {TRUTH} nor {ESTIMATE}; it has {sorted(available)}")
-    p_BL, R_BL = (np.zeros(3), np.eye(3)) if T_BL is None else (np.asarray(T_BL[0], float),
-                                                                 quat_to_matrix(np.asarray(T_BL[1], float)))
+    p_BL, R_BL = (
+        (np.zeros(3), np.eye(3))
+        if T_BL is None
+        else (np.asarray(T_BL[0], float), quat_to_matrix(np.asarray(T_BL[1], float)))
+    )
     meshcat = import_meshcat()
     g = meshcat.geometry
     vis.delete()
@@ -69,8 +79,9 @@ def replay_log(path: str | Path, vis: Any, params: QuadrotorParams, *, speed: fl
     vis["/Cameras/default/rotated/<object>"].set_property("position", [2.0, 2.6, 2.6])
     if ESTIMATE in topics:
         d = params.arm_length
-        vis[ESTIMATE_VEHICLE].set_object(g.Box([2 * d, 2 * d, 0.3 * d]),
-                                         g.MeshLambertMaterial(color=0x2ca02c, opacity=0.4, transparent=True))
+        vis[ESTIMATE_VEHICLE].set_object(
+            g.Box([2 * d, 2 * d, 0.3 * d]), g.MeshLambertMaterial(color=0x2CA02C, opacity=0.4, transparent=True)
+        )
 
     period_ns = int(round(1e9 / rate_hz))
     latest: dict[str, Any] = {}
@@ -82,8 +93,10 @@ def replay_log(path: str | Path, vis: Any, params: QuadrotorParams, *, speed: fl
 
     def draw_frame(now_ns: int) -> None:
         nonlocal frames
-        for topic, node, path_node, color in ((TRUTH, VEHICLE, FLOWN, 0xd62728),
-                                              (ESTIMATE, ESTIMATE_VEHICLE, ESTIMATED, 0x2ca02c)):
+        for topic, node, path_node, color in (
+            (TRUTH, VEHICLE, FLOWN, 0xD62728),
+            (ESTIMATE, ESTIMATE_VEHICLE, ESTIMATED, 0x2CA02C),
+        ):
             odometry = latest.get(topic)
             if odometry is None:
                 continue
@@ -118,7 +131,7 @@ def replay_log(path: str | Path, vis: Any, params: QuadrotorParams, *, speed: fl
             latest[record.topic] = record.message
     if latest and next_frame is not None:
         draw_frame(last_ns)
-        for topic, path_node, color in ((TRUTH, FLOWN, 0xd62728), (ESTIMATE, ESTIMATED, 0x2ca02c)):
+        for topic, path_node, color in ((TRUTH, FLOWN, 0xD62728), (ESTIMATE, ESTIMATED, 0x2CA02C)):
             if len(paths[topic]) >= 2:
                 draw_path(vis, path_node, np.array(paths[topic]), color)
     return ReplayStats(frames, clouds, (last_ns - first_ns) / 1e9)
@@ -139,8 +152,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", help="a run.mcap written by `cufund run`")
     parser.add_argument("--speed", type=_speed, default=1.0, help="times real time; 0: as fast as possible")
     parser.add_argument("--rate", type=float, default=25.0, help="viewer frames per second of log time")
-    parser.add_argument("--vehicle", default=None,
-                        help="vehicle preset to draw (default: the run folder's config.yaml, else cu_astro)")
+    parser.add_argument(
+        "--vehicle", default=None, help="vehicle preset to draw (default: the run folder's config.yaml, else cu_astro)"
+    )
     parser.add_argument("--no-wait", action="store_true", help="do not keep the viewer up after the replay")
 
 
@@ -160,7 +174,7 @@ def run_context(path: Path, vehicle: str | None) -> tuple[QuadrotorParams, tuple
             for spec in (getattr(config, "sensors", None) or {}).values():
                 if str(getattr(spec, "topic", "")) == LIDAR and getattr(spec, "extrinsic", None) is not None:
                     T_BL = (np.array(spec.extrinsic.t), np.array(spec.extrinsic.q))
-        except Exception as exc:  # noqa: BLE001 - a config from another version: draw the default vehicle
+        except Exception as exc:
             print(f"cufund replay: not using {config_path} ({exc})", file=sys.stderr)
     if vehicle is not None:
         factory = getattr(presets, vehicle, None)
@@ -185,8 +199,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"MeshCat: open {vis.window.web_url}", flush=True)
     try:
         stats = replay_log(path, vis, params, speed=args.speed, rate_hz=args.rate, T_BL=T_BL)
-        print(f"replayed {stats.duration_s:.1f} s of {metadata.get('scenario', path.name)}: {stats.frames} frames, "
-              f"{stats.clouds} LiDAR frames")
+        print(
+            f"replayed {stats.duration_s:.1f} s of {metadata.get('scenario', path.name)}: {stats.frames} frames, "
+            f"{stats.clouds} LiDAR frames"
+        )
         if not args.no_wait and sys.stdin.isatty():
             try:
                 input("The viewer stays up until you press Enter (or Ctrl-C). ")

@@ -11,6 +11,7 @@ from cufund import _core
 from cufund.core.components import BusView, Controller
 from cufund.core.config import check_real_fields
 from cufund.core.messages import AttitudeSetpoint, Odometry, RateSetpoint, Topics
+
 from .arming import Gate, gate
 
 __all__ = ["AttitudeControlParams", "AttitudeController"]
@@ -62,8 +63,11 @@ class AttitudeController(Controller):
         self.gains = g = gains
         rp = 0.5 * (g.roll_p + g.pitch_p)
         self.yaw_weight = min(max(g.yaw_p / rp, 0.0), 1.0)
-        self._core.set_gains(np.array([g.roll_p, g.pitch_p, rp]),
-                             np.array([g.roll_rate_max, g.pitch_rate_max, g.yaw_rate_max]), self.yaw_weight)
+        self._core.set_gains(
+            np.array([g.roll_p, g.pitch_p, rp]),
+            np.array([g.roll_rate_max, g.pitch_rate_max, g.yaw_rate_max]),
+            self.yaw_weight,
+        )
 
     def update(self, t: float, state: Odometry, bus: BusView) -> None:
         if self.armable and gate(bus, "pid") is not Gate.FLY:  # disarmed, idle on the ground, or geometric flies

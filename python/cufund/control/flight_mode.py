@@ -31,8 +31,13 @@ class ModeReferences:
     TOPICS = (Topics.TRAJECTORY_SETPOINT, Topics.MANUAL_ATTITUDE_SETPOINT, Topics.FLIGHT_MODE)
     """What it reads (all optional: without a reference the controller holds)."""
 
-    def __init__(self, mode: FlightMode, trajectory_topic: str = Topics.TRAJECTORY_SETPOINT,
-                 attitude_topic: str = Topics.MANUAL_ATTITUDE_SETPOINT, brake_tau: float = 0.25) -> None:
+    def __init__(
+        self,
+        mode: FlightMode,
+        trajectory_topic: str = Topics.TRAJECTORY_SETPOINT,
+        attitude_topic: str = Topics.MANUAL_ATTITUDE_SETPOINT,
+        brake_tau: float = 0.25,
+    ) -> None:
         self.initial_mode = FlightMode(mode)
         self.brake_tau = float(brake_tau)
         self.trajectory_topic = trajectory_topic
@@ -58,8 +63,9 @@ class ModeReferences:
             self.switched = True
             yaw = yaw_of(state.q_WB)
             self._hold_traj = TrajectorySetpoint(t, state.p_W.copy(), state.v_W.copy(), _ZERO3, _ZERO3, yaw, 0.0)
-            self._hold_att = last_attitude if last_attitude is not None else AttitudeSetpoint(
-                t, state.q_WB.copy(), math.nan)
+            self._hold_att = (
+                last_attitude if last_attitude is not None else AttitudeSetpoint(t, state.q_WB.copy(), math.nan)
+            )
         return self.mode
 
     def trajectory(self, t: float, bus: BusView) -> TrajectorySetpoint:
@@ -74,8 +80,15 @@ class ModeReferences:
         tau, s = self.brake_tau, t - self.switch_t
         e = math.exp(-s / tau)
         v0 = h.v_W
-        return TrajectorySetpoint(t, h.p_W + v0 * (2 * tau - (2 * tau + s) * e), v0 * ((1 + s / tau) * e),
-                                  v0 * (-(s / tau ** 2) * e), v0 * (-(1 - s / tau) * e / tau ** 2), h.yaw, 0.0)
+        return TrajectorySetpoint(
+            t,
+            h.p_W + v0 * (2 * tau - (2 * tau + s) * e),
+            v0 * ((1 + s / tau) * e),
+            v0 * (-(s / tau**2) * e),
+            v0 * (-(1 - s / tau) * e / tau**2),
+            h.yaw,
+            0.0,
+        )
 
     def attitude(self, bus: BusView) -> AttitudeSetpoint:
         """The attitude reference for attitude mode (thrust NaN: hover thrust, chosen by the controller)."""

@@ -18,14 +18,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from cufund import _core
-from cufund.core.config import check_real_fields
 from cufund.core.components import BusView, Controller
+from cufund.core.config import check_real_fields
 from cufund.core.messages import ActuatorCommand, AttitudeSetpoint, FlightMode, Odometry, ThrustTorqueSetpoint, Topics
+from cufund.geometry import quat_to_matrix
 from cufund.vehicle.params import QuadrotorParams
+
 from .arming import gated
 from .flight_mode import BumplessTransfer, ModeReferences
 from .gyro_input import GyroInput
-from cufund.geometry import quat_to_matrix
 
 __all__ = ["GeometricControlParams", "GeometricController"]
 
@@ -65,9 +66,15 @@ class GeometricController(Controller):
     armable = False
     """Gated by a commander's vehicle status (:func:`cufund.control.arming.make_armable`)."""
 
-    def __init__(self, params: QuadrotorParams, gains: GeometricControlParams | None = None, rate_hz: float = 500.0,
-                 mode: FlightMode = FlightMode.POSITION,
-                 q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0), gyro_cutoff_hz: float = 40.0) -> None:
+    def __init__(
+        self,
+        params: QuadrotorParams,
+        gains: GeometricControlParams | None = None,
+        rate_hz: float = 500.0,
+        mode: FlightMode = FlightMode.POSITION,
+        q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0),
+        gyro_cutoff_hz: float = 40.0,
+    ) -> None:
         self.params = params
         self.gyro = GyroInput(q_BI, gyro_cutoff_hz)
         self.use_gyro = False
@@ -128,8 +135,20 @@ class GeometricController(Controller):
                 # the force last commanded continues and fades into the new one
                 handover = self.last.thrust * quat_to_matrix(self.last.q_WB)[:, 2]
             q_d, thrust, speeds, f_a, torque = self._core.step_force(
-                t, state.p_W, state.v_W, state.q_WB, w_B, sp.p_W, sp.v_W, sp.a_W, sp.j_W, sp.yaw, sp.yaw_rate,
-                mode is FlightMode.POSITION, handover)
+                t,
+                state.p_W,
+                state.v_W,
+                state.q_WB,
+                w_B,
+                sp.p_W,
+                sp.v_W,
+                sp.a_W,
+                sp.j_W,
+                sp.yaw,
+                sp.yaw_rate,
+                mode is FlightMode.POSITION,
+                handover,
+            )
             yaw_rate = sp.yaw_rate
         # fresh, read-only arrays: the messages take them as they are
         self.last = AttitudeSetpoint.trusted(t, q_d, thrust, yaw_rate)

@@ -18,8 +18,12 @@ class GyroInput:
     """Filters every :class:`~cufund.core.messages.Imu` sample on ``topic``: ``w_B = R_BI w_I`` through a first-order
     low-pass with cutoff ``cutoff_hz`` (0: no filter), stepped at each sample's own interval."""
 
-    def __init__(self, q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0), cutoff_hz: float = 40.0,
-                 topic: str = Topics.IMU) -> None:
+    def __init__(
+        self,
+        q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0),
+        cutoff_hz: float = 40.0,
+        topic: str = Topics.IMU,
+    ) -> None:
         if not (math.isfinite(cutoff_hz) and float(cutoff_hz) >= 0):
             raise ValueError(f"cutoff_hz must be a finite number >= 0 [Hz], got {cutoff_hz!r}")
         self.topic = topic

@@ -36,8 +36,12 @@ class ControllerParams:
     """Low-pass cutoff of the gyro the rate loop reads when an estimator is attached [Hz] (IMU_GYRO_CUTOFF)."""
 
     def __post_init__(self) -> None:
-        for name, cls in (("position", PositionControlParams), ("attitude", AttitudeControlParams),
-                          ("rate", RateControlParams), ("geometric", GeometricControlParams)):
+        for name, cls in (
+            ("position", PositionControlParams),
+            ("attitude", AttitudeControlParams),
+            ("rate", RateControlParams),
+            ("geometric", GeometricControlParams),
+        ):
             try:
                 object.__setattr__(self, name, nested(cls, getattr(self, name), f"controller.{name}"))
             except ValueError as e:
@@ -61,18 +65,48 @@ def _armable(components: list[Any], ctx: BuildContext) -> list[Any]:
 
 def _pid(p: ControllerParams, ctx: BuildContext) -> list[Any]:
     r, v = ctx.config.rates, ctx.vehicle
-    return _armable([PositionController(v, p.position, rate_hz=r.position_hz),
-                     AttitudeController(p.attitude, rate_hz=r.attitude_hz),
-                     RateController(v, p.rate, rate_hz=r.rate_hz, q_BI=_q_BI(ctx), gyro_cutoff_hz=p.gyro_cutoff_hz)],
-                    ctx)
+    return _armable(
+        [
+            PositionController(v, p.position, rate_hz=r.position_hz),
+            AttitudeController(p.attitude, rate_hz=r.attitude_hz),
+            RateController(v, p.rate, rate_hz=r.rate_hz, q_BI=_q_BI(ctx), gyro_cutoff_hz=p.gyro_cutoff_hz),
+        ],
+        ctx,
+    )
 
 
 def _geometric(p: ControllerParams, ctx: BuildContext) -> list[Any]:
-    return _armable([GeometricController(ctx.vehicle, p.geometric, rate_hz=ctx.config.rates.geometric_hz,
-                                         q_BI=_q_BI(ctx), gyro_cutoff_hz=p.gyro_cutoff_hz)], ctx)
+    return _armable(
+        [
+            GeometricController(
+                ctx.vehicle,
+                p.geometric,
+                rate_hz=ctx.config.rates.geometric_hz,
+                q_BI=_q_BI(ctx),
+                gyro_cutoff_hz=p.gyro_cutoff_hz,
+            )
+        ],
+        ctx,
+    )
 
 
-register(Kind("controller", "pid", ControllerParams, _pid, None,
-              "PX4-style cascade: position/velocity PID -> attitude P -> rate PID -> allocation"))
-register(Kind("controller", "geometric", ControllerParams, _geometric, None,
-              "Lee-Leok-McClamroch SE(3) tracking controller with the same allocation"))
+register(
+    Kind(
+        "controller",
+        "pid",
+        ControllerParams,
+        _pid,
+        None,
+        "PX4-style cascade: position/velocity PID -> attitude P -> rate PID -> allocation",
+    )
+)
+register(
+    Kind(
+        "controller",
+        "geometric",
+        ControllerParams,
+        _geometric,
+        None,
+        "Lee-Leok-McClamroch SE(3) tracking controller with the same allocation",
+    )
+)

@@ -12,10 +12,11 @@ from cufund import _core
 from cufund.core.components import BusView, Controller
 from cufund.core.config import check_real_fields
 from cufund.core.messages import AttitudeSetpoint, FlightMode, Odometry, Topics
+from cufund.geometry import quat_to_matrix
 from cufund.vehicle.params import QuadrotorParams
+
 from .arming import Gate, gate
 from .flight_mode import BumplessTransfer, ModeReferences
-from cufund.geometry import quat_to_matrix
 
 __all__ = ["PositionControlParams", "PositionController"]
 
@@ -61,7 +62,9 @@ class PositionControlParams:
         if not 0 < self.tilt_max < math.pi / 2:
             raise ValueError(f"PositionControlParams.tilt_max must be in (0, pi/2) rad, got {self.tilt_max}")
         if not 0 <= self.thr_min < self.thr_max <= 1:
-            raise ValueError(f"PositionControlParams needs 0 <= thr_min < thr_max <= 1, got {self.thr_min}, {self.thr_max}")
+            raise ValueError(
+                f"PositionControlParams needs 0 <= thr_min < thr_max <= 1, got {self.thr_min}, {self.thr_max}"
+            )
 
 
 class PositionController(Controller):
@@ -80,18 +83,25 @@ class PositionController(Controller):
     armable = False
     """Gated by a commander's vehicle status (:func:`cufund.control.arming.make_armable`)."""
 
-    def __init__(self, params: QuadrotorParams, gains: PositionControlParams | None = None, rate_hz: float = 250.0,
-                 mode: FlightMode = FlightMode.POSITION, max_thrust: float | None = None) -> None:
+    def __init__(
+        self,
+        params: QuadrotorParams,
+        gains: PositionControlParams | None = None,
+        rate_hz: float = 250.0,
+        mode: FlightMode = FlightMode.POSITION,
+        max_thrust: float | None = None,
+    ) -> None:
         self.params = params
         self.rate_hz = rate_hz
         self.refs = ModeReferences(mode)
         self.transfer_tau = BumplessTransfer().tau
         """Decay of the step a mode switch would cause in the acceleration command [s] (see BumplessTransfer)."""
-        self.max_thrust = max_thrust if max_thrust is not None else 4.0 * params.k_f * params.rotor_speed_max ** 2
+        self.max_thrust = max_thrust if max_thrust is not None else 4.0 * params.k_f * params.rotor_speed_max**2
         g = gains or PositionControlParams()
         # the step's arithmetic, in C++ (cpp/control/position_control.cpp); the mode logic stays here
-        self._core = _core.control.PositionControl(params.mass, params.gravity, self.max_thrust, g.vel_d_cutoff_hz,
-                                                   self.transfer_tau)
+        self._core = _core.control.PositionControl(
+            params.mass, params.gravity, self.max_thrust, g.vel_d_cutoff_hz, self.transfer_tau
+        )
         self.set_gains(g)
         self.reset()
 
@@ -99,9 +109,18 @@ class PositionController(Controller):
         """Replaces the gains, also in flight; the controller's state is kept (a filter cutoff keeps the value it
         was built with)."""
         self.gains = g = gains
-        self._core.set_gains(np.array([g.xy_p, g.xy_p, g.z_p]), np.array([g.xy_vel_p, g.xy_vel_p, g.z_vel_p]),
-                             np.array([g.xy_vel_i, g.xy_vel_i, g.z_vel_i]), np.array([g.xy_vel_d, g.xy_vel_d, g.z_vel_d]),
-                             g.xy_vel_max, g.z_vel_max_up, g.z_vel_max_dn, g.tilt_max, g.thr_min, g.thr_max)
+        self._core.set_gains(
+            np.array([g.xy_p, g.xy_p, g.z_p]),
+            np.array([g.xy_vel_p, g.xy_vel_p, g.z_vel_p]),
+            np.array([g.xy_vel_i, g.xy_vel_i, g.z_vel_i]),
+            np.array([g.xy_vel_d, g.xy_vel_d, g.z_vel_d]),
+            g.xy_vel_max,
+            g.z_vel_max_up,
+            g.z_vel_max_dn,
+            g.tilt_max,
+            g.thr_min,
+            g.thr_max,
+        )
 
     def reset(self) -> None:
         self.refs.reset()
@@ -139,7 +158,8 @@ class PositionController(Controller):
             # hand over: the acceleration last commanded (in any mode) continues and fades into the new one
             z_prev = quat_to_matrix(self.last.q_WB)[:, 2]
             handover = self.last.thrust / self.params.mass * z_prev - np.array([0.0, 0.0, self.params.gravity])
-        q, thrust = self._core.step(t, dt, state.p_W, state.v_W, sp.p_W, sp.v_W, sp.a_W, sp.yaw,
-                                    mode is FlightMode.POSITION, handover)
+        q, thrust = self._core.step(
+            t, dt, state.p_W, state.v_W, sp.p_W, sp.v_W, sp.a_W, sp.yaw, mode is FlightMode.POSITION, handover
+        )
         self.last = AttitudeSetpoint.trusted(t, q, thrust, sp.yaw_rate)  # q: fresh and read-only
         bus.publish(Topics.ATTITUDE_SETPOINT, self.last)

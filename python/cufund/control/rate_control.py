@@ -12,6 +12,7 @@ from cufund.core.components import BusView, Controller
 from cufund.core.config import check_real_fields
 from cufund.core.messages import ActuatorCommand, Odometry, RateSetpoint, ThrustTorqueSetpoint, Topics
 from cufund.vehicle.params import QuadrotorParams
+
 from .arming import gated
 from .gyro_input import GyroInput
 
@@ -74,8 +75,14 @@ class RateController(Controller):
     armable = False
     """Gated by a commander's vehicle status (:func:`cufund.control.arming.make_armable`)."""
 
-    def __init__(self, params: QuadrotorParams, gains: RateControlParams | None = None, rate_hz: float = 500.0,
-                 q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0), gyro_cutoff_hz: float = 40.0) -> None:
+    def __init__(
+        self,
+        params: QuadrotorParams,
+        gains: RateControlParams | None = None,
+        rate_hz: float = 500.0,
+        q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0),
+        gyro_cutoff_hz: float = 40.0,
+    ) -> None:
         self.params = params
         self.gyro = GyroInput(q_BI, gyro_cutoff_hz)
         self.use_gyro = False
@@ -91,8 +98,13 @@ class RateController(Controller):
         """Replaces the gains, also in flight; the controller's state is kept (a filter cutoff keeps the value it
         was built with)."""
         self.gains = g = gains
-        self._core.set_gains(np.array([g.roll_p, g.pitch_p, g.yaw_p]), np.array([g.roll_i, g.pitch_i, g.yaw_i]),
-                             np.array([g.roll_d, g.pitch_d, g.yaw_d]), g.feed_forward, g.integrator_limit)
+        self._core.set_gains(
+            np.array([g.roll_p, g.pitch_p, g.yaw_p]),
+            np.array([g.roll_i, g.pitch_i, g.yaw_i]),
+            np.array([g.roll_d, g.pitch_d, g.yaw_d]),
+            g.feed_forward,
+            g.integrator_limit,
+        )
 
     def use_estimator(self, attached: bool) -> None:
         self.use_gyro = attached

@@ -8,6 +8,24 @@ from .errors import ConfigError
 from .messages import FlightMode, Topics
 from .topics import TRUTH_PREFIX, Topic, is_truth
 
-__all__ = ["TRUTH_PREFIX", "Bus", "messages", "BusView", "Component", "ConfigError", "Controller", "Estimator", "FlightMode",
-           "Mapper", "Planner", "Recorder", "Sensor", "Subscription", "Topic", "TopicAccessError", "Topics",
-           "TruthAccessError", "is_truth"]
+__all__ = [
+    "TRUTH_PREFIX",
+    "Bus",
+    "messages",
+    "BusView",
+    "Component",
+    "ConfigError",
+    "Controller",
+    "Estimator",
+    "FlightMode",
+    "Mapper",
+    "Planner",
+    "Recorder",
+    "Sensor",
+    "Subscription",
+    "Topic",
+    "TopicAccessError",
+    "Topics",
+    "TruthAccessError",
+    "is_truth",
+]

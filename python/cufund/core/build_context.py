@@ -19,7 +19,8 @@ This module sits in ``core`` so that every kind, whatever its layer, can name th
 
 from __future__ import annotations
 
-from typing import Any, Callable, Protocol
+from collections.abc import Callable
+from typing import Any, Protocol
 
 __all__ = ["BuildContext", "DoneCondition", "MetricHook", "OutputHook", "PartView"]
 

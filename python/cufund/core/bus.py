@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import heapq
 from collections import deque
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 from .topics import is_truth
 
@@ -171,8 +172,15 @@ class BusView:
 
     __slots__ = ("_bus", "_latest", "owner", "_readable", "_writable", "_latency_ns", "_deny_truth", "reads")
 
-    def __init__(self, bus: Bus, owner: str, inputs: Iterable[str], outputs: Iterable[str], latency_ns: int = 0,
-                 deny_truth: bool = False) -> None:
+    def __init__(
+        self,
+        bus: Bus,
+        owner: str,
+        inputs: Iterable[str],
+        outputs: Iterable[str],
+        latency_ns: int = 0,
+        deny_truth: bool = False,
+    ) -> None:
         self._bus, self.owner = bus, owner
         self._latest = bus._latest
         self._readable = frozenset(str(t) for t in inputs)
@@ -189,11 +197,15 @@ class BusView:
 
     def _check_read(self, topic: str) -> None:
         if self._deny_truth and is_truth(topic):
-            raise TruthAccessError(f"{self.owner} read the ground-truth topic {topic}; with an estimator configured "
-                                   "only truth consumers (sensor models, recorders, metrics) may")
+            raise TruthAccessError(
+                f"{self.owner} read the ground-truth topic {topic}; with an estimator configured "
+                "only truth consumers (sensor models, recorders, metrics) may"
+            )
         if topic not in self._readable:
-            raise TopicAccessError(f"{self.owner} read {topic}, which is not among its declared inputs "
-                                   f"({', '.join(sorted(self._readable)) or 'none'})")
+            raise TopicAccessError(
+                f"{self.owner} read {topic}, which is not among its declared inputs "
+                f"({', '.join(sorted(self._readable)) or 'none'})"
+            )
         self.reads.add(topic)
 
     def latest(self, topic: str) -> Any:
@@ -213,8 +225,10 @@ class BusView:
         """Publishes ``message`` on ``topic`` (a declared output); visible after the component's latency."""
         entry = self._writable.get(topic)
         if entry is None:
-            raise TopicAccessError(f"{self.owner} published on {topic}, which is not among its declared outputs "
-                                   f"({', '.join(sorted(self._writable)) or 'none'})")
+            raise TopicAccessError(
+                f"{self.owner} published on {topic}, which is not among its declared outputs "
+                f"({', '.join(sorted(self._writable)) or 'none'})"
+            )
         typed, kind = entry
         if message.__class__ is not kind and kind is not object and not isinstance(message, kind):
             raise TypeError(f"{typed} carries {kind.__name__} messages, got {type(message).__name__}")
@@ -232,11 +246,15 @@ class BusView:
             raise TopicAccessError(f"{self.owner} published on {topic}, which is not among its declared outputs")
         bus = self._bus
         if visible_ns < bus.now_ns:
-            raise ValueError(f"{self.owner}: a message on {topic} cannot become visible in the past "
-                             f"({visible_ns} ns < now {bus.now_ns} ns)")
+            raise ValueError(
+                f"{self.owner}: a message on {topic} cannot become visible in the past "
+                f"({visible_ns} ns < now {bus.now_ns} ns)"
+            )
         bus._seq += 1
-        heapq.heappush(bus._pending, (int(visible_ns), bus._seq, entry[0], message,
-                                      int(visible_ns if publish_ns is None else publish_ns)))
+        heapq.heappush(
+            bus._pending,
+            (int(visible_ns), bus._seq, entry[0], message, int(visible_ns if publish_ns is None else publish_ns)),
+        )
 
     @property
     def now(self) -> float:

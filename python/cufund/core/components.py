@@ -21,8 +21,18 @@ from typing import Any, ClassVar
 from .bus import Bus, BusView, Subscription
 from .messages import Odometry, Topics
 
-__all__ = ["Bus", "BusView", "Component", "Controller", "Estimator", "Mapper", "Planner", "Recorder", "Sensor",
-           "Subscription"]
+__all__ = [
+    "Bus",
+    "BusView",
+    "Component",
+    "Controller",
+    "Estimator",
+    "Mapper",
+    "Planner",
+    "Recorder",
+    "Sensor",
+    "Subscription",
+]
 
 
 class Component(ABC):

@@ -31,8 +31,11 @@ def from_dict(cls: type[T], data: Any, where: str | None = None) -> T:
     unknown = sorted(set(data) - set(names))
     if unknown:
         raise ConfigError(f"unknown key {unknown[0]!r} in {where}; expected one of: {', '.join(names)}")
-    required = [f.name for f in dataclasses.fields(cls)  # type: ignore[arg-type]
-                if f.init and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    required = [
+        f.name
+        for f in dataclasses.fields(cls)  # type: ignore[arg-type]
+        if f.init and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+    ]
     missing = [name for name in required if name not in data]
     if missing:
         raise ConfigError(f"missing key {missing[0]!r} in {where}; required: {', '.join(required)}")
@@ -47,15 +50,21 @@ def nested(cls: type[T], value: Any, where: str) -> T:
     return from_dict(cls, {} if value is None else value, where)
 
 
-def check_real_fields(obj: Any, where: str, positive: bool = False, unit: str = "",
-                      names: tuple[str, ...] | None = None) -> None:
+def check_real_fields(
+    obj: Any, where: str, positive: bool = False, unit: str = "", names: tuple[str, ...] | None = None
+) -> None:
     """Makes the fields ``names`` (default: every field) of the frozen dataclass ``obj`` floats, requiring a
     finite number >= 0 (> 0 when ``positive``); the error names ``where.field``."""
     bound = "> 0" if positive else ">= 0"
     for name in names if names is not None else [f.name for f in dataclasses.fields(obj)]:
         v = getattr(obj, name)
-        if (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
-                or v < 0 or (positive and v == 0)):
+        if (
+            isinstance(v, bool)
+            or not isinstance(v, (int, float))
+            or not math.isfinite(v)
+            or v < 0
+            or (positive and v == 0)
+        ):
             raise ConfigError(f"{where}.{name} must be a finite number {bound}{unit}, got {v!r}")
         object.__setattr__(obj, name, float(v))
 
@@ -98,7 +107,8 @@ class CufundLoader(yaml.SafeLoader):
 CufundLoader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9][0-9_]*)[eE][-+]?[0-9]+$"),
-    list("-+0123456789."))
+    list("-+0123456789."),
+)
 
 
 def load_yaml(path: str | Path) -> Any:
@@ -112,8 +122,10 @@ def load_yaml(path: str | Path) -> Any:
     path = Path(path)
     size = path.stat().st_size
     if size > lim.yaml_max_bytes:
-        raise ConfigError(f"{path}: the file is {size} bytes, more than yaml_max_bytes = {lim.yaml_max_bytes} "
-                          "(cufund.core.limits.configure(yaml_max_bytes=...))")
+        raise ConfigError(
+            f"{path}: the file is {size} bytes, more than yaml_max_bytes = {lim.yaml_max_bytes} "
+            "(cufund.core.limits.configure(yaml_max_bytes=...))"
+        )
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as e:
@@ -164,11 +176,14 @@ def _check_yaml_graph(root: yaml.Node, path: Path | str, lim: Any) -> None:
             size = 1 + sum(done[id(c)][0] for c in kids)
             depth = 1 + max((done[id(c)][1] for c in kids), default=0)
             if depth > lim.yaml_max_depth:
-                raise ConfigError(f"{where}: nesting deeper than yaml_max_depth = {lim.yaml_max_depth} "
-                                  f"(line {n.start_mark.line + 1})")
+                raise ConfigError(
+                    f"{where}: nesting deeper than yaml_max_depth = {lim.yaml_max_depth} (line {n.start_mark.line + 1})"
+                )
             if size > lim.yaml_max_nodes:
-                raise ConfigError(f"{where}: more than yaml_max_nodes = {lim.yaml_max_nodes} values with aliases "
-                                  f"expanded (line {n.start_mark.line + 1}: a 'billion laughs' file?)")
+                raise ConfigError(
+                    f"{where}: more than yaml_max_nodes = {lim.yaml_max_nodes} values with aliases "
+                    f"expanded (line {n.start_mark.line + 1}: a 'billion laughs' file?)"
+                )
             done[key] = (size, depth)
             continue
         if key in done:

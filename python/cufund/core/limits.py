@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 from cufund import _core
+
 from .errors import ConfigError
 
 __all__ = ["Limits", "configure", "current", "override"]

@@ -11,8 +11,9 @@ a publisher cannot change a message after publishing it. Ground truth travels on
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass, fields
-from typing import Any, Callable, ClassVar, TypeVar, dataclass_transform
+from typing import Any, ClassVar, TypeVar, dataclass_transform
 
 import numpy as np
 
@@ -66,10 +67,13 @@ def message(cls: type[_M]) -> type[_M]:
     # trusted(...): the message from arrays the caller guarantees are read-only and unshared (no checks, no
     # copies), for producers of many messages per second like the simulator's ground truth. Generated with one
     # plain assignment per field: a loop over the fields costs more than the message itself.
-    src = (f"def trusted({', '.join(names)}):\n    obj = _new(_cls)\n"
-           + "".join(f"    _set(obj, {n!r}, {n})\n" for n in names) + "    return obj\n")
+    src = (
+        f"def trusted({', '.join(names)}):\n    obj = _new(_cls)\n"
+        + "".join(f"    _set(obj, {n!r}, {n})\n" for n in names)
+        + "    return obj\n"
+    )
     env: dict[str, Any] = {"_new": object.__new__, "_set": object.__setattr__, "_cls": cls}
-    exec(src, env)  # noqa: S102 - built from the dataclass's own field names
+    exec(src, env)
     cls.trusted = staticmethod(env["trusted"])
     return cls
 

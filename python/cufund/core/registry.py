@@ -29,14 +29,27 @@ from __future__ import annotations
 import dataclasses
 import re
 import types
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, overload
+from typing import Any, overload
 
 from .build_context import BuildContext
 from .errors import ConfigError
 
-__all__ = ["ENTRY_POINT_GROUP", "GROUPS", "Kind", "SensorType", "available", "extrinsic_keys", "load_plugins", "lookup",
-           "register", "sensor_type", "sensor_types", "unregister"]
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "GROUPS",
+    "Kind",
+    "SensorType",
+    "available",
+    "extrinsic_keys",
+    "load_plugins",
+    "lookup",
+    "register",
+    "sensor_type",
+    "sensor_types",
+    "unregister",
+]
 
 ENTRY_POINT_GROUP = "cufund.kinds"
 GROUPS = ("world", "sensor", "estimator", "mapper", "planner", "controller", "mission")
@@ -66,8 +79,10 @@ class SensorType:
             raise ValueError(f"SensorType.message must be a message class, got {self.message!r}")
         key = self.extrinsic_key
         if key is not None and (not isinstance(key, str) or not _EXTRINSIC_KEY.fullmatch(key)):
-            raise ValueError(f"SensorType.extrinsic_key must be T_B<X> (the sensor frame X in the body frame, e.g. "
-                             f"T_BL) or None, got {key!r}")
+            raise ValueError(
+                f"SensorType.extrinsic_key must be T_B<X> (the sensor frame X in the body frame, e.g. "
+                f"T_BL) or None, got {key!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -102,8 +117,10 @@ class Kind:
         if not callable(self.build):
             raise ValueError("Kind.build must be callable: build(params, ctx)")
         if (self.group == "sensor") != (self.sensor_type is not None):
-            raise ValueError(f"Kind.sensor_type must name a registered SensorType for a sensor kind and be None "
-                             f"otherwise, got {self.sensor_type!r} for a {self.group} kind")
+            raise ValueError(
+                f"Kind.sensor_type must name a registered SensorType for a sensor kind and be None "
+                f"otherwise, got {self.sensor_type!r} for a {self.group} kind"
+            )
 
     def parse(self, values: dict[str, Any], where: str) -> Any:
         """The kind's params from the scenario's keys (unknown keys name the field and list the known ones)."""
@@ -111,8 +128,10 @@ class Kind:
         names = [f.name for f in dataclasses.fields(self.params) if f.init]
         unknown = sorted(set(values) - set(names))
         if unknown:
-            raise ConfigError(f"unknown key {unknown[0]!r} in {where} (kind {self.name}); expected one of: "
-                              f"{', '.join(names) or 'no keys'}")
+            raise ConfigError(
+                f"unknown key {unknown[0]!r} in {where} (kind {self.name}); expected one of: "
+                f"{', '.join(names) or 'no keys'}"
+            )
         try:
             if base is None:
                 return self.params(**values)
@@ -130,6 +149,7 @@ def _located(message: str, where: str) -> str:
 _KINDS: dict[str, dict[str, Kind]] = {g: {} for g in GROUPS}
 _SENSOR_TYPES: dict[str, SensorType] = {}
 _loaded = False
+
 
 @overload
 def register(item: Kind, replace: bool = False) -> Kind: ...
@@ -152,8 +172,10 @@ def register(item: Kind | SensorType, replace: bool = False) -> Kind | SensorTyp
         raise TypeError(f"register takes a cufund.core.registry.Kind or SensorType, got {type(item).__name__}")
     kind = item
     if kind.sensor_type is not None and kind.sensor_type not in _SENSOR_TYPES:
-        raise ValueError(f"sensor kind {kind.name!r}: its sensor_type {kind.sensor_type!r} is not a registered "
-                         f"SensorType (known: {', '.join(sorted(_SENSOR_TYPES)) or 'none'}); register it first")
+        raise ValueError(
+            f"sensor kind {kind.name!r}: its sensor_type {kind.sensor_type!r} is not a registered "
+            f"SensorType (known: {', '.join(sorted(_SENSOR_TYPES)) or 'none'}); register it first"
+        )
     table = _KINDS[kind.group]
     if kind.name in table and not replace and table[kind.name] is not kind:
         raise ValueError(f"a {kind.group} kind named {kind.name!r} is registered already (pass replace=True)")
@@ -166,8 +188,9 @@ def unregister(group: str, name: str) -> None:
     if group == "sensor_type":
         users = sorted(k.name for k in _KINDS["sensor"].values() if k.sensor_type == name)
         if users:
-            raise ValueError(f"sensor type {name!r} is used by the sensor kinds {', '.join(users)}; unregister them "
-                             "first")
+            raise ValueError(
+                f"sensor type {name!r} is used by the sensor kinds {', '.join(users)}; unregister them first"
+            )
         _SENSOR_TYPES.pop(name, None)
     else:
         _KINDS[group].pop(name, None)
@@ -187,8 +210,10 @@ def load_plugins() -> None:
 
     eps = sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda ep: (not ep.value.startswith("cufund."), ep.name))
     if not any(ep.value.startswith("cufund.") for ep in eps):
-        raise RuntimeError("cufund's built-in kinds are not registered: its entry points (group cufund.kinds) are "
-                           "missing; reinstall cufund (pip install .)")
+        raise RuntimeError(
+            "cufund's built-in kinds are not registered: its entry points (group cufund.kinds) are "
+            "missing; reinstall cufund (pip install .)"
+        )
     for ep in eps:
         try:
             obj = ep.load()
@@ -196,7 +221,7 @@ def load_plugins() -> None:
                 continue  # importing the module registered its kinds
             if callable(obj) and not isinstance(obj, (Kind, SensorType)):
                 obj = obj()
-            for k in ([obj] if isinstance(obj, (Kind, SensorType)) else list(obj)):
+            for k in [obj] if isinstance(obj, (Kind, SensorType)) else list(obj):
                 register(k, replace=True)
         except Exception as e:  # a broken plug-in must not take cufund down; it is named when used
             if ep.value.startswith("cufund."):

@@ -15,8 +15,10 @@ zero-latency connections is an error that names it.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from fractions import Fraction
-from typing import Any, Sequence
+from itertools import pairwise
+from typing import Any
 
 __all__ = ["EventClock", "ScheduleError", "seconds_to_ns", "topological_order"]
 
@@ -29,8 +31,13 @@ class ScheduleError(ValueError):
 
 def seconds_to_ns(name: str, value: Any, allow_zero: bool = True) -> int:
     """``value`` [s] as whole nanoseconds; a ScheduleError naming ``name`` unless finite and >= 0."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0 \
-            or (value == 0 and not allow_zero):
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not math.isfinite(value)
+        or value < 0
+        or (value == 0 and not allow_zero)
+    ):
         bound = ">= 0" if allow_zero else "> 0"
         raise ScheduleError(f"{name} must be a finite number {bound} [s], got {value!r}")
     return round(value * NS)
@@ -69,8 +76,9 @@ class EventClock:
         return NS * self.den / self.num
 
 
-def topological_order(names: Sequence[str], inputs: Sequence[Sequence[str]], outputs: Sequence[Sequence[str]],
-                      latencies_ns: Sequence[int]) -> list[int]:
+def topological_order(
+    names: Sequence[str], inputs: Sequence[Sequence[str]], outputs: Sequence[Sequence[str]], latencies_ns: Sequence[int]
+) -> list[int]:
     """Indices of the components in an order where, within an instant, every zero-latency publisher of a topic
     comes before its readers (ties in the given order). ``inputs`` include optional inputs."""
     n = len(names)
@@ -106,8 +114,9 @@ def topological_order(names: Sequence[str], inputs: Sequence[Sequence[str]], out
     return order
 
 
-def _describe_cycle(names: Sequence[str], after: list[set[int]], edge_topic: dict[tuple[int, int], str],
-                    done: set[int]) -> str:
+def _describe_cycle(
+    names: Sequence[str], after: list[set[int]], edge_topic: dict[tuple[int, int], str], done: set[int]
+) -> str:
     """One cycle among the components not in ``done``, as 'a -[/topic]-> b -[/topic]-> a'; give one of them a
     latency to break it."""
     left = [i for i in range(len(names)) if i not in done]
@@ -116,11 +125,11 @@ def _describe_cycle(names: Sequence[str], after: list[set[int]], edge_topic: dic
     while True:
         prev = min(before[path[-1]])
         if prev in seen:
-            cycle = list(reversed(path[seen[prev]:] + [prev]))
+            cycle = list(reversed(path[seen[prev] :] + [prev]))
             break
         seen[prev] = len(path)
         path.append(prev)
     parts = [names[cycle[0]]]
-    for a, b in zip(cycle, cycle[1:]):
+    for a, b in pairwise(cycle):
         parts.append(f"-[{edge_topic[(a, b)]}]-> {names[b]}")
     return " ".join(parts) + " (give one of them a latency_s > 0, or remove a connection)"

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import builtins
-
 from typing import Any
 
 __all__ = ["TRUTH_PREFIX", "Topic", "is_truth"]
@@ -25,7 +24,7 @@ class Topic(str):
     type: builtins.type
     """The message class published on it (``object``: any)."""
 
-    def __new__(cls, name: str, type: builtins.type = object) -> Topic:  # noqa: A002 - the natural name
+    def __new__(cls, name: str, type: builtins.type = object) -> Topic:
         if not isinstance(name, str) or not name.startswith("/") or name.endswith("/") or "//" in name:
             raise ValueError(f"a topic name must be an absolute path like '/sensors/imu', got {name!r}")
         self = super().__new__(cls, name)

@@ -12,11 +12,20 @@ import importlib
 from typing import Any
 
 _EXPORTS = {
-    "odometry_errors": "evaluation", "read_tum": "evaluation", "write_tum": "evaluation",
-    "FlatBodyMotion": "flight_data", "FlightRecord": "flight_data", "LidarFrame": "flight_data",
-    "record_flight": "flight_data", "replay": "flight_data",
-    "LioCore": "lio_core", "NavEstimate": "lio_core", "ScanDiagnostics": "lio_core",
-    "LioEstimator": "lio_estimator", "LioParams": "params", "run_on_log": "offline",
+    "odometry_errors": "evaluation",
+    "read_tum": "evaluation",
+    "write_tum": "evaluation",
+    "FlatBodyMotion": "flight_data",
+    "FlightRecord": "flight_data",
+    "LidarFrame": "flight_data",
+    "record_flight": "flight_data",
+    "replay": "flight_data",
+    "LioCore": "lio_core",
+    "NavEstimate": "lio_core",
+    "ScanDiagnostics": "lio_core",
+    "LioEstimator": "lio_estimator",
+    "LioParams": "params",
+    "run_on_log": "offline",
 }
 
 __all__ = sorted(_EXPORTS)

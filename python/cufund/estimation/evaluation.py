@@ -23,8 +23,12 @@ def odometry_errors(p_est: np.ndarray, q_est: np.ndarray, p_true: np.ndarray, q_
     e = np.linalg.norm(p_est - p_true, axis=1)
     qe, qt = np.asarray(q_est, float), np.asarray(q_true, float)
     ang = (Rotation.from_quat(qe[:, [1, 2, 3, 0]]).inv() * Rotation.from_quat(qt[:, [1, 2, 3, 0]])).magnitude()
-    return {"odometry_min_m": float(e.min()), "odometry_rmse_m": float(np.sqrt(np.mean(e**2))),
-            "odometry_max_m": float(e.max()), "odometry_rot_rmse_deg": float(np.degrees(np.sqrt(np.mean(ang**2))))}
+    return {
+        "odometry_min_m": float(e.min()),
+        "odometry_rmse_m": float(np.sqrt(np.mean(e**2))),
+        "odometry_max_m": float(e.max()),
+        "odometry_rot_rmse_deg": float(np.degrees(np.sqrt(np.mean(ang**2)))),
+    }
 
 
 def write_tum(path: str | Path, t: np.ndarray, p_W: np.ndarray, q_WB: np.ndarray) -> None:

@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from cufund.sensors.imu import G0, ImuModel
 from cufund.geometry import quat_from_matrix
+from cufund.sensors.imu import G0, ImuModel
 
 from .boundary import scan_frame
 
@@ -73,8 +73,15 @@ class FlatBodyMotion:
         s = self.trajectory.sample(t)
         R = self._R(t)
         alpha = (self._w(t + self.h) - self._w(t - self.h)) / (2 * self.h)
-        return {"p_W": s.p_W, "v_W": s.v_W, "a_W": s.a_W, "R_WB": R, "q_WB": quat_from_matrix(R),
-                "w_B": self._w(t), "alpha_B": alpha}
+        return {
+            "p_W": s.p_W,
+            "v_W": s.v_W,
+            "a_W": s.a_W,
+            "R_WB": R,
+            "q_WB": quat_from_matrix(R),
+            "w_B": self._w(t),
+            "alpha_B": alpha,
+        }
 
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """pose_fn(t) -> (p_W, q_WB) for :meth:`cufund.sensors.Lidar.scan`."""
@@ -82,8 +89,9 @@ class FlatBodyMotion:
         return st["p_W"][0], st["q_WB"][0]
 
 
-def record_flight(motion: FlatBodyMotion, imu: ImuModel, lidar: Any, world: Any, t_start: float,
-                  t_end: float) -> FlightRecord:
+def record_flight(
+    motion: FlatBodyMotion, imu: ImuModel, lidar: Any, world: Any, t_start: float, t_end: float
+) -> FlightRecord:
     """IMU samples at the IMU's rate and consecutive LiDAR frames over [t_start, t_end)."""
     rate = imu.params.rate_hz
     t_imu = t_start + np.arange(int(np.floor((t_end - t_start) * rate))) / rate
@@ -97,8 +105,6 @@ def record_flight(motion: FlatBodyMotion, imu: ImuModel, lidar: Any, world: Any,
         frames.append(LidarFrame(t0, dt, np.asarray(pts, dtype=np.float32)))
         t += lidar.period
     return FlightRecord(t_imu, acc, gyr, frames, motion)
-
-
 
 
 def replay(core: Any, record: FlightRecord) -> tuple[list[Any], list[Any]]:

@@ -55,9 +55,15 @@ class ImuPropagator(Estimator):
 
     name = "imu_propagator"
 
-    def __init__(self, rate_hz: float, gravity: float, q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0),
-                 params: ImuPropagatorParams | None = None, imu_topic: str = Topics.IMU,
-                 pose_topic: str = Topics.POSE) -> None:
+    def __init__(
+        self,
+        rate_hz: float,
+        gravity: float,
+        q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0),
+        params: ImuPropagatorParams | None = None,
+        imu_topic: str = Topics.IMU,
+        pose_topic: str = Topics.POSE,
+    ) -> None:
         self.rate_hz, self.gravity = float(rate_hz), float(gravity)
         self.params = params or ImuPropagatorParams()
         self.R_BI = quat_to_matrix(np.asarray(q_BI, dtype=float))
@@ -106,7 +112,12 @@ class ImuPropagator(Estimator):
                     dq = -dq
                 self.b_g = self.b_g - g.gyro_bias_gain * 2.0 * dq[1:] / T
         self._last_fix = fix
-        x = (fix.t, np.asarray(fix.p_W, dtype=float), np.asarray(fix.v_W, dtype=float), np.asarray(fix.q_WB, dtype=float))
+        x = (
+            fix.t,
+            np.asarray(fix.p_W, dtype=float),
+            np.asarray(fix.v_W, dtype=float),
+            np.asarray(fix.q_WB, dtype=float),
+        )
         for t, f, w in self._samples:
             if t > fix.t:
                 x = self._propagate(x, t, f, w)
@@ -117,7 +128,12 @@ class ImuPropagator(Estimator):
         prev = self._last_fix
         if prev is None:
             return None
-        x = (prev.t, np.asarray(prev.p_W, dtype=float), np.asarray(prev.v_W, dtype=float), np.asarray(prev.q_WB, dtype=float))
+        x = (
+            prev.t,
+            np.asarray(prev.p_W, dtype=float),
+            np.asarray(prev.v_W, dtype=float),
+            np.asarray(prev.q_WB, dtype=float),
+        )
         for t, f, w in self._samples:
             if prev.t < t <= t_fix:
                 x = self._propagate(x, t, f, w)

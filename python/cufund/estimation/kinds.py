@@ -12,8 +12,12 @@ from cufund.core.registry import Kind, register
 from .imu_propagator import ImuPropagator, ImuPropagatorParams
 from .params import LioParams
 
-_FROM_SCENARIO = {"imu": "sensors.<imu> (its kind and T_BI)", "T_BL": "sensors.<lidar>.T_BL",
-                  "p_WB0": "start_p_W", "gravity": "vehicle"}
+_FROM_SCENARIO = {
+    "imu": "sensors.<imu> (its kind and T_BI)",
+    "T_BL": "sensors.<lidar>.T_BL",
+    "p_WB0": "start_p_W",
+    "gravity": "vehicle",
+}
 
 
 def _imu_propagator(p: ImuPropagatorParams, ctx: BuildContext) -> list[Any]:
@@ -23,8 +27,16 @@ def _imu_propagator(p: ImuPropagatorParams, ctx: BuildContext) -> list[Any]:
     return [ImuPropagator(imu_params.rate_hz, ctx.vehicle.gravity, imu_params.q_BI, p, imu.topic, pose.topic)]
 
 
-register(Kind("estimator", "imu_propagator", ImuPropagatorParams, _imu_propagator, None,
-              "IMU-rate odometry between slow pose corrections (sensors: an IMU and a pose source)"))
+register(
+    Kind(
+        "estimator",
+        "imu_propagator",
+        ImuPropagatorParams,
+        _imu_propagator,
+        None,
+        "IMU-rate odometry between slow pose corrections (sensors: an IMU and a pose source)",
+    )
+)
 
 
 def lio_params(p: LioParams, ctx: BuildContext) -> tuple[LioParams, Any, Any]:
@@ -37,8 +49,9 @@ def lio_params(p: LioParams, ctx: BuildContext) -> tuple[LioParams, Any, Any]:
     _, imu = ctx.sensor_of_type("imu", "", "estimator")
     _, lidar = ctx.sensor_of_type("lidar", "", "estimator")
     start = ctx.config.start_p_W or (ctx.config.trajectory.waypoints[0][0], ctx.config.trajectory.waypoints[0][1], 0.0)
-    params = dataclasses.replace(p, imu=ctx.imu_params(), T_BL=lidar.extrinsic or default.T_BL, p_WB0=tuple(start),
-                                 gravity=ctx.vehicle.gravity)
+    params = dataclasses.replace(
+        p, imu=ctx.imu_params(), T_BL=lidar.extrinsic or default.T_BL, p_WB0=tuple(start), gravity=ctx.vehicle.gravity
+    )
     return params, imu, lidar
 
 
@@ -49,5 +62,13 @@ def _lio(p: LioParams, ctx: BuildContext) -> list[Any]:
     return [LioEstimator(params, imu_topic=imu.topic, lidar_topic=lidar.topic)]
 
 
-register(Kind("estimator", "lio", LioParams, _lio, None,
-              "LiDAR-inertial odometry on GTSAM (sensors: an IMU and a LiDAR; starts from the known pad pose)"))
+register(
+    Kind(
+        "estimator",
+        "lio",
+        LioParams,
+        _lio,
+        None,
+        "LiDAR-inertial odometry on GTSAM (sensors: an IMU and a LiDAR; starts from the known pad pose)",
+    )
+)

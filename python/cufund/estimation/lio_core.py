@@ -9,9 +9,9 @@ deskewed scan. Between frames the last estimate is propagated through each IMU s
 from __future__ import annotations
 
 import math
-from typing import Any
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import gtsam
 import numpy as np
@@ -124,8 +124,9 @@ class LioCore:
         self._R_IL, self._p_IL = T_IL[:3, :3], T_IL[:3, 3]
         self._g = np.array([0.0, 0.0, -p.gravity])
         self._imu = _ImuBuffer()
-        self._map = _core.odometry.VoxelMap(p.map_voxel, p.map_points_per_voxel, p.map_min_point_distance,
-                                            p.map_max_distance, p.map_max_voxels)
+        self._map = _core.odometry.VoxelMap(
+            p.map_voxel, p.map_points_per_voxel, p.map_min_point_distance, p.map_max_distance, p.map_max_voxels
+        )
         self._model = PlaneModel(self._map, p)
         self._pim_params = self._imu_params()
         self._pim_recovery = self._imu_params(p.recovery_acc_rw, p.recovery_gyro_rw)
@@ -154,6 +155,7 @@ class LioCore:
         acc_w, acc_rw, _ = ip.accel.per_axis(3)
         gyr_w, gyr_rw, _ = ip.gyro.per_axis(3)
         acc_rw, gyr_rw = np.maximum(acc_rw, acc_rw_min), np.maximum(gyr_rw, gyr_rw_min)
+
         # An ideal IMU (zero densities) still needs a well-conditioned problem: its zeros become small densities
         # (a real part's spec is used as given).
         def density(x: np.ndarray, floor: float) -> np.ndarray:
@@ -213,7 +215,8 @@ class LioCore:
             raise ValueError(
                 f"the vehicle moved during static initialisation (first {ts[-1] - ts[0]:.2f} s): gyro deviation "
                 f"{dev_w:.3g} rad/s (limit {p.init_max_gyro_dev}), accelerometer deviation {dev_f:.3g} m/s^2 "
-                f"(limit {p.init_max_accel_dev}); keep it still on the pad or raise the limits in LioParams")
+                f"(limit {p.init_max_accel_dev}); keep it still on the pad or raise the limits in LioParams"
+            )
         R_WB = quat_to_matrix(np.asarray(p.q_WB0), normalize=True)
         R_WI = R_WB @ self._R_BI
         if p.pad_attitude_known:
@@ -225,6 +228,7 @@ class LioCore:
             s, c = np.linalg.norm(axis), float(up_W[2])
             if s > 1e-12:
                 from scipy.spatial.transform import Rotation
+
                 R_WI = Rotation.from_rotvec(axis / s * math.atan2(s, c)).as_matrix() @ R_WI
             bias_acc = np.zeros(3)
         p_WI = np.asarray(p.p_WB0) + R_WB @ self._p_BI
@@ -255,15 +259,24 @@ class LioCore:
             self._map.insert(ins @ R_WI.T + p_WI, p_WI)
         self._pad_frames = []
 
-    def _propagate(self, s: NavEstimate, dt: np.ndarray, acc: np.ndarray, gyr: np.ndarray,
-                   with_rates: bool = False):
-        states, rates = _core.odometry.imu_propagate(s.p_W, s.v_W, quat_from_matrix(s.R_WI), s.bias_acc, s.bias_gyr,
-                                                     self._g, dt, acc, gyr)
+    def _propagate(self, s: NavEstimate, dt: np.ndarray, acc: np.ndarray, gyr: np.ndarray, with_rates: bool = False):
+        states, rates = _core.odometry.imu_propagate(
+            s.p_W, s.v_W, quat_from_matrix(s.R_WI), s.bias_acc, s.bias_gyr, self._g, dt, acc, gyr
+        )
         if with_rates:
             return states, rates
         t = s.t + np.concatenate([[0.0], np.cumsum(dt)])
-        return [NavEstimate(float(t[i]), quat_to_matrix(states[i, 6:], normalize=True), states[i, :3], states[i, 3:6],
-                            s.bias_acc, s.bias_gyr) for i in range(len(t))]
+        return [
+            NavEstimate(
+                float(t[i]),
+                quat_to_matrix(states[i, 6:], normalize=True),
+                states[i, :3],
+                states[i, 3:6],
+                s.bias_acc,
+                s.bias_gyr,
+            )
+            for i in range(len(t))
+        ]
 
     # ---------------------------------------------------------------- LiDAR
     def add_scan(self, t: float, dt: np.ndarray, points_L: np.ndarray) -> Odometry | None:
@@ -284,8 +297,11 @@ class LioCore:
             self.dropped_points += int(np.count_nonzero(~ok))
             return None
         # A row with a NaN or inf has a non-finite sum (one BLAS pass instead of an isfinite/all pass over 3N).
-        ok = np.isfinite(pts @ np.ones(3, dtype=pts.dtype if pts.dtype.kind == "f" else float)) & np.isfinite(d) \
+        ok = (
+            np.isfinite(pts @ np.ones(3, dtype=pts.dtype if pts.dtype.kind == "f" else float))
+            & np.isfinite(d)
             & (d >= 0)
+        )
         if not ok.all():
             self.dropped_points += int(np.count_nonzero(~ok))
             pts, d = pts[ok], d[ok]
@@ -294,16 +310,39 @@ class LioCore:
             self.skipped_scans += 1
             why = "empty frame" if len(pts) == 0 else "frame ends before the state"
             self._consistent = 0 if len(pts) == 0 else self._consistent
-            self.diagnostics.append(ScanDiagnostics(t_end, 0, 0, 0, (), (), 0.0, skipped=why, healthy=len(pts) > 0,
-                                                    reason="no LiDAR constraint: empty frame" if len(pts) == 0 else ""))
+            self.diagnostics.append(
+                ScanDiagnostics(
+                    t_end,
+                    0,
+                    0,
+                    0,
+                    (),
+                    (),
+                    0.0,
+                    skipped=why,
+                    healthy=len(pts) > 0,
+                    reason="no LiDAR constraint: empty frame" if len(pts) == 0 else "",
+                )
+            )
             return None
         prev = self._node
         knots, pdt, pacc, pgyr = self._imu.pieces(prev.t, t_end)
         states, rates = self._propagate(prev, pdt, pacc, pgyr, with_rates=True)
         # deskewed to the frame end, the airframe's returns dropped, downsampled for the map and for registration
-        ins_I, scan_I = _core.odometry.prepare_scan(pts, t + d, knots, states, rates, t_end, self._T_BI, self._T_BL,
-                                                    self.params.min_range, self.params.map_insert_voxel,
-                                                    self.params.scan_voxel, nthreads=self.params.nthreads)
+        ins_I, scan_I = _core.odometry.prepare_scan(
+            pts,
+            t + d,
+            knots,
+            states,
+            rates,
+            t_end,
+            self._T_BI,
+            self._T_BL,
+            self.params.min_range,
+            self.params.map_insert_voxel,
+            self.params.scan_voxel,
+            nthreads=self.params.nthreads,
+        )
         R_pred, p_pred = quat_to_matrix(states[-1, 6:], normalize=True), states[-1, :3]
         v_pred = states[-1, 3:6]
         k = self._k + 1
@@ -326,12 +365,13 @@ class LioCore:
         if reg is not None:
             rot_innov = float(np.linalg.norm(_so3_log(R_pred.T @ reg.R_WI)))
             trans_innov = float(np.linalg.norm(reg.p_W - p_pred))
-        jump = (rot_innov > math.radians(self.params.bias_jump_deg) or trans_innov > self.params.bias_jump_m) \
-            and not skipped
+        jump = (
+            rot_innov > math.radians(self.params.bias_jump_deg) or trans_innov > self.params.bias_jump_m
+        ) and not skipped
         pim = gtsam.PreintegratedCombinedMeasurements(
-            self._pim_recovery if jump else self._pim_params,
-            gtsam.imuBias.ConstantBias(prev.bias_acc, prev.bias_gyr))
-        for h, a, w in zip(pdt, pacc, pgyr):
+            self._pim_recovery if jump else self._pim_params, gtsam.imuBias.ConstantBias(prev.bias_acc, prev.bias_gyr)
+        )
+        for h, a, w in zip(pdt, pacc, pgyr, strict=True):
             pim.integrateMeasurement(a, w, float(h))
         graph.add(gtsam.CombinedImuFactor(X(k - 1), V(k - 1), X(k), V(k), B(k - 1), B(k), pim))
         values = gtsam.Values()
@@ -347,26 +387,42 @@ class LioCore:
         est = self._smoother.calculateEstimate()
         R, pos = pose3_parts(est.atPose3(X(k)))
         bias = est.atConstantBias(B(k))
-        self._node = NavEstimate(t_end, R, pos, np.asarray(est.atVector(V(k))), np.asarray(bias.accelerometer()),
-                                 np.asarray(bias.gyroscope()))
+        self._node = NavEstimate(
+            t_end,
+            R,
+            pos,
+            np.asarray(est.atVector(V(k))),
+            np.asarray(bias.accelerometer()),
+            np.asarray(bias.gyroscope()),
+        )
         self._k = k
         healthy, reason = self._health(t_end, skipped, jump, rot_innov, trans_innov)
         # The map grows with this frame, placed at the new estimate.
         self._map.insert(ins_I @ R.T + pos, pos)
         self._catch_up()
         self._imu.prune(t_end - 0.5)
-        self.diagnostics.append(ScanDiagnostics(
-            t_end, len(scan_I), reg.inliers if reg else 0, reg.iterations if reg else 0,
-            tuple(float(e) for e in reg.eigenvalues) if reg else (),
-            tuple(tuple(float(x) for x in row) for row in reg.degenerate_W) if reg else (),
-            (time.perf_counter() - wall) * 1e3, cpu_ms=(time.process_time() - cpu) * 1e3, skipped=skipped,
-            innovation_deg=math.degrees(rot_innov), innovation_m=trans_innov, healthy=healthy, reason=reason))
+        self.diagnostics.append(
+            ScanDiagnostics(
+                t_end,
+                len(scan_I),
+                reg.inliers if reg else 0,
+                reg.iterations if reg else 0,
+                tuple(float(e) for e in reg.eigenvalues) if reg else (),
+                tuple(tuple(float(x) for x in row) for row in reg.degenerate_W) if reg else (),
+                (time.perf_counter() - wall) * 1e3,
+                cpu_ms=(time.process_time() - cpu) * 1e3,
+                skipped=skipped,
+                innovation_deg=math.degrees(rot_innov),
+                innovation_m=trans_innov,
+                healthy=healthy,
+                reason=reason,
+            )
+        )
         if skipped:
             self.skipped_scans += 1
         return self._odometry(self._node)
 
-    def _health(self, t_end: float, skipped: str, jump: bool, rot_innov: float, trans_innov: float
-                ) -> tuple[bool, str]:
+    def _health(self, t_end: float, skipped: str, jump: bool, rot_innov: float, trans_innov: float) -> tuple[bool, str]:
         """The frame's health verdict: unhealthy when it added no LiDAR constraint, when the IMU's prediction and
         the registration disagree (a bias jump, a bad registration), after a LiDAR gap, and until
         ``health_relock_frames`` consistent frames in a row have followed any of these."""
@@ -381,8 +437,10 @@ class LioCore:
         self.last_lidar_factor_t = t_end
         if jump:
             self._consistent = 0
-            return False, (f"IMU prediction and LiDAR registration disagree by {math.degrees(rot_innov):.2f} deg, "
-                           f"{trans_innov * 100:.1f} cm: re-estimating the IMU biases")
+            return False, (
+                f"IMU prediction and LiDAR registration disagree by {math.degrees(rot_innov):.2f} deg, "
+                f"{trans_innov * 100:.1f} cm: re-estimating the IMU biases"
+            )
         if gap is not None and gap > p.health_max_lidar_gap_s:
             self._consistent = 0
         self._consistent += 1
@@ -428,8 +486,7 @@ class LioCore:
             M = values.atPose3(this.keys()[0]).matrix()
             if cache["M"] is None or not np.array_equal(cache["M"], M):
                 R, p = M[:3, :3], M[:3, 3]
-                moved = max(np.linalg.norm(p - cache["fit_p"]),
-                            np.linalg.norm(R - cache["fit_R"]) * params.map_voxel)
+                moved = max(np.linalg.norm(p - cache["fit_p"]), np.linalg.norm(R - cache["fit_R"]) * params.map_voxel)
                 if moved > params.refit_distance:
                     cache["planes"] = fit_planes(model, scan_I, R, p)
                     cache["fit_R"], cache["fit_p"] = R, p

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from cufund.core.components import Estimator
-
 from cufund.core.messages import Odometry, OdometryDiagnostics, Topics
+
 from .boundary import scan_frame
 from .lio_core import LioCore, ScanDiagnostics
 from .params import LioParams
@@ -31,8 +31,13 @@ class LioEstimator(Estimator):
     name = "lio"
     inputs: tuple[str, ...] = (Topics.IMU, Topics.POINT_CLOUD)
 
-    def __init__(self, params: LioParams | dict | None = None, rate_hz: float | None = None,
-                 imu_topic: str = Topics.IMU, lidar_topic: str = Topics.POINT_CLOUD) -> None:
+    def __init__(
+        self,
+        params: LioParams | dict | None = None,
+        rate_hz: float | None = None,
+        imu_topic: str = Topics.IMU,
+        lidar_topic: str = Topics.POINT_CLOUD,
+    ) -> None:
         if isinstance(params, dict):
             params = LioParams.from_dict(params)
         self.params = params or LioParams()
@@ -61,11 +66,23 @@ class LioEstimator(Estimator):
 
     def estimate(self, t: float, bus) -> Odometry | None:
         self.feed(self._lidar_sub.take(), self._imu_sub.take())
-        for d in self.core.diagnostics[self._diagnosed:]:  # one message per frame processed
-            bus.publish(Topics.ESTIMATOR_DIAGNOSTICS, OdometryDiagnostics(
-                d.t, d.points, d.inliers, d.iterations, np.asarray(d.eigenvalues, dtype=float),
-                np.asarray(d.degenerate_directions, dtype=float).reshape(-1, 6), d.time_ms, d.cpu_ms, d.skipped,
-                d.healthy, d.reason))
+        for d in self.core.diagnostics[self._diagnosed :]:  # one message per frame processed
+            bus.publish(
+                Topics.ESTIMATOR_DIAGNOSTICS,
+                OdometryDiagnostics(
+                    d.t,
+                    d.points,
+                    d.inliers,
+                    d.iterations,
+                    np.asarray(d.eigenvalues, dtype=float),
+                    np.asarray(d.degenerate_directions, dtype=float).reshape(-1, 6),
+                    d.time_ms,
+                    d.cpu_ms,
+                    d.skipped,
+                    d.healthy,
+                    d.reason,
+                ),
+            )
         self._diagnosed = len(self.core.diagnostics)
         self._report_gap(t, bus)
         return self._latest
@@ -77,9 +94,22 @@ class LioEstimator(Estimator):
         if gap is None or gap <= self.params.health_max_lidar_gap_s or t - self._gap_reported < _GAP_REPORT_S:
             return
         self._gap_reported = t
-        bus.publish(Topics.ESTIMATOR_DIAGNOSTICS, OdometryDiagnostics(
-            t, 0, 0, 0, np.zeros(0), np.zeros((0, 6)), 0.0, 0.0, "no LiDAR frame", False,
-            f"no LiDAR constraint for {gap:.2f} s: IMU only"))
+        bus.publish(
+            Topics.ESTIMATOR_DIAGNOSTICS,
+            OdometryDiagnostics(
+                t,
+                0,
+                0,
+                0,
+                np.zeros(0),
+                np.zeros((0, 6)),
+                0.0,
+                0.0,
+                "no LiDAR frame",
+                False,
+                f"no LiDAR constraint for {gap:.2f} s: IMU only",
+            ),
+        )
 
     def feed(self, clouds: list, imus: list) -> list[Odometry]:
         """Queues LiDAR frames, then integrates IMU samples in order, processing each queued frame as soon as a

@@ -15,15 +15,21 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from cufund.core.messages import Topics
+
 from .evaluation import odometry_errors, write_tum
 from .params import LioParams
 
 __all__ = ["run_on_log"]
 
 
-def run_on_log(path: str | Path, params: LioParams | None = None, out_dir: str | Path | None = None,
-               imu_topic: str = Topics.IMU, lidar_topic: str = Topics.POINT_CLOUD,
-               truth_topic: str = Topics.TRUTH_ODOMETRY) -> dict[str, Any]:
+def run_on_log(
+    path: str | Path,
+    params: LioParams | None = None,
+    out_dir: str | Path | None = None,
+    imu_topic: str = Topics.IMU,
+    lidar_topic: str = Topics.POINT_CLOUD,
+    truth_topic: str = Topics.TRUTH_ODOMETRY,
+) -> dict[str, Any]:
     """Runs :class:`LioEstimator` on the IMU and LiDAR messages of the log at ``path`` in log-time order and
     returns the figures (``odometry_min_m``, ``odometry_rmse_m``, ``odometry_max_m``, ``odometry_rot_rmse_deg``,
     ``lio_ms_per_scan_median``, ``lio_ms_per_scan_p99``, counts). With ``out_dir``: writes ``odometry.json``,
@@ -31,6 +37,7 @@ def run_on_log(path: str | Path, params: LioParams | None = None, out_dir: str |
     import dataclasses
 
     from cufund.logs.mcap_reader import read_mcap
+
     from .lio_estimator import LioEstimator
 
     params = params or LioParams()
@@ -52,8 +59,10 @@ def run_on_log(path: str | Path, params: LioParams | None = None, out_dir: str |
             outputs += est.feed(pending_clouds, [msg])
             pending_clouds = []
     if est is None or not outputs:
-        raise ValueError(f"{path}: no estimate: the log needs {truth_topic} (the pad pose), {imu_topic} for at least "
-                         f"the initialisation time and {lidar_topic}")
+        raise ValueError(
+            f"{path}: no estimate: the log needs {truth_topic} (the pad pose), {imu_topic} for at least "
+            f"the initialisation time and {lidar_topic}"
+        )
     t = np.array([o.t for o in outputs])
     p = np.array([o.p_W for o in outputs])
     q = np.array([o.q_WB for o in outputs])

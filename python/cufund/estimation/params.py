@@ -13,10 +13,31 @@ from cufund.sensors.imu import G0, ImuParams, imu_preset
 
 __all__ = ["LioParams"]
 
-_POSITIVE = ("init_duration_s", "init_max_gyro_dev", "init_max_accel_dev", "gravity", "scan_voxel", "map_voxel",
-             "map_insert_voxel", "map_max_distance", "plane_radius", "max_plane_rms", "max_residual", "robust_scale",
-             "range_sigma", "convergence", "refit_distance", "lag_s", "lidar_information_scale", "relinearize_threshold",
-             "bias_jump_deg", "bias_jump_m", "recovery_acc_rw", "recovery_gyro_rw", "health_max_lidar_gap_s")
+_POSITIVE = (
+    "init_duration_s",
+    "init_max_gyro_dev",
+    "init_max_accel_dev",
+    "gravity",
+    "scan_voxel",
+    "map_voxel",
+    "map_insert_voxel",
+    "map_max_distance",
+    "plane_radius",
+    "max_plane_rms",
+    "max_residual",
+    "robust_scale",
+    "range_sigma",
+    "convergence",
+    "refit_distance",
+    "lag_s",
+    "lidar_information_scale",
+    "relinearize_threshold",
+    "bias_jump_deg",
+    "bias_jump_m",
+    "recovery_acc_rw",
+    "recovery_gyro_rw",
+    "health_max_lidar_gap_s",
+)
 
 
 @dataclass(frozen=True)
@@ -125,14 +146,31 @@ class LioParams:
             raise ConfigError(f"LioParams.init_duration_s must be >= 1 [s], got {self.init_duration_s!r}")
         if self.robust not in ("none", "huber", "cauchy"):
             raise ConfigError(f"LioParams.robust must be 'none', 'huber' or 'cauchy', got {self.robust!r}")
-        for name, lo in (("map_points_per_voxel", 1), ("map_max_voxels", 1), ("neighbours", 3),
-                         ("max_iterations", 1), ("max_refits", 0), ("health_relock_frames", 1), ("smoother_iterations", 1), ("nthreads", 0)):
+        for name, lo in (
+            ("map_points_per_voxel", 1),
+            ("map_max_voxels", 1),
+            ("neighbours", 3),
+            ("max_iterations", 1),
+            ("max_refits", 0),
+            ("health_relock_frames", 1),
+            ("smoother_iterations", 1),
+            ("nthreads", 0),
+        ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
                 raise ConfigError(f"LioParams.{name} must be an integer >= {lo}, got {v!r}")
-        check_at_most(self, "LioParams", init_duration_s=3600.0, map_points_per_voxel=1000, map_max_voxels=10**8,
-                      neighbours=1000, max_iterations=1000, max_refits=100, smoother_iterations=100,
-                      health_relock_frames=1000)
+        check_at_most(
+            self,
+            "LioParams",
+            init_duration_s=3600.0,
+            map_points_per_voxel=1000,
+            map_max_voxels=10**8,
+            neighbours=1000,
+            max_iterations=1000,
+            max_refits=100,
+            smoother_iterations=100,
+            health_relock_frames=1000,
+        )
         p = np.asarray(self.p_WB0, dtype=float)
         q = np.asarray(self.q_WB0, dtype=float)
         if p.shape != (3,) or not np.all(np.isfinite(p)):

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cufund import _core
+
 from .params import LioParams
 
 __all__ = ["PlaneModel", "Registration", "register", "fit_planes", "plane_terms", "observable_split", "so3_exp"]
@@ -34,21 +35,44 @@ class PlaneModel:
     params: LioParams
 
 
-def fit_planes(model: PlaneModel, points_I: np.ndarray, R_WI: np.ndarray, p_W: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray]:
+def fit_planes(
+    model: PlaneModel, points_I: np.ndarray, R_WI: np.ndarray, p_W: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Correspondences: a plane from the map for each point placed by (R_WI, p_W)."""
     p = model.params
-    return model.map.fit_planes(points_I, R_WI, p_W, neighbours=p.neighbours, max_neighbour_distance=p.plane_radius,
-                                max_plane_rms=p.max_plane_rms, nthreads=p.nthreads)
+    return model.map.fit_planes(
+        points_I,
+        R_WI,
+        p_W,
+        neighbours=p.neighbours,
+        max_neighbour_distance=p.plane_radius,
+        max_plane_rms=p.max_plane_rms,
+        nthreads=p.nthreads,
+    )
 
 
-def plane_terms(model: PlaneModel, points_I: np.ndarray, R_WI: np.ndarray, p_W: np.ndarray,
-                planes: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
+def plane_terms(
+    model: PlaneModel,
+    points_I: np.ndarray,
+    R_WI: np.ndarray,
+    p_W: np.ndarray,
+    planes: tuple[np.ndarray, np.ndarray] | None = None,
+) -> dict:
     """Point-to-plane terms at (R_WI, p_W), against ``planes`` (from :func:`fit_planes`) or re-found ones."""
     p = model.params
     valid, pl = planes if planes is not None else fit_planes(model, points_I, R_WI, p_W)
-    return _core.odometry.plane_terms(points_I, pl, valid, R_WI, p_W, max_residual=p.max_residual, robust=p.robust,
-                                      robust_scale=p.robust_scale, sigma=p.range_sigma, nthreads=p.nthreads)
+    return _core.odometry.plane_terms(
+        points_I,
+        pl,
+        valid,
+        R_WI,
+        p_W,
+        max_residual=p.max_residual,
+        robust=p.robust,
+        robust_scale=p.robust_scale,
+        sigma=p.range_sigma,
+        nthreads=p.nthreads,
+    )
 
 
 def observable_split(H: np.ndarray, inliers: int, params: LioParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -117,5 +141,15 @@ def register(model: PlaneModel, points_I: np.ndarray, R0: np.ndarray, p0: np.nda
     r = terms["residual"][terms["valid"].astype(bool)]
     r = r[np.abs(r) <= prm.max_residual]
     sigma = float(1.4826 * np.median(np.abs(r))) if len(r) else 0.0
-    return Registration(R, p, terms["H"], it, int(terms["inliers"]),
-                        evals * prm.range_sigma**2 / max(int(terms["inliers"]), 1), deg, converged, planes, sigma)
+    return Registration(
+        R,
+        p,
+        terms["H"],
+        it,
+        int(terms["inliers"]),
+        evals * prm.range_sigma**2 / max(int(terms["inliers"]), 1),
+        deg,
+        converged,
+        planes,
+        sigma,
+    )

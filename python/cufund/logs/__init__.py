@@ -32,5 +32,14 @@ from .mcap_reader import LogRecord, McapReadError, TruncatedLogWarning, log_meta
 from .mcap_writer import McapLogger
 from .message_classes import register_message_class
 
-__all__ = ["LogPlayer", "LogRecord", "McapLogger", "McapReadError", "TruncatedLogWarning", "log_metadata",
-           "log_topics", "read_mcap", "register_message_class"]
+__all__ = [
+    "LogPlayer",
+    "LogRecord",
+    "McapLogger",
+    "McapReadError",
+    "TruncatedLogWarning",
+    "log_metadata",
+    "log_topics",
+    "read_mcap",
+    "register_message_class",
+]

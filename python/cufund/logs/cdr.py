@@ -25,11 +25,23 @@ import numpy as np
 __all__ = ["CdrField", "CdrLayout", "MessageLayout", "infer_message_layout", "stamp_sec_nsec"]
 
 CDR_LE_HEADER = b"\x00\x01\x00\x00"
-_ROS_TYPES = {"f8": "float64", "f4": "float32", "i8": "int64", "i4": "int32", "i2": "int16", "i1": "int8",
-              "u8": "uint64", "u4": "uint32", "u2": "uint16", "u1": "uint8", "b1": "bool"}
+_ROS_TYPES = {
+    "f8": "float64",
+    "f4": "float32",
+    "i8": "int64",
+    "i4": "int32",
+    "i2": "int16",
+    "i1": "int8",
+    "u8": "uint64",
+    "u4": "uint32",
+    "u2": "uint16",
+    "u1": "uint8",
+    "b1": "bool",
+}
 
 OPTIONAL_ARRAY_SHAPES: dict[tuple[str, str], tuple[int, ...]] = {
-    ("Odometry", "a_W"): (3,), ("Odometry", "alpha_B"): (3,),
+    ("Odometry", "a_W"): (3,),
+    ("Odometry", "alpha_B"): (3,),
 }
 """Shapes of optional array fields of cufund messages, so that a topic whose first message has ``None`` there
 still gets a fixed layout."""
@@ -135,8 +147,9 @@ class MessageLayout:
         self._columns = [itemgetter(i) for i in range(len(columns))]
         self._all = _getter([c.attr for c in columns])
 
-    def row_spec(self, first: Any) -> tuple[bytes, list[tuple[str, str, int]], list[tuple[str, np.dtype, int, int]],
-                                             list[str]]:
+    def row_spec(
+        self, first: Any
+    ) -> tuple[bytes, list[tuple[str, str, int]], list[tuple[str, np.dtype, int, int]], list[str]]:
         """How :class:`cufund._core.logs.LogCore` packs a message like ``first`` (the same optional arrays present)
         straight into a CDR row: (template row, scalars (attribute, struct code, offset), arrays (attribute, dtype,
         bytes, offset), attributes that must be None). Any other message takes :meth:`row`."""
@@ -178,11 +191,15 @@ class MessageLayout:
                 raise ValueError(f"a CDR layout column must be [attr, name, code, shape, optional], got {item!r}")
             a, r, code, shape, opt = item
             if a not in names or not isinstance(r, str) or not r.isidentifier() or code not in _ROS_TYPES:
-                raise ValueError(f"a CDR layout column of {message_cls.__name__} names an unknown field or type: "
-                                 f"{item!r}")
-            if not (isinstance(shape, list) and len(shape) <= 4 and all(
-                    isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 2**24 for n in shape)
-                    and math.prod(shape) <= 2**24):
+                raise ValueError(
+                    f"a CDR layout column of {message_cls.__name__} names an unknown field or type: {item!r}"
+                )
+            if not (
+                isinstance(shape, list)
+                and len(shape) <= 4
+                and all(isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 2**24 for n in shape)
+                and math.prod(shape) <= 2**24
+            ):
                 raise ValueError(f"a CDR layout column of {message_cls.__name__} has a bad shape: {item!r}")
             columns.append(_Column(a, r, code, tuple(shape), bool(opt)))
         if len({c.ros_name for c in columns}) != len(columns):
@@ -193,7 +210,7 @@ class MessageLayout:
         """The general path: rows from every field value of each message (validates shapes and dtypes)."""
         n = len(values_of)
         rows = self.layout.empty(n)
-        for col, get in zip(self.columns, self._columns):
+        for col, get in zip(self.columns, self._columns, strict=True):
             values = list(map(get, values_of))
             if not col.shape:
                 rows[col.ros_name] = np.array(values, dtype=col.code)
@@ -217,20 +234,23 @@ class MessageLayout:
         try:
             block = np.array(values)
         except ValueError as exc:  # ragged
-            raise ValueError(f"topic {topic!r}: field {col.attr!r} changed shape within the log "
-                             f"(expected {col.shape})") from exc
+            raise ValueError(
+                f"topic {topic!r}: field {col.attr!r} changed shape within the log (expected {col.shape})"
+            ) from exc
         if block.shape[1:] != col.shape:
-            raise ValueError(f"topic {topic!r}: field {col.attr!r} has shape {block.shape[1:]}, "
-                             f"the topic's first message had {col.shape}")
+            raise ValueError(
+                f"topic {topic!r}: field {col.attr!r} has shape {block.shape[1:]}, "
+                f"the topic's first message had {col.shape}"
+            )
         if not np.can_cast(block.dtype, dtype, casting="same_kind"):
-            raise ValueError(f"topic {topic!r}: field {col.attr!r} has dtype {block.dtype}, the topic's first "
-                             f"message had {dtype}")
+            raise ValueError(
+                f"topic {topic!r}: field {col.attr!r} has dtype {block.dtype}, the topic's first message had {dtype}"
+            )
         return block.reshape(n, -1)
 
     def decode(self, data: bytes | memoryview) -> Any:
         if len(data) != self.layout.size:
-            raise ValueError(f"a {self.cls.__name__} record has {len(data)} bytes, the schema needs "
-                             f"{self.layout.size}")
+            raise ValueError(f"a {self.cls.__name__} record has {len(data)} bytes, the schema needs {self.layout.size}")
         row = np.frombuffer(data, self.layout.dtype, count=1)[0]
         kwargs: dict[str, Any] = {}
         for col in self.columns:
@@ -277,7 +297,7 @@ def infer_message_layout(cls: type, first: Any) -> MessageLayout | None:
         return None  # variable_length: a message class whose array sizes change from message to message
     try:
         hints = typing.get_type_hints(cls)
-    except Exception:  # noqa: BLE001 - unresolvable annotations: not a fixed layout
+    except Exception:
         return None
     columns = []
     for field in dataclasses.fields(cls):

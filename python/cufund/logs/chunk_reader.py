@@ -64,17 +64,19 @@ def _chunk_messages(stream: IO[bytes], index: Any, wanted: set[int], order: int)
     if opcode != _CHUNK:
         raise ChunkError(f"no chunk at byte {index.chunk_start_offset} (opcode {opcode:#x})")
     if size > MAX_CHUNK_BYTES:
-        raise ChunkError(f"the chunk at byte {index.chunk_start_offset} claims {size} bytes uncompressed, more "
-                         f"than {MAX_CHUNK_BYTES}")
+        raise ChunkError(
+            f"the chunk at byte {index.chunk_start_offset} claims {size} bytes uncompressed, more "
+            f"than {MAX_CHUNK_BYTES}"
+        )
     at = _CHUNK_HEADER.size
-    compression = record[at:at + name_length].decode()
+    compression = record[at : at + name_length].decode()
     (data_length,) = struct.unpack_from("<Q", record, at + name_length)
     at += name_length + 8
     try:
-        raw = _decompress(compression, record[at:at + data_length], size)
+        raw = _decompress(compression, record[at : at + data_length], size)
     except ChunkError:
         raise
-    except Exception as exc:  # noqa: BLE001 - every codec has its own error types
+    except Exception as exc:
         raise ChunkError(f"the chunk at byte {index.chunk_start_offset} does not decompress: {exc}") from exc
     if len(raw) != size or (crc and zlib.crc32(raw) != crc):
         raise ChunkError(f"the chunk at byte {index.chunk_start_offset} fails its CRC or size check")
@@ -90,11 +92,12 @@ def _chunk_messages(stream: IO[bytes], index: Any, wanted: set[int], order: int)
                 raise ChunkError(f"a record overruns the chunk at byte {index.chunk_start_offset}")
             if opcode == _MESSAGE:
                 if length < _MESSAGE_HEADER.size:
-                    raise ChunkError(f"a message record of {length} bytes in the chunk at byte "
-                                     f"{index.chunk_start_offset}")
+                    raise ChunkError(
+                        f"a message record of {length} bytes in the chunk at byte {index.chunk_start_offset}"
+                    )
                 channel, sequence, log, publish = _MESSAGE_HEADER.unpack_from(raw, body)
                 if channel in wanted:
-                    out.append((log, sequence, order, body, channel, publish, view[body + 22:at]))
+                    out.append((log, sequence, order, body, channel, publish, view[body + 22 : at]))
     except struct.error as exc:
         raise ChunkError(f"a malformed record in the chunk at byte {index.chunk_start_offset}: {exc}") from exc
     return out
@@ -103,8 +106,10 @@ def _chunk_messages(stream: IO[bytes], index: Any, wanted: set[int], order: int)
 def iter_chunk_messages(stream: IO[bytes], chunk_indexes: list[Any], wanted: set[int]) -> Iterator[tuple[Any, ...]]:
     """(log time, sequence, ..., channel id, publish time, data) of every wanted message, in log-time order, ties
     by sequence number then position in the file."""
-    chunks = sorted((c for c in chunk_indexes if wanted & set(c.message_index_offsets)),
-                    key=lambda c: (c.message_start_time, c.chunk_start_offset))
+    chunks = sorted(
+        (c for c in chunk_indexes if wanted & set(c.message_index_offsets)),
+        key=lambda c: (c.message_start_time, c.chunk_start_offset),
+    )
     heap: list[tuple[Any, ...]] = []
     next_chunk = 0
     while True:

@@ -26,7 +26,7 @@ import numpy as np
 
 from . import schemas
 from .cdr import CdrLayout, MessageLayout, infer_message_layout, stamp_sec_nsec
-from .jsonvalue import numeric_dtype, class_path, decode_fields, encode_fields, encode_value
+from .jsonvalue import class_path, decode_fields, encode_fields, encode_value, numeric_dtype
 from .message_classes import message_class, note_logged
 
 __all__ = ["Codec", "View", "codec_for", "codec_from_channel"]
@@ -55,6 +55,7 @@ class View:
 
     def spec(self, source: CdrLayout) -> tuple[bytes, list[tuple[int, int, int]], list[tuple[int, int, int]]]:
         """(template row, byte copies (dst, src, bytes), stamps (sec, nsec, src t offsets)) against ``source``."""
+
         def at(layout: CdrLayout, field: str, element: int) -> tuple[int, int]:
             fields = layout.dtype.fields
             assert fields is not None  # a structured dtype
@@ -69,8 +70,10 @@ class View:
             if item != src_item:
                 raise ValueError(f"view {self.suffix}: {dst_field} and {src_field} have different element sizes")
             copies.append((dst, src, count * item))
-        stamps = [(at(self.layout, sec, 0)[0], at(self.layout, nsec, 0)[0], at(source, t, 0)[0])
-                  for sec, nsec, t in self.stamps]
+        stamps = [
+            (at(self.layout, sec, 0)[0], at(self.layout, nsec, 0)[0], at(source, t, 0)[0])
+            for sec, nsec, t in self.stamps
+        ]
         return self.layout.template.tobytes(), copies, stamps
 
 
@@ -121,8 +124,12 @@ class MessageAccumulator:
 
     def drain(self, topic: str) -> tuple[list[bytes], list[int], list[int], list[int]]:
         items, self.items = self.items, []
-        return (self.codec.encode([i[0] for i in items], topic),  # type: ignore[return-value]
-                [i[1] for i in items], [i[2] for i in items], [i[3] for i in items])
+        return (
+            self.codec.encode([i[0] for i in items], topic),  # type: ignore[return-value]
+            [i[1] for i in items],
+            [i[2] for i in items],
+            [i[3] for i in items],
+        )
 
 
 class CdrCodec(Codec):
@@ -142,8 +149,11 @@ class CdrCodec(Codec):
         return {**super().metadata(), "cufund.layout": json.dumps(self.layout.describe())}
 
     def encode(self, messages: list[Any], topic: str) -> np.ndarray:
-        return self.layout._rows([self.layout._all(m) for m in messages], topic).view(np.uint8).reshape(
-            len(messages), self.fixed_size)
+        return (
+            self.layout._rows([self.layout._all(m) for m in messages], topic)
+            .view(np.uint8)
+            .reshape(len(messages), self.fixed_size)
+        )
 
     def decode(self, data: bytes | memoryview) -> Any:
         return self.layout.decode(data)
@@ -154,11 +164,15 @@ def _odometry_views(topic: str) -> tuple[View, ...]:
 
     stamp = (("timestamp.sec", "timestamp.nanosec", "t"),)
     quaternion = (("{0}", 0, "q_wb", 1, 3), ("{0}", 3, "q_wb", 0, 1))  # [w, x, y, z] -> Foxglove's x, y, z, w
-    pose = (("pose.position", 0, "p_w", 0, 3),
-            *((d.format("pose.orientation"), a, b, c, e) for d, a, b, c, e in quaternion))
+    pose = (
+        ("pose.position", 0, "p_w", 0, 3),
+        *((d.format("pose.orientation"), a, b, c, e) for d, a, b, c, e in quaternion),
+    )
     tf = (("translation", 0, "p_w", 0, 3), *((d.format("rotation"), a, b, c, e) for d, a, b, c, e in quaternion))
-    return (View("/pose", *schemas.POSE_IN_FRAME, schemas.pose_in_frame_layout(WORLD_FRAME), pose, stamp),
-            View("/tf", *schemas.FRAME_TRANSFORM, schemas.frame_transform_layout(WORLD_FRAME, child), tf, stamp))
+    return (
+        View("/pose", *schemas.POSE_IN_FRAME, schemas.pose_in_frame_layout(WORLD_FRAME), pose, stamp),
+        View("/tf", *schemas.FRAME_TRANSFORM, schemas.frame_transform_layout(WORLD_FRAME, child), tf, stamp),
+    )
 
 
 class JsonCodec(Codec):
@@ -187,15 +201,25 @@ def _dumps(obj: Any) -> bytes:
 def _json_schema(cls: type) -> dict[str, Any]:
     try:
         hints = typing.get_type_hints(cls)
-    except Exception:  # noqa: BLE001 - unresolvable annotations: untyped properties
+    except Exception:
         hints = {}
-    kinds: dict[Any, dict[str, Any]] = {float: {"type": ["number", "object"]}, int: {"type": "integer"}, bool: {"type": "boolean"},
-             str: {"type": "string"}}
-    properties = {f.name: {**kinds.get(hints.get(f.name, object), {}), "description": f"{cls.__name__}.{f.name}"}
-                  for f in dataclasses.fields(cls)}
-    return {"title": f"cufund.{cls.__name__}", "type": "object", "properties": properties,
-            "description": "cufund message: non-finite floats, arrays, enums and nested dataclasses are objects "
-                           "tagged $float, $ndarray, $enum, $dataclass"}
+    kinds: dict[Any, dict[str, Any]] = {
+        float: {"type": ["number", "object"]},
+        int: {"type": "integer"},
+        bool: {"type": "boolean"},
+        str: {"type": "string"},
+    }
+    properties = {
+        f.name: {**kinds.get(hints.get(f.name, object), {}), "description": f"{cls.__name__}.{f.name}"}
+        for f in dataclasses.fields(cls)
+    }
+    return {
+        "title": f"cufund.{cls.__name__}",
+        "type": "object",
+        "properties": properties,
+        "description": "cufund message: non-finite floats, arrays, enums and nested dataclasses are objects "
+        "tagged $float, $ndarray, $enum, $dataclass",
+    }
 
 
 class _FoxgloveJsonCodec(Codec):
@@ -250,16 +274,16 @@ class PointCloudCodec(_FoxgloveJsonCodec):
     def _encode_one(self, message: Any, topic: str) -> bytes:
         xyz = np.asarray(getattr(message, self.xyz))
         if xyz.ndim != 2 or xyz.shape[1] != 3:
-            raise ValueError(f"topic {topic!r}: {self.cls.__name__}.{self.xyz} must have shape (N, 3), "
-                             f"got {xyz.shape}")
+            raise ValueError(f"topic {topic!r}: {self.cls.__name__}.{self.xyz} must have shape (N, 3), got {xyz.shape}")
         columns = [("x", xyz[:, 0]), ("y", xyz[:, 1]), ("z", xyz[:, 2])]
         columns += [(name, np.asarray(getattr(message, attr))) for attr, name in self.per_point]
         dtypes = {name: col.dtype.str for name, col in columns}
         packed = []
         for name, col in columns:
             if col.shape != (len(xyz),):
-                raise ValueError(f"topic {topic!r}: per-point field {name!r} has shape {col.shape}, "
-                                 f"expected ({len(xyz)},)")
+                raise ValueError(
+                    f"topic {topic!r}: per-point field {name!r} has shape {col.shape}, expected ({len(xyz)},)"
+                )
             packed.append((name, _packable(col)))
         dtype = np.dtype([(name, col.dtype.newbyteorder("<")) for name, col in packed])
         data = np.empty(len(xyz), dtype)
@@ -269,20 +293,30 @@ class PointCloudCodec(_FoxgloveJsonCodec):
         for name, col in packed:
             fields.append({"name": name, "offset": offset, "type": schemas.NUMERIC_TYPES[col.dtype.name]})
             offset += col.dtype.itemsize
-        obj = {**self._header(message),
-               "pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
-                        "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
-               "point_stride": dtype.itemsize, "fields": fields,
-               "data": _SPLICE,
-               "cufund": self._exact(message, topic, dtypes=dtypes)}
+        obj = {
+            **self._header(message),
+            "pose": {
+                "position": {"x": 0.0, "y": 0.0, "z": 0.0},
+                "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+            },
+            "point_stride": dtype.itemsize,
+            "fields": fields,
+            "data": _SPLICE,
+            "cufund": self._exact(message, topic, dtypes=dtypes),
+        }
         # base64 needs no JSON escaping: spliced in as bytes (the same file), not scanned by json.dumps (~4 ms/MB)
         head, tail = _dumps(obj).split(_SPLICE_JSON, 1)
         return b"".join((head, b'"', base64.b64encode(data.tobytes()), b'"', tail))
 
     def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
-        dtype = np.dtype({"names": [f["name"] for f in obj["fields"]],
-                          "formats": [_NUMPY_OF_TYPE[f["type"]] for f in obj["fields"]],
-                          "offsets": [f["offset"] for f in obj["fields"]], "itemsize": obj["point_stride"]})
+        dtype = np.dtype(
+            {
+                "names": [f["name"] for f in obj["fields"]],
+                "formats": [_NUMPY_OF_TYPE[f["type"]] for f in obj["fields"]],
+                "offsets": [f["offset"] for f in obj["fields"]],
+                "itemsize": obj["point_stride"],
+            }
+        )
         if not 0 < dtype.itemsize <= 4096:
             raise ValueError(f"{self.where}: point_stride {obj['point_stride']!r} is out of range")
         data = np.frombuffer(base64.b64decode(obj["data"], validate=True), dtype)
@@ -316,8 +350,13 @@ def _packable(col: np.ndarray) -> np.ndarray:
     raise ValueError(f"cannot pack a per-point field of dtype {col.dtype} exactly")
 
 
-_IMAGE_ENCODINGS = {("float32", 2): "32FC1", ("uint8", 2): "mono8", ("uint16", 2): "16UC1",
-                    ("uint8", 3): "rgb8", ("uint8", 4): "rgba8"}
+_IMAGE_ENCODINGS = {
+    ("float32", 2): "32FC1",
+    ("uint8", 2): "mono8",
+    ("uint16", 2): "16UC1",
+    ("uint8", 3): "rgb8",
+    ("uint8", 4): "rgba8",
+}
 
 
 class RawImageCodec(_FoxgloveJsonCodec):
@@ -333,16 +372,22 @@ class RawImageCodec(_FoxgloveJsonCodec):
                 raise ValueError(f"topic {topic!r}: an image must be (H, W) or (H, W, C), got {image.shape}")
             channels = image.shape[2] if image.ndim == 3 else 1
             encoding = _IMAGE_ENCODINGS.get((image.dtype.name, channels if image.ndim == 3 else 2), "")
-            obj = {**self._header(m), "width": image.shape[1], "height": image.shape[0], "encoding": encoding,
-                   "step": image.shape[1] * channels * image.dtype.itemsize,
-                   "data": base64.b64encode(image.tobytes()).decode(),
-                   "cufund": self._exact(m, topic, dtype=image.dtype.str, shape=list(image.shape))}
+            obj = {
+                **self._header(m),
+                "width": image.shape[1],
+                "height": image.shape[0],
+                "encoding": encoding,
+                "step": image.shape[1] * channels * image.dtype.itemsize,
+                "data": base64.b64encode(image.tobytes()).decode(),
+                "cufund": self._exact(m, topic, dtype=image.dtype.str, shape=list(image.shape)),
+            }
             out.append(_dumps(obj))
         return out
 
     def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
-        image = np.frombuffer(base64.b64decode(obj["data"], validate=True),
-                              numeric_dtype(exact["dtype"], self.where)).reshape(exact["shape"])
+        image = np.frombuffer(
+            base64.b64decode(obj["data"], validate=True), numeric_dtype(exact["dtype"], self.where)
+        ).reshape(exact["shape"])
         return {"image": image.copy()}
 
 
@@ -355,11 +400,16 @@ class LocationFixCodec(_FoxgloveJsonCodec):
             position = [m.latitude_deg, m.longitude_deg, m.altitude_m]
             known = all(np.isfinite([*position, m.eph, m.epv]))
             var = [m.eph**2, m.eph**2, m.epv**2] if known else [0.0, 0.0, 0.0]
-            obj = {**self._header(m), **{k: (float(v) if np.isfinite(v) else None)
-                                         for k, v in zip(("latitude", "longitude", "altitude"), position)},
-                   "position_covariance": [var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2]],
-                   "position_covariance_type": 2 if known else 0,
-                   "cufund": self._exact(m, topic)}
+            obj = {
+                **self._header(m),
+                **{
+                    k: (float(v) if np.isfinite(v) else None)
+                    for k, v in zip(("latitude", "longitude", "altitude"), position, strict=True)
+                },
+                "position_covariance": [var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2]],
+                "position_covariance_type": 2 if known else 0,
+                "cufund": self._exact(m, topic),
+            }
             out.append(_dumps(obj))
         return out
 
@@ -368,8 +418,12 @@ class LocationFixCodec(_FoxgloveJsonCodec):
 
 
 def _lidar_codec(cls: type) -> PointCloudCodec:
-    return PointCloudCodec(cls, "lidar", "points_L", (("dt", "dt"), ("ranges", "range"), ("intensity", "intensity"),
-                                                      ("channel", "channel")))
+    return PointCloudCodec(
+        cls,
+        "lidar",
+        "points_L",
+        (("dt", "dt"), ("ranges", "range"), ("intensity", "intensity"), ("channel", "channel")),
+    )
 
 
 def _lidar_truth_codec(cls: type) -> PointCloudCodec:
@@ -388,8 +442,11 @@ def codec_for(topic: str, message: Any) -> Codec:
     note_logged(cls)  # a class this process logs may be read back
     cufund = cls.__module__ == "cufund.core.messages"
     name = cls.__name__
-    if cufund and name == "PointCloud" and _has_fields(
-            cls, ("t", "dt", "points_L", "ranges", "intensity", "channel", "frame")):
+    if (
+        cufund
+        and name == "PointCloud"
+        and _has_fields(cls, ("t", "dt", "points_L", "ranges", "intensity", "channel", "frame"))
+    ):
         return _lidar_codec(cls)
     if cufund and name == "LidarTruth" and _has_fields(cls, ("t", "points_W", "object_ids")):
         return _lidar_truth_codec(cls)
@@ -432,4 +489,3 @@ def codec_from_channel(metadata: dict[str, str], where: str = "the channel") -> 
         raise ValueError(f"{where}: {exc}") from None
     codec.where = where
     return codec
-

@@ -49,14 +49,15 @@ def encode_value(value: Any, where: str) -> Any:
         return [encode_value(v, where) for v in value]
     if isinstance(value, dict) and all(isinstance(k, str) for k in value):
         return {"$dict": {k: encode_value(v, where) for k, v in value.items()}}
-    raise TypeError(f"{where}: cannot log a value of type {type(value).__name__} (numbers, strings, enums, numpy "
-                    "arrays, lists, tuples, str-keyed dicts and dataclasses of those can be logged)")
+    raise TypeError(
+        f"{where}: cannot log a value of type {type(value).__name__} (numbers, strings, enums, numpy "
+        "arrays, lists, tuples, str-keyed dicts and dataclasses of those can be logged)"
+    )
 
 
 def encode_fields(message: Any, where: str) -> dict[str, Any]:
     """Every dataclass field of ``message``, encoded."""
-    return {f.name: encode_value(getattr(message, f.name), f"{where}.{f.name}")
-            for f in dataclasses.fields(message)}
+    return {f.name: encode_value(getattr(message, f.name), f"{where}.{f.name}") for f in dataclasses.fields(message)}
 
 
 def numeric_dtype(text: Any, where: str) -> np.dtype:
@@ -73,8 +74,11 @@ def numeric_dtype(text: Any, where: str) -> np.dtype:
 
 
 def _shape(value: Any, where: str) -> list[int]:
-    if not (isinstance(value, list) and len(value) <= 32
-            and all(isinstance(n, int) and not isinstance(n, bool) and 0 <= n < 2**40 for n in value)):
+    if not (
+        isinstance(value, list)
+        and len(value) <= 32
+        and all(isinstance(n, int) and not isinstance(n, bool) and 0 <= n < 2**40 for n in value)
+    ):
         raise ValueError(f"{where}: an array shape must be a list of non-negative ints, got {value!r}")
     return value
 

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Iterable, Iterator
 
 from cufund.core.bus import BusView
 from cufund.core.components import Component
 from cufund.core.topics import Topic, is_truth
+
 from .mcap_reader import LogRecord, log_topics, read_mcap
 
 __all__ = ["LogPlayer"]
@@ -26,7 +27,9 @@ class LogPlayer(Component):
 
     name = "log_player"
 
-    def __init__(self, path: str | os.PathLike[str], topics: Iterable[str] | None = None, window_s: float = 0.5) -> None:
+    def __init__(
+        self, path: str | os.PathLike[str], topics: Iterable[str] | None = None, window_s: float = 0.5
+    ) -> None:
         self.path = Path(path)
         logged = log_topics(self.path)  # raises McapReadError for a damaged file
         if topics is None:
@@ -81,5 +84,3 @@ class LogPlayer(Component):
         """The log time of the first message played [s] (start the simulator there)."""
         first = next(read_mcap(self.path, topics=[str(t) for t in self.topics]), None)
         return 0.0 if first is None else first.log_time_ns / 1e9
-
-

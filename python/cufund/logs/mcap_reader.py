@@ -52,9 +52,23 @@ class TruncatedLogWarning(UserWarning):
     """The log has no summary (its run was killed): it is read up to its last complete record."""
 
 
-_ERRORS = (McapError, OSError, EOFError, ValueError, KeyError, IndexError, UnicodeDecodeError, struct.error,
-           zstandard.ZstdError, RuntimeError, TypeError, AttributeError, OverflowError, RecursionError,
-           MemoryError)  # lz4 reports corrupt frames as RuntimeError; TypeError: a message without its fields
+_ERRORS = (
+    McapError,
+    OSError,
+    EOFError,
+    ValueError,
+    KeyError,
+    IndexError,
+    UnicodeDecodeError,
+    struct.error,
+    zstandard.ZstdError,
+    RuntimeError,
+    TypeError,
+    AttributeError,
+    OverflowError,
+    RecursionError,
+    MemoryError,
+)  # lz4 reports corrupt frames as RuntimeError; TypeError: a message without its fields
 
 _warned: set[tuple[str, int, int]] = set()
 
@@ -66,9 +80,13 @@ def _warn_truncated(path: Path, stream: Any, recovered: Recovered) -> None:
     if key in _warned:
         return
     _warned.add(key)
-    warnings.warn(TruncatedLogWarning(
-        f"{path} is truncated (no summary: was its run killed?): reading its {len(recovered.chunks)} complete "
-        f"chunks, up to byte {recovered.end} of {st.st_size}"), stacklevel=4)
+    warnings.warn(
+        TruncatedLogWarning(
+            f"{path} is truncated (no summary: was its run killed?): reading its {len(recovered.chunks)} complete "
+            f"chunks, up to byte {recovered.end} of {st.st_size}"
+        ),
+        stacklevel=4,
+    )
 
 
 def _summary_of(path: Path, stream: Any) -> tuple[Any, Any]:
@@ -95,7 +113,7 @@ def _summary_of(path: Path, stream: Any) -> tuple[Any, Any]:
 
 def _open(path: Path) -> tuple[Any, list[Any], dict[int, tuple[str, Codec]]]:
     try:
-        stream = open(path, "rb")  # noqa: SIM115 - the generator closes it
+        stream = open(path, "rb")
     except OSError as exc:
         raise McapReadError(f"cannot open log {str(path)!r}: {exc}") from exc
     try:

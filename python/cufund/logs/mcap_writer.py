@@ -26,10 +26,21 @@ from typing import Any
 import numpy as np
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
-from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata, MetadataIndex, Schema, Statistics,
-                          SummaryOffset)
+from mcap.records import (
+    Channel,
+    ChunkIndex,
+    DataEnd,
+    Footer,
+    Header,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
+    SummaryOffset,
+)
 
 from cufund._core.logs import LogCore
+
 from .codecs import CdrCodec, Codec, codec_for
 
 __all__ = ["MAGIC", "McapLogger"]
@@ -59,17 +70,25 @@ class McapLogger:
     context manager or call :meth:`close`; a file whose logger was never closed has no summary (the ``mcap``
     tools can recover its complete chunks)."""
 
-    def __init__(self, path: str | os.PathLike[str], metadata: dict[str, str] | None = None, *,
-                 block_messages: int = 1024, chunk_bytes: int = 1 << 20, compression: str = "lz4",
-                 background: bool = True):
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        metadata: dict[str, str] | None = None,
+        *,
+        block_messages: int = 1024,
+        chunk_bytes: int = 1 << 20,
+        compression: str = "lz4",
+        background: bool = True,
+    ):
         if compression not in _COMPRESSIONS:
             raise ValueError(f"compression must be one of {_COMPRESSIONS}, got {compression!r}")
         if not (isinstance(block_messages, int) and block_messages >= 1):
             raise ValueError(f"block_messages must be a positive int, got {block_messages!r}")
         if not (isinstance(chunk_bytes, int) and chunk_bytes >= 1):
             raise ValueError(f"chunk_bytes must be a positive int, got {chunk_bytes!r}")
-        if metadata is not None and not (isinstance(metadata, dict) and all(
-                isinstance(k, str) and isinstance(v, str) for k, v in metadata.items())):
+        if metadata is not None and not (
+            isinstance(metadata, dict) and all(isinstance(k, str) and isinstance(v, str) for k, v in metadata.items())
+        ):
             raise TypeError("metadata must be a dict of str to str")
         self.path = Path(path)
         self._block = block_messages
@@ -133,12 +152,27 @@ class McapLogger:
         if not isinstance(topic, str) or not topic.startswith("/"):
             raise ValueError(f"topic must be an absolute name like '/sensors/imu', got {topic!r}")
         codec = codec_for(topic, message)
-        channels = [self._channel(str(topic), codec.schema_name, codec.schema_encoding, codec.schema_data,
-                                  codec.message_encoding, codec.metadata())]
+        channels = [
+            self._channel(
+                str(topic),
+                codec.schema_name,
+                codec.schema_encoding,
+                codec.schema_data,
+                codec.message_encoding,
+                codec.metadata(),
+            )
+        ]
         for view in codec.views:
-            channels.append(self._channel(f"{topic}{view.suffix}", view.schema_name, view.schema_encoding,
-                                          view.schema_text.encode(), view.message_encoding,
-                                          {"cufund.view_of": str(topic)}))
+            channels.append(
+                self._channel(
+                    f"{topic}{view.suffix}",
+                    view.schema_name,
+                    view.schema_encoding,
+                    view.schema_text.encode(),
+                    view.message_encoding,
+                    {"cufund.view_of": str(topic)},
+                )
+            )
         if codec.fixed_size:
             size = codec.fixed_size + sum(view.layout.size for view in codec.views)
         else:
@@ -156,19 +190,32 @@ class McapLogger:
         assert isinstance(codec, CdrCodec)
         layout, name = codec.layout, entry.topic
         template, scalars, arrays, absent = layout.row_spec(first)
-        views = [(channel, *view.spec(layout.layout)) for channel, view in zip(entry.channels[1:], codec.views)]
+        views = [
+            (channel, *view.spec(layout.layout)) for channel, view in zip(entry.channels[1:], codec.views, strict=True)
+        ]
 
         def slow(message: Any, log_time_ns: Any, publish_time_ns: Any) -> tuple[bytes, int, int]:
             if message.__class__ is not entry.cls:
                 raise TypeError(_wrong_type(entry, message))
-            return (layout.row(message, name), _time(log_time_ns, "log_time_ns", name),
-                    _time(publish_time_ns, "publish_time_ns", name))
+            return (
+                layout.row(message, name),
+                _time(log_time_ns, "log_time_ns", name),
+                _time(publish_time_ns, "publish_time_ns", name),
+            )
 
-        return self._core.add_fixed_topic(topic, entry.cls, entry.channels[0], template, scalars, arrays, absent,
-                                          views, entry.limit, slow)
+        return self._core.add_fixed_topic(
+            topic, entry.cls, entry.channels[0], template, scalars, arrays, absent, views, entry.limit, slow
+        )
 
-    def _channel(self, topic: str, schema_name: str, schema_encoding: str, schema_data: bytes,
-                 message_encoding: str, metadata: dict[str, str]) -> int:
+    def _channel(
+        self,
+        topic: str,
+        schema_name: str,
+        schema_encoding: str,
+        schema_data: bytes,
+        message_encoding: str,
+        metadata: dict[str, str],
+    ) -> int:
         key = (schema_name, schema_encoding, schema_data)
         schema_id = self._schema_ids.get(key)
         if schema_id is None:
@@ -176,8 +223,13 @@ class McapLogger:
             schema = Schema(id=schema_id, data=schema_data, encoding=schema_encoding, name=schema_name)
             self._schemas.append(schema)
             self._core.write_records(self._record_bytes(schema))
-        channel = Channel(id=len(self._channels) + 1, topic=topic, message_encoding=message_encoding,
-                          metadata=metadata, schema_id=schema_id)
+        channel = Channel(
+            id=len(self._channels) + 1,
+            topic=topic,
+            message_encoding=message_encoding,
+            metadata=metadata,
+            schema_id=schema_id,
+        )
         self._channels.append(channel)
         self._core.write_records(self._record_bytes(channel))
         return channel.id
@@ -218,33 +270,58 @@ class McapLogger:
         counts = {c.id: 0 for c in self._channels}
         counts.update(self._core.message_counts())
         start, end = self._core.time_range() or (0, 0)
-        chunk_indexes = [ChunkIndex(message_start_time=a, message_end_time=b, chunk_start_offset=offset,
-                                    chunk_length=length, message_index_offsets=dict(indexes),
-                                    message_index_length=index_length, compression=self._compression,
-                                    compressed_size=compressed, uncompressed_size=uncompressed)
-                         for a, b, offset, length, indexes, index_length, compressed, uncompressed
-                         in self._core.chunks()]
+        chunk_indexes = [
+            ChunkIndex(
+                message_start_time=a,
+                message_end_time=b,
+                chunk_start_offset=offset,
+                chunk_length=length,
+                message_index_offsets=dict(indexes),
+                message_index_length=index_length,
+                compression=self._compression,
+                compressed_size=compressed,
+                uncompressed_size=uncompressed,
+            )
+            for a, b, offset, length, indexes, index_length, compressed, uncompressed in self._core.chunks()
+        ]
         statistics = Statistics(
-            message_count=sum(counts.values()), schema_count=len(self._schemas),
-            channel_count=len(self._channels), attachment_count=0, metadata_count=len(self._metadata_indexes),
-            chunk_count=len(chunk_indexes), message_start_time=start, message_end_time=end,
-            channel_message_counts=counts)
-        groups: list[tuple[Opcode, Any]] = [(Opcode.SCHEMA, self._schemas), (Opcode.CHANNEL, self._channels), (Opcode.STATISTICS, [statistics]),
-                  (Opcode.CHUNK_INDEX, chunk_indexes), (Opcode.METADATA_INDEX, self._metadata_indexes)]
+            message_count=sum(counts.values()),
+            schema_count=len(self._schemas),
+            channel_count=len(self._channels),
+            attachment_count=0,
+            metadata_count=len(self._metadata_indexes),
+            chunk_count=len(chunk_indexes),
+            message_start_time=start,
+            message_end_time=end,
+            channel_message_counts=counts,
+        )
+        groups: list[tuple[Opcode, Any]] = [
+            (Opcode.SCHEMA, self._schemas),
+            (Opcode.CHANNEL, self._channels),
+            (Opcode.STATISTICS, [statistics]),
+            (Opcode.CHUNK_INDEX, chunk_indexes),
+            (Opcode.METADATA_INDEX, self._metadata_indexes),
+        ]
         for opcode, records in groups:
             if not records:
                 continue
             group_start = builder.count
             for record in records:
                 record.write(builder)
-            offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + group_start,
-                                         group_length=builder.count - group_start))
+            offsets.append(
+                SummaryOffset(
+                    group_opcode=opcode,
+                    group_start=summary_start + group_start,
+                    group_length=builder.count - group_start,
+                )
+            )
         summary_offset_start = summary_start + builder.count
         for offset in offsets:
             offset.write(builder)
         summary = builder.end()
-        crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start, summary_offset_start),
-                         zlib.crc32(summary))
+        crc = zlib.crc32(
+            struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start, summary_offset_start), zlib.crc32(summary)
+        )
         footer = RecordBuilder()
         Footer(summary_start=summary_start, summary_offset_start=summary_offset_start, summary_crc=crc).write(footer)
         return summary + footer.end() + MAGIC
@@ -263,8 +340,9 @@ class McapLogger:
 
 
 def _wrong_type(entry: _Topic, message: Any) -> str:
-    return (f"topic {entry.topic!r} is logged as {entry.cls.__name__} (its first message), "
-            f"got a {type(message).__name__}")
+    return (
+        f"topic {entry.topic!r} is logged as {entry.cls.__name__} (its first message), got a {type(message).__name__}"
+    )
 
 
 def _time(value: Any, name: str, topic: str) -> int:

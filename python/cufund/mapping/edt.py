@@ -49,6 +49,4 @@ def edt(
         raise ValueError(f"dtype must be float32 or float64, got {dtype!r}") from None
     if kind not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"dtype must be float32 or float64, got {kind}")
-    return _core.esdf.edt(
-        occupied, voxel_size, bool(signed), int(nthreads), kind == np.dtype(np.float32)
-    )
+    return _core.esdf.edt(occupied, voxel_size, bool(signed), int(nthreads), kind == np.dtype(np.float32))

@@ -5,8 +5,9 @@ from __future__ import annotations
 import copy
 import math
 import numbers
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -64,10 +65,11 @@ class EsdfMapParams:
         size = vector3("size", self.size, " [m]", finite=True)
         if min(size) <= 0:
             raise ConfigError(f"size must be > 0 [m] on every axis, got {size}")
-        for axis, extent in zip("xyz", size):
+        for axis, extent in zip("xyz", size, strict=True):
             if not extent / res < 2**31:  # also catches a subnormal resolution (extent / res = inf)
-                raise ConfigError(f"size / resolution must give fewer than 2^31 voxels per axis, got {extent} / {res} "
-                                  f"along {axis}")
+                raise ConfigError(
+                    f"size / resolution must give fewer than 2^31 voxels per axis, got {extent} / {res} along {axis}"
+                )
         object.__setattr__(self, "resolution", res)
         object.__setattr__(self, "size", size)
         object.__setattr__(self, "origin_W", vector3("origin_W", self.origin_W, " [m]", finite=True))
@@ -158,8 +160,10 @@ class EsdfMap:
         voxels = math.prod(params.shape)
         cap = limits.current().grid_max_voxels
         if voxels > cap:
-            raise ConfigError(f"size / resolution must give at most grid_max_voxels = {cap} voxels, got "
-                              f"{params.shape} = {voxels}; raise it with cufund.core.limits.configure(grid_max_voxels=...)")
+            raise ConfigError(
+                f"size / resolution must give at most grid_max_voxels = {cap} voxels, got "
+                f"{params.shape} = {voxels}; raise it with cufund.core.limits.configure(grid_max_voxels=...)"
+            )
         self._params = params
         self._core = _core.esdf.EsdfMap(
             params.origin_W, params.shape, params.resolution, params.log_odds_hit, params.log_odds_miss,
@@ -192,8 +196,12 @@ class EsdfMap:
         scans; ``flipped_voxels`` counts the voxels whose state differs from before the batch."""
         return ScanStats(**self._core.insert_scans(list(scans)))
 
-    def insert_frames(self, frames: Sequence[tuple[npt.ArrayLike, npt.ArrayLike, float]],
-                      poses: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike], T_BL: Transform) -> ScanStats:
+    def insert_frames(
+        self,
+        frames: Sequence[tuple[npt.ArrayLike, npt.ArrayLike, float]],
+        poses: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike],
+        T_BL: Transform,
+    ) -> ScanStats:
         """Inserts LiDAR frames measured in motion, as :meth:`insert_scans` does after placing them in the world.
 
         Each frame is ``(points_L, t, t_origin)``: points (N, 3) [m] in the LiDAR frame, each fired at its
@@ -221,7 +229,9 @@ class EsdfMap:
         n = np.asarray(self.shape)
         bad = np.any((a < 0) | (a >= n), axis=1)
         if np.any(bad):
-            raise ValueError(f"ijk row {int(np.argmax(bad))} = {a[bad][0].tolist()} is outside the map shape {self.shape}")
+            raise ValueError(
+                f"ijk row {int(np.argmax(bad))} = {a[bad][0].tolist()} is outside the map shape {self.shape}"
+            )
         occ = np.broadcast_to(np.asarray(occupied, dtype=bool), (a.shape[0],))
         index = (a[:, 0] * n[1] + a[:, 1]) * n[2] + a[:, 2]
         stats = self._core.set_occupied(index, occ.astype(np.uint8))

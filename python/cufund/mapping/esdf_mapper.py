@@ -7,6 +7,7 @@ import numpy as np
 from cufund.core.components import BusView, Mapper, Subscription
 from cufund.core.messages import MapUpdate, Odometry, PointCloud, Topics
 from cufund.geometry import Transform
+
 from .esdf_map import EsdfMap, EsdfMapParams
 
 
@@ -27,8 +28,14 @@ class EsdfMapper(Mapper):
 
     name = "esdf_mapper"
 
-    def __init__(self, params: EsdfMapParams, T_BL: Transform | None = None, rate_hz: float = 100.0,
-                 state_topic: str | None = None, cloud_topic: str = Topics.POINT_CLOUD) -> None:
+    def __init__(
+        self,
+        params: EsdfMapParams,
+        T_BL: Transform | None = None,
+        rate_hz: float = 100.0,
+        state_topic: str | None = None,
+        cloud_topic: str = Topics.POINT_CLOUD,
+    ) -> None:
         if not isinstance(params, EsdfMapParams):
             raise ValueError(f"params must be an EsdfMapParams, got {type(params).__name__}")
         self.params, self.T_BL, self.rate_hz = params, T_BL or Transform(), float(rate_hz)
@@ -62,7 +69,11 @@ class EsdfMapper(Mapper):
                 self._q.append(state.q_WB)
         self._waiting.extend(self._clouds_sub.take())
         ready: list[PointCloud] = []
-        while self._waiting and self._t and self._t[-1] >= self._waiting[0].t + float(np.max(self._waiting[0].dt, initial=0.0)):
+        while (
+            self._waiting
+            and self._t
+            and self._t[-1] >= self._waiting[0].t + float(np.max(self._waiting[0].dt, initial=0.0))
+        ):
             ready.append(self._waiting.pop(0))
         if ready:
             self._insert(ready)

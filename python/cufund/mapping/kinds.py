@@ -49,14 +49,23 @@ class EsdfMapperParams:
 def _esdf(p: EsdfMapperParams, ctx: BuildContext) -> list[Any]:
     name, spec = ctx.sensor_of_type("lidar", p.lidar, "mapper.lidar")
     try:
-        map_params = EsdfMapParams(resolution=p.resolution, size=p.size, origin_W=p.origin_W, max_range=p.max_range,
-                                   merge_beams=p.merge_beams)
+        map_params = EsdfMapParams(
+            resolution=p.resolution, size=p.size, origin_W=p.origin_W, max_range=p.max_range, merge_beams=p.merge_beams
+        )
     except ValueError as e:
         raise ConfigError(f"mapper: {e}") from None
     return [EsdfMapper(map_params, spec.extrinsic, rate_hz=p.rate_hz, cloud_topic=spec.topic)]
 
 
-register(Kind("mapper", "esdf", EsdfMapperParams, _esdf, None,
-              "occupancy (log-odds) and exact signed distance field from every LiDAR frame, on the estimated pose"))
+register(
+    Kind(
+        "mapper",
+        "esdf",
+        EsdfMapperParams,
+        _esdf,
+        None,
+        "occupancy (log-odds) and exact signed distance field from every LiDAR frame, on the estimated pose",
+    )
+)
 
 __all__ = ["EsdfMapperParams"]

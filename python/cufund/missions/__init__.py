@@ -3,25 +3,25 @@ vehicle endpoint, the web ground station and scripted scenarios)."""
 
 from .commander import Commander
 from .commands import (
-           ACK_RESULTS,
-           COMMANDS,
-           Command,
-           CommandAck,
-           MissionItem,
-           parse_command,
+    ACK_RESULTS,
+    COMMANDS,
+    Command,
+    CommandAck,
+    MissionItem,
+    parse_command,
 )
 from .events import EventLog
 from .params import PX4_NAMES, CommanderParams
 
 __all__ = [
-           "ACK_RESULTS",
-           "COMMANDS",
-           "PX4_NAMES",
-           "Command",
-           "CommandAck",
-           "Commander",
-           "CommanderParams",
-           "EventLog",
-           "MissionItem",
-           "parse_command",
+    "ACK_RESULTS",
+    "COMMANDS",
+    "PX4_NAMES",
+    "Command",
+    "CommandAck",
+    "Commander",
+    "CommanderParams",
+    "EventLog",
+    "MissionItem",
+    "parse_command",
 ]

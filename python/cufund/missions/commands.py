@@ -19,9 +19,25 @@ __all__ = ["ACK_RESULTS", "COMMANDS", "Command", "CommandAck", "MissionItem", "p
 ACK_RESULTS = ("accepted", "denied", "unsupported", "failed", "in_progress")
 """CommandAck results, mirroring MAV_RESULT (ACCEPTED, DENIED, UNSUPPORTED, FAILED, IN_PROGRESS)."""
 
-COMMANDS = ("arm", "disarm", "takeoff", "land", "rtl", "hold", "goto", "mission_upload", "mission_start",
-            "mission_clear", "flight_mode", "controller", "offboard_position", "offboard_velocity",
-            "offboard_attitude", "set_param", "get_params")
+COMMANDS = (
+    "arm",
+    "disarm",
+    "takeoff",
+    "land",
+    "rtl",
+    "hold",
+    "goto",
+    "mission_upload",
+    "mission_start",
+    "mission_clear",
+    "flight_mode",
+    "controller",
+    "offboard_position",
+    "offboard_velocity",
+    "offboard_attitude",
+    "set_param",
+    "get_params",
+)
 """The command names :func:`parse_command` accepts."""
 
 FLIGHT_MODES = ("position", "velocity", "attitude")
@@ -152,8 +168,9 @@ def _item(i: int, v: Any) -> MissionItem:
         hold = v.get("hold_s", 0.0)
     else:
         if not isinstance(v, (list, tuple, np.ndarray)) or len(v) not in (3, 4, 5):
-            raise ValueError(f"{where} must be [x, y, z], [x, y, z, yaw], [x, y, z, yaw, hold_s] or a dict with p_W, "
-                             f"got {v!r}")
+            raise ValueError(
+                f"{where} must be [x, y, z], [x, y, z, yaw], [x, y, z, yaw, hold_s] or a dict with p_W, got {v!r}"
+            )
         p = _vector(f"{where}.p_W", list(v[:3]))
         yaw = v[3] if len(v) > 3 else None
         hold = v[4] if len(v) > 4 else 0.0
@@ -163,10 +180,22 @@ def _item(i: int, v: Any) -> MissionItem:
 
 
 _KEYS: dict[str, tuple[str, ...]] = {
-    "arm": (), "disarm": ("force",), "takeoff": ("altitude",), "land": (), "rtl": (), "hold": (),
-    "goto": ("p_W", "yaw"), "mission_upload": ("items",), "mission_start": ("seq",), "mission_clear": (),
-    "flight_mode": ("mode",), "controller": ("kind",), "offboard_position": ("p_W", "v_W", "yaw"),
-    "offboard_velocity": ("v_W", "yaw"), "offboard_attitude": ("q_WB", "thrust"), "set_param": ("name", "value"),
+    "arm": (),
+    "disarm": ("force",),
+    "takeoff": ("altitude",),
+    "land": (),
+    "rtl": (),
+    "hold": (),
+    "goto": ("p_W", "yaw"),
+    "mission_upload": ("items",),
+    "mission_start": ("seq",),
+    "mission_clear": (),
+    "flight_mode": ("mode",),
+    "controller": ("kind",),
+    "offboard_position": ("p_W", "v_W", "yaw"),
+    "offboard_velocity": ("v_W", "yaw"),
+    "offboard_attitude": ("q_WB", "thrust"),
+    "set_param": ("name", "value"),
     "get_params": (),
 }
 _PASS_THROUGH = ("id", "request_id", "source")
@@ -181,7 +210,7 @@ def parse_command(data: Any) -> Command:
         data = {"command": data}
     if not isinstance(data, Mapping):
         # a ValueError (not TypeError) for any bad input: clients map one exception to one error reply
-        raise ValueError(f"a command must be a dict with a 'command' key, got {type(data).__name__}")  # noqa: TRY004
+        raise ValueError(f"a command must be a dict with a 'command' key, got {type(data).__name__}")
     name = data.get("command")
     if not isinstance(name, str) or name not in _KEYS:
         raise ValueError(f"command must be one of {', '.join(COMMANDS)}, got {name!r}")

@@ -18,34 +18,56 @@ from cufund.control import AttitudeController, GeometricController, PositionCont
 __all__ = ["CONTROLLER_PARAMS", "controller_param_provider"]
 
 _DEG = math.pi / 180.0
-_STAGES = {"position": PositionController, "attitude": AttitudeController, "rate": RateController,
-           "geometric": GeometricController}
+_STAGES = {
+    "position": PositionController,
+    "attitude": AttitudeController,
+    "rate": RateController,
+    "geometric": GeometricController,
+}
 
 CONTROLLER_PARAMS: dict[str, tuple[str, str, float]] = {
-    "MPC_XY_P": ("position", "xy_p", 1.0), "MPC_Z_P": ("position", "z_p", 1.0),
-    "MPC_XY_VEL_P_ACC": ("position", "xy_vel_p", 1.0), "MPC_XY_VEL_I_ACC": ("position", "xy_vel_i", 1.0),
-    "MPC_XY_VEL_D_ACC": ("position", "xy_vel_d", 1.0), "MPC_Z_VEL_P_ACC": ("position", "z_vel_p", 1.0),
-    "MPC_Z_VEL_I_ACC": ("position", "z_vel_i", 1.0), "MPC_Z_VEL_D_ACC": ("position", "z_vel_d", 1.0),
-    "MPC_XY_VEL_MAX": ("position", "xy_vel_max", 1.0), "MPC_Z_VEL_MAX_UP": ("position", "z_vel_max_up", 1.0),
-    "MPC_Z_VEL_MAX_DN": ("position", "z_vel_max_dn", 1.0), "MPC_TILTMAX_AIR": ("position", "tilt_max", _DEG),
-    "MPC_THR_MIN": ("position", "thr_min", 1.0), "MPC_THR_MAX": ("position", "thr_max", 1.0),
-    "MC_ROLL_P": ("attitude", "roll_p", 1.0), "MC_PITCH_P": ("attitude", "pitch_p", 1.0),
-    "MC_YAW_P": ("attitude", "yaw_p", 1.0), "MC_ROLLRATE_MAX": ("attitude", "roll_rate_max", _DEG),
-    "MC_PITCHRATE_MAX": ("attitude", "pitch_rate_max", _DEG), "MC_YAWRATE_MAX": ("attitude", "yaw_rate_max", _DEG),
-    "MC_ROLLRATE_P": ("rate", "roll_p", 1.0), "MC_ROLLRATE_I": ("rate", "roll_i", 1.0),
-    "MC_ROLLRATE_D": ("rate", "roll_d", 1.0), "MC_PITCHRATE_P": ("rate", "pitch_p", 1.0),
-    "MC_PITCHRATE_I": ("rate", "pitch_i", 1.0), "MC_PITCHRATE_D": ("rate", "pitch_d", 1.0),
-    "MC_YAWRATE_P": ("rate", "yaw_p", 1.0), "MC_YAWRATE_I": ("rate", "yaw_i", 1.0),
+    "MPC_XY_P": ("position", "xy_p", 1.0),
+    "MPC_Z_P": ("position", "z_p", 1.0),
+    "MPC_XY_VEL_P_ACC": ("position", "xy_vel_p", 1.0),
+    "MPC_XY_VEL_I_ACC": ("position", "xy_vel_i", 1.0),
+    "MPC_XY_VEL_D_ACC": ("position", "xy_vel_d", 1.0),
+    "MPC_Z_VEL_P_ACC": ("position", "z_vel_p", 1.0),
+    "MPC_Z_VEL_I_ACC": ("position", "z_vel_i", 1.0),
+    "MPC_Z_VEL_D_ACC": ("position", "z_vel_d", 1.0),
+    "MPC_XY_VEL_MAX": ("position", "xy_vel_max", 1.0),
+    "MPC_Z_VEL_MAX_UP": ("position", "z_vel_max_up", 1.0),
+    "MPC_Z_VEL_MAX_DN": ("position", "z_vel_max_dn", 1.0),
+    "MPC_TILTMAX_AIR": ("position", "tilt_max", _DEG),
+    "MPC_THR_MIN": ("position", "thr_min", 1.0),
+    "MPC_THR_MAX": ("position", "thr_max", 1.0),
+    "MC_ROLL_P": ("attitude", "roll_p", 1.0),
+    "MC_PITCH_P": ("attitude", "pitch_p", 1.0),
+    "MC_YAW_P": ("attitude", "yaw_p", 1.0),
+    "MC_ROLLRATE_MAX": ("attitude", "roll_rate_max", _DEG),
+    "MC_PITCHRATE_MAX": ("attitude", "pitch_rate_max", _DEG),
+    "MC_YAWRATE_MAX": ("attitude", "yaw_rate_max", _DEG),
+    "MC_ROLLRATE_P": ("rate", "roll_p", 1.0),
+    "MC_ROLLRATE_I": ("rate", "roll_i", 1.0),
+    "MC_ROLLRATE_D": ("rate", "roll_d", 1.0),
+    "MC_PITCHRATE_P": ("rate", "pitch_p", 1.0),
+    "MC_PITCHRATE_I": ("rate", "pitch_i", 1.0),
+    "MC_PITCHRATE_D": ("rate", "pitch_d", 1.0),
+    "MC_YAWRATE_P": ("rate", "yaw_p", 1.0),
+    "MC_YAWRATE_I": ("rate", "yaw_i", 1.0),
     "MC_YAWRATE_D": ("rate", "yaw_d", 1.0),
-    "GEO_K_X": ("geometric", "k_x", 1.0), "GEO_K_V": ("geometric", "k_v", 1.0), "GEO_K_R": ("geometric", "k_R", 1.0),
-    "GEO_K_W": ("geometric", "k_W", 1.0), "GEO_K_R_YAW": ("geometric", "k_R_yaw", 1.0),
+    "GEO_K_X": ("geometric", "k_x", 1.0),
+    "GEO_K_V": ("geometric", "k_v", 1.0),
+    "GEO_K_R": ("geometric", "k_R", 1.0),
+    "GEO_K_W": ("geometric", "k_W", 1.0),
+    "GEO_K_R_YAW": ("geometric", "k_R_yaw", 1.0),
     "GEO_K_W_YAW": ("geometric", "k_W_yaw", 1.0),
 }
 """Parameter name -> (controller stage, gains field, field units per parameter unit)."""
 
 
-def controller_param_provider(components: Iterable[Any]) -> tuple[Callable[[], dict[str, float]],
-                                                                   Callable[[str, Any], bool]]:
+def controller_param_provider(
+    components: Iterable[Any],
+) -> tuple[Callable[[], dict[str, float]], Callable[[str, Any], bool]]:
     """``(get, set)`` over the gains of the controllers among ``components`` (for
     :attr:`cufund.missions.Commander.param_providers`). ``set`` raises ValueError for a bad value (naming it)
     and returns False for a name it does not know."""

@@ -20,8 +20,13 @@ class EventLog:
 
     def append(self, t: float, kind: str, message: str, **data: Any) -> dict[str, Any]:
         with self._lock:
-            e = {"index": self._offset + len(self._events), "t": float(t), "kind": str(kind),
-                 "message": str(message), **data}
+            e = {
+                "index": self._offset + len(self._events),
+                "t": float(t),
+                "kind": str(kind),
+                "message": str(message),
+                **data,
+            }
             self._events.append(e)
             if len(self._events) > self.maxlen:
                 drop = len(self._events) - self.maxlen

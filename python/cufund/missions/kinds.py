@@ -34,25 +34,42 @@ def _commander(p: CommanderParams, ctx: BuildContext) -> list[Any]:
         components += ctx.build("controller", dataclasses.replace(spec, kind=other), "controller")
 
     def done(t: float, truth: Any) -> bool:  # a scripted run ends once the script is through and it has landed
-        return bool(p.script) and commander.script_done and not commander.armed and commander.landed \
+        return (
+            bool(p.script)
+            and commander.script_done
+            and not commander.armed
+            and commander.landed
             and t > p.script[-1][0] + 1.0
+        )
 
     ctx.set_done_condition(done)
-    ctx.add_metric_hook(lambda result: {
-        "commander_events": [f"{e['t']:.2f} s {e['message']}" for e in commander.events],
-        "commander_denied": len(commander.events.of_kind("denied")),
-        "mission_items_reached": len(commander.events.of_kind("mission_item_reached"))})
+    ctx.add_metric_hook(
+        lambda result: {
+            "commander_events": [f"{e['t']:.2f} s {e['message']}" for e in commander.events],
+            "commander_denied": len(commander.events.of_kind("denied")),
+            "mission_items_reached": len(commander.events.of_kind("mission_item_reached")),
+        }
+    )
     return [commander, *components]
 
 
-register(Kind("planner", "commander", CommanderParams, _commander, None,
-              "the vehicle commander: arm, take off, go to, missions, offboard, land, return (script or live)"))
+register(
+    Kind(
+        "planner",
+        "commander",
+        CommanderParams,
+        _commander,
+        None,
+        "the vehicle commander: arm, take off, go to, missions, offboard, land, return (script or live)",
+    )
+)
 
-from . import tunnel_kind  # noqa: F401  (the tunnel mission kind registers itself)
+from . import tunnel_kind  # noqa: E402, F401  (registers itself; imported after the commander kind it builds on)
 
 
 def _tunnel_course_kind() -> None:
     """The generated tunnel course as a world kind (the course generator is the tunnel mission's)."""
+
     @dataclass(frozen=True)
     class TunnelCourseWorldParams(TunnelCourseParams):
         """A generated tunnel course: its layout seed and the generator's bounds (:class:`TunnelCourseParams`)."""
@@ -62,14 +79,24 @@ def _tunnel_course_kind() -> None:
 
         def __post_init__(self) -> None:
             super().__post_init__()
-            if self.seed is not None and (isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0):
+            if self.seed is not None and (
+                isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0
+            ):
                 raise ConfigError(f"world.seed must be an integer >= 0 or null (the paper's layout), got {self.seed!r}")
 
     def layout(p: TunnelCourseWorldParams) -> object:
         return paper_tunnel_course(p) if p.seed is None else tunnel_course_layout(p.seed, p)
 
-    register(Kind("world", "tunnel_course", TunnelCourseWorldParams, lambda p, ctx: layout(p).world,  # type: ignore[attr-defined]
-                  None, "a seeded IMAV-style tunnel course (world.seed picks the layout), checked flyable"))
+    register(
+        Kind(
+            "world",
+            "tunnel_course",
+            TunnelCourseWorldParams,
+            lambda p, ctx: layout(p).world,  # type: ignore[attr-defined]
+            None,
+            "a seeded IMAV-style tunnel course (world.seed picks the layout), checked flyable",
+        )
+    )
 
 
 _tunnel_course_kind()

@@ -25,8 +25,12 @@ class Brake:
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         tau, s = self.tau, max(t - self.t_start, 0.0)
         e, v0 = math.exp(-s / tau), self.v0
-        return (self.p0 + v0 * (2 * tau - (2 * tau + s) * e), v0 * ((1 + s / tau) * e), v0 * (-(s / tau ** 2) * e),
-                v0 * (-(1 - s / tau) * e / tau ** 2))
+        return (
+            self.p0 + v0 * (2 * tau - (2 * tau + s) * e),
+            v0 * ((1 + s / tau) * e),
+            v0 * (-(s / tau**2) * e),
+            v0 * (-(1 - s / tau) * e / tau**2),
+        )
 
 
 class Descend:

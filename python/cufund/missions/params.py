@@ -60,8 +60,13 @@ class CommanderParams:
             if f.name == "script":
                 continue
             v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 \
-                    or (v == 0 and f.name not in ("auto_disarm_s",)):
+            if (
+                isinstance(v, bool)
+                or not isinstance(v, (int, float))
+                or not math.isfinite(v)
+                or v < 0
+                or (v == 0 and f.name not in ("auto_disarm_s",))
+            ):
                 raise ConfigError(f"planner.{f.name} must be a finite number > 0, got {v!r}")
             object.__setattr__(self, f.name, float(v))
         check_at_most(self, "planner", rate_hz=1e4, status_hz=1e3)
@@ -84,12 +89,20 @@ class CommanderParams:
         object.__setattr__(self, "script", tuple(sorted(script, key=lambda e: e[0])))
 
 
-PX4_NAMES = {"MIS_TAKEOFF_ALT": "takeoff_altitude", "MPC_TKO_SPEED": "takeoff_speed", "MPC_LAND_SPEED": "land_speed",
-             "MPC_LAND_ALT2": "land_alt",
-             "MPC_XY_CRUISE": "v_max", "MPC_ACC_HOR": "a_max", "MPC_JERK_AUTO": "j_max",
-             "NAV_ACC_RAD": "acceptance_radius", "COM_OF_LOSS_T": "offboard_timeout_s",
-             "COM_DL_LOSS_T": "link_loss_timeout_s", "RTL_RETURN_ALT": "rtl_altitude",
-             "COM_DISARM_PRFLT": "auto_disarm_s"}
+PX4_NAMES = {
+    "MIS_TAKEOFF_ALT": "takeoff_altitude",
+    "MPC_TKO_SPEED": "takeoff_speed",
+    "MPC_LAND_SPEED": "land_speed",
+    "MPC_LAND_ALT2": "land_alt",
+    "MPC_XY_CRUISE": "v_max",
+    "MPC_ACC_HOR": "a_max",
+    "MPC_JERK_AUTO": "j_max",
+    "NAV_ACC_RAD": "acceptance_radius",
+    "COM_OF_LOSS_T": "offboard_timeout_s",
+    "COM_DL_LOSS_T": "link_loss_timeout_s",
+    "RTL_RETURN_ALT": "rtl_altitude",
+    "COM_DISARM_PRFLT": "auto_disarm_s",
+}
 """PX4 parameter name -> CommanderParams field."""
 
 

@@ -45,6 +45,7 @@ from cufund.planning.point_to_point import JerkLimitedMove
 from cufund.planning.sequence import Hold, TrajectorySequence
 from cufund.planning.trajectory import Trajectory
 from cufund.planning.trajectory_follower import stitched
+
 from .tunnel_geometry import frame_boxes
 
 __all__ = ["TunnelMission", "TunnelMissionParams"]
@@ -111,9 +112,28 @@ class TunnelMissionParams:
             raise ConfigError(f"mission.frames must be an integer >= 1, got {self.frames!r}")
         if isinstance(self.stable_updates, bool) or not isinstance(self.stable_updates, int) or self.stable_updates < 1:
             raise ConfigError(f"mission.stable_updates must be an integer >= 1, got {self.stable_updates!r}")
-        for name in ("takeoff_height", "init_s", "detect_timeout_s", "stable_m", "align_m", "creep_m", "axis_m", "exit_m",
-                     "v_max", "a_max", "corridor", "clearance", "bar", "move_v_max", "move_a_max",
-                     "move_j_max", "rate_hz", "stale_s", "lidar_silence_s", "health_wait_s"):
+        for name in (
+            "takeoff_height",
+            "init_s",
+            "detect_timeout_s",
+            "stable_m",
+            "align_m",
+            "creep_m",
+            "axis_m",
+            "exit_m",
+            "v_max",
+            "a_max",
+            "corridor",
+            "clearance",
+            "bar",
+            "move_v_max",
+            "move_a_max",
+            "move_j_max",
+            "rate_hz",
+            "stale_s",
+            "lidar_silence_s",
+            "health_wait_s",
+        ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and float(v) > 0):
                 raise ConfigError(f"mission.{name} must be a finite number > 0, got {v!r}")
@@ -165,8 +185,11 @@ class TunnelMission(Planner):
         self.optional_reads = (Topics.ESTIMATOR_DIAGNOSTICS,)
         self.writes = (Topics.TRAJECTORY_UPDATE, Topics.MISSION_STATE)
         self.initial = Hold(self.pad_W, _FOREVER, self.yaw, t_start=0.0)
-        self.planner = MinSnapPlanner(MinSnapPlannerParams(v_max=params.v_max, a_max=params.a_max, optimize_times=True,
-                                                           corridor=params.corridor, max_waypoints=200))
+        self.planner = MinSnapPlanner(
+            MinSnapPlannerParams(
+                v_max=params.v_max, a_max=params.a_max, optimize_times=True, corridor=params.corridor, max_waypoints=200
+            )
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -272,7 +295,9 @@ class TunnelMission(Planner):
             if d is not None:
                 self._plan_align(t, t_r, d, bus)
             elif t - self._t_state > pp.detect_timeout_s:
-                self._abort(t, t_r, f"detected {self._count(est)} of {pp.frames} frames in {pp.detect_timeout_s:g} s", bus)
+                self._abort(
+                    t, t_r, f"detected {self._count(est)} of {pp.frames} frames in {pp.detect_timeout_s:g} s", bus
+                )
             return
         if self.state == "align":  # on the first frame's axis: wait for every frame, confident and stable
             if t_r < self._t_leg_end:
@@ -287,8 +312,9 @@ class TunnelMission(Planner):
                     n0 = d.normals[0] / np.linalg.norm(d.normals[0])
                     self._move(t, t_r, d.centres[0] - pp.creep_m * n0, bus)
                     return
-                self._abort(t, t_r, f"detected {self._count(est)} of {pp.frames} frames in "
-                                    f"{pp.detect_timeout_s:g} s", bus)
+                self._abort(
+                    t, t_r, f"detected {self._count(est)} of {pp.frames} frames in {pp.detect_timeout_s:g} s", bus
+                )
             return
         if self.state == "enter":  # at the first centre: re-plan through every opening with the newest detections
             if t_r >= self._t_leg_end + pp.hold_s:
@@ -347,15 +373,21 @@ class TunnelMission(Planner):
         """Counts consecutive detections whose centres moved less than ``stable_m`` (same number of frames)."""
         c = np.asarray(est.centres_W, dtype=float)
         last = self._last
-        same = last is not None and last.shape == c.shape and c.shape[0] > 0 \
+        same = (
+            last is not None
+            and last.shape == c.shape
+            and c.shape[0] > 0
             and float(np.max(np.linalg.norm(last - c, axis=1))) < self.params.stable_m
+        )
         self._stable = self._stable + 1 if same else 0
         self._last = c
 
     def _count(self, est: TunnelEstimate | None) -> int:
         """The most frames seen confident at once so far."""
         if est is not None:
-            self._best = max(self._best, int(np.count_nonzero(np.asarray(est.confidence) >= self.params.min_confidence)))
+            self._best = max(
+                self._best, int(np.count_nonzero(np.asarray(est.confidence) >= self.params.min_confidence))
+            )
         return self._best
 
     def _move(self, t: float, t_r: float, goal: np.ndarray, bus: BusView) -> None:
@@ -374,8 +406,11 @@ class TunnelMission(Planner):
         conf = np.asarray(est.confidence, dtype=float)
         if conf.shape[0] < k or np.any(conf[:k] < self.params.min_confidence):
             return None
-        return _Detections(np.asarray(est.centres_W, float)[:k].copy(), np.asarray(est.normals_W, float)[:k].copy(),
-                           np.asarray(est.opening_sizes, float)[:k].copy())
+        return _Detections(
+            np.asarray(est.centres_W, float)[:k].copy(),
+            np.asarray(est.normals_W, float)[:k].copy(),
+            np.asarray(est.opening_sizes, float)[:k].copy(),
+        )
 
     def _count_progress(self, state: Odometry) -> None:
         """Frames passed, on the estimate: the estimated position is ahead of the next frame's plane."""
@@ -429,8 +464,14 @@ class TunnelMission(Planner):
     def _narrow(self, d: _Detections) -> str:
         need = 2 * self.params.clearance
         bad = [k for k in range(d.sizes.shape[0]) if min(d.sizes[k]) < need]
-        return "" if not bad else (f"opening {bad[0] + 1} ({d.sizes[bad[0], 0]:.2f} x {d.sizes[bad[0], 1]:.2f} m) "
-                                   f"is narrower than the vehicle needs ({need:.2f} m)")
+        return (
+            ""
+            if not bad
+            else (
+                f"opening {bad[0] + 1} ({d.sizes[bad[0], 0]:.2f} x {d.sizes[bad[0], 1]:.2f} m) "
+                f"is narrower than the vehicle needs ({need:.2f} m)"
+            )
+        )
 
     def _align_point(self, d: _Detections) -> np.ndarray:
         n0 = d.normals[0] / np.linalg.norm(d.normals[0])

@@ -15,16 +15,22 @@ the generator draws again (the same seed always gives the same course).
 from __future__ import annotations
 
 import math
-from typing import Any
 import numbers
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from cufund.worlds.world import World
 
-__all__ = ["TunnelCourse", "TunnelCourseParams", "TunnelFrame", "paper_tunnel_course", "tunnel_course",
-           "tunnel_course_layout"]
+__all__ = [
+    "TunnelCourse",
+    "TunnelCourseParams",
+    "TunnelFrame",
+    "paper_tunnel_course",
+    "tunnel_course",
+    "tunnel_course_layout",
+]
 
 _FRAME_COLOR = (0.9, 0.4, 0.1)
 _WALL = (0.75, 0.75, 0.72)
@@ -89,8 +95,15 @@ class TunnelCourseParams:
         object.__setattr__(self, "openings", ops)
         object.__setattr__(self, "spacing", _pair("spacing", self.spacing, lo=1e-3))
         object.__setattr__(self, "first_height", _pair("first_height", self.first_height, lo=0.0))
-        for name in ("lateral_offset", "vertical_offset", "yaw_change", "entrance_offset", "entrance_yaw", "arena_lead",
-                     "vehicle_radius"):
+        for name in (
+            "lateral_offset",
+            "vertical_offset",
+            "yaw_change",
+            "entrance_offset",
+            "entrance_yaw",
+            "arena_lead",
+            "vehicle_radius",
+        ):
             object.__setattr__(self, name, _bound(name, getattr(self, name)))
         for name in ("bar", "resolution"):
             if _bound(name, getattr(self, name)) <= 0:
@@ -99,8 +112,11 @@ class TunnelCourseParams:
         if len(a) != 3 or not all(math.isfinite(x) and float(x) > 0 for x in a):
             raise ValueError(f"arena must be 3 finite sizes > 0 [m], got {self.arena!r}")
         object.__setattr__(self, "arena", a)
-        if isinstance(self.max_attempts, bool) or not isinstance(self.max_attempts, numbers.Integral) \
-                or self.max_attempts < 1:
+        if (
+            isinstance(self.max_attempts, bool)
+            or not isinstance(self.max_attempts, numbers.Integral)
+            or self.max_attempts < 1
+        ):
             raise ValueError(f"max_attempts must be an integer >= 1, got {self.max_attempts!r}")
         for name, most in (("n_frames", 1000), ("max_attempts", 100_000), ("arena", 1e4)):
             value = max(getattr(self, name)) if name == "arena" else getattr(self, name)
@@ -200,8 +216,9 @@ def _build(frames: list[TunnelFrame], p: TunnelCourseParams) -> World:
     _arena(world, p)
     b = p.bar
     for f in frames:
-        world.add_tunnel_frame(f.centre_W, width=f.width, height=f.height, depth=b, thickness=b, yaw=f.yaw,
-                               color=_FRAME_COLOR)
+        world.add_tunnel_frame(
+            f.centre_W, width=f.width, height=f.height, depth=b, thickness=b, yaw=f.yaw, color=_FRAME_COLOR
+        )
         gap = f.centre_W[2] - f.height / 2 - b  # from the floor to the frame's bottom
         if gap > 1e-9:
             across = np.array([-math.sin(f.yaw), math.cos(f.yaw), 0.0])
@@ -262,11 +279,18 @@ def tunnel_course_layout(seed: int = 0, params: TunnelCourseParams | None = None
         path = _flyable(world, frames, p)
         if path is not None:
             first, last = frames[0], frames[-1]
-            return TunnelCourse(world=world, frames=tuple(frames),
-                                entry_W=np.asarray(first.centre_W) - 1.5 * first.axis_W,
-                                exit_W=np.asarray(last.centre_W) + 1.5 * last.axis_W, path_W=path, attempts=attempt)
-    raise ValueError(f"no flyable tunnel course for seed {seed} in {p.max_attempts} draws: widen the openings, "
-                     f"narrow the offsets or reduce vehicle_radius ({p.vehicle_radius} m)")
+            return TunnelCourse(
+                world=world,
+                frames=tuple(frames),
+                entry_W=np.asarray(first.centre_W) - 1.5 * first.axis_W,
+                exit_W=np.asarray(last.centre_W) + 1.5 * last.axis_W,
+                path_W=path,
+                attempts=attempt,
+            )
+    raise ValueError(
+        f"no flyable tunnel course for seed {seed} in {p.max_attempts} draws: widen the openings, "
+        f"narrow the offsets or reduce vehicle_radius ({p.vehicle_radius} m)"
+    )
 
 
 def paper_tunnel_course(params: TunnelCourseParams | None = None) -> TunnelCourse:
@@ -281,8 +305,13 @@ def paper_tunnel_course(params: TunnelCourseParams | None = None) -> TunnelCours
     path = _flyable(world, frames, p)
     if path is None:
         raise ValueError(f"the paper's tunnel layout is not flyable for vehicle_radius {p.vehicle_radius} m")
-    return TunnelCourse(world=world, frames=tuple(frames), entry_W=np.asarray(frames[0].centre_W) - 1.5 * frames[0].axis_W,
-                        exit_W=np.asarray(frames[-1].centre_W) + 1.5 * frames[-1].axis_W, path_W=path)
+    return TunnelCourse(
+        world=world,
+        frames=tuple(frames),
+        entry_W=np.asarray(frames[0].centre_W) - 1.5 * frames[0].axis_W,
+        exit_W=np.asarray(frames[-1].centre_W) + 1.5 * frames[-1].axis_W,
+        path_W=path,
+    )
 
 
 def tunnel_course(seed: int = 0, **kwargs: object) -> World:

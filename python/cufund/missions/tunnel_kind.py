@@ -36,8 +36,9 @@ def _detector(ctx: BuildContext, p: TunnelMissionParams, start: np.ndarray) -> A
     from cufund.perception import TunnelDetector, TunnelDetectorParams
 
     _, lidar = ctx.sensor_of_type("lidar", "", "mission")
-    return TunnelDetector(TunnelDetectorParams(), T_BL=lidar.extrinsic, cloud_topic=lidar.topic, expected=p.frames,
-                          origin_W=start)
+    return TunnelDetector(
+        TunnelDetectorParams(), T_BL=lidar.extrinsic, cloud_topic=lidar.topic, expected=p.frames, origin_W=start
+    )
 
 
 def _tunnel(p: TunnelMissionParams, ctx: BuildContext) -> list[Any]:
@@ -51,16 +52,24 @@ def _tunnel(p: TunnelMissionParams, ctx: BuildContext) -> list[Any]:
     if course is not None:  # pre-flight: the rules' openings must pass the vehicle with the plan's clearance
         for k, f in enumerate(course.frames):
             if min(f.width, f.height) < 2 * p.clearance:
-                raise ConfigError(f"world: opening {k + 1} ({f.width:g} x {f.height:g} m) is unflyable: the mission "
-                                  f"needs {2 * p.clearance:.2f} m (2 x mission.clearance)")
+                raise ConfigError(
+                    f"world: opening {k + 1} ({f.width:g} x {f.height:g} m) is unflyable: the mission "
+                    f"needs {2 * p.clearance:.2f} m (2 x mission.clearance)"
+                )
     start = np.array(cfg.start_p_W if cfg.start_p_W is not None else (0.0, 0.0, 0.0), dtype=float)
     mission = TunnelMission(p, start, yaw=0.0)
-    follower = TrajectoryFollower(mission.initial, rate_hz=cfg.rates.trajectory_hz, block=32,
-                                  update_topic=Topics.TRAJECTORY_UPDATE)
+    follower = TrajectoryFollower(
+        mission.initial, rate_hz=cfg.rates.trajectory_hz, block=32, update_topic=Topics.TRAJECTORY_UPDATE
+    )
 
     def done(t: float, truth: Any) -> bool:  # run end (a harness check): the mission ended and the vehicle rests
-        return mission.finished and mission.t_end is not None and t >= mission.t_end + 0.5 \
-            and truth.p_W[2] < start[2] + 0.03 and float(np.linalg.norm(truth.v_W)) < 0.05
+        return (
+            mission.finished
+            and mission.t_end is not None
+            and t >= mission.t_end + 0.5
+            and truth.p_W[2] < start[2] + 0.03
+            and float(np.linalg.norm(truth.v_W)) < 0.05
+        )
 
     ctx.set_done_condition(done)
     ctx.add_metric_hook(lambda result: tunnel_metrics(result, mission, course))
@@ -69,5 +78,13 @@ def _tunnel(p: TunnelMissionParams, ctx: BuildContext) -> list[Any]:
     return [detector, mission, follower]
 
 
-register(Kind("mission", "tunnel", TunnelMissionParams, _tunnel, None,
-              "initialise, take off, detect the tunnel's frames, fly through them on the LIO estimate, land beyond"))
+register(
+    Kind(
+        "mission",
+        "tunnel",
+        TunnelMissionParams,
+        _tunnel,
+        None,
+        "initialise, take off, detect the tunnel's frames, fly through them on the LIO estimate, land beyond",
+    )
+)

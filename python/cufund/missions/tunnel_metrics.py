@@ -9,21 +9,31 @@ from typing import Any
 import numpy as np
 
 from cufund.core.messages import Topics
+
 from .tunnel_geometry import frame_boxes, passages
 
 __all__ = ["component_split", "tracking_errors", "true_frames", "tunnel_metrics"]
 
-_GROUPS = (("lio", ("lio", "estimator")), ("mapping", ("esdf", "mapper")), ("detection", ("detector", "tunnel")),
-           ("planning", ("mission", "follower", "planner")), ("control", ("control", "pid", "geometric", "mixer",
-                                                                       "attitude", "rate", "position")),
-           ("physics", ("physics",)), ("sensors", ("lidar", "imu", "sensor", "mid360", "icm")))
+_GROUPS = (
+    ("lio", ("lio", "estimator")),
+    ("mapping", ("esdf", "mapper")),
+    ("detection", ("detector", "tunnel")),
+    ("planning", ("mission", "follower", "planner")),
+    ("control", ("control", "pid", "geometric", "mixer", "attitude", "rate", "position")),
+    ("physics", ("physics",)),
+    ("sensors", ("lidar", "imu", "sensor", "mid360", "icm")),
+)
 
 
 def true_frames(course: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Centres (K, 3), normals (K, 3), opening sizes (K, 2) and bar thickness of the course's true frames."""
     f = course.frames
-    return (np.array([x.centre_W for x in f], dtype=float), np.array([x.axis_W for x in f], dtype=float),
-            np.array([[x.width, x.height] for x in f], dtype=float), 0.05)
+    return (
+        np.array([x.centre_W for x in f], dtype=float),
+        np.array([x.axis_W for x in f], dtype=float),
+        np.array([[x.width, x.height] for x in f], dtype=float),
+        0.05,
+    )
 
 
 def tracking_errors(result: Any, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
@@ -63,13 +73,18 @@ def tunnel_metrics(result: Any, mission: Any, course: Any) -> dict[str, Any]:
     detections), and the time split per part of the stack."""
     sim_status = getattr(result.status, "value", str(result.status))
     t, p = result.states["t"], result.states["p_W"]
-    out: dict[str, Any] = {"sim_status": sim_status, "mission_state": mission.state, "reason": mission.reason,
-                           "frames_passed_estimated": int(mission.progress)}
+    out: dict[str, Any] = {
+        "sim_status": sim_status,
+        "mission_state": mission.state,
+        "reason": mission.reason,
+        "frames_passed_estimated": int(mission.progress),
+    }
     if sim_status != "completed":
         out["status"] = sim_status
     else:
-        out["status"] = "completed" if mission.state == "done" else "aborted" if mission.state == "aborted" \
-            else mission.state
+        out["status"] = (
+            "completed" if mission.state == "done" else "aborted" if mission.state == "aborted" else mission.state
+        )
     out["transitions"] = [[round(a, 3), b, c] for a, b, c in mission.transitions]
     t_takeoff = next((a for a, b, _ in mission.transitions if b == "takeoff"), None)
     t_end = mission.t_end
@@ -77,8 +92,14 @@ def tunnel_metrics(result: Any, mission: Any, course: Any) -> dict[str, Any]:
         t1 = t_end if t_end is not None else float(t[-1])
         _, err = tracking_errors(result, t_takeoff, t1)
         if err.size:
-            out.update({"tracking_min_m": float(err.min()), "tracking_rmse_m": float(np.sqrt(np.mean(err ** 2))),
-                        "tracking_max_m": float(err.max()), "tracking_samples": int(err.size)})
+            out.update(
+                {
+                    "tracking_min_m": float(err.min()),
+                    "tracking_rmse_m": float(np.sqrt(np.mean(err**2))),
+                    "tracking_max_m": float(err.max()),
+                    "tracking_samples": int(err.size),
+                }
+            )
         out["mission_time_s"] = float(t1 - t_takeoff) if mission.state == "done" else None
     else:
         out["mission_time_s"] = None
@@ -98,8 +119,9 @@ def tunnel_metrics(result: Any, mission: Any, course: Any) -> dict[str, Any]:
             e = np.linalg.norm(d.centres - c, axis=1)
             out["detection_centre_error_m"] = float(e.max())
             out["detection_centre_errors_m"] = [round(float(x), 4) for x in e]
-            ang = np.degrees(np.arccos(np.clip(np.sum(d.normals * n, axis=1) /
-                                               np.linalg.norm(d.normals, axis=1), -1, 1)))
+            ang = np.degrees(
+                np.arccos(np.clip(np.sum(d.normals * n, axis=1) / np.linalg.norm(d.normals, axis=1), -1, 1))
+            )
             out["detection_normal_error_deg"] = float(ang.max())
         else:
             out["detection_centre_error_m"] = None
@@ -111,8 +133,17 @@ def tunnel_metrics(result: Any, mission: Any, course: Any) -> dict[str, Any]:
         landed = landed and float((p[-1] - np.asarray(last.centre_W)) @ last.axis_W) > 0.2
     out["landed_beyond_last_frame"] = landed
     out["success"] = bool(sim_status == "completed" and mission.state == "done" and passed_all and landed)
-    out["plans"] = [{"t": round(r.t, 3), "leg": r.leg, "ok": r.ok, "reason": r.reason, "plan_ms": round(r.plan_ms, 2),
-                     "min_clearance_m": round(float(r.min_clearance_m), 4)} for r in mission.plans]
+    out["plans"] = [
+        {
+            "t": round(r.t, 3),
+            "leg": r.leg,
+            "ok": r.ok,
+            "reason": r.reason,
+            "plan_ms": round(r.plan_ms, 2),
+            "min_clearance_m": round(float(r.min_clearance_m), 4),
+        }
+        for r in mission.plans
+    ]
     out["detections"] = len(mission.detections)
     out["estimator_unhealthy"] = [[round(a, 3), round(b, 3), c] for a, b, c in mission.health_events]
     out["estimator_unhealthy_s"] = round(float(sum(b for _, b, _ in mission.health_events)), 3)

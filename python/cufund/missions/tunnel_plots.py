@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from cufund.core.messages import Topics
+
 from .tunnel_metrics import true_frames
 
 __all__ = ["plot_tunnel_trajectory", "write_tunnel_outputs", "write_tunnel_replay"]
@@ -20,7 +21,7 @@ _RED, _BLUE, _GREEN = "#d62728", "#1f77b4", "#2ca02c"
 def _frame_segments(centres: np.ndarray, normals: np.ndarray, sizes: np.ndarray, bar: float = 0.05) -> list:
     """Top-view outline of each frame: the segment across its posts."""
     segs = []
-    for c, n, (w, _) in zip(centres, normals, sizes):
+    for c, n, (w, _) in zip(centres, normals, sizes, strict=True):
         a = np.array([n[0], n[1]]) / max(np.hypot(n[0], n[1]), 1e-12)
         across = np.array([-a[1], a[0]])
         segs.append(np.array([c[:2] - (w / 2 + bar) * across, c[:2] + (w / 2 + bar) * across]))
@@ -54,11 +55,15 @@ def plot_tunnel_trajectory(path: str | Path, result: Any, mission: Any, course: 
     if course is not None:
         c, n, s, bar = true_frames(course)
         for k, seg in enumerate(_frame_segments(c, n, s, bar)):
-            ax.plot(seg[:, 0], seg[:, 1], color="k", lw=3, solid_capstyle="butt", label="frames (truth)" if k == 0 else None)
+            ax.plot(
+                seg[:, 0], seg[:, 1], color="k", lw=3, solid_capstyle="butt", label="frames (truth)" if k == 0 else None
+            )
     d = mission.used
     if d is not None:
         for k, seg in enumerate(_frame_segments(d.centres, d.normals, d.sizes)):
-            ax.plot(seg[:, 0], seg[:, 1], color="tab:orange", lw=1.5, ls=":", label="frames (detected)" if k == 0 else None)
+            ax.plot(
+                seg[:, 0], seg[:, 1], color="tab:orange", lw=1.5, ls=":", label="frames (detected)" if k == 0 else None
+            )
         ax.plot(d.centres[:, 0], d.centres[:, 1], "x", color="tab:orange")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
@@ -83,8 +88,9 @@ def plot_tunnel_trajectory(path: str | Path, result: Any, mission: Any, course: 
     return path
 
 
-def write_tunnel_replay(path: str | Path, result: Any, params: Any, world: Any, mission: Any,
-                        clouds: list[np.ndarray], fps: int = 20) -> Path:
+def write_tunnel_replay(
+    path: str | Path, result: Any, params: Any, world: Any, mission: Any, clouds: list[np.ndarray], fps: int = 20
+) -> Path:
     """A self-contained MeshCat replay: the world's meshes, the vehicle flying, the true (red), odometry (blue)
     and setpoint (green) paths, the detected centres, and point-cloud snapshots (world frame)."""
     from cufund.viz.meshcat_scene import (
@@ -108,19 +114,20 @@ def write_tunnel_replay(path: str | Path, result: Any, params: Any, world: Any, 
             opacity = 0.25 if obj.label == "wall" else 1.0
             vis[f"world/{obj.label}_{obj.id}"].set_object(
                 g.TriangularMeshGeometry(np.asarray(obj.vertices, float), np.asarray(obj.triangles)),
-                g.MeshLambertMaterial(color=color, opacity=opacity, transparent=opacity < 1))
+                g.MeshLambertMaterial(color=color, opacity=opacity, transparent=opacity < 1),
+            )
     draw_vehicle(vis, params)
     t, p, _, pe, _, ps = _paths(result)
     q = result.states["q_WB"]
-    draw_path(vis, "paths/truth", p[:: max(1, len(t) // 3000)], 0xd62728)
+    draw_path(vis, "paths/truth", p[:: max(1, len(t) // 3000)], 0xD62728)
     if len(pe):
-        draw_path(vis, "paths/odometry", pe[:: max(1, len(pe) // 3000)], 0x1f77b4)
+        draw_path(vis, "paths/odometry", pe[:: max(1, len(pe) // 3000)], 0x1F77B4)
     if len(ps):
-        draw_path(vis, "paths/setpoints", ps[:: max(1, len(ps) // 3000)], 0x2ca02c)
+        draw_path(vis, "paths/setpoints", ps[:: max(1, len(ps) // 3000)], 0x2CA02C)
     d = mission.used
     if d is not None:
         for k, c in enumerate(d.centres):
-            vis[f"detections/centre_{k}"].set_object(g.Sphere(0.04), g.MeshLambertMaterial(color=0xff7f0e))
+            vis[f"detections/centre_{k}"].set_object(g.Sphere(0.04), g.MeshLambertMaterial(color=0xFF7F0E))
             vis[f"detections/centre_{k}"].set_transform(pose_matrix(c, np.array([1.0, 0, 0, 0])))
     for k, pts in enumerate(clouds):
         pts = np.asarray(pts, dtype=np.float32).reshape(-1, 3)
@@ -148,25 +155,29 @@ def _cloud(detector: Any) -> np.ndarray:
         return np.zeros((0, 3))
 
 
-def write_tunnel_outputs(run: Any, out: str | Path, mission: Any, course: Any, detector: list[Any],
-                         plots: bool = True, replay: bool = True) -> None:
+def write_tunnel_outputs(
+    run: Any, out: str | Path, mission: Any, course: Any, detector: list[Any], plots: bool = True, replay: bool = True
+) -> None:
     """Writes trajectory.png, detection.png and replay.html of a tunnel run into ``out``."""
     out = Path(out)
     m = run.metrics
     if plots:
         rmse, mx = m.get("tracking_rmse_m"), m.get("tracking_max_m")
         orm = m.get("odometry_rmse_m")
-        title = (f"tunnel ({run.config.controller.kind if run.config.controller else '-'}): {m.get('status')}"
-                 + (f", tracking RMSE {100 * rmse:.2f} cm / max {100 * mx:.2f} cm" if rmse is not None else "")
-                 + (f", odometry RMSE {100 * orm:.2f} cm" if orm is not None else ""))
+        title = (
+            f"tunnel ({run.config.controller.kind if run.config.controller else '-'}): {m.get('status')}"
+            + (f", tracking RMSE {100 * rmse:.2f} cm / max {100 * mx:.2f} cm" if rmse is not None else "")
+            + (f", odometry RMSE {100 * orm:.2f} cm" if orm is not None else "")
+        )
         plot_tunnel_trajectory(out / "trajectory.png", run.result, mission, course, title)
         _detection_plot(out / "detection.png", detector, course, mission)
     if replay:
         world = getattr(run, "world", None)
         if world is None and course is not None:
             world = course.world
-        write_tunnel_replay(out / "replay.html", run.result, run.config.vehicle_params(), world, mission,
-                            [_cloud(detector)])
+        write_tunnel_replay(
+            out / "replay.html", run.result, run.config.vehicle_params(), world, mission, [_cloud(detector)]
+        )
 
 
 def _detection_plot(path: Path, detector: Any, course: Any, mission: Any) -> None:

@@ -29,17 +29,21 @@ def table(metrics: dict[str, Any]) -> str:
             ours = metrics.get(f"{kind}_{stat}_m")
             target = TARGETS[kind][i]
             ok = "" if target is None or ours is None else (" ok" if ours <= target else " MISSED")
-            lines.append(f"| {kind} {stat.upper() if stat == 'rmse' else stat} | {PAPER_SIMULATION[kind][i]:.4f} | "
-                         f"{_f(ours)} | {'-' if target is None else f'<= {target:g}'}{ok} |")
+            lines.append(
+                f"| {kind} {stat.upper() if stat == 'rmse' else stat} | {PAPER_SIMULATION[kind][i]:.4f} | "
+                f"{_f(ours)} | {'-' if target is None else f'<= {target:g}'}{ok} |"
+            )
     lines.append("")
     rtf, cpu_rtf = metrics.get("real_time_factor"), metrics.get("cpu_real_time_factor")
-    lines.append(f"status: {metrics.get('status')}{' (' + metrics['reason'] + ')' if metrics.get('reason') else ''}, "
-                 f"success: {metrics.get('success')}, frames passed: {metrics.get('frames_passed')}, "
-                 f"mission time: {_f(metrics.get('mission_time_s'))} s, min clearance: "
-                 f"{_f(metrics.get('min_clearance_m'))} m, detection centre error (max): "
-                 f"{_f(metrics.get('detection_centre_error_m'))} m, real-time factor: "
-                 f"{'-' if rtf is None else f'{rtf:.2f}'}x wall, {'-' if cpu_rtf is None else f'{cpu_rtf:.2f}'}x "
-                 f"simulated seconds per CPU second")
+    lines.append(
+        f"status: {metrics.get('status')}{' (' + metrics['reason'] + ')' if metrics.get('reason') else ''}, "
+        f"success: {metrics.get('success')}, frames passed: {metrics.get('frames_passed')}, "
+        f"mission time: {_f(metrics.get('mission_time_s'))} s, min clearance: "
+        f"{_f(metrics.get('min_clearance_m'))} m, detection centre error (max): "
+        f"{_f(metrics.get('detection_centre_error_m'))} m, real-time factor: "
+        f"{'-' if rtf is None else f'{rtf:.2f}'}x wall, {'-' if cpu_rtf is None else f'{cpu_rtf:.2f}'}x "
+        f"simulated seconds per CPU second"
+    )
     split = metrics.get("time_per_component_s")
     if split:
         total = sum(split.values()) or 1.0

@@ -13,8 +13,17 @@ from .detection import (
 from .tunnel_detector import TunnelDetector
 from .voxel_accumulator import VoxelAccumulator
 
-__all__ = ["FrameDetection", "TunnelDetector", "TunnelDetectorParams", "VoxelAccumulator", "detect_frames",
-           "detect_in_voxels", "order_along_course", "plot_detection", "voxel_means"]
+__all__ = [
+    "FrameDetection",
+    "TunnelDetector",
+    "TunnelDetectorParams",
+    "VoxelAccumulator",
+    "detect_frames",
+    "detect_in_voxels",
+    "order_along_course",
+    "plot_detection",
+    "voxel_means",
+]
 
 
 def plot_detection(*args: Any, **kwargs: Any) -> Any:

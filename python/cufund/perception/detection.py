@@ -27,21 +27,35 @@ from __future__ import annotations
 
 import math
 import numbers
-from typing import Any, overload
 from dataclasses import dataclass
+from typing import overload
 
 import numpy as np
 
 from cufund import _core
 
-__all__ = ["FrameDetection", "TunnelDetectorParams", "column_keys", "detect_frames", "detect_in_voxels", "order_along_course", "voxel_keys", "voxel_means"]
+__all__ = [
+    "FrameDetection",
+    "TunnelDetectorParams",
+    "column_keys",
+    "detect_frames",
+    "detect_in_voxels",
+    "order_along_course",
+    "voxel_keys",
+    "voxel_means",
+]
 
 
 def _positive(name: str, v: object, allow_zero: bool = False) -> float:
-    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) \
-            or (v < 0 if allow_zero else v <= 0):
-        raise ValueError(f"TunnelDetectorParams.{name} must be a finite number {'>=' if allow_zero else '>'} 0, "
-                         f"got {v!r}")
+    if (
+        isinstance(v, bool)
+        or not isinstance(v, numbers.Real)
+        or not math.isfinite(v)
+        or (v < 0 if allow_zero else v <= 0)
+    ):
+        raise ValueError(
+            f"TunnelDetectorParams.{name} must be a finite number {'>=' if allow_zero else '>'} 0, got {v!r}"
+        )
     return float(v)
 
 
@@ -116,9 +130,21 @@ class TunnelDetectorParams:
     """Seed of the RANSAC draws (same seed, same cloud: the same detections)."""
 
     def __post_init__(self) -> None:
-        for name in ("voxel", "cluster_voxel", "eps", "bar", "slab", "min_opening", "max_opening", "max_thickness",
-                     "min_separation",
-                     "rate_hz", "settled_rate_hz", "max_range", "associate_radius"):
+        for name in (
+            "voxel",
+            "cluster_voxel",
+            "eps",
+            "bar",
+            "slab",
+            "min_opening",
+            "max_opening",
+            "max_thickness",
+            "min_separation",
+            "rate_hz",
+            "settled_rate_hz",
+            "max_range",
+            "associate_radius",
+        ):
             object.__setattr__(self, name, _positive(name, getattr(self, name)))
         object.__setattr__(self, "floor_cut", _positive("floor_cut", self.floor_cut, allow_zero=True))
         object.__setattr__(self, "floor_band", _positive("floor_band", self.floor_band, allow_zero=True))
@@ -139,16 +165,28 @@ class TunnelDetectorParams:
                 if a.shape != (3,) or not np.all(np.isfinite(a)):
                     raise ValueError(f"TunnelDetectorParams.{name} must be None or 3 finite numbers [m], got {v!r}")
                 object.__setattr__(self, name, tuple(float(x) for x in a))
-        if self.roi_min_W is not None and self.roi_max_W is not None \
-                and not all(lo < hi for lo, hi in zip(self.roi_min_W, self.roi_max_W)):
-            raise ValueError(f"TunnelDetectorParams.roi_min_W must be below roi_max_W, got {self.roi_min_W} and "
-                             f"{self.roi_max_W}")
-        for name in ("min_points", "min_bar_points", "ransac_iterations", "max_voxels", "full_support", "seed",
-                     "point_stride"):
+        if (
+            self.roi_min_W is not None
+            and self.roi_max_W is not None
+            and not all(lo < hi for lo, hi in zip(self.roi_min_W, self.roi_max_W, strict=True))
+        ):
+            raise ValueError(
+                f"TunnelDetectorParams.roi_min_W must be below roi_max_W, got {self.roi_min_W} and {self.roi_max_W}"
+            )
+        for name in (
+            "min_points",
+            "min_bar_points",
+            "ransac_iterations",
+            "max_voxels",
+            "full_support",
+            "seed",
+            "point_stride",
+        ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < (0 if name == "seed" else 1):
-                raise ValueError(f"TunnelDetectorParams.{name} must be an integer >= {0 if name == 'seed' else 1}, "
-                                 f"got {v!r}")
+                raise ValueError(
+                    f"TunnelDetectorParams.{name} must be an integer >= {0 if name == 'seed' else 1}, got {v!r}"
+                )
             object.__setattr__(self, name, int(v))
         p = _positive("percentile", self.percentile)
         if not p < 50:
@@ -209,8 +247,9 @@ def voxel_means(points: np.ndarray, voxel: float, extra: None = None) -> np.ndar
 def voxel_means(points: np.ndarray, voxel: float, extra: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
 
-def voxel_means(points: np.ndarray, voxel: float, extra: np.ndarray | None = None
-                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+def voxel_means(
+    points: np.ndarray, voxel: float, extra: np.ndarray | None = None
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """The mean of the points in each occupied voxel of edge ``voxel`` [m], sorted by voxel (deterministic);
     with ``extra`` (N, k), also the mean of its rows per voxel."""
     if len(points) == 0:
@@ -233,8 +272,9 @@ def _dbscan(points: np.ndarray, eps: float, min_points: int) -> np.ndarray:
     return _core.perception.dbscan(np.asarray(points, dtype=float).reshape(-1, 3), eps, min_points)
 
 
-def _vertical_plane(xy: np.ndarray, threshold: float, iterations: int, rng: np.random.Generator
-                    ) -> tuple[np.ndarray, float] | None:
+def _vertical_plane(
+    xy: np.ndarray, threshold: float, iterations: int, rng: np.random.Generator
+) -> tuple[np.ndarray, float] | None:
     """Unit horizontal normal n (2,) and offset d (n . p = d) of the line best supported by ``xy``."""
     n_pts = len(xy)
     if n_pts < 3:
@@ -293,8 +333,9 @@ def _mid(a: np.ndarray, q: float) -> float:
     return 0.5 * float(lo + hi)
 
 
-def _read_bars(u: np.ndarray, v: np.ndarray, u_lo: float, u_hi: float, v_hi: float, p: TunnelDetectorParams,
-               need: int) -> tuple | None:
+def _read_bars(
+    u: np.ndarray, v: np.ndarray, u_lo: float, u_hi: float, v_hi: float, p: TunnelDetectorParams, need: int
+) -> tuple | None:
     """The four bars of a frame from its points' plane coordinates (u across, v up): the posts' centre lines
     u_left and u_right, the top and bottom bars' v_top and v_bot, and each bar's point mask; None unless every
     bar holds ``need`` points."""
@@ -326,9 +367,14 @@ def _read_bars(u: np.ndarray, v: np.ndarray, u_lo: float, u_hi: float, v_hi: flo
     return _mid(u[left], q), _mid(u[right], q), v_top, v_bot, top_pts, bot_pts, left, right
 
 
-def _measure(cluster: np.ndarray, cloud: np.ndarray, views: np.ndarray | None, p: TunnelDetectorParams,
-             rng: np.random.Generator, by_x: tuple | None = None
-             ) -> tuple[FrameDetection | None, np.ndarray | None]:
+def _measure(
+    cluster: np.ndarray,
+    cloud: np.ndarray,
+    views: np.ndarray | None,
+    p: TunnelDetectorParams,
+    rng: np.random.Generator,
+    by_x: tuple | None = None,
+) -> tuple[FrameDetection | None, np.ndarray | None]:
     """The frame on the best vertical plane through a cluster, measured on the whole cloud (None if it is not a
     frame), and which of the cluster's points lie on that plane (None without a plane)."""
     b = p.bar
@@ -361,19 +407,29 @@ def _in_box(cloud: np.ndarray, lo: np.ndarray, hi: np.ndarray, by_x: tuple | Non
         return np.flatnonzero(np.all((cloud[:, :2] > lo) & (cloud[:, :2] < hi), axis=1))
     order, xs, voxel = by_x
     if order is None:  # voxel order: the voxels of x in (lo, hi) are a slice
-        a, b = np.searchsorted(xs, np.floor(lo[0] / voxel), side="left"), np.searchsorted(xs, np.floor(hi[0] / voxel),
-                                                                                        side="right")
+        a, b = (
+            np.searchsorted(xs, np.floor(lo[0] / voxel), side="left"),
+            np.searchsorted(xs, np.floor(hi[0] / voxel), side="right"),
+        )
         sl = cloud[a:b]
         inside = (sl[:, 0] > lo[0]) & (sl[:, 0] < hi[0]) & (sl[:, 1] > lo[1]) & (sl[:, 1] < hi[1])
         return a + np.flatnonzero(inside)
-    cand = order[np.searchsorted(xs, lo[0], side="right"):np.searchsorted(xs, hi[0], side="left")]
+    cand = order[np.searchsorted(xs, lo[0], side="right") : np.searchsorted(xs, hi[0], side="left")]
     y = cloud[cand, 1]
     return np.sort(cand[(y > lo[1]) & (y < hi[1])])
 
 
-def _measure_plane(cluster: np.ndarray, depth_c: np.ndarray, n: np.ndarray, d: float, u_axis: np.ndarray,
-                   cloud: np.ndarray, views: np.ndarray | None, p: TunnelDetectorParams,
-                   by_x: tuple | None = None) -> FrameDetection | None:
+def _measure_plane(
+    cluster: np.ndarray,
+    depth_c: np.ndarray,
+    n: np.ndarray,
+    d: float,
+    u_axis: np.ndarray,
+    cloud: np.ndarray,
+    views: np.ndarray | None,
+    p: TunnelDetectorParams,
+    by_x: tuple | None = None,
+) -> FrameDetection | None:
     b = p.bar
     if len(cluster) < 2 * p.min_bar_points:
         return None
@@ -393,8 +449,12 @@ def _measure_plane(cluster: np.ndarray, depth_c: np.ndarray, n: np.ndarray, d: f
     depth = cloud @ n - d
     u_all = cloud @ u_axis
     z_all = cloud[:, 2]
-    in_slab = (np.abs(depth) < p.slab) & (u_all > u_lo - 2 * b) & (u_all < u_hi + 2 * b) \
+    in_slab = (
+        (np.abs(depth) < p.slab)
+        & (u_all > u_lo - 2 * b)
+        & (u_all < u_hi + 2 * b)
         & (z_all < cluster[:, 2].max() + 2 * b)
+    )
     v_hi = _percentiles(cluster[:, 2], (99,))[0]
     # Returns of rays grazing the plane carry their range noise into it: the bars are read on the points met
     # most squarely that suffice (3x the minimum on every bar), else on all above min_incidence.
@@ -418,21 +478,34 @@ def _measure_plane(cluster: np.ndarray, depth_c: np.ndarray, n: np.ndarray, d: f
         return None
     own = top_pts | bot_pts | left | right
     margin = max(2 * p.voxel, 0.02)
-    hole = (u > u_left + b / 2 + margin) & (u < u_right - b / 2 - margin) & (v > v_bot + b / 2 + margin) \
+    hole = (
+        (u > u_left + b / 2 + margin)
+        & (u < u_right - b / 2 - margin)
+        & (v > v_bot + b / 2 + margin)
         & (v < v_top - b / 2 - margin)
+    )
     if hole.sum() > p.max_hole_fraction * own.sum():
         return None
     frame_pts = own & (v > v_bot - b) & (u > u_left - b) & (u < u_right + b)  # the bars, no floor, no legs
-    support = int(np.count_nonzero(base & (z_all > v_bot - b) & (z_all < v_top + b) & (u_all > u_left - b)
-                                   & (u_all < u_right + b)))
+    support = int(
+        np.count_nonzero(
+            base & (z_all > v_bot - b) & (z_all < v_top + b) & (u_all > u_left - b) & (u_all < u_right + b)
+        )
+    )
     u0, v0 = 0.5 * (u_left + u_right), 0.5 * (v_top + v_bot)
     # depth: a point is on the face its ray met, half a bar before the frame's middle plane
     shift = 0.0 if views is None else np.sign(views[in_slab][own] @ n) * (b / 2)
     d0 = d + float(np.median(d_pts[own] + shift))
     centre = d0 * n + u0 * u_axis + np.array([0.0, 0.0, v0])
-    return FrameDetection(centre_W=centre, normal_W=n, width=float(width), height=float(height),
-                          support=support, points_W=pts[frame_pts],
-                          cluster_mean_W=pts[frame_pts].mean(axis=0))
+    return FrameDetection(
+        centre_W=centre,
+        normal_W=n,
+        width=float(width),
+        height=float(height),
+        support=support,
+        points_W=pts[frame_pts],
+        cluster_mean_W=pts[frame_pts].mean(axis=0),
+    )
 
 
 def order_along_course(detections: list[FrameDetection], origin_W: object = None) -> list[FrameDetection]:
@@ -445,7 +518,11 @@ def order_along_course(detections: list[FrameDetection], origin_W: object = None
     if origin_W is None:
         order = list(np.lexsort((centres[:, 1], centres[:, 0])))
     else:
-        here, left, order = _points("origin_W", np.reshape(np.asarray(origin_W, dtype=float), (1, 3)))[0], list(range(len(detections))), []
+        here, left, order = (
+            _points("origin_W", np.reshape(np.asarray(origin_W, dtype=float), (1, 3)))[0],
+            list(range(len(detections))),
+            [],
+        )
         while left:
             k = min(left, key=lambda i: (float(np.linalg.norm(centres[i] - here)), i))
             order.append(k)
@@ -480,8 +557,13 @@ def _views(sensor_W: object, pts: np.ndarray) -> np.ndarray | None:
     return d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
 
 
-def detect_frames(points_W: object, params: TunnelDetectorParams | None = None, expected: int | None = None,
-                  origin_W: object = None, sensor_W: object = None) -> list[FrameDetection]:
+def detect_frames(
+    points_W: object,
+    params: TunnelDetectorParams | None = None,
+    expected: int | None = None,
+    origin_W: object = None,
+    sensor_W: object = None,
+) -> list[FrameDetection]:
     """The tunnel frames in ``points_W`` (N, 3) [m], in flying order from ``origin_W`` (see
     :func:`order_along_course`). ``expected``: keep at most this many frames (the best supported).
     ``sensor_W``: where the LiDAR was, (3,) for all points or (N, 3) one per point [m]. With it a frame's depth along its normal is the middle
@@ -491,8 +573,9 @@ def detect_frames(points_W: object, params: TunnelDetectorParams | None = None, 
     p = TunnelDetectorParams() if params is None else params
     if not isinstance(p, TunnelDetectorParams):
         raise TypeError(f"params must be a TunnelDetectorParams, got {type(params).__name__}")
-    if expected is not None and (isinstance(expected, bool) or not isinstance(expected, numbers.Integral)
-                                 or expected < 1):
+    if expected is not None and (
+        isinstance(expected, bool) or not isinstance(expected, numbers.Integral) or expected < 1
+    ):
         raise ValueError(f"expected must be None or an integer >= 1 (frames), got {expected!r}")
     pts = _points("points_W", points_W)
     keep = (pts[:, 2] <= p.ceiling_z) & (pts[:, 2] >= p.floor_z + p.floor_band)
@@ -531,12 +614,18 @@ def _overlap(a: FrameDetection, b: FrameDetection, p: TunnelDetectorParams) -> b
     if np.linalg.norm(d) < p.min_separation:
         return True
     u = np.array([-b.normal_W[1], b.normal_W[0], 0.0])
-    return abs(d @ b.normal_W) < p.min_separation and abs(d @ u) < b.width / 2 + p.bar \
-        and abs(d[2]) < b.height / 2 + p.bar
+    return (
+        abs(d @ b.normal_W) < p.min_separation and abs(d @ u) < b.width / 2 + p.bar and abs(d[2]) < b.height / 2 + p.bar
+    )
 
 
-def detect_in_voxels(cloud_W: np.ndarray, views_W: np.ndarray | None, params: TunnelDetectorParams,
-                     expected: int | None = None, origin_W: object = None) -> list[FrameDetection]:
+def detect_in_voxels(
+    cloud_W: np.ndarray,
+    views_W: np.ndarray | None,
+    params: TunnelDetectorParams,
+    expected: int | None = None,
+    origin_W: object = None,
+) -> list[FrameDetection]:
     """:func:`detect_frames` on points already cropped and reduced to voxel means ``cloud_W`` (M, 3) [m], with
     the mean unit ray direction of each voxel ``views_W`` (M, 3) or None (the detector's accumulated map)."""
     p = params

@@ -11,8 +11,13 @@ from .detection import FrameDetection
 __all__ = ["plot_detection"]
 
 
-def plot_detection(points_W: object, detections: list[FrameDetection], truth: object = None,
-                   path: str | Path | None = None, max_points: int = 60_000) -> object:
+def plot_detection(
+    points_W: object,
+    detections: list[FrameDetection],
+    truth: object = None,
+    path: str | Path | None = None,
+    max_points: int = 60_000,
+) -> object:
     """Top view (x-y) and side view (distance along the course - z) of ``points_W`` (N, 3) in grey, each
     detection's points in its own colour, its opening's centre (red dot, the paper's marker), the opening's
     edges and normal, the paper's cluster mean (black x) and, if given, the true centres ``truth`` (K, 3) (green

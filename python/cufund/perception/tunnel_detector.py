@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -14,6 +14,7 @@ from cufund import _core
 from cufund.core.components import BusView, Component, Subscription
 from cufund.core.messages import Odometry, PointCloud, Topics, TunnelEstimate
 from cufund.geometry import Transform, interpolate_poses
+
 from .detection import (
     COLUMN_CELL,
     FrameDetection,
@@ -40,8 +41,11 @@ def _member(keys: np.ndarray, sorted_set: np.ndarray) -> np.ndarray:
 
 def _consistent(old: FrameDetection, new: FrameDetection, tolerance: float = 0.1) -> bool:
     """``new`` agrees with ``old`` within ``tolerance`` [m]: centre and opening size."""
-    return bool(np.linalg.norm(new.centre_W - old.centre_W) <= tolerance
-                and abs(new.width - old.width) <= tolerance and abs(new.height - old.height) <= tolerance)
+    return bool(
+        np.linalg.norm(new.centre_W - old.centre_W) <= tolerance
+        and abs(new.width - old.width) <= tolerance
+        and abs(new.height - old.height) <= tolerance
+    )
 
 
 @dataclass
@@ -77,9 +81,15 @@ class TunnelDetector(Component):
 
     name = "tunnel_detector"
 
-    def __init__(self, params: TunnelDetectorParams | None = None, T_BL: Transform | None = None,
-                 state_topic: str | None = None, cloud_topic: str = Topics.POINT_CLOUD, expected: int | None = None,
-                 origin_W: object = None) -> None:
+    def __init__(
+        self,
+        params: TunnelDetectorParams | None = None,
+        T_BL: Transform | None = None,
+        state_topic: str | None = None,
+        cloud_topic: str = Topics.POINT_CLOUD,
+        expected: int | None = None,
+        origin_W: object = None,
+    ) -> None:
         self.params = TunnelDetectorParams() if params is None else params
         if not isinstance(self.params, TunnelDetectorParams):
             raise TypeError(f"params must be a TunnelDetectorParams, got {type(params).__name__}")
@@ -145,14 +155,25 @@ class TunnelDetector(Component):
         floor band are dropped, then those in x-y columns reaching above any frame, then those outside the region
         of interest (one C++ pass, :func:`cufund._core.perception.deskew_crop`, then the column bookkeeping here)."""
         p = self.params
-        span = max(float(np.max(cloud.dt[::p.point_stride], initial=0.0)), 1e-9)
+        span = max(float(np.max(cloud.dt[:: p.point_stride], initial=0.0)), 1e-9)
         p_WB, R_WB = self._poses(cloud.t + np.linspace(0.0, span, _KNOTS + 1))
         R_WL = R_WB @ self._R_BL
         p_WL = p_WB + R_WB @ self._t_BL
         # x-y columns reaching above any frame are walls or poles: never accumulated
         points_W, rays_W, tall = _core.perception.deskew_crop(
-            cloud.points_L, cloud.dt, p.point_stride, span, p_WL, R_WL, p.max_range, p.floor_z + p.floor_band,
-            p.ceiling_z, p.max_frame_top, COLUMN_CELL, self._tall)
+            cloud.points_L,
+            cloud.dt,
+            p.point_stride,
+            span,
+            p_WL,
+            R_WL,
+            p.max_range,
+            p.floor_z + p.floor_band,
+            p.ceiling_z,
+            p.max_frame_top,
+            COLUMN_CELL,
+            self._tall,
+        )
         if len(tall):
             self._tall = np.union1d(self._tall, tall)
             self._tall_changed = True
@@ -172,8 +193,11 @@ class TunnelDetector(Component):
     # -- tracking ----------------------------------------------------------------------------------------------
     def _associate(self, detections: list[FrameDetection]) -> None:
         r = self.params.associate_radius
-        pairs = sorted((float(np.linalg.norm(d.centre_W - tr.detection.centre_W)), i, j)
-                       for i, d in enumerate(detections) for j, tr in enumerate(self.tracks))
+        pairs = sorted(
+            (float(np.linalg.norm(d.centre_W - tr.detection.centre_W)), i, j)
+            for i, d in enumerate(detections)
+            for j, tr in enumerate(self.tracks)
+        )
         used_d: set[int] = set()
         used_t: set[int] = set()
         for dist, i, j in pairs:
@@ -198,14 +222,14 @@ class TunnelDetector(Component):
     def confidence(self, track: _Track) -> float:
         """In [0, 1): grows with the track's points and detections, fades while it is missed."""
         support = 1.0 - math.exp(-track.detection.support / self.params.full_support * 3.0)
-        return support * (1.0 - 0.5 ** track.hits) * 0.95 ** track.misses
+        return support * (1.0 - 0.5**track.hits) * 0.95**track.misses
 
     def estimate(self) -> TunnelEstimate:
         """The current tracks as a :class:`TunnelEstimate`, in flying order."""
         tracks = self.tracks
         if self.expected is not None and len(tracks) > self.expected:  # the most confident expected frames
             best = sorted(range(len(tracks)), key=lambda k: (-self.confidence(tracks[k]), -tracks[k].hits, k))
-            tracks = [tracks[k] for k in sorted(best[:self.expected])]
+            tracks = [tracks[k] for k in sorted(best[: self.expected])]
         ordered = order_along_course([tr.detection for tr in tracks], self.origin_W)
         by_centre = {id(tr.detection.centre_W): tr for tr in tracks}  # ordering keeps the centre arrays
         conf = [self.confidence(by_centre[id(d.centre_W)]) for d in ordered]
@@ -216,7 +240,8 @@ class TunnelDetector(Component):
             normals_W=np.array([d.normal_W for d in ordered]).reshape(k, 3),
             opening_sizes=np.array([[d.width, d.height] for d in ordered]).reshape(k, 2),
             confidence=np.array(conf, dtype=float).reshape(k),
-            scans=self.scans)
+            scans=self.scans,
+        )
 
     def _settled(self) -> bool:
         """Every expected frame tracked with confidence >= 0.9 (then detection slows to settled_rate_hz)."""
@@ -248,8 +273,11 @@ class TunnelDetector(Component):
                     self.origin_W = np.asarray(state.p_W, dtype=float).copy()
         self._waiting.extend(self._clouds_sub.take())
         batch = []
-        while self._waiting and self._t and \
-                self._t[-1] >= self._waiting[0].t + float(np.max(self._waiting[0].dt, initial=0.0)):
+        while (
+            self._waiting
+            and self._t
+            and self._t[-1] >= self._waiting[0].t + float(np.max(self._waiting[0].dt, initial=0.0))
+        ):
             batch.append(self._crop(self._waiting.pop(0)))
         if batch:
             if self._tall_changed and len(self.map):

@@ -38,8 +38,9 @@ class VoxelAccumulator:
         """Adds points (N, 3) [m] and the unit directions (N, 3) of the rays that measured them."""
         points_W, rays_W = np.asarray(points_W, dtype=float), np.asarray(rays_W, dtype=float)
         if points_W.ndim != 2 or points_W.shape[1] != 3 or rays_W.shape != points_W.shape:
-            raise ValueError(f"points_W and rays_W must both have shape (N, 3), got {points_W.shape} and "
-                             f"{rays_W.shape}")
+            raise ValueError(
+                f"points_W and rays_W must both have shape (N, 3), got {points_W.shape} and {rays_W.shape}"
+            )
         self.batches += 1
         if len(points_W) == 0:
             return
@@ -68,7 +69,7 @@ class VoxelAccumulator:
         self._sums = np.insert(self._sums, at, sums[~known], axis=0)
         self._seen = np.insert(self._seen, at, self.batches)
         if len(self._keys) > self.max_voxels:
-            keep = np.sort(np.lexsort((self._keys, -self._seen))[:self.max_voxels])
+            keep = np.sort(np.lexsort((self._keys, -self._seen))[: self.max_voxels])
             self._keys, self._sums, self._seen = self._keys[keep], self._sums[keep], self._seen[keep]
 
     def drop(self, mask: np.ndarray) -> None:

@@ -45,10 +45,10 @@ class UniformBspline:
         self.t_start = float(t_start)
         self.yaw = float(yaw)
         # (segments, 4 powers, 3) polynomial coefficients in u, per derivative order 0..3 (time units)
-        win = np.stack([q[k:k + 4] for k in range(q.shape[0] - 3)])  # (S, 4, 3)
+        win = np.stack([q[k : k + 4] for k in range(q.shape[0] - 3)])  # (S, 4, 3)
         c = np.einsum("pj,sjd->spd", _M, win)
         self._coef = [c]
-        for r in range(1, 4):
+        for _r in range(1, 4):
             prev = self._coef[-1]
             d = np.zeros_like(prev)
             d[:, :-1] = prev[:, 1:] * np.arange(1, 4)[None, :, None] / self.dt
@@ -78,5 +78,6 @@ class UniformBspline:
         ta = np.atleast_1d(np.asarray(t, dtype=float))
         d = [self.derivative(ta, r) for r in range(4)]
         n = ta.shape[0]
-        return TrajectorySamples(t=ta, p_W=d[0], v_W=d[1], a_W=d[2], j_W=d[3], yaw=np.full(n, self.yaw),
-                                 yaw_rate=np.zeros(n))
+        return TrajectorySamples(
+            t=ta, p_W=d[0], v_W=d[1], a_W=d[2], j_W=d[3], yaw=np.full(n, self.yaw), yaw_rate=np.zeros(n)
+        )

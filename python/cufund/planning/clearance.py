@@ -83,8 +83,9 @@ class ClearanceQuery:
     def segment_free(self, p0_W: npt.ArrayLike, p1_W: npt.ArrayLike, radius: float) -> bool:
         """True when every point of the segment is certified at least ``radius`` [m] from obstacles."""
         a, b = _point("p0_W", p0_W), _point("p1_W", p1_W)
-        return self.segment_free_xyz(float(a[0]), float(a[1]), float(a[2]), float(b[0]), float(b[1]), float(b[2]),
-                                     float(radius))
+        return self.segment_free_xyz(
+            float(a[0]), float(a[1]), float(a[2]), float(b[0]), float(b[1]), float(b[2]), float(radius)
+        )
 
     def path_free(self, path_W: npt.ArrayLike, radius: float) -> np.ndarray:
         """Per edge of the polyline ``path_W`` (K, 3): is it certified free? (K-1,) bool."""

@@ -29,12 +29,22 @@ class TrajectoryFeasibility:
     max_tilt_deg: float
     """Largest angle between the thrust direction and the vertical [deg]."""
 
-    def within(self, v_max: float = math.inf, a_max: float = math.inf, thrust_max: float = math.inf,
-               tilt_max_deg: float = 90.0, rel_tol: float = 1e-3) -> bool:
+    def within(
+        self,
+        v_max: float = math.inf,
+        a_max: float = math.inf,
+        thrust_max: float = math.inf,
+        tilt_max_deg: float = 90.0,
+        rel_tol: float = 1e-3,
+    ) -> bool:
         """True when every peak is within its limit (``rel_tol`` for the sampling)."""
         k = 1.0 + rel_tol
-        return (self.peak_speed <= v_max * k and self.peak_acceleration <= a_max * k
-                and self.max_thrust_acceleration <= thrust_max * k and self.max_tilt_deg <= tilt_max_deg * k)
+        return (
+            self.peak_speed <= v_max * k
+            and self.peak_acceleration <= a_max * k
+            and self.max_thrust_acceleration <= thrust_max * k
+            and self.max_tilt_deg <= tilt_max_deg * k
+        )
 
 
 def feasibility(trajectory: Trajectory, gravity: float = 9.81, dt: float = 0.005) -> TrajectoryFeasibility:

@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cufund.core.config import ConfigError
+
 from .clearance import ClearanceQuery
 from .min_snap_planner import MinSnapPlanner, MinSnapPlannerParams, MinSnapResult
 from .minimum_snap import MinimumSnapTrajectory
@@ -31,7 +32,12 @@ RRTConnect then an optimising planner for ``improve_time`` seconds."""
 
 
 def _number(name: str, v: object, lo: float, strict: bool) -> float:
-    ok = not isinstance(v, bool) and isinstance(v, numbers.Real) and math.isfinite(v) and (float(v) > lo if strict else float(v) >= lo)
+    ok = (
+        not isinstance(v, bool)
+        and isinstance(v, numbers.Real)
+        and math.isfinite(v)
+        and (float(v) > lo if strict else float(v) >= lo)
+    )
     if not ok:
         raise ConfigError(f"{name} must be a finite number {'>' if strict else '>='} {lo:g}, got {v!r}")
     return float(v)  # type: ignore[arg-type]
@@ -75,8 +81,11 @@ class GlobalPlannerParams:
             raise ConfigError(f"improve_time must be > 0 [s] for search {self.search!r}, got {self.improve_time!r}")
         if not isinstance(self.optimize_times, (bool, np.bool_)):
             raise ConfigError(f"optimize_times must be a bool, got {self.optimize_times!r}")
-        if isinstance(self.max_expansions, bool) or not isinstance(self.max_expansions, numbers.Integral) \
-                or self.max_expansions < 1:
+        if (
+            isinstance(self.max_expansions, bool)
+            or not isinstance(self.max_expansions, numbers.Integral)
+            or self.max_expansions < 1
+        ):
             raise ConfigError(f"max_expansions must be an integer >= 1, got {self.max_expansions!r}")
 
 
@@ -123,18 +132,27 @@ class GlobalPlanner:
         p = self.params
         r = p.radius + p.margin
         if p.search == "astar":
-            self._search: GridPathSearch | OmplPathPlanner = GridPathSearch(GridPathSearchParams(
-                radius=r, max_expansions=p.max_expansions, heuristic_weight=p.heuristic_weight))
+            self._search: GridPathSearch | OmplPathPlanner = GridPathSearch(
+                GridPathSearchParams(radius=r, max_expansions=p.max_expansions, heuristic_weight=p.heuristic_weight)
+            )
         else:
             improve = 0.0 if p.search == "rrt_connect" else p.improve_time
             optimizer = "bit_star" if p.search == "bit_star" else "informed_rrt_star"
-            self._search = OmplPathPlanner(OmplPathParams(radius=r, time_limit=p.time_limit, improve_time=improve,
-                                                          optimizer=optimizer))
-        self._motion = MinSnapPlanner(MinSnapPlannerParams(v_max=p.v_max, a_max=p.a_max, radius=p.radius,
-                                                           optimize_times=bool(p.optimize_times)))
+            self._search = OmplPathPlanner(
+                OmplPathParams(radius=r, time_limit=p.time_limit, improve_time=improve, optimizer=optimizer)
+            )
+        self._motion = MinSnapPlanner(
+            MinSnapPlannerParams(v_max=p.v_max, a_max=p.a_max, radius=p.radius, optimize_times=bool(p.optimize_times))
+        )
 
-    def plan(self, query: ClearanceQuery, start_W: npt.ArrayLike, goal_W: npt.ArrayLike, t_start: float = 0.0,
-             yaw: float = 0.0) -> GlobalPlan:
+    def plan(
+        self,
+        query: ClearanceQuery,
+        start_W: npt.ArrayLike,
+        goal_W: npt.ArrayLike,
+        t_start: float = 0.0,
+        yaw: float = 0.0,
+    ) -> GlobalPlan:
         """A trajectory from ``start_W`` to ``goal_W`` (3,) [m], at rest at both, starting at ``t_start`` [s]
         with constant ``yaw`` [rad]."""
         if not isinstance(query, ClearanceQuery):
@@ -147,5 +165,12 @@ class GlobalPlanner:
             return GlobalPlan(path.status, path, None, path.plan_seconds, 0.0, c1 - c0, c1 - c0)
         w = path.path_W
         motion = self._motion.plan(w, np.full(w.shape[0], float(yaw)), query=query, t_start=t_start)
-        return GlobalPlan("ok" if motion.status == "ok" else motion.status, path, motion, path.plan_seconds,
-                          time.perf_counter() - t1, time.thread_time() - c0, c1 - c0)
+        return GlobalPlan(
+            "ok" if motion.status == "ok" else motion.status,
+            path,
+            motion,
+            path.plan_seconds,
+            time.perf_counter() - t1,
+            time.thread_time() - c0,
+            c1 - c0,
+        )

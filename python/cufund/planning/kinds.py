@@ -39,17 +39,27 @@ def build_reference(cfg: Any) -> tuple[TrajectorySequence, MinimumSnapTrajectory
     else:  # the planner that optimises times and inserts waypoints where the path leaves the corridor
         from .min_snap_planner import MinSnapPlanner, MinSnapPlannerParams
 
-        planner = MinSnapPlanner(MinSnapPlannerParams(cfg.v_max, cfg.a_max, optimize_times=cfg.optimize_times,
-                                                      corridor=cfg.corridor))
+        planner = MinSnapPlanner(
+            MinSnapPlannerParams(cfg.v_max, cfg.a_max, optimize_times=cfg.optimize_times, corridor=cfg.corridor)
+        )
         result = planner.plan(w, yaw, t_start=hover1.t_end)
         if result.status != "ok":
-            raise ValueError(f"trajectory.corridor: no min-snap path stays within {cfg.corridor} m of the "
-                             f"waypoints ({result.status})")
+            raise ValueError(
+                f"trajectory.corridor: no min-snap path stays within {cfg.corridor} m of the "
+                f"waypoints ({result.status})"
+            )
         path = result.trajectory
     yaw_end = float(path.yaw_waypoints[-1])
     hover2 = Hold(w[-1], cfg.hover_s, yaw_end, t_start=path.t_end)
-    landing = JerkLimitedMove(w[-1], np.array([w[-1, 0], w[-1, 1], 0.0]), cfg.move_v_max, cfg.move_a_max,
-                              cfg.move_j_max, yaw_end, t_start=hover2.t_end)
+    landing = JerkLimitedMove(
+        w[-1],
+        np.array([w[-1, 0], w[-1, 1], 0.0]),
+        cfg.move_v_max,
+        cfg.move_a_max,
+        cfg.move_j_max,
+        yaw_end,
+        t_start=hover2.t_end,
+    )
     return TrajectorySequence([takeoff, hover1, path, hover2, landing]), path
 
 
@@ -60,8 +70,16 @@ def _waypoints(p: WaypointsParams, ctx: BuildContext) -> list[Any]:
     return [follower]
 
 
-register(Kind("planner", "waypoints", WaypointsParams, _waypoints, None,
-              "take off, fly a minimum-snap path through trajectory.waypoints, land below the last one"))
+register(
+    Kind(
+        "planner",
+        "waypoints",
+        WaypointsParams,
+        _waypoints,
+        None,
+        "take off, fly a minimum-snap path through trajectory.waypoints, land below the last one",
+    )
+)
 
 
 @dataclass(frozen=True)
@@ -114,8 +132,11 @@ class LocalParams:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0):
                 raise ConfigError(f"planner.{name} must be a finite number > 0, got {v!r}")
-        if isinstance(self.hover_s, bool) or not isinstance(self.hover_s, (int, float)) \
-                or not (np.isfinite(self.hover_s) and self.hover_s >= 0):
+        if (
+            isinstance(self.hover_s, bool)
+            or not isinstance(self.hover_s, (int, float))
+            or not (np.isfinite(self.hover_s) and self.hover_s >= 0)
+        ):
             raise ConfigError(f"planner.hover_s must be a finite number >= 0 [s], got {self.hover_s!r}")
         check_at_most(self, "planner", rate_hz=1e3, horizon=1e3, max_iterations=10_000)
 
@@ -125,9 +146,17 @@ class LocalParams:
         from .local_planner import LocalPlannerParams
 
         try:
-            return LocalPlannerParams(radius=self.radius, margin=self.margin, v_max=self.v_max, a_max=self.a_max,
-                                      dt=self.dt, horizon=self.horizon, max_iterations=self.max_iterations,
-                                      z_min=self.z_min, z_max=self.z_max)
+            return LocalPlannerParams(
+                radius=self.radius,
+                margin=self.margin,
+                v_max=self.v_max,
+                a_max=self.a_max,
+                dt=self.dt,
+                horizon=self.horizon,
+                max_iterations=self.max_iterations,
+                z_min=self.z_min,
+                z_max=self.z_max,
+            )
         except ConfigError as e:
             raise ConfigError(f"planner.{e}") from None
 
@@ -149,15 +178,28 @@ def _local(p: LocalParams, ctx: BuildContext, guide_W: np.ndarray | None = None)
     top = start + np.array([0.0, 0.0, p.takeoff_height])
     takeoff = JerkLimitedMove(start, top, p.move_v_max, p.move_a_max, p.move_j_max, 0.0, t_start=0.0)
     initial = TrajectorySequence([takeoff, Hold(top, p.hover_s, 0.0, t_start=takeoff.t_end)])
-    planner = LocalPlannerComponent(p.planner_params(), p.goal, initial, t_begin=initial.t_end, rate_hz=p.rate_hz,
-                                    goal_tolerance=p.goal_tolerance, hover_s=p.hover_s,
-                                    landing=(p.move_v_max, p.move_a_max, p.move_j_max), guide_W=guide_W)
-    follower = TrajectoryFollower(initial, rate_hz=cfg.rates.trajectory_hz, block=32,
-                                  update_topic=Topics.TRAJECTORY_UPDATE)
+    planner = LocalPlannerComponent(
+        p.planner_params(),
+        p.goal,
+        initial,
+        t_begin=initial.t_end,
+        rate_hz=p.rate_hz,
+        goal_tolerance=p.goal_tolerance,
+        hover_s=p.hover_s,
+        landing=(p.move_v_max, p.move_a_max, p.move_j_max),
+        guide_W=guide_W,
+    )
+    follower = TrajectoryFollower(
+        initial, rate_hz=cfg.rates.trajectory_hz, block=32, update_topic=Topics.TRAJECTORY_UPDATE
+    )
 
     def landed(t: float, truth: Any) -> bool:  # run end: landed after the goal (a run-harness check)
-        return planner.t_landed is not None and t >= planner.t_landed and truth.p_W[2] < start[2] + 0.02 \
+        return (
+            planner.t_landed is not None
+            and t >= planner.t_landed
+            and truth.p_W[2] < start[2] + 0.02
             and float(np.linalg.norm(truth.v_W)) < 0.05
+        )
 
     ctx.set_done_condition(landed)
     world = ctx.world
@@ -165,8 +207,16 @@ def _local(p: LocalParams, ctx: BuildContext, guide_W: np.ndarray | None = None)
     return [planner, follower]
 
 
-register(Kind("planner", "local", LocalParams, _local, None,
-              "take off, replan a B-spline on the growing ESDF map (mapper: esdf) to planner.goal, land there"))
+register(
+    Kind(
+        "planner",
+        "local",
+        LocalParams,
+        _local,
+        None,
+        "take off, replan a B-spline on the growing ESDF map (mapper: esdf) to planner.goal, land there",
+    )
+)
 
 
 @dataclass(frozen=True)
@@ -209,10 +259,17 @@ class GlobalParams(LocalParams):
         from .global_planner import GlobalPlannerParams
 
         try:
-            return GlobalPlannerParams(search=self.search, radius=self.radius, margin=self.path_margin,
-                                       v_max=self.v_max, a_max=self.a_max, optimize_times=self.optimize_times,
-                                       heuristic_weight=self.heuristic_weight, time_limit=self.time_limit,
-                                       improve_time=self.improve_time)
+            return GlobalPlannerParams(
+                search=self.search,
+                radius=self.radius,
+                margin=self.path_margin,
+                v_max=self.v_max,
+                a_max=self.a_max,
+                optimize_times=self.optimize_times,
+                heuristic_weight=self.heuristic_weight,
+                time_limit=self.time_limit,
+                improve_time=self.improve_time,
+            )
         except ConfigError as e:
             msg = str(e)
             raise ConfigError(f"planner.{'path_' + msg if msg.startswith('margin') else msg}") from None
@@ -236,38 +293,70 @@ def _global(p: GlobalParams, ctx: BuildContext) -> list[Any]:
     hover1 = Hold(top, p.hover_s, 0.0, t_start=takeoff.t_end)
     plan = GlobalPlanner(p.global_params()).plan(query, top, goal, t_start=hover1.t_end)
     if not plan.ok:
-        raise ConfigError(f"planner: no {p.search} plan from {top.tolist()} to {list(p.goal)} keeping "
-                          f"{p.radius} m (+ {p.path_margin} m for the path) on the world's geometry ({plan.status})")
+        raise ConfigError(
+            f"planner: no {p.search} plan from {top.tolist()} to {list(p.goal)} keeping "
+            f"{p.radius} m (+ {p.path_margin} m for the path) on the world's geometry ({plan.status})"
+        )
     motion = plan.motion
     assert motion is not None  # a plan that succeeded has its motion (checked just above)
-    stats = {"global_status": plan.status, "global_search": p.search, "global_plan_ms": 1e3 * plan.plan_seconds,
-             "global_search_ms": 1e3 * plan.search_seconds, "global_motion_ms": 1e3 * plan.motion_seconds,
-             "global_plan_cpu_ms": 1e3 * plan.plan_cpu_seconds, "global_path_length_m": plan.path.length,
-             "global_path_vertices": int(plan.path.path_W.shape[0]), "global_inserted_waypoints": motion.inserted,
-             "global_min_map_clearance_m": motion.min_clearance, "global_duration_s": motion.trajectory.duration,
-             "global_peak_speed_mps": motion.feasibility.peak_speed,
-             "global_peak_acceleration_mps2": motion.feasibility.peak_acceleration,
-             "global_peak_jerk_mps3": motion.feasibility.peak_jerk, "global_max_tilt_deg": motion.feasibility.max_tilt_deg}
+    stats = {
+        "global_status": plan.status,
+        "global_search": p.search,
+        "global_plan_ms": 1e3 * plan.plan_seconds,
+        "global_search_ms": 1e3 * plan.search_seconds,
+        "global_motion_ms": 1e3 * plan.motion_seconds,
+        "global_plan_cpu_ms": 1e3 * plan.plan_cpu_seconds,
+        "global_path_length_m": plan.path.length,
+        "global_path_vertices": int(plan.path.path_W.shape[0]),
+        "global_inserted_waypoints": motion.inserted,
+        "global_min_map_clearance_m": motion.min_clearance,
+        "global_duration_s": motion.trajectory.duration,
+        "global_peak_speed_mps": motion.feasibility.peak_speed,
+        "global_peak_acceleration_mps2": motion.feasibility.peak_acceleration,
+        "global_peak_jerk_mps3": motion.feasibility.peak_jerk,
+        "global_max_tilt_deg": motion.feasibility.max_tilt_deg,
+    }
     if p.local:
         parts = _local(p, ctx, guide_W=plan.path.path_W)
         ctx.add_metric_hook(lambda result: stats)
         return parts
     path = motion.trajectory
     hover2 = Hold(goal, p.hover_s, 0.0, t_start=path.t_end)
-    landing = JerkLimitedMove(goal, np.array([goal[0], goal[1], start[2]]), p.move_v_max, p.move_a_max,
-                              p.move_j_max, 0.0, t_start=hover2.t_end)
+    landing = JerkLimitedMove(
+        goal,
+        np.array([goal[0], goal[1], start[2]]),
+        p.move_v_max,
+        p.move_a_max,
+        p.move_j_max,
+        0.0,
+        t_start=hover2.t_end,
+    )
     reference = TrajectorySequence([takeoff, hover1, path, hover2, landing])
     follower = TrajectoryFollower(reference, rate_hz=ctx.config.rates.trajectory_hz)
     ctx.set_reference(reference, path)
     # The metrics of a replanning run, with the one plan as its only replan.
     curve = path.sample(np.arange(path.t_start, path.t_end, 0.01)).p_W
-    record = ReplanRecord(hover1.t_end, plan.status, 1e3 * plan.plan_seconds, motion.min_clearance,
-                          float(np.sum(np.linalg.norm(np.diff(curve, axis=0), axis=1))), 1e3 * plan.plan_cpu_seconds)
+    record = ReplanRecord(
+        hover1.t_end,
+        plan.status,
+        1e3 * plan.plan_seconds,
+        motion.min_clearance,
+        float(np.sum(np.linalg.norm(np.diff(curve, axis=0), axis=1))),
+        1e3 * plan.plan_cpu_seconds,
+    )
     once = SimpleNamespace(active_goal=goal, goal_W=goal, params=SimpleNamespace(radius=p.radius), replans=[record])
     ctx.add_metric_hook(lambda result: {**planning_metrics(result, once, world, start), **stats})
     return [follower]
 
 
-register(Kind("planner", "global", GlobalParams, _global, None,
-              "take off, plan on the world's geometry (A* or OMPL -> clearance-keeping min-snap) to planner.goal; "
-              "fly it and land, or (local: true) guide the local replanner with it"))
+register(
+    Kind(
+        "planner",
+        "global",
+        GlobalParams,
+        _global,
+        None,
+        "take off, plan on the world's geometry (A* or OMPL -> clearance-keeping min-snap) to planner.goal; "
+        "fly it and land, or (local: true) guide the local replanner with it",
+    )
+)

@@ -26,6 +26,7 @@ import numpy.typing as npt
 from cufund import _core
 from cufund.core.config import ConfigError
 from cufund.mapping.esdf_map import EsdfMap
+
 from .bspline import UniformBspline, start_control_points
 from .clearance import ClearanceQuery
 from .path_search import GridPathSearch, GridPathSearchParams
@@ -73,16 +74,33 @@ class LocalPlannerParams:
     """Highest height of the flight band [m, world z]."""
 
     def __post_init__(self) -> None:
-        for name in ("radius", "margin", "v_max", "a_max", "dt", "horizon", "w_smooth", "w_collision",
-                     "w_feasibility", "w_end"):
+        for name in (
+            "radius",
+            "margin",
+            "v_max",
+            "a_max",
+            "dt",
+            "horizon",
+            "w_smooth",
+            "w_collision",
+            "w_feasibility",
+            "w_end",
+        ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and float(v) > 0):
                 raise ConfigError(f"{name} must be a finite number > 0, got {v!r}")
             object.__setattr__(self, name, float(v))
-        if isinstance(self.max_iterations, bool) or not isinstance(self.max_iterations, numbers.Integral) \
-                or self.max_iterations < 1:
+        if (
+            isinstance(self.max_iterations, bool)
+            or not isinstance(self.max_iterations, numbers.Integral)
+            or self.max_iterations < 1
+        ):
             raise ConfigError(f"max_iterations must be an integer >= 1, got {self.max_iterations!r}")
-        if isinstance(self.retries, bool) or not isinstance(self.retries, numbers.Integral) or not 0 <= self.retries <= 8:
+        if (
+            isinstance(self.retries, bool)
+            or not isinstance(self.retries, numbers.Integral)
+            or not 0 <= self.retries <= 8
+        ):
             raise ConfigError(f"retries must be an integer in 0..8, got {self.retries!r}")
         for name in ("z_min", "z_max"):
             v = getattr(self, name)
@@ -127,34 +145,63 @@ class BsplineLocalPlanner:
         self.query = ClearanceQuery(esdf_map)
         # The guide only seeds the optimiser: weighted A* (w = 2: about half the expansions of 1.5 in forests,
         # the same length after shortcutting) with a bounded search (a few ms at most).
-        self._guide = GridPathSearch(GridPathSearchParams(radius=self.params.radius, max_expansions=20_000,
-                                                          heuristic_weight=2.0, z_min=self.params.z_min,
-                                                          z_max=self.params.z_max))
+        self._guide = GridPathSearch(
+            GridPathSearchParams(
+                radius=self.params.radius,
+                max_expansions=20_000,
+                heuristic_weight=2.0,
+                z_min=self.params.z_min,
+                z_max=self.params.z_max,
+            )
+        )
         self._cache: tuple[np.ndarray, np.ndarray] | None = None  # (goal, guide path) of the last A*
         self._d_safe = self.params.radius + self.params.margin + 0.5 * math.sqrt(3.0) * esdf_map.params.resolution
 
-    def replan(self, t: float, p_W: npt.ArrayLike, v_W: npt.ArrayLike, a_W: npt.ArrayLike, goal_W: npt.ArrayLike,
-               yaw: float = 0.0) -> LocalPlan:
+    def replan(
+        self,
+        t: float,
+        p_W: npt.ArrayLike,
+        v_W: npt.ArrayLike,
+        a_W: npt.ArrayLike,
+        goal_W: npt.ArrayLike,
+        yaw: float = 0.0,
+    ) -> LocalPlan:
         """A trajectory from time ``t`` [s] and state (p, v, a) towards ``goal_W`` (3,) [m]."""
         t0, c0 = time.perf_counter(), time.thread_time()
         par = self.params
         p, v, a, goal = (np.asarray(x, dtype=float).reshape(3) for x in (p_W, v_W, a_W, goal_W))
         if np.linalg.norm(goal - p) < 0.05 and np.linalg.norm(v) < 0.05:
-            return LocalPlan("at_goal", None, time.perf_counter() - t0, math.inf, 0.0, True,
-                             time.thread_time() - c0)
+            return LocalPlan("at_goal", None, time.perf_counter() - t0, math.inf, 0.0, True, time.thread_time() - c0)
         path = self._guide_path(p, goal)
         fixed = start_control_points(p, v, a, par.dt)
         lo, hi = min(par.z_min, p[2], goal[2]), max(par.z_max, p[2], goal[2])
         for attempt in range(par.retries + 1):
-            status, traj, clearance, length, reaches = self._attempt(path, fixed, goal, lo, hi, 0.5 ** attempt,
-                                                                         float(t), float(yaw))
+            status, traj, clearance, length, reaches = self._attempt(
+                path, fixed, goal, lo, hi, 0.5**attempt, float(t), float(yaw)
+            )
             if status == "ok" or not reaches:  # only a curve that must stop at the goal is retried
                 break
-        return LocalPlan(status, traj, time.perf_counter() - t0, clearance, length, reaches and status == "ok",
-                         time.thread_time() - c0)
+        return LocalPlan(
+            status,
+            traj,
+            time.perf_counter() - t0,
+            clearance,
+            length,
+            reaches and status == "ok",
+            time.thread_time() - c0,
+        )
 
-    def _attempt(self, path: np.ndarray, fixed: np.ndarray, goal: np.ndarray, lo: float, hi: float,
-                 spacing: float, t: float, yaw: float) -> tuple[str, UniformBspline | None, float, float, bool]:
+    def _attempt(
+        self,
+        path: np.ndarray,
+        fixed: np.ndarray,
+        goal: np.ndarray,
+        lo: float,
+        hi: float,
+        spacing: float,
+        t: float,
+        yaw: float,
+    ) -> tuple[str, UniformBspline | None, float, float, bool]:
         """One optimisation along ``path`` with the control-point spacing scaled by ``spacing``, from time ``t``,
         certified: (status, trajectory or None, clearance, length, reaches the goal)."""
         par = self.params
@@ -199,7 +246,7 @@ class BsplineLocalPlanner:
             ab = b - a
             u = np.clip(np.einsum("kd,kd->k", p - a, ab) / np.maximum(np.einsum("kd,kd->k", ab, ab), 1e-12), 0, 1)
             k = int(np.argmin(np.linalg.norm(a + u[:, None] * ab - p, axis=1)))
-            cand = np.vstack([p, g[k + 1:]])
+            cand = np.vstack([p, g[k + 1 :]])
             within = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(cand, axis=0), axis=1))])
             n = int(np.searchsorted(within, par.horizon)) + 1
             if self.query.path_free(cand[: n + 1], par.radius).all():
@@ -211,12 +258,27 @@ class BsplineLocalPlanner:
         self._cache = (goal.copy(), guide.path_W)
         return guide.path_W
 
-    def _optimise(self, fixed: np.ndarray, init: np.ndarray, tail: np.ndarray, end_target: np.ndarray,
-                  reaches: bool) -> np.ndarray:
+    def _optimise(
+        self, fixed: np.ndarray, init: np.ndarray, tail: np.ndarray, end_target: np.ndarray, reaches: bool
+    ) -> np.ndarray:
         par = self.params
         r = _core.planning.optimize_bspline(
-            self.esdf_map._core, fixed, init, tail, end_target, not reaches, par.w_smooth, par.w_collision,
-            par.w_feasibility, par.w_end, self._d_safe, par.v_max, par.a_max, par.dt, int(par.max_iterations))
+            self.esdf_map._core,
+            fixed,
+            init,
+            tail,
+            end_target,
+            not reaches,
+            par.w_smooth,
+            par.w_collision,
+            par.w_feasibility,
+            par.w_end,
+            self._d_safe,
+            par.v_max,
+            par.a_max,
+            par.dt,
+            int(par.max_iterations),
+        )
         return r["free"]
 
 

@@ -11,6 +11,7 @@ import numpy.typing as npt
 
 from cufund.core.components import BusView, Planner
 from cufund.core.messages import MapUpdate, Odometry, Topics, TrajectoryUpdate
+
 from .bspline import UniformBspline, start_control_points
 from .diagnostics import PLANNER_DIAGNOSTICS, PlannerDiagnostics
 from .local_planner import BsplineLocalPlanner, LocalPlannerParams
@@ -57,10 +58,21 @@ class LocalPlannerComponent(Planner):
 
     name = "local_planner"
 
-    def __init__(self, params: LocalPlannerParams, goal_W: npt.ArrayLike, initial: Trajectory, t_begin: float,
-                 rate_hz: float = 10.0, goal_tolerance: float = 0.1, hover_s: float = 1.0,
-                 landing: tuple[float, float, float] = (0.5, 1.0, 3.0), yaw: float = 0.0,
-                 max_goal_shift: float = 1.0, goal_margin: float = 0.1, guide_W: npt.ArrayLike | None = None) -> None:
+    def __init__(
+        self,
+        params: LocalPlannerParams,
+        goal_W: npt.ArrayLike,
+        initial: Trajectory,
+        t_begin: float,
+        rate_hz: float = 10.0,
+        goal_tolerance: float = 0.1,
+        hover_s: float = 1.0,
+        landing: tuple[float, float, float] = (0.5, 1.0, 3.0),
+        yaw: float = 0.0,
+        max_goal_shift: float = 1.0,
+        goal_margin: float = 0.1,
+        guide_W: npt.ArrayLike | None = None,
+    ) -> None:
         if not isinstance(params, LocalPlannerParams):
             raise TypeError(f"params must be a LocalPlannerParams, got {type(params).__name__}")
         goal = np.asarray(goal_W, dtype=float)
@@ -118,12 +130,22 @@ class LocalPlannerComponent(Planner):
             self._arrived = True
             return
         plan = self._planner.replan(t_r, p, v, a, goal, self.yaw)
-        record = ReplanRecord(t, plan.status, 1e3 * plan.plan_seconds, plan.min_clearance, plan.path_length,
-                              1e3 * plan.plan_cpu_seconds)
+        record = ReplanRecord(
+            t, plan.status, 1e3 * plan.plan_seconds, plan.min_clearance, plan.path_length, 1e3 * plan.plan_cpu_seconds
+        )
         self.replans.append(record)
-        bus.publish(PLANNER_DIAGNOSTICS, PlannerDiagnostics(t, "local", record.status, record.plan_ms,
-                                                            record.plan_cpu_ms, record.min_clearance_m,
-                                                            record.path_length_m))
+        bus.publish(
+            PLANNER_DIAGNOSTICS,
+            PlannerDiagnostics(
+                t,
+                "local",
+                record.status,
+                record.plan_ms,
+                record.plan_cpu_ms,
+                record.min_clearance_m,
+                record.path_length_m,
+            ),
+        )
         if plan.status == "ok" and plan.trajectory is not None:
             self._publish(t, plan.trajectory, bus)
 

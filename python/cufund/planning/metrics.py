@@ -35,17 +35,20 @@ def trunk_clearance(p_W: np.ndarray, cylinders: np.ndarray, chunk: int = 4096) -
     if cylinders.shape[0] == 0:
         return out
     for i in range(0, p.shape[0], chunk):
-        q = p[i:i + chunk]
-        radial = np.hypot(q[:, None, 0] - cylinders[None, :, 0], q[:, None, 1] - cylinders[None, :, 1]) \
+        q = p[i : i + chunk]
+        radial = (
+            np.hypot(q[:, None, 0] - cylinders[None, :, 0], q[:, None, 1] - cylinders[None, :, 1])
             - cylinders[None, :, 2]
+        )
         above = q[:, None, 2] - cylinders[None, :, 3]  # > 0: above the top
         d = np.where(above > 0, np.hypot(np.maximum(radial, 0.0), above), radial)
-        out[i:i + chunk] = d.min(axis=1)
+        out[i : i + chunk] = d.min(axis=1)
     return out
 
 
-def planning_metrics(result: Any, planner: Any, world: Any, start_W: np.ndarray,
-                     goal_tolerance: float = 0.3) -> dict[str, Any]:
+def planning_metrics(
+    result: Any, planner: Any, world: Any, start_W: np.ndarray, goal_tolerance: float = 0.3
+) -> dict[str, Any]:
     """``success`` (the true position came within ``goal_tolerance`` [m] of the planner's goal — its
     ``active_goal``, moved at most its ``max_goal_shift`` off the requested one when that lies against an
     obstacle —, the run did not end in a collision, and the vehicle never came closer than the planner's

@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cufund.core.config import ConfigError
+
 from .clearance import ClearanceQuery
 from .feasibility import TrajectoryFeasibility, feasibility
 from .minimum_snap import MinimumSnapTrajectory
@@ -60,8 +61,11 @@ class MinSnapPlannerParams:
             object.__setattr__(self, name, _positive(name, getattr(self, name), allow_none=True))
         if not isinstance(self.optimize_times, (bool, np.bool_)):
             raise ConfigError(f"optimize_times must be a bool, got {self.optimize_times!r}")
-        if isinstance(self.max_waypoints, bool) or not isinstance(self.max_waypoints, numbers.Integral) \
-                or self.max_waypoints < 2:
+        if (
+            isinstance(self.max_waypoints, bool)
+            or not isinstance(self.max_waypoints, numbers.Integral)
+            or self.max_waypoints < 2
+        ):
             raise ConfigError(f"max_waypoints must be an integer >= 2, got {self.max_waypoints!r}")
 
 
@@ -103,8 +107,13 @@ class MinSnapPlanner:
         if not isinstance(self.params, MinSnapPlannerParams):
             raise TypeError(f"params must be a MinSnapPlannerParams, got {type(params).__name__}")
 
-    def plan(self, waypoints_W: npt.ArrayLike, yaw: npt.ArrayLike | None = None, query: ClearanceQuery | None = None,
-             t_start: float = 0.0) -> MinSnapResult:
+    def plan(
+        self,
+        waypoints_W: npt.ArrayLike,
+        yaw: npt.ArrayLike | None = None,
+        query: ClearanceQuery | None = None,
+        t_start: float = 0.0,
+    ) -> MinSnapResult:
         """The trajectory through ``waypoints_W`` (K, 3) [m] (yaw (K,) [rad] optional) from ``t_start`` [s]."""
         p = self.params
         w = np.asarray(waypoints_W, dtype=float)
@@ -118,21 +127,29 @@ class MinSnapPlanner:
         polyline = w.copy()
         inserted = 0
         while True:
-            traj = MinimumSnapTrajectory(w, psi, v_max=p.v_max, a_max=p.a_max, t_start=t_start,
-                                         optimize_times=p.optimize_times)
+            traj = MinimumSnapTrajectory(
+                w, psi, v_max=p.v_max, a_max=p.a_max, t_start=t_start, optimize_times=p.optimize_times
+            )
             bad, min_clear, corridor_err = self._violations(traj, polyline, query)
             if not bad.any() or w.shape[0] + int(bad.sum()) > p.max_waypoints:
                 status = "ok" if not bad.any() else "not_converged"
-                return MinSnapResult(status=status, trajectory=traj, feasibility=feasibility(traj), inserted=inserted,
-                                     min_clearance=min_clear, max_corridor_error=corridor_err)
+                return MinSnapResult(
+                    status=status,
+                    trajectory=traj,
+                    feasibility=feasibility(traj),
+                    inserted=inserted,
+                    min_clearance=min_clear,
+                    max_corridor_error=corridor_err,
+                )
             # Split every offending segment at its midpoint (position and yaw); the polyline is unchanged.
             seg = np.flatnonzero(bad)
             w = np.insert(w, seg + 1, 0.5 * (w[seg] + w[seg + 1]), axis=0)
             psi = np.insert(psi, seg + 1, 0.5 * (psi[seg] + psi[seg + 1]))
             inserted += seg.size
 
-    def _violations(self, traj: MinimumSnapTrajectory, polyline: np.ndarray,
-                    query: ClearanceQuery | None) -> tuple[np.ndarray, float, float]:
+    def _violations(
+        self, traj: MinimumSnapTrajectory, polyline: np.ndarray, query: ClearanceQuery | None
+    ) -> tuple[np.ndarray, float, float]:
         """Per segment of ``traj``: does a sample break the clearance or the corridor?"""
         p = self.params
         n = max(2, math.ceil(traj.duration / p.sample_dt) + 1)

@@ -19,10 +19,16 @@ import math
 import numpy as np
 
 from cufund import _core
+
 from .trajectory import TrajectorySamples
 
-__all__ = ["MinimumSnapTrajectory", "allocate_segment_times", "min_derivative_spline", "optimize_segment_times",
-           "snap_cost_and_gradient"]
+__all__ = [
+    "MinimumSnapTrajectory",
+    "allocate_segment_times",
+    "min_derivative_spline",
+    "optimize_segment_times",
+    "snap_cost_and_gradient",
+]
 
 _POWERS8 = np.arange(8.0)
 
@@ -35,8 +41,9 @@ def min_derivative_spline(values: np.ndarray, durations: np.ndarray, order: int)
     ``p(t) = sum_j c[i, j] * s**j`` with ``s = (t - t_i) / durations[i]`` in [0, 1].
     The banded system is solved in C++ (``cufund._core.planning.min_derivative_spline``, partial pivoting).
     """
-    return _core.planning.min_derivative_spline(np.asarray(values, dtype=float), np.asarray(durations, dtype=float),
-                                                int(order))
+    return _core.planning.min_derivative_spline(
+        np.asarray(values, dtype=float), np.asarray(durations, dtype=float), int(order)
+    )
 
 
 def allocate_segment_times(waypoints: np.ndarray, v_max: float, a_max: float) -> np.ndarray:
@@ -92,8 +99,16 @@ class MinimumSnapTrajectory:
             (:func:`optimize_segment_times`) before the scaling to the limits.
     """
 
-    def __init__(self, waypoints_W: np.ndarray, yaw: np.ndarray | None = None, durations: np.ndarray | None = None,
-                 v_max: float = 1.0, a_max: float = 2.0, t_start: float = 0.0, optimize_times: bool = False) -> None:
+    def __init__(
+        self,
+        waypoints_W: np.ndarray,
+        yaw: np.ndarray | None = None,
+        durations: np.ndarray | None = None,
+        v_max: float = 1.0,
+        a_max: float = 2.0,
+        t_start: float = 0.0,
+        optimize_times: bool = False,
+    ) -> None:
         w = np.asarray(waypoints_W, dtype=float)
         if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 2:
             raise ValueError(f"waypoints_W must have shape (K, 3) with K >= 2, got {w.shape}")
@@ -122,8 +137,9 @@ class MinimumSnapTrajectory:
         self._set_times(T)
         if durations is None:
             s = self.sample(self._dense_times())
-            scale = max(np.max(np.linalg.norm(s.v_W, axis=1)) / v_max,
-                        math.sqrt(np.max(np.linalg.norm(s.a_W, axis=1)) / a_max))
+            scale = max(
+                np.max(np.linalg.norm(s.v_W, axis=1)) / v_max, math.sqrt(np.max(np.linalg.norm(s.a_W, axis=1)) / a_max)
+            )
             self._set_times(T * scale)
 
     def _set_times(self, T: np.ndarray) -> None:
@@ -156,7 +172,9 @@ class MinimumSnapTrajectory:
         """The r-th time derivative at times ``t``: (N, 3) for position, (N,) for yaw; rest outside the span."""
         tables = self._pos_tables if which == "position" else self._yaw_tables
         if which not in ("position", "yaw") or not 0 <= r < tables.shape[1]:
-            raise ValueError(f"r must be a derivative order in 0..7 for position or 0..3 for yaw, got {r} for {which!r}")
+            raise ValueError(
+                f"r must be a derivative order in 0..7 for position or 0..3 for yaw, got {r} for {which!r}"
+            )
         tab = tables[:, r]  # (M, nc, d)
         t = np.atleast_1d(np.asarray(t, dtype=float))
         i, s = self._locate(t)
@@ -189,27 +207,37 @@ class MinimumSnapTrajectory:
         if t.size > 1 and np.all(i[1:] >= i[:-1]):  # sorted times: one matmul per segment
             bounds = np.searchsorted(i, np.arange(m + 1))
             for k in np.flatnonzero(bounds[1:] > bounds[:-1]).tolist():
-                np.matmul(S[bounds[k]:bounds[k + 1]], table[k], out=out[bounds[k]:bounds[k + 1]])
+                np.matmul(S[bounds[k] : bounds[k + 1]], table[k], out=out[bounds[k] : bounds[k + 1]])
         else:
             np.einsum("nj,njc->nc", S, table[i], out=out)
-        rest = lambda a: np.where(inside, a, 0.0)  # derivatives are zero outside the span
-        return TrajectorySamples(t=t, p_W=np.ascontiguousarray(out[:, 0:3]), v_W=rest(out[:, 3:6]),
-                                 a_W=rest(out[:, 6:9]), j_W=rest(out[:, 9:12]), yaw=out[:, 12].copy(),
-                                 yaw_rate=np.where(inside[:, 0], out[:, 13], 0.0))
+
+        def rest(a: np.ndarray) -> np.ndarray:  # derivatives are zero outside the span
+            return np.where(inside, a, 0.0)
+
+        return TrajectorySamples(
+            t=t,
+            p_W=np.ascontiguousarray(out[:, 0:3]),
+            v_W=rest(out[:, 3:6]),
+            a_W=rest(out[:, 6:9]),
+            j_W=rest(out[:, 9:12]),
+            yaw=out[:, 12].copy(),
+            yaw_rate=np.where(inside[:, 0], out[:, 13], 0.0),
+        )
 
     def _sample_one(self, t: float) -> TrajectorySamples:
         """The same as :meth:`sample` for one time, without the vectorised machinery (for per-tick setpoints)."""
         knots = self._knots_list
         i = min(max(bisect.bisect_right(knots, t) - 1, 0), len(knots) - 2)
         s = min(max((t - knots[i]) / (knots[i + 1] - knots[i]), 0.0), 1.0)
-        S = s ** _POWERS8
+        S = s**_POWERS8
         pos = S @ self._pos_tables[i, :4]  # (4, 3): position, velocity, acceleration, jerk
         yaw = S[:4] @ self._yaw_tables[i, :2]  # (2, 1): yaw, yaw rate
         if not knots[0] <= t <= knots[-1]:
             pos[1:] = 0.0
             yaw[1] = 0.0
-        return TrajectorySamples(t=np.array([t]), p_W=pos[0:1], v_W=pos[1:2], a_W=pos[2:3], j_W=pos[3:4],
-                                 yaw=yaw[0], yaw_rate=yaw[1])
+        return TrajectorySamples(
+            t=np.array([t]), p_W=pos[0:1], v_W=pos[1:2], a_W=pos[2:3], j_W=pos[3:4], yaw=yaw[0], yaw_rate=yaw[1]
+        )
 
     def snap_cost(self) -> float:
         """``sum_i int |p''''(t)|^2 dt`` over all segments, exact [m^2/s^7] (:func:`snap_cost_and_gradient`)."""
@@ -221,7 +249,7 @@ def _derivative_tables(c: np.ndarray, T: np.ndarray) -> np.ndarray:
     (nc, M, nc, d), indexed by r."""
     nc = c.shape[1]
     src, factor = _derivative_gather(nc)
-    T_r = np.stack([T ** r for r in range(nc)])  # scalar powers (as sampled one by one)
+    T_r = np.stack([T**r for r in range(nc)])  # scalar powers (as sampled one by one)
     return c[:, src].transpose(1, 0, 2, 3) * factor[:, None, :, None] / T_r[:, :, None, None]
 
 
@@ -231,8 +259,9 @@ def _derivative_gather(nc: int) -> tuple[np.ndarray, np.ndarray]:
     factor (p+r)!/p! (0 where p + r >= nc), each (nc, nc) indexed [r, p] (read-only)."""
     r, p = np.arange(nc)[:, None], np.arange(nc)[None, :]
     src = np.minimum(r + p, nc - 1)
-    factor = np.array([[math.factorial(a + b) / math.factorial(b) if a + b < nc else 0.0 for b in range(nc)]
-                       for a in range(nc)])
+    factor = np.array(
+        [[math.factorial(a + b) / math.factorial(b) if a + b < nc else 0.0 for b in range(nc)] for a in range(nc)]
+    )
     for a in (src, factor):
         a.flags.writeable = False
     return src, factor

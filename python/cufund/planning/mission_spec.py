@@ -21,9 +21,9 @@ import math
 import re
 import subprocess
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 import numpy.typing as npt
@@ -48,9 +48,14 @@ class Region:
     """Where to fly to visit it [m]; the centre if None (must lie inside)."""
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not re.fullmatch(r"[a-z_][a-z0-9_]*", self.name) \
-                or self.name in ("true", "false", "last", "end"):
-            raise ConfigError(f"region name must be lower-case letters, digits and _ (not a keyword), got {self.name!r}")
+        if (
+            not isinstance(self.name, str)
+            or not re.fullmatch(r"[a-z_][a-z0-9_]*", self.name)
+            or self.name in ("true", "false", "last", "end")
+        ):
+            raise ConfigError(
+                f"region name must be lower-case letters, digits and _ (not a keyword), got {self.name!r}"
+            )
         object.__setattr__(self, "centre_W", _vec3(f"region {self.name} centre_W", self.centre_W))
         if (self.size is None) == (self.radius is None):
             raise ConfigError(f"region {self.name} needs exactly one of size (box) or radius (sphere)")
@@ -229,8 +234,9 @@ def compile_ltlf(formula: str) -> Dfa:
         path = Path(d) / "mission.mona"
         path.write_text(program, encoding="utf-8")
         try:
-            out = subprocess.run(["mona", "-q", "-u", "-w", str(path)], capture_output=True, text=True, timeout=60,
-                                 check=False)
+            out = subprocess.run(
+                ["mona", "-q", "-u", "-w", str(path)], capture_output=True, text=True, timeout=60, check=False
+            )
         except FileNotFoundError:
             raise ConfigError("LTLf missions need Debian's mona (apt-get install mona, or make deps)") from None
     if out.returncode != 0 and "Formula is unsatisfiable" not in out.stdout:

@@ -14,13 +14,13 @@ import math
 import numbers
 import time
 from dataclasses import dataclass
-
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from cufund.core.config import ConfigError
+
 from .clearance import ClearanceQuery
 from .path_search import PathResult, _radius
 
@@ -99,7 +99,7 @@ class OmplPathPlanner:
             return clearance(s[0], s[1], s[2]) >= r  # type: ignore[index]
 
         class Motion(ob.MotionValidator):
-            def checkMotion(self, s1: object, s2: object, *last_valid: object) -> bool:  # noqa: N802 (OMPL's name)
+            def checkMotion(self, s1: object, s2: object, *last_valid: object) -> bool:
                 return seg(s1[0], s1[1], s1[2], s2[0], s2[1], s2[2], r)  # type: ignore[index]
 
         def setup(planner_cls: Any) -> tuple[Any, Any]:

@@ -15,6 +15,7 @@ import numpy.typing as npt
 
 from cufund import _core
 from cufund.core.config import ConfigError
+
 from .clearance import ClearanceQuery
 
 __all__ = ["GridPathSearch", "GridPathSearchParams", "PathResult"]
@@ -43,7 +44,11 @@ class PathResult:
 
 
 def _radius(value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (math.isfinite(value) and float(value) >= 0):
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, numbers.Real)
+        or not (math.isfinite(value) and float(value) >= 0)
+    ):
         raise ConfigError(f"radius must be a finite number >= 0 [m], got {value!r}")
     return float(value)
 
@@ -81,8 +86,11 @@ class GridPathSearchParams:
             object.__setattr__(self, name, float(v))
         if not self.z_max > self.z_min:
             raise ConfigError(f"z_max must be > z_min, got z_min={self.z_min}, z_max={self.z_max}")
-        if isinstance(self.max_expansions, bool) or not isinstance(self.max_expansions, numbers.Integral) \
-                or self.max_expansions < 1:
+        if (
+            isinstance(self.max_expansions, bool)
+            or not isinstance(self.max_expansions, numbers.Integral)
+            or self.max_expansions < 1
+        ):
             raise ConfigError(f"max_expansions must be an integer >= 1, got {self.max_expansions!r}")
         w = self.heuristic_weight
         if isinstance(w, bool) or not isinstance(w, numbers.Real) or not (math.isfinite(w) and float(w) >= 1):
@@ -111,8 +119,22 @@ class GridPathSearch:
             raise TypeError(f"query must be a ClearanceQuery, got {type(query).__name__}")
         p = self.params
         t0 = time.perf_counter()
-        r = self._core.plan(query._core, start_W, goal_W, p.radius, int(p.max_expansions), bool(p.shortcut),
-                            p.heuristic_weight, p.z_min, p.z_max)
+        r = self._core.plan(
+            query._core,
+            start_W,
+            goal_W,
+            p.radius,
+            int(p.max_expansions),
+            bool(p.shortcut),
+            p.heuristic_weight,
+            p.z_min,
+            p.z_max,
+        )
         dt = time.perf_counter() - t0
-        return PathResult(status=_STATUS[r["status"]], path_W=r["path"], length=float(r["length"]), plan_seconds=dt,
-                          expansions=int(r["expansions"]))
+        return PathResult(
+            status=_STATUS[r["status"]],
+            path_W=r["path"],
+            length=float(r["length"]),
+            plan_seconds=dt,
+            expansions=int(r["expansions"]),
+        )

@@ -18,9 +18,18 @@ class JerkLimitedMove:
     central difference of its acceleration over 0.1 ms, exact inside each constant-jerk phase.
     """
 
-    def __init__(self, start_W: np.ndarray, goal_W: np.ndarray, v_max: float = 1.0, a_max: float = 2.0,
-                 j_max: float = 5.0, yaw: float = 0.0, t_start: float = 0.0, start_v_W: np.ndarray | None = None,
-                 start_a_W: np.ndarray | None = None) -> None:
+    def __init__(
+        self,
+        start_W: np.ndarray,
+        goal_W: np.ndarray,
+        v_max: float = 1.0,
+        a_max: float = 2.0,
+        j_max: float = 5.0,
+        yaw: float = 0.0,
+        t_start: float = 0.0,
+        start_v_W: np.ndarray | None = None,
+        start_a_W: np.ndarray | None = None,
+    ) -> None:
         from ruckig import InputParameter, Result, Ruckig, Trajectory
 
         points: list[np.ndarray] = []
@@ -37,8 +46,11 @@ class JerkLimitedMove:
             points.append(p)
         a, b, v0, a0 = points
         for name, lim in (("v_max", v_max), ("a_max", a_max), ("j_max", j_max)):
-            if isinstance(lim, bool) or not isinstance(lim, (int, float, np.integer, np.floating)) \
-                    or not (np.isfinite(lim) and lim > 0):
+            if (
+                isinstance(lim, bool)
+                or not isinstance(lim, (int, float, np.integer, np.floating))
+                or not (np.isfinite(lim) and lim > 0)
+            ):
                 raise ValueError(f"{name} must be a finite number > 0, got {lim!r}")
         inp = InputParameter(3)
         inp.current_position, inp.target_position = a.tolist(), b.tolist()

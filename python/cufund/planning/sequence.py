@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import bisect
-from typing import Sequence
+from collections.abc import Sequence
+from itertools import pairwise
 
 import numpy as np
 
@@ -34,8 +35,15 @@ class Hold:
     def sample(self, t: np.ndarray | float) -> TrajectorySamples:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         z = np.zeros((t.shape[0], 3))
-        return TrajectorySamples(t=t, p_W=np.tile(self.p_W, (t.shape[0], 1)), v_W=z, a_W=z.copy(), j_W=z.copy(),
-                                 yaw=np.full(t.shape[0], self.yaw), yaw_rate=np.zeros(t.shape[0]))
+        return TrajectorySamples(
+            t=t,
+            p_W=np.tile(self.p_W, (t.shape[0], 1)),
+            v_W=z,
+            a_W=z.copy(),
+            j_W=z.copy(),
+            yaw=np.full(t.shape[0], self.yaw),
+            yaw_rate=np.zeros(t.shape[0]),
+        )
 
 
 class TrajectorySequence:
@@ -46,7 +54,7 @@ class TrajectorySequence:
         if not parts:
             raise ValueError("parts must hold at least one trajectory")
         starts = [float(p.t_start) for p in parts]
-        if any(b < a for a, b in zip(starts, starts[1:])):
+        if any(b < a for a, b in pairwise(starts)):
             raise ValueError(f"parts must start in time order, got start times {starts}")
         self.parts = list(parts)
         self._starts = np.array(starts)

@@ -6,6 +6,7 @@ import numpy as np
 
 from cufund.core.components import BusView, Planner
 from cufund.core.messages import Odometry, Topics, TrajectorySetpoint, TrajectoryUpdate
+
 from .sequence import TrajectorySequence
 from .trajectory import Trajectory, TrajectorySamples
 
@@ -26,8 +27,14 @@ class TrajectoryFollower(Planner):
 
     name = "trajectory_follower"
 
-    def __init__(self, trajectory: Trajectory, rate_hz: float = 250.0, topic: str = Topics.TRAJECTORY_SETPOINT,
-                 block: int = 1024, update_topic: str | None = None) -> None:
+    def __init__(
+        self,
+        trajectory: Trajectory,
+        rate_hz: float = 250.0,
+        topic: str = Topics.TRAJECTORY_SETPOINT,
+        block: int = 1024,
+        update_topic: str | None = None,
+    ) -> None:
         self.writes = (topic,)
         self.update_topic = update_topic
         self.optional_reads = () if update_topic is None else (update_topic,)
@@ -79,12 +86,18 @@ class TrajectoryFollower(Planner):
                 self.stitch(t, msg.trajectory)
         s, i = self._lookup(t)
         if i == 0 and s is not self._rows:  # sampled off the grid: fresh arrays, checked as usual
-            bus.publish(self.topic, TrajectorySetpoint(t, s.p_W[0], s.v_W[0], s.a_W[0], s.j_W[0], float(s.yaw[0]),
-                                                       float(s.yaw_rate[0])))
+            bus.publish(
+                self.topic,
+                TrajectorySetpoint(t, s.p_W[0], s.v_W[0], s.a_W[0], s.j_W[0], float(s.yaw[0]), float(s.yaw_rate[0])),
+            )
             return
         # read-only views of the block (see _lookup): no copies needed
-        bus.publish(self.topic, TrajectorySetpoint.trusted(t, s.p_W[i], s.v_W[i], s.a_W[i], s.j_W[i], float(s.yaw[i]),
-                                                           float(s.yaw_rate[i])))
+        bus.publish(
+            self.topic,
+            TrajectorySetpoint.trusted(
+                t, s.p_W[i], s.v_W[i], s.a_W[i], s.j_W[i], float(s.yaw[i]), float(s.yaw_rate[i])
+            ),
+        )
 
 
 def stitched(current: Trajectory, new: Trajectory, t: float) -> Trajectory:

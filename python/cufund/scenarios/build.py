@@ -21,9 +21,18 @@ from cufund.worlds.collision import CollisionChecker
 
 from .schema import PartSpec, ScenarioConfig
 
-__all__ = ["BuildContext", "Built", "ScenarioBuildContext", "RunSummary", "ScenarioRun", "build_simulation", "odometry_metrics", "run_built",
-           "run_scenario",
-           "tracking_metrics"]
+__all__ = [
+    "BuildContext",
+    "Built",
+    "ScenarioBuildContext",
+    "RunSummary",
+    "ScenarioRun",
+    "build_simulation",
+    "odometry_metrics",
+    "run_built",
+    "run_scenario",
+    "tracking_metrics",
+]
 
 
 class ScenarioBuildContext:
@@ -33,8 +42,22 @@ class ScenarioBuildContext:
     its end condition, its commander, its metrics and run-folder files). Slotted: a kind that writes an attribute
     the protocol does not declare gets an AttributeError, not a silent new field."""
 
-    __slots__ = ("config", "vehicle", "base_dir", "world", "_part", "where", "seed", "reference", "tracking_path",
-                 "commander", "_done", "_done_by", "_metric_hooks", "_output_hooks")
+    __slots__ = (
+        "config",
+        "vehicle",
+        "base_dir",
+        "world",
+        "_part",
+        "where",
+        "seed",
+        "reference",
+        "tracking_path",
+        "commander",
+        "_done",
+        "_done_by",
+        "_metric_hooks",
+        "_output_hooks",
+    )
 
     def __init__(self, config: ScenarioConfig) -> None:
         self.config = config
@@ -108,8 +131,10 @@ class ScenarioBuildContext:
         if not callable(done):
             raise TypeError(f"{self.where}: set_done_condition takes done(t, truth) -> bool, got {done!r}")
         if self._done is not None:
-            raise ConfigError(f"{self.where}: the run's end condition is declared already by {self._done_by}; one "
-                              "part per scenario may end the run")
+            raise ConfigError(
+                f"{self.where}: the run's end condition is declared already by {self._done_by}; one "
+                "part per scenario may end the run"
+            )
         self._done, self._done_by = done, self.where
 
     def set_commander(self, commander: Any) -> None:
@@ -210,8 +235,13 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
             components += ctx.build(group, spec, group)
     if config.estimator is not None:
         record += [Topics.ESTIMATE, Topics.ESTIMATOR_DIAGNOSTICS]
-    sim = Simulator(quad, physics_rate_hz=config.rates.physics_hz, record_topics=_recordable(record, components),
-                    collision=collision, logger=logger)
+    sim = Simulator(
+        quad,
+        physics_rate_hz=config.rates.physics_hz,
+        record_topics=_recordable(record, components),
+        collision=collision,
+        logger=logger,
+    )
     for c in (*components, *extra_components):
         sim.add(c)
     problems = sim.wiring()
@@ -226,9 +256,12 @@ def _recordable(record: list[Any], components: list[Any]) -> list[Any]:
     published = {str(t) for c in components for t in c.outputs}
     keep: list[Any] = []
     for t in record:
-        if str(t) in published and str(t) not in {str(k) for k in keep} and not str(t).startswith(
-                ("/sensors/lidar", "/sensors/depth", "/sensors/rgb")) and getattr(getattr(t, "type", None), "__name__", "") not in (
-                "PointCloud", "CameraImage"):
+        if (
+            str(t) in published
+            and str(t) not in {str(k) for k in keep}
+            and not str(t).startswith(("/sensors/lidar", "/sensors/depth", "/sensors/rgb"))
+            and getattr(getattr(t, "type", None), "__name__", "") not in ("PointCloud", "CameraImage")
+        ):
             keep.append(t)
     return keep
 
@@ -260,8 +293,9 @@ class ScenarioRun:
         return RunSummary(dict(self.metrics), self.result.status.value, self.result.message, dict(paths or {}))
 
 
-def run_scenario(config: ScenarioConfig, progress: bool = False, extra_components: tuple = (),
-                 logger: Any = None) -> ScenarioRun:
+def run_scenario(
+    config: ScenarioConfig, progress: bool = False, extra_components: tuple = (), logger: Any = None
+) -> ScenarioRun:
     """Builds ``config`` (:func:`build_simulation`), runs it until the vehicle has landed after its reference (or
     the duration elapses), and measures it: tracking error when there is a reference, odometry error when there is
     an estimator (both against ground truth, which only these metrics read)."""
@@ -274,10 +308,14 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
     t_landed = built.landing_after
 
     def landed(t: float, truth: Odometry) -> bool:
-        return t_landed is not None and t >= t_landed and truth.p_W[2] < 0.02 and float(np.linalg.norm(truth.v_W)) < 0.05
+        return (
+            t_landed is not None and t >= t_landed and truth.p_W[2] < 0.02 and float(np.linalg.norm(truth.v_W)) < 0.05
+        )
 
     ctx = built.context
-    result = built.simulator.run(config.duration, done=landed if t_landed is not None else ctx.done_condition, progress=progress)
+    result = built.simulator.run(
+        config.duration, done=landed if t_landed is not None else ctx.done_condition, progress=progress
+    )
     metrics = run_metrics(result)
     if config.faults:
         metrics["faults"] = fault_summary(config.faults)
@@ -290,9 +328,13 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
             used = np.asarray([s == "" for s in diag["skipped"]], dtype=bool)  # frames with a LiDAR constraint
             ms = np.asarray(diag["time_ms"], dtype=float)[used]
             if len(ms):
-                metrics.update({"lio_ms_per_scan_median": float(np.median(ms)), "lio_ms_per_scan_p99":
-                                float(np.percentile(ms, 99)), "lio_cpu_ms_per_scan_median":
-                                float(np.median(np.asarray(diag["cpu_ms"], dtype=float)[used]))})
+                metrics.update(
+                    {
+                        "lio_ms_per_scan_median": float(np.median(ms)),
+                        "lio_ms_per_scan_p99": float(np.percentile(ms, 99)),
+                        "lio_cpu_ms_per_scan_median": float(np.median(np.asarray(diag["cpu_ms"], dtype=float)[used])),
+                    }
+                )
             metrics["lio_scans"] = int(len(ms))
             metrics["lio_unhealthy_reports"] = int(np.count_nonzero(~np.asarray(diag["healthy"], dtype=bool)))
     for hook in ctx.metric_hooks:  # last: a part may refine a generic figure (e.g. over its flight window only)
@@ -320,7 +362,7 @@ def tracking_metrics(result: SimulationResult, path: Any) -> dict[str, Any]:
     m = (t >= path.t_knots[0]) & (t <= path.t_end)
     err = np.linalg.norm(result.states["p_W"][m] - path.sample(t[m]).p_W, axis=1) if np.any(m) else None
     return {  # None: the run ended before the path began
-        "tracking_rmse_m": None if err is None else float(np.sqrt(np.mean(err ** 2))),
+        "tracking_rmse_m": None if err is None else float(np.sqrt(np.mean(err**2))),
         "tracking_max_m": None if err is None else float(np.max(err)),
         "tracking_min_m": None if err is None else float(np.min(err)),
         "tracking_window_s": [float(path.t_knots[0]), float(path.t_end)],
@@ -347,9 +389,9 @@ def odometry_metrics(result: SimulationResult) -> dict[str, Any]:
     err = np.linalg.norm(p_true - p_est, axis=1)
     return {
         "odometry_min_m": float(np.min(err)),
-        "odometry_rmse_m": float(np.sqrt(np.mean(err ** 2))),
+        "odometry_rmse_m": float(np.sqrt(np.mean(err**2))),
         "odometry_max_m": float(np.max(err)),
-        "odometry_rot_rmse_deg": float(np.sqrt(np.mean(ang ** 2))),
+        "odometry_rot_rmse_deg": float(np.sqrt(np.mean(ang**2))),
         "odometry_samples": int(len(err)),
     }
 
@@ -369,5 +411,3 @@ def out_dir_problem(out: str | Path) -> str | None:
     if not os.access(parent, os.W_OK | os.X_OK):
         return f"--out {out}: {parent} is not writable"
     return None
-
-

@@ -61,8 +61,10 @@ def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, repl
         from cufund.viz.plots import plot_tracking
 
         window = (float(run.path.t_knots[0]), run.path.t_end)
-        title = (f"{run.config.name}, {run.config.controller.kind if run.config.controller else 'no controller'}: "
-                 f"RMSE {100 * run.metrics['tracking_rmse_m']:.2f} cm, max {100 * run.metrics['tracking_max_m']:.2f} cm")
+        title = (
+            f"{run.config.name}, {run.config.controller.kind if run.config.controller else 'no controller'}: "
+            f"RMSE {100 * run.metrics['tracking_rmse_m']:.2f} cm, max {100 * run.metrics['tracking_max_m']:.2f} cm"
+        )
         plot_tracking(out / "trajectory.png", run.result, run.reference, window, title)
     if replay:
         from cufund.viz.replay import write_replay_html
@@ -83,8 +85,16 @@ def _write_metrics(metrics: dict[str, Any], out: Path) -> None:
     (out / "metrics.json").write_text(json.dumps(_json_safe(metrics), indent=2) + "\n", encoding="utf-8")
 
 
-def run_into_folder(config: Any, out: str | Path, *, log: bool = True, plots: bool = True, replay: bool = True,
-                    progress: bool = False, extra_components: tuple = ()) -> ScenarioRun:
+def run_into_folder(
+    config: Any,
+    out: str | Path,
+    *,
+    log: bool = True,
+    plots: bool = True,
+    replay: bool = True,
+    progress: bool = False,
+    extra_components: tuple = (),
+) -> ScenarioRun:
     """Runs ``config`` (a :class:`cufund.ScenarioConfig`, or a scenario already made by
     :func:`cufund.scenarios.build.build_simulation`) into the run folder ``out``: ``run.mcap`` while it goes (when
     ``log`` and the scenario's ``log.mcap``; its metadata holds the scenario's config), then
@@ -102,8 +112,14 @@ def run_into_folder(config: Any, out: str | Path, *, log: bool = True, plots: bo
     if log and config.log.mcap:
         from cufund.logs import McapLogger
 
-        logger = McapLogger(out / "run.mcap", metadata={"scenario": config.name, "seed": str(config.seed),
-                                                        "config": yaml.safe_dump(config.to_dict(), sort_keys=False)})
+        logger = McapLogger(
+            out / "run.mcap",
+            metadata={
+                "scenario": config.name,
+                "seed": str(config.seed),
+                "config": yaml.safe_dump(config.to_dict(), sort_keys=False),
+            },
+        )
         built.simulator.logger = _Excluding(logger, config.log.exclude) if config.log.exclude else logger
     try:
         run = run_built(built, progress=progress)
@@ -112,8 +128,11 @@ def run_into_folder(config: Any, out: str | Path, *, log: bool = True, plots: bo
         if signum is None and not isinstance(exc, KeyboardInterrupt):
             raise
         signum = signal.SIGINT if signum is None else signum  # a plain KeyboardInterrupt: Ctrl-C
-        metrics: dict[str, Any] = {"status": "interrupted", "message": f"stopped by {signal.Signals(signum).name}",
-                                   "sim_time_s": float(built.simulator.t)}
+        metrics: dict[str, Any] = {
+            "status": "interrupted",
+            "message": f"stopped by {signal.Signals(signum).name}",
+            "sim_time_s": float(built.simulator.t),
+        }
         if logger is not None:
             try:
                 logger.close()

@@ -12,27 +12,41 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 import numpy as np
 
-from cufund.vehicle import presets
 from cufund.core.config import ConfigError, check_real_fields, from_dict, load_yaml, load_yaml_text, nested, to_dict
-from cufund.sensors.faults import faults_to_data, parse_faults
-from cufund.vehicle.params import QuadrotorParams
 from cufund.core.registry import extrinsic_keys, lookup, sensor_type
-from cufund.geometry import Transform
 from cufund.core.topics import Topic
+from cufund.geometry import Transform
+from cufund.sensors.faults import faults_to_data, parse_faults
+from cufund.vehicle import presets
+from cufund.vehicle.params import QuadrotorParams
 
-__all__ = ["LogConfig", "PartSpec", "RatesConfig", "ScenarioConfig", "TrajectoryConfig", "apply_overrides",
-           "available_scenarios", "load_scenario", "parse_overrides"]
+__all__ = [
+    "LogConfig",
+    "PartSpec",
+    "RatesConfig",
+    "ScenarioConfig",
+    "TrajectoryConfig",
+    "apply_overrides",
+    "available_scenarios",
+    "load_scenario",
+    "parse_overrides",
+]
 
 _PRESETS = {"crazyflie": presets.crazyflie, "iris": presets.iris, "cu_astro": presets.cu_astro}
 # the old shorthand `sensors: {magnetometer: default, imu: ideal}`
-_SHORTHAND = {("magnetometer", "default"): "magnetometer", ("imu", "ideal"): "ideal_imu",
-              ("barometer", "ideal"): "ideal_barometer", ("gps", "ideal"): "ideal_gps"}
+_SHORTHAND = {
+    ("magnetometer", "default"): "magnetometer",
+    ("imu", "ideal"): "ideal_imu",
+    ("barometer", "ideal"): "ideal_barometer",
+    ("gps", "ideal"): "ideal_gps",
+}
 _PART_GROUPS = ("world", "estimator", "mapper", "planner", "controller", "mission")
 
 
@@ -65,8 +79,13 @@ class TrajectoryConfig:
     """Take off from the first waypoint's ground point, hover, fly a minimum-snap path through the waypoints,
     hover, land below the last waypoint (the ``waypoints`` planner)."""
 
-    waypoints: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 1.5), (1.0, 0.0, 1.5), (1.0, 1.0, 1.5),
-                                                         (0.0, 1.0, 1.5), (0.0, 0.0, 1.5))
+    waypoints: tuple[tuple[float, float, float], ...] = (
+        (0.0, 0.0, 1.5),
+        (1.0, 0.0, 1.5),
+        (1.0, 1.0, 1.5),
+        (0.0, 1.0, 1.5),
+        (0.0, 0.0, 1.5),
+    )
     """Min-snap waypoints, world ENU [m]."""
     yaw: tuple[float, ...] | None = None
     """Yaw at each waypoint [rad]; zeros if null."""
@@ -99,9 +118,13 @@ class TrajectoryConfig:
         try:
             w = np.asarray(self.waypoints, dtype=float) if self.waypoints is not None else np.zeros(0)
         except (TypeError, ValueError):
-            raise ConfigError(f"trajectory.waypoints must be a list of [x, y, z] points [m], got {self.waypoints!r}") from None
+            raise ConfigError(
+                f"trajectory.waypoints must be a list of [x, y, z] points [m], got {self.waypoints!r}"
+            ) from None
         if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 2 or not np.all(np.isfinite(w)):
-            raise ConfigError(f"trajectory.waypoints must be a list of at least 2 [x, y, z] points [m], got shape {w.shape}")
+            raise ConfigError(
+                f"trajectory.waypoints must be a list of at least 2 [x, y, z] points [m], got shape {w.shape}"
+            )
         if np.any(w[:, 2] <= 0.1):
             raise ConfigError("trajectory.waypoints must all be above 0.1 m (the path is flown after take-off)")
         if np.any(np.abs(w) > 1e5):
@@ -113,12 +136,19 @@ class TrajectoryConfig:
             except (TypeError, ValueError):
                 y = np.full(1, np.nan)
             if y.shape != (w.shape[0],) or not np.all(np.isfinite(y)):
-                raise ConfigError(f"trajectory.yaw must have one finite angle per waypoint ({w.shape[0]}) [rad], "
-                                  f"got {self.yaw!r}")
+                raise ConfigError(
+                    f"trajectory.yaw must have one finite angle per waypoint ({w.shape[0]}) [rad], got {self.yaw!r}"
+                )
             object.__setattr__(self, "yaw", tuple(float(v) for v in y))
         for name in ("v_max", "a_max", "move_v_max", "move_a_max", "move_j_max", "hover_s"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 or (v == 0 and name != "hover_s"):
+            if (
+                isinstance(v, bool)
+                or not isinstance(v, (int, float))
+                or not math.isfinite(v)
+                or v < 0
+                or (v == 0 and name != "hover_s")
+            ):
                 raise ConfigError(f"trajectory.{name} must be a number > 0, got {v!r}")
             object.__setattr__(self, name, float(v))
 
@@ -173,8 +203,9 @@ def _transform(value: Any, where: str) -> Transform:
     except (TypeError, ValueError):
         raise ConfigError(f"{where}.q must be 4 numbers [w, x, y, z], got {q!r}") from None
     if qa.shape == (4,) and np.all(np.isfinite(qa)) and abs(np.linalg.norm(qa) - 1.0) > 1e-6:
-        raise ConfigError(f"{where}.q must be a unit quaternion [w, x, y, z] (a rotation), got norm "
-                          f"{np.linalg.norm(qa):.6g}")
+        raise ConfigError(
+            f"{where}.q must be a unit quaternion [w, x, y, z] (a rotation), got norm {np.linalg.norm(qa):.6g}"
+        )
     try:
         return Transform(value.get("p", (0.0, 0.0, 0.0)), q)
     except (TypeError, ValueError) as e:
@@ -224,12 +255,15 @@ def parse_part(group: str, value: Any, where: str, sensor_name: str | None = Non
         key = stype.extrinsic_key
         for other in sorted(extrinsic_keys() - {key}):
             if other in values:
-                raise ConfigError(f"{where}.{other}: a {stype.name} sensor's extrinsic is "
-                                  f"{key or 'not configurable'}, got {other}")
+                raise ConfigError(
+                    f"{where}.{other}: a {stype.name} sensor's extrinsic is {key or 'not configurable'}, got {other}"
+                )
         if key is not None and key in values:
             extrinsic = _transform(values.pop(key), f"{where}.{key}")
     params = kind.parse(values, where)
-    return PartSpec(kind.name, params, latency, phase, topic, extrinsic, kind.sensor_type if group == "sensor" else None)
+    return PartSpec(
+        kind.name, params, latency, phase, topic, extrinsic, kind.sensor_type if group == "sensor" else None
+    )
 
 
 def part_to_dict(spec: PartSpec | None) -> Any:
@@ -295,8 +329,10 @@ class ScenarioConfig:
             raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
         if isinstance(self.vehicle, str):
             if self.vehicle not in _PRESETS:
-                raise ConfigError(f"vehicle must be one of {', '.join(_PRESETS)} or a mapping of QuadrotorParams fields, "
-                                  f"got {self.vehicle!r}")
+                raise ConfigError(
+                    f"vehicle must be one of {', '.join(_PRESETS)} or a mapping of QuadrotorParams fields, "
+                    f"got {self.vehicle!r}"
+                )
         elif isinstance(self.vehicle, dict):
             try:
                 QuadrotorParams.from_dict(self.vehicle)
@@ -312,7 +348,9 @@ class ScenarioConfig:
         parsed = {}
         for sname, value in sensors.items():
             if not isinstance(sname, str) or not sname.isidentifier():
-                raise ConfigError(f"sensors: a sensor name must be an identifier like imu or lidar_front, got {sname!r}")
+                raise ConfigError(
+                    f"sensors: a sensor name must be an identifier like imu or lidar_front, got {sname!r}"
+                )
             spec = parse_part("sensor", value, f"sensors.{sname}", sensor_name=sname)
             if spec is not None:
                 parsed[sname] = spec
@@ -424,7 +462,7 @@ def apply_overrides(data: dict[str, Any], overrides: Mapping[str, Any] | Iterabl
             elif child is None:
                 child = {}
             elif not isinstance(child, dict):
-                raise ConfigError(f"override {key}: {'.'.join(parts[:depth + 1])} is {child!r}, not a mapping")
+                raise ConfigError(f"override {key}: {'.'.join(parts[: depth + 1])} is {child!r}, not a mapping")
             node[p] = child
             node = child
         node[parts[-1]] = value

@@ -9,11 +9,11 @@ standalone: give them a ``cufund.World`` (or a ``cufund.sensors.RaycastScene``) 
 """
 
 from cufund._core.lidar import INVALID_ID, RaycastScene
+from cufund.geometry import Transform
 
 from . import patterns
 from .allan import AllanFit, allan_deviation, fit_allan
-from .barometer import (BAROMETER_PRESETS, BarometerModel, BarometerParams, BarometerSensor, isa_altitude,
-                        isa_pressure)
+from .barometer import BAROMETER_PRESETS, BarometerModel, BarometerParams, BarometerSensor, isa_altitude, isa_pressure
 from .camera import CameraImage, CameraIntrinsics, DepthCamera, RgbCamera, d435_depth, d435_rgb, save_png
 from .camera_component import CameraComponent
 from .geodesy import GeoPoint, enu_to_lla, lla_to_enu
@@ -23,17 +23,74 @@ from .lidar import Lidar, LidarParams, PointCloud, mid360_params
 from .lidar_component import LidarComponent
 from .magnetometer import EarthField, MagnetometerModel, MagnetometerParams, MagnetometerSensor
 from .noise import ErrorProcess, NoiseSpec
-from .patterns import (CsvPattern, Mid360Pattern, PlanarPattern, RosettePattern, ScanPattern, ScanRays,
-                       SpinningPattern, avia, mid360, os1_64, vlp16)
-from cufund.geometry import Transform
+from .patterns import (
+    CsvPattern,
+    Mid360Pattern,
+    PlanarPattern,
+    RosettePattern,
+    ScanPattern,
+    ScanRays,
+    SpinningPattern,
+    avia,
+    mid360,
+    os1_64,
+    vlp16,
+)
 
 __all__ = [
-    "INVALID_ID", "RaycastScene", "avia", "mid360", "os1_64", "vlp16",
-    "AllanFit", "BAROMETER_PRESETS", "BarometerModel", "BarometerParams", "BarometerSensor", "CameraComponent",
-    "CameraImage", "CameraIntrinsics", "CsvPattern", "DepthCamera", "EarthField", "ErrorProcess", "GPS_PRESETS",
-    "GeoPoint", "GpsModel", "GpsParams", "GpsSensor", "IMU_PRESETS", "ImuModel", "ImuParams", "ImuSensor", "Lidar",
-    "LidarComponent", "LidarParams", "MagnetometerModel", "MagnetometerParams", "MagnetometerSensor",
-    "Mid360Pattern", "NoiseSpec", "PlanarPattern", "PointCloud", "RgbCamera", "RosettePattern", "ScanPattern",
-    "ScanRays", "SpinningPattern", "Transform", "allan_deviation", "d435_depth", "d435_rgb", "enu_to_lla",
-    "fit_allan", "imu_preset", "isa_altitude", "isa_pressure", "lla_to_enu", "mid360_params", "patterns", "save_png",
+    "INVALID_ID",
+    "RaycastScene",
+    "avia",
+    "mid360",
+    "os1_64",
+    "vlp16",
+    "AllanFit",
+    "BAROMETER_PRESETS",
+    "BarometerModel",
+    "BarometerParams",
+    "BarometerSensor",
+    "CameraComponent",
+    "CameraImage",
+    "CameraIntrinsics",
+    "CsvPattern",
+    "DepthCamera",
+    "EarthField",
+    "ErrorProcess",
+    "GPS_PRESETS",
+    "GeoPoint",
+    "GpsModel",
+    "GpsParams",
+    "GpsSensor",
+    "IMU_PRESETS",
+    "ImuModel",
+    "ImuParams",
+    "ImuSensor",
+    "Lidar",
+    "LidarComponent",
+    "LidarParams",
+    "MagnetometerModel",
+    "MagnetometerParams",
+    "MagnetometerSensor",
+    "Mid360Pattern",
+    "NoiseSpec",
+    "PlanarPattern",
+    "PointCloud",
+    "RgbCamera",
+    "RosettePattern",
+    "ScanPattern",
+    "ScanRays",
+    "SpinningPattern",
+    "Transform",
+    "allan_deviation",
+    "d435_depth",
+    "d435_rgb",
+    "enu_to_lla",
+    "fit_allan",
+    "imu_preset",
+    "isa_altitude",
+    "isa_pressure",
+    "lla_to_enu",
+    "mid360_params",
+    "patterns",
+    "save_png",
 ]

@@ -32,7 +32,7 @@ def allan_deviation(y: np.ndarray, dt: float, taus: np.ndarray | None = None) ->
     adev = np.empty((len(m), y2.shape[1]))
     for i, mi in enumerate(m):
         tau = mi * dt
-        d = theta[2 * mi:] - 2 * theta[mi:-mi] + theta[:-2 * mi]
+        d = theta[2 * mi :] - 2 * theta[mi:-mi] + theta[: -2 * mi]
         adev[i] = np.sqrt(np.mean(d * d, axis=0) / (2 * tau * tau))
     tau = m * dt
     return tau, (adev[:, 0] if squeeze else adev)

@@ -31,20 +31,35 @@ def allan_report(imu: str, duration_s: float, out: str | Path, seed: int = 0) ->
     tau, adev_a = allan_deviation(acc, dt)
     _, adev_g = allan_deviation(gyr, dt)
     i1 = int(np.argmin(np.abs(np.log(tau))))  # tau closest to 1 s
-    report: dict = {"imu": imu, "rate_hz": params.rate_hz, "duration_s": k * dt, "seed": seed,
-                    "units": {"accel_noise_density": "m/s^2/sqrt(Hz)", "accel_random_walk": "m/s^3/sqrt(Hz)",
-                              "gyro_noise_density": "rad/s/sqrt(Hz)", "gyro_random_walk": "rad/s^2/sqrt(Hz)"},
-                    "axes": {}}
+    report: dict = {
+        "imu": imu,
+        "rate_hz": params.rate_hz,
+        "duration_s": k * dt,
+        "seed": seed,
+        "units": {
+            "accel_noise_density": "m/s^2/sqrt(Hz)",
+            "accel_random_walk": "m/s^3/sqrt(Hz)",
+            "gyro_noise_density": "rad/s/sqrt(Hz)",
+            "gyro_random_walk": "rad/s^2/sqrt(Hz)",
+        },
+        "axes": {},
+    }
     for sensor, adev, spec in (("accel", adev_a, params.accel), ("gyro", adev_g, params.gyro)):
         nd, rw, _ = spec.per_axis(3)
         for axis, name in enumerate("xyz"):
             fit = fit_allan(tau, adev[:, axis], record_s=k * dt)
             report["axes"][f"{sensor}_{name}"] = {
-                "noise_density": {"configured": nd[axis], "fitted": fit.white_noise_density,
-                                  "adev_at_1s": float(adev[i1, axis]),
-                                  "relative_error": _rel(fit.white_noise_density, nd[axis])},
-                "random_walk": {"configured": rw[axis], "fitted": fit.bias_random_walk,
-                                "relative_error": _rel(fit.bias_random_walk, rw[axis])},
+                "noise_density": {
+                    "configured": nd[axis],
+                    "fitted": fit.white_noise_density,
+                    "adev_at_1s": float(adev[i1, axis]),
+                    "relative_error": _rel(fit.white_noise_density, nd[axis]),
+                },
+                "random_walk": {
+                    "configured": rw[axis],
+                    "fitted": fit.bias_random_walk,
+                    "relative_error": _rel(fit.bias_random_walk, rw[axis]),
+                },
             }
     (out / "allan.json").write_text(json.dumps(report, indent=2))
     _plot(out / "allan.png", tau, adev_a, adev_g, params, imu)
@@ -62,8 +77,10 @@ def _plot(path: Path, tau, adev_a, adev_g, params, imu: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    for ax, adev, spec, label, unit in ((axes[0], adev_a, params.accel, "accelerometer", "m/s$^2$"),
-                                        (axes[1], adev_g, params.gyro, "gyroscope", "rad/s")):
+    for ax, adev, spec, label, unit in (
+        (axes[0], adev_a, params.accel, "accelerometer", "m/s$^2$"),
+        (axes[1], adev_g, params.gyro, "gyroscope", "rad/s"),
+    ):
         nd, rw, _ = spec.per_axis(3)
         for axis, name in enumerate("xyz"):
             ax.loglog(tau, adev[:, axis], label=f"{name}")
@@ -92,10 +109,10 @@ def run(args: argparse.Namespace) -> int:
     for axis, r in report["axes"].items():
         nd, rw = r["noise_density"], r["random_walk"]
         rw_err = "n/a" if rw["relative_error"] is None else f"{100 * rw['relative_error']:+.1f}%"
-        print(f"{axis:8s} noise density {nd['fitted']:.3e} (configured {nd['configured']:.3e}, "
-              f"{100 * nd['relative_error']:+.1f}%)  random walk {rw['fitted']:.3e} (configured "
-              f"{rw['configured']:.3e}, {rw_err})")
+        print(
+            f"{axis:8s} noise density {nd['fitted']:.3e} (configured {nd['configured']:.3e}, "
+            f"{100 * nd['relative_error']:+.1f}%)  random walk {rw['fitted']:.3e} (configured "
+            f"{rw['configured']:.3e}, {rw_err})"
+        )
     print(f"wrote {Path(args.out) / 'allan.json'}, allan.png, imu.npz")
     return 0
-
-

@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-
 from typing import Any
 
 import numpy as np
 
 from cufund.core.config import ConfigError, check_at_most, check_real_fields, nested
 from cufund.core.messages import AirPressure, Odometry, Topics
+
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
 
@@ -32,14 +32,16 @@ def _real(x: float | np.ndarray) -> float | np.ndarray:
     return x if isinstance(x, (float, int)) else np.asarray(x, float)
 
 
-def isa_pressure(altitude_m: float | np.ndarray, sea_level_pressure: float = P0,
-                 sea_level_temperature: float = T0) -> float | np.ndarray:
+def isa_pressure(
+    altitude_m: float | np.ndarray, sea_level_pressure: float = P0, sea_level_temperature: float = T0
+) -> float | np.ndarray:
     """Static pressure [Pa] at geopotential altitude [m] above mean sea level."""
     return sea_level_pressure * (1.0 - LAPSE * _real(altitude_m) / sea_level_temperature) ** EXPONENT
 
 
-def isa_altitude(pressure_pa: float | np.ndarray, sea_level_pressure: float = P0,
-                 sea_level_temperature: float = T0) -> float | np.ndarray:
+def isa_altitude(
+    pressure_pa: float | np.ndarray, sea_level_pressure: float = P0, sea_level_temperature: float = T0
+) -> float | np.ndarray:
     """Altitude [m] above mean sea level at which the ISA has ``pressure_pa``."""
     return sea_level_temperature / LAPSE * (1.0 - (_real(pressure_pa) / sea_level_pressure) ** (1.0 / EXPONENT))
 
@@ -65,9 +67,13 @@ class BarometerParams:
         if not (math.isfinite(self.home_altitude_m) and -500 <= self.home_altitude_m <= 10000):
             raise ConfigError(f"home_altitude_m must be in [-500, 10000] [m], got {self.home_altitude_m!r}")
         if not (math.isfinite(self.sea_level_pressure_pa) and 80000 <= self.sea_level_pressure_pa <= 110000):
-            raise ConfigError(f"sea_level_pressure_pa must be in [80000, 110000] [Pa], got {self.sea_level_pressure_pa!r}")
+            raise ConfigError(
+                f"sea_level_pressure_pa must be in [80000, 110000] [Pa], got {self.sea_level_pressure_pa!r}"
+            )
         if not (math.isfinite(self.sea_level_temperature_k) and 200 <= self.sea_level_temperature_k <= 340):
-            raise ConfigError(f"sea_level_temperature_k must be in [200, 340] [K], got {self.sea_level_temperature_k!r}")
+            raise ConfigError(
+                f"sea_level_temperature_k must be in [200, 340] [K], got {self.sea_level_temperature_k!r}"
+            )
 
 
 #: TE Connectivity MS5611-01BA03 datasheet: RMS resolution 0.012 mbar (1.2 Pa) at OSR 4096, one
@@ -75,8 +81,9 @@ class BarometerParams:
 #: Drift 0.5 Pa/s/sqrt(Hz) (about 5 Pa, 0.4 m, over 100 s) stands for the slow thermal drift the datasheet
 #: does not quantify; turn-on offset 100 Pa (its absolute accuracy is +-1.5 mbar).
 BAROMETER_PRESETS = {
-    "ms5611": lambda: BarometerParams(name="ms5611", rate_hz=50.0,
-                                      noise=NoiseSpec(1.2 * math.sqrt(1 / 50.0), 0.5, 100.0)),
+    "ms5611": lambda: BarometerParams(
+        name="ms5611", rate_hz=50.0, noise=NoiseSpec(1.2 * math.sqrt(1 / 50.0), 0.5, 100.0)
+    ),
     "ideal": lambda: BarometerParams(),
 }
 

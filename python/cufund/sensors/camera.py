@@ -17,8 +17,8 @@ import numpy as np
 
 from cufund import _core
 from cufund.core.messages import CameraImage  # noqa: F401 - re-exported: cameras' message
-from cufund.worlds.world import World
 from cufund.geometry import Transform, quat_mul, quat_to_matrix
+from cufund.worlds.world import World
 
 # Optical frame O (x right, y down, z forward) -> camera frame C (x forward, y left, z up).
 R_CO = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
@@ -44,13 +44,18 @@ class CameraIntrinsics:
     def __post_init__(self) -> None:
         for name in ("width", "height"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
-                    or not 1 <= v <= 100_000 or int(v) != v:
+            if (
+                isinstance(v, bool)
+                or not isinstance(v, (int, float, np.integer, np.floating))
+                or not 1 <= v <= 100_000
+                or int(v) != v
+            ):
                 raise ValueError(f"{name} must be a positive integer [px], got {v}")
             object.__setattr__(self, name, int(v))
         for name in ("fx", "fy", "cx", "cy"):
-            if isinstance(getattr(self, name), bool) or not isinstance(getattr(self, name), (int, float, np.integer,
-                                                                                              np.floating)):
+            if isinstance(getattr(self, name), bool) or not isinstance(
+                getattr(self, name), (int, float, np.integer, np.floating)
+            ):
                 raise ValueError(f"{name} must be a real number [px], got {getattr(self, name)!r}")
         for name in ("fx", "fy"):
             v = float(getattr(self, name))
@@ -86,8 +91,10 @@ class CameraIntrinsics:
         k1, k2, p1, p2, k3 = self.distortion
         r2 = x * x + y * y
         radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        return (x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
-                y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y)
+        return (
+            x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
+            y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y,
+        )
 
     def pixel_directions(self) -> np.ndarray:
         """(H, W, 3) ray directions (x_n, y_n, 1) in the optical frame through each pixel centre,
@@ -154,9 +161,16 @@ class DepthCamera(_RayCamera):
     Noise: Gaussian with σ = ``noise_coeff`` × z² (stereo-like; 0 disables), seeded.
     """
 
-    def __init__(self, intrinsics: CameraIntrinsics | None = None, T_BC: Transform | None = None,
-                 depth_min: float = 0.1, depth_max: float = 10.0, noise_coeff: float = 0.0, seed: int = 0,
-                 nthreads: int = 0) -> None:
+    def __init__(
+        self,
+        intrinsics: CameraIntrinsics | None = None,
+        T_BC: Transform | None = None,
+        depth_min: float = 0.1,
+        depth_max: float = 10.0,
+        noise_coeff: float = 0.0,
+        seed: int = 0,
+        nthreads: int = 0,
+    ) -> None:
         super().__init__(intrinsics or d435_depth(), T_BC, nthreads)
         if not (0 <= depth_min < depth_max and np.isfinite(depth_max)):
             raise ValueError(f"need 0 <= depth_min < depth_max < inf [m], got {depth_min}, {depth_max}")
@@ -189,9 +203,15 @@ class RgbCamera(_RayCamera):
     ``sky`` where nothing is hit.
     """
 
-    def __init__(self, intrinsics: CameraIntrinsics | None = None, T_BC: Transform | None = None,
-                 light_W: object = (0.3, 0.2, 1.0), ambient: float = 0.3, sky: object = (0.55, 0.7, 0.9),
-                 nthreads: int = 0) -> None:
+    def __init__(
+        self,
+        intrinsics: CameraIntrinsics | None = None,
+        T_BC: Transform | None = None,
+        light_W: object = (0.3, 0.2, 1.0),
+        ambient: float = 0.3,
+        sky: object = (0.55, 0.7, 0.9),
+        nthreads: int = 0,
+    ) -> None:
         super().__init__(intrinsics or d435_rgb(), T_BC, nthreads)
         light = np.asarray(light_W, dtype=float)
         if light.shape != (3,) or not np.all(np.isfinite(light)) or np.linalg.norm(light) == 0:

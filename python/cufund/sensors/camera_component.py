@@ -6,6 +6,7 @@ from cufund.core.components import BusView, Component
 from cufund.core.messages import CameraImage, Odometry, Topics
 from cufund.core.topics import Topic
 from cufund.worlds.world import World
+
 from .camera import DepthCamera, RgbCamera
 
 DEPTH_TOPIC = Topics.DEPTH_IMAGE
@@ -21,8 +22,14 @@ class CameraComponent(Component):
     name = "camera"
     reads_truth = True
 
-    def __init__(self, camera: DepthCamera | RgbCamera, world: World, topic: str | None = None,
-                 rate_hz: float = 30.0, latency_s: float = 0.0) -> None:
+    def __init__(
+        self,
+        camera: DepthCamera | RgbCamera,
+        world: World,
+        topic: str | None = None,
+        rate_hz: float = 30.0,
+        latency_s: float = 0.0,
+    ) -> None:
         if not isinstance(camera, (DepthCamera, RgbCamera)):
             raise ValueError(f"camera must be a DepthCamera or RgbCamera, got {type(camera).__name__}")
         if not isinstance(world, World):

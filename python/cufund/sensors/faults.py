@@ -21,8 +21,9 @@ model itself is untouched, so the same seed gives the same clean measurements wi
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -30,13 +31,28 @@ from cufund.core.components import Component
 from cufund.core.config import ConfigError, from_dict, to_dict, vector3
 from cufund.core.messages import Imu, PointCloud
 
-__all__ = ["FAULT_KINDS", "FaultySensor", "ImuBiasStep", "LidarDegraded", "LidarDropout", "faults_to_data",
-           "fault_summary", "inject_faults", "parse_faults"]
+__all__ = [
+    "FAULT_KINDS",
+    "FaultySensor",
+    "ImuBiasStep",
+    "LidarDegraded",
+    "LidarDropout",
+    "faults_to_data",
+    "fault_summary",
+    "inject_faults",
+    "parse_faults",
+]
 
 
 def _time(where: str, value: Any, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0 \
-            or (positive and value == 0) or value > 1e6:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not math.isfinite(value)
+        or value < 0
+        or (positive and value == 0)
+        or value > 1e6
+    ):
         raise ConfigError(f"{where} must be a number of seconds in {'(0' if positive else '[0'}, 1e6], got {value!r}")
     return float(value)
 
@@ -89,8 +105,10 @@ class ImuBiasStep:
         a = vector3(f"{w}.accel", self.accel, " [m/s^2]", finite=True)
         g = vector3(f"{w}.gyro", self.gyro, " [rad/s]", finite=True)
         if max(map(abs, a)) > 100 or max(map(abs, g)) > 10:
-            raise ConfigError(f"{w}: a bias step must be at most 100 m/s^2 (accel) and 10 rad/s (gyro) per axis, "
-                              f"got accel {a}, gyro {g}")
+            raise ConfigError(
+                f"{w}: a bias step must be at most 100 m/s^2 (accel) and 10 rad/s (gyro) per axis, "
+                f"got accel {a}, gyro {g}"
+            )
         object.__setattr__(self, "accel", a)
         object.__setattr__(self, "gyro", g)
         _sensor(f"{w}.sensor", self.sensor)
@@ -161,13 +179,16 @@ def parse_faults(value: Any) -> tuple[Any, ...]:
                 out.append(item)
                 continue
             if not isinstance(item, dict) or "kind" not in item:
-                raise ConfigError(f"faults[{i}] must be a mapping with a 'kind' key ({', '.join(FAULT_KINDS)}), "
-                                  f"got {item!r}")
+                raise ConfigError(
+                    f"faults[{i}] must be a mapping with a 'kind' key ({', '.join(FAULT_KINDS)}), got {item!r}"
+                )
             params = dict(item)
             out.append(_one(params.pop("kind"), params, f"faults[{i}]"))
     else:
-        raise ConfigError("faults must be a map {kind: {t_start: ..., ...}} or a list of {kind: ..., t_start: ...}, "
-                          f"got {type(value).__name__}")
+        raise ConfigError(
+            "faults must be a map {kind: {t_start: ..., ...}} or a list of {kind: ..., t_start: ...}, "
+            f"got {type(value).__name__}"
+        )
     return tuple(out)
 
 
@@ -299,8 +320,9 @@ class FaultySensor(Component):
         return getattr(self.inner, name)
 
 
-def inject_faults(faults: tuple[Any, ...], sensors: dict[str, Any], components: list[Component],
-                  seed_for: Callable[[str], int]) -> list[Component]:
+def inject_faults(
+    faults: tuple[Any, ...], sensors: dict[str, Any], components: list[Component], seed_for: Callable[[str], int]
+) -> list[Component]:
     """``components`` (the sensors' components) with those publishing a faulty sensor's topic wrapped in a
     :class:`FaultySensor`. ``sensors``: the scenario's ``{name: PartSpec}``; ``seed_for(where)``: the scenario's
     per-part seeds."""
@@ -316,9 +338,11 @@ def inject_faults(faults: tuple[Any, ...], sensors: dict[str, Any], components: 
         else:
             found = [s for s in sensors.values() if s.sensor_type == f.sensor_type]
             if len(found) != 1:
-                raise ConfigError(f"{where} needs {'a' if not found else 'one'} {f.sensor_type} sensor"
-                                  f"{'' if not found else ' (several: name one in sensor)'}; "
-                                  f"the scenario has {len(found)}")
+                raise ConfigError(
+                    f"{where} needs {'a' if not found else 'one'} {f.sensor_type} sensor"
+                    f"{'' if not found else ' (several: name one in sensor)'}; "
+                    f"the scenario has {len(found)}"
+                )
             spec = found[0]
         by_topic.setdefault(str(spec.topic), []).append(_Active(f, seed_for(f"faults[{i}].{f.kind}")))
     out = []
@@ -331,4 +355,3 @@ def inject_faults(faults: tuple[Any, ...], sensors: dict[str, Any], components: 
 def fault_summary(faults: tuple[Any, ...]) -> list[dict[str, Any]]:
     """The faults as plain records for ``metrics.json``."""
     return [{"kind": f.kind, **_plain(f)} for f in faults]
-

@@ -17,6 +17,7 @@ import numpy as np
 
 from cufund.core.config import ConfigError, check_real_fields, nested
 from cufund.core.messages import GpsFix, Odometry, Topics
+
 from .geodesy import GeoPoint, enu_to_lla
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
@@ -50,8 +51,11 @@ class GpsParams:
         object.__setattr__(self, "home", nested(GeoPoint, self.home, "GpsParams.home"))
         if not (math.isfinite(self.rate_hz) and 0 < self.rate_hz <= 50):
             raise ConfigError(f"rate_hz must be in (0, 50] [Hz], got {self.rate_hz!r}")
-        check_real_fields(self, "GpsParams", names=("horizontal_sigma_m", "vertical_sigma_m", "drift_m_per_sqrt_s",
-                                                    "velocity_sigma_m_s", "latency_s"))
+        check_real_fields(
+            self,
+            "GpsParams",
+            names=("horizontal_sigma_m", "vertical_sigma_m", "drift_m_per_sqrt_s", "velocity_sigma_m_s", "latency_s"),
+        )
         if not (isinstance(self.satellites, int) and 0 <= self.satellites <= 64):
             raise ConfigError(f"satellites must be an integer in [0, 64], got {self.satellites!r}")
         if not (isinstance(self.min_satellites, int) and 4 <= self.min_satellites):
@@ -70,12 +74,24 @@ class GpsParams:
 #: Vertical sigma as twice the horizontal (typical of GNSS geometry); drift 0.05 m/sqrt(s) and 0.1 s
 #: latency as commonly seen on these receivers (not in the data sheets).
 GPS_PRESETS = {
-    "ublox_m8n": lambda: GpsParams(name="ublox_m8n", rate_hz=10.0, horizontal_sigma_m=2.5 * CEP_TO_SIGMA,
-                                   vertical_sigma_m=5.0 * CEP_TO_SIGMA, drift_m_per_sqrt_s=0.05,
-                                   velocity_sigma_m_s=0.05, latency_s=0.1),
-    "ublox_m9n": lambda: GpsParams(name="ublox_m9n", rate_hz=10.0, horizontal_sigma_m=1.5 * CEP_TO_SIGMA,
-                                   vertical_sigma_m=3.0 * CEP_TO_SIGMA, drift_m_per_sqrt_s=0.03,
-                                   velocity_sigma_m_s=0.05, latency_s=0.1),
+    "ublox_m8n": lambda: GpsParams(
+        name="ublox_m8n",
+        rate_hz=10.0,
+        horizontal_sigma_m=2.5 * CEP_TO_SIGMA,
+        vertical_sigma_m=5.0 * CEP_TO_SIGMA,
+        drift_m_per_sqrt_s=0.05,
+        velocity_sigma_m_s=0.05,
+        latency_s=0.1,
+    ),
+    "ublox_m9n": lambda: GpsParams(
+        name="ublox_m9n",
+        rate_hz=10.0,
+        horizontal_sigma_m=1.5 * CEP_TO_SIGMA,
+        vertical_sigma_m=3.0 * CEP_TO_SIGMA,
+        drift_m_per_sqrt_s=0.03,
+        velocity_sigma_m_s=0.05,
+        latency_s=0.1,
+    ),
     "ideal": lambda: GpsParams(),
 }
 
@@ -119,8 +135,9 @@ class GpsModel:
         sats = self._satellites if not self._in_outage(t) else int(self._sat_rng.integers(0, 4))
         if sats >= p.min_satellites:
             lat, lon, alt = enu_to_lla(p_W + e[:3], p.home)
-            fix = GpsFix(t, float(lat), float(lon), float(alt), v_W + e[3:], 3, sats,
-                         p.horizontal_sigma_m, p.vertical_sigma_m)
+            fix = GpsFix(
+                t, float(lat), float(lon), float(alt), v_W + e[3:], 3, sats, p.horizontal_sigma_m, p.vertical_sigma_m
+            )
         else:
             fix = GpsFix(t, math.nan, math.nan, math.nan, np.full(3, math.nan), 0, sats, math.inf, math.inf)
         self._pending.append(fix)

@@ -20,9 +20,10 @@ import numpy as np
 
 from cufund.core.config import ConfigError, check_real_fields, from_dict, nested
 from cufund.core.messages import Imu, Odometry, Topics
+from cufund.geometry import quat_to_matrix, world_to_body
+
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
-from cufund.geometry import quat_to_matrix, world_to_body
 
 __all__ = ["IMU_PRESETS", "ImuModel", "ImuParams", "ImuSensor", "imu_preset"]
 
@@ -96,8 +97,11 @@ class ImuModel:
         self._r_tuple = tuple(float(v) for v in params.p_BI)
         self._scale_a = 1.0 + np.asarray(params.accel_scale_factor)
         self._scale_g = 1.0 + np.asarray(params.gyro_scale_factor)
-        self._mounted = (tuple(params.q_BI) != (1.0, 0.0, 0.0, 0.0) or any(params.accel_scale_factor)
-                         or any(params.gyro_scale_factor))
+        self._mounted = (
+            tuple(params.q_BI) != (1.0, 0.0, 0.0, 0.0)
+            or any(params.accel_scale_factor)
+            or any(params.gyro_scale_factor)
+        )
 
     def reset(self) -> None:
         """Restarts the error stream (same seed: the same record again)."""
@@ -109,18 +113,28 @@ class ImuModel:
         b = self._errors.turn_on_bias + self._errors.bias
         return b[:3].copy(), b[3:].copy()
 
-    def measure(self, q_WB: np.ndarray, w_B: np.ndarray, a_W: np.ndarray, alpha_B: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray]:
+    def measure(
+        self, q_WB: np.ndarray, w_B: np.ndarray, a_W: np.ndarray, alpha_B: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Samples for the true attitude q_WB (K, 4) [w, x, y, z], body rate w_B (K, 3) [rad/s], acceleration
         a_W (K, 3) [m/s^2] and angular acceleration alpha_B (K, 3) [rad/s^2]; or one sample from (4,)/(3,).
         Returns (accelerometer (K, 3) [m/s^2], gyroscope (K, 3) [rad/s]) in the IMU frame."""
-        if type(q_WB) is np.ndarray and q_WB.shape == (4,) and type(w_B) is np.ndarray and w_B.shape == (3,) and \
-                type(a_W) is np.ndarray and a_W.shape == (3,) and type(alpha_B) is np.ndarray and alpha_B.shape == (3,):
+        if (
+            type(q_WB) is np.ndarray
+            and q_WB.shape == (4,)
+            and type(w_B) is np.ndarray
+            and w_B.shape == (3,)
+            and type(a_W) is np.ndarray
+            and a_W.shape == (3,)
+            and type(alpha_B) is np.ndarray
+            and alpha_B.shape == (3,)
+        ):
             return self._measure_one(q_WB.tolist(), w_B.tolist(), a_W.tolist(), alpha_B.tolist())  # the tick path
         single = np.ndim(q_WB) == 1
         if single and np.shape(w_B) == (3,) and np.shape(a_W) == (3,) and np.shape(alpha_B) == (3,):
-            return self._measure_one([float(v) for v in q_WB], [float(v) for v in w_B], [float(v) for v in a_W],
-                                     [float(v) for v in alpha_B])
+            return self._measure_one(
+                [float(v) for v in q_WB], [float(v) for v in w_B], [float(v) for v in a_W], [float(v) for v in alpha_B]
+            )
         q, w, a, al = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q_WB, w_B, a_W, alpha_B))
         k = q.shape[0]
         for name, x, d in (("q_WB", q, 4), ("w_B", w, 3), ("a_W", a, 3), ("alpha_B", al, 3)):
@@ -132,13 +146,15 @@ class ImuModel:
         f_B = np.einsum("kji,kj->ki", R_WB, a + np.array([0.0, 0.0, self.gravity]))
         f_B += np.cross(al, self._r) + np.cross(w, np.cross(w, self._r))
         e = self._errors.sample(k)
-        acc = np.clip(self._scale_a * (f_B @ self._R_IB.T) + e[:, :3], -self.params.accel_range,
-                      self.params.accel_range)
+        acc = np.clip(
+            self._scale_a * (f_B @ self._R_IB.T) + e[:, :3], -self.params.accel_range, self.params.accel_range
+        )
         gyr = np.clip(self._scale_g * (w @ self._R_IB.T) + e[:, 3:], -self.params.gyro_range, self.params.gyro_range)
         return (acc[0], gyr[0]) if single else (acc, gyr)
 
-    def _measure_one(self, q: list[float], w: list[float], a: list[float], alpha: list[float]
-                     ) -> tuple[np.ndarray, np.ndarray]:
+    def _measure_one(
+        self, q: list[float], w: list[float], a: list[float], alpha: list[float]
+    ) -> tuple[np.ndarray, np.ndarray]:
         """One sample with scalar arithmetic on Python floats (the simulator's per-tick path: the same model as
         the batch path, equal to it within rounding). ``q`` [w, x, y, z], ``w``, ``a``, ``alpha``: 3 floats."""
         qw, qx, qy, qz = q
@@ -178,8 +194,9 @@ class ImuModel:
             wx, wy, wz = (min(max(v, -gr), gr) for v in (wx, wy, wz))
         return np.array((fx, fy, fz)), np.array((wx, wy, wz))
 
-    def measure_static(self, k: int, q_WB: np.ndarray | tuple[float, ...] = (1.0, 0.0, 0.0, 0.0)
-                       ) -> tuple[np.ndarray, np.ndarray]:
+    def measure_static(
+        self, k: int, q_WB: np.ndarray | tuple[float, ...] = (1.0, 0.0, 0.0, 0.0)
+    ) -> tuple[np.ndarray, np.ndarray]:
         """``k`` samples of an IMU at rest with attitude ``q_WB`` (level by default)."""
         q = np.broadcast_to(np.asarray(q_WB, dtype=float), (k, 4))
         z = np.zeros((k, 3))
@@ -197,20 +214,35 @@ class ImuSensor(ModelSensor):
 
     def measure(self, t: float, truth: Odometry) -> Imu:
         if truth.a_W is None or truth.alpha_B is None:
-            raise ValueError("ImuSensor needs ground truth with accelerations (a_W, alpha_B), as the Simulator publishes")
+            raise ValueError(
+                "ImuSensor needs ground truth with accelerations (a_W, alpha_B), as the Simulator publishes"
+            )
         a, w = self.model.measure(truth.q_WB, truth.w_B, truth.a_W, truth.alpha_B)
         a.setflags(write=False)  # fresh arrays the model keeps no reference to: frozen, the message is trusted
         w.setflags(write=False)
         return Imu.trusted(t, a, w)
 
 
-def _mems(name: str, rate_hz: float, acc_nd_ug: float, gyro_nd_dps: float, acc_rw: float, gyro_rw: float,
-          acc_range_g: float, gyro_range_dps: float, acc_bias_mg: float, gyro_bias_dps: float) -> ImuParams:
+def _mems(
+    name: str,
+    rate_hz: float,
+    acc_nd_ug: float,
+    gyro_nd_dps: float,
+    acc_rw: float,
+    gyro_rw: float,
+    acc_range_g: float,
+    gyro_range_dps: float,
+    acc_bias_mg: float,
+    gyro_bias_dps: float,
+) -> ImuParams:
     return ImuParams(
-        name=name, rate_hz=rate_hz,
+        name=name,
+        rate_hz=rate_hz,
         accel=NoiseSpec(acc_nd_ug * 1e-6 * G0, acc_rw, acc_bias_mg * 1e-3 * G0),
         gyro=NoiseSpec(gyro_nd_dps * DEG, gyro_rw, gyro_bias_dps * DEG),
-        accel_range=acc_range_g * G0, gyro_range=gyro_range_dps * DEG)
+        accel_range=acc_range_g * G0,
+        gyro_range=gyro_range_dps * DEG,
+    )
 
 
 #: Presets, at 200 Hz (an output data rate both parts offer, dividing the 1 kHz physics rate).

@@ -13,8 +13,9 @@ plus one registration of its type and kinds.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError, check_at_most, check_real_fields
@@ -32,13 +33,15 @@ from .magnetometer import MagnetometerParams, MagnetometerSensor
 from .patterns import ScanPattern, avia, mid360, os1_64, vlp16
 from .pose_sensor import PoseSensor, PoseSensorParams
 
-for _type in (SensorType("imu", Imu, "T_BI", "accelerometer and gyroscope, in the IMU frame I"),
-              SensorType("magnetometer", MagneticField, None, "magnetic field along the body axes"),
-              SensorType("barometer", AirPressure, None, "static pressure and pressure altitude"),
-              SensorType("gps", GpsFix, None, "GNSS fix (position, velocity) of the vehicle"),
-              SensorType("lidar", PointCloud, "T_BL", "ray-traced point clouds, in the LiDAR frame L"),
-              SensorType("camera", CameraImage, "T_BC", "ray-traced depth or colour images, camera frame C"),
-              SensorType("pose", Odometry, None, "a pose source (motion capture, a slow odometry)")):
+for _type in (
+    SensorType("imu", Imu, "T_BI", "accelerometer and gyroscope, in the IMU frame I"),
+    SensorType("magnetometer", MagneticField, None, "magnetic field along the body axes"),
+    SensorType("barometer", AirPressure, None, "static pressure and pressure altitude"),
+    SensorType("gps", GpsFix, None, "GNSS fix (position, velocity) of the vehicle"),
+    SensorType("lidar", PointCloud, "T_BL", "ray-traced point clouds, in the LiDAR frame L"),
+    SensorType("camera", CameraImage, "T_BC", "ray-traced depth or colour images, camera frame C"),
+    SensorType("pose", Odometry, None, "a pose source (motion capture, a slow odometry)"),
+):
     register(_type)
 
 _PATTERNS: dict[str, Callable[[], ScanPattern]] = {"mid360": mid360, "os1_64": os1_64, "vlp16": vlp16, "avia": avia}
@@ -54,21 +57,63 @@ def _imu(params: ImuParams, ctx: BuildContext) -> list[Any]:
 
 
 for _name, _preset in IMU_PRESETS.items():
-    register(Kind("sensor", "ideal_imu" if _name == "ideal" else _name, ImuParams, _imu, _preset,
-                  f"IMU, {_name} preset (cufund.sensors.ImuParams)", sensor_type="imu"))
-register(Kind("sensor", "magnetometer", MagnetometerParams,
-              lambda p, ctx: [MagnetometerSensor(p, ctx.seed, ctx.part.topic)], None,
-              "magnetometer (cufund.sensors.MagnetometerParams)", sensor_type="magnetometer"))
+    register(
+        Kind(
+            "sensor",
+            "ideal_imu" if _name == "ideal" else _name,
+            ImuParams,
+            _imu,
+            _preset,
+            f"IMU, {_name} preset (cufund.sensors.ImuParams)",
+            sensor_type="imu",
+        )
+    )
+register(
+    Kind(
+        "sensor",
+        "magnetometer",
+        MagnetometerParams,
+        lambda p, ctx: [MagnetometerSensor(p, ctx.seed, ctx.part.topic)],
+        None,
+        "magnetometer (cufund.sensors.MagnetometerParams)",
+        sensor_type="magnetometer",
+    )
+)
 for _name, _baro_preset in BAROMETER_PRESETS.items():
-    register(Kind("sensor", "ideal_barometer" if _name == "ideal" else _name, BarometerParams,
-                  lambda p, ctx: [BarometerSensor(p, ctx.seed, ctx.part.topic)], _baro_preset,
-                  f"barometer, {_name} preset (cufund.sensors.BarometerParams)", sensor_type="barometer"))
+    register(
+        Kind(
+            "sensor",
+            "ideal_barometer" if _name == "ideal" else _name,
+            BarometerParams,
+            lambda p, ctx: [BarometerSensor(p, ctx.seed, ctx.part.topic)],
+            _baro_preset,
+            f"barometer, {_name} preset (cufund.sensors.BarometerParams)",
+            sensor_type="barometer",
+        )
+    )
 for _name, _gps_preset in GPS_PRESETS.items():
-    register(Kind("sensor", "ideal_gps" if _name == "ideal" else _name, GpsParams,
-                  lambda p, ctx: [GpsSensor(p, ctx.seed, ctx.part.topic)], _gps_preset,
-                  f"GNSS receiver, {_name} preset (cufund.sensors.GpsParams)", sensor_type="gps"))
-register(Kind("sensor", "pose", PoseSensorParams, lambda p, ctx: [PoseSensor(p, ctx.seed, ctx.part.topic)], None,
-              "pose source (motion capture or a slow odometry): Odometry at rate_hz with noise", sensor_type="pose"))
+    register(
+        Kind(
+            "sensor",
+            "ideal_gps" if _name == "ideal" else _name,
+            GpsParams,
+            lambda p, ctx: [GpsSensor(p, ctx.seed, ctx.part.topic)],
+            _gps_preset,
+            f"GNSS receiver, {_name} preset (cufund.sensors.GpsParams)",
+            sensor_type="gps",
+        )
+    )
+register(
+    Kind(
+        "sensor",
+        "pose",
+        PoseSensorParams,
+        lambda p, ctx: [PoseSensor(p, ctx.seed, ctx.part.topic)],
+        None,
+        "pose source (motion capture or a slow odometry): Odometry at rate_hz with noise",
+        sensor_type="pose",
+    )
+)
 
 
 @dataclass(frozen=True)
@@ -94,37 +139,64 @@ class LidarSensorParams:
     def __post_init__(self) -> None:
         if self.pattern not in _PATTERNS:
             raise ConfigError(f"LidarSensorParams.pattern must be one of {', '.join(_PATTERNS)}, got {self.pattern!r}")
-        check_real_fields(self, "LidarSensorParams", names=("pose_rate_hz", "range_min", "range_max",
-                                                            "range_noise_std", "dropout"))
+        check_real_fields(
+            self, "LidarSensorParams", names=("pose_rate_hz", "range_min", "range_max", "range_noise_std", "dropout")
+        )
         check_at_most(self, "LidarSensorParams", pose_rate_hz=1e4, range_max=1e4)
         if isinstance(self.nthreads, bool) or not isinstance(self.nthreads, int) or self.nthreads < 0:
             raise ConfigError(f"LidarSensorParams.nthreads must be an integer >= 0, got {self.nthreads!r}")
-        LidarParams(range_min=self.range_min, range_max=self.range_max, range_noise_std=self.range_noise_std,
-                    dropout=self.dropout)  # validates the range model
+        LidarParams(
+            range_min=self.range_min,
+            range_max=self.range_max,
+            range_noise_std=self.range_noise_std,
+            dropout=self.dropout,
+        )  # validates the range model
 
 
 def _lidar(p: LidarSensorParams, ctx: BuildContext) -> list[Any]:
     world = ctx.require_world()
-    lidar = Lidar(_PATTERNS[p.pattern](), LidarParams(range_min=p.range_min, range_max=p.range_max,
-                                                      range_noise_std=p.range_noise_std, dropout=p.dropout,
-                                                      seed=ctx.seed, nthreads=p.nthreads), ctx.part.extrinsic)
+    lidar = Lidar(
+        _PATTERNS[p.pattern](),
+        LidarParams(
+            range_min=p.range_min,
+            range_max=p.range_max,
+            range_noise_std=p.range_noise_std,
+            dropout=p.dropout,
+            seed=ctx.seed,
+            nthreads=p.nthreads,
+        ),
+        ctx.part.extrinsic,
+    )
     try:
         return [LidarComponent(lidar, world, ctx.part.topic, p.pose_rate_hz)]
     except ValueError as e:
         raise ConfigError(f"{ctx.where}.pose_rate_hz: {e}") from None
 
 
-_LIDARS = {"mid360": LidarSensorParams(), "os1_64": LidarSensorParams("os1_64", range_min=0.3, range_max=120.0,
-                                                                      range_noise_std=0.03),
-           "vlp16": LidarSensorParams("vlp16", range_min=0.5, range_max=100.0, range_noise_std=0.03),
-           "avia": LidarSensorParams("avia", range_min=0.5, range_max=190.0, range_noise_std=0.02)}
+_LIDARS = {
+    "mid360": LidarSensorParams(),
+    "os1_64": LidarSensorParams("os1_64", range_min=0.3, range_max=120.0, range_noise_std=0.03),
+    "vlp16": LidarSensorParams("vlp16", range_min=0.5, range_max=100.0, range_noise_std=0.03),
+    "avia": LidarSensorParams("avia", range_min=0.5, range_max=190.0, range_noise_std=0.02),
+}
+
+
 def _fixed(p: LidarSensorParams) -> Callable[[], LidarSensorParams]:
     return lambda: p
 
 
 for _name, _p in _LIDARS.items():
-    register(Kind("sensor", _name, LidarSensorParams, _lidar, _fixed(_p),
-                  f"LiDAR, {_name} scan pattern and range model", sensor_type="lidar"))
+    register(
+        Kind(
+            "sensor",
+            _name,
+            LidarSensorParams,
+            _lidar,
+            _fixed(_p),
+            f"LiDAR, {_name} scan pattern and range model",
+            sensor_type="lidar",
+        )
+    )
 
 
 @dataclass(frozen=True)
@@ -153,15 +225,39 @@ def _camera(depth: bool) -> Any:
     def build(p: CameraSensorParams, ctx: BuildContext) -> list[Any]:
         world = ctx.require_world()
         try:
-            cam = (DepthCamera(d435_depth(), ctx.part.extrinsic, p.depth_min, p.depth_max, p.noise_coeff, ctx.seed,
-                               p.nthreads) if depth else RgbCamera(d435_rgb(), ctx.part.extrinsic, nthreads=p.nthreads))
+            cam = (
+                DepthCamera(
+                    d435_depth(), ctx.part.extrinsic, p.depth_min, p.depth_max, p.noise_coeff, ctx.seed, p.nthreads
+                )
+                if depth
+                else RgbCamera(d435_rgb(), ctx.part.extrinsic, nthreads=p.nthreads)
+            )
         except ValueError as e:
             raise ConfigError(f"{ctx.where}: {e}") from None
         return [CameraComponent(cam, world, ctx.part.topic, p.rate_hz)]
+
     return build
 
 
-register(Kind("sensor", "d435_depth", CameraSensorParams, _camera(True), None,
-              "depth camera (D435 depth intrinsics)", sensor_type="camera"))
-register(Kind("sensor", "d435_rgb", CameraSensorParams, _camera(False), None,
-              "RGB camera (D435 colour intrinsics)", sensor_type="camera"))
+register(
+    Kind(
+        "sensor",
+        "d435_depth",
+        CameraSensorParams,
+        _camera(True),
+        None,
+        "depth camera (D435 depth intrinsics)",
+        sensor_type="camera",
+    )
+)
+register(
+    Kind(
+        "sensor",
+        "d435_rgb",
+        CameraSensorParams,
+        _camera(False),
+        None,
+        "RGB camera (D435 colour intrinsics)",
+        sensor_type="camera",
+    )
+)

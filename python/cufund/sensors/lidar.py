@@ -9,9 +9,10 @@ import numpy as np
 
 from cufund import _core
 from cufund.core.messages import LidarTruth, PointCloud
-from cufund.worlds.world import World
-from .patterns import ScanPattern, ScanRays
 from cufund.geometry import PoseFn, Transform, quat_mul, quat_to_matrix, sample_poses
+from cufund.worlds.world import World
+
+from .patterns import ScanPattern, ScanRays
 
 Target = Union[World, "_core.lidar.RaycastScene"]
 
@@ -109,15 +110,18 @@ class Lidar:
         """One frame starting at ``t0`` [s] (the cloud's stamp), as the sensor reports it."""
         return self.scan_with_truth(target, pose_fn, t0, frame)[0]
 
-    def scan_with_truth(self, target: Target, pose_fn: PoseFn, t0: float,
-                        frame: int | None = None) -> tuple[PointCloud, LidarTruth]:
+    def scan_with_truth(
+        self, target: Target, pose_fn: PoseFn, t0: float, frame: int | None = None
+    ) -> tuple[PointCloud, LidarTruth]:
         """Like :meth:`scan`, with the frame's ground truth: noise-free world hit points and object ids."""
         if isinstance(target, World):
             scene, refl = target.raycast_scene, target.reflectivities()
         elif isinstance(target, _core.lidar.RaycastScene):
             scene, refl = target, None
         else:
-            raise ValueError(f"target must be a cufund.World or cufund.sensors.RaycastScene, got {type(target).__name__}")
+            raise ValueError(
+                f"target must be a cufund.World or cufund.sensors.RaycastScene, got {type(target).__name__}"
+            )
         if not np.isfinite(t0):
             raise ValueError(f"t0 must be finite [s], got {t0}")
         k = self._frame if frame is None else int(frame)
@@ -135,10 +139,32 @@ class Lidar:
         n = len(rays_L.t)
         keep = self._rng.random(n) if p.dropout > 0 else None
         noise = self._rng.standard_normal(n) * p.range_noise_std if p.range_noise_std > 0 else None
-        out = _core.lidar.scan_frame(scene, d_L, rays_L.t, rays_L.channel, float(t0), knots, p_WL_k, q_WL_k,
-                                     p.range_min, p.range_max, noise, keep, p.dropout, refl, p.nthreads)
-        cloud = PointCloud(t=float(t0), dt=out["dt"], points_L=out["points_L"], ranges=out["ranges"],
-                           intensity=out["intensity"], channel=out["channel"], frame=k)
+        out = _core.lidar.scan_frame(
+            scene,
+            d_L,
+            rays_L.t,
+            rays_L.channel,
+            float(t0),
+            knots,
+            p_WL_k,
+            q_WL_k,
+            p.range_min,
+            p.range_max,
+            noise,
+            keep,
+            p.dropout,
+            refl,
+            p.nthreads,
+        )
+        cloud = PointCloud(
+            t=float(t0),
+            dt=out["dt"],
+            points_L=out["points_L"],
+            ranges=out["ranges"],
+            intensity=out["intensity"],
+            channel=out["channel"],
+            frame=k,
+        )
         truth = LidarTruth(t=float(t0), points_W=out["points_W"], object_ids=out["object_ids"])
         return cloud, truth
 

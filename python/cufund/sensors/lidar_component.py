@@ -8,6 +8,7 @@ from cufund.core.components import BusView, Component
 from cufund.core.messages import LidarTruth, Odometry, PointCloud, Topics
 from cufund.core.topics import Topic
 from cufund.worlds.world import World
+
 from .lidar import Lidar
 
 
@@ -24,13 +25,22 @@ class LidarComponent(Component):
     name = "lidar"
     reads_truth = True
 
-    def __init__(self, lidar: Lidar, world: World, topic: str = Topics.POINT_CLOUD, rate_hz: float = 100.0,
-                 truth_topic: str | None = None, latency_s: float = 0.0) -> None:
+    def __init__(
+        self,
+        lidar: Lidar,
+        world: World,
+        topic: str = Topics.POINT_CLOUD,
+        rate_hz: float = 100.0,
+        truth_topic: str | None = None,
+        latency_s: float = 0.0,
+    ) -> None:
         if not isinstance(world, World):
             raise ValueError(f"world must be a cufund.World, got {type(world).__name__}")
         per_frame = rate_hz * lidar.period
         if not (np.isfinite(per_frame) and per_frame >= 1 and abs(per_frame - round(per_frame)) < 1e-9):
-            raise ValueError(f"rate_hz must be a multiple of the LiDAR frame rate {1 / lidar.period:g} Hz, got {rate_hz}")
+            raise ValueError(
+                f"rate_hz must be a multiple of the LiDAR frame rate {1 / lidar.period:g} Hz, got {rate_hz}"
+            )
         self.lidar, self.world, self.rate_hz, self.latency_s = lidar, world, float(rate_hz), float(latency_s)
         self.topic = topic if isinstance(topic, Topic) else Topic(topic, PointCloud)
         if truth_topic is None:

@@ -16,9 +16,10 @@ import numpy as np
 
 from cufund.core.config import ConfigError, check_at_most, check_real_fields, nested
 from cufund.core.messages import MagneticField, Odometry, Topics
+from cufund.geometry import quat_to_matrix, world_to_body
+
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
-from cufund.geometry import quat_to_matrix, world_to_body
 
 __all__ = ["EarthField", "MagnetometerParams", "MagnetometerModel", "MagnetometerSensor"]
 

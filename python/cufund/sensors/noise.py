@@ -15,7 +15,6 @@ per sample, so a record is the same whether it is produced one sample at a time 
 from __future__ import annotations
 
 from dataclasses import dataclass
-
 from typing import Any
 
 import numpy as np
@@ -31,6 +30,7 @@ def real_fields(obj: object, where: str) -> None:
     for f in dataclasses.fields(obj):  # type: ignore[arg-type]
         if f.type in ("float", float):
             object.__setattr__(obj, f.name, real_number(f"{where}.{f.name}", getattr(obj, f.name)))
+
 
 __all__ = ["ErrorProcess", "NoiseSpec"]
 
@@ -57,9 +57,11 @@ class NoiseSpec:
     """Standard deviation of the constant bias drawn at the start of each run [unit]."""
 
     def per_axis(self, dim: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return (np.array(_nonneg_vector("white_noise_density", self.white_noise_density, dim)),
-                np.array(_nonneg_vector("bias_random_walk", self.bias_random_walk, dim)),
-                np.array(_nonneg_vector("turn_on_bias", self.turn_on_bias, dim)))
+        return (
+            np.array(_nonneg_vector("white_noise_density", self.white_noise_density, dim)),
+            np.array(_nonneg_vector("bias_random_walk", self.bias_random_walk, dim)),
+            np.array(_nonneg_vector("turn_on_bias", self.turn_on_bias, dim)),
+        )
 
 
 class ErrorProcess:
@@ -102,10 +104,10 @@ class ErrorProcess:
     def _compute(self, k: int) -> None:
         """Computes the next ``k`` samples' errors into the buffer."""
         z = self._rng.standard_normal((k, 2 * self.dim))
-        white = z[:, :self.dim] * self._sigma_white
+        white = z[:, : self.dim] * self._sigma_white
         # Sample i uses the walk before increment i (zero at reset). Summing from the carried walk keeps the
         # left-to-right order of one-at-a-time sampling, so block sizes do not change a single bit.
-        walk = np.cumsum(np.vstack([self._walk_end, z[:, self.dim:] * self._sigma_walk]), axis=0)
+        walk = np.cumsum(np.vstack([self._walk_end, z[:, self.dim :] * self._sigma_walk]), axis=0)
         self._walk_end = walk[-1].copy()
         self._walks = walk[:-1]
         self._errors = self.turn_on_bias + self._walks + white
@@ -122,7 +124,7 @@ class ErrorProcess:
             if self._used == len(self._errors):
                 self._compute(self._BLOCK)
             take = min(need, len(self._errors) - self._used)
-            parts.append(self._errors[self._used:self._used + take])
+            parts.append(self._errors[self._used : self._used + take])
             self._used += take
             self._bias_row = self._used - 1
             need -= take

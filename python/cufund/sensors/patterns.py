@@ -21,8 +21,9 @@ def _count(name: str, value: object, lo: int, hi: int) -> int:
     return int(value)
 
 
-def _firing_clock(point_rate: float, period: float, lasers: int, k: int
-                  ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+def _firing_clock(
+    point_rate: float, period: float, lasers: int, k: int
+) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     """Frame k of a solid-state LiDAR firing ``point_rate`` points/s round-robin over ``lasers``: the
     points per frame, their indices, absolute firing times [s] and laser channels."""
     n = int(round(point_rate * period))
@@ -199,8 +200,16 @@ class Mid360Pattern:
         from cufund import _core
 
         n = int(round(self.point_rate * self.period))
-        t, az, el, ch, d = _core.lidar.mid360_frame(int(k), n, self.point_rate, self.lasers, self.spin_rate,
-                                                    self.sweep_ratio, self.elevation_min, self.elevation_max)
+        t, az, el, ch, d = _core.lidar.mid360_frame(
+            int(k),
+            n,
+            self.point_rate,
+            self.lasers,
+            self.spin_rate,
+            self.sweep_ratio,
+            self.elevation_min,
+            self.elevation_max,
+        )
         return ScanRays(t, az, el, ch, d)
 
 
@@ -287,7 +296,9 @@ class CsvPattern:
         data = np.atleast_2d(data)
         data = data[~np.all(np.isnan(data), axis=1)]  # a header line parses as NaNs
         if data.ndim != 2 or data.shape[1] != 3 or len(data) == 0 or not np.all(np.isfinite(data)):
-            raise ValueError(f"{self.path}: expected finite CSV rows of (time, azimuth, zenith), got shape {data.shape}")
+            raise ValueError(
+                f"{self.path}: expected finite CSV rows of (time, azimuth, zenith), got shape {data.shape}"
+            )
         if np.any(np.diff(data[:, 0]) < 0):
             raise ValueError(f"{self.path}: time column must be non-decreasing")
         object.__setattr__(self, "table", data)

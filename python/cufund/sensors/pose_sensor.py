@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cufund.core.config import check_at_most, check_real_fields
 from cufund.core.components import Sensor
+from cufund.core.config import check_at_most, check_real_fields
 from cufund.core.messages import Odometry, Topics
 from cufund.geometry import quat_mul
 
@@ -56,5 +56,6 @@ class PoseSensor(Sensor):
             angle = float(np.linalg.norm(dtheta))
             axis = dtheta / angle if angle > 0 else np.zeros(3)
             q = quat_mul(np.asarray(q), np.r_[math.cos(angle / 2), math.sin(angle / 2) * axis])
-        return Odometry(t, truth.p_W + p.position_sigma_m * noise[:3], truth.v_W + p.velocity_sigma_m_s * noise[6:9],
-                        q, truth.w_B)
+        return Odometry(
+            t, truth.p_W + p.position_sigma_m * noise[:3], truth.v_W + p.velocity_sigma_m_s * noise[6:9], q, truth.w_B
+        )

@@ -13,17 +13,18 @@ import enum
 import math
 import sys
 import time
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, fields
-from typing import Any, Callable, Iterable
+from typing import Any
 
 import numpy as np
 
 from cufund.core.bus import Bus, BusView
 from cufund.core.components import Component, Estimator, _StateUser
 from cufund.core.messages import ActuatorCommand, Odometry, Topics
-from cufund.vehicle.quadrotor import Quadrotor
 from cufund.core.scheduler import NS, EventClock, ScheduleError, rate_fraction, seconds_to_ns, topological_order
 from cufund.core.topics import is_truth
+from cufund.vehicle.quadrotor import Quadrotor
 from cufund.worlds.collision import CollisionChecker, Contact
 
 __all__ = ["RunStatus", "SimulationResult", "Simulator"]
@@ -83,8 +84,10 @@ def _stack(messages: list[Any]) -> dict[str, np.ndarray | list[Any]]:
         values = [getattr(m, f.name) for m in messages]
         if isinstance(values[0], enum.Enum):
             values = [v.value for v in values]
-        shapes = {v.shape if v.__class__ is np.ndarray else () if v is None or v.__class__ in _SCALARS else np.shape(v)
-                  for v in values}
+        shapes = {
+            v.shape if v.__class__ is np.ndarray else () if v is None or v.__class__ in _SCALARS else np.shape(v)
+            for v in values
+        }
         out[f.name] = np.asarray(values) if len(shapes) == 1 and _stackable(values[0]) else values
     return out
 
@@ -102,8 +105,12 @@ def _joined(views: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
     out = [views[0]]
     for v in views[1:]:
         last = out[-1]
-        if (last.dtype == v.dtype and last.ndim == v.ndim == 1 and last.strides == v.strides == (v.itemsize,)
-                and v.ctypes.data == last.ctypes.data + last.nbytes):
+        if (
+            last.dtype == v.dtype
+            and last.ndim == v.ndim == 1
+            and last.strides == v.strides == (v.itemsize,)
+            and v.ctypes.data == last.ctypes.data + last.nbytes
+        ):
             # the two are adjacent in memory: one view over both (the first's buffer keeps it alive)
             out[-1] = np.lib.stride_tricks.as_strided(last, (len(last) + len(v),), last.strides, writeable=False)
         else:
@@ -178,9 +185,16 @@ class Simulator:
             :class:`cufund.logs.McapLogger`; ground truth is logged at ``log_truth_rate_hz``.
     """
 
-    def __init__(self, vehicle: Quadrotor | None, physics_rate_hz: float = 1000.0, record_rate_hz: float | None = None,
-                 record_topics: Iterable[str] = (), collision: CollisionChecker | None = None,
-                 collision_rate_hz: float = 250.0, logger: Any = None) -> None:
+    def __init__(
+        self,
+        vehicle: Quadrotor | None,
+        physics_rate_hz: float = 1000.0,
+        record_rate_hz: float | None = None,
+        record_topics: Iterable[str] = (),
+        collision: CollisionChecker | None = None,
+        collision_rate_hz: float = 250.0,
+        logger: Any = None,
+    ) -> None:
         if vehicle is not None and not isinstance(vehicle, Quadrotor):
             raise TypeError(f"vehicle must be a cufund.Quadrotor (or None: no physics), got {type(vehicle).__name__}")
         self._physics_rate = rate_fraction("physics_rate_hz", physics_rate_hz)
@@ -209,15 +223,18 @@ class Simulator:
         """Physics nodes per sample of an activity that runs on the physics grid."""
         ratio = self._physics_rate / rate_fraction(name, rate_hz)
         if ratio.denominator != 1 or ratio < 1:
-            raise ValueError(f"{name} must divide the physics rate {self.physics_rate_hz:g} Hz exactly, "
-                             f"got {float(rate_hz):g} Hz")
+            raise ValueError(
+                f"{name} must divide the physics rate {self.physics_rate_hz:g} Hz exactly, got {float(rate_hz):g} Hz"
+            )
         return int(ratio)
 
     def add(self, component: Component) -> Component:
         """Attaches ``component`` (its place within an instant follows from its declared inputs and outputs).
         Returns it."""
         if not isinstance(component, Component):
-            raise TypeError(f"component must implement cufund.core.components.Component, got {type(component).__name__}")
+            raise TypeError(
+                f"component must implement cufund.core.components.Component, got {type(component).__name__}"
+            )
         label = getattr(component, "name", "") or type(component).__name__
         rate_fraction(f"{label}.rate_hz", component.rate_hz)
         seconds_to_ns(f"{label}.phase_s", component.phase_s)
@@ -243,8 +260,10 @@ class Simulator:
             elif not estimators:
                 c.active_state_topic = Topics.TRUTH_ODOMETRY
             else:
-                raise ValueError(f"{type(c).__name__}.state_topic must be set when several estimators are attached "
-                                 f"({', '.join(e.topic for e in estimators)})")
+                raise ValueError(
+                    f"{type(c).__name__}.state_topic must be set when several estimators are attached "
+                    f"({', '.join(e.topic for e in estimators)})"
+                )
             on_estimate = getattr(c, "use_estimator", None)
             if on_estimate is not None:
                 on_estimate(bool(estimators))
@@ -269,7 +288,7 @@ class Simulator:
             published.update(str(t) for t in c.outputs)
         problems = []
         deny = bool(self.estimators)
-        for name, c in zip(names, self.components):
+        for name, c in zip(names, self.components, strict=True):
             for topic in c.inputs:
                 if str(topic) not in published:
                     problems.append(f"{name} needs {topic}; nothing publishes it")
@@ -288,9 +307,13 @@ class Simulator:
         if problems:
             raise ValueError("; ".join(problems))
         names = self._names()
-        latencies = [seconds_to_ns(f"{n}.latency_s", c.latency_s) for n, c in zip(names, self.components)]
-        order = topological_order(names, [(*c.inputs, *c.optional_inputs) for c in self.components],
-                                  [c.outputs for c in self.components], latencies)
+        latencies = [seconds_to_ns(f"{n}.latency_s", c.latency_s) for n, c in zip(names, self.components, strict=True)]
+        order = topological_order(
+            names,
+            [(*c.inputs, *c.optional_inputs) for c in self.components],
+            [c.outputs for c in self.components],
+            latencies,
+        )
         self.t_start_ns = round(self.vehicle.t * NS) if self.vehicle is not None else round(self.start_time * NS)
         self.bus = Bus(self.record_topics, logger=self.logger)
         self.bus.now_ns = self.t_start_ns
@@ -303,9 +326,16 @@ class Simulator:
             rate = rate_fraction(f"{name}.rate_hz", c.rate_hz)
             if phase * rate >= NS:
                 raise ScheduleError(f"{name}.phase_s must be less than its period 1 / rate_hz, got {c.phase_s!r}")
-            view = BusView(self.bus, name, (*c.inputs, *c.optional_inputs, Topics.TRUTH_ODOMETRY) if c.reads_truth
-                           else (*c.inputs, *c.optional_inputs), c.outputs, latencies[i],
-                           deny_truth=deny and not c.reads_truth)
+            view = BusView(
+                self.bus,
+                name,
+                (*c.inputs, *c.optional_inputs, Topics.TRUTH_ODOMETRY)
+                if c.reads_truth
+                else (*c.inputs, *c.optional_inputs),
+                c.outputs,
+                latencies[i],
+                deny_truth=deny and not c.reads_truth,
+            )
             c.setup(view)
             self._slots.append(_Slot(c, name, EventClock(rate, phase, self.t_start_ns), view))
         self._physics = EventClock(self._physics_rate, 0, self.t_start_ns)
@@ -338,8 +368,15 @@ class Simulator:
         """The components in the order they run within an instant (after :meth:`reset`), with their timing."""
         if not self._started:
             raise RuntimeError("no run: call reset() first")
-        return [{"name": s.name, "rate_hz": float(s.component.rate_hz), "phase_s": float(s.component.phase_s),
-                 "latency_s": float(s.component.latency_s)} for s in self._slots]
+        return [
+            {
+                "name": s.name,
+                "rate_hz": float(s.component.rate_hz),
+                "phase_s": float(s.component.phase_s),
+                "latency_s": float(s.component.latency_s),
+            }
+            for s in self._slots
+        ]
 
     @property
     def views(self) -> dict[str, BusView]:
@@ -389,8 +426,9 @@ class Simulator:
             self.reset()
         return self.advance_to(self._physics.next_ns / NS, done)
 
-    def advance_to(self, t: float, done: Callable[[float, Odometry], bool] | None = None,
-                   progress: bool = False) -> bool:
+    def advance_to(
+        self, t: float, done: Callable[[float, Odometry], bool] | None = None, progress: bool = False
+    ) -> bool:
         """Simulates up to time ``t`` [s], continuing the current run (starting one with :meth:`reset` if none is
         open). Time stops at the last physics node or event at or before ``t`` (a physics step is never split for
         where a call ends, so any sequence of calls gives the same run, bit for bit); events at the time reached
@@ -521,8 +559,10 @@ class Simulator:
             if hit is not None and hit.distance < 0.0:
                 self.contact = hit
                 self.status = RunStatus.CRASHED
-                self.message = (f"collided with {hit.label!r} (object {hit.object_id}) at ({hit.point_W[0]:.3f}, "
-                                f"{hit.point_W[1]:.3f}, {hit.point_W[2]:.3f}) m at t = {t:.3f} s")
+                self.message = (
+                    f"collided with {hit.label!r} (object {hit.object_id}) at ({hit.point_W[0]:.3f}, "
+                    f"{hit.point_W[1]:.3f}, {hit.point_W[2]:.3f}) m at t = {t:.3f} s"
+                )
                 self._write_row(t)
                 return True
         if node % self.record_period:
@@ -531,8 +571,16 @@ class Simulator:
         x = row.tolist()  # Python floats: cheaper to compare than numpy scalars
         d, r = self.max_distance, self.max_body_rate
         # the common case (nothing wrong) decided here; _check says what is wrong otherwise
-        if not math.isfinite(sum(x)) or abs(x[1]) > d or abs(x[2]) > d or abs(x[3]) > d or abs(x[11]) > r \
-                or abs(x[12]) > r or abs(x[13]) > r or (x[3] <= 0.05 and self._ground_plane):
+        if (
+            not math.isfinite(sum(x))
+            or abs(x[1]) > d
+            or abs(x[2]) > d
+            or abs(x[3]) > d
+            or abs(x[11]) > r
+            or abs(x[12]) > r
+            or abs(x[13]) > r
+            or (x[3] <= 0.05 and self._ground_plane)
+        ):
             bad = self._check(row)
             if bad is not None:
                 self.status, self.message = bad
@@ -559,30 +607,52 @@ class Simulator:
         """The run so far: recorded states and topics, status (COMPLETED if still open and no ``done`` given)."""
         if not self._started:
             raise RuntimeError("no run: call reset(), advance_to() or run() first")
-        h = np.concatenate([*self._rows, self._block[:self._n_block]]) if self._rows else self._block[:self._n_block]
-        states = {"t": h[:, 0], "p_W": h[:, 1:4], "v_W": h[:, 4:7], "q_WB": h[:, 7:11], "w_B": h[:, 11:14],
-                  "rotor_speeds": h[:, 14:18]}
+        h = np.concatenate([*self._rows, self._block[: self._n_block]]) if self._rows else self._block[: self._n_block]
+        states = {
+            "t": h[:, 0],
+            "p_W": h[:, 1:4],
+            "v_W": h[:, 4:7],
+            "q_WB": h[:, 7:11],
+            "w_B": h[:, 11:14],
+            "rotor_speeds": h[:, 14:18],
+        }
         topics = {str(topic): _stack(self.bus.recorded(topic)) for topic in self.record_topics}
-        recordings = {s.name: s.component.histories() for s in self._slots if hasattr(s.component, "histories")
-                      and callable(s.component.histories)}
+        recordings = {
+            s.name: s.component.histories()
+            for s in self._slots
+            if hasattr(s.component, "histories") and callable(s.component.histories)
+        }
         status = self.status or RunStatus.COMPLETED
         seconds = {s.name: s.seconds for s in self._slots}
         seconds["physics"] = self._physics_seconds
-        return SimulationResult(status=status, sim_time_s=(self._now_ns - self.t_start_ns) / NS,
-                                wall_time_s=self._wall, states=states, topics=topics, recordings=recordings,
-                                message=self.message or "duration elapsed", contact=self.contact,
-                                dropped=self.bus.dropped(), component_seconds=seconds)
+        return SimulationResult(
+            status=status,
+            sim_time_s=(self._now_ns - self.t_start_ns) / NS,
+            wall_time_s=self._wall,
+            states=states,
+            topics=topics,
+            recordings=recordings,
+            message=self.message or "duration elapsed",
+            contact=self.contact,
+            dropped=self.bus.dropped(),
+            component_seconds=seconds,
+        )
 
-    def run(self, duration: float, done: Callable[[float, Odometry], bool] | None = None,
-            progress: bool = False) -> SimulationResult:
+    def run(
+        self, duration: float, done: Callable[[float, Odometry], bool] | None = None, progress: bool = False
+    ) -> SimulationResult:
         """Simulates up to ``duration`` [s] from the vehicle's current state and time (a new run).
 
         ``done(t, truth)`` is checked at every ground-truth record; when it holds the run ends COMPLETED (without
         one, the run ends COMPLETED when the duration elapses; with one, TIMEOUT). ``progress`` draws a progress
         bar on stderr.
         """
-        if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not math.isfinite(duration) \
-                or duration <= 0:
+        if (
+            isinstance(duration, bool)
+            or not isinstance(duration, (int, float))
+            or not math.isfinite(duration)
+            or duration <= 0
+        ):
             raise ValueError(f"duration must be a finite number > 0 [s], got {duration!r}")
         self.reset()
         self.advance_to(self.t_start_ns / NS + duration, done, progress)

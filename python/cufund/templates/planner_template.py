@@ -31,6 +31,15 @@ class MyPlanner(cufund.Planner):
             self.center = state.p_W - np.array([self.radius, 0.0, 0.0])
         r, w = self.radius, self.omega
         c, s = math.cos(w * t), math.sin(w * t)
-        bus.publish(Topics.TRAJECTORY_SETPOINT, TrajectorySetpoint(
-            t, self.center + r * np.array([c, s, 0.0]), r * w * np.array([-s, c, 0.0]),
-            -r * w * w * np.array([c, s, 0.0]), r * w ** 3 * np.array([s, -c, 0.0]), 0.0, 0.0))
+        bus.publish(
+            Topics.TRAJECTORY_SETPOINT,
+            TrajectorySetpoint(
+                t,
+                self.center + r * np.array([c, s, 0.0]),
+                r * w * np.array([-s, c, 0.0]),
+                -r * w * w * np.array([c, s, 0.0]),
+                r * w**3 * np.array([s, -c, 0.0]),
+                0.0,
+                0.0,
+            ),
+        )

@@ -28,8 +28,9 @@ class MyPositionSensor(cufund.Sensor):
     name = "my_position_sensor"
     topic = cufund.Topic("/sensors/position", Odometry)  # a typed topic: the bus checks what is published
 
-    def __init__(self, sigma_m: float = 0.01, rate_hz: float = 100.0, seed: int = 0,
-                 topic: cufund.Topic | None = None) -> None:
+    def __init__(
+        self, sigma_m: float = 0.01, rate_hz: float = 100.0, seed: int = 0, topic: cufund.Topic | None = None
+    ) -> None:
         self.sigma, self.rate_hz, self.seed = sigma_m, rate_hz, seed
         if topic is not None:
             self.topic = topic
@@ -59,6 +60,14 @@ def build(p: MyPositionSensorParams, ctx: BuildContext) -> list[cufund.Component
     return [MyPositionSensor(p.sigma_m, p.rate_hz, ctx.seed, ctx.part.topic)]
 
 
-KINDS = [Kind("sensor", "my_position_sensor", MyPositionSensorParams, build,
-              doc="template: a noisy position sensor (Odometry)", sensor_type="pose")]
+KINDS = [
+    Kind(
+        "sensor",
+        "my_position_sensor",
+        MyPositionSensorParams,
+        build,
+        doc="template: a noisy position sensor (Odometry)",
+        sensor_type="pose",
+    )
+]
 """What a plug-in's ``cufund.kinds`` entry point names (sensor types first, then the kinds of them)."""

@@ -74,8 +74,19 @@ class QuadrotorParams:
     """A label for logs and plots."""
 
     def __post_init__(self) -> None:
-        for f in ("mass", "arm_length", "k_f", "c_m", "tau_m", "rotor_speed_max", "rotor_speed_min",
-                  "rotor_drag_xy", "rotor_drag_z", "gravity", "max_integration_step"):
+        for f in (
+            "mass",
+            "arm_length",
+            "k_f",
+            "c_m",
+            "tau_m",
+            "rotor_speed_max",
+            "rotor_speed_min",
+            "rotor_drag_xy",
+            "rotor_drag_z",
+            "gravity",
+            "max_integration_step",
+        ):
             object.__setattr__(self, f, real_number(f, getattr(self, f)))
         object.__setattr__(self, "inertia", _matrix3("inertia", self.inertia))
         object.__setattr__(self, "body_drag", vector3("body_drag", self.body_drag))

@@ -7,12 +7,14 @@ numpy views into the C++ buffers: reading them costs no copy, and writing them s
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Union
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from cufund import _core
 from cufund.core import limits
+
 from .params import QuadrotorParams
 
 __all__ = ["Quadrotor", "QuadrotorBatch", "QuadrotorState", "WindField"]
@@ -20,7 +22,7 @@ __all__ = ["Quadrotor", "QuadrotorBatch", "QuadrotorState", "WindField"]
 #: Wind: a constant world-frame velocity [m/s] (shape (3,) or (N, 3)), or a function
 #: ``wind(t, p_W) -> (3,) or (N, 3)`` of time [s] and positions (N, 3) [m], evaluated at the start of
 #: each step and held over it.
-WindField = Union[None, np.ndarray, Callable[[float, np.ndarray], np.ndarray]]
+WindField = None | np.ndarray | Callable[[float, np.ndarray], np.ndarray]
 
 
 class QuadrotorBatch:
@@ -40,8 +42,10 @@ class QuadrotorBatch:
             raise ValueError(f"n must be an integer in [1, 2^32], got {n!r}")
         cap = limits.current().batch_max_size
         if n > cap:
-            raise ValueError(f"n must be at most batch_max_size = {cap} vehicles (256 bytes each), got {n}; "
-                             "raise it with cufund.core.limits.configure(batch_max_size=...)")
+            raise ValueError(
+                f"n must be at most batch_max_size = {cap} vehicles (256 bytes each), got {n}; "
+                "raise it with cufund.core.limits.configure(batch_max_size=...)"
+            )
         self.params = params
         self._core = _core.dynamics.QuadrotorBatch(params.to_core(), int(n))
         self._wind_fn: Callable[[float, np.ndarray], np.ndarray] | None = None
@@ -69,8 +73,13 @@ class QuadrotorBatch:
     _ROWS = ("p", "v", "q", "w", "rotor_speeds", "wind_W", "force_ext_W", "torque_ext_B", "accel_W", "alpha_B")
 
     def __getstate__(self) -> dict[str, Any]:
-        return {"params": self.params, "n": self.n, "t": self.t, "wind_fn": self._wind_fn,
-                **{name: np.array(getattr(self, name)) for name in self._ROWS}}
+        return {
+            "params": self.params,
+            "n": self.n,
+            "t": self.t,
+            "wind_fn": self._wind_fn,
+            **{name: np.array(getattr(self, name)) for name in self._ROWS},
+        }
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         QuadrotorBatch.__init__(self, state["params"], state["n"])
@@ -87,10 +96,14 @@ class QuadrotorBatch:
     wind_W = property(lambda self: self._core.wind_W, doc="Wind velocity, world frame [m/s], (n, 3) view.")
     force_ext_W = property(lambda self: self._core.force_ext_W, doc="External force, world [N], (n, 3) view.")
     torque_ext_B = property(lambda self: self._core.torque_ext_B, doc="External torque, body [N m], (n, 3) view.")
-    accel_W = property(lambda self: self._core.accel_W,
-                       doc="Acceleration dv_W/dt of the model at the end of the last step [m/s^2], (n, 3) view.")
-    alpha_B = property(lambda self: self._core.alpha_B,
-                       doc="Angular acceleration dw_B/dt at the end of the last step [rad/s^2], (n, 3) view.")
+    accel_W = property(
+        lambda self: self._core.accel_W,
+        doc="Acceleration dv_W/dt of the model at the end of the last step [m/s^2], (n, 3) view.",
+    )
+    alpha_B = property(
+        lambda self: self._core.alpha_B,
+        doc="Angular acceleration dw_B/dt at the end of the last step [rad/s^2], (n, 3) view.",
+    )
 
     def set_wind(self, wind: WindField) -> None:
         """Constant wind (array (3,) or (n, 3)) [m/s], a function ``wind(t, p_W)``, or None for still air."""
@@ -144,8 +157,10 @@ class QuadrotorState:
         return np.concatenate([self.p, self.v, self.q, self.w, self.rotor_speeds])
 
     def __repr__(self) -> str:
-        return (f"QuadrotorState(p={self.p.tolist()}, v={self.v.tolist()}, q={self.q.tolist()}, "
-                f"w={self.w.tolist()}, rotor_speeds={self.rotor_speeds.tolist()})")
+        return (
+            f"QuadrotorState(p={self.p.tolist()}, v={self.v.tolist()}, q={self.q.tolist()}, "
+            f"w={self.w.tolist()}, rotor_speeds={self.rotor_speeds.tolist()})"
+        )
 
 
 class Quadrotor:
@@ -162,7 +177,8 @@ class Quadrotor:
 
     def _sync_fast_step(self) -> None:
         self.fast_step: Callable[[float, np.ndarray, int], None] | None = (
-            self._step if self._batch._wind_fn is None else None)
+            self._step if self._batch._wind_fn is None else None
+        )
         """:meth:`step` without its Python layer, for a caller's inner loop (the simulator's): the C++
         integrator's ``step(dt, rotor_speed_cmd, nthreads)``, the same arithmetic, the held wind ``wind_W``
         applied; None while a wind *function* is set (:meth:`step` evaluates it). Read it before each step (it

@@ -9,8 +9,9 @@ import numpy as np
 
 from cufund.core.components import BusView, Component
 from cufund.core.messages import Topics
-from cufund.vehicle.params import QuadrotorParams
 from cufund.planning.trajectory import Trajectory
+from cufund.vehicle.params import QuadrotorParams
+
 from .meshcat_scene import FLOWN, PLANNED, SETPOINT, VEHICLE, draw_path, draw_vehicle, pose_matrix
 
 __all__ = ["LiveViewer"]
@@ -28,8 +29,14 @@ class LiveViewer(Component):
     inputs = (Topics.TRUTH_ODOMETRY,)
     optional_inputs = (Topics.TRAJECTORY_SETPOINT,)
 
-    def __init__(self, params: QuadrotorParams, planned: Trajectory | None = None, rate_hz: float = 25.0,
-                 speed: float | None = 1.0, visualizer: Any = None) -> None:
+    def __init__(
+        self,
+        params: QuadrotorParams,
+        planned: Trajectory | None = None,
+        rate_hz: float = 25.0,
+        speed: float | None = 1.0,
+        visualizer: Any = None,
+    ) -> None:
         self.rate_hz = rate_hz
         self.speed = speed
         self.server = None
@@ -43,7 +50,7 @@ class LiveViewer(Component):
         draw_vehicle(self.vis, params)
         if planned is not None:
             tt = np.linspace(planned.t_start, planned.t_start + planned.duration, 2000)
-            draw_path(self.vis, PLANNED, planned.sample(tt).p_W, 0x1f77b4)
+            draw_path(self.vis, PLANNED, planned.sample(tt).p_W, 0x1F77B4)
         self._flown: list[np.ndarray] = []
         self._wall0: float | None = None
         self._t0 = 0.0
@@ -74,7 +81,7 @@ class LiveViewer(Component):
             self.vis[SETPOINT].set_transform(pose_matrix(sp.p_W, np.array([1.0, 0.0, 0.0, 0.0])))
         self._flown.append(truth.p_W.copy())
         if len(self._flown) >= 2 and len(self._flown) % 5 == 0:
-            draw_path(self.vis, FLOWN, np.array(self._flown), 0xd62728)
+            draw_path(self.vis, FLOWN, np.array(self._flown), 0xD62728)
         if self.speed:
             ahead = (t - self._t0) / self.speed - (time.perf_counter() - self._wall0)
             if ahead > 0:

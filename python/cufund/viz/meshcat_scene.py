@@ -22,9 +22,9 @@ def import_meshcat() -> Any:
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="zmq.eventloop.ioloop is deprecated", category=DeprecationWarning)
         import meshcat
-        import meshcat.animation  # noqa: F401
-        import meshcat.geometry  # noqa: F401
-        import meshcat.transformations  # noqa: F401
+        import meshcat.animation
+        import meshcat.geometry
+        import meshcat.transformations
     return meshcat
 
 
@@ -45,11 +45,11 @@ def draw_vehicle(vis: Any, params: QuadrotorParams) -> None:
     d = params.arm_length
     body = vis[VEHICLE]
     body["body"].set_object(g.Box([0.6 * d, 0.6 * d, 0.3 * d]), g.MeshLambertMaterial(color=0x404040))
-    body["nose"].set_object(g.Box([0.4 * d, 0.1 * d, 0.1 * d]), g.MeshLambertMaterial(color=0xd62728))
+    body["nose"].set_object(g.Box([0.4 * d, 0.1 * d, 0.1 * d]), g.MeshLambertMaterial(color=0xD62728))
     body["nose"].set_transform(tf.translation_matrix([0.45 * d, 0.0, 0.0]))
     radius = 0.45 * d
-    for i, (pos, spin) in enumerate(zip(params.rotor_positions(), params.rotor_spins())):
-        color = 0x1f77b4 if spin > 0 else 0xff7f0e
+    for i, (pos, spin) in enumerate(zip(params.rotor_positions(), params.rotor_spins(), strict=True)):
+        color = 0x1F77B4 if spin > 0 else 0xFF7F0E
         rotor = body[f"rotor{i + 1}"]
         rotor.set_object(g.Cylinder(0.01, radius), g.MeshLambertMaterial(color=color, opacity=0.8, transparent=True))
         # meshcat cylinders lie along y; turn the axis to body z and lift the disc above the arm
@@ -57,7 +57,7 @@ def draw_vehicle(vis: Any, params: QuadrotorParams) -> None:
         body[f"arm{i + 1}"].set_object(g.Box([d, 0.08 * d, 0.08 * d]), g.MeshLambertMaterial(color=0x202020))
         ang = np.arctan2(pos[1], pos[0])
         body[f"arm{i + 1}"].set_transform(tf.rotation_matrix(ang, [0, 0, 1]) @ tf.translation_matrix([d / 2, 0, 0]))
-    vis[SETPOINT].set_object(g.Sphere(0.03), g.MeshLambertMaterial(color=0x2ca02c))
+    vis[SETPOINT].set_object(g.Sphere(0.03), g.MeshLambertMaterial(color=0x2CA02C))
 
 
 def draw_path(vis: Any, name: str, points_W: np.ndarray, color: int) -> None:

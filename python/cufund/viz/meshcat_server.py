@@ -20,8 +20,12 @@ def start_server() -> tuple[Any, subprocess.Popen]:
     from .meshcat_scene import import_meshcat
 
     meshcat = import_meshcat()
-    proc = subprocess.Popen([sys.executable, "-u", "-m", "cufund.viz.meshcat_server"], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, start_new_session=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-u", "-m", "cufund.viz.meshcat_server"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
     atexit.register(proc.terminate)
     urls: dict[str, str] = {}
     assert proc.stdout is not None

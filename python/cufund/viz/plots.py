@@ -12,8 +12,13 @@ from cufund.simulator import SimulationResult
 __all__ = ["plot_tracking"]
 
 
-def plot_tracking(path: str | Path, result: SimulationResult, reference: Trajectory,
-                  window: tuple[float, float] | None = None, title: str = "") -> Path:
+def plot_tracking(
+    path: str | Path,
+    result: SimulationResult,
+    reference: Trajectory,
+    window: tuple[float, float] | None = None,
+    title: str = "",
+) -> Path:
     """Saves a PNG: planned vs flown path in 3D (left) and per-axis position tracking over time (right), with
     the tracking-error window shaded."""
     import matplotlib

@@ -8,9 +8,10 @@ from typing import Any
 
 import numpy as np
 
-from cufund.vehicle.params import QuadrotorParams
 from cufund.planning.trajectory import Trajectory
 from cufund.simulator import SimulationResult
+from cufund.vehicle.params import QuadrotorParams
+
 from .meshcat_scene import FLOWN, PLANNED, SETPOINT, VEHICLE, draw_path, draw_vehicle, import_meshcat, pose_matrix
 
 __all__ = ["replay_html", "viewer_page", "write_replay_html"]
@@ -28,8 +29,9 @@ class _RecordingWindow:
         self.commands.append(umsgpack.packb(command.lower()))
 
 
-def replay_html(result: SimulationResult, params: QuadrotorParams, planned: Trajectory | None = None,
-                fps: int = 30) -> str:
+def replay_html(
+    result: SimulationResult, params: QuadrotorParams, planned: Trajectory | None = None, fps: int = 30
+) -> str:
     """The HTML text of a replay of ``result`` (vehicle, flown path, and ``planned`` with its moving setpoint)."""
     meshcat = import_meshcat()
     Animation = meshcat.animation.Animation
@@ -38,12 +40,12 @@ def replay_html(result: SimulationResult, params: QuadrotorParams, planned: Traj
     vis = meshcat.Visualizer(window=window)
     draw_vehicle(vis, params)
     t, p, q = result.states["t"], result.states["p_W"], result.states["q_WB"]
-    draw_path(vis, FLOWN, p[:: max(1, len(t) // 2000)], 0xd62728)
+    draw_path(vis, FLOWN, p[:: max(1, len(t) // 2000)], 0xD62728)
     frames = np.arange(t[0], t[-1], 1.0 / fps)
     idx = np.clip(np.searchsorted(t, frames), 0, len(t) - 1)
     if planned is not None:
         tt = np.linspace(t[0], t[-1], 2000)
-        draw_path(vis, PLANNED, planned.sample(tt).p_W, 0x1f77b4)
+        draw_path(vis, PLANNED, planned.sample(tt).p_W, 0x1F77B4)
         sp = planned.sample(frames).p_W
     anim = Animation(default_framerate=fps)
     for k, i in enumerate(idx):
@@ -62,9 +64,10 @@ def viewer_page(commands: list[bytes]) -> str:
     """A standalone HTML page: MeshCat's viewer script inlined, then the encoded scene ``commands``."""
     viewer_js = (Path(import_meshcat().__file__).parent / "viewer" / "dist" / "main.min.js").read_text(encoding="utf-8")
     calls = "\n".join(
-        'fetch("data:application/octet-binary;base64,{}").then(r => r.arrayBuffer())'
-        ".then(b => viewer.handle_command_bytearray(new Uint8Array(b)));".format(base64.b64encode(c).decode())
-        for c in commands)
+        f'fetch("data:application/octet-binary;base64,{base64.b64encode(c).decode()}").then(r => r.arrayBuffer())'
+        ".then(b => viewer.handle_command_bytearray(new Uint8Array(b)));"
+        for c in commands
+    )
     return f"""<!DOCTYPE html>
 <html>
 <head><meta charset="utf-8"><title>cufund replay</title>
@@ -81,8 +84,13 @@ var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
 """
 
 
-def write_replay_html(path: str | Path, result: SimulationResult, params: QuadrotorParams,
-                      planned: Trajectory | None = None, fps: int = 30) -> Path:
+def write_replay_html(
+    path: str | Path,
+    result: SimulationResult,
+    params: QuadrotorParams,
+    planned: Trajectory | None = None,
+    fps: int = 30,
+) -> Path:
     """Writes :func:`replay_html` to ``path``; returns the path."""
     path = Path(path)
     path.write_text(replay_html(result, params, planned, fps), encoding="utf-8")

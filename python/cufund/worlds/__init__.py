@@ -6,5 +6,14 @@ from .collision import CollisionChecker, Contact
 from .description import world_from_dict, world_from_yaml
 from .world import World, WorldObject
 
-__all__ = ["BUILTIN", "CollisionChecker", "Contact", "World", "WorldObject", "load", "primitives",
-           "world_from_dict", "world_from_yaml"]
+__all__ = [
+    "BUILTIN",
+    "CollisionChecker",
+    "Contact",
+    "World",
+    "WorldObject",
+    "load",
+    "primitives",
+    "world_from_dict",
+    "world_from_yaml",
+]

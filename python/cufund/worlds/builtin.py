@@ -3,19 +3,21 @@
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
 from cufund.core.registry import load_plugins
+
 from .world import World
 
 WALL = (0.75, 0.75, 0.72)
 FLOOR = (0.45, 0.45, 0.45)
 
 
-def _arena(world: World, size: tuple[float, float, float], centre_xy: tuple[float, float] = (0.0, 0.0),
-           wall: float = 0.1) -> None:
+def _arena(
+    world: World, size: tuple[float, float, float], centre_xy: tuple[float, float] = (0.0, 0.0), wall: float = 0.1
+) -> None:
     """Floor, ceiling and four walls of an indoor arena, inner size (sx, sy, sz) [m], floor at z = 0."""
     sx, sy, sz = size
     cx, cy = centre_xy
@@ -56,12 +58,19 @@ def forest(seed: int = 0, n_trees: int = 120, size: float = 40.0, clearing: floa
 
     n_trees = _count("n_trees", n_trees, 0, 100_000)
     for name, value in (("size", size), ("clearing", clearing)):
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                or not np.isfinite(value) or value < 0 or (name == "size" and value == 0):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float, np.integer, np.floating))
+            or not np.isfinite(value)
+            or value < 0
+            or (name == "size" and value == 0)
+        ):
             raise ValueError(f"{name} must be a finite number {'> 0' if name == 'size' else '>= 0'} [m], got {value!r}")
     if n_trees and clearing >= size / np.sqrt(2.0):
-        raise ValueError(f"clearing must be < size / sqrt(2) = {size / np.sqrt(2.0):.3g} m so that trees fit in the "
-                         f"{size} m square outside it, got {clearing}")
+        raise ValueError(
+            f"clearing must be < size / sqrt(2) = {size / np.sqrt(2.0):.3g} m so that trees fit in the "
+            f"{size} m square outside it, got {clearing}"
+        )
     world = World("forest")
     world.add_plane((size + 10.0, size + 10.0), (0.0, 0.0, 0.0), label="ground", color=(0.35, 0.3, 0.2))
     rng = np.random.default_rng(seed)
@@ -69,8 +78,10 @@ def forest(seed: int = 0, n_trees: int = 120, size: float = 40.0, clearing: floa
     while placed < n_trees:
         attempts += 1
         if attempts > 1000 * (n_trees + 10):  # a sliver of room outside the clearing
-            raise ValueError(f"could not place {n_trees} trees outside a clearing of {clearing} m in a {size} m square "
-                             f"(placed {placed} in {attempts - 1} draws); make the clearing smaller or the square larger")
+            raise ValueError(
+                f"could not place {n_trees} trees outside a clearing of {clearing} m in a {size} m square "
+                f"(placed {placed} in {attempts - 1} draws); make the clearing smaller or the square larger"
+            )
         x, y = rng.uniform(-size / 2, size / 2, 2)
         if np.hypot(x, y) < clearing:
             continue

@@ -11,6 +11,7 @@ import dataclasses
 import numpy as np
 
 from cufund import _core
+
 from .world import World
 
 
@@ -39,8 +40,13 @@ class CollisionChecker:
     seen; make a new checker.
     """
 
-    def __init__(self, world: World, box_size: object | None = None, radius: float | None = None,
-                 ignore_labels: tuple[str, ...] = ()) -> None:
+    def __init__(
+        self,
+        world: World,
+        box_size: object | None = None,
+        radius: float | None = None,
+        ignore_labels: tuple[str, ...] = (),
+    ) -> None:
         if (box_size is None) == (radius is None):
             raise ValueError("give exactly one vehicle shape: box_size (x, y, z) [m] or radius [m]")
         self._world = world
@@ -67,5 +73,6 @@ class CollisionChecker:
         if c is None:
             return None
         oid = self._object_ids[int(c["object_id"])]
-        return Contact(oid, self._labels[oid], np.asarray(c["point_W"]), np.asarray(c["normal_W"]),
-                       float(c["distance"]))
+        return Contact(
+            oid, self._labels[oid], np.asarray(c["point_W"]), np.asarray(c["normal_W"]), float(c["distance"])
+        )

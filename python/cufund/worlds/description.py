@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from cufund.core.config import ConfigError, load_yaml
+
 from .world import World
 
 _ADDERS = {
@@ -52,7 +53,7 @@ def world_from_dict(data: Any, base_dir: str | Path = ".") -> World:
         if kind not in _ADDERS:
             raise ConfigError(f"{where}.type must be one of {', '.join(_ADDERS)}, got {kind!r}")
         method = getattr(world, _ADDERS[kind])
-        allowed = [p for p in inspect.signature(method).parameters]
+        allowed = list(inspect.signature(method).parameters)
         kwargs = {k: v for k, v in entry.items() if k != "type"}
         bad = sorted(set(kwargs) - set(allowed))
         if bad:

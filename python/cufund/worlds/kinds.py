@@ -82,10 +82,34 @@ def _file(p: FileParams, ctx: BuildContext) -> Any:
 
 
 register(Kind("world", "empty", NoParams, lambda p, ctx: empty(), None, "a 100 m x 100 m ground plane"))
-register(Kind("world", "imav2025_tunnel", NoParams, lambda p, ctx: imav2025_tunnel(), None,
-              "the paper's IMAV 2025 tunnel: five 0.5 m x 1 m frames in a 12 x 8 x 4 m arena"))
-register(Kind("world", "forest", ForestParams, lambda p, ctx: forest(p.seed, p.n_trees, p.size, p.clearing), None,
-              "a seeded forest of trunks"))
-register(Kind("world", "corridor", CorridorParams, lambda p, ctx: corridor(p.length, p.width, p.height), None,
-              "a straight corridor"))
+register(
+    Kind(
+        "world",
+        "imav2025_tunnel",
+        NoParams,
+        lambda p, ctx: imav2025_tunnel(),
+        None,
+        "the paper's IMAV 2025 tunnel: five 0.5 m x 1 m frames in a 12 x 8 x 4 m arena",
+    )
+)
+register(
+    Kind(
+        "world",
+        "forest",
+        ForestParams,
+        lambda p, ctx: forest(p.seed, p.n_trees, p.size, p.clearing),
+        None,
+        "a seeded forest of trunks",
+    )
+)
+register(
+    Kind(
+        "world",
+        "corridor",
+        CorridorParams,
+        lambda p, ctx: corridor(p.length, p.width, p.height),
+        None,
+        "a straight corridor",
+    )
+)
 register(Kind("world", "file", FileParams, _file, None, "a world YAML file (world.path)"))

@@ -37,8 +37,20 @@ def box(size: tuple[float, float, float]) -> Mesh:
     h = np.array([_positive(f"size[{i}]", s) for i, s in enumerate(size)]) / 2.0
     corners = np.array([[(i & 1) * 2 - 1, ((i >> 1) & 1) * 2 - 1, ((i >> 2) & 1) * 2 - 1] for i in range(8)], float)
     tris = np.array(
-        [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-         [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]],
+        [
+            [0, 2, 1],
+            [1, 2, 3],
+            [4, 5, 6],
+            [5, 7, 6],
+            [0, 1, 4],
+            [1, 5, 4],
+            [2, 6, 3],
+            [3, 6, 7],
+            [0, 4, 2],
+            [2, 4, 6],
+            [1, 3, 5],
+            [3, 7, 5],
+        ],
         np.int64,
     )
     return corners * h, tris
@@ -76,16 +88,53 @@ def sphere(radius: float, subdivisions: int = 3) -> Mesh:
     r = _positive("radius", radius)
     subdivisions = _count("subdivisions", subdivisions, 0, 7)
     t = (1.0 + 5.0**0.5) / 2.0
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-                  [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-                  [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]], np.int64)
+    v = np.array(
+        [
+            [-1, t, 0],
+            [1, t, 0],
+            [-1, -t, 0],
+            [1, -t, 0],
+            [0, -1, t],
+            [0, 1, t],
+            [0, -1, -t],
+            [0, 1, -t],
+            [t, 0, -1],
+            [t, 0, 1],
+            [-t, 0, -1],
+            [-t, 0, 1],
+        ],
+        float,
+    )
+    f = np.array(
+        [
+            [0, 11, 5],
+            [0, 5, 1],
+            [0, 1, 7],
+            [0, 7, 10],
+            [0, 10, 11],
+            [1, 5, 9],
+            [5, 11, 4],
+            [11, 10, 2],
+            [10, 7, 6],
+            [7, 1, 8],
+            [3, 9, 4],
+            [3, 4, 2],
+            [3, 2, 6],
+            [3, 6, 8],
+            [3, 8, 9],
+            [4, 9, 5],
+            [2, 4, 11],
+            [6, 2, 10],
+            [8, 6, 7],
+            [9, 8, 1],
+        ],
+        np.int64,
+    )
     verts = list(v / np.linalg.norm(v, axis=1, keepdims=True))
     for _ in range(int(subdivisions)):
         cache: dict[tuple[int, int], int] = {}
 
-        def mid(a: int, b: int) -> int:
+        def mid(a: int, b: int, cache: dict[tuple[int, int], int] = cache) -> int:  # this subdivision's cache
             key = (min(a, b), max(a, b))
             if key not in cache:
                 m = verts[a] + verts[b]
@@ -108,8 +157,12 @@ def tunnel_frame(width: float, height: float, depth: float, thickness: float) ->
     d, th = _positive("depth", depth), _positive("thickness", thickness)
     parts = []
     ow = w + 2 * th  # outer width: the top and bottom bars span the posts
-    for size, centre in [((d, ow, th), (0, 0, (h + th) / 2)), ((d, ow, th), (0, 0, -(h + th) / 2)),
-                         ((d, th, h), (0, (w + th) / 2, 0)), ((d, th, h), (0, -(w + th) / 2, 0))]:
+    for size, centre in [
+        ((d, ow, th), (0, 0, (h + th) / 2)),
+        ((d, ow, th), (0, 0, -(h + th) / 2)),
+        ((d, th, h), (0, (w + th) / 2, 0)),
+        ((d, th, h), (0, -(w + th) / 2, 0)),
+    ]:
         v, f = box(size)
         parts.append((v + np.asarray(centre, float), f))
     return merge(parts)

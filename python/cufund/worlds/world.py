@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from cufund import _core
+
 from . import primitives
 
 
@@ -76,9 +77,16 @@ class World:
     def __len__(self) -> int:
         return len(self._objects)
 
-    def add_mesh(self, vertices: object, triangles: object, label: str = "object",
-                 color: object = (0.7, 0.7, 0.7), position: object = (0.0, 0.0, 0.0), yaw: float = 0.0,
-                 reflectivity: float = 0.8) -> WorldObject:
+    def add_mesh(
+        self,
+        vertices: object,
+        triangles: object,
+        label: str = "object",
+        color: object = (0.7, 0.7, 0.7),
+        position: object = (0.0, 0.0, 0.0),
+        yaw: float = 0.0,
+        reflectivity: float = 0.8,
+    ) -> WorldObject:
         """Adds a mesh given in its own frame, placed at ``position`` [m] rotated by ``yaw`` [rad] about z."""
         v = _floats("vertices", vertices, "an array of shape (V, 3) [m]")
         f = np.asarray(triangles)
@@ -92,52 +100,89 @@ class World:
             raise ValueError("vertices must be finite")
         if f.min() < 0 or f.max() >= len(v):
             raise ValueError(f"triangles must index vertices in [0, {len(v)}), got [{f.min()}, {f.max()}]")
-        if isinstance(reflectivity, bool) or not isinstance(reflectivity, (int, float, np.integer, np.floating)) \
-                or not 0.0 <= float(reflectivity) <= 1.0:
+        if (
+            isinstance(reflectivity, bool)
+            or not isinstance(reflectivity, (int, float, np.integer, np.floating))
+            or not 0.0 <= float(reflectivity) <= 1.0
+        ):
             raise ValueError(f"reflectivity must be in [0, 1], got {reflectivity}")
         R, p = _pose_matrix(position, yaw)
-        obj = WorldObject(len(self._objects), str(label), _color(color), v @ R.T + p, f.astype(np.int64),
-                          float(reflectivity))
+        obj = WorldObject(
+            len(self._objects), str(label), _color(color), v @ R.T + p, f.astype(np.int64), float(reflectivity)
+        )
         self._objects.append(obj)
         self._scene = None
         return obj
 
-    def add_box(self, size: Any, position: object, yaw: float = 0.0, label: str = "box",
-                color: object = (0.7, 0.7, 0.7)) -> WorldObject:
+    def add_box(
+        self, size: Any, position: object, yaw: float = 0.0, label: str = "box", color: object = (0.7, 0.7, 0.7)
+    ) -> WorldObject:
         """Box of edge lengths ``size`` (sx, sy, sz) [m] centred at ``position``."""
         return self.add_mesh(*primitives.box(size), label, color, position, yaw)
 
-    def add_plane(self, size: Any, position: object, yaw: float = 0.0, label: str = "floor",
-                  color: object = (0.5, 0.5, 0.5)) -> WorldObject:
+    def add_plane(
+        self, size: Any, position: object, yaw: float = 0.0, label: str = "floor", color: object = (0.5, 0.5, 0.5)
+    ) -> WorldObject:
         """Horizontal rectangle (sx, sy) [m] at ``position``, facing up."""
         return self.add_mesh(*primitives.plane(size), label, color, position, yaw)
 
-    def add_cylinder(self, radius: float, height: float, position: object, label: str = "cylinder",
-                     color: object = (0.7, 0.7, 0.7), segments: int = 32) -> WorldObject:
+    def add_cylinder(
+        self,
+        radius: float,
+        height: float,
+        position: object,
+        label: str = "cylinder",
+        color: object = (0.7, 0.7, 0.7),
+        segments: int = 32,
+    ) -> WorldObject:
         """Vertical capped cylinder centred at ``position``."""
         return self.add_mesh(*primitives.cylinder(radius, height, segments), label, color, position)
 
-    def add_sphere(self, radius: float, position: object, label: str = "sphere",
-                   color: object = (0.7, 0.7, 0.7), subdivisions: int = 3) -> WorldObject:
+    def add_sphere(
+        self,
+        radius: float,
+        position: object,
+        label: str = "sphere",
+        color: object = (0.7, 0.7, 0.7),
+        subdivisions: int = 3,
+    ) -> WorldObject:
         return self.add_mesh(*primitives.sphere(radius, subdivisions), label, color, position)
 
-    def add_tunnel_frame(self, position: object, width: float = 0.5, height: float = 1.0, depth: float = 0.05,
-                         thickness: float = 0.05, yaw: float = 0.0, label: str = "tunnel_frame",
-                         color: object = (0.9, 0.4, 0.1)) -> WorldObject:
+    def add_tunnel_frame(
+        self,
+        position: object,
+        width: float = 0.5,
+        height: float = 1.0,
+        depth: float = 0.05,
+        thickness: float = 0.05,
+        yaw: float = 0.0,
+        label: str = "tunnel_frame",
+        color: object = (0.9, 0.4, 0.1),
+    ) -> WorldObject:
         """Rectangular frame around an opening width (y) × height (z) [m] centred at ``position``;
         flown through along x (rotated by ``yaw``)."""
         return self.add_mesh(*primitives.tunnel_frame(width, height, depth, thickness), label, color, position, yaw)
 
-    def load_mesh(self, path: str | Path, label: str | None = None, color: object = (0.7, 0.7, 0.7),
-                  position: object = (0.0, 0.0, 0.0), yaw: float = 0.0, scale: float = 1.0) -> WorldObject:
+    def load_mesh(
+        self,
+        path: str | Path,
+        label: str | None = None,
+        color: object = (0.7, 0.7, 0.7),
+        position: object = (0.0, 0.0, 0.0),
+        yaw: float = 0.0,
+        scale: float = 1.0,
+    ) -> WorldObject:
         """Adds a mesh from an OBJ, STL or PLY file (read with trimesh), scaled by ``scale``."""
         import trimesh  # imported here: only mesh files need it
 
         path = Path(path)
         if not path.is_file():
             raise ValueError(f"mesh file {str(path)!r} does not exist")
-        if isinstance(scale, bool) or not isinstance(scale, (int, float, np.integer, np.floating)) \
-                or not 0 < scale < float("inf"):
+        if (
+            isinstance(scale, bool)
+            or not isinstance(scale, (int, float, np.integer, np.floating))
+            or not 0 < scale < float("inf")
+        ):
             raise ValueError(f"scale must be a finite number > 0, got {scale!r}")
         if path.suffix.lower() == ".obj":
             _check_obj_faces(path)
@@ -145,16 +190,19 @@ class World:
             mesh: Any = trimesh.load(path, force="mesh", process=False)
             faces, vertices = np.asarray(mesh.faces), np.asarray(mesh.vertices, dtype=float)
         except Exception as e:  # trimesh raises IndexError, KeyError, NotImplementedError, ... on bad files
-            raise ValueError(f"mesh file {str(path)!r} must be a readable OBJ, STL or PLY mesh: {type(e).__name__}: "
-                             f"{e}") from None
+            raise ValueError(
+                f"mesh file {str(path)!r} must be a readable OBJ, STL or PLY mesh: {type(e).__name__}: {e}"
+            ) from None
         if faces.ndim != 2 or len(faces) == 0:
             raise ValueError(f"mesh file {str(path)!r} holds no triangles")
         from cufund.core.limits import current
 
         cap = current().mesh_max_triangles
         if len(faces) > cap:
-            raise ValueError(f"mesh file {str(path)!r} holds {len(faces)} triangles, more than mesh_max_triangles = "
-                             f"{cap} (cufund.core.limits.configure(mesh_max_triangles=...))")
+            raise ValueError(
+                f"mesh file {str(path)!r} holds {len(faces)} triangles, more than mesh_max_triangles = "
+                f"{cap} (cufund.core.limits.configure(mesh_max_triangles=...))"
+            )
         return self.add_mesh(vertices * scale, faces, label or path.stem, color, position, yaw)
 
     # --- queries ------------------------------------------------------------------------------
@@ -209,5 +257,7 @@ def _check_obj_faces(path: Path) -> None:
                     except ValueError:
                         raise ValueError(f"{path}:{line_no}: face index {token!r} is not an integer") from None
                     if k == 0 or k > vertices or -k > vertices:
-                        raise ValueError(f"{path}:{line_no}: face index {k} must be in [1, {vertices}] (OBJ indices "
-                                         f"start at 1; negative ones count back from the last vertex)")
+                        raise ValueError(
+                            f"{path}:{line_no}: face index {k} must be in [1, {vertices}] (OBJ indices "
+                            f"start at 1; negative ones count back from the last vertex)"
+                        )

@@ -14,7 +14,6 @@ magnetic fields and specific forces transform exactly like positions.
 from __future__ import annotations
 
 from dataclasses import dataclass
-
 from typing import Any
 
 import numpy as np

@@ -14,20 +14,38 @@ already finished (keyed by the hash of their resolved configuration).
 from __future__ import annotations
 
 import sys
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from .execute import Outcome, execute, local_client, run_variant
 from .results import WALL_METRICS, is_wall_metric, load_records, results_frame, write_record
 from .spec import SweepSpec, Variant, config_key, load_spec
 
-__all__ = ["WALL_METRICS", "SweepSpec", "Variant", "config_key", "is_wall_metric", "load_spec", "local_client",
-           "run", "run_variant"]
+__all__ = [
+    "WALL_METRICS",
+    "SweepSpec",
+    "Variant",
+    "config_key",
+    "is_wall_metric",
+    "load_spec",
+    "local_client",
+    "run",
+    "run_variant",
+]
 
 
-def run(spec: str | Path | Mapping[str, Any] | SweepSpec, client: Any = None, *, out: str | Path | None = None,
-        workers: int | None = None, scheduler: str | None = None, heavy: bool = False, plots: bool = True,
-        progress: bool | None = None) -> Any:
+def run(
+    spec: str | Path | Mapping[str, Any] | SweepSpec,
+    client: Any = None,
+    *,
+    out: str | Path | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    heavy: bool = False,
+    plots: bool = True,
+    progress: bool | None = None,
+) -> Any:
     """Runs a sweep and returns its results as a ``pandas.DataFrame`` (one row per variant, see
     :func:`cufund.apps.sweep.results.results_frame`).
 
@@ -67,15 +85,27 @@ def run(spec: str | Path | Mapping[str, Any] | SweepSpec, client: Any = None, *,
         if out_path is not None:
             records[variant.key] = write_record(out_path, variant, outcome)
         else:
-            records[variant.key] = {"key": variant.key, "status": outcome.status, "message": outcome.message,
-                                    "metrics": outcome.metrics, "variant_wall_s": outcome.variant_wall_s,
-                                    "attempts": outcome.attempts}
+            records[variant.key] = {
+                "key": variant.key,
+                "status": outcome.status,
+                "message": outcome.message,
+                "metrics": outcome.metrics,
+                "variant_wall_s": outcome.variant_wall_s,
+                "attempts": outcome.attempts,
+            }
 
     try:
         if todo:
             with _client(client, scheduler, workers) as c:
-                execute(c, list(todo.values()), on_done, files=out_path is not None, heavy=heavy, plots=plots,
-                        progress=progress)
+                execute(
+                    c,
+                    list(todo.values()),
+                    on_done,
+                    files=out_path is not None,
+                    heavy=heavy,
+                    plots=plots,
+                    progress=progress,
+                )
     finally:
         frame = results_frame(variants, records, sweep.swept_keys, sweep.repeats, out_path)
         frame.attrs["ran"] = sorted(k for k in todo if k in records)

@@ -17,15 +17,29 @@ __all__ = ["add_arguments", "run_cli"]
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("sweep", type=Path, help="the sweep file (YAML: scenario, set, grid, random, repeats)")
-    p.add_argument("--out", type=Path, required=True,
-                   help="the sweep folder: results.parquet, summary.md, plots/, variants/<key>/; an existing one is "
-                        "resumed (finished variants are skipped)")
-    p.add_argument("--scheduler", metavar="tcp://HOST:8786",
-                   help="run on this Dask scheduler (default: a local cluster on 127.0.0.1)")
-    p.add_argument("--workers", type=int, metavar="N",
-                   help="worker processes of the local cluster (default: one per CPU)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a field in every variant (added to the file's set; repeatable)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        help="the sweep folder: results.parquet, summary.md, plots/, variants/<key>/; an existing one is "
+        "resumed (finished variants are skipped)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="tcp://HOST:8786",
+        help="run on this Dask scheduler (default: a local cluster on 127.0.0.1)",
+    )
+    p.add_argument(
+        "--workers", type=int, metavar="N", help="worker processes of the local cluster (default: one per CPU)"
+    )
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a field in every variant (added to the file's set; repeatable)",
+    )
     p.add_argument("--heavy", action="store_true", help="keep each variant's run.mcap and replay.html")
     p.add_argument("--no-plots", action="store_true", help="skip trajectory.png and the sweep's plots")
 
@@ -33,6 +47,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run_cli(args: argparse.Namespace) -> int:
     from cufund.core.config import ConfigError
     from cufund.scenarios.schema import parse_overrides
+
     from . import run
     from .spec import load_spec
 
@@ -44,14 +59,22 @@ def run_cli(args: argparse.Namespace) -> int:
         spec = load_spec(args.sweep)
         if args.overrides:
             spec = replace(spec, set={**spec.set, **parse_overrides(args.overrides)})
-        frame = run(spec, out=args.out, workers=args.workers, scheduler=args.scheduler, heavy=args.heavy,
-                    plots=not args.no_plots)  # every variant validated before any runs
+        frame = run(
+            spec,
+            out=args.out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            heavy=args.heavy,
+            plots=not args.no_plots,
+        )  # every variant validated before any runs
     except (ConfigError, OSError) as e:
         print(f"cufund: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"cufund: sweep interrupted; what finished is in {args.out} (run the same command to resume)",
-              file=sys.stderr)
+        print(
+            f"cufund: sweep interrupted; what finished is in {args.out} (run the same command to resume)",
+            file=sys.stderr,
+        )
         return 1
     counts = frame["status"].value_counts().to_dict() if len(frame) else {}
     print(", ".join(f"{n} {s}" for s, n in counts.items()) or "no variants")

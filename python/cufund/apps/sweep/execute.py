@@ -9,9 +9,10 @@ import os
 import socket
 import tempfile
 import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 __all__ = ["Outcome", "execute", "local_client", "run_variant"]
 
@@ -38,8 +39,8 @@ def run_variant(config: Any, files: bool = True, heavy: bool = False, plots: boo
     """The Dask task: runs ``config`` and returns its outcome, the run folder's files as bytes (so a remote worker
     needs no shared file system). ``heavy`` adds ``run.mcap`` and ``replay.html``."""
     os.environ.setdefault(THREADS_ENV, "1")  # effective if the C++ pool has not started in this worker yet
-    from cufund.scenarios.run_folder import run_into_folder
     from cufund.scenarios.build import run_scenario
+    from cufund.scenarios.run_folder import run_into_folder
 
     t0 = time.perf_counter()
     data: dict[str, bytes] = {}
@@ -49,8 +50,14 @@ def run_variant(config: Any, files: bool = True, heavy: bool = False, plots: boo
             data = {p.name: p.read_bytes() for p in sorted(Path(tmp).iterdir()) if p.is_file()}
     else:
         run = run_scenario(config)
-    return Outcome(run.result.status.value, run.result.message, dict(run.metrics), data,
-                   time.perf_counter() - t0, worker=f"{socket.gethostname()}:{os.getpid()}")
+    return Outcome(
+        run.result.status.value,
+        run.result.message,
+        dict(run.metrics),
+        data,
+        time.perf_counter() - t0,
+        worker=f"{socket.gethostname()}:{os.getpid()}",
+    )
 
 
 @contextlib.contextmanager
@@ -67,9 +74,16 @@ def local_client(workers: int | None = None) -> Iterator[Any]:
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
     # no statistical profiler in the workers (it samples every thread's stack every 10 ms; nobody reads it here)
     with dask.config.set({"distributed.scheduler.allowed-failures": 0, "distributed.worker.profile.enabled": False}):
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address="127.0.0.1:0", worker_dashboard_address=None,
-                               silence_logs=logging.CRITICAL, env={THREADS_ENV: "1"})
+        cluster = LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address="127.0.0.1:0",
+            worker_dashboard_address=None,
+            silence_logs=logging.CRITICAL,
+            env={THREADS_ENV: "1"},
+        )
     try:
         with Client(cluster) as client:
             from .worker_plugin import IgnoreInterrupts
@@ -80,8 +94,16 @@ def local_client(workers: int | None = None) -> Iterator[Any]:
         cluster.close()
 
 
-def execute(client: Any, todo: list[Any], on_done: Callable[[Any, Outcome], None], *, files: bool, heavy: bool,
-            plots: bool, progress: bool) -> None:
+def execute(
+    client: Any,
+    todo: list[Any],
+    on_done: Callable[[Any, Outcome], None],
+    *,
+    files: bool,
+    heavy: bool,
+    plots: bool,
+    progress: bool,
+) -> None:
     """Submits one task per item of ``todo`` (each with ``.config`` and ``.key``) and calls ``on_done(item, outcome)``
     in this thread as each ends. A task whose worker died (``KilledWorker``) is submitted once more (unless the
     scheduler retries such tasks itself: its ``distributed.scheduler.allowed-failures`` > 0); a second death, or an
@@ -95,8 +117,16 @@ def execute(client: Any, todo: list[Any], on_done: Callable[[Any, Outcome], None
     meta: dict[Any, tuple[Any, int]] = {}
 
     def submit(item: Any, attempt: int) -> Any:
-        fut = client.submit(run_variant, item.config, files, heavy, plots, key=f"cufund-sweep-{item.key}-{attempt}",
-                            pure=False, retries=0)
+        fut = client.submit(
+            run_variant,
+            item.config,
+            files,
+            heavy,
+            plots,
+            key=f"cufund-sweep-{item.key}-{attempt}",
+            pure=False,
+            retries=0,
+        )
         meta[fut] = (item, attempt)
         return fut
 

@@ -96,8 +96,11 @@ def _success(rows: Any) -> tuple[int, int]:
 def _summary(spec: Any, frame: Any, n_variants: int, swept: list[str], images: list[Path], out: Path) -> str:
     lines = [f"# Sweep of `{spec.scenario}`", ""]
     done = len(frame)
-    lines.append(f"{done} of {n_variants} variants have a result" + ("" if done == n_variants else
-                 " (the sweep was interrupted: run it again to finish it)") + ".")
+    lines.append(
+        f"{done} of {n_variants} variants have a result"
+        + ("" if done == n_variants else " (the sweep was interrupted: run it again to finish it)")
+        + "."
+    )
     if spec.set:
         lines.append("Every variant with: " + ", ".join(f"`{k}={v}`" for k, v in spec.set.items()) + ".")
     lines.append("")
@@ -108,9 +111,15 @@ def _summary(spec: Any, frame: Any, n_variants: int, swept: list[str], images: l
         lines.append(f"| {status} | {count} |")
     metrics = plotted_metrics(frame, swept)
     for key in swept:
-        lines += ["", f"## `{key}`", "",
-                  "| value | variants | success rate (95 % CI) | " + " | ".join(f"{m} mean (95 % CI)" for m in metrics)
-                  + " |", "| --- " * (3 + len(metrics)) + "|"]
+        lines += [
+            "",
+            f"## `{key}`",
+            "",
+            "| value | variants | success rate (95 % CI) | "
+            + " | ".join(f"{m} mean (95 % CI)" for m in metrics)
+            + " |",
+            "| --- " * (3 + len(metrics)) + "|",
+        ]
         for label, _, rows in groups(frame, key):
             k, n = _success(rows)
             lo, hi = wilson_interval(k, n)
@@ -141,8 +150,13 @@ def _plot(folder: Path, frame: Any, swept: list[str]) -> list[Path]:
     for key in swept:
         parts = groups(frame, key)
         pos = np.arange(len(parts), dtype=float)
-        fig, axes = plt.subplots(1 + len(metrics), 1, figsize=(max(5.0, 1.1 * len(parts) + 2), 2.6 * (1 + len(metrics))),
-                                 sharex=True, squeeze=False)
+        fig, axes = plt.subplots(
+            1 + len(metrics),
+            1,
+            figsize=(max(5.0, 1.1 * len(parts) + 2), 2.6 * (1 + len(metrics))),
+            sharex=True,
+            squeeze=False,
+        )
         ax = axes[0, 0]
         rates: list[float] = []
         err: list[list[float]] = [[], []]
@@ -161,12 +175,23 @@ def _plot(folder: Path, frame: Any, swept: list[str]) -> list[Path]:
             for j, (_, _, rows) in enumerate(parts):
                 v = rows[m].to_numpy(float)
                 v = v[np.isfinite(v)]
-                ax.scatter(np.full(v.size, pos[j]) + np.linspace(-0.15, 0.15, v.size) if v.size else [], v, s=8,
-                           alpha=0.4, color="grey")
+                ax.scatter(
+                    np.full(v.size, pos[j]) + np.linspace(-0.15, 0.15, v.size) if v.size else [],
+                    v,
+                    s=8,
+                    alpha=0.4,
+                    color="grey",
+                )
                 mean, lo, hi = t_interval(v)
                 if math.isfinite(mean):
-                    ax.errorbar([pos[j] + 0.25], [mean], yerr=None if math.isnan(lo) else [[mean - lo], [hi - mean]],
-                                fmt="s", color="C1", capsize=4)
+                    ax.errorbar(
+                        [pos[j] + 0.25],
+                        [mean],
+                        yerr=None if math.isnan(lo) else [[mean - lo], [hi - mean]],
+                        fmt="s",
+                        color="C1",
+                        capsize=4,
+                    )
             ax.set_ylabel(m, fontsize=8)
         axes[-1, 0].set_xticks(pos, [p[0] for p in parts], rotation=30 if len(parts) > 4 else 0, fontsize=8)
         axes[-1, 0].set_xlabel(key)

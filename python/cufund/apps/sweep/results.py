@@ -56,9 +56,17 @@ def write_record(out: Path, variant: Any, outcome: Outcome) -> dict[str, Any]:
     folder.mkdir(parents=True, exist_ok=True)
     for name, data in outcome.files.items():
         (folder / name).write_bytes(data)
-    record = {"key": variant.key, "overrides": variant.overrides, "repeat": variant.repeat,
-              "status": outcome.status, "message": outcome.message, "metrics": outcome.metrics,
-              "variant_wall_s": outcome.variant_wall_s, "attempts": outcome.attempts, "worker": outcome.worker}
+    record = {
+        "key": variant.key,
+        "overrides": variant.overrides,
+        "repeat": variant.repeat,
+        "status": outcome.status,
+        "message": outcome.message,
+        "metrics": outcome.metrics,
+        "variant_wall_s": outcome.variant_wall_s,
+        "attempts": outcome.attempts,
+        "worker": outcome.worker,
+    }
     tmp = folder / "result.json.tmp"
     tmp.write_text(json.dumps(_json_safe(record), indent=1) + "\n", encoding="utf-8")
     os.replace(tmp, folder / "result.json")
@@ -80,8 +88,9 @@ def load_records(out: Path | None) -> dict[str, dict[str, Any]]:
     return records
 
 
-def results_frame(variants: list[Any], records: dict[str, dict[str, Any]], swept_keys: list[str],
-                  repeats: int, out: Path | None) -> Any:
+def results_frame(
+    variants: list[Any], records: dict[str, dict[str, Any]], swept_keys: list[str], repeats: int, out: Path | None
+) -> Any:
     """One row per variant (in sweep order) that has a record: a column per swept key, ``repeat`` when repeated,
     ``key``, every metric (flattened, dotted), then ``status``, ``message``, ``variant_wall_s``, ``attempts`` and
     ``run_folder``."""
@@ -98,8 +107,9 @@ def results_frame(variants: list[Any], records: dict[str, dict[str, Any]], swept
         row["key"] = v.key
         metrics = flatten({k: m for k, m in rec.get("metrics", {}).items() if k not in ("status", "message")})
         row.update(metrics)
-        row.update(status=rec["status"], message=rec["message"], variant_wall_s=rec["variant_wall_s"],
-                   attempts=rec["attempts"])
+        row.update(
+            status=rec["status"], message=rec["message"], variant_wall_s=rec["variant_wall_s"], attempts=rec["attempts"]
+        )
         row["run_folder"] = str(out / "variants" / v.key) if out is not None and rec["status"] != FAILED else None
         rows.append(row)
     frame = pd.DataFrame(rows)

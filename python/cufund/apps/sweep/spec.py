@@ -25,9 +25,10 @@ import hashlib
 import itertools
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -90,7 +91,7 @@ class SweepSpec:
         out: list[Variant] = []
         built: set[str] = set()  # identical configurations (equal draws, say) are validated once
         for point in itertools.product(*self.grid.values()):
-            grid_point = dict(zip(self.grid, point))
+            grid_point = dict(zip(self.grid, point, strict=True))
             for draw in draws:
                 swept = {**grid_point, **draw}
                 for r in range(self.repeats):
@@ -105,8 +106,9 @@ class SweepSpec:
                             build_simulation(cfg)
                             built.add(key)
                     except ConfigError as e:
-                        raise ConfigError(f"sweep variant {where}" + (f" (repeat {r})" if r else "") +
-                                          f": {e}") from None
+                        raise ConfigError(
+                            f"sweep variant {where}" + (f" (repeat {r})" if r else "") + f": {e}"
+                        ) from None
                     out.append(Variant(len(out), swept, r, cfg, key))
         return out
 
@@ -117,8 +119,9 @@ class SweepSpec:
         try:
             return load_scenario(path if path.suffix else self.scenario, self.set)
         except ConfigError as e:
-            raise ConfigError(f"sweep: scenario {self.scenario!r}" + (" with set" if self.set else "") +
-                              f": {e}") from None
+            raise ConfigError(
+                f"sweep: scenario {self.scenario!r}" + (" with set" if self.set else "") + f": {e}"
+            ) from None
 
     def _draw(self) -> list[dict[str, Any]]:
         if self.random_n == 0:
@@ -201,8 +204,9 @@ def load_spec(spec: str | Path | Mapping[str, Any] | SweepSpec) -> SweepSpec:
         raise ConfigError(f"sweep.repeats must be an integer in [1, 10000], got {repeats!r}")
     for key in base:
         _check_key(key, "sweep.set")
-    return SweepSpec(scenario, dict(base), {k: list(v) for k, v in grid.items()}, random_n, random_seed, draws,
-                     repeats, base_dir)
+    return SweepSpec(
+        scenario, dict(base), {k: list(v) for k, v in grid.items()}, random_n, random_seed, draws, repeats, base_dir
+    )
 
 
 def _check_key(key: Any, where: str) -> None:
@@ -224,8 +228,10 @@ def _parse_random(rnd: Any) -> tuple[int, int, dict[str, tuple[str, list[Any]]]]
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
         raise ConfigError(f"sweep.random.seed must be an integer in [0, 2^63), got {seed!r}")
     if not isinstance(draws, Mapping) or not draws:
-        raise ConfigError("sweep.random.draws must be a non-empty mapping of dotted keys to distributions, e.g. "
-                          "{controller.position.xy_p: {uniform: [0.8, 1.2]}}")
+        raise ConfigError(
+            "sweep.random.draws must be a non-empty mapping of dotted keys to distributions, e.g. "
+            "{controller.position.xy_p: {uniform: [0.8, 1.2]}}"
+        )
     out: dict[str, tuple[str, list[Any]]] = {}
     for key, d in draws.items():
         _check_key(key, "sweep.random.draws")
@@ -242,8 +248,9 @@ def _check_args(dist: str, args: Any, where: str) -> list[Any]:
         raise ConfigError(f"{where}.{dist} must be a list, got {args!r}")
     if dist == "choice":
         return list(args)
-    ok = len(args) == 2 and all(isinstance(a, (int, float)) and not isinstance(a, bool) and math.isfinite(a)
-                                for a in args)
+    ok = len(args) == 2 and all(
+        isinstance(a, (int, float)) and not isinstance(a, bool) and math.isfinite(a) for a in args
+    )
     if dist == "range":
         ok = ok and all(isinstance(a, int) for a in args) and args[0] < args[1]
         expected = "two integers [lo, hi) with lo < hi"
