@@ -161,7 +161,10 @@ def register(item: SensorType, replace: bool = False) -> SensorType: ...
 
 def register(item: Kind | SensorType, replace: bool = False) -> Kind | SensorType:
     """Adds a :class:`Kind` or a :class:`SensorType` to the registry (``replace``: overwrite one of the same group
-    and name). A sensor kind's type must be registered first. Returns ``item``."""
+    and name). A sensor kind's type must be registered first. Returns ``item``. cufund's own kinds and the
+    installed plug-ins are loaded first, so a kind registered from Python may replace a built-in one (``replace``)
+    and may name a built-in sensor type."""
+    load_plugins()
     if isinstance(item, SensorType):
         old = _SENSOR_TYPES.get(item.name)
         if old is not None and old != item and not replace:
@@ -185,6 +188,7 @@ def register(item: Kind | SensorType, replace: bool = False) -> Kind | SensorTyp
 
 def unregister(group: str, name: str) -> None:
     """Removes the kind ``name`` of ``group`` (``group="sensor_type"``: the sensor type ``name``)."""
+    load_plugins()
     if group == "sensor_type":
         users = sorted(k.name for k in _KINDS["sensor"].values() if k.sensor_type == name)
         if users:
