@@ -60,7 +60,7 @@ async def _serve(args: argparse.Namespace, speed: float) -> int:
         server = GcsServer(args.scenario, tuple(args.overrides), speed, host=args.host, port=args.port,
                            telemetry_hz=args.telemetry_hz, foxglove=foxglove)
         url = server.start()
-    except Exception as exc:  # noqa: BLE001 - a bad scenario or a busy port: say so, exit 2
+    except Exception as exc:  # a bad scenario or a busy port: say so, exit 2
         print(f"cufund gcs: {type(exc).__name__}: {exc}", file=sys.stderr)
         if foxglove is not None:
             foxglove.stop()

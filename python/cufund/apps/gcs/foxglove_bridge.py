@@ -259,7 +259,7 @@ class FoxgloveSocket(quiet_errors, BoundedSender, tornado.websocket.WebSocketHan
                         self.subscriptions.pop(sub, None)
             else:
                 raise ValueError("expected a JSON object with op 'subscribe' or 'unsubscribe'")
-        except Exception as exc:
+        except Exception as exc:  # every malformed message gets a status reply; the socket stays open
             self._status(f"{type(exc).__name__}: {exc}" if not isinstance(exc, ValueError) else str(exc))
 
     def _subscribe(self, subscriptions: Any) -> None:

@@ -204,7 +204,7 @@ class GcsServer:
         try:
             tel = session.poll()
             events = session.new_events()
-        except Exception as exc:
+        except Exception as exc:  # a failing run must not stop the server; show why (once)
             message = f"telemetry: {type(exc).__name__}: {exc}"
             if message != self._last_error:
                 self._last_error = message
@@ -501,7 +501,7 @@ class SocketHandler(quiet_errors, BoundedSender, tornado.websocket.WebSocketHand
                 self.send(json.dumps({**data, "type": "pong", "wall": time.time()}))
             else:
                 raise ValueError(f"unknown message type {_short(kind)}; expected command, layers, seen or ping")
-        except Exception as exc:
+        except Exception as exc:  # every malformed message gets its error reply; the socket stays open
             self.send(json.dumps({"type": "error", "message": _message(exc) if isinstance(exc, INPUT_ERRORS)
                                   else f"{type(exc).__name__}: {exc}"}))
 
@@ -511,7 +511,7 @@ class SocketHandler(quiet_errors, BoundedSender, tornado.websocket.WebSocketHand
         except INPUT_ERRORS as exc:
             ack = {"command": command.get("command") if isinstance(command, dict) else None, "result": "failed",
                    "message": _message(exc)}
-        except Exception as exc:
+        except Exception as exc:  # the page gets the reason; the server stays up
             print(f"cufund gcs: {type(exc).__name__}: {exc}", file=sys.stderr)
             ack = {"command": None, "result": "failed", "message": f"{type(exc).__name__}: {exc}"}
         self.send(json.dumps({"type": "ack", "id": ident, **ack}))
