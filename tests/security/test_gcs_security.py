@@ -135,7 +135,7 @@ def test_non_reading_clients_flooding_pings_are_dropped_and_memory_stays_bounded
         c.sock.close()
     assert sent > 200  # the flood was a flood
     assert growth < RSS_GROWTH_BOUND_MB
-    # every flooding client was dropped, counted and logged once; the server goes on serving
+    # every flooding client was dropped and counted (and logged: see the log test); the server goes on serving
     assert wait_for(lambda: stats(gcs).get("dropped_clients", 0) - dropped0 >= FLOOD_CLIENTS, 10)
     assert gcs.alive()
     assert serving(gcs)
@@ -218,6 +218,8 @@ def test_no_traceback_token_or_unretrieved_task_in_the_logs():
         assert serving(g)  # and go on
         err = g.stop()
     assert g.token not in err
+    drops = [line for line in err.splitlines() if "dropped a ground station tab that does not read" in line]
+    assert len(drops) <= len(clients)  # one line per dropped tab, if it was dropped before it vanished
     assert "Traceback" not in err and "Task exception was never retrieved" not in err, err[-3000:]
 
 
@@ -307,3 +309,32 @@ def test_foxglove_requires_the_token_and_a_local_origin():
         err = g.stop()
     assert g.token not in err and "Traceback" not in err
 
+
+
+def test_a_foxglove_client_that_does_not_read_is_dropped():
+    """Every malformed message gets a status reply; a client that sends them and never reads is dropped once its
+    replies pile up, and the server goes on serving others."""
+    with GcsProcess("vehicle", "--speed", "1", "--foxglove", "--foxglove-port", "0") as g:
+        url = g.proc.stdout.readline().split()[1]
+        before = rss_mb(g.pid)
+        flooder = websocket.create_connection(url, timeout=2, subprotocols=["foxglove.sdk.v1"],
+                                              sockopt=((socket.SOL_SOCKET, socket.SO_RCVBUF, 4096),))
+        garbage = "{}"  # small: many replies (each longer than the message) per second
+        dropped = False
+        end = time.monotonic() + FLOOD_SECONDS
+        while time.monotonic() < end:
+            try:
+                flooder.send(garbage)
+            except (websocket.WebSocketException, OSError):
+                dropped = True
+                break
+        growth = rss_mb(g.pid, "VmHWM") - before
+        flooder.shutdown()
+        assert dropped and growth < RSS_GROWTH_BOUND_MB
+        ws = websocket.create_connection(url, timeout=10, subprotocols=["foxglove.sdk.v1"])
+        try:
+            assert json.loads(ws.recv())["op"] == "serverInfo"
+        finally:
+            ws.close()
+        err = g.stop()
+    assert "dropped a Foxglove client that does not read" in err and "Traceback" not in err

@@ -223,9 +223,9 @@ class FoxgloveSocket(quiet_errors, BoundedSender, tornado.websocket.WebSocketHan
     def on_close(self) -> None:
         self.bridge.clients.discard(self)
 
-    def count_drop(self) -> str:
+    def count_drop(self) -> tuple[str, int]:
         self.bridge.dropped_clients += 1
-        return f"Foxglove client ({self.bridge.dropped_clients} dropped so far)"
+        return "Foxglove client", self.bridge.dropped_clients
 
     def _reply(self, message: dict[str, Any]) -> None:
         self.send_bounded(json.dumps(message))

@@ -162,8 +162,9 @@ class BoundedSender:
     unsent_messages = 0
     dropped = False
 
-    def count_drop(self) -> str:
-        """Counts a dropped client where its server keeps the count; returns how to name it in the log line."""
+    def count_drop(self) -> tuple[str, int]:
+        """Counts a dropped client where its server keeps the count; returns how to name the client in the log line
+        and the count."""
         raise NotImplementedError
 
     def send_bounded(self, message: str | bytes) -> Any:
@@ -192,9 +193,9 @@ class BoundedSender:
 
     def _drop(self) -> None:
         self.dropped = True
-        name = self.count_drop()
+        name, count = self.count_drop()
         print(f"cufund gcs: dropped a {name} that does not read ({self.unsent_messages} messages, "
-              f"{self.unsent_bytes} bytes unsent)", file=sys.stderr, flush=True)
+              f"{self.unsent_bytes} bytes unsent; {count} dropped so far)", file=sys.stderr, flush=True)
         self.on_close()  # type: ignore[attr-defined]
         stream = getattr(self.ws_connection, "stream", None)  # type: ignore[attr-defined]
         if stream is not None:

@@ -475,9 +475,9 @@ class SocketHandler(quiet_errors, BoundedSender, tornado.websocket.WebSocketHand
             self._pending[stream] = future
             self.sent[stream] += 1
 
-    def count_drop(self) -> str:
+    def count_drop(self) -> tuple[str, int]:
         self.gcs.dropped_clients += 1
-        return f"ground station tab ({self.gcs.dropped_clients} dropped so far)"
+        return "ground station tab", self.gcs.dropped_clients
 
     def on_message(self, message: str | bytes) -> None:
         if self.dropped:
