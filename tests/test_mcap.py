@@ -420,6 +420,23 @@ def test_an_unclosed_logger_leaves_a_file_without_summary(tmp_path):
         assert [r.log_time_ns for r in read_mcap(path)] == [0, 1, 2, 3]
 
 
+@pytest.mark.parametrize("tail", [b"", b"\x00" * 4096, b"\xff" * 100])
+def test_a_log_cut_short_reads_to_its_last_complete_record(tmp_path, tail):
+    """A log cut in the middle (a killed run) reads up to its last complete chunk, whatever follows the cut: nothing,
+    the zero-filled blocks a power loss leaves on ext4 or xfs, or garbage."""
+    whole = tmp_path / "whole.mcap"
+    log = McapLogger(whole, block_messages=10)
+    for k in range(200):
+        log.write("/a", M.ActuatorCommand(k * 0.1, np.ones(4)), k, k)
+    log.close()
+    data = whole.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 2] + tail)
+    with pytest.warns(TruncatedLogWarning):
+        times = [r.log_time_ns for r in read_mcap(cut)]
+    assert times and times == list(range(len(times))) and len(times) % 10 == 0 and len(times) < 200
+
+
 @pytest.mark.filterwarnings("ignore:This process .* is multi-threaded:DeprecationWarning")  # Python >= 3.12
 def test_a_forked_child_cannot_write_through_its_parents_logger(tmp_path):
     """The child has the logger's queue but not its writer thread: it must fail at once, not wait forever."""

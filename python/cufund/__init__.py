@@ -7,7 +7,7 @@ The package is layered (docs/architecture.md): ``core`` → ``geometry`` → ``v
 
 from typing import Any
 
-from . import _moved, control, planning, sensors, worlds
+from . import control, planning, sensors, worlds
 from ._core import __version__
 from .core import (
     Bus,
@@ -25,13 +25,14 @@ from .core import (
     Topic,
     Topics,
     messages,
+    moved,
 )
 from .scenarios import ScenarioConfig, ScenarioRun, available_scenarios, load_scenario, run_scenario
 from .simulator import RunStatus, SimulationResult, Simulator
 from .vehicle import Quadrotor, QuadrotorBatch, QuadrotorParams, QuadrotorState, presets
 from .worlds import World
 
-_moved.install()
+moved.install()
 
 __all__ = [
     "Bus",

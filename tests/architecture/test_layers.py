@@ -1,5 +1,6 @@
 """The package's layers (docs/architecture.md): every import of a cufund module, at the top of a file or inside a
-function, goes to the module's own area or to a lower layer, and no modules import each other in a circle.
+function, by a statement or by ``importlib.import_module("cufund...")``, goes to the module's own area or to a
+lower layer, and no modules import each other in a circle.
 
 The imports are read with ``ast`` from the source files, so a lazy import inside a function counts as much as one
 at the top of a file."""
@@ -27,7 +28,6 @@ LAYERS: list[tuple[str, ...]] = [
     ("missions",),
     ("scenarios",),
     ("envs", "apps"),
-    ("_moved",),
     ("__init__",),
     ("templates",),
 ]
@@ -86,6 +86,13 @@ def _imports(module: str) -> list[tuple[str, int]]:
                 continue
             for a in node.names:  # `from pkg import submodule` imports the submodule
                 found.append((_resolve(f"{target}.{a.name}"), node.lineno))
+        elif isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant):
+            # importlib.import_module("cufund.x") and __import__("cufund.x") import as much as a statement does
+            func = node.func
+            name = func.attr if isinstance(func, ast.Attribute) else func.id if isinstance(func, ast.Name) else ""
+            value = node.args[0].value
+            if name in ("import_module", "__import__") and isinstance(value, str) and value.split(".")[0] == "cufund":
+                found.append((_resolve(value), node.lineno))
     return [(t, line) for t, line in found if t != module]
 
 
@@ -161,6 +168,13 @@ def test_the_checker_sees_an_upward_import(tmp_path):
             assert "cufund.core.bus (core, layer 1) imports cufund.apps.cli" in str(e)
         else:
             raise AssertionError("the planted upward import was not found")
+        fake = tmp_path / "fake.py"
+        fake.write_text('import importlib\n\ndef f():\n    return importlib.import_module("cufund.planning.kinds")\n')
+        MODULES["cufund.logs.fake"] = (fake, False)
+        try:
+            assert ("cufund.planning.kinds", 4) in _imports("cufund.logs.fake")
+        finally:
+            del MODULES["cufund.logs.fake"]
         GRAPH = dict(saved)
         GRAPH["cufund.core.topics"] = saved["cufund.core.topics"] + [("cufund.core.bus", 1)]
         try:

@@ -11,7 +11,7 @@ import warnings
 import pytest
 
 import cufund
-from cufund import _moved
+from cufund.core import moved as _moved
 
 PUBLIC_PACKAGES = [
     "cufund",

@@ -215,3 +215,21 @@ def _write_log_on(tmp_path: Path, case: str, marker: Path, topics: tuple[str, ..
         path, [(topic, metadata, [p.replace(b"MARKER", str(marker).encode()) for p in payloads]) for topic in topics]
     )
     return path
+
+
+def test_a_log_with_the_0_1_class_names_reads(tmp_path):
+    """cufund 0.1 recorded its messages as ``cufund.messages:...`` (and the planner's diagnostics under
+    cufund.planning): those names map to the classes' homes now, by string, and the log reads."""
+    path = tmp_path / "old.mcap"
+    old = {"cufund.codec": "json", "cufund.class": "cufund.messages:MissionState"}
+    state = dict(_mission_state(), state="fly")
+    _write_log(path, [("/mission/state", old, [json.dumps(state).encode()])])
+    (msg,) = [r.message for r in read_mcap(path)]
+    from cufund.core.messages import MissionState
+
+    assert isinstance(msg, MissionState) and msg.state == "fly"
+    from cufund.core.moved import new_class_path
+
+    assert new_class_path("cufund.messages:Imu") == "cufund.core.messages:Imu"
+    assert new_class_path("cufund.planning.diagnostics:PlannerDiagnostics") == "cufund.core.messages:PlannerDiagnostics"
+    assert new_class_path("os:system") == "os:system"  # not moved: still refused by the allowlist

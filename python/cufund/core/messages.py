@@ -402,6 +402,26 @@ class MissionState(Message):
     """Mission items (frames, waypoints) completed."""
 
 
+@message
+class PlannerDiagnostics(Message):
+    """One (re)plan of a planner."""
+
+    t: float
+    """Simulated time of the replan [s]."""
+    planner: str
+    """The planner's kind ("local", "global")."""
+    status: str
+    """"ok", or why the plan was rejected ("collision", a path-search status, ...); "at_goal"."""
+    plan_ms: float
+    """Wall time of the replan [ms]."""
+    plan_cpu_ms: float
+    """CPU time of the replan [ms] (the wall time less preemption by other processes)."""
+    min_clearance_m: float
+    """Smallest certified map clearance of the candidate trajectory [m]."""
+    path_length_m: float
+    """Length of the accepted trajectory [m] (0 when rejected)."""
+
+
 class Topics:
     """The topics of the built-in components, each typed with its message. Ground truth lies under ``/truth/``."""
 
@@ -441,3 +461,5 @@ class Topics:
     TUNNEL_ESTIMATE = Topic("/perception/tunnel", TunnelEstimate)
     VEHICLE_STATUS = Topic("/vehicle/status", VehicleStatus)
     MISSION_STATE = Topic("/mission/state", MissionState)
+    PLANNER_DIAGNOSTICS = Topic("/planner/diagnostics", PlannerDiagnostics)
+    """Per-replan diagnostics of a planner, next to its trajectory updates."""

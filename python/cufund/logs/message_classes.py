@@ -4,9 +4,9 @@ allowlist.
 A log names the class of each channel (its ``cufund.class`` metadata) and of enums and nested dataclasses inside
 JSON messages (``$enum``, ``$dataclass``). Those names are looked up here, never imported: the allowed classes
 are cufund's own messages and enums (:mod:`cufund.core.messages` and the dataclasses and enums their fields
-hold), cufund's messages defined in higher layers (:data:`_CUFUND_ELSEWHERE`, imported only by these fixed
-names), classes this process has logged itself, and user classes registered with
-:func:`register_message_class`. Any other name is a ValueError, so that a crafted ``run.mcap`` cannot make
+hold), classes this process has logged itself, and user classes registered with :func:`register_message_class`;
+a name an older cufund recorded (``cufund.messages:Imu``) is first mapped to its name now, as a string
+(:func:`cufund.core.moved.new_class_path`). Any other name is a ValueError, so that a crafted ``run.mcap`` cannot make
 ``cufund replay`` run ``subprocess:Popen``.
 """
 
@@ -14,20 +14,13 @@ from __future__ import annotations
 
 import dataclasses
 import enum
-import importlib
 import threading
 import typing
 from typing import Any
 
-__all__ = ["class_path", "message_class", "note_logged", "register_message_class"]
+from cufund.core.moved import new_class_path
 
-_CUFUND_ELSEWHERE = frozenset(
-    {
-        "cufund.planning.diagnostics:PlannerDiagnostics",
-    }
-)
-"""cufund's message classes defined above the logs layer (imported, by these exact names only, when a log
-names them)."""
+__all__ = ["class_path", "message_class", "note_logged", "register_message_class"]
 
 _lock = threading.Lock()
 _registered: dict[str, type] = {}
@@ -99,19 +92,13 @@ def _builtin() -> None:
 
 def message_class(path: Any, where: str) -> type:
     """The allowed class a log names by ``path`` (``module:QualName``); ValueError naming ``where`` (the channel)
-    for any other name. Never imports a module the name chooses, except cufund's own messages of higher layers."""
+    for any other name. Never imports a module the name chooses."""
     _builtin()
     if not isinstance(path, str):
         raise ValueError(f"{where}: a class name must be a string 'module:Class', got {type(path).__name__}")
     cls = _registered.get(path)
-    if cls is None and path in _CUFUND_ELSEWHERE:
-        module_name, _, qualname = path.partition(":")
-        obj: Any = importlib.import_module(module_name)
-        for part in qualname.split("."):
-            obj = getattr(obj, part)
-        with _lock:
-            _add(obj)
-        cls = obj
+    if cls is None:
+        cls = _registered.get(new_class_path(path))
     if cls is None:
         shown = path if len(path) <= 200 else path[:200] + "..."
         raise ValueError(

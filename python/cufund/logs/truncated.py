@@ -51,8 +51,8 @@ def scan_records(stream: IO[bytes]) -> Recovered:
         body = pos + _RECORD.size
         if pos == len(MAGIC) and opcode != _HEADER:
             raise ValueError(f"the record after the magic has opcode {opcode:#x}, not a header")
-        if opcode == 0x00 or opcode > 0x7F:  # reserved / private opcodes: not in a cufund log
-            raise ValueError(f"an invalid record (opcode {opcode:#x}) at byte {pos}")
+        if opcode == 0x00 or opcode > 0x7F:  # reserved / private opcodes: not a record, so the log ends here (a
+            break  # power loss leaves a zero-filled tail after the last complete record)
         if length > size - body or opcode in (_DATA_END, _FOOTER):
             break  # cut inside this record, or the end of the data
         if opcode == _CHANNEL:

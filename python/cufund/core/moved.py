@@ -1,5 +1,7 @@
 """Module paths of cufund 0.1 that moved when the package was regrouped into layers (0.2). Importing an old path
-gives the module at its new home with a :class:`DeprecationWarning`; the old paths go in the next release."""
+gives the module at its new home with a :class:`DeprecationWarning` (``cufund`` installs the finder on import);
+the old paths go in the next release. :func:`new_class_path` maps a class name a 0.1 log recorded
+(``cufund.messages:Imu``) to its name now, as a string, without importing anything."""
 
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ import sys
 import warnings
 from types import ModuleType
 
-__all__ = ["MOVED", "MOVED_PACKAGES", "install"]
+__all__ = ["MOVED", "MOVED_PACKAGES", "install", "new_class_path", "new_path"]
 
 MOVED: dict[str, str] = {
     "cufund.bus": "cufund.core.bus",
@@ -57,6 +59,22 @@ def new_path(old: str) -> str | None:
         if old == a or old.startswith(a + "."):
             return b + old[len(a) :]
     return None
+
+
+MOVED_CLASSES: dict[str, str] = {
+    "cufund.planning.diagnostics:PlannerDiagnostics": "cufund.core.messages:PlannerDiagnostics",
+}
+"""Classes that moved on their own (not with their module)."""
+
+
+def new_class_path(path: str) -> str:
+    """The ``module:QualName`` a class recorded as ``path`` (by cufund 0.1 or earlier in 0.2) has now; ``path``
+    itself when it did not move. Pure string work: nothing is imported."""
+    if path in MOVED_CLASSES:
+        return MOVED_CLASSES[path]
+    module, sep, qualname = path.partition(":")
+    new = new_path(module) if sep else None
+    return f"{new}:{qualname}" if new is not None else path
 
 
 class _Alias(importlib.abc.Loader):
