@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 import cufund
 
-SQUARE = yaml.safe_load((Path(cufund.__file__).parent / "scenarios" / "square.yaml").read_text())
+SQUARE = yaml.safe_load((Path(cufund.__file__).parent / "scenarios" / "builtin" / "square.yaml").read_text())
 ATOMS = [
     "1",
     "-1",

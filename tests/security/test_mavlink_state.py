@@ -122,6 +122,35 @@ def test_a_transfer_times_out_after_pxs_five_silent_seconds_and_frees_the_vehicl
     assert requests[-1].target_system == 251 and proto.partner == b
 
 
+def test_a_transfer_is_locked_to_its_link_as_well_as_to_its_partners_ids():
+    """Two ground stations with the same default ids (QGroundControl's 255/190) on two links: the second one's
+    MISSION_COUNT and items are refused while the first one's transfer is under way, and the first one's plan
+    arrives whole."""
+    msgs, sent = _Msgs(), {"one": [], "two": []}
+
+    def sender(name):
+        return lambda factory: sent[name].append(factory(M.MAVLink(None)))
+
+    accepted = []
+    proto = MissionProtocol(
+        lambda items: accepted.append(items) or M.MAV_MISSION_ACCEPTED, lambda: True, lambda seq: True, lambda: -1
+    )
+    gcs, one, two = (255, 190), object(), object()
+    proto.handle(msgs(gcs, lambda mav: mav.mission_count_encode(1, 1, 1, 0)), sender("one"), now=1.0, link=one)
+    proto.handle(msgs(gcs, lambda mav: mav.mission_count_encode(1, 1, 2, 0)), sender("two"), now=1.1, link=two)
+    assert [m.type for m in sent["two"] if m.get_type() == "MISSION_ACK"] == [M.MAV_MISSION_DENIED]
+
+    def item(mav, z):
+        return mav.mission_item_int_encode(
+            1, 1, 0, M.MAV_FRAME_LOCAL_ENU, M.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0, 0, 0, 0, z, 0
+        )
+
+    proto.handle(msgs(gcs, lambda mav: item(mav, 9.0)), sender("two"), now=1.2, link=two)  # refused: other link
+    proto.handle(msgs(gcs, lambda mav: item(mav, 1.5)), sender("one"), now=1.3, link=one)
+    assert [m.type for m in sent["one"] if m.get_type() == "MISSION_ACK"] == [M.MAV_MISSION_ACCEPTED]
+    assert len(accepted) == 1 and len(accepted[0]) == 1
+
+
 def test_a_mission_item_with_an_unknown_command_is_unsupported():
     with vehicle() as (live, _ep, (g,)):
         g.mav.mission_count_send(1, 1, 2, 0)
@@ -200,6 +229,32 @@ def test_udpin_keeps_its_first_peer_against_a_stray_packet():
         finally:
             stray.close()
             gcs.close()
+
+
+def test_udpin_does_not_take_a_sender_of_garbage_as_its_peer():
+    """A datagram that holds no CRC-valid MAVLink (a port scan, noise) before the ground station's first packet does
+    not become the peer: the ground station does, and gets the stream."""
+    port = free_port()
+    with vehicle(links=0, extra_links=[f"udpin:127.0.0.1:{port}"]) as (_live, ep, _):
+        stray = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        stray.bind(("127.0.0.1", 0))
+        stray.settimeout(0.5)
+        gcs = None
+        try:
+            stray.sendto(b"\xfd\x09garbage, not MAVLink" * 3, ("127.0.0.1", port))
+            deadline = time.monotonic() + 5.0
+            while ep.links[0].stats.bad_data == 0 and time.monotonic() < deadline:
+                time.sleep(0.02)
+            assert ep.links[0].stats.bad_data >= 1 and ep.links[0].peer is None
+            gcs = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255, dialect="common")
+            gcs.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            assert gcs.recv_match(type="HEARTBEAT", blocking=True, timeout=5) is not None
+            with pytest.raises(socket.timeout):
+                stray.recv(65536)
+        finally:
+            stray.close()
+            if gcs is not None:
+                gcs.close()
 
 
 # --- parameters ------------------------------------------------------------------------------------------------

@@ -140,12 +140,13 @@ class UdpLink:
             except OSError:  # ICMP port unreachable from a vanished udpout peer, and the like
                 self.stats.send_errors += 1
                 continue
-            if self.address.mode == "udpin":
+            udpin = self.address.mode == "udpin"
+            if udpin:
                 now = time.monotonic()
                 if self.peer is not None and addr != self.peer and now - self._peer_heard <= self.peer_timeout_s:
                     self.stats.foreign += 1  # not our peer, which is still there
                     continue
-                self.peer, self._peer_heard = addr, now
+            valid = 0
             try:
                 msgs = self.mav.parse_buffer(data) or []
             except Exception:  # pymavlink raises a variety of errors on garbage
@@ -163,6 +164,9 @@ class UdpLink:
                 self.stats.received += 1
                 self.stats.by_type[kind] = self.stats.by_type.get(kind, 0) + 1
                 out.append(m)
+                valid += 1
+            if udpin and valid:  # only a sender of CRC-valid MAVLink becomes (or stays) the peer: not a port scan
+                self.peer, self._peer_heard = addr, now
         return out
 
     def send(self, msg) -> bool:

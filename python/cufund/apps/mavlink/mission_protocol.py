@@ -174,6 +174,9 @@ class _Upload:
     items: list
     last_request_s: float
     last_heard_s: float
+    link: object = None
+    """The link the partner speaks on: a transfer is locked to it as well as to the partner's ids (as PX4 locks it
+    to one MAVLink instance), so two ground stations with the same default ids on two links cannot mix items."""
 
 
 class MissionProtocol:
@@ -224,17 +227,17 @@ class MissionProtocol:
             self.uploads_failed += 1
         self._ack(up.send, up.target, result)
 
-    def _busy(self, target: tuple[int, int]) -> bool:
-        return self._upload is not None and self._upload.target != target
+    def _busy(self, target: tuple[int, int], link: object) -> bool:
+        return self._upload is not None and (self._upload.target != target or self._upload.link is not link)
 
-    def handle(self, m, send: Callable, now: float) -> None:
+    def handle(self, m, send: Callable, now: float, link: object = None) -> None:
         kind = m.get_type()
         target = (m.get_srcSystem(), m.get_srcComponent())
         mission_type = getattr(m, "mission_type", MISSION)
         if (
             kind in ("MISSION_COUNT", "MISSION_CLEAR_ALL", "MISSION_ITEM_INT", "MISSION_ITEM")
             and mission_type == MISSION
-            and self._busy(target)
+            and self._busy(target, link)
         ):
             self.refused_busy += 1  # another client's transfer is under way: it stays whole
             self._ack(send, target, mavlink.MAV_MISSION_DENIED, mission_type)
@@ -253,7 +256,7 @@ class MissionProtocol:
             if m.count > 10000:
                 self._ack(send, target, mavlink.MAV_MISSION_NO_SPACE)
                 return
-            self._upload = _Upload(int(m.count), send, target, [], now, now)
+            self._upload = _Upload(int(m.count), send, target, [], now, now, link)
             self._request(self._upload, now)
         elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
             up = self._upload

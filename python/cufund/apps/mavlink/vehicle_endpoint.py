@@ -308,7 +308,7 @@ class VehicleEndpoint:
         if kind in ("COMMAND_LONG", "COMMAND_INT"):
             self._command(link, msg, now)
         elif kind.startswith("MISSION_"):
-            self.missions.handle(msg, lambda factory: self._send(link, factory), now)
+            self.missions.handle(msg, lambda factory: self._send(link, factory), now, link)
         elif kind in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"):
             self.param_protocol.handle(
                 msg,
