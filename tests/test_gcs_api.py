@@ -28,8 +28,11 @@ def gcs():
 
 def http(gcs, path, body=None, headers=None, token=True):
     url = gcs.base + path + (f"?token={gcs.token}" if token else "")
-    req = urllib.request.Request(url, data=None if body is None else (body if isinstance(body, bytes) else
-                                 json.dumps(body).encode()), headers=headers or {})
+    req = urllib.request.Request(
+        url,
+        data=None if body is None else (body if isinstance(body, bytes) else json.dumps(body).encode()),
+        headers=headers or {},
+    )
     try:
         with urllib.request.urlopen(req, timeout=10) as r:
             return r.status, r.read()
@@ -60,7 +63,9 @@ def test_first_line_and_token_everywhere(gcs):
     for path in ("/", "/api/state"):
         assert http(gcs, path, token=False)[0] == 403
     assert http(gcs, "/api/command", {"command": "arm"}, token=False)[0] == 403
-    assert http(gcs, "/api/command", {"command": "arm"}, token=False, headers={"Authorization": "Bearer nope"})[0] == 403
+    assert (
+        http(gcs, "/api/command", {"command": "arm"}, token=False, headers={"Authorization": "Bearer nope"})[0] == 403
+    )
     with pytest.raises(websocket.WebSocketBadStatusException) as e:
         ws_connect(gcs, token=False)
     assert e.value.status_code == 403
@@ -84,8 +89,12 @@ def test_malformed_ws_messages_get_errors_while_the_sim_runs(gcs):
     ws = ws_connect(gcs)
     try:
         t0 = receive(ws, "telemetry")["t"]
-        for bad in ("not json", json.dumps([1, 2]), json.dumps({"type": "launch_missiles"}),
-                    json.dumps({"no": "type"})):
+        for bad in (
+            "not json",
+            json.dumps([1, 2]),
+            json.dumps({"type": "launch_missiles"}),
+            json.dumps({"no": "type"}),
+        ):
             ws.send(bad)
             assert receive(ws, "error")["message"]
         ws.send_binary(b"\x00\x01")
@@ -137,9 +146,11 @@ def test_server_survives_a_dead_tab(gcs):
 
 
 def test_mission_preview_is_the_shortest_accepted_order(gcs):
-    regions = [{"name": "a", "centre_W": [2.0, 0.0, 1.5], "radius": 0.3},
-               {"name": "b", "centre_W": [-2.0, 0.0, 1.5], "radius": 0.3},
-               {"name": "c", "centre_W": [0.0, 3.0, 1.5], "radius": 0.3}]
+    regions = [
+        {"name": "a", "centre_W": [2.0, 0.0, 1.5], "radius": 0.3},
+        {"name": "b", "centre_W": [-2.0, 0.0, 1.5], "radius": 0.3},
+        {"name": "c", "centre_W": [0.0, 3.0, 1.5], "radius": 0.3},
+    ]
     start = np.array([-1.5, 0.0, 1.5])
     plan = preview_mission({"formula": "F(a) & F(b) & G(!c)", "regions": regions}, [], start)
     # visiting b first (0.5 m away) then a (4 m) beats a then b (3.5 + 4 m): checked by hand, not by the planner
@@ -153,8 +164,9 @@ def test_mission_preview_is_the_shortest_accepted_order(gcs):
     with pytest.raises(ValueError, match="formula"):
         preview_mission({"formula": ""}, [], start)
     # through the API: accepted, and every tab is shown the plan as the planned path
-    status, body = http(gcs, "/api/command", {"command": "mission_preview", "formula": "F(a & F(c))",
-                                              "regions": regions})
+    status, body = http(
+        gcs, "/api/command", {"command": "mission_preview", "formula": "F(a & F(c))", "regions": regions}
+    )
     ack = json.loads(body)
     assert status == 200 and ack["result"] == "accepted" and ack["data"]["regions"] == ["a", "c"]
 
@@ -189,13 +201,16 @@ def test_foxglove_server_serves_the_same_telemetry():
                     channels.update({c["topic"]: c for c in m["channels"]})
             assert {"/vehicle/pose", "/sensors/lidar", "/vehicle/events"} <= set(channels)
             assert channels["/vehicle/pose"]["schemaName"] == "foxglove.PoseInFrame"
-            ws.send(json.dumps({"op": "subscribe", "subscriptions": [
-                {"id": 3, "channelId": channels["/vehicle/telemetry"]["id"]}]}))
+            ws.send(
+                json.dumps(
+                    {"op": "subscribe", "subscriptions": [{"id": 3, "channelId": channels["/vehicle/telemetry"]["id"]}]}
+                )
+            )
             ts = []
             while len(ts) < 5:
                 raw = ws.recv()
                 if isinstance(raw, bytes) and raw[0] == 1:  # message data: op, subscription id, log time, payload
-                    sub, = struct.unpack_from("<I", raw, 1)
+                    (sub,) = struct.unpack_from("<I", raw, 1)
                     assert sub == 3
                     tel = json.loads(raw[13:])
                     ts.append(tel["t"])
@@ -218,12 +233,28 @@ def test_lidar_and_esdf_layers_show_the_world():
     lo, hi = world.bounds()
     scene = o3d.t.geometry.RaycastingScene()
     for obj in world.objects:
-        scene.add_triangles(o3d.core.Tensor(obj.vertices.astype(np.float32)),
-                            o3d.core.Tensor(obj.triangles.astype(np.uint32)))
-    with GcsProcess("vehicle", "--speed", "inf", "--set", "sensors.lidar.kind=mid360",
-                    "--set", "sensors.lidar.T_BL.p=[0,0,0.08]", "--set", "mapper.kind=esdf",
-                    "--set", "mapper.resolution=0.1", "--set", "mapper.size=[6,6,3]",
-                    "--set", "mapper.origin_W=[-5,-3,-0.5]", "--set", "mapper.max_range=10") as g:
+        scene.add_triangles(
+            o3d.core.Tensor(obj.vertices.astype(np.float32)), o3d.core.Tensor(obj.triangles.astype(np.uint32))
+        )
+    with GcsProcess(
+        "vehicle",
+        "--speed",
+        "inf",
+        "--set",
+        "sensors.lidar.kind=mid360",
+        "--set",
+        "sensors.lidar.T_BL.p=[0,0,0.08]",
+        "--set",
+        "mapper.kind=esdf",
+        "--set",
+        "mapper.resolution=0.1",
+        "--set",
+        "mapper.size=[6,6,3]",
+        "--set",
+        "mapper.origin_W=[-5,-3,-0.5]",
+        "--set",
+        "mapper.max_range=10",
+    ) as g:
         ws = ws_connect(g)
         try:
             receive(ws, "hello")
@@ -254,6 +285,7 @@ def test_lidar_and_esdf_layers_show_the_world():
     truth = scene.compute_distance(o3d.core.Tensor(q)).numpy().reshape(n, n)
     assert (truth < 1.0).sum() > 500  # the slice crosses walls and frames
     assert np.abs(d - truth).max() < 0.15  # resolution 0.1 m
+
 
 def test_a_tab_that_acknowledges_gets_no_more_than_it_has_read(gcs):
     """Flow control: once a tab says what it has read ({"type": "seen"}), only a few telemetry messages are
@@ -292,26 +324,48 @@ def test_tunnel_start_restarts_the_run_and_every_tab_gets_the_new_scene():
 
             course = course_of(load_scenario("tunnel"))
             assert list(gates) == [f"gate{k + 1}" for k in range(len(course.frames))]
-            assert np.allclose([gates[f"gate{k + 1}"] for k in range(len(course.frames))],
-                               [f.centre_W for f in course.frames])
+            assert np.allclose(
+                [gates[f"gate{k + 1}"] for k in range(len(course.frames))], [f.centre_W for f in course.frames]
+            )
             assert receive(a, "ack", timeout=30, pred=lambda m: m["id"] == 1)["result"] == "accepted"
             a.send(json.dumps({"type": "command", "id": 2, "command": {"command": "sim_restart", "scenario": "nope"}}))
             ack = receive(a, "ack", timeout=30, pred=lambda m: m["id"] == 2)
             assert ack["result"] == "failed" and "nope" in ack["message"]
             # the tunnel run goes on: its mission's state machine shows in the event log
-            assert receive(b, "events", timeout=30, pred=lambda m: any(
-                e["kind"] == "mission" and e["message"].startswith("mission initialise") for e in m["events"]))
+            assert receive(
+                b,
+                "events",
+                timeout=30,
+                pred=lambda m: any(
+                    e["kind"] == "mission" and e["message"].startswith("mission initialise") for e in m["events"]
+                ),
+            )
         finally:
             a.close()
             b.close()
 
 
-@pytest.mark.parametrize(("args", "named"), [(["nope"], "nope"), (["--speed", "20"], "speed"),
-                                             (["--set", "controller.kind=zzz"], "controller.kind")])
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [(["nope"], "nope"), (["--speed", "20"], "speed"), (["--set", "controller.kind=zzz"], "controller.kind")],
+)
 def test_bad_arguments_exit_2_naming_them(args, named):
     import subprocess
     import sys
 
-    r = subprocess.run([sys.executable, "-c", "import sys; from cufund.apps.cli import main; sys.exit(main(sys.argv[1:]))",
-                        "gcs", *args, "--port", "0"], check=False, capture_output=True, text=True, timeout=60)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from cufund.apps.cli import main; sys.exit(main(sys.argv[1:]))",
+            "gcs",
+            *args,
+            "--port",
+            "0",
+        ],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert r.returncode == 2 and named in r.stderr and r.stdout == ""

@@ -11,12 +11,14 @@ from cufund.apps.gcs import GcsProcess
 from cufund.apps.gcs.process import wait_for
 
 webdriver = pytest.importorskip("selenium.webdriver")
-from selenium.webdriver.chrome.service import Service
-from selenium.webdriver.common.by import By
+from selenium.webdriver.chrome.service import Service  # noqa: E402  (after the importorskip)
+from selenium.webdriver.common.by import By  # noqa: E402
 
 CHROMEDRIVER = "/usr/bin/chromedriver"
-pytestmark = pytest.mark.skipif(not shutil.which("chromium") or not shutil.which(CHROMEDRIVER),
-                                reason="needs Debian's chromium and chromium-driver (make deps)")
+pytestmark = pytest.mark.skipif(
+    not shutil.which("chromium") or not shutil.which(CHROMEDRIVER),
+    reason="needs Debian's chromium and chromium-driver (make deps)",
+)
 
 
 @pytest.fixture(scope="module")
@@ -28,8 +30,15 @@ def gcs():
 @pytest.fixture(scope="module")
 def driver():
     options = webdriver.ChromeOptions()
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
-              "--window-size=1000,650", "--disable-dev-shm-usage"):
+    for a in (
+        "--headless=new",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--use-gl=swiftshader",
+        "--enable-unsafe-swiftshader",
+        "--window-size=1000,650",
+        "--disable-dev-shm-usage",
+    ):
         options.add_argument(a)
     options.binary_location = shutil.which("chromium")
     d = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
@@ -69,8 +78,12 @@ def set_value(d, id_, value):
 
 
 def ack(d, command, timeout=10):
-    return wait_for(lambda: next((a for a in reversed(d.execute_script("return window.gcs.stats.acks"))
-                                  if a["command"] == command), None), timeout)
+    return wait_for(
+        lambda: next(
+            (a for a in reversed(d.execute_script("return window.gcs.stats.acks")) if a["command"] == command), None
+        ),
+        timeout,
+    )
 
 
 def open_page(d, gcs):
@@ -90,17 +103,24 @@ def test_buttons_fly_takeoff_goto_and_a_mission(gcs, driver):
     assert wait_for(lambda: text(d, "tel-mode") == "hold", 20)
 
     goal = np.array([-1.2, 0.5, 1.6])
-    for axis, v in zip("xyz", goal):
+    for axis, v in zip("xyz", goal, strict=True):
         set_value(d, f"goto-{axis}", v)
     click(d, "cmd-goto")
     assert ack(d, "goto")["result"] == "accepted"
+
     # the planned path shown is the go-to's
     def planned():
         return layer_points(d, "planned")
 
     assert wait_for(lambda: len(planned()) and np.allclose(planned()[-1], goal, atol=1e-4), 5), planned()
-    arrived = wait_for(lambda: (t := telemetry(d)) and np.linalg.norm(np.array(t["truth_p_W"]) - goal) < 0.1
-                       and np.linalg.norm(t["v_W"]) < 0.1, 30)
+    arrived = wait_for(
+        lambda: (
+            (t := telemetry(d))
+            and np.linalg.norm(np.array(t["truth_p_W"]) - goal) < 0.1
+            and np.linalg.norm(t["v_W"]) < 0.1
+        ),
+        30,
+    )
     assert arrived, f"at {telemetry(d)['truth_p_W']}, goal {goal}"
 
     waypoints = np.array([[-1.2, 1.2, 1.5], [-2.0, 1.2, 1.8], [-2.0, 0.5, 1.5]])
@@ -116,7 +136,7 @@ def test_buttons_fly_takeoff_goto_and_a_mission(gcs, driver):
     # the flown path the page draws passes each waypoint, in order
     flown = layer_points(d, "flown")
     nearest = [int(np.argmin(np.linalg.norm(flown - w, axis=1))) for w in waypoints]
-    assert all(np.linalg.norm(flown[i] - w) < 0.2 for i, w in zip(nearest, waypoints))  # acceptance 0.15 m
+    assert all(np.linalg.norm(flown[i] - w) < 0.2 for i, w in zip(nearest, waypoints, strict=True))  # acceptance 0.15 m
     assert nearest == sorted(nearest)
 
 
@@ -139,8 +159,9 @@ def test_the_3d_view_draws_the_vehicle(gcs, driver, view):
         assert px and 0 < px["z"] < 1, px
 
         def shot():  # once the view has drawn what the page posted, and the page has shown that frame
-            d.execute_async_script("window.gcs.drawn().then(() => requestAnimationFrame(() => "
-                                   "requestAnimationFrame(arguments[0])))")
+            d.execute_async_script(
+                "window.gcs.drawn().then(() => requestAnimationFrame(() => requestAnimationFrame(arguments[0])))"
+            )
             return np.asarray(Image.open(io.BytesIO(d.get_screenshot_as_png())).convert("RGB"), dtype=float)
 
         with_vehicle = shot()
@@ -149,7 +170,7 @@ def test_the_3d_view_draws_the_vehicle(gcs, driver, view):
         d.find_element(By.CSS_SELECTOR, "[data-layer=vehicle]").click()
         scale = with_vehicle.shape[1] / d.execute_script("return window.innerWidth")
         x, y, r = int(px["x"] * scale), int(px["y"] * scale), int(25 * scale)
-        near = np.abs(with_vehicle - without)[y - r:y + r, x - r:x + r].max(axis=2)
+        near = np.abs(with_vehicle - without)[y - r : y + r, x - r : x + r].max(axis=2)
         top = int(120 * scale)  # below the layer checkboxes (one of them changed)
         far = np.abs(with_vehicle - without)[top:, : x - 4 * r].max(axis=2) if x > 4 * r else np.zeros(1)
         # the vehicle's pixels differ from what is behind it, and only around where it is projected
@@ -178,11 +199,13 @@ def test_click_on_the_ground_goes_there(gcs, driver):
         px = d.execute_script("return window.gcs.screenOf(arguments[0])", [*goal, 0.0])
         canvas = d.execute_script("return window.gcs.canvas")
         r = d.execute_script("return arguments[0].getBoundingClientRect()", canvas)
-        ActionChains(d).move_to_element_with_offset(canvas, round(px["x"] - r["x"] - r["width"] / 2),
-                                                    round(px["y"] - r["y"] - r["height"] / 2)).click().perform()
+        ActionChains(d).move_to_element_with_offset(
+            canvas, round(px["x"] - r["x"] - r["width"] / 2), round(px["y"] - r["y"] - r["height"] / 2)
+        ).click().perform()
         assert ack(d, "goto")["result"] == "accepted"
-        target = wait_for(lambda: (t := telemetry(d)["target_p_W"]) and np.linalg.norm(np.array(t[:2]) - goal) < 0.05
-                          and t, 5)
+        target = wait_for(
+            lambda: (t := telemetry(d)["target_p_W"]) and np.linalg.norm(np.array(t[:2]) - goal) < 0.05 and t, 5
+        )
         assert target, (telemetry(d)["target_p_W"], goal)
         assert target[2] == pytest.approx(1.4)
         click = d.execute_script("return window.gcs.lastClick")

@@ -49,6 +49,7 @@ def test_a_subcommand_is_still_required_without_version(capsys: pytest.CaptureFi
 def test_citation_names_the_version_and_license_the_package_declares() -> None:
     """CITATION.cff (read as YAML) cites the version ``cufund --version`` prints, under pyproject's licence."""
     import tomllib
+
     import yaml
 
     root = Path(__file__).resolve().parents[2]

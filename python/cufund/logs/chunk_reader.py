@@ -27,8 +27,9 @@ class ChunkError(ValueError):
     """A chunk that does not decompress, fails its CRC or holds a malformed record."""
 
 
-MAX_CHUNK_BYTES = 1 << 30
-"""Largest uncompressed chunk read (a chunk claiming more is damage: nothing is allocated for it)."""
+MAX_CHUNK_BYTES = 1 << 26
+"""Largest uncompressed chunk read, 64 MiB (cufund writes chunks of about 1 MiB; a chunk claiming more is damage
+or a decompression bomb: nothing is allocated for it)."""
 
 
 def _decompress(compression: str, data: bytes, size: int) -> bytes:

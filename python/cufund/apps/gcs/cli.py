@@ -21,16 +21,32 @@ DEFAULT_SCENARIO = "vehicle"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", nargs="?", default=DEFAULT_SCENARIO,
-                   help=f"scenario name or YAML path (default: {DEFAULT_SCENARIO})")
-    p.add_argument("--host", default="127.0.0.1",
-                   help="interface to serve on (default 127.0.0.1; anything else exposes the vehicle's commands)")
+    p.add_argument(
+        "scenario",
+        nargs="?",
+        default=DEFAULT_SCENARIO,
+        help=f"scenario name or YAML path (default: {DEFAULT_SCENARIO})",
+    )
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="interface to serve on (default 127.0.0.1; anything else exposes the vehicle's commands)",
+    )
     p.add_argument("--port", type=int, default=0, help="port (default 0: any free port)")
     p.add_argument("--speed", default="1", help="simulation speed: 0.1 to 10 times real time, or inf (default 1)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario field by its dotted key (repeatable)")
-    p.add_argument("--foxglove", action="store_true",
-                   help="also serve the topics over a Foxglove WebSocket server (needs the same token)")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario field by its dotted key (repeatable)",
+    )
+    p.add_argument(
+        "--foxglove",
+        action="store_true",
+        help="also serve the topics over a Foxglove WebSocket server (needs the same token)",
+    )
     p.add_argument("--foxglove-port", type=int, default=8765, help="the Foxglove server's port (default 8765)")
     p.add_argument("--telemetry-hz", type=float, default=50.0, help="telemetry rate to the page (default 50)")
 
@@ -45,8 +61,11 @@ def run(args: argparse.Namespace) -> int:
         print("cufund gcs: --port and --foxglove-port must be in [0, 65535]", file=sys.stderr)
         return 2
     if args.host not in LOOPBACK:
-        print(f"cufund gcs: WARNING: serving on {args.host}: anyone who can reach it and has the token can command "
-              "the vehicle", file=sys.stderr)
+        print(
+            f"cufund gcs: WARNING: serving on {args.host}: anyone who can reach it and has the token can command "
+            "the vehicle",
+            file=sys.stderr,
+        )
     return asyncio.run(_serve(args, speed))
 
 
@@ -57,8 +76,15 @@ async def _serve(args: argparse.Namespace, speed: float) -> int:
 
         foxglove = FoxgloveBridge(port=args.foxglove_port)
     try:
-        server = GcsServer(args.scenario, tuple(args.overrides), speed, host=args.host, port=args.port,
-                           telemetry_hz=args.telemetry_hz, foxglove=foxglove)
+        server = GcsServer(
+            args.scenario,
+            tuple(args.overrides),
+            speed,
+            host=args.host,
+            port=args.port,
+            telemetry_hz=args.telemetry_hz,
+            foxglove=foxglove,
+        )
         url = server.start()
     except Exception as exc:  # a bad scenario or a busy port: say so, exit 2
         print(f"cufund gcs: {type(exc).__name__}: {exc}", file=sys.stderr)

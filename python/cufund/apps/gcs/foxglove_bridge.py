@@ -75,8 +75,14 @@ class _Channel:
     schema: str
 
     def advertised(self) -> dict[str, Any]:
-        return {"id": self.id, "topic": self.topic, "encoding": self.encoding, "schemaName": self.schema_name,
-                "schemaEncoding": self.schema_encoding, "schema": self.schema}
+        return {
+            "id": self.id,
+            "topic": self.topic,
+            "encoding": self.encoding,
+            "schemaName": self.schema_name,
+            "schemaEncoding": self.schema_encoding,
+            "schema": self.schema,
+        }
 
 
 def _protobuf_channel(ident: int, topic: str, message_type: Any) -> _Channel:
@@ -111,8 +117,9 @@ class FoxgloveBridge:
         self.pose = _protobuf_channel(1, "/vehicle/pose", PoseInFrame)
         self.lidar = _protobuf_channel(2, "/sensors/lidar", PointCloud)
         self.log = _protobuf_channel(3, "/vehicle/events", Log)
-        self.json = _Channel(4, "/vehicle/telemetry", "json", "cufund.Telemetry", "jsonschema",
-                             json.dumps({"type": "object"}))
+        self.json = _Channel(
+            4, "/vehicle/telemetry", "json", "cufund.Telemetry", "jsonschema", json.dumps({"type": "object"})
+        )
         self.channels = {c.id: c for c in (self.pose, self.lidar, self.log, self.json)}
         self.session_id = str(time.time_ns())
         self._http: tornado.httpserver.HTTPServer | None = None
@@ -121,8 +128,11 @@ class FoxgloveBridge:
     def start(self, token: str) -> str:
         """Binds the port; returns the URL to give Foxglove (with the token)."""
         self.token = token
-        app = tornado.web.Application([(r"/", FoxgloveSocket, {"bridge": self})],
-                                      websocket_max_message_size=MAX_MESSAGE_BYTES, log_function=log_request)
+        app = tornado.web.Application(
+            [(r"/", FoxgloveSocket, {"bridge": self})],
+            websocket_max_message_size=MAX_MESSAGE_BYTES,
+            log_function=log_request,
+        )
         sockets = tornado.netutil.bind_sockets(self.port, address=self.host)
         self.port = sockets[0].getsockname()[1]
         self.hosts = Hosts(self.host, self.port)
@@ -150,15 +160,32 @@ class FoxgloveBridge:
             self._publish(self.json, json.dumps(tel).encode())
         p, q = tel.get("p_W"), tel.get("q_WB")
         if self._wanted(self.pose) and p is not None and q is not None and None not in p and None not in q:
-            self._publish(self.pose, PoseInFrame(timestamp=_stamp(self._t), frame_id="world", pose=Pose(
-                position=Vector3(x=p[0], y=p[1], z=p[2]),
-                orientation=Quaternion(w=q[0], x=q[1], y=q[2], z=q[3]))).encode())
+            self._publish(
+                self.pose,
+                PoseInFrame(
+                    timestamp=_stamp(self._t),
+                    frame_id="world",
+                    pose=Pose(
+                        position=Vector3(x=p[0], y=p[1], z=p[2]), orientation=Quaternion(w=q[0], x=q[1], y=q[2], z=q[3])
+                    ),
+                ).encode(),
+            )
         if self._wanted(self.log):
             for e in events:
-                level = (LogLevel.Warning if str(e.get("kind", "")).lower() in ("warning", "crash", "error")
-                         else LogLevel.Info)
-                self._publish(self.log, Log(timestamp=_stamp(e.get("t", self._t)), level=level, name="cufund",
-                                            message=str(e.get("message", e))).encode())
+                level = (
+                    LogLevel.Warning
+                    if str(e.get("kind", "")).lower() in ("warning", "crash", "error")
+                    else LogLevel.Info
+                )
+                self._publish(
+                    self.log,
+                    Log(
+                        timestamp=_stamp(e.get("t", self._t)),
+                        level=level,
+                        name="cufund",
+                        message=str(e.get("message", e)),
+                    ).encode(),
+                )
 
     def cloud(self, frame: bytes) -> None:
         """A cloud in the page's layout (float32 ``[t, n, x, y, z, ...]``, world frame)."""
@@ -175,11 +202,17 @@ class FoxgloveBridge:
 
         head = np.frombuffer(frame[:8], dtype="<f4")
         f32 = PackedElementFieldNumericType.Float32
-        self._publish(self.lidar, PointCloud(
-            timestamp=_stamp(float(head[0])), frame_id="world",
-            pose=Pose(position=Vector3(), orientation=Quaternion(w=1.0)), point_stride=12,
-            fields=[PackedElementField(name=n, offset=4 * i, type=f32) for i, n in enumerate("xyz")],
-            data=frame[8:]).encode())
+        self._publish(
+            self.lidar,
+            PointCloud(
+                timestamp=_stamp(float(head[0])),
+                frame_id="world",
+                pose=Pose(position=Vector3(), orientation=Quaternion(w=1.0)),
+                point_stride=12,
+                fields=[PackedElementField(name=n, offset=4 * i, type=f32) for i, n in enumerate("xyz")],
+                data=frame[8:],
+            ).encode(),
+        )
 
     def stop(self) -> None:
         for c in list(self.clients):
@@ -197,10 +230,15 @@ class FoxgloveSocket(quiet_errors, BoundedSender, tornado.websocket.WebSocketHan
         """Subscription id -> channel id."""
 
     async def get(self, *args: Any, **kwargs: Any) -> None:
-        why = ("Host does not name this server" if self.request.host not in self.bridge.hosts
-               else "token required (?token= or Authorization: Bearer)" if not authorized(self, self.bridge.token)
-               else "Origin not allowed" if not _origin_allowed(self.request.headers.get("Origin"))
-               else "")
+        why = (
+            "Host does not name this server"
+            if self.request.host not in self.bridge.hosts
+            else "token required (?token= or Authorization: Bearer)"
+            if not authorized(self, self.bridge.token)
+            else "Origin not allowed"
+            if not _origin_allowed(self.request.headers.get("Origin"))
+            else ""
+        )
         if why:
             self.set_status(403)
             self.finish(why)
@@ -216,8 +254,16 @@ class FoxgloveSocket(quiet_errors, BoundedSender, tornado.websocket.WebSocketHan
     def open(self, *args: Any, **kwargs: Any) -> None:
         self.set_nodelay(True)
         self.bridge.clients.add(self)
-        self._reply({"op": "serverInfo", "name": "cufund gcs", "capabilities": [], "supportedEncodings": [],
-                     "metadata": {}, "sessionId": self.bridge.session_id})
+        self._reply(
+            {
+                "op": "serverInfo",
+                "name": "cufund gcs",
+                "capabilities": [],
+                "supportedEncodings": [],
+                "metadata": {},
+                "sessionId": self.bridge.session_id,
+            }
+        )
         self._reply({"op": "advertise", "channels": [c.advertised() for c in self.bridge.channels.values()]})
 
     def on_close(self) -> None:
@@ -268,8 +314,12 @@ class FoxgloveSocket(quiet_errors, BoundedSender, tornado.websocket.WebSocketHan
         for s in subscriptions:
             sub = s.get("id") if isinstance(s, dict) else None
             channel = s.get("channelId") if isinstance(s, dict) else None
-            if not (isinstance(sub, int) and 0 <= sub < 2**32 and isinstance(channel, int)
-                    and channel in self.bridge.channels):
+            if not (
+                isinstance(sub, int)
+                and 0 <= sub < 2**32
+                and isinstance(channel, int)
+                and channel in self.bridge.channels
+            ):
                 raise ValueError(f"a subscription is {{id: uint32, channelId: one of {sorted(self.bridge.channels)}}}")
             if sub not in self.subscriptions and len(self.subscriptions) >= MAX_SUBSCRIPTIONS:
                 raise ValueError(f"at most {MAX_SUBSCRIPTIONS} subscriptions per client")

@@ -22,8 +22,19 @@ from urllib.parse import urlsplit
 import tornado.web
 import tornado.websocket
 
-__all__ = ["LOOPBACK", "MAX_UNSENT_BYTES", "MAX_UNSENT_MESSAGES", "WILDCARD", "BoundedSender", "Hosts", "authorized",
-           "log_request", "loads_strict", "origin_host", "quiet_errors"]
+__all__ = [
+    "LOOPBACK",
+    "MAX_UNSENT_BYTES",
+    "MAX_UNSENT_MESSAGES",
+    "WILDCARD",
+    "BoundedSender",
+    "Hosts",
+    "authorized",
+    "log_request",
+    "loads_strict",
+    "origin_host",
+    "quiet_errors",
+]
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 WILDCARD = ("", "0.0.0.0", "::")
@@ -116,8 +127,15 @@ def log_request(handler: tornado.web.RequestHandler) -> None:
     status = handler.get_status()
     level = logging.INFO if status < 400 else logging.WARNING if status < 500 else logging.ERROR
     request = handler.request
-    logging.getLogger("tornado.access").log(level, "%d %s %s (%s) %.2fms", status, request.method, request.path,
-                                            request.remote_ip, 1000.0 * request.request_time())
+    logging.getLogger("tornado.access").log(
+        level,
+        "%d %s %s (%s) %.2fms",
+        status,
+        request.method,
+        request.path,
+        request.remote_ip,
+        1000.0 * request.request_time(),
+    )
 
 
 class quiet_errors:
@@ -172,8 +190,9 @@ class BoundedSender:
         if self.dropped:
             return None
         size = len(message)
-        if self.unsent_messages and (self.unsent_bytes + size > MAX_UNSENT_BYTES
-                                     or self.unsent_messages >= MAX_UNSENT_MESSAGES):
+        if self.unsent_messages and (
+            self.unsent_bytes + size > MAX_UNSENT_BYTES or self.unsent_messages >= MAX_UNSENT_MESSAGES
+        ):
             self._drop()
             return None
         try:
@@ -194,8 +213,12 @@ class BoundedSender:
     def _drop(self) -> None:
         self.dropped = True
         name, count = self.count_drop()
-        print(f"cufund gcs: dropped a {name} that does not read ({self.unsent_messages} messages, "
-              f"{self.unsent_bytes} bytes unsent; {count} dropped so far)", file=sys.stderr, flush=True)
+        print(
+            f"cufund gcs: dropped a {name} that does not read ({self.unsent_messages} messages, "
+            f"{self.unsent_bytes} bytes unsent; {count} dropped so far)",
+            file=sys.stderr,
+            flush=True,
+        )
         self.on_close()  # type: ignore[attr-defined]
         stream = getattr(self.ws_connection, "stream", None)  # type: ignore[attr-defined]
         if stream is not None:

@@ -42,5 +42,9 @@ def preview_mission(command: dict[str, Any], world_regions: list[Region], start_
         plan = MissionSpec.parse(formula).plan(table, np.asarray(start_W, dtype=float))
     except ConfigError as exc:
         raise ValueError(str(exc)) from exc
-    return {"formula": formula, "regions": list(plan.regions), "waypoints_W": np.round(plan.waypoints_W, 4).tolist(),
-            "length": round(float(plan.length), 4)}
+    return {
+        "formula": formula,
+        "regions": list(plan.regions),
+        "waypoints_W": np.round(plan.waypoints_W, 4).tolist(),
+        "length": round(float(plan.length), 4),
+    }

@@ -20,9 +20,19 @@ __all__ = ["GcsProcess", "wait_for"]
 class GcsProcess:
     """``cufund gcs SCENARIO *args --port 0`` in a subprocess (its own session, so stopping it stops it all)."""
 
-    def __init__(self, scenario: str = "vehicle", *args: str, timeout: float = 60.0) -> None:
-        self.argv = [sys.executable, "-c", "import sys; from cufund.apps.cli import main; sys.exit(main(sys.argv[1:]))",
-                     "gcs", scenario, "--port", "0", *args]
+    def __init__(self, scenario: str = "vehicle", *args: str, timeout: float = 60.0, cwd: str | None = None) -> None:
+        self.cwd = cwd
+        """The directory the server runs in (its run directory: ``sim_restart`` may load YAML files under it)."""
+        self.argv = [
+            sys.executable,
+            "-c",
+            "import sys; from cufund.apps.cli import main; sys.exit(main(sys.argv[1:]))",
+            "gcs",
+            scenario,
+            "--port",
+            "0",
+            *args,
+        ]
         self.timeout = float(timeout)
         self.proc: subprocess.Popen | None = None
         self.url = self.base = self.token = ""
@@ -39,8 +49,15 @@ class GcsProcess:
         return self.proc.pid
 
     def start(self) -> Self:
-        self.proc = subprocess.Popen(self.argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                     start_new_session=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        self.proc = subprocess.Popen(
+            self.argv,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+            cwd=self.cwd,
+            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        )
         assert self.proc.stdout is not None
         ready, _, _ = select.select([self.proc.stdout], [], [], self.timeout)
         line = self.proc.stdout.readline() if ready else ""
@@ -48,7 +65,7 @@ class GcsProcess:
             err = self.stop()
             raise RuntimeError(f"cufund gcs did not start within {self.timeout:g} s: {line!r} {err[-2000:]}")
         self.first_line = line.rstrip("\n")
-        self.url = self.first_line[len("GCS: "):]
+        self.url = self.first_line[len("GCS: ") :]
         self.base, _, self.token = self.url.partition("/?token=")
         return self
 

@@ -123,10 +123,19 @@ class GcsServer:
     :class:`~cufund.apps.gcs.foxglove_bridge.FoxgloveBridge`, is started with this server's token.
     """
 
-    def __init__(self, scenario: str, overrides: tuple[str, ...] = (), speed: float = 1.0, host: str = "127.0.0.1",
-                 port: int = 0, token: str | None = None, telemetry_hz: float = 50.0,
-                 live_factory: Callable[[str, tuple[str, ...], float], Any] = _default_live,
-                 foxglove: Any = None, run_dir: str | os.PathLike[str] | None = None) -> None:
+    def __init__(
+        self,
+        scenario: str,
+        overrides: tuple[str, ...] = (),
+        speed: float = 1.0,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        token: str | None = None,
+        telemetry_hz: float = 50.0,
+        live_factory: Callable[[str, tuple[str, ...], float], Any] = _default_live,
+        foxglove: Any = None,
+        run_dir: str | os.PathLike[str] | None = None,
+    ) -> None:
         if not (isinstance(telemetry_hz, (int, float)) and 1.0 <= telemetry_hz <= 200.0):
             raise ValueError(f"telemetry_hz must be a number in [1, 200], got {telemetry_hz!r}")
         self.scenario = self.first_scenario = scenario
@@ -156,15 +165,19 @@ class GcsServer:
     def start(self) -> str:
         """Builds the live run, binds the port and starts broadcasting; returns the page's URL (with token)."""
         self._open(self.live_factory(self.scenario, self.overrides, self.speed), self.scenario)
-        app = tornado.web.Application([
-            (r"/", PageHandler, {"gcs": self}),
-            (r"/api/state", StateHandler, {"gcs": self}),
-            (r"/api/stats", StatsHandler, {"gcs": self}),
-            (r"/api/command", CommandHandler, {"gcs": self}),
-            (r"/ws", SocketHandler, {"gcs": self}),
-            (r"/static/(.*)", tornado.web.StaticFileHandler, {"path": str(STATIC_DIR)}),
-            (r"/meshcat/(main\.min\.js)", tornado.web.StaticFileHandler, {"path": str(_meshcat_dist())}),
-        ], websocket_max_message_size=MAX_MESSAGE_BYTES, log_function=log_request)
+        app = tornado.web.Application(
+            [
+                (r"/", PageHandler, {"gcs": self}),
+                (r"/api/state", StateHandler, {"gcs": self}),
+                (r"/api/stats", StatsHandler, {"gcs": self}),
+                (r"/api/command", CommandHandler, {"gcs": self}),
+                (r"/ws", SocketHandler, {"gcs": self}),
+                (r"/static/(.*)", tornado.web.StaticFileHandler, {"path": str(STATIC_DIR)}),
+                (r"/meshcat/(main\.min\.js)", tornado.web.StaticFileHandler, {"path": str(_meshcat_dist())}),
+            ],
+            websocket_max_message_size=MAX_MESSAGE_BYTES,
+            log_function=log_request,
+        )
         sockets = tornado.netutil.bind_sockets(self.port, address=self.host)
         self.port = sockets[0].getsockname()[1]
         self.hosts = Hosts(self.host, self.port)
@@ -214,8 +227,16 @@ class GcsServer:
         if not self.clients and self.foxglove is None:
             return  # the path and history above still grow for the next tab
         self.seq += 1
-        text = json.dumps({"type": "telemetry", "seq": self.seq, "wall": time.time(), "paused": self._paused,
-                           "speed": None if math.isinf(self.speed) else self.speed, **tel})
+        text = json.dumps(
+            {
+                "type": "telemetry",
+                "seq": self.seq,
+                "wall": time.time(),
+                "paused": self._paused,
+                "speed": None if math.isinf(self.speed) else self.speed,
+                **tel,
+            }
+        )
         for c in list(self.clients):
             c.send(text, stream="telemetry")
         if events:
@@ -256,9 +277,21 @@ class GcsServer:
             ack = await self._local(name, command)
         else:
             ack = await self._vehicle(name, command)
-        self.broadcast({"type": "events", "events": [session.log(
-            {"t": session.telemetry.get("t"), "kind": "command", "message":
-             f"{name}: {ack['result']}" + (f" ({ack['message']})" if ack.get("message") else "")})]})
+        self.broadcast(
+            {
+                "type": "events",
+                "events": [
+                    session.log(
+                        {
+                            "t": session.telemetry.get("t"),
+                            "kind": "command",
+                            "message": f"{name}: {ack['result']}"
+                            + (f" ({ack['message']})" if ack.get("message") else ""),
+                        }
+                    )
+                ],
+            }
+        )
         return ack
 
     async def _vehicle(self, name: str, command: dict[str, Any]) -> dict[str, Any]:
@@ -276,11 +309,17 @@ class GcsServer:
         future.add_done_callback(push)
         try:
             ack = await asyncio.wait_for(asyncio.wrap_future(future), ACK_TIMEOUT_S)
-        except asyncio.TimeoutError:
-            return {"command": name, "result": "in_progress",
-                    "message": "queued; the commander applies it when the simulation runs"}
-        reply = {"command": name, "result": str(getattr(ack, "result", ack)),
-                 "message": str(getattr(ack, "message", ""))}
+        except TimeoutError:
+            return {
+                "command": name,
+                "result": "in_progress",
+                "message": "queued; the commander applies it when the simulation runs",
+            }
+        reply = {
+            "command": name,
+            "result": str(getattr(ack, "result", ack)),
+            "message": str(getattr(ack, "message", "")),
+        }
         extra = getattr(ack, "data", None)
         if extra is not None:
             reply["data"] = jsonable(extra)
@@ -304,8 +343,12 @@ class GcsServer:
             plan = preview_mission(command, session.regions(), p if p is not None else np.zeros(3))
             start = [] if p is None else [p.tolist()]
             self.broadcast(session.set_planned(start + plan["waypoints_W"], "LTLf: " + " → ".join(plan["regions"])))
-            return {"command": name, "result": "accepted", "message": f"{len(plan['regions'])} regions, "
-                    f"{plan['length']:.2f} m", "data": plan}
+            return {
+                "command": name,
+                "result": "accepted",
+                "message": f"{len(plan['regions'])} regions, {plan['length']:.2f} m",
+                "data": plan,
+            }
         else:
             scenario = "tunnel" if name == "tunnel_start" else command.get("scenario", session.scenario)
             if not isinstance(scenario, str) or not scenario:
@@ -323,8 +366,10 @@ class GcsServer:
         builtin = available_scenarios()
         if scenario == self.first_scenario or scenario in builtin:
             return scenario
-        refused = ValueError(f"sim_restart takes a built-in scenario ({', '.join(builtin)}) or a .yaml file in the "
-                             f"run directory {self.run_dir}; got {_short(scenario, 200)}")
+        refused = ValueError(
+            f"sim_restart takes a built-in scenario ({', '.join(builtin)}) or a .yaml file in the "
+            f"run directory {self.run_dir}; got {_short(scenario, 200)}"
+        )
         try:
             path = (self.run_dir / scenario).resolve()
         except (OSError, RuntimeError, ValueError):
@@ -351,10 +396,13 @@ class GcsServer:
             self._restarting = False
             if source == scenario and not Path(scenario).suffix:  # a built-in name: its own text may be shown
                 raise ValueError(f"cannot start scenario {scenario!r}: {exc}") from exc
-            print(f"cufund gcs: cannot start scenario {source}: {type(exc).__name__}: {exc}", file=sys.stderr,
-                  flush=True)
-            raise ValueError(f"cannot start scenario {_short(scenario, 200)}: {type(exc).__name__} (the reason is on "
-                             "the ground station's console)") from exc
+            print(
+                f"cufund gcs: cannot start scenario {source}: {type(exc).__name__}: {exc}", file=sys.stderr, flush=True
+            )
+            raise ValueError(
+                f"cannot start scenario {_short(scenario, 200)}: {type(exc).__name__} (the reason is on "
+                "the ground station's console)"
+            ) from exc
         await loop.run_in_executor(None, old.live.stop)
         self._open(live, scenario)
         self.scenario = scenario
@@ -419,8 +467,14 @@ class CommandHandler(_Guarded):
 
 class StatsHandler(_Guarded):
     def get(self) -> None:
-        self.write({"io_thread_cpu_s": time.thread_time(), "tabs": len(self.gcs.clients), "telemetry_sent": self.gcs.seq,
-                    "dropped_clients": self.gcs.dropped_clients})
+        self.write(
+            {
+                "io_thread_cpu_s": time.thread_time(),
+                "tabs": len(self.gcs.clients),
+                "telemetry_sent": self.gcs.seq,
+                "dropped_clients": self.gcs.dropped_clients,
+            }
+        )
 
 
 def _message(exc: BaseException) -> str:
@@ -502,15 +556,24 @@ class SocketHandler(quiet_errors, BoundedSender, tornado.websocket.WebSocketHand
             else:
                 raise ValueError(f"unknown message type {_short(kind)}; expected command, layers, seen or ping")
         except Exception as exc:  # every malformed message gets its error reply; the socket stays open
-            self.send(json.dumps({"type": "error", "message": _message(exc) if isinstance(exc, INPUT_ERRORS)
-                                  else f"{type(exc).__name__}: {exc}"}))
+            self.send(
+                json.dumps(
+                    {
+                        "type": "error",
+                        "message": _message(exc) if isinstance(exc, INPUT_ERRORS) else f"{type(exc).__name__}: {exc}",
+                    }
+                )
+            )
 
     async def _command(self, ident: Any, command: Any) -> None:
         try:
             ack = await self.gcs.execute(command)
         except INPUT_ERRORS as exc:
-            ack = {"command": command.get("command") if isinstance(command, dict) else None, "result": "failed",
-                   "message": _message(exc)}
+            ack = {
+                "command": command.get("command") if isinstance(command, dict) else None,
+                "result": "failed",
+                "message": _message(exc),
+            }
         except Exception as exc:  # the page gets the reason; the server stays up
             print(f"cufund gcs: {type(exc).__name__}: {exc}", file=sys.stderr)
             ack = {"command": None, "result": "failed", "message": f"{type(exc).__name__}: {exc}"}

@@ -121,14 +121,23 @@ class GcsSession:
         meshes = []
         if self.world is not None:
             for obj in self.world.objects:
-                meshes.append({"label": obj.label, "color": list(obj.color),
-                               "vertices": np.round(np.asarray(obj.vertices, dtype=float), 4).ravel().tolist(),
-                               "triangles": np.asarray(obj.triangles, dtype=int).ravel().tolist()})
+                meshes.append(
+                    {
+                        "label": obj.label,
+                        "color": list(obj.color),
+                        "vertices": np.round(np.asarray(obj.vertices, dtype=float), 4).ravel().tolist(),
+                        "triangles": np.asarray(obj.triangles, dtype=int).ravel().tolist(),
+                    }
+                )
         arm = 0.15
         with contextlib.suppress(Exception):  # a config without a vehicle: the default size
             arm = float(self.config.vehicle_params().arm_length)
-        return {"scenario": self.scenario, "meshes": meshes, "arm_length": arm,
-                "regions": [jsonable(r) for r in self.regions()]}
+        return {
+            "scenario": self.scenario,
+            "meshes": meshes,
+            "arm_length": arm,
+            "regions": [jsonable(r) for r in self.regions()],
+        }
 
     def regions(self) -> list[Any]:
         """The world's named mission regions (the tunnel course's gates), as :class:`cufund.planning.Region`."""
@@ -166,7 +175,7 @@ class GcsSession:
         if not isinstance(plan, list):
             return
         prev, self._plan_seen = self._plan_seen, plan
-        progressed = len(plan) <= len(prev) and plan == prev[len(prev) - len(plan):]
+        progressed = len(plan) <= len(prev) and plan == prev[len(prev) - len(plan) :]
         if plan and not progressed:
             self.set_planned(([] if p is None else [p.tolist()]) + plan, str(tel.get("mode", "")))
             self.planned_changed = True
@@ -179,8 +188,15 @@ class GcsSession:
         state = self.live.latest(Topics.MISSION_STATE)  # a mission component's (e.g. the tunnel's) transitions
         if state is not None and (state.state, state.reason) != self._mission_state:
             self._mission_state = (state.state, state.reason)
-            fresh.append({"t": float(state.t), "kind": "mission", "message": f"mission {state.state}"
-                          + (f": {state.reason}" if state.reason else "") + f" ({state.progress} done)"})
+            fresh.append(
+                {
+                    "t": float(state.t),
+                    "kind": "mission",
+                    "message": f"mission {state.state}"
+                    + (f": {state.reason}" if state.reason else "")
+                    + f" ({state.progress} done)",
+                }
+            )
         return [self.log(e) for e in fresh]
 
     def log(self, event: dict[str, Any]) -> dict[str, Any]:
@@ -199,9 +215,17 @@ class GcsSession:
     def catch_up(self) -> dict[str, Any]:
         """Everything a tab needs to draw the present: the scene, the flown and planned paths, recent telemetry
         for the plots, the event log, the ESDF slice."""
-        return {"type": "hello", "scene": self.scene(), "path": self.path, "planned": self.planned,
-                "planned_label": self.planned_label, "history": list(self.history), "events": self.events[-300:],
-                "esdf": self.esdf, "telemetry": self.telemetry}
+        return {
+            "type": "hello",
+            "scene": self.scene(),
+            "path": self.path,
+            "planned": self.planned,
+            "planned_label": self.planned_label,
+            "history": list(self.history),
+            "events": self.events[-300:],
+            "esdf": self.esdf,
+            "telemetry": self.telemetry,
+        }
 
     def set_planned(self, points: Any, label: str) -> dict[str, Any]:
         pts = np.asarray(points, dtype=float).reshape(-1, 3)
@@ -258,6 +282,12 @@ class GcsSession:
         q = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, z)])
         d = np.asarray(esdf.distance(q), dtype=float).reshape(ESDF_CELLS, ESDF_CELLS)
         d = np.where(np.isfinite(d), d, 99.0)
-        self.esdf = {"type": "esdf", "t": float(msg.t), "z": z, "x": [float(lo[0]), float(hi[0])],
-                     "y": [float(lo[1]), float(hi[1])], "n": ESDF_CELLS,
-                     "d": base64.b64encode(np.clip(d, -5, 5).astype("<f4").tobytes()).decode()}
+        self.esdf = {
+            "type": "esdf",
+            "t": float(msg.t),
+            "z": z,
+            "x": [float(lo[0]), float(hi[0])],
+            "y": [float(lo[1]), float(hi[1])],
+            "n": ESDF_CELLS,
+            "d": base64.b64encode(np.clip(d, -5, 5).astype("<f4").tobytes()).decode(),
+        }
