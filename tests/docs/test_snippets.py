@@ -162,8 +162,25 @@ def _id(page: Path) -> str:
 RUNNABLE = [p for p in PAGES if any(b.no_run is None and (b.lang in PYTHON | SHELL) for b in blocks(p))]
 
 
+@pytest.fixture
+def registry_restored():
+    """A page's snippets may register kinds (the custom-kinds guide does): the registry is as it was afterwards, so
+    the pages leave nothing behind for the tests that run after them in this process."""
+    from cufund.core import registry
+
+    registry.load_plugins()
+    kinds = {group: dict(table) for group, table in registry._KINDS.items()}
+    sensor_types = dict(registry._SENSOR_TYPES)
+    yield
+    for group, table in kinds.items():
+        registry._KINDS[group].clear()
+        registry._KINDS[group].update(table)
+    registry._SENSOR_TYPES.clear()
+    registry._SENSOR_TYPES.update(sensor_types)
+
+
 @pytest.mark.parametrize("page", RUNNABLE, ids=_id)
-def test_page_snippets_run(page: Path, tmp_path: Path) -> None:
+def test_page_snippets_run(page: Path, tmp_path: Path, registry_restored) -> None:
     assert run_page(blocks(page), tmp_path) > 0
 
 

@@ -121,6 +121,7 @@ def run_into_folder(
             },
         )
         built.simulator.logger = _Excluding(logger, config.log.exclude) if config.log.exclude else logger
+    RunInterrupted.received = None  # only a signal during this run makes its failure an interruption
     try:
         run = run_built(built, progress=progress)
     except BaseException as exc:
