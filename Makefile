@@ -11,7 +11,7 @@ JOBS ?= $(shell nproc)
 # lacks to build the extension and create the venv (CMake and Ninja come into the venv from PyPI):
 BUILD_PACKAGES := python3 python3-venv python3-dev g++ make pkg-config git ca-certificates
 # then the C++ core's libraries; what the open3d wheel loads (OpenGL/EGL, X11, TBB, libusb); chromium and
-# chromium-driver: the headless browser that checks replay.html (tests/test_replay.py) and the later web UIs;
+# chromium-driver: the headless browser that checks replay.html (tests/apps/test_replay.py) and the later web UIs;
 # mona: needed by later issues.
 APT_PACKAGES := $(BUILD_PACKAGES) libeigen3-dev libembree-dev libbullet-dev libgtest-dev libbenchmark-dev \
                 liblz4-dev libzstd-dev libdeflate-dev \
@@ -75,7 +75,7 @@ test-python: $(VENV)/.installed
 # cannot run under) nor the viewer checks in Chromium (the preloaded runtime reaches the browser through the
 # environment; no C++ of ours runs there).
 SAN_PY := build/sanitize-py
-SAN_PYTEST ?= tests --ignore=tests/fuzz --ignore=tests/test_replay.py
+SAN_PYTEST ?= tests --ignore=tests/fuzz --ignore=tests/apps/test_replay.py
 SAN_PRELOAD = $(shell g++ -print-file-name=libasan.so) $(shell g++ -print-file-name=libubsan.so)
 sanitize: $(VENV)/.installed
 	$(MAKE) deps
@@ -150,7 +150,7 @@ $(VENV)/.docs: pyproject.toml | $(VENV)/.tools
 docs: $(VENV)/.docs
 	$(VENV)/bin/mkdocs build --strict --site-dir build/docs
 
-# Regenerates the checked-in type stubs from the compiled module (tests/test_stubs.py checks them).
+# Regenerates the checked-in type stubs from the compiled module (tests/architecture/test_stubs.py checks them).
 stubs: $(VENV)/.installed
 	$(VPY) -m pybind11_stubgen cufund._core -o python --numpy-array-use-type-var
 

@@ -1,5 +1,5 @@
 """The PX4-style cascade's arithmetic as it was written in Python and numpy before it moved to C++
-(cpp/control/{position,attitude,rate}_control.cpp): the reference that tests/test_control_kernels.py holds the C++
+(cpp/control/{position,attitude,rate}_control.cpp): the reference that tests/control/test_control_kernels.py holds the C++
 loops to, bit for bit, on random inputs. Kept as it was (numpy element-wise operations, numpy norms and dots,
 Python's math.hypot), so a change in the C++ order of operations shows up as a mismatch."""
 

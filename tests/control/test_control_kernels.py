@@ -1,5 +1,5 @@
 """The controllers' C++ kernels (cufund._core.control PositionControl, AttitudeControl, RateControl,
-GeometricControl) against their Python/numpy reference (tests/control_reference.py) on random inputs: same outputs
+GeometricControl) against their Python/numpy reference (tests/support/control_reference.py) on random inputs: same outputs
 and same controller state, bit for bit (with a diagonal inertia, as every preset has; within 1e-12 relative for a
 full one). Bit for bit holds where numpy's short dot products (OpenBLAS's ddot) accumulate as one fused
 multiply-add per element in order, which the kernels reproduce (cpp/control/reference_arithmetic.h); on a CPU whose
@@ -13,9 +13,9 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+from control_reference import RATE_I_SCALE, GeometricReference, PositionReference, RateReference, attitude_reference
 
 import cufund
-from control_reference import RATE_I_SCALE, GeometricReference, PositionReference, RateReference, attitude_reference
 from cufund import _core
 from cufund.control import AttitudeControlParams, PositionControlParams
 from cufund.control.rate_control import _RATE_I_SCALE

@@ -4,7 +4,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-STUB_DIR = Path(__file__).resolve().parent.parent / "python" / "cufund" / "_core"
+STUB_DIR = Path(__file__).resolve().parents[2] / "python" / "cufund" / "_core"
 
 
 def test_stubs_match_the_bindings(tmp_path):
