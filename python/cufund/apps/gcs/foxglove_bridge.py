@@ -38,8 +38,8 @@ from .guard import (
     BoundedSender,
     Hosts,
     authorized,
+    listen,
     loads_strict,
-    log_request,
     origin_host,
     quiet_errors,
 )
@@ -49,8 +49,6 @@ __all__ = ["FoxgloveBridge"]
 SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")
 FOXGLOVE_WEB_ORIGINS = ("https://app.foxglove.dev",)
 """Non-local page origins allowed to connect (with the token): the Foxglove web app."""
-MAX_MESSAGE_BYTES = 64 * 1024
-"""The largest message accepted from a client (subscriptions are small)."""
 MAX_SUBSCRIPTIONS = 64
 DATA_BACKLOG_BYTES = 2 * 1024 * 1024
 """Message data waiting for a client's socket beyond which newer data for it is skipped (a slow client gets fresh
@@ -128,16 +126,7 @@ class FoxgloveBridge:
     def start(self, token: str) -> str:
         """Binds the port; returns the URL to give Foxglove (with the token)."""
         self.token = token
-        app = tornado.web.Application(
-            [(r"/", FoxgloveSocket, {"bridge": self})],
-            websocket_max_message_size=MAX_MESSAGE_BYTES,
-            log_function=log_request,
-        )
-        sockets = tornado.netutil.bind_sockets(self.port, address=self.host)
-        self.port = sockets[0].getsockname()[1]
-        self.hosts = Hosts(self.host, self.port)
-        self._http = tornado.httpserver.HTTPServer(app, max_body_size=MAX_MESSAGE_BYTES)
-        self._http.add_sockets(sockets)
+        self._http, self.port, self.hosts = listen([(r"/", FoxgloveSocket, {"bridge": self})], self.host, self.port)
         shown = "127.0.0.1" if self.host in WILDCARD else self.host
         self.url = f"ws://{shown}:{self.port}/?token={token}"
         return self.url

@@ -19,17 +19,21 @@ import sys
 from typing import Any
 from urllib.parse import urlsplit
 
+import tornado.httpserver
+import tornado.netutil
 import tornado.web
 import tornado.websocket
 
 __all__ = [
     "LOOPBACK",
+    "MAX_MESSAGE_BYTES",
     "MAX_UNSENT_BYTES",
     "MAX_UNSENT_MESSAGES",
     "WILDCARD",
     "BoundedSender",
     "Hosts",
     "authorized",
+    "listen",
     "log_request",
     "loads_strict",
     "origin_host",
@@ -37,6 +41,9 @@ __all__ = [
 ]
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
+MAX_MESSAGE_BYTES = 64 * 1024
+"""The largest websocket message or HTTP body a server accepts (a command, a mission or a subscription is a few kB):
+a larger websocket message closes the socket with 1009, a larger body is a 400."""
 WILDCARD = ("", "0.0.0.0", "::")
 MAX_JSON_DEPTH = 64
 """Nesting of arrays and objects accepted in a message (deeper ones are refused before Python recurses)."""
@@ -225,3 +232,14 @@ class BoundedSender:
             stream.close()
         else:
             self.close(1008, "not reading")  # type: ignore[attr-defined]
+
+
+def listen(handlers: list[Any], host: str, port: int) -> tuple[tornado.httpserver.HTTPServer, int, Hosts]:
+    """An application of ``handlers`` served on ``host``:``port`` (0: any free port) with the bounds and the quiet
+    request log every cufund server uses; returns the server, the port it got and the Host names it answers to."""
+    app = tornado.web.Application(handlers, websocket_max_message_size=MAX_MESSAGE_BYTES, log_function=log_request)
+    sockets = tornado.netutil.bind_sockets(port, address=host)
+    port = sockets[0].getsockname()[1]
+    http = tornado.httpserver.HTTPServer(app, max_body_size=MAX_MESSAGE_BYTES)
+    http.add_sockets(sockets)
+    return http, port, Hosts(host, port)

@@ -19,7 +19,7 @@ websocket — see :mod:`cufund.apps.gcs.guard`):
   on this connection: from then on at most :data:`IN_FLIGHT` are unread, the rest skipped). Anything else gets an
   ``error`` reply; the run goes on.
 
-Bounds: a message or body larger than :data:`MAX_MESSAGE_BYTES` is refused (the websocket closed with 1009, the
+Bounds: a message or body larger than :data:`cufund.apps.gcs.guard.MAX_MESSAGE_BYTES` is refused (the websocket closed with 1009, the
 request with 400); a tab that leaves more than :data:`~cufund.apps.gcs.guard.MAX_UNSENT_BYTES` or
 :data:`~cufund.apps.gcs.guard.MAX_UNSENT_MESSAGES` unsent is dropped (one line on stderr; counted in ``/api/stats`` as ``dropped_clients``). Errors are ``error`` replies or 4xx
 with a JSON ``message``, never a traceback; no log line carries the token (see :mod:`cufund.apps.gcs.guard`).
@@ -55,8 +55,8 @@ from .guard import (
     BoundedSender,
     Hosts,
     authorized,
+    listen,
     loads_strict,
-    log_request,
     origin_host,
     quiet_errors,
 )
@@ -71,8 +71,6 @@ ACK_TIMEOUT_S = 3.0
 IN_FLIGHT = {"telemetry": 8, "cloud": 2}
 """Messages of each stream a tab that acknowledges them (``seen``) may have unread: a busy tab gets fresh data late
 rather than stale data in order."""
-MAX_MESSAGE_BYTES = 64 * 1024
-"""The largest websocket message or HTTP body accepted (a command or a mission is a few kB)."""
 INPUT_ERRORS = (ValueError, TypeError, OverflowError, RecursionError)
 """What a malformed command or message raises (a 4xx or an ``error`` reply, with its message)."""
 LOCAL = ("sim_pause", "sim_resume", "sim_speed", "sim_restart", "tunnel_start", "mission_preview")
@@ -165,24 +163,16 @@ class GcsServer:
     def start(self) -> str:
         """Builds the live run, binds the port and starts broadcasting; returns the page's URL (with token)."""
         self._open(self.live_factory(self.scenario, self.overrides, self.speed), self.scenario)
-        app = tornado.web.Application(
-            [
-                (r"/", PageHandler, {"gcs": self}),
-                (r"/api/state", StateHandler, {"gcs": self}),
-                (r"/api/stats", StatsHandler, {"gcs": self}),
-                (r"/api/command", CommandHandler, {"gcs": self}),
-                (r"/ws", SocketHandler, {"gcs": self}),
-                (r"/static/(.*)", tornado.web.StaticFileHandler, {"path": str(STATIC_DIR)}),
-                (r"/meshcat/(main\.min\.js)", tornado.web.StaticFileHandler, {"path": str(_meshcat_dist())}),
-            ],
-            websocket_max_message_size=MAX_MESSAGE_BYTES,
-            log_function=log_request,
-        )
-        sockets = tornado.netutil.bind_sockets(self.port, address=self.host)
-        self.port = sockets[0].getsockname()[1]
-        self.hosts = Hosts(self.host, self.port)
-        self._http = tornado.httpserver.HTTPServer(app, max_body_size=MAX_MESSAGE_BYTES)
-        self._http.add_sockets(sockets)
+        handlers = [
+            (r"/", PageHandler, {"gcs": self}),
+            (r"/api/state", StateHandler, {"gcs": self}),
+            (r"/api/stats", StatsHandler, {"gcs": self}),
+            (r"/api/command", CommandHandler, {"gcs": self}),
+            (r"/ws", SocketHandler, {"gcs": self}),
+            (r"/static/(.*)", tornado.web.StaticFileHandler, {"path": str(STATIC_DIR)}),
+            (r"/meshcat/(main\.min\.js)", tornado.web.StaticFileHandler, {"path": str(_meshcat_dist())}),
+        ]
+        self._http, self.port, self.hosts = listen(handlers, self.host, self.port)
         if self.foxglove is not None and hasattr(self.foxglove, "start"):
             self.foxglove.start(self.token)
         self._ticker = tornado.ioloop.PeriodicCallback(self._tick, 1000.0 / self.telemetry_hz)
