@@ -25,6 +25,8 @@ from cufund.core.config import ConfigError
 from cufund.scenarios.schema import available_scenarios, load_scenario, parse_overrides
 from cufund.sensors import allan_report
 
+from .arguments import add_overrides
+
 EXIT_COMPLETED, EXIT_NOT_COMPLETED, EXIT_INVALID = 0, 1, 2
 
 
@@ -58,13 +60,8 @@ def _parser() -> argparse.ArgumentParser:
         "2 invalid configuration or usage",
     )
     run.add_argument("scenario", help="a built-in scenario name or a YAML file")
-    run.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a field by its dotted key, e.g. --set controller.kind=geometric --set seed=3 (repeatable)",
+    add_overrides(
+        run, help="override a field by its dotted key, e.g. --set controller.kind=geometric --set seed=3 (repeatable)"
     )
     run.add_argument("--controller", help="same as --set controller.kind=NAME")
     run.add_argument("--seed", help="same as --set seed=N")

@@ -12,6 +12,7 @@ import asyncio
 import signal
 import sys
 
+from ..arguments import add_overrides
 from .guard import LOOPBACK
 from .server import GcsServer, parse_speed
 
@@ -34,14 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--port", type=int, default=0, help="port (default 0: any free port)")
     p.add_argument("--speed", default="1", help="simulation speed: 0.1 to 10 times real time, or inf (default 1)")
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario field by its dotted key (repeatable)",
-    )
+    add_overrides(p)
     p.add_argument(
         "--foxglove",
         action="store_true",

@@ -12,6 +12,8 @@ import sys
 
 from cufund.core.config import ConfigError
 
+from ..arguments import add_overrides
+
 EXIT_OK, EXIT_NOT_COMPLETED, EXIT_INVALID = 0, 1, 2
 
 
@@ -32,14 +34,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="HITL: relay the flight controller's MAVLink to a ground station over UDP and back "
         "(default 127.0.0.1:14550, QGroundControl's port; 'none' to disable)",
     )
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario field by its dotted key, e.g. --set vehicle=iris (repeatable)",
-    )
+    add_overrides(p, help="override a scenario field by its dotted key, e.g. --set vehicle=iris (repeatable)")
     p.add_argument(
         "--speed",
         default="1",

@@ -15,6 +15,8 @@ import threading
 import time
 from typing import Any
 
+from ..arguments import add_overrides
+
 __all__ = ["add_arguments", "run"]
 
 DEFAULT_SCENARIO = "vehicle"
@@ -38,14 +40,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="offboard-API link, e.g. MAVSDK (default udpout:127.0.0.1:14540; 'none' to leave it out)",
     )
     p.add_argument("--speed", default="1", help="simulation speed: times real time (> 0, default 1)")
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario field by its dotted key (repeatable)",
-    )
+    add_overrides(p)
     p.add_argument(
         "--link-loss-timeout",
         type=float,

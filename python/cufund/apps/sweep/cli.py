@@ -12,6 +12,8 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from ..arguments import add_overrides
+
 __all__ = ["add_arguments", "run_cli"]
 
 
@@ -32,14 +34,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--workers", type=int, metavar="N", help="worker processes of the local cluster (default: one per CPU)"
     )
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a field in every variant (added to the file's set; repeatable)",
-    )
+    add_overrides(p, help="override a field in every variant (added to the file's set; repeatable)")
     p.add_argument("--heavy", action="store_true", help="keep each variant's run.mcap and replay.html")
     p.add_argument("--no-plots", action="store_true", help="skip trajectory.png and the sweep's plots")
 
