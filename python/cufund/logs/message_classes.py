@@ -108,9 +108,16 @@ def message_class(path: Any, where: str) -> type:
     return cls
 
 
+_noted: dict[type, str] = {}
+"""Classes already noted, with their names (the JSON encoder notes a class for every value it writes)."""
+
+
 def note_logged(cls: type) -> str:
     """Registers ``cls`` as a class this process logs (a log it writes can be read back); returns its name."""
-    path = class_path(cls)
-    if _registered.get(path) is not cls:
-        register_message_class(cls)
+    path = _noted.get(cls)
+    if path is None or _registered.get(path) is not cls:
+        path = class_path(cls)
+        if _registered.get(path) is not cls:
+            register_message_class(cls)
+        _noted[cls] = path
     return path
