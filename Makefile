@@ -135,8 +135,8 @@ wheel: $(VENV)/.wheel-tools
 # Static checks: ruff (lint and format) on the Python, mypy on the package (strict on cufund.core and
 # cufund.geometry, pyproject.toml), clang-format on the C++ (lint-cpp).
 lint: $(VENV)/.installed
-	$(VENV)/bin/ruff check python tests benchmarks
-	$(VENV)/bin/ruff format --check python tests benchmarks
+	$(VENV)/bin/ruff check --no-cache python tests benchmarks
+	$(VENV)/bin/ruff format --no-cache --check python tests benchmarks
 	$(VENV)/bin/mypy
 	$(MAKE) lint-cpp
 

@@ -13,9 +13,9 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from control_reference import RATE_I_SCALE, GeometricReference, PositionReference, RateReference, attitude_reference
 
 import cufund
+from control_reference import RATE_I_SCALE, GeometricReference, PositionReference, RateReference, attitude_reference
 from cufund import _core
 from cufund.control import AttitudeControlParams, PositionControlParams
 from cufund.control.rate_control import _RATE_I_SCALE

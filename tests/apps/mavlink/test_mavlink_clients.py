@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mavlink_support import SPEED, free_port, vehicle
 
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla
+from mavlink_support import SPEED, free_port, vehicle
 
 mavsdk = pytest.importorskip("mavsdk_grpc")
 from mavsdk_grpc.mission import MissionItem, MissionPlan  # noqa: E402  (after the importorskip)

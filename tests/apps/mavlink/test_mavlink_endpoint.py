@@ -11,12 +11,12 @@ import time
 
 import numpy as np
 import pytest
-from mavlink_support import Gcs, free_port, vehicle
 from pymavlink import mavutil
 
 from cufund.apps.mavlink.link import LinkAddress, UdpLink
 from cufund.apps.mavlink.vehicle_endpoint import VehicleEndpoint
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla, lla_to_enu
+from mavlink_support import Gcs, free_port, vehicle
 
 M = mavutil.mavlink
 HOME = GeoPoint(22.4196, 114.2068, 30.0)  # the GPS model's default home = the endpoint's default origin

@@ -13,11 +13,11 @@ import time
 
 import numpy as np
 import pytest
-from mavlink_support import OPEN_FIELD, Gcs, free_port, vehicle
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
 
 from cufund.apps.cli import main as cli_main
+from mavlink_support import OPEN_FIELD, Gcs, free_port, vehicle
 
 M = mavutil.mavlink
 
