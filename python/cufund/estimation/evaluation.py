@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["odometry_errors", "write_tum", "read_tum"]
+__all__ = ["aligned_ate", "flight_window", "odometry_errors", "read_tum", "write_tum"]
 
 
 def odometry_errors(p_est: np.ndarray, q_est: np.ndarray, p_true: np.ndarray, q_true: np.ndarray) -> dict[str, float]:
@@ -29,6 +29,35 @@ def odometry_errors(p_est: np.ndarray, q_est: np.ndarray, p_true: np.ndarray, q_
         "odometry_max_m": float(e.max()),
         "odometry_rot_rmse_deg": float(np.degrees(np.sqrt(np.mean(ang**2)))),
     }
+
+
+def aligned_ate(p_est: np.ndarray, p_true: np.ndarray) -> float:
+    """Absolute trajectory error [m] after the rigid alignment that fits the estimate to the truth best (Umeyama's
+    least-squares rotation and translation, no scale): the RMSE of |p_true - (R p_est + t)| over matching rows of
+    positions (N, 3), N >= 3. This is evo's APE of the translation part with ``--align`` (SE(3) Umeyama)."""
+    p_est, p_true = np.asarray(p_est, float), np.asarray(p_true, float)
+    if p_est.shape != p_true.shape or p_est.ndim != 2 or p_est.shape[1] != 3 or len(p_est) < 3:
+        raise ValueError(f"p_est and p_true must be the same (N, 3) with N >= 3, got {p_est.shape}, {p_true.shape}")
+    if not (np.all(np.isfinite(p_est)) and np.all(np.isfinite(p_true))):
+        raise ValueError("p_est and p_true must be finite")
+    mu_e, mu_t = p_est.mean(axis=0), p_true.mean(axis=0)
+    cov = (p_true - mu_t).T @ (p_est - mu_e) / len(p_est)
+    u, _, vt = np.linalg.svd(cov)
+    s = np.eye(3)
+    if np.linalg.det(u) * np.linalg.det(vt) < 0:  # a reflection is not a rotation
+        s[2, 2] = -1.0
+    R = u @ s @ vt
+    t = mu_t - R @ mu_e
+    e = np.linalg.norm(p_true - (p_est @ R.T + t), axis=1)
+    return float(np.sqrt(np.mean(e**2)))
+
+
+def flight_window(z_true: np.ndarray, lift_m: float = 0.05) -> slice:
+    """The rows from take-off to touchdown: from the first true height more than ``lift_m`` [m] above the first row's
+    (the pad) to the last such row (an empty slice when the vehicle never lifts off)."""
+    z = np.asarray(z_true, float)
+    up = np.flatnonzero(z > z[0] + lift_m) if len(z) else np.array([], int)
+    return slice(int(up[0]), int(up[-1]) + 1) if len(up) else slice(0, 0)
 
 
 def write_tum(path: str | Path, t: np.ndarray, p_W: np.ndarray, q_WB: np.ndarray) -> None:
