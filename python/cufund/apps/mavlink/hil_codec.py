@@ -90,28 +90,7 @@ class FrameWriter:
         fields_updated: int,
         id_: int,
     ) -> bytes:
-        if not self.fast:
-            return self.pack(
-                self.mav.hil_sensor_encode(
-                    time_usec,
-                    xacc,
-                    yacc,
-                    zacc,
-                    xgyro,
-                    ygyro,
-                    zgyro,
-                    xmag,
-                    ymag,
-                    zmag,
-                    abs_pressure,
-                    diff_pressure,
-                    pressure_alt,
-                    temperature,
-                    fields_updated,
-                    id_,
-                )
-            )
-        payload = _HIL_SENSOR.unpacker.pack(
+        fields = (
             time_usec,
             xacc,
             yacc,
@@ -128,8 +107,10 @@ class FrameWriter:
             temperature,
             fields_updated,
             id_,
-        )
-        return self._frame(_HIL_SENSOR, payload)
+        )  # declared order, which is also HIL_SENSOR's wire order (its fields are sorted by size already)
+        if not self.fast:
+            return self.pack(self.mav.hil_sensor_encode(*fields))
+        return self._frame(_HIL_SENSOR, _HIL_SENSOR.unpacker.pack(*fields))
 
     def hil_gps(
         self,
