@@ -24,7 +24,7 @@ from cufund.apps.mavlink.px4_links import TcpServerLink
 from cufund.apps.mavlink.px4_sim import Px4BridgeParams, Px4SimulatorBridge
 from cufund.scenarios import ScenarioConfig
 from cufund.sensors.gps import GpsParams
-from mavlink_support import free_port, vehicle
+from mavlink_support import free_port, px4_sim_cli, vehicle
 
 HOME = GeodeticOrigin.from_geo_point(GpsParams().home)
 
@@ -403,35 +403,7 @@ def test_a_reset_connection_ends_the_run_as_a_failure():
 
 
 def test_cli_exits_non_zero_with_the_reason_after_a_reset(capsys):
-    from cufund.apps.cli import main
-
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
-    code: dict = {}
-    thread = threading.Thread(
-        target=lambda: code.setdefault(
-            "exit",
-            main(
-                [
-                    "px4-sim",
-                    "square_sensors",
-                    "--instance",
-                    str(port - 4560),
-                    "--speed",
-                    "max",
-                    "--duration",
-                    "30",
-                    "--set",
-                    "vehicle=iris",
-                    "--connect-timeout",
-                    "20",
-                ]
-            ),
-        ),
-        daemon=True,
-    )
-    thread.start()
+    thread, code, port = px4_sim_cli(30)
     px4 = Px4Harness.tcp("127.0.0.1", port, timeout=20.0)
     s = px4.step(timeout=10.0)
     px4.controls([0.0] * 4, armed=False, time_usec=s.sensor.time_usec)

@@ -126,3 +126,22 @@ def relative_alt_m(m: Any) -> float:
 
 
 NAN = math.nan
+
+
+def px4_sim_cli(duration_s: float) -> tuple[Any, dict, int]:
+    """``cufund px4-sim square_sensors`` (Iris, as fast as PX4 answers) in a thread, serving SITL on a free port
+    above 4560 (the port stands for the instance number). Returns (the started thread, a dict that gets its exit
+    code under "exit", the port)."""
+    import threading
+
+    from cufund.apps.cli import main
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    argv = ["px4-sim", "square_sensors", "--instance", str(port - 4560), "--speed", "max",
+            "--duration", str(duration_s), "--set", "vehicle=iris", "--connect-timeout", "20"]  # fmt: skip
+    code: dict = {}
+    thread = threading.Thread(target=lambda: code.setdefault("exit", main(argv)), daemon=True)
+    thread.start()
+    return thread, code, port

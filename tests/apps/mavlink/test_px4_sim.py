@@ -26,6 +26,7 @@ from cufund.apps.mavlink.px4_sim import (
 from cufund.core.config import ConfigError
 from cufund.scenarios import ScenarioConfig, load_scenario
 from cufund.vehicle.presets import iris
+from mavlink_support import px4_sim_cli
 
 NOISY = {"imu": "icm42688p", "magnetometer": "magnetometer", "barometer": "ms5611", "gps": "ublox_m8n"}
 IDEAL = {"imu": "ideal_imu", "magnetometer": "magnetometer", "barometer": "ideal_barometer", "gps": "ideal_gps"}
@@ -349,37 +350,7 @@ def test_pd_hover_loop_closed_through_the_bridge():
 
 
 def test_cli_serves_sitl_on_4560_plus_instance(capsys):
-    import socket
-
-    from cufund.apps.cli import main
-
-    with socket.socket() as probe:  # a free port above 4560 stands for the instance number
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
-    code: dict = {}
-    thread = threading.Thread(
-        target=lambda: code.setdefault(
-            "exit",
-            main(
-                [
-                    "px4-sim",
-                    "square_sensors",
-                    "--instance",
-                    str(port - 4560),
-                    "--speed",
-                    "max",
-                    "--duration",
-                    "0.2",
-                    "--set",
-                    "vehicle=iris",
-                    "--connect-timeout",
-                    "20",
-                ]
-            ),
-        ),
-        daemon=True,
-    )
-    thread.start()
+    thread, code, port = px4_sim_cli(0.2)
     px4 = Px4Harness.tcp("127.0.0.1", port, timeout=20.0)
     try:
         px4.heartbeat()
