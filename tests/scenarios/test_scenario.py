@@ -74,8 +74,8 @@ INVALID = [
     ("sensors: {pose: {kind: pose}}\nestimator: imu_propagator", "estimator needs a imu sensor"),
     ("world: empty\nmapper: esdf", "mapper.lidar needs a lidar sensor"),
     (
-        "sensors: {imu: icm42688p, pose: pose}\nestimator: {kind: imu_propagator, accel_bias_gain: .nan}",
-        "estimator.accel_bias_gain must be a finite number",
+        "sensors: {imu: icm42688p, pose: pose}\nestimator: {kind: imu_propagator, accel_noise_density: .nan}",
+        "estimator.accel_noise_density must be a finite number",
     ),
     ("sensors: {imu: icm42688p, pose: {kind: pose, topic: /sensors/imu}}", "two sensors publish on /sensors/imu"),
     ("sensors: {imu: {kind: icm42688p, topic: no_slash}}", "sensors.imu.topic: a topic name must be an absolute path"),

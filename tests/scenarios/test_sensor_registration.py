@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from cufund import ConfigError, ScenarioConfig
 from cufund.core.build_context import BuildContext
 from cufund.core.components import Sensor
-from cufund.core.messages import Imu, Message, Odometry, message
+from cufund.core.messages import Imu, Message, Odometry, Pose, message
 from cufund.core.registry import Kind, SensorType, extrinsic_keys, register, sensor_type, unregister
 from cufund.scenarios.build import build_simulation, run_built
 
@@ -155,7 +155,7 @@ def test_the_sensor_template_registers_as_a_pose_kind():
         cfg = ScenarioConfig.from_dict(
             {"sensors": {"mocap": {"kind": "my_position_sensor", "sigma_m": 0.0, "rate_hz": 50.0}}, "duration": 1.0}
         )
-        assert cfg.sensors["mocap"].topic.type is Odometry and cfg.sensors["mocap"].sensor_type == "pose"
+        assert cfg.sensors["mocap"].topic.type is Pose and cfg.sensors["mocap"].sensor_type == "pose"
         run = run_built(build_simulation(cfg))
         got = run.result.topics["/sensors/mocap"]
         states = run.result.states

@@ -110,6 +110,19 @@ class Odometry(Message):
 
 
 @message
+class Pose(Message):
+    """A measured pose, what motion capture (or a slow odometry) reports: position and attitude only. Motion
+    capture measures no velocity and no body rate; an estimator derives them (:class:`Odometry` is the state)."""
+
+    t: float
+    """Measurement time [s] (the message arrives the source's latency later)."""
+    p_W: np.ndarray
+    """Position [m], (3,)."""
+    q_WB: np.ndarray
+    """Attitude, body to world, [w, x, y, z]."""
+
+
+@message
 class Imu(Message):
     """Specific force and angular rate in the IMU's own frame I (the body frame when the IMU is mounted
     without rotation; its mounting, ``q_BI`` and lever arm ``p_BI``, is the estimator's extrinsic)."""
@@ -453,8 +466,8 @@ class Topics:
     BAROMETER = Topic("/sensors/barometer", AirPressure)
     GPS = Topic("/sensors/gps", GpsFix)
     POINT_CLOUD = Topic("/sensors/lidar", PointCloud)
-    POSE = Topic("/sensors/pose", Odometry)
-    """A pose source (motion capture, or a slow odometry) as :class:`Odometry`."""
+    POSE = Topic("/sensors/pose", Pose)
+    """A pose source (motion capture, or a slow odometry): position and attitude, no velocity."""
     DEPTH_IMAGE = Topic("/sensors/depth_image", CameraImage)
     RGB_IMAGE = Topic("/sensors/rgb_image", CameraImage)
     ESDF_MAP = Topic("/map/esdf", MapUpdate)

@@ -19,7 +19,7 @@ from typing import Any
 
 from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError, check_at_most, check_real_fields
-from cufund.core.messages import AirPressure, CameraImage, GpsFix, Imu, MagneticField, Odometry, PointCloud
+from cufund.core.messages import AirPressure, CameraImage, GpsFix, Imu, MagneticField, PointCloud, Pose
 from cufund.core.registry import Kind, SensorType, register
 
 from .barometer import BAROMETER_PRESETS, BarometerParams, BarometerSensor
@@ -40,7 +40,7 @@ for _type in (
     SensorType("gps", GpsFix, None, "GNSS fix (position, velocity) of the vehicle"),
     SensorType("lidar", PointCloud, "T_BL", "ray-traced point clouds, in the LiDAR frame L"),
     SensorType("camera", CameraImage, "T_BC", "ray-traced depth or colour images, camera frame C"),
-    SensorType("pose", Odometry, None, "a pose source (motion capture, a slow odometry)"),
+    SensorType("pose", Pose, None, "a pose source (motion capture, a slow odometry): position and attitude"),
 ):
     register(_type)
 
@@ -110,7 +110,7 @@ register(
         PoseSensorParams,
         lambda p, ctx: [PoseSensor(p, ctx.seed, ctx.part.topic)],
         None,
-        "pose source (motion capture or a slow odometry): Odometry at rate_hz with noise",
+        "pose source (motion capture or a slow odometry): Pose (no velocity) at rate_hz with noise",
         sensor_type="pose",
     )
 )

@@ -6,7 +6,8 @@ A :class:`cufund.Sensor` turns ground truth into a measurement on its ``topic``.
 To use it in a scenario YAML (``sensors: {mocap: {kind: my_position_sensor, sigma_m: 0.005}}``), register
 :data:`KINDS` (``for k in KINDS: cufund.core.registry.register(k)``) or name it in your package's entry points
 (``[project.entry-points."cufund.kinds"] my_sensors = "my_package.my_sensor:KINDS"``). Its kind is of the
-registered sensor type ``pose`` (Odometry messages, no mounting key). A sensor of a new type lists its
+registered sensor type ``pose`` (:class:`~cufund.core.messages.Pose` messages: position and attitude, no
+velocity; no mounting key). A sensor of a new type lists its
 :class:`~cufund.core.registry.SensorType` first: ``SensorType("radar", RadarScan, "T_BR")`` declares the message
 its topic carries and the key its mounting is given under (``T_BR: {p: [...], q: [...]}`` in the YAML, handed to
 the build as ``ctx.part.extrinsic``).
@@ -20,13 +21,13 @@ import numpy as np
 
 import cufund
 from cufund.core.build_context import BuildContext
-from cufund.core.messages import Odometry
+from cufund.core.messages import Odometry, Pose
 from cufund.core.registry import Kind
 
 
 class MyPositionSensor(cufund.Sensor):
     name = "my_position_sensor"
-    topic = cufund.Topic("/sensors/position", Odometry)  # a typed topic: the bus checks what is published
+    topic = cufund.Topic("/sensors/position", Pose)  # a typed topic: the bus checks what is published
 
     def __init__(
         self, sigma_m: float = 0.01, rate_hz: float = 100.0, seed: int = 0, topic: cufund.Topic | None = None
@@ -39,9 +40,9 @@ class MyPositionSensor(cufund.Sensor):
     def reset(self) -> None:
         self.rng = np.random.default_rng(self.seed)
 
-    def measure(self, t: float, truth: Odometry) -> Odometry:
+    def measure(self, t: float, truth: Odometry) -> Pose:  # what it measures: no velocity, no body rate
         noisy = truth.p_W + self.sigma * self.rng.standard_normal(3)
-        return Odometry(t, noisy, truth.v_W, truth.q_WB, truth.w_B)
+        return Pose(t, noisy, truth.q_WB)
 
 
 @dataclass(frozen=True)
@@ -66,7 +67,7 @@ KINDS = [
         "my_position_sensor",
         MyPositionSensorParams,
         build,
-        doc="template: a noisy position sensor (Odometry)",
+        doc="template: a noisy position sensor (Pose)",
         sensor_type="pose",
     )
 ]
