@@ -27,9 +27,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from cufund.estimation import FlatBodyMotion, LioCore, LioParams, odometry_errors, record_flight, replay
-from cufund.geometry import Transform, homogeneous
+from cufund.geometry import Transform, homogeneous, yaw_of
 from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset
+from cufund.sensors.calibration import after_calibration
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import Mid360Pattern
 from cufund.worlds import load
@@ -61,7 +62,9 @@ def make_flight(duration: float, seed: int = 0):
     motion = FlatBodyMotion(traj)
     imu_params = imu_preset("icm42688p")
     lidar = Lidar(Mid360Pattern(), mid360_params(range_noise_std=0.02, seed=seed), T_BL)
-    rec = record_flight(motion, ImuModel(imu_params, seed=seed), lidar, load("imav2025_tunnel"), 0.0, duration)
+    rec = record_flight(
+        motion, ImuModel(after_calibration(imu_params), seed=seed), lidar, load("imav2025_tunnel"), 0.0, duration
+    )
     return rec, imu_params
 
 
@@ -73,7 +76,7 @@ def truth_body(motion, t):
 def run_lio(rec, imu_params, threads):
     st = rec.motion.state(np.zeros(1))
     params = LioParams(
-        imu=imu_params, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]), nthreads=threads
+        imu=imu_params, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), pad_yaw=yaw_of(st["q_WB"][0]), nthreads=threads
     )
     core = LioCore(params)
     at_scans, _ = replay(core, rec)

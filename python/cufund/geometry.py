@@ -28,6 +28,7 @@ __all__ = [
     "PoseFn",
     "Transform",
     "attitude_from_thrust_and_yaw",
+    "attitude_from_up_and_yaw",
     "cross",
     "euler_zyx",
     "homogeneous",
@@ -291,6 +292,28 @@ def euler_zyx(q_WB: ArrayLike) -> tuple[float, float, float]:
     roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
     pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
     return roll, pitch, _yaw(w, x, y, z)
+
+
+def attitude_from_up_and_yaw(up_B: ArrayLike, yaw: float) -> Array:
+    """R_WB of the attitude whose world up axis reads ``up_B`` in the body frame (e.g. a resting IMU's mean specific
+    force: it sets roll and pitch) and whose heading is ``yaw`` [rad]: R_WB = Rz(yaw) Ry(pitch) Rx(roll), the
+    :func:`euler_zyx` angles, with R_WB^T e_z = up_B / |up_B|."""
+    u = _floats(up_B, "up_B", "(3,)")
+    n = float(np.linalg.norm(u)) if u.shape == (3,) else 0.0
+    if not (n > 0.0 and math.isfinite(n)) or not math.isfinite(yaw):
+        raise ValueError(f"up_B must be a finite non-zero 3-vector and yaw a finite angle [rad], got {up_B!r}, {yaw!r}")
+    ux, uy, uz = (u / n).tolist()
+    pitch = -math.asin(max(-1.0, min(1.0, ux)))
+    roll = math.atan2(uy, uz)
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
 
 
 def world_to_body(

@@ -8,9 +8,10 @@ from scipy.spatial.transform import Rotation
 
 from cufund.core.config import ConfigError
 from cufund.estimation import FlatBodyMotion, LioCore, LioParams, record_flight, replay
-from cufund.geometry import Transform
+from cufund.geometry import Transform, yaw_of
 from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset
+from cufund.sensors.calibration import after_calibration
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import Mid360Pattern
 from cufund.worlds import load
@@ -25,9 +26,9 @@ def _flight(world, waypoints, yaw, t_end, seed=1, point_rate=60_000):
     motion = FlatBodyMotion(traj)
     imu_params = imu_preset("icm42688p")
     lidar = Lidar(Mid360Pattern(point_rate=point_rate), mid360_params(seed=seed), T_BL)
-    rec = record_flight(motion, ImuModel(imu_params, seed=seed), lidar, world, 0.0, t_end)
+    rec = record_flight(motion, ImuModel(after_calibration(imu_params), seed=seed), lidar, world, 0.0, t_end)
     st = motion.state(np.array([0.0]))
-    params = LioParams(imu=imu_params, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]))
+    params = LioParams(imu=imu_params, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), pad_yaw=yaw_of(st["q_WB"][0]))
     return rec, params
 
 
@@ -71,7 +72,7 @@ def test_tunnel_flight_tracks_truth_at_scans_and_at_imu_rate(tunnel_flight):
 def test_moving_during_initialisation_is_an_error():
     traj = MinimumSnapTrajectory(np.array([[-3, -1.5, 1.5], [-2, -1.5, 1.5]]), v_max=1.0, a_max=2.0, t_start=0.3)
     motion = FlatBodyMotion(traj)
-    imu = ImuModel(imu_preset("icm42688p"), seed=0)
+    imu = ImuModel(after_calibration(imu_preset("icm42688p")), seed=0)
     st = motion.state(np.arange(0, 1.2, 0.005))
     acc, gyr = imu.measure(st["q_WB"], st["w_B"], st["a_W"], st["alpha_B"])
     core = LioCore(LioParams(p_WB0=(-3, -1.5, 1.5)))
@@ -81,7 +82,7 @@ def test_moving_during_initialisation_is_an_error():
     # The same samples with the vehicle held still for the first second initialise fine.
     still = LioCore(LioParams(p_WB0=(-3, -1.5, 1.5)))
     rest = motion.state(np.zeros(1))
-    f0, w0 = ImuModel(imu_preset("icm42688p"), seed=0).measure(
+    f0, w0 = ImuModel(after_calibration(imu_preset("icm42688p")), seed=0).measure(
         np.repeat(rest["q_WB"], 240, 0), np.zeros((240, 3)), np.zeros((240, 3)), np.zeros((240, 3))
     )
     for t, f, w in zip(np.arange(0, 1.2, 0.005), f0, w0, strict=True):
@@ -125,7 +126,7 @@ def test_bad_input_is_an_error_or_a_counted_skip(tunnel_flight):
 
 def _params_like(rec):
     st = rec.motion.state(np.array([0.0]))
-    return LioParams(imu=imu_preset("icm42688p"), T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]))
+    return LioParams(imu=imu_preset("icm42688p"), T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), pad_yaw=yaw_of(st["q_WB"][0]))
 
 
 def test_corridor_flight_flags_the_axis_and_does_not_diverge():
@@ -179,7 +180,7 @@ def test_an_ideal_imu_with_zero_noise_densities_still_works():
         motion, ImuModel(ideal, seed=0), Lidar(Mid360Pattern(point_rate=40_000), mid360_params(), T_BL), world, 0.0, 2.2
     )
     st = motion.state(np.zeros(1))
-    core = LioCore(LioParams(imu=ideal, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0])))
+    core = LioCore(LioParams(imu=ideal, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), pad_yaw=yaw_of(st["q_WB"][0])))
     at_scans, _ = replay(core, rec)
     pos, rot = _errors(at_scans, motion)
     assert len(at_scans) >= 10 and pos.max() < 0.02 and rot.max() < 0.2

@@ -8,9 +8,10 @@ import pytest
 from cufund import Estimator
 from cufund.core.messages import Imu, Topics
 from cufund.estimation import FlatBodyMotion, LioCore, LioEstimator, LioParams, record_flight, replay
-from cufund.geometry import Transform
+from cufund.geometry import Transform, yaw_of
 from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset
+from cufund.sensors.calibration import after_calibration
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import Mid360Pattern
 from cufund.worlds import load
@@ -43,14 +44,14 @@ def test_estimator_publishes_at_imu_rate_what_the_core_computes():
     motion = FlatBodyMotion(traj)
     rec = record_flight(
         motion,
-        ImuModel(imu_preset("icm42688p"), seed=2),
+        ImuModel(after_calibration(imu_preset("icm42688p")), seed=2),
         Lidar(Mid360Pattern(point_rate=60_000), mid360_params(seed=2), T_BL),
         load("imav2025_tunnel"),
         0.0,
         2.2,
     )
     st = motion.state(np.zeros(1))
-    params = LioParams(T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]))
+    params = LioParams(T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), pad_yaw=yaw_of(st["q_WB"][0]))
     est = LioEstimator(params)
     assert isinstance(est, Estimator) and est.rate_hz == 200.0
     assert (
@@ -98,7 +99,7 @@ def test_run_on_log_reproduces_the_online_figures_and_writes_the_files(tmp_path)
     motion = FlatBodyMotion(traj)
     rec = record_flight(
         motion,
-        ImuModel(imu_preset("icm42688p"), seed=4),
+        ImuModel(after_calibration(imu_preset("icm42688p")), seed=4),
         Lidar(Mid360Pattern(point_rate=60_000), mid360_params(seed=4), T_BL),
         load("imav2025_tunnel"),
         0.0,
@@ -140,7 +141,9 @@ def test_run_on_log_reproduces_the_online_figures_and_writes_the_files(tmp_path)
         assert (tmp_path / "out" / name).stat().st_size > 0
     # The same data straight into the core (pad pose given, truth exact): the same figures.
     st = motion.state(np.zeros(1))
-    at_scans, at_imu = replay(LioCore(LioParams(T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]))), rec)
+    at_scans, at_imu = replay(
+        LioCore(LioParams(T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), pad_yaw=yaw_of(st["q_WB"][0]))), rec
+    )
     t, p, q = read_tum(tmp_path / "out" / "estimate.tum")
     ref = motion.state(t)
     direct = odometry_errors(p, q, ref["p_W"], ref["q_WB"])

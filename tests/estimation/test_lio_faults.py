@@ -9,9 +9,10 @@ import pytest
 from cufund.core.messages import PointCloud
 from cufund.estimation import FlatBodyMotion, LioCore, LioParams, record_flight, replay
 from cufund.estimation.flight_data import LidarFrame
-from cufund.geometry import Transform
+from cufund.geometry import Transform, yaw_of
 from cufund.planning.minimum_snap import MinimumSnapTrajectory
 from cufund.sensors import ImuModel, imu_preset
+from cufund.sensors.calibration import after_calibration
 from cufund.sensors.faults import degrade
 from cufund.sensors.lidar import Lidar, mid360_params
 from cufund.sensors.patterns import Mid360Pattern
@@ -33,9 +34,11 @@ def flight():
     motion = FlatBodyMotion(traj)
     imu_params = imu_preset("icm42688p")
     lidar = Lidar(Mid360Pattern(point_rate=60_000), mid360_params(seed=3), T_BL)
-    rec = record_flight(motion, ImuModel(imu_params, seed=3), lidar, load("imav2025_tunnel"), 0.0, 5.5)
+    rec = record_flight(
+        motion, ImuModel(after_calibration(imu_params), seed=3), lidar, load("imav2025_tunnel"), 0.0, 5.5
+    )
     st = motion.state(np.array([0.0]))
-    params = LioParams(imu=imu_params, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), q_WB0=tuple(st["q_WB"][0]))
+    params = LioParams(imu=imu_params, T_BL=T_BL, p_WB0=tuple(st["p_W"][0]), pad_yaw=yaw_of(st["q_WB"][0]))
     return rec, params
 
 
@@ -93,8 +96,10 @@ def test_lidar_dropout_propagates_on_the_imu_and_relocks(flight, clean):
     assert long.any() and t_g[long].min() > T_FAULT + params.health_max_lidar_gap_s - 0.1
     assert t_g[long].max() < T_FAULT + 1.15 and gaps.max() > 1.0
     after = [d for d in core.diagnostics if d.t > T_FAULT + 1.0]
-    assert not after[0].healthy and "re-locking" in after[0].reason
-    assert all(d.healthy for d in after[params.health_relock_frames :])
+    # the first frame after the gap re-locks, or (a second on the IMU alone having drifted past bias_jump_*) frees
+    # the bias states first and re-locks on the next frames
+    assert not after[0].healthy and ("re-locking" in after[0].reason or "re-estimating" in after[0].reason)
+    assert all(d.healthy for d in after[params.health_relock_frames + 1 :])
 
 
 @pytest.mark.parametrize("gyro, accel", [((0.0, 0.0, 0.07), (0.0, 0.0, 0.0)), ((0.04, -0.03, 0.05), (0.2, -0.15, 0.1))])

@@ -69,6 +69,6 @@ register(
         LioParams,
         _lio,
         None,
-        "LiDAR-inertial odometry on GTSAM (sensors: an IMU and a LiDAR; starts from the known pad pose)",
+        "LiDAR-inertial odometry on GTSAM (sensors: an IMU and a LiDAR; the pad gives origin and yaw, the IMU roll, pitch and biases)",
     )
 )

@@ -19,7 +19,7 @@ from gtsam.symbol_shorthand import B, V, X
 
 from cufund import _core
 from cufund.core.messages import Odometry
-from cufund.geometry import homogeneous, quat_from_matrix, quat_to_matrix
+from cufund.geometry import attitude_from_up_and_yaw, homogeneous, quat_from_matrix, quat_to_matrix
 
 from .boundary import pose3, pose3_parts
 from .params import LioParams
@@ -217,20 +217,9 @@ class LioCore:
                 f"{dev_w:.3g} rad/s (limit {p.init_max_gyro_dev}), accelerometer deviation {dev_f:.3g} m/s^2 "
                 f"(limit {p.init_max_accel_dev}); keep it still on the pad or raise the limits in LioParams"
             )
-        R_WB = quat_to_matrix(np.asarray(p.q_WB0), normalize=True)
+        R_WB = attitude_from_up_and_yaw(self._R_BI @ f_mean, p.pad_yaw)
         R_WI = R_WB @ self._R_BI
-        if p.pad_attitude_known:
-            bias_acc = f_mean - R_WI.T @ np.array([0.0, 0.0, p.gravity])
-        else:
-            up_I = f_mean / np.linalg.norm(f_mean)
-            up_W = R_WI @ up_I  # tilt the pad attitude so that up_I maps to +z
-            axis = np.cross(up_W, [0.0, 0.0, 1.0])
-            s, c = np.linalg.norm(axis), float(up_W[2])
-            if s > 1e-12:
-                from scipy.spatial.transform import Rotation
-
-                R_WI = Rotation.from_rotvec(axis / s * math.atan2(s, c)).as_matrix() @ R_WI
-            bias_acc = np.zeros(3)
+        bias_acc = np.zeros(3)  # what calibration left is unknown: zero with accel_bias_sigma (and tilt) priors
         p_WI = np.asarray(p.p_WB0) + R_WB @ self._p_BI
         t0 = float(ts[-1])
         self._node = NavEstimate(t0, R_WI, p_WI, np.zeros(3), bias_acc, w_mean.copy())
@@ -241,9 +230,14 @@ class LioCore:
         values = gtsam.Values()
         stamps = gtsam.FixedLagSmootherKeyTimestampMap()
         x0 = pose3(R_WI, p_WI)
-        graph.add(gtsam.PriorFactorPose3(X(0), x0, gtsam.noiseModel.Isotropic.Sigma(6, 1e-4)))
+        # The pad fixes the origin and the yaw; roll and pitch are as good as the accelerometer bias is small (a
+        # horizontal bias b reads as a tilt b / g): their prior is that wide, in the IMU frame's tangent space.
+        tilt = p.accel_bias_sigma / p.gravity
+        rot_sigma = self._R_BI.T @ np.array([tilt, tilt, 1e-4])  # body roll/pitch/yaw -> IMU axes (a permutation
+        x0_sigma = np.r_[np.abs(rot_sigma), np.full(3, 1e-4)]  # for the usual mountings)
+        graph.add(gtsam.PriorFactorPose3(X(0), x0, gtsam.noiseModel.Diagonal.Sigmas(x0_sigma)))
         graph.add(gtsam.PriorFactorVector(V(0), np.zeros(3), gtsam.noiseModel.Isotropic.Sigma(3, 1e-3)))
-        bias_sigma = np.r_[np.full(3, 0.02 if p.pad_attitude_known else 0.2), np.full(3, 1e-3)]
+        bias_sigma = np.r_[np.full(3, p.accel_bias_sigma), np.full(3, p.gyro_bias_sigma)]
         b0 = gtsam.imuBias.ConstantBias(bias_acc, w_mean)
         graph.add(gtsam.PriorFactorConstantBias(B(0), b0, gtsam.noiseModel.Diagonal.Sigmas(bias_sigma)))
         values.insert(X(0), x0)

@@ -15,6 +15,8 @@ __all__ = ["LioParams"]
 
 _POSITIVE = (
     "init_duration_s",
+    "accel_bias_sigma",
+    "gyro_bias_sigma",
     "init_max_gyro_dev",
     "init_max_accel_dev",
     "gravity",
@@ -40,6 +42,10 @@ _POSITIVE = (
 )
 
 
+_REMOVED = ("q_WB0", "pad_attitude_known")
+"""Keys of earlier versions that gave flight software the true pad attitude."""
+
+
 @dataclass(frozen=True)
 class LioParams:
     """LiDAR-inertial odometry settings. SI units."""
@@ -49,12 +55,18 @@ class LioParams:
     T_BL: Transform = field(default_factory=Transform)
     """LiDAR frame L -> body frame B."""
     p_WB0: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    """Known pad position of the body [m]: the estimate starts here (no alignment)."""
-    q_WB0: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
-    """Known pad attitude [w, x, y, z]."""
-    pad_attitude_known: bool = True
-    """True: the pad attitude is trusted and the accelerometer bias is the mean specific force minus gravity in
-    the IMU frame. False: roll and pitch come from the mean specific force (yaw from q_WB0), bias starts at 0."""
+    """The pad: the body's position there defines the world frame's origin [m] (the estimate starts here)."""
+    pad_yaw: float = 0.0
+    """The body's heading on the pad: it defines the world frame's yaw [rad]. Roll and pitch are not given: they
+    are estimated from the mean specific force of the static window (the pad may be tilted), and the biases with
+    them (gyroscope: the window's mean rate; accelerometer: zero, with ``accel_bias_sigma``), then refined in
+    flight by the smoother."""
+    accel_bias_sigma: float = 0.05
+    """Prior standard deviation of the accelerometer bias left after the part's calibration, per axis [m/s^2]
+    (a PX4-style calibration leaves a few mg). It also sets the prior on the initial roll and pitch
+    (accel_bias_sigma / gravity [rad]): a bias along the horizontal is indistinguishable from a tilt on the pad."""
+    gyro_bias_sigma: float = 1e-3
+    """Prior standard deviation of the gyroscope bias about the static window's mean rate, per axis [rad/s]."""
     gravity: float = G0
     """[m/s^2]"""
     init_duration_s: float = 1.0
@@ -172,14 +184,23 @@ class LioParams:
             health_relock_frames=1000,
         )
         p = np.asarray(self.p_WB0, dtype=float)
-        q = np.asarray(self.q_WB0, dtype=float)
         if p.shape != (3,) or not np.all(np.isfinite(p)):
             raise ConfigError(f"LioParams.p_WB0 must be 3 finite numbers [m], got {self.p_WB0!r}")
-        if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1) > 1e-6:
-            raise ConfigError(f"LioParams.q_WB0 must be a unit quaternion [w, x, y, z], got {self.q_WB0!r}")
         object.__setattr__(self, "p_WB0", tuple(float(v) for v in p))
-        object.__setattr__(self, "q_WB0", tuple(float(v) for v in q))
+        if (
+            isinstance(self.pad_yaw, bool)
+            or not isinstance(self.pad_yaw, (int, float))
+            or not math.isfinite(self.pad_yaw)
+        ):
+            raise ConfigError(f"LioParams.pad_yaw must be a finite number [rad], got {self.pad_yaw!r}")
+        check_at_most(self, "LioParams", accel_bias_sigma=10.0, gyro_bias_sigma=1.0)
 
     @classmethod
     def from_dict(cls, data: dict) -> LioParams:
+        for old in _REMOVED:
+            if isinstance(data, dict) and old in data:
+                raise ConfigError(
+                    f"LioParams.{old} was removed: the pad gives the world frame's origin (p_WB0) and yaw (pad_yaw) "
+                    "only; roll, pitch and the biases are estimated from the static window"
+                )
         return from_dict(cls, data, "LioParams")
