@@ -150,7 +150,7 @@ def write_tunnel_replay(
 def _cloud(detector: Any) -> np.ndarray:
     """The detector's accumulated map (voxel means, world frame) [m]."""
     try:
-        return np.asarray(detector.map.means()[0], dtype=float)
+        return np.asarray(detector.map_points_W(), dtype=float)
     except (AttributeError, ZeroDivisionError, ValueError):
         return np.zeros((0, 3))
 

@@ -3,6 +3,7 @@ for frames at a few hertz, and the frames tracked from one detection to the next
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -23,12 +24,19 @@ from .detection import (
     detect_in_voxels,
     order_along_course,
 )
+from .floor_level import FloorLevel, fit_floor
 from .voxel_accumulator import VoxelAccumulator
 
 __all__ = ["TunnelDetector"]
 
 _KNOTS = 20
 """Poses computed per scan for deskewing (a 0.1 s scan: one every 5 ms)."""
+_FLOOR_POINTS = 3000
+"""Floor returns (within 6 m of the pad) gathered before the floor is fitted."""
+_FLOOR_SCANS = 10
+"""Scans after which the floor fit is given up (the world frame's horizontal is kept)."""
+_FLOOR_RANGE = 6.0
+"""Floor returns farther than this from the LiDAR are not used for the fit [m]."""
 
 
 def _member(keys: np.ndarray, sorted_set: np.ndarray) -> np.ndarray:
@@ -136,6 +144,10 @@ class TunnelDetector(Component):
         self._tall = np.zeros(0, dtype=np.int64)
         self._t_detected = -math.inf
         self._tall_changed = False
+        self.level: FloorLevel | None = None
+        """The floor frame the map is kept in (None until the floor is fitted, see :mod:`.floor_level`)."""
+        self._floor_scans: list[PointCloud] = []
+        self._floor_points: list[np.ndarray] = []
 
     def setup(self, bus: BusView) -> None:
         self._poses_sub: Subscription = bus.subscribe(self.active_state_topic)
@@ -146,8 +158,45 @@ class TunnelDetector(Component):
         """Body positions (N, 3) and rotations (N, 3, 3) at times t, interpolated (clamped at the ends)."""
         return interpolate_poses(np.asarray(self._t), np.asarray(self._p), np.asarray(self._q), t)
 
+    def _lidar_poses(self, cloud: PointCloud) -> tuple[float, np.ndarray, np.ndarray]:
+        """The scan's span [s] and the LiDAR's positions (K, 3) and rotations (K, 3, 3) in the estimated world
+        frame at ``_KNOTS + 1`` instants over it."""
+        span = max(float(np.max(cloud.dt[:: self.params.point_stride], initial=0.0)), 1e-9)
+        p_WB, R_WB = self._poses(cloud.t + np.linspace(0.0, span, _KNOTS + 1))
+        return span, p_WB + R_WB @ self._t_BL, R_WB @ self._R_BL
+
+    def _level_on_floor(self, cloud: PointCloud) -> list[PointCloud]:
+        """Gathers the floor's returns of the first scans and fits the floor (:func:`fit_floor`) about the pad;
+        returns the scans held meanwhile once the floor is known (or given up after ``_FLOOR_SCANS`` scans), to be
+        cropped in the floor's frame, else []."""
+        p = self.params
+        span, p_WL, R_WL = self._lidar_poses(cloud)
+        pts, _, _ = _core.perception.deskew_crop(
+            cloud.points_L,
+            cloud.dt,
+            p.point_stride,
+            span,
+            p_WL,
+            R_WL,
+            min(_FLOOR_RANGE, p.max_range),
+            p.floor_z - 0.25,
+            p.floor_z + 0.25,
+            1e6,  # no column is tall: walls and frames are kept out by the band
+            COLUMN_CELL,
+            np.zeros(0, dtype=np.int64),
+        )
+        self._floor_scans.append(cloud)
+        self._floor_points.append(pts)
+        if sum(len(a) for a in self._floor_points) < _FLOOR_POINTS and len(self._floor_scans) < _FLOOR_SCANS:
+            return []
+        pad = self.origin_W if self.origin_W is not None else np.asarray(self._p[0])
+        self.level = fit_floor(np.concatenate(self._floor_points), pad, p.floor_z) or FloorLevel()
+        held, self._floor_scans, self._floor_points = self._floor_scans, [], []
+        return held
+
     def _crop(self, cloud: PointCloud) -> tuple[np.ndarray, np.ndarray]:
-        """The scan's points to accumulate (N, 3) [m] and the unit directions of their rays (N, 3).
+        """The scan's points to accumulate (N, 3) [m] and the unit directions of their rays (N, 3), in the floor's
+        frame (:attr:`level`).
 
         Each point is moved to the world with the LiDAR pose computed at ``_KNOTS + 1`` instants over the scan:
         with both poses around its firing time, the two results blended linearly (the pose interpolated, to
@@ -155,10 +204,9 @@ class TunnelDetector(Component):
         floor band are dropped, then those in x-y columns reaching above any frame, then those outside the region
         of interest (one C++ pass, :func:`cufund._core.perception.deskew_crop`, then the column bookkeeping here)."""
         p = self.params
-        span = max(float(np.max(cloud.dt[:: p.point_stride], initial=0.0)), 1e-9)
-        p_WB, R_WB = self._poses(cloud.t + np.linspace(0.0, span, _KNOTS + 1))
-        R_WL = R_WB @ self._R_BL
-        p_WL = p_WB + R_WB @ self._t_BL
+        span, p_WL, R_WL = self._lidar_poses(cloud)
+        assert self.level is not None  # scans are cropped once the floor is known
+        p_WL, R_WL = self.level.pose_to_D(p_WL, R_WL)
         # x-y columns reaching above any frame are walls or poles: never accumulated
         points_W, rays_W, tall = _core.perception.deskew_crop(
             cloud.points_L,
@@ -230,9 +278,10 @@ class TunnelDetector(Component):
         if self.expected is not None and len(tracks) > self.expected:  # the most confident expected frames
             best = sorted(range(len(tracks)), key=lambda k: (-self.confidence(tracks[k]), -tracks[k].hits, k))
             tracks = [tracks[k] for k in sorted(best[: self.expected])]
-        ordered = order_along_course([tr.detection for tr in tracks], self.origin_W)
+        ordered = order_along_course([tr.detection for tr in tracks], self._origin_D())
         by_centre = {id(tr.detection.centre_W): tr for tr in tracks}  # ordering keeps the centre arrays
         conf = [self.confidence(by_centre[id(d.centre_W)]) for d in ordered]
+        ordered = [self._to_W(d) for d in ordered]
         k = len(ordered)
         return TunnelEstimate(
             t=self._last_stamp,
@@ -252,13 +301,37 @@ class TunnelDetector(Component):
 
     def frames(self) -> list[FrameDetection]:
         """The tracked frames in flying order (their newest detections)."""
-        return order_along_course([tr.detection for tr in self.tracks], self.origin_W)
+        return [self._to_W(d) for d in order_along_course([tr.detection for tr in self.tracks], self._origin_D())]
+
+    def _origin_D(self) -> np.ndarray | None:
+        """Where frames are ordered from, in the floor's frame."""
+        if self.origin_W is None or self.level is None:
+            return self.origin_W
+        return self.level.pose_to_D(self.origin_W, np.eye(3))[0]
+
+    def _to_W(self, d: FrameDetection) -> FrameDetection:
+        """A detection made in the floor's frame, in the estimated world frame."""
+        lv = self.level
+        if lv is None:
+            return d
+        return dataclasses.replace(
+            d,
+            centre_W=lv.point_to_W(d.centre_W),
+            normal_W=lv.vector_to_W(d.normal_W),
+            points_W=lv.point_to_W(d.points_W),
+            cluster_mean_W=lv.point_to_W(d.cluster_mean_W),
+        )
 
     def plot(self, path: Any = None, truth: Any = None) -> Any:
         """:func:`~cufund.perception.plot.plot_detection` of the accumulated map and the tracked frames."""
         from .plot import plot_detection
 
-        return plot_detection(self.map.means()[0], self.frames(), truth, path)
+        return plot_detection(self.map_points_W(), self.frames(), truth, path)
+
+    def map_points_W(self) -> np.ndarray:
+        """The accumulated map's voxel means in the estimated world frame (M, 3) [m]."""
+        cloud = self.map.means()[0]
+        return cloud if self.level is None else self.level.point_to_W(cloud)
 
     # -- the step ----------------------------------------------------------------------------------------------
     def step(self, t: float, bus: BusView) -> None:
@@ -278,7 +351,11 @@ class TunnelDetector(Component):
             and self._t
             and self._t[-1] >= self._waiting[0].t + float(np.max(self._waiting[0].dt, initial=0.0))
         ):
-            batch.append(self._crop(self._waiting.pop(0)))
+            cloud = self._waiting.pop(0)
+            if self.level is None:
+                batch += [self._crop(c) for c in self._level_on_floor(cloud)]
+            else:
+                batch.append(self._crop(cloud))
         if batch:
             if self._tall_changed and len(self.map):
                 self.map.drop(_member(column_keys(self.map.means()[0]), self._tall))
@@ -286,8 +363,9 @@ class TunnelDetector(Component):
             self.map.insert(np.concatenate([b[0] for b in batch]), np.concatenate([b[1] for b in batch]))
             if not self._settled() or t >= self._t_detected + 1.0 / self.params.settled_rate_hz - 1e-9:
                 cloud, rays = self.map.means()
-                self.detections = detect_in_voxels(cloud, rays, self.params, self.expected, self.origin_W)
-                self._associate(self.detections)
+                found = detect_in_voxels(cloud, rays, self.params, self.expected, self._origin_D())
+                self._associate(found)
+                self.detections = [self._to_W(d) for d in found]
                 self._t_detected = t
                 bus.publish(Topics.TUNNEL_ESTIMATE, self.estimate())
         self.updates += 1
