@@ -40,6 +40,7 @@ import numpy as np
 from cufund.core.components import BusView, Planner
 from cufund.core.config import ConfigError, check_at_most
 from cufund.core.messages import MissionState, Odometry, Topics, TrajectoryUpdate, TunnelEstimate
+from cufund.planning.landing import landing
 from cufund.planning.min_snap_planner import MinSnapPlanner, MinSnapPlannerParams
 from cufund.planning.point_to_point import JerkLimitedMove
 from cufund.planning.sequence import Hold, TrajectorySequence
@@ -249,10 +250,10 @@ class TunnelMission(Planner):
     def _land(self, t: float, t_r: float, p: np.ndarray, bus: BusView) -> None:
         pp = self.params
         hold = Hold(p, pp.hold_s, self.yaw, t_start=t_r)
-        ground = np.array([p[0], p[1], self.pad_W[2]])
-        down = JerkLimitedMove(p, ground, pp.move_v_max, pp.move_a_max, pp.move_j_max, self.yaw, t_start=hold.t_end)
-        self._publish(t, TrajectorySequence([hold, down, Hold(ground, _FOREVER, self.yaw, t_start=down.t_end)]), bus)
-        self.t_end = down.t_end
+        down, self.t_end = landing(
+            p, float(self.pad_W[2]), pp.move_v_max, pp.move_a_max, pp.move_j_max, self.yaw, hold.t_end
+        )
+        self._publish(t, TrajectorySequence([hold, *down.parts]), bus)
 
     @property
     def finished(self) -> bool:

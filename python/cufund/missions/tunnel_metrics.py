@@ -90,6 +90,10 @@ def tunnel_metrics(result: Any, mission: Any, course: Any) -> dict[str, Any]:
     t_end = mission.t_end
     if t_takeoff is not None:
         t1 = t_end if t_end is not None else float(t[-1])
+        # touchdown: the landing's reference goes on below the ground, the vehicle stops on it
+        up = np.flatnonzero((t >= t_takeoff) & (p[:, 2] > p[0, 2] + 0.02))
+        if len(up) and mission.state in ("done", "aborted"):
+            t1 = min(t1, float(t[up[-1]]))
         _, err = tracking_errors(result, t_takeoff, t1)
         if err.size:
             out.update(
