@@ -14,8 +14,8 @@ from cufund.core.messages import MapUpdate, Odometry, Topics, TrajectoryUpdate
 
 from .bspline import UniformBspline, start_control_points
 from .diagnostics import PLANNER_DIAGNOSTICS, PlannerDiagnostics
+from .landing import landing
 from .local_planner import BsplineLocalPlanner, LocalPlannerParams
-from .point_to_point import JerkLimitedMove
 from .sequence import Hold, TrajectorySequence
 from .trajectory import Trajectory
 from .trajectory_follower import stitched
@@ -171,9 +171,8 @@ class LocalPlannerComponent(Planner):
     def _land(self, t: float, t_r: float, p: np.ndarray, bus: BusView) -> None:
         hold = Hold(p, self.hover_s, self.yaw, t_start=t_r)
         v, a, j = self.landing
-        down = JerkLimitedMove(p, np.array([p[0], p[1], 0.0]), v, a, j, self.yaw, t_start=hold.t_end)
-        self._publish(t, TrajectorySequence([hold, down]), bus)
-        self.t_landed = down.t_start + down.duration
+        down, self.t_landed = landing(p, 0.0, v, a, j, self.yaw, hold.t_end)  # on to the ground, wherever it is
+        self._publish(t, TrajectorySequence([hold, *down.parts]), bus)
 
     def _publish(self, t: float, trajectory: Trajectory, bus: BusView) -> None:
         self.reference = stitched(self.reference, trajectory, t)
