@@ -115,7 +115,13 @@ class BuildContext(Protocol):
         ...
 
     def require_world(self) -> Any:
-        """The world; a ConfigError naming the part when the scenario has none."""
+        """The world; a ConfigError naming the part when the scenario has none. The world is the truth: the
+        builder records who reads it (``world`` or this) and simulated sensors may, flight software may not."""
+        ...
+
+    def truth_world_for_metrics(self) -> Any:
+        """The world (or None) for harness-only truth consumers (metrics, collision checks, plots), not recorded
+        as a read: never hand it to flight software."""
         ...
 
     def sensor_of_type(self, sensor_type: str, name: str = "", where: str = "") -> tuple[str, PartView]:

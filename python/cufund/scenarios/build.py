@@ -46,7 +46,8 @@ class ScenarioBuildContext:
         "config",
         "vehicle",
         "base_dir",
-        "world",
+        "_world",
+        "world_readers",
         "_part",
         "where",
         "seed",
@@ -63,7 +64,10 @@ class ScenarioBuildContext:
         self.config = config
         self.vehicle = config.vehicle_params()
         self.base_dir = config.base_dir
-        self.world: Any = None
+        self._world: Any = None
+        self.world_readers: list[str] = []
+        """Who read ``world`` (or ``require_world()``): the part being built (``sensors.lidar``, ``planner``, ...),
+        or ``(after the build)``; ``truth_world_for_metrics()`` is not recorded. Flight software must not appear."""
         self._part: PartView | None = None
         self.where = ""
         self.seed = 0
@@ -74,6 +78,23 @@ class ScenarioBuildContext:
         self._done_by = ""
         self._metric_hooks: list[MetricHook] = []
         self._output_hooks: list[OutputHook] = []
+
+    @property
+    def world(self) -> Any:
+        """The scenario's world, the truth the simulated sensors see; each read is recorded in ``world_readers``."""
+        who = self.where or "(after the build)"
+        if who not in self.world_readers:
+            self.world_readers.append(who)
+        return self._world
+
+    @world.setter
+    def world(self, value: Any) -> None:
+        self._world = value
+
+    def truth_world_for_metrics(self) -> Any:
+        """The world for harness-only truth consumers (metrics, collision checks, plots), not recorded as a read:
+        never hand it to flight software."""
+        return self._world
 
     @property
     def part(self) -> PartView:
@@ -217,12 +238,13 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
     ctx = ScenarioBuildContext(config)
     if config.world is not None:
         ctx.world = ctx.build("world", config.world, "world")
+    world = ctx.truth_world_for_metrics()  # the harness's (the vehicle's start, collision checks)
     quad = Quadrotor(ctx.vehicle)
     start = config.start_p_W or (config.trajectory.waypoints[0][0], config.trajectory.waypoints[0][1], 0.0)
     quad.state.p[:] = start  # standing, rotors stopped
     collision = None
-    if ctx.world is not None:
-        collision = CollisionChecker(ctx.world, box_size=config.collision_box, ignore_labels=("floor", "ground"))
+    if world is not None:
+        collision = CollisionChecker(world, box_size=config.collision_box, ignore_labels=("floor", "ground"))
     record = [Topics.TRAJECTORY_SETPOINT, Topics.ATTITUDE_SETPOINT, Topics.ACTUATOR_COMMAND]
     components: list[Any] = []
     for name, spec in config.sensors.items():
