@@ -1,7 +1,8 @@
-"""The global chain (path search -> clearance-keeping min-snap) and the ``global`` planner kind: every sample of
-the trajectory clears the world's triangles by the radius, measured by Open3D's exact distance (independent of
-the distance field the planner used); the chain is usable from a scenario YAML, flown alone or as the local
-replanner's guide."""
+"""The global chain (path search -> clearance-keeping min-snap) and the ``global_known_map`` planner kind: every
+sample of the trajectory clears the world's triangles by the radius, measured by Open3D's exact distance
+(independent of the distance field the planner used); the chain is usable from a scenario YAML, flown alone or as
+the local replanner's guide. forest_global flies the ``global`` kind on the map built online (its own tests:
+test_planning_global_online.py)."""
 
 from __future__ import annotations
 
@@ -88,13 +89,13 @@ def test_chain_failures_and_params(setting):
 
 
 def _yaml_scenario(**planner):
-    """A forest with no sensors: the min-snap from the known geometry is flown as it is."""
+    """A forest with no sensors: the min-snap from the known (true) geometry is flown as it is."""
     return ScenarioConfig.from_dict(
         {
             "name": "global_test",
             "vehicle": "cu_astro",
             "world": {"kind": "forest", "seed": 3, "n_trees": 60, "size": 16.0, "clearing": 1.0},
-            "planner": {"kind": "global", "goal": GOAL.tolist(), **planner},
+            "planner": {"kind": "global_known_map", "goal": GOAL.tolist(), **planner},
             "start_p_W": [START[0], START[1], 0.0],
             "duration": 40.0,
         }
@@ -159,9 +160,9 @@ class DiagnosticsLog(Component):
 
 def test_forest_global_scenario_guides_the_local_replanner():
     """forest_global (shortened like test_forest, on ground truth to keep it short): the local replanner, guided
-    by the global path, crosses to the goal clear of the trunks."""
+    by the global path searched on the map built online, crosses to the goal clear of the trunks."""
     cfg = load_scenario("forest_global")
-    assert cfg.planner.params.local and cfg.estimator is not None  # the scenario itself flies on the LIO
+    assert cfg.planner.kind == "global" and cfg.planner.params.local and cfg.estimator is not None  # on the LIO
     cfg = cfg.with_overrides(
         {
             "estimator": None,
@@ -179,10 +180,14 @@ def test_forest_global_scenario_guides_the_local_replanner():
     run = run_scenario(cfg, extra_components=(log,))
     m = run.metrics
     assert m["status"] == "completed" and m["success"] and m["global_status"] == "ok", m
-    # every replan's diagnostics were published (the last may be still in flight at the end)
-    assert m["replans"] - 1 <= len(log.seen) <= m["replans"]
-    assert {d.status for d in log.seen} <= set(m["replan_status"]) and all(d.planner == "local" for d in log.seen)
-    ok = [d for d in log.seen if d.status == "ok"]
+    # every replan's diagnostics were published (the last may be still in flight at the end), the global ones too
+    local = [d for d in log.seen if d.planner == "local"]
+    glob = [d for d in log.seen if d.planner == "global"]
+    assert len(local) + len(glob) == len(log.seen)
+    assert m["replans"] - 1 <= len(local) <= m["replans"]
+    assert {d.status for d in local} <= set(m["replan_status"])
+    assert len(glob) == sum(m["global_replan_status"].values()) and m["global_replans"] >= 2  # replanned online
+    ok = [d for d in local if d.status == "ok"]
     assert min(d.min_clearance_m for d in ok) == pytest.approx(m["plan_min_map_clearance_m"])
-    assert m["replans"] > 50 and m["global_path_length_m"] > 12.0
+    assert m["replans"] > 50 and m["global_path_length_m"] > 12.0 and m["global_abort"] is None
     assert _trunks(world)(run.result.states["p_W"]).min() >= RADIUS

@@ -185,7 +185,7 @@ def test_set_values_are_bounded_like_files():
     "scenario, key, value, part",
     [
         ("tunnel", "world.resolution", 1e-3, "world (tunnel_course)"),
-        ("forest_global", "planner.resolution", 2e-3, "planner (global)"),
+        ("forest_global", "planner", {"kind": "global_known_map", "resolution": 2e-3}, "planner (global_known_map)"),
     ],
 )
 def test_a_known_geometry_grid_past_the_voxel_limit_is_refused_before_allocating(scenario, key, value, part):

@@ -67,6 +67,12 @@ class GlobalPlannerParams:
     """OMPL: wall time for the first solution [s]."""
     improve_time: float = 1.0
     """OMPL informed_rrt_star / bit_star: wall time for the optimising planner [s] (ignored otherwise)."""
+    z_min: float = -math.inf
+    """Grid A*: lowest height searched [m, world z] (:attr:`GridPathSearchParams.z_min`; the start and goal may lie
+    outside the band). A map built online needs it: its unobserved ground is free. The OMPL searches sample the
+    whole map box."""
+    z_max: float = math.inf
+    """Grid A*: highest height searched [m, world z]."""
 
     def __post_init__(self) -> None:
         if self.search not in SEARCHES:
@@ -87,6 +93,13 @@ class GlobalPlannerParams:
             or self.max_expansions < 1
         ):
             raise ConfigError(f"max_expansions must be an integer >= 1, got {self.max_expansions!r}")
+        for name in ("z_min", "z_max"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or math.isnan(v):
+                raise ConfigError(f"{name} must be a number [m], got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if not self.z_max > self.z_min:
+            raise ConfigError(f"z_max must be > z_min, got z_min={self.z_min}, z_max={self.z_max}")
 
 
 @dataclass(frozen=True)
@@ -95,7 +108,9 @@ class GlobalPlan:
 
     status: str
     """"ok"; the path search's status when it failed ("start_blocked", "goal_blocked", "no_path",
-    "expansion_limit", "timeout"); or "not_converged" (no min-snap kept the radius)."""
+    "expansion_limit", "timeout"); "not_converged" (no min-snap kept the radius); or, from the online planner
+    (:class:`~cufund.planning.global_planner_component.GlobalPlannerComponent`), "altitude" (the min-snap left the
+    flight band)."""
     path: PathResult
     """The searched polyline (``path.path_W``), certified free at ``radius + margin``."""
     motion: MinSnapResult | None
@@ -133,7 +148,13 @@ class GlobalPlanner:
         r = p.radius + p.margin
         if p.search == "astar":
             self._search: GridPathSearch | OmplPathPlanner = GridPathSearch(
-                GridPathSearchParams(radius=r, max_expansions=p.max_expansions, heuristic_weight=p.heuristic_weight)
+                GridPathSearchParams(
+                    radius=r,
+                    max_expansions=p.max_expansions,
+                    heuristic_weight=p.heuristic_weight,
+                    z_min=p.z_min,
+                    z_max=p.z_max,
+                )
             )
         else:
             improve = 0.0 if p.search == "rrt_connect" else p.improve_time
@@ -155,10 +176,8 @@ class GlobalPlanner:
     ) -> GlobalPlan:
         """A trajectory from ``start_W`` to ``goal_W`` (3,) [m], at rest at both, starting at ``t_start`` [s]
         with constant ``yaw`` [rad]."""
-        if not isinstance(query, ClearanceQuery):
-            raise TypeError(f"query must be a ClearanceQuery, got {type(query).__name__}")
         c0 = time.thread_time()
-        path = self._search.plan(query, start_W, goal_W)
+        path = self._path(query, start_W, goal_W)
         t1 = time.perf_counter()
         c1 = time.thread_time()
         if not path.found:
@@ -174,3 +193,16 @@ class GlobalPlanner:
             time.thread_time() - c0,
             c1 - c0,
         )
+
+    def search(self, query: ClearanceQuery, start_W: npt.ArrayLike, goal_W: npt.ArrayLike) -> GlobalPlan:
+        """The path search alone (e.g. a guide for the local replanner): a :class:`GlobalPlan` without motion,
+        status "ok" when a path was found."""
+        c0 = time.thread_time()
+        path = self._path(query, start_W, goal_W)
+        cpu = time.thread_time() - c0
+        return GlobalPlan("ok" if path.found else path.status, path, None, path.plan_seconds, 0.0, cpu, cpu)
+
+    def _path(self, query: ClearanceQuery, start_W: npt.ArrayLike, goal_W: npt.ArrayLike) -> PathResult:
+        if not isinstance(query, ClearanceQuery):
+            raise TypeError(f"query must be a ClearanceQuery, got {type(query).__name__}")
+        return self._search.plan(query, start_W, goal_W)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Any
@@ -167,30 +168,23 @@ def _start(ctx: BuildContext) -> np.ndarray:
     return np.array(cfg.start_p_W if cfg.start_p_W is not None else (w0[0], w0[1], 0.0), dtype=float)
 
 
-def _local(p: LocalParams, ctx: BuildContext, guide_W: np.ndarray | None = None) -> list[Any]:
-    from cufund.core.messages import Topics
-
-    from .local_planner_component import LocalPlannerComponent
-    from .metrics import planning_metrics
-
-    cfg = ctx.config
+def _takeoff(p: LocalParams, ctx: BuildContext) -> tuple[np.ndarray, TrajectorySequence]:
+    """The start and the reference until the first plan: take-off to ``takeoff_height``, hover ``hover_s``."""
     start = _start(ctx)
     top = start + np.array([0.0, 0.0, p.takeoff_height])
     takeoff = JerkLimitedMove(start, top, p.move_v_max, p.move_a_max, p.move_j_max, 0.0, t_start=0.0)
-    initial = TrajectorySequence([takeoff, Hold(top, p.hover_s, 0.0, t_start=takeoff.t_end)])
-    planner = LocalPlannerComponent(
-        p.planner_params(),
-        p.goal,
-        initial,
-        t_begin=initial.t_end,
-        rate_hz=p.rate_hz,
-        goal_tolerance=p.goal_tolerance,
-        hover_s=p.hover_s,
-        landing=(p.move_v_max, p.move_a_max, p.move_j_max),
-        guide_W=guide_W,
-    )
+    return start, TrajectorySequence([takeoff, Hold(top, p.hover_s, 0.0, t_start=takeoff.t_end)])
+
+
+def _replanned(ctx: BuildContext, planner: Any, initial: Any, start: np.ndarray, extra: Any = None) -> list[Any]:
+    """The follower stitching ``planner``'s updates into ``initial``; the run ends once landed after the goal;
+    ``metrics.json`` gains the planning metrics (and ``extra()``'s)."""
+    from cufund.core.messages import Topics
+
+    from .metrics import planning_metrics
+
     follower = TrajectoryFollower(
-        initial, rate_hz=cfg.rates.trajectory_hz, block=32, update_topic=Topics.TRAJECTORY_UPDATE
+        initial, rate_hz=ctx.config.rates.trajectory_hz, block=32, update_topic=Topics.TRAJECTORY_UPDATE
     )
 
     def landed(t: float, truth: Any) -> bool:  # run end: landed after the goal (a run-harness check)
@@ -202,9 +196,32 @@ def _local(p: LocalParams, ctx: BuildContext, guide_W: np.ndarray | None = None)
         )
 
     ctx.set_done_condition(landed)
-    world = ctx.world
-    ctx.add_metric_hook(lambda result: planning_metrics(result, planner, world, start))
+    # The world is read after the run, by the metric alone (clearance to the true trunks): never by the planner.
+    ctx.add_metric_hook(
+        lambda result: {
+            **planning_metrics(result, planner, ctx.truth_world_for_metrics(), start),
+            **(extra() if extra is not None else {}),
+        }
+    )
     return [planner, follower]
+
+
+def _local(p: LocalParams, ctx: BuildContext, guide_W: np.ndarray | None = None) -> list[Any]:
+    from .local_planner_component import LocalPlannerComponent
+
+    start, initial = _takeoff(p, ctx)
+    planner = LocalPlannerComponent(
+        p.planner_params(),
+        p.goal,
+        initial,
+        t_begin=initial.t_end,
+        rate_hz=p.rate_hz,
+        goal_tolerance=p.goal_tolerance,
+        hover_s=p.hover_s,
+        landing=(p.move_v_max, p.move_a_max, p.move_j_max),
+        guide_W=guide_W,
+    )
+    return _replanned(ctx, planner, initial, start)
 
 
 register(
@@ -220,11 +237,11 @@ register(
 
 
 @dataclass(frozen=True)
-class GlobalParams(LocalParams):
-    """Take off, plan once on the world's known geometry (a certified distance field of its triangles): path
-    search (``search``) -> min-snap keeping ``radius``; then fly it (``local: false``: hover at the goal and land)
-    or hand the path to the local replanner as its guide on the growing map (``local: true``, needs the ``esdf``
-    mapper). Lengths [m], times [s]; the other keys are the ``local`` kind's."""
+class _ChainParams(LocalParams):
+    """The keys the global planners share: path search (``search``) -> min-snap keeping ``radius``; then fly it
+    (``local: false``: hover at the goal and land) or hand the path to the local replanner as its guide on the
+    growing map (``local: true``, needs the ``esdf`` mapper). Lengths [m], times [s]; the other keys are the
+    ``local`` kind's."""
 
     search: str = "astar"
     """Path search: astar (deterministic grid A*), rrt_connect, informed_rrt_star or bit_star (OMPL)."""
@@ -238,10 +255,6 @@ class GlobalParams(LocalParams):
     """OMPL: wall time for a first solution [s]."""
     improve_time: float = 1.0
     """OMPL informed_rrt_star / bit_star: wall time for improving it [s]."""
-    resolution: float = 0.1
-    """Voxel edge of the known-geometry distance field [m]."""
-    map_padding: float = 6.0
-    """The field covers the start and goal's bounding box grown by this much sideways and 2 m up [m]."""
     local: bool = False
     """Feed the path to the local replanner instead of flying the min-snap."""
 
@@ -249,11 +262,11 @@ class GlobalParams(LocalParams):
         super().__post_init__()
         if not isinstance(self.local, bool):
             raise ConfigError(f"planner.local must be true or false, got {self.local!r}")
-        for name in ("resolution", "map_padding"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0):
-                raise ConfigError(f"planner.{name} must be a finite number > 0 [m], got {v!r}")
         self.global_params()
+
+    def _band(self) -> tuple[float, float]:
+        """The grid A*'s height band (z_min, z_max) [m]: unbounded on a known geometry."""
+        return (-math.inf, math.inf)
 
     def global_params(self) -> Any:
         from .global_planner import GlobalPlannerParams
@@ -269,19 +282,101 @@ class GlobalParams(LocalParams):
                 heuristic_weight=self.heuristic_weight,
                 time_limit=self.time_limit,
                 improve_time=self.improve_time,
+                z_min=self._band()[0],
+                z_max=self._band()[1],
             )
         except ConfigError as e:
             msg = str(e)
             raise ConfigError(f"planner.{'path_' + msg if msg.startswith('margin') else msg}") from None
 
 
+@dataclass(frozen=True)
+class GlobalParams(_ChainParams):
+    """Take off, then plan on the map built online (the ``esdf`` mapper's ``/map/esdf``, in the estimate's
+    frame; unknown space counts as free, the search keeps to the flight band z_min..z_max): path search -> min-snap
+    keeping ``radius``, flown (``local: false``: braked and replanned from rest when the newest map blocks it) or
+    the local replanner's guide (``local: true``: searched again when the map blocks it or every
+    ``replan_interval_s``). Gives up after ``give_up_s`` without a plan: hover, land. Lengths [m], times [s]."""
+
+    replan_interval_s: float = 1.0
+    """local: true: the guide is searched again at least this often [s] (and whenever the map blocks it)."""
+    give_up_s: float = 5.0
+    """Hover and land when no plan has succeeded for this long [s] (goal unreachable on the map)."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ("replan_interval_s", "give_up_s"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0):
+                raise ConfigError(f"planner.{name} must be a finite number > 0 [s], got {v!r}")
+
+    def _band(self) -> tuple[float, float]:
+        return (self.z_min, self.z_max)  # the online map's unobserved ground is free: keep to the flight band
+
+
+@dataclass(frozen=True)
+class GlobalKnownMapParams(_ChainParams):
+    """Take off, plan once on the world's TRUE geometry (a certified distance field of its triangles), fly the
+    plan or guide the local replanner with it. A truth consumer: what a vehicle cannot know (every trunk, also
+    the unseen ones); a planner-only reference, never a headline figure. Lengths [m], times [s]."""
+
+    resolution: float = 0.1
+    """Voxel edge of the known-geometry distance field [m]."""
+    map_padding: float = 6.0
+    """The field covers the start and goal's bounding box grown by this much sideways and 2 m up [m]."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ("resolution", "map_padding"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0):
+                raise ConfigError(f"planner.{name} must be a finite number > 0 [m], got {v!r}")
+
+
 def _global(p: GlobalParams, ctx: BuildContext) -> list[Any]:
+    """The global planner on the online map: no world is read (the map comes over the bus)."""
     from .global_planner import GlobalPlanner
+    from .global_planner_component import GlobalPlannerComponent
+
+    start, initial = _takeoff(p, ctx)
+    planner = GlobalPlannerComponent(
+        GlobalPlanner(p.global_params()),
+        p.planner_params(),
+        p.goal,
+        initial,
+        t_begin=initial.t_end,
+        rate_hz=p.rate_hz,
+        goal_tolerance=p.goal_tolerance,
+        hover_s=p.hover_s,
+        landing=(p.move_v_max, p.move_a_max, p.move_j_max),
+        local=p.local,
+        replan_interval_s=p.replan_interval_s,
+        give_up_s=p.give_up_s,
+    )
+    return _replanned(ctx, planner, initial, start, planner.global_metrics)
+
+
+register(
+    Kind(
+        "planner",
+        "global",
+        GlobalParams,
+        _global,
+        None,
+        "take off, plan on the map built online (A* or OMPL -> clearance-keeping min-snap) to planner.goal, "
+        "replanned when the map blocks it; fly it and land, or (local: true) guide the local replanner with it",
+    )
+)
+
+
+def _global_known_map(p: GlobalKnownMapParams, ctx: BuildContext) -> list[Any]:
+    from .global_planner import GlobalPlanner
+    from .global_planner_component import plan_metrics
     from .local_planner_component import ReplanRecord
     from .metrics import planning_metrics
     from .world_map import clearance_from_world
 
-    world = ctx.require_world()
+    world = ctx.require_world()  # the true world: this kind is a truth consumer (see GlobalKnownMapParams)
     start = _start(ctx)
     top = start + np.array([0.0, 0.0, p.takeoff_height])
     goal = np.asarray(p.goal, dtype=float)
@@ -299,23 +394,7 @@ def _global(p: GlobalParams, ctx: BuildContext) -> list[Any]:
         )
     motion = plan.motion
     assert motion is not None  # a plan that succeeded has its motion (checked just above)
-    stats = {
-        "global_status": plan.status,
-        "global_search": p.search,
-        "global_plan_ms": 1e3 * plan.plan_seconds,
-        "global_search_ms": 1e3 * plan.search_seconds,
-        "global_motion_ms": 1e3 * plan.motion_seconds,
-        "global_plan_cpu_ms": 1e3 * plan.plan_cpu_seconds,
-        "global_path_length_m": plan.path.length,
-        "global_path_vertices": int(plan.path.path_W.shape[0]),
-        "global_inserted_waypoints": motion.inserted,
-        "global_min_map_clearance_m": motion.min_clearance,
-        "global_duration_s": motion.trajectory.duration,
-        "global_peak_speed_mps": motion.feasibility.peak_speed,
-        "global_peak_acceleration_mps2": motion.feasibility.peak_acceleration,
-        "global_peak_jerk_mps3": motion.feasibility.peak_jerk,
-        "global_max_tilt_deg": motion.feasibility.max_tilt_deg,
-    }
+    stats = plan_metrics(plan, p.search)
     if p.local:
         parts = _local(p, ctx, guide_W=plan.path.path_W)
         ctx.add_metric_hook(lambda result: stats)
@@ -352,11 +431,11 @@ def _global(p: GlobalParams, ctx: BuildContext) -> list[Any]:
 register(
     Kind(
         "planner",
-        "global",
-        GlobalParams,
-        _global,
+        "global_known_map",
+        GlobalKnownMapParams,
+        _global_known_map,
         None,
-        "take off, plan on the world's geometry (A* or OMPL -> clearance-keeping min-snap) to planner.goal; "
-        "fly it and land, or (local: true) guide the local replanner with it",
+        "take off, plan once on the world's TRUE geometry (a truth consumer: a planner-only reference) to "
+        "planner.goal; fly it and land, or (local: true) guide the local replanner with it",
     )
 )
