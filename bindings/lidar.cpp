@@ -134,11 +134,60 @@ py::array_t<double, py::array::c_style> optional_rows(const py::handle& obj, con
   return a;
 }
 
+// A real scalar >= 0 (finite unless allow_inf), else ValueError naming it.
+double nonnegative_arg(const py::handle& obj, const char* field, bool allow_inf = false) {
+  const double x = allow_inf ? real_arg(obj, field) : finite_arg(obj, field);
+  if (!(x >= 0.0)) throw py::value_error(std::string(field) + " must be >= 0, got " + std::string(py::repr(obj)));
+  return x;
+}
+
+// The optional realism terms of the range model (RangeModel past n_reflectivity), with their draw arrays.
+struct RealismArgs {
+  py::handle noise_z, noise_std, noise_per_m, incidence_noise, detect_draw, max_range_at_10pct, detection_softness,
+      mixed_draw, mixed_probability, mixed_edge, dt_noise, dt_max, intensity_z, intensity_noise;
+};
+
+// Reads the realism terms into `model`; the arrays it returns keep the draws alive.
+std::vector<py::array_t<double, py::array::c_style>> realism_args(const RealismArgs& a, py::ssize_t n,
+                                                                  lidar::RangeModel& model) {
+  std::vector<py::array_t<double, py::array::c_style>> keep;
+  auto rows = [&](const py::handle& obj, const char* field, bool pairs) -> const double* {
+    if (obj.is_none()) return nullptr;
+    auto arr = pairs ? as_float64(obj, field, {n, 2}) : as_float64(obj, field, {n});
+    require_finite(arr.data(), arr.size(), field);
+    keep.push_back(arr);
+    return keep.back().data();
+  };
+  model.noise_z = rows(a.noise_z, "noise_z", false);
+  model.noise_std = nonnegative_arg(a.noise_std, "range_noise_std");
+  model.noise_per_m = nonnegative_arg(a.noise_per_m, "range_noise_per_m");
+  model.incidence_noise = nonnegative_arg(a.incidence_noise, "incidence_noise");
+  model.detect_draw = rows(a.detect_draw, "detect_draw", false);
+  model.max_range_at_10pct = nonnegative_arg(a.max_range_at_10pct, "max_range_at_10pct", true);
+  if (!(model.max_range_at_10pct > 0.0)) {
+    throw py::value_error("max_range_at_10pct must be > 0 [m] (inf: no range limit), got " +
+                          std::string(py::repr(a.max_range_at_10pct)));
+  }
+  model.detection_softness = nonnegative_arg(a.detection_softness, "detection_softness");
+  model.mixed_draw = rows(a.mixed_draw, "mixed_draw", true);
+  model.mixed_probability = nonnegative_arg(a.mixed_probability, "mixed_pixel_probability");
+  if (model.mixed_probability > 1.0) {
+    throw py::value_error("mixed_pixel_probability must be in [0, 1], got " +
+                          std::string(py::repr(a.mixed_probability)));
+  }
+  model.mixed_edge = nonnegative_arg(a.mixed_edge, "mixed_pixel_edge_m");
+  model.dt_noise = rows(a.dt_noise, "dt_noise", false);
+  model.dt_max = nonnegative_arg(a.dt_max, "dt_max", true);
+  model.intensity_z = rows(a.intensity_z, "intensity_z", false);
+  model.intensity_noise = nonnegative_arg(a.intensity_noise, "intensity_noise");
+  return keep;
+}
+
 py::dict scan_frame(const RaycastScene& scene, const py::handle& d_L, const py::handle& t, const py::handle& channel,
                     const py::handle& t0_obj, const py::handle& knot_t, const py::handle& knot_p,
                     const py::handle& knot_q, const py::handle& range_min_obj, const py::handle& range_max_obj,
                     const py::handle& noise_obj, const py::handle& keep_obj, const py::handle& dropout_obj,
-                    const py::handle& refl_obj, const py::handle& nthreads_obj) {
+                    const py::handle& refl_obj, const py::handle& nthreads_obj, const RealismArgs& realism) {
   const int nthreads = threads_arg(nthreads_obj);
   auto d = directions_arg(d_L);
   const py::ssize_t n = d.shape(0);
@@ -163,6 +212,8 @@ py::dict scan_frame(const RaycastScene& scene, const py::handle& d_L, const py::
   auto keep = optional_rows(keep_obj, "keep_draw", n);
   model.noise = noise_obj.is_none() ? nullptr : noise.data();
   model.keep_draw = keep_obj.is_none() ? nullptr : keep.data();
+  const auto realism_draws = realism_args(realism, n, model);
+  if (model.noise && model.noise_z) throw py::value_error("noise and noise_z must not both be given");
   py::array_t<double, py::array::c_style> refl;
   if (!refl_obj.is_none()) {
     py::array r_arr = checked_array(refl_obj, "reflectivity");
@@ -338,10 +389,43 @@ between pose knots (knot_t (K,) increasing [s], knot_p (K, 3) p_WL [m], knot_q (
 unit, consecutive signs aligned) linearly in position and by slerp in rotation, along R_WL d_L[i].
 )doc");
 
-  m.def("scan_frame", &scan_frame, py::arg("scene"), py::arg("d_L"), py::arg("t"), py::arg("channel"), py::arg("t0"),
-        py::arg("knot_t"), py::arg("knot_p"), py::arg("knot_q"), py::arg("range_min"), py::arg("range_max"),
-        py::arg("noise") = py::none(), py::arg("keep_draw") = py::none(), py::arg("dropout") = 0.0,
-        py::arg("reflectivity") = py::none(), py::arg("nthreads") = 0, R"doc(
+  m.def(
+      "scan_frame",
+      [](const RaycastScene& scene, const py::handle& d_L, const py::handle& t, const py::handle& channel,
+         const py::handle& t0, const py::handle& knot_t, const py::handle& knot_p, const py::handle& knot_q,
+         const py::handle& range_min, const py::handle& range_max, const py::handle& noise, const py::handle& keep_draw,
+         const py::handle& dropout, const py::handle& reflectivity, const py::handle& nthreads,
+         const py::handle& noise_z, const py::handle& range_noise_std, const py::handle& range_noise_per_m,
+         const py::handle& incidence_noise, const py::handle& detect_draw, const py::handle& max_range_at_10pct,
+         const py::handle& detection_softness, const py::handle& mixed_draw, const py::handle& mixed_pixel_probability,
+         const py::handle& mixed_pixel_edge_m, const py::handle& dt_noise, const py::handle& dt_max,
+         const py::handle& intensity_z, const py::handle& intensity_noise) {
+        const RealismArgs realism{noise_z,
+                                  range_noise_std,
+                                  range_noise_per_m,
+                                  incidence_noise,
+                                  detect_draw,
+                                  max_range_at_10pct,
+                                  detection_softness,
+                                  mixed_draw,
+                                  mixed_pixel_probability,
+                                  mixed_pixel_edge_m,
+                                  dt_noise,
+                                  dt_max,
+                                  intensity_z,
+                                  intensity_noise};
+        return scan_frame(scene, d_L, t, channel, t0, knot_t, knot_p, knot_q, range_min, range_max, noise, keep_draw,
+                          dropout, reflectivity, nthreads, realism);
+      },
+      py::arg("scene"), py::arg("d_L"), py::arg("t"), py::arg("channel"), py::arg("t0"), py::arg("knot_t"),
+      py::arg("knot_p"), py::arg("knot_q"), py::arg("range_min"), py::arg("range_max"), py::arg("noise") = py::none(),
+      py::arg("keep_draw") = py::none(), py::arg("dropout") = 0.0, py::arg("reflectivity") = py::none(),
+      py::arg("nthreads") = 0, py::kw_only(), py::arg("noise_z") = py::none(), py::arg("range_noise_std") = 0.0,
+      py::arg("range_noise_per_m") = 0.0, py::arg("incidence_noise") = 0.0, py::arg("detect_draw") = py::none(),
+      py::arg("max_range_at_10pct") = std::numeric_limits<double>::infinity(), py::arg("detection_softness") = 0.1,
+      py::arg("mixed_draw") = py::none(), py::arg("mixed_pixel_probability") = 0.0, py::arg("mixed_pixel_edge_m") = 0.3,
+      py::arg("dt_noise") = py::none(), py::arg("dt_max") = std::numeric_limits<double>::infinity(),
+      py::arg("intensity_z") = py::none(), py::arg("intensity_noise") = 0.0, R"doc(
 One LiDAR frame in one call: the rays of scan_rays (ray i at time t0 + t[i] [s]) cast into ``scene`` (in
 coherent packets, channel by channel: the hits of single rays, up to the last bits of distances, which
 Embree does not promise), and the returns the sensor reports.
@@ -351,6 +435,16 @@ Intensity: reflectivity[geometry id] x |cos incidence| clipped to [0, 1], float6
 float32). Returns a dict over the returns, in ray order: ``dt`` (M,) t[i], ``points_L`` (M, 3) float32,
 ``ranges`` (M,), ``intensity`` (M,), ``channel`` (M,) int32, ``points_W`` (M, 3) float32 noise-free world
 hits and ``object_ids`` (M,) uint32.
+The realism terms (keyword-only, each off while its draws are None; cufund.sensors.LidarParams documents them):
+``noise_z`` (N,) unit normals: the range noise is noise_z[i] x sigma, sigma = (range_noise_std +
+range_noise_per_m r) (1 + incidence_noise (1 / cos theta - 1)), theta the incidence angle capped at 85 deg
+(not with ``noise``); ``detect_draw`` (N,) uniforms: a return is lost unless detect_draw[i] < its detection
+probability, 1 up to r_max = max_range_at_10pct sqrt(reflectivity cos theta / 0.1) and 0 past r_max (1 +
+detection_softness), a smoothstep between; ``mixed_draw`` (N, 2) uniforms: a return next to a depth edge of its
+channel (a neighbouring ray's true range more than mixed_pixel_edge_m away) lands at r + mixed_draw[i, 1]
+(r_neighbour - r) when mixed_draw[i, 0] < mixed_pixel_probability; ``dt_noise`` (N,) [s] added to the reported
+dt, clamped to [0, dt_max]; ``intensity_z`` (N,) unit normals: intensity x (1 + s intensity_z[i]), s =
+intensity_noise (1 + (r / r_max)^2) with a finite max_range_at_10pct, else intensity_noise.
 )doc");
 
   m.def(

@@ -54,7 +54,7 @@ def mid360_frame(k: typing.Any, n: typing.Any, point_rate: typing.Any, lasers: t
     i % lasers; azimuth 2 pi (spin_rate t + channel / lasers) mod 2 pi, elevation the middle of
     [elevation_min, elevation_max] plus half its width times sin(2 pi spin_rate sweep_ratio t + pi channel / lasers).
     """
-def scan_frame(scene: RaycastScene, d_L: typing.Any, t: typing.Any, channel: typing.Any, t0: typing.Any, knot_t: typing.Any, knot_p: typing.Any, knot_q: typing.Any, range_min: typing.Any, range_max: typing.Any, noise: typing.Any = None, keep_draw: typing.Any = None, dropout: typing.Any = 0.0, reflectivity: typing.Any = None, nthreads: typing.Any = 0) -> dict:
+def scan_frame(scene: RaycastScene, d_L: typing.Any, t: typing.Any, channel: typing.Any, t0: typing.Any, knot_t: typing.Any, knot_p: typing.Any, knot_q: typing.Any, range_min: typing.Any, range_max: typing.Any, noise: typing.Any = None, keep_draw: typing.Any = None, dropout: typing.Any = 0.0, reflectivity: typing.Any = None, nthreads: typing.Any = 0, *, noise_z: typing.Any = None, range_noise_std: typing.Any = 0.0, range_noise_per_m: typing.Any = 0.0, incidence_noise: typing.Any = 0.0, detect_draw: typing.Any = None, max_range_at_10pct: typing.Any = ..., detection_softness: typing.Any = 0.1, mixed_draw: typing.Any = None, mixed_pixel_probability: typing.Any = 0.0, mixed_pixel_edge_m: typing.Any = 0.3, dt_noise: typing.Any = None, dt_max: typing.Any = ..., intensity_z: typing.Any = None, intensity_noise: typing.Any = 0.0) -> dict:
     """
     One LiDAR frame in one call: the rays of scan_rays (ray i at time t0 + t[i] [s]) cast into ``scene`` (in
     coherent packets, channel by channel: the hits of single rays, up to the last bits of distances, which
@@ -65,6 +65,16 @@ def scan_frame(scene: RaycastScene, d_L: typing.Any, t: typing.Any, channel: typ
     float32). Returns a dict over the returns, in ray order: ``dt`` (M,) t[i], ``points_L`` (M, 3) float32,
     ``ranges`` (M,), ``intensity`` (M,), ``channel`` (M,) int32, ``points_W`` (M, 3) float32 noise-free world
     hits and ``object_ids`` (M,) uint32.
+    The realism terms (keyword-only, each off while its draws are None; cufund.sensors.LidarParams documents them):
+    ``noise_z`` (N,) unit normals: the range noise is noise_z[i] x sigma, sigma = (range_noise_std +
+    range_noise_per_m r) (1 + incidence_noise (1 / cos theta - 1)), theta the incidence angle capped at 85 deg
+    (not with ``noise``); ``detect_draw`` (N,) uniforms: a return is lost unless detect_draw[i] < its detection
+    probability, 1 up to r_max = max_range_at_10pct sqrt(reflectivity cos theta / 0.1) and 0 past r_max (1 +
+    detection_softness), a smoothstep between; ``mixed_draw`` (N, 2) uniforms: a return next to a depth edge of its
+    channel (a neighbouring ray's true range more than mixed_pixel_edge_m away) lands at r + mixed_draw[i, 1]
+    (r_neighbour - r) when mixed_draw[i, 0] < mixed_pixel_probability; ``dt_noise`` (N,) [s] added to the reported
+    dt, clamped to [0, dt_max]; ``intensity_z`` (N,) unit normals: intensity x (1 + s intensity_z[i]), s =
+    intensity_noise (1 + (r / r_max)^2) with a finite max_range_at_10pct, else intensity_noise.
     """
 def scan_rays(d_L: typing.Any, t: typing.Any, knot_t: typing.Any, knot_p: typing.Any, knot_q: typing.Any) -> numpy.typing.NDArray[numpy.float32]:
     """

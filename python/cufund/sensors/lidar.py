@@ -36,10 +36,56 @@ class LidarParams:
     nthreads: int = 0
     """Ray casting threads, 0: all cores."""
 
+    # Realism terms (issue 31), each off by default; with all of them off a frame is bit for bit what it was
+    # before they existed (their random draws come after the ones above, and only when a term is on).
+    range_noise_per_m: float = 0.0
+    """Range noise growing with range: sigma(r) = range_noise_std + range_noise_per_m r [m/m]."""
+    incidence_noise: float = 0.0
+    """Range noise growing with incidence: sigma x (1 + incidence_noise (1 / cos theta - 1)), theta the angle
+    between the ray and the surface normal, capped at 85 deg [-]."""
+    max_range_at_10pct: float = float("inf")
+    """Detection range on a 10 % reflective target at normal incidence [m]; past r_max = max_range_at_10pct
+    sqrt(rho cos theta / 0.1) (rho: the object's reflectivity) the probability of a return falls smoothly to 0
+    (reflectivity- and incidence-dependent dropouts). inf: off."""
+    detection_softness: float = 0.1
+    """Relative width of that fall: certain detection up to r_max, none from r_max (1 + detection_softness),
+    a smoothstep between [-]."""
+    mixed_pixel_probability: float = 0.0
+    """Probability that a return at a depth edge (a neighbouring ray of its channel, in firing order, whose true
+    range differs by more than ``mixed_pixel_edge_m``) lands between the two surfaces, at a uniform mix of the two
+    ranges along its ray, in [0, 1]."""
+    mixed_pixel_edge_m: float = 0.3
+    """Depth jump between neighbouring rays of one channel that makes a depth edge [m]."""
+    timestamp_jitter_s: float = 0.0
+    """1 sigma of Gaussian noise on each point's reported time offset ``dt`` (clamped to [0, period); the points
+    stay in firing order) [s]."""
+    intensity_noise: float = 0.0
+    """Relative 1 sigma noise on the reported intensity, growing as (1 + (r / r_max)^2) towards the detection
+    range r_max when ``max_range_at_10pct`` is finite (a weaker return, a noisier amplitude) [-]."""
+    time_offset_s: float = 0.0
+    """The cloud's reported stamp minus the true firing time of its first ray (the LiDAR-IMU clock offset); the
+    rays are still cast at their true times [s]."""
+
     def __post_init__(self) -> None:
-        for name in ("range_min", "range_max", "range_noise_std", "dropout"):
+        reals = (
+            "range_min",
+            "range_max",
+            "range_noise_std",
+            "dropout",
+            "range_noise_per_m",
+            "incidence_noise",
+            "detection_softness",
+            "mixed_pixel_probability",
+            "mixed_pixel_edge_m",
+            "timestamp_jitter_s",
+            "intensity_noise",
+            "time_offset_s",
+        )
+        for name in (*reals, "max_range_at_10pct"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v):
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or np.isnan(v):
+                raise ValueError(f"LidarParams.{name} must be a real number, got {v!r}")
+            if name in reals and not np.isfinite(v):
                 raise ValueError(f"LidarParams.{name} must be a finite real number, got {v!r}")
         for name in ("pose_samples", "seed", "nthreads"):
             v = getattr(self, name)
@@ -59,6 +105,26 @@ class LidarParams:
             raise ValueError(f"nthreads must be >= 0, got {self.nthreads}")
         if self.seed < 0:
             raise ValueError(f"seed must be >= 0, got {self.seed}")
+        for name, unit in (
+            ("range_noise_per_m", "m/m"),
+            ("incidence_noise", "-"),
+            ("detection_softness", "-"),
+            ("timestamp_jitter_s", "s"),
+            ("intensity_noise", "-"),
+        ):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"LidarParams.{name} must be >= 0 [{unit}], got {getattr(self, name)}")
+        if not self.max_range_at_10pct > 0:
+            raise ValueError(
+                f"LidarParams.max_range_at_10pct must be > 0 [m] (inf: every return detected), got "
+                f"{self.max_range_at_10pct}"
+            )
+        if not 0.0 <= self.mixed_pixel_probability <= 1.0:
+            raise ValueError(
+                f"LidarParams.mixed_pixel_probability must be in [0, 1], got {self.mixed_pixel_probability}"
+            )
+        if not self.mixed_pixel_edge_m > 0:
+            raise ValueError(f"LidarParams.mixed_pixel_edge_m must be > 0 [m], got {self.mixed_pixel_edge_m}")
 
 
 def mid360_params(**overrides: Any) -> LidarParams:
@@ -135,10 +201,16 @@ class Lidar:
         else:
             p_WB_k, q_WB_k = many(knots)
             p_WL_k, q_WL_k = _compose(p_WB_k, q_WB_k, self.T_BL)
-        # Noise and dropout are drawn for every ray so a frame's draws do not depend on the scene.
+        # Noise and dropout are drawn for every ray so a frame's draws do not depend on the scene; the realism
+        # terms' draws come after, each only when its term is on (so frames without them are unchanged).
         n = len(rays_L.t)
-        keep = self._rng.random(n) if p.dropout > 0 else None
-        noise = self._rng.standard_normal(n) * p.range_noise_std if p.range_noise_std > 0 else None
+        rng = self._rng
+        keep = rng.random(n) if p.dropout > 0 else None
+        noise_z = rng.standard_normal(n) if p.range_noise_std > 0 or p.range_noise_per_m > 0 else None
+        detect = rng.random(n) if np.isfinite(p.max_range_at_10pct) else None
+        mixed = rng.random((n, 2)) if p.mixed_pixel_probability > 0 else None
+        dt_noise = rng.standard_normal(n) * p.timestamp_jitter_s if p.timestamp_jitter_s > 0 else None
+        intensity_z = rng.standard_normal(n) if p.intensity_noise > 0 else None
         out = _core.lidar.scan_frame(
             scene,
             d_L,
@@ -150,14 +222,28 @@ class Lidar:
             q_WL_k,
             p.range_min,
             p.range_max,
-            noise,
+            None,
             keep,
             p.dropout,
             refl,
             p.nthreads,
+            noise_z=noise_z,
+            range_noise_std=p.range_noise_std,
+            range_noise_per_m=p.range_noise_per_m,
+            incidence_noise=p.incidence_noise,
+            detect_draw=detect,
+            max_range_at_10pct=p.max_range_at_10pct,
+            detection_softness=p.detection_softness,
+            mixed_draw=mixed,
+            mixed_pixel_probability=p.mixed_pixel_probability,
+            mixed_pixel_edge_m=p.mixed_pixel_edge_m,
+            dt_noise=dt_noise,
+            dt_max=float(np.nextafter(self.period, 0.0)),
+            intensity_z=intensity_z,
+            intensity_noise=p.intensity_noise,
         )
         cloud = PointCloud(
-            t=float(t0),
+            t=float(t0) + p.time_offset_s if p.time_offset_s else float(t0),
             dt=out["dt"],
             points_L=out["points_L"],
             ranges=out["ranges"],
