@@ -33,6 +33,7 @@ from .global_planner import GlobalPlan, GlobalPlanner
 from .local_planner import LocalPlannerParams
 from .local_planner_component import LocalPlannerComponent, ReplanRecord
 from .minimum_snap import MinimumSnapTrajectory
+from .point_to_point import JerkLimitedMove
 from .trajectory import Trajectory
 
 __all__ = ["GlobalPlannerComponent"]
@@ -173,7 +174,36 @@ class GlobalPlannerComponent(LocalPlannerComponent):
             self._fail_since = None
             self._publish(t, plan.trajectory, bus)
             return
+        if plan.status == "start_blocked" and self._step_out(t, t_r, p, bus):
+            return  # plan again once at rest outside the search's margin
         self._failed(t, t_r, p, v, a, plan.status, bus)
+
+    def _step_out(self, t: float, t_r: float, p: np.ndarray, bus: BusView) -> bool:
+        """At rest closer to an obstacle than the search keeps (radius + margin; e.g. stopped by a brake as the
+        map sharpened): move (jerk-limited, at the landing's limits) to the clearest point within 0.6 m whose
+        straight way there is certified free at the clearance it starts with, if that point clears the search's
+        radius. False when there is none."""
+        assert self._query is not None
+        need = self.planner.params.radius + self.planner.params.margin
+        here = float(self._query.clearance(p))
+        if not here > 0.0:
+            return False
+        dirs = np.array([[x, y, z] for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1) if x or y or z], float)
+        dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+        cand = (p + np.concatenate([r * dirs for r in (0.15, 0.3, 0.45, 0.6)])).reshape(-1, 3)
+        cand = cand[(cand[:, 2] >= self.params.z_min) & (cand[:, 2] <= self.params.z_max)]
+        if cand.shape[0] == 0:
+            return False
+        clear = np.asarray(self._query.clearance(cand), dtype=float)
+        for k in np.argsort(-clear):
+            if clear[k] < need:
+                return False
+            if self._query.segment_free(p, cand[k], min(here, self.planner.params.radius) - 1e-3):
+                v, a, j = self.landing
+                self._publish(t, JerkLimitedMove(p, cand[k], v, a, j, self.yaw, t_start=t_r), bus)
+                self._record(t, "step_out", 0.0, 0.0, float(clear[k]), float(np.linalg.norm(cand[k] - p)), bus)
+                return True
+        return False
 
     # -- planning --------------------------------------------------------------------------------------------
 
@@ -270,7 +300,7 @@ class GlobalPlannerComponent(LocalPlannerComponent):
         """The ``global_*`` figures of the first plan (the keys of the known-map planner), and the replans'."""
         return {
             **plan_metrics(self.first_plan, self.planner.params.search),
-            "global_replans": sum(r.status not in ("blocked", "gave_up") for r in self.global_replans),
+            "global_replans": sum(r.status not in ("blocked", "gave_up", "step_out") for r in self.global_replans),
             "global_replan_status": _counts(r.status for r in self.global_replans),
             "global_abort": self.abort_reason,
         }
