@@ -297,11 +297,15 @@ class GlobalPlannerComponent(LocalPlannerComponent):
     # -- metrics ---------------------------------------------------------------------------------------------
 
     def global_metrics(self) -> dict[str, Any]:
-        """The ``global_*`` figures of the first plan (the keys of the known-map planner), and the replans'."""
+        """The ``global_*`` figures of the first plan (the keys of the known-map planner), and the replans' (wall
+        time of every search, first plan included)."""
+        ms = np.array([r.plan_ms for r in self.global_replans if r.status not in ("blocked", "gave_up", "step_out")])
         return {
             **plan_metrics(self.first_plan, self.planner.params.search),
             "global_replans": sum(r.status not in ("blocked", "gave_up", "step_out") for r in self.global_replans),
             "global_replan_status": _counts(r.status for r in self.global_replans),
+            "global_replan_ms_median": float(np.median(ms)) if ms.size else None,
+            "global_replan_ms_max": float(ms.max()) if ms.size else None,
             "global_abort": self.abort_reason,
         }
 
