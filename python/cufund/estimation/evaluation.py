@@ -1,7 +1,7 @@
 """Odometry error figures (the issue's metrics.json fields) and TUM trajectory files for checking with ``evo``.
 
-Errors are taken at each estimate's stamp against the true pose at the same time, with no alignment (the
-estimator starts from the known pad pose).
+Errors are taken at each estimate's stamp against the true pose at the same time: unaligned (the estimator's world
+frame is the pad's: origin and yaw) and, with :func:`aligned_ate`, after evo's SE(3) alignment.
 """
 
 from __future__ import annotations
