@@ -107,6 +107,8 @@ class Odometry(Message):
     read); None where the source does not know it."""
     alpha_B: np.ndarray | None = None
     """Angular acceleration [rad/s^2], (3,): set on ground truth, else None."""
+    rotor_speeds: np.ndarray | None = None
+    """True rotor speeds [rad/s], (4,) in PX4's numbering: set on ground truth (what shakes an IMU), else None."""
 
 
 @message

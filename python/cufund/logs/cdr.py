@@ -42,6 +42,7 @@ _ROS_TYPES = {
 OPTIONAL_ARRAY_SHAPES: dict[tuple[str, str], tuple[int, ...]] = {
     ("Odometry", "a_W"): (3,),
     ("Odometry", "alpha_B"): (3,),
+    ("Odometry", "rotor_speeds"): (4,),
 }
 """Shapes of optional array fields of cufund messages, so that a topic whose first message has ``None`` there
 still gets a fixed layout."""

@@ -347,7 +347,9 @@ class Simulator:
         self._now_ns = self.t_start_ns
         if self.vehicle is not None:
             self._state = s = self.vehicle.state  # views into the C++ state, valid for the vehicle's lifetime
-            self._truth_views = _joined((s.p, s.v, s.q, s.w, self.vehicle.accel_W, self.vehicle.alpha_B))
+            self._truth_views = _joined(
+                (s.p, s.v, s.q, s.w, self.vehicle.accel_W, self.vehicle.alpha_B, s.rotor_speeds)
+            )
             self._row_views = _joined((s.p, s.v, s.q, s.w, s.rotor_speeds))
             self._cmd: np.ndarray | None = s.rotor_speeds.copy()
             self._ground_plane = bool(self.vehicle.params.ground_plane)
@@ -400,10 +402,11 @@ class Simulator:
             self.status, self.message = status, message
 
     def _snapshot(self, t: float) -> Odometry:
-        """Ground truth now, with the true accelerations of the last physics step (one read-only buffer)."""
+        """Ground truth now, with the true accelerations of the last physics step and the rotor speeds (one
+        read-only buffer)."""
         x = np.concatenate(self._truth_views)
         x.setflags(write=False)
-        return Odometry.trusted(t, x[0:3], x[3:6], x[6:10], x[10:13], x[13:16], x[16:19])
+        return Odometry.trusted(t, x[0:3], x[3:6], x[6:10], x[10:13], x[13:16], x[16:19], x[19:23])
 
     def _write_row(self, t: float) -> np.ndarray:
         if self._n_block == len(self._block):
