@@ -103,6 +103,7 @@ void define_dynamics(py::module_& m) {
       .def_readwrite("body_drag", &QuadrotorParams::body_drag)
       .def_readwrite("gravity", &QuadrotorParams::gravity)
       .def_readwrite("ground_plane", &QuadrotorParams::ground_plane)
+      .def_readwrite("ground_attitude", &QuadrotorParams::ground_attitude)
       .def_readwrite("max_integration_step", &QuadrotorParams::max_integration_step);
 
   m.def("validate_params", &validate, py::arg("params"),

@@ -41,6 +41,8 @@ DynamicsConstants make_constants(const QuadrotorParams& p) {
   c.kd_z = p.rotor_drag_z;
   CUFUND_UNROLL
   for (int k = 0; k < 3; ++k) c.cd[k] = p.body_drag(k);
+  CUFUND_UNROLL
+  for (int k = 0; k < 4; ++k) c.ground_q[k] = p.ground_attitude(k);
   return c;
 }
 

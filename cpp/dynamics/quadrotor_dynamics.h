@@ -33,6 +33,7 @@ struct DynamicsConstants {
   double yaw_moment[kNumRotors];  // -s_i * c_m: M_z contribution per newton of rotor thrust
   double kd_xy, kd_z;             // rotor drag
   double cd[3];                   // body drag
+  double ground_q[4];             // attitude at rest on the ground [w, x, y, z], yaw kept (a tilted pad)
 };
 
 DynamicsConstants make_constants(const QuadrotorParams& params);
@@ -169,19 +170,24 @@ CUFUND_INLINE void rk4_substep(const DynamicsConstants& c, const StepInputs& u, 
     // static friction holds it, the landing gear levels it (yaw kept), rotation stops.
     // Branch-free (one comparison per select), so the loop over vehicles stays vectorised.
     x[2] = std::max(x[2], 0.0);
+    // On a tilted pad it rests at the pad's attitude g with its yaw kept: q = g (x) twist_z(g^-1 (x) q)
+    // (g = identity, level ground: exactly the yaw twist of q).
     const bool resting = resting_on_ground(x);
-    const double twist = x[6] * x[6] + x[9] * x[9];
+    const double gw = c.ground_q[0], gx = c.ground_q[1], gy = c.ground_q[2], gz = c.ground_q[3];
+    const double rw = gw * x[6] + gx * x[7] + gy * x[8] + gz * x[9];  // g^-1 (x) q: its w and z
+    const double rz = gw * x[9] - gx * x[8] + gy * x[7] - gz * x[6];
+    const double twist = rw * rw + rz * rz;
     const bool has_twist = twist > 1e-24;
     const double tn = has_twist ? 1.0 / std::sqrt(twist) : 0.0;
-    const double qw_level = has_twist ? x[6] * tn : 1.0;
-    const double qz_level = x[9] * tn;
+    const double tw = has_twist ? rw * tn : 1.0;
+    const double tz = rz * tn;
     x[3] = resting ? 0.0 : x[3];
     x[4] = resting ? 0.0 : x[4];
     x[5] = resting ? 0.0 : x[5];
-    x[6] = resting ? qw_level : x[6];
-    x[7] = resting ? 0.0 : x[7];
-    x[8] = resting ? 0.0 : x[8];
-    x[9] = resting ? qz_level : x[9];
+    x[6] = resting ? gw * tw - gz * tz : x[6];
+    x[7] = resting ? gx * tw + gy * tz : x[7];
+    x[8] = resting ? gy * tw - gx * tz : x[8];
+    x[9] = resting ? gz * tw + gw * tz : x[9];
     x[10] = resting ? 0.0 : x[10];
     x[11] = resting ? 0.0 : x[11];
     x[12] = resting ? 0.0 : x[12];

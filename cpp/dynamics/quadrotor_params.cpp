@@ -69,6 +69,15 @@ std::string validate(const QuadrotorParams& p) {
   if (!(finite(p.max_integration_step) && p.max_integration_step > 0)) {
     return expect("max_integration_step", "a finite number > 0 [s]", p.max_integration_step);
   }
+  if (!(p.ground_attitude.allFinite() && std::abs(p.ground_attitude.norm() - 1.0) <= 1e-6)) {
+    return expect("ground_attitude", "a unit quaternion [w, x, y, z]; norm", p.ground_attitude.norm());
+  }
+  // a resting vehicle's z axis tilted at most 30 deg from vertical: 1 - 2 (x^2 + y^2) >= cos(30 deg)
+  const Eigen::Vector4d& g = p.ground_attitude;
+  if (!(1.0 - 2.0 * (g(1) * g(1) + g(2) * g(2)) >= 0.8660254037844386 /* cos(30 deg) */)) {
+    return expect("ground_attitude", "a tilt of at most 30 deg from level; cos(tilt)",
+                  1.0 - 2.0 * (g(1) * g(1) + g(2) * g(2)));
+  }
   return "";
 }
 

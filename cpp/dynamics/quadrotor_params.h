@@ -42,6 +42,9 @@ struct QuadrotorParams {
   double gravity = 9.80665;                             // [m/s^2]
   bool ground_plane = true;                             // rigid ground at z = 0
   double max_integration_step = 1e-3;                   // RK4 sub-step upper bound [s] (1 kHz default)
+  // The attitude [w, x, y, z] a vehicle resting on the ground takes, its yaw kept: level (identity), or the
+  // attitude of a tilted take-off pad (the landing gear follows the pad's slope).
+  Eigen::Vector4d ground_attitude = Eigen::Vector4d(1.0, 0.0, 0.0, 0.0);
 };
 
 // Bounds on the principal moments of inertia over mass * arm_length^2 (a plausibility check).

@@ -68,6 +68,9 @@ class QuadrotorParams:
     """Gravitational acceleration [m/s^2]."""
     ground_plane: bool = True
     """A rigid ground at z = 0 that the vehicle rests on and takes off from."""
+    ground_attitude: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    """The attitude [w, x, y, z] the vehicle takes resting on the ground, its yaw kept: level, or a tilted take-off
+    pad's (at most 30 deg; the scenario's ``realism.vehicle.pad_tilt_max_deg`` draws one for the simulated plant)."""
     max_integration_step: float = 1e-3
     """Largest RK4 sub-step [s]; a step of dt is split into ceil(dt / this) equal sub-steps (1 kHz default)."""
     name: str = field(default="custom", compare=False)
@@ -90,6 +93,13 @@ class QuadrotorParams:
             object.__setattr__(self, f, real_number(f, getattr(self, f)))
         object.__setattr__(self, "inertia", _matrix3("inertia", self.inertia))
         object.__setattr__(self, "body_drag", vector3("body_drag", self.body_drag))
+        try:
+            g = np.asarray(self.ground_attitude, dtype=float)
+        except (TypeError, ValueError):
+            g = np.full(1, np.nan)
+        if g.shape != (4,) or not np.all(np.isfinite(g)):
+            raise ConfigError(f"ground_attitude must be 4 finite numbers [w, x, y, z], got {self.ground_attitude!r}")
+        object.__setattr__(self, "ground_attitude", (float(g[0]), float(g[1]), float(g[2]), float(g[3])))
         if not isinstance(self.layout, str) or self.layout not in _LAYOUTS:
             raise ConfigError(f"layout must be one of 'x', '+', got {self.layout!r}")
         if not isinstance(self.ground_plane, bool):
@@ -115,6 +125,7 @@ class QuadrotorParams:
         c.body_drag = np.asarray(self.body_drag, dtype=float)
         c.gravity = self.gravity
         c.ground_plane = self.ground_plane
+        c.ground_attitude = np.asarray(self.ground_attitude, dtype=float)
         c.max_integration_step = self.max_integration_step
         return c
 
