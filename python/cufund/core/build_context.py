@@ -80,6 +80,14 @@ class BuildContext(Protocol):
         """Where the scenario file lies (relative paths in it resolve from there), or None."""
 
     @property
+    def realism(self) -> Any:
+        """The scenario's resolved realism profile and the errors drawn for this run (a
+        :class:`cufund.scenarios.realism.Realism`; its ``profile`` is ``ideal`` or ``realistic``). Read-only, and
+        for the simulated parts only: a sensor kind gives its simulated sensor ``realism.simulated_imu(...)``,
+        ``simulated_lidar(...)``, ``simulated_extrinsic(...)``; flight software keeps the stated extrinsics
+        (``sensor_of_type``, ``imu_params``) and the nominal ``vehicle``."""
+
+    @property
     def world(self) -> Any:
         """The scenario's world (a :class:`cufund.worlds.World`), or None without one (and while the world itself
         is being built)."""

@@ -19,6 +19,7 @@ from cufund.simulator import SimulationResult, Simulator
 from cufund.vehicle.quadrotor import Quadrotor
 from cufund.worlds.collision import CollisionChecker
 
+from .realism import Realism, resolve
 from .schema import PartSpec, ScenarioConfig
 
 __all__ = [
@@ -46,6 +47,7 @@ class ScenarioBuildContext:
         "config",
         "vehicle",
         "base_dir",
+        "_realism",
         "_world",
         "world_readers",
         "_part",
@@ -64,6 +66,7 @@ class ScenarioBuildContext:
         self.config = config
         self.vehicle = config.vehicle_params()
         self.base_dir = config.base_dir
+        self._realism = resolve(config.realism, config.sensors, self.seed_for)
         self._world: Any = None
         self.world_readers: list[str] = []
         """Who read ``world`` (or ``require_world()``): the part being built (``sensors.lidar``, ``planner``, ...),
@@ -95,6 +98,12 @@ class ScenarioBuildContext:
         """The world for harness-only truth consumers (metrics, collision checks, plots), not recorded as a read:
         never hand it to flight software."""
         return self._world
+
+    @property
+    def realism(self) -> Realism:
+        """The scenario's resolved realism profile and this run's drawn errors (read-only); only the simulated
+        sensors and plant apply it, flight software reads the stated extrinsics and the nominal ``vehicle``."""
+        return self._realism
 
     @property
     def part(self) -> PartView:
@@ -239,9 +248,10 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
     if config.world is not None:
         ctx.world = ctx.build("world", config.world, "world")
     world = ctx.truth_world_for_metrics()  # the harness's (the vehicle's start, collision checks)
-    quad = Quadrotor(ctx.vehicle)
+    quad = Quadrotor(ctx.realism.simulated_vehicle(ctx.vehicle))  # the plant; controllers read ctx.vehicle
     start = config.start_p_W or (config.trajectory.waypoints[0][0], config.trajectory.waypoints[0][1], 0.0)
     quad.state.p[:] = start  # standing, rotors stopped
+    quad.state.q[:] = quad.params.ground_attitude  # on the pad as it lies (realism.vehicle.pad_tilt_max_deg)
     collision = None
     if world is not None:
         collision = CollisionChecker(world, box_size=config.collision_box, ignore_labels=("floor", "ground"))
@@ -339,6 +349,7 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
         config.duration, done=landed if t_landed is not None else ctx.done_condition, progress=progress
     )
     metrics = run_metrics(result)
+    metrics["realism"] = ctx.realism.summary()  # under what the figures were measured
     if config.faults:
         metrics["faults"] = fault_summary(config.faults)
     if ctx.tracking_path is not None:

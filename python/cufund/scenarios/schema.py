@@ -27,6 +27,8 @@ from cufund.sensors.faults import faults_to_data, parse_faults
 from cufund.vehicle import presets
 from cufund.vehicle.params import QuadrotorParams
 
+from .realism import RealismConfig
+
 __all__ = [
     "LogConfig",
     "PartSpec",
@@ -318,6 +320,10 @@ class ScenarioConfig:
     faults: Any = None
     """Sensor faults in flight (:mod:`cufund.sensors.faults`): ``{lidar_dropout: {t_start: 12}, ...}`` or a list of
     ``{kind: ..., t_start: ...}``; null: none."""
+    realism: Any = None
+    """How far the simulated vehicle and sensors are from what flight software is told
+    (:class:`cufund.scenarios.realism.RealismConfig`): ``ideal`` (default: every term off), ``realistic``, or
+    ``{profile: realistic, imu: {scale_factor_ppm: 3000}, ...}``; see docs/realism.md."""
     seed: int = 0
     """One seed derives every random stream (sensor noise, LiDAR noise, ...); the same seed repeats a run bit for
     bit."""
@@ -363,6 +369,7 @@ class ScenarioConfig:
         object.__setattr__(self, "rates", nested(RatesConfig, self.rates, "rates"))
         object.__setattr__(self, "log", nested(LogConfig, self.log, "log"))
         object.__setattr__(self, "faults", parse_faults(self.faults))
+        object.__setattr__(self, "realism", RealismConfig.parse(self.realism))
         try:
             box = np.asarray(self.collision_box, dtype=float)
         except (TypeError, ValueError):
@@ -406,6 +413,8 @@ class ScenarioConfig:
                 out[f.name] = part_to_dict(v)
             elif f.name == "faults":
                 out[f.name] = faults_to_data(v)
+            elif f.name == "realism":
+                out[f.name] = v.to_data()
             elif f.name == "sensors":
                 out[f.name] = {k: part_to_dict(s) for k, s in v.items()}
             elif dataclasses.is_dataclass(v):
@@ -457,7 +466,9 @@ def apply_overrides(data: dict[str, Any], overrides: Mapping[str, Any] | Iterabl
         node = out
         for depth, p in enumerate(parts[:-1]):
             child = node.get(p)
-            if isinstance(child, str) and (depth > 0 or p in _PART_GROUPS):
+            if isinstance(child, str) and depth == 0 and p == "realism":
+                child = {"profile": child}  # realism.imu.x=1 on realism: realistic
+            elif isinstance(child, str) and (depth > 0 or p in _PART_GROUPS):
                 child = {"kind": _SHORTHAND.get((p, child), child)}
             elif child is None:
                 child = {}

@@ -53,6 +53,10 @@ def _imu(params: ImuParams, ctx: BuildContext) -> list[Any]:
         if params.p_BI != (0.0, 0.0, 0.0) or params.q_BI != (1.0, 0.0, 0.0, 0.0):
             raise ConfigError(f"{ctx.where}: give the IMU's mounting once, as T_BI or as p_BI/q_BI, not both")
         params = dataclasses.replace(params, p_BI=T.t, q_BI=T.q)
+    # the simulated part after calibration, with the realism profile's drawn errors (flight software reads the
+    # part as stated through ctx.imu_params()); its vibration follows the simulated plant's hover rotor speed
+    plant = ctx.realism.simulated_vehicle(ctx.vehicle)
+    params = ctx.realism.simulated_imu(ctx.where, params, plant.hover_rotor_speed)
     return [ImuSensor(params, ctx.seed, ctx.vehicle.gravity, ctx.part.topic)]
 
 
@@ -155,17 +159,20 @@ class LidarSensorParams:
 
 def _lidar(p: LidarSensorParams, ctx: BuildContext) -> list[Any]:
     world = ctx.require_world()
+    params = LidarParams(
+        range_min=p.range_min,
+        range_max=p.range_max,
+        range_noise_std=p.range_noise_std,
+        dropout=p.dropout,
+        seed=ctx.seed,
+        nthreads=p.nthreads,
+    )
+    # the simulated LiDAR: the realism profile's range model and clock offset, mounted where it truly is (flight
+    # software reads the stated extrinsic from the scenario)
     lidar = Lidar(
         _PATTERNS[p.pattern](),
-        LidarParams(
-            range_min=p.range_min,
-            range_max=p.range_max,
-            range_noise_std=p.range_noise_std,
-            dropout=p.dropout,
-            seed=ctx.seed,
-            nthreads=p.nthreads,
-        ),
-        ctx.part.extrinsic,
+        ctx.realism.simulated_lidar(ctx.where, params),
+        ctx.realism.simulated_extrinsic(ctx.where, ctx.part.extrinsic),
     )
     try:
         return [LidarComponent(lidar, world, ctx.part.topic, p.pose_rate_hz)]
@@ -224,13 +231,12 @@ class CameraSensorParams:
 def _camera(depth: bool) -> Any:
     def build(p: CameraSensorParams, ctx: BuildContext) -> list[Any]:
         world = ctx.require_world()
+        T_BC = ctx.realism.simulated_extrinsic(ctx.where, ctx.part.extrinsic)  # where it truly is
         try:
             cam = (
-                DepthCamera(
-                    d435_depth(), ctx.part.extrinsic, p.depth_min, p.depth_max, p.noise_coeff, ctx.seed, p.nthreads
-                )
+                DepthCamera(d435_depth(), T_BC, p.depth_min, p.depth_max, p.noise_coeff, ctx.seed, p.nthreads)
                 if depth
-                else RgbCamera(d435_rgb(), ctx.part.extrinsic, nthreads=p.nthreads)
+                else RgbCamera(d435_rgb(), T_BC, nthreads=p.nthreads)
             )
         except ValueError as e:
             raise ConfigError(f"{ctx.where}: {e}") from None
