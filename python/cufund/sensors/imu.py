@@ -5,7 +5,14 @@ differences of states) at its mounting point: with lever arm ``p_BI`` (IMU posit
 mounting rotation ``q_BI`` (IMU frame to body),
 
     f_B = R_WB^T (a_W + g e_z) + alpha_B x p_BI + w_B x (w_B x p_BI)     (specific force, body)
-    a_I = sat((1 + s_a) * (R_BI^T f_B) + b_a + n_a),   w_I = sat((1 + s_g) * (R_BI^T w_B) + b_g + n_g)
+    f_I = R_BI^T f_B                                                       (true specific force, IMU frame)
+    a_I = sat((I + diag(s_a) + C_a) f_I + vib_a(t) + b_a + n_a)
+    w_I = sat((I + diag(s_g) + C_g) R_BI^T w_B + G f_I + vib_g(t) + b_g + n_g)
+
+with ``s`` the scale-factor errors, ``C`` the cross-axis sensitivities (off-diagonal, zero diagonal), ``G`` the
+gyroscope's g-sensitivity [rad/s per m/s^2], ``vib`` the rotor vibration after the anti-alias filter
+(:mod:`cufund.sensors.imu_vibration`, from the true rotor speeds) and ``sat`` the per-axis range acting on the
+total (vibration can clip). Every term but the noise defaults to zero.
 
 A level IMU at rest reads +g on its z axis (FLU). Noise densities use Kalibr's and PX4's units:
 accelerometer m/s^2/sqrt(Hz) and random walk m/s^3/sqrt(Hz); gyroscope rad/s/sqrt(Hz) and rad/s^2/sqrt(Hz).
@@ -22,10 +29,11 @@ from cufund.core.config import ConfigError, check_real_fields, from_dict, nested
 from cufund.core.messages import Imu, Odometry, Topics
 from cufund.geometry import quat_to_matrix, world_to_body
 
+from .imu_vibration import RotorVibration, VibrationSpec
 from .model_sensor import ModelSensor
 from .noise import ErrorProcess, NoiseSpec, real_fields
 
-__all__ = ["IMU_PRESETS", "ImuModel", "ImuParams", "ImuSensor", "imu_preset"]
+__all__ = ["IMU_PRESETS", "ImuModel", "ImuParams", "ImuSensor", "VibrationSpec", "imu_preset"]
 
 G0 = 9.80665
 DEG = math.pi / 180.0
@@ -39,6 +47,18 @@ def _vec(name: str, value: object, dim: int) -> tuple[float, ...]:
     if a.shape != (dim,) or not np.all(np.isfinite(a)):
         raise ConfigError(f"{name} must be {dim} finite numbers, got {value!r}")
     return tuple(float(x) for x in a)
+
+
+_CROSS_AXIS_INDEX = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
+"""Matrix positions of the cross-axis terms (xy, xz, yx, yz, zx, zy): row = output axis, column = input."""
+
+
+def sensitivity_matrix(scale_factor: tuple[float, ...], cross_axis: tuple[float, ...]) -> np.ndarray:
+    """I + diag(scale_factor) + C, with C's off-diagonal elements in the order (xy, xz, yx, yz, zx, zy)."""
+    m = np.eye(3) + np.diag(scale_factor)
+    for (i, j), c in zip(_CROSS_AXIS_INDEX, cross_axis, strict=True):
+        m[i, j] = c
+    return m
 
 
 @dataclass(frozen=True)
@@ -59,6 +79,15 @@ class ImuParams:
     """Saturation of each accelerometer axis [m/s^2]."""
     gyro_range: float = 2000 * DEG
     """Saturation of each gyroscope axis [rad/s]."""
+    accel_cross_axis: tuple[float, float, float, float, float, float] = (0.0,) * 6
+    """Cross-axis sensitivity, the off-diagonal elements (xy, xz, yx, yz, zx, zy) of the sensitivity matrix
+    (0.01: 1 % of the y-axis input leaks into x for xy). Measured = (I + diag(scale_factor) + C) true."""
+    gyro_cross_axis: tuple[float, float, float, float, float, float] = (0.0,) * 6
+    """Gyroscope cross-axis sensitivity, as ``accel_cross_axis``."""
+    gyro_g_sensitivity: tuple[float, ...] = (0.0,) * 9
+    """Gyroscope sensitivity to specific force, 3x3 row-major [rad/s per m/s^2] (times the true f_I)."""
+    vibration: VibrationSpec = field(default_factory=VibrationSpec)
+    """Rotor vibration through the anti-alias filter (default: none)."""
     p_BI: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """IMU position in the body frame (lever arm from the centre of mass) [m]."""
     q_BI: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
@@ -74,6 +103,9 @@ class ImuParams:
             getattr(self, f).per_axis(3)  # validates
         for f in ("accel_scale_factor", "gyro_scale_factor", "p_BI"):
             object.__setattr__(self, f, _vec(f, getattr(self, f), 3))
+        for f, dim in (("accel_cross_axis", 6), ("gyro_cross_axis", 6), ("gyro_g_sensitivity", 9)):
+            object.__setattr__(self, f, _vec(f"ImuParams.{f}", getattr(self, f), dim))
+        object.__setattr__(self, "vibration", nested(VibrationSpec, self.vibration, "ImuParams.vibration"))
         object.__setattr__(self, "q_BI", _vec("q_BI", self.q_BI, 4))
         q = np.asarray(self.q_BI)
         if abs(np.linalg.norm(q) - 1.0) > 1e-6:
@@ -95,17 +127,32 @@ class ImuModel:
         self._R_IB = quat_to_matrix(np.asarray(params.q_BI)).T
         self._r = np.asarray(params.p_BI)
         self._r_tuple = tuple(float(v) for v in params.p_BI)
-        self._scale_a = 1.0 + np.asarray(params.accel_scale_factor)
-        self._scale_g = 1.0 + np.asarray(params.gyro_scale_factor)
-        self._mounted = (
+        self._M_a = sensitivity_matrix(params.accel_scale_factor, params.accel_cross_axis)
+        self._M_g = sensitivity_matrix(params.gyro_scale_factor, params.gyro_cross_axis)
+        self._G = np.asarray(params.gyro_g_sensitivity).reshape(3, 3) if any(params.gyro_g_sensitivity) else None
+        self._vibration = (
+            RotorVibration(params.vibration, 1.0 / params.rate_hz, seed) if params.vibration.enabled else None
+        )
+        self._mounted = (  # anything but white noise, bias and saturation: the general (matrix) path
             tuple(params.q_BI) != (1.0, 0.0, 0.0, 0.0)
             or any(params.accel_scale_factor)
             or any(params.gyro_scale_factor)
+            or any(params.accel_cross_axis)
+            or any(params.gyro_cross_axis)
+            or self._G is not None
+            or self._vibration is not None
         )
 
     def reset(self) -> None:
-        """Restarts the error stream (same seed: the same record again)."""
+        """Restarts the error stream and the rotors' angles (same seed: the same record again)."""
         self._errors.reset()
+        if self._vibration is not None:
+            self._vibration.reset()
+
+    @property
+    def vibrates(self) -> bool:
+        """Whether the model has rotor vibration (then it reads the true rotor speeds)."""
+        return self._vibration is not None
 
     @property
     def bias(self) -> tuple[np.ndarray, np.ndarray]:
@@ -114,11 +161,23 @@ class ImuModel:
         return b[:3].copy(), b[3:].copy()
 
     def measure(
-        self, q_WB: np.ndarray, w_B: np.ndarray, a_W: np.ndarray, alpha_B: np.ndarray
+        self,
+        q_WB: np.ndarray,
+        w_B: np.ndarray,
+        a_W: np.ndarray,
+        alpha_B: np.ndarray,
+        rotor_speeds: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Samples for the true attitude q_WB (K, 4) [w, x, y, z], body rate w_B (K, 3) [rad/s], acceleration
         a_W (K, 3) [m/s^2] and angular acceleration alpha_B (K, 3) [rad/s^2]; or one sample from (4,)/(3,).
+        ``rotor_speeds`` (K, n) or (n,) [rad/s], the true rotor speeds, drive the vibration (None: rotors
+        stopped; ignored without vibration). Consecutive samples are one output period apart.
         Returns (accelerometer (K, 3) [m/s^2], gyroscope (K, 3) [rad/s]) in the IMU frame."""
+        rotors = None
+        if self._vibration is not None and rotor_speeds is not None:
+            rotors = np.asarray(rotor_speeds, dtype=float)
+            if rotors.ndim not in (1, 2) or rotors.shape[-1] < 1 or not np.all(np.isfinite(rotors)):
+                raise ValueError(f"rotor_speeds must be finite, shape (n,) or (K, n), got shape {rotors.shape}")
         if (
             type(q_WB) is np.ndarray
             and q_WB.shape == (4,)
@@ -129,11 +188,16 @@ class ImuModel:
             and type(alpha_B) is np.ndarray
             and alpha_B.shape == (3,)
         ):
-            return self._measure_one(q_WB.tolist(), w_B.tolist(), a_W.tolist(), alpha_B.tolist())  # the tick path
+            # the tick path
+            return self._measure_one(q_WB.tolist(), w_B.tolist(), a_W.tolist(), alpha_B.tolist(), rotors)
         single = np.ndim(q_WB) == 1
         if single and np.shape(w_B) == (3,) and np.shape(a_W) == (3,) and np.shape(alpha_B) == (3,):
             return self._measure_one(
-                [float(v) for v in q_WB], [float(v) for v in w_B], [float(v) for v in a_W], [float(v) for v in alpha_B]
+                [float(v) for v in q_WB],
+                [float(v) for v in w_B],
+                [float(v) for v in a_W],
+                [float(v) for v in alpha_B],
+                rotors,
             )
         q, w, a, al = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q_WB, w_B, a_W, alpha_B))
         k = q.shape[0]
@@ -145,18 +209,28 @@ class ImuModel:
         R_WB = quat_to_matrix(q)
         f_B = np.einsum("kji,kj->ki", R_WB, a + np.array([0.0, 0.0, self.gravity]))
         f_B += np.cross(al, self._r) + np.cross(w, np.cross(w, self._r))
+        if rotors is not None and rotors.shape[:-1] != (k,):
+            raise ValueError(f"rotor_speeds must have shape ({k}, n), got {rotors.shape}")
         e = self._errors.sample(k)
-        acc = np.clip(
-            self._scale_a * (f_B @ self._R_IB.T) + e[:, :3], -self.params.accel_range, self.params.accel_range
-        )
-        gyr = np.clip(self._scale_g * (w @ self._R_IB.T) + e[:, 3:], -self.params.gyro_range, self.params.gyro_range)
+        f_I = f_B @ self._R_IB.T
+        acc = f_I @ self._M_a.T + e[:, :3]
+        gyr = (w @ self._R_IB.T) @ self._M_g.T + e[:, 3:]
+        if self._G is not None:
+            gyr += f_I @ self._G.T
+        if self._vibration is not None:
+            va, vg = self._vibration.sample(rotors, k)
+            acc += va
+            gyr += vg
+        acc = np.clip(acc, -self.params.accel_range, self.params.accel_range)
+        gyr = np.clip(gyr, -self.params.gyro_range, self.params.gyro_range)
         return (acc[0], gyr[0]) if single else (acc, gyr)
 
     def _measure_one(
-        self, q: list[float], w: list[float], a: list[float], alpha: list[float]
+        self, q: list[float], w: list[float], a: list[float], alpha: list[float], rotors: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """One sample with scalar arithmetic on Python floats (the simulator's per-tick path: the same model as
-        the batch path, equal to it within rounding). ``q`` [w, x, y, z], ``w``, ``a``, ``alpha``: 3 floats."""
+        the batch path, equal to it within rounding). ``q`` [w, x, y, z], ``w``, ``a``, ``alpha``: 3 floats;
+        ``rotors`` the rotor speeds (n,) (used by the vibration only)."""
         qw, qx, qy, qz = q
         wx, wy, wz = w
         ax, ay, az = a
@@ -175,9 +249,18 @@ class ImuModel:
             fy += bz * rx - bx * rz + wz * cx - wx * cz
             fz += bx * ry - by * rx + wx * cy - wy * cx
         if self._mounted:
+            if rotors is not None and rotors.ndim != 1:
+                raise ValueError(f"rotor_speeds must have shape (n,) for one sample, got {rotors.shape}")
             e = self._errors.sample_one()
-            f = self._scale_a * (self._R_IB @ np.array((fx, fy, fz))) + e[:3]
-            g = self._scale_g * (self._R_IB @ np.array((wx, wy, wz))) + e[3:]
+            f_I = self._R_IB @ np.array((fx, fy, fz))
+            f = self._M_a @ f_I + e[:3]
+            g = self._M_g @ (self._R_IB @ np.array((wx, wy, wz))) + e[3:]
+            if self._G is not None:
+                g += self._G @ f_I
+            if self._vibration is not None:
+                va, vg = self._vibration.sample_one(rotors)
+                f += va
+                g += vg
             ar, gr = self.params.accel_range, self.params.gyro_range
             if max(abs(f[0]), abs(f[1]), abs(f[2])) > ar:
                 f = np.clip(f, -ar, ar)
@@ -217,7 +300,10 @@ class ImuSensor(ModelSensor):
             raise ValueError(
                 "ImuSensor needs ground truth with accelerations (a_W, alpha_B), as the Simulator publishes"
             )
-        a, w = self.model.measure(truth.q_WB, truth.w_B, truth.a_W, truth.alpha_B)
+        if self.model.vibrates:
+            a, w = self.model.measure(truth.q_WB, truth.w_B, truth.a_W, truth.alpha_B, truth.rotor_speeds)
+        else:
+            a, w = self.model.measure(truth.q_WB, truth.w_B, truth.a_W, truth.alpha_B)
         a.setflags(write=False)  # fresh arrays the model keeps no reference to: frozen, the message is trusted
         w.setflags(write=False)
         return Imu.trusted(t, a, w)
