@@ -404,8 +404,10 @@ def tracking_metrics(result: SimulationResult, path: Any) -> dict[str, Any]:
 
 
 def odometry_metrics(result: SimulationResult) -> dict[str, Any]:
-    """|p_true - p_est| and the attitude error angle at each estimator output, the true state interpolated at the
-    estimate's stamp (no alignment: the estimator starts from the known pad pose)."""
+    """|p_true - p_est| and the attitude error angle at each estimator output from take-off to touchdown (the pad,
+    where the estimate starts, would flatter every figure), the true state interpolated at the estimate's stamp:
+    unaligned (the estimator's world frame is the pad's) and as evo's aligned APE (SE(3) Umeyama, no scale). A run
+    that never lifts off reports over all its outputs."""
     est = result.topics.get(str(Topics.ESTIMATE), {})
     if not est:
         return {"odometry_samples": 0}
@@ -416,23 +418,24 @@ def odometry_metrics(result: SimulationResult) -> dict[str, Any]:
     p_est = np.asarray(est["p_W"], dtype=float)[ok]
     q_est = np.asarray(est["q_WB"], dtype=float)[ok]
     p_true = np.stack([np.interp(t_est, ts, p[:, i]) for i in range(3)], axis=1)
+    from cufund.estimation.evaluation import aligned_ate, flight_window  # scipy only when there is odometry
+
+    flying = flight_window(p_true[:, 2])
+    if flying.stop - flying.start >= 3:
+        t_est, p_est, q_est, p_true = t_est[flying], p_est[flying], q_est[flying], p_true[flying]
     i = np.clip(np.searchsorted(ts, t_est), 0, len(ts) - 1)  # the state record at (or right after) the stamp
     dot = np.abs(np.sum(q[i] * q_est, axis=1)) / np.linalg.norm(q_est, axis=1)
     ang = np.degrees(2 * np.arccos(np.clip(dot, 0.0, 1.0)))
-    from cufund.estimation.evaluation import aligned_ate, flight_window  # scipy only when there is odometry
-
     err = np.linalg.norm(p_true - p_est, axis=1)
-    flying = flight_window(p_true[:, 2])
-    n_flying = flying.stop - flying.start
     return {
         "odometry_min_m": float(np.min(err)),
         "odometry_rmse_m": float(np.sqrt(np.mean(err**2))),
         "odometry_max_m": float(np.max(err)),
         "odometry_rot_rmse_deg": float(np.sqrt(np.mean(ang**2))),
         "odometry_samples": int(len(err)),
-        # evo's aligned APE (SE(3) Umeyama) from take-off to touchdown: the error a real vehicle's figure would show,
-        # whose world frame is its estimator's own
-        "odometry_ate_aligned_m": aligned_ate(p_est[flying], p_true[flying]) if n_flying >= 3 else None,
+        "odometry_window_s": [float(t_est[0]), float(t_est[-1])],
+        # the error a real vehicle's figure would show, whose world frame is its estimator's own
+        "odometry_ate_aligned_m": aligned_ate(p_est, p_true) if len(err) >= 3 else None,
     }
 
 
