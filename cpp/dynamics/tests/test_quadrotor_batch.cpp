@@ -167,6 +167,36 @@ TEST(QuadrotorBatch, GroundHoldsLandedVehicleAndAllowsTakeOff) {
   EXPECT_GT(b.row(B::kP + 2)[0], 0.05);
 }
 
+TEST(QuadrotorBatch, TiltedGroundHoldsVehicleAtThePadAttitudeWithItsYaw) {
+  QuadrotorParams p = small_quad();
+  const Eigen::Quaterniond pad(Eigen::AngleAxisd(3.0 * M_PI / 180.0, Eigen::Vector3d(0.6, 0.8, 0.0)));
+  p.ground_attitude = Eigen::Vector4d(pad.w(), pad.x(), pad.y(), pad.z());
+  B b(p, 1);
+  const Eigen::Quaterniond yaw(Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()));
+  const Eigen::Quaterniond q0 = pad * yaw;
+  set_row(b, B::kQ, {q0.w(), q0.x(), q0.y(), q0.z()});
+  set_row(b, B::kP, {0.0, 0.0, 0.2});  // dropped onto the pad, spinning
+  set_row(b, B::kW, {0.3, -0.2, 0.4});
+  run(b, 1e-3, 2000, {0, 0, 0, 0});
+  EXPECT_EQ(b.row(B::kP + 2)[0], 0.0);
+  EXPECT_EQ(vec(b, B::kW).norm(), 0.0);
+  // At rest its z axis is the pad's normal (tilted 3 deg), not world z; the yaw about the pad's normal is kept.
+  const Eigen::Vector3d z = attitude(b).toRotationMatrix().col(2);
+  EXPECT_NEAR((z - pad.toRotationMatrix().col(2)).norm(), 0.0, 1e-12);
+  EXPECT_NEAR(std::acos(z.z()), 3.0 * M_PI / 180.0, 1e-12);
+  const Eigen::Quaterniond twist = pad.conjugate() * attitude(b);  // a rotation about z alone
+  EXPECT_NEAR(std::hypot(twist.x(), twist.y()), 0.0, 1e-12);
+  // Below hover thrust it stays on the pad at that attitude; above, it lifts off.
+  const double wh = b.hover_rotor_speed();
+  run(b, 1e-3, 500, {0.9 * wh, 0.9 * wh, 0.9 * wh, 0.9 * wh});
+  EXPECT_EQ(b.row(B::kP + 2)[0], 0.0);
+  EXPECT_NEAR((attitude(b).toRotationMatrix().col(2) - pad.toRotationMatrix().col(2)).norm(), 0.0, 1e-12);
+  run(b, 1e-3, 1000, {1.2 * wh, 1.2 * wh, 1.2 * wh, 1.2 * wh});
+  EXPECT_GT(b.row(B::kP + 2)[0], 0.05);
+  // A level pad (the default) is what it was: body z along world z at rest.
+  EXPECT_EQ(small_quad().ground_attitude, Eigen::Vector4d(1.0, 0.0, 0.0, 0.0));
+}
+
 TEST(QuadrotorBatch, BatchEqualsSingleVehiclesBitForBit) {
   const std::size_t n = 512 + 37;  // three blocks of 256 (so both threads work), not a multiple of any SIMD width
   QuadrotorParams p = small_quad();

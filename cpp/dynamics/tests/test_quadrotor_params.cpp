@@ -11,6 +11,18 @@ namespace {
 
 TEST(QuadrotorParams, ValidParametersPass) { EXPECT_EQ(validate(testing::small_quad()), ""); }
 
+TEST(QuadrotorParams, GroundAttitudeMustBeAUnitQuaternionWithinThirtyDegreesOfLevel) {
+  QuadrotorParams p = testing::small_quad();
+  p.ground_attitude = Eigen::Vector4d(std::cos(0.25), std::sin(0.25), 0.0, 0.0);  // 28.6 deg
+  EXPECT_EQ(validate(p), "");
+  p.ground_attitude = Eigen::Vector4d(std::cos(0.27), std::sin(0.27), 0.0, 0.0);  // 30.9 deg
+  EXPECT_NE(validate(p).find("ground_attitude"), std::string::npos);
+  p.ground_attitude = Eigen::Vector4d(2.0, 0.0, 0.0, 0.0);
+  EXPECT_NE(validate(p).find("ground_attitude"), std::string::npos);
+  p.ground_attitude = Eigen::Vector4d(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0, 0.0);
+  EXPECT_NE(validate(p).find("ground_attitude"), std::string::npos);
+}
+
 TEST(QuadrotorParams, NonPositiveMassNamesField) {
   QuadrotorParams p = testing::small_quad();
   p.mass = -1.0;
