@@ -231,13 +231,21 @@ def test_simulated_parts_differ_from_what_flight_software_reads():
     assert lidar.params.max_range_at_10pct == 40.0 and lidar.params.mixed_pixel_probability == 0.5
 
 
-def test_ideal_is_todays_build():
-    """Under ``ideal`` every simulated part is exactly what the scenario states (as before the profile)."""
+def test_ideal_builds_the_scenario_as_stated_with_a_calibrated_accelerometer():
+    """Under ``ideal`` every simulated part is exactly what the scenario states, but for the accelerometer's raw
+    turn-on bias, which a perfect calibration removes (``accel_residual_bias_mg: null`` keeps it)."""
     config = load_scenario("square_lio")
     assert config == load_scenario("square_lio", ["realism=ideal"])
     built = build_simulation(config)
     assert built.simulator.vehicle.params == config.vehicle_params()
-    assert _component(built, "ImuSensor").model.params == config.sensors["imu"].params
+    stated = config.sensors["imu"].params
+    assert stated.accel.turn_on_bias > 0  # the ICM-42688-P's datasheet zero-g offset
+    imu = _component(built, "ImuSensor").model.params
+    assert imu.accel.turn_on_bias == 0.0
+    assert imu == dataclasses.replace(stated, accel=dataclasses.replace(stated.accel, turn_on_bias=0.0))
+    assert built.context.imu_params() == stated  # flight software reads the part as stated
+    raw = build_simulation(load_scenario("square_lio", ["realism.imu.accel_residual_bias_mg=null"]))
+    assert _component(raw, "ImuSensor").model.params == stated
     lidar = _component(built, "LidarComponent").lidar
     assert lidar.T_BL == config.sensors["lidar"].extrinsic
     defaults = type(lidar.params)()

@@ -1,7 +1,8 @@
 """The scenario's ``realism`` profile: how far the simulated vehicle and its sensors are from what flight software is
 told (issue 31, "honest fidelity"). Values and their sources: ``docs/realism.md``.
 
-``realism: ideal`` (the default) changes nothing: every term off, perfect calibration, the exact plant.
+``realism: ideal`` (the default): every term off, perfect calibration (the simulated accelerometer has no turn-on
+bias, as after a perfect PX4-style calibration; every other part exactly as stated), the exact plant, a level pad.
 ``realism: realistic`` switches the terms on with values from datasheets and the literature. A mapping starts from a
 profile and overrides fields: ``{profile: realistic, imu: {scale_factor_ppm: 3000}}`` (from the command line:
 ``--set realism=realistic --set realism.imu.scale_factor_ppm=3000``).
@@ -113,10 +114,10 @@ class VibrationRealism:
 class ImuRealism:
     """Inertial sensor errors a flight stack's calibration leaves (standard deviations of the per-run draws)."""
 
-    accel_residual_bias_mg: float | None = None
+    accel_residual_bias_mg: float | None = 0.0
     """Standard deviation per axis of the accelerometer bias left after a PX4-style calibration [mg]; it replaces
-    the part's raw turn-on bias (the datasheet's zero-g offset) in the simulated IMU. null: the part's turn-on bias
-    as configured (what runs did before the profile existed); 0: a perfect calibration."""
+    the part's raw turn-on bias (the datasheet's zero-g offset) in the simulated IMU. 0 (``ideal``): a perfect
+    calibration; null: the part's raw turn-on bias as configured (an uncalibrated accelerometer)."""
     scale_factor_ppm: float = 0.0
     """Standard deviation of each axis's scale-factor error, accelerometer and gyroscope [ppm]; added to the part's
     own ``*_scale_factor``."""
