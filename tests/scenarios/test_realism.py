@@ -300,3 +300,27 @@ def test_ground_attitude_is_validated(q, named):
 
     with pytest.raises(ConfigError, match=named):
         dataclasses.replace(presets.cu_astro(), ground_attitude=q)
+
+
+def test_calibration_error_moves_every_mounted_sensor_but_the_imu():
+    """A camera (and a LiDAR mounted at the body origin, no T_BL given) is moved by its own drawn error; the IMU's
+    mounting stays exact."""
+    config = load_scenario(
+        "square_lio",
+        [
+            "realism.calibration={extrinsic_translation_m: 0.005, extrinsic_rotation_deg: 0.3}",
+            "sensors.depth={kind: d435_depth, T_BC: {p: [0.1, 0.0, 0.0], q: [1, 0, 0, 0]}}",
+            "sensors.lidar={kind: mid360}",
+        ],
+    )
+    built = build_simulation(config)
+    errors = built.context.realism.mounting_errors
+    assert set(errors) == {"depth", "lidar"}
+    cam = _component(built, "CameraComponent").camera
+    np.testing.assert_allclose(np.subtract(cam.T_BC.t, (0.1, 0.0, 0.0)), errors["depth"].dp_B, atol=1e-15)
+    lidar = _component(built, "LidarComponent").lidar
+    np.testing.assert_allclose(lidar.T_BL.t, errors["lidar"].dp_B, atol=1e-15)
+    assert errors["depth"] != errors["lidar"]
+    imu = _component(built, "ImuSensor").model.params
+    assert imu.p_BI == (0.0, 0.0, 0.0) and imu.q_BI == (1.0, 0.0, 0.0, 0.0)
+    assert built.context.sensor_of_type("camera")[1].extrinsic.t == (0.1, 0.0, 0.0)  # flight software: as stated
