@@ -82,10 +82,13 @@ def test_from_python_in_a_few_lines():
 
 
 def test_square_on_lidar_inertial_odometry_meets_the_square_bounds():
-    """square_lio: the controllers fly on the GTSAM LIO estimate (Mid-360 + ICM-42688-P in the tunnel arena)."""
+    """square_lio: the controllers fly on the GTSAM LIO estimate (Mid-360 + ICM-42688-P in the tunnel arena), under
+    its default realism (realistic): the estimate's frame leans by the residual accelerometer bias over g (plus
+    the LiDAR's calibration error), which the unaligned attitude error shows and the aligned figure removes."""
     run = run_scenario(load_scenario("square_lio"))
     m = run.metrics
-    assert m["status"] == "completed"
+    assert m["status"] == "completed" and m["realism"]["profile"] == "realistic"
     assert m["tracking_rmse_m"] <= 0.02 and m["tracking_max_m"] <= 0.05
-    assert m["odometry_rmse_m"] <= 0.01 and m["odometry_max_m"] <= 0.03 and m["odometry_rot_rmse_deg"] <= 0.2
+    assert m["odometry_rmse_m"] <= 0.015 and m["odometry_max_m"] <= 0.03 and m["odometry_rot_rmse_deg"] <= 1.0
+    assert m["odometry_ate_aligned_m"] <= 0.01
     assert m["odometry_samples"] > 2000  # at IMU rate

@@ -27,6 +27,8 @@ from .registration import PlaneModel, fit_planes, observable_split, plane_terms,
 
 __all__ = ["LioCore", "ScanDiagnostics", "NavEstimate"]
 
+_MIN_ADVANCE_S = 0.02
+"""A frame must end at least this long after the newest state to add one [s]."""
 _PAD_FRAMES_KEPT = 30
 """LiDAR frames taken on the pad that seed the map (the newest ones)."""
 
@@ -300,7 +302,10 @@ class LioCore:
             self.dropped_points += int(np.count_nonzero(~ok))
             pts, d = pts[ok], d[ok]
         t_end = t + (float(d.max()) if len(d) else 0.0)
-        if len(pts) == 0 or t_end <= self._node.t:
+        # a frame ending within _MIN_ADVANCE_S of the newest state (the first one after the initialisation, with a
+        # LiDAR clock a few ms off the IMU's) is skipped like one ending before it: a CombinedImuFactor over a few
+        # milliseconds is so stiff that GTSAM's elimination finds the bias block indeterminate
+        if len(pts) == 0 or t_end <= self._node.t + _MIN_ADVANCE_S:
             self.skipped_scans += 1
             why = "empty frame" if len(pts) == 0 else "frame ends before the state"
             self._consistent = 0 if len(pts) == 0 else self._consistent

@@ -128,9 +128,9 @@ class LioParams:
     """ISAM2 relinearisation threshold [rad, m]."""
     nthreads: int = 0
     """Threads for the C++ kernels (0: all)."""
-    bias_jump_deg: float = 0.2
+    bias_jump_deg: float = 0.5
     """A frame whose registered attitude is further than this from the IMU's prediction [deg] ..."""
-    bias_jump_m: float = 0.03
+    bias_jump_m: float = 0.05
     """... or whose registered position is further than this from it [m] takes a loose bias random walk in its
     IMU factor (recovery_*_rw), so the bias states can follow a bias jump."""
     recovery_acc_rw: float = 0.15
