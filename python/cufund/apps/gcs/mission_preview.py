@@ -2,8 +2,8 @@
 
 ``{"command": "mission_preview", "formula": "F(a & F(b))", "regions": [{"name": "a", "centre_W": [x, y, z],
 "radius": 0.3}, ...]}`` → the plan (regions in order, waypoints, length) computed by
-:meth:`cufund.planning.MissionSpec.plan` from the vehicle's position; the world's own regions (a tunnel course's
-gates) are declared too. The page shows the waypoints as the planned path; ``mission_upload`` then flies them.
+:meth:`cufund.planning.MissionSpec.plan` from the vehicle's position; the gates the vehicle detected (``gate1``
+..) are declared too. The page shows the waypoints as the planned path; ``mission_upload`` then flies them.
 """
 
 from __future__ import annotations

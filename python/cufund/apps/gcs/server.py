@@ -12,7 +12,7 @@ websocket — see :mod:`cufund.apps.gcs.guard`):
 - ``GET /api/state`` the telemetry as JSON; ``POST /api/command`` a JSON command (``{"command": "arm"}``, ...) →
   its acknowledgement ``{"command", "result", "message"}`` (HTTP 400 for a malformed one).
 - ``GET /ws`` the page's websocket. Server → page: JSON ``hello`` (the scene and everything needed to catch up),
-  ``telemetry`` (at ``telemetry_hz``, and at once when the commander has applied a command), ``events``, ``planned``, ``esdf``, ``ack``, ``error``, ``pong``; binary
+  ``telemetry`` (at ``telemetry_hz``, and at once when the commander has applied a command), ``events``, ``planned``, ``esdf``, ``gates`` (the gates the vehicle detected, in its estimated frame, when they change), ``ack``, ``error``, ``pong``; binary
   frames are LiDAR clouds (float32 ``[t, n, x, y, z, ...]``, world frame) for tabs with the cloud layer on.
   Page → server: ``{"type": "command", "id": n, "command": {...}}``, ``{"type": "layers", "cloud": bool}``,
   ``{"type": "ping", ...}``, ``{"type": "seen", "telemetry": n, "cloud": m}`` (messages of each stream processed
@@ -207,6 +207,7 @@ class GcsServer:
         try:
             tel = session.poll()
             events = session.new_events()
+            gates = session.new_gates()  # the detector's gates, kept for tabs that connect later too
         except Exception as exc:  # a failing run must not stop the server; show why (once)
             message = f"telemetry: {type(exc).__name__}: {exc}"
             if message != self._last_error:
@@ -234,6 +235,8 @@ class GcsServer:
         if session.planned_changed:
             session.planned_changed = False
             self.broadcast({"type": "planned", "planned": session.planned, "planned_label": session.planned_label})
+        if gates is not None:
+            self.broadcast(gates)
         if any(c.cloud for c in self.clients) or self.foxglove is not None:
             cloud = session.new_cloud()
             if cloud is not None:

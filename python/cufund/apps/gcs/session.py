@@ -1,5 +1,12 @@
 """What the ground station knows about one live run: its scene, the flown path, recent telemetry, the event log,
-the latest LiDAR cloud and ESDF slice — all as JSON-able values for the page (and for tabs that reconnect).
+the latest LiDAR cloud and ESDF slice, the gates the vehicle detected — all as JSON-able values for the page (and
+for tabs that reconnect).
+
+The gates (a tunnel course's frames) are the vehicle's: what its detector published last on
+``Topics.TUNNEL_ESTIMATE``, in its estimated world frame, updated as frames are found; they are the mission
+regions ``gate1`` .. ``gateK`` the page may name. The true course is never shown or offered: where the run detects
+gates, the world's ``tunnel_frame`` meshes are left out of the scene (the arena's floor and walls stay, as the
+surveyed room a ground station knows); the world drawn is the simulation's, marked ``world_truth``.
 
 A :class:`GcsSession` wraps one :class:`cufund.apps.live.LiveRun`. Every method except the ESDF sampler (which the
 live run calls from its simulation thread, between steps, where reading the mapper's map is safe) runs on the
@@ -19,8 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from cufund.core.messages import Topics
+from cufund.core.messages import Topics, TunnelEstimate
 from cufund.geometry import quat_to_matrix
+from cufund.planning.mission_spec import Region
 
 __all__ = ["GcsSession", "jsonable", "position_of"]
 
@@ -34,6 +42,10 @@ ESDF_CELLS = 64
 """ESDF slice resolution (cells per side)."""
 GROUND_SLICE_M = 1.0
 """Height of the ESDF slice while the vehicle is below it [m]."""
+GATE_REGION_RADIUS_M = 0.2
+"""Radius of the mission region around a detected gate's centre [m]."""
+COURSE_LABEL = "tunnel_frame"
+"""Label of the world's meshes that make up a tunnel course's frames (withheld while the vehicle detects them)."""
 
 
 def jsonable(value: Any) -> Any:
@@ -68,17 +80,34 @@ def position_of(telemetry: dict[str, Any]) -> np.ndarray | None:
     return a if a.shape == (3,) and np.all(np.isfinite(a)) else None
 
 
-def _world_of(live: Any) -> tuple[Any, Any]:
-    """The run's :class:`cufund.worlds.World` and its :class:`~cufund.missions.tunnel_course.TunnelCourse` (None unless the world
-    is a tunnel course): the course names the gates as mission regions."""
-    world = getattr(getattr(getattr(live, "built", None), "context", None), "world", None)
-    course = None
-    config = _config_of(live)
-    if config is not None:
-        from cufund.missions.tunnel_kind import course_of
+def _world_of(live: Any) -> tuple[Any, bool]:
+    """The simulation's :class:`cufund.worlds.World` (the truth, drawn as the simulated room) and whether the run
+    detects gates (something publishes ``Topics.TUNNEL_ESTIMATE``)."""
+    built = getattr(live, "built", None)
+    context = getattr(built, "context", None)
+    accessor = getattr(context, "truth_world_for_metrics", None)
+    world = accessor() if callable(accessor) else getattr(context, "world", None)
+    components = getattr(getattr(built, "simulator", None), "components", None) or ()
+    detects = any(str(Topics.TUNNEL_ESTIMATE) in {str(t) for t in c.outputs} for c in components)
+    return world, detects
 
-        course = course_of(config)
-    return world, course
+
+def gates_of(estimate: TunnelEstimate | None) -> list[dict[str, Any]]:
+    """The gates of a detector's estimate, in its (estimated) world frame and flying order: ``name`` (``gate1``
+    ..), ``centre_W``, ``normal_W``, ``size`` (width, height) [m] and ``confidence``."""
+    if estimate is None:
+        return []
+    return [
+        {
+            "name": f"gate{k + 1}",
+            "centre_W": [round(float(v), 3) for v in estimate.centres_W[k]],  # mm: a change below is not news
+            "normal_W": [round(float(v), 3) for v in estimate.normals_W[k]],
+            "size": [round(float(v), 3) for v in estimate.opening_sizes[k]],
+            "confidence": round(float(estimate.confidence[k]), 2),
+        }
+        for k in range(len(estimate.centres_W))
+        if np.all(np.isfinite(estimate.centres_W[k]))
+    ]
 
 
 def _config_of(live: Any) -> Any:
@@ -95,8 +124,11 @@ class GcsSession:
         self.live = live
         self.scenario = scenario
         self.started_wall = time.time()
-        self.world, self.course = _world_of(live)
+        self.world, self.detects_gates = _world_of(live)
         self.config = _config_of(live)
+        self.gates: list[dict[str, Any]] = []
+        """The gates detected so far (see :func:`gates_of`)."""
+        self._gates_key: Any = None
         self.path: list[list[float]] = []
         self.history: collections.deque[dict[str, Any]] = collections.deque()
         self.events: list[dict[str, Any]] = []
@@ -121,6 +153,8 @@ class GcsSession:
         meshes = []
         if self.world is not None:
             for obj in self.world.objects:
+                if self.detects_gates and obj.label == COURSE_LABEL:
+                    continue  # the true course: the page shows the gates the vehicle detected instead
                 meshes.append(
                     {
                         "label": obj.label,
@@ -135,13 +169,31 @@ class GcsSession:
         return {
             "scenario": self.scenario,
             "meshes": meshes,
+            "world_truth": True,
             "arm_length": arm,
             "regions": [jsonable(r) for r in self.regions()],
+            "gates": self.gates,
         }
 
-    def regions(self) -> list[Any]:
-        """The world's named mission regions (the tunnel course's gates), as :class:`cufund.planning.Region`."""
-        return list(self.course.regions(radius=0.2)) if self.course is not None else []
+    def regions(self) -> list[Region]:
+        """The mission regions the page may name: the gates detected so far (``gate1`` ..), spheres of
+        :data:`GATE_REGION_RADIUS_M` at their estimated centres."""
+        return [Region(g["name"], tuple(g["centre_W"]), radius=GATE_REGION_RADIUS_M) for g in self.gates]
+
+    def new_gates(self) -> dict[str, Any] | None:
+        """The detector's latest estimate as a ``gates`` message when it changed since the last call, else None."""
+        est = self.live.latest(Topics.TUNNEL_ESTIMATE)
+        if est is None:
+            return None
+        key = (est.t, est.scans, id(est))
+        if key == self._gates_key:
+            return None
+        self._gates_key = key
+        gates = gates_of(est)
+        if gates == self.gates:
+            return None
+        self.gates = gates
+        return {"type": "gates", "t": float(est.t), "frame": "estimated", "gates": gates}
 
     def _lidar_mount(self) -> tuple[np.ndarray, np.ndarray]:
         for spec in (getattr(self.config, "sensors", None) or {}).values():

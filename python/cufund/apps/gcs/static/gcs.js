@@ -198,11 +198,16 @@
   function newScene(sc) {
     $("scenario").textContent = sc.scenario ? "— " + sc.scenario : "";
     toView({type: "scene", meshes: sc.meshes || [], arm_length: sc.arm_length || 0.15});
+    showGates(sc.gates || []);
     cam.target = [0, 0, 0];
     setOffset([-4, -4, 3]);  // 4 m behind and 3 m above the origin
     following = false;
     postCamera();
     applyVisibility();
+  }
+  function showGates(gates) {  // the gates the vehicle detected (its estimated frame): drawn, and named for LTLf
+    toView({type: "gates", gates: gates});
+    $("gates").textContent = gates.length ? gates.map((g) => `${g.name} ${vec(g.centre_W)} (${Math.round(100 * g.confidence)} %)`).join("\n") : "none detected";
   }
   let shownTarget = "";
   function showTarget(t) {  // the commander's target, written as soon as it changes
@@ -290,6 +295,8 @@
       toView({type: "planned", points: m.planned});
     } else if (m.type === "esdf") {
       toView({type: "esdf", esdf: m});
+    } else if (m.type === "gates") {
+      showGates(m.gates);
     } else if (m.type === "ack") {
       stats.acks.push(m);
       const el = $("ack");

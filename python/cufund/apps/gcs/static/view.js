@@ -101,6 +101,23 @@ function cufundView(THREE, canvas, reply, antialias) {
     }
     return g;
   }
+  function gatesObject(gates) {  // each detected opening as a rectangle in its plane, brighter as it is surer
+    const g = new THREE.Group();
+    for (const gate of gates) {
+      const n = new THREE.Vector3().fromArray(gate.normal_W).normalize();
+      const across = new THREE.Vector3(-n.y, n.x, 0);
+      if (across.lengthSq() < 1e-9) across.set(0, 1, 0);
+      across.normalize();
+      const up = new THREE.Vector3().crossVectors(n, across).normalize();
+      const c = new THREE.Vector3().fromArray(gate.centre_W), w = gate.size[0] / 2, h = gate.size[1] / 2;
+      const corners = [[-1, -1], [1, -1], [1, 1], [-1, 1], [-1, -1]].map(([a, b]) =>
+        c.clone().addScaledVector(across, a * w).addScaledVector(up, b * h));
+      const geom = new THREE.BufferGeometry().setFromPoints(corners);
+      const shade = 0.35 + 0.65 * Math.max(0, Math.min(1, gate.confidence));
+      g.add(new THREE.Line(geom, new THREE.LineBasicMaterial({color: new THREE.Color(0.1 * shade, 0.45 * shade, shade)})));
+    }
+    return g;
+  }
   function esdfObject(e) {  // the slice as a texture: red inside obstacles, red to green with the distance (2 m)
     const n = e.n, bytes = atob(e.d), raw = new Uint8Array(bytes.length);
     for (let i = 0; i < bytes.length; i++) raw[i] = bytes.charCodeAt(i);
@@ -236,6 +253,7 @@ function cufundView(THREE, canvas, reply, antialias) {
         break;
       }
       case "esdf": setLayer("esdf", m.esdf ? esdfObject(m.esdf) : null); break;
+      case "gates": setLayer("gates", gatesObject(m.gates || [])); break;
       case "visible":
         Object.assign(visible, m.layers);
         for (const k in layer) if (layer[k]) layer[k].visible = visible[k] !== false && (k !== "vehicle" || posed);
