@@ -5,6 +5,7 @@ up, malformed messages get an error while the simulation goes on."""
 import json
 import math
 import socket
+import time
 import urllib.error
 import urllib.request
 
@@ -46,9 +47,14 @@ def ws_connect(gcs, token=True):
 
 
 def receive(ws, kind, timeout=10.0, pred=lambda m: True):
-    """The next text message of ``kind`` satisfying ``pred`` (binary frames and others skipped)."""
-    ws.settimeout(timeout)
+    """The next text message of ``kind`` satisfying ``pred`` (binary frames and others skipped), within ``timeout``
+    seconds overall (a stream of other messages does not extend it)."""
+    deadline = time.monotonic() + timeout
     while True:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise TimeoutError(f"no {kind!r} message satisfying the predicate within {timeout} s")
+        ws.settimeout(left)
         raw = ws.recv()
         if isinstance(raw, bytes):
             continue
@@ -221,8 +227,8 @@ def test_foxglove_server_serves_the_same_telemetry():
 
 
 def test_lidar_and_esdf_layers_show_the_world():
-    """With the cloud layer on, a tab gets binary frames: float32 [t, n, xyz...] in the world frame, on the
-    world's surfaces; the ESDF slice (at 1 m while the vehicle stands on its pad) matches the distance to the
+    """With the cloud layer on, a tab gets binary frames: float32 [t, n, xyz...] in the world frame: the measured
+    points (2 cm range noise) placed with the vehicle's reported pose, on the world's surfaces within that noise; the ESDF slice (at 1 m while the vehicle stands on its pad) matches the distance to the
     world's triangles within the map's resolution. Reference: Open3D's distance queries on the world's meshes."""
     import base64
 
@@ -273,8 +279,9 @@ def test_lidar_and_esdf_layers_show_the_world():
         n = int(f[1])
         pts = f[2:].reshape(-1, 3)
         assert 1000 < n == len(pts) <= 8000
-        assert np.all(pts >= lo - 0.02) and np.all(pts <= hi + 0.02)
-        assert scene.compute_distance(o3d.core.Tensor(pts)).numpy().max() < 0.01  # on the world's triangles
+        assert np.all(pts >= lo - 0.15) and np.all(pts <= hi + 0.15)
+        dist = scene.compute_distance(o3d.core.Tensor(pts)).numpy()  # to the world's triangles
+        assert np.median(dist) < 0.02 and np.percentile(dist, 99) < 0.08  # the measured points, not the true hits
     assert frames[1][0] > frames[0][0]  # successive frames, newer stamps
     m = slices[-1]
     n = m["n"]
@@ -320,7 +327,7 @@ def test_tunnel_start_restarts_the_run_and_every_tab_gets_the_new_scene():
             assert hello["scene"]["scenario"] == "tunnel"
             # the true course is neither drawn nor offered: the gates are those the vehicle detects, as it does
             assert not any(m["label"] == "tunnel_frame" for m in hello["scene"]["meshes"])
-            assert [r["name"] for r in hello["scene"]["regions"]] == [g["name"] for g in hello["scene"]["gates"]]
+            assert hello["scene"]["regions"] == [] and hello["scene"]["gates"] == []  # nothing detected yet
             assert receive(a, "ack", timeout=30, pred=lambda m: m["id"] == 1)["result"] == "accepted"
             a.send(json.dumps({"type": "command", "id": 2, "command": {"command": "sim_restart", "scenario": "nope"}}))
             ack = receive(a, "ack", timeout=30, pred=lambda m: m["id"] == 2)
@@ -338,6 +345,13 @@ def test_tunnel_start_restarts_the_run_and_every_tab_gets_the_new_scene():
             found = receive(b, "gates", timeout=60, pred=lambda m: len(m["gates"]) > 0)
             assert found["frame"] == "estimated"
             assert [g["name"] for g in found["gates"]] == [f"gate{k + 1}" for k in range(len(found["gates"]))]
+            # and they become the mission regions a new tab is offered
+            c = ws_connect(g)
+            try:
+                regions = receive(c, "hello")["scene"]["regions"]
+                assert [r["name"] for r in regions][: len(found["gates"])] == [x["name"] for x in found["gates"]]
+            finally:
+                c.close()
         finally:
             a.close()
             b.close()

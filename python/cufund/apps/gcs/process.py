@@ -16,6 +16,18 @@ from typing import Any, Self
 
 __all__ = ["GcsProcess", "wait_for"]
 
+_BOOT = (
+    "import os, signal, sys\n"
+    "try:\n"  # the server dies with the process that started it (a test runner killed without teardown)
+    "    import ctypes; ctypes.CDLL(None).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG (Linux)\n"
+    "except (OSError, AttributeError):\n"
+    "    pass\n"
+    "if os.getppid() != int(os.environ.get('CUFUND_GCS_PARENT', os.getppid())):\n"
+    "    sys.exit(1)  # the parent was gone before the signal was armed\n"
+    "from cufund.apps.cli import main; sys.exit(main(sys.argv[1:]))"
+)
+"""The subprocess's bootstrap: ``cufund`` with a parent-death signal, so a server outlives no test run."""
+
 
 class GcsProcess:
     """``cufund gcs SCENARIO *args --port 0`` in a subprocess (its own session, so stopping it stops it all)."""
@@ -26,7 +38,7 @@ class GcsProcess:
         self.argv = [
             sys.executable,
             "-c",
-            "import sys; from cufund.apps.cli import main; sys.exit(main(sys.argv[1:]))",
+            _BOOT,
             "gcs",
             scenario,
             "--port",
@@ -56,7 +68,7 @@ class GcsProcess:
             text=True,
             start_new_session=True,
             cwd=self.cwd,
-            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+            env={**os.environ, "PYTHONUNBUFFERED": "1", "CUFUND_GCS_PARENT": str(os.getpid())},
         )
         assert self.proc.stdout is not None
         ready, _, _ = select.select([self.proc.stdout], [], [], self.timeout)

@@ -288,25 +288,23 @@ class GcsSession:
     # ---- sensor layers -------------------------------------------------------------------------------------
     def new_cloud(self) -> bytes | None:
         """The newest LiDAR frame in the world frame as little-endian float32 ``[t, n, x0, y0, z0, ...]``
-        (at most :data:`MAX_CLOUD_POINTS` points), or None when no new frame came."""
-        truth = self.live.latest(Topics.TRUTH_POINT_CLOUD)
-        msg = truth if truth is not None else self.live.latest(Topics.POINT_CLOUD)
+        (at most :data:`MAX_CLOUD_POINTS` points), or None when no new frame came. The measured points, placed with
+        the stated mounting and the vehicle's reported pose (what a ground station has; motion not undone): never
+        the simulator's true hits."""
+        msg = self.live.latest(Topics.POINT_CLOUD)
         if msg is None:
             return None
         key = (msg.t, id(msg))
         if key == self._cloud_key:
             return None
         self._cloud_key = key
-        if truth is not None:
-            pts = np.asarray(truth.points_W, dtype=np.float32)
-        else:  # the sensor frame moved by the mounting and the vehicle's current pose (motion not undone)
-            tel = self.telemetry
-            p, q = position_of(tel), tel.get("q_WB")
-            if p is None or q is None:
-                return None
-            R_WB = quat_to_matrix(np.asarray(q, dtype=float))
-            p_BL, R_BL = self.T_BL
-            pts = (np.asarray(msg.points_L, float) @ (R_WB @ R_BL).T + (R_WB @ p_BL + p)).astype(np.float32)
+        tel = self.telemetry
+        p, q = position_of(tel), tel.get("q_WB")
+        if p is None or q is None:
+            return None
+        R_WB = quat_to_matrix(np.asarray(q, dtype=float))
+        p_BL, R_BL = self.T_BL
+        pts = (np.asarray(msg.points_L, float) @ (R_WB @ R_BL).T + (R_WB @ p_BL + p)).astype(np.float32)
         pts = pts[np.all(np.isfinite(pts), axis=1)]
         if len(pts) > MAX_CLOUD_POINTS:
             pts = pts[:: math.ceil(len(pts) / MAX_CLOUD_POINTS)]
