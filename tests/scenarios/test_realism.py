@@ -324,3 +324,16 @@ def test_calibration_error_moves_every_mounted_sensor_but_the_imu():
     imu = _component(built, "ImuSensor").model.params
     assert imu.p_BI == (0.0, 0.0, 0.0) and imu.q_BI == (1.0, 0.0, 0.0, 0.0)
     assert built.context.sensor_of_type("camera")[1].extrinsic.t == (0.1, 0.0, 0.0)  # flight software: as stated
+
+
+def test_vibration_alone_reaches_the_simulated_imu():
+    """A profile with only the vibration on still gives the simulated IMU its vibration (no drawn errors needed)."""
+    built = build_simulation(
+        load_scenario(
+            "square_lio",
+            ["realism=ideal", "realism.imu.vibration.accel_mps2=[1,1,2]", "duration=0.1"],
+        )
+    )
+    imu = _component(built, "ImuSensor").model.params
+    assert imu.vibration.accel_mps2 == (1.0, 1.0, 2.0) and imu.vibration.enabled
+    assert imu.accel_scale_factor == (0.0, 0.0, 0.0) and imu.accel_cross_axis == (0.0,) * 6

@@ -474,23 +474,21 @@ class Realism:
         if cfg.accel_residual_bias_mg is not None:
             params = after_calibration(params, cfg.accel_residual_bias_mg * 1e-3 * G0)
         err = self.imu_errors.get(_name(where))
-        if err is None:
-            return params
         changes: dict[str, Any] = {}
-        if cfg.scale_factor_ppm:
+        if cfg.vibration.on:  # drawn from no stream here: its phases come from the IMU model's own seed
+            changes["vibration"] = _vibration_spec(cfg.vibration, hover_rotor_speed, where)
+        if err is not None and cfg.scale_factor_ppm:
             changes["accel_scale_factor"] = tuple(
                 a + b for a, b in zip(params.accel_scale_factor, err.accel_scale_factor, strict=True)
             )
             changes["gyro_scale_factor"] = tuple(
                 a + b for a, b in zip(params.gyro_scale_factor, err.gyro_scale_factor, strict=True)
             )
-        if cfg.cross_axis_pct:
+        if err is not None and cfg.cross_axis_pct:
             changes["accel_cross_axis"] = err.accel_cross_axis
             changes["gyro_cross_axis"] = err.gyro_cross_axis
-        if cfg.gyro_g_sensitivity_dps_per_g:
+        if err is not None and cfg.gyro_g_sensitivity_dps_per_g:
             changes["gyro_g_sensitivity"] = err.gyro_g_sensitivity
-        if cfg.vibration.on:
-            changes["vibration"] = _vibration_spec(cfg.vibration, hover_rotor_speed, where)
         missing = sorted(set(changes) - {f.name for f in dataclasses.fields(params)})
         if missing:
             raise ConfigError(
