@@ -53,3 +53,19 @@ def test_a_residual_accelerometer_bias_reads_as_a_tilt_of_bias_over_g():
 def test_the_removed_truth_priors_are_refused_by_name(key):
     with pytest.raises(ConfigError, match=f"{key} was removed"):
         LioParams.from_dict({key: True})
+
+
+def test_an_imu_mounted_at_45_deg_of_yaw_starts_as_well():
+    """The roll/pitch prior lives in the IMU frame's tangent space: turned by the mounting, not just permuted."""
+    import dataclasses
+
+    q_BI = (math.cos(math.pi / 8), 0.0, 0.0, math.sin(math.pi / 8))
+    part = dataclasses.replace(after_calibration(imu_preset("icm42688p")), q_BI=q_BI)
+    imu = ImuModel(part, seed=3)
+    core = LioCore(LioParams(imu=part, p_WB0=(0.0, 0.0, 0.0), pad_yaw=0.3))
+    R_true = Rotation.from_euler("z", 0.3) * Rotation.from_rotvec(np.radians([2.0, -1.0, 0.0]))
+    f, w = imu.measure_static(240, R_true.as_quat()[[3, 0, 1, 2]])
+    for i in range(240):
+        core.add_imu(i / 200.0, f[i], w[i])
+    R_WB = Rotation.from_matrix(core.estimate.R_WI) * Rotation.from_quat(np.r_[q_BI[1:], q_BI[0]]).inv()
+    assert (R_WB.inv() * R_true).magnitude() < math.radians(0.03)

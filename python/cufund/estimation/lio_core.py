@@ -235,9 +235,10 @@ class LioCore:
         # The pad fixes the origin and the yaw; roll and pitch are as good as the accelerometer bias is small (a
         # horizontal bias b reads as a tilt b / g): their prior is that wide, in the IMU frame's tangent space.
         tilt = p.accel_bias_sigma / p.gravity
-        rot_sigma = self._R_BI.T @ np.array([tilt, tilt, 1e-4])  # body roll/pitch/yaw -> IMU axes (a permutation
-        x0_sigma = np.r_[np.abs(rot_sigma), np.full(3, 1e-4)]  # for the usual mountings)
-        graph.add(gtsam.PriorFactorPose3(X(0), x0, gtsam.noiseModel.Diagonal.Sigmas(x0_sigma)))
+        cov = np.zeros((6, 6))  # the pose's tangent space is the IMU frame's: body axes turned by the mounting
+        cov[:3, :3] = self._R_BI.T @ np.diag([tilt, tilt, 1e-4]) ** 2 @ self._R_BI
+        cov[3:, 3:] = np.eye(3) * 1e-8
+        graph.add(gtsam.PriorFactorPose3(X(0), x0, gtsam.noiseModel.Gaussian.Covariance(cov)))
         graph.add(gtsam.PriorFactorVector(V(0), np.zeros(3), gtsam.noiseModel.Isotropic.Sigma(3, 1e-3)))
         bias_sigma = np.r_[np.full(3, p.accel_bias_sigma), np.full(3, p.gyro_bias_sigma)]
         b0 = gtsam.imuBias.ConstantBias(bias_acc, w_mean)
