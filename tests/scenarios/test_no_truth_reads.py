@@ -161,9 +161,12 @@ class Holder(Component):
 
 
 def _cheat(p: CheatParams, ctx: BuildContext) -> list[Component]:
-    world = ctx.truth_world_for_metrics() if p.via_accessor else ctx.world
+    if p.via_accessor:  # the harness's way: the hook asks for the world when it runs, after the build
+        ctx.add_metric_hook(lambda result: {"n_objects": len(ctx.truth_world_for_metrics().objects)})
+        return []
+    world = ctx.world
     ctx.add_metric_hook(lambda result: {"n_objects": len(world.objects)})
-    return [] if p.via_accessor else [Holder({"nested": [world]})]
+    return [Holder({"nested": [world]})]
 
 
 @pytest.fixture
@@ -182,8 +185,25 @@ def test_a_part_reading_the_world_is_recorded_and_caught_unless_a_harness_hook(c
     holders = [c for c in b.simulator.components if isinstance(c, Holder)]
     if via_accessor:
         assert "mission" not in b.context.world_readers and holders == []
+        assert b.context.metric_hooks[0](None) == {"n_objects": 1}  # the hook gets the world (its floor) when it runs
     else:
         assert "mission" in b.context.world_readers
         found = _truth_held(holders[0])
         assert any("thing['nested'][0]: World" in f for f in found), found
         assert any("callback<world>: World" in f for f in found), found
+
+
+def test_the_harness_accessor_is_refused_to_a_part_being_built(cheat_kind):
+    """A part cannot take the world through the unrecorded accessor while it is built."""
+
+    def grab(p: CheatParams, ctx: BuildContext) -> list[Component]:
+        ctx.truth_world_for_metrics()
+        return []
+
+    register(Kind("mission", "test_grab_world", CheatParams, grab, None, "grabs the world at build time (a test)"))
+    try:
+        cfg = ScenarioConfig.from_dict({"world": "empty", "mission": {"kind": "test_grab_world"}, "duration": 1.0})
+        with pytest.raises(RuntimeError, match="truth_world_for_metrics"):
+            build_simulation(cfg)
+    finally:
+        unregister("mission", "test_grab_world")

@@ -96,7 +96,13 @@ class ScenarioBuildContext:
 
     def truth_world_for_metrics(self) -> Any:
         """The world for harness-only truth consumers (metrics, collision checks, plots), not recorded as a read:
-        never hand it to flight software."""
+        never hand it to flight software. Refused while a part is being built (a hook calls it when it runs, after
+        the build): a kind that needs the world at build time reads ``world``, and is recorded."""
+        if self._part is not None:
+            raise RuntimeError(
+                f"{self.where}: truth_world_for_metrics() is for metric hooks and the harness, called after the build; "
+                "a part that needs the world while it is built reads ctx.world (recorded as a truth read)"
+            )
         return self._world
 
     @property
