@@ -258,14 +258,15 @@ def run_global(cases):
 
 def run_online(seeds):
     """The ``forest_global`` scenario on each forest layout: the ``global`` planner on the map built online, the
-    local replanner it guides, the vehicle on the LIO. Success and flight figures from each run's metrics."""
+    local replanner it guides, the vehicle on the LIO; layout K flies with scenario seed K (its own sensor draws).
+    Success and flight figures from each run's metrics."""
     from cufund.scenarios import load_scenario
     from cufund.scenarios.build import run_scenario
 
     rows = []
     for seed in seeds:
         t0 = time.perf_counter()
-        m = run_scenario(load_scenario("forest_global", {"world.seed": int(seed)})).metrics
+        m = run_scenario(load_scenario("forest_global", {"world.seed": int(seed), "seed": int(seed)})).metrics
         rows.append(m)
         print(
             f"online   seed {seed:3d} {m['status']:9s} success {m.get('success')!s:5s} goal at "

@@ -15,6 +15,8 @@ import math
 
 import numpy as np
 
+from cufund.geometry import quat_from_two_vectors, quat_to_matrix
+
 __all__ = ["FloorLevel", "fit_floor"]
 
 
@@ -69,12 +71,6 @@ def fit_floor(
     n = np.array([-a, -b, 1.0]) / math.sqrt(a * a + b * b + 1.0)  # the floor's upward normal in W
     if math.degrees(math.acos(float(n[2]))) > max_tilt_deg:
         return None
-    axis = np.cross(n, [0.0, 0.0, 1.0])
-    s = float(np.linalg.norm(axis))
-    R = np.eye(3)
-    if s > 1e-12:  # Rodrigues: the rotation by asin(s) about axis / s takes n to +z
-        k = axis / s
-        K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-        R = np.eye(3) + s * K + (1.0 - float(n[2])) * (K @ K)
+    R = quat_to_matrix(quat_from_two_vectors(n, np.array([0.0, 0.0, 1.0])))  # the shortest turn of n onto +z
     # pivot on the floor below the pad, (o_x, o_y, c): every floor point lands on z = c + h = floor_z in D
     return FloorLevel(R, np.array([float(o_W[0]), float(o_W[1]), c]), floor_z - c)
