@@ -2,7 +2,11 @@
 (median and worst over layouts), real-time factor and the time split per part of the stack.
 
     .venv/bin/python benchmarks/bench_tunnel.py                 # 50 layouts (world.seed 0..49), one at a time
+    .venv/bin/python benchmarks/bench_tunnel.py --set realism=ideal   # the same beside the ideal profile
     .venv/bin/python benchmarks/bench_tunnel.py --layouts 10 --jobs 2 --set controller.kind=geometric
+
+Layout K flies with scenario seed K too (``seed=K``: its own sensor noise, calibration error and plant draws), under
+the scenario's realism profile (``realistic`` unless ``--set realism=ideal``).
     .venv/bin/python benchmarks/bench_tunnel.py --components      # the paper's layout once: LiDAR and detector time
 
 Each layout is the full stack (LiDAR + IMU models, LIO, ESDF mapping, detection, planning, PID, 1 kHz physics)
@@ -28,7 +32,7 @@ def _one(job: tuple[int, list[str]]) -> dict:
 
     t0 = time.perf_counter()
     try:
-        run = run_scenario(load_scenario("tunnel", parse_overrides([f"world.seed={seed}", *overrides])))
+        run = run_scenario(load_scenario("tunnel", parse_overrides([f"world.seed={seed}", f"seed={seed}", *overrides])))
         m = dict(run.metrics)
     except Exception as e:
         m = {"status": f"exception: {type(e).__name__}: {e}", "success": False}
@@ -110,6 +114,7 @@ def main() -> int:
                 f"  seed {m['seed']:3d}: {m.get('status')!s:9} success={m.get('success')!s:5} "
                 f"track rmse/max {m.get('tracking_rmse_m') or float('nan'):.4f}/{m.get('tracking_max_m') or float('nan'):.4f} "
                 f"odo rmse/max {m.get('odometry_rmse_m') or float('nan'):.4f}/{m.get('odometry_max_m') or float('nan'):.4f} "
+                f"aligned {m.get('odometry_ate_aligned_m') or float('nan'):.4f} "
                 f"clear {m.get('min_clearance_m') or float('nan'):.3f} RTF {m.get('real_time_factor') or float('nan'):.2f} "
                 f"{m.get('reason') or ''}",
                 flush=True,
@@ -119,7 +124,9 @@ def main() -> int:
         with open(args.json, "w", encoding="utf-8") as f:
             json.dump(results, f, indent=1, default=str)
     ok = [m for m in results if m.get("success")]
-    print(f"\nsuccess: {len(ok)}/{len(results)} = {100 * len(ok) / max(1, len(results)):.0f} % (target >= 95 %)")
+    profile = next((o.split("=", 1)[1] for o in args.overrides if o.startswith("realism=")), "scenario default")
+    print(f"\nrealism: {profile}")
+    print(f"success: {len(ok)}/{len(results)} = {100 * len(ok) / max(1, len(results)):.0f} % (target >= 95 %)")
     failed = [f"{m['seed']} ({m.get('status')}: {m.get('reason', '')})" for m in results if not m.get("success")]
     if failed:
         print("failed layouts:", "; ".join(failed))
@@ -132,7 +139,8 @@ def main() -> int:
         "tracking_rmse_m": 0.0316,
         "tracking_max_m": 0.0575,
     }
-    target = {"odometry_rmse_m": 0.01, "odometry_max_m": 0.03, "tracking_rmse_m": 0.02, "tracking_max_m": 0.04}
+    target = {"odometry_rmse_m": 0.02, "odometry_max_m": 0.05, "tracking_rmse_m": 0.03}  # issue 31, realistic
+    paper["odometry_ate_aligned_m"] = float("nan")  # the paper reports no aligned figure
     for key, ref in paper.items():
         v = np.array([m[key] for m in results if m.get(key) is not None], dtype=float)
         if v.size:

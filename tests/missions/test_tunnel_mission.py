@@ -67,20 +67,36 @@ def paper_run(tmp_path_factory):
 
 
 def test_paper_layout_succeeds_within_the_targets(paper_run):
+    """The scenario as shipped (realism: realistic). Errors against truth include the lean of the estimator's frame
+    (the residual accelerometer bias over g, the LiDAR's calibration error): the aligned figure is the LIO's."""
     _, out = paper_run
     m = json.loads((out / "metrics.json").read_text())
     assert m["status"] == "completed" and m["success"] is True, (m["status"], m["reason"])
+    assert m["realism"]["profile"] == "realistic"
     assert m["frames_passed"] == 5 and m["landed_beyond_last_frame"]
-    assert m["odometry_rmse_m"] <= 0.01 and m["odometry_max_m"] <= 0.03
-    assert m["tracking_rmse_m"] <= 0.02 and m["tracking_max_m"] <= 0.04
+    assert m["odometry_ate_aligned_m"] <= 0.01
+    assert m["odometry_rmse_m"] <= 0.05 and m["odometry_max_m"] <= 0.08
+    assert m["tracking_rmse_m"] <= 0.05 and m["tracking_max_m"] <= 0.08
     assert m["min_clearance_m"] > 0.15  # the vehicle's centre never within its half-diagonal of a bar
-    assert m["detection_centre_error_m"] < 0.03
+    assert m["detection_centre_error_m"] < 0.06
     for key in ("odometry_min_m", "tracking_min_m", "mission_time_s", "real_time_factor", "time_per_component_s"):
         assert m[key] is not None
     states = [s for _, s, _ in m["transitions"]]
     assert states == ["initialise", "takeoff", "detect", "align", "enter", "through", "land", "done"]
     for name in ("trajectory.png", "detection.png", "replay.html", "run.mcap", "config.yaml"):
         assert (out / name).stat().st_size > 1000, name
+
+
+def test_paper_layout_under_ideal_keeps_its_millimetres():
+    """realism: ideal (sensors exactly the estimator's model, perfect calibration, the exact plant): the figures the
+    stack reached before the realism profile, as a regression bound."""
+    from cufund.scenarios.build import run_built
+
+    m = run_built(build_simulation(load_scenario("tunnel", ["realism=ideal"]))).metrics
+    assert m["success"] is True, m["reason"]
+    assert m["odometry_rmse_m"] <= 0.01 and m["odometry_max_m"] <= 0.03
+    assert m["tracking_rmse_m"] <= 0.02 and m["tracking_max_m"] <= 0.04
+    assert m["detection_centre_error_m"] < 0.03
 
 
 def test_paper_run_published_mission_states(paper_run):
@@ -107,6 +123,31 @@ def test_too_few_detections_lands_outside_the_course():
     assert run.result.status.value == "completed"  # ended by the mission, not by the time limit
 
 
+_MISREAD = pytest.mark.xfail(
+    strict=True,
+    reason="a known failure: among the realistic LiDAR's mixed pixels the detector misreads layout 7's second frame "
+    "(its normal 33 deg off) and the plan through it meets the bar (issue 31's closing note); strict, so a fix "
+    "shows here",
+)
+
+
+@pytest.mark.parametrize(
+    "layout, seed",
+    [(layout, seed) for layout in (1, 7, 23) for seed in (1, 2)]
+    + [(1, 3), pytest.param(7, 3, marks=_MISREAD), (23, 3)],
+)
+def test_realistic_tunnel_succeeds_on_layouts_and_sensor_seeds(layout, seed):
+    """The realistic profile (the scenario's default) on generated layouts, each with its own sensor, calibration
+    and plant draws: every frame passed, landed beyond the last one."""
+    from cufund.scenarios.build import run_built
+
+    cfg = load_scenario("tunnel", [f"world.seed={layout}", f"seed={seed}"])
+    assert cfg.realism.profile == "realistic"
+    m = run_built(build_simulation(cfg)).metrics
+    assert m["status"] == "completed" and m["success"] is True, (layout, seed, m["status"], m["reason"])
+    assert m["frames_passed"] == 5 and m["min_clearance_m"] > 0.15
+
+
 def test_same_seed_same_flight():
     def first_seconds() -> tuple:
         b = build_simulation(load_scenario("tunnel", ["world.seed=3"]))
@@ -130,17 +171,17 @@ def test_same_seed_same_flight():
     ],
     ids=["dropout_through", "dropout_hover", "imu_bias_step", "lidar_degraded"],
 )
-def test_faults_in_flight_complete_or_land_safely(faults):
+def test_faults_in_flight_still_pass_every_frame(faults):
+    """Each of these faults is one a LIO must ride through (an outage the IMU bridges, a bias step the bias states
+    absorb, a degraded LiDAR): the mission must still pass all five frames and land beyond them; landing safely
+    without them is a failure of this test."""
     from cufund.scenarios.build import run_built
 
     run = run_built(build_simulation(load_scenario("tunnel", {"faults": faults})))
     m = run.metrics
     assert run.result.status.value == "completed", (run.result.status, run.result.message)  # no collision, no timeout
-    assert m["status"] in ("completed", "aborted")
-    if m["status"] == "aborted":
-        assert m["reason"] and m["frames_passed"] in (0, 5)  # never left inside the course
-    else:
-        assert m["success"] is True and m["frames_passed"] == 5
+    assert m["status"] == "completed" and m["success"] is True, (m["status"], m["reason"])
+    assert m["frames_passed"] == 5 and m["landed_beyond_last_frame"]
     assert m["min_clearance_m"] > 0.15
     assert run.result.states["p_W"][-1, 2] < 0.05  # landed
     if "lidar_dropout" in faults:  # the outage was seen and recorded
