@@ -2,8 +2,8 @@
 
 import pytest
 
-from cufund.core.config import ConfigError
 from cufund.control.geometric_controller import GeometricControlParams
+from cufund.core.config import ConfigError
 from cufund.scenarios import load_scenario
 from cufund.scenarios.build import run_scenario
 
