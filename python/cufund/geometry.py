@@ -35,6 +35,7 @@ __all__ = [
     "interpolate_poses",
     "quat_conjugate",
     "quat_from_matrix",
+    "quat_from_rotvec",
     "quat_from_two_vectors",
     "quat_mul",
     "quat_to_matrix",
@@ -292,6 +293,18 @@ def euler_zyx(q_WB: ArrayLike) -> tuple[float, float, float]:
     roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
     pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
     return roll, pitch, _yaw(w, x, y, z)
+
+
+def quat_from_rotvec(phi: ArrayLike) -> Array:
+    """The unit quaternion [w, x, y, z] of the rotation vector ``phi`` (3,) [rad] (the exponential map; first order
+    below 1e-12 rad)."""
+    v = _vectors(phi, "phi")
+    angle = float(np.linalg.norm(v))
+    if angle < 1e-12:
+        out: Array = np.array([1.0, 0.5 * v[0], 0.5 * v[1], 0.5 * v[2]])
+        return out
+    s = math.sin(0.5 * angle) / angle
+    return np.array([math.cos(0.5 * angle), s * v[0], s * v[1], s * v[2]])
 
 
 def attitude_from_up_and_yaw(up_B: ArrayLike, yaw: float) -> Array:

@@ -459,3 +459,31 @@ def test_euler_zyx_against_scipy():
     assert geometry.euler_zyx(geometry.yaw_quaternion(0.5))[2] == geometry.yaw_of(geometry.yaw_quaternion(0.5))
     with pytest.raises(ValueError, match="q_WB"):
         geometry.euler_zyx([0, 0, 0, 0])
+
+
+def test_quat_from_rotvec_matches_scipy_and_is_first_order_at_zero():
+    from scipy.spatial.transform import Rotation
+
+    from cufund.geometry import quat_from_rotvec
+
+    rng = np.random.default_rng(7)
+    for phi in rng.normal(size=(20, 3)) * 2.0:
+        q = quat_from_rotvec(phi)
+        ref = Rotation.from_rotvec(phi).as_quat()[[3, 0, 1, 2]]
+        np.testing.assert_allclose(q * np.sign(q[0] * ref[0] or 1.0), ref, atol=1e-12)
+    np.testing.assert_allclose(quat_from_rotvec([1e-14, 0.0, -2e-14]), [1.0, 5e-15, 0.0, -1e-14])
+    with pytest.raises(ValueError, match="phi"):
+        quat_from_rotvec([0.0, np.nan, 0.0])
+
+
+def test_attitude_from_up_and_yaw_matches_scipy_zyx():
+    from scipy.spatial.transform import Rotation
+
+    from cufund.geometry import attitude_from_up_and_yaw
+
+    rng = np.random.default_rng(8)
+    for yaw, pitch, roll in rng.uniform([-3, -1.2, -1.2], [3, 1.2, 1.2], (20, 3)):
+        R = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_matrix()
+        np.testing.assert_allclose(attitude_from_up_and_yaw(R.T @ [0, 0, 1] * 9.8, yaw), R, atol=1e-12)
+    with pytest.raises(ValueError, match="up_B"):
+        attitude_from_up_and_yaw([0.0, 0.0, 0.0], 0.0)

@@ -33,7 +33,7 @@ from cufund.core.bus import BusView, Subscription
 from cufund.core.components import Estimator
 from cufund.core.config import check_at_most, check_real_fields
 from cufund.core.messages import Imu, Odometry, Pose, Topics
-from cufund.geometry import quat_mul, quat_to_matrix
+from cufund.geometry import quat_from_rotvec, quat_mul, quat_to_matrix
 
 __all__ = ["ImuPropagator", "ImuPropagatorParams"]
 
@@ -72,15 +72,6 @@ class ImuPropagatorParams:
             if getattr(self, name) == 0:
                 raise ValueError(f"estimator.{name} must be > 0 (the pose source's noise), got 0")
         check_at_most(self, "estimator", buffer_s=60.0)  # IMU samples kept: at most 60 s of them
-
-
-def _exp_q(phi: np.ndarray) -> np.ndarray:
-    """The unit quaternion of the rotation vector ``phi`` [rad]."""
-    angle = float(np.linalg.norm(phi))
-    if angle < 1e-12:
-        return np.array([1.0, 0.5 * phi[0], 0.5 * phi[1], 0.5 * phi[2]])
-    s = math.sin(0.5 * angle) / angle
-    return np.array([math.cos(0.5 * angle), s * phi[0], s * phi[1], s * phi[2]])
 
 
 def _log_q(q: np.ndarray) -> np.ndarray:
@@ -182,12 +173,12 @@ class ImuPropagator(Estimator):
         f = f_B - x.b_a
         w = w_B - x.b_g
         a = R @ f - self._g_W
-        q1 = quat_mul(x.q, _exp_q(w * dt))
+        q1 = quat_mul(x.q, quat_from_rotvec(w * dt))
         F = np.eye(15)
         F[0:3, 3:6] = dt * np.eye(3)
         F[3:6, 6:9] = -dt * (R @ _skew(f))
         F[3:6, 9:12] = -dt * R
-        F[6:9, 6:9] = quat_to_matrix(_exp_q(w * dt)).T
+        F[6:9, 6:9] = quat_to_matrix(quat_from_rotvec(w * dt)).T
         F[6:9, 12:15] = -dt * np.eye(3)
         P = F @ x.P @ F.T
         P[np.arange(3, 15), np.arange(3, 15)] += self._q_rates * dt
@@ -207,7 +198,7 @@ class ImuPropagator(Estimator):
         dx = K @ r
         IKH = np.eye(15) - K @ _H
         P = IKH @ P @ IKH.T + K @ self._R_meas @ K.T
-        q = quat_mul(x.q, _exp_q(dx[6:9]))
+        q = quat_mul(x.q, quat_from_rotvec(dx[6:9]))
         return _State(x.t, x.p + dx[0:3], x.v + dx[3:6], q / np.linalg.norm(q), x.b_a + dx[9:12], x.b_g + dx[12:15], P)
 
     def _initial(self, z: Pose) -> _State:

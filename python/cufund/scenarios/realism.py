@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from cufund.core.config import ConfigError, from_dict, nested
+from cufund.geometry import quat_from_rotvec
 
 __all__ = [
     "PROFILES",
@@ -370,13 +371,9 @@ def _diff(value: Any, base: Any) -> dict[str, Any]:
 # The per-run draws
 
 
-def _quat_from_rotvec(r: np.ndarray) -> tuple[float, float, float, float]:
-    angle = float(np.linalg.norm(r))
-    if angle == 0.0:
-        return (1.0, 0.0, 0.0, 0.0)
-    axis = r / angle
-    s = math.sin(angle / 2)
-    return (math.cos(angle / 2), float(axis[0] * s), float(axis[1] * s), float(axis[2] * s))
+def _rotvec_q(r: np.ndarray) -> tuple[float, float, float, float]:
+    w, x, y, z = quat_from_rotvec(r).tolist()
+    return (w, x, y, z)
 
 
 @dataclass(frozen=True)
@@ -423,7 +420,7 @@ class PlantErrors:
         to the tilt direction."""
         a = math.radians(self.pad_tilt_direction_deg)
         axis = np.array([-math.sin(a), math.cos(a), 0.0])  # tilting about it lowers the pad's +direction side
-        return _quat_from_rotvec(axis * math.radians(self.pad_tilt_deg))
+        return _rotvec_q(axis * math.radians(self.pad_tilt_deg))
 
 
 _EXACT_PLANT = PlantErrors(1.0, (1.0, 1.0, 1.0), 1.0, 1.0, 1.0, 0.0, 0.0)
@@ -527,7 +524,7 @@ class Realism:
         from cufund.geometry import Transform, quat_mul
 
         T_stated = T_stated if T_stated is not None else Transform()  # stated: at the body origin
-        q = quat_mul(np.asarray(_quat_from_rotvec(np.asarray(m.dtheta_B))), np.asarray(T_stated.q))
+        q = quat_mul(np.asarray(_rotvec_q(np.asarray(m.dtheta_B))), np.asarray(T_stated.q))
         p = np.asarray(T_stated.t) + np.asarray(m.dp_B)
         return Transform((float(p[0]), float(p[1]), float(p[2])), (float(q[0]), float(q[1]), float(q[2]), float(q[3])))
 

@@ -14,7 +14,6 @@ measured and set). ``square_mocap`` uses 0.5 mm, 0.1 deg, 100 Hz, 8 ms.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +21,7 @@ import numpy as np
 from cufund.core.components import Sensor
 from cufund.core.config import check_at_most, check_real_fields
 from cufund.core.messages import Odometry, Pose, Topics
-from cufund.geometry import quat_mul
+from cufund.geometry import quat_from_rotvec, quat_mul
 
 __all__ = ["PoseSensor", "PoseSensorParams"]
 
@@ -64,8 +63,5 @@ class PoseSensor(Sensor):
         noise = self._rng.standard_normal(6)
         q = np.asarray(truth.q_WB, dtype=float)
         if p.attitude_sigma_rad > 0:
-            dtheta = noise[3:6] * p.attitude_sigma_rad
-            angle = float(np.linalg.norm(dtheta))
-            axis = dtheta / angle if angle > 0 else np.zeros(3)
-            q = quat_mul(q, np.r_[math.cos(angle / 2), math.sin(angle / 2) * axis])
+            q = quat_mul(q, quat_from_rotvec(noise[3:6] * p.attitude_sigma_rad))
         return Pose(t, truth.p_W + p.position_sigma_m * noise[:3], q)
