@@ -35,6 +35,7 @@ _FLOOR_POINTS = 3000
 """Floor returns (within 6 m of the pad) gathered before the floor is fitted."""
 _FLOOR_SCANS = 10
 """Scans after which the floor fit is given up (the world frame's horizontal is kept)."""
+_NO_COLUMNS = np.zeros(0, dtype=np.int64)
 _FLOOR_RANGE = 6.0
 """Floor returns farther than this from the LiDAR are not used for the fit [m]."""
 
@@ -165,26 +166,37 @@ class TunnelDetector(Component):
         p_WB, R_WB = self._poses(cloud.t + np.linspace(0.0, span, _KNOTS + 1))
         return span, p_WB + R_WB @ self._t_BL, R_WB @ self._R_BL
 
+    def _deskew(
+        self,
+        cloud: PointCloud,
+        span: float,
+        p_WL: np.ndarray,
+        R_WL: np.ndarray,
+        max_range: float,
+        floor_band: float | None,
+        tall_z: float,
+        tall: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`cufund._core.perception.deskew_crop` of the scan: the band floor_z +- ``floor_band`` (None: from
+        the floor band's top to ``ceiling_z``), columns above ``tall_z`` dropped."""
+        p = self.params
+        lo, hi = (
+            (p.floor_z + p.floor_band, p.ceiling_z)
+            if floor_band is None
+            else (p.floor_z - floor_band, p.floor_z + floor_band)
+        )
+        return _core.perception.deskew_crop(
+            cloud.points_L, cloud.dt, p.point_stride, span, p_WL, R_WL, max_range, lo, hi, tall_z, COLUMN_CELL, tall
+        )
+
     def _level_on_floor(self, cloud: PointCloud) -> list[PointCloud]:
         """Gathers the floor's returns of the first scans and fits the floor (:func:`fit_floor`) about the pad;
         returns the scans held meanwhile once the floor is known (or given up after ``_FLOOR_SCANS`` scans), to be
         cropped in the floor's frame, else []."""
         p = self.params
         span, p_WL, R_WL = self._lidar_poses(cloud)
-        pts, _, _ = _core.perception.deskew_crop(
-            cloud.points_L,
-            cloud.dt,
-            p.point_stride,
-            span,
-            p_WL,
-            R_WL,
-            min(_FLOOR_RANGE, p.max_range),
-            p.floor_z - 0.25,
-            p.floor_z + 0.25,
-            1e6,  # no column is tall: walls and frames are kept out by the band
-            COLUMN_CELL,
-            np.zeros(0, dtype=np.int64),
-        )
+        # no column is tall (1e6): walls and frames are kept out by the band
+        pts, _, _ = self._deskew(cloud, span, p_WL, R_WL, min(_FLOOR_RANGE, p.max_range), 0.25, 1e6, _NO_COLUMNS)
         self._floor_scans.append(cloud)
         self._floor_points.append(pts)
         if sum(len(a) for a in self._floor_points) < _FLOOR_POINTS and len(self._floor_scans) < _FLOOR_SCANS:
@@ -208,20 +220,7 @@ class TunnelDetector(Component):
         assert self.level is not None  # scans are cropped once the floor is known
         p_WL, R_WL = self.level.pose_to_D(p_WL, R_WL)
         # x-y columns reaching above any frame are walls or poles: never accumulated
-        points_W, rays_W, tall = _core.perception.deskew_crop(
-            cloud.points_L,
-            cloud.dt,
-            p.point_stride,
-            span,
-            p_WL,
-            R_WL,
-            p.max_range,
-            p.floor_z + p.floor_band,
-            p.ceiling_z,
-            p.max_frame_top,
-            COLUMN_CELL,
-            self._tall,
-        )
+        points_W, rays_W, tall = self._deskew(cloud, span, p_WL, R_WL, p.max_range, None, p.max_frame_top, self._tall)
         if len(tall):
             self._tall = np.union1d(self._tall, tall)
             self._tall_changed = True

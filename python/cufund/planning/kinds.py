@@ -20,6 +20,14 @@ from .sequence import Hold, TrajectorySequence
 from .trajectory_follower import TrajectoryFollower
 
 
+def _positive(params: Any, names: tuple[str, ...], unit: str) -> None:
+    """Each of ``names`` must be a finite number > 0 [unit]: else a ConfigError naming the field."""
+    for name in names:
+        v = getattr(params, name)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0):
+            raise ConfigError(f"planner.{name} must be a finite number > 0 [{unit}], got {v!r}")
+
+
 @dataclass(frozen=True)
 class WaypointsParams:
     """Flies the scenario's ``trajectory`` section; no keys of its own."""
@@ -305,10 +313,7 @@ class GlobalParams(_ChainParams):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name in ("replan_interval_s", "give_up_s"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0):
-                raise ConfigError(f"planner.{name} must be a finite number > 0 [s], got {v!r}")
+        _positive(self, ("replan_interval_s", "give_up_s"), "s")
 
     def _band(self) -> tuple[float, float]:
         return (self.z_min, self.z_max)  # the online map's unobserved ground is free: keep to the flight band
@@ -327,10 +332,7 @@ class GlobalKnownMapParams(_ChainParams):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name in ("resolution", "map_padding"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0):
-                raise ConfigError(f"planner.{name} must be a finite number > 0 [m], got {v!r}")
+        _positive(self, ("resolution", "map_padding"), "m")
 
 
 def _global(p: GlobalParams, ctx: BuildContext) -> list[Any]:
