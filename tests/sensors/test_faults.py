@@ -35,7 +35,7 @@ class _Recorder(Component):
 
 
 def _run(faults):
-    config = load_scenario("square_lio", ["estimator=null"]).replace(faults=faults)
+    config = load_scenario("square_lio", ["estimator=null", "realism=ideal"]).replace(faults=faults)
     rec = _Recorder()
     build_simulation(config, (rec,)).simulator.run(DURATION)
     return rec

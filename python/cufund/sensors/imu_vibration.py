@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cufund.core.config import ConfigError, check_real_fields, from_dict
+from cufund.core.config import ConfigError, check_at_most, check_real_fields, from_dict
 
 __all__ = ["RotorVibration", "VibrationSpec", "butterworth_poles", "butterworth_response"]
 
@@ -74,6 +74,7 @@ class VibrationSpec:
         object.__setattr__(self, "harmonics", _tuple(f"{where}.harmonics", self.harmonics, None))
         check_real_fields(self, where, names=("speed_spread", "hover_rotor_speed"))
         check_real_fields(self, where, positive=True, unit=" [Hz]", names=("anti_alias_hz",))
+        check_at_most(self, where, anti_alias_hz=1e5)  # a MEMS part's filter corners stay in the kHz
         n = self.anti_alias_order
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 8:
             raise ConfigError(f"{where}.anti_alias_order must be an integer from 1 to 8, got {n!r}")
