@@ -350,11 +350,11 @@ class TunnelDetector(Component):
             and self._t
             and self._t[-1] >= self._waiting[0].t + float(np.max(self._waiting[0].dt, initial=0.0))
         ):
-            cloud = self._waiting.pop(0)
+            scan = self._waiting.pop(0)
             if self.level is None:
-                batch += [self._crop(c) for c in self._level_on_floor(cloud)]
+                batch += [self._crop(c) for c in self._level_on_floor(scan)]
             else:
-                batch.append(self._crop(cloud))
+                batch.append(self._crop(scan))
         if batch:
             if self._tall_changed and len(self.map):
                 self.map.drop(_member(column_keys(self.map.means()[0]), self._tall))
