@@ -5,7 +5,6 @@ up, malformed messages get an error while the simulation goes on."""
 import json
 import math
 import socket
-import time
 import urllib.error
 import urllib.request
 
@@ -17,6 +16,7 @@ from cufund.apps.gcs.mission_preview import preview_mission
 from cufund.apps.gcs.process import wait_for
 from cufund.apps.gcs.server import IN_FLIGHT
 from cufund.planning.mission_spec import Region
+from gcs_support import receive
 
 websocket = pytest.importorskip("websocket")  # websocket-client, installed with selenium (test extras)
 
@@ -44,23 +44,6 @@ def http(gcs, path, body=None, headers=None, token=True):
 def ws_connect(gcs, token=True):
     url = gcs.base.replace("http://", "ws://") + "/ws" + (f"?token={gcs.token}" if token else "")
     return websocket.create_connection(url, timeout=10, origin=gcs.base)
-
-
-def receive(ws, kind, timeout=10.0, pred=lambda m: True):
-    """The next text message of ``kind`` satisfying ``pred`` (binary frames and others skipped), within ``timeout``
-    seconds overall (a stream of other messages does not extend it)."""
-    deadline = time.monotonic() + timeout
-    while True:
-        left = deadline - time.monotonic()
-        if left <= 0:
-            raise TimeoutError(f"no {kind!r} message satisfying the predicate within {timeout} s")
-        ws.settimeout(left)
-        raw = ws.recv()
-        if isinstance(raw, bytes):
-            continue
-        m = json.loads(raw)
-        if m["type"] == kind and pred(m):
-            return m
 
 
 def test_first_line_and_token_everywhere(gcs):

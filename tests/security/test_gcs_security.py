@@ -17,6 +17,7 @@ import pytest
 
 from cufund.apps.gcs import GcsProcess
 from cufund.apps.gcs.process import wait_for
+from gcs_support import receive
 
 websocket = pytest.importorskip("websocket")  # websocket-client (test extras)
 
@@ -73,23 +74,6 @@ def ws_connect(gcs, **kw):
     return websocket.create_connection(
         gcs.base.replace("http://", "ws://") + f"/ws?token={gcs.token}", timeout=10, **kw
     )
-
-
-def receive(ws, kind, timeout=10.0, pred=lambda m: True):
-    """The next text message of ``kind`` satisfying ``pred``; fails when none comes within ``timeout`` [s] (other
-    messages, which keep coming, do not extend it)."""
-    end = time.monotonic() + timeout
-    while True:
-        left = end - time.monotonic()
-        if left <= 0:
-            raise AssertionError(f"no {kind!r} message within {timeout} s")
-        ws.settimeout(left)
-        raw = ws.recv()
-        if isinstance(raw, bytes):
-            continue
-        m = json.loads(raw)
-        if m["type"] == kind and pred(m):
-            return m
 
 
 def serving(gcs):
