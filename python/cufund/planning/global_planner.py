@@ -22,7 +22,7 @@ from .clearance import ClearanceQuery
 from .min_snap_planner import MinSnapPlanner, MinSnapPlannerParams, MinSnapResult
 from .minimum_snap import MinimumSnapTrajectory
 from .ompl_path import OmplPathParams, OmplPathPlanner
-from .path_search import GridPathSearch, GridPathSearchParams, PathResult
+from .path_search import GridPathSearch, GridPathSearchParams, PathResult, check_flight_band
 
 __all__ = ["SEARCHES", "GlobalPlan", "GlobalPlanner", "GlobalPlannerParams"]
 
@@ -93,13 +93,7 @@ class GlobalPlannerParams:
             or self.max_expansions < 1
         ):
             raise ConfigError(f"max_expansions must be an integer >= 1, got {self.max_expansions!r}")
-        for name in ("z_min", "z_max"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, numbers.Real) or math.isnan(v):
-                raise ConfigError(f"{name} must be a number [m], got {v!r}")
-            object.__setattr__(self, name, float(v))
-        if not self.z_max > self.z_min:
-            raise ConfigError(f"z_max must be > z_min, got z_min={self.z_min}, z_max={self.z_max}")
+        check_flight_band(self)
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ import math
 import numbers
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -41,6 +42,18 @@ class PathResult:
     @property
     def found(self) -> bool:
         return self.status == "found"
+
+
+def check_flight_band(params: Any) -> None:
+    """``params.z_min`` < ``params.z_max`` [m], each a number (infinite allowed), stored as floats in place."""
+    for name in ("z_min", "z_max"):
+        v = getattr(params, name)
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or math.isnan(v):
+            raise ConfigError(f"{name} must be a number [m], got {v!r}")
+        object.__setattr__(params, name, float(v))
+    z_min, z_max = params.z_min, params.z_max
+    if not z_max > z_min:
+        raise ConfigError(f"z_max must be > z_min, got z_min={z_min}, z_max={z_max}")
 
 
 def _radius(value: object) -> float:
@@ -79,13 +92,7 @@ class GridPathSearchParams:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "radius", _radius(self.radius))
-        for name in ("z_min", "z_max"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, numbers.Real) or math.isnan(v):
-                raise ConfigError(f"{name} must be a number [m], got {v!r}")
-            object.__setattr__(self, name, float(v))
-        if not self.z_max > self.z_min:
-            raise ConfigError(f"z_max must be > z_min, got z_min={self.z_min}, z_max={self.z_max}")
+        check_flight_band(self)
         if (
             isinstance(self.max_expansions, bool)
             or not isinstance(self.max_expansions, numbers.Integral)
