@@ -8,66 +8,14 @@ import numpy as np
 import pytest
 
 from cufund import ScenarioConfig
-from cufund.core.components import Mapper
 from cufund.core.config import ConfigError
-from cufund.core.messages import MapUpdate, Topics
-from cufund.mapping import EsdfMap, EsdfMapParams
+from cufund.core.messages import Topics
 from cufund.planning.bspline import UniformBspline
 from cufund.planning.local_planner_component import LocalPlannerComponent
 from cufund.planning.sequence import Hold, TrajectorySequence
 from cufund.planning.trajectory_follower import stitched
 from cufund.scenarios.build import build_simulation, run_built
-
-RES = 0.1
-ORIGIN = np.array([-2.0, -3.0, 0.0])
-PILLAR = (np.array([4.0, -0.4, 0.0]), np.array([4.6, 0.4, 3.0]))  # [min, max] corners, whole voxels
-GAINS = {
-    "position": {
-        "xy_p": 3.0,
-        "z_p": 3.0,
-        "xy_vel_p": 8.0,
-        "xy_vel_i": 2.0,
-        "xy_vel_d": 0.3,
-        "z_vel_p": 8.0,
-        "z_vel_i": 2.0,
-        "xy_vel_max": 3.0,
-    },
-    "attitude": {"roll_p": 10.0, "pitch_p": 10.0, "yaw_p": 2.8},
-    "rate": {
-        "roll_p": 25.0,
-        "roll_i": 10.0,
-        "roll_d": 0.2,
-        "pitch_p": 25.0,
-        "pitch_i": 10.0,
-        "pitch_d": 0.2,
-        "yaw_p": 12.0,
-        "yaw_i": 5.0,
-    },
-}
-
-
-class ScriptedMap(Mapper):
-    """Publishes a fixed map (a floor) at 10 Hz; adds the pillar to it at ``t_appear``."""
-
-    name = "scripted_map"
-    rate_hz = 10.0
-    outputs = (Topics.ESDF_MAP,)
-
-    def __init__(self, t_appear: float | None) -> None:
-        self.t_appear = t_appear
-
-    def reset(self) -> None:
-        self.map = EsdfMap(EsdfMapParams(resolution=RES, size=(12, 6, 3), origin_W=tuple(ORIGIN), nthreads=1))
-        self.map.set_occupied(np.argwhere(np.ones((120, 60, 1), bool)))
-        self.appeared = False
-
-    def integrate(self, t: float, bus) -> None:
-        if self.t_appear is not None and t >= self.t_appear and not self.appeared:
-            lo = np.round((PILLAR[0] - ORIGIN) / RES).astype(int)
-            hi = np.round((PILLAR[1] - ORIGIN) / RES).astype(int)
-            self.map.set_occupied(np.argwhere(np.ones(hi - lo, bool)) + lo)
-            self.appeared = True
-        bus.publish(Topics.ESDF_MAP, MapUpdate(t, self.map, 1))
+from planning_support import GAINS, PILLAR, ScriptedMap, UpdateLog
 
 
 def _config(**planner):
@@ -84,26 +32,9 @@ def _config(**planner):
     )
 
 
-class UpdateLog(Mapper):
-    """Keeps every trajectory update and the reference the follower had just before it (a test probe)."""
-
-    name = "update_log"
-    rate_hz = 250.0
-    inputs = (Topics.TRAJECTORY_UPDATE,)
-
-    def reset(self) -> None:
-        self.updates = []
-
-    def setup(self, bus) -> None:
-        self._sub = bus.subscribe(Topics.TRAJECTORY_UPDATE)
-
-    def integrate(self, t: float, bus) -> None:
-        self.updates += self._sub.take()
-
-
 def _fly(t_appear):
     probe = UpdateLog()
-    mapper = ScriptedMap(t_appear)
+    mapper = ScriptedMap(PILLAR, t_appear)
     built = build_simulation(_config(), extra_components=(mapper, probe))
     assert Topics.TRAJECTORY_SETPOINT in built.simulator.record_topics  # every setpoint kept
     run = run_built(built)
