@@ -8,7 +8,7 @@ Velocity mode drops the position term; attitude mode tracks a given attitude and
 the mass (k_x, k_i, k_v) and the inertia (k_R, k_W), so they are accelerations per unit error. The integral of the
 position error (Lee's integral term, as in Goodarzi, Lee & Lee, 2015) takes up what the model gets wrong: a mass
 or thrust constant a few percent off leaves a steady offset of g times the error over k_x (8 cm at 5 %) without
-it. It accumulates in position mode only, from the first time |e_x| < i_band, bounded so that k_i |int(e_x)| <= i_max. The force law and the
+it. It accumulates in position mode only, the error saturated at i_band, bounded so that k_i |int(e_x)| <= i_max. The force law and the
 mode logic are here; the force law, the attitude law and the allocation run in C++, one call per step
 (``cpp/control/geometric_control.cpp``).
 """
@@ -48,7 +48,8 @@ class GeometricControlParams:
     i_max: float = 2.0
     """Largest acceleration the integral term may ask for [m/s^2] (anti-windup)."""
     i_band: float = 0.15
-    """The integral starts once the position error has first come below this [m] (after the take-off)."""
+    """The position error is integrated saturated at this length [m] (a transient winds the integral up no faster
+    than a steady offset of i_band would)."""
     k_R: float = 150.0
     """Attitude gain [rad/s^2 per rad] (times J gives Lee's k_R)."""
     k_W: float = 22.0
@@ -125,7 +126,6 @@ class GeometricController(Controller):
         self.last = None
         self._int_e = np.zeros(3)
         self._t_int: float | None = None
-        self._int_on = False
 
     def setup(self, bus: BusView) -> None:
         if self.use_gyro:
@@ -144,11 +144,13 @@ class GeometricController(Controller):
             self._t_int = None  # velocity or attitude mode: the integral holds
             return a_sp
         e = np.asarray(e_x, dtype=float)
-        # only once the vehicle has first come within i_band of the reference: the take-off's catching up is the
-        # proportional terms' to close (integrating it would overshoot by as much again); then always, one step's
-        # worth at most (no catching up over a pause in the state stream)
-        self._int_on = self._int_on or float(np.linalg.norm(e)) < g.i_band
-        if self._t_int is not None and self._int_on:
+        # the error integrated is saturated at i_band: a transient (a take-off catching up, a step in the set-point)
+        # winds it up no faster than a steady offset of i_band would, while any steady offset is taken up; one
+        # step's worth at most (no catching up over a pause in the state stream)
+        n_e = float(np.linalg.norm(e))
+        if n_e > g.i_band:
+            e = e * (g.i_band / n_e)
+        if self._t_int is not None:
             self._int_e += e * min(t - self._t_int, 2.0 / self.rate_hz)
             n = float(np.linalg.norm(self._int_e)) * g.k_i
             if n > g.i_max:
