@@ -437,6 +437,23 @@ class PlannerDiagnostics(Message):
     """Length of the accepted trajectory [m] (0 when rejected)."""
 
 
+@message
+class BatteryStatus(Message):
+    """A power module's reading of the flight battery (like PX4's ``battery_status``)."""
+
+    t: float
+    voltage_v: float
+    """Terminal voltage of the pack [V]."""
+    current_a: float
+    """Current drawn from the pack [A] (> 0 discharging)."""
+    remaining: float
+    """State of charge in [0, 1] (1: full)."""
+    consumed_mah: float
+    """Charge drawn since the start of the run [mAh]."""
+    cells: int
+    """Cells in series."""
+
+
 class Topics:
     """The topics of the built-in components, each typed with its message. Ground truth lies under ``/truth/``."""
 
@@ -478,3 +495,5 @@ class Topics:
     MISSION_STATE = Topic("/mission/state", MissionState)
     PLANNER_DIAGNOSTICS = Topic("/planner/diagnostics", PlannerDiagnostics)
     """Per-replan diagnostics of a planner, next to its trajectory updates."""
+    BATTERY = Topic("/battery", BatteryStatus)
+    """The power module's :class:`BatteryStatus` (only when the scenario's ``vehicle.battery`` is set)."""
