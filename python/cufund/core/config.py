@@ -98,10 +98,38 @@ def vector3(name: str, value: Any, unit: str = "", finite: bool = False) -> tupl
     return (float(a[0]), float(a[1]), float(a[2]))
 
 
+class DuplicateKeyError(yaml.YAMLError):
+    """A mapping that gives the same key twice (PyYAML keeps the last value silently: ``hover_s:`` written twice
+    flew the second one with no word)."""
+
+    def __init__(self, key: Any, line: int, first_line: int) -> None:
+        super().__init__(f"duplicate key {key!r} at line {line} (first given at line {first_line})")
+        self.key, self.line, self.first_line = key, line, first_line
+
+
 class CufundLoader(yaml.SafeLoader):
     """PyYAML's safe loader (plain data only: no ``!!python`` tags, nothing imported or called) that also reads
     YAML 1.2 numbers like ``1e9``, ``1e-3``, ``-2E5`` and ``1.5e3`` as floats (YAML 1.1 needs a dot and a signed
-    exponent, so those were strings and a bound check said "got '1e9'")."""
+    exponent, so those were strings and a bound check said "got '1e9'"), and refuses a mapping that gives a key twice
+    (:class:`DuplicateKeyError`, naming the key and both lines)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        """A mapping whose explicit keys are unique (a key that a merge ``<<: *anchor`` brings in may still be
+        overridden, as YAML specifies)."""
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = self.construct_object(key_node, deep=True)
+            try:
+                first = seen.get(key)
+            except TypeError:  # an unhashable key: PyYAML's own error follows
+                continue
+            if first is not None:
+                raise DuplicateKeyError(key, key_node.start_mark.line + 1, first)
+            seen[key] = key_node.start_mark.line + 1
+        mapping: dict[Any, Any] = super().construct_mapping(node, deep=deep)
+        return mapping
 
 
 CufundLoader.add_implicit_resolver(
@@ -147,6 +175,8 @@ def load_yaml_text(text: str, where: str) -> Any:
         return yaml.load(text, Loader=CufundLoader)  # CufundLoader is a SafeLoader
     except RecursionError:
         raise ConfigError(f"{where}: nesting deeper than yaml_max_depth = {lim.yaml_max_depth}") from None
+    except DuplicateKeyError as e:
+        raise ConfigError(f"{where}: {e}; each key may appear once in a mapping") from None
     except yaml.YAMLError as e:
         raise ConfigError(f"{where}: invalid YAML: {e}") from e
 

@@ -24,9 +24,11 @@ from cufund.core.registry import extrinsic_keys, lookup, sensor_type
 from cufund.core.topics import Topic
 from cufund.geometry import Transform
 from cufund.sensors.faults import faults_to_data, parse_faults
+from cufund.sensors.power_monitor import PowerSystem
 from cufund.vehicle import presets
 from cufund.vehicle.params import QuadrotorParams
 
+from .plausibility import check_plausible
 from .realism import RealismConfig
 
 __all__ = [
@@ -294,7 +296,9 @@ class ScenarioConfig:
 
     name: str = "custom"
     vehicle: Any = "cu_astro"
-    """A preset name (cu_astro, crazyflie, iris) or a mapping of :class:`QuadrotorParams` fields."""
+    """A preset name (cu_astro, crazyflie, iris), a mapping of :class:`QuadrotorParams` fields, or ``{preset: NAME,
+    ...overrides}``; either mapping may add ``battery: {cells, capacity_mah, ...}`` (off when absent; see
+    :mod:`cufund.sensors.power_monitor`)."""
     world: Any = None
     """A world kind (empty, imav2025_tunnel, forest, corridor, file, ...) or null for none (the ground plane of the
     dynamics only)."""
@@ -341,7 +345,7 @@ class ScenarioConfig:
                 )
         elif isinstance(self.vehicle, dict):
             try:
-                QuadrotorParams.from_dict(self.vehicle)
+                _vehicle_parts(self.vehicle)
             except (TypeError, ValueError) as e:
                 raise ConfigError(f"vehicle: {e}") from None
         else:
@@ -390,9 +394,14 @@ class ScenarioConfig:
             raise ConfigError(f"scenario.duration must be at most 1e6 s, got {self.duration!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
             raise ConfigError(f"seed must be an integer in [0, 2^63), got {self.seed!r}")
+        check_plausible(self)  # well-formed but surely a mistake: degrees for radians, unreachable speeds
 
     def vehicle_params(self) -> QuadrotorParams:
-        return _PRESETS[self.vehicle]() if isinstance(self.vehicle, str) else QuadrotorParams.from_dict(self.vehicle)
+        return _PRESETS[self.vehicle]() if isinstance(self.vehicle, str) else _vehicle_parts(self.vehicle)[0]
+
+    def power_system(self) -> PowerSystem | None:
+        """``vehicle.battery`` validated (:mod:`cufund.sensors.power_monitor`), or None: no battery (the default)."""
+        return None if isinstance(self.vehicle, str) else _vehicle_parts(self.vehicle)[1]
 
     @classmethod
     def from_dict(cls, data: Any, base_dir: str | Path | None = None) -> ScenarioConfig:
@@ -436,6 +445,19 @@ class ScenarioConfig:
         return (_rebuild, (self.to_dict(), self.base_dir))
 
 
+def _vehicle_parts(value: dict[str, Any]) -> tuple[QuadrotorParams, PowerSystem | None]:
+    """A ``vehicle`` mapping: :class:`QuadrotorParams` fields, or ``preset:`` and overrides of its fields; and an
+    optional ``battery:`` (:class:`PowerSystem`)."""
+    data = dict(value)
+    battery = data.pop("battery", None)
+    preset = data.pop("preset", None)
+    if preset is not None:
+        if not isinstance(preset, str) or preset not in _PRESETS:
+            raise ConfigError(f"vehicle.preset must be one of {', '.join(_PRESETS)}, got {preset!r}")
+        data = {**_PRESETS[preset]().to_dict(), **data}
+    return QuadrotorParams.from_dict(data), None if battery is None else PowerSystem.parse(battery)
+
+
 def _rebuild(data: dict[str, Any], base_dir: str | None) -> ScenarioConfig:
     return ScenarioConfig.from_dict(data, base_dir)
 
@@ -468,6 +490,8 @@ def apply_overrides(data: dict[str, Any], overrides: Mapping[str, Any] | Iterabl
             child = node.get(p)
             if isinstance(child, str) and depth == 0 and p == "realism":
                 child = {"profile": child}  # realism.imu.x=1 on realism: realistic
+            elif isinstance(child, str) and depth == 0 and p == "vehicle":
+                child = {"preset": child}  # vehicle.battery.cells=4 on vehicle: cu_astro
             elif isinstance(child, str) and (depth > 0 or p in _PART_GROUPS):
                 child = {"kind": _SHORTHAND.get((p, child), child)}
             elif child is None:

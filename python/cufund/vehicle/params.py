@@ -135,6 +135,11 @@ class QuadrotorParams:
         return math.sqrt(self.mass * self.gravity / (4.0 * self.k_f))
 
     @property
+    def max_thrust(self) -> float:
+        """Collective thrust of four rotors at rotor_speed_max [N] (the thrust-to-weight ratio is this over m g)."""
+        return 4.0 * self.k_f * self.rotor_speed_max**2
+
+    @property
     def inertia_matrix(self) -> np.ndarray:
         """J as a (3, 3) array [kg m^2]."""
         return np.array(self.inertia)
