@@ -15,6 +15,7 @@ from cufund.core.config import ConfigError
 from cufund.core.messages import Odometry, Topics
 from cufund.core.registry import lookup
 from cufund.sensors.faults import fault_summary, inject_faults
+from cufund.sensors.power_monitor import PowerMonitor
 from cufund.simulator import SimulationResult, Simulator
 from cufund.vehicle.quadrotor import Quadrotor
 from cufund.worlds.collision import CollisionChecker
@@ -267,6 +268,12 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
         components += ctx.build("sensor", spec, f"sensors.{name}")
         record.append(spec.topic)
     components = inject_faults(config.faults, config.sensors, components, ctx.seed_for)
+    power = config.power_system()
+    if power is not None:  # vehicle.battery: the pack on the plant (its voltage limits the rotors) and its reading
+        monitor = PowerMonitor(power, quad.params, quad, ctx.seed_for("vehicle.battery"))
+        components.append(monitor)
+        record.append(Topics.BATTERY)
+        ctx.add_metric_hook(monitor.metrics)  # battery_used_mah, battery_min_voltage_v
     for group in ("estimator", "mapper", "planner", "controller", "mission"):
         spec = getattr(config, group)
         if spec is not None:
