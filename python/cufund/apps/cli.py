@@ -12,8 +12,11 @@ import argparse
 import contextlib
 import importlib
 import json
+import re
+import shutil
 import signal
 import sys
+import textwrap
 import time
 import warnings
 from collections.abc import Iterator
@@ -36,14 +39,23 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INVALID, f"cufund: {message}\n")
 
 
+def _first_sentence(text: str) -> str:
+    """The first sentence of ``text`` (all of it when it has one); ``cufund list`` prints the whole."""
+    m = re.match(r"(.*?[.!?])(\s|$)", text)
+    return m.group(1) if m else text
+
+
 def _parser() -> argparse.ArgumentParser:
-    scenarios = "\n".join(f"  {name:<14} {desc}" for name, desc in available_scenarios().items())
+    width = shutil.get_terminal_size((100, 24)).columns - 1
+    scenarios = "\n".join(
+        _wrapped(name, _first_sentence(desc), width) for name, desc in available_scenarios(whole=True).items()
+    )
     p = _Parser(
         prog="cufund",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="cufund: quadrotor simulation and autonomy.",
-        epilog=f"built-in scenarios (cufund run NAME):\n{scenarios}\n\nA scenario may also be a YAML file, e.g. a "
-        "run folder's config.yaml.",
+        epilog=f"built-in scenarios (cufund run NAME; cufund list describes them whole):\n{scenarios}\n\nA scenario "
+        "may also be a YAML file, e.g. a run folder's config.yaml.",
     )
     p.add_argument(
         "--version",
@@ -69,6 +81,12 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--viz", action="store_true", help="stream the run live to MeshCat (http on 127.0.0.1)")
     run.add_argument("--no-replay", action="store_true", help="skip replay.html")
     run.add_argument("--no-log", action="store_true", help="skip run.mcap")
+    run.add_argument(
+        "--json",
+        action="store_true",
+        help="print the run's metrics as JSON (what metrics.json holds) instead of the summary; the status and the "
+        "run folder then go to stderr",
+    )
     sub.add_parser("list", help="list the built-in scenarios and registered kinds")
     odo = sub.add_parser(
         "odometry",
@@ -124,16 +142,43 @@ _SERVERS = {
 }
 
 
+def _wrapped(name: str, text: str, width: int) -> str:
+    """``  NAME  text`` with ``text`` wrapped whole (never cut) under a hanging indent."""
+    indent = " " * 19
+    body = textwrap.fill(
+        " ".join(text.split()),
+        width=max(width, 60),
+        initial_indent=indent,
+        subsequent_indent=indent,
+        break_on_hyphens=False,
+        break_long_words=False,
+    )
+    return f"  {name:<16} {body[len(indent) :]}" if len(name) <= 16 else f"  {name}\n{body}"
+
+
 def _list() -> int:
     from cufund.core.registry import GROUPS, available
+    from cufund.scenarios.plausibility import reach
+    from cufund.vehicle import presets
 
-    print("scenarios:")
-    for name, desc in available_scenarios().items():
-        print(f"  {name:<16} {desc}")
+    width = shutil.get_terminal_size((100, 24)).columns - 1
+    print("scenarios (cufund run NAME):")
+    for name, desc in available_scenarios(whole=True).items():
+        print(_wrapped(name, desc, width))
+    print("vehicle presets (vehicle: NAME in a scenario):")
+    for name in presets.__all__:
+        vp = getattr(presets, name)()
+        doc = (getattr(presets, name).__doc__ or "").strip().split("\n\n")[0].replace("``", "")
+        r = reach(vp)
+        figures = (
+            f"[{vp.mass:.3g} kg, thrust-to-weight {r.thrust_to_weight:.3g}, accelerations up to {r.acceleration:.3g} "
+            f"m/s^2, speeds up to {r.speed:.3g} m/s]"
+        )
+        print(_wrapped(name, f"{doc} {figures}", width))
     for group in GROUPS:
         print(f"{group} kinds:")
         for name, kind in sorted(available(group).items()):
-            print(f"  {name:<16} {kind.doc}")
+            print(_wrapped(name, kind.doc, width))
     return EXIT_COMPLETED
 
 
@@ -211,10 +256,14 @@ def _run_scenario(args: argparse.Namespace) -> int:
     run = run_into_folder(
         built, out, log=not args.no_log, replay=not args.no_replay, progress=sys.stderr.isatty() or args.viz
     )
-    print(json.dumps(run.metrics, indent=2, default=str))
     status = run.result.status.value
-    print(f"status: {status} ({run.result.message})")
-    print(f"run folder: {out.resolve()}")
+    if args.json:
+        print(json.dumps(run.metrics, indent=2, default=str))
+        print(f"status: {status} ({run.result.message})\nrun folder: {out.resolve()}", file=sys.stderr)
+    else:
+        from .run_summary import summary
+
+        print(summary(run.metrics, out, cfg.mission.kind if cfg.mission is not None else None))
     if args.viz and sys.stdin.isatty():
         try:
             input("The live view stays up until you press Enter (or Ctrl-C). ")

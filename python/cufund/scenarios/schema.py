@@ -453,7 +453,7 @@ def _vehicle_parts(value: dict[str, Any]) -> tuple[QuadrotorParams, PowerSystem 
     preset = data.pop("preset", None)
     if preset is not None:
         if not isinstance(preset, str) or preset not in _PRESETS:
-            raise ConfigError(f"vehicle.preset must be one of {', '.join(_PRESETS)}, got {preset!r}")
+            raise ConfigError(f"preset must be one of {', '.join(_PRESETS)}, got {preset!r}")
         data = {**_PRESETS[preset]().to_dict(), **data}
     return QuadrotorParams.from_dict(data), None if battery is None else PowerSystem.parse(battery)
 
@@ -516,12 +516,15 @@ def _scenario_dir() -> Path:
     return Path(__file__).resolve().parent / "builtin"
 
 
-def available_scenarios() -> dict[str, str]:
-    """Built-in scenario names and their one-line descriptions (the YAML's first comment line)."""
+def available_scenarios(whole: bool = False) -> dict[str, str]:
+    """Built-in scenario names and their descriptions: the YAML's first comment line, or with ``whole`` every
+    comment line before the first key, joined into one paragraph."""
     out = {}
     for p in sorted(_scenario_dir().glob("*.yaml")):
-        first = p.read_text(encoding="utf-8").splitlines()[0]
-        out[p.stem] = first.lstrip("# ").strip()
+        lines = p.read_text(encoding="utf-8").splitlines()
+        head = [line.lstrip("# ").strip() for line in (lines if whole else lines[:1])]
+        end = next((i for i, line in enumerate(lines) if not line.startswith("#")), len(lines))
+        out[p.stem] = " ".join(h for h in head[: end if whole else 1] if h)
     return out
 
 

@@ -542,8 +542,10 @@ class Simulator:
             physics.k, physics.next_ns = p_k, p_next
             self._physics_seconds = physics_seconds
             self._now_ns, self._cmd, self._at_node = now, cmd, at_node
-        if progress:
-            sys.stderr.write("\n")
+        if progress:  # the run ended or reached end_ns: a full bar, also when it ended early (landed, stopped)
+            early = "" if now >= end_ns or self.status is None else " (ended early)"
+            sys.stderr.write(f"\r[{'#' * 40}] {now / NS:7.2f} s{early}\n")
+            sys.stderr.flush()
 
     def _next_event(self) -> float:
         """The next instant at which a component runs or a message becomes visible [ns]."""
