@@ -267,7 +267,7 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
     for name, spec in config.sensors.items():
         components += ctx.build("sensor", spec, f"sensors.{name}")
         record.append(spec.topic)
-    components = inject_faults(config.faults, config.sensors, components, ctx.seed_for)
+    components = inject_faults(config.faults, config.sensors, components, ctx.seed_for, quad, config.rates.physics_hz)
     power = config.power_system()
     if power is not None:  # vehicle.battery: the pack on the plant (its voltage limits the rotors) and its reading
         monitor = PowerMonitor(power, quad.params, quad, ctx.seed_for("vehicle.battery"))
