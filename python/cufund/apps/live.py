@@ -452,6 +452,15 @@ class LiveRun:
             float(np.linalg.norm(truth.p_W - est.p_W)) if est is not None and truth is not None else None
         )
         out["thrust_margin"] = float(1.0 - tt.thrust / self._max_thrust) if tt is not None else None
+        bat = snap.get(str(Topics.BATTERY))  # the power module's reading (vehicle.battery), else absent
+        if bat is not None:
+            out["battery"] = {
+                "voltage_v": float(bat.voltage_v),
+                "current_a": float(bat.current_a),
+                "remaining": float(bat.remaining),
+                "consumed_mah": float(bat.consumed_mah),
+                "cells": int(bat.cells),
+            }
         if self._estimated:
             out["estimator"] = {
                 "ok": est is not None and bool(np.all(np.isfinite(est.p_W))) and t - est.t < 0.5,

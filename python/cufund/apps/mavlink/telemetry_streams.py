@@ -86,6 +86,9 @@ class VehicleSnapshot:
     mission_count: int
     home_p_W: np.ndarray
     message: str
+    battery: dict[str, float] | None = None
+    """The power module's last reading (``voltage_v``, ``current_a``, ``remaining``, ``consumed_mah``, ``cells``), or
+    None when the scenario has no ``vehicle.battery`` (then a full pack is reported, as before)."""
 
     @staticmethod
     def from_telemetry(tel: dict[str, Any]) -> VehicleSnapshot:
@@ -116,6 +119,7 @@ class VehicleSnapshot:
             mission_count=int(mission.get("count", 0) or 0),
             home_p_W=vec(tel.get("home_p_W"), 3, p_W),
             message=str(tel.get("message", "") or ""),
+            battery=_battery(tel.get("battery")),
         )
 
     @property
@@ -146,14 +150,54 @@ def encode_heartbeat(mav, s: VehicleSnapshot, link_lost: bool = False):
     return mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, base, custom, status, 3)
 
 
+def _battery(value: Any) -> dict[str, float] | None:
+    """The telemetry's battery reading with finite numbers, or None."""
+    if not isinstance(value, dict):
+        return None
+    try:
+        out = {k: float(value[k]) for k in ("voltage_v", "current_a", "remaining", "consumed_mah", "cells")}
+    except (KeyError, TypeError, ValueError):
+        return None
+    return out if all(math.isfinite(v) for v in out.values()) else None
+
+
+def _battery_fields(s: VehicleSnapshot) -> tuple[int, int, int]:
+    """(voltage [mV], current [cA], remaining [%]) as SYS_STATUS and BATTERY_STATUS carry them."""
+    b = s.battery
+    if b is None:
+        return 16200, -1, 100  # no battery model: a full 4S pack, current unknown
+    voltage = min(max(round(b["voltage_v"] * 1e3), 0), 65534)
+    current = min(max(round(b["current_a"] * 100), -1), 32767)
+    return voltage, current, min(max(round(b["remaining"] * 100), 0), 100)
+
+
 def encode_sys_status(mav, s: VehicleSnapshot):
-    return mav.sys_status_encode(SENSORS, SENSORS, SENSORS, 0, 16200, -1, 100, 0, 0, 0, 0, 0, 0)
+    voltage, current, remaining = _battery_fields(s)
+    return mav.sys_status_encode(SENSORS, SENSORS, SENSORS, 0, voltage, current, remaining, 0, 0, 0, 0, 0, 0)
 
 
 def encode_battery_status(mav, s: VehicleSnapshot):
-    cells = [4050] * 4 + [65535] * 6
+    """BATTERY_STATUS: the pack's voltage split evenly over its cells (a power module measures the pack only),
+    current [cA], charge drawn [mAh] and remaining [%]; temperature unknown."""
+    b = s.battery
+    if b is None:
+        cells, consumed = [4050] * 4 + [65535] * 6, -1
+    else:
+        n = max(1, int(b["cells"]))
+        per_cell = min(round(b["voltage_v"] * 1e3 / n), 65534)
+        cells = [per_cell] * min(n, 10) + [65535] * (10 - min(n, 10))
+        consumed = min(round(b["consumed_mah"]), 2**31 - 1)
+    _, current, remaining = _battery_fields(s)
     return mav.battery_status_encode(
-        0, mavlink.MAV_BATTERY_FUNCTION_ALL, mavlink.MAV_BATTERY_TYPE_LIPO, 2500, cells, -1, -1, -1, 100
+        0,
+        mavlink.MAV_BATTERY_FUNCTION_ALL,
+        mavlink.MAV_BATTERY_TYPE_LIPO,
+        32767 if b is not None else 2500,
+        cells,
+        current,
+        consumed,
+        -1,
+        remaining,
     )
 
 
