@@ -19,6 +19,10 @@ What each command does (``denied`` acks say why; every refusal is also a ``denie
   higher), home, land.
 - ``mission_upload`` (not while one runs), ``mission_clear``; ``mission_start`` (from item ``seq``, default 0):
   armed (takes off first when on the ground); events ``mission_item_reached`` (``seq``) and ``mission_complete``, then it holds at the last item.
+  With a scenario's own mission attached (:meth:`Commander.attach_mission`, e.g. the tunnel's) and no waypoints
+  uploaded, ``mission_start`` flies that mission instead: on the ground only, arming first when disarmed; the
+  commander then flies the mission's reference (mode ``mission``) until it has landed (then disarms) or the
+  operator takes over (hold, land, return, go-to: the mission stops there).
 - ``offboard_*``: armed; each setpoint (re)enters ``offboard``; none for ``offboard_timeout_s``: hold.
 - ``controller``: ``pid``/``geometric`` if built into the simulation (else ``unsupported``), switched in flight.
 - ``get_params`` / ``set_param``: :class:`CommanderParams` under PX4's names where they exist, plus the
@@ -100,7 +104,19 @@ class Commander(CommandInbox, Planner):
         CommandInbox.__init__(self)
         self.param_providers: list[tuple[Callable[[], dict[str, Any]], Callable[[str, Any], bool]]] = []
         """Extra parameters (e.g. controller gains): ``(get() -> {name: value}, set(name, value) -> handled)``."""
+        self.scenario_mission: Any = None
+        """The scenario's own mission (see :meth:`attach_mission`), or None."""
         self.reset()
+
+    def attach_mission(self, mission: Any) -> None:
+        """Lets ``mission_start`` fly a scenario's own mission (e.g. :class:`~cufund.missions.tunnel.TunnelMission`
+        built to wait for its start). It offers ``start(t, pad_W)``, ``stop(t, reason)``, ``reference`` (the
+        trajectory it flies, sampled by the commander), ``finished``, ``t_end`` (when its reference rests on the
+        ground, or None), ``state`` and ``yaw``."""
+        for name in ("start", "stop", "reference", "finished", "t_end", "state", "yaw"):
+            if not hasattr(mission, name):
+                raise TypeError(f"attach_mission: the mission needs '{name}', {type(mission).__name__} has none")
+        self.scenario_mission = mission
 
     # -- run lifecycle ---------------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -135,6 +151,7 @@ class Commander(CommandInbox, Planner):
         self._next_status = -math.inf
         self._published_mode: FlightMode | None = None
         self._last_refusal: tuple[str, float, int] | None = None  # (message, time of its event, repeats since)
+        self._flying_scenario_mission = False
         self.plan_W: tuple[tuple[float, float, float], ...] = ()
         """The targets still to fly, the current one first [m] (updated at each change; safe to read from any
         thread)."""
@@ -151,6 +168,10 @@ class Commander(CommandInbox, Planner):
 
     def _set_mode(self, mode: str, why: str = "") -> None:
         if mode != self.mode:
+            m = self.scenario_mission
+            if self.mode == "mission" and m is not None and self._flying_scenario_mission and not m.finished:
+                m.stop(self.t, f"operator took over ({mode})")  # hold, land, return, go-to: it stops here
+            self._flying_scenario_mission = self._flying_scenario_mission and mode == "mission"
             self.mode = mode
             self._event("mode", f"mode {mode}" + (f": {why}" if why else ""), mode=mode)
 
@@ -328,6 +349,8 @@ class Commander(CommandInbox, Planner):
 
     def _apply(self, c: Command, t: float) -> CommandAck:
         gate, handler = self._DISPATCH.get(c.command, ("airborne", "_cmd_unsupported"))
+        if c.command == "mission_start" and self.scenario_mission is not None and not self.mission:
+            gate, handler = "state", "_cmd_scenario_mission_start"  # it arms by itself
         refusal = self._gate(gate, c)
         if refusal is not None:
             return refusal
@@ -466,6 +489,32 @@ class Commander(CommandInbox, Planner):
         self._start_legs(t, legs, "mission", "hold")
         return _ok(c)
 
+    def _cmd_scenario_mission_start(self, c: Command, t: float) -> CommandAck:
+        s, m = self.state, self.scenario_mission
+        assert s is not None and m is not None
+        if self._flying_scenario_mission:
+            return _ok(c, "already flying the mission")
+        if m.finished or m.state != "initialise":
+            return _deny(c, f"the scenario's mission has run ({m.state}); restart the scenario to fly it again")
+        if not self.landed:
+            return _deny(c, "the scenario's mission takes off from the ground: land first")
+        if not self.armed:
+            ack = self._cmd_arm(c, t)
+            if ack.result != "accepted":
+                return ack
+        self._begin_flight(t)
+        m.start(t, np.array(s.p_W, float))
+        self._legs.clear()
+        self._leg = None
+        self._offboard = None
+        self._hold_flight_mode = None
+        self.flight_mode = FlightMode.POSITION
+        self._ref = m.reference
+        self._turn(t, float(m.yaw))
+        self._set_mode("mission", "the scenario's mission")
+        self._flying_scenario_mission = True
+        return _ok(c)
+
     def _cmd_land(self, c: Command, t: float) -> CommandAck:
         if self.landed:
             self._disarm("land on the ground")
@@ -598,6 +647,9 @@ class Commander(CommandInbox, Planner):
         if self.mode == "offboard" and self._offboard is not None and t - self._offboard[1] > p.offboard_timeout_s:
             self.flight_mode = FlightMode.POSITION
             self._hold(t, "offboard setpoints stale", from_state=True)
+        if self._flying_scenario_mission:
+            self._follow_scenario_mission(t, s)
+            return
         leg = self._leg
         if leg is None or self._ref is None:
             return
@@ -631,6 +683,21 @@ class Commander(CommandInbox, Planner):
                     self._next_leg(t)
         elif t >= self._hold_until:
             self._next_leg(t)
+
+    def _follow_scenario_mission(self, t: float, s: Odometry) -> None:
+        """Flies the scenario's mission's reference; once it has landed (its reference at rest on the ground and
+        the vehicle still there), landed and disarmed."""
+        m = self.scenario_mission
+        self._ref = m.reference
+        if not m.finished:
+            return
+        ground = self.home_p_W[2] if np.isfinite(self.home_p_W[2]) else 0.0
+        if m.t_end is None:  # ended in the air (it always lands; a safeguard): hold there
+            self._hold(t, f"mission {m.state}")
+        elif t >= m.t_end + 0.5 and float(np.linalg.norm(s.v_W)) < 0.2 and s.p_W[2] < ground + 0.1:
+            self.landed = True
+            self._event("landed", "landed")
+            self._disarm(f"mission {m.state}")
 
     def _publish_setpoint(self, t: float, s: Odometry, bus: BusView) -> None:
         if self.flight_mode is not FlightMode.POSITION or self._published_mode is not self.flight_mode:

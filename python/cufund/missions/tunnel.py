@@ -177,7 +177,9 @@ class TunnelMission(Planner):
 
     name = "tunnel_mission"
 
-    def __init__(self, params: TunnelMissionParams, pad_W: Any, yaw: float = 0.0) -> None:
+    def __init__(self, params: TunnelMissionParams, pad_W: Any, yaw: float = 0.0, wait_for_start: bool = False) -> None:
+        self.wait_for_start = bool(wait_for_start)
+        """Flown under a commander: wait in ``initialise`` until :meth:`start` (the operator's Start)."""
         if not isinstance(params, TunnelMissionParams):
             raise TypeError(f"params must be a TunnelMissionParams, got {type(params).__name__}")
         self.params, self.pad_W, self.yaw = params, np.asarray(pad_W, dtype=float), float(yaw)
@@ -200,6 +202,10 @@ class TunnelMission(Planner):
         """Process CPU time at the start of the run [s] (for the run's CPU real-time factor)."""
         self.reference: Trajectory = self.initial
         self.state, self.reason, self.progress = "initialise", "", 0
+        self.t_go: float | None = None if self.wait_for_start else 0.0
+        """When the mission was started (0 without ``wait_for_start``; None while it waits) [s]."""
+        if self.wait_for_start:
+            self.reason = "waiting for the operator's start"
         self.transitions: list[tuple[float, str, str]] = [(0.0, "initialise", "")]
         self.plans: list[PlanRecord] = []
         self.detections: list[tuple[float, TunnelEstimate]] = []
@@ -282,7 +288,7 @@ class TunnelMission(Planner):
                 self._abort(t, t_r, f"estimator unhealthy for {t - self._t_unhealthy:.1f} s ({why})", bus, back_W=back)
             return
         if self.state == "initialise":
-            if t >= pp.init_s:
+            if self.t_go is not None and t >= self.t_go + pp.init_s:
                 top = self.pad_W + np.array([0.0, 0.0, pp.takeoff_height])
                 self._move(t, t_r, top, bus)
                 self._enter(t, "takeoff", "", bus)
@@ -537,7 +543,23 @@ class TunnelMission(Planner):
         self._t_leg_end = tr.t_end
         self._enter(t, "through", "", bus)
 
+    def start(self, t: float, pad_W: Any) -> None:
+        """The operator's start (a mission built ``wait_for_start``, flown by a commander that samples
+        :attr:`reference`): initialise ``init_s`` on the pad at ``pad_W`` (where the vehicle rests), then fly."""
+        self.pad_W = np.asarray(pad_W, dtype=float)
+        self.reference = self.initial = Hold(self.pad_W, _FOREVER, self.yaw, t_start=float(t))
+        self.t_go, self.reason = float(t), ""
+
+    def stop(self, t: float, reason: str) -> None:
+        """The operator took over (under a commander): the state machine ends here and publishes no more plans."""
+        if not self.finished:
+            self.state, self.reason, self._t_state = "aborted", reason, t
+            self.transitions.append((t, "aborted", reason))
+
     def step(self, t: float, bus: BusView) -> None:
+        if self.t_go is None:  # waiting for the operator's start
+            bus.publish(Topics.MISSION_STATE, MissionState(t, self.state, self.reason, self.progress))
+            return
         state = bus.latest(self.active_state_topic)
         if state is None:
             if self.state == "initialise" and t >= self.params.init_s + 5.0:

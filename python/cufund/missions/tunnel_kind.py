@@ -57,6 +57,15 @@ def _tunnel(p: TunnelMissionParams, ctx: BuildContext) -> list[Any]:
                     f"needs {2 * p.clearance:.2f} m (2 x mission.clearance)"
                 )
     start = np.array(cfg.start_p_W if cfg.start_p_W is not None else (0.0, 0.0, 0.0), dtype=float)
+    commander = getattr(ctx, "commander", None)
+    if commander is not None and hasattr(commander, "attach_mission"):
+        # with a commander (planner: commander, e.g. the ground station's): it flies the mission's reference once the
+        # operator starts it, and arm / take off / hold / land / return before and after; no follower, no end
+        mission = TunnelMission(p, start, yaw=0.0, wait_for_start=True)
+        commander.attach_mission(mission)
+        ctx.add_metric_hook(lambda result: tunnel_metrics(result, mission, course) if mission.t_end is not None else {})
+        detector = _detector(ctx, p, start)
+        return [detector, mission]
     mission = TunnelMission(p, start, yaw=0.0)
     follower = TrajectoryFollower(
         mission.initial, rate_hz=cfg.rates.trajectory_hz, block=32, update_topic=Topics.TRAJECTORY_UPDATE
