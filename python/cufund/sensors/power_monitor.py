@@ -141,7 +141,7 @@ class PowerMonitor(Sensor):
         self.voltage_v = self.battery.terminal_voltage(0.0)
         """The terminal voltage at the last tick [V] (true)."""
         self.min_voltage_v = math.inf
-        """The lowest terminal voltage of the run so far [V] (true)."""
+        """The lowest terminal voltage of the run so far while the pack was not empty [V] (true)."""
         self.max_rotor_speed = self.power.vehicle.rotor_speed_max
         """The rotor-speed limit set at the last tick [rad/s]."""
         if self.plant is not None:
@@ -158,7 +158,8 @@ class PowerMonitor(Sensor):
         current = bat.current_for_power(power)
         voltage = bat.terminal_voltage(current)
         self.current_a, self.voltage_v = current, voltage
-        self.min_voltage_v = min(self.min_voltage_v, voltage)
+        if not bat.empty:  # an empty pack is cut off (0 V): the lowest voltage it gave is the one that counts
+            self.min_voltage_v = min(self.min_voltage_v, voltage)
         limit = self.power.max_rotor_speed(voltage, self.nominal_voltage)
         if self.plant is not None and limit != self.max_rotor_speed:
             self.plant.set_max_rotor_speed(limit)
@@ -175,8 +176,8 @@ class PowerMonitor(Sensor):
         )
 
     def metrics(self, result: Any = None) -> dict[str, Any]:
-        """``battery_used_mah`` (the charge drawn) and ``battery_min_voltage_v`` (the lowest terminal voltage),
-        true values, for the run's metrics."""
+        """``battery_used_mah`` (the charge drawn) and ``battery_min_voltage_v`` (the lowest terminal voltage before
+        the pack ran empty), true values, for the run's metrics."""
         return {
             "battery_used_mah": float(self.battery.consumed_mah),
             "battery_min_voltage_v": None if math.isinf(self.min_voltage_v) else float(self.min_voltage_v),
