@@ -1,5 +1,6 @@
 // Bindings of cpp/dynamics: parameters, control allocation and the batched rigid-body integrator.
 #include <cmath>
+#include <limits>
 #include <memory>
 
 #include "mixer.h"
@@ -29,7 +30,12 @@ const char* row_name(int row) {
   if (row < QuadrotorBatch::kWind) return "rotor_speeds";
   if (row < QuadrotorBatch::kForceExt) return "wind_W";
   if (row < QuadrotorBatch::kTorqueExt) return "force_ext_W";
-  return "torque_ext_B";
+  if (row < QuadrotorBatch::kEta) return "torque_ext_B";
+  if (row < QuadrotorBatch::kOmegaMax) return "rotor_efficiency";
+  if (row < QuadrotorBatch::kAccel) return "max_rotor_speed";
+  if (row < QuadrotorBatch::kAlpha) return "accel_W";
+  if (row < QuadrotorBatch::kFloorZ) return "alpha_B";
+  return "floor_z/ceiling_z";
 }
 
 void raise_step_error(const StepResult& r, double dt, const py::array& cmd, std::size_t n) {
@@ -79,9 +85,40 @@ const QuadrotorParams& params_arg(const py::handle& obj) {
   return p;
 }
 
+// A read-only (n, rows) view: rows whose values are checked by a setter.
+py::array readonly_view(QuadrotorBatch& b, int field, int rows, py::handle owner) {
+  py::array a = soa_view(b.row(field), b.size(), rows, owner);
+  py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+  return a;
+}
+
+// Copies an (n, rows) C-contiguous array into SoA rows starting at `field`.
+void write_rows(QuadrotorBatch& b, int field, int rows, const double* src) {
+  const std::size_t n = b.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int k = 0; k < rows; ++k) b.row(field + k)[i] = src[i * static_cast<std::size_t>(rows) + k];
+  }
+}
+
 }  // namespace
 
 void define_dynamics(py::module_& m) {
+  py::class_<GroundEffectParams>(m, "GroundEffectParams",
+                                 "Ground and ceiling effect constants (cpp/dynamics/ground_effect.h); use "
+                                 "cufund.vehicle.ground_effect.GroundEffectConfig.")
+      .def(py::init<>())
+      .def_readwrite("enabled", &GroundEffectParams::enabled)
+      .def_readwrite("rotor_radius", &GroundEffectParams::rotor_radius)
+      .def_readwrite("rotor_spacing", &GroundEffectParams::rotor_spacing)
+      .def_readwrite("body_distance", &GroundEffectParams::body_distance)
+      .def_readwrite("k_body", &GroundEffectParams::k_body)
+      .def_readwrite("ceiling_k1", &GroundEffectParams::ceiling_k1)
+      .def_readwrite("ceiling_k2", &GroundEffectParams::ceiling_k2)
+      .def_readwrite("min_height", &GroundEffectParams::min_height);
+  m.def(
+      "validate_ground_effect", [](const GroundEffectParams& g) { return validate(g); }, py::arg("params"),
+      "Empty string when the ground-effect constants give a finite gain in [1, 10] at every height, else a message.");
+
   py::enum_<RotorLayout>(m, "RotorLayout", "Rotor arrangement and numbering (PX4 airframe reference).")
       .value("PLUS", RotorLayout::kPlus, "1 front, 2 right, 3 back, 4 left; 1 and 3 clockwise")
       .value("X", RotorLayout::kX, "PX4 quad-x: 1 front-right, 2 rear-left, 3 front-left, 4 rear-right; 1, 2 CCW");
@@ -106,8 +143,9 @@ void define_dynamics(py::module_& m) {
       .def_readwrite("ground_attitude", &QuadrotorParams::ground_attitude)
       .def_readwrite("max_integration_step", &QuadrotorParams::max_integration_step);
 
-  m.def("validate_params", &validate, py::arg("params"),
-        "Empty string when the parameters are physical, else a message naming the field.");
+  m.def(
+      "validate_params", [](const QuadrotorParams& p) { return validate(p); }, py::arg("params"),
+      "Empty string when the parameters are physical, else a message naming the field.");
   m.def(
       "allocation_matrix",
       [](const QuadrotorParams& p) {
@@ -166,7 +204,83 @@ void define_dynamics(py::module_& m) {
           },
           "Simulated time [s].")
       .def_property_readonly("hover_rotor_speed", &QuadrotorBatch::hover_rotor_speed)
-      .def("reset", &QuadrotorBatch::reset, "All vehicles at the origin, level, at rest; time 0.")
+      .def("reset", &QuadrotorBatch::reset,
+           "All vehicles at the origin, level, at rest; time 0; rotor efficiency 1, rotor speed limit the "
+           "parameters', floor z = 0 with a ground plane (else -inf), ceiling +inf. The ground effect stays.")
+      .def_property_readonly(
+          "rotor_efficiency",
+          [](py::object self) { return readonly_view(self.cast<QuadrotorBatch&>(), QuadrotorBatch::kEta, 4, self); },
+          "Per-rotor thrust and drag-torque scale in [0, 1], (N, 4) read-only view (set_rotor_efficiency).")
+      .def(
+          "set_rotor_efficiency",
+          [](QuadrotorBatch& b, const py::handle& eta_obj) {
+            auto eta = as_float64(eta_obj, "rotor_efficiency", {static_cast<py::ssize_t>(b.size()), kNumRotors});
+            for (py::ssize_t k = 0; k < eta.size(); ++k) {
+              const double e = eta.data()[k];
+              if (!(e >= 0.0 && e <= 1.0)) {
+                throw py::value_error("rotor_efficiency must be in [0, 1] (0: a stopped motor), got " +
+                                      std::to_string(e) + " for vehicle " + std::to_string(k / kNumRotors) +
+                                      ", rotor " + std::to_string(k % kNumRotors + 1));
+              }
+            }
+            write_rows(b, QuadrotorBatch::kEta, kNumRotors, eta.data());
+          },
+          py::arg("eta"), "Sets the rotor efficiency, (N, 4) in [0, 1]; it persists across steps until reset().")
+      .def_property_readonly(
+          "max_rotor_speed",
+          [](py::object self) {
+            return readonly_view(self.cast<QuadrotorBatch&>(), QuadrotorBatch::kOmegaMax, 1, self);
+          },
+          "Upper clamp of the rotor speed command [rad/s], (N, 1) read-only view (set_max_rotor_speed).")
+      .def(
+          "set_max_rotor_speed",
+          [](QuadrotorBatch& b, const py::handle& obj) {
+            auto w = as_float64(obj, "max_rotor_speed", {static_cast<py::ssize_t>(b.size())});
+            const double lo = b.params().rotor_speed_min;
+            for (py::ssize_t k = 0; k < w.size(); ++k) {
+              const double v = w.data()[k];
+              if (!(std::isfinite(v) && v >= lo)) {
+                throw py::value_error(
+                    "max_rotor_speed must be a finite number >= rotor_speed_min = " + std::to_string(lo) +
+                    " [rad/s], got " + std::to_string(v) + " for vehicle " + std::to_string(k));
+              }
+            }
+            write_rows(b, QuadrotorBatch::kOmegaMax, 1, w.data());
+          },
+          py::arg("omega_max"), "Sets the rotor speed limit [rad/s], (N,); it persists across steps until reset().")
+      .def_property_readonly(
+          "surfaces_z",
+          [](py::object self) { return readonly_view(self.cast<QuadrotorBatch&>(), QuadrotorBatch::kFloorZ, 2, self); },
+          "Floor and ceiling heights [m] the ground effect reads, (N, 2) read-only view (-inf / +inf: none).")
+      .def(
+          "set_surfaces_z",
+          [](QuadrotorBatch& b, const py::handle& obj) {
+            auto s = as_float64(obj, "surfaces_z", {static_cast<py::ssize_t>(b.size()), 2});
+            for (py::ssize_t i = 0; i < s.size() / 2; ++i) {
+              const double f = s.data()[2 * i], c = s.data()[2 * i + 1];
+              if (std::isnan(f) || std::isnan(c) || f == std::numeric_limits<double>::infinity() ||
+                  c == -std::numeric_limits<double>::infinity() || f > c) {
+                throw py::value_error(
+                    "surfaces_z must be (floor_z, ceiling_z) [m] with floor_z <= ceiling_z "
+                    "(-inf / +inf: none), got (" +
+                    std::to_string(f) + ", " + std::to_string(c) + ") for vehicle " + std::to_string(i));
+              }
+            }
+            write_rows(b, QuadrotorBatch::kFloorZ, 2, s.data());
+          },
+          py::arg("surfaces_z"), "Sets (floor_z, ceiling_z) per vehicle [m], (N, 2); held until changed or reset().")
+      .def_property_readonly("ground_effect", &QuadrotorBatch::ground_effect, py::return_value_policy::copy,
+                             "A copy of the ground-effect constants.")
+      .def(
+          "set_ground_effect",
+          [](QuadrotorBatch& b, const GroundEffectParams& g) {
+            if (g.enabled) {
+              const std::string err = validate(g);
+              if (!err.empty()) throw py::value_error(err);
+            }
+            b.set_ground_effect(g);
+          },
+          py::arg("params"), "Turns the ground and ceiling effect on (params.enabled) or off.")
 #define CUFUND_VIEW(name, field, rows, doc)                                  \
   .def_property_readonly(                                                    \
       name,                                                                  \

@@ -43,6 +43,7 @@ DynamicsConstants make_constants(const QuadrotorParams& p) {
   for (int k = 0; k < 3; ++k) c.cd[k] = p.body_drag(k);
   CUFUND_UNROLL
   for (int k = 0; k < 4; ++k) c.ground_q[k] = p.ground_attitude(k);
+  c.ge = GroundEffectParams{};
   return c;
 }
 
@@ -55,7 +56,12 @@ CUFUND_INLINE void load(const DynamicsConstants& c, const Rows& p, const double*
   CUFUND_UNROLL
   for (int j = 0; j < kStateSize; ++j) x[j] = p[j][i];
   CUFUND_UNROLL
-  for (int k = 0; k < kNumRotors; ++k) u.omega_cmd[k] = std::min(std::max(cmd[4 * i + k], c.omega_min), c.omega_max);
+  for (int k = 0; k < kNumRotors; ++k) {
+    u.omega_cmd[k] = std::min(std::max(cmd[4 * i + k], c.omega_min), p[QuadrotorBatch::kOmegaMax][i]);
+    u.eta[k] = p[QuadrotorBatch::kEta + k][i];
+  }
+  u.floor_z = p[QuadrotorBatch::kFloorZ][i];
+  u.ceiling_z = p[QuadrotorBatch::kCeilingZ][i];
   CUFUND_UNROLL
   for (int k = 0; k < 3; ++k) {
     u.wind_W[k] = p[QuadrotorBatch::kWind + k][i];
@@ -67,7 +73,7 @@ CUFUND_INLINE void load(const DynamicsConstants& c, const Rows& p, const double*
 // Integrates vehicles [begin, end): the loop body is one vehicle, so the compiler maps vehicles to
 // SIMD lanes. Compiled for several instruction sets and picked at load time where the compiler can.
 // Returns false when the new state or its accelerations hold a NaN or inf (inputs beyond the model).
-template <bool kGround>
+template <bool kGround, bool kGroundEffect>
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(CUFUND_NO_TARGET_CLONES)
 __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #endif
@@ -85,7 +91,7 @@ bool integrate_range(const DynamicsConstants& constants, double* __restrict stat
       double x[kStateSize];
       StepInputs u;
       load(c, p, cmd, i, x, u);
-      rk4_substep<kGround>(c, u, h, x);
+      rk4_substep<kGround, kGroundEffect>(c, u, h, x);
       CUFUND_UNROLL
       for (int j = 0; j < kStateSize; ++j) p[j][i] = x[j];
     }
@@ -98,7 +104,7 @@ bool integrate_range(const DynamicsConstants& constants, double* __restrict stat
     double x[kStateSize], dx[kStateSize];
     StepInputs u;
     load(c, p, cmd, i, x, u);
-    derivative<kGround>(c, x, u, dx);
+    derivative<kGround, kGroundEffect>(c, x, u, dx);
     const bool held = kGround && resting_on_ground(x);
     CUFUND_UNROLL
     for (int k = 0; k < 3; ++k) {
@@ -109,7 +115,7 @@ bool integrate_range(const DynamicsConstants& constants, double* __restrict stat
   // Finiteness of the new state and accelerations, row by row over the block (cache-hot; each row's
   // loop is an OR reduction, which vectorises).
   unsigned bad = 0;
-  for (int r = QuadrotorBatch::kP; r < QuadrotorBatch::kRows; ++r) {
+  for (int r = QuadrotorBatch::kP; r < QuadrotorBatch::kFloorZ; ++r) {
     if (r >= QuadrotorBatch::kWind && r < QuadrotorBatch::kAccel) continue;  // held inputs, checked before
     const double* row = p[r];
     for (std::size_t i = begin; i < end; ++i) bad |= static_cast<unsigned>(!std::isfinite(row[i]));
@@ -190,7 +196,7 @@ QuadrotorBatch::QuadrotorBatch(const QuadrotorParams& params, std::size_t n)
   reset();
 }
 
-QuadrotorBatch::QuadrotorBatch(const QuadrotorBatch& other) : params_(other.params_), n_(other.n_) {
+QuadrotorBatch::QuadrotorBatch(const QuadrotorBatch& other) : params_(other.params_), ge_(other.ge_), n_(other.n_) {
   std::lock_guard<std::mutex> lk(other.mutex_);
   time_ = other.time_;
   state_ = other.state_;
@@ -200,6 +206,7 @@ QuadrotorBatch& QuadrotorBatch::operator=(const QuadrotorBatch& other) {
   if (this == &other) return *this;
   std::scoped_lock lk(mutex_, other.mutex_);
   params_ = other.params_;
+  ge_ = other.ge_;
   n_ = other.n_;
   time_ = other.time_;
   state_ = other.state_;
@@ -227,7 +234,17 @@ void QuadrotorBatch::reset() {
   std::lock_guard<std::mutex> lk(mutex_);
   std::fill(state_.begin(), state_.end(), 0.0);
   std::fill(row(kQ), row(kQ) + n_, 1.0);
+  for (int k = 0; k < kNumRotors; ++k) std::fill(row(kEta + k), row(kEta + k) + n_, 1.0);
+  std::fill(row(kOmegaMax), row(kOmegaMax) + n_, params_.rotor_speed_max);
+  const double inf = std::numeric_limits<double>::infinity();
+  std::fill(row(kFloorZ), row(kFloorZ) + n_, params_.ground_plane ? 0.0 : -inf);
+  std::fill(row(kCeilingZ), row(kCeilingZ) + n_, inf);
   time_ = 0.0;
+}
+
+void QuadrotorBatch::set_ground_effect(const GroundEffectParams& g) {
+  std::lock_guard<std::mutex> lk(mutex_);
+  ge_ = g;
 }
 
 double QuadrotorBatch::hover_rotor_speed() const {
@@ -258,7 +275,9 @@ StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
   if (result.status != StepStatus::kOk) return result;
   const int substeps = std::max(1, static_cast<int>(std::ceil(dt / params_.max_integration_step - 1e-9)));
   const double h = dt / substeps;
-  const DynamicsConstants c = make_constants(params_);
+  DynamicsConstants c = make_constants(params_);
+  c.ge = ge_;
+  const bool ge = ge_.enabled;
 
   // Blocks of vehicles small enough to stay in L1/L2 across sub-steps.
   constexpr std::size_t kBlock = 256;
@@ -269,8 +288,14 @@ StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
   ThreadPool::instance().parallel_for(nblocks, nthreads, [&](std::size_t b) {
     const std::size_t begin = b * kBlock;
     const std::size_t end = std::min(n_, begin + kBlock);
-    const bool ok = ground ? integrate_range<true>(c, state, n_, begin, end, cmd, h, substeps)
-                           : integrate_range<false>(c, state, n_, begin, end, cmd, h, substeps);
+    bool ok;
+    if (ge) {
+      ok = ground ? integrate_range<true, true>(c, state, n_, begin, end, cmd, h, substeps)
+                  : integrate_range<false, true>(c, state, n_, begin, end, cmd, h, substeps);
+    } else {
+      ok = ground ? integrate_range<true, false>(c, state, n_, begin, end, cmd, h, substeps)
+                  : integrate_range<false, false>(c, state, n_, begin, end, cmd, h, substeps);
+    }
     if (!ok) diverged.store(true, std::memory_order_relaxed);
   });
   time_ += dt;

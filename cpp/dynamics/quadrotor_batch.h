@@ -13,6 +13,7 @@
 #include <mutex>
 #include <vector>
 
+#include "ground_effect.h"
 #include "quadrotor_params.h"
 
 namespace cufund {
@@ -46,9 +47,13 @@ class QuadrotorBatch {
     kWind = 17,       // wind velocity in world frame [m/s], 3 rows (held over a step)
     kForceExt = 20,   // external force in world frame [N], 3 rows (held over a step)
     kTorqueExt = 23,  // external torque in body frame [N m], 3 rows (held over a step)
-    kAccel = 26,      // acceleration a_W = dv_W/dt at the end of the last step [m/s^2], 3 rows (output)
-    kAlpha = 29,      // angular acceleration dw_B/dt at the end of the last step [rad/s^2], 3 rows (output)
-    kRows = 32,
+    kEta = 26,        // rotor efficiency in [0, 1]: scales thrust and drag torque, 4 rows (default 1; persists)
+    kOmegaMax = 30,   // upper clamp of the rotor speed command [rad/s], 1 row (default params' max; persists)
+    kAccel = 31,      // acceleration a_W = dv_W/dt at the end of the last step [m/s^2], 3 rows (output)
+    kAlpha = 34,      // angular acceleration dw_B/dt at the end of the last step [rad/s^2], 3 rows (output)
+    kFloorZ = 37,     // floor height under the vehicle [m] (-inf: none), 1 row; read with the ground effect only
+    kCeilingZ = 38,   // ceiling height over the vehicle [m] (+inf: none), 1 row; read with the ground effect only
+    kRows = 39,
   };
 
   // Most vehicles in one batch (2^32; the state alone is then 1 TiB).
@@ -74,8 +79,13 @@ class QuadrotorBatch {
   double* row(int r) { return state_.data() + static_cast<std::size_t>(r) * n_; }
   const double* row(int r) const { return state_.data() + static_cast<std::size_t>(r) * n_; }
 
-  // Every vehicle at rest at p_W = (0, 0, 0), level, rotors stopped, no wind or disturbance.
+  // Every vehicle at rest at p_W = (0, 0, 0), level, rotors stopped, no wind or disturbance; rotor efficiency 1,
+  // rotor speed limit the parameters', floor at z = 0 with a ground plane (else none), no ceiling.
   void reset();
+
+  // Ground and ceiling effect (ground_effect.h); off by default. g must have passed validate() when enabled.
+  const GroundEffectParams& ground_effect() const { return ge_; }
+  void set_ground_effect(const GroundEffectParams& g);
 
   // Advances all vehicles by dt [s] holding rotor_speed_cmd (row-major (N, 4) [rad/s], clipped to the
   // rotor-speed limits) constant, in ceil(dt / max_integration_step) equal RK4 sub-steps.
@@ -87,6 +97,7 @@ class QuadrotorBatch {
 
  private:
   QuadrotorParams params_;
+  GroundEffectParams ge_;
   std::size_t n_;
   double time_ = 0.0;
   std::vector<double> state_;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "ground_effect.h"
 #include "quadrotor_params.h"
 
 #if defined(__GNUC__)
@@ -34,6 +35,7 @@ struct DynamicsConstants {
   double kd_xy, kd_z;             // rotor drag
   double cd[3];                   // body drag
   double ground_q[4];             // attitude at rest on the ground [w, x, y, z], yaw kept (a tilted pad)
+  GroundEffectParams ge;          // used only by the kGroundEffect instantiation
 };
 
 DynamicsConstants make_constants(const QuadrotorParams& params);
@@ -47,10 +49,14 @@ struct StepInputs {
   double wind_W[3];
   double force_W[3];
   double torque_B[3];
+  double eta[kNumRotors];  // rotor efficiency: scales each rotor's thrust and drag torque, in [0, 1]
+  double floor_z;          // ground/floor height below the vehicle [m] (-inf: none), kGroundEffect only
+  double ceiling_z;        // ceiling height above the vehicle [m] (+inf: none), kGroundEffect only
 };
 
 // kGround: a rigid ground plane at z = 0 (a template parameter so the vehicle loop has no branch on it).
-template <bool kGround>
+// kGroundEffect: thrust scaled by the ground and ceiling gains at each rotor hub's height (ground_effect.h).
+template <bool kGround, bool kGroundEffect>
 CUFUND_INLINE void derivative(const DynamicsConstants& c, const double* x, const StepInputs& u, double* dx) {
   const double* p = x;
   const double* v = x + 3;
@@ -83,7 +89,12 @@ CUFUND_INLINE void derivative(const DynamicsConstants& c, const double* x, const
 
   for (int i = 0; i < kNumRotors; ++i) {
     const double rx = c.r[i][0], ry = c.r[i][1], rz = c.r[i][2];
-    const double f = c.k_f * om[i] * om[i];
+    const double f_rotor = c.k_f * om[i] * om[i] * u.eta[i];  // what the rotor's drag torque follows
+    double f = f_rotor;
+    if constexpr (kGroundEffect) {
+      const double z_hub = p[2] + R20 * rx + R21 * ry + R22 * rz;
+      f *= ground_gain(c.ge, z_hub - u.floor_z) * ceiling_gain(c.ge, u.ceiling_z - z_hub);
+    }
     // Rotor hub air velocity: body air velocity plus w x r_i.
     const double l0 = aB0 + (w[1] * rz - w[2] * ry);
     const double l1 = aB1 + (w[2] * rx - w[0] * rz);
@@ -97,7 +108,7 @@ CUFUND_INLINE void derivative(const DynamicsConstants& c, const double* x, const
     F2 += h2;
     M0 += ry * h2 - rz * h1;
     M1 += rz * h0 - rx * h2;
-    M2 += rx * h1 - ry * h0 + c.yaw_moment[i] * f;
+    M2 += rx * h1 - ry * h0 + c.yaw_moment[i] * f_rotor;
   }
   M0 += u.torque_B[0];
   M1 += u.torque_B[1];
@@ -144,19 +155,19 @@ CUFUND_INLINE void derivative(const DynamicsConstants& c, const double* x, const
 CUFUND_INLINE bool resting_on_ground(const double* x) { return std::max(x[2], x[5]) <= 0.0; }
 
 // One classical RK4 step of length h, then quaternion renormalisation and ground contact.
-template <bool kGround>
+template <bool kGround, bool kGroundEffect>
 CUFUND_INLINE void rk4_substep(const DynamicsConstants& c, const StepInputs& u, double h, double* x) {
   double k1[kStateSize], k2[kStateSize], k3[kStateSize], k4[kStateSize], y[kStateSize];
-  derivative<kGround>(c, x, u, k1);
+  derivative<kGround, kGroundEffect>(c, x, u, k1);
   CUFUND_UNROLL
   for (int j = 0; j < kStateSize; ++j) y[j] = x[j] + 0.5 * h * k1[j];
-  derivative<kGround>(c, y, u, k2);
+  derivative<kGround, kGroundEffect>(c, y, u, k2);
   CUFUND_UNROLL
   for (int j = 0; j < kStateSize; ++j) y[j] = x[j] + 0.5 * h * k2[j];
-  derivative<kGround>(c, y, u, k3);
+  derivative<kGround, kGroundEffect>(c, y, u, k3);
   CUFUND_UNROLL
   for (int j = 0; j < kStateSize; ++j) y[j] = x[j] + h * k3[j];
-  derivative<kGround>(c, y, u, k4);
+  derivative<kGround, kGroundEffect>(c, y, u, k4);
   const double h6 = h / 6.0;
   CUFUND_UNROLL
   for (int j = 0; j < kStateSize; ++j) x[j] += h6 * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j]);

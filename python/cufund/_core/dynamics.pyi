@@ -5,7 +5,56 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['CollisionWorld', 'QuadrotorBatch', 'QuadrotorParams', 'RotorLayout', 'allocation_matrix', 'allocation_matrix_inverse', 'max_step_substeps', 'rotor_positions', 'rotor_spins', 'set_max_step_substeps', 'validate_params']
+__all__: list[str] = ['CollisionWorld', 'GroundEffectParams', 'QuadrotorBatch', 'QuadrotorParams', 'RotorLayout', 'allocation_matrix', 'allocation_matrix_inverse', 'max_step_substeps', 'rotor_positions', 'rotor_spins', 'set_max_step_substeps', 'validate_ground_effect', 'validate_params']
+class GroundEffectParams:
+    """
+    Ground and ceiling effect constants (cpp/dynamics/ground_effect.h); use cufund.vehicle.ground_effect.GroundEffectConfig.
+    """
+    enabled: bool
+    def __init__(self) -> None:
+        ...
+    @property
+    def body_distance(self) -> float:
+        ...
+    @body_distance.setter
+    def body_distance(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def ceiling_k1(self) -> float:
+        ...
+    @ceiling_k1.setter
+    def ceiling_k1(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def ceiling_k2(self) -> float:
+        ...
+    @ceiling_k2.setter
+    def ceiling_k2(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def k_body(self) -> float:
+        ...
+    @k_body.setter
+    def k_body(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def min_height(self) -> float:
+        ...
+    @min_height.setter
+    def min_height(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def rotor_radius(self) -> float:
+        ...
+    @rotor_radius.setter
+    def rotor_radius(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def rotor_spacing(self) -> float:
+        ...
+    @rotor_spacing.setter
+    def rotor_spacing(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
 class RotorLayout:
     """
     Rotor arrangement and numbering (PX4 airframe reference).
@@ -153,7 +202,23 @@ class QuadrotorBatch:
         ...
     def reset(self) -> None:
         """
-        All vehicles at the origin, level, at rest; time 0.
+        All vehicles at the origin, level, at rest; time 0; rotor efficiency 1, rotor speed limit the parameters', floor z = 0 with a ground plane (else -inf), ceiling +inf. The ground effect stays.
+        """
+    def set_ground_effect(self, params: GroundEffectParams) -> None:
+        """
+        Turns the ground and ceiling effect on (params.enabled) or off.
+        """
+    def set_max_rotor_speed(self, omega_max: typing.Any) -> None:
+        """
+        Sets the rotor speed limit [rad/s], (N,); it persists across steps until reset().
+        """
+    def set_rotor_efficiency(self, eta: typing.Any) -> None:
+        """
+        Sets the rotor efficiency, (N, 4) in [0, 1]; it persists across steps until reset().
+        """
+    def set_surfaces_z(self, surfaces_z: typing.Any) -> None:
+        """
+        Sets (floor_z, ceiling_z) per vehicle [m], (N, 2); held until changed or reset().
         """
     def step(self, dt: typing.Any, rotor_speed_cmd: typing.Any, nthreads: typing.Any = 0) -> None:
         """
@@ -175,8 +240,18 @@ class QuadrotorBatch:
         External force, world frame [N], (N, 3) view, held over a step.
         """
     @property
+    def ground_effect(self) -> GroundEffectParams:
+        """
+        A copy of the ground-effect constants.
+        """
+    @property
     def hover_rotor_speed(self) -> float:
         ...
+    @property
+    def max_rotor_speed(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
+        """
+        Upper clamp of the rotor speed command [rad/s], (N, 1) read-only view (set_max_rotor_speed).
+        """
     @property
     def p(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
         """
@@ -193,6 +268,11 @@ class QuadrotorBatch:
         Attitude q_WB [w, x, y, z], (N, 4) view.
         """
     @property
+    def rotor_efficiency(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
+        """
+        Per-rotor thrust and drag-torque scale in [0, 1], (N, 4) read-only view (set_rotor_efficiency).
+        """
+    @property
     def rotor_speeds(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
         """
         Rotor speeds [rad/s], (N, 4) view, PX4 numbering.
@@ -200,6 +280,11 @@ class QuadrotorBatch:
     @property
     def size(self) -> int:
         ...
+    @property
+    def surfaces_z(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
+        """
+        Floor and ceiling heights [m] the ground effect reads, (N, 2) read-only view (-inf / +inf: none).
+        """
     @property
     def time(self) -> float:
         """
@@ -279,6 +364,10 @@ def rotor_spins(params: QuadrotorParams) -> typing.Annotated[numpy.typing.NDArra
 def set_max_step_substeps(n: typing.Any) -> None:
     """
     Most RK4 sub-steps one QuadrotorBatch.step may take (process-wide).
+    """
+def validate_ground_effect(params: GroundEffectParams) -> str:
+    """
+    Empty string when the ground-effect constants give a finite gain in [1, 10] at every height, else a message.
     """
 def validate_params(params: QuadrotorParams) -> str:
     """

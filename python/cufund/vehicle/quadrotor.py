@@ -49,6 +49,8 @@ class QuadrotorBatch:
         self.params = params
         self._core = _core.dynamics.QuadrotorBatch(params.to_core(), int(n))
         self._wind_fn: Callable[[float, np.ndarray], np.ndarray] | None = None
+        self._wind_period: float | None = None
+        self._wind_next_t = -math.inf
         self.set_wind(wind)
 
     @property
@@ -69,16 +71,33 @@ class QuadrotorBatch:
             raise ValueError(f"t must be finite [s], got {value!r}")
         self._core.time = float(value)
 
-    # Pickling: parameters, time, every state and held-input row, and the wind (a function must itself pickle).
+    # Pickling: parameters, time, every state and held-input row, the rotor efficiency and speed limit, the
+    # surfaces and ground effect, and the wind (a function must itself pickle).
     _ROWS = ("p", "v", "q", "w", "rotor_speeds", "wind_W", "force_ext_W", "torque_ext_B", "accel_W", "alpha_B")
+    _GE_FIELDS = (
+        "enabled",
+        "rotor_radius",
+        "rotor_spacing",
+        "body_distance",
+        "k_body",
+        "ceiling_k1",
+        "ceiling_k2",
+        "min_height",
+    )
 
     def __getstate__(self) -> dict[str, Any]:
+        ge = self._core.ground_effect
         return {
             "params": self.params,
             "n": self.n,
             "t": self.t,
             "wind_fn": self._wind_fn,
+            "wind_period": self._wind_period,
             **{name: np.array(getattr(self, name)) for name in self._ROWS},
+            "rotor_efficiency": np.array(self.rotor_efficiency),
+            "max_rotor_speed": np.array(self.max_rotor_speed),
+            "surfaces_z": np.array(self._core.surfaces_z),
+            "ground_effect": {f: getattr(ge, f) for f in self._GE_FIELDS},
         }
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -87,6 +106,16 @@ class QuadrotorBatch:
             getattr(self, name)[:] = state[name]
         self._core.time = state["t"]
         self._wind_fn = state["wind_fn"]
+        self._wind_period = state.get("wind_period")
+        self._wind_next_t = -math.inf
+        if "rotor_efficiency" in state:
+            self._core.set_rotor_efficiency(state["rotor_efficiency"])
+            self._core.set_max_rotor_speed(state["max_rotor_speed"])
+            self._core.set_surfaces_z(state["surfaces_z"])
+            ge = _core.dynamics.GroundEffectParams()
+            for f, v in state["ground_effect"].items():
+                setattr(ge, f, v)
+            self._core.set_ground_effect(ge)
 
     p = property(lambda self: self._core.p, doc="Position p_W [m], (n, 3) view.")
     v = property(lambda self: self._core.v, doc="Velocity v_W [m/s], (n, 3) view.")
@@ -105,20 +134,86 @@ class QuadrotorBatch:
         doc="Angular acceleration dw_B/dt at the end of the last step [rad/s^2], (n, 3) view.",
     )
 
-    def set_wind(self, wind: WindField) -> None:
-        """Constant wind (array (3,) or (n, 3)) [m/s], a function ``wind(t, p_W)``, or None for still air."""
+    def set_wind(self, wind: WindField, period: float | None = None) -> None:
+        """Constant wind (array (3,) or (n, 3)) [m/s], a function ``wind(t, p_W)``, or None for still air.
+
+        ``period`` [s] (a function only): evaluate the function at most once per ``period`` of simulated time
+        and hold its value in between (e.g. 0.005 for a 200 Hz turbulence update), which keeps the integrator's
+        fast path; None evaluates it before every step."""
         self._wind_fn = None
+        self._wind_period = None
+        self._wind_next_t = -math.inf
+        if period is not None and (
+            isinstance(period, bool) or not isinstance(period, (int, float)) or not 0 < period < math.inf
+        ):
+            raise ValueError(f"period must be a finite time > 0 [s] or None, got {period!r}")
         if wind is None:
             self.wind_W[:] = 0.0
         elif callable(wind):
             self._wind_fn = wind
+            self._wind_period = None if period is None else float(period)
         else:
             self.wind_W[:] = _finite_rows("wind", wind, self.n)
 
+    def _update_wind(self) -> None:
+        """Evaluates the wind function into ``wind_W`` (every step, or once its period has passed)."""
+        fn = self._wind_fn
+        assert fn is not None
+        t = self.t
+        if self._wind_period is not None:
+            if t < self._wind_next_t:
+                return
+            self._wind_next_t = t + self._wind_period
+        self.wind_W[:] = _finite_rows("wind(t, p_W)", fn(t, self.p.copy()), self.n)
+
+    @property
+    def rotor_efficiency(self) -> np.ndarray:
+        """Per-rotor thrust and drag-torque scale in [0, 1] (1: nominal, 0: a stopped or failed motor), (n, 4)
+        read-only view; set with :meth:`set_rotor_efficiency`. Persists across steps; :meth:`reset` restores 1."""
+        return self._core.rotor_efficiency
+
+    def set_rotor_efficiency(self, eta: Any) -> None:
+        """Scales each rotor's thrust and drag torque: ``eta`` (4,) for every vehicle or (n, 4), in [0, 1]."""
+        self._core.set_rotor_efficiency(_rows("rotor_efficiency", eta, self.n, 4))
+
+    @property
+    def max_rotor_speed(self) -> np.ndarray:
+        """Upper clamp of the rotor speed command per vehicle [rad/s], (n,) read-only view (default the
+        parameters' ``rotor_speed_max``); set with :meth:`set_max_rotor_speed`. :meth:`reset` restores it."""
+        return self._core.max_rotor_speed[:, 0]
+
+    def set_max_rotor_speed(self, omega_max: Any) -> None:
+        """Sets the rotor speed limit [rad/s]: a scalar for every vehicle or (n,), finite and >= rotor_speed_min
+        (e.g. a battery's sagging voltage). Commands above it are clipped to it."""
+        a = np.asarray(omega_max, dtype=float) if not isinstance(omega_max, bool) else np.asarray(np.nan)
+        if a.shape not in ((), (self.n,)):
+            raise ValueError(f"max_rotor_speed must be a scalar or shape ({self.n},) [rad/s], got shape {a.shape}")
+        self._core.set_max_rotor_speed(np.broadcast_to(a, (self.n,)))
+
+    @property
+    def surfaces_z(self) -> np.ndarray:
+        """(floor_z, ceiling_z) per vehicle [m] that the ground effect reads, (n, 2) read-only view (-inf / +inf:
+        none; default floor 0 with the ground plane)."""
+        return self._core.surfaces_z
+
+    def set_surfaces_z(self, surfaces_z: Any) -> None:
+        """Sets (floor_z, ceiling_z) [m]: (2,) for every vehicle or (n, 2); held until changed or reset."""
+        self._core.set_surfaces_z(_rows("surfaces_z", surfaces_z, self.n, 2, allow_inf=True))
+
+    def set_ground_effect(self, config: Any) -> None:
+        """Turns the ground and ceiling effect on (a :class:`cufund.vehicle.ground_effect.GroundEffectConfig`) or
+        off (None). It is a model setting: it persists across :meth:`reset`."""
+        if config is None:
+            self._core.set_ground_effect(_core.dynamics.GroundEffectParams())
+        else:
+            self._core.set_ground_effect(config.to_core(self.params))
+
     def reset(self) -> None:
-        """All vehicles at the origin, level, at rest, rotors stopped; time 0. Wind and disturbances cleared."""
+        """All vehicles at the origin, level, at rest, rotors stopped; time 0. Wind and disturbances cleared; rotor
+        efficiency 1, rotor speed limit the parameters', floor 0 (with the ground plane), no ceiling."""
         self._core.reset()
         self._wind_fn = None
+        self._wind_period = None
 
     def hover(self, p_W: np.ndarray | None = None) -> None:
         """Puts every vehicle in steady hover (rotors at hover speed, at rest, level) at ``p_W`` [m]."""
@@ -136,7 +231,7 @@ class QuadrotorBatch:
         on the thread count.
         """
         if self._wind_fn is not None:
-            self.wind_W[:] = _finite_rows("wind(t, p_W)", self._wind_fn(self.t, self.p.copy()), self.n)
+            self._update_wind()
         self._core.step(dt, rotor_speed_cmd, nthreads)
 
 
@@ -176,13 +271,22 @@ class Quadrotor:
         self._sync_fast_step()
 
     def _sync_fast_step(self) -> None:
-        self.fast_step: Callable[[float, np.ndarray, int], None] | None = (
-            self._step if self._batch._wind_fn is None else None
-        )
+        b = self._batch
+        fast: Callable[[float, np.ndarray, int], None] | None = self._step if b._wind_fn is None else None
+        if b._wind_fn is not None and b._wind_period is not None:
+            step, update = self._step, b._update_wind
+
+            def fast(dt: float, cmd: np.ndarray, nthreads: int) -> None:  # a held wind, updated once per period
+                if b.t >= b._wind_next_t:
+                    update()
+                step(dt, cmd, nthreads)
+
+        self.fast_step = fast
         """:meth:`step` without its Python layer, for a caller's inner loop (the simulator's): the C++
         integrator's ``step(dt, rotor_speed_cmd, nthreads)``, the same arithmetic, the held wind ``wind_W``
-        applied; None while a wind *function* is set (:meth:`step` evaluates it). Read it before each step (it
-        follows :meth:`set_wind` and :meth:`reset`); never assign it."""
+        applied; with a wind function set with a ``period``, a thin wrapper that updates the wind once per
+        period first; None while a wind function without a period is set (:meth:`step` evaluates it). Read it
+        before each step (it follows :meth:`set_wind` and :meth:`reset`); never assign it."""
 
     def __getstate__(self) -> dict[str, Any]:
         return {"batch": self._batch}
@@ -198,10 +302,45 @@ class Quadrotor:
     accel_W = property(lambda self: self._batch.accel_W[0], doc="dv_W/dt after the last step [m/s^2], (3,) view.")
     alpha_B = property(lambda self: self._batch.alpha_B[0], doc="dw_B/dt after the last step [rad/s^2], (3,) view.")
 
-    def set_wind(self, wind: WindField) -> None:
-        """Constant wind (3,) [m/s], a function ``wind(t, p_W)``, or None."""
-        self._batch.set_wind(wind)
+    def set_wind(self, wind: WindField, period: float | None = None) -> None:
+        """Constant wind (3,) [m/s], a function ``wind(t, p_W)`` (evaluated once per ``period`` [s] if given,
+        else before every step), or None."""
+        self._batch.set_wind(wind, period)
         self._sync_fast_step()
+
+    @property
+    def rotor_efficiency(self) -> np.ndarray:
+        """Per-rotor thrust and drag-torque scale in [0, 1], (4,) read-only view (default 1)."""
+        return self._batch.rotor_efficiency[0]
+
+    def set_rotor_efficiency(self, eta: Any) -> None:
+        """Scales each rotor's thrust and drag torque: (4,) in [0, 1] (0: a stopped motor); persists until reset."""
+        self._batch.set_rotor_efficiency(_rows("rotor_efficiency", eta, 1, 4, single=True))
+
+    @property
+    def max_rotor_speed(self) -> float:
+        """Upper clamp of the rotor speed command [rad/s] (default the parameters' ``rotor_speed_max``)."""
+        return float(self._batch.max_rotor_speed[0])
+
+    def set_max_rotor_speed(self, omega_max: float) -> None:
+        """Sets the rotor speed limit [rad/s], a scalar >= rotor_speed_min; persists until reset."""
+        a = np.asarray(omega_max, dtype=float) if not isinstance(omega_max, bool) else np.asarray(np.nan)
+        if a.shape != ():
+            raise ValueError(f"max_rotor_speed must be a scalar [rad/s], got shape {a.shape}")
+        self._batch.set_max_rotor_speed(a)
+
+    @property
+    def surfaces_z(self) -> np.ndarray:
+        """(floor_z, ceiling_z) [m] the ground effect reads, (2,) read-only view."""
+        return self._batch.surfaces_z[0]
+
+    def set_surfaces_z(self, surfaces_z: Any) -> None:
+        """Sets (floor_z, ceiling_z) [m] (-inf / +inf: none)."""
+        self._batch.set_surfaces_z(_rows("surfaces_z", surfaces_z, 1, 2, single=True, allow_inf=True))
+
+    def set_ground_effect(self, config: Any) -> None:
+        """Ground and ceiling effect on (a GroundEffectConfig) or off (None); persists across reset."""
+        self._batch.set_ground_effect(config)
 
     def reset(self) -> None:
         """At the origin, level, at rest, rotors stopped; time 0."""
@@ -218,6 +357,20 @@ class Quadrotor:
             self._batch.step(dt, rotor_speed_cmd)
         else:
             self._step(dt, rotor_speed_cmd, 1)
+
+
+def _rows(name: str, value: object, n: int, k: int, single: bool = False, allow_inf: bool = False) -> np.ndarray:
+    """``value`` as an (n, k) float array: (k,) broadcast to every vehicle, or (n, k) (not with ``single``)."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an array of real numbers, got {type(value).__name__}") from None
+    shapes = ((k,),) if single else ((k,), (n, k))
+    if a.shape not in shapes:
+        raise ValueError(f"{name} must have shape {' or '.join(str(s) for s in shapes)}, got {a.shape}")
+    if np.any(np.isnan(a)) or (not allow_inf and not np.all(np.isfinite(a))):
+        raise ValueError(f"{name} must be {'real numbers (not NaN)' if allow_inf else 'finite'}, got {a}")
+    return np.ascontiguousarray(np.broadcast_to(a, (n, k)))
 
 
 def _finite_rows(name: str, value: object, n: int) -> np.ndarray:
