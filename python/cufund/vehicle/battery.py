@@ -38,6 +38,9 @@ __all__ = ["Battery", "BatteryParams", "lipo_ocv_per_cell"]
 def lipo_ocv_per_cell(soc: float | np.ndarray) -> Any:
     """A LiPo cell's open-circuit voltage [V] at state of charge ``soc`` in [0, 1] (Chen & Rincón-Mora 2006,
     eq. 7; values outside [0, 1] are clipped to it)."""
+    if isinstance(soc, (float, int)):  # the per-tick path, in scalar arithmetic
+        x = min(max(float(soc), 0.0), 1.0)
+        return -1.031 * math.exp(-35.0 * x) + 3.685 + x * (0.2156 + x * (-0.1178 + x * 0.3201))
     s = np.clip(soc, 0.0, 1.0)
     out = -1.031 * np.exp(-35.0 * s) + 3.685 + s * (0.2156 + s * (-0.1178 + s * 0.3201))
     return float(out) if np.ndim(out) == 0 else out

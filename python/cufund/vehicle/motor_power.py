@@ -78,11 +78,11 @@ class MotorPower:
 
     def shaft_power_w(self, rotor_speeds: np.ndarray, rotor_efficiency: np.ndarray | None = None) -> float:
         """Mechanical power the rotors take, sum eta_rotor_i k_m |omega_i|^3 [W], for (4,) speeds [rad/s]."""
-        w = np.abs(np.asarray(rotor_speeds, dtype=float))
-        cubes = w * w * w
-        if rotor_efficiency is not None:
-            cubes = cubes * np.asarray(rotor_efficiency, dtype=float)
-        return float(self.k_m * np.sum(cubes))
+        w = np.asarray(rotor_speeds, dtype=float).tolist()  # four numbers: cheaper in Python than in numpy
+        if rotor_efficiency is None:
+            return self.k_m * sum(abs(x) ** 3 for x in w)
+        eta = np.asarray(rotor_efficiency, dtype=float).tolist()
+        return self.k_m * sum(e * abs(x) ** 3 for x, e in zip(w, eta, strict=True))
 
     def electrical_power_w(self, rotor_speeds: np.ndarray, rotor_efficiency: np.ndarray | None = None) -> float:
         """P_el = shaft power / efficiency + avionics [W]."""
