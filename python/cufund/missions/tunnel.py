@@ -19,8 +19,9 @@ States (published as :class:`~cufund.core.messages.MissionState` on ``/mission/s
 ``land``        hover ``hold_s``, then straight down;
 
 An unhealthy estimator (LiDAR frames missing for ``lidar_silence_s``, or its diagnostics saying so) at a rest
-point (detect, align, enter) holds the hover and lands (outside the course) after ``health_wait_s`` unless it
-recovers; while flying through the course the planned path is kept (stopping inside the course gains nothing;
+point (detect, align, enter) holds the hover; the failsafe supervisor (:mod:`.failsafe_supervisor`, watching the
+same :class:`~.failsafe_health.EstimatorHealth`) lands it (outside the course) unless it recovers in
+``failsafe.COM_POS_FS_DELAY + COM_FAIL_ACT_T`` (3 s); while flying through the course the planned path is kept (stopping inside the course gains nothing;
 the LIO propagates on the IMU) and the spell is recorded; an estimate older than ``stale_s`` lands at once.
 ``done`` / ``aborted`` (with the reason).
 
@@ -47,6 +48,7 @@ from cufund.planning.sequence import Hold, TrajectorySequence
 from cufund.planning.trajectory import Trajectory
 from cufund.planning.trajectory_follower import stitched
 
+from .failsafe_health import EstimatorHealth
 from .tunnel_geometry import frame_boxes
 
 __all__ = ["TunnelMission", "TunnelMissionParams"]
@@ -106,7 +108,8 @@ class TunnelMissionParams:
     lidar_silence_s: float = 0.35
     """The estimator is unhealthy when its newest LiDAR frame diagnostics are older than this [s]."""
     health_wait_s: float = 3.0
-    """Hovering at a rest point, wait this long for an unhealthy estimator to recover before landing [s]."""
+    """Superseded by the failsafe supervisor's COM_POS_FS_DELAY + COM_FAIL_ACT_T (the tunnel kind refuses another
+    value and names those) [s]."""
 
     def __post_init__(self) -> None:
         if isinstance(self.frames, bool) or not isinstance(self.frames, int) or self.frames < 1:
@@ -219,11 +222,9 @@ class TunnelMission(Planner):
         """When the reference comes to rest on the ground (landing's end) [s]."""
         self._t_state = 0.0
         self._t_leg_end = math.inf
-        self.health_events: list[tuple[float, float, str]] = []
-        """Spells of an unhealthy estimator: (start [s], length [s], reason)."""
-        self._diag_t: float | None = None
-        self._diag_ok, self._diag_reason = True, ""
-        self._t_unhealthy: float | None = None
+        self.health = EstimatorHealth(self.params.lidar_silence_s)
+        """The estimator's health, the failsafe supervisor's too (one monitor: it lands when the mission waits)."""
+        self._failsafe: tuple[str, str] | None = None  # a failsafe's land request (action, reason), done at once
         self._stable = 0
         self._crept = False
         self._best = 0
@@ -276,16 +277,15 @@ class TunnelMission(Planner):
             self._count(est)
             if self._stable >= pp.stable_updates:
                 self._latch(est)
-        healthy, why = self._health(t, bus)
+        healthy, _ = self.health.update(t)
         if self.state in ("done", "aborted"):
             return
         at_rest = self.state == "detect" or (self.state in ("align", "enter") and t_r >= self._t_leg_end)
-        if not healthy and at_rest:
-            assert self._t_unhealthy is not None  # _health set it when it found the estimator unhealthy
-            # At a rest point: hover (the reference holds) and wait for the estimator; land if it does not recover.
-            if t - self._t_unhealthy > self.params.health_wait_s:
-                back = self._align_point(self.used) if self.state == "enter" and self.used is not None else None
-                self._abort(t, t_r, f"estimator unhealthy for {t - self._t_unhealthy:.1f} s ({why})", bus, back_W=back)
+        if self._failsafe is not None:  # the failsafe supervisor lands the vehicle (outside the course)
+            back = self._align_point(self.used) if self.state == "enter" and self.used is not None else None
+            self._abort(t, t_r, f"failsafe: {self._failsafe[1]}", bus, back_W=back)
+            return
+        if not healthy and at_rest:  # hover (the reference holds) while the estimator recovers; else the failsafe lands
             return
         if self.state == "initialise":
             if self.t_go is not None and t >= self.t_go + pp.init_s:
@@ -341,30 +341,31 @@ class TunnelMission(Planner):
             self._enter(t, "done", "", bus)
 
     def setup(self, bus: BusView) -> None:
-        self._diagnostics = bus.subscribe(Topics.ESTIMATOR_DIAGNOSTICS)
+        self.health.setup(bus)
 
-    def _health(self, t: float, bus: BusView) -> tuple[bool, str]:
-        """Is the estimator healthy (its newest LiDAR frame recent and marked healthy)? Records unhealthy spells."""
-        for d in self._diagnostics.take():
-            self._diag_t = float(d.t)
-            self._diag_ok, self._diag_reason = bool(getattr(d, "healthy", True)), str(getattr(d, "reason", ""))
-        if self._diag_t is None:  # no LiDAR frame processed yet (initialising): nothing to judge
-            return True, ""
-        if t - self._diag_t > self.params.lidar_silence_s:
-            ok, why = False, f"no LiDAR frame for {t - self._diag_t:.2f} s"
-        else:
-            ok, why = self._diag_ok, self._diag_reason
-        if not ok and self._t_unhealthy is None:
-            self._t_unhealthy = t
-            self.health_events.append((t, 0.0, why or "unhealthy"))
-        elif ok and self._t_unhealthy is not None:
-            t0, _, r = self.health_events[-1]
-            self.health_events[-1] = (t0, t - t0, r)
-            self._t_unhealthy = None
-        elif not ok and self.health_events:
-            t0, _, r = self.health_events[-1]
-            self.health_events[-1] = (t0, t - t0, r)
-        return ok, why
+    @property
+    def health_events(self) -> list[tuple[float, float, str]]:
+        """Spells of an unhealthy estimator: (start [s], length [s], reason)."""
+        return self.health.events
+
+    def failsafe(self, t: float, action: str, reason: str, urgent: bool) -> str:
+        """A failsafe supervisor's request (:class:`~cufund.missions.failsafe_takeover.MissionTakeover`): 'hold'
+        is what the mission does by itself at its rest points; 'land' and 'rtl' land outside the course at the
+        next step (backing out of the first opening), except through the course where the path ends in a
+        landing beyond the last frame anyway (an urgent one, a motor failure, lands at once). Returns what it did
+        when that is not what was asked ('' when it is)."""
+        if self.finished:
+            return f"the mission has {self.state} already"
+        if action == "hold":
+            return (
+                "the mission holds at its rest points"
+                if self.state != "through"
+                else "the mission keeps its path through the course"
+            )
+        if self.state in ("through", "land") and not urgent:
+            return "the mission's path through the course ends in a landing beyond the last frame"
+        self._failsafe = (action, reason)
+        return "the tunnel mission lands instead of returning through the course" if action == "rtl" else ""
 
     def _latch(self, est: TunnelEstimate) -> None:
         """Keeps the newest stable detections: of the first frame (:attr:`first`) and of every expected frame

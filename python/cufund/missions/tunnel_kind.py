@@ -48,6 +48,11 @@ def _tunnel(p: TunnelMissionParams, ctx: BuildContext) -> list[Any]:
     cfg = ctx.config
     if cfg.estimator is None:
         raise ConfigError("mission (tunnel) flies on an estimate: set estimator (e.g. estimator: {kind: lio})")
+    if p.health_wait_s != TunnelMissionParams.health_wait_s:
+        raise ConfigError(
+            "mission.health_wait_s: the failsafe supervisor lands after an unhealthy estimate now; set "
+            "failsafe.COM_POS_FS_DELAY (hold after) and failsafe.COM_FAIL_ACT_T (land after the hold) instead"
+        )
     course = course_of(cfg)
     if course is not None:  # pre-flight: the rules' openings must pass the vehicle with the plan's clearance
         for k, f in enumerate(course.frames):

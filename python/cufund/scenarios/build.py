@@ -14,6 +14,7 @@ from cufund.core.build_context import BuildContext, DoneCondition, MetricHook, O
 from cufund.core.config import ConfigError
 from cufund.core.messages import Odometry, Topics
 from cufund.core.registry import lookup
+from cufund.missions.failsafe_build import failsafe_components, failsafe_done
 from cufund.sensors.faults import fault_summary, inject_faults
 from cufund.sensors.power_monitor import PowerMonitor
 from cufund.simulator import SimulationResult, Simulator
@@ -278,6 +279,7 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
         spec = getattr(config, group)
         if spec is not None:
             components += ctx.build(group, spec, group)
+    components += failsafe_components(config.failsafe or None, ctx, components)  # takes over the reference
     if config.estimator is not None:
         record += [Topics.ESTIMATE, Topics.ESTIMATOR_DIAGNOSTICS]
     sim = Simulator(
@@ -359,9 +361,12 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
 
     ctx = built.context
     result = built.simulator.run(
-        config.duration, done=landed if t_landed is not None else ctx.done_condition, progress=progress
+        config.duration,
+        done=failsafe_done(built.simulator.components, landed if t_landed is not None else ctx.done_condition),
+        progress=progress,
     )
     metrics = run_metrics(result)
+    metrics["failsafe_events"] = []  # always present; the supervisor's hook fills it
     metrics["realism"] = ctx.realism.summary()  # under what the figures were measured
     if config.faults:
         metrics["faults"] = fault_summary(config.faults)

@@ -23,6 +23,7 @@ from cufund.core.config import ConfigError, check_real_fields, from_dict, load_y
 from cufund.core.registry import extrinsic_keys, lookup, sensor_type
 from cufund.core.topics import Topic
 from cufund.geometry import Transform
+from cufund.missions.failsafe_params import parse_failsafe
 from cufund.sensors.faults import faults_to_data, parse_faults
 from cufund.sensors.power_monitor import PowerSystem
 from cufund.vehicle import presets
@@ -328,6 +329,9 @@ class ScenarioConfig:
     """How far the simulated vehicle and sensors are from what flight software is told
     (:class:`cufund.scenarios.realism.RealismConfig`): ``ideal`` (default: every term off), ``realistic``, or
     ``{profile: realistic, imu: {scale_factor_ppm: 3000}, ...}``; see docs/realism.md."""
+    failsafe: Any = None
+    """The flight stack's failsafes (:class:`cufund.missions.failsafe_params.FailsafeParams`, PX4's names:
+    ``{GF_MAX_HOR_DIST: 5, COM_LOW_BAT_ACT: 1, ...}``); absent: the defaults; ``off``: none. docs/guides/failsafes.md."""
     seed: int = 0
     """One seed derives every random stream (sensor noise, LiDAR noise, ...); the same seed repeats a run bit for
     bit."""
@@ -374,6 +378,7 @@ class ScenarioConfig:
         object.__setattr__(self, "log", nested(LogConfig, self.log, "log"))
         object.__setattr__(self, "faults", parse_faults(self.faults))
         object.__setattr__(self, "realism", RealismConfig.parse(self.realism))
+        object.__setattr__(self, "failsafe", parse_failsafe(self.failsafe))
         try:
             box = np.asarray(self.collision_box, dtype=float)
         except (TypeError, ValueError):
