@@ -60,6 +60,8 @@ class CdrField:
     """0: a scalar; else the length of a fixed array."""
     const: str = ""
     """The value of a constant string."""
+    value: float | None = None
+    """A number every element of a numeric field holds in the template (a sequence's length, a covariance's -1)."""
 
 
 class CdrLayout:
@@ -94,6 +96,12 @@ class CdrLayout:
         for name, raw in consts:
             template[f"_{name}.len"] = len(raw)
             template[f"_{name}"] = np.frombuffer(raw, f"V{len(raw)}")[0]
+        for f in fields:
+            if f.value is not None and f.code != "str":
+                if f.count:
+                    template[f.name][0, 0] = f.value  # the first element (a covariance's "not provided")
+                else:
+                    template[f.name] = f.value
         self.template = template
 
     def empty(self, n: int) -> np.ndarray:

@@ -24,15 +24,13 @@ from typing import Any
 
 import numpy as np
 
-from . import schemas
+from . import ros2, scene, schemas
 from .cdr import CdrLayout, MessageLayout, infer_message_layout, stamp_sec_nsec
 from .jsonvalue import class_path, decode_fields, encode_fields, encode_value, numeric_dtype
 from .message_classes import message_class, note_logged
 
 __all__ = ["Codec", "View", "codec_for", "codec_from_channel"]
 
-ODOMETRY_CHILD_FRAMES = {"/truth/odometry": "base_link", "/estimator/odometry": "base_link_estimate"}
-"""Child frame of the ``<topic>/tf`` view of odometry topics (others: ``base_link`` plus the topic's name)."""
 WORLD_FRAME = "world"
 
 
@@ -49,6 +47,12 @@ class View:
     layout: CdrLayout
     copies: tuple[tuple[str, int, str, int, int], ...]
     stamps: tuple[tuple[str, str, str], ...]
+    absolute: bool = False
+    """``suffix`` is the channel's whole topic (``/tf``, ``/clock``: shared by every source), not a suffix."""
+
+    def topic(self, source: str) -> str:
+        """The view's channel topic for source topic ``source``."""
+        return self.suffix if self.absolute else f"{source}{self.suffix}"
 
     schema_encoding = "ros2msg"
     message_encoding = "cdr"
@@ -88,6 +92,9 @@ class Codec:
     fixed_size: int = 0
     """Bytes per message when every message has the same size (``encode`` then returns an (n, size) array)."""
     views: tuple[View, ...] = ()
+    companions: tuple[tuple[str, tuple[str, str], str, str, Any], ...] = ()
+    """Derived channels encoded in Python with the topic's blocks (not read back): (suffix, (schema name, schema
+    text), schema encoding, message encoding, encode(message) -> bytes); for codecs without ``fixed_size``."""
 
     def __init__(self, cls: type):
         self.cls = cls
@@ -159,20 +166,49 @@ class CdrCodec(Codec):
         return self.layout.decode(data)
 
 
-def _odometry_views(topic: str) -> tuple[View, ...]:
-    child = ODOMETRY_CHILD_FRAMES.get(str(topic), "base_link" + str(topic).replace("/", "_"))
+ODOMETRY_FRAMES = {"/truth/odometry": ("world", "base_link_truth"), "/estimator/odometry": ("odom", "base_link")}
+"""(parent, child) frames of the standard views of odometry topics (others: ``world`` -> ``base_link`` plus the
+topic's name)."""
 
-    stamp = (("timestamp.sec", "timestamp.nanosec", "t"),)
-    quaternion = (("{0}", 0, "q_wb", 1, 3), ("{0}", 3, "q_wb", 0, 1))  # [w, x, y, z] -> Foxglove's x, y, z, w
-    pose = (
+_QUATERNION = (("{0}", 0, "q_wb", 1, 3), ("{0}", 3, "q_wb", 0, 1))  # [w, x, y, z] -> ROS's x, y, z, w
+_STAMP = (("header.stamp.sec", "header.stamp.nanosec", "t"),)
+
+
+def odometry_frames(topic: str) -> tuple[str, str]:
+    """(parent, child) frame of the standard views of an odometry ``topic``."""
+    return ODOMETRY_FRAMES.get(str(topic), (WORLD_FRAME, "base_link" + str(topic).replace("/", "_")))
+
+
+def sensor_frame(topic: str) -> str:
+    """The frame a sensor topic's messages are in: the topic's last name (``/sensors/lidar``: ``lidar``), which is
+    the sensor's name in a scenario (its default topic is ``/sensors/<name>``)."""
+    return str(topic).rstrip("/").rsplit("/", 1)[-1] or "sensor"
+
+
+def _odometry_views(topic: str) -> tuple[View, ...]:
+    parent, child = odometry_frames(topic)
+    q = _QUATERNION
+    odometry = (
         ("pose.position", 0, "p_w", 0, 3),
-        *((d.format("pose.orientation"), a, b, c, e) for d, a, b, c, e in quaternion),
+        *((d.format("pose.orientation"), a, b, c, e) for d, a, b, c, e in q),
+        ("twist.angular", 0, "w_b", 0, 3),
     )
-    tf = (("translation", 0, "p_w", 0, 3), *((d.format("rotation"), a, b, c, e) for d, a, b, c, e in quaternion))
-    return (
-        View("/pose", *schemas.POSE_IN_FRAME, schemas.pose_in_frame_layout(WORLD_FRAME), pose, stamp),
-        View("/tf", *schemas.FRAME_TRANSFORM, schemas.frame_transform_layout(WORLD_FRAME, child), tf, stamp),
-    )
+    pose = (("pose.position", 0, "p_w", 0, 3), *((d.format("pose.orientation"), a, b, c, e) for d, a, b, c, e in q))
+    tf = (("translation", 0, "p_w", 0, 3), *((d.format("rotation"), a, b, c, e) for d, a, b, c, e in q))
+    views = [
+        View("/pose", *ros2.POSE_STAMPED, ros2.pose_stamped_layout(parent), pose, _STAMP),
+        View("/tf", *ros2.TF_MESSAGE, ros2.tf_layout(parent, child), tf, _STAMP, absolute=True),
+    ]
+    if str(topic) == "/truth/odometry":  # at every physics instant: its pose and /tf say it all, and /clock ticks
+        views.append(View("/clock", *ros2.CLOCK, ros2.clock_layout(), (), (("clock.sec", "clock.nanosec", "t"),), True))
+    else:
+        views.insert(0, View("/ros", *ros2.ODOMETRY, ros2.odometry_layout(parent, child), odometry, _STAMP))
+    return tuple(views)
+
+
+def _imu_views(topic: str) -> tuple[View, ...]:
+    copies = (("angular_velocity", 0, "w_i", 0, 3), ("linear_acceleration", 0, "f_i", 0, 3))
+    return (View("/ros", *ros2.IMU, ros2.imu_layout(sensor_frame(topic)), copies, _STAMP),)
 
 
 class JsonCodec(Codec):
@@ -417,6 +453,203 @@ class LocationFixCodec(_FoxgloveJsonCodec):
         return {}
 
 
+_FLOAT32, _FLOAT64, _UINT8, _UINT32 = 7, 8, 2, 6
+_POINT_FIELD_DTYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+LIVOX_POINT = np.dtype(
+    {
+        "names": ["x", "y", "z", "intensity", "tag", "line", "timestamp"],
+        "formats": ["<f4", "<f4", "<f4", "<f4", "u1", "u1", "<f8"],
+        "offsets": [0, 4, 8, 12, 16, 17, 18],
+        "itemsize": 26,
+    }
+)
+"""A point of livox_ros_driver2's ``PointCloud2`` (its ``LivoxPointXyzrtlt``, packed): x, y, z [m], intensity,
+tag, line (the laser) and timestamp (the point's own time, ns since the epoch of the header's stamp, as float64)."""
+TRUTH_POINT = np.dtype({"names": ["x", "y", "z", "object_id"], "formats": ["<f4", "<f4", "<f4", "<u4"]})
+"""A point of the LiDAR truth cloud: the true hit in the world frame and the id of the object hit."""
+
+
+def _point_fields(dtype: np.dtype) -> list[tuple[str, int, int]]:
+    fields = dtype.fields
+    assert fields is not None
+    codes = {v: k for k, v in _POINT_FIELD_DTYPES.items()}
+    return [(name, fields[name][1], codes[fields[name][0].str[1:]]) for name in dtype.names or ()]
+
+
+class PointCloud2Codec(Codec):
+    """``sensor_msgs/msg/PointCloud2`` (CDR): a LiDAR frame as livox_ros_driver2 publishes it (:data:`LIVOX_POINT`,
+    in the sensor's frame) or the LiDAR truth (:data:`TRUTH_POINT`, in ``world``).
+
+    Read back as the cufund message: the points (float32) and the per-point times exactly (to the float64 rounding
+    of a nanosecond count), the intensity to float32, the stamp to the nanosecond; a frame's ranges are the
+    points' norms and its pattern index ``frame`` is not kept (-1)."""
+
+    name = "ros2.PointCloud2"
+    schema_encoding = "ros2msg"
+    message_encoding = "cdr"
+
+    def __init__(self, cls: type, frame_id: str):
+        super().__init__(cls)
+        self.schema_name, text = ros2.POINT_CLOUD2
+        self.schema_data = text.encode()
+        self.frame_id = frame_id
+        self.truth = cls.__name__ == "LidarTruth"
+        self.point = TRUTH_POINT if self.truth else LIVOX_POINT
+        self.fields = _point_fields(self.point)
+
+    def metadata(self) -> dict[str, str]:
+        return {**super().metadata(), "cufund.frame_id": self.frame_id}
+
+    def encode(self, messages: list[Any], topic: str) -> list[bytes]:
+        return [self._encode_one(m, topic) for m in messages]
+
+    def _encode_one(self, m: Any, topic: str) -> bytes:
+        xyz = np.asarray(m.points_W if self.truth else m.points_L)
+        if xyz.ndim != 2 or xyz.shape[1] != 3:
+            raise ValueError(f"topic {topic!r}: {self.cls.__name__} points must have shape (N, 3), got {xyz.shape}")
+        n = len(xyz)
+        data = np.zeros(n, self.point)
+        data["x"], data["y"], data["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+        sec, nsec = stamp_sec_nsec(np.array([m.t]))
+        stamp_ns = int(sec[0]) * 1_000_000_000 + int(nsec[0])
+        if self.truth:
+            ids = np.asarray(m.object_ids)
+            if ids.shape != (n,) or (n and (int(ids.min()) < 0 or int(ids.max()) >= 2**32)):
+                raise ValueError(f"topic {topic!r}: object_ids must be ({n},) ids in [0, 2**32), got {ids.shape}")
+            data["object_id"] = ids
+        else:
+            for attr in ("dt", "intensity", "channel"):
+                if np.shape(getattr(m, attr)) != (n,):
+                    raise ValueError(
+                        f"topic {topic!r}: per-point field {attr!r} has shape {np.shape(getattr(m, attr))}, "
+                        f"expected ({n},)"
+                    )
+            data["intensity"] = m.intensity
+            data["line"] = m.channel
+            data["timestamp"] = stamp_ns + np.asarray(m.dt, dtype=np.float64) * 1e9
+        w = ros2.CdrWriter().put("i", int(sec[0])).put("I", int(nsec[0])).string(self.frame_id)
+        w.put("I", 1, n).put("I", len(self.fields))
+        for name, offset, datatype in self.fields:
+            w.string(name).put("I", offset).put("B", datatype).put("I", 1)
+        w.put("?", False).put("I", self.point.itemsize, self.point.itemsize * n)
+        return w.blob(data.tobytes()).put("?", True).bytes()
+
+    def decode(self, data: bytes | memoryview) -> Any:
+        r = ros2.CdrReader(data, self.where)
+        sec, nsec = r.get("i")[0], r.get("I")[0]
+        r.string()
+        height, width = r.get("I", 2)
+        fields = {}
+        for _ in range(r.get("I")[0]):
+            name = r.string()
+            offset, datatype, _count = r.get("I")[0], r.get("B")[0], r.get("I")[0]
+            fields[name] = (offset, _POINT_FIELD_DTYPES.get(datatype, "u1"))
+        r.get("?")
+        point_step, _ = r.get("I", 2)
+        raw = r.blob()
+        n = height * width
+        names = [k for k in self.point.names or () if k in fields]
+        if len(names) != len(self.point.names or ()) or n * point_step > len(raw) or not 0 < point_step <= 4096:
+            raise ValueError(f"{self.where}: a PointCloud2 without the fields {self.point.names} or with bad sizes")
+        dtype = np.dtype(
+            {
+                "names": names,
+                "formats": ["<" + fields[k][1] for k in names],
+                "offsets": [fields[k][0] for k in names],
+                "itemsize": point_step,
+            }
+        )
+        pts = np.frombuffer(raw, dtype, count=n)
+        xyz = np.stack([pts["x"], pts["y"], pts["z"]], axis=1).astype(np.float32)
+        stamp_ns = sec * 1_000_000_000 + nsec
+        t = stamp_ns / 1e9
+        if self.truth:
+            return self.cls(t=t, points_W=xyz, object_ids=pts["object_id"].astype(np.uint32))
+        return self.cls(
+            t=t,
+            dt=(pts["timestamp"].astype(np.float64) - stamp_ns) / 1e9,
+            points_L=xyz,
+            ranges=np.linalg.norm(xyz.astype(np.float64), axis=1),
+            intensity=pts["intensity"].astype(np.float64),
+            channel=pts["line"].astype(np.int32),
+            frame=-1,
+        )
+
+
+_ROS_IMAGE_ENCODINGS = {
+    ("float32", 1): "32FC1",
+    ("uint8", 1): "mono8",
+    ("uint16", 1): "16UC1",
+    ("uint8", 3): "rgb8",
+    ("uint8", 4): "rgba8",
+}
+_IMAGE_OF_ENCODING = {v: k for k, v in _ROS_IMAGE_ENCODINGS.items()}
+
+
+class ImageCodec(Codec):
+    """``sensor_msgs/msg/Image`` (CDR): depth as ``32FC1`` (NaN: no return), colour as ``rgb8``; read back exactly
+    (the stamp to the nanosecond)."""
+
+    name = "ros2.Image"
+    schema_encoding = "ros2msg"
+    message_encoding = "cdr"
+
+    def __init__(self, cls: type, frame_id: str):
+        super().__init__(cls)
+        self.schema_name, text = ros2.IMAGE
+        self.schema_data = text.encode()
+        self.frame_id = frame_id
+
+    @staticmethod
+    def encoding_of(image: Any) -> str | None:
+        image = np.asarray(image)
+        if image.ndim not in (2, 3):
+            return None
+        return _ROS_IMAGE_ENCODINGS.get((image.dtype.name, image.shape[2] if image.ndim == 3 else 1))
+
+    def metadata(self) -> dict[str, str]:
+        return {**super().metadata(), "cufund.frame_id": self.frame_id}
+
+    def encode(self, messages: list[Any], topic: str) -> list[bytes]:
+        out = []
+        for m in messages:
+            image = np.ascontiguousarray(m.image)
+            encoding = self.encoding_of(image)
+            if encoding is None:
+                raise ValueError(
+                    f"topic {topic!r}: an image must be (H, W) float32/uint8/uint16 or (H, W, 3|4) uint8, "
+                    f"got {image.shape} {image.dtype}"
+                )
+            w = ros2.CdrWriter().header(m.t, self.frame_id).put("I", image.shape[0], image.shape[1])
+            w.string(encoding).put("B", 0).put("I", image.strides[0])
+            out.append(w.blob(image.astype(image.dtype.newbyteorder("<"), copy=False).tobytes()).bytes())
+        return out
+
+    def decode(self, data: bytes | memoryview) -> Any:
+        r = ros2.CdrReader(data, self.where)
+        t, _ = r.header()
+        height, width = r.get("I", 2)
+        encoding = r.string()
+        r.get("B")
+        r.get("I")
+        raw = r.blob()
+        if encoding not in _IMAGE_OF_ENCODING:
+            raise ValueError(f"{self.where}: an image of encoding {encoding[:40]!r}, which cufund does not write")
+        dtype, channels = _IMAGE_OF_ENCODING[encoding]
+        shape = (height, width, channels) if channels > 1 else (height, width)
+        image = np.frombuffer(raw, np.dtype(dtype).newbyteorder("<"), count=int(np.prod(shape))).reshape(shape)
+        return self.cls(t=t, image=image.astype(dtype))
+
+
+def _gps_views(topic: str) -> tuple[View, ...]:
+    copies = (
+        ("latitude", 0, "latitude_deg", 0, 1),
+        ("longitude", 0, "longitude_deg", 0, 1),
+        ("altitude", 0, "altitude_m", 0, 1),
+    )
+    return (View("/ros", *ros2.NAV_SAT_FIX, ros2.nav_sat_fix_layout(sensor_frame(topic)), copies, _STAMP),)
+
+
 def _lidar_codec(cls: type) -> PointCloudCodec:
     return PointCloudCodec(
         cls,
@@ -447,18 +680,25 @@ def codec_for(topic: str, message: Any) -> Codec:
         and name == "PointCloud"
         and _has_fields(cls, ("t", "dt", "points_L", "ranges", "intensity", "channel", "frame"))
     ):
-        return _lidar_codec(cls)
+        return PointCloud2Codec(cls, sensor_frame(topic))
     if cufund and name == "LidarTruth" and _has_fields(cls, ("t", "points_W", "object_ids")):
-        return _lidar_truth_codec(cls)
-    if cufund and name == "CameraImage" and _has_fields(cls, ("t", "image")):
-        return RawImageCodec(cls, schemas.RAW_IMAGE_SCHEMA, "camera")
-    if cufund and name == "GpsFix":
-        return LocationFixCodec(cls, schemas.LOCATION_FIX_SCHEMA, "gps")
+        return PointCloud2Codec(cls, WORLD_FRAME)
+    if cufund and name == "CameraImage" and _has_fields(cls, ("t", "image")) and ImageCodec.encoding_of(message.image):
+        return ImageCodec(cls, sensor_frame(topic))
     layout = infer_message_layout(cls, message)
     if layout is not None:
-        views = _odometry_views(topic) if cufund and name == "Odometry" else ()
+        views: tuple[View, ...] = ()
+        if cufund and name == "Odometry":
+            views = _odometry_views(topic)
+        elif cufund and name == "Imu":
+            views = _imu_views(topic)
+        elif cufund and name == "GpsFix":
+            views = _gps_views(topic)
         return CdrCodec(layout, views)
-    return JsonCodec(cls)
+    codec = JsonCodec(cls)
+    if cufund and name == "TunnelEstimate":
+        codec.companions = (("/scene", scene.SCENE_UPDATE, "jsonschema", "json", scene.tunnel_scene_update),)
+    return codec
 
 
 def codec_from_channel(metadata: dict[str, str], where: str = "the channel") -> Codec:
@@ -476,7 +716,11 @@ def codec_from_channel(metadata: dict[str, str], where: str = "the channel") -> 
             codec: Codec = CdrCodec(MessageLayout.from_description(cls, json.loads(metadata["cufund.layout"])))
         elif kind == "json":
             codec = JsonCodec(cls)
-        elif kind == "foxglove.PointCloud":
+        elif kind == "ros2.PointCloud2":
+            codec = PointCloud2Codec(cls, str(metadata.get("cufund.frame_id", "")))
+        elif kind == "ros2.Image":
+            codec = ImageCodec(cls, str(metadata.get("cufund.frame_id", "")))
+        elif kind == "foxglove.PointCloud":  # logs of cufund before the ROS 2 messages (read as they were)
             fields = tuple(f.name for f in dataclasses.fields(cls))
             codec = _lidar_codec(cls) if "points_L" in fields else _lidar_truth_codec(cls)
         elif kind == "foxglove.RawImage":

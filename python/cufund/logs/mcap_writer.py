@@ -165,11 +165,23 @@ class McapLogger:
         for view in codec.views:
             channels.append(
                 self._channel(
-                    f"{topic}{view.suffix}",
+                    view.topic(str(topic)),
                     view.schema_name,
                     view.schema_encoding,
                     view.schema_text.encode(),
                     view.message_encoding,
+                    {} if view.absolute else {"cufund.view_of": str(topic)},
+                    shared=view.absolute,
+                )
+            )
+        for suffix, (schema_name, schema_text), schema_encoding, message_encoding, _ in codec.companions:
+            channels.append(
+                self._channel(
+                    f"{topic}{suffix}",
+                    schema_name,
+                    schema_encoding,
+                    schema_text.encode(),
+                    message_encoding,
                     {"cufund.view_of": str(topic)},
                 )
             )
@@ -215,7 +227,14 @@ class McapLogger:
         schema_data: bytes,
         message_encoding: str,
         metadata: dict[str, str],
+        shared: bool = False,
     ) -> int:
+        """A new channel's id; ``shared``: the channel of ``topic`` with this schema if there is one already (the
+        ``/tf`` every odometry topic adds to, ``/tf_static``)."""
+        if shared:
+            for existing in self._channels:
+                if existing.topic == topic and self._schemas[existing.schema_id - 1].name == schema_name:
+                    return existing.id
         key = (schema_name, schema_encoding, schema_data)
         schema_id = self._schema_ids.get(key)
         if schema_id is None:
@@ -241,8 +260,35 @@ class McapLogger:
         if not entry.count:
             return
         entry.count = 0
+        messages = [item[0] for item in entry.accumulator.items] if entry.codec.companions else []
         payloads, log, publish, sequence = entry.accumulator.drain(entry.topic)
         self._core.write_payloads(entry.channels[0], payloads, log, publish, sequence)
+        for channel, (*_, encode) in zip(entry.channels[1:], entry.codec.companions, strict=True):
+            self._core.write_payloads(channel, [encode(m) for m in messages], log, publish, sequence)
+
+    def write_encoded(
+        self,
+        topic: str,
+        schema: tuple[str, str],
+        data: bytes,
+        log_time_ns: int,
+        *,
+        schema_encoding: str = "ros2msg",
+        message_encoding: str = "cdr",
+    ) -> None:
+        """Writes one message already encoded (``data``) on ``topic`` with ``schema`` (name, definition): what no
+        cufund message carries (``/tf_static``, the world's ``foxglove.SceneUpdate``). Not read back by
+        :func:`cufund.logs.read_mcap` (its channel names no cufund codec)."""
+        if self._closed:
+            raise ValueError(f"write to a closed McapLogger ({self.path})")
+        if not isinstance(topic, str) or not topic.startswith("/"):
+            raise ValueError(f"topic must be an absolute name like '/tf_static', got {topic!r}")
+        if not isinstance(data, bytes):
+            raise TypeError(f"topic {topic!r}: data must be bytes, got {type(data).__name__}")
+        log = _time(log_time_ns, "log_time_ns", topic)
+        name, text = schema
+        channel = self._channel(topic, name, schema_encoding, text.encode(), message_encoding, {}, shared=True)
+        self._core.write_payloads(channel, [data], [log], [log], [0])
 
     def pending(self, topic: str) -> int:
         """Messages of ``topic`` held in memory, not yet handed to the writer (at most one block)."""

@@ -119,8 +119,11 @@ def run_into_folder(
                 "seed": str(config.seed),
                 "config": yaml.safe_dump(config.to_dict(), sort_keys=False),
             },
+            compression="zstd",  # binary point clouds: about 20 % smaller than lz4 for a few % of a core
         )
-        built.simulator.logger = _Excluding(logger, config.log.exclude) if config.log.exclude else logger
+        _log_context(logger, built)
+        exclude = (*config.log.exclude, *(() if config.log.truth_cloud else ("/truth/point_cloud",)))
+        built.simulator.logger = _Excluding(logger, exclude) if exclude else logger
     RunInterrupted.received = None  # only a signal during this run makes its failure an interruption
     try:
         run = run_built(built, progress=progress)
@@ -149,6 +152,21 @@ def run_into_folder(
             logger.close()
     write_run_folder(run, out, plots=plots, replay=replay)
     return run
+
+
+def _log_context(logger: Any, built: Any) -> None:
+    """The log's ``/tf_static`` (base_link -> each sensor's frame from its extrinsic) and the world's meshes."""
+    from cufund.logs.codecs import sensor_frame
+    from cufund.logs.run_context import write_run_context
+
+    config = built.config
+    sensors = []
+    for spec in (config.sensors or {}).values():
+        if spec is not None and spec.topic is not None:
+            e = spec.extrinsic
+            sensors.append((sensor_frame(str(spec.topic)), None if e is None else e.t, None if e is None else e.q))
+    world = built.context.world
+    write_run_context(logger, sensors, config.estimator is not None, world)
 
 
 class _Excluding:

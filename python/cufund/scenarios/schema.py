@@ -166,10 +166,14 @@ class LogConfig:
     """Write ``run.mcap`` (every visible message, streamed while the run goes)."""
     exclude: tuple[str, ...] = ()
     """Topics left out of the log (e.g. camera images)."""
+    truth_cloud: bool = False
+    """Log the LiDAR's true hit points (``/truth/point_cloud``, as large as the cloud itself); off by default."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.mcap, bool):
             raise ConfigError(f"log.mcap must be true or false, got {self.mcap!r}")
+        if not isinstance(self.truth_cloud, bool):
+            raise ConfigError(f"log.truth_cloud must be true or false, got {self.truth_cloud!r}")
         if isinstance(self.exclude, str) or not all(isinstance(t, str) for t in self.exclude):
             raise ConfigError(f"log.exclude must be a list of topic names, got {self.exclude!r}")
         object.__setattr__(self, "exclude", tuple(self.exclude))

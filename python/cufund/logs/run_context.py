@@ -1,0 +1,57 @@
+"""What a run's log holds beside its messages: the static transforms (``/tf_static``) that tie every frame a
+message names to ``world``, and the world's meshes (``/world/scene``, a ``foxglove.SceneUpdate``).
+
+The frame tree of a cufund log::
+
+    world ─┬─ odom ── base_link ─┬─ <sensor> (imu, lidar, camera, ...: base_link -> sensor from the scenario's
+           │        (estimate)   │             extrinsic T_B<X>, identity when the sensor has none)
+           └─ base_link_truth    └─ ...
+              (truth, /tf)
+
+``world`` -> ``odom`` is the identity (cufund's estimators estimate in the world frame); ``odom`` -> ``base_link``
+comes from ``/estimator/odometry`` and ``world`` -> ``base_link_truth`` from ``/truth/odometry`` (both on
+``/tf``). A scenario without an estimator flies on truth: ``base_link_truth`` -> ``base_link`` is then a static
+identity, so the sensors' frames still resolve.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+from . import ros2, scene
+
+__all__ = ["write_run_context"]
+
+_IDENTITY = ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
+
+
+def static_transforms(sensors: Iterable[tuple[str, Any, Any]], has_estimator: bool) -> list[tuple[str, str, Any, Any]]:
+    """(parent, child, translation, q [w, x, y, z]) of ``/tf_static`` for ``sensors`` (frame name, translation
+    (3,) or None, q_BX or None)."""
+    transforms: list[tuple[str, str, Any, Any]] = [("world", "odom", *_IDENTITY)]
+    if not has_estimator:
+        transforms.append(("base_link_truth", "base_link", *_IDENTITY))
+    for frame, p, q in sensors:
+        transforms.append(
+            ("base_link", frame, _IDENTITY[0] if p is None else tuple(p), _IDENTITY[1] if q is None else tuple(q))
+        )
+    return transforms
+
+
+def write_run_context(
+    logger: Any, sensors: Iterable[tuple[str, Any, Any]], has_estimator: bool, world: Any = None
+) -> None:
+    """Writes ``/tf_static`` and (with a ``world``, a :class:`cufund.worlds.World`) ``/world/scene`` at time 0."""
+    logger.write_encoded(
+        "/tf_static", ros2.TF_MESSAGE, ros2.tf_message(0.0, static_transforms(sensors, has_estimator)), 0
+    )
+    if world is not None and len(world.objects):
+        logger.write_encoded(
+            "/world/scene",
+            scene.SCENE_UPDATE,
+            scene.world_scene_update(world),
+            0,
+            schema_encoding="jsonschema",
+            message_encoding="json",
+        )
