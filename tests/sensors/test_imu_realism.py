@@ -205,7 +205,7 @@ def test_no_vibration_with_rotors_stopped_or_unknown():
 def test_saturation_clips_the_total_with_vibration():
     """A 20 m/s^2 z line on top of +g exceeds a 12 m/s^2 range: the record is the unclipped one, clipped."""
     wide = vib_params(accel_mps2=(0.0, 0.0, 80.0), anti_alias_hz=1e5)
-    narrow = dataclasses.replace(wide, accel_range=12.0)
+    narrow = dataclasses.replace(wide, accel_range=12.0, saturation=True)
     rotors = [TWO_PI * 170.0, 0.0, 0.0, 0.0]
     free, _ = hover_record(wide, rotors, k=400)
     clipped, _ = hover_record(narrow, rotors, k=400)

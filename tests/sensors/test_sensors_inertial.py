@@ -88,7 +88,7 @@ def test_mounting_rotation_scale_factor_and_saturation():
     upside_down = ImuParams(q_BI=tuple(rot_quat([1, 0, 0], math.pi)))
     a, _ = ImuModel(upside_down).measure_static(1)
     np.testing.assert_allclose(a[0], [0, 0, -G], atol=1e-12)
-    scaled = ImuParams(accel_scale_factor=(0.0, 0.0, 0.01), gyro_range=1.0)
+    scaled = ImuParams(accel_scale_factor=(0.0, 0.0, 0.01), gyro_range=1.0, saturation=True)
     a, g = ImuModel(scaled).measure(np.array([1.0, 0, 0, 0]), np.array([0.5, -3.0, 0.0]), np.zeros(3), np.zeros(3))
     assert a[2] == pytest.approx(1.01 * G, rel=1e-14)
     np.testing.assert_array_equal(g, [0.5, -1.0, 0.0])

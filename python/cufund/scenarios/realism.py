@@ -128,6 +128,8 @@ class ImuRealism:
     """Standard deviation of each element of the gyroscope's 3x3 sensitivity to specific force [deg/s per g]."""
     vibration: VibrationRealism = field(default_factory=VibrationRealism)
     """Rotor vibration through the anti-alias filter and the sampling."""
+    saturation: bool = False
+    """Readings clip at the part's full-scale ranges (``ImuParams.accel_range``/``gyro_range``, the datasheet's)."""
 
     def __post_init__(self) -> None:
         w = "realism.imu"
@@ -137,6 +139,8 @@ class ImuRealism:
         _real(self, w, "cross_axis_pct", upper=10.0)
         _real(self, w, "gyro_g_sensitivity_dps_per_g", upper=10.0)
         object.__setattr__(self, "vibration", nested(VibrationRealism, self.vibration, f"{w}.vibration"))
+        if not isinstance(self.saturation, bool):
+            raise ConfigError(f"{w}.saturation must be true or false, got {self.saturation!r}")
 
 
 @dataclass(frozen=True)
@@ -238,6 +242,7 @@ def _realistic_sections() -> dict[str, Any]:
             scale_factor_ppm=2500.0,  # ICM-42688-P sensitivity tolerance +-0.5 % read as 2 sigma
             cross_axis_pct=0.5,  # ICM-42688-P cross-axis sensitivity +-1 % read as 2 sigma
             gyro_g_sensitivity_dps_per_g=0.05,  # BMI088 g-sensitivity 0.1 deg/s/g read as 2 sigma
+            saturation=True,  # full scale: ICM-42688-P +-16 g / +-2000 deg/s (DS-000347), BMI088 +-24 g / +-2000 deg/s
             vibration=VibrationRealism(
                 accel_mps2=(1.0, 1.0, 2.0),
                 gyro_dps=(0.3, 0.3, 0.2),
@@ -486,6 +491,8 @@ class Realism:
             changes["gyro_cross_axis"] = err.gyro_cross_axis
         if err is not None and cfg.gyro_g_sensitivity_dps_per_g:
             changes["gyro_g_sensitivity"] = err.gyro_g_sensitivity
+        if cfg.saturation:
+            changes["saturation"] = True
         missing = sorted(set(changes) - {f.name for f in dataclasses.fields(params)})
         if missing:
             raise ConfigError(

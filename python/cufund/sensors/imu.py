@@ -11,8 +11,10 @@ mounting rotation ``q_BI`` (IMU frame to body),
 
 with ``s`` the scale-factor errors, ``C`` the cross-axis sensitivities (off-diagonal, zero diagonal), ``G`` the
 gyroscope's g-sensitivity [rad/s per m/s^2], ``vib`` the rotor vibration after the anti-alias filter
-(:mod:`cufund.sensors.imu_vibration`, from the true rotor speeds) and ``sat`` the per-axis range acting on the
-total (vibration can clip). Every term but the noise defaults to zero.
+(:mod:`cufund.sensors.imu_vibration`, from the true rotor speeds) and ``sat`` the per-axis full-scale range acting
+on the total (vibration can clip), applied when ``saturation`` is on (off by default; the ``realistic`` profile
+turns it on with the part's datasheet ranges, e.g. the BMI088's +-24 g / +-2000 deg/s). Every term but the noise
+defaults to zero.
 
 A level IMU at rest reads +g on its z axis (FLU). Noise densities use Kalibr's and PX4's units:
 accelerometer m/s^2/sqrt(Hz) and random walk m/s^3/sqrt(Hz); gyroscope rad/s/sqrt(Hz) and rad/s^2/sqrt(Hz).
@@ -76,9 +78,12 @@ class ImuParams:
     gyro_scale_factor: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """Scale-factor error per axis."""
     accel_range: float = 16 * G0
-    """Saturation of each accelerometer axis [m/s^2]."""
+    """Full-scale range of each accelerometer axis [m/s^2] (the readings clip there when ``saturation`` is on)."""
     gyro_range: float = 2000 * DEG
-    """Saturation of each gyroscope axis [rad/s]."""
+    """Full-scale range of each gyroscope axis [rad/s] (the readings clip there when ``saturation`` is on)."""
+    saturation: bool = False
+    """Whether readings clip at the full-scale ranges (off: the model reads any motion, e.g. a hard landing's
+    impact, unclipped)."""
     accel_cross_axis: tuple[float, float, float, float, float, float] = (0.0,) * 6
     """Cross-axis sensitivity, the off-diagonal elements (xy, xz, yx, yz, zx, zy) of the sensitivity matrix
     (0.01: 1 % of the y-axis input leaks into x for xy). Measured = (I + diag(scale_factor) + C) true."""
@@ -111,6 +116,8 @@ class ImuParams:
         if abs(np.linalg.norm(q) - 1.0) > 1e-6:
             raise ConfigError(f"q_BI must be a unit quaternion [w, x, y, z], got norm {np.linalg.norm(q)}")
         check_real_fields(self, "ImuParams", positive=True, names=("accel_range", "gyro_range"))
+        if not isinstance(self.saturation, bool):
+            raise ConfigError(f"ImuParams.saturation must be true or false, got {self.saturation!r}")
 
     @classmethod
     def from_dict(cls, data: dict) -> ImuParams:
@@ -133,6 +140,7 @@ class ImuModel:
         self._vibration = (
             RotorVibration(params.vibration, 1.0 / params.rate_hz, seed) if params.vibration.enabled else None
         )
+        self._sat = params.saturation
         self._mounted = (  # anything but white noise, bias and saturation: the general (matrix) path
             tuple(params.q_BI) != (1.0, 0.0, 0.0, 0.0)
             or any(params.accel_scale_factor)
@@ -221,8 +229,9 @@ class ImuModel:
             va, vg = self._vibration.sample(rotors, k)
             acc += va
             gyr += vg
-        acc = np.clip(acc, -self.params.accel_range, self.params.accel_range)
-        gyr = np.clip(gyr, -self.params.gyro_range, self.params.gyro_range)
+        if self._sat:
+            acc = np.clip(acc, -self.params.accel_range, self.params.accel_range)
+            gyr = np.clip(gyr, -self.params.gyro_range, self.params.gyro_range)
         return (acc[0], gyr[0]) if single else (acc, gyr)
 
     def _measure_one(
@@ -261,20 +270,22 @@ class ImuModel:
                 va, vg = self._vibration.sample_one(rotors)
                 f += va
                 g += vg
-            ar, gr = self.params.accel_range, self.params.gyro_range
-            if max(abs(f[0]), abs(f[1]), abs(f[2])) > ar:
-                f = np.clip(f, -ar, ar)
-            if max(abs(g[0]), abs(g[1]), abs(g[2])) > gr:
-                g = np.clip(g, -gr, gr)
+            if self._sat:
+                ar, gr = self.params.accel_range, self.params.gyro_range
+                if max(abs(f[0]), abs(f[1]), abs(f[2])) > ar:
+                    f = np.clip(f, -ar, ar)
+                if max(abs(g[0]), abs(g[1]), abs(g[2])) > gr:
+                    g = np.clip(g, -gr, gr)
             return f, g
         # IMU axes along the body's, no scale-factor error: no matrix products, no arrays until the result
         e0, e1, e2, e3, e4, e5 = self._errors.sample_one_values()
         fx, fy, fz, wx, wy, wz = fx + e0, fy + e1, fz + e2, wx + e3, wy + e4, wz + e5
-        ar, gr = self.params.accel_range, self.params.gyro_range
-        if max(abs(fx), abs(fy), abs(fz)) > ar:
-            fx, fy, fz = (min(max(v, -ar), ar) for v in (fx, fy, fz))
-        if max(abs(wx), abs(wy), abs(wz)) > gr:
-            wx, wy, wz = (min(max(v, -gr), gr) for v in (wx, wy, wz))
+        if self._sat:
+            ar, gr = self.params.accel_range, self.params.gyro_range
+            if max(abs(fx), abs(fy), abs(fz)) > ar:
+                fx, fy, fz = (min(max(v, -ar), ar) for v in (fx, fy, fz))
+            if max(abs(wx), abs(wy), abs(wz)) > gr:
+                wx, wy, wz = (min(max(v, -gr), gr) for v in (wx, wy, wz))
         return np.array((fx, fy, fz)), np.array((wx, wy, wz))
 
     def measure_static(
