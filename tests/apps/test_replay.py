@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from cufund.scenarios import load_scenario, run_scenario
+from cufund.viz.flight import Flight
 from cufund.viz.replay import replay_html, viewer_page, write_replay_html
 
 
@@ -50,17 +51,18 @@ def _near(img, rgb, tol=40):
 
 
 def test_replay_is_self_contained(run):
-    html = replay_html(run.result, run.config.vehicle_params(), run.reference)
+    html = replay_html(Flight.from_result(run.result, run.reference), run.config.vehicle_params())
     assert "new MeshCat.Viewer" in html
     assert html.count("data:application/octet-binary;base64,") >= 10  # scene and animation embedded
     assert "<script src" not in html and "<link" not in html  # nothing loaded from elsewhere
 
 
 def test_replay_draws_in_chromium(run, tmp_path):
-    page = write_replay_html(tmp_path / "replay.html", run.result, run.config.vehicle_params(), run.reference)
+    flight = Flight.from_result(run.result, run.reference)
+    page = write_replay_html(tmp_path / "replay.html", flight, run.config.vehicle_params())
     img = _screenshot(page, tmp_path / "shot.png", tmp_path)
     assert img.shape[:2] == (600, 800)
-    # the flown path (red, 0xd62728) and the planned path (blue, 0x1f77b4) are drawn unlit in their own colours;
+    # the flown path (red, 0xd62728) and the planned path (green, 0x2ca02c) are drawn unlit in their own colours;
     # MeshCat's empty scene has neither (a blue-grey gradient and a grid)
     assert _near(img, (214, 39, 40)) > 40
     # and the page is not one flat colour

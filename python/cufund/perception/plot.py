@@ -21,7 +21,7 @@ def plot_detection(
     """Top view (x-y) and side view (distance along the course - z) of ``points_W`` (N, 3) in grey, each
     detection's points in its own colour, its opening's centre (red dot, the paper's marker), the opening's
     edges and normal, the paper's cluster mean (black x) and, if given, the true centres ``truth`` (K, 3) (green
-    +). Saves to ``path`` when given; returns the matplotlib figure."""
+    +); the frames' legend is in the top view, the markers' in the side view. Saves (200 dpi) to ``path`` when given; returns the matplotlib figure."""
     import matplotlib
 
     if path is not None:
@@ -76,7 +76,13 @@ def plot_detection(
     top.set_xlabel("x [m]")
     top.set_ylabel("y [m]")
     top.set_title("top view")
-    top.legend(loc="upper left", fontsize=7, markerscale=2)
+    # two legends: the frames (their points' colours) in the top view, the markers in the side view
+    frames = [h for h in top.collections if not h.get_label().startswith("_")]
+    markers = [h for h in top.get_lines() if not h.get_label().startswith("_")]
+    if frames:
+        top.legend(
+            handles=frames, loc="upper left", fontsize=7, markerscale=3, title="detected frames", title_fontsize=7
+        )
     along = span @ direction
     side.set_xlim(along.min() - 1.5, along.max() + 1.5)
     side.set_ylim(-0.1, max(2.0, hi[2] - 0.5))
@@ -84,9 +90,11 @@ def plot_detection(
     side.set_xlabel("along the course [m]")
     side.set_ylabel("z [m]")
     side.set_title("side view")
+    if markers:
+        side.legend(handles=markers, loc="upper right", fontsize=7, title="markers", title_fontsize=7)
     fig.suptitle("Tunnel frames: DBSCAN clusters, opening centres (red), cluster means (x)")
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=120)
+        fig.savefig(path, dpi=200)
         plt.close(fig)
     return fig

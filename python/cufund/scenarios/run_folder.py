@@ -1,6 +1,6 @@
-"""Writing a run folder: metrics.json, config.yaml (reproduces the run), trajectory.png and replay.html (when the
-run flew a reference); ``run.mcap`` is written while the run goes (see :func:`cufund.scenarios.build.run_scenario`'s
-``logger``).
+"""Writing a run folder: metrics.json, config.yaml (reproduces the run), the figures (trajectory and errors, PNG
+and SVG) and replay.html (when the run flew); ``run.mcap`` is written while the run goes (see
+:func:`cufund.scenarios.build.run_scenario`'s ``logger``).
 
 ``config.yaml`` is written before the run starts, so a killed run's folder still says what it ran. A run stopped by
 :class:`RunInterrupted` (``cufund run`` raises it on SIGINT and SIGTERM) closes its log (complete, with its
@@ -18,7 +18,7 @@ import yaml
 
 from .build import ScenarioRun
 
-__all__ = ["RunInterrupted", "run_into_folder", "write_config", "write_run_folder"]
+__all__ = ["RunInterrupted", "run_into_folder", "world_of", "write_config", "write_run_folder"]
 
 
 class RunInterrupted(KeyboardInterrupt):
@@ -50,28 +50,70 @@ def _json_safe(x: Any) -> Any:
     return x
 
 
+def world_of(config: Any) -> Any:
+    """The scenario's world built again from its description (the same kind and parameters, so the same meshes
+    as the run's), for figures and replays; None without a world."""
+    if getattr(config, "world", None) is None:
+        return None
+    from .build import ScenarioBuildContext
+
+    return ScenarioBuildContext(config).build("world", config.world, "world")
+
+
+def _phases(run: ScenarioRun, t0: float, t1: float) -> list[Any]:
+    """A reference's parts: the min-snap path (``run.path``) between take-off and landing."""
+    from cufund.viz.flight import Phase
+
+    if run.path is None:
+        return []
+    a, b = float(run.path.t_knots[0]), float(run.path.t_end)
+    spans = [(t0, a, "take-off and hover"), (a, b, "path"), (b, t1, "landing")]
+    return [Phase(max(t0, x), min(t1, y), name) for x, y, name in spans if min(t1, y) > max(t0, x)]
+
+
+def _title(run: ScenarioRun) -> str:
+    m = run.metrics
+    parts = [f"{run.config.name}: {m.get('status', run.result.status.value)}"]
+    if m.get("tracking_rmse_m") is not None:
+        parts.append(f"tracking RMSE {100 * m['tracking_rmse_m']:.2f} cm")
+    if m.get("odometry_rmse_m") is not None:
+        parts.append(f"odometry RMSE {100 * m['odometry_rmse_m']:.2f} cm")
+    return ", ".join(parts)
+
+
 def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, replay: bool = True) -> Path:
-    """Writes the run's files into ``out`` (created if needed); returns the folder."""
+    """Writes the run's files into ``out`` (created if needed): metrics.json, config.yaml, then, for a run that
+    flew, ``trajectory`` and ``errors`` (PNG and SVG, :mod:`cufund.viz.plots`) and ``replay.html``
+    (:mod:`cufund.viz.replay`) of the world and the flight. The parts' output hooks run first, with
+    ``flight=`` the :class:`cufund.viz.flight.Flight` they may add to (gates, phases, markers); returns the
+    folder."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     _write_metrics(run.metrics, out)
     write_config(run.config, out)
-    params = run.config.vehicle_params()
-    if plots and run.reference is not None and run.path is not None and run.metrics.get("tracking_rmse_m") is not None:
-        from cufund.viz.plots import plot_tracking
+    flight = None
+    if (plots or replay) and len(run.result.states["t"]) >= 2:
+        from cufund.viz.flight import Flight
 
-        window = (float(run.path.t_knots[0]), run.path.t_end)
-        title = (
-            f"{run.config.name}, {run.config.controller.kind if run.config.controller else 'no controller'}: "
-            f"RMSE {100 * run.metrics['tracking_rmse_m']:.2f} cm, max {100 * run.metrics['tracking_max_m']:.2f} cm"
-        )
-        plot_tracking(out / "trajectory.png", run.result, run.reference, window, title)
+        trajectory = getattr(run.config, "trajectory", None)  # its waypoints, when the run flew through them
+        waypoints = trajectory.waypoints if trajectory is not None and run.path is not None else None
+        flight = Flight.from_result(run.result, run.reference, waypoints)
+        flight.phases = _phases(run, float(flight.t[0]), float(flight.t[-1]))
+        flight.title = _title(run)
+    for hook in run.output_hooks:
+        hook(run, out, plots=plots, replay=replay, flight=flight)
+    if flight is None:
+        return out
+    world = world_of(run.config)
+    if plots:
+        from cufund.viz.plots import plot_errors, plot_trajectory
+
+        plot_trajectory(out / "trajectory", flight, world)
+        plot_errors(out / "errors", flight)
     if replay:
         from cufund.viz.replay import write_replay_html
 
-        write_replay_html(out / "replay.html", run.result, params, run.reference)
-    for hook in run.output_hooks:
-        hook(run, out, plots=plots, replay=replay)
+        write_replay_html(out / "replay.html", flight, run.config.vehicle_params(), world)
     return out
 
 
