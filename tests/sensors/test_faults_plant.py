@@ -225,3 +225,17 @@ def test_bad_plant_faults_are_rejected_by_name(faults, message):
     with pytest.raises(ConfigError) as e:
         load_scenario("square").replace(faults=faults)
     assert message in str(e.value)
+
+
+def test_each_fault_is_logged_when_it_begins_to_act(caplog):
+    faults = {
+        "motor_efficiency": {"t_start": 0.2, "motor": 1, "efficiency": 0.9},
+        "gps_jump": {"t_start": 0.25, "offset_m": [1, 0, 0]},
+    }
+    with caplog.at_level("INFO", logger="cufund.faults"):
+        run_scenario(load_scenario("square_sensors", ["duration=0.5"]).replace(faults=faults))
+    lines = [r.getMessage() for r in caplog.records if r.name == "cufund.faults"]
+    assert len(lines) == 2
+    assert lines[0].startswith("fault motor_efficiency acts from t = 0.200000 s")
+    # the first fix measured at or after 0.25 s (0.3 s, 10 Hz), published with the receiver's 0.1 s latency
+    assert lines[1].startswith("fault gps_jump acts from t = 0.400000 s")

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import logging
 from typing import Any, ClassVar
 
 import numpy as np
+
+_log = logging.getLogger("cufund.faults")
 
 __all__ = ["FaultRun", "SensorFault"]
 
@@ -25,6 +28,8 @@ class FaultRun:
     def apply(self, now: float, msg: Any) -> Any:
         out = self.fault.apply(now, msg, self)
         if out is not msg:
+            if not self.affected:
+                _log.info("fault %s acts from t = %.6f s: %r", self.fault.kind, now, self.fault)
             self.affected += 1
         return out
 

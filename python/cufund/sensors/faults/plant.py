@@ -23,6 +23,7 @@ force and torque (what else sets them, e.g. a gust model, is kept).
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -35,6 +36,8 @@ from cufund.core.config import ConfigError
 from cufund.geometry import quat_to_matrix
 
 from .common import check_real, check_time
+
+_log = logging.getLogger("cufund.faults")
 
 __all__ = ["MotorEfficiency", "MotorFailure", "PlantFault", "PlantFaults", "PropImbalance", "plant_faults"]
 
@@ -163,16 +166,18 @@ class PlantFaults(Component):
         self._omega_prev: dict[int, float] = {}
         self._t_prev: float | None = None
         self._stopped: dict[int, tuple[float, float]] = {}  # rotor -> (t_start, speed then)
-        self.started: set[str] = set()
-        """Kinds of the faults that have begun acting in this run."""
+        self.started: set[int] = set()
+        """Indices of the faults that have begun acting in this run."""
 
     def step(self, t: float, bus: Any) -> None:
         plant, faults = self.plant, self.faults
         eta = np.ones(4)
-        for f in faults:
+        for i, f in enumerate(faults):
             if t >= f.t_start:
                 eta[f.motor] *= f.efficiency_at(t)
-                self.started.add(f.kind)
+                if i not in self.started:
+                    self.started.add(i)
+                    _log.info("fault %s acts from t = %.6f s: %r", f.kind, t, f)
         if not np.array_equal(eta, self._eta):
             plant.set_rotor_efficiency(eta)
             self._eta, self._touched_eta = eta, True
