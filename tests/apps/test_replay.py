@@ -75,3 +75,35 @@ def test_empty_scene_has_no_path_colour(tmp_path):
     page.write_text(viewer_page([]), encoding="utf-8")
     img = _screenshot(page, tmp_path / "empty.png", tmp_path)
     assert _near(img, (214, 39, 40)) < 10
+
+
+def test_cufund_replay_draws_the_run_folders_world(tmp_path):
+    """`cufund replay` on a forest run's log draws the forest the run flew in (rebuilt from config.yaml beside
+    the log: the same trunks as the world kind builds on its own) and frames the camera on the flight."""
+    import umsgpack
+
+    from cufund.apps import log_replay
+    from cufund.scenarios.run_folder import run_into_folder
+    from cufund.viz.meshcat_scene import import_meshcat
+    from cufund.viz.replay import _RecordingWindow
+    from cufund.worlds.builtin import forest
+
+    run = run_into_folder(load_scenario("forest", ["duration=3"]), tmp_path, plots=False, replay=False)
+    log = tmp_path / "run.mcap"
+    params, T_BL = log_replay.run_context(log, None)
+    window = _RecordingWindow()
+    stats = log_replay.replay_log(
+        log, import_meshcat().Visualizer(window=window), params, speed=0, T_BL=T_BL, world=log_replay.run_world(log)
+    )
+    commands = [umsgpack.unpackb(c) for c in window.commands]
+    trees = next(c for c in commands if c["type"] == "set_object" and c["path"] == "/meshcat/world/tree")
+    position = trees["object"]["geometries"][0]["data"]["attributes"]["position"]
+    drawn = np.frombuffer(position["array"].data, np.float32).reshape(-1, 3)
+    expected = np.vstack([o.vertices for o in forest(0, 620, 64.0, 2.0).objects if o.label == "tree"])
+    assert np.allclose(drawn, expected, atol=1e-4)
+    assert ("tree (620)", 0x66401A) in stats.legend
+    # the scene is moved so that the flight's bounding-box centre is where MeshCat's camera orbits
+    root = next(c for c in commands if c["type"] == "set_transform" and c["path"] == "/meshcat")
+    p = run.result.states["p_W"]
+    centre = (p.min(axis=0) + p.max(axis=0)) / 2
+    assert np.allclose(np.array(root["matrix"]).reshape(4, 4).T[:3, 3], -centre, atol=0.05)

@@ -1,7 +1,10 @@
 """`cufund replay RUN.mcap`: re-opens a run's log in the MeshCat viewer (served on 127.0.0.1).
 
-Shows the vehicle at its true pose (``/truth/odometry``) with its flown path, the estimate (``/estimator/odometry``,
-a translucent green box and path) when the log has one, and each LiDAR frame (``/sensors/lidar``) in the world
+Shows the scenario's world (rebuilt from the run folder's ``config.yaml``, drawn as ``replay.html`` draws it:
+:func:`cufund.viz.world_scene.draw_world`), the vehicle at its true pose (``/truth/odometry``) with its flown path
+(red), the estimate (``/estimator/odometry``, a translucent blue box and path) when the log has one, the
+setpoints' path (``/setpoint/trajectory``, green), the camera framed on the flight, and each LiDAR frame
+(``/sensors/lidar``) in the world
 frame: its points, in the LiDAR frame, moved by the LiDAR's mounting ``T_BL`` and the body pose at the frame's
 stamp (the estimate when there is one — what a mapper would use — else the truth; per-point motion within a
 frame is not undone). The vehicle's shape and ``T_BL`` come from the run folder's ``config.yaml`` beside the
@@ -23,13 +26,32 @@ import numpy as np
 from cufund.geometry import quat_to_matrix
 from cufund.logs import McapReadError, log_metadata, log_topics, read_mcap
 from cufund.vehicle.params import QuadrotorParams
-from cufund.viz.meshcat_scene import FLOWN, VEHICLE, draw_path, draw_vehicle, import_meshcat, pose_matrix
+from cufund.viz.meshcat_scene import (
+    ESTIMATE_COLOR,
+    ESTIMATE_VEHICLE,
+    ESTIMATED,
+    FLOWN,
+    PLANNED,
+    PLANNED_COLOR,
+    TRUTH_COLOR,
+    VEHICLE,
+    apply_view,
+    draw_estimate_marker,
+    draw_path,
+    draw_vehicle,
+    frame_view,
+    import_meshcat,
+    pose_matrix,
+    vehicle_scale,
+)
+from cufund.viz.world_scene import draw_world
 
 __all__ = ["ReplayStats", "add_arguments", "replay_log", "run"]
 
 TRUTH, ESTIMATE, LIDAR = "/truth/odometry", "/estimator/odometry", "/sensors/lidar"
-ESTIMATE_VEHICLE, ESTIMATED, CLOUD = "estimate", "estimated", "lidar"
-"""MeshCat paths of the estimated pose, the estimated path and the current LiDAR frame."""
+SETPOINTS = "/setpoint/trajectory"
+CLOUD = "lidar"
+"""The MeshCat path of the current LiDAR frame."""
 
 
 @dataclass(frozen=True)
@@ -42,6 +64,8 @@ class ReplayStats:
     """LiDAR frames drawn."""
     duration_s: float
     """Log time covered [s]."""
+    legend: tuple[tuple[str, int], ...] = ()
+    """What the scene shows: (text, 0xRRGGBB)."""
 
 
 def replay_log(
@@ -54,10 +78,12 @@ def replay_log(
     T_BL: tuple[np.ndarray, np.ndarray] | None = None,
     sleep: Callable[[float], None] = time.sleep,
     clock: Callable[[], float] = time.perf_counter,
+    world: Any = None,
 ) -> ReplayStats:
     """Plays the log at ``path`` into the MeshCat visualizer ``vis`` at ``rate_hz`` viewer frames per second of
     log time, ``speed`` times real time (0: as fast as possible; ``sleep`` and ``clock`` pace it). ``T_BL``: the
-    LiDAR's mounting (p_BL, q_BL [w, x, y, z]); identity when None."""
+    LiDAR's mounting (p_BL, q_BL [w, x, y, z]); identity when None. ``world``: the scenario's world, drawn
+    under the flight (None: MeshCat's grid only)."""
     if not (np.isfinite(speed) and speed >= 0):
         raise ValueError(f"speed must be a finite number >= 0 (0: as fast as possible), got {speed!r}")
     if not (np.isfinite(rate_hz) and rate_hz > 0):
@@ -73,15 +99,32 @@ def replay_log(
     )
     meshcat = import_meshcat()
     g = meshcat.geometry
+    # a first pass over the poses and setpoints (not the clouds) frames the camera on the whole flight
+    seen = [t for t in (TRUTH, ESTIMATE, SETPOINTS) if t in available]
+    track: dict[str, list[np.ndarray]] = {t: [] for t in seen}
+    for record in read_mcap(path, topics=seen):
+        p_W = getattr(record.message, "p_W", None)
+        if p_W is not None:
+            track[record.topic].append(np.asarray(p_W, dtype=float))
+    framing = [np.array(track[t]).reshape(-1, 3) for t in (TRUTH, SETPOINTS) if t in track]
+    framing = [f for f in framing if len(f)] or [np.array(track.get(ESTIMATE, [])).reshape(-1, 3)]
+    view = frame_view(np.vstack(framing))
     vis.delete()
-    draw_vehicle(vis, params)
-    # the camera of replay.html: 2.6 m south-east of the origin and 2.6 m up (MeshCat's y-up camera frame)
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [2.0, 2.6, 2.6])
+    apply_view(vis, view)
+    legend: list[tuple[str, int]] = [("flown (truth)", TRUTH_COLOR)] if TRUTH in topics else []
+    if world is not None:
+        legend += draw_world(vis, world)
+    scale = vehicle_scale(params, view)
+    draw_vehicle(vis, params, scale)
     if ESTIMATE in topics:
-        d = params.arm_length
-        vis[ESTIMATE_VEHICLE].set_object(
-            g.Box([2 * d, 2 * d, 0.3 * d]), g.MeshLambertMaterial(color=0x2CA02C, opacity=0.4, transparent=True)
-        )
+        draw_estimate_marker(vis, params, scale)
+        legend.append(("estimate", ESTIMATE_COLOR))
+    if len(track.get(SETPOINTS, [])) >= 2:
+        points = np.array(track[SETPOINTS])
+        draw_path(vis, PLANNED, points[:: max(1, len(points) // 3000)], PLANNED_COLOR)
+        legend.append(("setpoints", PLANNED_COLOR))
+    if LIDAR in topics:
+        legend.append(("LiDAR frame (grey: intensity)", 0x808080))
 
     period_ns = int(round(1e9 / rate_hz))
     latest: dict[str, Any] = {}
@@ -94,8 +137,8 @@ def replay_log(
     def draw_frame(now_ns: int) -> None:
         nonlocal frames
         for topic, node, path_node, color in (
-            (TRUTH, VEHICLE, FLOWN, 0xD62728),
-            (ESTIMATE, ESTIMATE_VEHICLE, ESTIMATED, 0x2CA02C),
+            (TRUTH, VEHICLE, FLOWN, TRUTH_COLOR),
+            (ESTIMATE, ESTIMATE_VEHICLE, ESTIMATED, ESTIMATE_COLOR),
         ):
             odometry = latest.get(topic)
             if odometry is None:
@@ -131,10 +174,10 @@ def replay_log(
             latest[record.topic] = record.message
     if latest and next_frame is not None:
         draw_frame(last_ns)
-        for topic, path_node, color in ((TRUTH, FLOWN, 0xD62728), (ESTIMATE, ESTIMATED, 0x2CA02C)):
+        for topic, path_node, color in ((TRUTH, FLOWN, TRUTH_COLOR), (ESTIMATE, ESTIMATED, ESTIMATE_COLOR)):
             if len(paths[topic]) >= 2:
                 draw_path(vis, path_node, np.array(paths[topic]), color)
-    return ReplayStats(frames, clouds, (last_ns - first_ns) / 1e9)
+    return ReplayStats(frames, clouds, (last_ns - first_ns) / 1e9, tuple(legend))
 
 
 def _speed(text: str) -> float:
@@ -184,6 +227,22 @@ def run_context(path: Path, vehicle: str | None) -> tuple[QuadrotorParams, tuple
     return params or presets.cu_astro(), T_BL
 
 
+def run_world(path: Path) -> Any:
+    """The scenario's world, built again from the run folder's ``config.yaml`` beside the log (None: no such
+    file, no world, or it does not build; the replay then shows MeshCat's grid)."""
+    config_path = path.parent / "config.yaml"
+    if not config_path.is_file():
+        return None
+    try:
+        from cufund.scenarios.run_folder import world_of
+        from cufund.scenarios.schema import load_scenario
+
+        return world_of(load_scenario(config_path))
+    except Exception as exc:
+        print(f"cufund replay: no world from {config_path} ({exc})", file=sys.stderr)
+        return None
+
+
 def run(args: argparse.Namespace) -> int:
     """``cufund replay``: 0 when the log was replayed, 2 when it cannot be read."""
     path = Path(args.log)
@@ -198,7 +257,9 @@ def run(args: argparse.Namespace) -> int:
     vis, server = start_server()
     print(f"MeshCat: open {vis.window.web_url}", flush=True)
     try:
-        stats = replay_log(path, vis, params, speed=args.speed, rate_hz=args.rate, T_BL=T_BL)
+        world = run_world(path)
+        stats = replay_log(path, vis, params, speed=args.speed, rate_hz=args.rate, T_BL=T_BL, world=world)
+        print("shown: " + ", ".join(f"{text} (#{color:06x})" for text, color in stats.legend), flush=True)
         print(
             f"replayed {stats.duration_s:.1f} s of {metadata.get('scenario', path.name)}: {stats.frames} frames, "
             f"{stats.clouds} LiDAR frames"
