@@ -135,7 +135,11 @@ class FailsafeSupervisor(Planner):
 
     @property
     def ended_flight(self) -> str | None:
-        """'failsafe_landed' / 'failsafe_returned' once a failsafe took the vehicle down, else None."""
+        """'failsafe_landed' / 'failsafe_returned' once a failsafe took the vehicle down, else None (also when the
+        operator took over from the commander afterwards)."""
+        overridden = getattr(self.takeover, "overridden", None)
+        if overridden is not None and overridden():
+            return None
         if self.took in ("land", "disarm"):
             return "failsafe_landed"
         if self.took == "rtl":
@@ -234,10 +238,11 @@ class FailsafeSupervisor(Planner):
             ):
                 self._fire(t, "land", f"estimator unhealthy for {t - t0:.1f} s ({why})", bus)
         elif self._est_fired_at is not None:
-            self._event(t, "cleared", f"estimator healthy again after {t - self._est_fired_at:.1f} s")
+            if self.action == "hold":  # recovered before the landing (a landing once begun goes on)
+                self._event(t, "cleared", f"estimator healthy again after {t - self._est_fired_at:.1f} s")
+                if self.takeover is not None and hasattr(self.takeover, "mission"):
+                    self.action = "none"  # the mission held by itself at a rest point and goes on
             self._est_fired_at = None
-            if self.action == "hold" and self.takeover is not None and hasattr(self.takeover, "mission"):
-                self.action = "none"  # the mission held by itself at a rest point and goes on
         self._geofence_check(t, s, home, bus)
 
     def _estimate_problem(self, t: float, healthy: bool, why: str, gps_ok: bool) -> tuple[float, str] | None:

@@ -57,7 +57,22 @@ class CommanderTakeover:
 
     def _do(self, t: float, command: dict[str, Any]) -> str:
         ack = self.commander.apply(command, t)
-        return "" if ack.result == "accepted" else f"the commander refused {command['command']}: {ack.message}"
+        if ack.result != "accepted":
+            return f"the commander refused {command['command']}: {ack.message}"
+        self._since = len(self.commander.events)
+        return ""
+
+    _FAILSAFE_MODES = ("hold", "rtl", "land", "idle")
+
+    def overridden(self) -> bool:
+        """Whether the operator took over after the failsafe (a mode other than the failsafe's own followed)."""
+        since = getattr(self, "_since", None)
+        if since is None:
+            return False
+        return any(
+            e["kind"] == "mode" and e.get("mode") not in self._FAILSAFE_MODES
+            for e in self.commander.events.since(since)
+        )
 
     def hold(self, t: float, reason: str, bus: Any) -> str:
         return self._do(t, {"command": "hold"})

@@ -222,8 +222,10 @@ class TunnelMission(Planner):
         """When the reference comes to rest on the ground (landing's end) [s]."""
         self._t_state = 0.0
         self._t_leg_end = math.inf
-        self.health = EstimatorHealth(self.params.lidar_silence_s)
-        """The estimator's health, the failsafe supervisor's too (one monitor: it lands when the mission waits)."""
+        if getattr(self, "health", None) is None:  # kept across runs: the failsafe supervisor holds the same one
+            self.health = EstimatorHealth(self.params.lidar_silence_s)
+            """The estimator's health, the failsafe supervisor's too (one monitor: it lands when the mission waits)."""
+        self.health.reset()
         self._failsafe: tuple[str, str] | None = None  # a failsafe's land request (action, reason), done at once
         self._stable = 0
         self._crept = False
