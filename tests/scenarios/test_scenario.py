@@ -163,8 +163,9 @@ def test_overrides_from_python_and_the_cli(tmp_path, capsys):
         load_scenario("square", ["controller.position.xy_pp=1"])
     with pytest.raises(ConfigError, match="--set takes KEY=VALUE"):
         load_scenario("square", ["controller.kind"])
-    with pytest.raises(ConfigError, match="vehicle is 'cu_astro', not a mapping"):
-        load_scenario("square", ["vehicle.mass=2"])
+    heavy = load_scenario("square", ["vehicle.mass=1"])  # a preset name becomes {preset: cu_astro, mass: 1}
+    assert heavy.vehicle == {"preset": "cu_astro", "mass": 1}
+    assert heavy.vehicle_params().k_f == cufund.presets.cu_astro().k_f
     assert main(["run", "square", "--set", "controller.kind=lqr"]) == 2
     assert "controller.kind must be one of" in capsys.readouterr().err
     assert (
