@@ -36,6 +36,7 @@ from .patterns import (
     os1_64,
     vlp16,
 )
+from .power_monitor import PowerMonitor, PowerMonitorParams, PowerSystem
 
 __all__ = [
     "INVALID_ID",
@@ -75,6 +76,9 @@ __all__ = [
     "NoiseSpec",
     "PlanarPattern",
     "PointCloud",
+    "PowerMonitor",
+    "PowerMonitorParams",
+    "PowerSystem",
     "RgbCamera",
     "RosettePattern",
     "ScanPattern",
