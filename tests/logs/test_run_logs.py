@@ -107,4 +107,4 @@ def test_clouds_decode_to_the_simulators_points(run_log):
         xyz = points[:, :12].copy().view("<f4")  # x, y, z at offsets 0, 4, 8 (decoded without cufund's code)
         assert np.array_equal(xyz, cloud.points_L) and np.array_equal(back.points_L, cloud.points_L)
         assert np.array_equal(points[:, 17], cloud.channel)  # line
-        assert np.allclose(back.dt, cloud.dt, rtol=0, atol=1e-12) and back.t == pytest.approx(cloud.t, abs=1e-9)
+        assert np.allclose(back.dt, cloud.dt, rtol=0, atol=1e-9) and back.t == pytest.approx(cloud.t, abs=1e-9)

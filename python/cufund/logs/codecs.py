@@ -463,8 +463,9 @@ LIVOX_POINT = np.dtype(
         "itemsize": 26,
     }
 )
-"""A point of livox_ros_driver2's ``PointCloud2`` (its ``LivoxPointXyzrtlt``, packed): x, y, z [m], intensity,
-tag, line (the laser) and timestamp (the point's own time, ns since the epoch of the header's stamp, as float64)."""
+"""A point of livox_ros_driver2's ``PointCloud2`` (its ``LivoxPointXyzrtlt``, packed): x, y, z [m], intensity
+(Livox's reflectivity scale: whole numbers 0-255, cufund's [0, 1] intensity times 255), tag (0), line (the laser)
+and timestamp (the point's own time in ns on the header's clock, float64)."""
 TRUTH_POINT = np.dtype({"names": ["x", "y", "z", "object_id"], "formats": ["<f4", "<f4", "<f4", "<u4"]})
 """A point of the LiDAR truth cloud: the true hit in the world frame and the id of the object hit."""
 
@@ -480,9 +481,9 @@ class PointCloud2Codec(Codec):
     """``sensor_msgs/msg/PointCloud2`` (CDR): a LiDAR frame as livox_ros_driver2 publishes it (:data:`LIVOX_POINT`,
     in the sensor's frame) or the LiDAR truth (:data:`TRUTH_POINT`, in ``world``).
 
-    Read back as the cufund message: the points (float32) and the per-point times exactly (to the float64 rounding
-    of a nanosecond count), the intensity to float32, the stamp to the nanosecond; a frame's ranges are the
-    points' norms and its pattern index ``frame`` is not kept (-1)."""
+    Read back as the cufund message: the points (float32) exactly, the stamp and the per-point times to the
+    nanosecond, the intensity to 1/255 (what a Livox sensor reports); a
+    frame's ranges are the points' norms and its pattern index ``frame`` is not kept (-1)."""
 
     name = "ros2.PointCloud2"
     schema_encoding = "ros2msg"
@@ -524,9 +525,9 @@ class PointCloud2Codec(Codec):
                         f"topic {topic!r}: per-point field {attr!r} has shape {np.shape(getattr(m, attr))}, "
                         f"expected ({n},)"
                     )
-            data["intensity"] = m.intensity
+            data["intensity"] = np.round(np.clip(np.asarray(m.intensity, dtype=np.float64), 0.0, 1.0) * 255.0)
             data["line"] = m.channel
-            data["timestamp"] = stamp_ns + np.asarray(m.dt, dtype=np.float64) * 1e9
+            data["timestamp"] = stamp_ns + np.round(np.asarray(m.dt, dtype=np.float64) * 1e9)  # whole ns, as Livox
         w = ros2.CdrWriter().put("i", int(sec[0])).put("I", int(nsec[0])).string(self.frame_id)
         w.put("I", 1, n).put("I", len(self.fields))
         for name, offset, datatype in self.fields:
@@ -570,7 +571,7 @@ class PointCloud2Codec(Codec):
             dt=(pts["timestamp"].astype(np.float64) - stamp_ns) / 1e9,
             points_L=xyz,
             ranges=np.linalg.norm(xyz.astype(np.float64), axis=1),
-            intensity=pts["intensity"].astype(np.float64),
+            intensity=pts["intensity"].astype(np.float64) / 255.0,
             channel=pts["line"].astype(np.int32),
             frame=-1,
         )
