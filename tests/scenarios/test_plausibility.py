@@ -40,7 +40,7 @@ CASES = [
     ("  v_max: 1500", "trajectory.v_max", "m/s"),
     ("  a_max: 100", "trajectory.a_max", "m/s^2"),
     ("  move_v_max: 200", "trajectory.move_v_max", "m/s"),
-    ("  hover_s: 1\n  v_max: 1\n  hover_s: 2", "'hover_s'", "line 8"),
+    ("  hover_s: 1\n  v_max: 1\n  hover_s: 2", "trajectory.hover_s", "duplicate key 'hover_s' at line 8"),
 ]
 
 
@@ -131,7 +131,7 @@ def test_the_bounds_follow_the_vehicle_model_worked_by_hand():
 def test_a_duplicate_key_names_the_key_and_both_lines():
     with pytest.raises(ConfigError, match=r"here: duplicate key 'b' at line 3 \(first given at line 1\)"):
         load_yaml_text("b: 1\nc: {d: 1}\nb: 2\n", "here")
-    with pytest.raises(ConfigError, match=r"duplicate key 'd' at line 3 \(first given at line 2\)"):
+    with pytest.raises(ConfigError, match=r"duplicate key 'd' at line 3 \(first given at line 2\): c\.d may"):
         load_yaml_text("c:\n  d: 1\n  d: 1\n", "nested")
     # a merge key's values may be overridden, as YAML specifies
     assert load_yaml_text("a: &x {b: 1, c: 2}\nd:\n  <<: *x\n  b: 3\n", "merge")["d"] == {"b": 3, "c": 2}
@@ -142,6 +142,7 @@ def test_a_sweep_spec_with_a_duplicate_key_exits_2(tmp_path):
     spec.write_text("scenario: square\ngrid:\n  seed: [1, 2]\n  seed: [3]\n", encoding="utf-8")
     done = _cufund("sweep", str(spec), "--out", str(tmp_path / "out"), cwd=tmp_path)
     assert done.returncode == 2 and "duplicate key 'seed' at line 4" in done.stderr, done.stderr
+    assert "grid.seed may be given only once" in done.stderr
 
 
 @pytest.mark.parametrize("name", sorted(available_scenarios()))

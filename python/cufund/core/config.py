@@ -176,9 +176,31 @@ def load_yaml_text(text: str, where: str) -> Any:
     except RecursionError:
         raise ConfigError(f"{where}: nesting deeper than yaml_max_depth = {lim.yaml_max_depth}") from None
     except DuplicateKeyError as e:
-        raise ConfigError(f"{where}: {e}; each key may appear once in a mapping") from None
+        field = _key_path(node, e.line, e.key) or repr(e.key)
+        raise ConfigError(f"{where}: {e}: {field} may be given only once") from None
     except yaml.YAMLError as e:
         raise ConfigError(f"{where}: invalid YAML: {e}") from e
+
+
+def _key_path(root: yaml.Node, line: int, key: Any) -> str | None:
+    """The dotted path (``trajectory.hover_s``, ``grid.seed``, ``items[2].yaw``) of the mapping key ``key`` that
+    starts on 1-based ``line`` of a composed document, or None."""
+    stack: list[tuple[yaml.Node, str]] = [(root, "")]
+    seen: set[int] = set()
+    while stack:
+        n, path = stack.pop()
+        if id(n) in seen:
+            continue
+        seen.add(id(n))
+        if isinstance(n, yaml.MappingNode):
+            for k, v in n.value:
+                name = f"{path}.{k.value}" if path else str(k.value)
+                if isinstance(k, yaml.ScalarNode) and k.start_mark.line + 1 == line and k.value == str(key):
+                    return name
+                stack.append((v, name))
+        elif isinstance(n, yaml.SequenceNode):
+            stack.extend((v, f"{path}[{i}]") for i, v in enumerate(n.value))
+    return None
 
 
 def _check_yaml_graph(root: yaml.Node, path: Path | str, lim: Any) -> None:
