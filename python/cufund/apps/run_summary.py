@@ -75,8 +75,12 @@ _LINES: list[tuple[str, list[tuple[str, str, str]]]] = [
         [
             ("success", "success", ""),
             ("time", "mission_time_s", "s"),
+            ("goal reached at", "goal_reached_s", "s"),
             ("frames passed", "frames_passed", ""),
+            ("items reached", "mission_items_reached", ""),
+            ("path", "path_length_m", "m"),
             ("min clearance", "min_clearance_m", "m"),
+            ("replans", "replans", ""),
         ],
     ),
 ]
