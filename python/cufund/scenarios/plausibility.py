@@ -31,7 +31,7 @@ import functools
 import inspect
 import math
 import re
-import textwrap
+import sys
 from collections.abc import Iterator
 from typing import Any
 
@@ -80,29 +80,42 @@ def reach(vehicle: QuadrotorParams) -> Reach:
 
 
 @functools.cache
+def _module_units(module: str) -> dict[str, dict[str, str]]:
+    """Every class of ``module`` by qualified name: its fields' documented units (one parse per module)."""
+    try:
+        tree = ast.parse(inspect.getsource(sys.modules[module]))
+    except (KeyError, OSError, TypeError, SyntaxError):
+        return {}
+    out: dict[str, dict[str, str]] = {}
+    stack: list[tuple[ast.AST, str]] = [(tree, "")]
+    while stack:
+        parent, prefix = stack.pop()
+        for cls in (n for n in ast.iter_child_nodes(parent) if isinstance(n, ast.ClassDef)):
+            name = f"{prefix}{cls.name}"
+            stack.append((cls, f"{name}."))
+            units = out.setdefault(name, {})
+            for node, after in zip(cls.body, [*cls.body[1:], None], strict=True):
+                if not (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)):
+                    continue
+                if (
+                    isinstance(after, ast.Expr)
+                    and isinstance(after.value, ast.Constant)
+                    and isinstance(after.value.value, str)
+                ):
+                    unit = _UNIT.search(after.value.value)
+                    units[node.target.id] = unit.group(1).strip() if unit else ""
+    return out
+
+
+@functools.cache
 def field_units(cls: type) -> dict[str, str]:
     """The unit each field of dataclass ``cls`` documents: the first ``[...]`` of its attribute docstring (the
     string literal after the field; base classes included; "" when it gives none). Fields without a docstring are
     absent."""
     out: dict[str, str] = {}
     for klass in reversed(cls.__mro__):
-        if not dataclasses.is_dataclass(klass):
-            continue
-        try:
-            tree = ast.parse(textwrap.dedent(inspect.getsource(klass)))
-        except (OSError, TypeError, SyntaxError):
-            continue
-        body = next((n.body for n in tree.body if isinstance(n, ast.ClassDef)), [])
-        for node, after in zip(body, [*body[1:], None], strict=True):
-            if not (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)):
-                continue
-            if (
-                isinstance(after, ast.Expr)
-                and isinstance(after.value, ast.Constant)
-                and isinstance(after.value.value, str)
-            ):
-                unit = _UNIT.search(after.value.value)
-                out[node.target.id] = unit.group(1).strip() if unit else ""
+        if dataclasses.is_dataclass(klass):
+            out.update(_module_units(klass.__module__).get(klass.__qualname__, {}))
     return out
 
 
