@@ -148,6 +148,7 @@ class PlantFaults(Component):
         self._r_B = np.asarray(plant.params.rotor_positions(), dtype=float)
         self._spin = np.asarray(plant.params.rotor_spins(), dtype=float)
         self._tau = float(plant.params.tau_m)
+        self._t_first = min(f.t_start for f in self.faults)
         self._touched_eta = False
         self._force_W = np.zeros(3)
         self._torque_B = np.zeros(3)
@@ -170,6 +171,8 @@ class PlantFaults(Component):
         """Indices of the faults that have begun acting in this run."""
 
     def step(self, t: float, bus: Any) -> None:
+        if t < self._t_first:  # before the first fault: nothing to do
+            return
         plant, faults = self.plant, self.faults
         eta = np.ones(4)
         for i, f in enumerate(faults):
