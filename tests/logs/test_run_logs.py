@@ -108,3 +108,39 @@ def test_clouds_decode_to_the_simulators_points(run_log):
         assert np.array_equal(xyz, cloud.points_L) and np.array_equal(back.points_L, cloud.points_L)
         assert np.array_equal(points[:, 17], cloud.channel)  # line
         assert np.allclose(back.dt, cloud.dt, rtol=0, atol=1e-9) and back.t == pytest.approx(cloud.t, abs=1e-9)
+
+
+def test_the_shipped_foxglove_layout_names_only_what_a_tunnel_log_has(run_log):
+    """cufund.foxglove.json (in the package): its 3-D topics, plot paths and script inputs are in the tunnel's log,
+    with the fields the plots read."""
+    name, path, _ = run_log
+    if name != "tunnel":
+        pytest.skip("checked on the tunnel's log")
+    from importlib.resources import files
+
+    layout = json.loads((files("cufund.logs") / "cufund.foxglove.json").read_text())
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    schemas = {c.topic: summary.schemas[c.schema_id] for c in summary.channels.values()}
+    panels = layout["configById"]
+    assert set(panels["3D!cufund"]["topics"]) <= set(schemas)
+    script = next(iter(layout["userNodes"].values()))
+    scripted = script["sourceCode"].split("export const output = ")[1].split('"')[1]
+    for panel in (panels["Plot!position"], panels["Plot!error"]):
+        for entry in panel["paths"]:
+            topic, field = entry["value"].split(".", 1)
+            if topic == scripted:
+                continue
+            assert topic in schemas, topic
+            assert field.split("[")[0] in schemas[topic].data.decode().split(), (topic, field)
+    for topic in ("/truth/odometry", "/estimator/odometry"):
+        assert f'"{topic}"' in script["sourceCode"] and topic in schemas
+    assert panels["RawMessages!mission"]["topicPath"] in schemas
+    for panel_id in _panels(layout["layout"]):
+        assert panel_id in panels
+
+
+def _panels(node) -> list[str]:
+    if isinstance(node, str):
+        return [node]
+    return _panels(node["first"]) + _panels(node["second"])
