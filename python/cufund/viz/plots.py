@@ -139,8 +139,9 @@ def plot_trajectory(stem: str | Path, flight: Flight, world: Any = None) -> list
     top, side = fig.add_subplot(gs[0, 0]), fig.add_subplot(gs[0, 1])
     pts = f.framing_points()
     lo, hi = _limits(pts, 0.08, 0.3)
-    if world is not None:
-        _footprints(top, world, lo[:2], hi[:2])
+    if world is not None:  # the equal scale widens the shorter axis: take the objects of a square about the flight
+        half = 1.6 * float(np.max(hi[:2] - lo[:2])) / 2.0
+        _footprints(top, world, (lo[:2] + hi[:2]) / 2.0 - half, (lo[:2] + hi[:2]) / 2.0 + half)
     if f.planned_is_reference and len(f.planned_W):
         top.plot(f.planned_W[:, 0], f.planned_W[:, 1], ":", color="0.35", lw=1.0, label="planned", zorder=2)
     for p, colour, ls, lw, label in curves:
