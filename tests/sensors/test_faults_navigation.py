@@ -209,6 +209,8 @@ def test_navigation_faults_parse_round_trip_and_list_in_the_metrics():
         ({"baro_step": {"t_start": 1, "offset_m": "2"}}, "faults.baro_step.offset_m must be a number"),
         ({"baro_step": {"t_start": 1, "offset_pa": 1e6}}, "faults.baro_step.offset_pa must be a number in [-10000"),
         ({"gps_jump": {"t_start": 1, "offset": [1, 0, 0]}}, "unknown key 'offset' in faults.gps_jump"),
+        ({"gps_jump": {"t_start": 1}}, "missing key 'offset_m'"),
+        ({"gps_drift": {"t_start": 1, "rate_mps": [0, 0, 0]}}, "faults.gps_drift.rate_mps must not be all zero"),
     ],
 )
 def test_bad_navigation_faults_are_rejected_by_name(faults, message):

@@ -50,11 +50,14 @@ def check_real(where: str, value: Any, lo: float, hi: float, unit: str, lo_open:
     return float(value)
 
 
-def check_vector(where: str, value: Any, bound: float, unit: str) -> tuple[float, float, float]:
-    """3 finite numbers, each of magnitude at most ``bound``, else a ConfigError naming ``where``."""
+def check_vector(where: str, value: Any, bound: float, unit: str, nonzero: bool = False) -> tuple[float, float, float]:
+    """3 finite numbers, each of magnitude at most ``bound`` (``nonzero``: not all zero), else a ConfigError naming
+    ``where``."""
     v = vector3(where, value, unit, finite=True)
     if max(map(abs, v)) > bound:
         raise ConfigError(f"{where} must be at most {bound:g}{unit} per axis, got {list(v)}")
+    if nonzero and not any(v):
+        raise ConfigError(f"{where} must not be all zero (a fault that changes nothing){unit}, got {list(v)}")
     return v
 
 

@@ -67,8 +67,8 @@ class GpsJump(SensorFault):
 
     t_start: float
     """When the position jumps (measurement time) [s]."""
-    offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    """Position offset, ENU [m] (at most 1e4 per axis)."""
+    offset_m: tuple[float, float, float]
+    """Position offset, ENU [m] (not all zero; at most 1e4 per axis)."""
     duration: float | None = None
     """How long the offset lasts [s]; null: to the end of the run."""
     sensor: str = ""
@@ -80,7 +80,7 @@ class GpsJump(SensorFault):
     def __post_init__(self) -> None:
         w = f"faults.{self.kind}"
         object.__setattr__(self, "t_start", check_time(f"{w}.t_start", self.t_start))
-        object.__setattr__(self, "offset_m", check_vector(f"{w}.offset_m", self.offset_m, 1e4, " [m]"))
+        object.__setattr__(self, "offset_m", check_vector(f"{w}.offset_m", self.offset_m, 1e4, " [m]", nonzero=True))
         object.__setattr__(self, "duration", check_duration(f"{w}.duration", self.duration))
         check_sensor(f"{w}.sensor", self.sensor)
 
@@ -98,8 +98,8 @@ class GpsDrift(SensorFault):
 
     t_start: float
     """When the drift starts (measurement time) [s]."""
-    rate_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    """Drift velocity, ENU [m/s] (at most 100 per axis)."""
+    rate_mps: tuple[float, float, float]
+    """Drift velocity, ENU [m/s] (not all zero; at most 100 per axis)."""
     duration: float | None = None
     """How long the spoofing lasts [s]; null: to the end of the run."""
     sensor: str = ""
@@ -111,7 +111,9 @@ class GpsDrift(SensorFault):
     def __post_init__(self) -> None:
         w = f"faults.{self.kind}"
         object.__setattr__(self, "t_start", check_time(f"{w}.t_start", self.t_start))
-        object.__setattr__(self, "rate_mps", check_vector(f"{w}.rate_mps", self.rate_mps, 100.0, " [m/s]"))
+        object.__setattr__(
+            self, "rate_mps", check_vector(f"{w}.rate_mps", self.rate_mps, 100.0, " [m/s]", nonzero=True)
+        )
         object.__setattr__(self, "duration", check_duration(f"{w}.duration", self.duration))
         check_sensor(f"{w}.sensor", self.sensor)
 
