@@ -103,8 +103,10 @@ def failsafe_done(components: Any, done: Any) -> Any:
             ground.append(float(truth.p_W[2]))
         if done is not None and done(t, truth):
             return True
+        settled = getattr(supervisor.takeover, "settled", None)
         return (
             supervisor.ended_flight is not None
+            and (settled is None or settled())
             and float(truth.p_W[2]) < ground[0] + 0.03
             and float(np.linalg.norm(truth.v_W)) < 0.05
         )

@@ -339,9 +339,9 @@ class FailsafeSupervisor(Planner):
         hor, ver = float(math.hypot(d[0], d[1])), float(d[2])
         why = ""
         if pp.GF_MAX_HOR_DIST > 0 and hor > pp.GF_MAX_HOR_DIST:
-            why = f"geofence: {hor:.2f} m from home, beyond GF_MAX_HOR_DIST {pp.GF_MAX_HOR_DIST:g} m"
+            why = f"geofence: beyond GF_MAX_HOR_DIST {pp.GF_MAX_HOR_DIST:g} m ({hor:.2f} m from home)"
         elif pp.GF_MAX_VER_DIST > 0 and ver > pp.GF_MAX_VER_DIST:
-            why = f"geofence: {ver:.2f} m above home, beyond GF_MAX_VER_DIST {pp.GF_MAX_VER_DIST:g} m"
+            why = f"geofence: beyond GF_MAX_VER_DIST {pp.GF_MAX_VER_DIST:g} m ({ver:.2f} m above home)"
         if not why:
             return
         self._geofence = True

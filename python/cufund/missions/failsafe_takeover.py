@@ -64,6 +64,10 @@ class CommanderTakeover:
 
     _FAILSAFE_MODES = ("hold", "rtl", "land", "idle")
 
+    def settled(self) -> bool:
+        """The commander has landed and disarmed (what ends a run the failsafe took down)."""
+        return not self.commander.armed
+
     def overridden(self) -> bool:
         """Whether the operator took over after the failsafe (a mode other than the failsafe's own followed)."""
         since = getattr(self, "_since", None)
@@ -194,6 +198,9 @@ class MissionTakeover:
 
     def landing(self, t: float) -> bool:
         return self.mission.state in ("land", "done", "aborted")
+
+    def settled(self) -> bool:
+        return bool(self.mission.finished)
 
     def hold(self, t: float, reason: str, bus: Any) -> str:
         return self.mission.failsafe(t, "hold", reason, False)

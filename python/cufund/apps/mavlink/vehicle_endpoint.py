@@ -291,6 +291,8 @@ class VehicleEndpoint:
                 "error": mavlink.MAV_SEVERITY_ERROR,
                 "collision": mavlink.MAV_SEVERITY_CRITICAL,
             }.get(kind, mavlink.MAV_SEVERITY_INFO)
+            if isinstance(e.get("severity"), str):  # an event that names its own (a failsafe: PX4's severities)
+                severity = getattr(mavlink, f"MAV_SEVERITY_{e['severity'].upper()}", severity)
             if text:
                 self._send(None, lambda mav, t=text, sv=severity: ts.encode_statustext(mav, t, sv))
 
