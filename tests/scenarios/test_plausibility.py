@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from cufund.core.config import ConfigError, load_yaml_text
-from cufund.scenarios.plausibility import SPEED_CEILING, field_units, reach
+from cufund.scenarios.plausibility import SPEED_CEILING, checked_fields, field_units, reach
 from cufund.scenarios.schema import TrajectoryConfig, available_scenarios, load_scenario
 from cufund.vehicle import presets
 
@@ -76,6 +76,27 @@ def test_a_kinds_documented_radian_field_is_found_without_being_listed():
     # the position loop's largest tilt [rad]: its own bound (pi/2) speaks first, naming it as well
     with pytest.raises(ConfigError, match="tilt_max"):
         load_scenario("square", ["controller.position.tilt_max=45"])
+
+
+def test_the_fields_checked_are_found_by_their_documented_unit():
+    """Every section and part is walked; a field's unit is the first [...] of its docstring."""
+    found = dict(checked_fields(load_scenario("tunnel")))
+    expected = {
+        "trajectory.yaw": "rad",
+        "estimator.pad_yaw": "rad",  # "... the world frame's yaw [rad]. Roll and pitch ..."
+        "controller.position.tilt_max": "rad",  # "[rad] (MPC_TILTMAX_AIR, there in degrees)"
+        "world.entrance_yaw": "deg",  # named *_yaw but documented [deg]: its documentation wins
+        "failsafe.FD_FAIL_R": "deg",
+        "realism.vehicle.pad_tilt_max_deg": "deg",
+        "mission.v_max": "speed",
+        "controller.position.xy_vel_max": "speed",
+        "mission.a_max": "acceleration",
+        "controller.geometric.i_max": "acceleration",
+    }
+    assert {k: found.get(k) for k in expected} == expected
+    # an acceleration sigma whose docstring mentions [rad] later, a gain in rad/s^2 per rad, a rate: not angles
+    for name in ("estimator.accel_bias_sigma", "controller.geometric.k_R", "rates.physics_hz", "trajectory.hover_s"):
+        assert name not in found, name
 
 
 def test_a_commanders_yaw_is_checked_by_its_name(tmp_path):

@@ -5,22 +5,23 @@ A scenario may be valid field by field and still say something no one meant. Thr
 
 - **An angle in degrees where radians are documented.** Every field whose attribute docstring gives its unit as
   ``[rad]`` (``trajectory.yaw``, ``controller.position.tilt_max``, ``estimator.pad_yaw``, ``*.attitude_sigma_rad``,
-  a commander's ``yaw``, ...), or, undocumented, whose name says radians (``*_rad``, ``yaw``), must lie in [-2 pi, 2 pi]:
-  ``trajectory.yaw: [0, 90]`` was flown as 90 rad (a 117 degree yaw). Fields documented ``[deg]`` must lie within a
-  full turn, [-360, 360].
+  a commander's ``yaw``, ...), or, undocumented, whose name says radians (``*_rad``, ``yaw``), must lie in
+  [-2 pi, 2 pi]: ``trajectory.yaw: [0, 90]`` was flown as 90 rad (a 117 degree yaw). Fields documented ``[deg]``
+  must lie within a full turn, [-360, 360].
 - **A speed or an acceleration limit the vehicle cannot reach.** Limits are the fields documented ``[m/s]`` whose
-  name says a limit (``v_max``, ``*vel_max*``, ``*speed*``) and the fields documented ``[m/s^2]`` whose name ends in
-  ``_max`` (``a_max``, ``move_a_max``, ``i_max``). Bounds from the scenario's vehicle (:func:`reach`):
-  acceleration at most ``sqrt((T_max / m)^2 + g^2)``, the largest ``|a|`` that thrust up to ``T_max`` at a tilt up
-  to 90 degrees gives against gravity (CU-Astro: thrust-to-weight 2.5, 26.4 m/s^2); speed at most the drag-limited
-  terminal speed in level flight (all the thrust left over from carrying the weight pushing against the smallest
-  horizontal body drag and the rotor drag at hover speed, so an upper bound) and at most :data:`SPEED_CEILING`
-  (100 m/s) for vehicles without a drag model, beyond which the simulator's models (incompressible drag, hover
-  rotor model) say nothing true. CU-Astro: 37.8 m/s. ``v_max: 1500`` is refused.
+  name says a limit of the vehicle's motion (``*v_max*``, ``*vel_max*``, ``*_speed``) and the fields documented
+  ``[m/s^2]`` whose name ends in ``_max`` (``a_max``, ``move_a_max``, ``i_max``). Bounds from the scenario's vehicle
+  (:func:`reach`): acceleration at most ``sqrt((T_max / m)^2 + g^2)``, the largest ``|a|`` that thrust up to
+  ``T_max`` at a tilt up to 90 degrees gives against gravity (CU-Astro: thrust-to-weight 2.5, 26.4 m/s^2); speed at
+  most the drag-limited terminal speed in level flight (all the thrust left over from carrying the weight pushing
+  against the smallest horizontal body drag and the rotor drag at hover speed, so an upper bound) and at most
+  :data:`SPEED_CEILING` (100 m/s) for vehicles without a drag model, beyond which the simulator's models
+  (incompressible drag, hover rotor model) say nothing true. CU-Astro: 37.8 m/s. ``v_max: 1500`` is refused.
 - **A key given twice in a YAML file** is refused by the loader itself (:class:`cufund.core.config.CufundLoader`).
 
-The checks walk the scenario's dataclasses (every part's params, nested ones, lists of them) and read units from
-the attribute docstrings, so a field added with a documented ``[rad]`` unit is checked without being listed here.
+The checks walk the scenario's dataclasses (every part's params and every section, nested ones, lists of them) and
+read units from the attribute docstrings, so a field added with a documented ``[rad]`` unit is checked without
+being listed here.
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ import numpy as np
 from cufund.core.config import ConfigError
 from cufund.vehicle.params import QuadrotorParams
 
-__all__ = ["SPEED_CEILING", "Reach", "check_plausible", "field_units", "reach"]
+__all__ = ["SPEED_CEILING", "Reach", "check_plausible", "checked_fields", "field_units", "reach"]
 
 SPEED_CEILING = 100.0
 """The largest speed limit accepted for any vehicle [m/s] (360 km/h): beyond it the simulator's models are not
@@ -125,7 +126,7 @@ def _kind_of(name: str, unit: str) -> str | None:
         unit = "rad" if name.endswith("_rad") or name == "yaw" else "deg" if name.endswith("_deg") else ""
     if unit in ("rad", "deg"):
         return unit
-    if unit == "m/s" and ("v_max" in name or "vel_max" in name or "speed" in name):
+    if unit == "m/s" and ("v_max" in name or "vel_max" in name or name.endswith("_speed") or name == "speed"):
         return "speed"
     if unit in _ACCEL_UNITS and name.endswith("_max"):
         return "acceleration"
@@ -163,15 +164,23 @@ def _fields(obj: Any, where: str) -> Iterator[tuple[str, str, Any]]:
 
 
 def _parts(config: Any) -> Iterator[tuple[str, Any]]:
-    """(path, object) of what a scenario configures: the trajectory, every part's params, realism."""
-    yield "trajectory", config.trajectory
-    for group in ("world", "estimator", "mapper", "planner", "controller", "mission"):
-        spec = getattr(config, group)
-        if spec is not None:
-            yield group, spec.params
-    for name, spec in config.sensors.items():
-        yield f"sensors.{name}", spec.params
-    yield "realism", config.realism
+    """(path, object) of what a scenario configures: each part's params (sensors by name) and every section held as
+    a dataclass (trajectory, rates, realism, ...); the vehicle is the reference, not a limit."""
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        if isinstance(value, dict):  # sensors: {name: PartSpec}
+            for name, spec in value.items():
+                yield f"{f.name}.{name}", getattr(spec, "params", spec)
+        elif hasattr(value, "params") and hasattr(value, "kind"):  # a PartSpec
+            yield f.name, value.params
+        elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+            yield f.name, value
+
+
+def checked_fields(config: Any) -> list[tuple[str, str]]:
+    """(dotted path, 'rad' | 'deg' | 'speed' | 'acceleration') of every field of the validated ScenarioConfig
+    ``config`` that :func:`check_plausible` checks."""
+    return [(path, kind) for root, obj in _parts(config) for path, kind, _ in _fields(obj, root)]
 
 
 def check_plausible(config: Any) -> None:
