@@ -9,13 +9,28 @@
    (the writer thread included), and the overhead of each in percent (the issue's bound: <= 10 % of wall time),
    with the load average beside them.
 3. Reading the square's log back with :func:`cufund.logs.read_mcap` (messages per second).
+4. ``--runs``: the run logs of ``cufund run square`` and ``cufund run tunnel`` as written
+   (:func:`cufund.scenarios.run_folder.run_into_folder`, no figures): the file's size, and the writing cost as the
+   median wall and process-CPU time of alternating runs with and without the log (relative to the run's wall
+   time: the issue's bound is <= 10 %); then the same ROS 2 messages (every CDR channel of the log, raw bytes) as
+   a ROS 2 bag written with ``rosbags`` (sqlite3 storage, uncompressed, as ``ros2 bag record`` writes by
+   default): its size and writing time. ``--tree DIR`` runs part 4 on another cufund source tree (``DIR/cufund``)
+   instead of the installed one: the writer before a change, e.g. ``git archive <commit> python/cufund | tar -x
+   -C /tmp/old`` with the installed ``_core*.so`` copied into ``/tmp/old/python/cufund`` (the old tree then needs
+   the same compiled core).
 
-Run: ``.venv/bin/python benchmarks/bench_mcap.py [--repeats 7] [--square-only]``.
+Run: ``.venv/bin/python benchmarks/bench_mcap.py [--repeats 7] [--square-only]``; ``--runs [--tree DIR]``.
 Instruction counts (load-independent): ``valgrind --tool=callgrind .venv/bin/python benchmarks/bench_mcap.py
 --once without`` and ``--once with`` (one square run each; the difference is the log's cost, both threads).
 """
 
 from __future__ import annotations
+
+import sys
+
+if "--tree" in sys.argv:  # another cufund tree (the writer before a change): bypass the editable install's finder
+    sys.path.insert(0, sys.argv[sys.argv.index("--tree") + 1])
+    sys.meta_path[:] = [f for f in sys.meta_path if "ScikitBuild" not in type(f).__name__]
 
 import argparse
 import gc
@@ -159,14 +174,104 @@ def bench_read(path: Path) -> None:
     print(f"3. read_mcap: {n} messages in {wall:.2f} s ({n / wall / 1e3:.0f} k messages/s)")
 
 
+def write_rosbag(log: Path, bag: Path) -> tuple[int, float, int]:
+    """The CDR channels of ``log`` as a ROS 2 bag written with ``rosbags`` (sqlite3, uncompressed): (messages,
+    writing seconds, bytes)."""
+    from mcap.reader import make_reader
+    from rosbags.rosbag2 import Writer
+
+    with open(log, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        wanted = {cid for cid, c in summary.channels.items() if c.message_encoding == "cdr"}
+        messages = [
+            (ch.id, m.log_time, m.data) for _, ch, m in reader.iter_messages(log_time_order=True) if ch.id in wanted
+        ]
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    store = get_typestore(Stores.EMPTY)
+    for schema in summary.schemas.values():  # the log's ros2msg definitions (a type, then its dependencies)
+        if schema.encoding == "ros2msg":
+            for i, part in enumerate(schema.data.decode().split("=" * 80 + "\n")):
+                if i == 0:
+                    store.register(get_types_from_msg(part, schema.name))
+                else:
+                    head, text = part.split("\n", 1)
+                    store.register(get_types_from_msg(text, head.removeprefix("MSG: ").replace("/", "/msg/", 1)))
+    t0 = time.perf_counter()
+    with Writer(bag, version=9) as writer:
+        connections = {}
+        for cid in sorted(wanted):
+            channel = summary.channels[cid]
+            key = (channel.topic, summary.schemas[channel.schema_id].name)
+            if key not in connections:
+                connections[key] = writer.add_connection(key[0], key[1], typestore=store)
+        by_id = {}
+        for cid in wanted:
+            channel = summary.channels[cid]
+            by_id[cid] = connections[(channel.topic, summary.schemas[channel.schema_id].name)]
+        for cid, log_time, data in messages:
+            writer.write(by_id[cid], log_time, data)
+    wall = time.perf_counter() - t0
+    size = sum(p.stat().st_size for p in bag.rglob("*") if p.is_file())
+    return len(messages), wall, size
+
+
+def bench_runs(tmp: Path, repeats: int, scenarios: list[str], bag: bool) -> None:
+    import cufund
+    from cufund.scenarios.run_folder import run_into_folder
+
+    print(f"4. run logs ({cufund.__file__}): {repeats} alternating runs with and without the log, medians")
+    for name in scenarios:
+        config = cufund.load_scenario(name)
+        walls: dict[str, list[float]] = {"without": [], "with": []}
+        cpus: dict[str, list[float]] = {"without": [], "with": []}
+        for k in range(repeats):
+            for kind in ("without", "with"):
+                gc.collect()
+                out = tmp / f"{name}_{kind}_{k}"
+                t0, p0 = time.perf_counter(), time.process_time()
+                run_into_folder(config, out, log=kind == "with", plots=False, replay=False)
+                walls[kind].append(time.perf_counter() - t0)
+                cpus[kind].append(time.process_time() - p0)
+        log = tmp / f"{name}_with_0" / "run.mcap"
+        wall_without, wall_with = statistics.median(walls["without"]), statistics.median(walls["with"])
+        cpu_without, cpu_with = statistics.median(cpus["without"]), statistics.median(cpus["with"])
+        print(
+            f"   {name}: run.mcap {log.stat().st_size / 1e6:.1f} MB; wall {wall_without:.2f} s without, "
+            f"{wall_with:.2f} s with the log ({(wall_with / wall_without - 1) * 100:+.1f} %); process CPU "
+            f"{cpu_without:.2f} s without, {cpu_with:.2f} s with ({(cpu_with - cpu_without) / wall_without * 100:+.1f} % "
+            f"of the run's wall time); load average {os.getloadavg()[0]:.2f}"
+        )
+        if bag:
+            n, seconds, size = write_rosbag(log, tmp / f"{name}_bag")
+            print(
+                f"   {name}: the same {n} ROS 2 messages (the log's CDR channels) as a rosbags ROS 2 bag "
+                f"(sqlite3, uncompressed): {size / 1e6:.1f} MB, written in {seconds:.2f} s"
+            )
+        for k in range(repeats):
+            for kind in ("without", "with"):
+                for f in (tmp / f"{name}_{kind}_{k}").glob("*"):
+                    f.unlink()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7, help="alternating square runs with and without the log")
     parser.add_argument("--square-only", action="store_true", help="only part 2 (the square with and without)")
     parser.add_argument("--once", choices=("with", "without"), help="one square run (for callgrind), nothing else")
+    parser.add_argument("--runs", action="store_true", help="only part 4: the run logs of square and tunnel")
+    parser.add_argument("--run-repeats", type=int, default=3, help="alternating runs per scenario in part 4")
+    parser.add_argument("--scenarios", nargs="+", default=["square", "tunnel"], help="part 4's scenarios")
+    parser.add_argument("--tree", help="part 4 on this cufund source tree (the folder holding cufund/)")
+    parser.add_argument("--no-bag", action="store_true", help="part 4 without the rosbags bag")
     args = parser.parse_args()
     if args.once:
         square_once(args.once)
+        return
+    if args.runs or args.tree:
+        with tempfile.TemporaryDirectory() as tmp:
+            bench_runs(Path(tmp), args.run_repeats, args.scenarios, bag=not args.no_bag and not args.tree)
         return
     with tempfile.TemporaryDirectory() as tmp:
         if not args.square_only:
