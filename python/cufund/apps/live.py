@@ -124,7 +124,13 @@ class LiveRun:
         )
         found = [c for c in sim.components if isinstance(c, Commander)]
         self.commander: Commander | None = found[0] if found else None
-        self.events: EventLog = self.commander.events if self.commander is not None else EventLog()
+        self.events: EventLog = (
+            self.commander.events
+            if self.commander is not None
+            else next(
+                (c.events for c in sim.components if isinstance(getattr(c, "events", None), EventLog)), EventLog()
+            )
+        )  # without a commander: the failsafe supervisor's, so its events reach the ground station and MAVLink
         if self.commander is not None:  # the controllers' gains by PX4 name, through get_params / set_param
             self.commander.param_providers.append(controller_param_provider(sim.components))
         self._errors: dict[str, int] = {}
