@@ -3,6 +3,10 @@
 The first line of output is ``GCS: http://127.0.0.1:PORT/?token=TOKEN``; open it in a browser. With
 ``--foxglove`` the second is ``Foxglove: ws://127.0.0.1:PORT/?token=TOKEN`` (the same token) for Foxglove.
 Ctrl-C stops.
+
+The port is :data:`DEFAULT_PORT` on every launch (a bookmark keeps working) unless it is taken: then a free one,
+said on stderr; ``--port N`` insists on N (exit 2 when taken), ``--port 0`` takes any free port. The run waits for
+the operator's Start (``--autostart``: at once, for scripts).
 """
 
 from __future__ import annotations
@@ -19,6 +23,8 @@ from .server import GcsServer, parse_speed
 __all__ = ["add_arguments", "run"]
 
 DEFAULT_SCENARIO = "vehicle"
+DEFAULT_PORT = 8780
+"""The ground station's port unless ``--port`` is given (a free one when it is taken)."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -33,7 +39,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default="127.0.0.1",
         help="interface to serve on (default 127.0.0.1; anything else exposes the vehicle's commands)",
     )
-    p.add_argument("--port", type=int, default=0, help="port (default 0: any free port)")
+    p.add_argument(
+        "--port",
+        type=int,
+        default=None,
+        help=f"port (default {DEFAULT_PORT}, or a free one when that is taken; 0: any free port)",
+    )
+    p.add_argument(
+        "--autostart",
+        action="store_true",
+        help="start the scenario's mission (or its run) at once instead of waiting for the page's Start (scripts)",
+    )
     p.add_argument("--speed", default="1", help="simulation speed: 0.1 to 10 times real time, or inf (default 1)")
     add_overrides(p)
     p.add_argument(
@@ -51,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"cufund gcs: {exc}", file=sys.stderr)
         return 2
-    if not 0 <= args.port < 65536 or not 0 <= args.foxglove_port < 65536:
+    if args.port is not None and not 0 <= args.port < 65536 or not 0 <= args.foxglove_port < 65536:
         print("cufund gcs: --port and --foxglove-port must be in [0, 65535]", file=sys.stderr)
         return 2
     if args.host not in LOOPBACK:
@@ -75,9 +91,11 @@ async def _serve(args: argparse.Namespace, speed: float) -> int:
             tuple(args.overrides),
             speed,
             host=args.host,
-            port=args.port,
+            port=DEFAULT_PORT if args.port is None else args.port,
             telemetry_hz=args.telemetry_hz,
             foxglove=foxglove,
+            autostart=args.autostart,
+            port_fallback=args.port is None,
         )
         url = server.start()
     except Exception as exc:  # a bad scenario or a busy port: say so, exit 2
@@ -85,6 +103,8 @@ async def _serve(args: argparse.Namespace, speed: float) -> int:
         if foxglove is not None:
             foxglove.stop()
         return 2
+    if server.port_note:  # before the URL line: a script that reads that line may stop the server at once
+        print(f"cufund gcs: {server.port_note}", file=sys.stderr, flush=True)
     print(f"GCS: {url}", flush=True)
     if foxglove is not None:
         print(f"Foxglove: {foxglove.url}", flush=True)

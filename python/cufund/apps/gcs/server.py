@@ -24,7 +24,16 @@ request with 400); a tab that leaves more than :data:`~cufund.apps.gcs.guard.MAX
 :data:`~cufund.apps.gcs.guard.MAX_UNSENT_MESSAGES` unsent is dropped (one line on stderr; counted in ``/api/stats`` as ``dropped_clients``). Errors are ``error`` replies or 4xx
 with a JSON ``message``, never a traceback; no log line carries the token (see :mod:`cufund.apps.gcs.guard`).
 
-Commands the ground station handles itself (the rest go to the vehicle's commander): ``sim_pause``,
+The run waits for the operator: a scenario with a commander flies nothing before a command (a scenario's own
+mission, such as the tunnel's, waits for ``start``); one without a commander (its planner flies the scenario's
+trajectory by itself) is held at t = 0 until ``start``. ``autostart=True`` starts at once (for scripts). A scenario
+whose mission a commander can fly (the tunnel's: ``planner: null`` with a ``mission``) gets one
+(``planner.kind=commander``), so that arm, take-off, hold, land and return work before and after its mission. Every
+tab is told what the scenario supports (``capabilities`` in ``hello``; ``start`` in each telemetry message): the
+page disables what it cannot serve and says why.
+
+Commands the ground station handles itself (the rest go to the vehicle's commander): ``start`` (the scenario's
+mission, or the held run), ``sim_pause``,
 ``sim_resume``, ``sim_speed {speed}`` (0.1-10, or "inf"), ``sim_restart {scenario}`` (a new live run, with the
 command line's overrides only if it is the command line's scenario; every tab gets its scene; a built-in
 scenario name, the command line's scenario or a YAML file inside the run directory, nothing else), ``tunnel_start`` (restart with the ``tunnel`` scenario), ``mission_preview {formula, regions}``.
@@ -34,6 +43,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import json
 import math
 import os
@@ -73,7 +83,28 @@ IN_FLIGHT = {"telemetry": 8, "cloud": 2}
 rather than stale data in order."""
 INPUT_ERRORS = (ValueError, TypeError, OverflowError, RecursionError)
 """What a malformed command or message raises (a 4xx or an ``error`` reply, with its message)."""
-LOCAL = ("sim_pause", "sim_resume", "sim_speed", "sim_restart", "tunnel_start", "mission_preview")
+LOCAL = ("start", "sim_pause", "sim_resume", "sim_speed", "sim_restart", "tunnel_start", "mission_preview")
+COMMANDER_COMMANDS = (
+    "arm",
+    "disarm",
+    "takeoff",
+    "land",
+    "rtl",
+    "hold",
+    "goto",
+    "flight_mode",
+    "controller",
+    "mission_upload",
+    "mission_start",
+    "mission_clear",
+)
+"""What the page's buttons send to the vehicle's commander (disabled, with the reason, without one)."""
+HELD_AT_S = 0.01
+"""Where a run held for Start waits [s of simulated time]: past its first instant, so that it has telemetry."""
+AUTOSTART_TRY_S = 0.5
+"""With ``autostart``: how often ``start`` is tried until the vehicle accepts it (its estimator initialising) [s]."""
+AUTOSTART_GIVE_UP_S = 120.0
+"""With ``autostart``: how long [s, wall clock] it is tried before the refusal is reported and it stops trying."""
 
 
 def parse_speed(value: Any) -> float:
@@ -104,12 +135,51 @@ def _meshcat_dist() -> Path:
     return Path(import_meshcat().__file__).parent / "viewer" / "dist"
 
 
+def with_commander(config: Any) -> Any:
+    """``config`` with a commander when its mission can be flown by one and it has no planner (the tunnel's):
+    ``planner.kind=commander``; otherwise ``config`` as it is."""
+    mission = getattr(config, "mission", None)
+    if getattr(config, "planner", None) is None and mission is not None and mission.kind == "tunnel":
+        return config.with_overrides({"planner.kind": "commander"})
+    return config
+
+
 def _default_live(scenario: str, overrides: tuple[str, ...], speed: float) -> Any:
-    from cufund.scenarios.schema import parse_overrides
+    from cufund.scenarios.schema import load_scenario, parse_overrides
 
     from ..live import LiveRun
 
-    return LiveRun(scenario, parse_overrides(list(overrides)), speed)
+    # not started: the server holds it first when it must wait for Start (GcsServer._open starts it)
+    return LiveRun(with_commander(load_scenario(scenario, parse_overrides(list(overrides)))), (), speed, start=False)
+
+
+def capabilities(live: Any) -> dict[str, Any]:
+    """What the scenario of ``live`` supports, for the page: ``commander`` (bool), ``mission`` (the scenario has
+    a mission of its own that ``start`` flies), ``controllers`` (the kinds built in) and ``disabled`` (command name
+    -> why it cannot be served)."""
+    commander = getattr(live, "commander", None)
+    config = getattr(live, "config", None)
+    disabled: dict[str, str] = {}
+    if commander is None:
+        planner = getattr(getattr(config, "planner", None), "kind", None)
+        why = (
+            f"no commander in this scenario: its planner ({planner}) flies the scenario's trajectory by itself"
+            if planner
+            else "no commander in this scenario: it flies the scenario's trajectory by itself"
+        )
+        disabled = dict.fromkeys(COMMANDER_COMMANDS, why)
+        controllers: list[str] = []
+    else:
+        controllers = list(getattr(commander, "controllers", ()))
+        if len(controllers) < 2:
+            disabled["controller"] = f"only {', '.join(controllers) or 'one controller'} is built into this simulation"
+    mission = getattr(commander, "scenario_mission", None) if commander is not None else None
+    return {
+        "commander": commander is not None,
+        "mission": mission is not None,
+        "controllers": controllers,
+        "disabled": disabled,
+    }
 
 
 class GcsServer:
@@ -133,6 +203,8 @@ class GcsServer:
         live_factory: Callable[[str, tuple[str, ...], float], Any] = _default_live,
         foxglove: Any = None,
         run_dir: str | os.PathLike[str] | None = None,
+        autostart: bool = False,
+        port_fallback: bool = False,
     ) -> None:
         if not (isinstance(telemetry_hz, (int, float)) and 1.0 <= telemetry_hz <= 200.0):
             raise ValueError(f"telemetry_hz must be a number in [1, 200], got {telemetry_hz!r}")
@@ -158,6 +230,17 @@ class GcsServer:
         self.hosts: Hosts | None = None
         self.dropped_clients = 0
         """Tabs dropped because they did not read what was sent to them."""
+        self.autostart = bool(autostart)
+        self.port_fallback = bool(port_fallback)
+        """When ``port`` is taken, serve on a free one (and say so in :attr:`port_note`) instead of failing."""
+        self.port_note = ""
+        self.held = False
+        """A run without a commander held at t = 0 until ``start``."""
+        self.started = False
+        """``start`` was accepted for the current run."""
+        self._autostart_due: float | None = None
+        self._autostart_until = 0.0
+        self._autostart_future: Any = None
 
     # ---- lifecycle -----------------------------------------------------------------------------------------
     def start(self) -> str:
@@ -172,7 +255,11 @@ class GcsServer:
             (r"/static/(.*)", tornado.web.StaticFileHandler, {"path": str(STATIC_DIR)}),
             (r"/meshcat/(main\.min\.js)", tornado.web.StaticFileHandler, {"path": str(_meshcat_dist())}),
         ]
-        self._http, self.port, self.hosts = listen(handlers, self.host, self.port)
+        try:
+            self._http, self.port, self.hosts = self._listen(handlers)
+        except Exception:
+            self.stop()
+            raise
         if self.foxglove is not None and hasattr(self.foxglove, "start"):
             self.foxglove.start(self.token)
         self._ticker = tornado.ioloop.PeriodicCallback(self._tick, 1000.0 / self.telemetry_hz)
@@ -180,13 +267,70 @@ class GcsServer:
         shown = "127.0.0.1" if self.host in ("", "0.0.0.0", "::") else self.host
         return f"http://{shown}:{self.port}/?token={self.token}"
 
+    def _listen(self, handlers: list[Any]) -> Any:
+        """Binds :attr:`port`; when it is taken and :attr:`port_fallback`, a free port, noted in :attr:`port_note`."""
+        try:
+            return listen(handlers, self.host, self.port)
+        except OSError as exc:
+            if not self.port_fallback or self.port == 0 or exc.errno != errno.EADDRINUSE:
+                raise OSError(exc.errno, f"cannot serve on {self.host}:{self.port}: {exc.strerror}") from exc
+            wanted = self.port
+            found = listen(handlers, self.host, 0)
+            self.port_note = f"port {wanted} is in use; serving on port {found[1]} instead (choose one with --port)"
+            return found
+
     def _open(self, live: Any, scenario: str) -> None:
         self.session = GcsSession(live, scenario)
+        self.session.capabilities = capabilities(live)
         add = getattr(live, "add_listener", None)
         if add is not None:
             add(self.session.sample_esdf, 1.0)
         self._esdf_sent = None
         self._paused = False
+        self.started = False
+        self.held = getattr(live, "commander", None) is None and not self.autostart
+        if self.held:  # no commander: nothing would wait for the operator, so the run waits at t = 0
+            sim = getattr(live, "simulator", None)
+            if sim is not None and not getattr(live, "running", True):
+                sim.advance_to(HELD_AT_S)  # its first instant: the vehicle on its pad, its sensors' first messages
+            live.pause()
+        start = getattr(live, "start", None)
+        if callable(start):  # a live run made not started (the default factory's), held or not
+            start()
+        self._autostart_future = None
+        self._autostart_due = None
+        if self.autostart and self.session.capabilities["mission"]:  # tried until the vehicle accepts it
+            self._autostart_due, self._autostart_until = 0.0, time.monotonic() + AUTOSTART_GIVE_UP_S
+        elif self.autostart:
+            self.started = True
+
+    def start_state(self) -> dict[str, Any]:
+        """Whether ``start`` can be served now: ``{"available": bool, "why": str, "started": bool}``."""
+        session = self.session
+        if session is None:
+            return {"available": False, "why": "no run", "started": False}
+        live = session.live
+        commander = getattr(live, "commander", None)
+        if commander is None:
+            ok = self.held
+            return {"available": ok, "why": "" if ok else "the run has started", "started": not ok}
+        mission = getattr(commander, "scenario_mission", None)
+        if mission is None:
+            return {
+                "available": False,
+                "why": "this scenario has no mission of its own: upload waypoints below and press their Start",
+                "started": self.started,
+            }
+        if getattr(mission, "t_go", None) is not None or mission.finished:
+            why = (
+                f"the mission has run ({mission.state}); restart the scenario to fly it again"
+                if mission.finished
+                else f"the mission is running ({mission.state})"
+            )
+            return {"available": False, "why": why, "started": True}
+        if not commander.landed:
+            return {"available": False, "why": "the mission takes off from the ground: land first", "started": False}
+        return {"available": True, "why": "", "started": False}
 
     def stop(self) -> None:
         """Stops broadcasting, closes every websocket and the port, and stops the live run."""
@@ -215,6 +359,8 @@ class GcsServer:
                 self.broadcast({"type": "error", "message": message})
             return
         self._last_error = ""
+        if self._autostart_due is not None:
+            self._autostart(session)
         if not self.clients and self.foxglove is None:
             return  # the path and history above still grow for the next tab
         self.seq += 1
@@ -223,8 +369,9 @@ class GcsServer:
                 "type": "telemetry",
                 "seq": self.seq,
                 "wall": time.time(),
-                "paused": self._paused,
+                "paused": self._paused or self.held,
                 "speed": None if math.isinf(self.speed) else self.speed,
+                "start": self.start_state(),
                 **tel,
             }
         )
@@ -250,6 +397,30 @@ class GcsServer:
             self.broadcast(session.esdf)
         if self.foxglove is not None:
             self.foxglove.telemetry(tel, events)
+
+    def _autostart(self, session: GcsSession) -> None:
+        """``autostart``: submits the scenario mission's start every :data:`AUTOSTART_TRY_S` until it is accepted
+        (the estimator must have initialised first) or :data:`AUTOSTART_GIVE_UP_S` passed (then says why)."""
+        fut, now = self._autostart_future, time.monotonic()
+        if fut is not None:
+            if not fut.done():
+                return
+            ack = fut.result()
+            self._autostart_future = None
+            if getattr(ack, "result", "") == "accepted":
+                self._autostart_due = None
+                self.started = True
+                session.log(
+                    {"t": session.telemetry.get("t"), "kind": "command", "message": "start: accepted (autostart)"}
+                )
+                return
+            if now > self._autostart_until:
+                self._autostart_due = None
+                print(f"cufund gcs: autostart gave up: {getattr(ack, 'message', ack)}", file=sys.stderr, flush=True)
+                return
+        if self._autostart_due is not None and now >= self._autostart_due:
+            self._autostart_due = now + AUTOSTART_TRY_S
+            self._autostart_future = session.live.submit({"command": "mission_start"})
 
     def broadcast(self, message: dict[str, Any]) -> None:
         text = json.dumps(message)
@@ -322,10 +493,14 @@ class GcsServer:
         session = self.session
         assert session is not None
         live = session.live
+        if name == "start":
+            return await self._start(command)
         if name == "sim_pause":
             live.pause()
             self._paused = True
         elif name == "sim_resume":
+            if self.held:
+                return {"command": name, "result": "denied", "message": "the run waits for Start"}
             live.resume()
             self._paused = False
         elif name == "sim_speed":
@@ -349,6 +524,24 @@ class GcsServer:
             await self._restart(scenario, self._scenario_source(scenario))
             return {"command": name, "result": "accepted", "message": f"running {scenario}"}
         return {"command": name, "result": "accepted", "message": ""}
+
+    async def _start(self, command: dict[str, Any]) -> dict[str, Any]:
+        """``start``: the scenario's own mission (the commander's ``mission_start``), or a held run goes on."""
+        state = self.start_state()
+        session = self.session
+        assert session is not None
+        if self.held:
+            self.held = False
+            self.started = True
+            if not self._paused:
+                session.live.resume()
+            return {"command": "start", "result": "accepted", "message": "the run goes on"}
+        if not state["available"]:
+            return {"command": "start", "result": "denied", "message": state["why"]}
+        ack = await self._vehicle("start", {**command, "command": "mission_start"})
+        if ack["result"] == "accepted":
+            self.started = True
+        return ack
 
     def _scenario_source(self, scenario: str) -> str:
         """What the live run is built from for ``sim_restart {scenario}``: a built-in name or the command line's
@@ -506,7 +699,14 @@ class SocketHandler(quiet_errors, BoundedSender, tornado.websocket.WebSocketHand
             self.send(json.dumps(session.catch_up()))
 
     def on_close(self) -> None:
-        self.gcs.clients.discard(self)
+        if self in self.gcs.clients:  # once per tab (a failed write calls this too)
+            self.gcs.clients.discard(self)
+            code = self.close_code if self.close_code is not None else "no close frame"
+            print(
+                f"cufund gcs: a tab closed its connection ({code}); {len(self.gcs.clients)} open",
+                file=sys.stderr,
+                flush=True,
+            )
 
     def send(self, message: str | bytes, stream: str = "") -> None:
         """Writes ``message``. On a named ``stream`` (telemetry, clouds) a message is skipped while the previous one

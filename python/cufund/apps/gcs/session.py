@@ -110,6 +110,13 @@ def gates_of(estimate: TunnelEstimate | None) -> list[dict[str, Any]]:
     ]
 
 
+def _mission_count(config: Any) -> int | None:
+    """How many steps a scenario's own mission counts its progress in (the tunnel's frames), or None."""
+    params = getattr(getattr(config, "mission", None), "params", None)
+    frames = getattr(params, "frames", None)
+    return int(frames) if isinstance(frames, int) else None
+
+
 def _config_of(live: Any) -> Any:
     config = getattr(live, "config", None)
     if config is None:
@@ -146,6 +153,9 @@ class GcsSession:
         self.esdf: dict[str, Any] | None = None
         self._esdf_key: Any = None
         self.T_BL = self._lidar_mount()
+        self.capabilities: dict[str, Any] = {}
+        """What the scenario supports (set by the server: :func:`cufund.apps.gcs.server.capabilities`)."""
+        self.mission_count = _mission_count(self.config)
 
     # ---- static scene --------------------------------------------------------------------------------------
     def scene(self) -> dict[str, Any]:
@@ -205,6 +215,14 @@ class GcsSession:
     def poll(self) -> dict[str, Any]:
         """Reads the run's telemetry; extends the flown path and the history. Returns the telemetry."""
         tel = jsonable(self.live.telemetry())
+        state = self.live.latest(Topics.MISSION_STATE)  # a scenario's own mission (the tunnel's state machine)
+        if state is not None:
+            tel["mission_state"] = {
+                "state": str(state.state),
+                "reason": str(state.reason),
+                "progress": int(state.progress),
+                "count": self.mission_count,
+            }
         self.telemetry = tel
         t = tel.get("t")
         p = position_of(tel)
@@ -277,6 +295,7 @@ class GcsSession:
             "events": self.events[-300:],
             "esdf": self.esdf,
             "telemetry": self.telemetry,
+            "capabilities": self.capabilities,
         }
 
     def set_planned(self, points: Any, label: str) -> dict[str, Any]:

@@ -135,19 +135,79 @@
     $("tel-landed").textContent = fmt(t.landed);
     $("tel-flight-mode").textContent = fmt(t.flight_mode);
     $("tel-controller").textContent = fmt(t.controller);
-    const cur = pick(t, "mission_current", "mission.current", "mission_progress.current"), cnt = pick(t, "mission_count", "mission.count", "mission_progress.count");
-    $("tel-mission").textContent = cnt === undefined ? fmt(pick(t, "mission_progress", "mission")) : `${fmt(cur, 0)}/${fmt(cnt, 0)}`;
+    $("tel-mission").textContent = missionText(t);
     if (Array.isArray(p)) { $("tel-xy").textContent = vec(p.slice(0, 2)); $("tel-alt").textContent = fmt(p[2], 2); }
     $("tel-v").textContent = vec(t.v_W);
     $("tel-speed").textContent = fmt(norm(t.v_W));
     const rpy = pick(t, "rpy", "rpy_deg");
-    $("tel-rpy").textContent = Array.isArray(rpy) ? rpy.map((x) => fmt(x * (t.rpy_deg ? 1 : 180 / Math.PI), 1)).join(", ") + " °" : "–";
-    $("tel-thrust").textContent = fmt(pick(t, "thrust_margin"));
-    const est = pick(t, "estimator_health", "estimator");
-    $("tel-est").textContent = typeof est === "object" ? JSON.stringify(est) : fmt(est);
+    const deg = Array.isArray(rpy) ? rpy.map((x) => x * (t.rpy_deg ? 1 : 180 / Math.PI)) : null;
+    $("tel-rpy").textContent = deg ? deg.map((x) => fmt(x, 1)).join(", ") + " °" : "–";
+    drawInstruments(deg);
+    const margin = pick(t, "thrust_margin");
+    $("tel-thrust").textContent = typeof margin === "number" ? `${(100 * margin).toFixed(0)} %` : "–";
+    const est = estimatorText(pick(t, "estimator_health", "estimator"));
+    $("tel-est").textContent = est.text; $("tel-est").className = est.ok ? "ok" : "bad";
     $("tel-track").textContent = fmt(norm(pick(t, "tracking_error", "tracking_error_m")), 3);
     $("tel-odom").textContent = fmt(norm(pick(t, "odometry_error", "odometry_error_m")), 3);
     if ($("tel-raw").parentElement.open) $("tel-raw").textContent = JSON.stringify(t, null, 1);
+  }
+  // The mission field: "—" before a mission, "3/5 through" while one runs (a scenario's own mission: its progress
+  // and state; a waypoint mission: the item flown, counted from 1).
+  function missionText(t) {
+    const ms = t.mission_state, m = t.mission;
+    if (ms && (!m || !m.count || t.mode === "mission" && !(m.current >= 0))) {
+      if (/waiting/.test(ms.reason || "")) return "— (waits for Start)";
+      const count = typeof ms.count === "number" ? "/" + ms.count : "";
+      return `${ms.progress}${count} ${ms.state}${ms.reason ? ": " + ms.reason : ""}`;
+    }
+    if (m && typeof m.count === "number" && m.count > 0) {
+      return m.current >= 0 ? `${m.current + 1}/${m.count}` : `—/${m.count} (uploaded)`;
+    }
+    return "—";
+  }
+  // The estimator's health in words: ok and how old its newest estimate is, or what is wrong.
+  function estimatorText(e) {
+    if (e === undefined || e === null) return {text: "–", ok: true};
+    if (typeof e !== "object") return {text: String(e), ok: Boolean(e)};
+    const age = typeof e.age_s === "number" ? (e.age_s < 1 ? `${Math.round(1000 * e.age_s)} ms old` : `${e.age_s.toFixed(1)} s old`) : "";
+    if (e.source) return {text: `ok (${e.source})`, ok: e.ok !== false};
+    if (e.ok) return {text: "ok" + (age ? `, estimate ${age}` : ""), ok: true};
+    return {text: "NOT OK: " + (age ? `estimate ${age}` : "no estimate yet") + (e.reason ? ` (${e.reason})` : ""), ok: false};
+  }
+  // The attitude indicator (the horizon as seen from the vehicle: roll turns it, pitch moves it) and the heading
+  // (compass degrees from north, clockwise: ENU yaw 0 is east, 090°).
+  function drawInstruments(deg) {
+    const a = $("attitude"), h = $("heading");
+    const A = a.getContext("2d"), H = h.getContext("2d"), W = a.width, R = W / 2;
+    A.save(); A.clearRect(0, 0, W, W);
+    A.beginPath(); A.arc(R, R, R - 1, 0, 2 * Math.PI); A.clip();
+    if (deg) {
+      const roll = deg[0] * Math.PI / 180, pitch = deg[1], ppd = R / 45;  // 45 degrees of pitch to the rim
+      A.translate(R, R); A.rotate(-roll); A.translate(0, pitch * ppd);
+      A.fillStyle = "#6fa8dc"; A.fillRect(-2 * W, -2 * W, 4 * W, 2 * W);
+      A.fillStyle = "#a0703c"; A.fillRect(-2 * W, 0, 4 * W, 2 * W);
+      A.strokeStyle = "#fff"; A.lineWidth = 1; A.beginPath(); A.moveTo(-W, 0); A.lineTo(W, 0);
+      for (const k of [-20, -10, 10, 20]) { A.moveTo(-12, -k * ppd); A.lineTo(12, -k * ppd); }
+      A.stroke();
+    } else { A.fillStyle = "#ddd"; A.fillRect(0, 0, W, W); }
+    A.restore();
+    A.strokeStyle = "#111"; A.lineWidth = 3; A.beginPath();
+    A.moveTo(R - 34, R); A.lineTo(R - 10, R); A.lineTo(R, R + 8); A.lineTo(R + 10, R); A.lineTo(R + 34, R); A.stroke();
+    A.lineWidth = 1; A.beginPath(); A.arc(R, R, R - 1, 0, 2 * Math.PI); A.stroke();
+    H.clearRect(0, 0, W, W);
+    H.strokeStyle = "#111"; H.lineWidth = 1; H.beginPath(); H.arc(R, R, R - 2, 0, 2 * Math.PI); H.stroke();
+    H.fillStyle = "#333"; H.font = "bold 12px sans-serif"; H.textAlign = "center"; H.textBaseline = "middle";
+    [["N", 0], ["E", 90], ["S", 180], ["W", 270]].forEach(([c, b]) => {
+      const r = R - 12, x = R + r * Math.sin(b * Math.PI / 180), y = R - r * Math.cos(b * Math.PI / 180);
+      H.fillText(c, x, y);
+    });
+    if (deg) {
+      const hdg = ((90 - deg[2]) % 360 + 360) % 360, b = hdg * Math.PI / 180;
+      H.strokeStyle = "#c62828"; H.lineWidth = 3; H.beginPath();
+      H.moveTo(R - 14 * Math.sin(b), R + 14 * Math.cos(b)); H.lineTo(R + (R - 26) * Math.sin(b), R - (R - 26) * Math.cos(b)); H.stroke();
+      $("att-text").textContent = `roll ${deg[0].toFixed(1)}°, pitch ${deg[1].toFixed(1)}°`;
+      $("hdg-text").textContent = `heading ${String(Math.round(hdg) % 360).padStart(3, "0")}° (yaw ${deg[2].toFixed(1)}°)`;
+    }
   }
   function setpointOf(t) { const s = pick(t, "setpoint_p_W", "setpoint.p_W", "setpoint"); return Array.isArray(s) ? s : null; }
   function targetOf(t) { const s = pick(t, "target_p_W", "status.target_p_W"); return Array.isArray(s) ? s : null; }
@@ -160,17 +220,39 @@
     plot.odom.push(norm(pick(t, "odometry_error", "odometry_error_m")) ?? null);
     while (plot.t.length && plot.t[0] < t.t - PLOT_S) for (const k in plot) plot[k].shift();
   }
-  function drawPlot(id, series, colors, dashed) {
-    const c = $(id), ctx = c.getContext("2d"), W = c.width, H = c.height;
+  function niceStep(span, n) {  // a 1-2-5 tick step giving about n ticks over span
+    const raw = span / Math.max(1, n), p = Math.pow(10, Math.floor(Math.log10(raw))), f = raw / p;
+    return (f < 1.5 ? 1 : f < 3.5 ? 2 : f < 7.5 ? 5 : 10) * p;
+  }
+  // A plot of the last PLOT_S seconds: value ticks on the left, simulated-time ticks below (the axis titles and
+  // the legend are the figure's DOM around the canvas).
+  function drawPlot(id, series, colors, dashed, minSpan) {
+    const c = $(id);
+    const cw = Math.round(c.clientWidth);
+    if (cw > 0 && c.width !== cw) c.width = cw;
+    const ctx = c.getContext("2d"), W = c.width, H = c.height, L = 36, B = 14, T = 4, Rm = 6;
     ctx.clearRect(0, 0, W, H);
-    if (plot.t.length < 2) return;
+    const tEnd = plot.t.length ? plot.t[plot.t.length - 1] : 0, t0 = Math.max(0, tEnd - PLOT_S), t1 = t0 + PLOT_S;
     let lo = Infinity, hi = -Infinity;
     for (const s of series) for (const v of s) if (v !== null && isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
-    if (!isFinite(lo)) return;
-    if (hi - lo < 0.2) { lo -= 0.1; hi += 0.1; }
-    const t0 = plot.t[plot.t.length - 1] - PLOT_S, x = (t) => ((t - t0) / PLOT_S) * W, y = (v) => H - 4 - ((v - lo) / (hi - lo)) * (H - 8);
-    ctx.fillStyle = "#888"; ctx.font = "10px sans-serif";
-    ctx.fillText(hi.toFixed(2), 2, 10); ctx.fillText(lo.toFixed(2), 2, H - 2);
+    if (!isFinite(lo)) { lo = 0; hi = minSpan; }
+    if (hi - lo < minSpan) { const m = (hi + lo) / 2; lo = m - minSpan / 2; hi = m + minSpan / 2; }
+    const x = (t) => L + ((t - t0) / (t1 - t0)) * (W - L - Rm), y = (v) => T + (1 - (v - lo) / (hi - lo)) * (H - T - B);
+    ctx.font = "10px sans-serif"; ctx.strokeStyle = "#e4e4e4"; ctx.fillStyle = "#555"; ctx.lineWidth = 1;
+    const vs = niceStep(hi - lo, 4), digits = Math.max(0, -Math.floor(Math.log10(vs) + 1e-9));
+    ctx.textAlign = "right"; ctx.textBaseline = "middle";
+    for (let v = Math.ceil(lo / vs) * vs; v <= hi + 1e-9; v += vs) {
+      ctx.beginPath(); ctx.moveTo(L, y(v)); ctx.lineTo(W - Rm, y(v)); ctx.stroke();
+      ctx.fillText(v.toFixed(digits), L - 3, y(v));
+    }
+    ctx.textAlign = "center"; ctx.textBaseline = "top";
+    for (let s = Math.ceil(t0 / 5) * 5; s <= t1 + 1e-9; s += 5) {
+      ctx.beginPath(); ctx.moveTo(x(s), T); ctx.lineTo(x(s), H - B); ctx.stroke();
+      ctx.fillText(String(s), x(s), H - B + 2);
+    }
+    ctx.strokeStyle = "#999"; ctx.strokeRect(L, T, W - L - Rm, H - T - B);
+    if (plot.t.length < 2) return;
+    ctx.lineWidth = 1.5;
     series.forEach((s, k) => {
       ctx.strokeStyle = colors[k]; ctx.setLineDash(dashed[k] ? [4, 3] : []); ctx.beginPath();
       let pen = false;
@@ -186,8 +268,8 @@
   function drawPlots() {
     const axis = (arr, k) => arr.map((p) => (p ? p[k] : null));
     drawPlot("plot-pos", [0, 1, 2, 0, 1, 2].map((k, i) => axis(i < 3 ? plot.p : plot.sp, k)),
-             ["#d62728", "#2ca02c", "#1f77b4", "#d62728", "#2ca02c", "#1f77b4"], [0, 0, 0, 1, 1, 1]);
-    drawPlot("plot-err", [plot.track, plot.odom], ["#9467bd", "#8c564b"], [0, 0]);
+             ["#d62728", "#2ca02c", "#1f77b4", "#d62728", "#2ca02c", "#1f77b4"], [0, 0, 0, 1, 1, 1], 0.5);
+    drawPlot("plot-err", [plot.track, plot.odom], ["#9467bd", "#8c564b"], [0, 0], 0.05);
   }
   setInterval(drawPlots, 200);
 
@@ -221,14 +303,35 @@
   }
 
   // ---- event log ------------------------------------------------------------------------------------------------
+  // One line an event: its time and its message, the kind said once ("mode takeoff", not "mode mode takeoff";
+  // "armed", not "armed armed"): the kind is shown only when its words are not already in the message. A failsafe
+  // (issue 30: kind "failsafe") reads "FAILSAFE <what it did and why>".
+  function eventText(e) {
+    const kind = String(e.kind || e.type || e.level || "");
+    let msg = e.message !== undefined && e.message !== null ? String(e.message) : JSON.stringify(e);
+    let label = kind;
+    if (/^failsafe$/i.test(kind)) {
+      label = "FAILSAFE";
+      msg = msg.replace(/^\s*failsafe\b[:\s-]*/i, "");
+      const extra = ["action", "reason"].filter((k) => typeof e[k] === "string" && e[k] && !msg.includes(e[k])).map((k) => e[k]);
+      if (extra.length) msg += (msg ? " — " : "") + extra.join(": ");
+    } else {
+      const words = kind.toLowerCase().split(/[_\s]+/).filter((w) => w);
+      const said = msg.toLowerCase().split(/[^a-z0-9]+/);
+      if (!words.length || words.every((w) => said.includes(w))) label = "";
+    }
+    const t = typeof e.t === "number" ? e.t.toFixed(2) + " s" : "–";
+    return {text: `${t}  ${label ? label + " " : ""}${msg}`, kind: kind};
+  }
+  gcs.eventText = eventText;
   function addEvents(list) {
     const box = $("events");
     for (const e of list) {
       stats.events.push(e);
       const div = document.createElement("div");
-      const kind = String(e.kind || e.type || e.level || "");
-      div.className = /warn|refus|denied/i.test(kind + e.message) ? "warn" : (/crash|error|fail/i.test(kind + e.message) ? "error" : "");
-      div.textContent = `${fmt(e.t, 2)} ${kind} ${e.message !== undefined ? e.message : JSON.stringify(e)}`;
+      const ev = eventText(e), kind = ev.kind;
+      div.className = /^failsafe$/i.test(kind) ? "failsafe" : /warn|refus|denied/i.test(kind + e.message) ? "warn" : (/crash|error|fail/i.test(kind + e.message) ? "error" : "");
+      div.textContent = ev.text;
       box.appendChild(div);
     }
     while (box.childNodes.length > 500) box.removeChild(box.firstChild);
@@ -276,10 +379,12 @@
         requestAnimationFrame(() => { c.paintedAt = performance.now(); });  // and the frame that paints it
       }
       seen("telemetry");
+      if (m.start) showStart(m.start);
       addPlot(m); dirtyPanel = true;
       toViewPose(m, tg);
     } else if (m.type === "hello") {
       stats.hellos += 1;
+      applyCapabilities(m.capabilities || {});
       newScene(m.scene);
       toView({type: "path", points: m.path || []});
       toView({type: "planned", points: m.planned || []});
@@ -288,6 +393,7 @@
       $("events").innerHTML = ""; stats.events = [];
       addEvents(m.events || []);
       toView({type: "esdf", esdf: m.esdf || null});  // the scene above dropped the old cloud and map
+      if (m.telemetry && m.telemetry.start) showStart(m.telemetry.start);
       if (m.telemetry && m.telemetry.p_W) { stats.lastTelemetry = m.telemetry; showTelemetry(m.telemetry); toViewPose(m.telemetry, showTarget(m.telemetry)); }
     } else if (m.type === "events") {
       addEvents(m.events);
@@ -330,9 +436,46 @@
   });
   gcs.dropConnection = () => ws.close();  // as a network drop would (tests: the page reconnects)
 
+  // ---- what the scenario supports: the controls it cannot serve are disabled, the reason on hover ----------------
+  const CONTROLS = {
+    arm: ["cmd-arm"], disarm: ["cmd-disarm"], takeoff: ["cmd-takeoff", "takeoff-alt"], land: ["cmd-land"],
+    rtl: ["cmd-rtl"], hold: ["cmd-hold"], goto: ["cmd-goto", "goto-x", "goto-y", "goto-z", "click-goto"],
+    flight_mode: ["cmd-flight-mode", "flight-mode"], controller: ["cmd-controller", "controller"],
+    mission_upload: ["cmd-upload", "waypoints"], mission_start: ["cmd-mission-start", "cmd-ltl-fly"],
+    mission_clear: ["cmd-mission-clear"],
+  };
+  const titles = {};  // each control's own title, restored when it is enabled again
+  gcs.capabilities = {};
+  function setEnabled(id, why) {
+    const el = $(id);
+    if (!el) return;
+    if (!(id in titles)) titles[id] = el.getAttribute("title") || "";
+    el.disabled = Boolean(why);
+    el.title = why || titles[id];
+    const label = el.closest("label");
+    if (label) { label.title = el.title; label.classList.toggle("disabled", Boolean(why)); }
+  }
+  function applyCapabilities(caps) {
+    gcs.capabilities = caps;
+    const off = caps.disabled || {};
+    for (const [command, ids] of Object.entries(CONTROLS)) for (const id of ids) setEnabled(id, off[command] || "");
+    if (!off.mission_start && !gcs.lastPlan) setEnabled("cmd-ltl-fly", "preview a plan first");
+    if (Array.isArray(caps.controllers) && caps.controllers.length) {
+      const sel = $("controller");
+      sel.innerHTML = "";
+      for (const k of caps.controllers) { const o = document.createElement("option"); o.textContent = k; sel.appendChild(o); }
+    }
+  }
+  function showStart(st) {  // the Start button: enabled when the server can start the mission now, else why not
+    setEnabled("cmd-start", st.available ? "" : (st.why || "not available"));
+    if (st.available) $("cmd-start").title = "start the scenario's mission";
+    $("start-state").textContent = st.available ? "waiting for Start" : (st.why || "");
+  }
+
   // ---- controls -------------------------------------------------------------------------------------------------
   const num = (id) => parseFloat($(id).value);
-  const on = (id, f) => $(id).addEventListener("click", f);
+  on("cmd-start", () => gcs.send({command: "start"}));
+  function on(id, f) { $(id).addEventListener("click", f); }
   on("cmd-arm", () => gcs.send({command: "arm"}));
   on("cmd-disarm", () => gcs.send({command: "disarm"}));
   on("cmd-takeoff", () => gcs.send({command: "takeoff", altitude: num("takeoff-alt")}));
@@ -357,7 +500,8 @@
     try { regions = JSON.parse($("ltl-regions").value || "[]"); } catch (e) { $("ack").textContent = "regions: " + e.message; return; }
     gcs.send({command: "mission_preview", formula: $("ltl-formula").value, regions: regions}, (ack) => {
       gcs.lastPlan = ack.data || null;
-      $("cmd-ltl-fly").disabled = !ack.data;
+      const off = (gcs.capabilities.disabled || {}).mission_start;
+      setEnabled("cmd-ltl-fly", off || (ack.data ? "" : "preview a plan first"));
       $("ltl-plan").textContent = ack.data ? `${ack.data.regions.join(" → ")} (${ack.data.length.toFixed(2)} m)` : ack.message;
     });
   });
