@@ -3,6 +3,7 @@
 #include <limits>
 #include <memory>
 
+#include "atmosphere.h"
 #include "mixer.h"
 #include "pybind_common.h"
 #include "quadrotor_batch.h"
@@ -115,6 +116,115 @@ void define_dynamics(py::module_& m) {
       .def_readwrite("ceiling_k1", &GroundEffectParams::ceiling_k1)
       .def_readwrite("ceiling_k2", &GroundEffectParams::ceiling_k2)
       .def_readwrite("min_height", &GroundEffectParams::min_height);
+  py::enum_<WindShear>(m, "WindShear", "Mean wind profile with height.")
+      .value("NONE", WindShear::kNone)
+      .value("LOG", WindShear::kLog)
+      .value("POWER", WindShear::kPower);
+  py::class_<GustEvent>(m, "GustEvent", "A 1-cosine gust; use cufund.worlds.gusts.GustConfig.")
+      .def(py::init<>())
+      .def_readwrite("t_start", &GustEvent::t_start)
+      .def_readwrite("duration", &GustEvent::duration)
+      .def_readwrite("amplitude", &GustEvent::amplitude)
+      .def_readwrite("direction", &GustEvent::direction)
+      .def(
+          py::pickle([](const GustEvent& g) { return py::make_tuple(g.t_start, g.duration, g.amplitude, g.direction); },
+                     [](const py::tuple& t) {
+                       GustEvent g;
+                       g.t_start = t[0].cast<double>();
+                       g.duration = t[1].cast<double>();
+                       g.amplitude = t[2].cast<double>();
+                       g.direction = t[3].cast<double>();
+                       return g;
+                     }));
+  py::class_<AtmosphereParams>(m, "AtmosphereParams",
+                               "The atmosphere's constants (cpp/dynamics/atmosphere.h); use "
+                               "cufund.worlds.atmosphere.AtmosphereConfig.")
+      .def(py::init<>())
+      .def_readwrite("wind_20ft", &AtmosphereParams::wind_20ft)
+      .def_readwrite("direction", &AtmosphereParams::direction)
+      .def_readwrite("turbulence", &AtmosphereParams::turbulence)
+      .def_readwrite("shear", &AtmosphereParams::shear)
+      .def_readwrite("roughness_z0", &AtmosphereParams::roughness_z0)
+      .def_readwrite("shear_exponent", &AtmosphereParams::shear_exponent)
+      .def_readwrite("min_airspeed", &AtmosphereParams::min_airspeed)
+      .def_readwrite("update_period", &AtmosphereParams::update_period)
+      .def_readwrite("seed", &AtmosphereParams::seed)
+      .def_readwrite("gusts", &AtmosphereParams::gusts)
+      .def(
+          "set_grid",
+          [](AtmosphereParams& a, const py::handle& x, const py::handle& y, const py::handle& z,
+             const py::handle& wind) {
+            auto ax = [](const py::handle& o, const char* name) {
+              py::array arr = checked_array(o, name);
+              if (arr.ndim() != 1)
+                throw py::value_error(std::string(name) + " must be a 1-D axis, got " + shape_str(arr));
+              auto c = as_float64(o, name, {arr.shape(0)});
+              return std::vector<double>(c.data(), c.data() + c.size());
+            };
+            std::vector<double> gx = ax(x, "x"), gy = ax(y, "y"), gz = ax(z, "z");
+            const auto nx = static_cast<py::ssize_t>(gx.size()), ny = static_cast<py::ssize_t>(gy.size()),
+                       nz = static_cast<py::ssize_t>(gz.size());
+            auto w = as_float64(wind, "wind", {nx, ny, nz, 3});
+            a.grid_x = std::move(gx);
+            a.grid_y = std::move(gy);
+            a.grid_z = std::move(gz);
+            a.grid_wind.assign(w.data(), w.data() + w.size());
+          },
+          py::arg("x"), py::arg("y"), py::arg("z"), py::arg("wind"),
+          "Sets the wind grid: axes x (nx,), y (ny,), z (nz,) [m], wind (nx, ny, nz, 3) [m/s].")
+      .def_property_readonly("has_grid", [](const AtmosphereParams& a) { return !a.grid_wind.empty(); })
+      .def(py::pickle(
+          [](const AtmosphereParams& a) {
+            return py::make_tuple(a.wind_20ft, a.direction, a.turbulence, static_cast<int>(a.shear), a.roughness_z0,
+                                  a.shear_exponent, a.min_airspeed, a.update_period, a.seed, a.gusts, a.grid_x,
+                                  a.grid_y, a.grid_z, a.grid_wind);
+          },
+          [](const py::tuple& t) {
+            AtmosphereParams a;
+            a.wind_20ft = t[0].cast<double>();
+            a.direction = t[1].cast<double>();
+            a.turbulence = t[2].cast<bool>();
+            a.shear = static_cast<WindShear>(t[3].cast<int>());
+            a.roughness_z0 = t[4].cast<double>();
+            a.shear_exponent = t[5].cast<double>();
+            a.min_airspeed = t[6].cast<double>();
+            a.update_period = t[7].cast<double>();
+            a.seed = t[8].cast<std::uint64_t>();
+            a.gusts = t[9].cast<std::vector<GustEvent>>();
+            a.grid_x = t[10].cast<std::vector<double>>();
+            a.grid_y = t[11].cast<std::vector<double>>();
+            a.grid_z = t[12].cast<std::vector<double>>();
+            a.grid_wind = t[13].cast<std::vector<double>>();
+            return a;
+          }));
+  m.def(
+      "validate_atmosphere", [](const AtmosphereParams& a) { return validate(a); }, py::arg("params"),
+      "Empty string when the atmosphere's constants are usable, else a message naming the field.");
+  m.def(
+      "dryden_scales",
+      [](const py::handle& h, const py::handle& w20) {
+        const DrydenScales d = dryden_scales(finite_arg(h, "h"), finite_arg(w20, "wind_20ft"));
+        py::dict out;
+        out["sigma_u"] = d.sigma_u;
+        out["sigma_v"] = d.sigma_v;
+        out["sigma_w"] = d.sigma_w;
+        out["L_u"] = d.L_u;
+        out["L_v"] = d.L_v;
+        out["L_w"] = d.L_w;
+        return out;
+      },
+      py::arg("h"), py::arg("wind_20ft"),
+      "Dryden (MIL-F-8785C low altitude) intensities sigma_u/v/w [m/s] and scale lengths L_u/v/w [m] at height h [m].");
+  m.def(
+      "atmosphere_grid_wind",
+      [](const AtmosphereParams& a, const py::handle& points) {
+        py::array arr = checked_array(points, "points");
+        auto p = as_float64(points, "points", {arr.ndim() == 2 ? arr.shape(0) : -1, 3});
+        Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> out(p.shape(0), 3);
+        for (py::ssize_t i = 0; i < p.shape(0); ++i) grid_wind(a, p.data() + 3 * i, out.data() + 3 * i);
+        return out;
+      },
+      py::arg("params"), py::arg("points"), "The wind grid's trilinear wind at points (N, 3) [m], (N, 3) [m/s].");
   m.def(
       "validate_ground_effect", [](const GroundEffectParams& g) { return validate(g); }, py::arg("params"),
       "Empty string when the ground-effect constants give a finite gain in [1, 10] at every height, else a message.");
@@ -269,6 +379,20 @@ void define_dynamics(py::module_& m) {
             write_rows(b, QuadrotorBatch::kFloorZ, 2, s.data());
           },
           py::arg("surfaces_z"), "Sets (floor_z, ceiling_z) per vehicle [m], (N, 2); held until changed or reset().")
+      .def_property_readonly("has_atmosphere", &QuadrotorBatch::has_atmosphere)
+      .def_property_readonly("atmosphere", &QuadrotorBatch::atmosphere, py::return_value_policy::copy,
+                             "A copy of the atmosphere's constants.")
+      .def(
+          "set_atmosphere",
+          [](QuadrotorBatch& b, const AtmosphereParams& a) {
+            const std::string err = validate(a);
+            if (!err.empty()) throw py::value_error(err);
+            b.set_atmosphere(a);
+          },
+          py::arg("params"),
+          "From the next step, the wind rows follow this atmosphere (updated once per its period); restarted by "
+          "reset().")
+      .def("clear_atmosphere", &QuadrotorBatch::clear_atmosphere, "No atmosphere: the wind rows are the caller's.")
       .def_property_readonly("ground_effect", &QuadrotorBatch::ground_effect, py::return_value_policy::copy,
                              "A copy of the ground-effect constants.")
       .def(

@@ -198,6 +198,7 @@ QuadrotorBatch::QuadrotorBatch(const QuadrotorParams& params, std::size_t n)
 
 QuadrotorBatch::QuadrotorBatch(const QuadrotorBatch& other) : params_(other.params_), ge_(other.ge_), n_(other.n_) {
   std::lock_guard<std::mutex> lk(other.mutex_);
+  atmosphere_ = other.atmosphere_;
   time_ = other.time_;
   state_ = other.state_;
 }
@@ -207,6 +208,7 @@ QuadrotorBatch& QuadrotorBatch::operator=(const QuadrotorBatch& other) {
   std::scoped_lock lk(mutex_, other.mutex_);
   params_ = other.params_;
   ge_ = other.ge_;
+  atmosphere_ = other.atmosphere_;
   n_ = other.n_;
   time_ = other.time_;
   state_ = other.state_;
@@ -239,7 +241,18 @@ void QuadrotorBatch::reset() {
   const double inf = std::numeric_limits<double>::infinity();
   std::fill(row(kFloorZ), row(kFloorZ) + n_, params_.ground_plane ? 0.0 : -inf);
   std::fill(row(kCeilingZ), row(kCeilingZ) + n_, inf);
+  atmosphere_.reset();
   time_ = 0.0;
+}
+
+void QuadrotorBatch::set_atmosphere(const AtmosphereParams& a) {
+  std::lock_guard<std::mutex> lk(mutex_);
+  atmosphere_ = Atmosphere(a, n_);
+}
+
+void QuadrotorBatch::clear_atmosphere() {
+  std::lock_guard<std::mutex> lk(mutex_);
+  atmosphere_ = Atmosphere();
 }
 
 void QuadrotorBatch::set_ground_effect(const GroundEffectParams& g) {
@@ -271,6 +284,7 @@ StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
       return result;
     }
   }
+  if (atmosphere_.enabled()) atmosphere_.update(time_, row(kP), row(kV), row(kWind), n_);
   result = check_state(state_.data(), n_, nthreads);
   if (result.status != StepStatus::kOk) return result;
   const int substeps = std::max(1, static_cast<int>(std::ceil(dt / params_.max_integration_step - 1e-9)));

@@ -13,6 +13,7 @@
 #include <mutex>
 #include <vector>
 
+#include "atmosphere.h"
 #include "ground_effect.h"
 #include "quadrotor_params.h"
 
@@ -87,6 +88,13 @@ class QuadrotorBatch {
   const GroundEffectParams& ground_effect() const { return ge_; }
   void set_ground_effect(const GroundEffectParams& g);
 
+  // The atmosphere (atmosphere.h): when set, step() writes every vehicle's wind rows from it once per its update
+  // period (replacing any wind written there). a must have passed validate(). reset() restarts it from its seed.
+  bool has_atmosphere() const { return atmosphere_.enabled(); }
+  const AtmosphereParams& atmosphere() const { return atmosphere_.params(); }
+  void set_atmosphere(const AtmosphereParams& a);
+  void clear_atmosphere();
+
   // Advances all vehicles by dt [s] holding rotor_speed_cmd (row-major (N, 4) [rad/s], clipped to the
   // rotor-speed limits) constant, in ceil(dt / max_integration_step) equal RK4 sub-steps.
   // nthreads <= 0: all available cores (cufund::ThreadPool).
@@ -98,6 +106,7 @@ class QuadrotorBatch {
  private:
   QuadrotorParams params_;
   GroundEffectParams ge_;
+  Atmosphere atmosphere_;
   std::size_t n_;
   double time_ = 0.0;
   std::vector<double> state_;

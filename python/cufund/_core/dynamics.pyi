@@ -2,10 +2,11 @@
 Quadrotor rigid-body dynamics (paper §2.1).
 """
 from __future__ import annotations
+import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['CollisionWorld', 'GroundEffectParams', 'QuadrotorBatch', 'QuadrotorParams', 'RotorLayout', 'allocation_matrix', 'allocation_matrix_inverse', 'max_step_substeps', 'rotor_positions', 'rotor_spins', 'set_max_step_substeps', 'validate_ground_effect', 'validate_params']
+__all__: list[str] = ['AtmosphereParams', 'CollisionWorld', 'GroundEffectParams', 'GustEvent', 'QuadrotorBatch', 'QuadrotorParams', 'RotorLayout', 'WindShear', 'allocation_matrix', 'allocation_matrix_inverse', 'atmosphere_grid_wind', 'dryden_scales', 'max_step_substeps', 'rotor_positions', 'rotor_spins', 'set_max_step_substeps', 'validate_atmosphere', 'validate_ground_effect', 'validate_params']
 class GroundEffectParams:
     """
     Ground and ceiling effect constants (cpp/dynamics/ground_effect.h); use cufund.vehicle.ground_effect.GroundEffectConfig.
@@ -54,6 +55,157 @@ class GroundEffectParams:
         ...
     @rotor_spacing.setter
     def rotor_spacing(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+class WindShear:
+    """
+    Mean wind profile with height.
+    
+    Members:
+    
+      NONE
+    
+      LOG
+    
+      POWER
+    """
+    LOG: typing.ClassVar[WindShear]
+    NONE: typing.ClassVar[WindShear]
+    POWER: typing.ClassVar[WindShear]
+    __members__: typing.ClassVar[dict[str, WindShear]]
+    @typing.overload
+    def __eq__(self, other: WindShear) -> bool:
+        ...
+    @typing.overload
+    def __eq__(self, other: typing.Any) -> bool:
+        ...
+    def __getstate__(self) -> int:
+        ...
+    def __hash__(self) -> int:
+        ...
+    def __index__(self) -> int:
+        ...
+    def __init__(self, value: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __int__(self) -> int:
+        ...
+    @typing.overload
+    def __ne__(self, other: WindShear) -> bool:
+        ...
+    @typing.overload
+    def __ne__(self, other: typing.Any) -> bool:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, state: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __str__(self) -> str:
+        ...
+    @property
+    def name(self) -> str:
+        ...
+    @property
+    def value(self) -> int:
+        ...
+class GustEvent:
+    """
+    A 1-cosine gust; use cufund.worlds.gusts.GustConfig.
+    """
+    def __getstate__(self) -> tuple[float, float, float, float]:
+        ...
+    def __init__(self) -> None:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    @property
+    def amplitude(self) -> float:
+        ...
+    @amplitude.setter
+    def amplitude(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def direction(self) -> float:
+        ...
+    @direction.setter
+    def direction(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def duration(self) -> float:
+        ...
+    @duration.setter
+    def duration(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def t_start(self) -> float:
+        ...
+    @t_start.setter
+    def t_start(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+class AtmosphereParams:
+    """
+    The atmosphere's constants (cpp/dynamics/atmosphere.h); use cufund.worlds.atmosphere.AtmosphereConfig.
+    """
+    shear: WindShear
+    turbulence: bool
+    def __getstate__(self) -> tuple[float, float, bool, int, float, float, float, float, int, list[GustEvent], list[float], list[float], list[float], list[float]]:
+        ...
+    def __init__(self) -> None:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    def set_grid(self, x: typing.Any, y: typing.Any, z: typing.Any, wind: typing.Any) -> None:
+        """
+        Sets the wind grid: axes x (nx,), y (ny,), z (nz,) [m], wind (nx, ny, nz, 3) [m/s].
+        """
+    @property
+    def direction(self) -> float:
+        ...
+    @direction.setter
+    def direction(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def gusts(self) -> list[GustEvent]:
+        ...
+    @gusts.setter
+    def gusts(self, arg0: collections.abc.Sequence[GustEvent]) -> None:
+        ...
+    @property
+    def has_grid(self) -> bool:
+        ...
+    @property
+    def min_airspeed(self) -> float:
+        ...
+    @min_airspeed.setter
+    def min_airspeed(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def roughness_z0(self) -> float:
+        ...
+    @roughness_z0.setter
+    def roughness_z0(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def seed(self) -> int:
+        ...
+    @seed.setter
+    def seed(self, arg0: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def shear_exponent(self) -> float:
+        ...
+    @shear_exponent.setter
+    def shear_exponent(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def update_period(self) -> float:
+        ...
+    @update_period.setter
+    def update_period(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def wind_20ft(self) -> float:
+        ...
+    @wind_20ft.setter
+    def wind_20ft(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
 class RotorLayout:
     """
@@ -200,9 +352,17 @@ class QuadrotorBatch:
     """
     def __init__(self, params: typing.Any, n: typing.Any) -> None:
         ...
+    def clear_atmosphere(self) -> None:
+        """
+        No atmosphere: the wind rows are the caller's.
+        """
     def reset(self) -> None:
         """
         All vehicles at the origin, level, at rest; time 0; rotor efficiency 1, rotor speed limit the parameters', floor z = 0 with a ground plane (else -inf), ceiling +inf. The ground effect stays.
+        """
+    def set_atmosphere(self, params: AtmosphereParams) -> None:
+        """
+        From the next step, the wind rows follow this atmosphere (updated once per its period); restarted by reset().
         """
     def set_ground_effect(self, params: GroundEffectParams) -> None:
         """
@@ -235,6 +395,11 @@ class QuadrotorBatch:
         Angular acceleration dw_B/dt at the end of the last step [rad/s^2], (N, 3).
         """
     @property
+    def atmosphere(self) -> AtmosphereParams:
+        """
+        A copy of the atmosphere's constants.
+        """
+    @property
     def force_ext_W(self) -> numpy.ndarray[typing.Any, numpy.dtype[typing.Any]]:
         """
         External force, world frame [N], (N, 3) view, held over a step.
@@ -244,6 +409,9 @@ class QuadrotorBatch:
         """
         A copy of the ground-effect constants.
         """
+    @property
+    def has_atmosphere(self) -> bool:
+        ...
     @property
     def hover_rotor_speed(self) -> float:
         ...
@@ -349,6 +517,14 @@ def allocation_matrix_inverse(params: QuadrotorParams) -> typing.Annotated[numpy
     """
     A^-1 (4, 4): [f, M_x, M_y, M_z] -> rotor thrusts [N], unsaturated.
     """
+def atmosphere_grid_wind(params: AtmosphereParams, points: typing.Any) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, 3]"]:
+    """
+    The wind grid's trilinear wind at points (N, 3) [m], (N, 3) [m/s].
+    """
+def dryden_scales(h: typing.Any, wind_20ft: typing.Any) -> dict:
+    """
+    Dryden (MIL-F-8785C low altitude) intensities sigma_u/v/w [m/s] and scale lengths L_u/v/w [m] at height h [m].
+    """
 def max_step_substeps() -> int:
     """
     Most RK4 sub-steps one QuadrotorBatch.step may take.
@@ -364,6 +540,10 @@ def rotor_spins(params: QuadrotorParams) -> typing.Annotated[numpy.typing.NDArra
 def set_max_step_substeps(n: typing.Any) -> None:
     """
     Most RK4 sub-steps one QuadrotorBatch.step may take (process-wide).
+    """
+def validate_atmosphere(params: AtmosphereParams) -> str:
+    """
+    Empty string when the atmosphere's constants are usable, else a message naming the field.
     """
 def validate_ground_effect(params: GroundEffectParams) -> str:
     """

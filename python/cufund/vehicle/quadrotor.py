@@ -49,8 +49,10 @@ class QuadrotorBatch:
         self.params = params
         self._core = _core.dynamics.QuadrotorBatch(params.to_core(), int(n))
         self._wind_fn: Callable[[float, np.ndarray], np.ndarray] | None = None
-        self._wind_period: float | None = None
-        self._wind_next_t = -math.inf
+        self._probe: Callable[[np.ndarray], np.ndarray] | None = None
+        self._probe_period = 0.05
+        self._probe_next_t = -math.inf
+        self._atmosphere: Any = None
         self.set_wind(wind)
 
     @property
@@ -92,12 +94,13 @@ class QuadrotorBatch:
             "n": self.n,
             "t": self.t,
             "wind_fn": self._wind_fn,
-            "wind_period": self._wind_period,
+            "probe": (self._probe, self._probe_period),
             **{name: np.array(getattr(self, name)) for name in self._ROWS},
             "rotor_efficiency": np.array(self.rotor_efficiency),
             "max_rotor_speed": np.array(self.max_rotor_speed),
             "surfaces_z": np.array(self._core.surfaces_z),
             "ground_effect": {f: getattr(ge, f) for f in self._GE_FIELDS},
+            "atmosphere": self._atmosphere,
         }
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -106,8 +109,8 @@ class QuadrotorBatch:
             getattr(self, name)[:] = state[name]
         self._core.time = state["t"]
         self._wind_fn = state["wind_fn"]
-        self._wind_period = state.get("wind_period")
-        self._wind_next_t = -math.inf
+        if state.get("probe") is not None:
+            self.set_surface_probe(*state["probe"])
         if "rotor_efficiency" in state:
             self._core.set_rotor_efficiency(state["rotor_efficiency"])
             self._core.set_max_rotor_speed(state["max_rotor_speed"])
@@ -116,6 +119,8 @@ class QuadrotorBatch:
             for f, v in state["ground_effect"].items():
                 setattr(ge, f, v)
             self._core.set_ground_effect(ge)
+        if state.get("atmosphere") is not None:
+            self.set_atmosphere(state["atmosphere"])  # restarted from its seed (filter states are not kept)
 
     p = property(lambda self: self._core.p, doc="Position p_W [m], (n, 3) view.")
     v = property(lambda self: self._core.v, doc="Velocity v_W [m/s], (n, 3) view.")
@@ -134,37 +139,32 @@ class QuadrotorBatch:
         doc="Angular acceleration dw_B/dt at the end of the last step [rad/s^2], (n, 3) view.",
     )
 
-    def set_wind(self, wind: WindField, period: float | None = None) -> None:
-        """Constant wind (array (3,) or (n, 3)) [m/s], a function ``wind(t, p_W)``, or None for still air.
-
-        ``period`` [s] (a function only): evaluate the function at most once per ``period`` of simulated time
-        and hold its value in between (e.g. 0.005 for a 200 Hz turbulence update), which keeps the integrator's
-        fast path; None evaluates it before every step."""
+    def set_wind(self, wind: WindField) -> None:
+        """Constant wind (array (3,) or (n, 3)) [m/s], a function ``wind(t, p_W)``, or None for still air."""
         self._wind_fn = None
-        self._wind_period = None
-        self._wind_next_t = -math.inf
-        if period is not None and (
-            isinstance(period, bool) or not isinstance(period, (int, float)) or not 0 < period < math.inf
-        ):
-            raise ValueError(f"period must be a finite time > 0 [s] or None, got {period!r}")
         if wind is None:
             self.wind_W[:] = 0.0
         elif callable(wind):
             self._wind_fn = wind
-            self._wind_period = None if period is None else float(period)
         else:
             self.wind_W[:] = _finite_rows("wind", wind, self.n)
 
-    def _update_wind(self) -> None:
-        """Evaluates the wind function into ``wind_W`` (every step, or once its period has passed)."""
-        fn = self._wind_fn
-        assert fn is not None
+    def set_surface_probe(self, probe: Callable[[np.ndarray], np.ndarray] | None, period: float = 0.05) -> None:
+        """Where the ground effect's floor and ceiling are: ``probe(p_W (n, 3)) -> (n, 2)`` (floor_z, ceiling_z)
+        [m] (e.g. :class:`cufund.worlds.surfaces.SurfaceProbe`), called before a step once per ``period`` [s] of
+        simulated time; None: the surfaces stay as set (:meth:`set_surfaces_z`)."""
+        if isinstance(period, bool) or not isinstance(period, (int, float)) or not 0 < period < math.inf:
+            raise ValueError(f"period must be a finite time > 0 [s], got {period!r}")
+        self._probe = probe
+        self._probe_period = float(period)
+        self._probe_next_t = -math.inf
+
+    def _update_surfaces(self) -> None:
+        """Looks the floor and ceiling up once the probe's period has passed."""
         t = self.t
-        if self._wind_period is not None:
-            if t < self._wind_next_t:
-                return
-            self._wind_next_t = t + self._wind_period
-        self.wind_W[:] = _finite_rows("wind(t, p_W)", fn(t, self.p.copy()), self.n)
+        if self._probe is not None and t >= self._probe_next_t:
+            self._probe_next_t = t + self._probe_period
+            self.set_surfaces_z(self._probe(self.p.copy()))
 
     @property
     def rotor_efficiency(self) -> np.ndarray:
@@ -200,6 +200,16 @@ class QuadrotorBatch:
         """Sets (floor_z, ceiling_z) [m]: (2,) for every vehicle or (n, 2); held until changed or reset."""
         self._core.set_surfaces_z(_rows("surfaces_z", surfaces_z, self.n, 2, allow_inf=True))
 
+    def set_atmosphere(self, params: Any) -> None:
+        """The wind from an atmosphere (``cufund.worlds.atmosphere.AtmosphereConfig.to_core(...)``): the C++ step
+        writes ``wind_W`` from it once per its update period (replacing :meth:`set_wind`'s); None: off. :meth:`reset`
+        restarts it from its seed."""
+        if params is None:
+            self._core.clear_atmosphere()
+        else:
+            self._core.set_atmosphere(params)
+        self._atmosphere = params
+
     def set_ground_effect(self, config: Any) -> None:
         """Turns the ground and ceiling effect on (a :class:`cufund.vehicle.ground_effect.GroundEffectConfig`) or
         off (None). It is a model setting: it persists across :meth:`reset`."""
@@ -213,7 +223,7 @@ class QuadrotorBatch:
         efficiency 1, rotor speed limit the parameters', floor 0 (with the ground plane), no ceiling."""
         self._core.reset()
         self._wind_fn = None
-        self._wind_period = None
+        self._probe_next_t = -math.inf
 
     def hover(self, p_W: np.ndarray | None = None) -> None:
         """Puts every vehicle in steady hover (rotors at hover speed, at rest, level) at ``p_W`` [m]."""
@@ -231,7 +241,9 @@ class QuadrotorBatch:
         on the thread count.
         """
         if self._wind_fn is not None:
-            self._update_wind()
+            self.wind_W[:] = _finite_rows("wind(t, p_W)", self._wind_fn(self.t, self.p.copy()), self.n)
+        if self._probe is not None:
+            self._update_surfaces()
         self._core.step(dt, rotor_speed_cmd, nthreads)
 
 
@@ -272,21 +284,23 @@ class Quadrotor:
 
     def _sync_fast_step(self) -> None:
         b = self._batch
-        fast: Callable[[float, np.ndarray, int], None] | None = self._step if b._wind_fn is None else None
-        if b._wind_fn is not None and b._wind_period is not None:
-            step, update = self._step, b._update_wind
+        self.fast_step: Callable[[float, np.ndarray, int], None] | None = None
+        """:meth:`step` without its Python layer, for a caller's inner loop (the simulator's): the C++
+        integrator's ``step(dt, rotor_speed_cmd, nthreads)``, the same arithmetic, the held wind ``wind_W`` (or the
+        atmosphere's) applied; with a surface probe, a thin wrapper that calls it once per its period first; None
+        while a wind *function* is set (:meth:`step` evaluates it). Read it before each step (it follows
+        :meth:`set_wind` and :meth:`reset`); never assign it."""
+        if b._wind_fn is None and b._probe is None:
+            self.fast_step = self._step
+        elif b._wind_fn is None:
+            step, update = self._step, b._update_surfaces
 
-            def fast(dt: float, cmd: np.ndarray, nthreads: int) -> None:  # a held wind, updated once per period
-                if b.t >= b._wind_next_t:
+            def probed_step(dt: float, cmd: np.ndarray, nthreads: int) -> None:
+                if b._core.time >= b._probe_next_t:
                     update()
                 step(dt, cmd, nthreads)
 
-        self.fast_step = fast
-        """:meth:`step` without its Python layer, for a caller's inner loop (the simulator's): the C++
-        integrator's ``step(dt, rotor_speed_cmd, nthreads)``, the same arithmetic, the held wind ``wind_W``
-        applied; with a wind function set with a ``period``, a thin wrapper that updates the wind once per
-        period first; None while a wind function without a period is set (:meth:`step` evaluates it). Read it
-        before each step (it follows :meth:`set_wind` and :meth:`reset`); never assign it."""
+            self.fast_step = probed_step
 
     def __getstate__(self) -> dict[str, Any]:
         return {"batch": self._batch}
@@ -302,10 +316,14 @@ class Quadrotor:
     accel_W = property(lambda self: self._batch.accel_W[0], doc="dv_W/dt after the last step [m/s^2], (3,) view.")
     alpha_B = property(lambda self: self._batch.alpha_B[0], doc="dw_B/dt after the last step [rad/s^2], (3,) view.")
 
-    def set_wind(self, wind: WindField, period: float | None = None) -> None:
-        """Constant wind (3,) [m/s], a function ``wind(t, p_W)`` (evaluated once per ``period`` [s] if given,
-        else before every step), or None."""
-        self._batch.set_wind(wind, period)
+    def set_wind(self, wind: WindField) -> None:
+        """Constant wind (3,) [m/s], a function ``wind(t, p_W)``, or None."""
+        self._batch.set_wind(wind)
+        self._sync_fast_step()
+
+    def set_surface_probe(self, probe: Callable[[np.ndarray], np.ndarray] | None, period: float = 0.05) -> None:
+        """The ground effect's floor/ceiling lookup (see :meth:`QuadrotorBatch.set_surface_probe`)."""
+        self._batch.set_surface_probe(probe, period)
         self._sync_fast_step()
 
     @property
@@ -338,6 +356,11 @@ class Quadrotor:
         """Sets (floor_z, ceiling_z) [m] (-inf / +inf: none)."""
         self._batch.set_surfaces_z(_rows("surfaces_z", surfaces_z, 1, 2, single=True, allow_inf=True))
 
+    def set_atmosphere(self, params: Any) -> None:
+        """The wind from an atmosphere's C++ constants (see :meth:`QuadrotorBatch.set_atmosphere`), or None."""
+        self._batch.set_atmosphere(params)
+        self._sync_fast_step()
+
     def set_ground_effect(self, config: Any) -> None:
         """Ground and ceiling effect on (a GroundEffectConfig) or off (None); persists across reset."""
         self._batch.set_ground_effect(config)
@@ -353,7 +376,7 @@ class Quadrotor:
 
     def step(self, dt: float, rotor_speed_cmd: np.ndarray) -> None:
         """Advances by ``dt`` [s] holding ``rotor_speed_cmd`` (4,) [rad/s], clipped to the rotor limits."""
-        if self._batch._wind_fn is not None:
+        if self._batch._wind_fn is not None or self._batch._probe is not None:
             self._batch.step(dt, rotor_speed_cmd)
         else:
             self._step(dt, rotor_speed_cmd, 1)

@@ -1,0 +1,63 @@
+"""The floor under and the ceiling over a point of a world, for the ground and ceiling effect.
+
+One ray straight down and one straight up through the world's Embree scene (:attr:`World.raycast_scene`); a
+miss is no surface (-inf / +inf), and with the dynamics' ground plane the floor is at least z = 0 for a point
+above it. For the tunnel course the rays find its floor box (top at z = 0) and ceiling box (bottom at the arena's
+height), or a frame's bar when the vehicle passes under or over one.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+__all__ = ["SurfaceProbe"]
+
+_MAX_RANGE = 1e4
+_LIFT = 1e-3  # [m]
+
+
+class SurfaceProbe:
+    """``probe(p_W) -> (floor_z, ceiling_z)`` [m] for points (n, 3) as an (n, 2) array."""
+
+    def __init__(self, world: Any | None, ground_plane: bool = True) -> None:
+        self._scene = world.raycast_scene if world is not None and len(world) > 0 else None
+        self._ground_plane = ground_plane
+
+    def __call__(self, p_W: np.ndarray) -> np.ndarray:
+        p = np.atleast_2d(np.asarray(p_W, dtype=float))
+        n = p.shape[0]
+        out = np.empty((n, 2))
+        out[:, 0] = -math.inf
+        out[:, 1] = math.inf
+        if self._scene is not None:
+            rays = np.zeros((2 * n, 6), dtype=np.float32)
+            rays[:, :3] = np.repeat(p, 2, axis=0)
+            rays[0::2, 5] = -1.0
+            rays[1::2, 5] = 1.0
+            rays[1::2, 2] += _LIFT  # the up ray starts above a floor the point lies on
+            t = np.asarray(self._scene.cast_rays(rays)["t_hit"], dtype=float)
+            t[1::2] += _LIFT
+            hit = np.isfinite(t) & (t < _MAX_RANGE)
+            down, up = t[0::2], t[1::2]
+            out[hit[0::2], 0] = p[hit[0::2], 2] - down[hit[0::2]]
+            out[hit[1::2], 1] = p[hit[1::2], 2] + up[hit[1::2]]
+        if self._ground_plane:
+            above = p[:, 2] >= 0.0
+            out[above, 0] = np.maximum(out[above, 0], 0.0)
+        out[:, 0] = np.minimum(out[:, 0], p[:, 2])  # a floor ray from inside an object: never above the point
+        out[:, 1] = np.maximum(out[:, 1], out[:, 0])
+        return out
+
+
+def apply_ground_effect(quad: Any, config: Any, world: Any | None) -> None:
+    """Turns the ground and ceiling effect of ``config`` (a :class:`cufund.vehicle.ground_effect.GroundEffectConfig`,
+    or None: off) on for ``quad``, the floor and ceiling looked up in ``world`` at ``config.update_hz`` (without a
+    world: the ground plane, if any, and no ceiling, set once)."""
+    if config is None:
+        return
+    quad.set_ground_effect(config)
+    if world is not None and len(world) > 0:
+        quad.set_surface_probe(SurfaceProbe(world, quad.params.ground_plane), 1.0 / config.update_hz)
