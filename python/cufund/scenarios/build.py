@@ -19,7 +19,9 @@ from cufund.sensors.faults import fault_summary, inject_faults
 from cufund.sensors.power_monitor import PowerMonitor
 from cufund.simulator import SimulationResult, Simulator
 from cufund.vehicle.quadrotor import Quadrotor
+from cufund.worlds.atmosphere import apply_atmosphere
 from cufund.worlds.collision import CollisionChecker
+from cufund.worlds.surfaces import apply_ground_effect
 
 from .realism import Realism, resolve
 from .schema import PartSpec, ScenarioConfig
@@ -260,6 +262,8 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
     start = config.start_p_W or (config.trajectory.waypoints[0][0], config.trajectory.waypoints[0][1], 0.0)
     quad.state.p[:] = start  # standing, rotors stopped
     quad.state.q[:] = quad.params.ground_attitude  # on the pad as it lies (realism.vehicle.pad_tilt_max_deg)
+    apply_atmosphere(quad, config.atmosphere, ctx.seed_for("atmosphere"), config.base_dir)  # null: still air
+    apply_ground_effect(quad, config.ground_effect, world)  # null: off
     collision = None
     if world is not None:
         collision = CollisionChecker(world, box_size=config.collision_box, ignore_labels=("floor", "ground"))

@@ -27,7 +27,9 @@ from cufund.missions.failsafe_params import parse_failsafe
 from cufund.sensors.faults import faults_to_data, parse_faults
 from cufund.sensors.power_monitor import PowerSystem
 from cufund.vehicle import presets
+from cufund.vehicle.ground_effect import GroundEffectConfig
 from cufund.vehicle.params import QuadrotorParams
+from cufund.worlds.atmosphere import AtmosphereConfig
 
 from .plausibility import check_plausible
 from .realism import RealismConfig
@@ -336,6 +338,12 @@ class ScenarioConfig:
     failsafe: Any = None
     """The flight stack's failsafes (:class:`cufund.missions.failsafe_params.FailsafeParams`, PX4's names:
     ``{GF_MAX_HOR_DIST: 5, COM_LOW_BAT_ACT: 1, ...}``); absent: the defaults; ``off``: none. docs/guides/failsafes.md."""
+    atmosphere: Any = None
+    """The air (:class:`cufund.worlds.atmosphere.AtmosphereConfig`): ``{kind: calm | constant | dryden,
+    wind_20ft_mps, direction_deg, shear, gusts, grid_file, seed}``; null (default): still air. docs/guides/atmosphere.md."""
+    ground_effect: Any = False
+    """Ground and ceiling effect on the plant's thrust (:class:`cufund.vehicle.ground_effect.GroundEffectConfig`):
+    ``true``, ``false`` (default) or a mapping of its constants."""
     seed: int = 0
     """One seed derives every random stream (sensor noise, LiDAR noise, ...); the same seed repeats a run bit for
     bit."""
@@ -383,6 +391,8 @@ class ScenarioConfig:
         object.__setattr__(self, "faults", parse_faults(self.faults))
         object.__setattr__(self, "realism", RealismConfig.parse(self.realism))
         object.__setattr__(self, "failsafe", parse_failsafe(self.failsafe))
+        object.__setattr__(self, "atmosphere", AtmosphereConfig.parse(self.atmosphere))
+        object.__setattr__(self, "ground_effect", GroundEffectConfig.parse(self.ground_effect))
         try:
             box = np.asarray(self.collision_box, dtype=float)
         except (TypeError, ValueError):
