@@ -128,7 +128,8 @@
 
   function showTelemetry(t) {
     const p = t.p_W;
-    $("tel-t").textContent = fmt(t.t, 2) + (t.paused ? " (paused)" : "");
+    const waits = t.start && t.start.available && !t.start.started && t.paused;  // a run held for Start
+    $("tel-t").textContent = fmt(t.t, 2) + (waits ? " (waits for Start)" : t.paused ? " (paused)" : "");
     $("tel-rate").textContent = stats.rateHz.toFixed(0) + " Hz";
     $("tel-mode").textContent = fmt(t.mode);
     $("tel-armed").textContent = fmt(t.armed);
