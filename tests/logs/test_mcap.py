@@ -707,3 +707,35 @@ def test_a_log_of_the_json_clouds_before_the_ros2_messages_is_still_read(tmp_pat
     assert len(back) == len(written)
     for record, (topic, message) in zip(back, written, strict=True):
         assert record.topic == topic and _same(record.message, message)
+
+
+class _Line:
+    """A trajectory along x at 2 m/s from t_start for 1.5 s, yawing at 0.4 rad/s (the planning protocol)."""
+
+    t_start, duration = 3.0, 1.5
+
+    def sample(self, t):
+        from cufund.planning.trajectory import TrajectorySamples
+
+        t = np.atleast_1d(np.asarray(t, float))
+        s = t - self.t_start
+        z = np.zeros((len(t), 3))
+        p = np.column_stack([2.0 * s, np.zeros_like(s), np.ones_like(s)])
+        return TrajectorySamples(t, p, z, z, z, 0.4 * s, np.full_like(s, 0.4))
+
+
+def test_planned_trajectories_are_logged_as_nav_msgs_paths_and_not_read_back(tmp_path):
+    path = tmp_path / "path.mcap"
+    with McapLogger(path) as log:
+        log.write("/planner/trajectory", M.TrajectoryUpdate(2.5, _Line()), 2_500_000_000, 2_500_000_000)
+        log.write("/sensors/imu", M.Imu(2.5, np.zeros(3), np.zeros(3)), 2_500_000_000, 2_500_000_000)
+    (msg,) = _decoded(path)["/planner/trajectory"]
+    assert msg.header.frame_id == "world" and msg.header.stamp.sec == 2 and len(msg.poses) == 16  # every 0.1 s
+    for k, pose in enumerate(msg.poses):
+        t = 3.0 + 0.1 * k
+        assert pose.header.stamp.sec + pose.header.stamp.nanosec * 1e-9 == pytest.approx(t, abs=1e-9)
+        assert [pose.pose.position.x, pose.pose.position.z] == pytest.approx([2.0 * 0.1 * k, 1.0], abs=1e-12)
+        o = pose.pose.orientation
+        assert 2 * np.arctan2(o.z, o.w) == pytest.approx(0.4 * 0.1 * k, abs=1e-12) and o.x == o.y == 0.0
+    assert list(log_topics(path)) == ["/sensors/imu"]  # a path is for viewers: read_mcap does not rebuild it
+    assert [r.topic for r in read_mcap(path)] == ["/sensors/imu"]

@@ -27,6 +27,8 @@ def _frames_named(msg, schema_name: str) -> set[str]:
     child = getattr(msg, "child_frame_id", None)
     if child:
         out.add(child)
+    for pose in getattr(msg, "poses", ()):  # nav_msgs/Path
+        out.add(pose.header.frame_id)
     return out
 
 
@@ -85,6 +87,8 @@ def test_every_channel_decodes_and_every_frame_resolves_to_world(run_log):
                 named |= _frames_named(msg, schema.name)
     assert "/tf_static" in counts and "/clock" in counts, (name, sorted(counts))
     assert "/truth/point_cloud" not in counts  # off by default (log.truth_cloud)
+    if name.startswith("square"):  # the waypoints planner: its reference is known before the run
+        assert counts["/planner/path"] == 1
     unresolved = sorted(f for f in named if not _walk_to_world(f, parents))
     assert not unresolved, f"{name}: frames {unresolved} do not resolve to world through /tf ({parents})"
 

@@ -642,6 +642,39 @@ class ImageCodec(Codec):
         return self.cls(t=t, image=image.astype(dtype))
 
 
+PATH_STEP_S = 0.1
+"""Spacing of the poses of a logged planned path [s]."""
+
+
+def path_of(trajectory: Any, t: float) -> bytes:
+    """A trajectory (:class:`cufund.planning.Trajectory`: ``t_start``, ``duration``, ``sample``) as a
+    ``nav_msgs/msg/Path`` in ``world`` stamped ``t``: a pose every :data:`PATH_STEP_S` over its span."""
+    start, duration = float(trajectory.t_start), float(trajectory.duration)
+    n = max(2, min(20_000, int(np.ceil(duration / PATH_STEP_S)) + 1))
+    samples = trajectory.sample(np.linspace(start, start + duration, n))
+    return ros2.path_message(t, WORLD_FRAME, samples.t, samples.p_W, samples.yaw)
+
+
+class PathCodec(Codec):
+    """A planner's trajectory updates as ``nav_msgs/msg/Path`` (for viewers): written only, never read back (a
+    trajectory object is not rebuilt from its samples), so the channel names no cufund codec."""
+
+    name = "ros2.Path"
+    schema_encoding = "ros2msg"
+    message_encoding = "cdr"
+
+    def __init__(self, cls: type):
+        super().__init__(cls)
+        self.schema_name, text = ros2.PATH
+        self.schema_data = text.encode()
+
+    def metadata(self) -> dict[str, str]:
+        return {"cufund.derived": "planned path (not read back)"}
+
+    def encode(self, messages: list[Any], topic: str) -> list[bytes]:
+        return [path_of(m.trajectory, m.t) for m in messages]
+
+
 def _gps_views(topic: str) -> tuple[View, ...]:
     copies = (
         ("latitude", 0, "latitude_deg", 0, 1),
@@ -686,6 +719,8 @@ def codec_for(topic: str, message: Any) -> Codec:
         return PointCloud2Codec(cls, WORLD_FRAME)
     if cufund and name == "CameraImage" and _has_fields(cls, ("t", "image")) and ImageCodec.encoding_of(message.image):
         return ImageCodec(cls, sensor_frame(topic))
+    if cufund and name == "TrajectoryUpdate" and hasattr(message.trajectory, "sample"):
+        return PathCodec(cls)
     layout = infer_message_layout(cls, message)
     if layout is not None:
         views: tuple[View, ...] = ()

@@ -2,7 +2,7 @@
 ``rosbags`` decode the CDR bytes with), the fixed CDR layouts of the views the logger's C++ thread derives from
 fixed-size cufund messages (``nav_msgs/msg/Odometry``, ``geometry_msgs/msg/PoseStamped``, ``tf2_msgs/msg/TFMessage``,
 ``sensor_msgs/msg/Imu``, ``rosgraph_msgs/msg/Clock``), and a small CDR writer and reader for the variable-size
-ones (``sensor_msgs/msg/PointCloud2``, ``Image``, ``NavSatFix``, a static ``TFMessage``).
+ones (``sensor_msgs/msg/PointCloud2``, ``Image``, ``nav_msgs/msg/Path``, a static ``TFMessage``).
 
 One encoding, CDR with ros2msg schemas, for every standard message: it is what a ROS 2 bag holds and what a ROS 2
 bridge publishes, so a log is read by the same tools as a real robot's bag. Quaternions are converted here only:
@@ -24,6 +24,7 @@ __all__ = [
     "IMU",
     "NAV_SAT_FIX",
     "ODOMETRY",
+    "PATH",
     "POINT_CLOUD2",
     "POSE_STAMPED",
     "TF_MESSAGE",
@@ -33,6 +34,7 @@ __all__ = [
     "imu_layout",
     "nav_sat_fix_layout",
     "odometry_layout",
+    "path_message",
     "pose_stamped_layout",
     "tf_layout",
     "tf_message",
@@ -135,6 +137,20 @@ NAV_SAT_FIX = (
         "MSG: sensor_msgs/NavSatStatus\nint8 STATUS_NO_FIX=-1\nint8 STATUS_FIX=0\nint8 STATUS_SBAS_FIX=1\n"
         "int8 STATUS_GBAS_FIX=2\nuint16 SERVICE_GPS=1\nuint16 SERVICE_GLONASS=2\nuint16 SERVICE_COMPASS=4\n"
         "uint16 SERVICE_GALILEO=8\nint8 status\nuint16 service\n",
+    ),
+)
+
+
+PATH = (
+    "nav_msgs/msg/Path",
+    _ros2msg(
+        "std_msgs/Header header\ngeometry_msgs/PoseStamped[] poses\n",
+        _HEADER,
+        _TIME,
+        "MSG: geometry_msgs/PoseStamped\nstd_msgs/Header header\ngeometry_msgs/Pose pose\n",
+        _POSE,
+        _POINT,
+        _QUATERNION,
     ),
 )
 
@@ -302,6 +318,17 @@ class CdrReader:
     def header(self) -> tuple[float, str]:
         sec, nsec = self.get("i")[0], self.get("I")[0]
         return (sec * 1_000_000_000 + nsec) / 1e9, self.string()
+
+
+def path_message(t: float, frame: str, times: Any, p: Any, yaw: Any) -> bytes:
+    """A ``nav_msgs/msg/Path`` at ``t`` in ``frame``: a pose at each of ``times`` [s], positions ``p`` (N, 3) and
+    headings ``yaw`` (N,) [rad] (the attitude of a flat-output trajectory is its yaw; tilt is not part of it)."""
+    times, p, yaw = np.asarray(times, float), np.asarray(p, float), np.asarray(yaw, float)
+    w = CdrWriter().header(t, frame).put("I", len(times))
+    for k in range(len(times)):
+        w.header(float(times[k]), frame).put("d", *p[k])
+        w.put("d", 0.0, 0.0, float(np.sin(yaw[k] / 2)), float(np.cos(yaw[k] / 2)))
+    return w.bytes()
 
 
 def tf_message(t: float, transforms: list[tuple[str, str, Any, Any]]) -> bytes:

@@ -12,6 +12,9 @@ The frame tree of a cufund log::
 comes from ``/estimator/odometry`` and ``world`` -> ``base_link_truth`` from ``/truth/odometry`` (both on
 ``/tf``). A scenario without an estimator flies on truth: ``base_link_truth`` -> ``base_link`` is then a static
 identity, so the sensors' frames still resolve.
+
+A reference known before the run (the ``waypoints`` planner's) goes to ``/planner/path`` (``nav_msgs/msg/Path``);
+replanned trajectories go to ``/planner/trajectory`` as paths when they are logged.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
-from . import ros2, scene
+from . import codecs, ros2, scene
 
 __all__ = ["write_run_context"]
 
@@ -40,9 +43,16 @@ def static_transforms(sensors: Iterable[tuple[str, Any, Any]], has_estimator: bo
 
 
 def write_run_context(
-    logger: Any, sensors: Iterable[tuple[str, Any, Any]], has_estimator: bool, world: Any = None
+    logger: Any,
+    sensors: Iterable[tuple[str, Any, Any]],
+    has_estimator: bool,
+    world: Any = None,
+    reference: Any = None,
 ) -> None:
-    """Writes ``/tf_static`` and (with a ``world``, a :class:`cufund.worlds.World`) ``/world/scene`` at time 0."""
+    """Writes ``/tf_static``, (with a ``world``, a :class:`cufund.worlds.World`) ``/world/scene`` and (with a
+    ``reference`` trajectory known before the run) ``/planner/path`` at time 0."""
+    if reference is not None and hasattr(reference, "sample"):
+        logger.write_encoded("/planner/path", ros2.PATH, codecs.path_of(reference, 0.0), 0)
     logger.write_encoded(
         "/tf_static", ros2.TF_MESSAGE, ros2.tf_message(0.0, static_transforms(sensors, has_estimator)), 0
     )

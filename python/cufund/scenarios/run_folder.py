@@ -207,8 +207,8 @@ def _log_context(logger: Any, built: Any) -> None:
         if spec is not None and spec.topic is not None:
             e = spec.extrinsic
             sensors.append((sensor_frame(str(spec.topic)), None if e is None else e.t, None if e is None else e.q))
-    world = built.context.world
-    write_run_context(logger, sensors, config.estimator is not None, world)
+    ctx = built.context
+    write_run_context(logger, sensors, config.estimator is not None, ctx.world, ctx.reference)
 
 
 class _Excluding:
