@@ -126,9 +126,16 @@ def test_after_arm_and_take_off_the_page_reads_well_at_1280_px(driver, tmp_path)
             assert all(a != b for a, b in zip(words, words[1:], strict=False)), line
 
 
-def test_the_event_log_reads_failsafes_and_kinds_once(driver):
+def test_events_read_once_failsafes_readably_and_a_closing_browser_tab_is_one_line(driver):
     d = driver
-    with GcsProcess("vehicle", "--speed", "1") as g:
+    g = GcsProcess("vehicle", "--speed", "1").start()
+    try:
+        # a second tab opened and closed: one line on the server's stderr, no traceback
+        first = d.current_window_handle
+        d.switch_to.new_window("tab")
+        open_page(d, g)
+        d.close()
+        d.switch_to.window(first)
         open_page(d, g)
         cases = [
             ({"t": 3.0, "kind": "mode", "message": "mode takeoff"}, "3.00 s  mode takeoff"),
@@ -155,6 +162,19 @@ def test_the_event_log_reads_failsafes_and_kinds_once(driver):
         ]
         for event, expected in cases:
             assert d.execute_script("return window.gcs.eventText(arguments[0]).text", event) == expected
+        d.get("about:blank")  # this tab leaves too
+        assert wait_for(lambda: tabs(g) == 0, 10)
+    finally:
+        err = g.stop()
+    assert [line.split(" (")[0] for line in err.splitlines()] == ["cufund gcs: a tab closed its connection"] * 2, err
+
+
+def tabs(g):
+    import json
+    import urllib.request
+
+    with urllib.request.urlopen(urllib.request.Request(g.base + "/api/stats", headers=g.auth), timeout=10) as r:
+        return json.load(r)["tabs"]
 
 
 def test_start_starts_a_held_run_and_nothing_flies_before_it(driver, tmp_path):
