@@ -216,7 +216,8 @@ class _Excluding:
 
     def __init__(self, logger: Any, exclude: tuple[str, ...]) -> None:
         self.logger, self.exclude = logger, frozenset(exclude)
+        self._write = logger.write  # the logger's compiled write, looked up once
 
     def write(self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int) -> None:
-        if str(topic) not in self.exclude:
-            self.logger.write(topic, message, log_time_ns, publish_time_ns)
+        if topic not in self.exclude:  # a Topic hashes and compares as its name
+            self._write(topic, message, log_time_ns, publish_time_ns)
