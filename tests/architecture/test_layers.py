@@ -27,7 +27,8 @@ LAYERS: list[tuple[str, ...]] = [
     ("viz",),
     ("missions",),
     ("scenarios",),
-    ("envs", "apps"),
+    ("envs",),
+    ("apps",),
     ("__init__",),
     ("templates",),
 ]
