@@ -215,6 +215,16 @@ class GcsSession:
     def poll(self) -> dict[str, Any]:
         """Reads the run's telemetry; extends the flown path and the history. Returns the telemetry."""
         tel = jsonable(self.live.telemetry())
+        diag = self.live.latest(Topics.ESTIMATOR_DIAGNOSTICS)  # a LiDAR odometry's word on its newest frame
+        if diag is not None and isinstance(tel.get("estimator"), dict) and isinstance(tel.get("t"), (int, float)):
+            tel["estimator"]["lidar"] = {
+                "healthy": bool(diag.healthy),
+                "reason": str(diag.reason),
+                "age_s": round(float(tel["t"]) - float(diag.t), 3),
+                "inliers": int(diag.inliers),
+                "points": int(diag.points),
+                "skipped": str(diag.skipped),
+            }
         state = self.live.latest(Topics.MISSION_STATE)  # a scenario's own mission (the tunnel's state machine)
         if state is not None:
             tel["mission_state"] = {

@@ -131,9 +131,10 @@
     const waits = t.start && t.start.available && !t.start.started && t.paused;  // a run held for Start
     $("tel-t").textContent = fmt(t.t, 2) + (waits ? " (waits for Start)" : t.paused ? " (paused)" : "");
     $("tel-rate").textContent = stats.rateHz.toFixed(0) + " Hz";
-    $("tel-mode").textContent = fmt(t.mode);
-    $("tel-armed").textContent = fmt(t.armed);
-    $("tel-landed").textContent = fmt(t.landed);
+    const commanded = gcs.capabilities.commander !== false;  // without a commander there is no arming nor mode
+    $("tel-mode").textContent = commanded ? fmt(t.mode) : "its planner's (no commander)";
+    $("tel-armed").textContent = commanded ? fmt(t.armed) : "—";
+    $("tel-landed").textContent = commanded ? fmt(t.landed) : "—";
     $("tel-flight-mode").textContent = fmt(t.flight_mode);
     $("tel-controller").textContent = fmt(t.controller);
     $("tel-mission").textContent = missionText(t);
@@ -172,8 +173,11 @@
     if (typeof e !== "object") return {text: String(e), ok: Boolean(e)};
     const age = typeof e.age_s === "number" ? (e.age_s < 1 ? `${Math.round(1000 * e.age_s)} ms old` : `${e.age_s.toFixed(1)} s old`) : "";
     if (e.source) return {text: `ok (${e.source})`, ok: e.ok !== false};
-    if (e.ok) return {text: "ok" + (age ? `, estimate ${age}` : ""), ok: true};
-    return {text: "NOT OK: " + (age ? `estimate ${age}` : "no estimate yet") + (e.reason ? ` (${e.reason})` : ""), ok: false};
+    const l = e.lidar;  // a LiDAR odometry's diagnostics of its newest frame
+    const lidar = !l ? "" : l.skipped ? `; LiDAR frame skipped: ${l.skipped}` : `; LiDAR ${l.inliers}/${l.points} points matched`;
+    if (e.ok && (!l || l.healthy)) return {text: "ok" + (age ? `, estimate ${age}` : "") + lidar, ok: true};
+    const why = l && !l.healthy ? (l.reason || "the odometry says unhealthy") : (age ? `estimate ${age}` : "no estimate yet");
+    return {text: "NOT OK: " + why, ok: false};
   }
   // The attitude indicator (the horizon as seen from the vehicle: roll turns it, pitch moves it) and the heading
   // (compass degrees from north, clockwise: ENU yaw 0 is east, 090°).
