@@ -28,6 +28,7 @@ import numpy as np
 __all__ = [
     "ACTION_SIZE",
     "BASE_SIZE",
+    "LAYOUT_VERSION",
     "build_observation",
     "observation_size",
     "rotation_rows",
@@ -38,6 +39,9 @@ ACTION_SIZE = 4
 """Actions are 4 numbers in [-1, 1] in every action mode."""
 BASE_SIZE = 3 + 9 + 3 + ACTION_SIZE
 """The entries after the target blocks: v_W, R_WB, w_B, a_prev."""
+LAYOUT_VERSION = 1
+"""Version of this layout: change it with any change above, so that an exported policy trained on another layout is
+refused by the ``policy`` controller (its ``policy.yaml`` names the version it saw)."""
 
 
 def observation_size(n_targets: int, target_dim: int = 3) -> int:
