@@ -193,10 +193,10 @@ class FailsafeSupervisor(Planner):
                         self.takeover.home_W = self.home_W.copy()
                     except AttributeError:  # the commander's home is its own
                         pass
-        self._feed_motor(t)
         healthy, why = self.health.update(t) if self.estimator_diagnostics else (True, "")
         gps_ok = self._gps_check(t, bus)
         if self._state is None:
+            self._feed_motor(t, False)
             return
         s = self._state
         home = self._home()
@@ -207,7 +207,8 @@ class FailsafeSupervisor(Planner):
             else bool(float(s.p_W[2]) - float(home[2]) > 0.05 or float(np.linalg.norm(s.v_W)) > 0.2)
         )
         if self.airborne and not was and self.motor is not None and not self.motor.failed:
-            self.motor.reset()
+            self.motor.reset()  # from take-off on: the ground's contact torques are no failure
+        self._feed_motor(t, self.airborne)
         if not self.airborne or self.action == "disarm":
             return
         # attitude failure: terminate
@@ -261,11 +262,12 @@ class FailsafeSupervisor(Planner):
             return np.asarray(h, dtype=float)
         return self.home_W if self.home_W is not None else np.zeros(3)
 
-    def _feed_motor(self, t: float) -> None:
+    def _feed_motor(self, t: float, airborne: bool) -> None:
+        """The motor failure detector takes the commands and rates since the last step (only in the air)."""
         cmds = self._commands.take()
         rates = self._rates.take()
         m = self.motor
-        if m is None:
+        if m is None or not airborne:
             return
         use_imu = self.imu_topic is not None
         k, latest = 0, None
