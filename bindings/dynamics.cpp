@@ -115,7 +115,8 @@ void define_dynamics(py::module_& m) {
       .def_readwrite("k_body", &GroundEffectParams::k_body)
       .def_readwrite("ceiling_k1", &GroundEffectParams::ceiling_k1)
       .def_readwrite("ceiling_k2", &GroundEffectParams::ceiling_k2)
-      .def_readwrite("min_height", &GroundEffectParams::min_height);
+      .def_readwrite("min_height", &GroundEffectParams::min_height)
+      .def_readwrite("rotor_plane_height", &GroundEffectParams::rotor_plane_height);
   py::enum_<WindShear>(m, "WindShear", "Mean wind profile with height.")
       .value("NONE", WindShear::kNone)
       .value("LOG", WindShear::kLog)

@@ -19,6 +19,7 @@ std::string validate(const GroundEffectParams& g) {
   if (!finite_at_least("k_body", g.k_body, 0.0, false)) return os.str();
   if (!finite_at_least("ceiling_k2", g.ceiling_k2, 0.0, false)) return os.str();
   if (!finite_at_least("min_height", g.min_height, 0.0, true)) return os.str();
+  if (!finite_at_least("rotor_plane_height", g.rotor_plane_height, 0.0, false)) return os.str();
   if (!(g.ceiling_k1 > 0.0)) {  // +inf: no ceiling term
     os << "ground_effect.ceiling_k1 must be a number > 0 (inf: no ceiling effect), got " << g.ceiling_k1;
     return os.str();

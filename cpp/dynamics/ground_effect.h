@@ -19,14 +19,15 @@
 namespace cufund {
 
 struct GroundEffectParams {
-  bool enabled = false;        // off: thrust unchanged (the integrator takes the branch-free path without it)
-  double rotor_radius = 0.0;   // R [m] > 0
-  double rotor_spacing = 0.0;  // d: distance between adjacent rotor centres [m] > 0 (1e6: one rotor alone)
-  double body_distance = 0.0;  // b: rotor centre to body centre [m] >= 0
-  double k_body = 0.0;         // K_b, the body term's coefficient (Sanchez-Cuevas et al.: 2) >= 0
-  double ceiling_k1 = 6.924;   // K1 > 0 (0 or inf: no ceiling term)
-  double ceiling_k2 = 0.0;     // K2 [m] >= 0
-  double min_height = 0.0;     // clamp [m] > 0: heights below it count as it
+  bool enabled = false;             // off: thrust unchanged (the integrator takes the branch-free path without it)
+  double rotor_radius = 0.0;        // R [m] > 0
+  double rotor_spacing = 0.0;       // d: distance between adjacent rotor centres [m] > 0 (1e6: one rotor alone)
+  double body_distance = 0.0;       // b: rotor centre to body centre [m] >= 0
+  double k_body = 0.0;              // K_b, the body term's coefficient (Sanchez-Cuevas et al.: 2) >= 0
+  double ceiling_k1 = 6.924;        // K1 > 0 (0 or inf: no ceiling term)
+  double ceiling_k2 = 0.0;          // K2 [m] >= 0
+  double rotor_plane_height = 0.0;  // rotor hubs above the body origin along body z [m] (landing gear) >= 0
+  double min_height = 0.0;          // clamp [m] > 0: heights below it count as it
 };
 
 // Heights above this [m] count as this (no floor or ceiling: gain 1 within (R / 4e6)^2).

@@ -92,7 +92,7 @@ CUFUND_INLINE void derivative(const DynamicsConstants& c, const double* x, const
     const double f_rotor = c.k_f * om[i] * om[i] * u.eta[i];  // what the rotor's drag torque follows
     double f = f_rotor;
     if constexpr (kGroundEffect) {
-      const double z_hub = p[2] + R20 * rx + R21 * ry + R22 * rz;
+      const double z_hub = p[2] + R20 * rx + R21 * ry + R22 * (rz + c.ge.rotor_plane_height);
       f *= ground_gain(c.ge, z_hub - u.floor_z) * ceiling_gain(c.ge, u.ceiling_z - z_hub);
     }
     // Rotor hub air velocity: body air velocity plus w x r_i.

@@ -42,6 +42,7 @@ def _geometry(params):
 
 
 def _hover_drift(params, cfg, z, omega, surfaces=(0.0, np.inf), seconds=0.5):
+    cfg = cfg if cfg is None else dataclasses.replace(cfg, rotor_plane_height_m=0.0)  # hubs at the origin
     quad = Quadrotor(params)
     quad.set_ground_effect(cfg)
     quad.set_surfaces_z(surfaces)
@@ -107,6 +108,16 @@ def test_a_tilted_vehicle_sees_each_rotor_at_its_own_height(params):
     quad.state.q[:] = (np.cos(roll / 2), np.sin(roll / 2), 0.0, 0.0)  # left side (+y) up
     quad.step(1e-6, np.full(4, params.hover_rotor_speed))
     assert quad.alpha_B[0] < -1.0  # the right side (low) is pushed up: negative roll acceleration
+
+
+def test_rotor_plane_height_lifts_the_hubs(params):
+    R, d, b = _geometry(params)
+    quad = Quadrotor(params)
+    quad.set_ground_effect(GroundEffectConfig(rotor_plane_height_m=0.05))
+    quad.set_surfaces_z((0.0, np.inf))
+    quad.hover((0.0, 0.0, 0.02))
+    quad.step(1e-9, np.full(4, params.hover_rotor_speed))
+    assert quad.accel_W[2] == pytest.approx(params.gravity * (_ratio_ground(0.07, R, d, b, 2.0) - 1.0), rel=1e-3)
 
 
 def test_world_floor_and_ceiling_of_the_tunnel_course():

@@ -41,6 +41,9 @@ class GroundEffectConfig:
     """K1 of the ceiling fit (.inf: no ceiling effect)."""
     ceiling_k2_m: float = 0.0
     """K2 of the ceiling fit [m]."""
+    rotor_plane_height_m: float = 0.05
+    """Height of the rotor hubs above the body origin along body z [m]: the origin rests on the ground, the
+    propellers stand above it on the landing gear (CU-Astro, 95 mm tall: about 5 cm; give it for other vehicles)."""
     min_height_m: float | None = None
     """Heights below this count as this [m]; null: one rotor radius (where the fits' data end)."""
     update_hz: float = 20.0
@@ -51,7 +54,7 @@ class GroundEffectConfig:
             v = getattr(self, name)
             if v is not None:
                 check_real_fields(self, "ground_effect", positive=True, unit=" [m]", names=(name,))
-        check_real_fields(self, "ground_effect", names=("k_body", "ceiling_k2_m"))
+        check_real_fields(self, "ground_effect", names=("k_body", "ceiling_k2_m", "rotor_plane_height_m"))
         check_real_fields(self, "ground_effect", positive=True, names=("update_hz",))
         if (
             isinstance(self.ceiling_k1, bool)
@@ -92,6 +95,7 @@ class GroundEffectConfig:
         g.k_body = self.k_body
         g.ceiling_k1 = float(self.ceiling_k1)
         g.ceiling_k2 = self.ceiling_k2_m
+        g.rotor_plane_height = self.rotor_plane_height_m
         g.min_height = self.min_height_m if self.min_height_m is not None else g.rotor_radius
         err = _core.dynamics.validate_ground_effect(g)
         if err:

@@ -77,6 +77,7 @@ class QuadrotorBatch:
     # surfaces and ground effect, and the wind (a function must itself pickle).
     _ROWS = ("p", "v", "q", "w", "rotor_speeds", "wind_W", "force_ext_W", "torque_ext_B", "accel_W", "alpha_B")
     _GE_FIELDS = (
+        "rotor_plane_height",
         "enabled",
         "rotor_radius",
         "rotor_spacing",
