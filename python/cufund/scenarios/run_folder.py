@@ -97,7 +97,10 @@ def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, repl
 
         trajectory = getattr(run.config, "trajectory", None)  # its waypoints, when the run flew through them
         waypoints = trajectory.waypoints if trajectory is not None and run.path is not None else None
-        flight = Flight.from_result(run.result, run.reference, waypoints)
+        goal = getattr(getattr(getattr(run.config, "planner", None), "params", None), "goal", None)
+        flight = Flight.from_result(run.result, run.reference, goal if waypoints is None else waypoints)
+        if waypoints is None and goal is not None:
+            flight.waypoints_label = "goal"
         flight.phases = _phases(run, float(flight.t[0]), float(flight.t[-1]))
         flight.title = _title(run)
     for hook in run.output_hooks:

@@ -77,6 +77,8 @@ class Flight:
     planned_is_reference: bool = False
     """True: ``planned_W`` is a reference known before the flight; False: the setpoints as published."""
     waypoints_W: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    waypoints_label: str = "waypoints"
+    """What the waypoints are ("waypoints", "goal")."""
     gates: list[Gate] = field(default_factory=list)
     centreline_W: np.ndarray | None = None
     """A course's centre line (M, 3): the trajectory figure adds the lateral deviation from it."""

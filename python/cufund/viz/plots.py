@@ -167,7 +167,7 @@ def plot_trajectory(stem: str | Path, flight: Flight, world: Any = None) -> list
         )
     if len(f.waypoints_W):
         w = f.waypoints_W
-        top.plot(w[:, 0], w[:, 1], "o", mfc="none", mec="k", ms=8, zorder=5, label="waypoints")
+        top.plot(w[:, 0], w[:, 1], "o", mfc="none", mec="k", ms=8, zorder=5, label=f.waypoints_label)
         numbers: dict[tuple[float, float], list[str]] = {}  # a closed path's last waypoint is its first
         for k, xy in enumerate(w[:, :2]):
             numbers.setdefault((round(float(xy[0]), 3), round(float(xy[1]), 3)), []).append(str(k + 1))
@@ -183,7 +183,6 @@ def plot_trajectory(stem: str | Path, flight: Flight, world: Any = None) -> list
     top.set_ylabel("y [m]")
     top.set_title("top view")
     top.grid(True, alpha=0.3)
-    top.legend(loc="best", fontsize=7)
 
     # side view: height against the distance along the course (centre line), else along the longer axis
     if deviation:
@@ -209,16 +208,15 @@ def plot_trajectory(stem: str | Path, flight: Flight, world: Any = None) -> list
             color="k",
             lw=3,
             solid_capstyle="butt",
-            label="gate openings (truth)" if k == 0 else None,
+            label="gates (truth)" if k == 0 else None,
         )
     if len(f.waypoints_W):
-        side.plot(along(f.waypoints_W), f.waypoints_W[:, 2], "o", mfc="none", mec="k", ms=8, label="waypoints")
+        side.plot(along(f.waypoints_W), f.waypoints_W[:, 2], "o", mfc="none", mec="k", ms=8, label=f.waypoints_label)
     side.set_xlabel(xlabel)
     side.set_ylabel("z [m]")
     side.set_ylim(min(-0.05, lo[2]), hi[2] + 0.1)
     side.set_title("side view")
     side.grid(True, alpha=0.3)
-    side.legend(loc="best", fontsize=7)
 
     if deviation:
         dev = fig.add_subplot(gs[1, :])
@@ -253,9 +251,14 @@ def plot_trajectory(stem: str | Path, flight: Flight, world: Any = None) -> list
             fontsize=10,
         )
         dev.grid(True, alpha=0.3)
-        dev.legend(loc="lower right", fontsize=7)
     if f.title:
         fig.suptitle(f.title, fontsize=11)
+    # one legend for the figure, under it: it hides nothing
+    entries: dict[str, Any] = {}
+    for ax in fig.axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            entries.setdefault(label, handle)
+    fig.legend(entries.values(), entries.keys(), loc="outside lower center", ncol=min(len(entries), 8), fontsize=8)
     return save_figure(fig, stem)
 
 
@@ -325,7 +328,13 @@ def plot_errors(stem: str | Path, flight: Flight) -> list[Path]:
     strip.set_title("mission phases" if f.phases else "", fontsize=9, loc="left")
     for ax, (t, e, colour, label) in zip(axes, panels, strict=False):
         rmse, mx = float(np.sqrt(np.mean(e**2))), float(e.max())
-        ax.plot(t, 100 * e, color=colour, lw=1.0, label=f"{label}: RMSE {100 * rmse:.2f} cm, max {100 * mx:.2f} cm")
+        ax.plot(
+            t,
+            100 * e,
+            color=colour,
+            lw=1.0,
+            label=f"{label}: RMSE {100 * rmse:.2f} cm, max {100 * mx:.2f} cm over the plot",
+        )
         ax.set_ylabel("error [cm]")
         ax.set_ylim(0, 105 * mx if mx > 0 else 1)
         ax.grid(True, alpha=0.3)
