@@ -44,3 +44,17 @@ def test_centreline_coordinates_against_a_right_angle():
     s, d = centreline_coordinates(points, line)
     np.testing.assert_allclose(s, [1.0, 1.0, 3.0, -1.0, 5.0])
     np.testing.assert_allclose(d, [0.05, -0.03, -0.1, 0.02, 0.0], atol=1e-12)
+
+
+def test_airborne_phases_from_the_true_height():
+    """Climb from 0 to 1 m over t in [1, 2] s, hold, descend over [8, 9] s, on a 10 ms grid: airborne from the
+    first sample above 5.5 cm (t = 1.06 s, 6 cm) to the last (t = 8.94 s)."""
+    from cufund.viz.flight import Flight
+
+    t = np.round(np.arange(0.0, 10.0 + 1e-9, 0.01), 10)
+    z = np.interp(t, [0, 1, 2, 8, 9, 10], [0, 0, 1, 1, 0, 0])
+    p = np.column_stack([np.zeros_like(t), np.zeros_like(t), z])
+    phases = Flight(t, p, np.tile([1.0, 0, 0, 0], (len(t), 1))).airborne_phases(lift_m=0.055)
+    assert [ph.name for ph in phases] == ["on the ground", "airborne", "landed"]
+    assert phases[1].t0 == pytest.approx(1.06) and phases[1].t1 == pytest.approx(8.94)
+    assert phases[0].t1 == phases[1].t0 and phases[1].t1 == phases[2].t0  # contiguous, never overlapping

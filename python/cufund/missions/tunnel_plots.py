@@ -54,6 +54,7 @@ def add_tunnel_flight(flight: Any, mission: Any, course: Any, detector: Any) -> 
     if len(cloud):
         flight.overlays.append(Overlay("detector_map", cloud, _MAP, "cloud", "detector's map"))
     flight.phases = mission_phases(list(mission.transitions), float(flight.t[-1]))
+    flight.phases_title = "mission states"
 
 
 def _cloud(detector: Any) -> np.ndarray:

@@ -101,7 +101,9 @@ def write_run_folder(run: ScenarioRun, out: str | Path, plots: bool = True, repl
         flight = Flight.from_result(run.result, run.reference, goal if waypoints is None else waypoints)
         if waypoints is None and goal is not None:
             flight.waypoints_label = "goal"
-        flight.phases = _phases(run, float(flight.t[0]), float(flight.t[-1]))
+        flight.phases, flight.phases_title = _phases(run, float(flight.t[0]), float(flight.t[-1])), "reference"
+        if not flight.phases:  # a part may name its own (the tunnel's mission states)
+            flight.phases, flight.phases_title = flight.airborne_phases(), "phases (from the true height)"
         flight.title = _title(run)
     for hook in run.output_hooks:
         hook(run, out, plots=plots, replay=replay, flight=flight)

@@ -83,6 +83,8 @@ class Flight:
     centreline_W: np.ndarray | None = None
     """A course's centre line (M, 3): the trajectory figure adds the lateral deviation from it."""
     phases: list[Phase] = field(default_factory=list)
+    phases_title: str = "mission phases"
+    """What the phases are, above their bands."""
     overlays: list[Overlay] = field(default_factory=list)
     title: str = ""
 
@@ -113,6 +115,19 @@ class Flight:
             from_reference,
             wp,
         )
+
+    def airborne_phases(self, lift_m: float = 0.05) -> list[Phase]:
+        """Phases read off the truth alone, for a run whose parts name none: on the ground, airborne (from the
+        first to the last time the vehicle is ``lift_m`` above where it started), landed."""
+        t, z = self.t, self.p_W[:, 2]
+        if len(t) < 2:
+            return []
+        up = np.flatnonzero(z > z[0] + lift_m)
+        if not len(up):
+            return [Phase(float(t[0]), float(t[-1]), "on the ground")]
+        a, b = float(t[up[0]]), float(t[up[-1]])
+        spans = [(float(t[0]), a, "on the ground"), (a, b, "airborne"), (b, float(t[-1]), "landed")]
+        return [Phase(x, y, name) for x, y, name in spans if y > x]
 
     def framing_points(self) -> np.ndarray:
         """What a view of the flight must show: the true and planned paths, the waypoints and gates (the estimate

@@ -325,7 +325,7 @@ def plot_errors(stem: str | Path, flight: Flight) -> list[Path]:
     strip.set_yticks([])
     strip.set_ylim(0, 1)
     strip.tick_params(labelbottom=False)
-    strip.set_title("mission phases" if f.phases else "", fontsize=9, loc="left")
+    strip.set_title(f.phases_title if f.phases else "", fontsize=9, loc="left")
     for ax, (t, e, colour, label) in zip(axes, panels, strict=False):
         rmse, mx = float(np.sqrt(np.mean(e**2))), float(e.max())
         ax.plot(
