@@ -47,7 +47,7 @@ class MotorFailureDetector:
         self.threshold, self.t_trigger, self.K = float(threshold), float(t_trigger), float(bandwidth)
         self._Jrows = [[float(v) for v in row] for row in self.J]
         self._Arows = [[float(v) for v in row] for row in self.A[1:, :]]
-        self.min_dt = 1.0 / 250.0 - 1e-9
+        self.min_dt = 1.0 / 100.0 - 1e-9
         """Samples closer than this to the last one taken are skipped (see :meth:`due`) [s]."""
         self.reset()
 
@@ -82,7 +82,7 @@ class MotorFailureDetector:
         return self.A[1:, :] @ (self.k_f * np.asarray(self._speeds) ** 2)
 
     def due(self, t: float) -> bool:
-        """Whether a sample at ``t`` is worth taking: at most 250 Hz (the observer low-passes at ``K`` rad/s, far
+        """Whether a sample at ``t`` is worth taking: at most 100 Hz (the observer low-passes at ``K`` rad/s, far
         below; faster gyros are decimated)."""
         return self._t is None or float(t) - self._t >= self.min_dt
 
@@ -96,7 +96,7 @@ class MotorFailureDetector:
 
     def gyro(self, t: float, w_B: Any) -> None:
         """One gyro sample (body frame): advances the rotor model and the observer to ``t`` (plain floats: it
-        runs at up to 250 Hz in the loop)."""
+        runs at up to 100 Hz in the loop)."""
         if self._cmd is None:
             return
         assert self._speeds is not None
@@ -110,8 +110,8 @@ class MotorFailureDetector:
         if dt <= 0:
             return
         kf, sp, A = self.k_f, self._speeds, self._Arows
-        thrust = [kf * v * v for v in sp]
-        tau = [sum(a * f for a, f in zip(row, thrust, strict=True)) for row in A]
+        f0, f1, f2, f3 = kf * sp[0] * sp[0], kf * sp[1] * sp[1], kf * sp[2] * sp[2], kf * sp[3] * sp[3]
+        tau = [row[0] * f0 + row[1] * f1 + row[2] * f2 + row[3] * f3 for row in A]
         wp = self._w
         Jwp = self._J(wp)
         gyro_torque = [

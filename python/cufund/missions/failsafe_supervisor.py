@@ -25,6 +25,7 @@ the MAVLink endpoint show it, the latter as STATUSTEXT of that severity) and in 
 
 from __future__ import annotations
 
+import bisect
 import math
 from typing import Any
 
@@ -126,8 +127,9 @@ class FailsafeSupervisor(Planner):
         self.attitude.reset()
 
     def setup(self, bus: BusView) -> None:
-        self._commands = bus.subscribe(Topics.ACTUATOR_COMMAND)
-        self._rates = bus.subscribe(self.imu_topic if self.imu_topic is not None else self.active_state_topic)
+        if self.motor is not None:  # every command and rate sample (without an IMU: every state, e.g. truth at 1 kHz)
+            self._commands = bus.subscribe(Topics.ACTUATOR_COMMAND)
+            self._rates = bus.subscribe(self.imu_topic if self.imu_topic is not None else self.active_state_topic)
         if self.gps_topic is not None:
             self._gps = bus.subscribe(self.gps_topic)
         if self._own_health and self.estimator_diagnostics:
@@ -137,6 +139,8 @@ class FailsafeSupervisor(Planner):
     def ended_flight(self) -> str | None:
         """'failsafe_landed' / 'failsafe_returned' once a failsafe took the vehicle down, else None (also when the
         operator took over from the commander afterwards)."""
+        if not self.took:  # (the harness asks at every physics step)
+            return None
         overridden = getattr(self.takeover, "overridden", None)
         if overridden is not None and overridden():
             return None
@@ -264,28 +268,31 @@ class FailsafeSupervisor(Planner):
 
     def _feed_motor(self, t: float, airborne: bool) -> None:
         """The motor failure detector takes the commands and rates since the last step (only in the air)."""
+        m = self.motor
+        if m is None:
+            return
         cmds = self._commands.take()
         rates = self._rates.take()
-        m = self.motor
-        if m is None or not airborne:
+        if not airborne:
             return
         use_imu = self.imu_topic is not None
-        k, latest = 0, None
-        for r in rates:  # in time order, the command in force at each sample's stamp
+        stride = 1  # the observer takes at most 100 Hz: skip the samples it would not take without looking at them
+        if len(rates) > 1:
+            dt = float(rates[1].t) - float(rates[0].t)
+            stride = max(1, int(m.min_dt / dt + 0.5)) if dt > 0 else 1
+        cmd_t = [float(c.t) for c in cmds]
+        applied = -1
+        for r in rates[::stride]:  # in time order, the command in force at each sample's stamp
             tr = float(r.t)
-            while k < len(cmds) and float(cmds[k].t) <= tr:
-                latest = cmds[k]
-                k += 1
             if not m.due(tr):
                 continue
-            if latest is not None:
-                m.command(float(latest.t), latest.rotor_speeds)
-                latest = None
+            k = bisect.bisect_right(cmd_t, tr) - 1
+            if k > applied:
+                m.command(cmd_t[k], cmds[k].rotor_speeds)
+                applied = k
             m.gyro(tr, self.R_BI @ np.asarray(r.w_I, dtype=float) if use_imu else r.w_B)
-        if k < len(cmds):
-            m.command(float(cmds[-1].t), cmds[-1].rotor_speeds)
-        elif latest is not None:
-            m.command(float(latest.t), latest.rotor_speeds)
+        if cmds and applied < len(cmds) - 1:
+            m.command(cmd_t[-1], cmds[-1].rotor_speeds)
 
     def _battery(self, t: float, bus: BusView) -> None:
         b = bus.latest(Topics.BATTERY)
