@@ -4,6 +4,7 @@
 #include <limits>
 #include <vector>
 
+#include "batch_cast.h"
 #include "lidar_frame.h"
 #include "pybind_common.h"
 #include "raycast_scene.h"
@@ -308,6 +309,8 @@ py::dict cast(const RaycastScene& scene, const py::handle& rays_obj, const py::h
 
 }  // namespace
 
+void define_lidar_batch(py::module_& m);
+
 void define_lidar(py::module_& m) {
   m.attr("INVALID_ID") = py::int_(lidar::kInvalidId);
   py::class_<RaycastScene>(m, "RaycastScene", R"doc(
@@ -478,6 +481,157 @@ Frame k (n rays) of cufund.sensors.patterns.Mid360Pattern: (t [s] from the frame
 elevation [rad], channel int32, unit directions d_L (n, 3)). Ray i fires at (k n + i) / point_rate, laser
 i % lasers; azimuth 2 pi (spin_rate t + channel / lasers) mod 2 pi, elevation the middle of
 [elevation_min, elevation_max] plus half its width times sin(2 pi spin_rate sweep_ratio t + pi channel / lasers).
+)doc");
+  define_lidar_batch(m);  // after RaycastScene, which its signatures name
+}
+
+// Batched casts (batch_cast.h): one sensor per vehicle, every vehicle in one call.
+namespace {
+
+py::array_t<float, py::array::c_style> batch_directions(const py::handle& obj) {
+  py::array arr = checked_array(obj, "d_S");
+  const char kind = arr.dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u') {
+    throw py::value_error("d_S must have a real numeric dtype (float32 preferred), got " +
+                          std::string(py::str(arr.dtype())));
+  }
+  if (arr.ndim() != 2 || arr.shape(1) != 3) throw py::value_error("d_S must have shape (R, 3), got " + shape_str(arr));
+  return contiguous<float>(arr, "d_S");
+}
+
+py::ssize_t rows_of(const py::handle& obj, const char* field, py::ssize_t cols) {
+  py::array arr = checked_array(obj, field);
+  if (arr.ndim() != 2 || arr.shape(1) != cols) {
+    throw py::value_error(std::string(field) + " must have shape (N, " + std::to_string(cols) + "), got " +
+                          shape_str(arr));
+  }
+  return arr.shape(0);
+}
+
+void raise_batch(const lidar::BatchResult& r) {
+  const std::string i = std::to_string(r.index);
+  switch (r.status) {
+    case lidar::BatchStatus::kOk: return;
+    case lidar::BatchStatus::kNonFinitePose:
+      throw py::value_error("p_WS and q_WS must be finite, sensor " + i + " is not");
+    case lidar::BatchStatus::kZeroQuaternion:
+      throw py::value_error("q_WS must hold non-zero quaternions [w, x, y, z], sensor " + i + " is zero");
+    case lidar::BatchStatus::kNonFiniteDirection:
+      throw py::value_error("d_S must be finite, direction " + i + " is not");
+    case lidar::BatchStatus::kZeroDirection:
+      throw py::value_error("d_S must hold non-zero directions, direction " + i + " is zero");
+    case lidar::BatchStatus::kBadBox:
+      throw py::value_error("box " + i +
+                            ": box_p_W and box_q_W must be finite (q non-zero) and box_half_extents finite and >= 0");
+    case lidar::BatchStatus::kBadOwner:
+      throw py::value_error("box_owner must hold box indices in [-1, M), sensor " + i + "'s is not");
+  }
+}
+
+}  // namespace
+
+void define_lidar_batch(py::module_& m) {
+  m.def(
+      "batch_rays",
+      [](const py::handle& d_S_obj, const py::handle& p_obj, const py::handle& q_obj, const py::handle& nthreads_obj) {
+        const int nthreads = threads_arg(nthreads_obj);
+        auto d = batch_directions(d_S_obj);
+        const py::ssize_t n = rows_of(p_obj, "p_WS", 3);
+        auto p = as_float64(p_obj, "p_WS", {n, 3});
+        auto q = as_float64(q_obj, "q_WS", {n, 4});
+        const py::ssize_t r = d.shape(0);
+        py::array_t<float> rays({n, r, py::ssize_t{6}});
+        lidar::BatchResult res;
+        {
+          py::gil_scoped_release release;
+          res = lidar::batch_rays({p.data(), q.data(), static_cast<std::size_t>(n)}, d.data(),
+                                  static_cast<std::size_t>(r), rays.mutable_data(), nthreads);
+        }
+        raise_batch(res);
+        return rays;
+      },
+      py::arg("d_S"), py::arg("p_WS"), py::arg("q_WS"), py::arg("nthreads") = 0, R"doc(
+The (N, R, 6) float32 rays batch_cast casts: ray (i, r) leaves p_WS[i] along R(q_WS[i]) d_S[r].
+
+d_S: (R, 3) sensor-frame directions (float32); p_WS (N, 3) [m]; q_WS (N, 4) [w, x, y, z] (normalised here).
+)doc");
+
+  m.def(
+      "batch_cast",
+      [](const RaycastScene& scene, const py::handle& d_S_obj, const py::handle& p_obj, const py::handle& q_obj,
+         const py::handle& box_p, const py::handle& box_q, const py::handle& box_h, const py::handle& box_owner,
+         const py::handle& range_min, const py::handle& range_max, const py::handle& miss_value,
+         const py::handle& noise_std, const py::handle& noise_per_m, const py::handle& dropout, const py::handle& seed,
+         const py::handle& frame, const py::handle& nthreads_obj) {
+        const int nthreads = threads_arg(nthreads_obj);
+        auto d = batch_directions(d_S_obj);
+        const py::ssize_t n = rows_of(p_obj, "p_WS", 3);
+        auto p = as_float64(p_obj, "p_WS", {n, 3});
+        auto q = as_float64(q_obj, "q_WS", {n, 4});
+        const py::ssize_t r = d.shape(0);
+        lidar::VehicleBoxes boxes;
+        py::array_t<double, py::array::c_style> bp, bq, bh;
+        py::array_t<std::int64_t, py::array::c_style> owner;
+        if (!box_p.is_none()) {
+          const py::ssize_t m_boxes = rows_of(box_p, "box_p_W", 3);
+          bp = as_float64(box_p, "box_p_W", {m_boxes, 3});
+          if (box_q.is_none() || box_h.is_none()) {
+            throw py::value_error("box_q_W and box_half_extents are required with box_p_W");
+          }
+          bq = as_float64(box_q, "box_q_W", {m_boxes, 4});
+          bh = as_float64(box_h, "box_half_extents", {m_boxes, 3});
+          boxes = {bp.data(), bq.data(), bh.data(), static_cast<std::size_t>(m_boxes), nullptr};
+          if (!box_owner.is_none()) {
+            py::array oa = checked_array(box_owner, "box_owner");
+            if (oa.dtype().kind() != 'i' && oa.dtype().kind() != 'u') {
+              throw py::value_error("box_owner must have an integer dtype, got " + std::string(py::str(oa.dtype())));
+            }
+            if (oa.ndim() != 1 || oa.shape(0) != n) {
+              throw py::value_error("box_owner must have shape (" + std::to_string(n) + ",), got " + shape_str(oa));
+            }
+            owner = contiguous<std::int64_t>(oa, "box_owner");
+            boxes.owner = owner.data();
+          }
+        }
+        lidar::BatchRangeModel model;
+        model.range_min = static_cast<float>(nonnegative_arg(range_min, "range_min"));
+        model.range_max = static_cast<float>(nonnegative_arg(range_max, "range_max", true));
+        if (!(model.range_max >= model.range_min)) throw py::value_error("range_max must be >= range_min");
+        model.miss_value = static_cast<float>(real_arg(miss_value, "miss_value"));
+        model.noise_std = nonnegative_arg(noise_std, "noise_std");
+        model.noise_per_m = nonnegative_arg(noise_per_m, "noise_per_m");
+        model.dropout = nonnegative_arg(dropout, "dropout");
+        if (!(model.dropout < 1.0))
+          throw py::value_error("dropout must be in [0, 1), got " + std::string(py::repr(dropout)));
+        model.seed = static_cast<std::uint64_t>(int_arg(seed, "seed", 0, std::numeric_limits<std::int64_t>::max()));
+        model.frame = static_cast<std::uint64_t>(int_arg(frame, "frame", 0, std::numeric_limits<std::int64_t>::max()));
+        py::array_t<float> out({n, r});
+        lidar::BatchResult res;
+        {
+          py::gil_scoped_release release;
+          res = lidar::batch_cast(scene, {p.data(), q.data(), static_cast<std::size_t>(n)}, d.data(),
+                                  static_cast<std::size_t>(r), boxes, model, out.mutable_data(), nthreads);
+        }
+        raise_batch(res);
+        return out;
+      },
+      py::arg("scene"), py::arg("d_S"), py::arg("p_WS"), py::arg("q_WS"), py::kw_only(),
+      py::arg("box_p_W") = py::none(), py::arg("box_q_W") = py::none(), py::arg("box_half_extents") = py::none(),
+      py::arg("box_owner") = py::none(), py::arg("range_min") = 0.0,
+      py::arg("range_max") = std::numeric_limits<double>::infinity(),
+      py::arg("miss_value") = std::numeric_limits<double>::infinity(), py::arg("noise_std") = 0.0,
+      py::arg("noise_per_m") = 0.0, py::arg("dropout") = 0.0, py::arg("seed") = 0, py::arg("frame") = 0,
+      py::arg("nthreads") = 0, R"doc(
+One sensor on each of N vehicles cast in one call (GIL released, threads over vehicles): (N, R) float32.
+
+The rays of batch_rays(d_S, p_WS, q_WS) are cast into ``scene``, each vehicle's in the 8-wide coherent
+packets of ``scene.cast_rays(rays[i], coherent=True)`` (bit for bit its t_hit), and into the vehicles'
+oriented boxes (box_p_W (M, 3) [m], box_q_W (M, 4) [w, x, y, z], box_half_extents (M, 3) [m]; sensor i does
+not see box box_owner[i], -1: none). A value is the distance along the ray's direction in units of its length
+(a range for unit d_S, the depth along the optical axis for pinhole directions (1, -x_n, -y_n)); outside
+[range_min, range_max] or a miss: miss_value. Noise (off by default): a valid return becomes
+max(t + (noise_std + noise_per_m t) z, 0), z standard normal, and is lost (miss_value) with probability
+``dropout``; vehicle i's draws in frame ``frame`` come from a stream keyed by (seed, frame, i).
 )doc");
 }
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['INVALID_ID', 'RaycastScene', 'mid360_frame', 'scan_frame', 'scan_rays']
+__all__: list[str] = ['INVALID_ID', 'RaycastScene', 'batch_cast', 'batch_rays', 'mid360_frame', 'scan_frame', 'scan_rays']
 class RaycastScene:
     """
     A scene of triangle meshes that casts rays with Embree 3, shaped like Open3D's RaycastingScene.
@@ -47,6 +47,25 @@ class RaycastScene:
     @property
     def num_triangles(self) -> int:
         ...
+def batch_cast(scene: RaycastScene, d_S: typing.Any, p_WS: typing.Any, q_WS: typing.Any, *, box_p_W: typing.Any = None, box_q_W: typing.Any = None, box_half_extents: typing.Any = None, box_owner: typing.Any = None, range_min: typing.Any = 0.0, range_max: typing.Any = ..., miss_value: typing.Any = ..., noise_std: typing.Any = 0.0, noise_per_m: typing.Any = 0.0, dropout: typing.Any = 0.0, seed: typing.Any = 0, frame: typing.Any = 0, nthreads: typing.Any = 0) -> numpy.typing.NDArray[numpy.float32]:
+    """
+    One sensor on each of N vehicles cast in one call (GIL released, threads over vehicles): (N, R) float32.
+    
+    The rays of batch_rays(d_S, p_WS, q_WS) are cast into ``scene``, each vehicle's in the 8-wide coherent
+    packets of ``scene.cast_rays(rays[i], coherent=True)`` (bit for bit its t_hit), and into the vehicles'
+    oriented boxes (box_p_W (M, 3) [m], box_q_W (M, 4) [w, x, y, z], box_half_extents (M, 3) [m]; sensor i does
+    not see box box_owner[i], -1: none). A value is the distance along the ray's direction in units of its length
+    (a range for unit d_S, the depth along the optical axis for pinhole directions (1, -x_n, -y_n)); outside
+    [range_min, range_max] or a miss: miss_value. Noise (off by default): a valid return becomes
+    max(t + (noise_std + noise_per_m t) z, 0), z standard normal, and is lost (miss_value) with probability
+    ``dropout``; vehicle i's draws in frame ``frame`` come from a stream keyed by (seed, frame, i).
+    """
+def batch_rays(d_S: typing.Any, p_WS: typing.Any, q_WS: typing.Any, nthreads: typing.Any = 0) -> numpy.typing.NDArray[numpy.float32]:
+    """
+    The (N, R, 6) float32 rays batch_cast casts: ray (i, r) leaves p_WS[i] along R(q_WS[i]) d_S[r].
+    
+    d_S: (R, 3) sensor-frame directions (float32); p_WS (N, 3) [m]; q_WS (N, 4) [w, x, y, z] (normalised here).
+    """
 def mid360_frame(k: typing.Any, n: typing.Any, point_rate: typing.Any, lasers: typing.Any, spin_rate: typing.Any, sweep_ratio: typing.Any, elevation_min: typing.Any, elevation_max: typing.Any, nthreads: typing.Any = 0) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.int32], numpy.typing.NDArray[numpy.float64]]:
     """
     Frame k (n rays) of cufund.sensors.patterns.Mid360Pattern: (t [s] from the frame start, azimuth [rad],

@@ -1,0 +1,278 @@
+"""Ray-cast observations for every env of a batch in one C++ call: a pinhole depth image or LiDAR ranges.
+
+Each vehicle carries one sensor, mounted at (``p_BS``, ``q_BS``) on its body (FLU; the sensor looks along its
+own +x, like the body). :meth:`BatchRangeSensor.observe` takes the N body poses and returns (N, H, W) depths or
+(N, R) ranges, cast with Embree by :func:`cufund._core.lidar.batch_cast` (GIL released, threads over vehicles,
+each vehicle's rays in the 8-wide coherent packets of ``RaycastScene.cast_rays(coherent=True)``: bit for bit
+its hits). Optionally the vehicles' boxes are in the cast, so that each sensor sees the others (not itself).
+
+- Depth: the distance along the optical axis (+x of the sensor) of the first surface through each pixel's centre,
+  rows top to bottom and columns left to right as an image (pixel (v, u) looks along (1, -x_n, -y_n) with
+  x_n = (u + 0.5 - W/2) / f, y_n = (v + 0.5 - H/2) / f, f = (W/2) / tan(fov/2)).
+- LiDAR: the range along each ray of frame ``frame`` of an existing scan pattern (Mid-360, VLP-16, OS1-64, Avia;
+  :mod:`cufund.sensors.patterns`), every ray cast at the frame's pose (no motion distortion within a frame).
+
+A return outside [range_min, range_max] or a miss reads ``range_max`` (a bounded observation). The noise is
+the LiDAR's range model (:class:`cufund.sensors.LidarParams`: ``range_noise_std``, ``range_noise_per_m``,
+``dropout``; a dropped return reads range_max), off by default and seeded: vehicle i's draws in frame k come
+from a stream keyed by (seed, k, i).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from cufund import _core
+from cufund.core.config import ConfigError
+from cufund.sensors import patterns
+
+__all__ = ["BatchRangeSensor", "DepthCameraSpec", "LidarSpec", "SensorSpec", "VehicleBoxes", "sensor_poses"]
+
+_PATTERNS: dict[str, Callable[[], patterns.ScanPattern]] = {
+    "mid360": patterns.mid360,
+    "vlp16": patterns.vlp16,
+    "os1_64": patterns.os1_64,
+    "avia": patterns.avia,
+}
+
+
+def _number(where: str, value: Any, lo: float = 0.0, hi: float = math.inf, allow_inf: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ConfigError(f"{where} must be a number, got {value!r}")
+    v = float(value)
+    if math.isnan(v) or (math.isinf(v) and not allow_inf) or not lo <= v <= hi:
+        raise ConfigError(f"{where} must be a number in [{lo:g}, {hi:g}], got {value!r}")
+    return v
+
+
+def _whole(where: str, value: Any, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= int(value) <= hi:
+        raise ConfigError(f"{where} must be a whole number in [{lo}, {hi}], got {value!r}")
+    return int(value)
+
+
+def _mount(where: str, p: Any, q: Any) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    pa = np.asarray(p, dtype=float).reshape(-1)
+    qa = np.asarray(q, dtype=float).reshape(-1)
+    if pa.shape != (3,) or not np.all(np.isfinite(pa)):
+        raise ConfigError(f"{where}.p_BS must be 3 finite numbers [m], got {p!r}")
+    if qa.shape != (4,) or not np.all(np.isfinite(qa)) or not np.linalg.norm(qa) > 0:
+        raise ConfigError(f"{where}.q_BS must be a non-zero quaternion [w, x, y, z], got {q!r}")
+    return tuple(pa.tolist()), tuple((qa / np.linalg.norm(qa)).tolist())
+
+
+@dataclasses.dataclass(frozen=True)
+class _RangeTerms:
+    range_min: float = 0.05
+    """Returns closer than this read range_max [m]."""
+    range_max: float = 20.0
+    """Returns farther than this, and misses, read range_max [m]."""
+    range_noise_std: float = 0.0
+    """Gaussian range noise sigma(r) = range_noise_std + range_noise_per_m r [m] (as cufund.sensors.LidarParams)."""
+    range_noise_per_m: float = 0.0
+    """[m/m]"""
+    dropout: float = 0.0
+    """Probability that a valid return is lost (reads range_max), in [0, 1)."""
+    p_BS: tuple[float, ...] = (0.0, 0.0, 0.0)
+    """The sensor's position on the body [m] (FLU)."""
+    q_BS: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0)
+    """The sensor's attitude on the body [w, x, y, z]: identity looks along the body's +x."""
+
+    def _check_range(self, where: str) -> None:
+        rmin = _number(f"{where}.range_min", self.range_min)
+        rmax = _number(f"{where}.range_max", self.range_max, rmin)
+        if rmax <= 0:
+            raise ConfigError(f"{where}.range_max must be > 0 [m], got {self.range_max!r}")
+        object.__setattr__(self, "range_min", rmin)
+        object.__setattr__(self, "range_max", rmax)
+        for name in ("range_noise_std", "range_noise_per_m"):
+            object.__setattr__(self, name, _number(f"{where}.{name}", getattr(self, name)))
+        object.__setattr__(self, "dropout", _number(f"{where}.dropout", self.dropout, 0.0, 0.999999))
+        p, q = _mount(where, self.p_BS, self.q_BS)
+        object.__setattr__(self, "p_BS", p)
+        object.__setattr__(self, "q_BS", q)
+
+
+@dataclasses.dataclass(frozen=True)
+class DepthCameraSpec(_RangeTerms):
+    """A pinhole depth camera of ``width`` x ``height`` pixels and horizontal field of view ``fov_deg`` (square
+    pixels)."""
+
+    width: int = 64
+    height: int = 64
+    fov_deg: float = 90.0
+    """Horizontal field of view [deg], in (0, 170]."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "width", _whole("depth.width", self.width, 1, 4096))
+        object.__setattr__(self, "height", _whole("depth.height", self.height, 1, 4096))
+        object.__setattr__(self, "fov_deg", _number("depth.fov_deg", self.fov_deg, 1e-3, 170.0))
+        self._check_range("depth")
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(height, width) of one image."""
+        return (self.height, self.width)
+
+    @property
+    def focal_px(self) -> float:
+        """Focal length [px]."""
+        return (self.width / 2.0) / math.tan(math.radians(self.fov_deg) / 2.0)
+
+    def directions(self) -> np.ndarray:
+        """(H W, 3) float32 sensor-frame directions (1, -x_n, -y_n), row-major over the image: the distance along
+        each is the depth along the optical axis."""
+        f = self.focal_px
+        xn = (np.arange(self.width) + 0.5 - self.width / 2.0) / f
+        yn = (np.arange(self.height) + 0.5 - self.height / 2.0) / f
+        xx, yy = np.meshgrid(xn, yn)
+        return np.stack([np.ones_like(xx), -xx, -yy], -1).reshape(-1, 3).astype(np.float32)
+
+
+@dataclasses.dataclass(frozen=True)
+class LidarSpec(_RangeTerms):
+    """A LiDAR of one of cufund's scan patterns; every ``stride``-th ray of frame ``frame`` (the same rays every
+    step: an observation of fixed size)."""
+
+    pattern: str = "mid360"
+    """mid360, vlp16, os1_64 or avia (cufund.sensors.patterns)."""
+    frame: int = 0
+    stride: int = 20
+    """Keep every stride-th ray of the frame (the Mid-360's 20 000 rays at stride 20: 1000)."""
+    range_max: float = 40.0
+
+    def __post_init__(self) -> None:
+        if self.pattern not in _PATTERNS:
+            raise ConfigError(f"lidar.pattern must be one of {', '.join(_PATTERNS)}, got {self.pattern!r}")
+        object.__setattr__(self, "frame", _whole("lidar.frame", self.frame, 0, 2**40))
+        object.__setattr__(self, "stride", _whole("lidar.stride", self.stride, 1, 1_000_000))
+        self._check_range("lidar")
+
+    def directions(self) -> np.ndarray:
+        """(R, 3) float32 unit directions in the sensor frame."""
+        d = np.asarray(_PATTERNS[self.pattern]().frame(self.frame).directions(), dtype=np.float64)[:: self.stride]
+        return (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
+
+    @property
+    def shape(self) -> tuple[int]:
+        """(R,) rays per observation."""
+        return (len(self.directions()),)
+
+
+SensorSpec = DepthCameraSpec | LidarSpec
+
+
+def sensor_spec(kind: str, **kwargs: Any) -> SensorSpec:
+    """``depth`` or ``lidar`` with its fields."""
+    if kind == "depth":
+        return DepthCameraSpec(**kwargs)
+    if kind == "lidar":
+        return LidarSpec(**kwargs)
+    raise ConfigError(f"sensor must be 'depth' or 'lidar', got {kind!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class VehicleBoxes:
+    """The vehicles' boxes in a cast: each vehicle an oriented box of ``half_extents`` [m] (body axes) centred on
+    its body origin; sensor i does not see its own."""
+
+    half_extents: tuple[float, float, float] = (0.1, 0.1, 0.03)
+
+    def __post_init__(self) -> None:
+        h = np.asarray(self.half_extents, dtype=float).reshape(-1)
+        if h.shape != (3,) or not np.all(np.isfinite(h)) or np.any(h < 0):
+            raise ConfigError(f"half_extents must be 3 finite numbers >= 0 [m], got {self.half_extents!r}")
+        object.__setattr__(self, "half_extents", tuple(h.tolist()))
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        -1,
+    )
+
+
+def sensor_poses(
+    p_WB: np.ndarray, q_WB: np.ndarray, p_BS: tuple[float, ...], q_BS: tuple[float, ...]
+) -> tuple[np.ndarray, np.ndarray]:
+    """(p_WS (N, 3), q_WS (N, 4)) of a sensor mounted at (p_BS, q_BS) on bodies at (p_WB, q_WB [w, x, y, z])."""
+    p = np.asarray(p_WB, dtype=np.float64).reshape(-1, 3)
+    q = np.asarray(q_WB, dtype=np.float64).reshape(-1, 4)
+    if not any(p_BS) and tuple(q_BS) == (1.0, 0.0, 0.0, 0.0):
+        return p, q
+    qs = np.broadcast_to(np.asarray(q_BS), q.shape)
+    pb = np.zeros_like(q)
+    pb[:, 1:] = p_BS
+    # R_WB p_BS = vec(q pb q*)
+    qc = q * np.array([1.0, -1.0, -1.0, -1.0])
+    rotated = _quat_mul(_quat_mul(q, pb), qc)[:, 1:]
+    return p + rotated, _quat_mul(q, qs)
+
+
+class BatchRangeSensor:
+    """One :data:`SensorSpec` sensor on each of N vehicles in the world of ``scene`` (a
+    :class:`cufund._core.lidar.RaycastScene`, e.g. ``World.raycast_scene``)."""
+
+    def __init__(
+        self,
+        scene: _core.lidar.RaycastScene,
+        spec: SensorSpec,
+        boxes: VehicleBoxes | None = None,
+        seed: int = 0,
+        nthreads: int = 0,
+    ) -> None:
+        if not isinstance(spec, (DepthCameraSpec, LidarSpec)):
+            raise ConfigError(f"spec must be a DepthCameraSpec or a LidarSpec, got {type(spec).__name__}")
+        self.scene = scene
+        self.spec = spec
+        self.boxes = boxes
+        self.seed = _whole("seed", seed, 0, 2**63 - 1)
+        self.nthreads = _whole("nthreads", nthreads, 0, 1 << 20)
+        self.d_S = spec.directions()
+        self.shape = spec.shape
+
+    def observe(self, p_WB: np.ndarray, q_WB: np.ndarray, frame: int = 0) -> np.ndarray:
+        """(N, *shape) float32 of the vehicles at (p_WB (N, 3) [m], q_WB (N, 4) [w, x, y, z]); ``frame`` keys the
+        noise draws."""
+        s = self.spec
+        p_WB = np.asarray(p_WB, dtype=np.float64).reshape(-1, 3)
+        q_WB = np.asarray(q_WB, dtype=np.float64).reshape(-1, 4)
+        p_WS, q_WS = sensor_poses(p_WB, q_WB, s.p_BS, s.q_BS)
+        box: dict[str, Any] = {}
+        if self.boxes is not None:
+            n = len(p_WB)
+            box = {
+                "box_p_W": p_WB,
+                "box_q_W": q_WB,
+                "box_half_extents": np.broadcast_to(np.asarray(self.boxes.half_extents), (n, 3)),
+                "box_owner": np.arange(n, dtype=np.int64),
+            }
+        out = _core.lidar.batch_cast(
+            self.scene,
+            self.d_S,
+            p_WS,
+            q_WS,
+            range_min=s.range_min,
+            range_max=s.range_max,
+            miss_value=s.range_max,
+            noise_std=s.range_noise_std,
+            noise_per_m=s.range_noise_per_m,
+            dropout=s.dropout,
+            seed=self.seed,
+            frame=int(frame),
+            nthreads=self.nthreads,
+            **box,
+        )
+        return out.reshape((len(p_WB), *self.shape))
