@@ -129,6 +129,11 @@ def _parser() -> argparse.ArgumentParser:
 
 # Long-running commands, each in its own module: add_arguments(parser) defines its options, run(args) -> exit code.
 _SERVERS = {
+    "train": (
+        "cufund.apps.train_cli",
+        "train a policy on a cufund task (PPO, skrl on JAX) and export it to ONNX (policy.onnx + policy.yaml "
+        "for the controller kind policy)",
+    ),
     "px4-sim": (
         "cufund.apps.mavlink.px4_cli",
         "be PX4's simulator: serve a scenario to px4_sitl over MAVLink (TCP 4560 + "

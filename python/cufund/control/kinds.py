@@ -110,3 +110,6 @@ register(
         "Lee-Leok-McClamroch SE(3) tracking controller with the same allocation",
     )
 )
+
+# the learned-policy kind (ONNX through onnxruntime) registers itself
+from . import policy_controller as _policy_controller  # noqa: E402, F401

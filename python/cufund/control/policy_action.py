@@ -1,0 +1,60 @@
+"""How a policy's action in [-1, 1]^4 becomes a command, per action mode: the same formulas as cufund.envs'
+(``EnvBatch::commands`` in cpp/envs/env_batch.cpp), for the ``policy`` controller.
+
+- ``rotor_speeds``: ``omega_i = omega_hover + a_i * span``, ``omega_hover = sqrt(m g / (4 k_f))``,
+  ``span = min(omega_max - omega_hover, omega_hover - omega_min)`` [rad/s];
+- ``thrust_rates``: collective thrust ``T = min(m g (1 + a_0), 4 k_f omega_max^2)`` [N] and body rates
+  ``w_sp = a_1..3 * max_rate`` [rad/s], for the rate loop;
+- ``velocity``: the velocity setpoint ``a_0..2 * max_speed`` [m/s] through ``acc = k_v (v_sp - v_W)`` (with
+  ``acc_z`` + g, at least 0.2 g), ``T = clamp(m acc . z_B, 0, T_max)``, roll/pitch rates
+  ``k_att * (R_WB^T (z_B x acc / |acc|))_xy`` and yaw rate ``a_3 * max_rate``, for the rate loop.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cufund.geometry import quat_to_matrix
+from cufund.vehicle.params import QuadrotorParams
+
+from .policy_manifest import PolicyManifest
+
+__all__ = ["ActionDecoder"]
+
+
+class ActionDecoder:
+    """Commands from actions for one vehicle (its nominal params) and one exported policy's manifest."""
+
+    def __init__(self, params: QuadrotorParams, manifest: PolicyManifest) -> None:
+        self.action_mode = manifest.action_mode
+        self.mass = float(params.mass)
+        self.gravity = float(params.gravity)
+        self.omega_hover = math.sqrt(params.mass * params.gravity / (4.0 * params.k_f))
+        self.omega_span = min(params.rotor_speed_max - self.omega_hover, self.omega_hover - params.rotor_speed_min)
+        self.max_thrust = 4.0 * params.k_f * params.rotor_speed_max**2
+        self.max_rate = manifest.max_rate
+        self.max_speed = manifest.max_speed
+        self.velocity_gain = manifest.velocity_gain
+        self.attitude_gain = manifest.attitude_gain
+
+    def rotor_speeds(self, a: np.ndarray) -> np.ndarray:
+        """Rotor speed commands [rad/s] (4,)."""
+        return self.omega_hover + np.asarray(a[:4], dtype=np.float64) * self.omega_span
+
+    def thrust_rates(self, a: np.ndarray) -> tuple[float, np.ndarray]:
+        """Collective thrust [N] and body-rate setpoint [rad/s] (3,)."""
+        thrust = min(self.mass * self.gravity * (1.0 + float(a[0])), self.max_thrust)
+        return thrust, np.asarray(a[1:4], dtype=np.float64) * self.max_rate
+
+    def velocity(self, a: np.ndarray, v_W: np.ndarray, q_WB: np.ndarray) -> tuple[float, np.ndarray]:
+        """Collective thrust [N] and body-rate setpoint [rad/s] (3,) tracking the velocity setpoint in ``a``."""
+        R = quat_to_matrix(np.asarray(q_WB, dtype=np.float64))
+        acc = self.velocity_gain * (np.asarray(a[:3], dtype=np.float64) * self.max_speed - np.asarray(v_W))
+        acc[2] = max(acc[2] + self.gravity, 0.2 * self.gravity)
+        z_B = R[:, 2]
+        thrust = float(np.clip(self.mass * acc @ z_B, 0.0, self.max_thrust))
+        err_B = R.T @ np.cross(z_B, acc / np.linalg.norm(acc))
+        w = np.array([self.attitude_gain * err_B[0], self.attitude_gain * err_B[1], float(a[3]) * self.max_rate])
+        return thrust, w

@@ -1,0 +1,189 @@
+"""The controller kind ``policy``: an exported ONNX policy refused when its manifest does not match (naming the
+field), its observation built from the estimate and the gyro (never truth) as policy_observation defines it, its
+actions turned into commands as the environments' formulas say, and a scenario built with it."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("onnxruntime")
+pytest.importorskip("onnx")
+
+from cufund.control import policy_observation as po
+from cufund.control.policy_action import ActionDecoder
+from cufund.control.policy_controller import PolicyController, PolicyControllerParams, load_policy
+from cufund.control.policy_manifest import OBS_LAYOUT_VERSION, PolicyManifest
+from cufund.core.bus import Bus, BusView
+from cufund.core.config import ConfigError
+from cufund.core.messages import Imu, Odometry, Topics, TrajectorySetpoint
+from cufund.envs.export_onnx import export_mlp, read_manifest
+from cufund.vehicle import presets
+
+
+def _manifest(**kw: Any) -> PolicyManifest:
+    base: dict[str, Any] = dict(
+        task="cufund/Hover-v0",
+        action_mode="rotor_speeds",
+        rate_hz=100.0,
+        n_targets=1,
+        target_dim=3,
+        obs_dim=po.observation_size(1, 3),
+        act_dim=4,
+        vehicle="crazyflie",
+        seed=0,
+    )
+    base.update(kw)
+    return PolicyManifest(**base)
+
+
+def _export(tmp_path, manifest: PolicyManifest, W=None, b=None, mean=None, var=None):
+    rng = np.random.default_rng(1)
+    d = manifest.obs_dim
+    W0 = rng.normal(size=(d, 16)).astype(np.float32) * 0.3 if W is None else W
+    b0 = np.zeros(16, np.float32)
+    W1 = rng.normal(size=(16, 4)).astype(np.float32) * 0.3
+    b1 = np.zeros(4, np.float32) if b is None else b
+    layers = [(W0, b0), (W1, b1)] if W is None else [(W, b)]
+    return export_mlp(tmp_path / "policy.onnx", layers, manifest, obs_mean=mean, obs_var=var), layers
+
+
+def test_onnx_graph_is_the_mlp_it_was_given(tmp_path):
+    """The exported graph computes clip(tanh(z W0 + b0) W1 + b1) on the standardised observation (numpy)."""
+    import onnxruntime as ort
+
+    m = _manifest()
+    rng = np.random.default_rng(2)
+    mean = rng.normal(size=m.obs_dim).astype(np.float32)
+    var = rng.uniform(0.5, 2.0, m.obs_dim).astype(np.float32)
+    path, layers = _export(tmp_path, m, mean=mean, var=var)
+    obs = rng.normal(size=(100, m.obs_dim)).astype(np.float32) * 3
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    got = sess.run(["action"], {"obs": obs})[0]
+    z = np.clip((obs.astype(np.float64) - mean) / (np.sqrt(var.astype(np.float64)) + 1e-8), -5, 5)
+    h = np.tanh(z @ layers[0][0] + layers[0][1])
+    want = np.clip(h @ layers[1][0] + layers[1][1], -1, 1)
+    np.testing.assert_allclose(got, want, rtol=0, atol=2e-6)
+    assert read_manifest(path)["obs_layout_version"] == OBS_LAYOUT_VERSION
+    assert PolicyManifest.read(tmp_path / "policy.yaml") == m
+
+
+@pytest.mark.parametrize(
+    ("edit", "field"),
+    [
+        ("obs_layout_version: 1", "obs_layout_version"),
+        ("obs_layout: cufund.policy_observation", "obs_layout"),
+        ("obs_dim: 22", "obs_dim"),
+        ("act_dim: 4", "act_dim"),
+        ("action_mode: rotor_speeds", "action_mode"),
+    ],
+)
+def test_refuses_a_manifest_that_does_not_match_naming_the_field(tmp_path, edit, field):
+    _export(tmp_path, _manifest())
+    y = tmp_path / "policy.yaml"
+    text = y.read_text()
+    key, value = edit.split(": ")
+    bad = {
+        "obs_layout_version": str(OBS_LAYOUT_VERSION + 1),
+        "obs_layout": "someone.elses_layout",
+        "obs_dim": "25",
+        "act_dim": "3",
+        "action_mode": "jetpack",
+    }[key]
+    assert f"{key}: " in text
+    lines = [f"{key}: {bad}" if ln.startswith(f"{key}: ") else ln for ln in text.splitlines()]
+    y.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ConfigError, match=field):
+        load_policy(tmp_path)
+
+
+def test_refuses_another_vehicle_a_missing_manifest_and_a_wrong_input_size(tmp_path):
+    _export(tmp_path, _manifest())
+    with pytest.raises(ConfigError, match="vehicle is 'crazyflie'.*cu_astro"):
+        load_policy(tmp_path, vehicle="cu_astro")
+    load_policy(tmp_path, vehicle="crazyflie")
+    # a network whose input is not the manifest's obs_dim
+    other = tmp_path / "other"
+    other.mkdir()
+    m2 = _manifest(n_targets=2, obs_dim=po.observation_size(2, 3))
+    _export(other, m2)
+    (other / "policy.yaml").write_text((tmp_path / "policy.yaml").read_text())
+    with pytest.raises(ConfigError, match="input"):
+        load_policy(other)
+    (tmp_path / "policy.yaml").unlink()
+    with pytest.raises(ConfigError, match="policy.yaml"):
+        load_policy(tmp_path)
+    with pytest.raises(ConfigError, match="no exported policy"):
+        load_policy(tmp_path / "nowhere")
+    with pytest.raises(ConfigError, match="controller.model"):
+        PolicyControllerParams(model="")
+    with pytest.raises(ConfigError, match="controller.targets"):
+        PolicyControllerParams(model="x", targets="gps")
+
+
+def _step(ctrl: PolicyController, bus: Bus, t: float) -> BusView:
+    view = BusView(bus, ctrl.name, ctrl.inputs + ctrl.optional_inputs, ctrl.outputs, deny_truth=True)
+    ctrl.setup(view)
+    return view
+
+
+def test_observation_from_estimate_and_gyro_and_rotor_speed_command(tmp_path):
+    """A one-layer net with W = 0 gives the action clip(b): the command is omega_hover + b * span (the analytic
+    hover speed sqrt(m g / 4 k_f)); the observation is po.build_observation of the estimate, the IMU's gyro
+    rotated into the body and the previous action; no /truth/ topic is read."""
+    m = _manifest()
+    b = np.array([0.5, -0.25, 2.0, 0.0], np.float32)  # 2.0 clips to 1
+    _export(tmp_path, m, W=np.zeros((m.obs_dim, 4), np.float32), b=b)
+    sess, manifest, _ = load_policy(tmp_path)
+    params = presets.crazyflie()
+    q_BI = (math.cos(0.25), 0.0, 0.0, math.sin(0.25))  # IMU yawed by 0.5 rad
+    ctrl = PolicyController(sess, manifest, ActionDecoder(params, manifest), q_BI=q_BI, gyro_cutoff_hz=0.0)
+    ctrl.use_estimator(True)
+    ctrl.active_state_topic = Topics.ESTIMATE
+    bus = Bus()
+    view = _step(ctrl, bus, 0.0)
+    est = Odometry(0.0, np.array([0.1, -0.2, 0.9]), np.array([0.3, 0.0, -0.1]), np.array([1.0, 0, 0, 0]), np.zeros(3))
+    w_I = np.array([0.2, -0.1, 0.4])
+    bus.publish(Topics.ESTIMATE, est)
+    bus.publish(Topics.IMU, Imu(0.0, np.array([0, 0, 9.81]), w_I))
+    bus.publish(
+        Topics.TRAJECTORY_SETPOINT, TrajectorySetpoint(0.0, np.array([0.0, 0.0, 1.0]), *(np.zeros(3),) * 3, 0, 0)
+    )
+    ctrl.step(0.0, view)
+    cmd = bus.latest(Topics.ACTUATOR_COMMAND)
+    w_hover = math.sqrt(params.mass * params.gravity / (4 * params.k_f))
+    span = min(params.rotor_speed_max - w_hover, w_hover - params.rotor_speed_min)
+    np.testing.assert_allclose(cmd.rotor_speeds, w_hover + np.clip(b, -1, 1) * span, rtol=1e-6)
+    c, s = math.cos(0.5), math.sin(0.5)
+    w_B = np.array([c * w_I[0] - s * w_I[1], s * w_I[0] + c * w_I[1], w_I[2]])
+    want = po.build_observation(np.array([[0.0, 0.0, 1.0]]), est.p_W, est.v_W, est.q_WB, w_B, np.zeros(4))
+    np.testing.assert_allclose(ctrl.last_obs, want, rtol=0, atol=1e-7)
+    assert not any(t.startswith("/truth") for t in view.reads)
+    # the next observation carries this action as a_prev
+    ctrl.step(0.01, view)
+    np.testing.assert_allclose(ctrl.last_obs[-4:], np.clip(b, -1, 1), rtol=0, atol=1e-7)
+
+
+def test_thrust_rates_and_velocity_decoding_match_the_env_formulas():
+    params = presets.cu_astro()
+    m = _manifest(action_mode="thrust_rates", vehicle="cu_astro", max_rate=8.0)
+    d = ActionDecoder(params, m)
+    thrust, w = d.thrust_rates(np.array([0.1, 0.5, -1.0, 0.25]))
+    assert thrust == pytest.approx(params.mass * params.gravity * 1.1)
+    np.testing.assert_allclose(w, [4.0, -8.0, 2.0])
+    thrust, _ = d.thrust_rates(np.array([1.0, 0, 0, 0]))
+    assert thrust <= 4 * params.k_f * params.rotor_speed_max**2
+    # velocity: level and at the setpoint speed, the thrust holds the weight and the rates are zero
+    dv = ActionDecoder(params, dataclasses.replace(m, action_mode="velocity"))
+    thrust, w = dv.velocity(
+        np.array([0.5, 0.0, 0.0, 0.0]), np.array([0.5 * m.max_speed, 0, 0]), np.array([1.0, 0, 0, 0])
+    )
+    assert thrust == pytest.approx(params.mass * params.gravity)
+    np.testing.assert_allclose(w, 0.0, atol=1e-12)
+    # asked to speed up along +x, a level vehicle pitches nose down (positive body-y rate in FLU)
+    _, w = dv.velocity(np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3), np.array([1.0, 0, 0, 0]))
+    assert w[1] > 0 and abs(w[0]) < 1e-12
