@@ -25,3 +25,15 @@ def test_geofence_breach_is_a_statustext_warning_and_returns():
         ev = live.events.of_kind("failsafe")
         assert len(ev) == 1 and ev[0]["action"] == "rtl"
         g.wait("HEARTBEAT", lambda m: m.custom_mode >> 24 in (5, 6), 10)  # PX4 AUTO.RTL (5) then AUTO.LAND (6)
+
+
+def test_a_live_run_without_a_commander_shows_the_supervisors_events():
+    from cufund.apps.live import LiveRun
+    from cufund.missions.failsafe_supervisor import FailsafeSupervisor
+
+    live = LiveRun("square", start=False)
+    try:
+        sup = next(c for c in live.simulator.components if isinstance(c, FailsafeSupervisor))
+        assert live.commander is None and live.events is sup.events  # the ground station and MAVLink follow these
+    finally:
+        live.stop()
