@@ -2,6 +2,10 @@
 #include "pybind_common.h"
 #include "thread_pool.h"
 
+namespace cufund::py_bind {
+void define_envs(pybind11::module_& m);  // bindings/envs.cpp
+}  // namespace cufund::py_bind
+
 PYBIND11_MODULE(_core, m) {
   namespace py = pybind11;
   m.doc() = "cufund's compiled core. Import the public API from `cufund`, not from here.";
@@ -30,4 +34,6 @@ PYBIND11_MODULE(_core, m) {
   cufund::py_bind::define_planning(planning);
   py::module_ logs = m.def_submodule("logs", "The run log's hot path: packing messages into MCAP blocks (issue 10).");
   cufund::py_bind::define_logs(logs);
+  py::module_ envs = m.def_submodule("envs", "Learning environments on the quadrotor batch (issue 28).");
+  cufund::py_bind::define_envs(envs);
 }

@@ -166,7 +166,10 @@ class TaskConfig:
     max_speed: float = 2.0
     """velocity: speed setpoint at |a| = 1 per axis [m/s]."""
     imu_noise: bool = False
-    """Observe w_B through the IMU noise model (the vehicle's gyro noise density and bias walk)."""
+    """Observe w_B through the IMU noise model: the gyro's turn-on bias, bias random walk and white noise of the
+    IMU preset ``imu``, sampled at the env step (``cufund.sensors.noise.ErrorProcess``'s model)."""
+    imu: str = "bmi088"
+    """The IMU preset whose gyro noise ``imu_noise`` uses (cufund.sensors.imu.IMU_PRESETS)."""
     rewards: Rewards = field(default_factory=Rewards)
     randomisation: Randomisation = field(default_factory=Randomisation)
 
@@ -202,6 +205,10 @@ class TaskConfig:
             raise ConfigError(f"spawn_extent must be >= 0 per axis [m], got {self.spawn_extent!r}")
         if self.start is not None:
             object.__setattr__(self, "start", _vec("start", self.start, 3))
+        from cufund.sensors.imu import IMU_PRESETS
+
+        if self.imu not in IMU_PRESETS:
+            raise ConfigError(f"imu must be an IMU preset ({', '.join(IMU_PRESETS)}), got {self.imu!r}")
         if not isinstance(self.imu_noise, bool):
             raise ConfigError(f"imu_noise must be true or false, got {self.imu_noise!r}")
         object.__setattr__(self, "rewards", nested(Rewards, self.rewards, "rewards"))

@@ -10,6 +10,7 @@ its envs, so env ``i`` of a vector equals a single env seeded ``seed + i`` bit f
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import gymnasium
@@ -17,15 +18,80 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from cufund import _core
 from cufund.control import policy_observation as po
-from cufund.vehicle import QuadrotorBatch, presets
+from cufund.control.rate_control import RateControlParams
+from cufund.sensors.imu import imu_preset
+from cufund.vehicle import presets
 
 from .config import TaskConfig, load_task
 
-__all__ = ["OBS_BOUND", "CufundVectorEnv", "GatesEnv", "HoverEnv", "WaypointsEnv", "make_config"]
+__all__ = ["OBS_BOUND", "CufundVectorEnv", "GatesEnv", "HoverEnv", "WaypointsEnv", "make_config", "task_params"]
 
 OBS_BOUND = 1.0e4
 """Bound of the observation space per entry."""
+
+
+_TASK_IDS = {"hover": 0, "waypoints": 1, "gates": 2}
+_MODE_IDS = {"rotor_speeds": 0, "thrust_rates": 1, "velocity": 2}
+_RATE_I_SCALE = math.radians(400.0)  # as cufund.control.rate_control (PX4)
+
+
+def task_params(cfg: TaskConfig) -> Any:
+    """The task as the C++ batch reads it (cufund._core.envs.EnvTaskParams)."""
+    t = _core.envs.EnvTaskParams()
+    t.task = _TASK_IDS[cfg.task]
+    t.action_mode = _MODE_IDS[cfg.action_mode]
+    t.dt = cfg.dt
+    t.substeps = cfg.substeps
+    t.max_steps = cfg.max_steps
+    gates = cfg.task == "gates"
+    t.targets = [x for tg in cfg.targets for x in (*tg[:3], math.radians(tg[3]) if gates else 0.0)]
+    t.n_ahead = cfg.n_ahead
+    t.reach_radius = cfg.reach_radius
+    t.gate_size = cfg.gate_size
+    t.bound = cfg.bound_m
+    t.crash_z = cfg.crash_z
+    if gates:
+        first = cfg.targets[0]
+        yaw = math.radians(first[3])
+        default = (first[0] - math.cos(yaw), first[1] - math.sin(yaw), first[2])
+        t.spawn_center = list(cfg.start if cfg.start is not None else default)
+    else:
+        t.spawn_center = list(cfg.targets[0][:3])
+    t.spawn_extent = list(cfg.spawn_extent)
+    t.spawn_speed = cfg.spawn_speed
+    t.spawn_tilt = math.radians(cfg.spawn_tilt_deg)
+    t.spawn_rate = cfg.spawn_rate
+    t.max_rate = cfg.max_rate
+    t.max_speed = cfg.max_speed
+    r = cfg.rewards
+    t.w_position, t.w_velocity, t.w_rate, t.w_action = r.position, r.velocity, r.rate, r.action
+    t.alive, t.progress, t.reached, t.crash = r.alive, r.progress, r.reached, r.crash
+    d = cfg.randomisation
+    t.mass, t.inertia, t.motor_constant, t.motor_lag = (
+        list(d.mass),
+        list(d.inertia),
+        list(d.motor_constant),
+        list(d.motor_lag),
+    )
+    t.drag, t.latency_steps, t.wind = list(d.drag), list(d.latency_steps), list(d.wind_mps)
+    t.position_noise, t.velocity_noise = list(d.position_noise_m), list(d.velocity_noise_mps)
+    if cfg.imu_noise:
+        white, walk, turn_on = imu_preset(cfg.imu).gyro.per_axis(3)
+        t.imu_noise = True
+        t.gyro_white, t.gyro_walk, t.gyro_turn_on = float(white[0]), float(walk[0]), float(turn_on[0])
+    g = RateControlParams()
+    t.set_rate_gains(
+        (g.roll_p, g.pitch_p, g.yaw_p),
+        (g.roll_i, g.pitch_i, g.yaw_i),
+        (g.roll_d, g.pitch_d, g.yaw_d),
+        g.feed_forward,
+        g.integrator_limit,
+    )
+    t.rate_d_cutoff_hz = g.d_cutoff_hz
+    t.rate_i_scale = _RATE_I_SCALE
+    return t
 
 
 def make_config(task: str | TaskConfig, overrides: dict[str, Any]) -> TaskConfig:
@@ -50,101 +116,37 @@ class CufundVectorEnv(VectorEnv):
         self.num_envs = int(num_envs)
         params = getattr(presets, cfg.vehicle)()
         self.params = dataclasses.replace(params, max_integration_step=cfg.dt / cfg.substeps)
-        self.batch = QuadrotorBatch(self.params, self.num_envs)
+        self._core = _core.envs.EnvBatch(self.params.to_core(), task_params(cfg), self.num_envs)
         self.obs_size = po.observation_size(cfg.n_ahead, cfg.target_dim)
         # finite bounds (check_env warns on infinite ones); a vehicle this far off was terminated long before
         self.single_observation_space = gymnasium.spaces.Box(-OBS_BOUND, OBS_BOUND, (self.obs_size,), np.float32)
         self.single_action_space = gymnasium.spaces.Box(-1.0, 1.0, (po.ACTION_SIZE,), np.float32)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self._seed: int | None = None
-        self._rngs = [np.random.default_rng(i) for i in range(self.num_envs)]
-        self._a_prev = np.zeros((self.num_envs, 4))
-        self._steps = np.zeros(self.num_envs, dtype=np.int64)
-        self._done = np.zeros(self.num_envs, dtype=bool)
-        self._omega_hover = float(np.sqrt(params.mass * params.gravity / (4 * params.k_f)))
-
-    # --- the numpy path (Hover-v0, rotor speeds), to be replaced by cpp/envs -------------------------------------
-    def _target(self) -> np.ndarray:
-        return np.broadcast_to(np.asarray(self.config.targets[0][:3]), (self.num_envs, 3))
-
-    def _reset_envs(self, mask: np.ndarray) -> None:
-        cfg = self.config
-        b = self.batch
-        for i in np.flatnonzero(mask):
-            rng = self._rngs[i]
-            p0 = np.asarray(cfg.targets[0][:3]) + rng.uniform(-1, 1, 3) * np.asarray(cfg.spawn_extent)
-            b.p[i] = p0
-            b.v[i] = rng.uniform(-1, 1, 3) * cfg.spawn_speed
-            tilt = np.radians(cfg.spawn_tilt_deg)
-            roll, pitch = rng.uniform(-tilt, tilt, 2)
-            yaw = rng.uniform(-np.pi, np.pi)
-            cr, sr, cp, sp, cy, sy = (
-                np.cos(roll / 2),
-                np.sin(roll / 2),
-                np.cos(pitch / 2),
-                np.sin(pitch / 2),
-                np.cos(yaw / 2),
-                np.sin(yaw / 2),
-            )
-            b.q[i] = (
-                cr * cp * cy + sr * sp * sy,
-                sr * cp * cy - cr * sp * sy,
-                cr * sp * cy + sr * cp * sy,
-                cr * cp * sy - sr * sp * cy,
-            )
-            b.w[i] = rng.uniform(-1, 1, 3) * cfg.spawn_rate
-            b.rotor_speeds[i] = self._omega_hover
-            self._a_prev[i] = 0.0
-            self._steps[i] = 0
-
-    def _observe(self) -> np.ndarray:
-        b = self.batch
-        return po.build_observation(self._target()[:, None, :], b.p, b.v, b.q, b.w, self._a_prev)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        """Resets every env; ``seed`` seeds env ``i``'s stream with ``seed + i`` (else the streams go on)."""
         if seed is not None:
-            self._seed = int(seed)
-            self._rngs = [np.random.default_rng(self._seed + i) for i in range(self.num_envs)]
-        self.batch.reset()
-        self._reset_envs(np.ones(self.num_envs, dtype=bool))
-        self._done[:] = False
-        return self._observe(), {}
+            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
+                raise ValueError(f"seed must be an integer in [0, 2^63), got {seed!r}")
+            return self._core.reset(int(seed)), {}
+        return self._core.reset(), {}
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
-        a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, 4)
-        if not np.all(np.isfinite(a)):
-            raise ValueError("actions must be finite numbers in [-1, 1], got a NaN or inf")
-        a = np.clip(a, -1.0, 1.0)
-        cfg = self.config
-        p = self.params
-        span = min(p.rotor_speed_max - self._omega_hover, self._omega_hover - p.rotor_speed_min)
-        cmd = self._omega_hover + a * span
-        self.batch.step(cfg.dt, cmd)
-        self._a_prev[:] = a
-        self._steps += 1
-        b = self.batch
-        e = np.linalg.norm(self._target() - b.p, axis=1)
-        crash = (e > cfg.bound_m) | (b.p[:, 2] < cfg.crash_z)
-        r = cfg.rewards
-        rew = (
-            r.alive
-            - r.position * e
-            - r.velocity * np.linalg.norm(b.v, axis=1)
-            - r.rate * np.linalg.norm(b.w, axis=1)
-            - r.action * np.sum(a * a, axis=1)
-            - r.crash * crash
-        )
-        term = crash
-        trunc = (self._steps >= cfg.max_steps) & ~term
-        was_done = self._done.copy()
-        if was_done.any():
-            self._reset_envs(was_done)
-            rew[was_done] = 0.0
-            term[was_done] = False
-            trunc[was_done] = False
-        self._done = term | trunc
-        return self._observe(), rew.astype(np.float64), term, trunc, {}
+        """One step of every env (actions (num_envs, 4) in [-1, 1], clipped): obs, reward, terminated, truncated,
+        infos (empty). Next-step autoreset (see the module's docstring)."""
+        obs, rew, term, trunc = self._core.step(actions)
+        return obs, rew, term, trunc, {}
+
+    @property
+    def batch(self) -> Any:
+        """The C++ QuadrotorBatch the envs fly: ``p``, ``v``, ``q``, ``w``, ``rotor_speeds``, ... (N, k) views."""
+        return self._core.batch
+
+    @property
+    def target_index(self) -> np.ndarray:
+        """Per env, the index of the current target (waypoint or gate)."""
+        return np.asarray(self._core.target_index)
 
 
 class HoverEnv(CufundVectorEnv):

@@ -1,0 +1,120 @@
+// Learning environments on the quadrotor batch (issue 28): actions -> rotor commands, the dynamics, observation,
+// reward, termination and next-step autoreset of N envs in one call, with no per-vehicle Python.
+//
+// The observation layout is python/cufund/control/policy_observation.py's, computed in the same order (no FMA
+// contraction), so the two agree bit for bit. Each env draws its resets, randomisation and noise from its own
+// xoshiro256** stream seeded by splitmix64(seed + i): env i of a batch equals a batch of one seeded seed + i.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "quadrotor_batch.h"
+#include "quadrotor_dynamics.h"
+#include "rate_control.h"
+
+namespace cufund {
+
+enum class EnvTask : int { kHover = 0, kWaypoints = 1, kGates = 2 };
+enum class ActionMode : int { kRotorSpeeds = 0, kThrustRates = 1, kVelocity = 2 };
+
+struct EnvTaskParams {
+  EnvTask task = EnvTask::kHover;
+  ActionMode action_mode = ActionMode::kRotorSpeeds;
+  double dt = 0.01;             // one env step [s]
+  int substeps = 1;             // RK4 steps per env step
+  int max_steps = 500;          // truncation
+  std::vector<double> targets;  // K x 4: x, y, z [m], yaw [rad] (gates; else 0)
+  int n_ahead = 1;
+  double reach_radius = 0.1, gate_size = 0.5, bound = 2.0, crash_z = 0.02;
+  std::vector<double> spawn_center{0.0, 0.0, 1.0}, spawn_extent{0.5, 0.5, 0.5};
+  double spawn_speed = 0.2, spawn_tilt = 0.17, spawn_rate = 0.5;
+  double max_rate = 10.0, max_speed = 2.0;
+  double velocity_gain = 4.0, attitude_gain = 10.0;  // velocity mode: [1/s], [1/s]
+  // rewards
+  double w_position = 1.0, w_velocity = 0.05, w_rate = 0.02, w_action = 0.01, alive = 1.0, progress = 10.0,
+         reached = 10.0, crash = 10.0;
+  // randomisation ranges [lo, hi]
+  std::vector<double> mass{1, 1}, inertia{1, 1}, motor_constant{1, 1}, motor_lag{1, 1}, drag{1, 1}, latency_steps{0, 0},
+      wind{0, 0}, position_noise{0, 0}, velocity_noise{0, 0};
+  // gyro noise (the IMU noise model: turn-on bias + bias random walk + white noise), per axis
+  bool imu_noise = false;
+  double gyro_white = 0.0, gyro_walk = 0.0, gyro_turn_on = 0.0;  // [rad/s/sqrt(Hz)], [rad/s^2/sqrt(Hz)], [rad/s]
+  // the rate loop (thrust_rates, velocity)
+  RateControlGains rate_gains{Eigen::Vector3d(25, 25, 12), Eigen::Vector3d(10, 10, 5), Eigen::Vector3d(0.2, 0.2, 0),
+                              0.0, 30.0};
+  double rate_d_cutoff_hz = 30.0, rate_i_scale = 6.981317007977318;
+
+  int target_dim() const { return task == EnvTask::kGates ? 6 : 3; }
+  int obs_size() const { return n_ahead * target_dim() + 19; }
+  int n_targets() const { return static_cast<int>(targets.size() / 4); }
+  bool physical_randomisation() const;
+};
+
+// "" when the task parameters are usable, else a message naming the field.
+std::string validate(const EnvTaskParams& t);
+
+class EnvBatch {
+ public:
+  static constexpr int kMaxLatency = 64;
+
+  EnvBatch(const QuadrotorParams& params, const EnvTaskParams& task, std::size_t n);
+
+  std::size_t size() const { return n_; }
+  int obs_size() const { return task_.obs_size(); }
+  const EnvTaskParams& task() const { return task_; }
+  QuadrotorBatch& batch() { return batch_; }
+
+  // Seeds env i's stream with seed + i and resets every env; writes obs (N, obs_size).
+  void reset(std::uint64_t seed, float* obs);
+  // Resets every env continuing their streams.
+  void reset(float* obs);
+  // One step of every env: actions (N, 4) in [-1, 1] (clipped; must be finite). Writes obs (N, obs_size), reward
+  // (N), terminated (N), truncated (N). An env that ended in the previous call is reset instead (its action
+  // ignored, reward 0, flags false). Throws std::invalid_argument on a non-finite action, std::runtime_error
+  // when the dynamics refuse the step.
+  void step(const double* actions, float* obs, double* reward, bool* terminated, bool* truncated, int nthreads = 0);
+  // Ends the episodes of the envs with mask[i] (N) set, e.g. on a collision only the caller sees (ForestAvoid,
+  // SwarmGates): the next step resets them (next-step autoreset).
+  void end_episodes(const bool* mask) {
+    for (std::size_t i = 0; i < n_; ++i) done_[i] = done_[i] || mask[i];
+  }
+
+  // Per env: current target index, steps in the episode, the action delay drawn [steps].
+  const std::vector<int>& target_index() const { return index_; }
+  const std::vector<int>& episode_steps() const { return steps_; }
+  const std::vector<int>& latency() const { return latency_; }
+  // Per env, 4 numbers: mass, inertia, k_f and tau_m scales drawn at the last reset; and the drag scale.
+  const std::vector<double>& drawn_scales() const { return scales_; }
+
+ private:
+  struct Rng {
+    std::uint64_t s[4];
+    void seed(std::uint64_t x);
+    std::uint64_t next();
+    double uniform();  // [0, 1)
+    double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
+    double normal();
+  };
+
+  void reset_env(std::size_t i);
+  void observe(std::size_t i, float* out);
+  void commands(const double* applied, int nthreads);
+  void integrate(int nthreads);
+
+  QuadrotorParams params_;
+  EnvTaskParams task_;
+  std::size_t n_;
+  QuadrotorBatch batch_;
+  double omega_hover_, omega_span_, max_thrust_;
+  std::vector<Rng> rng_;
+  std::vector<DynamicsConstants> constants_;  // per env, with physical randomisation only
+  std::vector<RateControl> rate_;
+  std::vector<double> a_prev_, history_, cmd_, prev_p_, gyro_bias_, noise_std_, scales_;
+  std::vector<int> index_, steps_, latency_, head_;
+  std::vector<unsigned char> done_;
+};
+
+}  // namespace cufund
