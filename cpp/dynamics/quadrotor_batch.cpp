@@ -51,6 +51,7 @@ namespace {
 
 using Rows = double* __restrict[QuadrotorBatch::kRows];
 
+template <bool kGroundEffect>
 CUFUND_INLINE void load(const DynamicsConstants& c, const Rows& p, const double* __restrict cmd, std::size_t i,
                         double* x, StepInputs& u) {
   CUFUND_UNROLL
@@ -68,6 +69,7 @@ CUFUND_INLINE void load(const DynamicsConstants& c, const Rows& p, const double*
     u.force_W[k] = p[QuadrotorBatch::kForceExt + k][i];
     u.torque_B[k] = p[QuadrotorBatch::kTorqueExt + k][i];
   }
+  if constexpr (kGroundEffect) ground_effect_gains(c, x, u);
 }
 
 // Integrates vehicles [begin, end): the loop body is one vehicle, so the compiler maps vehicles to
@@ -90,7 +92,7 @@ bool integrate_range(const DynamicsConstants& constants, double* __restrict stat
     for (std::size_t i = begin; i < end; ++i) {
       double x[kStateSize];
       StepInputs u;
-      load(c, p, cmd, i, x, u);
+      load<kGroundEffect>(c, p, cmd, i, x, u);
       rk4_substep<kGround, kGroundEffect>(c, u, h, x);
       CUFUND_UNROLL
       for (int j = 0; j < kStateSize; ++j) p[j][i] = x[j];
@@ -103,7 +105,7 @@ bool integrate_range(const DynamicsConstants& constants, double* __restrict stat
   for (std::size_t i = begin; i < end; ++i) {
     double x[kStateSize], dx[kStateSize];
     StepInputs u;
-    load(c, p, cmd, i, x, u);
+    load<kGroundEffect>(c, p, cmd, i, x, u);
     derivative<kGround, kGroundEffect>(c, x, u, dx);
     const bool held = kGround && resting_on_ground(x);
     CUFUND_UNROLL

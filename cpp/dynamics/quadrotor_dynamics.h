@@ -49,10 +49,24 @@ struct StepInputs {
   double wind_W[3];
   double force_W[3];
   double torque_B[3];
-  double eta[kNumRotors];  // rotor efficiency: scales each rotor's thrust and drag torque, in [0, 1]
-  double floor_z;          // ground/floor height below the vehicle [m] (-inf: none), kGroundEffect only
-  double ceiling_z;        // ceiling height above the vehicle [m] (+inf: none), kGroundEffect only
+  double eta[kNumRotors];          // rotor efficiency: scales each rotor's thrust and drag torque, in [0, 1]
+  double floor_z;                  // ground/floor height below the vehicle [m] (-inf: none), kGroundEffect only
+  double ceiling_z;                // ceiling height above the vehicle [m] (+inf: none), kGroundEffect only
+  double thrust_gain[kNumRotors];  // ground x ceiling gain per rotor, from the sub-step's start (kGroundEffect only)
 };
+
+// The ground and ceiling gains of each rotor at state x (its hub's height over floor_z and under ceiling_z),
+// held over an RK4 sub-step (evaluating them at every stage cost 4x for a change of O(h) in the gain).
+CUFUND_INLINE void ground_effect_gains(const DynamicsConstants& c, const double* x, StepInputs& u) {
+  const double qw = x[6], qx = x[7], qy = x[8], qz = x[9];
+  const double s = 2.0 / (qw * qw + qx * qx + qy * qy + qz * qz);
+  const double R20 = s * (qx * qz - qw * qy), R21 = s * (qy * qz + qw * qx), R22 = 1.0 - s * (qx * qx + qy * qy);
+  CUFUND_UNROLL
+  for (int i = 0; i < kNumRotors; ++i) {
+    const double z_hub = x[2] + R20 * c.r[i][0] + R21 * c.r[i][1] + R22 * (c.r[i][2] + c.ge.rotor_plane_height);
+    u.thrust_gain[i] = ground_gain(c.ge, z_hub - u.floor_z) * ceiling_gain(c.ge, u.ceiling_z - z_hub);
+  }
+}
 
 // kGround: a rigid ground plane at z = 0 (a template parameter so the vehicle loop has no branch on it).
 // kGroundEffect: thrust scaled by the ground and ceiling gains at each rotor hub's height (ground_effect.h).
@@ -91,10 +105,7 @@ CUFUND_INLINE void derivative(const DynamicsConstants& c, const double* x, const
     const double rx = c.r[i][0], ry = c.r[i][1], rz = c.r[i][2];
     const double f_rotor = c.k_f * om[i] * om[i] * u.eta[i];  // what the rotor's drag torque follows
     double f = f_rotor;
-    if constexpr (kGroundEffect) {
-      const double z_hub = p[2] + R20 * rx + R21 * ry + R22 * (rz + c.ge.rotor_plane_height);
-      f *= ground_gain(c.ge, z_hub - u.floor_z) * ceiling_gain(c.ge, u.ceiling_z - z_hub);
-    }
+    if constexpr (kGroundEffect) f *= u.thrust_gain[i];
     // Rotor hub air velocity: body air velocity plus w x r_i.
     const double l0 = aB0 + (w[1] * rz - w[2] * ry);
     const double l1 = aB1 + (w[2] * rx - w[0] * rz);
