@@ -217,6 +217,24 @@ def write_rosbag(log: Path, bag: Path) -> tuple[int, float, int]:
     return len(messages), wall, size
 
 
+def rewrite_cost(log: Path, again: Path) -> tuple[float, float]:
+    """CPU seconds (writing thread, whole process) to write ``log``'s messages (read beforehand) into a new
+    McapLogger with the compression ``cufund run`` uses: the log's own cost without the simulation around it."""
+    import inspect
+
+    from cufund.scenarios import run_folder
+
+    compression = "zstd" if 'compression="zstd"' in inspect.getsource(run_folder.run_into_folder) else "lz4"
+    records = list(read_mcap(log))
+    gc.collect()
+    t0, p0 = time.thread_time(), time.process_time()
+    with McapLogger(again, compression=compression) as out:
+        write = out.write
+        for r in records:
+            write(r.topic, r.message, r.log_time_ns, r.publish_time_ns)
+    return time.thread_time() - t0, time.process_time() - p0
+
+
 def bench_runs(tmp: Path, repeats: int, scenarios: list[str], bag: bool) -> None:
     import cufund
     from cufund.scenarios.run_folder import run_into_folder
@@ -242,6 +260,11 @@ def bench_runs(tmp: Path, repeats: int, scenarios: list[str], bag: bool) -> None
             f"{wall_with:.2f} s with the log ({(wall_with / wall_without - 1) * 100:+.1f} %); process CPU "
             f"{cpu_without:.2f} s without, {cpu_with:.2f} s with ({(cpu_with - cpu_without) / wall_without * 100:+.1f} % "
             f"of the run's wall time); load average {os.getloadavg()[0]:.2f}"
+        )
+        main, process = rewrite_cost(log, tmp / f"{name}_again.mcap")
+        print(
+            f"   {name}: its messages written again into a McapLogger as the run did (load-independent): "
+            f"{process:.2f} s of CPU, {main:.2f} s of it on the writing thread"
         )
         if bag:
             n, seconds, size = write_rosbag(log, tmp / f"{name}_bag")
