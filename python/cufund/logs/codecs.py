@@ -1,15 +1,18 @@
 """How each message type is written to and read from a log: one codec per topic, chosen from its first message.
 
-- Fixed-size messages (odometry, IMU, setpoints, actuator commands, any dataclass of numbers and fixed-shape
-  arrays): exact CDR (``cufund_msgs/msg/<Class>``, ros2msg schema), a block at a time with numpy. Odometry adds
-  two Foxglove views on companion channels: ``<topic>/pose`` (``foxglove_msgs/msg/PoseInFrame`` in ``world``)
-  and ``<topic>/tf`` (``foxglove_msgs/msg/FrameTransform`` ``world`` -> ``base_link`` for the truth,
-  ``base_link_estimate`` for the estimate).
-- Point clouds, LiDAR truth, camera images and GPS fixes: Foxglove's JSON schemas (``foxglove.PointCloud`` in
-  frame ``lidar`` with every per-point field packed, ``foxglove.RawImage``, ``foxglove.LocationFix``); what an
-  exact round trip needs beyond them (the float64 stamp, dtypes, the other fields) rides along in a ``cufund``
-  field, which Foxglove ignores.
-- Anything else (enums, strings, user dataclasses): JSON of the fields (``cufund.<Class>``, JSON Schema).
+- Fixed-size messages (odometry, IMU, GPS, setpoints, actuator commands, any dataclass of numbers and fixed-shape
+  arrays): exact CDR (``cufund_msgs/msg/<Class>``, ros2msg schema), a block at a time with numpy, with standard
+  ROS 2 views on companion channels built by the writer thread from the same rows: odometry as
+  ``<topic>/ros`` (``nav_msgs/msg/Odometry``, not for the truth), ``<topic>/pose`` (``PoseStamped``) and ``/tf``
+  (frames: :data:`ODOMETRY_FRAMES`), the truth also ``/clock``; the IMU as ``<topic>/ros``
+  (``sensor_msgs/msg/Imu``); GPS as ``<topic>/ros`` (``sensor_msgs/msg/NavSatFix``).
+- LiDAR frames and the LiDAR truth: ``sensor_msgs/msg/PointCloud2`` (:class:`PointCloud2Codec`); camera images:
+  ``sensor_msgs/msg/Image`` (:class:`ImageCodec`); read back from those messages.
+- A planner's trajectory updates: ``nav_msgs/msg/Path`` (:class:`PathCodec`, not read back).
+- Anything else (enums, strings, user dataclasses): JSON of the fields (``cufund.<Class>``, JSON Schema); the
+  tunnel estimate adds ``<topic>/scene`` (``foxglove.SceneUpdate``).
+- Logs of older cufund versions: ``foxglove.PointCloud``, ``foxglove.RawImage`` and ``foxglove.LocationFix`` JSON
+  with a ``cufund`` field for the exact round trip; still read (their codecs below are kept for that).
 
 The channel metadata names the codec and the message class, so :func:`codec_from_channel` rebuilds the codec.
 """

@@ -4,8 +4,8 @@ The official ``mcap`` reader checks the file and reads its summary; the chunks a
 by :mod:`cufund.logs.chunk_reader` (CRCs checked), ties in the order they were written. Each channel's metadata
 names its codec and message class, which rebuild the same frozen dataclasses (float64 bit for bit, array dtypes
 and shapes, enums as enums); only allowed classes are used (:mod:`cufund.logs.message_classes`: a log never
-imports or calls what it names). Foxglove view channels
-(``<topic>/pose``, ``<topic>/tf``) are derived data and are not returned.
+imports or calls what it names). Channels that name no cufund codec (the standard views ``<topic>/ros``,
+``<topic>/pose``, ``/tf``, ``/tf_static``, ``/clock``, scenes and paths) are derived data and are not returned.
 
 A log whose run was killed has no summary: its records are then scanned from the start
 (:mod:`cufund.logs.truncated`) and read up to the last complete one, with one :class:`TruncatedLogWarning`.
