@@ -278,6 +278,10 @@ class EnvBatch:
     """
     def __init__(self, params: cufund._core.dynamics.QuadrotorParams, task: EnvTaskParams, num_envs: typing.SupportsInt | typing.SupportsIndex) -> None:
         ...
+    def end_episodes(self, mask: typing.Any) -> None:
+        """
+        Ends the episodes of the envs where mask (N,) is True: the next step resets them.
+        """
     def reset(self, seed: typing.SupportsInt | typing.SupportsIndex | None = None) -> numpy.typing.NDArray[numpy.float32]:
         """
         Resets every env (seeding env i's stream with seed + i when given); obs.

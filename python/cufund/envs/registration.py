@@ -22,3 +22,10 @@ def register_envs() -> None:
             kwargs={"task": task},
             disable_env_checker=False,
         )
+    if "cufund/ForestAvoid-v0" not in gymnasium.registry:  # a sensor task: its own envs (cufund.envs.forest_avoid)
+        gymnasium.register(
+            id="cufund/ForestAvoid-v0",
+            entry_point="cufund.envs.forest_avoid:ForestAvoidSingleEnv",
+            vector_entry_point="cufund.envs.forest_avoid:ForestAvoidEnv",
+            disable_env_checker=False,
+        )
