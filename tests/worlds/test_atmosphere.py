@@ -172,3 +172,25 @@ def test_scenario_keys_round_trip_and_default_off():
     )
     assert cfg.atmosphere.wind_20ft_mps == 3.0 and cfg.atmosphere.gusts[0].amplitude_mps == 2.0
     assert ScenarioConfig.from_dict(cfg.to_dict()) == cfg
+
+
+def test_pickled_plant_keeps_its_atmosphere_and_ground_effect():
+    import pickle
+
+    from cufund.vehicle.ground_effect import GroundEffectConfig
+
+    params = presets.cu_astro()
+    quad = Quadrotor(params, wind=lambda t, p: np.zeros(3))
+    quad.set_atmosphere(AtmosphereConfig(kind="dryden", wind_20ft_mps=4.0, seed=9).to_core(0))
+    assert quad.fast_step is not None  # the atmosphere replaced the wind function
+    quad.set_ground_effect(GroundEffectConfig())
+    copy = pickle.loads(pickle.dumps(quad))
+    fresh = Quadrotor(params)
+    fresh.set_atmosphere(AtmosphereConfig(kind="dryden", wind_20ft_mps=4.0, seed=9).to_core(0))
+    fresh.set_ground_effect(GroundEffectConfig())
+    for q in (copy, fresh):
+        q.hover((0.0, 0.0, 0.1))
+        for _ in range(50):
+            q.step(1e-3, np.full(4, params.hover_rotor_speed))
+    np.testing.assert_array_equal(copy.state.as_vector(), fresh.state.as_vector())
+    assert np.linalg.norm(copy.wind_W) > 0.0

@@ -204,10 +204,11 @@ class QuadrotorBatch:
     def set_atmosphere(self, params: Any) -> None:
         """The wind from an atmosphere (``cufund.worlds.atmosphere.AtmosphereConfig.to_core(...)``): the C++ step
         writes ``wind_W`` from it once per its update period (replacing :meth:`set_wind`'s); None: off. :meth:`reset`
-        restarts it from its seed."""
+        restarts it from its seed; a pickled copy restarts it too (its filter states are not kept)."""
         if params is None:
             self._core.clear_atmosphere()
         else:
+            self._wind_fn = None  # the atmosphere replaces a wind function
             self._core.set_atmosphere(params)
         self._atmosphere = params
 
