@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from cufund import _core
-from cufund.core.config import ConfigError
+from cufund.core.config import ConfigError, from_dict
 from cufund.sensors import patterns
 
 __all__ = ["BatchRangeSensor", "DepthCameraSpec", "LidarSpec", "SensorSpec", "VehicleBoxes", "sensor_poses"]
@@ -170,9 +170,9 @@ SensorSpec = DepthCameraSpec | LidarSpec
 def sensor_spec(kind: str, **kwargs: Any) -> SensorSpec:
     """``depth`` or ``lidar`` with its fields."""
     if kind == "depth":
-        return DepthCameraSpec(**kwargs)
+        return from_dict(DepthCameraSpec, kwargs, kind)
     if kind == "lidar":
-        return LidarSpec(**kwargs)
+        return from_dict(LidarSpec, kwargs, kind)
     raise ConfigError(f"sensor must be 'depth' or 'lidar', got {kind!r}")
 
 
@@ -243,9 +243,12 @@ class BatchRangeSensor:
         self.d_S = spec.directions()
         self.shape = spec.shape
 
-    def observe(self, p_WB: np.ndarray, q_WB: np.ndarray, frame: int = 0) -> np.ndarray:
+    def observe(
+        self, p_WB: np.ndarray, q_WB: np.ndarray, frame: int = 0, present: np.ndarray | None = None
+    ) -> np.ndarray:
         """(N, *shape) float32 of the vehicles at (p_WB (N, 3) [m], q_WB (N, 4) [w, x, y, z]); ``frame`` keys the
-        noise draws."""
+        noise draws. With boxes, ``present`` (N,) bool leaves the boxes of the vehicles where it is False out of
+        the cast (vehicles no longer in the world)."""
         s = self.spec
         p_WB = np.asarray(p_WB, dtype=np.float64).reshape(-1, 3)
         q_WB = np.asarray(q_WB, dtype=np.float64).reshape(-1, 4)
@@ -253,11 +256,14 @@ class BatchRangeSensor:
         box: dict[str, Any] = {}
         if self.boxes is not None:
             n = len(p_WB)
+            keep = np.ones(n, dtype=bool) if present is None else np.asarray(present, dtype=bool).reshape(n)
+            owner = np.full(n, -1, dtype=np.int64)
+            owner[keep] = np.arange(int(keep.sum()))
             box = {
-                "box_p_W": p_WB,
-                "box_q_W": q_WB,
-                "box_half_extents": np.broadcast_to(np.asarray(self.boxes.half_extents), (n, 3)),
-                "box_owner": np.arange(n, dtype=np.int64),
+                "box_p_W": p_WB[keep],
+                "box_q_W": q_WB[keep],
+                "box_half_extents": np.broadcast_to(np.asarray(self.boxes.half_extents), (int(keep.sum()), 3)),
+                "box_owner": owner,
             }
         out = _core.lidar.batch_cast(
             self.scene,
