@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -118,7 +119,9 @@ EnvBatch::EnvBatch(const QuadrotorParams& params, const EnvTaskParams& task, std
     }
   }
   a_prev_.assign(4 * n, 0.0);
-  history_.assign(4 * n * (kMaxLatency + 1), 0.0);
+  ring_ = static_cast<int>(task.latency_steps[1]) + 1;
+  history_.assign(4 * n * ring_, 0.0);
+  applied_.assign(4 * n, 0.0);
   cmd_.assign(4 * n, omega_hover_);
   prev_p_.assign(3 * n, 0.0);
   gyro_bias_.assign(6 * n, 0.0);
@@ -196,7 +199,7 @@ void EnvBatch::reset_env(std::size_t i) {
     gyro_bias_[6 * i + 3 + k] = 0.0;
   }
   std::fill(&a_prev_[4 * i], &a_prev_[4 * i] + 4, 0.0);
-  std::fill(&history_[4 * i * (kMaxLatency + 1)], &history_[4 * (i + 1) * (kMaxLatency + 1)], 0.0);
+  std::fill(&history_[4 * i * ring_], &history_[4 * (i + 1) * ring_], 0.0);
   head_[i] = 0;
   steps_[i] = 0;
   index_[i] = 0;
@@ -375,9 +378,14 @@ void EnvBatch::step(const double* actions, float* obs, double* reward, bool* ter
     }
   }
   // The given actions (clipped) enter each env's delay line; the applied one is `latency` steps old.
-  std::vector<double> applied(4 * n_);
-  constexpr int L = kMaxLatency + 1;
-  for (std::size_t i = 0; i < n_; ++i) {
+  const int L = ring_;
+  auto blocks = [&](const std::function<void(std::size_t)>& fn) {
+    ThreadPool::instance().parallel_for((n_ + kBlock - 1) / kBlock, nthreads, [&](std::size_t blk) {
+      const std::size_t end = std::min(n_, (blk + 1) * kBlock);
+      for (std::size_t i = blk * kBlock; i < end; ++i) fn(i);
+    });
+  };
+  blocks([&](std::size_t i) {
     double* hist = &history_[4 * i * L];
     head_[i] = (head_[i] + 1) % L;
     for (int k = 0; k < 4; ++k) {
@@ -386,24 +394,27 @@ void EnvBatch::step(const double* actions, float* obs, double* reward, bool* ter
       a_prev_[4 * i + k] = a;
     }
     const int src = (head_[i] - latency_[i] + L) % L;
-    for (int k = 0; k < 4; ++k) applied[4 * i + k] = hist[4 * src + k];
-  }
-  for (std::size_t i = 0; i < n_; ++i) {
+    for (int k = 0; k < 4; ++k) applied_[4 * i + k] = hist[4 * src + k];
     for (int k = 0; k < 3; ++k) prev_p_[3 * i + k] = batch_.row(QuadrotorBatch::kP + k)[i];
-  }
-  commands(applied.data(), nthreads);
+  });
+  commands(applied_.data(), nthreads);
   integrate(nthreads);
+  blocks([&](std::size_t i) { finish(i, obs + i * obs_size(), reward, terminated, truncated); });
+}
+
+// After the dynamics: env i's reward, flags and observation (or its autoreset).
+void EnvBatch::finish(std::size_t i, float* o, double* reward, bool* terminated, bool* truncated) {
+  const EnvTaskParams& t = task_;
   QuadrotorBatch& b = batch_;
   const int K = t.n_targets();
   const double half = 0.5 * t.gate_size;
-  for (std::size_t i = 0; i < n_; ++i) {
-    float* o = obs + i * obs_size();
+  {
     if (done_[i]) {  // next-step autoreset: the action was ignored
       reset_env(i);
       reward[i] = 0.0;
       terminated[i] = truncated[i] = false;
       observe(i, o);
-      continue;
+      return;
     }
     double p[3], v[3], w[3];
     for (int k = 0; k < 3; ++k) {

@@ -103,6 +103,9 @@ class EnvBatch {
   void observe(std::size_t i, float* out);
   void commands(const double* applied, int nthreads);
   void integrate(int nthreads);
+  void finish(std::size_t i, float* obs, double* reward, bool* terminated, bool* truncated);
+
+  static constexpr std::size_t kBlock = 256;  // envs per parallel chunk
 
   QuadrotorParams params_;
   EnvTaskParams task_;
@@ -112,8 +115,9 @@ class EnvBatch {
   std::vector<Rng> rng_;
   std::vector<DynamicsConstants> constants_;  // per env, with physical randomisation only
   std::vector<RateControl> rate_;
-  std::vector<double> a_prev_, history_, cmd_, prev_p_, gyro_bias_, noise_std_, scales_;
+  std::vector<double> a_prev_, history_, applied_, cmd_, prev_p_, gyro_bias_, noise_std_, scales_;
   std::vector<int> index_, steps_, latency_, head_;
+  int ring_ = 1;  // delay-line length: the largest latency + 1
   std::vector<unsigned char> done_;
 };
 

@@ -1,0 +1,105 @@
+"""Learning environments: env-steps/s of Hover-v0 (state only) at 4096 envs for cufund, crazyflow and
+gym-pybullet-drones, in one run on this machine (issue 28). Not a timed test: figures for the closing note.
+
+    .venv/bin/python benchmarks/bench_envs.py [--envs 4096] [--seconds 3]
+
+cufund: ``gymnasium.make_vec("cufund/Hover-v0", num_envs=N)`` (one RK4 step of the full rigid-body model with motor
+lag per 10 ms env step; observation, reward, termination and autoreset in C++), stepped with random actions,
+``rotor_speeds`` and ``thrust_rates`` (cufund's rate loop per env). crazyflow (PyPI ``crazyflow``, JAX on CPU, the
+``bench`` extra): its ``DroneReachPos-v0`` vector env (the hover-at-a-goal task) at its defaults (500 Hz env step,
+one explicit Euler step of its fitted ``so_rpy`` model, attitude actions), and also with its ``first_principles``
+rigid-body dynamics; jitted before timing, results blocked on. gym-pybullet-drones: measured only if it imports.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from collections.abc import Callable
+
+import gymnasium
+import numpy as np
+
+
+def rate(step: Callable[[], None], n_envs: int, seconds: float) -> float:
+    """Env-steps/s of ``step`` (one step of every env), after a warm-up, over at least ``seconds``."""
+    for _ in range(5):
+        step()
+    k, t0 = 0, time.perf_counter()
+    while True:
+        step()
+        k += 1
+        dt = time.perf_counter() - t0
+        if dt >= seconds and k >= 10:
+            return k * n_envs / dt
+
+
+def cufund_rate(n: int, seconds: float, **kw: object) -> float:
+    import cufund.envs  # noqa: F401
+
+    env = gymnasium.make_vec("cufund/Hover-v0", num_envs=n, **kw)
+    env.reset(seed=0)
+    acts = np.random.default_rng(0).uniform(-0.3, 0.3, (16, n, 4))
+    i = [0]
+
+    def step() -> None:
+        env.step(acts[i[0] % 16])
+        i[0] += 1
+
+    return rate(step, n, seconds)
+
+
+def crazyflow_rate(n: int, seconds: float, dynamics: str | None = None) -> float | str:
+    try:
+        import crazyflow.envs  # noqa: F401
+        import jax
+    except Exception as e:
+        return f"not installed ({type(e).__name__}: {e}); pip install '.[bench]'"
+    kw = {} if dynamics is None else {"dynamics": dynamics}
+    env = gymnasium.make_vec("DroneReachPos-v0", num_envs=n, device="cpu", **kw)
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    low, high = env.action_space.low, env.action_space.high
+    acts = [jax.numpy.asarray(rng.uniform(low, high).astype(np.float32)) for _ in range(16)]
+    i = [0]
+
+    def step() -> None:
+        obs, rew, *_ = env.step(acts[i[0] % 16])
+        jax.block_until_ready(rew)
+        i[0] += 1
+
+    return rate(step, n, seconds)
+
+
+def pybullet_drones_rate() -> str:
+    try:
+        import gym_pybullet_drones  # noqa: F401
+    except Exception as e:
+        return f"not measured: gym-pybullet-drones does not import here ({type(e).__name__}); it is not on PyPI"
+    return "installed, but its envs step one drone per env in Python (no batched env): not measured"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--envs", type=int, default=4096)
+    ap.add_argument("--seconds", type=float, default=3.0)
+    args = ap.parse_args()
+    n = args.envs
+    print(f"Hover-v0 state only, {n} envs, {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}")
+    ours = cufund_rate(n, args.seconds)
+    print(f"  cufund Hover-v0 rotor_speeds             {ours / 1e6:8.2f} M env-steps/s")
+    rates = cufund_rate(n, args.seconds, action_mode="thrust_rates")
+    print(f"  cufund Hover-v0 thrust_rates             {rates / 1e6:8.2f} M env-steps/s")
+    for label, dyn in (("crazyflow DroneReachPos-v0 so_rpy", None), ("crazyflow first_principles", "first_principles")):
+        cf = crazyflow_rate(n, args.seconds, dyn)
+        if isinstance(cf, str):
+            print(f"  {label:<40} {cf}")
+            continue
+        print(f"  {label:<40} {cf / 1e6:8.2f} M env-steps/s   cufund/crazyflow = {ours / cf:5.2f}x")
+    print(f"  gym-pybullet-drones                      {pybullet_drones_rate()}")
+    print(f"  targets: >= 10 M env-steps/s ({'met' if ours >= 10e6 else 'NOT met'}), >= 2x crazyflow")
+
+
+if __name__ == "__main__":
+    main()
