@@ -104,7 +104,19 @@ def make_config(task: str | TaskConfig, overrides: dict[str, Any]) -> TaskConfig
 class CufundVectorEnv(VectorEnv):
     """``num_envs`` vehicles of one task (see :class:`HoverEnv`, :class:`WaypointsEnv`, :class:`GatesEnv` for each
     task's observation, reward and termination). Actions (num_envs, 4) in [-1, 1]; observations (num_envs, D)
-    float32 in the layout of :mod:`cufund.control.policy_observation`."""
+    float32 in the layout of :mod:`cufund.control.policy_observation`.
+
+    Actions (clipped to [-1, 1], delayed by the env's drawn latency):
+
+    - ``rotor_speeds``: omega_i = omega_hover + a_i * span, span = min(omega_max - omega_hover,
+      omega_hover - omega_min) of the nominal vehicle (a = 0 hovers the nominal vehicle);
+    - ``thrust_rates``: collective thrust m g (1 + a_0) (capped at the rotors' maximum), body-rate setpoint
+      a_1..3 * ``max_rate`` [rad/s], through cufund's rate loop (cpp/control RateControl with the default
+      RateControlParams) at the env rate;
+    - ``velocity``: velocity setpoint a_0..2 * ``max_speed`` [m/s] and yaw rate a_3 * ``max_rate``: acceleration
+      4 (v_sp - v) + g z (z never below 0.2 g), thrust along the body z, tilt rate 10 1/s towards it, then the rate
+      loop.
+    """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
     task_name = "hover"
@@ -150,18 +162,49 @@ class CufundVectorEnv(VectorEnv):
 
 
 class HoverEnv(CufundVectorEnv):
-    """Hover-v0: hold the point ``targets[0]``."""
+    """Hover-v0: hold the point ``c = targets[0]`` (default (0, 0, 1) m, a Crazyflie).
+
+    Start: position uniform in ``c +- spawn_extent``, velocity in ``+- spawn_speed``, roll and pitch in
+    ``+- spawn_tilt_deg``, yaw in +-180 deg, body rate in ``+- spawn_rate``, rotors at the (drawn) vehicle's hover speed.
+    Observation: one target block ``c - p_W``, then v_W, R_WB, w_B, a_prev (cufund.control.policy_observation).
+    Reward per step, with e = |c - p_W| after the step and ``a`` the action given (clipped)::
+
+        r = alive - position * e - velocity * |v_W| - rate * |w_B| - action * |a|^2  [- crash on a crash]
+
+    Terminated (a crash): e > ``bound_m``, z < ``crash_z``, or a non-finite state. Truncated after
+    ``episode_s * control_hz`` steps.
+    """
 
     task_name = "hover"
 
 
 class WaypointsEnv(CufundVectorEnv):
-    """Waypoints-v0: fly through ``targets`` in order."""
+    """Waypoints-v0: fly through ``targets`` in order (default: the square scenario's 1 m square at 1.5 m).
+
+    Start as Hover-v0 around the first waypoint. Observation: the next ``n_ahead`` waypoints relative to the vehicle
+    (past the last, the last repeats), then v_W, R_WB, w_B, a_prev. Reward per step, with d (d_0) the distance to the
+    current waypoint after (before) the step::
+
+        r = alive - position * d - velocity * |v_W| - rate * |w_B| - action * |a|^2 + progress * (d_0 - d)
+            [+ reached when d < reach_radius: the next waypoint becomes current] [- crash on a crash]
+
+    Terminated: reaching the last waypoint (a success), or a crash (d > ``bound_m``, z < ``crash_z``, non-finite).
+    Truncated after ``episode_s * control_hz`` steps.
+    """
 
     task_name = "waypoints"
 
 
 class GatesEnv(CufundVectorEnv):
-    """Gates-v0: pass through the gates in order."""
+    """Gates-v0: pass through square gates in order. A gate is [x, y, z, yaw_deg]: its centre c and normal
+    n = (cos yaw, sin yaw, 0), the way through; the opening is ``gate_size`` square, the frame as wide again around it.
+
+    Start: uniform in ``start +- spawn_extent`` (default start 1 m before the first gate). Observation: the next
+    ``n_ahead`` gates as blocks of 6 (c - p_W, then n), then v_W, R_WB, w_B, a_prev. Reward as Waypoints-v0 with d
+    the distance to the current gate's centre, and ``reached`` when the step's chord crosses the gate's plane forwards
+    (n . (p - c) from < 0 to >= 0) inside the opening; crossing it in the frame is a crash, outside it nothing.
+    Terminated: passing the last gate (a success), or a crash (the frame, d > ``bound_m``, z < ``crash_z``,
+    non-finite). Truncated after ``episode_s * control_hz`` steps.
+    """
 
     task_name = "gates"
