@@ -57,7 +57,7 @@ class _Owner:
     def landing(self, t: float) -> bool:
         return any(a in ("land", "rtl") for _, a in self.asked)
 
-    def hold(self, t, reason, bus):
+    def hold(self, t, reason, bus, temporary=False):
         self.asked.append((t, "hold"))
         return ""
 
@@ -110,11 +110,11 @@ def test_estimator_unhealthy_holds_after_the_delay_then_lands():
         if abs(t * 10 - round(t * 10)) < 1e-9:
             bus.publish(Topics.ESTIMATOR_DIAGNOSTICS, _diag(t, t < 2.0))
 
-    _fly(sup, 8.0, lio)
+    _fly(sup, 10.0, lio)
     assert [a for _, a in owner.asked] == ["hold", "land"]
     (t_hold, _), (t_land, _) = owner.asked
     assert t_hold == pytest.approx(2.0 + 1.0)  # COM_POS_FS_DELAY
-    assert t_land == pytest.approx(t_hold + 2.0)  # COM_FAIL_ACT_T
+    assert t_land == pytest.approx(t_hold + 5.0)  # COM_FAIL_ACT_T
     assert [r[1] for r in sup.records] == ["failsafe", "failsafe"]
     assert "hold" in sup.records[0][2] and "degenerate" in sup.records[0][2]
     events = sup.events.of_kind("failsafe")
@@ -165,7 +165,7 @@ def test_gps_loss_fails_safe_only_under_a_gps_only_estimate(gps_only):
         if t < 3.0 and abs(t * 10 - round(t * 10)) < 1e-9:
             bus.publish(Topics.GPS, _gps(t))
 
-    _fly(sup, 9.0, gps)
+    _fly(sup, 11.0, gps)
     if gps_only:
         assert [a for _, a in owner.asked] == ["hold", "land"]
         assert owner.asked[0][0] == pytest.approx(2.9 + 0.5 + 1.0, abs=0.051)  # GPS_LOSS_T, COM_POS_FS_DELAY
@@ -263,3 +263,24 @@ def test_params_errors_name_the_field_and_off_disables():
     c = load_scenario("square", ["failsafe.GF_MAX_HOR_DIST=3", "failsafe.GF_ACTION=3"])
     assert c.failsafe.GF_MAX_HOR_DIST == 3.0 and c.failsafe.GF_ACTION == 3
     assert c.with_overrides([]).failsafe == c.failsafe  # round trip through to_dict
+
+
+def test_a_follower_taken_over_ignores_the_replanners_updates():
+    from cufund.missions.failsafe_takeover import FollowerTakeover
+    from cufund.planning.sequence import Hold
+    from cufund.planning.trajectory_follower import TrajectoryFollower
+
+    follower = TrajectoryFollower(Hold(np.array([0.0, 0.0, 1.5]), 100.0), rate_hz=50.0)
+    takeover = FollowerTakeover(follower, FailsafeParams())
+    takeover.home_W = np.zeros(3)
+    follower.stitch(1.0, Hold(np.array([1.0, 0.0, 1.5]), 100.0, t_start=1.0))  # a replanner's update: flown
+    assert np.allclose(follower.trajectory.sample(2.0).p_W[0], [1.0, 0.0, 1.5])
+    note = takeover.hold(2.0, "estimator", None, temporary=True)  # the estimator's hold keeps the path
+    assert "kept" in note and np.allclose(follower.trajectory.sample(3.0).p_W[0], [1.0, 0.0, 1.5])
+    assert takeover.land(3.0, "battery", None) == ""
+    follower.stitch(4.0, Hold(np.array([5.0, 0.0, 1.5]), 100.0, t_start=4.0))  # ignored from now on
+    p_end = follower.trajectory.sample(60.0).p_W[0]
+    assert np.allclose(p_end[:2], [1.0, 0.0]) and p_end[2] < 0.0  # landed where it was (the reference below ground)
+    takeover.reset()  # a new run: the planner flies again
+    follower.stitch(5.0, Hold(np.array([2.0, 0.0, 1.5]), 100.0, t_start=5.0))
+    assert np.allclose(follower.trajectory.sample(6.0).p_W[0], [2.0, 0.0, 1.5])

@@ -48,9 +48,9 @@ class FailsafeParams:
     COM_POS_FS_DELAY: float = 1.0
     """The state estimate must stay unhealthy (LIO diagnostics, LiDAR silence, a GPS-only estimate without GPS)
     this long before the estimator failsafe holds [s] (PX4 COM_POS_FS_DELAY)."""
-    COM_FAIL_ACT_T: float = 2.0
+    COM_FAIL_ACT_T: float = 5.0
     """Hold this long after the estimator failsafe fired, then land unless the estimate recovered [s] (PX4
-    COM_FAIL_ACT_T; PX4's default is 5 s, cufund's 2 s keeps the tunnel mission's 3 s from unhealthy to landing)."""
+    COM_FAIL_ACT_T, PX4's default; the LIO's recoverable spells, re-estimating its biases, last up to ~3 s)."""
     EST_SILENCE_T: float = 0.35
     """No estimator diagnostics (one per LiDAR frame) for this long is an unhealthy estimate [s] (cufund; the tunnel
     mission's own ``lidar_silence_s`` applies where it flies)."""

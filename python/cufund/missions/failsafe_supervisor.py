@@ -122,6 +122,8 @@ class FailsafeSupervisor(Planner):
         self._gps_lost = False
         self._geofence = False
         self._state: Odometry | None = None
+        if self.takeover is not None and hasattr(self.takeover, "reset"):
+            self.takeover.reset()
         if self.motor is not None:
             self.motor.reset()
         self.attitude.reset()
@@ -151,7 +153,9 @@ class FailsafeSupervisor(Planner):
         return None
 
     # -- transitions -----------------------------------------------------------------------------------------
-    def _fire(self, t: float, action: str, reason: str, bus: BusView, urgent: bool = False) -> bool:
+    def _fire(
+        self, t: float, action: str, reason: str, bus: BusView, urgent: bool = False, temporary: bool = False
+    ) -> bool:
         """Takes ``action`` unless one as drastic was taken; publishes the event. True when it was taken."""
         if ACTION_RANK[action] <= ACTION_RANK[self.action] and action != "warning":
             return False
@@ -162,7 +166,7 @@ class FailsafeSupervisor(Planner):
             return True
         if self.takeover is not None and action != "warning":
             if action == "hold":
-                note = self.takeover.hold(t, reason, bus)
+                note = self.takeover.hold(t, reason, bus, temporary)
             elif action == "rtl":
                 note = self.takeover.rtl(t, reason, bus)
             elif action == "land":
@@ -237,7 +241,7 @@ class FailsafeSupervisor(Planner):
             if self._est_fired_at is None:
                 if not landing and t - t0 >= self.params.COM_POS_FS_DELAY:
                     self._est_fired_at = t
-                    self._fire(t, "hold", f"estimator unhealthy ({why})", bus)
+                    self._fire(t, "hold", f"estimator unhealthy ({why})", bus, temporary=True)
             elif (
                 t - self._est_fired_at >= self.params.COM_FAIL_ACT_T and ACTION_RANK[self.action] < ACTION_RANK["land"]
             ):

@@ -78,7 +78,7 @@ class CommanderTakeover:
             for e in self.commander.events.since(since)
         )
 
-    def hold(self, t: float, reason: str, bus: Any) -> str:
+    def hold(self, t: float, reason: str, bus: Any, temporary: bool = False) -> str:
         return self._do(t, {"command": "hold"})
 
     def land(self, t: float, reason: str, bus: Any, urgent: bool = False) -> str:
@@ -108,6 +108,15 @@ class FollowerTakeover:
             self._t_landing = float(last.t_start)  # the planned reference ends with a descent to the ground
         self.taken = ""
         """The action flown since the takeover ('' before)."""
+        self._stitch = follower.stitch
+        follower.stitch = self._planner_update  # a replanner's updates reach the follower only before a takeover
+
+    def _planner_update(self, t: float, new: Any) -> None:
+        if not self.taken:
+            self._stitch(t, new)
+
+    def reset(self) -> None:
+        self.taken = ""
 
     def airborne(self) -> bool:
         return True  # the supervisor judges from the state
@@ -133,14 +142,16 @@ class FollowerTakeover:
         return move, stop, yaw
 
     def _fly(self, t: float, parts: list[Any], action: str) -> str:
-        self.follower.stitch(float(t), TrajectorySequence(parts) if len(parts) > 1 else parts[0])
+        self._stitch(float(t), TrajectorySequence(parts) if len(parts) > 1 else parts[0])
         self.taken = action
         return ""
 
     def _ground(self) -> float:
         return float(self.home_W[2]) if self.home_W is not None else 0.0
 
-    def hold(self, t: float, reason: str, bus: Any) -> str:
+    def hold(self, t: float, reason: str, bus: Any, temporary: bool = False) -> str:
+        if temporary:  # the estimator's hold-then-land: a follower's hold could not be given back when it recovers
+            return "the planned path is kept: a follower's hold cannot be resumed"
         move, p, yaw = self._stop(t)
         t0 = move.t_end if move is not None else t
         return self._fly(t, [*([move] if move else []), Hold(p, _FOREVER, yaw, t_start=t0)], "hold")
@@ -202,7 +213,7 @@ class MissionTakeover:
     def settled(self) -> bool:
         return bool(self.mission.finished)
 
-    def hold(self, t: float, reason: str, bus: Any) -> str:
+    def hold(self, t: float, reason: str, bus: Any, temporary: bool = False) -> str:
         return self.mission.failsafe(t, "hold", reason, False)
 
     def land(self, t: float, reason: str, bus: Any, urgent: bool = False) -> str:

@@ -21,7 +21,7 @@ States (published as :class:`~cufund.core.messages.MissionState` on ``/mission/s
 An unhealthy estimator (LiDAR frames missing for ``lidar_silence_s``, or its diagnostics saying so) at a rest
 point (detect, align, enter) holds the hover; the failsafe supervisor (:mod:`.failsafe_supervisor`, watching the
 same :class:`~.failsafe_health.EstimatorHealth`) lands it (outside the course) unless it recovers in
-``failsafe.COM_POS_FS_DELAY + COM_FAIL_ACT_T`` (3 s); while flying through the course the planned path is kept (stopping inside the course gains nothing;
+``failsafe.COM_POS_FS_DELAY + COM_FAIL_ACT_T`` (1 + 5 s); while flying through the course the planned path is kept (stopping inside the course gains nothing;
 the LIO propagates on the IMU) and the spell is recorded; an estimate older than ``stale_s`` lands at once.
 ``done`` / ``aborted`` (with the reason).
 
