@@ -27,9 +27,9 @@ from cufund.logs import TruncatedLogWarning, read_mcap
 
 CLI = [sys.executable, "-m", "cufund.apps.cli"]
 ENV = {**os.environ, "PYTHONWARNINGS": "default"}
-MIN_LOG_BYTES = {"term": 16 << 20, "int": 16 << 20, "kill": 72 << 20}
-"""Signal the run once its log holds this much (the LiDAR truth, ten times bigger, is not logged): about 2 simulated
-seconds, and 7 for SIGKILL, whose log holds only the chunks already written (the IMU's first block of 1024 messages
+MIN_LOG_BYTES = {"term": 7 << 20, "int": 7 << 20, "kill": 26 << 20}
+"""Signal the run once its log holds this much (binary PointCloud2 clouds, about 3.7 MB a simulated second; the LiDAR
+truth is not logged): about 2 simulated seconds, and 7 for SIGKILL, whose log holds only the chunks already written (the IMU's first block of 1024 messages
 is written after 5 s)."""
 
 
