@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -371,35 +370,41 @@ void EnvBatch::integrate(int nthreads) {
 void EnvBatch::step(const double* actions, float* obs, double* reward, bool* terminated, bool* truncated,
                     int nthreads) {
   const EnvTaskParams& t = task_;
-  for (std::size_t k = 0; k < 4 * n_; ++k) {
-    if (!std::isfinite(actions[k])) {
-      throw std::invalid_argument("actions must be finite numbers in [-1, 1]; env " + std::to_string(k / 4) +
-                                  " has a NaN or inf at index " + std::to_string(k % 4));
+  unsigned bad = 0;
+  for (std::size_t k = 0; k < 4 * n_; ++k) bad |= static_cast<unsigned>(!std::isfinite(actions[k]));
+  if (bad != 0) {
+    for (std::size_t k = 0; k < 4 * n_; ++k) {
+      if (!std::isfinite(actions[k])) {
+        throw std::invalid_argument("actions must be finite numbers in [-1, 1]; env " + std::to_string(k / 4) +
+                                    " has a NaN or inf at index " + std::to_string(k % 4));
+      }
     }
   }
   // The given actions (clipped) enter each env's delay line; the applied one is `latency` steps old.
-  const int L = ring_;
-  auto blocks = [&](const std::function<void(std::size_t)>& fn) {
-    ThreadPool::instance().parallel_for((n_ + kBlock - 1) / kBlock, nthreads, [&](std::size_t blk) {
-      const std::size_t end = std::min(n_, (blk + 1) * kBlock);
-      for (std::size_t i = blk * kBlock; i < end; ++i) fn(i);
-    });
-  };
-  blocks([&](std::size_t i) {
-    double* hist = &history_[4 * i * L];
-    head_[i] = (head_[i] + 1) % L;
-    for (int k = 0; k < 4; ++k) {
-      const double a = std::clamp(actions[4 * i + k], -1.0, 1.0);
-      hist[4 * head_[i] + k] = a;
-      a_prev_[4 * i + k] = a;
+  for (std::size_t k = 0; k < 4 * n_; ++k) a_prev_[k] = std::clamp(actions[k], -1.0, 1.0);
+  if (ring_ == 1) {
+    std::copy(a_prev_.begin(), a_prev_.end(), applied_.begin());
+  } else {
+    const int L = ring_;
+    for (std::size_t i = 0; i < n_; ++i) {
+      double* hist = &history_[4 * i * L];
+      head_[i] = head_[i] + 1 == L ? 0 : head_[i] + 1;
+      for (int k = 0; k < 4; ++k) hist[4 * head_[i] + k] = a_prev_[4 * i + k];
+      const int src = head_[i] >= latency_[i] ? head_[i] - latency_[i] : head_[i] - latency_[i] + L;
+      for (int k = 0; k < 4; ++k) applied_[4 * i + k] = hist[4 * src + k];
     }
-    const int src = (head_[i] - latency_[i] + L) % L;
-    for (int k = 0; k < 4; ++k) applied_[4 * i + k] = hist[4 * src + k];
-    for (int k = 0; k < 3; ++k) prev_p_[3 * i + k] = batch_.row(QuadrotorBatch::kP + k)[i];
-  });
+  }
+  for (int k = 0; k < 3; ++k) {
+    const double* row = batch_.row(QuadrotorBatch::kP + k);
+    for (std::size_t i = 0; i < n_; ++i) prev_p_[3 * i + k] = row[i];
+  }
   commands(applied_.data(), nthreads);
   integrate(nthreads);
-  blocks([&](std::size_t i) { finish(i, obs + i * obs_size(), reward, terminated, truncated); });
+  const std::size_t stride = static_cast<std::size_t>(obs_size());
+  ThreadPool::instance().parallel_for((n_ + kBlock - 1) / kBlock, nthreads, [&](std::size_t blk) {
+    const std::size_t end = std::min(n_, (blk + 1) * kBlock);
+    for (std::size_t i = blk * kBlock; i < end; ++i) finish(i, obs + i * stride, reward, terminated, truncated);
+  });
 }
 
 // After the dynamics: env i's reward, flags and observation (or its autoreset).
