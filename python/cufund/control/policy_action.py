@@ -28,6 +28,7 @@ class ActionDecoder:
     """Commands from actions for one vehicle (its nominal params) and one exported policy's manifest."""
 
     def __init__(self, params: QuadrotorParams, manifest: PolicyManifest) -> None:
+        self.params = params
         self.action_mode = manifest.action_mode
         self.mass = float(params.mass)
         self.gravity = float(params.gravity)

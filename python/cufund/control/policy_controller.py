@@ -39,7 +39,7 @@ from cufund.core.messages import ActuatorCommand, Odometry, RateSetpoint, Topics
 from cufund.core.registry import Kind, register
 
 from . import policy_observation as po
-from .arming import gated, make_armable
+from .arming import Gate, gate, gated, make_armable
 from .gyro_input import GyroInput
 from .policy_action import ActionDecoder
 from .policy_manifest import PolicyManifest
@@ -147,6 +147,8 @@ class PolicyController(Controller):
         self.session = session
         self.manifest = manifest
         self.decoder = decoder
+        self.params = decoder.params
+        """The vehicle's nominal params (the arming gate's idle speed)."""
         self.rate_hz = manifest.rate_hz
         self.targets = targets
         self.waypoints = np.asarray(waypoints, dtype=np.float64).reshape(-1, 3)
@@ -191,7 +193,14 @@ class PolicyController(Controller):
         return np.repeat(np.asarray(sp.p_W, dtype=np.float64)[None, :], k, axis=0)
 
     def update(self, t: float, state: Odometry, bus: BusView) -> None:
-        if gated(self, t, bus, "policy"):
+        if self.decoder.action_mode == "rotor_speeds":
+            if gated(self, t, bus, "policy"):  # publishes the stopped or idle rotors itself
+                return
+        elif self.armable and gate(bus, "policy") is not Gate.FLY:
+            # the rate loop after it (gated as "policy" too) stops or idles the rotors
+            self.reset()
+            if self.use_gyro:
+                self.gyro.update()
             return
         w_B = state.w_B
         if self.use_gyro:
@@ -248,11 +257,11 @@ def _policy(p: PolicyControllerParams, ctx: BuildContext) -> list[Any]:
         )
     ]
     if manifest.action_mode != "rotor_speeds":
-        components.append(
-            RateController(
-                ctx.vehicle, p.rate, rate_hz=ctx.config.rates.rate_hz, q_BI=q_BI, gyro_cutoff_hz=p.gyro_cutoff_hz
-            )
+        rate = RateController(
+            ctx.vehicle, p.rate, rate_hz=ctx.config.rates.rate_hz, q_BI=q_BI, gyro_cutoff_hz=p.gyro_cutoff_hz
         )
+        rate.gate_kind = "policy"
+        components.append(rate)
     if ctx.commander is not None:
         make_armable(components)
     return components

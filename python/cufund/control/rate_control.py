@@ -74,6 +74,8 @@ class RateController(Controller):
     writes = (Topics.ACTUATOR_COMMAND, Topics.THRUST_TORQUE_SETPOINT)
     armable = False
     """Gated by a commander's vehicle status (:func:`cufund.control.arming.make_armable`)."""
+    gate_kind = "pid"
+    """The controller kind whose selection by the commander lets it fly (``policy`` under a learned policy)."""
 
     def __init__(
         self,
@@ -127,7 +129,7 @@ class RateController(Controller):
             self.gyro.setup(bus)
 
     def step(self, t: float, bus: BusView) -> None:
-        if gated(self, t, bus, "pid"):
+        if gated(self, t, bus, self.gate_kind):
             return
         if self.use_gyro:
             w = self.gyro.update()
