@@ -50,15 +50,25 @@ def _entity(t: float, entity_id: str, **primitives: Any) -> dict[str, Any]:
     }
 
 
+_POINTS = "\x00points"
+
+
+def _points_json(points: np.ndarray) -> str:
+    """``[{"x": .., "y": .., "z": ..}, ...]`` of (N, 3) ``points`` to 0.1 mm, formatted in one C loop."""
+    if not len(points):
+        return "[]"
+    return "[" + ",".join(['{"x":%.4f,"y":%.4f,"z":%.4f}'] * len(points)) % tuple(points.ravel().tolist()) + "]"
+
+
 def world_scene_update(world: Any, t: float = 0.0) -> bytes:
     """One entity per object of ``world`` (a :class:`cufund.worlds.World`): its triangles in its colour."""
-    entities = []
+    entities, corner_lists = [], []
     for obj in world.objects:
-        corners = np.round(np.asarray(obj.vertices)[np.asarray(obj.triangles).reshape(-1)], 4)
+        corner_lists.append(np.asarray(obj.vertices, dtype=np.float64)[np.asarray(obj.triangles).reshape(-1)])
         r, g, b = obj.color
         triangles = {
             "pose": _IDENTITY,
-            "points": [{"x": float(x), "y": float(y), "z": float(z)} for x, y, z in corners],
+            "points": _POINTS,
             "color": {"r": r, "g": g, "b": b, "a": 0.5 if obj.label in ("floor", "ground") else 1.0},
             "colors": [],
             "indices": [],
@@ -66,7 +76,11 @@ def world_scene_update(world: Any, t: float = 0.0) -> bytes:
         entity = _entity(t, f"world/{obj.id}/{obj.label}", triangles=[triangles])
         entity["metadata"] = [{"key": "label", "value": obj.label}]
         entities.append(entity)
-    return json.dumps({"deletions": [], "entities": entities}, separators=(",", ":")).encode()
+    parts = json.dumps({"deletions": [], "entities": entities}, separators=(",", ":")).split(json.dumps(_POINTS))
+    out = [parts[0]]
+    for corners, rest in zip(corner_lists, parts[1:], strict=True):  # the points spliced in, object by object
+        out += [_points_json(corners), rest]
+    return "".join(out).encode()
 
 
 def tunnel_scene_update(estimate: Any) -> bytes:
