@@ -1,5 +1,6 @@
 """Learning environments: env-steps/s of Hover-v0 (state only) at 4096 envs for cufund, crazyflow and
-gym-pybullet-drones, in one run on this machine (issue 28). Not a timed test: figures for the closing note.
+gym-pybullet-drones, and 64 x 64 depth frames/s of ForestAvoid-v0, in one run on this machine (issue 28). Not a
+timed test: figures for the closing note.
 
     .venv/bin/python benchmarks/bench_envs.py [--envs 4096] [--seconds 3]
 
@@ -80,10 +81,44 @@ def pybullet_drones_rate() -> str:
     return "installed, but its envs step one drone per env in Python (no batched env): not measured"
 
 
+def forest_depth_rates(n: int, seconds: float) -> tuple[float, float, float, float]:
+    """ForestAvoid-v0 with its 64 x 64 depth camera (28B): 64 x 64 frames/s of whole env steps (dynamics, state,
+    reward, collisions and one batched depth cast for every env) and of the batched cast alone; then the same per
+    second of this process's CPU time (both threads' seconds summed: the machine's other load left out)."""
+    import cufund.envs  # noqa: F401
+
+    env = gymnasium.make_vec("cufund/ForestAvoid-v0", num_envs=n)
+    env.reset(seed=0)
+    acts = np.random.default_rng(0).uniform(-0.3, 0.3, (16, n, 4))
+    i = [0]
+
+    def step() -> None:
+        env.step(acts[i[0] % 16])
+        i[0] += 1
+
+    c0 = time.process_time()
+    k0 = i[0]
+    steps = rate(step, n, seconds)
+    steps_cpu = (i[0] - k0) * n / (time.process_time() - c0)
+    fa = env.unwrapped  # cufund's own ForestAvoidEnv (its vector_entry_point)
+    p, q = np.asarray(fa.batch.p).copy(), np.asarray(fa.batch.q).copy()
+    calls = [0]
+
+    def cast_once() -> None:
+        fa.sensor.observe(p, q)
+        calls[0] += 1
+
+    c0 = time.process_time()
+    cast = rate(cast_once, n, seconds)
+    cast_cpu = calls[0] * n / (time.process_time() - c0)
+    return steps, cast, steps_cpu, cast_cpu
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--envs", type=int, default=4096)
     ap.add_argument("--seconds", type=float, default=3.0)
+    ap.add_argument("--depth-envs", type=int, default=1024, help="ForestAvoid-v0 envs for the depth figures")
     args = ap.parse_args()
     n = args.envs
     print(f"Hover-v0 state only, {n} envs, {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}")
@@ -99,6 +134,12 @@ def main() -> None:
         print(f"  {label:<40} {cf / 1e6:8.2f} M env-steps/s   cufund/crazyflow = {ours / cf:5.2f}x")
     print(f"  gym-pybullet-drones                      {pybullet_drones_rate()}")
     print(f"  targets: >= 10 M env-steps/s ({'met' if ours >= 10e6 else 'NOT met'}), >= 2x crazyflow")
+    steps, cast, steps_cpu, cast_cpu = forest_depth_rates(args.depth_envs, args.seconds)
+    print(f"ForestAvoid-v0 depth 64x64, {args.depth_envs} envs, load {os.getloadavg()[0]:.1f}")
+    print(f"  env steps with depth                     {steps / 1e3:8.1f} k frames/s")
+    print(f"  batched depth cast alone                 {cast / 1e3:8.1f} k frames/s ({cast * 4096 / 1e6:.0f} M rays/s)")
+    print(f"  per CPU second: env steps {steps_cpu / 1e3:.1f} k frames, cast alone {cast_cpu / 1e3:.1f} k frames")
+    print(f"  target: >= 50 k frames/s ({'met' if steps >= 50e3 else 'NOT met'})")
 
 
 if __name__ == "__main__":
