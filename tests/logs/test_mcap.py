@@ -740,3 +740,18 @@ def test_planned_trajectories_are_logged_as_nav_msgs_paths_and_not_read_back(tmp
         assert 2 * np.arctan2(o.z, o.w) == pytest.approx(0.4 * 0.1 * k, abs=1e-12) and o.x == o.y == 0.0
     assert list(log_topics(path)) == ["/sensors/imu"]  # a path is for viewers: read_mcap does not rebuild it
     assert [r.topic for r in read_mcap(path)] == ["/sensors/imu"]
+
+
+def test_a_log_with_a_codec_this_cufund_does_not_know_is_refused_naming_it(tmp_path, monkeypatch):
+    import cufund.logs.mcap_writer as writer
+    from cufund.logs import codecs
+
+    class Future(codecs.JsonCodec):
+        name = "ros3.Fancy"
+
+    monkeypatch.setattr(writer, "codec_for", lambda topic, message: Future(type(message)))
+    path = tmp_path / "future.mcap"
+    with McapLogger(path) as log:
+        log.write("/mission/state", M.MissionState(0.0, "takeoff", "", 0), 0, 0)
+    with pytest.raises(McapReadError, match=r"unknown cufund codec 'ros3.Fancy' \(a log of a newer cufund\?"):
+        read_mcap(path)

@@ -740,6 +740,19 @@ def codec_for(topic: str, message: Any) -> Codec:
     return codec
 
 
+CODECS = (
+    "cdr",
+    "json",
+    "ros2.PointCloud2",
+    "ros2.Image",
+    "foxglove.PointCloud",
+    "foxglove.RawImage",
+    "foxglove.LocationFix",
+)
+"""The codecs a channel may name: today's and those of older logs (JSON clouds, images and fixes before the ROS 2
+messages), all read."""
+
+
 def codec_from_channel(metadata: dict[str, str], where: str = "the channel") -> Codec:
     """The codec a channel was written with, from its metadata; ValueError naming ``where`` (the channel) when
     it names none, an unknown codec or a class that is not an allowed message class
@@ -767,7 +780,9 @@ def codec_from_channel(metadata: dict[str, str], where: str = "the channel") -> 
         elif kind == "foxglove.LocationFix":
             codec = LocationFixCodec(cls, schemas.LOCATION_FIX_SCHEMA, "gps")
         else:
-            raise ValueError(f"unknown cufund codec {str(kind)[:100]!r}")
+            raise ValueError(
+                f"unknown cufund codec {str(kind)[:100]!r} (a log of a newer cufund? this one reads {', '.join(CODECS)})"
+            )
     except (ValueError, TypeError, KeyError, IndexError, AttributeError, RecursionError) as exc:
         raise ValueError(f"{where}: {exc}") from None
     codec.where = where
