@@ -631,7 +631,8 @@ not see box box_owner[i], -1: none). A value is the distance along the ray's dir
 (a range for unit d_S, the depth along the optical axis for pinhole directions (1, -x_n, -y_n)); outside
 [range_min, range_max] or a miss: miss_value. Noise (off by default): a valid return becomes
 max(t + (noise_std + noise_per_m t) z, 0), z standard normal, and is lost (miss_value) with probability
-``dropout``; vehicle i's draws in frame ``frame`` come from a stream keyed by (seed, frame, i).
+``dropout``; vehicle i's draws in frame ``frame`` come from a stream keyed by (seed + i, frame), so vehicle i
+of a batch seeded s draws what a batch of one seeded s + i does.
 )doc");
 }
 

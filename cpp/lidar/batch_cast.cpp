@@ -54,7 +54,7 @@ void sensor_rays(const SensorPoses& poses, std::size_t i, const float* d_S, std:
   }
 }
 
-// SplitMix64 (Steele, Lea, Flood 2014): a stream per (seed, frame, vehicle), independent of threads.
+// SplitMix64 (Steele, Lea, Flood 2014): a stream per (seed + vehicle, frame), independent of threads.
 struct SplitMix64 {
   std::uint64_t s;
   std::uint64_t next() {
@@ -67,11 +67,10 @@ struct SplitMix64 {
   double uniform() { return (static_cast<double>(next() >> 11) + 0.5) * 0x1.0p-53; }
 };
 
-std::uint64_t stream_key(std::uint64_t seed, std::uint64_t frame, std::uint64_t vehicle) {
+std::uint64_t stream_key(std::uint64_t seed, std::uint64_t frame) {
   SplitMix64 a{seed};
   SplitMix64 b{a.next() ^ frame};
-  SplitMix64 c{b.next() ^ vehicle};
-  return c.next();
+  return b.next();
 }
 
 BatchResult check_poses(const SensorPoses& poses) {
@@ -212,7 +211,7 @@ BatchResult batch_cast(const RaycastScene& scene, const SensorPoses& poses, cons
         }
       }
     }
-    SplitMix64 rng{stream_key(model.seed, model.frame, i)};
+    SplitMix64 rng{stream_key(model.seed + i, model.frame)};
     for (std::size_t k = 0; k < r; ++k) {
       float v = t[k];
       bool valid = v >= model.range_min && v <= model.range_max;

@@ -36,7 +36,8 @@ struct VehicleBoxes {
 // than range_max, and a miss, report miss_value. With std or per_m > 0, a valid return becomes
 // max(t + sigma(t) z, 0), sigma(t) = std + per_m t, z a standard normal; with dropout > 0 it is lost
 // (miss_value) with that probability. The draws of vehicle i in frame `frame` come from a stream keyed by
-// (seed, frame, i): the same seed gives the same image on any number of threads.
+// (seed + i, frame): the same on any number of threads, and vehicle i of a batch seeded s draws what a batch of
+// one seeded s + i does (Gymnasium's seeding of vector envs).
 struct BatchRangeModel {
   float range_min = 0.0f;
   float range_max = 1e30f;

@@ -63,6 +63,21 @@ def test_same_seed_same_rollout() -> None:
     assert not all(np.array_equal(x, y) for x, y in zip(a, c, strict=True))
 
 
+def test_env_i_of_a_vector_is_a_single_env_seeded_seed_plus_i() -> None:
+    kw = {"sensor_params": {"width": 16, "height": 16, "range_noise_std": 0.05, "dropout": 0.1}}
+    vec = ForestAvoidEnv(3, **kw)
+    single = ForestAvoidSingleEnv(**kw)
+    obs_v, _ = vec.reset(seed=5)
+    obs_s, _ = single.reset(seed=7)
+    rng = np.random.default_rng(1)
+    for _ in range(10):
+        for key in ("state", "depth"):
+            np.testing.assert_array_equal(obs_v[key][2], obs_s[key])
+        a = rng.uniform(-1, 1, (3, 4))
+        obs_v, *_ = vec.step(a)
+        obs_s, *_ = single.step(a[2])
+
+
 def test_a_trunk_ends_the_episode_with_the_crash_penalty_then_autoreset() -> None:
     env = ForestAvoidEnv(2, vehicle_radius=0.1)
     env.reset(seed=0)

@@ -176,6 +176,9 @@ def test_noise_is_the_lidar_range_model_and_seeded() -> None:
     assert not np.array_equal(a, BatchRangeSensor(world.raycast_scene, spec, seed=12).observe(p, q, 4))
     assert not np.array_equal(a, BatchRangeSensor(world.raycast_scene, spec, seed=11).observe(p, q, 5))
     assert not np.array_equal(a[0], a[1])  # vehicles draw from their own streams
+    # vehicle i of a batch seeded s draws what a batch of one seeded s + i does
+    one = BatchRangeSensor(world.raycast_scene, spec, seed=14).observe(p[:1], q[:1], frame=4)
+    np.testing.assert_array_equal(a[3], one[0])
     dropped = a == 50.0
     assert abs(dropped.mean() - 0.1) < 0.01  # 65 536 draws: 4 sigma is 0.005
     z = (a[~dropped] - truth[~dropped]) / (0.02 + 0.003 * truth[~dropped])

@@ -58,7 +58,8 @@ def batch_cast(scene: RaycastScene, d_S: typing.Any, p_WS: typing.Any, q_WS: typ
     (a range for unit d_S, the depth along the optical axis for pinhole directions (1, -x_n, -y_n)); outside
     [range_min, range_max] or a miss: miss_value. Noise (off by default): a valid return becomes
     max(t + (noise_std + noise_per_m t) z, 0), z standard normal, and is lost (miss_value) with probability
-    ``dropout``; vehicle i's draws in frame ``frame`` come from a stream keyed by (seed, frame, i).
+    ``dropout``; vehicle i's draws in frame ``frame`` come from a stream keyed by (seed + i, frame), so vehicle i
+    of a batch seeded s draws what a batch of one seeded s + i does.
     """
 def batch_rays(d_S: typing.Any, p_WS: typing.Any, q_WS: typing.Any, nthreads: typing.Any = 0) -> numpy.typing.NDArray[numpy.float32]:
     """

@@ -15,7 +15,7 @@ its hits). Optionally the vehicles' boxes are in the cast, so that each sensor s
 A return outside [range_min, range_max] or a miss reads ``range_max`` (a bounded observation). The noise is
 the LiDAR's range model (:class:`cufund.sensors.LidarParams`: ``range_noise_std``, ``range_noise_per_m``,
 ``dropout``; a dropped return reads range_max), off by default and seeded: vehicle i's draws in frame k come
-from a stream keyed by (seed, k, i).
+from a stream keyed by (seed + i, k): vehicle i of a batch seeded s draws what a batch of one seeded s + i does.
 """
 
 from __future__ import annotations
