@@ -86,7 +86,7 @@ class EnvBatch {
   const std::vector<int>& target_index() const { return index_; }
   const std::vector<int>& episode_steps() const { return steps_; }
   const std::vector<int>& latency() const { return latency_; }
-  // Per env, 4 numbers: mass, inertia, k_f and tau_m scales drawn at the last reset; and the drag scale.
+  // Per env, 5 numbers drawn at the last reset: the scales of mass, inertia, k_f, tau_m and drag.
   const std::vector<double>& drawn_scales() const { return scales_; }
 
  private:
@@ -103,7 +103,10 @@ class EnvBatch {
   void observe(std::size_t i, float* out);
   void commands(const double* applied, int nthreads);
   void integrate(int nthreads);
-  void finish(std::size_t i, float* obs, double* reward, bool* terminated, bool* truncated);
+  void finish_block(std::size_t begin, std::size_t end, float* obs, double* reward, bool* terminated, bool* truncated);
+  // d: distance to the current target, speed |v_W|, rate |w_B|, a2 |a|^2 (finish_block computes them).
+  void finish(std::size_t i, float* obs, double* reward, bool* terminated, bool* truncated, double d, double speed,
+              double rate, double a2);
 
   static constexpr std::size_t kBlock = 256;  // envs per parallel chunk
 
