@@ -17,6 +17,7 @@ from cufund.envs.observation_sensors import (
     VehicleBoxes,
     sensor_poses,
 )
+from cufund.sensors.lidar import mid360_params
 from cufund.worlds import World
 from cufund.worlds.builtin import forest
 
@@ -209,6 +210,12 @@ def test_bad_input_names_the_field(kwargs: dict, match: str) -> None:
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         lidar.batch_cast(lidar.RaycastScene(), **args)
+
+
+def test_lidar_spec_takes_the_lidar_range_model() -> None:
+    spec = LidarSpec.from_lidar_params(mid360_params(dropout=0.05), stride=10)
+    assert (spec.range_min, spec.range_max, spec.range_noise_std, spec.dropout) == (0.1, 40.0, 0.02, 0.05)
+    assert spec.pattern == "mid360" and spec.shape == (2000,)
 
 
 def test_bad_specs_name_the_field() -> None:

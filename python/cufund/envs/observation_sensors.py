@@ -30,6 +30,7 @@ import numpy as np
 from cufund import _core
 from cufund.core.config import ConfigError, from_dict
 from cufund.sensors import patterns
+from cufund.sensors.lidar import LidarParams
 
 __all__ = ["BatchRangeSensor", "DepthCameraSpec", "LidarSpec", "SensorSpec", "VehicleBoxes", "sensor_poses"]
 
@@ -152,6 +153,14 @@ class LidarSpec(_RangeTerms):
         object.__setattr__(self, "frame", _whole("lidar.frame", self.frame, 0, 2**40))
         object.__setattr__(self, "stride", _whole("lidar.stride", self.stride, 1, 1_000_000))
         self._check_range("lidar")
+
+    @classmethod
+    def from_lidar_params(cls, params: LidarParams, **fields: Any) -> LidarSpec:
+        """The range model of a :class:`cufund.sensors.LidarParams` (``range_min``, ``range_max``,
+        ``range_noise_std``, ``range_noise_per_m``, ``dropout``; its other realism terms are not modelled here), with
+        this spec's other ``fields`` (pattern, stride, mount, ...)."""
+        names = ("range_min", "range_max", "range_noise_std", "range_noise_per_m", "dropout")
+        return cls(**{n: getattr(params, n) for n in names}, **fields)
 
     def directions(self) -> np.ndarray:
         """(R, 3) float32 unit directions in the sensor frame."""
