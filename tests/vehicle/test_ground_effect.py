@@ -127,6 +127,11 @@ def test_world_floor_and_ceiling_of_the_tunnel_course():
     s = probe(p)
     np.testing.assert_allclose(s[:, 0], 0.0, atol=1e-5)
     np.testing.assert_allclose(s[:, 1], 4.0, atol=1e-5)  # the arena's 4 m height
+    f = course.frames[0]
+    over_bar = np.array([[f.centre_W[0], f.centre_W[1], f.centre_W[2] + f.height / 2 + 0.15]])  # above the top bar
+    np.testing.assert_allclose(probe(over_bar)[0], [0.0, 4.0], atol=1e-5)  # a bar is no floor (labels)
+    every = SurfaceProbe(course.world, labels=None)(over_bar)[0]
+    assert 0.05 < every[0] < over_bar[0, 2]  # with every object: the bar
     empty = SurfaceProbe(None, ground_plane=True)(p)
     np.testing.assert_array_equal(empty, [[0.0, np.inf]] * 3)
     assert SurfaceProbe(None, ground_plane=False)(p)[0, 0] == -np.inf

@@ -46,6 +46,9 @@ class GroundEffectConfig:
     propellers stand above it on the landing gear (CU-Astro, 95 mm tall: about 5 cm; give it for other vehicles)."""
     min_height_m: float | None = None
     """Heights below this count as this [m]; null: one rotor radius (where the fits' data end)."""
+    surface_labels: tuple[str, ...] | None = ("floor", "ground", "ceiling", "terrain", "roof")
+    """The world objects that count as floor or ceiling, by label (the models hold for a plane, not a thin bar);
+    null: every object."""
     update_hz: float = 20.0
     """How often the floor and ceiling under and over the vehicle are looked up in the world [Hz]."""
 
@@ -56,6 +59,11 @@ class GroundEffectConfig:
                 check_real_fields(self, "ground_effect", positive=True, unit=" [m]", names=(name,))
         check_real_fields(self, "ground_effect", names=("k_body", "ceiling_k2_m", "rotor_plane_height_m"))
         check_real_fields(self, "ground_effect", positive=True, names=("update_hz",))
+        if self.surface_labels is not None:
+            labels = self.surface_labels
+            if isinstance(labels, str) or not all(isinstance(x, str) for x in labels):
+                raise ConfigError(f"ground_effect.surface_labels must be a list of labels or null, got {labels!r}")
+            object.__setattr__(self, "surface_labels", tuple(labels))
         if (
             isinstance(self.ceiling_k1, bool)
             or not isinstance(self.ceiling_k1, (int, float))

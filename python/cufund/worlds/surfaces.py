@@ -1,9 +1,10 @@
 """The floor under and the ceiling over a point of a world, for the ground and ceiling effect.
 
-One ray straight down and one straight up through the world's Embree scene (:attr:`World.raycast_scene`); a
-miss is no surface (-inf / +inf), and with the dynamics' ground plane the floor is at least z = 0 for a point
-above it. For the tunnel course the rays find its floor box (top at z = 0) and ceiling box (bottom at the arena's
-height), or a frame's bar when the vehicle passes under or over one.
+One ray straight down and one straight up through an Embree scene of the world's objects whose label names a large
+surface (``floor``, ``ground``, ``ceiling``, ``terrain``, ``roof`` by default; the ground-effect models hold for a
+plane under or over the rotors, not for a 5 cm bar); a miss is no surface (-inf / +inf), and with the dynamics'
+ground plane the floor is at least z = 0 for a point above it. For the tunnel course the rays find its floor box
+(top at z = 0) and ceiling box (bottom at the arena's height, 4 m).
 """
 
 from __future__ import annotations
@@ -13,7 +14,11 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SurfaceProbe"]
+from cufund import _core
+
+__all__ = ["SURFACE_LABELS", "SurfaceProbe", "apply_ground_effect"]
+
+SURFACE_LABELS = ("floor", "ground", "ceiling", "terrain", "roof")
 
 _MAX_RANGE = 1e4
 _LIFT = 1e-3  # [m]
@@ -22,8 +27,15 @@ _LIFT = 1e-3  # [m]
 class SurfaceProbe:
     """``probe(p_W) -> (floor_z, ceiling_z)`` [m] for points (n, 3) as an (n, 2) array."""
 
-    def __init__(self, world: Any | None, ground_plane: bool = True) -> None:
-        self._scene = world.raycast_scene if world is not None and len(world) > 0 else None
+    def __init__(
+        self, world: Any | None, ground_plane: bool = True, labels: tuple[str, ...] | None = SURFACE_LABELS
+    ) -> None:
+        objects = [] if world is None else [o for o in world.objects if labels is None or o.label in labels]
+        self._scene = None
+        if objects:
+            self._scene = _core.lidar.RaycastScene()
+            for o in objects:
+                self._scene.add_triangles(o.vertices.astype(np.float32), o.triangles)
         self._ground_plane = ground_plane
 
     def __call__(self, p_W: np.ndarray) -> np.ndarray:
@@ -60,4 +72,5 @@ def apply_ground_effect(quad: Any, config: Any, world: Any | None) -> None:
         return
     quad.set_ground_effect(config)
     if world is not None and len(world) > 0:
-        quad.set_surface_probe(SurfaceProbe(world, quad.params.ground_plane), 1.0 / config.update_hz)
+        probe = SurfaceProbe(world, quad.params.ground_plane, config.surface_labels)
+        quad.set_surface_probe(probe, 1.0 / config.update_hz)
