@@ -372,7 +372,15 @@ def train(
         f"{timesteps * cfg.num_envs} steps on {cfg.num_envs} envs, seed {cfg.seed}"
     )
     t0 = time.perf_counter()
-    trainer.train()
+    try:
+        trainer.train()
+    except ValueError as e:
+        if "NaN" not in str(e):
+            raise
+        raise ConfigError(
+            f"training diverged after {time.perf_counter() - t0:.0f} s: the policy gave NaN actions ({e}); try a "
+            f"smaller train.learning_rate (now {cfg.learning_rate:g}) or fewer train.steps"
+        ) from None
     wall = time.perf_counter() - t0
     env_steps = timesteps * cfg.num_envs
 
