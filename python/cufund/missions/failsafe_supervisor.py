@@ -117,7 +117,6 @@ class FailsafeSupervisor(Planner):
         self.airborne = False
         self._battery_level = 0  # 0 ok, 1 low, 2 critical, 3 emergency
         self._est_fired_at: float | None = None
-        self._est_reason = ""
         self._gps_t: float | None = None
         self._gps_lost = False
         self._geofence = False
