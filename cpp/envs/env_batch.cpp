@@ -369,7 +369,6 @@ void EnvBatch::integrate(int nthreads) {
 
 void EnvBatch::step(const double* actions, float* obs, double* reward, bool* terminated, bool* truncated,
                     int nthreads) {
-  const EnvTaskParams& t = task_;
   unsigned bad = 0;
   for (std::size_t k = 0; k < 4 * n_; ++k) bad |= static_cast<unsigned>(!std::isfinite(actions[k]));
   if (bad != 0) {
