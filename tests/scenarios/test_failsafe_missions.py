@@ -180,3 +180,15 @@ def test_tunnel_in_severe_turbulence_lands_safely_and_no_motor_failure_is_imagin
         assert m["frames_passed"] == 0  # it landed before the course
     assert not any("motor failure" in r[2] or "attitude failure" in r[2] for r in m["failsafe_events"])
     assert sup.motor is not None and sup.motor.peak < 0.5 * sup.params.FD_ACT_RES_THR
+
+
+def test_commander_hops_see_no_motor_failure():
+    """Take off, land, take off again (vehicle_lio: the LIO's height drifts a few cm, so the vehicle is on the
+    ground before its estimate says so): the touchdowns' contact torques are no motor failure (the detector watches
+    from take-off to the landing only)."""
+    script = (
+        "planner.script=[[0.5, {command: arm}], [1.0, {command: takeoff, altitude: 1.0}], [5.0, {command: land}], "
+        "[11.0, {command: arm}], [11.5, {command: takeoff, altitude: 1.0}], [16.0, {command: land}]]"
+    )
+    run = run_scenario(load_scenario("vehicle_lio", [script, "duration=26"]))
+    assert run.metrics["failsafe_events"] == []

@@ -115,6 +115,7 @@ class FailsafeSupervisor(Planner):
         """``[t, "failsafe", reason]`` per transition (metrics.json's ``failsafe_events``)."""
         self.home_W: np.ndarray | None = None
         self.airborne = False
+        self._feeding = False
         self._battery_level = 0  # 0 ok, 1 low, 2 critical, 3 emergency
         self._est_fired_at: float | None = None
         self._gps_t: float | None = None
@@ -213,9 +214,13 @@ class FailsafeSupervisor(Planner):
             if not was
             else bool(float(s.p_W[2]) - float(home[2]) > 0.05 or float(np.linalg.norm(s.v_W)) > 0.2)
         )
-        if self.airborne and not was and self.motor is not None and not self.motor.failed:
-            self.motor.reset()  # from take-off on: the ground's contact torques are no failure
-        self._feed_motor(t, self.airborne)
+        # the motor detector watches the air between take-off and the landing (touching down, the ground's contact
+        # torques are no failure, and a landing is what it would ask for); a fresh observer after each gap
+        feeding = self.airborne and not (self.takeover is not None and self.takeover.landing(t))
+        if feeding and not self._feeding and self.motor is not None and not self.motor.failed:
+            self.motor.reset()
+        self._feeding = feeding
+        self._feed_motor(t, feeding)
         if not self.airborne or self.action == "disarm":
             return
         # attitude failure: terminate
