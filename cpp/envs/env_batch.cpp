@@ -32,6 +32,7 @@ bool range_ok(const std::vector<double>& r, double lo) {
 
 void EnvBatch::Rng::seed(std::uint64_t x) {
   for (auto& w : s) w = splitmix64(x);
+  has_spare = false;
 }
 
 std::uint64_t EnvBatch::Rng::next() {
@@ -48,10 +49,17 @@ std::uint64_t EnvBatch::Rng::next() {
 
 double EnvBatch::Rng::uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
 
-double EnvBatch::Rng::normal() {      // Box-Muller, one value per call
+double EnvBatch::Rng::normal() {  // Box-Muller: two values per pair of uniforms, the second kept for the next call
+  if (has_spare) {
+    has_spare = false;
+    return spare;
+  }
   const double u1 = 1.0 - uniform();  // (0, 1]
   const double u2 = uniform();
-  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
+  const double r = std::sqrt(-2.0 * std::log(u1));
+  spare = r * std::sin(2.0 * M_PI * u2);
+  has_spare = true;
+  return r * std::cos(2.0 * M_PI * u2);
 }
 
 bool EnvTaskParams::physical_randomisation() const {

@@ -92,6 +92,8 @@ class EnvBatch {
  private:
   struct Rng {
     std::uint64_t s[4];
+    double spare = 0.0;  // normal(): the second value of the last Box-Muller pair
+    bool has_spare = false;
     void seed(std::uint64_t x);
     std::uint64_t next();
     double uniform();  // [0, 1)
