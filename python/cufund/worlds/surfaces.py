@@ -22,6 +22,7 @@ SURFACE_LABELS = ("floor", "ground", "ceiling", "terrain", "roof")
 
 _MAX_RANGE = 1e4
 _LIFT = 1e-3  # [m]
+_SNAP = 1e-4  # [m]
 
 
 class SurfaceProbe:
@@ -61,6 +62,11 @@ class SurfaceProbe:
             out[above, 0] = np.maximum(out[above, 0], 0.0)
         out[:, 0] = np.minimum(out[:, 0], p[:, 2])  # a floor ray from inside an object: never above the point
         out[:, 1] = np.maximum(out[:, 1], out[:, 0])
+        # The ray caster is float32: its hit heights carry ~1e-7 m of noise that changes with the vehicle's position.
+        # Snapped to _SNAP, a flat floor or ceiling is one exact height (the noise carried no information and fed the
+        # plant last-bit differences).
+        finite = np.isfinite(out)
+        out[finite] = np.round(out[finite] / _SNAP) * _SNAP
         return out
 
 
