@@ -45,3 +45,11 @@ def test_tunnel_completes_in_moderate_turbulence():
     assert m["frames_passed"] == 5
     assert m["landed_beyond_last_frame"] is True
     assert math.isfinite(m["tracking_rmse_m"]) and m["tracking_rmse_m"] <= 0.1
+
+
+def test_tunnel_completes_with_ground_effect():
+    """The course's floor and ceiling (ground_effect: true): every frame passed, landed beyond the last one."""
+    m = run_scenario(load_scenario("tunnel").with_overrides(["ground_effect=true"])).metrics
+    assert m["status"] == "completed" and m["success"] is True, m["reason"]
+    assert m["frames_passed"] == 5 and m["landed_beyond_last_frame"] is True
+    assert m["tracking_rmse_m"] <= 0.05 and m["min_clearance_m"] > 0.15
