@@ -51,6 +51,9 @@ namespace {
 
 using Rows = double* __restrict[QuadrotorBatch::kRows];
 
+// Most vehicles integrate_range takes at once (step()'s blocks).
+constexpr std::size_t kIntegrateBlock = 256;
+
 template <bool kGroundEffect>
 CUFUND_INLINE void load(const DynamicsConstants& c, const Rows& p, const double* __restrict cmd, std::size_t i,
                         double* x, StepInputs& u) {
@@ -85,6 +88,9 @@ bool integrate_range(const DynamicsConstants& constants, double* __restrict stat
   Rows p;
   CUFUND_UNROLL
   for (int r = 0; r < QuadrotorBatch::kRows; ++r) p[r] = state + r * n;
+  // With the ground effect: the last sub-step's gains, reused for the accelerations below (held over the sub-step
+  // like the integration holds them; evaluating them again cost as much as the integration's own evaluation).
+  [[maybe_unused]] double last_gain[kIntegrateBlock][kNumRotors];
   for (int s = 0; s < substeps; ++s) {
 #if defined(__GNUC__)
 #pragma GCC ivdep
@@ -93,6 +99,10 @@ bool integrate_range(const DynamicsConstants& constants, double* __restrict stat
       double x[kStateSize];
       StepInputs u;
       load<kGroundEffect>(c, p, cmd, i, x, u);
+      if constexpr (kGroundEffect) {
+        CUFUND_UNROLL
+        for (int k = 0; k < kNumRotors; ++k) last_gain[i - begin][k] = u.thrust_gain[k];
+      }
       rk4_substep<kGround, kGroundEffect>(c, u, h, x);
       CUFUND_UNROLL
       for (int j = 0; j < kStateSize; ++j) p[j][i] = x[j];
@@ -105,7 +115,11 @@ bool integrate_range(const DynamicsConstants& constants, double* __restrict stat
   for (std::size_t i = begin; i < end; ++i) {
     double x[kStateSize], dx[kStateSize];
     StepInputs u;
-    load<kGroundEffect>(c, p, cmd, i, x, u);
+    load<false>(c, p, cmd, i, x, u);
+    if constexpr (kGroundEffect) {
+      CUFUND_UNROLL
+      for (int k = 0; k < kNumRotors; ++k) u.thrust_gain[k] = last_gain[i - begin][k];
+    }
     derivative<kGround, kGroundEffect>(c, x, u, dx);
     const bool held = kGround && resting_on_ground(x);
     CUFUND_UNROLL
@@ -296,7 +310,7 @@ StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
   const bool ge = ge_.enabled;
 
   // Blocks of vehicles small enough to stay in L1/L2 across sub-steps.
-  constexpr std::size_t kBlock = 256;
+  constexpr std::size_t kBlock = kIntegrateBlock;
   const std::size_t nblocks = (n_ + kBlock - 1) / kBlock;
   double* state = state_.data();
   const bool ground = params_.ground_plane;
