@@ -107,7 +107,8 @@ def test_the_commander_gates_the_controllers_built_after_it():
         if getattr(c, "armable", False) and "/vehicle/status" in {str(t) for t in c.optional_inputs}
     }
     assert gated == {"PositionController", "AttitudeController", "RateController", "GeometricController"}, gated
-    plain = build_simulation(ScenarioConfig.from_dict({"controller": "pid"}))  # no commander: never gated
+    # no commander and no failsafe supervisor (whose flight termination disarms): never gated
+    plain = build_simulation(ScenarioConfig.from_dict({"controller": "pid", "failsafe": "off"}))
     assert not any(getattr(c, "armable", False) for c in plain.simulator.components)
     assert plain.context.commander is None
     assert isinstance(ctx, ScenarioBuildContext) and not hasattr(ctx, "__dict__")
