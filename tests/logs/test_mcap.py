@@ -553,29 +553,40 @@ def test_a_log_cut_short_reads_to_its_last_complete_record(tmp_path, tail):
 
 @pytest.mark.filterwarnings("ignore:This process .* is multi-threaded:DeprecationWarning")  # Python >= 3.12
 def test_a_forked_child_cannot_write_through_its_parents_logger(tmp_path):
-    """The child has the logger's queue but not its writer thread: it must fail at once, not wait forever."""
-    import multiprocessing
+    """The child has the logger's queue but not its writer thread: it must fail at once, not wait forever. Run in a
+    fresh interpreter: this process may hold threads of other libraries (JAX) that make a fork unsafe."""
+    import subprocess
+    import sys
 
-    global _CHILD_LOG
-    _CHILD_LOG = McapLogger(tmp_path / "a.mcap", block_messages=1)
-    _CHILD_LOG.write("/a", M.ActuatorCommand(0.0, np.ones(4)), 0, 0)
-    with multiprocessing.get_context("fork").Pool(1) as pool:
-        message = pool.apply(_write_in_child)
-    assert "forked child" in message
-    _CHILD_LOG.write("/a", M.ActuatorCommand(0.1, np.ones(4)), 1, 1)  # the parent goes on
-    _CHILD_LOG.close()
-    assert [r.log_time_ns for r in read_mcap(tmp_path / "a.mcap")] == [0, 1]
+    script = f"""
+import multiprocessing
+import numpy as np
+from cufund.core import messages as M
+from cufund.logs import McapLogger, read_mcap
 
+LOG = McapLogger({str(tmp_path / "a.mcap")!r}, block_messages=1)
 
-_CHILD_LOG: McapLogger | None = None
-
-
-def _write_in_child() -> str:
+def write_in_child():
     try:
-        _CHILD_LOG.write("/a", M.ActuatorCommand(1.0, np.ones(4)), 2, 2)
+        LOG.write("/a", M.ActuatorCommand(1.0, np.ones(4)), 2, 2)
     except RuntimeError as exc:
         return str(exc)
     return "no error"
+
+if __name__ == "__main__":
+    LOG.write("/a", M.ActuatorCommand(0.0, np.ones(4)), 0, 0)
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        message = pool.apply(write_in_child)
+    assert "forked child" in message, message
+    LOG.write("/a", M.ActuatorCommand(0.1, np.ones(4)), 1, 1)  # the parent goes on
+    LOG.close()
+    print([r.log_time_ns for r in read_mcap({str(tmp_path / "a.mcap")!r})])
+"""
+    path = tmp_path / "fork_child.py"
+    path.write_text(script)
+    out = subprocess.run([sys.executable, str(path)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[0, 1]"
 
 
 def test_variable_length_messages_are_logged_as_json_and_round_trip(tmp_path):
