@@ -172,7 +172,8 @@ def test_square_on_a_10_hz_pose_source_plus_imu_propagation_meets_the_square_bou
     assert Topics.POSE not in rate_loop.reads  # the slow pose is never what the rate loop flies on
     assert Topics.IMU in rate_loop.reads
     if "rate_controller" in views:
-        assert rate_loop.reads == {Topics.IMU, Topics.RATE_SETPOINT}
+        # (and the vehicle status, through which the failsafe supervisor's flight termination stops the rotors)
+        assert rate_loop.reads == {Topics.IMU, Topics.RATE_SETPOINT, Topics.VEHICLE_STATUS}
 
 
 def test_no_flight_software_reads_a_truth_topic_with_an_estimator(mocap):
