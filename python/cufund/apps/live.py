@@ -127,9 +127,7 @@ class LiveRun:
         self.events: EventLog = (
             self.commander.events
             if self.commander is not None
-            else next(
-                (c.events for c in sim.components if isinstance(getattr(c, "events", None), EventLog)), EventLog()
-            )
+            else next((e for c in sim.components if isinstance(e := getattr(c, "events", None), EventLog)), EventLog())
         )  # without a commander: the failsafe supervisor's, so its events reach the ground station and MAVLink
         if self.commander is not None:  # the controllers' gains by PX4 name, through get_params / set_param
             self.commander.param_providers.append(controller_param_provider(sim.components))
