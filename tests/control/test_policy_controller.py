@@ -101,7 +101,7 @@ def test_refuses_a_manifest_that_does_not_match_naming_the_field(tmp_path, edit,
         load_policy(tmp_path)
 
 
-def test_refuses_another_vehicle_a_missing_manifest_and_a_wrong_input_size(tmp_path):
+def test_refuses_another_vehicle_a_missing_manifest_and_a_wrong_input_or_output_size(tmp_path):
     _export(tmp_path, _manifest())
     with pytest.raises(ConfigError, match="vehicle is 'crazyflie'.*cu_astro"):
         load_policy(tmp_path, vehicle="cu_astro")
@@ -114,6 +114,15 @@ def test_refuses_another_vehicle_a_missing_manifest_and_a_wrong_input_size(tmp_p
     (other / "policy.yaml").write_text((tmp_path / "policy.yaml").read_text())
     with pytest.raises(ConfigError, match="input"):
         load_policy(other)
+    # a network whose output is not the manifest's act_dim (it would fly nothing: every action is refused)
+    three = tmp_path / "three"
+    three.mkdir()
+    rng = np.random.default_rng(3)
+    m3 = dataclasses.replace(_manifest(), act_dim=3)
+    export_mlp(three / "policy.onnx", [(rng.normal(size=(m3.obs_dim, 3)).astype(np.float32), np.zeros(3))], m3)
+    (three / "policy.yaml").write_text((tmp_path / "policy.yaml").read_text())
+    with pytest.raises(ConfigError, match="output.*act_dim=4"):
+        load_policy(three)
     (tmp_path / "policy.yaml").unlink()
     with pytest.raises(ConfigError, match="policy.yaml"):
         load_policy(tmp_path)

@@ -117,9 +117,16 @@ def load_policy(model: str | Path, base_dir: str | None = None, vehicle: str = "
         sess = ort.InferenceSession(str(onnx_path), opts, providers=["CPUExecutionProvider"])
     except Exception as e:  # onnxruntime raises its own types for a broken file
         raise ConfigError(f"controller.model: onnxruntime cannot load {onnx_path}: {e}") from None
-    shape = sess.get_inputs()[0].shape
+    inputs, outputs = sess.get_inputs(), sess.get_outputs()
+    if len(inputs) != 1 or inputs[0].type != "tensor(float)":
+        found = [(i.name, i.type) for i in inputs]
+        raise ConfigError(f"{onnx_path}: its inputs are {found}, expected one float tensor (the observation)")
+    shape = inputs[0].shape
     if len(shape) != 2 or shape[1] != manifest.obs_dim:
         raise ConfigError(f"{onnx_path}: its input is {shape}, but policy.yaml says obs_dim={manifest.obs_dim}")
+    out = outputs[0].shape
+    if len(out) != 2 or out[1] != manifest.act_dim:
+        raise ConfigError(f"{onnx_path}: its output is {out}, but policy.yaml says act_dim={manifest.act_dim}")
     return sess, manifest, onnx_path
 
 
