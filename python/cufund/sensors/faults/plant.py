@@ -147,10 +147,17 @@ class PlantFaults(Component):
 
     def __init__(self, faults: list[PlantFault], plant: Any, rate_hz: float, seeds: list[int]) -> None:
         self.faults, self.plant, self.rate_hz, self.seeds = list(faults), plant, float(rate_hz), list(seeds)
-        self._r_B = np.asarray(plant.params.rotor_positions(), dtype=float)
-        self._spin = np.asarray(plant.params.rotor_spins(), dtype=float)
+        self._r_B: list[list[float]] = np.asarray(plant.params.rotor_positions(), dtype=float).tolist()
+        self._spin: list[float] = np.asarray(plant.params.rotor_spins(), dtype=float).tolist()
         self._tau = float(plant.params.tau_m)
         self._t_first = min(f.t_start for f in self.faults)
+        # From _t_settled on every fault has started and every efficiency is constant: eta needs no more work.
+        self._t_settled = max(
+            f.t_start + f.ramp_s if isinstance(f, MotorEfficiency) else f.t_start for f in self.faults
+        )
+        self._eta_faults = [f for f in self.faults if not isinstance(f, PropImbalance)]
+        self._failures = [f for f in self.faults if isinstance(f, MotorFailure)]
+        self._imbalances = [(i, f) for i, f in enumerate(self.faults) if isinstance(f, PropImbalance)]
         self._touched_eta = False
         self._force_W = np.zeros(3)
         self._torque_B = np.zeros(3)
@@ -168,6 +175,7 @@ class PlantFaults(Component):
         self._phase: dict[int, float] = {}  # fault index -> rotor angle [rad], from its start
         self._omega_prev: dict[int, float] = {}
         self._t_prev: float | None = None
+        self._eta_settled = False
         self._stopped: dict[int, tuple[float, float]] = {}  # rotor -> (t_start, speed then)
         self.started: set[int] = set()
         """Indices of the faults that have begun acting in this run."""
@@ -175,27 +183,33 @@ class PlantFaults(Component):
     def step(self, t: float, bus: Any) -> None:
         if t < self._t_first:  # before the first fault: nothing to do
             return
-        plant, faults = self.plant, self.faults
-        eta = np.ones(4)
-        for i, f in enumerate(faults):
-            if t >= f.t_start:
-                eta[f.motor] *= f.efficiency_at(t)
-                if i not in self.started:
-                    self.started.add(i)
-                    _log.info("fault %s acts from t = %.6f s: %r", f.kind, t, f)
-        if not np.array_equal(eta, self._eta):
-            plant.set_rotor_efficiency(eta)
-            self._eta, self._touched_eta = eta, True
+        plant = self.plant
+        if not self._eta_settled:
+            eta = np.ones(4)
+            for i, f in enumerate(self.faults):
+                if t >= f.t_start:
+                    if not isinstance(f, PropImbalance):  # its efficiency is 1
+                        eta[f.motor] *= f.efficiency_at(t)
+                    if i not in self.started:
+                        self.started.add(i)
+                        _log.info("fault %s acts from t = %.6f s: %r", f.kind, t, f)
+            if not np.array_equal(eta, self._eta):
+                plant.set_rotor_efficiency(eta)
+                self._eta, self._touched_eta = eta, True
+            self._eta_settled = t >= self._t_settled
         omega = plant.state.rotor_speeds
-        for f in faults:
-            if isinstance(f, MotorFailure) and t >= f.t_start:
+        for f in self._failures:
+            if t >= f.t_start:
                 t0, w0 = self._stopped.setdefault(f.motor, (t, float(omega[f.motor])))
                 omega[f.motor] = w0 * math.exp(-(t - t0) / self._tau)
+        if not self._imbalances:
+            return
         dt = 0.0 if self._t_prev is None else t - self._t_prev
         self._t_prev = t
-        force_B, torque_B = np.zeros(3), np.zeros(3)
-        for i, f in enumerate(faults):
-            if not isinstance(f, PropImbalance) or t < f.t_start:
+        # In Python floats (a few numbers: numpy's per-call cost dominated), in numpy's order of operations.
+        fx = fy = tx = ty = tz = 0.0
+        for i, f in self._imbalances:
+            if t < f.t_start:
                 continue
             w = float(omega[f.motor])
             if i not in self._phase:  # its first node: a random angle from the fault's own seeded stream
@@ -204,10 +218,13 @@ class PlantFaults(Component):
                 self._phase[i] += 0.5 * (self._omega_prev[i] + w) * dt * self._spin[f.motor]
             self._omega_prev[i] = w
             phi = self._phase[i]
-            F = f.imbalance_kg_m * w * w * np.array([math.cos(phi), math.sin(phi), 0.0])
-            force_B += F
-            torque_B += np.cross(self._r_B[f.motor], F)
-        if force_B.any() or self._force_W.any():
+            a = f.imbalance_kg_m * w * w
+            Fx, Fy = a * math.cos(phi), a * math.sin(phi)
+            rx, ry, rz = self._r_B[f.motor]
+            fx, fy = fx + Fx, fy + Fy
+            tx, ty, tz = tx + (ry * 0.0 - rz * Fy), ty + (rz * Fx - rx * 0.0), tz + (rx * Fy - ry * Fx)
+        if fx or fy or self._force_W.any():
+            force_B, torque_B = np.array([fx, fy, 0.0]), np.array([tx, ty, tz])
             R_WB = quat_to_matrix(np.asarray(plant.state.q))
             force_W = R_WB @ force_B
             plant.force_ext_W[:] += force_W - self._force_W
