@@ -347,7 +347,7 @@ class Quadrotor:
         a = np.asarray(omega_max, dtype=float) if not isinstance(omega_max, bool) else np.asarray(np.nan)
         if a.shape != ():
             raise ValueError(f"max_rotor_speed must be a scalar [rad/s], got shape {a.shape}")
-        self._batch.set_max_rotor_speed(a)
+        self._batch._core.set_max_rotor_speed(a.reshape(1))  # the core checks the value (a battery calls it often)
 
     @property
     def surfaces_z(self) -> np.ndarray:
