@@ -480,7 +480,25 @@ def _point_fields(dtype: np.dtype) -> list[tuple[str, int, int]]:
     return [(name, fields[name][1], codes[fields[name][0].str[1:]]) for name in dtype.names or ()]
 
 
-class PointCloud2Codec(Codec):
+class _SensorCodec(Codec):
+    """A standard ROS 2 sensor message (CDR, ros2msg schema ``schema``) in the frame ``frame_id``, which the channel
+    metadata keeps (``cufund.frame_id``) for reading it back."""
+
+    schema: tuple[str, str]
+    schema_encoding = "ros2msg"
+    message_encoding = "cdr"
+
+    def __init__(self, cls: type, frame_id: str):
+        super().__init__(cls)
+        self.schema_name, text = self.schema
+        self.schema_data = text.encode()
+        self.frame_id = frame_id
+
+    def metadata(self) -> dict[str, str]:
+        return {**super().metadata(), "cufund.frame_id": self.frame_id}
+
+
+class PointCloud2Codec(_SensorCodec):
     """``sensor_msgs/msg/PointCloud2`` (CDR): a LiDAR frame as livox_ros_driver2 publishes it (:data:`LIVOX_POINT`,
     in the sensor's frame) or the LiDAR truth (:data:`TRUTH_POINT`, in ``world``).
 
@@ -489,20 +507,13 @@ class PointCloud2Codec(Codec):
     frame's ranges are the points' norms and its pattern index ``frame`` is not kept (-1)."""
 
     name = "ros2.PointCloud2"
-    schema_encoding = "ros2msg"
-    message_encoding = "cdr"
+    schema = ros2.POINT_CLOUD2
 
     def __init__(self, cls: type, frame_id: str):
-        super().__init__(cls)
-        self.schema_name, text = ros2.POINT_CLOUD2
-        self.schema_data = text.encode()
-        self.frame_id = frame_id
+        super().__init__(cls, frame_id)
         self.truth = cls.__name__ == "LidarTruth"
         self.point = TRUTH_POINT if self.truth else LIVOX_POINT
         self.fields = _point_fields(self.point)
-
-    def metadata(self) -> dict[str, str]:
-        return {**super().metadata(), "cufund.frame_id": self.frame_id}
 
     def encode(self, messages: list[Any], topic: str) -> list[bytes]:
         return [self._encode_one(m, topic) for m in messages]
@@ -590,19 +601,12 @@ _ROS_IMAGE_ENCODINGS = {
 _IMAGE_OF_ENCODING = {v: k for k, v in _ROS_IMAGE_ENCODINGS.items()}
 
 
-class ImageCodec(Codec):
+class ImageCodec(_SensorCodec):
     """``sensor_msgs/msg/Image`` (CDR): depth as ``32FC1`` (NaN: no return), colour as ``rgb8``; read back exactly
     (the stamp to the nanosecond)."""
 
     name = "ros2.Image"
-    schema_encoding = "ros2msg"
-    message_encoding = "cdr"
-
-    def __init__(self, cls: type, frame_id: str):
-        super().__init__(cls)
-        self.schema_name, text = ros2.IMAGE
-        self.schema_data = text.encode()
-        self.frame_id = frame_id
+    schema = ros2.IMAGE
 
     @staticmethod
     def encoding_of(image: Any) -> str | None:
@@ -610,9 +614,6 @@ class ImageCodec(Codec):
         if image.ndim not in (2, 3):
             return None
         return _ROS_IMAGE_ENCODINGS.get((image.dtype.name, image.shape[2] if image.ndim == 3 else 1))
-
-    def metadata(self) -> dict[str, str]:
-        return {**super().metadata(), "cufund.frame_id": self.frame_id}
 
     def encode(self, messages: list[Any], topic: str) -> list[bytes]:
         out = []
