@@ -12,7 +12,17 @@ from cufund.core.messages import Topics
 from cufund.planning.trajectory import Trajectory
 from cufund.vehicle.params import QuadrotorParams
 
-from .meshcat_scene import FLOWN, PLANNED, SETPOINT, VEHICLE, draw_path, draw_vehicle, pose_matrix
+from .meshcat_scene import (
+    FLOWN,
+    PLANNED,
+    PLANNED_COLOR,
+    SETPOINT,
+    TRUTH_COLOR,
+    VEHICLE,
+    draw_path,
+    draw_vehicle,
+    pose_matrix,
+)
 
 __all__ = ["LiveViewer"]
 
@@ -50,7 +60,7 @@ class LiveViewer(Component):
         draw_vehicle(self.vis, params)
         if planned is not None:
             tt = np.linspace(planned.t_start, planned.t_start + planned.duration, 2000)
-            draw_path(self.vis, PLANNED, planned.sample(tt).p_W, 0x1F77B4)
+            draw_path(self.vis, PLANNED, planned.sample(tt).p_W, PLANNED_COLOR)
         self._flown: list[np.ndarray] = []
         self._wall0: float | None = None
         self._t0 = 0.0
@@ -81,7 +91,7 @@ class LiveViewer(Component):
             self.vis[SETPOINT].set_transform(pose_matrix(sp.p_W, np.array([1.0, 0.0, 0.0, 0.0])))
         self._flown.append(truth.p_W.copy())
         if len(self._flown) >= 2 and len(self._flown) % 5 == 0:
-            draw_path(self.vis, FLOWN, np.array(self._flown), 0xD62728)
+            draw_path(self.vis, FLOWN, np.array(self._flown), TRUTH_COLOR)
         if self.speed:
             ahead = (t - self._t0) / self.speed - (time.perf_counter() - self._wall0)
             if ahead > 0:
