@@ -137,6 +137,25 @@ def test_world_floor_and_ceiling_of_the_tunnel_course():
     assert SurfaceProbe(None, ground_plane=False)(p)[0, 0] == -np.inf
 
 
+def test_a_plant_probing_a_world_pickles_and_continues_bit_for_bit():
+    """The surface probe's ray-cast scene is rebuilt from its meshes: a pickled plant flies on like the original."""
+    import pickle
+
+    from cufund.worlds.surfaces import apply_ground_effect
+
+    params = presets.cu_astro()
+    quad = Quadrotor(params)
+    apply_ground_effect(quad, GroundEffectConfig(), paper_tunnel_course().world)
+    quad.hover((-2.5, 0.0, 0.08))
+    copy = pickle.loads(pickle.dumps(quad))
+    for q in (quad, copy):
+        for _ in range(200):
+            q.step(1e-3, np.full(4, params.hover_rotor_speed))
+    np.testing.assert_array_equal(copy.state.as_vector(), quad.state.as_vector())
+    np.testing.assert_array_equal(copy.surfaces_z, quad.surfaces_z)
+    assert quad.surfaces_z[1] == pytest.approx(4.0, abs=1e-5)  # the probe ran: the arena's ceiling
+
+
 @pytest.mark.parametrize(
     ("value", "match"),
     [

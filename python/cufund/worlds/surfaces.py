@@ -32,12 +32,24 @@ class SurfaceProbe:
         self, world: Any | None, ground_plane: bool = True, labels: tuple[str, ...] | None = SURFACE_LABELS
     ) -> None:
         objects = [] if world is None else [o for o in world.objects if labels is None or o.label in labels]
-        self._scene = None
-        if objects:
-            self._scene = _core.lidar.RaycastScene()
-            for o in objects:
-                self._scene.add_triangles(o.vertices.astype(np.float32), o.triangles)
+        self._meshes = [(o.vertices.astype(np.float32), o.triangles) for o in objects]
         self._ground_plane = ground_plane
+        self._build()
+
+    def _build(self) -> None:
+        self._scene = None
+        if self._meshes:
+            self._scene = _core.lidar.RaycastScene()
+            for vertices, triangles in self._meshes:
+                self._scene.add_triangles(vertices, triangles)
+
+    # Pickling (a plant keeps its probe): the meshes, the scene rebuilt from them (the C++ scene does not pickle).
+    def __getstate__(self) -> dict[str, Any]:
+        return {"meshes": self._meshes, "ground_plane": self._ground_plane}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self._meshes, self._ground_plane = state["meshes"], state["ground_plane"]
+        self._build()
 
     def __call__(self, p_W: np.ndarray) -> np.ndarray:
         p = np.atleast_2d(np.asarray(p_W, dtype=float))
