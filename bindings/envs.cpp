@@ -1,4 +1,5 @@
 // cufund._core.envs: the learning environments' batch (cpp/envs), stepped with the GIL released.
+#include <array>
 #include <stdexcept>
 
 #include "env_batch.h"
@@ -7,6 +8,21 @@
 namespace cufund::py_bind {
 
 void define_envs(py::module_& m) {
+  m.def(
+      "velocity_command",
+      [](const std::array<double, 4>& a, const std::array<double, 3>& v_W, const std::array<double, 4>& q_WB,
+         double mass, double gravity, double max_thrust, double max_speed, double max_rate, double velocity_gain,
+         double attitude_gain) {
+        double thrust = 0.0;
+        Eigen::Vector3d w_sp;
+        velocity_command({mass, gravity, max_thrust, max_speed, max_rate, velocity_gain, attitude_gain}, a.data(),
+                         v_W.data(), q_WB.data(), &thrust, &w_sp);
+        return py::make_tuple(thrust, w_sp);
+      },
+      py::arg("a"), py::arg("v_W"), py::arg("q_WB"), py::arg("mass"), py::arg("gravity"), py::arg("max_thrust"),
+      py::arg("max_speed"), py::arg("max_rate"), py::arg("velocity_gain"), py::arg("attitude_gain"),
+      "The velocity action mode's (collective thrust [N], body-rate setpoint [rad/s] (3,)) for action a (4,): the "
+      "envs' formula, shared by the policy controller.");
   py::class_<EnvTaskParams>(m, "EnvTaskParams", "A task as cpp/envs reads it (built by cufund.envs from TaskConfig).")
       .def(py::init<>())
       .def_property(

@@ -273,6 +273,23 @@ void EnvBatch::observe(std::size_t i, float* out) {
   for (int j = 0; j < 4; ++j) out[o++] = static_cast<float>(a_prev_[4 * i + j]);
 }
 
+void velocity_command(const VelocityCommandGains& k, const double a[4], const double v_W[3], const double q_WB[4],
+                      double* thrust, Eigen::Vector3d* w_sp) {
+  const double qw = q_WB[0], qx = q_WB[1], qy = q_WB[2], qz = q_WB[3];
+  const double s = 2.0 / (qw * qw + qx * qx + qy * qy + qz * qz);
+  Eigen::Matrix3d R;
+  R << 1.0 - s * (qy * qy + qz * qz), s * (qx * qy - qw * qz), s * (qx * qz + qw * qy),  //
+      s * (qx * qy + qw * qz), 1.0 - s * (qx * qx + qz * qz), s * (qy * qz - qw * qx),   //
+      s * (qx * qz - qw * qy), s * (qy * qz + qw * qx), 1.0 - s * (qx * qx + qy * qy);
+  Eigen::Vector3d acc;
+  for (int j = 0; j < 3; ++j) acc[j] = k.velocity_gain * (a[j] * k.max_speed - v_W[j]);
+  acc[2] = std::max(acc[2] + k.gravity, 0.2 * k.gravity);  // never command a free fall
+  const Eigen::Vector3d z_B = R.col(2);
+  *thrust = std::clamp(k.mass * acc.dot(z_B), 0.0, k.max_thrust);
+  const Eigen::Vector3d err_B = R.transpose() * z_B.cross(acc.normalized());
+  *w_sp = Eigen::Vector3d(k.attitude_gain * err_B[0], k.attitude_gain * err_B[1], a[3] * k.max_rate);
+}
+
 // Rotor-speed commands from the applied (delayed) actions.
 void EnvBatch::commands(const double* applied, int nthreads) {
   const EnvTaskParams& t = task_;
@@ -282,6 +299,7 @@ void EnvBatch::commands(const double* applied, int nthreads) {
     return;
   }
   const double m = params_.mass, g = params_.gravity;
+  const VelocityCommandGains vel{m, g, max_thrust_, t.max_speed, t.max_rate, t.velocity_gain, t.attitude_gain};
   ThreadPool::instance().parallel_for((n_ + 255) / 256, nthreads, [&](std::size_t blk) {
     const std::size_t end = std::min(n_, (blk + 1) * 256);
     for (std::size_t i = blk * 256; i < end; ++i) {
@@ -294,22 +312,11 @@ void EnvBatch::commands(const double* applied, int nthreads) {
         thrust = std::min(m * g * (1.0 + a[0]), max_thrust_);
         w_sp = Eigen::Vector3d(a[1], a[2], a[3]) * t.max_rate;
       } else {
-        const double qw = b.row(QuadrotorBatch::kQ)[i], qx = b.row(QuadrotorBatch::kQ + 1)[i],
-                     qy = b.row(QuadrotorBatch::kQ + 2)[i], qz = b.row(QuadrotorBatch::kQ + 3)[i];
-        const double s = 2.0 / (qw * qw + qx * qx + qy * qy + qz * qz);
-        Eigen::Matrix3d R;
-        R << 1.0 - s * (qy * qy + qz * qz), s * (qx * qy - qw * qz), s * (qx * qz + qw * qy),  //
-            s * (qx * qy + qw * qz), 1.0 - s * (qx * qx + qz * qz), s * (qy * qz - qw * qx),   //
-            s * (qx * qz - qw * qy), s * (qy * qz + qw * qx), 1.0 - s * (qx * qx + qy * qy);
-        Eigen::Vector3d acc;
-        for (int j = 0; j < 3; ++j) {
-          acc[j] = t.velocity_gain * (a[j] * t.max_speed - b.row(QuadrotorBatch::kV + j)[i]);
-        }
-        acc[2] = std::max(acc[2] + g, 0.2 * g);  // never command a free fall
-        const Eigen::Vector3d z_B = R.col(2);
-        thrust = std::clamp(m * acc.dot(z_B), 0.0, max_thrust_);
-        const Eigen::Vector3d err_B = R.transpose() * z_B.cross(acc.normalized());
-        w_sp = Eigen::Vector3d(t.attitude_gain * err_B[0], t.attitude_gain * err_B[1], a[3] * t.max_rate);
+        const double v[3] = {b.row(QuadrotorBatch::kV)[i], b.row(QuadrotorBatch::kV + 1)[i],
+                             b.row(QuadrotorBatch::kV + 2)[i]};
+        const double q[4] = {b.row(QuadrotorBatch::kQ)[i], b.row(QuadrotorBatch::kQ + 1)[i],
+                             b.row(QuadrotorBatch::kQ + 2)[i], b.row(QuadrotorBatch::kQ + 3)[i]};
+        velocity_command(vel, a, v, q, &thrust, &w_sp);
       }
       const AllocationResult r = rate_[i].step(w_B, w_sp, thrust, t.dt);
       for (int k = 0; k < 4; ++k) cmd_[4 * i + k] = r.rotor_speeds[k];

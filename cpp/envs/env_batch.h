@@ -56,6 +56,16 @@ struct EnvTaskParams {
 // "" when the task parameters are usable, else a message naming the field.
 std::string validate(const EnvTaskParams& t);
 
+// The velocity action mode: action a (4) in [-1, 1] -> collective thrust [N] and body-rate setpoint [rad/s] for the
+// rate loop. acc = velocity_gain (a_0..2 max_speed - v_W), acc_z + g (at least 0.2 g); thrust = clamp(m acc . z_B, 0,
+// max_thrust); roll/pitch rates attitude_gain (R_WB^T (z_B x acc / |acc|))_xy; yaw rate a_3 max_rate. q_WB need not
+// be unit. The envs and the policy controller (cufund.control.policy_action) both fly it.
+struct VelocityCommandGains {
+  double mass, gravity, max_thrust, max_speed, max_rate, velocity_gain, attitude_gain;
+};
+void velocity_command(const VelocityCommandGains& k, const double a[4], const double v_W[3], const double q_WB[4],
+                      double* thrust, Eigen::Vector3d* w_sp);
+
 class EnvBatch {
  public:
   static constexpr int kMaxLatency = 64;

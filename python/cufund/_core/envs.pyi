@@ -7,7 +7,7 @@ import cufund._core.dynamics
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['EnvBatch', 'EnvTaskParams']
+__all__: list[str] = ['EnvBatch', 'EnvTaskParams', 'velocity_command']
 class EnvTaskParams:
     """
     A task as cpp/envs reads it (built by cufund.envs from TaskConfig).
@@ -313,3 +313,7 @@ class EnvBatch:
     @property
     def target_index(self) -> numpy.typing.NDArray[numpy.int32]:
         ...
+def velocity_command(a: typing.Annotated[collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex], "FixedSize(4)"], v_W: typing.Annotated[collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex], "FixedSize(3)"], q_WB: typing.Annotated[collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex], "FixedSize(4)"], mass: typing.SupportsFloat | typing.SupportsIndex, gravity: typing.SupportsFloat | typing.SupportsIndex, max_thrust: typing.SupportsFloat | typing.SupportsIndex, max_speed: typing.SupportsFloat | typing.SupportsIndex, max_rate: typing.SupportsFloat | typing.SupportsIndex, velocity_gain: typing.SupportsFloat | typing.SupportsIndex, attitude_gain: typing.SupportsFloat | typing.SupportsIndex) -> tuple[float, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]]:
+    """
+    The velocity action mode's (collective thrust [N], body-rate setpoint [rad/s] (3,)) for action a (4,): the envs' formula, shared by the policy controller.
+    """

@@ -1,5 +1,6 @@
 """How a policy's action in [-1, 1]^4 becomes a command, per action mode: the same formulas as cufund.envs'
-(``EnvBatch::commands`` in cpp/envs/env_batch.cpp), for the ``policy`` controller.
+(``EnvBatch::commands`` in cpp/envs/env_batch.cpp; the velocity mode calls its C++ ``velocity_command``), for the
+``policy`` controller.
 
 - ``rotor_speeds``: ``omega_i = omega_hover + a_i * span``, ``omega_hover = sqrt(m g / (4 k_f))``,
   ``span = min(omega_max - omega_hover, omega_hover - omega_min)`` [rad/s];
@@ -16,7 +17,7 @@ import math
 
 import numpy as np
 
-from cufund.geometry import quat_to_matrix
+from cufund import _core
 from cufund.vehicle.params import QuadrotorParams
 
 from .policy_manifest import PolicyManifest
@@ -50,12 +51,18 @@ class ActionDecoder:
         return thrust, np.asarray(a[1:4], dtype=np.float64) * self.max_rate
 
     def velocity(self, a: np.ndarray, v_W: np.ndarray, q_WB: np.ndarray) -> tuple[float, np.ndarray]:
-        """Collective thrust [N] and body-rate setpoint [rad/s] (3,) tracking the velocity setpoint in ``a``."""
-        R = quat_to_matrix(np.asarray(q_WB, dtype=np.float64))
-        acc = self.velocity_gain * (np.asarray(a[:3], dtype=np.float64) * self.max_speed - np.asarray(v_W))
-        acc[2] = max(acc[2] + self.gravity, 0.2 * self.gravity)
-        z_B = R[:, 2]
-        thrust = float(np.clip(self.mass * acc @ z_B, 0.0, self.max_thrust))
-        err_B = R.T @ np.cross(z_B, acc / np.linalg.norm(acc))
-        w = np.array([self.attitude_gain * err_B[0], self.attitude_gain * err_B[1], float(a[3]) * self.max_rate])
-        return thrust, w
+        """Collective thrust [N] and body-rate setpoint [rad/s] (3,) tracking the velocity setpoint in ``a`` (the
+        envs' own C++ formula, ``velocity_command`` in cpp/envs/env_batch.h)."""
+        thrust, w = _core.envs.velocity_command(
+            np.asarray(a[:4], dtype=np.float64),
+            np.asarray(v_W, dtype=np.float64),
+            np.asarray(q_WB, dtype=np.float64),
+            mass=self.mass,
+            gravity=self.gravity,
+            max_thrust=self.max_thrust,
+            max_speed=self.max_speed,
+            max_rate=self.max_rate,
+            velocity_gain=self.velocity_gain,
+            attitude_gain=self.attitude_gain,
+        )
+        return float(thrust), np.asarray(w, dtype=np.float64).reshape(3)
