@@ -126,7 +126,16 @@ def test_list_prints_whole_descriptions_and_the_vehicle_presets(capsys):
     assert main(["list"]) == 0
     out = capsys.readouterr().out
     flat = " ".join(out.split())
-    for name, whole in available_scenarios(whole=True).items():
+    import cufund.scenarios
+
+    headers = {}  # each built-in file's comment lines before its first key, read here, not by the code under test
+    for path in sorted((Path(cufund.scenarios.__file__).parent / "builtin").glob("*.yaml")):
+        lines = path.read_text(encoding="utf-8").splitlines()
+        end = next((i for i, line in enumerate(lines) if not line.startswith("#")), len(lines))
+        headers[path.stem] = " ".join(" ".join(line.lstrip("#") for line in lines[:end]).split())
+    assert set(headers) == set(available_scenarios(whole=True))
+    assert any(len(h) > 150 for h in headers.values())  # some run over several lines: whole, not the first one
+    for name, whole in headers.items():
         assert name in out and whole in flat, name  # every word of the description, in order, none cut
     assert "vehicle presets" in out
     for preset in ("cu_astro", "iris", "crazyflie"):
