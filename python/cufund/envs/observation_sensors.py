@@ -29,6 +29,7 @@ import numpy as np
 
 from cufund import _core
 from cufund.core.config import ConfigError, from_dict
+from cufund.geometry import quat_conjugate, quat_mul
 from cufund.sensors import patterns
 from cufund.sensors.lidar import LidarParams
 
@@ -199,20 +200,6 @@ class VehicleBoxes:
         object.__setattr__(self, "half_extents", tuple(h.tolist()))
 
 
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        -1,
-    )
-
-
 def sensor_poses(
     p_WB: np.ndarray, q_WB: np.ndarray, p_BS: tuple[float, ...], q_BS: tuple[float, ...]
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -225,9 +212,8 @@ def sensor_poses(
     pb = np.zeros_like(q)
     pb[:, 1:] = p_BS
     # R_WB p_BS = vec(q pb q*)
-    qc = q * np.array([1.0, -1.0, -1.0, -1.0])
-    rotated = _quat_mul(_quat_mul(q, pb), qc)[:, 1:]
-    return p + rotated, _quat_mul(q, qs)
+    rotated = quat_mul(quat_mul(q, pb), quat_conjugate(q))[:, 1:]
+    return p + rotated, quat_mul(q, qs)
 
 
 class BatchRangeSensor:
