@@ -335,7 +335,7 @@ class Quadrotor:
 
     def set_rotor_efficiency(self, eta: Any) -> None:
         """Scales each rotor's thrust and drag torque: (4,) in [0, 1] (0: a stopped motor); persists until reset."""
-        self._batch.set_rotor_efficiency(_rows("rotor_efficiency", eta, 1, 4, single=True))
+        self._batch._core.set_rotor_efficiency(_rows("rotor_efficiency", eta, 1, 4, single=True))  # checked once
 
     @property
     def max_rotor_speed(self) -> float:
