@@ -66,11 +66,12 @@ class MotorFailureDetector:
         self._p0: list[float] | None = None  # J w at the start
         self._integral = [0.0, 0.0, 0.0]
         self._w = [0.0, 0.0, 0.0]
+        self._Jw = [0.0, 0.0, 0.0]  # J w of the last sample
         self._since: float | None = None
 
     def command(self, t: float, rotor_speeds: Any) -> None:
         """The newest commanded rotor speeds (held until the next command)."""
-        self._cmd = [float(v) for v in rotor_speeds]
+        self._cmd = rotor_speeds.tolist() if isinstance(rotor_speeds, np.ndarray) else [float(v) for v in rotor_speeds]
         if len(self._cmd) != 4:
             raise ValueError(f"rotor_speeds must be 4 speeds [rad/s], got {len(self._cmd)}")
         if self._speeds is None:
@@ -101,10 +102,10 @@ class MotorFailureDetector:
             return
         assert self._speeds is not None
         t = float(t)
-        w = [float(w_B[0]), float(w_B[1]), float(w_B[2])]
+        w = w_B.tolist() if isinstance(w_B, np.ndarray) else [float(w_B[0]), float(w_B[1]), float(w_B[2])]
         Jw = self._J(w)
         if self._t is None or self._p0 is None:
-            self._t, self._p0, self._w = t, Jw, w
+            self._t, self._p0, self._w, self._Jw = t, Jw, w, Jw
             return
         dt = t - self._t
         if dt <= 0:
@@ -112,8 +113,7 @@ class MotorFailureDetector:
         kf, sp, A = self.k_f, self._speeds, self._Arows
         f0, f1, f2, f3 = kf * sp[0] * sp[0], kf * sp[1] * sp[1], kf * sp[2] * sp[2], kf * sp[3] * sp[3]
         tau = [row[0] * f0 + row[1] * f1 + row[2] * f2 + row[3] * f3 for row in A]
-        wp = self._w
-        Jwp = self._J(wp)
+        wp, Jwp = self._w, self._Jw  # the integrand at the previous sample
         gyro_torque = [
             wp[1] * Jwp[2] - wp[2] * Jwp[1],
             wp[2] * Jwp[0] - wp[0] * Jwp[2],
@@ -127,7 +127,7 @@ class MotorFailureDetector:
         cmd = self._cmd
         for k in range(4):
             sp[k] += (cmd[k] - sp[k]) * lag
-        self._t, self._w = t, w
+        self._t, self._w, self._Jw = t, w, Jw
         level = math.hypot(r[0], r[1]) / self.torque_scale
         if level > self.peak:
             self.peak = level
