@@ -689,38 +689,6 @@ def _link(path: str) -> str | None:
         return None
 
 
-def test_a_log_of_the_json_clouds_before_the_ros2_messages_is_still_read(tmp_path, monkeypatch):
-    """Logs written before the ROS 2 messages held clouds as JSON ``foxglove.PointCloud`` (and images, GPS fixes
-    as JSON): read_mcap still reads them back exactly."""
-    from cufund.logs import codecs
-
-    new = codecs.codec_for
-
-    def old(topic, message):
-        if isinstance(message, M.PointCloud):
-            return codecs._lidar_codec(type(message))
-        if isinstance(message, M.CameraImage):
-            return codecs.RawImageCodec(type(message), codecs.schemas.RAW_IMAGE_SCHEMA, "camera")
-        return new(topic, message)
-
-    monkeypatch.setattr(codecs, "codec_for", old)
-    import cufund.logs.mcap_writer as writer
-
-    monkeypatch.setattr(writer, "codec_for", old)
-    written = [(t, m) for t, m in _stream(np.random.default_rng(3)) if t in ("/sensors/lidar", "/sensors/rgb_image")]
-    path = tmp_path / "old.mcap"
-    with McapLogger(path) as log:
-        for k, (topic, message) in enumerate(written):
-            log.write(topic, message, k, k)
-    schemas, _ = _schemas(path)
-    assert schemas["/sensors/lidar"].name == "foxglove.PointCloud"  # the old form
-    monkeypatch.setattr(writer, "codec_for", new)
-    back = list(read_mcap(path))
-    assert len(back) == len(written)
-    for record, (topic, message) in zip(back, written, strict=True):
-        assert record.topic == topic and _same(record.message, message)
-
-
 class _Line:
     """A trajectory along x at 2 m/s from t_start for 1.5 s, yawing at 0.4 rad/s (the planning protocol)."""
 

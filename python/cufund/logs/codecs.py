@@ -29,7 +29,7 @@ import numpy as np
 
 from . import ros2, scene, schemas
 from .cdr import CdrLayout, MessageLayout, infer_message_layout, stamp_sec_nsec
-from .jsonvalue import class_path, decode_fields, encode_fields, encode_value, numeric_dtype
+from .jsonvalue import class_path, decode_fields, encode_fields, numeric_dtype
 from .message_classes import message_class, note_logged
 
 __all__ = ["Codec", "View", "codec_for", "codec_from_channel"]
@@ -262,27 +262,18 @@ def _json_schema(cls: type) -> dict[str, Any]:
 
 
 class _FoxgloveJsonCodec(Codec):
-    """A Foxglove JSON schema for the bulk of a message; its other fields, exact, in ``cufund``."""
+    """Reads the Foxglove JSON messages of logs written before the ROS 2 messages: the bulk of a message in the
+    Foxglove schema's fields, its other fields, exact, in ``cufund``. Nothing writes them any more (``encode`` is
+    not defined)."""
 
     schema_encoding = "jsonschema"
     message_encoding = "json"
-    bulk: tuple[str, ...] = ()
-    """Fields carried by the Foxglove part (not repeated in ``cufund``)."""
 
     def __init__(self, cls: type, schema: tuple[str, bytes], frame_id: str):
         super().__init__(cls)
         self.schema_name, self.schema_data = schema
         self.name = self.schema_name
         self.frame_id = frame_id
-        self._others = [f.name for f in dataclasses.fields(cls) if f.name not in self.bulk]
-
-    def _header(self, message: Any) -> dict[str, Any]:
-        sec, nsec = stamp_sec_nsec(np.array([message.t]))
-        return {"timestamp": {"sec": max(int(sec[0]), 0), "nsec": int(nsec[0])}, "frame_id": self.frame_id}
-
-    def _exact(self, message: Any, topic: str, **extra: Any) -> dict[str, Any]:
-        where = f"topic {topic!r}: {self.cls.__name__}"
-        return {"fields": {n: encode_value(getattr(message, n), f"{where}.{n}") for n in self._others}, **extra}
 
     def decode(self, data: bytes | memoryview) -> Any:
         obj = json.loads(bytes(data))
@@ -295,57 +286,13 @@ class _FoxgloveJsonCodec(Codec):
         raise NotImplementedError
 
 
-_SPLICE = "\x00cufund-point-data"
-_SPLICE_JSON = json.dumps(_SPLICE).encode()
-
-
 class PointCloudCodec(_FoxgloveJsonCodec):
-    """``foxglove.PointCloud``: x, y, z from the (N, 3) ``xyz`` field and one packed field per per-point array."""
+    """``foxglove.PointCloud``: x, y, z into the (N, 3) ``xyz`` field and one packed field per per-point array
+    (with the exact dtypes the ``cufund`` object names)."""
 
     def __init__(self, cls: type, frame_id: str, xyz: str, per_point: tuple[tuple[str, str], ...]):
         self.xyz, self.per_point = xyz, per_point
-        self.bulk = (xyz, *(attr for attr, _ in per_point))
         super().__init__(cls, schemas.POINT_CLOUD_SCHEMA, frame_id)
-
-    def encode(self, messages: list[Any], topic: str) -> list[bytes]:
-        return [self._encode_one(m, topic) for m in messages]
-
-    def _encode_one(self, message: Any, topic: str) -> bytes:
-        xyz = np.asarray(getattr(message, self.xyz))
-        if xyz.ndim != 2 or xyz.shape[1] != 3:
-            raise ValueError(f"topic {topic!r}: {self.cls.__name__}.{self.xyz} must have shape (N, 3), got {xyz.shape}")
-        columns = [("x", xyz[:, 0]), ("y", xyz[:, 1]), ("z", xyz[:, 2])]
-        columns += [(name, np.asarray(getattr(message, attr))) for attr, name in self.per_point]
-        dtypes = {name: col.dtype.str for name, col in columns}
-        packed = []
-        for name, col in columns:
-            if col.shape != (len(xyz),):
-                raise ValueError(
-                    f"topic {topic!r}: per-point field {name!r} has shape {col.shape}, expected ({len(xyz)},)"
-                )
-            packed.append((name, _packable(col)))
-        dtype = np.dtype([(name, col.dtype.newbyteorder("<")) for name, col in packed])
-        data = np.empty(len(xyz), dtype)
-        for name, col in packed:
-            data[name] = col
-        fields, offset = [], 0
-        for name, col in packed:
-            fields.append({"name": name, "offset": offset, "type": schemas.NUMERIC_TYPES[col.dtype.name]})
-            offset += col.dtype.itemsize
-        obj = {
-            **self._header(message),
-            "pose": {
-                "position": {"x": 0.0, "y": 0.0, "z": 0.0},
-                "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
-            },
-            "point_stride": dtype.itemsize,
-            "fields": fields,
-            "data": _SPLICE,
-            "cufund": self._exact(message, topic, dtypes=dtypes),
-        }
-        # base64 needs no JSON escaping: spliced in as bytes (the same file), not scanned by json.dumps (~4 ms/MB)
-        head, tail = _dumps(obj).split(_SPLICE_JSON, 1)
-        return b"".join((head, b'"', base64.b64encode(data.tobytes()), b'"', tail))
 
     def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
         dtype = np.dtype(
@@ -369,59 +316,8 @@ class PointCloudCodec(_FoxgloveJsonCodec):
 _NUMPY_OF_TYPE = {v: "<" + np.dtype(k).str[1:] for k, v in schemas.NUMERIC_TYPES.items()}
 
 
-def _packable(col: np.ndarray) -> np.ndarray:
-    """``col`` in a dtype Foxglove's packed fields have, value for value: 64-bit integers as int32 or uint32 when
-    they fit, else as float64 when below 2**53; bool as uint8."""
-    if col.dtype.name in schemas.NUMERIC_TYPES:
-        return col
-    if col.dtype.kind == "b":
-        return col.astype(np.uint8)
-    if col.dtype.kind in "iu":
-        low, high = (int(col.min()), int(col.max())) if col.size else (0, 0)
-        for candidate in (np.int32, np.uint32):
-            info = np.iinfo(candidate)
-            if low >= info.min and high <= info.max:
-                return col.astype(candidate)
-        if max(-low, high) <= 2**53:
-            return col.astype(np.float64)
-    if col.dtype.kind == "f":
-        return col.astype(np.float64)
-    raise ValueError(f"cannot pack a per-point field of dtype {col.dtype} exactly")
-
-
-_IMAGE_ENCODINGS = {
-    ("float32", 2): "32FC1",
-    ("uint8", 2): "mono8",
-    ("uint16", 2): "16UC1",
-    ("uint8", 3): "rgb8",
-    ("uint8", 4): "rgba8",
-}
-
-
 class RawImageCodec(_FoxgloveJsonCodec):
-    """``foxglove.RawImage``; the exact dtype and shape ride along (so any numeric image round-trips)."""
-
-    bulk = ("image",)
-
-    def encode(self, messages: list[Any], topic: str) -> list[bytes]:
-        out = []
-        for m in messages:
-            image = np.ascontiguousarray(m.image)
-            if image.ndim not in (2, 3):
-                raise ValueError(f"topic {topic!r}: an image must be (H, W) or (H, W, C), got {image.shape}")
-            channels = image.shape[2] if image.ndim == 3 else 1
-            encoding = _IMAGE_ENCODINGS.get((image.dtype.name, channels if image.ndim == 3 else 2), "")
-            obj = {
-                **self._header(m),
-                "width": image.shape[1],
-                "height": image.shape[0],
-                "encoding": encoding,
-                "step": image.shape[1] * channels * image.dtype.itemsize,
-                "data": base64.b64encode(image.tobytes()).decode(),
-                "cufund": self._exact(m, topic, dtype=image.dtype.str, shape=list(image.shape)),
-            }
-            out.append(_dumps(obj))
-        return out
+    """``foxglove.RawImage``; the exact dtype and shape ride along in ``cufund``."""
 
     def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
         image = np.frombuffer(
@@ -431,26 +327,7 @@ class RawImageCodec(_FoxgloveJsonCodec):
 
 
 class LocationFixCodec(_FoxgloveJsonCodec):
-    """``foxglove.LocationFix`` with the receiver's claimed accuracy as a diagonal covariance."""
-
-    def encode(self, messages: list[Any], topic: str) -> list[bytes]:
-        out = []
-        for m in messages:
-            position = [m.latitude_deg, m.longitude_deg, m.altitude_m]
-            known = all(np.isfinite([*position, m.eph, m.epv]))
-            var = [m.eph**2, m.eph**2, m.epv**2] if known else [0.0, 0.0, 0.0]
-            obj = {
-                **self._header(m),
-                **{
-                    k: (float(v) if np.isfinite(v) else None)
-                    for k, v in zip(("latitude", "longitude", "altitude"), position, strict=True)
-                },
-                "position_covariance": [var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2]],
-                "position_covariance_type": 2 if known else 0,
-                "cufund": self._exact(m, topic),
-            }
-            out.append(_dumps(obj))
-        return out
+    """``foxglove.LocationFix``: every field is in ``cufund``."""
 
     def _decode_bulk(self, obj: dict[str, Any], exact: dict[str, Any]) -> dict[str, Any]:
         return {}
