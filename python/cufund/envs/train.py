@@ -385,8 +385,10 @@ def train(
     env_steps = timesteps * cfg.num_envs
 
     from .export_onnx import export_mlp
+    from .vector_env import task_params
 
     pre = agent._observation_preprocessor
+    flown = task_params(task)  # the gains the C++ envs flew the velocity mode with
     manifest = PolicyManifest(
         task=task_id,
         action_mode=task.action_mode,
@@ -399,6 +401,8 @@ def train(
         seed=cfg.seed,
         max_rate=float(task.max_rate),
         max_speed=float(task.max_speed),
+        velocity_gain=float(flown.velocity_gain),
+        attitude_gain=float(flown.attitude_gain),
         algo=cfg.algo,
         library=f"skrl {_skrl().__version__} (JAX)",
         env_steps=env_steps,
