@@ -179,7 +179,8 @@ BatchResult batch_cast(const RaycastScene& scene, const SensorPoses& poses, cons
     if (boxes.m > 0) {
       const double* p = poses.p_WS + 3 * i;
       const std::int64_t own = boxes.owner ? boxes.owner[i] : -1;
-      std::vector<BoxView> views;
+      thread_local std::vector<BoxView> views;  // reused: no allocation per vehicle and call
+      views.clear();
       for (std::size_t j = 0; j < boxes.m; ++j) {
         if (static_cast<std::int64_t>(j) == own) continue;
         const double* c = boxes.p_WB + 3 * j;
