@@ -139,6 +139,45 @@ def test_estimator_silence_counts_and_recovery_cancels_the_landing():
     assert sup.ended_flight is None  # it held and nobody landed: the operator's turn
 
 
+class _PathKeeper(_Owner):
+    """A follower's takeover: the estimator's temporary hold keeps the planned path (nothing to give back)."""
+
+    def hold(self, t, reason, bus, temporary=False):
+        super().hold(t, reason, bus, temporary)
+        return "the planned path is kept" if temporary else ""
+
+
+def test_each_estimator_spell_of_an_owner_that_kept_its_path_is_one_hold_then_cleared():
+    owner = _PathKeeper()
+    sup = FailsafeSupervisor(FailsafeParams(), owner, estimator_diagnostics=True)
+
+    def lio(t, bus):  # unhealthy from 2 to 4 s and from 6 to 8 s (each recovers within COM_FAIL_ACT_T)
+        if abs(t * 10 - round(t * 10)) < 1e-9:
+            bus.publish(Topics.ESTIMATOR_DIAGNOSTICS, _diag(t, not (2.0 <= t < 4.0 or 6.0 <= t < 8.0)))
+
+    _fly(sup, 12.0, lio)
+    kinds = [
+        ("hold" if "failsafe hold" in r[2] else "cleared" if "healthy again" in r[2] else r[2]) for r in sup.records
+    ]
+    assert kinds == ["hold", "cleared", "hold", "cleared"]
+    assert [a for _, a in owner.asked] == ["hold", "hold"]
+    assert sup.action == "none" and sup.ended_flight is None
+
+
+def test_an_estimator_spell_during_a_geofence_hold_neither_clears_nor_lifts_it():
+    owner = _Owner()
+    sup = FailsafeSupervisor(FailsafeParams(GF_MAX_HOR_DIST=1.0), owner, estimator_diagnostics=True)
+
+    def lio(t, bus):  # unhealthy from 4 to 6 s, after the geofence hold at 2 s
+        if abs(t * 10 - round(t * 10)) < 1e-9:
+            bus.publish(Topics.ESTIMATOR_DIAGNOSTICS, _diag(t, not 4.0 <= t < 6.0))
+
+    _fly(sup, 9.0, lio, p=lambda t: (min(t, 2.0) * 0.6, 0.0, 1.5))
+    assert [a for _, a in owner.asked] == ["hold"]
+    assert not any("healthy again" in r[2] for r in sup.records)  # there was no estimator hold to clear
+    assert sup.action == "hold"
+
+
 def test_short_unhealthy_spells_fire_nothing():
     owner = _Owner()
     sup = FailsafeSupervisor(FailsafeParams(), owner, estimator_diagnostics=True)

@@ -118,6 +118,7 @@ class FailsafeSupervisor(Planner):
         self._feeding = False
         self._battery_level = 0  # 0 ok, 1 low, 2 critical, 3 emergency
         self._est_fired_at: float | None = None
+        self._est_held = False  # the estimator failsafe's hold was taken (not one already in force)
         self._gps_t: float | None = None
         self._gps_lost = False
         self._geofence = False
@@ -245,17 +246,18 @@ class FailsafeSupervisor(Planner):
             if self._est_fired_at is None:
                 if not landing and t - t0 >= self.params.COM_POS_FS_DELAY:
                     self._est_fired_at = t
-                    self._fire(t, "hold", f"estimator unhealthy ({why})", bus, temporary=True)
+                    self._est_held = self._fire(t, "hold", f"estimator unhealthy ({why})", bus, temporary=True)
             elif (
                 t - self._est_fired_at >= self.params.COM_FAIL_ACT_T and ACTION_RANK[self.action] < ACTION_RANK["land"]
             ):
                 self._fire(t, "land", f"estimator unhealthy for {t - t0:.1f} s ({why})", bus)
         elif self._est_fired_at is not None:
-            if self.action == "hold":  # recovered before the landing (a landing once begun goes on)
+            if self._est_held and self.action == "hold":  # recovered before the landing (a landing once begun goes on)
                 self._event(t, "cleared", f"estimator healthy again after {t - self._est_fired_at:.1f} s")
-                if self.takeover is not None and hasattr(self.takeover, "mission"):
-                    self.action = "none"  # the mission held by itself at a rest point and goes on
+                if self.took != "hold":  # the owner flew on by itself (a mission at its rest point, a follower's path)
+                    self.action = "none"  # so the next spell holds again
             self._est_fired_at = None
+            self._est_held = False
         self._geofence_check(t, s, home, bus)
 
     def _estimate_problem(self, t: float, healthy: bool, why: str, gps_ok: bool) -> tuple[float, str] | None:
