@@ -123,3 +123,25 @@ def test_imu_noise_follows_the_gyro_noise_model() -> None:
     off = gymnasium.make_vec("cufund/Hover-v0", num_envs=n)
     o2, _ = off.reset(seed=0)
     np.testing.assert_array_equal(o2[:, po.slices(1)["w_B"]], off.batch.w.astype(np.float32))
+
+
+def test_gyro_turn_on_bias_is_held_and_the_walk_grows_as_the_noise_model() -> None:
+    """The parts the first sample cannot show: the turn-on bias is held over the episode and the bias random walk
+    has variance k walk^2 dt after k steps (cufund.sensors.noise's discretisation); no white noise here."""
+    from cufund import _core
+    from cufund.envs.vector_env import task_params
+
+    n, k, walk, turn_on = 4000, 20, 0.5, 0.02
+    v = gymnasium.make_vec("cufund/Hover-v0", num_envs=n)
+    t = task_params(v.config)
+    t.imu_noise, t.gyro_white, t.gyro_walk, t.gyro_turn_on = True, 0.0, walk, turn_on
+    core = _core.envs.EnvBatch(v.params.to_core(), t, n)
+    w = po.slices(1)["w_B"]
+    obs = core.reset(0)
+    bias = obs[:, w].astype(np.float64) - core.batch.w
+    assert abs(bias.std() / turn_on - 1.0) < 0.03
+    for _ in range(k):
+        obs, _, term, trunc = core.step(np.zeros((n, 4)))
+        assert not (term.any() or trunc.any())
+    drift = obs[:, w].astype(np.float64) - core.batch.w - bias
+    assert abs(drift.std() / (walk * np.sqrt(k * v.config.dt)) - 1.0) < 0.05
