@@ -49,9 +49,6 @@ class CommanderTakeover:
         h = np.asarray(self.commander.home_p_W, dtype=float)
         return h if np.all(np.isfinite(h)) else None
 
-    def airborne(self) -> bool:
-        return bool(self.commander.airborne)
-
     def landing(self, t: float) -> bool:
         return self.commander.mode == "land" or not self.commander.airborne
 
@@ -117,9 +114,6 @@ class FollowerTakeover:
 
     def reset(self) -> None:
         self.taken = ""
-
-    def airborne(self) -> bool:
-        return True  # the supervisor judges from the state
 
     def landing(self, t: float) -> bool:
         return self.taken in ("land", "rtl") or t >= self._t_landing
@@ -203,9 +197,6 @@ class MissionTakeover:
     def __init__(self, mission: Any) -> None:
         self.mission = mission
         self.home_W: np.ndarray | None = None
-
-    def airborne(self) -> bool:
-        return True
 
     def landing(self, t: float) -> bool:
         return self.mission.state in ("land", "done", "aborted")
