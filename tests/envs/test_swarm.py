@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from pettingzoo.test import parallel_api_test
 
+from cufund.control import policy_observation as po
 from cufund.core.config import ConfigError
 from cufund.envs import swarm_gates_v0
 from cufund.envs.vector_env import CufundVectorEnv
@@ -82,3 +83,18 @@ def test_an_agent_depth_sees_the_other_vehicle_not_itself() -> None:
     assert env.agents == ["drone_0"]
     obs, _, _, _, _ = env.step({"drone_0": ZERO})
     assert np.all(obs["drone_0"]["depth"][0, 15:17, 15:17] == 10.0)
+
+
+def test_reset_observation_keeps_the_configured_noise() -> None:
+    # spreading the agents moves their targets, not their noise: the gyro's and the position noise are in the
+    # first observation as in every later one
+    env = swarm_gates_v0.parallel_env(num_agents=3, imu_noise=True, randomisation={"position_noise_m": [0.05, 0.05]})
+    obs, _ = env.reset(seed=1)
+    b = env.vector.batch
+    cfg = env.config
+    sl = po.slices(cfg.n_ahead, cfg.target_dim)
+    state = np.stack([obs[f"drone_{i}"]["state"] for i in range(3)]).astype(np.float64)
+    assert np.all(state[:, sl["w_B"]] != np.asarray(b.w, dtype=np.float32))
+    rel = np.asarray(cfg.targets[0][:3]) - np.asarray(b.p)
+    err = state[:, :3] - rel
+    assert np.all(np.abs(err) > 1e-6) and np.all(np.abs(err) < 0.05 * 6)

@@ -138,10 +138,9 @@ class SwarmGatesEnv(ParallelEnv):
             a: {"state": state[i], self.sensor_key: img[i]} for i, a in enumerate(self.possible_agents) if self._live[i]
         }
 
-    def _spread(self) -> np.ndarray:
-        """Moves the agents apart into their row and rebuilds their (first-gate) state observations."""
+    def _layout_state(self) -> np.ndarray:
+        """The agents' noise-free reset observations where they stand (first gates, no previous action)."""
         b = self.vector.batch
-        b.p[:] = np.asarray(b.p) + self._offsets
         cfg = self.config
         k = cfg.n_ahead
         gates = [cfg.targets[min(j, len(cfg.targets) - 1)] for j in range(k)]
@@ -154,16 +153,24 @@ class SwarmGatesEnv(ParallelEnv):
             tg, np.asarray(b.p), np.asarray(b.v), np.asarray(b.q), np.asarray(b.w), np.zeros((n, 4)), normals
         )
 
+    def _spread(self, state: np.ndarray) -> np.ndarray:
+        """Moves the agents apart into their row and rebuilds their reset observations ``state`` (the C++ task's)
+        there, keeping the noise the task drew in them (none: the layout's numbers bit for bit)."""
+        noise = np.asarray(state, dtype=np.float64) - self._layout_state()
+        b = self.vector.batch
+        b.p[:] = np.asarray(b.p) + self._offsets
+        return (self._layout_state() + noise).astype(np.float32)
+
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, Any], dict[str, dict]]:
-        self.vector.reset(seed=seed, options=options)
+        state, _ = self.vector.reset(seed=seed, options=options)
         if seed is not None:
             self.sensor.seed = int(seed)
             self._frame = 0
         self.agents = list(self.possible_agents)
         self._live[:] = True
-        state = self._spread()
+        state = self._spread(state)
         return self._observe(state), {a: {} for a in self.agents}
 
     def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
