@@ -124,7 +124,6 @@ class ForestAvoidEnv(CufundVectorEnv):
         )
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._goal = np.asarray(cfg.targets[0][:3])
-        self._ended = np.zeros(self.num_envs, dtype=bool)
         self._frame = 0
 
     def _with_sensor(self, state: np.ndarray) -> dict[str, np.ndarray]:
@@ -140,14 +139,13 @@ class ForestAvoidEnv(CufundVectorEnv):
         if seed is not None:
             self.sensor.seed = int(seed)
             self._frame = 0
-        self._ended[:] = False
         return self._with_sensor(state), info
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict]:
         state, rew, term, trunc, info = super().step(actions)
         b = self.batch
         p, q = np.asarray(b.p), np.asarray(b.q)
-        fresh = self._ended  # reset by this step: their flags are False and reward 0
+        fresh = self._core.episode_steps == 0  # reset by this step: their flags are False and reward 0
         hit = self.collisions(p, q) & ~fresh & ~term
         reached = (np.linalg.norm(p - self._goal, axis=1) < self.config.reach_radius) & ~fresh & ~term & ~hit
         r = self.config.rewards
@@ -157,7 +155,6 @@ class ForestAvoidEnv(CufundVectorEnv):
             self._core.end_episodes(extra)
         term = term | extra
         trunc = trunc & ~term
-        self._ended = term | trunc
         return self._with_sensor(state), rew, term, trunc, info
 
 
