@@ -54,9 +54,9 @@ class ActionDecoder:
         """Collective thrust [N] and body-rate setpoint [rad/s] (3,) tracking the velocity setpoint in ``a`` (the
         envs' own C++ formula, ``velocity_command`` in cpp/envs/env_batch.h)."""
         thrust, w = _core.envs.velocity_command(
-            np.asarray(a[:4], dtype=np.float64),
-            np.asarray(v_W, dtype=np.float64),
-            np.asarray(q_WB, dtype=np.float64),
+            np.asarray(a[:4], dtype=np.float64).tolist(),
+            np.asarray(v_W, dtype=np.float64).tolist(),
+            np.asarray(q_WB, dtype=np.float64).tolist(),
             mass=self.mass,
             gravity=self.gravity,
             max_thrust=self.max_thrust,
