@@ -13,8 +13,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from cufund import _core
@@ -33,9 +31,9 @@ class ActionDecoder:
         self.action_mode = manifest.action_mode
         self.mass = float(params.mass)
         self.gravity = float(params.gravity)
-        self.omega_hover = math.sqrt(params.mass * params.gravity / (4.0 * params.k_f))
+        self.omega_hover = params.hover_rotor_speed
         self.omega_span = min(params.rotor_speed_max - self.omega_hover, self.omega_hover - params.rotor_speed_min)
-        self.max_thrust = 4.0 * params.k_f * params.rotor_speed_max**2
+        self.max_thrust = params.max_thrust
         self.max_rate = manifest.max_rate
         self.max_speed = manifest.max_speed
         self.velocity_gain = manifest.velocity_gain
