@@ -28,6 +28,21 @@ bool range_ok(const std::vector<double>& r, double lo) {
   return r.size() == 2 && std::isfinite(r[0]) && std::isfinite(r[1]) && lo <= r[0] && r[0] <= r[1];
 }
 
+// R_WB row-major of q_WB [w, x, y, z], normalised in the formula (s = 2 / |q|^2): policy_observation.rotation_rows.
+void rotation_rows(const double q[4], double R[9]) {
+  const double qw = q[0], qx = q[1], qy = q[2], qz = q[3];
+  const double s = 2.0 / (qw * qw + qx * qx + qy * qy + qz * qz);
+  R[0] = 1.0 - s * (qy * qy + qz * qz);
+  R[1] = s * (qx * qy - qw * qz);
+  R[2] = s * (qx * qz + qw * qy);
+  R[3] = s * (qx * qy + qw * qz);
+  R[4] = 1.0 - s * (qx * qx + qz * qz);
+  R[5] = s * (qy * qz - qw * qx);
+  R[6] = s * (qx * qz - qw * qy);
+  R[7] = s * (qy * qz + qw * qx);
+  R[8] = 1.0 - s * (qx * qx + qy * qy);
+}
+
 }  // namespace
 
 void EnvBatch::Rng::seed(std::uint64_t x) {
@@ -244,18 +259,11 @@ void EnvBatch::observe(std::size_t i, float* out) {
     if (vel_noise) v += sv * rng_[i].normal();
     out[o++] = static_cast<float>(v);
   }
-  const double qw = b.row(QuadrotorBatch::kQ)[i], qx = b.row(QuadrotorBatch::kQ + 1)[i],
-               qy = b.row(QuadrotorBatch::kQ + 2)[i], qz = b.row(QuadrotorBatch::kQ + 3)[i];
-  const double s = 2.0 / (qw * qw + qx * qx + qy * qy + qz * qz);
-  out[o++] = static_cast<float>(1.0 - s * (qy * qy + qz * qz));
-  out[o++] = static_cast<float>(s * (qx * qy - qw * qz));
-  out[o++] = static_cast<float>(s * (qx * qz + qw * qy));
-  out[o++] = static_cast<float>(s * (qx * qy + qw * qz));
-  out[o++] = static_cast<float>(1.0 - s * (qx * qx + qz * qz));
-  out[o++] = static_cast<float>(s * (qy * qz - qw * qx));
-  out[o++] = static_cast<float>(s * (qx * qz - qw * qy));
-  out[o++] = static_cast<float>(s * (qy * qz + qw * qx));
-  out[o++] = static_cast<float>(1.0 - s * (qx * qx + qy * qy));
+  const double q[4] = {b.row(QuadrotorBatch::kQ)[i], b.row(QuadrotorBatch::kQ + 1)[i], b.row(QuadrotorBatch::kQ + 2)[i],
+                       b.row(QuadrotorBatch::kQ + 3)[i]};
+  double R[9];
+  rotation_rows(q, R);
+  for (int k = 0; k < 9; ++k) out[o++] = static_cast<float>(R[k]);
   double* gb = &gyro_bias_[6 * i];
   double white[3] = {0, 0, 0}, walk_step[3] = {0, 0, 0};
   if (t.imu_noise) {
@@ -275,12 +283,9 @@ void EnvBatch::observe(std::size_t i, float* out) {
 
 void velocity_command(const VelocityCommandGains& k, const double a[4], const double v_W[3], const double q_WB[4],
                       double* thrust, Eigen::Vector3d* w_sp) {
-  const double qw = q_WB[0], qx = q_WB[1], qy = q_WB[2], qz = q_WB[3];
-  const double s = 2.0 / (qw * qw + qx * qx + qy * qy + qz * qz);
-  Eigen::Matrix3d R;
-  R << 1.0 - s * (qy * qy + qz * qz), s * (qx * qy - qw * qz), s * (qx * qz + qw * qy),  //
-      s * (qx * qy + qw * qz), 1.0 - s * (qx * qx + qz * qz), s * (qy * qz - qw * qx),   //
-      s * (qx * qz - qw * qy), s * (qy * qz + qw * qx), 1.0 - s * (qx * qx + qy * qy);
+  double rows[9];
+  rotation_rows(q_WB, rows);
+  const Eigen::Matrix3d R = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(rows);
   Eigen::Vector3d acc;
   for (int j = 0; j < 3; ++j) acc[j] = k.velocity_gain * (a[j] * k.max_speed - v_W[j]);
   acc[2] = std::max(acc[2] + k.gravity, 0.2 * k.gravity);  // never command a free fall
