@@ -134,12 +134,10 @@ def test_hold_during_the_tunnel_mission_stops_it_and_autostart_starts_it():
             ws.close()
 
 
-@pytest.mark.xfail(
-    strict=False,  # the live run's command times follow the wall clock: the misfire may not come every time
-    reason="issue 30: the motor-failure detector fired a false 'failsafe land' on the tunnel's second take-off "
-    "under a commander (realistic profile; rate residual ~1.8-1.9 of a rotor's hover torque) in some runs",
-)
 def test_a_second_take_off_of_the_tunnel_fires_no_motor_failsafe():
+    """The motor-failure detector fired a false 'failsafe land' on the tunnel's second take-off under a commander
+    (realistic profile; rate residual ~1.8-1.9 of a rotor's hover torque) until it watched from take-off to the
+    landing only. (An estimator hold while the LIO re-locks after the landing may come: that one is genuine.)"""
     import math
 
     from cufund.apps.gcs.server import with_commander
@@ -155,7 +153,8 @@ def test_a_second_take_off_of_the_tunnel_fires_no_motor_failsafe():
             assert run.wait_until(lambda t: t["mode"] in ("hold", "land"), 60)
             run.submit({"command": "land"}).result(10)
             assert run.wait_until(lambda t: t["mode"] == "idle", 60)
-        assert [e["message"] for e in run.events.since(0) if e["kind"] == "failsafe"] == []
+        failsafes = [e["message"] for e in run.events.since(0) if e["kind"] == "failsafe"]
+        assert not [m for m in failsafes if "motor failure" in m or "attitude failure" in m], failsafes
     finally:
         run.stop()
 
