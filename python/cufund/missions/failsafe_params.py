@@ -35,7 +35,7 @@ class FailsafeParams:
     """When the flight stack's failsafes fire and what they do (see docs/guides/failsafes.md)."""
 
     rate_hz: float = 20.0
-    """How often the supervisor checks [Hz] (cufund); the motor-failure detector takes every IMU sample."""
+    """How often the supervisor checks [Hz] (cufund); the motor-failure detector takes the rates since its last check, at up to 100 Hz."""
     BAT_LOW_THR: float = 0.15
     """Low battery: remaining charge at or below this fraction [0..1] (PX4 BAT_LOW_THR)."""
     BAT_CRIT_THR: float = 0.07
