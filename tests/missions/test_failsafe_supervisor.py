@@ -115,7 +115,7 @@ def test_estimator_unhealthy_holds_after_the_delay_then_lands():
     (t_hold, _), (t_land, _) = owner.asked
     assert t_hold == pytest.approx(2.0 + 1.0)  # COM_POS_FS_DELAY
     assert t_land == pytest.approx(t_hold + 5.0)  # COM_FAIL_ACT_T
-    assert [r[1] for r in sup.records] == ["failsafe", "failsafe"]
+    assert [r[1] for r in sup.records] == ["hold", "land"]
     assert "hold" in sup.records[0][2] and "degenerate" in sup.records[0][2]
     events = sup.events.of_kind("failsafe")
     assert [e["action"] for e in events] == ["hold", "land"]

@@ -29,7 +29,7 @@ def test_geofence_smaller_than_the_square_returns_home():
     run = run_scenario(load_scenario("square", ["failsafe.GF_MAX_HOR_DIST=0.8", "failsafe.GF_ACTION=3"]))
     m = run.metrics
     (t, name, reason), *_ = m["failsafe_events"]
-    assert name == "failsafe" and "rtl" in reason and "GF_MAX_HOR_DIST 0.8" in reason
+    assert name == "rtl" and "rtl" in reason and "GF_MAX_HOR_DIST 0.8" in reason
     assert len(m["failsafe_events"]) == 1 and m["status"] == "failsafe_returned"
     p, ts = run.result.states["p_W"], run.result.states["t"]
     home = p[0]

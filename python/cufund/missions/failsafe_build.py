@@ -80,7 +80,7 @@ def failsafe_components(params: FailsafeParams | None, ctx: Any, components: lis
 
 
 def failsafe_metrics(result: Any, supervisor: FailsafeSupervisor | None) -> dict[str, Any]:
-    """``failsafe_events`` ([t, "failsafe", reason] list, [] when none) and the ``status`` a failsafe ended with."""
+    """``failsafe_events`` ([t, action, reason] list, [] when none) and the ``status`` a failsafe ended with."""
     if supervisor is None:
         return {"failsafe_events": []}
     out: dict[str, Any] = {"failsafe_events": [list(r) for r in supervisor.records]}

@@ -20,7 +20,8 @@ GPS loss                  with a LIO/VIO or no GPS in the estimate: an info even
 Each transition is an event ``{"kind": "failsafe", "message": reason, "action": ..., "severity": ...}`` in the
 supervisor's :class:`~cufund.missions.events.EventLog` (the commander's when there is one: the ground station and
 the MAVLink endpoint show it, the latter as STATUSTEXT of that severity) and in :attr:`FailsafeSupervisor.records`
-(``[t, "failsafe", reason]``: ``metrics.json``'s ``failsafe_events``).
+(``[t, name, reason]``, name the action: hold, rtl, land, disarm, warning, info or cleared; they are
+``metrics.json``'s ``failsafe_events``).
 """
 
 from __future__ import annotations
@@ -112,7 +113,7 @@ class FailsafeSupervisor(Planner):
         self.took = ""
         """The most drastic action the reference owner flew as asked ('' before any)."""
         self.records: list[list[Any]] = []
-        """``[t, "failsafe", reason]`` per transition (metrics.json's ``failsafe_events``)."""
+        """``[t, action, reason]`` per transition (metrics.json's ``failsafe_events``)."""
         self.home_W: np.ndarray | None = None
         self.airborne = False
         self._feeding = False
@@ -187,7 +188,7 @@ class FailsafeSupervisor(Planner):
         text = (
             f"failsafe {action}: {message}" if action not in ("info", "warning", "cleared") else f"failsafe: {message}"
         )
-        self.records.append([round(float(t), 3), "failsafe", text])
+        self.records.append([round(float(t), 3), action, text])
         self.events.append(t, "failsafe", text, action=action, severity=_SEVERITY.get(action, "info"))
 
     # -- the periodic step -----------------------------------------------------------------------------------
