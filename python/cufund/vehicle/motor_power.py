@@ -93,7 +93,7 @@ class MotorPower:
         return self.electrical_power_w(np.full(4, self.vehicle.hover_rotor_speed))
 
     def max_rotor_speed(self, voltage_v: float, nominal_voltage_v: float) -> float:
-        """omega_max(V) = rotor_speed_max * V / V_nominal, within [rotor_speed_min, rotor_speed_max] [rad/s]."""
+        """omega_max(V) = rotor_speed_max * V / V_nominal, clamped between rotor_speed_min and rotor_speed_max [rad/s]."""
         if not nominal_voltage_v > 0.0:
             raise ValueError(f"nominal_voltage_v must be > 0 [V], got {nominal_voltage_v!r}")
         ratio = min(max(voltage_v / nominal_voltage_v, 0.0), 1.0)
