@@ -70,8 +70,8 @@ def _kill_mid_run(tmp: Path, name: str, signum: int) -> tuple[Path, int, str]:
         assert time.monotonic() < deadline, "the run never logged enough"
         time.sleep(0.2)
     proc.send_signal(signum)
-    _, stderr = proc.communicate(timeout=600)
-    return out, proc.returncode, stderr
+    stdout, stderr = proc.communicate(timeout=600)
+    return out, proc.returncode, stderr + ("\n[stdout]\n" + stdout if proc.returncode == 0 else "")
 
 
 @pytest.fixture(scope="module")

@@ -363,12 +363,16 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
             t_landed is not None and t >= t_landed and truth.p_W[2] < 0.02 and float(np.linalg.norm(truth.v_W)) < 0.05
         )
 
+    from .run_folder import RunInterrupted
+
     ctx = built.context
-    result = built.simulator.run(
-        config.duration,
-        done=failsafe_done(built.simulator.components, landed if t_landed is not None else ctx.done_condition),
-        progress=progress,
-    )
+    finished = failsafe_done(built.simulator.components, landed if t_landed is not None else ctx.done_condition)
+
+    def done(t: float, truth: Odometry) -> bool:
+        RunInterrupted.check()  # a SIGINT / SIGTERM whose exception was swallowed where it landed
+        return finished is not None and finished(t, truth)
+
+    result = built.simulator.run(config.duration, done=done, progress=progress)
     metrics = run_metrics(result)
     metrics["failsafe_events"] = []  # always present; the supervisor's hook fills it
     metrics["realism"] = ctx.realism.summary()  # under what the figures were measured

@@ -39,6 +39,13 @@ class RunInterrupted(KeyboardInterrupt):
         cls.received = int(signum)
         raise cls(signum)
 
+    @classmethod
+    def check(cls) -> None:
+        """Raises if a signal came since the run started: the handler's own exception can be swallowed where it
+        lands (compiled code that catches everything around a Python callback), so the run loop checks too."""
+        if cls.received is not None:
+            raise cls(cls.received)
+
 
 def _json_safe(x: Any) -> Any:
     if isinstance(x, float) and not math.isfinite(x):
