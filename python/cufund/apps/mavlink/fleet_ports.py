@@ -1,0 +1,118 @@
+"""The MAVLink and simulator ports of a fleet's vehicles: PX4 SITL's multi-instance rule, so that QGroundControl,
+MAVSDK and MAVProxy find N vehicles where they find N ``px4_sitl -i`` instances.
+
+Vehicle ``i`` (0-based, in the order of the scenario's ``vehicles:``) is MAVLink system ``i + 1`` and has:
+
+========================  =========================================  ==========================================
+link                      sends to (remote)                          from (local port)
+========================  =========================================  ==========================================
+ground station            ``14550`` (every vehicle: QGC tells them   ``18570 + i``
+                          apart by system id)
+offboard API (MAVSDK)     ``14540 + i``                              ``14580 + i``
+PX4 simulator (px4-sim)   --                                         TCP ``4560 + i`` (listens)
+========================  =========================================  ==========================================
+
+These are PX4's ``px4-rc.mavlink`` ports (``udp_gcs_port_local=18570+i``, ``udp_offboard_port_local=14580+i``,
+``udp_offboard_port_remote=14540+i``) and its simulator port (``4560+i``). A ``udpin:HOST:PORT`` link instead
+listens on ``PORT + i`` (two vehicles cannot share one listening port). Everything binds 127.0.0.1 unless a URL
+names another address.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .link import LinkAddress
+
+__all__ = [
+    "API_LOCAL_BASE",
+    "GCS_LOCAL_BASE",
+    "MAX_VEHICLES",
+    "PX4_SIM_BASE",
+    "FleetPorts",
+    "VehiclePorts",
+    "px4_sim_port",
+]
+
+GCS_LOCAL_BASE = 18570
+"""PX4 instance i's ground-station link sends from local port 18570 + i."""
+API_LOCAL_BASE = 14580
+"""PX4 instance i's offboard link sends from local port 14580 + i (to 14540 + i)."""
+PX4_SIM_BASE = 4560
+"""PX4 instance i connects to its simulator on TCP 4560 + i."""
+MAX_VEHICLES = 255
+"""MAVLink system ids are 1..255."""
+
+
+@dataclass(frozen=True)
+class VehiclePorts:
+    """One vehicle's MAVLink identity and links."""
+
+    index: int
+    system_id: int
+    links: tuple[tuple[str, int], ...]
+    """(URL, local port) per link; local port 0: any free port (a ``udpin`` link's port is in its URL)."""
+
+
+@dataclass(frozen=True)
+class FleetPorts:
+    """The port rule of a fleet (module docstring). ``gcs`` and ``api`` are vehicle 0's link URLs (None: leave the
+    link out); ``px4_local_ports=False`` lets the kernel pick the local ports of ``udpout`` links (tests running
+    next to a real PX4, or two fleets on one machine)."""
+
+    gcs: str | None = "udpout:127.0.0.1:14550"
+    api: str | None = "udpout:127.0.0.1:14540"
+    px4_local_ports: bool = True
+
+    def __post_init__(self) -> None:
+        if self.gcs is None and self.api is None:
+            raise ValueError("FleetPorts: give at least one of gcs and api (both are None)")
+        for name in ("gcs", "api"):
+            url = getattr(self, name)
+            if url is not None:
+                LinkAddress.parse(url, name)
+
+    def vehicle(self, index: int, count: int) -> VehiclePorts:
+        """The ports of vehicle ``index`` of ``count`` (ValueError naming what is wrong)."""
+        if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= MAX_VEHICLES:
+            raise ValueError(f"a fleet has 1 to {MAX_VEHICLES} vehicles (one MAVLink system id each), got {count!r}")
+        if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < count:
+            raise ValueError(f"vehicle index must be in [0, {count - 1}], got {index!r}")
+        links = []
+        for url, shared_remote, local_base in ((self.gcs, True, GCS_LOCAL_BASE), (self.api, False, API_LOCAL_BASE)):
+            if url is None:
+                continue
+            a = LinkAddress.parse(url)
+            if a.mode == "udpin":
+                port = a.port + index if a.port else 0
+                _check_port(port, url, count)
+                links.append((f"udpin:{a.host}:{port}", 0))
+                continue
+            remote = a.port if shared_remote else a.port + index
+            _check_port(remote, url, count)
+            local = local_base + index if self.px4_local_ports else 0
+            links.append((f"udpout:{a.host}:{remote}", local))
+        return VehiclePorts(index, index + 1, tuple(links))
+
+    def all(self, count: int) -> list[VehiclePorts]:
+        """Every vehicle's ports; ValueError when two vehicles would share a port."""
+        out = [self.vehicle(i, count) for i in range(count)]
+        local = [lp for v in out for _, lp in v.links if lp]
+        listen = [int(url.rsplit(":", 1)[1]) for v in out for url, _ in v.links if url.startswith("udpin:")]
+        taken = [p for p in listen if p] + local
+        if len(taken) != len(set(taken)):
+            raise ValueError(
+                f"the links of {count} vehicles overlap (ground station {self.gcs!r}, API {self.api!r}): give "
+                "base ports at least the fleet's size apart"
+            )
+        return out
+
+
+def _check_port(port: int, url: str, count: int) -> None:
+    if not 0 <= port <= 65535:
+        raise ValueError(f"{url!r}: port + vehicle index is out of range for {count} vehicles (got {port})")
+
+
+def px4_sim_port(instance: int) -> int:
+    """TCP port PX4 instance ``instance`` connects to its simulator on (4560 + instance)."""
+    return PX4_SIM_BASE + instance

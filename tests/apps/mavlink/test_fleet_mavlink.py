@@ -1,0 +1,269 @@
+"""A fleet on MAVLink: one system per vehicle on PX4 SITL's multi-instance ports, checked against PX4's own port
+numbers and against real clients (MAVSDK's mavsdk_server, one per vehicle as for N px4_sitl instances; MAVProxy
+on the shared ground-station port), each a subprocess with timeouts, killed in teardown."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import socket
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from cufund.apps.mavlink.fleet_endpoints import FleetEndpoints
+from cufund.apps.mavlink.fleet_ports import FleetPorts
+from mavlink_support import OPEN_FIELD, SPEED, Gcs, free_port
+
+BIN = Path(sys.executable).parent
+
+# PX4 v1.14 ROMFS/px4fmu_common/init.d-posix/px4-rc.mavlink and rcS, for instance i (px4_sitl -i i):
+#   udp_gcs_port_local=$((18570+px4_instance))       (remote: QGroundControl's 14550)
+#   udp_offboard_port_local=$((14580+px4_instance))
+#   udp_offboard_port_remote=$((14540+px4_instance))
+#   MAV_SYS_ID=$((px4_instance+1));  simulator TCP port 4560+px4_instance
+PX4_RC = {"gcs_local": 18570, "gcs_remote": 14550, "api_local": 14580, "api_remote": 14540, "sim_tcp": 4560}
+
+
+def test_the_port_rule_is_px4_sitl_instances():
+    from cufund.apps.mavlink.fleet_ports import px4_sim_port
+
+    plan = FleetPorts().all(3)
+    for i, v in enumerate(plan):
+        assert v.system_id == i + 1
+        assert v.links == (
+            (f"udpout:127.0.0.1:{PX4_RC['gcs_remote']}", PX4_RC["gcs_local"] + i),
+            (f"udpout:127.0.0.1:{PX4_RC['api_remote'] + i}", PX4_RC["api_local"] + i),
+        )
+        assert px4_sim_port(i) == PX4_RC["sim_tcp"] + i
+
+
+def test_listening_links_take_one_port_each_and_overlaps_are_refused():
+    plan = FleetPorts(gcs="udpin:127.0.0.1:15000", api=None).all(3)
+    assert [v.links for v in plan] == [((f"udpin:127.0.0.1:{15000 + i}", 0),) for i in range(3)]
+    with pytest.raises(ValueError, match="overlap"):
+        FleetPorts(gcs="udpin:127.0.0.1:15000", api="udpin:127.0.0.1:15001").all(2)
+    with pytest.raises(ValueError, match="1 to 255 vehicles"):
+        FleetPorts().all(256)
+    with pytest.raises(ValueError, match="at least one"):
+        FleetPorts(gcs=None, api=None)
+    with pytest.raises(ValueError, match="gcs must be"):
+        FleetPorts(gcs="tcp:1.2.3.4:5")
+
+
+def _port_block(n: int) -> int:
+    """A base port with base .. base + n - 1 free for UDP on 127.0.0.1."""
+    for _ in range(200):
+        base = free_port()
+        socks = []
+        try:
+            for p in range(base, base + n):
+                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                socks.append(s)
+                s.bind(("127.0.0.1", p))
+            return base
+        except OSError:
+            continue
+        finally:
+            for s in socks:
+                s.close()
+    raise AssertionError(f"no {n} consecutive free UDP ports")
+
+
+@contextlib.contextmanager
+def _fleet(n: int, ports: FleetPorts, speed: float = SPEED) -> Iterator[tuple[dict[str, Any], FleetEndpoints]]:
+    """``n`` live commander vehicles 3 m apart (uav1, uav2, ...) served by one FleetEndpoints."""
+    from cufund.apps.live import LiveRun
+
+    runs: dict[str, Any] = {}
+    fleet = None
+    try:
+        for i in range(n):
+            runs[f"uav{i + 1}"] = LiveRun({**OPEN_FIELD, "start_p_W": [3.0 * i, 0.0, 0.0]}, speed=speed)
+        fleet = FleetEndpoints(runs, ports).start()
+        yield runs, fleet
+    finally:
+        if fleet is not None:
+            fleet.close()
+        for r in runs.values():
+            r.stop()
+
+
+def test_each_vehicle_is_its_own_system_on_the_shared_ground_station_port():
+    port = free_port()
+    gcs = Gcs(port)
+    try:
+        with _fleet(2, FleetPorts(gcs=f"udpout:127.0.0.1:{port}", api=None, px4_local_ports=False)) as (runs, fleet):
+            assert [fleet.system_id(n) for n in ("uav1", "uav2")] == [1, 2]
+            seen: set[int] = set()
+            for _ in range(40):
+                seen.add(gcs.recv("HEARTBEAT", 10.0).get_srcSystem())
+                if len(seen) == 2:
+                    break
+            assert seen == {1, 2}
+            assert len(gcs.conn.clients) == 2  # two instances, two source addresses (pymavlink answers each)
+            # arm vehicle 2: the command goes to both sockets, only system 2 takes it and answers
+            gcs.mav.command_long_send(2, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)  # COMPONENT_ARM_DISARM
+            ack = gcs.recv("COMMAND_ACK", 10.0, cond=lambda m: m.command == 400)
+            assert (ack.get_srcSystem(), ack.result) == (2, 0)
+            assert runs["uav2"].wait_until(lambda t: t["armed"], 5.0)
+            with pytest.raises(AssertionError):  # vehicle 1 answers nothing for system 2
+                gcs.recv("COMMAND_ACK", 1.5, cond=lambda m: m.get_srcSystem() == 1)
+            assert not runs["uav1"].telemetry()["armed"]
+            gcs.mav.command_long_send(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
+            ack = gcs.recv("COMMAND_ACK", 10.0, cond=lambda m: m.command == 400)
+            assert (ack.get_srcSystem(), ack.result) == (1, 0)
+            assert runs["uav1"].wait_until(lambda t: t["armed"], 5.0)
+    finally:
+        gcs.close()
+
+
+def test_fixed_local_ports_are_the_instances_and_a_taken_port_is_named():
+    gcs_port, api_base = free_port(), _port_block(2)
+    taken = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        taken.bind(("127.0.0.1", 18571))
+    except OSError:
+        pytest.skip("port 18571 is in use on this machine (a PX4 instance?)")
+    try:
+        from cufund.apps.live import LiveRun
+
+        runs = {n: LiveRun(OPEN_FIELD, start=False) for n in ("uav1", "uav2")}
+        ports = FleetPorts(gcs=f"udpout:127.0.0.1:{gcs_port}", api=f"udpout:127.0.0.1:{api_base}")
+        with pytest.raises(OSError, match="18571"):
+            FleetEndpoints(runs, ports)
+        taken.close()
+        fleet = FleetEndpoints(runs, ports)
+        try:
+            local = [[lk.local_address[1] for lk in fleet.endpoint(n).links] for n in ("uav1", "uav2")]
+            assert local == [
+                [PX4_RC["gcs_local"], PX4_RC["api_local"]],
+                [PX4_RC["gcs_local"] + 1, PX4_RC["api_local"] + 1],
+            ]
+            assert [lk.address.port for lk in fleet.endpoint("uav2").links] == [gcs_port, api_base + 1]
+        finally:
+            fleet.close()
+    finally:
+        taken.close()
+
+
+mavsdk = pytest.importorskip("mavsdk_grpc")
+
+
+def _kill(p: subprocess.Popen) -> str:
+    if p.poll() is None:
+        p.terminate()
+    try:
+        out = p.communicate(timeout=5)[0]
+    except subprocess.TimeoutExpired:
+        p.kill()
+        out = p.communicate()[0]
+    return out or ""
+
+
+async def _first(stream, cond, timeout: float):
+    async def scan():
+        async for x in stream:
+            if cond(x):
+                return x
+        return None
+
+    return await asyncio.wait_for(scan(), timeout)
+
+
+def test_mavsdk_flies_two_vehicles_of_one_fleet():
+    api = _port_block(2)
+    grpc = [free_port(socket.SOCK_STREAM), free_port(socket.SOCK_STREAM)]
+    exe = str(Path(mavsdk.__file__).parent / "bin" / "mavsdk_server")
+    servers = [
+        subprocess.Popen(
+            [exe, "-p", str(grpc[i]), f"udpin://127.0.0.1:{api + i}"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        for i in range(2)
+    ]
+    logs: list[str] = []
+    try:
+        ports = FleetPorts(gcs=None, api=f"udpout:127.0.0.1:{api}", px4_local_ports=False)
+        with _fleet(2, ports) as (runs, _fleet_eps):
+
+            async def fly(i: int, climb_m: float) -> tuple[int, float]:
+                drone = mavsdk.System(mavsdk_server_address="127.0.0.1", port=grpc[i])
+                await drone.connect()
+                await _first(drone.core.connection_state(), lambda s: s.is_connected, 20)
+                await _first(drone.telemetry.health(), lambda h: h.is_armable and h.is_global_position_ok, 15)
+                await drone.action.arm()
+                await _first(drone.telemetry.armed(), bool, 5)
+                await drone.action.set_takeoff_altitude(climb_m)
+                await drone.action.takeoff()
+                up = await _first(drone.telemetry.position(), lambda p: p.relative_altitude_m > climb_m - 0.1, 30)
+                await drone.action.land()
+                await _first(drone.telemetry.in_air(), lambda a: not a, 40)
+                return i, up.relative_altitude_m
+
+            async def both() -> list:
+                return await asyncio.gather(fly(0, 1.5), fly(1, 2.5))
+
+            results = asyncio.run(asyncio.wait_for(both(), 120))
+            assert [r[0] for r in results] == [0, 1]
+            # each client flew its own vehicle: its own take-off altitude, and each landed where it started
+            for name in ("uav1", "uav2"):
+                tel = runs[name].telemetry()
+                assert tel["landed"]
+                assert tel["home_p_W"][0] == pytest.approx(3.0 * (name == "uav2"), abs=0.2)
+            for r, climb in zip(results, (1.5, 2.5), strict=True):
+                assert r[1] == pytest.approx(climb, abs=0.3)
+    finally:
+        logs = [_kill(s) for s in servers]
+    for i, log in enumerate(logs):
+        assert "System discovered" in log, log[-2000:]
+        assert f"(system ID: {i + 1})" in log, log[-2000:]  # server i found vehicle i, and only it
+        assert f"system ID: {2 - i})" not in log, log[-2000:]
+
+
+def test_mavproxy_lists_both_vehicles(tmp_path):
+    from test_mavlink_clients import _Output
+
+    port = free_port()
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    with _fleet(2, FleetPorts(gcs=f"udpout:127.0.0.1:{port}", api=None, px4_local_ports=False)):
+        proxy = subprocess.Popen(
+            [
+                str(BIN / "mavproxy.py"),
+                f"--master=udpin:127.0.0.1:{port}",
+                "--mav20",
+                f"--state-basedir={tmp_path}",
+                "--default-modules=link,cmdlong,arm,mode",
+            ],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env=env,
+            cwd=tmp_path,
+        )
+        try:
+            out = _Output(proxy)
+            seen = {out.expect(r"Detected vehicle [12]:1 on link 0", 30)}
+            seen.add(out.expect(r"Detected vehicle [12]:1 on link 0", 30))
+            assert seen == {"Detected vehicle 1:1 on link 0", "Detected vehicle 2:1 on link 0"}
+            proxy.stdin.write("alllinks status\n")  # type: ignore[union-attr]
+            proxy.stdin.flush()  # type: ignore[union-attr]
+            out.expect(r"Sending to:\s+\{1, 2\}", 10)
+        finally:
+            proxy.terminate()
+            try:
+                proxy.wait(5)
+            except subprocess.TimeoutExpired:
+                proxy.kill()
+                proxy.wait(5)
+            for f in (proxy.stdin, proxy.stdout):
+                if f is not None:
+                    f.close()
