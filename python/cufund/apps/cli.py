@@ -90,12 +90,16 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("list", help="list the built-in scenarios and registered kinds")
     odo = sub.add_parser(
         "odometry",
-        help="run the LiDAR-inertial odometry open loop on a run.mcap log",
+        help="run the LiDAR-inertial odometry open loop on a run.mcap log or a ROS 2 bag",
         description="Runs the LIO on the IMU and LiDAR messages of LOG (with the extrinsics of the "
         "scenario recorded in it) and writes odometry.json (errors against the log's "
-        "ground truth), odometry.png and TUM files (estimate.tum, truth.tum) for evo.",
+        "ground truth), odometry.png and TUM files (estimate.tum, truth.tum) for evo. LOG may be a ROS 2 bag "
+        "folder (sensor_msgs/Imu, sensor_msgs/PointCloud2 or Livox CustomMsg, truth as nav_msgs/Odometry or "
+        "geometry_msgs/PoseStamped; docs/guides/ros2.md).",
     )
-    odo.add_argument("log", type=Path, help="a run.mcap written by cufund run")
+    odo.add_argument("log", type=Path, help="a run.mcap written by cufund run, or a ROS 2 bag folder")
+    for kind in ("imu", "lidar", "truth"):
+        odo.add_argument(f"--{kind}-topic", help=f"a ROS 2 bag's {kind} topic (default: found by its type)")
     odo.add_argument("--out", type=Path, required=True, help="folder for the results")
     allan = sub.add_parser(
         "allan",
@@ -133,6 +137,10 @@ _SERVERS = {
         "cufund.apps.train_cli",
         "train a policy on a cufund task (PPO, skrl on JAX) and export it to ONNX (policy.onnx + policy.yaml "
         "for the controller kind policy)",
+    ),
+    "bag": (
+        "cufund.apps.ros2.bag",
+        "write a run's log as a ROS 2 bag (rosbag2, sqlite3 or mcap storage) for ros2 bag play, rosbags, Foxglove",
     ),
     "px4-sim": (
         "cufund.apps.mavlink.px4_cli",
@@ -293,7 +301,11 @@ def _odometry(args: argparse.Namespace) -> int:
         problem = out_dir_problem(args.out)
         if problem:
             raise ConfigError(problem)
-        meta = log_metadata(args.log)
+        from cufund.logs.rosbag2_reader import bag_custom_data, is_rosbag2, pick_topic
+
+        bag = is_rosbag2(args.log)
+        meta = {k.removeprefix("cufund."): v for k, v in bag_custom_data(args.log).items()} if bag else None
+        meta = meta if meta is not None else log_metadata(args.log)
         params, imu, lidar = LioParams(), "/sensors/imu", "/sensors/lidar"
         if "config" in meta:  # the scenario the log was recorded with: its extrinsics and IMU
             cfg = ScenarioConfig.from_dict(load_yaml_text(meta["config"], f"{args.log}: its recorded config"))
@@ -301,7 +313,12 @@ def _odometry(args: argparse.Namespace) -> int:
                 params = cfg.estimator.params
             params, imu_spec, lidar_spec = lio_params(params, ScenarioBuildContext(cfg))
             imu, lidar = imu_spec.topic, lidar_spec.topic
-        figures = run_on_log(args.log, params, args.out, imu_topic=imu, lidar_topic=lidar)
+        truth = "/truth/odometry"
+        if bag:  # a cufund bag has the IMU as sensor_msgs/Imu on <imu>/ros and the truth pose on <truth>/pose
+            imu = args.imu_topic or pick_topic(args.log, "Imu", [f"{imu}/ros", imu], "--imu-topic")
+            lidar = args.lidar_topic or pick_topic(args.log, "PointCloud", [lidar], "--lidar-topic")
+            truth = args.truth_topic or pick_topic(args.log, "Pose", [f"{truth}/pose", truth], "--truth-topic")
+        figures = run_on_log(args.log, params, args.out, imu_topic=imu, lidar_topic=lidar, truth_topic=truth)
     except (ConfigError, ValueError, OSError) as e:
         print(f"cufund: {e}", file=sys.stderr)
         return EXIT_INVALID

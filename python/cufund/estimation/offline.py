@@ -39,6 +39,7 @@ def run_on_log(
     import dataclasses
 
     from cufund.logs.mcap_reader import read_mcap
+    from cufund.logs.rosbag2_reader import is_rosbag2, read_rosbag2
 
     from .lio_estimator import LioEstimator
 
@@ -47,7 +48,8 @@ def run_on_log(
     est = None
     outputs = []
     pending_clouds: list[Any] = []
-    for rec in read_mcap(path, topics=[imu_topic, lidar_topic, truth_topic]):
+    read = read_rosbag2 if is_rosbag2(path) else read_mcap  # a ROS 2 bag folder or a run.mcap
+    for rec in read(path, topics=[imu_topic, lidar_topic, truth_topic]):
         msg = rec.message
         if rec.topic == truth_topic:
             truth_t.append(msg.t)

@@ -11,16 +11,19 @@ from cufund.core.components import Component
 from cufund.core.topics import Topic, is_truth
 
 from .mcap_reader import LogRecord, log_topics, read_mcap
+from .rosbag2_reader import bag_topics, is_rosbag2, read_rosbag2
 
 __all__ = ["LogPlayer"]
 
 
 class LogPlayer(Component):
-    """Publishes the messages of a cufund MCAP log (``run.mcap``) on their topics, each becoming visible at the
-    time it became visible in the recorded run, so that an estimator or mapper re-run on the log sees exactly
+    """Publishes the messages of a cufund MCAP log (``run.mcap``) or of a ROS 2 bag folder (its IMU, LiDAR and
+    odometry messages as cufund messages, :mod:`cufund.logs.rosbag2_reader`) on their topics, each becoming
+    visible at the time it became visible in the recorded run, so that an estimator or mapper re-run on the log sees exactly
     what it saw closed-loop (run it in a ``Simulator(None)``: no physics).
 
-    ``topics``: which logged topics to play (default: every ``/sensors/...`` topic). Truth topics are played only
+    ``topics``: which logged topics to play (default: every ``/sensors/...`` topic; of a bag, every IMU and LiDAR
+    topic). Truth topics are played only
     when named, and the player then counts as a truth consumer. The log is streamed: the player schedules the
     next ``window_s`` of messages each time it runs, so memory stays bounded however long the log.
     """
@@ -31,8 +34,12 @@ class LogPlayer(Component):
         self, path: str | os.PathLike[str], topics: Iterable[str] | None = None, window_s: float = 0.5
     ) -> None:
         self.path = Path(path)
-        logged = log_topics(self.path)  # raises McapReadError for a damaged file
-        if topics is None:
+        bag = is_rosbag2(self.path)
+        self._read = read_rosbag2 if bag else read_mcap
+        logged = bag_topics(self.path) if bag else log_topics(self.path)  # McapReadError / BagReadError: damaged
+        if topics is None and bag:
+            chosen = [t for t, c in logged.items() if c in ("Imu", "PointCloud")]
+        elif topics is None:
             chosen = [t for t in logged if t.startswith("/sensors/")]
         else:
             chosen = [str(t) for t in topics]
@@ -52,7 +59,7 @@ class LogPlayer(Component):
         """Messages scheduled so far."""
 
     def reset(self) -> None:
-        self._records: Iterator[LogRecord] = read_mcap(self.path, topics=[str(t) for t in self.topics])
+        self._records: Iterator[LogRecord] = self._read(self.path, topics=[str(t) for t in self.topics])
         self._next: LogRecord | None = None
         self.played = 0
 
@@ -82,5 +89,5 @@ class LogPlayer(Component):
     @property
     def first_time(self) -> float:
         """The log time of the first message played [s] (start the simulator there)."""
-        first = next(read_mcap(self.path, topics=[str(t) for t in self.topics]), None)
+        first = next(self._read(self.path, topics=[str(t) for t in self.topics]), None)
         return 0.0 if first is None else first.log_time_ns / 1e9
