@@ -75,23 +75,46 @@ def _port_block(n: int) -> int:
     raise AssertionError(f"no {n} consecutive free UDP ports")
 
 
+class BuiltsFleet:
+    """The fleet contract (names, t, advance_to, vehicle) over independent single-vehicle Builts: vehicles that
+    share no world, advanced together."""
+
+    def __init__(self, configs: dict[str, Any]) -> None:
+        from cufund.scenarios.build import build_simulation
+        from cufund.scenarios.schema import ScenarioConfig
+
+        self.builts = {n: build_simulation(ScenarioConfig.from_dict(c)) for n, c in configs.items()}
+        self.names = tuple(configs)
+        for b in self.builts.values():
+            b.simulator.reset()
+
+    @property
+    def t(self) -> float:
+        return min(b.simulator.t for b in self.builts.values())
+
+    def advance_to(self, t: float) -> bool:
+        alive = [b.simulator.advance_to(t) for b in self.builts.values()]  # every one, not up to the first ended
+        return all(alive)
+
+    def vehicle(self, name: str) -> Any:
+        return self.builts[name]
+
+
 @contextlib.contextmanager
 def _fleet(n: int, ports: FleetPorts, speed: float = SPEED) -> Iterator[tuple[dict[str, Any], FleetEndpoints]]:
-    """``n`` live commander vehicles 3 m apart (uav1, uav2, ...) served by one FleetEndpoints."""
-    from cufund.apps.live import LiveRun
+    """A live fleet of ``n`` commander vehicles 3 m apart (uav1, uav2, ...) served by one FleetEndpoints."""
+    from cufund.apps.mavlink.fleet_live import LiveFleet
 
-    runs: dict[str, Any] = {}
+    configs = {f"uav{i + 1}": {**OPEN_FIELD, "start_p_W": [3.0 * i, 0.0, 0.0]} for i in range(n)}
+    live = LiveFleet(fleet=BuiltsFleet(configs), speed=speed)
     fleet = None
     try:
-        for i in range(n):
-            runs[f"uav{i + 1}"] = LiveRun({**OPEN_FIELD, "start_p_W": [3.0 * i, 0.0, 0.0]}, speed=speed)
-        fleet = FleetEndpoints(runs, ports).start()
-        yield runs, fleet
+        fleet = FleetEndpoints(live.vehicles, ports).start()
+        yield live.vehicles, fleet
     finally:
         if fleet is not None:
             fleet.close()
-        for r in runs.values():
-            r.stop()
+        live.stop()
 
 
 def test_each_vehicle_is_its_own_system_on_the_shared_ground_station_port():

@@ -1,0 +1,319 @@
+"""A fleet flown live: every vehicle of a fleet scenario in one world, advanced together in one background thread
+paced to the wall clock, each vehicle commanded and watched as a single live run is
+(:class:`cufund.apps.live.LiveRun`): ``fleet_live.vehicles[name]`` has the same ``submit``, ``telemetry``,
+``events``, ``commander``, ``config`` and ``built`` a :class:`VehicleEndpoint` or the ground station use.
+
+    with LiveFleet("fleet_square") as fleet:
+        fleet.vehicles["uav2"].submit({"command": "arm"}).result(timeout=2)
+        fleet.submit_all({"command": "takeoff", "altitude": 1.5})
+
+The fleet itself comes from :func:`cufund.scenarios.fleet.build_fleet` (``fleet.names``, ``fleet.advance_to(t)``,
+``fleet.t``, ``fleet.vehicle(name)`` with that vehicle's ``simulator``, ``bus`` and ``commander``), or is given
+(``fleet=``: anything with that interface). After each advance the thread takes each vehicle's newest messages of
+the topics its telemetry reads, so that a reader in another thread sees one instant of each vehicle.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+import threading
+import time
+from collections.abc import Iterable
+from concurrent.futures import Future
+from typing import Any
+
+from cufund.core.messages import Topics
+from cufund.missions.commander import Commander
+from cufund.missions.events import EventLog
+
+from ..live import LiveRun
+
+__all__ = ["FleetVehicleRun", "LiveFleet"]
+
+_TELEMETRY_TOPICS = (
+    Topics.TRUTH_ODOMETRY,
+    Topics.ESTIMATE,
+    Topics.TRAJECTORY_SETPOINT,
+    Topics.THRUST_TORQUE_SETPOINT,
+    Topics.BATTERY,
+)
+"""What :meth:`LiveRun.telemetry` reads of a vehicle's bus."""
+
+
+class _Snapshot:
+    """LiveRun's tap, filled by the fleet's thread: (time, newest message by topic), swapped whole."""
+
+    def __init__(self) -> None:
+        self.snapshot: tuple[float | None, dict[str, Any]] = (None, {})
+
+    @property
+    def latest(self) -> dict[str, Any]:
+        return self.snapshot[1]
+
+
+class FleetVehicleRun(LiveRun):
+    """One vehicle of a :class:`LiveFleet`, with a single live run's interface (``submit``, ``telemetry``,
+    ``latest``, ``events``, ``commander``, ``config``, ``built``, ``add_listener``, ``wait_until``). Pausing, speed
+    and stopping are the fleet's: they act on every vehicle."""
+
+    def __init__(self, fleet: LiveFleet, name: str, vehicle: Any, config: Any) -> None:  # no LiveRun.__init__
+        self.fleet, self.name = fleet, name
+        self.built = vehicle
+        self.simulator = sim = getattr(vehicle, "simulator", vehicle)
+        self.config = getattr(vehicle, "config", None) or config
+        found = [c for c in getattr(sim, "components", ()) if isinstance(c, Commander)]
+        self.commander = getattr(vehicle, "commander", None) or (found[0] if found else None)
+        self.events: EventLog = self.commander.events if self.commander is not None else EventLog()
+        self._tap = _Snapshot()  # type: ignore[assignment]
+        self._errors: dict[str, int] = {}
+        for c in getattr(sim, "components", ()):
+            self._guard(c)
+        self._listeners: list[list[Any]] = []
+        self._listeners_lock = threading.Lock()
+        self._rate_window = fleet._rate_window
+        self._wake = fleet._wake
+        self._estimated = getattr(self.config, "estimator", None) is not None
+        vp = _vehicle_params(vehicle)
+        self._max_thrust = 4.0 * vp.k_f * vp.rotor_speed_max**2
+
+    # the fleet's state, read where LiveRun keeps its own
+    @property
+    def ended(self) -> str | None:
+        return self.fleet.ended
+
+    @ended.setter
+    def ended(self, value: str | None) -> None:  # LiveRun.__init__ is not run; nothing sets it per vehicle
+        pass
+
+    @property
+    def _speed(self) -> float:  # type: ignore[override]
+        return self.fleet.speed
+
+    @property
+    def _paused(self) -> bool:  # type: ignore[override]
+        return self.fleet.paused
+
+    @property
+    def running(self) -> bool:
+        return self.fleet.running
+
+    def start(self) -> FleetVehicleRun:
+        self.fleet.start()
+        return self
+
+    def stop(self, timeout: float = 10.0) -> None:
+        self.fleet.stop(timeout)
+
+    def pause(self) -> None:
+        self.fleet.pause()
+
+    def resume(self) -> None:
+        self.fleet.resume()
+
+    def set_speed(self, x: float) -> None:
+        self.fleet.set_speed(x)
+
+    def _capture(self, t: float) -> None:
+        bus = getattr(self.built, "bus", None) or getattr(self.simulator, "bus", None)
+        if bus is None:
+            return
+        snap = {}
+        for topic in _TELEMETRY_TOPICS:
+            m = bus.latest(str(topic))
+            if m is not None:
+                snap[str(topic)] = m
+        self._tap.snapshot = (t, snap)
+
+
+def _vehicle_params(vehicle: Any) -> Any:
+    ctx = getattr(vehicle, "context", None)
+    if ctx is not None and getattr(ctx, "vehicle", None) is not None:
+        return ctx.vehicle
+    sim = getattr(vehicle, "simulator", vehicle)
+    return sim.vehicle.params
+
+
+class LiveFleet:
+    """Builds the fleet scenario ``scenario_or_config`` (as :class:`LiveRun` takes it; or flies ``fleet`` given
+    built) and runs it at ``speed`` x real time (``math.inf``: as fast as it goes), every vehicle advanced to the
+    same time before any goes further. ``vehicles`` maps each name to its :class:`FleetVehicleRun`, in fleet
+    order. Starts at once unless ``start=False``."""
+
+    def __init__(
+        self,
+        scenario_or_config: Any = None,
+        overrides: Iterable[str] | dict[str, Any] = (),
+        speed: float = 1.0,
+        start: bool = True,
+        fleet: Any = None,
+    ) -> None:
+        self._speed = LiveRun._check_speed(speed)
+        config = None
+        if fleet is None:
+            if scenario_or_config is None:
+                raise ValueError("LiveFleet needs a fleet scenario (name, path, dict or ScenarioConfig) or fleet=")
+            config = LiveRun._config(scenario_or_config, overrides)
+            if getattr(config, "vehicles", None) is None:
+                raise ValueError(
+                    f"scenario {config.name!r} has one vehicle (no 'vehicles:' list); serve it as a single vehicle"
+                )
+            from cufund.scenarios.fleet import build_fleet  # type: ignore[import-not-found, unused-ignore]
+
+            fleet = build_fleet(config)
+        self.fleet = fleet
+        self.config = config if config is not None else getattr(fleet, "config", None)
+        self.names: tuple[str, ...] = tuple(fleet.names)
+        self._paused = False
+        self._stop = threading.Event()
+        self._wake = threading.Condition()
+        self._rate_window: collections.deque[tuple[float, float]] = collections.deque(maxlen=400)
+        self._thread: threading.Thread | None = None
+        self.ended: str | None = None
+        """Why the fleet's run ended (None while it runs)."""
+        self.vehicles: dict[str, FleetVehicleRun] = {
+            n: FleetVehicleRun(self, n, fleet.vehicle(n), self.config) for n in self.names
+        }
+        self._capture()
+        if start:
+            self.start()
+
+    # -- control -----------------------------------------------------------------------------------------------
+    @property
+    def t(self) -> float:
+        return float(self.fleet.t)
+
+    @property
+    def speed(self) -> float:
+        return self._speed
+
+    @property
+    def paused(self) -> bool:
+        return self._paused
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def vehicle(self, name: str) -> FleetVehicleRun:
+        try:
+            return self.vehicles[name]
+        except KeyError:
+            raise KeyError(f"no vehicle {name!r} in this fleet; it has {list(self.names)}") from None
+
+    def start(self) -> LiveFleet:
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._loop, name="cufund-live-fleet", daemon=True)
+            self._thread.start()
+        return self
+
+    def pause(self) -> None:
+        with self._wake:
+            self._paused = True
+            self._wake.notify_all()
+
+    def resume(self) -> None:
+        with self._wake:
+            self._paused = False
+            self._wake.notify_all()
+
+    def set_speed(self, x: float) -> None:
+        x = LiveRun._check_speed(x)
+        with self._wake:
+            self._speed = x
+            self._wake.notify_all()
+
+    def stop(self, timeout: float = 10.0) -> None:
+        self._stop.set()
+        with self._wake:
+            self._wake.notify_all()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout)
+        if self.ended is None:
+            self.ended = "stopped"
+        for v in self.vehicles.values():
+            if v.commander is not None:
+                v.commander.cancel_pending("the run has ended")
+
+    def __enter__(self) -> LiveFleet:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def submit_all(self, cmd: Any) -> dict[str, Future]:
+        """``cmd`` to every vehicle (each checks it as its own :meth:`LiveRun.submit` does): a Future per name."""
+        return {n: v.submit(cmd) for n, v in self.vehicles.items()}
+
+    def telemetry(self) -> dict[str, dict[str, Any]]:
+        """Every vehicle's :meth:`LiveRun.telemetry`, by name."""
+        return {n: v.telemetry() for n, v in self.vehicles.items()}
+
+    # -- the simulation thread -----------------------------------------------------------------------------------
+    def _capture(self) -> None:
+        t = float(self.fleet.t)
+        for v in self.vehicles.values():
+            v._capture(t)
+
+    def _loop(self) -> None:
+        fleet = self.fleet
+        try:
+            wall0, sim0 = time.perf_counter(), fleet.t
+            speed = self._speed
+            while not self._stop.is_set():
+                with self._wake:
+                    if self._paused:
+                        self._wake.wait(0.05)
+                        wall0, sim0 = time.perf_counter(), fleet.t
+                        for v in self.vehicles.values():  # answer commands while paused
+                            if v.commander is not None:
+                                v.commander.process_pending(fleet.t)
+                        continue
+                    if self._speed != speed:
+                        speed, wall0, sim0 = self._speed, time.perf_counter(), fleet.t
+                if speed == math.inf:
+                    target = fleet.t + 0.05
+                else:
+                    target = sim0 + (time.perf_counter() - wall0) * speed
+                    if target - fleet.t > 0.5:  # cannot keep up: go on from here
+                        wall0, sim0 = time.perf_counter() - 0.05 / speed, fleet.t
+                        target = fleet.t + 0.05
+                    target = min(target, fleet.t + 0.05)
+                    if target - fleet.t < 0.001:
+                        with self._wake:
+                            self._wake.wait(min(0.005, max(0.001, (0.002 - (target - fleet.t)) / speed)))
+                        continue
+                alive = fleet.advance_to(target)
+                self._capture()
+                now = time.perf_counter()
+                window = self._rate_window
+                window.append((now, float(fleet.t)))
+                while len(window) > 2 and now - window[0][0] > 2.0:
+                    window.popleft()
+                for v in self.vehicles.values():
+                    v._notify()
+                if alive is False:
+                    self._end(f"{_status(fleet)}", "ended")
+                    break
+        except Exception as e:
+            self._end(f"error: {type(e).__name__}: {e}", "error")
+        finally:
+            if self.ended is None:
+                self.ended = "stopped"
+            for v in self.vehicles.values():
+                if v.commander is not None:
+                    v.commander.cancel_pending(f"the run has ended ({self.ended})")
+
+    def _end(self, why: str, kind: str) -> None:
+        self.ended = why
+        for v in self.vehicles.values():
+            v.events.append(float(self.fleet.t), kind, why)
+            v._notify(force=True)
+
+
+def _status(fleet: Any) -> str:
+    status = getattr(fleet, "status", None)
+    message = getattr(fleet, "message", "")
+    if status is None:
+        return "ended"
+    return f"{getattr(status, 'value', status)}: {message}"
