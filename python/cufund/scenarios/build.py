@@ -14,6 +14,7 @@ from cufund.core.build_context import BuildContext, DoneCondition, MetricHook, O
 from cufund.core.config import ConfigError
 from cufund.core.messages import Odometry, Topics
 from cufund.core.registry import lookup
+from cufund.geometry import quat_mul, yaw_quaternion
 from cufund.missions.failsafe_build import failsafe_components, failsafe_done
 from cufund.sensors.faults import fault_summary, inject_faults
 from cufund.sensors.power_monitor import PowerMonitor
@@ -262,6 +263,8 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
     start = config.start_p_W or (config.trajectory.waypoints[0][0], config.trajectory.waypoints[0][1], 0.0)
     quad.state.p[:] = start  # standing, rotors stopped
     quad.state.q[:] = quad.params.ground_attitude  # on the pad as it lies (realism.vehicle.pad_tilt_max_deg)
+    if config.start_yaw:  # facing start_yaw, the pad's tilt turned with it
+        quad.state.q[:] = quat_mul(yaw_quaternion(config.start_yaw), quad.params.ground_attitude)
     apply_atmosphere(quad, config.atmosphere, ctx.seed_for("atmosphere"), config.base_dir)  # null: still air
     apply_ground_effect(quad, config.ground_effect, world)  # null: off
     collision = None
@@ -284,6 +287,8 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
         if spec is not None:
             components += ctx.build(group, spec, group)
     components += failsafe_components(config.failsafe or None, ctx, components)  # takes over the reference
+    if config.ros2 is not None:  # the ROS 2 bridge (cufund.apps.ros2, registered as the bridge kind ros2)
+        components += ctx.build("bridge", config.ros2, "ros2")
     if config.estimator is not None:
         record += [Topics.ESTIMATE, Topics.ESTIMATOR_DIAGNOSTICS]
     sim = Simulator(
@@ -355,7 +360,13 @@ def run_scenario(
 
 def run_built(built: Built, progress: bool = False) -> ScenarioRun:
     """Runs a scenario made by :func:`build_simulation` (see :func:`run_scenario`)."""
-    config = built.config
+    result = built.simulator.run(built.config.duration, done=done_condition(built), progress=progress)
+    return measure_run(built, result)
+
+
+def done_condition(built: Built) -> Any:
+    """``done(t, truth)`` of a built scenario: landed after its reference, or a part's end condition (through the
+    failsafe supervisor's); also raises :class:`RunInterrupted` on a signal received."""
     t_landed = built.landing_after
 
     def landed(t: float, truth: Odometry) -> bool:
@@ -372,7 +383,12 @@ def run_built(built: Built, progress: bool = False) -> ScenarioRun:
         RunInterrupted.check()  # a SIGINT / SIGTERM whose exception was swallowed where it landed
         return finished is not None and finished(t, truth)
 
-    result = built.simulator.run(config.duration, done=done, progress=progress)
+    return done
+
+
+def measure_run(built: Built, result: SimulationResult) -> ScenarioRun:
+    """The metrics of a built scenario's finished run (:func:`run_built`)."""
+    config, ctx = built.config, built.context
     metrics = run_metrics(result)
     metrics["failsafe_events"] = []  # always present; the supervisor's hook fills it
     metrics["realism"] = ctx.realism.summary()  # under what the figures were measured

@@ -30,7 +30,9 @@ from cufund.vehicle import presets
 from cufund.vehicle.ground_effect import GroundEffectConfig
 from cufund.vehicle.params import QuadrotorParams
 from cufund.worlds.atmosphere import AtmosphereConfig
+from cufund.worlds.downwash import DownwashConfig
 
+from .fleet_schema import parse_vehicles, vehicles_to_data
 from .plausibility import check_plausible
 from .realism import RealismConfig
 
@@ -321,11 +323,22 @@ class ScenarioConfig:
     """The reference of the ``waypoints`` planner."""
     rates: RatesConfig = field(default_factory=RatesConfig)
     log: LogConfig = field(default_factory=LogConfig)
+    ros2: Any = None
+    """The ROS 2 bridge over DDS (``{domain_id, topics, lockstep, lockstep_nodes, realtime, expose, ...}``, the
+    ``bridge`` kind ``ros2``; ``cufund ros2 SCENARIO`` adds it); null (default): none. docs/guides/ros2.md."""
     collision_box: tuple[float, float, float] = (0.216, 0.216, 0.095)
     """The vehicle's shape against the world's meshes: a box of these full edge lengths (x, y, z) in the body
     frame [m] (default: CU-Astro's 216 x 216 x 95 mm)."""
     start_p_W: tuple[float, float, float] | None = None
     """Where the vehicle stands at the start, rotors stopped [m] (default: below the first waypoint)."""
+    start_yaw: float = 0.0
+    """The vehicle's heading at the start [rad] (0: facing east, as by default)."""
+    vehicles: Any = None
+    """Several vehicles in the world (:mod:`cufund.scenarios.fleet_schema`): ``[{name: uav1, start: {p: [x, y, z],
+    yaw: 0}, ...per-vehicle parts}]``; null (default): one vehicle. docs/guides/fleets.md."""
+    downwash: Any = None
+    """Rotor downwash of a vehicle on those below it, in a fleet (:class:`cufund.worlds.downwash.DownwashConfig`):
+    ``true``, or a mapping of its constants; null (default): off."""
     duration: float = 60.0
     """Longest simulated time [s]; the run ends earlier (completed) once the vehicle has landed."""
     faults: Any = None
@@ -388,11 +401,21 @@ class ScenarioConfig:
         object.__setattr__(self, "trajectory", nested(TrajectoryConfig, self.trajectory, "trajectory"))
         object.__setattr__(self, "rates", nested(RatesConfig, self.rates, "rates"))
         object.__setattr__(self, "log", nested(LogConfig, self.log, "log"))
+        ros2 = {} if self.ros2 is True else (None if self.ros2 is False else self.ros2)
+        if isinstance(ros2, dict):
+            ros2 = {"kind": "ros2", **ros2}
+        object.__setattr__(self, "ros2", parse_part("bridge", ros2, "ros2"))
         object.__setattr__(self, "faults", parse_faults(self.faults))
         object.__setattr__(self, "realism", RealismConfig.parse(self.realism))
         object.__setattr__(self, "failsafe", parse_failsafe(self.failsafe))
         object.__setattr__(self, "atmosphere", AtmosphereConfig.parse(self.atmosphere))
         object.__setattr__(self, "ground_effect", GroundEffectConfig.parse(self.ground_effect))
+        object.__setattr__(self, "vehicles", parse_vehicles(self.vehicles))
+        object.__setattr__(self, "downwash", DownwashConfig.parse(self.downwash))
+        yaw = self.start_yaw
+        if isinstance(yaw, bool) or not isinstance(yaw, (int, float)) or not math.isfinite(yaw) or abs(yaw) > 7:
+            raise ConfigError(f"start_yaw must be a heading in [-2 pi, 2 pi] [rad], got {yaw!r}")
+        object.__setattr__(self, "start_yaw", float(yaw))
         try:
             box = np.asarray(self.collision_box, dtype=float)
         except (TypeError, ValueError):
@@ -435,12 +458,18 @@ class ScenarioConfig:
         out: dict[str, Any] = {}
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if f.name == "base_dir":
-                continue
-            if f.name in _PART_GROUPS:
+            if f.name == "base_dir" or (f.name in _FLEET_KEYS and v == _FLEET_KEYS[f.name]):
+                continue  # the fleet keys at their defaults are left out: a single vehicle's config as before
+            if f.name == "vehicles":
+                out[f.name] = vehicles_to_data(v)
+            elif f.name == "downwash":
+                out[f.name] = v.to_data()
+            elif f.name in _PART_GROUPS:
                 out[f.name] = part_to_dict(v)
             elif f.name == "faults":
                 out[f.name] = faults_to_data(v)
+            elif f.name == "ros2":
+                out[f.name] = None if v is None else {k: x for k, x in part_to_dict(v).items() if k != "kind"}
             elif f.name == "realism":
                 out[f.name] = v.to_data()
             elif f.name == "sensors":
@@ -462,6 +491,9 @@ class ScenarioConfig:
 
     def __reduce__(self) -> tuple[Any, ...]:
         return (_rebuild, (self.to_dict(), self.base_dir))
+
+
+_FLEET_KEYS: dict[str, Any] = {"start_yaw": 0.0, "vehicles": None, "downwash": None}
 
 
 def _vehicle_parts(value: dict[str, Any]) -> tuple[QuadrotorParams, PowerSystem | None]:

@@ -1,0 +1,51 @@
+"""What one vehicle of a fleet sees: the world with the other vehicles in it (their collision boxes at their poses),
+for its ray-cast sensors (LiDARs, cameras) and for vehicle-vehicle contacts."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cufund.geometry import quat_to_matrix
+from cufund.worlds import primitives
+from cufund.worlds.world import World
+
+__all__ = ["VehicleBox", "WorldWithVehicles", "box_mesh_W"]
+
+VEHICLE_COLOR = (0.9, 0.3, 0.1)
+VEHICLE_REFLECTIVITY = 0.5
+
+
+class VehicleBox:
+    """A vehicle's shape for the others: a box of full edge lengths ``size`` [m] in its body frame, centred on its
+    body origin (the scenario's ``collision_box``)."""
+
+    def __init__(self, name: str, size: tuple[float, float, float]) -> None:
+        self.name = name
+        self.size = (float(size[0]), float(size[1]), float(size[2]))
+        self.vertices_B, self.triangles = primitives.box(self.size)
+        self.radius = 0.5 * float(np.linalg.norm(self.size))
+        """Half its diagonal: no part of it is farther from its origin [m]."""
+
+
+def box_mesh_W(box: VehicleBox, p_W: np.ndarray, q_WB: np.ndarray) -> np.ndarray:
+    """The box's vertices (8, 3) in the world at pose (p_W, q_WB)."""
+    return np.asarray(box.vertices_B) @ quat_to_matrix(q_WB, normalize=True).T + np.asarray(p_W, dtype=float)
+
+
+class WorldWithVehicles(World):
+    """``base``'s objects (same ids, labels, colours, reflectivities) followed by one box per other vehicle at the
+    pose it had when this view was made (labelled with the vehicle's name). A view is made again at the fleet's
+    ``view_rate_hz``: the others move between views, the world does not."""
+
+    def __init__(self, base: World | None, boxes: list[tuple[VehicleBox, np.ndarray, np.ndarray]]) -> None:
+        super().__init__(f"{base.name if base is not None else 'world'}+vehicles")
+        if base is not None:
+            self._objects = list(base.objects)  # the same (frozen) objects: ids 0..n-1 as in the base world
+        for box, p, q in boxes:
+            self.add_mesh(
+                box_mesh_W(box, p, q),
+                box.triangles,
+                label=box.name,
+                color=VEHICLE_COLOR,
+                reflectivity=VEHICLE_REFLECTIVITY,
+            )
