@@ -48,8 +48,13 @@ def test_listening_links_take_one_port_each_and_overlaps_are_refused():
     assert [v.links for v in plan] == [((f"udpin:127.0.0.1:{15000 + i}", 0),) for i in range(3)]
     with pytest.raises(ValueError, match="overlap"):
         FleetPorts(gcs="udpin:127.0.0.1:15000", api="udpin:127.0.0.1:15001").all(2)
-    with pytest.raises(ValueError, match="1 to 255 vehicles"):
+    with pytest.raises(ValueError, match="1 to 255 vehicles here"):
         FleetPorts().all(256)
+    assert FleetPorts(first_system_id=11).vehicle(2, 3).system_id == 13
+    with pytest.raises(ValueError, match="1 to 6 vehicles here"):
+        FleetPorts(first_system_id=250).all(7)
+    with pytest.raises(ValueError, match="first_system_id"):
+        FleetPorts(first_system_id=0)
     with pytest.raises(ValueError, match="at least one"):
         FleetPorts(gcs=None, api=None)
     with pytest.raises(ValueError, match="gcs must be"):

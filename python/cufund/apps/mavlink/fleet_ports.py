@@ -63,8 +63,13 @@ class FleetPorts:
     gcs: str | None = "udpout:127.0.0.1:14550"
     api: str | None = "udpout:127.0.0.1:14540"
     px4_local_ports: bool = True
+    first_system_id: int = 1
+    """Vehicle i is MAVLink system ``first_system_id + i`` (PX4: ``MAV_SYS_ID = instance + 1``)."""
 
     def __post_init__(self) -> None:
+        f = self.first_system_id
+        if isinstance(f, bool) or not isinstance(f, int) or not 1 <= f <= MAX_VEHICLES:
+            raise ValueError(f"FleetPorts.first_system_id must be an integer in [1, {MAX_VEHICLES}], got {f!r}")
         if self.gcs is None and self.api is None:
             raise ValueError("FleetPorts: give at least one of gcs and api (both are None)")
         for name in ("gcs", "api"):
@@ -74,8 +79,12 @@ class FleetPorts:
 
     def vehicle(self, index: int, count: int) -> VehiclePorts:
         """The ports of vehicle ``index`` of ``count`` (ValueError naming what is wrong)."""
-        if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= MAX_VEHICLES:
-            raise ValueError(f"a fleet has 1 to {MAX_VEHICLES} vehicles (one MAVLink system id each), got {count!r}")
+        most = MAX_VEHICLES - self.first_system_id + 1
+        if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= most:
+            raise ValueError(
+                f"a fleet has 1 to {most} vehicles here (one MAVLink system id each, from {self.first_system_id} "
+                f"to 255), got {count!r}"
+            )
         if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < count:
             raise ValueError(f"vehicle index must be in [0, {count - 1}], got {index!r}")
         links = []
@@ -92,7 +101,7 @@ class FleetPorts:
             _check_port(remote, url, count)
             local = local_base + index if self.px4_local_ports else 0
             links.append((f"udpout:{a.host}:{remote}", local))
-        return VehiclePorts(index, index + 1, tuple(links))
+        return VehiclePorts(index, self.first_system_id + index, tuple(links))
 
     def all(self, count: int) -> list[VehiclePorts]:
         """Every vehicle's ports; ValueError when two vehicles would share a port."""

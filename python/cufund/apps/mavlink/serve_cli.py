@@ -3,6 +3,7 @@
 Ground stations listen on 14550 (``--mavlink udpout:127.0.0.1:14550``), offboard programs such as MAVSDK on 14540
 (``--api udpout:127.0.0.1:14540``); ``udpin:HOST:PORT`` listens instead. Sockets bind 127.0.0.1 unless an URL
 names another address. The first line printed is ``MAVLink vehicle <id>: <link> ...``; Ctrl-C or SIGTERM stops.
+A fleet scenario (``vehicles:``) is served as N PX4 SITL instances, one system each (:mod:`.fleet_serve`).
 """
 
 from __future__ import annotations
@@ -55,7 +56,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="S",
         help="no message from any client for S wall-clock seconds is a link loss (default 3)",
     )
-    p.add_argument("--system-id", type=int, default=1, help="MAVLink system id (default 1)")
+    p.add_argument(
+        "--system-id", type=int, default=1, help="MAVLink system id (default 1; a fleet's vehicle i: this + i)"
+    )
+    p.add_argument(
+        "--local-ports",
+        choices=("px4", "any"),
+        default="px4",
+        help="a fleet's udpout links send from PX4 SITL's local ports (18570 + i, 14580 + i; default) or any free one",
+    )
     p.add_argument(
         "--telemetry-hz",
         type=float,
@@ -103,6 +112,15 @@ def run(args: argparse.Namespace) -> int:
     except Exception as exc:  # bad usage: say so, exit 2
         print(f"cufund serve: {exc}", file=sys.stderr)
         return 2
+    from .fleet_serve import fleet_config, serve_fleet
+
+    try:
+        fleet = fleet_config(args.scenario, overrides)
+    except Exception as exc:  # an invalid scenario: exit 2, no traceback
+        print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 2
+    if fleet is not None:  # N vehicles: N MAVLink systems on PX4 SITL's multi-instance ports (fleet_ports.py)
+        return serve_fleet(args, fleet, speed)
     from ..live import LiveRun
     from .vehicle_endpoint import VehicleEndpoint
 
