@@ -52,7 +52,7 @@ $(VENV)/.tools:
 # Rebuilds the extension whenever a C++ source, CMake file or pyproject.toml changes.
 $(VENV)/.installed: $(VENV)/.tools $(SOURCES)
 	$(MAKE) deps
-	CMAKE_BUILD_PARALLEL_LEVEL=$(JOBS) $(VPIP) install -q --no-build-isolation -e '.[test,envs,train]'
+	CMAKE_BUILD_PARALLEL_LEVEL=$(JOBS) $(VPIP) install -q --no-build-isolation -e '.[test,envs,train,ros2]'
 	touch $@
 
 $(CPP_BUILD)/build.ninja: $(VENV)/.tools CMakeLists.txt $(wildcard cpp/*/CMakeLists.txt)

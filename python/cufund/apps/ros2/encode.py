@@ -1,0 +1,98 @@
+"""cufund messages as the bytes of their ROS 2 messages, through :mod:`cufund.logs` (the one CDR serialisation a
+run log, a bag and the bridge share): the logs' layouts and codecs, filled here with what the bridge adds (the
+truth's body-frame twist, a camera's ``camera_info``)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from cufund.core.messages import CameraImage, PointCloud
+from cufund.geometry import quat_to_matrix
+from cufund.logs import ros2
+from cufund.logs.cdr import stamp_sec_nsec
+from cufund.logs.codecs import ImageCodec, PointCloud2Codec
+
+__all__ = ["camera_info", "clock", "imu_encoder", "odometry_encoder", "tf", "xyzw"]
+
+
+def xyzw(q_wxyz: Any) -> list[float]:
+    """cufund's [w, x, y, z] as ROS's x, y, z, w."""
+    w, x, y, z = (float(v) for v in q_wxyz)
+    return [x, y, z, w]
+
+
+def _stamp(row: np.ndarray, t: float, sec: str = "header.stamp.sec", nsec: str = "header.stamp.nanosec") -> None:
+    s, n = stamp_sec_nsec(np.array([t]))
+    row[sec], row[nsec] = s[0], n[0]
+
+
+_CLOCK = ros2.clock_layout()
+
+
+def clock(t: float) -> bytes:
+    """``rosgraph_msgs/msg/Clock`` at ``t`` [s]."""
+    row = _CLOCK.empty(1)
+    _stamp(row, t, "clock.sec", "clock.nanosec")
+    return row.tobytes()
+
+
+def imu_encoder(frame: str) -> Callable[[Any], bytes]:
+    """``sensor_msgs/msg/Imu`` of a cufund :class:`~cufund.core.messages.Imu` in ``frame`` (no orientation)."""
+    layout = ros2.imu_layout(frame)
+
+    def encode(m: Any) -> bytes:
+        row = layout.empty(1)
+        _stamp(row, m.t)
+        row["angular_velocity"] = m.w_I
+        row["linear_acceleration"] = m.f_I
+        return row.tobytes()
+
+    return encode
+
+
+def odometry_encoder(parent: str, child: str) -> Callable[[Any], bytes]:
+    """``nav_msgs/msg/Odometry`` of a cufund odometry: pose in ``parent``, twist in ``child`` (the body: REP 105),
+    covariances zero (unknown)."""
+    layout = ros2.odometry_layout(parent, child)
+
+    def encode(m: Any) -> bytes:
+        row = layout.empty(1)
+        _stamp(row, m.t)
+        row["pose.position"] = m.p_W
+        row["pose.orientation"] = xyzw(m.q_WB)
+        row["twist.linear"] = quat_to_matrix(m.q_WB, normalize=True).T @ np.asarray(m.v_W, float)
+        row["twist.angular"] = m.w_B
+        return row.tobytes()
+
+    return encode
+
+
+def tf(t: float, transforms: list[tuple[str, str, Any, Any]]) -> bytes:
+    """``tf2_msgs/msg/TFMessage`` of (parent, child, translation, q [w, x, y, z]) at ``t``."""
+    return ros2.tf_message(t, transforms)
+
+
+def point_cloud_encoder(frame: str) -> Callable[[Any], bytes]:
+    """``sensor_msgs/msg/PointCloud2`` in livox_ros_driver2's layout (per-point ``timestamp``)."""
+    codec = PointCloud2Codec(PointCloud, frame)
+    return lambda m: codec.encode([m], frame)[0]
+
+
+def image_encoder(frame: str) -> Callable[[Any], bytes]:
+    """``sensor_msgs/msg/Image`` (depth ``32FC1``, colour ``rgb8``)."""
+    codec = ImageCodec(CameraImage, frame)
+    return lambda m: codec.encode([m], frame)[0]
+
+
+def camera_info(t: float, frame: str, width: int, height: int, fx: float, fy: float, cx: float, cy: float) -> bytes:
+    """``sensor_msgs/msg/CameraInfo`` of an ideal pinhole (``plumb_bob``, no distortion)."""
+    w = ros2.CdrWriter().header(t, frame).put("I", int(height), int(width)).string("plumb_bob")
+    w.put("I", 5).put("d", 0.0, 0.0, 0.0, 0.0, 0.0)
+    w.put("d", fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0)
+    w.put("d", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    w.put("d", fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0)
+    w.put("I", 0, 0).put("I", 0, 0, 0, 0).put("?", False)
+    return w.bytes()

@@ -1,0 +1,139 @@
+"""The ``ros2`` bridge kind (the scenario key ``ros2: {...}``), registered through the ``cufund.kinds`` entry points
+so that scenarios name it without the layers below importing :mod:`cufund.apps`. Cyclone DDS is imported only when
+a scenario asks for the bridge (``pip install 'cufund[ros2]'``)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from cufund.core.build_context import BuildContext
+from cufund.core.config import ConfigError
+from cufund.core.messages import Topics
+from cufund.core.registry import Kind
+
+from .config import Ros2Params
+
+__all__ = ["KINDS", "build_bridge", "default_topics"]
+
+IMU_RATE_FALLBACK_HZ = 100.0
+
+
+def default_topics(ctx: BuildContext) -> dict[str, tuple[str, str]]:
+    """cufund topic -> (ROS 2 name, what it is: imu, lidar, camera, truth, estimate) by default: ``/imu`` and
+    ``/livox/lidar`` for the only IMU and LiDAR (``/imu/<name>``, ``/<name>/lidar`` for several),
+    ``/camera/<name>/image_raw``, ``/truth/odom``, ``/estimator/odom``."""
+    sensors = ctx.config.sensors
+    out: dict[str, tuple[str, str]] = {}
+    by_type: dict[str, list[str]] = {}
+    for name, spec in sensors.items():
+        by_type.setdefault(spec.sensor_type or "", []).append(name)
+    for name, spec in sensors.items():
+        st = spec.sensor_type
+        single = len(by_type.get(st or "", [])) == 1
+        if st == "imu":
+            out[str(spec.topic)] = ("/imu" if single else f"/imu/{name}", "imu")
+        elif st == "lidar":
+            out[str(spec.topic)] = ("/livox/lidar" if single else f"/{name}/lidar", "lidar")
+        elif st == "camera":
+            out[str(spec.topic)] = (f"/camera/{name}/image_raw", "camera")
+    out[str(Topics.TRUTH_ODOMETRY)] = ("/truth/odom", "truth")
+    if ctx.config.estimator is not None:
+        out[str(Topics.ESTIMATE)] = ("/estimator/odom", "estimate")
+    return out
+
+
+def _one(encoder: Callable[[Any], bytes]) -> Callable[[Any], list[bytes]]:
+    return lambda m: [encoder(m)]
+
+
+def build_bridge(p: Ros2Params, ctx: BuildContext) -> list[Any]:
+    try:
+        from . import bridge, encode
+        from .dds import QOS
+    except ImportError as e:  # pragma: no cover - depends on the installation
+        raise ConfigError(f"ros2 needs Cyclone DDS's Python binding: pip install 'cufund[ros2]' ({e})") from None
+    from cufund.logs.codecs import sensor_frame
+
+    topics = default_topics(ctx)
+    unknown = sorted(set(p.topics) - set(topics))
+    if unknown:
+        raise ConfigError(
+            f"ros2.topics: {unknown[0]} is not a topic the bridge publishes in this scenario; it publishes "
+            f"{', '.join(sorted(topics))}"
+        )
+    estimator = ctx.config.estimator is not None
+    body = "base_link"
+    truth_child = "base_link_truth" if estimator else body
+    outs: list[bridge.Out] = []
+    static_tf: list[tuple[str, str, Any, Any]] = []
+    if estimator:
+        static_tf.append(("world", "odom", (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)))
+    imu_rates = []
+    for topic, (ros_name, what) in topics.items():
+        ros_name = p.topics.get(topic, ros_name)
+        if not ros_name:
+            continue
+        if what in ("imu", "lidar", "camera"):
+            name, spec = next((n, s) for n, s in ctx.config.sensors.items() if str(s.topic) == topic)
+            frame = sensor_frame(topic)
+            if spec.extrinsic is not None:
+                static_tf.append((body, frame, tuple(spec.extrinsic.t), tuple(spec.extrinsic.q)))
+            else:
+                static_tf.append((body, frame, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)))
+            if what == "imu":
+                rate = getattr(spec.params, "rate_hz", None)
+                if rate:
+                    imu_rates.append(float(rate))
+                enc = encode.imu_encoder(frame)
+                outs.append(bridge.Out(topic, [(ros_name, "sensor_msgs/msg/Imu", QOS["sensor_data"])], _one(enc)))
+            elif what == "lidar":
+                enc = encode.point_cloud_encoder(frame)
+                outs.append(bridge.Out(topic, [(ros_name, "sensor_msgs/msg/PointCloud2", QOS["default"])], _one(enc)))
+            else:
+                enc = encode.image_encoder(frame)
+                info_name = ros_name.rsplit("/", 1)[0] + "/camera_info"
+                intr = getattr(spec.params, "intrinsics", None)
+
+                def cam(m: Any, e: Any = enc, frame: str = frame, intr: Any = intr) -> list[bytes]:
+                    h, w = m.image.shape[:2]
+                    k = (intr.fx, intr.fy, intr.cx, intr.cy) if intr is not None else (w / 2, w / 2, w / 2, h / 2)
+                    return [e(m), encode.camera_info(m.t, frame, w, h, *k)]
+
+                outs.append(
+                    bridge.Out(
+                        topic,
+                        [
+                            (ros_name, "sensor_msgs/msg/Image", QOS["sensor_data"]),
+                            (info_name, "sensor_msgs/msg/CameraInfo", QOS["sensor_data"]),
+                        ],
+                        cam,
+                    )
+                )
+        else:
+            parent, child = ("world", truth_child) if what == "truth" else ("odom", body)
+            odo = encode.odometry_encoder(parent, child)
+
+            def odometry(m: Any, odo: Any = odo, parent: str = parent, child: str = child) -> list[bytes]:
+                return [odo(m), encode.tf(m.t, [(parent, child, m.p_W, m.q_WB)])]
+
+            outs.append(
+                bridge.Out(
+                    topic,
+                    [(ros_name, "nav_msgs/msg/Odometry", QOS["default"]), ("/tf", "tf2_msgs/msg/TFMessage", QOS["tf"])],
+                    odometry,
+                )
+            )
+    rate = p.rate_hz or (max(imu_rates) if imu_rates else IMU_RATE_FALLBACK_HZ)
+    return [bridge.Ros2Bridge(p, outs, static_tf, ctx.commander, rate)]
+
+
+KINDS = [
+    Kind(
+        "bridge",
+        "ros2",
+        Ros2Params,
+        build_bridge,
+        doc="the ROS 2 bridge over DDS (scenario key ros2: {...}; docs/guides/ros2.md)",
+    )
+]

@@ -1,0 +1,143 @@
+"""A minimal external ROS 2 node over Cyclone DDS, the lockstep contract's reference client (what the tests and the
+benchmark run as "the external node", in its own process): ``python -m cufund.apps.ros2.node --domain 7 --name n``.
+
+It subscribes to ``/clock``, ``/imu``, ``/tf``, ``/tf_static`` and the LiDAR topic, keeps what it received, answers
+each ``/clock`` on ``/cufund/step_ack`` (after ``--sleep`` seconds per message received, to play a slow node), may
+send a ``PoseStamped`` goal at a simulated time, and writes a JSON summary when the bridge falls silent. The same
+loopback-only configuration as the bridge (:func:`cufund.apps.ros2.dds.cyclone_config`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from typing import Any
+
+from . import idl
+from .config import ACK_TOPIC
+from .dds import QOS, DdsParticipant, QosProfile
+
+NS = 1_000_000_000
+
+
+def _ns(stamp: Any) -> int:
+    return int(stamp.sec) * NS + int(stamp.nanosec)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--domain", type=int, default=0)
+    ap.add_argument("--name", default="cufund_test_node")
+    ap.add_argument("--lidar", default="/livox/lidar")
+    ap.add_argument("--sleep", type=float, default=0.0, help="seconds slept per message received")
+    ap.add_argument("--goal", help="x,y,z,t: a PoseStamped goal on /goal_pose, sent when /clock reaches t")
+    ap.add_argument("--no-ack", action="store_true", help="never answer (a node that does not play lockstep)")
+    ap.add_argument("--idle-exit", type=float, default=5.0, help="exit after this long without a message [s]")
+    ap.add_argument("--out", help="JSON summary file")
+    args = ap.parse_args(argv)
+
+    dds = DdsParticipant(args.domain)
+    readers = {
+        "/clock": dds.reader("/clock", "rosgraph_msgs/msg/Clock", QosProfile(depth=1000)),
+        "/imu": dds.reader("/imu", "sensor_msgs/msg/Imu", QosProfile(reliable=False, depth=1000)),
+        "/tf": dds.reader("/tf", "tf2_msgs/msg/TFMessage", QosProfile(depth=1000)),
+        "/tf_static": dds.reader("/tf_static", "tf2_msgs/msg/TFMessage", QOS["tf_static"]),
+        args.lidar: dds.reader(args.lidar, "sensor_msgs/msg/PointCloud2", QosProfile(depth=1000)),
+    }
+    ack = dds.topic(ACK_TOPIC, "std_msgs/msg/Header")
+    from cyclonedds.pub import DataWriter
+
+    ack_writer = DataWriter(dds.participant, ack, qos=QOS["ack"].qos())
+    goal_writer = DataWriter(
+        dds.participant, dds.topic("/goal_pose", "geometry_msgs/msg/PoseStamped"), qos=QOS["default"].qos()
+    )
+    goal = [float(v) for v in args.goal.split(",")] if args.goal else None
+    # announce once the bridge's publishers have matched (so nothing it publishes is missed)
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 30:
+        if all(len(r.get_matched_publications()) > 0 for k, r in readers.items() if k != "/tf_static") and len(
+            ack_writer.get_matched_subscriptions()
+        ):
+            break
+        time.sleep(0.01)
+    if not args.no_ack:
+        ack_writer.write(idl.Header(idl.Time(-1, 0), args.name))
+    got: dict[str, list[Any]] = {k: [] for k in readers}
+    types: dict[str, str] = {}
+    last = time.monotonic()
+    goal_sent = False
+    while time.monotonic() - last < args.idle_exit:
+        progressed = False
+        for topic, r in readers.items():
+            for s in r.take(N=1000):
+                if not s.sample_info.valid_data:
+                    continue
+                progressed = True
+                types[topic] = type(s).__idl_typename__ if hasattr(type(s), "__idl_typename__") else type(s).__name__
+                if args.sleep:
+                    time.sleep(args.sleep)
+                if topic == "/clock":
+                    t_ns = _ns(s.clock)
+                    got[topic].append(t_ns)
+                    if goal is not None and not goal_sent and t_ns >= goal[3] * NS:
+                        goal_writer.write(
+                            idl.PoseStamped(
+                                idl.Header(s.clock, "world"), idl.Pose(idl.Point(*goal[:3]), idl.Quaternion())
+                            )
+                        )
+                        goal_sent = True
+                    if not args.no_ack:
+                        ack_writer.write(idl.Header(s.clock, args.name))
+                elif topic == "/imu":
+                    got[topic].append(
+                        [
+                            _ns(s.header.stamp),
+                            s.header.frame_id,
+                            *(getattr(s.angular_velocity, a) for a in "xyz"),
+                            *(getattr(s.linear_acceleration, a) for a in "xyz"),
+                        ]
+                    )
+                elif topic in ("/tf", "/tf_static"):
+                    for tr in s.transforms:
+                        v, q = tr.transform.translation, tr.transform.rotation
+                        got[topic].append(
+                            [
+                                _ns(tr.header.stamp),
+                                tr.header.frame_id,
+                                tr.child_frame_id,
+                                v.x,
+                                v.y,
+                                v.z,
+                                q.x,
+                                q.y,
+                                q.z,
+                                q.w,
+                            ]
+                        )
+                else:
+                    got[topic].append(
+                        [
+                            _ns(s.header.stamp),
+                            s.header.frame_id,
+                            s.width,
+                            s.point_step,
+                            [f.name for f in s.fields],
+                            len(s.data),
+                        ]
+                    )
+        if progressed:
+            last = time.monotonic()
+        else:
+            time.sleep(0.0005)
+    summary = {"name": args.name, "received": got, "types": types}
+    if args.out:
+        with open(args.out, "w") as f:
+            json.dump(summary, f)
+    dds.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
