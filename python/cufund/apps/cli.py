@@ -133,10 +133,19 @@ def _parser() -> argparse.ArgumentParser:
 
 # Long-running commands, each in its own module: add_arguments(parser) defines its options, run(args) -> exit code.
 _SERVERS = {
+    "ros2": (
+        "cufund.apps.ros2.cli",
+        "run a scenario with the ROS 2 bridge over DDS (loopback only unless --expose): ROS 2 nodes read its "
+        "sensors and fly it, in lockstep",
+    ),
     "train": (
         "cufund.apps.train_cli",
         "train a policy on a cufund task (PPO, skrl on JAX) and export it to ONNX (policy.onnx + policy.yaml "
         "for the controller kind policy)",
+    ),
+    "dataset": (
+        "cufund.apps.dataset_cli",
+        "render a labelled detection dataset of a scenario's world (YOLO + COCO, domain randomisation, seeded)",
     ),
     "bag": (
         "cufund.apps.ros2.bag",
@@ -249,6 +258,12 @@ def _run_scenario(args: argparse.Namespace) -> int:
         problem = out_dir_problem(out)
         if problem:
             raise ConfigError(problem)
+        if cfg.vehicles:  # a fleet: several vehicles in one world (docs/guides/fleets.md)
+            from cufund.scenarios.fleet_folder import fleet_summary, run_fleet_into_folder
+
+            run = run_fleet_into_folder(cfg, out, log=not args.no_log, replay=not args.no_replay)
+            print(json.dumps(run.metrics, indent=2, default=str) if args.json else fleet_summary(run, out))
+            return EXIT_COMPLETED if run.status == "completed" else EXIT_NOT_COMPLETED
         built = build_simulation(cfg)  # the whole graph validated before anything runs
         try:
             out.mkdir(parents=True, exist_ok=True)
