@@ -5,27 +5,21 @@ from __future__ import annotations
 import time
 
 import pytest
-from test_fleet_mavlink import BuiltsFleet
+from test_fleet_mavlink import fleet_config
 
 from cufund.apps.mavlink.fleet_live import LiveFleet
-from mavlink_support import OPEN_FIELD
-
-
-def _configs(n: int) -> dict:
-    return {f"uav{i + 1}": {**OPEN_FIELD, "start_p_W": [3.0 * i, 1.0, 0.0]} for i in range(n)}
 
 
 def test_vehicles_advance_together_and_answer_for_themselves():
-    fleet = BuiltsFleet(_configs(2))
-    with LiveFleet(fleet=fleet, speed=float("inf")) as live:
+    with LiveFleet(fleet_config(2), speed=float("inf")) as live:
         uav1, uav2 = live.vehicle("uav1"), live.vehicle("uav2")
         assert uav2.submit({"command": "arm"}).result(timeout=5).result == "accepted"
         assert uav2.submit({"command": "takeoff", "altitude": 1.5}).result(timeout=5).result == "accepted"
         assert uav2.wait_until(lambda t: t["p_W"][2] > 1.4, 20.0)
         t1, t2 = uav1.telemetry(), uav2.telemetry()
         assert not t1["armed"] and t2["armed"]
-        assert t1["p_W"] == pytest.approx([0.0, 1.0, t1["p_W"][2]], abs=0.05) and t1["p_W"][2] < 0.1
-        assert t2["p_W"][:2] == pytest.approx([3.0, 1.0], abs=0.2)
+        assert t1["p_W"][:2] == pytest.approx([0.0, 0.0], abs=0.05) and t1["p_W"][2] < 0.1
+        assert t2["p_W"][:2] == pytest.approx([3.0, 0.0], abs=0.2)
         acks = live.submit_all({"command": "land"})
         assert set(acks) == {"uav1", "uav2"}
         assert acks["uav2"].result(timeout=5).result == "accepted"
@@ -37,8 +31,8 @@ def test_vehicles_advance_together_and_answer_for_themselves():
         live.resume()
         with pytest.raises(KeyError, match="no vehicle 'uav9'"):
             live.vehicle("uav9")
-    sims = [b.simulator for b in fleet.builts.values()]
-    assert sims[0].t == sims[1].t  # one clock: neither ran ahead
+    sims = [v.simulator for v in live.vehicles.values()]
+    assert sims[0].t == sims[1].t == live.t  # one clock: neither ran ahead
     assert live.ended == "stopped" and uav1.ended == "stopped"
     ack = uav1.submit({"command": "arm"}).result(timeout=1)
     assert ack.result == "failed" and "ended" in ack.message
@@ -48,4 +42,4 @@ def test_a_single_vehicle_scenario_is_not_a_fleet():
     with pytest.raises(ValueError, match="one vehicle"):
         LiveFleet("vehicle", start=False)
     with pytest.raises(ValueError, match="speed"):
-        LiveFleet(fleet=BuiltsFleet(_configs(1)), speed=0.0)
+        LiveFleet(fleet_config(1), speed=0.0)

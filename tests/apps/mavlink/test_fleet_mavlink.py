@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -80,38 +81,18 @@ def _port_block(n: int) -> int:
     raise AssertionError(f"no {n} consecutive free UDP ports")
 
 
-class BuiltsFleet:
-    """The fleet contract (names, t, advance_to, vehicle) over independent single-vehicle Builts: vehicles that
-    share no world, advanced together."""
-
-    def __init__(self, configs: dict[str, Any]) -> None:
-        from cufund.scenarios.build import build_simulation
-        from cufund.scenarios.schema import ScenarioConfig
-
-        self.builts = {n: build_simulation(ScenarioConfig.from_dict(c)) for n, c in configs.items()}
-        self.names = tuple(configs)
-        for b in self.builts.values():
-            b.simulator.reset()
-
-    @property
-    def t(self) -> float:
-        return min(b.simulator.t for b in self.builts.values())
-
-    def advance_to(self, t: float) -> bool:
-        alive = [b.simulator.advance_to(t) for b in self.builts.values()]  # every one, not up to the first ended
-        return all(alive)
-
-    def vehicle(self, name: str) -> Any:
-        return self.builts[name]
+def fleet_config(n: int) -> dict[str, Any]:
+    """A fleet of ``n`` commander vehicles 3 m apart on the open field (uav1 at x = 0, uav2 at x = 3, ...)."""
+    vehicles = [{"name": f"uav{i + 1}", "start": {"p": [3.0 * i, 0.0, 0.0]}} for i in range(n)]
+    return {**OPEN_FIELD, "name": "open_field_fleet", "vehicles": vehicles}
 
 
 @contextlib.contextmanager
 def _fleet(n: int, ports: FleetPorts, speed: float = SPEED) -> Iterator[tuple[dict[str, Any], FleetEndpoints]]:
-    """A live fleet of ``n`` commander vehicles 3 m apart (uav1, uav2, ...) served by one FleetEndpoints."""
+    """A live fleet of ``n`` commander vehicles (:func:`fleet_config`) served by one FleetEndpoints."""
     from cufund.apps.mavlink.fleet_live import LiveFleet
 
-    configs = {f"uav{i + 1}": {**OPEN_FIELD, "start_p_W": [3.0 * i, 0.0, 0.0]} for i in range(n)}
-    live = LiveFleet(fleet=BuiltsFleet(configs), speed=speed)
+    live = LiveFleet(fleet_config(n), speed=speed)
     fleet = None
     try:
         fleet = FleetEndpoints(live.vehicles, ports).start()
@@ -256,42 +237,98 @@ def test_mavsdk_flies_two_vehicles_of_one_fleet():
         assert f"system ID: {2 - i})" not in log, log[-2000:]
 
 
-def test_mavproxy_lists_both_vehicles(tmp_path):
+def test_mavproxy_lists_both_vehicles_of_cufund_serve(tmp_path):
+    import yaml
     from test_mavlink_clients import _Output
 
+    scenario = tmp_path / "fleet.yaml"
+    scenario.write_text(yaml.safe_dump(fleet_config(2)))
     port = free_port()
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    with _fleet(2, FleetPorts(gcs=f"udpout:127.0.0.1:{port}", api=None, px4_local_ports=False)):
-        proxy = subprocess.Popen(
-            [
-                str(BIN / "mavproxy.py"),
-                f"--master=udpin:127.0.0.1:{port}",
-                "--mav20",
-                f"--state-basedir={tmp_path}",
-                "--default-modules=link,cmdlong,arm,mode",
-            ],
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-            env=env,
-            cwd=tmp_path,
-        )
+    serve = subprocess.Popen(
+        [
+            str(BIN / "cufund"),
+            "serve",
+            str(scenario),
+            "--mavlink",
+            f"udpout:127.0.0.1:{port}",
+            "--api",
+            "none",
+            "--local-ports",
+            "any",
+            "--speed",
+            str(SPEED),
+            "--duration",
+            "60",
+        ],  # fmt: skip
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+    )
+    proxy = subprocess.Popen(
+        [
+            str(BIN / "mavproxy.py"),
+            f"--master=udpin:127.0.0.1:{port}",
+            "--mav20",
+            f"--state-basedir={tmp_path}",
+            "--default-modules=link,cmdlong,arm,mode",
+        ],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+    )
+    try:
+        out = _Output(proxy)
+        seen = {out.expect(r"Detected vehicle [12]:1 on link 0", 40)}
+        seen.add(out.expect(r"Detected vehicle [12]:1 on link 0", 30))
+        assert seen == {"Detected vehicle 1:1 on link 0", "Detected vehicle 2:1 on link 0"}
+        proxy.stdin.write("alllinks status\n")  # type: ignore[union-attr]
+        proxy.stdin.flush()  # type: ignore[union-attr]
+        out.expect(r"Sending to:\s+\{1, 2\}", 10)
+    finally:
+        proxy.terminate()
         try:
-            out = _Output(proxy)
-            seen = {out.expect(r"Detected vehicle [12]:1 on link 0", 30)}
-            seen.add(out.expect(r"Detected vehicle [12]:1 on link 0", 30))
-            assert seen == {"Detected vehicle 1:1 on link 0", "Detected vehicle 2:1 on link 0"}
-            proxy.stdin.write("alllinks status\n")  # type: ignore[union-attr]
-            proxy.stdin.flush()  # type: ignore[union-attr]
-            out.expect(r"Sending to:\s+\{1, 2\}", 10)
-        finally:
-            proxy.terminate()
-            try:
-                proxy.wait(5)
-            except subprocess.TimeoutExpired:
-                proxy.kill()
-                proxy.wait(5)
-            for f in (proxy.stdin, proxy.stdout):
-                if f is not None:
-                    f.close()
+            proxy.wait(5)
+        except subprocess.TimeoutExpired:
+            proxy.kill()
+            proxy.wait(5)
+        for f in (proxy.stdin, proxy.stdout):
+            if f is not None:
+                f.close()
+        serve.send_signal(2)
+        log = _kill(serve)
+    assert serve.returncode == 0, log
+    for sysid in (1, 2):
+        assert re.search(
+            rf"MAVLink vehicle {sysid} \(uav{sysid}\): udpout:127.0.0.1:{port} \(local 127.0.0.1:\d+\)", log
+        )
+    assert "fleet of 2" in log
+
+
+def test_serve_refuses_a_fleet_its_ports_cannot_hold(tmp_path):
+    import yaml
+
+    scenario = tmp_path / "fleet.yaml"
+    scenario.write_text(yaml.safe_dump(fleet_config(3)))
+    p = subprocess.run(
+        [
+            str(BIN / "cufund"),
+            "serve",
+            str(scenario),
+            "--mavlink",
+            "udpin:127.0.0.1:15000",
+            "--api",
+            "udpin:127.0.0.1:15001",
+            "--duration",
+            "1",
+        ],  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 2
+    assert "overlap" in p.stderr and "Traceback" not in p.stderr

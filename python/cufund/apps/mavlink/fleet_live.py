@@ -27,7 +27,7 @@ from cufund.core.messages import Topics
 from cufund.missions.commander import Commander
 from cufund.missions.events import EventLog
 
-from ..live import LiveRun
+from ..live import _KEEP_BLOCKS, RECORD_HZ, LiveRun
 
 __all__ = ["FleetVehicleRun", "LiveFleet"]
 
@@ -58,8 +58,8 @@ class FleetVehicleRun(LiveRun):
     and stopping are the fleet's: they act on every vehicle."""
 
     def __init__(self, fleet: LiveFleet, name: str, vehicle: Any, config: Any) -> None:  # no LiveRun.__init__
-        self.fleet, self.name = fleet, name
-        self.built = vehicle
+        self.fleet, self.name, self.member = fleet, name, vehicle
+        self.built = getattr(vehicle, "built", vehicle)  # its single-vehicle Built (the fleet's FleetVehicle.built)
         self.simulator = sim = getattr(vehicle, "simulator", vehicle)
         self.config = getattr(vehicle, "config", None) or config
         found = [c for c in getattr(sim, "components", ()) if isinstance(c, Commander)]
@@ -76,6 +76,12 @@ class FleetVehicleRun(LiveRun):
         self._estimated = getattr(self.config, "estimator", None) is not None
         vp = _vehicle_params(vehicle)
         self._max_thrust = 4.0 * vp.k_f * vp.rotor_speed_max**2
+        # a live fleet may last hours: as LiveRun, no message history and the true state at RECORD_HZ only
+        if hasattr(sim, "record_topics"):
+            sim.record_topics = ()
+            ratio = sim.physics_rate_hz / RECORD_HZ
+            if ratio == int(ratio) and ratio >= 1:
+                sim.record_period = int(ratio)
 
     # the fleet's state, read where LiveRun keeps its own
     @property
@@ -115,7 +121,7 @@ class FleetVehicleRun(LiveRun):
         self.fleet.set_speed(x)
 
     def _capture(self, t: float) -> None:
-        bus = getattr(self.built, "bus", None) or getattr(self.simulator, "bus", None)
+        bus = getattr(self.member, "bus", None) or getattr(self.simulator, "bus", None)
         if bus is None:
             return
         snap = {}
@@ -138,7 +144,8 @@ class LiveFleet:
     """Builds the fleet scenario ``scenario_or_config`` (as :class:`LiveRun` takes it; or flies ``fleet`` given
     built) and runs it at ``speed`` x real time (``math.inf``: as fast as it goes), every vehicle advanced to the
     same time before any goes further. ``vehicles`` maps each name to its :class:`FleetVehicleRun`, in fleet
-    order. Starts at once unless ``start=False``."""
+    order. Starts at once unless ``start=False``. As with a live run, the commanders' scripted commands are dropped
+    unless ``script=True``: a live vehicle waits for its operator."""
 
     def __init__(
         self,
@@ -147,6 +154,7 @@ class LiveFleet:
         speed: float = 1.0,
         start: bool = True,
         fleet: Any = None,
+        script: bool = False,
     ) -> None:
         self._speed = LiveRun._check_speed(speed)
         config = None
@@ -158,6 +166,8 @@ class LiveFleet:
                 raise ValueError(
                     f"scenario {config.name!r} has one vehicle (no 'vehicles:' list); serve it as a single vehicle"
                 )
+            if not script:
+                config = _without_scripts(config)
             from cufund.scenarios.fleet import build_fleet  # type: ignore[import-not-found, unused-ignore]
 
             fleet = build_fleet(config)
@@ -285,6 +295,10 @@ class LiveFleet:
                         continue
                 alive = fleet.advance_to(target)
                 self._capture()
+                for v in self.vehicles.values():
+                    rows = getattr(v.simulator, "_rows", None)
+                    if rows is not None and len(rows) > _KEEP_BLOCKS:
+                        del rows[: len(rows) - _KEEP_BLOCKS]
                 now = time.perf_counter()
                 window = self._rate_window
                 window.append((now, float(fleet.t)))
@@ -312,8 +326,32 @@ class LiveFleet:
 
 
 def _status(fleet: Any) -> str:
-    status = getattr(fleet, "status", None)
-    message = getattr(fleet, "message", "")
+    sim = getattr(fleet, "simulator", fleet)
+    status = getattr(sim, "status", None)
+    message = getattr(sim, "message", "")
     if status is None:
         return "ended"
     return f"{getattr(status, 'value', status)}: {message}"
+
+
+def _without_scripts(config: Any) -> Any:
+    """``config`` with no scripted commands: the top-level planner's and each vehicle's own planner's."""
+    import dataclasses
+
+    from cufund.scenarios.fleet_schema import VehicleSpec
+
+    planner = config.planner
+    if planner is not None and getattr(planner.params, "script", ()):
+        config = config.replace(
+            planner=dataclasses.replace(planner, params=dataclasses.replace(planner.params, script=()))
+        )
+    specs = []
+    for v in config.vehicles:
+        p = v.overrides.get("planner")
+        if isinstance(p, dict) and ("script" in p or "script" in (p.get("params") or {})):
+            p = {k: val for k, val in p.items() if k != "script"}
+            if isinstance(p.get("params"), dict):
+                p["params"] = {k: val for k, val in p["params"].items() if k != "script"}
+            v = VehicleSpec(v.name, v.start_p_W, v.start_yaw, {**v.overrides, "planner": p})
+        specs.append(v)
+    return config.replace(vehicles=tuple(specs))
