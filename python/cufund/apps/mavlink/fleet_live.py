@@ -341,7 +341,7 @@ def _without_scripts(config: Any) -> Any:
     from cufund.scenarios.fleet_schema import VehicleSpec
 
     planner = config.planner
-    if planner is not None and getattr(planner.params, "script", ()):
+    if planner is not None and hasattr(planner.params, "script") and planner.params.script:
         config = config.replace(
             planner=dataclasses.replace(planner, params=dataclasses.replace(planner.params, script=()))
         )
