@@ -1,14 +1,16 @@
-"""Pinhole depth and RGB cameras rendered by ray casting, with optional radial-tangential distortion.
+"""Pinhole depth and image cameras rendered by ray casting (Embree, the LiDAR's scene of the world).
 
 The camera frame C is mounted on the body with ``T_BC`` and is FLU like the body (x forward, y left,
 z up). Images follow the optical convention: column u grows to the right, row v downwards, pixel
-centres at integer (u, v), and (OpenCV) distortion (k1, k2, p1, p2, k3) maps undistorted normalised
-coordinates to distorted ones.
+centres at integer (u, v); lens models (radtan, equidistant) are :mod:`cufund.sensors.camera_models`'.
+
+:class:`RgbCamera` shades each hit with its object's material (:mod:`cufund.worlds.materials`) under a sun and
+ambient light, optionally with hard shadows (one shadow ray per pixel), sensor noise (shot + read), exposure with
+motion blur and a rolling shutter; every option defaults to off (the flat look of plain colours).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import struct
 import zlib
 from pathlib import Path
@@ -17,99 +19,13 @@ import numpy as np
 
 from cufund import _core
 from cufund.core.messages import CameraImage  # noqa: F401 - re-exported: cameras' message
-from cufund.geometry import Transform, quat_mul, quat_to_matrix
+from cufund.geometry import Transform, quat_from_rotvec, quat_mul, quat_to_matrix
+from cufund.worlds.materials import Material
 from cufund.worlds.world import World
 
-# Optical frame O (x right, y down, z forward) -> camera frame C (x forward, y left, z up).
-R_CO = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+from .camera_models import R_CO, CameraIntrinsics
 
-
-@dataclasses.dataclass(frozen=True)
-class CameraIntrinsics:
-    width: int
-    """Image width [px]."""
-    height: int
-    """Image height [px]."""
-    fx: float
-    """Focal length in pixels along u [px]."""
-    fy: float
-    """Focal length in pixels along v [px]."""
-    cx: float
-    """Principal point u [px]."""
-    cy: float
-    """Principal point v [px]."""
-    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
-    """Radial-tangential (k1, k2, p1, p2, k3), OpenCV's order."""
-
-    def __post_init__(self) -> None:
-        for name in ("width", "height"):
-            v = getattr(self, name)
-            if (
-                isinstance(v, bool)
-                or not isinstance(v, (int, float, np.integer, np.floating))
-                or not 1 <= v <= 100_000
-                or int(v) != v
-            ):
-                raise ValueError(f"{name} must be a positive integer [px], got {v}")
-            object.__setattr__(self, name, int(v))
-        for name in ("fx", "fy", "cx", "cy"):
-            if isinstance(getattr(self, name), bool) or not isinstance(
-                getattr(self, name), (int, float, np.integer, np.floating)
-            ):
-                raise ValueError(f"{name} must be a real number [px], got {getattr(self, name)!r}")
-        for name in ("fx", "fy"):
-            v = float(getattr(self, name))
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a finite number > 0 [px], got {v}")
-        for name in ("cx", "cy"):
-            if not np.isfinite(getattr(self, name)):
-                raise ValueError(f"{name} must be finite [px]")
-        try:
-            d = np.asarray(self.distortion, dtype=float)
-        except (TypeError, ValueError):
-            d = np.full(1, np.nan)  # reported below
-        if d.shape != (5,) or not np.all(np.isfinite(d)):
-            raise ValueError(f"distortion must be 5 finite numbers (k1, k2, p1, p2, k3), got {self.distortion!r}")
-        object.__setattr__(self, "distortion", tuple(float(x) for x in d))
-
-    @classmethod
-    def from_fov(cls, width: int, height: int, hfov: float) -> CameraIntrinsics:
-        """Square pixels, principal point at the image centre, horizontal field of view ``hfov`` [rad]."""
-        if not 0 < hfov < np.pi:
-            raise ValueError(f"hfov must be in (0, π) [rad], got {hfov}")
-        f = (width / 2) / np.tan(hfov / 2)
-        return cls(width, height, f, f, (width - 1) / 2, (height - 1) / 2)
-
-    def project(self, p_O: np.ndarray) -> np.ndarray:
-        """(N, 3) points in the optical frame -> (N, 2) distorted pixel coordinates (u, v)."""
-        p_O = np.asarray(p_O, dtype=float)
-        x, y = p_O[:, 0] / p_O[:, 2], p_O[:, 1] / p_O[:, 2]
-        xd, yd = self._distort(x, y)
-        return np.stack([self.fx * xd + self.cx, self.fy * yd + self.cy], 1)
-
-    def _distort(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        k1, k2, p1, p2, k3 = self.distortion
-        r2 = x * x + y * y
-        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        return (
-            x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
-            y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y,
-        )
-
-    def pixel_directions(self) -> np.ndarray:
-        """(H, W, 3) ray directions (x_n, y_n, 1) in the optical frame through each pixel centre,
-        undistorted by fixed-point iteration (exact when distortion is zero)."""
-        u, v = np.meshgrid(np.arange(self.width, dtype=float), np.arange(self.height, dtype=float))
-        xd, yd = (u - self.cx) / self.fx, (v - self.cy) / self.fy
-        x, y = xd.copy(), yd.copy()
-        if any(self.distortion):
-            k1, k2, p1, p2, k3 = self.distortion
-            for _ in range(30):
-                r2 = x * x + y * y
-                radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-                x = (xd - 2 * p1 * x * y - p2 * (r2 + 2 * x * x)) / radial
-                y = (yd - p1 * (r2 + 2 * y * y) - 2 * p2 * x * y) / radial
-        return np.stack([x, y, np.ones_like(x)], -1)
+__all__ = ["R_CO", "CameraIntrinsics", "DepthCamera", "RgbCamera", "d435_depth", "d435_rgb", "save_png"]
 
 
 def d435_depth() -> CameraIntrinsics:
@@ -122,29 +38,65 @@ def d435_rgb() -> CameraIntrinsics:
     return CameraIntrinsics(640, 480, 615.0, 615.0, 319.5, 239.5)
 
 
+def _vec3(name: str, value: object) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        a = np.full(1, np.nan)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
+    return a
+
+
 class _RayCamera:
     def __init__(self, intrinsics: CameraIntrinsics, T_BC: Transform | None, nthreads: int) -> None:
+        if not isinstance(intrinsics, CameraIntrinsics):
+            raise ValueError(f"intrinsics must be a CameraIntrinsics, got {type(intrinsics).__name__}")
+        if T_BC is not None and not isinstance(T_BC, Transform):
+            raise ValueError(f"T_BC must be a cufund.geometry.Transform, got {type(T_BC).__name__}")
         self.intrinsics = intrinsics
         self.T_BC = T_BC or Transform()
         self.nthreads = int(nthreads)
         self._dirs_O = intrinsics.pixel_directions().reshape(-1, 3)
 
-    def _rays(self, p_W: object, q_WB: object) -> tuple[np.ndarray, np.ndarray]:
+    @staticmethod
+    def _pose(p_W: object, q_WB: object) -> tuple[np.ndarray, np.ndarray]:
         p = np.asarray(p_W, dtype=float)
         q = np.asarray(q_WB, dtype=float)
         if p.shape != (3,) or not np.all(np.isfinite(p)):
             raise ValueError(f"p_W must be 3 finite numbers [m], got {p_W!r}")
         if q.shape != (4,) or not np.all(np.isfinite(q)) or np.linalg.norm(q) < 1e-9:
             raise ValueError(f"q_WB must be a non-zero quaternion [w, x, y, z], got {q_WB!r}")
-        q = q / np.linalg.norm(q)
+        return p, q / np.linalg.norm(q)
+
+    def _camera_pose(self, p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(p_WC, R_WO) of the body pose (p, q)."""
         R_WB = quat_to_matrix(q)
         R_WC = quat_to_matrix(quat_mul(q, np.array(self.T_BC.q)))
-        p_WC = p + R_WB @ np.array(self.T_BC.t)
-        R_WO = R_WC @ R_CO
+        return p + R_WB @ np.array(self.T_BC.t), R_WC @ R_CO
+
+    def _rays(self, p_W: object, q_WB: object) -> tuple[np.ndarray, np.ndarray]:
+        p, q = self._pose(p_W, q_WB)
+        p_WC, R_WO = self._camera_pose(p, q)
         rays = np.empty((len(self._dirs_O), 6), np.float32)
         rays[:, :3] = p_WC
         rays[:, 3:] = self._dirs_O @ R_WO.T
         return rays, R_WO
+
+    def _rays_moving(
+        self, p: np.ndarray, q: np.ndarray, v_W: np.ndarray, w_B: np.ndarray, row_dt: np.ndarray
+    ) -> np.ndarray:
+        """Rays with each row r taken at the pose propagated ``row_dt[r]`` seconds from (p, q) at constant
+        world velocity ``v_W`` and body rate ``w_B``."""
+        h, w = self.intrinsics.height, self.intrinsics.width
+        rays = np.empty((h, w, 6), np.float32)
+        dirs = self._dirs_O.reshape(h, w, 3)
+        for dt in np.unique(row_dt):
+            rows = row_dt == dt
+            p_WC, R_WO = self._camera_pose(p + v_W * dt, quat_mul(q, quat_from_rotvec(w_B * dt)))
+            rays[rows, :3] = p_WC
+            rays[rows, 3:] = dirs[rows] @ R_WO.T
+        return rays.reshape(-1, 6)
 
 
 def _scene_of(target: object) -> _core.lidar.RaycastScene:
@@ -153,6 +105,12 @@ def _scene_of(target: object) -> _core.lidar.RaycastScene:
     if isinstance(target, _core.lidar.RaycastScene):
         return target
     raise ValueError(f"target must be a cufund.World or cufund.sensors.RaycastScene, got {type(target).__name__}")
+
+
+def _ids(geometry_ids: np.ndarray) -> np.ndarray:
+    ids = geometry_ids.astype(np.int64)
+    ids[geometry_ids == _core.lidar.INVALID_ID] = -1
+    return ids.astype(np.int32)
 
 
 class DepthCamera(_RayCamera):
@@ -184,23 +142,50 @@ class DepthCamera(_RayCamera):
         """Restarts the seeded depth-noise stream."""
         self._rng = np.random.default_rng(self.seed)
 
-    def render(self, target: World | _core.lidar.RaycastScene, p_W: object, q_WB: object) -> np.ndarray:
-        """(H, W) float32 depth image of ``target`` seen from body pose (p_W, q_WB)."""
+    def render(
+        self, target: World | _core.lidar.RaycastScene, p_W: object, q_WB: object, want_ids: bool = False
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+        """(H, W) float32 depth image of ``target`` seen from body pose (p_W, q_WB). With ``want_ids`` (``target``
+        a World): (depth, ids, labels), ``ids`` (H, W) int32 object id per pixel (-1: nothing hit; also where the
+        depth is out of range) and ``labels`` the world's object labels by id."""
+        if want_ids and not isinstance(target, World):
+            raise ValueError(f"want_ids needs a cufund.World (it holds the labels), got {type(target).__name__}")
         rays, _ = self._rays(p_W, q_WB)
         # direction z_O = 1, so the hit parameter is the depth along the optical axis
-        z = _scene_of(target).cast_rays(rays, nthreads=self.nthreads)["t_hit"].astype(np.float64)
+        hit = _scene_of(target).cast_rays(rays, nthreads=self.nthreads)
+        z = hit["t_hit"].astype(np.float64)
         if self.noise_coeff > 0:
             z = z + self._rng.standard_normal(z.shape) * self.noise_coeff * np.where(np.isfinite(z), z, 0.0) ** 2
         z[(z < self.depth_min) | (z > self.depth_max) | ~np.isfinite(z)] = np.nan
         h, w = self.intrinsics.height, self.intrinsics.width
-        return z.reshape(h, w).astype(np.float32)
+        depth = z.reshape(h, w).astype(np.float32)
+        if not want_ids:
+            return depth
+        assert isinstance(target, World)
+        ids = _ids(hit["geometry_ids"]).reshape(h, w)
+        ids[np.isnan(depth)] = -1
+        return depth, ids, tuple(target.labels())
 
 
 class RgbCamera(_RayCamera):
-    """Colour image from each object's albedo with Lambert shading by a directional light.
+    """Colour (or grey) image of a world's materials lit by a sun and ambient light.
 
-    colour = albedo × (ambient + (1 - ambient) × |n · l|) for the world light direction ``light_W``;
-    ``sky`` where nothing is hit.
+    colour = albedo × (ambient + (1 - ambient) × direct), ``sky`` where nothing is hit. Without ``shadows`` the
+    direct term is |n · l| for the unit direction to the sun ``light_W`` (two-sided, no occlusion: the flat look of
+    earlier versions); with ``shadows`` it is max(0, n · l) with n facing the camera, and 0 where a shadow ray from
+    the hit towards the sun hits anything. The albedo is the object's material at the hit (its ``color`` when it
+    has none).
+
+    Sensor model (all off by default):
+
+    - ``exposure_s`` > 0 with a moving pose (``render(..., v_W=, w_B=)``): the mean of ``blur_samples`` images at
+      poses spread evenly over the exposure, centred on the render time (motion blur). Brightness does not depend
+      on the exposure (auto exposure).
+    - ``line_time_s`` > 0: rolling shutter, row r is exposed ``(r - (H - 1) / 2) × line_time_s`` after the
+      render time (the middle of the readout is the frame's stamp), see :meth:`row_times`.
+    - ``full_well_e`` > 0: shot noise, Poisson in electrons with full scale = ``full_well_e``; ``read_noise_dn``:
+      Gaussian read noise σ [8-bit digital numbers]; seeded (``seed``, :meth:`reset`).
+    - ``grayscale``: (H, W) uint8 luma (0.299 R + 0.587 G + 0.114 B) instead of (H, W, 3) RGB.
     """
 
     def __init__(
@@ -211,6 +196,15 @@ class RgbCamera(_RayCamera):
         ambient: float = 0.3,
         sky: object = (0.55, 0.7, 0.9),
         nthreads: int = 0,
+        *,
+        shadows: bool = False,
+        grayscale: bool = False,
+        exposure_s: float = 0.0,
+        blur_samples: int = 5,
+        line_time_s: float = 0.0,
+        full_well_e: float = 0.0,
+        read_noise_dn: float = 0.0,
+        seed: int = 0,
     ) -> None:
         super().__init__(intrinsics or d435_rgb(), T_BC, nthreads)
         light = np.asarray(light_W, dtype=float)
@@ -221,21 +215,159 @@ class RgbCamera(_RayCamera):
         self.light_W = light / np.linalg.norm(light)
         self.ambient = float(ambient)
         self.sky = np.asarray(sky, dtype=float)
+        for name, v in (
+            ("exposure_s", exposure_s),
+            ("line_time_s", line_time_s),
+            ("full_well_e", full_well_e),
+            ("read_noise_dn", read_noise_dn),
+        ):
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not 0 <= v < 1e9:
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        if (
+            isinstance(blur_samples, bool)
+            or not isinstance(blur_samples, (int, np.integer))
+            or not 1 <= blur_samples <= 64
+        ):
+            raise ValueError(f"blur_samples must be an integer in [1, 64], got {blur_samples!r}")
+        self.shadows, self.grayscale = bool(shadows), bool(grayscale)
+        self.exposure_s, self.blur_samples, self.line_time_s = float(exposure_s), int(blur_samples), float(line_time_s)
+        self.full_well_e, self.read_noise_dn = float(full_well_e), float(read_noise_dn)
+        self.seed = seed
+        self.reset()
 
-    def render(self, world: World, p_W: object, q_WB: object) -> np.ndarray:
-        """(H, W, 3) uint8 RGB image of ``world`` seen from body pose (p_W, q_WB)."""
+    def reset(self) -> None:
+        """Restarts the seeded sensor-noise stream."""
+        self._rng = np.random.default_rng(self.seed)
+
+    def row_times(self, t: float) -> np.ndarray:
+        """(H,) exposure-centre time of each row [s] of a frame stamped ``t`` (all ``t`` for a global shutter)."""
+        return t + self._row_dt()
+
+    def _row_dt(self) -> np.ndarray:
+        h = self.intrinsics.height
+        return (np.arange(h) - (h - 1) / 2) * self.line_time_s
+
+    def render(
+        self,
+        world: World,
+        p_W: object,
+        q_WB: object,
+        want_ids: bool = False,
+        v_W: object = None,
+        w_B: object = None,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+        """(H, W, 3) uint8 RGB (or (H, W) grey) image of ``world`` seen from body pose (p_W, q_WB) at the frame's
+        stamp; ``v_W`` [m/s] and ``w_B`` [rad/s] (world velocity, body rates) move the pose over the exposure and
+        readout. With ``want_ids``: (image, ids, labels), ``ids`` (H, W) int32 object id per pixel (-1: nothing)
+        at the stamp's pose and ``labels`` the world's object labels by id (``labels[ids]``)."""
         if not isinstance(world, World):
             raise ValueError(f"world must be a cufund.World (it holds the colours), got {type(world).__name__}")
-        rays, _ = self._rays(p_W, q_WB)
-        hit = world.raycast_scene.cast_rays(rays, nthreads=self.nthreads)
-        ids = hit["geometry_ids"].astype(np.int64)
-        miss = ids == _core.lidar.INVALID_ID
-        albedo = world.colors()[np.where(miss, -1, ids)]
-        shade = self.ambient + (1 - self.ambient) * np.abs(hit["normals"] @ self.light_W)
-        rgb = albedo * shade[:, None]
-        rgb[miss] = self.sky
-        h, w = self.intrinsics.height, self.intrinsics.width
-        return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8).reshape(h, w, 3)
+        p, q = self._pose(p_W, q_WB)
+        moving = v_W is not None or w_B is not None
+        v = _vec3("v_W", v_W) if v_W is not None else np.zeros(3)
+        w = _vec3("w_B", w_B) if w_B is not None else np.zeros(3)
+        moving = moving and bool(np.any(v) or np.any(w))
+        n = self.blur_samples if (moving and self.exposure_s > 0) else 1
+        row_dt = self._row_dt()
+        h, wd = self.intrinsics.height, self.intrinsics.width
+        acc = np.zeros((h * wd, 3))
+        ids_out = None
+        for k in range(n):
+            dt = self.exposure_s * ((k + 0.5) / n - 0.5) if n > 1 else 0.0
+            if moving and (dt != 0.0 or self.line_time_s > 0):
+                rays = self._rays_moving(p, q, v, w, row_dt + dt)
+            else:
+                rays = self._rays(p, q)[0]
+            lin, ids = self._shade(world, rays)
+            acc += lin
+            if k == n // 2:
+                ids_out = ids
+        lin = acc / n
+        if self.grayscale:
+            lin = lin @ np.array([0.299, 0.587, 0.114])
+        if self.full_well_e > 0:
+            lam = np.clip(lin, 0.0, 1.0) * self.full_well_e
+            lin = self._rng.poisson(lam) / self.full_well_e
+        if self.read_noise_dn > 0:
+            lin = lin + self._rng.standard_normal(lin.shape) * (self.read_noise_dn / 255.0)
+        img = (np.clip(lin, 0, 1) * 255 + 0.5).astype(np.uint8)
+        img = img.reshape(h, wd) if self.grayscale else img.reshape(h, wd, 3)
+        if not want_ids:
+            return img
+        assert ids_out is not None
+        return img, ids_out.reshape(h, wd), tuple(world.labels())
+
+    def _shade(self, world: World, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) linear colour and (N,) int32 object ids of the rays."""
+        scene = world.raycast_scene
+        hit = scene.cast_rays(rays, nthreads=self.nthreads)
+        ids = _ids(hit["geometry_ids"])
+        seen = ids >= 0
+        normals = hit["normals"]
+        rgb = np.empty((len(rays), 3))
+        rgb[~seen] = self.sky
+        if not seen.any():
+            return rgb, ids
+        idx = np.nonzero(seen)[0]
+        n_W = normals[idx].astype(np.float64)
+        t = hit["t_hit"][idx].astype(np.float64)
+        d = rays[idx, 3:].astype(np.float64)
+        p_hit = rays[idx, :3] + d * t[:, None]
+        albedo = _albedo(world, ids[idx], p_hit, n_W, hit, idx)
+        if not self.shadows:
+            direct = np.abs(n_W @ self.light_W)
+        else:
+            facing = np.where(np.einsum("ij,ij->i", n_W, d) > 0, -1.0, 1.0)
+            n_f = n_W * facing[:, None]
+            direct = np.maximum(n_f @ self.light_W, 0.0)
+            lit = np.nonzero(direct > 0)[0]
+            if len(lit):
+                shadow = np.empty((len(lit), 6), np.float32)
+                eps = 1e-4 * (1.0 + t[lit] * np.linalg.norm(d[lit], axis=1))
+                shadow[:, :3] = p_hit[lit] + n_f[lit] * eps[:, None]
+                shadow[:, 3:] = self.light_W
+                blocked = np.isfinite(scene.cast_rays(shadow, nthreads=self.nthreads, coherent=False)["t_hit"])
+                direct[lit[blocked]] = 0.0
+        rgb[idx] = albedo * (self.ambient + (1 - self.ambient) * direct)[:, None]
+        return rgb, ids
+
+
+def _albedo(world: World, ids: np.ndarray, p_W: np.ndarray, n_W: np.ndarray, hit: dict, idx: np.ndarray) -> np.ndarray:
+    """(M, 3) albedo at the hits of objects ``ids`` (their materials, or plain colours)."""
+    objects = world.objects
+    out = world.colors()[ids]
+    mats: dict[Material, list[int]] = {}
+    for obj in objects:
+        if obj.material is not None:
+            mats.setdefault(obj.material, []).append(obj.id)
+    if not mats:
+        return out
+    for mat, oids in mats.items():
+        sel = np.nonzero(np.isin(ids, oids))[0]
+        if not len(sel):
+            continue
+        uv_objs = [oid for oid in oids if objects[oid].uvs is not None] if mat.texture == "image" else []
+        if uv_objs:
+            for oid in uv_objs:
+                s = sel[ids[sel] == oid]
+                obj = objects[oid]
+                assert obj.uvs is not None
+                prim = hit["primitive_ids"][idx[s]].astype(np.int64)
+                b = hit["primitive_uvs"][idx[s]].astype(np.float64)
+                tri = obj.triangles[prim]
+                uv = (
+                    (1 - b[:, :1] - b[:, 1:]) * obj.uvs[tri[:, 0]]
+                    + b[:, :1] * obj.uvs[tri[:, 1]]
+                    + b[:, 1:] * obj.uvs[tri[:, 2]]
+                )
+                out[s] = mat.albedo_at(p_W[s], n_W[s], uv)
+            sel = sel[~np.isin(ids[sel], uv_objs)]
+            if not len(sel):
+                continue
+        # each object's texture shifted by its id, so objects sharing a material do not repeat one another
+        offset = (ids[sel, None] * np.array([7.31, 3.17])) % 97.0
+        out[sel] = mat.albedo_at(p_W[sel], n_W[sel], None, offset)
+    return out
 
 
 def save_png(path: str | Path, image: np.ndarray, depth_scale: float = 1000.0) -> None:

@@ -111,6 +111,15 @@ BUILTIN: dict[str, Callable[..., World]] = {
 }
 
 
+def _vio_room(seed: int = 0) -> World:
+    from .vio_room import vio_room
+
+    return vio_room(seed)
+
+
+BUILTIN["vio_room"] = _vio_room
+
+
 def load(name: str, **kwargs: object) -> World:
     """A built-in world by name (keyword arguments go to its builder, e.g. ``seed`` for forest),
     or a world described in a YAML file when ``name`` ends in .yaml / .yml."""

@@ -11,6 +11,7 @@ from cufund.core.config import ConfigError, check_at_most, check_real_fields
 from cufund.core.registry import Kind, register
 
 from .builtin import corridor, empty, forest, imav2025_tunnel
+from .vio_room import vio_room
 
 
 @dataclass(frozen=True)
@@ -113,3 +114,27 @@ register(
     )
 )
 register(Kind("world", "file", FileParams, _file, None, "a world YAML file (world.path)"))
+
+
+@dataclass(frozen=True)
+class VioRoomParams:
+    """The textured indoor room of :mod:`cufund.worlds.vio_room`."""
+
+    seed: int = 0
+    """Layout seed of its posters, rugs and crates."""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ConfigError(f"world.seed must be an integer >= 0, got {self.seed!r}")
+
+
+register(
+    Kind(
+        "world",
+        "vio_room",
+        VioRoomParams,
+        lambda p, ctx: vio_room(p.seed),
+        None,
+        "an 8 x 6 x 3 m textured room (posters, shelves, brick and concrete) for visual odometry",
+    )
+)

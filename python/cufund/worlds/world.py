@@ -11,6 +11,7 @@ import numpy as np
 from cufund import _core
 
 from . import primitives
+from .materials import Material
 
 
 @dataclasses.dataclass(frozen=True)
@@ -29,6 +30,10 @@ class WorldObject:
     """(T, 3) int64 vertex indices."""
     reflectivity: float = 0.8
     """LiDAR reflectivity in [0, 1]; intensity = reflectivity × |cos(incidence)|."""
+    material: Material | None = None
+    """How cameras see it (:class:`cufund.worlds.materials.Material`); None: plain ``color``."""
+    uvs: np.ndarray | None = None
+    """(V, 2) texture coordinates per vertex (OBJ ``vt``) for an image material, or None."""
 
 
 def _floats(name: str, value: object, what: str) -> np.ndarray:
@@ -86,8 +91,12 @@ class World:
         position: object = (0.0, 0.0, 0.0),
         yaw: float = 0.0,
         reflectivity: float = 0.8,
+        material: object = None,
+        uvs: object = None,
     ) -> WorldObject:
-        """Adds a mesh given in its own frame, placed at ``position`` [m] rotated by ``yaw`` [rad] about z."""
+        """Adds a mesh given in its own frame, placed at ``position`` [m] rotated by ``yaw`` [rad] about z.
+        ``material``: a :class:`~cufund.worlds.materials.Material` (or a mapping of its fields) for cameras;
+        ``uvs``: (V, 2) texture coordinates of an image material."""
         v = _floats("vertices", vertices, "an array of shape (V, 3) [m]")
         f = np.asarray(triangles)
         if v.ndim != 2 or v.shape[1] != 3:
@@ -107,24 +116,49 @@ class World:
         ):
             raise ValueError(f"reflectivity must be in [0, 1], got {reflectivity}")
         R, p = _pose_matrix(position, yaw)
+        mat = None if material is None else Material.of(material)
+        uv = None
+        if uvs is not None:
+            uv = _floats("uvs", uvs, "an array of shape (V, 2)")
+            if uv.shape != (len(v), 2) or not np.all(np.isfinite(uv)):
+                raise ValueError(f"uvs must be {len(v)} finite (u, v) pairs, one per vertex, got shape {uv.shape}")
         obj = WorldObject(
-            len(self._objects), str(label), _color(color), v @ R.T + p, f.astype(np.int64), float(reflectivity)
+            len(self._objects),
+            str(label),
+            _color(color),
+            v @ R.T + p,
+            f.astype(np.int64),
+            float(reflectivity),
+            mat,
+            uv,
         )
         self._objects.append(obj)
         self._scene = None
         return obj
 
     def add_box(
-        self, size: Any, position: object, yaw: float = 0.0, label: str = "box", color: object = (0.7, 0.7, 0.7)
+        self,
+        size: Any,
+        position: object,
+        yaw: float = 0.0,
+        label: str = "box",
+        color: object = (0.7, 0.7, 0.7),
+        material: object = None,
     ) -> WorldObject:
         """Box of edge lengths ``size`` (sx, sy, sz) [m] centred at ``position``."""
-        return self.add_mesh(*primitives.box(size), label, color, position, yaw)
+        return self.add_mesh(*primitives.box(size), label, color, position, yaw, material=material)
 
     def add_plane(
-        self, size: Any, position: object, yaw: float = 0.0, label: str = "floor", color: object = (0.5, 0.5, 0.5)
+        self,
+        size: Any,
+        position: object,
+        yaw: float = 0.0,
+        label: str = "floor",
+        color: object = (0.5, 0.5, 0.5),
+        material: object = None,
     ) -> WorldObject:
         """Horizontal rectangle (sx, sy) [m] at ``position``, facing up."""
-        return self.add_mesh(*primitives.plane(size), label, color, position, yaw)
+        return self.add_mesh(*primitives.plane(size), label, color, position, yaw, material=material)
 
     def add_cylinder(
         self,
@@ -134,9 +168,10 @@ class World:
         label: str = "cylinder",
         color: object = (0.7, 0.7, 0.7),
         segments: int = 32,
+        material: object = None,
     ) -> WorldObject:
         """Vertical capped cylinder centred at ``position``."""
-        return self.add_mesh(*primitives.cylinder(radius, height, segments), label, color, position)
+        return self.add_mesh(*primitives.cylinder(radius, height, segments), label, color, position, material=material)
 
     def add_sphere(
         self,
@@ -145,8 +180,9 @@ class World:
         label: str = "sphere",
         color: object = (0.7, 0.7, 0.7),
         subdivisions: int = 3,
+        material: object = None,
     ) -> WorldObject:
-        return self.add_mesh(*primitives.sphere(radius, subdivisions), label, color, position)
+        return self.add_mesh(*primitives.sphere(radius, subdivisions), label, color, position, material=material)
 
     def add_tunnel_frame(
         self,
@@ -158,10 +194,12 @@ class World:
         yaw: float = 0.0,
         label: str = "tunnel_frame",
         color: object = (0.9, 0.4, 0.1),
+        material: object = None,
     ) -> WorldObject:
         """Rectangular frame around an opening width (y) × height (z) [m] centred at ``position``;
         flown through along x (rotated by ``yaw``)."""
-        return self.add_mesh(*primitives.tunnel_frame(width, height, depth, thickness), label, color, position, yaw)
+        mesh = primitives.tunnel_frame(width, height, depth, thickness)
+        return self.add_mesh(*mesh, label, color, position, yaw, material=material)
 
     def load_mesh(
         self,
@@ -171,8 +209,11 @@ class World:
         position: object = (0.0, 0.0, 0.0),
         yaw: float = 0.0,
         scale: float = 1.0,
+        material: object = None,
     ) -> WorldObject:
-        """Adds a mesh from an OBJ, STL or PLY file (read with trimesh), scaled by ``scale``."""
+        """Adds a mesh from an OBJ, STL or PLY file (read with trimesh), scaled by ``scale``. An OBJ with UVs
+        (``vt``) and an MTL whose ``map_Kd`` names a PNG gets that image as its material unless ``material`` is
+        given."""
         import trimesh  # imported here: only mesh files need it
 
         path = Path(path)
@@ -203,7 +244,9 @@ class World:
                 f"mesh file {str(path)!r} holds {len(faces)} triangles, more than mesh_max_triangles = "
                 f"{cap} (cufund.core.limits.configure(mesh_max_triangles=...))"
             )
-        return self.add_mesh(vertices * scale, faces, label or path.stem, color, position, yaw)
+        uvs, mtl_material = _mesh_texture(mesh, path)
+        mat = mtl_material if material is None else material
+        return self.add_mesh(vertices * scale, faces, label or path.stem, color, position, yaw, material=mat, uvs=uvs)
 
     # --- queries ------------------------------------------------------------------------------
     @property
@@ -220,6 +263,10 @@ class World:
     def colors(self) -> np.ndarray:
         """(n_objects + 1, 3) albedo per object id; the last row (index -1) is black for misses."""
         return np.array([o.color for o in self._objects] + [(0.0, 0.0, 0.0)], dtype=float).reshape(-1, 3)
+
+    def materials(self) -> list[Material | None]:
+        """Each object's material (None: plain colour), by object id."""
+        return [o.material for o in self._objects]
 
     def reflectivities(self) -> np.ndarray:
         """(n_objects + 1,) reflectivity per object id; the last entry (misses) is 0."""
@@ -261,3 +308,29 @@ def _check_obj_faces(path: Path) -> None:
                             f"{path}:{line_no}: face index {k} must be in [1, {vertices}] (OBJ indices "
                             f"start at 1; negative ones count back from the last vertex)"
                         )
+
+
+def _mesh_texture(mesh: Any, path: Path) -> tuple[np.ndarray | None, Material | None]:
+    """The UVs of a trimesh mesh and, when its MTL names a readable image (map_Kd), that image as a Material;
+    (None, None) without UVs. A broken texture reference is an error naming the mesh file."""
+    visual = getattr(mesh, "visual", None)
+    uv = getattr(visual, "uv", None)
+    if uv is None:
+        return None, None
+    uv = np.asarray(uv, dtype=float)
+    if uv.ndim != 2 or uv.shape != (len(mesh.vertices), 2) or not np.all(np.isfinite(uv)):
+        raise ValueError(f"mesh file {str(path)!r}: texture coordinates must be one finite (u, v) per vertex")
+    mtl = path.with_suffix(".mtl")
+    image = None
+    if mtl.is_file():
+        for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
+            parts = line.split()
+            if len(parts) >= 2 and parts[0] == "map_Kd":
+                image = (path.parent / parts[-1]).resolve()
+                break
+    if image is None:
+        return uv, None
+    try:
+        return uv, Material(texture="image", image=str(image), albedo=(1.0, 1.0, 1.0))
+    except ValueError as e:
+        raise ValueError(f"mesh file {str(path)!r}: its MTL's map_Kd: {e}") from None
