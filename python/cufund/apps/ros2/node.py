@@ -36,6 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-ack", action="store_true", help="never answer (a node that does not play lockstep)")
     ap.add_argument("--idle-exit", type=float, default=5.0, help="exit after this long without a message [s]")
     ap.add_argument("--out", help="JSON summary file")
+    ap.add_argument("--topics", help="comma-separated subset of /clock,/imu,/tf,/tf_static and the LiDAR to read")
     args = ap.parse_args(argv)
 
     dds = DdsParticipant(args.domain)
@@ -46,6 +47,9 @@ def main(argv: list[str] | None = None) -> int:
         "/tf_static": dds.reader("/tf_static", "tf2_msgs/msg/TFMessage", QOS["tf_static"]),
         args.lidar: dds.reader(args.lidar, "sensor_msgs/msg/PointCloud2", QosProfile(depth=1000)),
     }
+    if args.topics:
+        keep = set(args.topics.split(",")) | {"/clock"}
+        readers = {k: v for k, v in readers.items() if k in keep}
     ack = dds.topic(ACK_TOPIC, "std_msgs/msg/Header")
     from cyclonedds.pub import DataWriter
 

@@ -1,0 +1,104 @@
+"""The ROS 2 bridge against an external node: a Cyclone DDS participant in its own process
+(:mod:`cufund.apps.ros2.node`) that decodes what it receives with its own IDL structs (not cufund's CDR encoder)
+receives /clock, /imu, /tf, /tf_static and the LiDAR with ROS 2's type names and the run's values, and its
+PoseStamped goal flies the vehicle there."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+pytest.importorskip("cyclonedds")
+
+from cufund.scenarios.build import run_scenario
+from cufund.scenarios.schema import ScenarioConfig, load_scenario
+
+NS = 1_000_000_000
+
+
+def domain(offset: int) -> int:
+    return 1 + (os.getpid() * 7 + offset) % 140
+
+
+def start_node(tmp_path, d: int, name: str, *extra: str) -> tuple[subprocess.Popen, str]:
+    out = str(tmp_path / f"{name}.json")
+    cmd = [sys.executable, "-m", "cufund.apps.ros2.node", "--domain", str(d), "--name", name, "--out", out]
+    return subprocess.Popen([*cmd, "--idle-exit", "3", *extra]), out
+
+
+def scenario(name: str, ros2: dict, **changes) -> ScenarioConfig:
+    cfg = load_scenario(name)
+    data = cfg.to_dict()
+    data.update(changes)
+    data["ros2"] = ros2
+    return ScenarioConfig.from_dict(data, cfg.base_dir)
+
+
+def finish(node: subprocess.Popen, out: str) -> dict:
+    assert node.wait(timeout=60) == 0
+    with open(out) as f:
+        return json.load(f)
+
+
+def test_the_node_receives_the_sensors_with_ros2_types_and_values(tmp_path):
+    d = domain(1)
+    node, out = start_node(tmp_path, d, "listener")
+    cfg = scenario("square_lio", {"domain_id": d, "lockstep_nodes": ["listener"], "timeout_s": 30}, duration=0.4)
+    run = run_scenario(cfg)
+    got = finish(node, out)
+    assert got["types"] == {
+        "/clock": "rosgraph_msgs::msg::dds_::Clock_",
+        "/imu": "sensor_msgs::msg::dds_::Imu_",
+        "/tf": "tf2_msgs::msg::dds_::TFMessage_",
+        "/tf_static": "tf2_msgs::msg::dds_::TFMessage_",
+        "/livox/lidar": "sensor_msgs::msg::dds_::PointCloud2_",
+    }
+    rec = got["received"]
+    imu = run.result.topics["/sensors/imu"]
+    assert len(rec["/imu"]) == len(imu["t"]) > 50  # every sample (lockstep)
+    stamps = np.array([r[0] for r in rec["/imu"]])
+    np.testing.assert_array_equal(stamps, np.round(np.asarray(imu["t"]) * NS).astype(np.int64))
+    assert {r[1] for r in rec["/imu"]} == {"imu"}
+    np.testing.assert_array_equal(np.array([r[2:5] for r in rec["/imu"]]), np.asarray(imu["w_I"]))
+    np.testing.assert_array_equal(np.array([r[5:8] for r in rec["/imu"]]), np.asarray(imu["f_I"]))
+    # /clock: one per bridge step (the IMU's rate), increasing
+    clock = np.array(rec["/clock"])
+    assert len(clock) >= len(stamps) and np.all(np.diff(clock) > 0)
+    # /tf_static: the LiDAR's mounting from the scenario, odom under world
+    static = {(r[1], r[2]): r[3:] for r in rec["/tf_static"]}
+    lidar = cfg.sensors["lidar"].extrinsic
+    w, x, y, z = lidar.q
+    np.testing.assert_allclose(static[("base_link", "lidar")], [*lidar.t, x, y, z, w])
+    assert ("world", "odom") in static
+    # /tf: the truth under world and the estimate under odom, each at the truth's / the estimate's stamps
+    children = {(r[1], r[2]) for r in rec["/tf"]}
+    estimated = len(run.result.topics.get("/estimator/odometry", {}).get("t", [])) > 0
+    assert children == {("world", "base_link_truth"), *([("odom", "base_link")] if estimated else [])}
+    # the LiDAR: livox_ros_driver2's point layout, its frames' sizes
+    clouds = rec["/livox/lidar"]
+    assert clouds and all(c[1] == "lidar" for c in clouds)
+    assert clouds[0][4] == ["x", "y", "z", "intensity", "tag", "line", "timestamp"] and clouds[0][3] == 26
+    assert all(c[5] == c[2] * 26 for c in clouds)
+
+
+def test_a_pose_goal_from_the_node_flies_the_vehicle_there(tmp_path):
+    d = domain(2)
+    goal = (-1.0, 1.0, 1.2)
+    node, out = start_node(tmp_path, d, "planner", f"--goal={goal[0]},{goal[1]},{goal[2]},0.5", "--topics", "/clock")
+    cfg = scenario(
+        "vehicle",
+        {"domain_id": d, "lockstep_nodes": ["planner"], "rate_hz": 50.0, "timeout_s": 30},
+        duration=12.0,
+        planner={"kind": "commander", "takeoff_altitude": 1.2},
+    )
+    run = run_scenario(cfg)
+    finish(node, out)
+    p = run.result.states["p_W"]
+    start = np.asarray(cfg.start_p_W)
+    assert np.linalg.norm(p[0] - start) < 0.05
+    assert np.linalg.norm(p[-1] - np.asarray(goal)) < 0.2, f"ended at {p[-1]}, goal {goal}"
