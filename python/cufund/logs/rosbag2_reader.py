@@ -105,10 +105,12 @@ def is_rosbag2(path: str | os.PathLike[str]) -> bool:
 
 
 def _open(path: Path) -> Any:
-    from rosbags.highlevel import AnyReader, AnyReaderError
-
     if not is_rosbag2(path):
         raise BagReadError(f"{str(path)!r} is not a ROS 2 bag (a folder with metadata.yaml)")
+    try:
+        from rosbags.highlevel import AnyReader, AnyReaderError
+    except ImportError as exc:
+        raise BagReadError(f"reading a ROS 2 bag needs rosbags (pip install 'cufund[ros2]'): {exc}") from exc
     reader = AnyReader([path], default_typestore=rosbags_typestore())
     try:
         reader.open()

@@ -86,7 +86,10 @@ def write_bag(log: str | os.PathLike[str], out: str | os.PathLike[str], storage:
     """Writes the ROS 2 bag of the cufund log ``log`` (a ``run.mcap``, or a run folder holding one) to the new
     folder ``out`` with ``storage`` (:data:`STORAGES`). ValueError naming the problem for a missing or damaged log,
     an existing ``out`` or an unknown storage."""
-    from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+    try:
+        from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+    except ImportError as exc:
+        raise ValueError(f"cufund bag needs rosbags (pip install 'cufund[ros2]'): {exc}") from exc
 
     from cufund.logs.mcap_reader import log_metadata
 
