@@ -255,6 +255,10 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
     """The vehicle, world, components and simulator of ``config``, validated: unknown kinds, bad params, an
     unsatisfied input ("planner needs /map/esdf; nothing publishes it"), ground truth read by flight software,
     or a zero-latency cycle raise :class:`ConfigError` naming the part — before anything runs."""
+    if config.vehicles:
+        raise ConfigError(
+            f"scenario {config.name!r} lists vehicles: a fleet, built by cufund.scenarios.fleet.build_fleet"
+        )
     ctx = ScenarioBuildContext(config)
     if config.world is not None:
         ctx.world = ctx.build("world", config.world, "world")

@@ -89,8 +89,9 @@ class FleetVehicle:
 
     @property
     def bus(self) -> Any:
-        """Its simulator's bus (topics without the namespace: each vehicle has its own bus)."""
-        return self.built.simulator.bus
+        """Its simulator's bus (topics without the namespace: each vehicle has its own bus); None until the run
+        starts (the fleet's first ``advance_to`` or ``run``)."""
+        return getattr(self.built.simulator, "bus", None)
 
     @property
     def commander(self) -> Any:

@@ -34,7 +34,7 @@ from cufund.core.messages import Odometry
 from cufund.core.scheduler import NS
 from cufund.geometry import quat_to_matrix
 from cufund.worlds.collision import CollisionChecker
-from cufund.worlds.downwash import DownwashConfig, downwash_force
+from cufund.worlds.downwash import CUTOFF_HALF_WIDTHS, JET_S, DownwashConfig, downwash_force
 from cufund.worlds.world import World
 
 from .fleet_view import VehicleBox, WorldWithVehicles, box_mesh_W
@@ -291,11 +291,19 @@ class FleetSimulator:
             quad = m.simulator.vehicle
             w = np.asarray(quad.state.rotor_speeds)  # type: ignore[union-attr]
             thrust.append(float(quad.params.k_f * np.sum(w * w)))  # type: ignore[union-attr]
+        # which vehicle may be in which jet: s along j's axis (-z_B), r from it; a jet is at most
+        # CUTOFF_HALF_WIDTHS * max(d_J / 2, S s) wide (d_J well under 1 m), a vehicle's rotors within 1 m of it
+        axes = np.array([-Rj[:, 2] for Rj in R])
+        rel = p[None, :, :] - p[:, None, :]  # rel[j, i] = p_i - p_j
+        s_ji = np.einsum("jik,jk->ji", rel, axes)
+        r_ji = np.linalg.norm(rel - s_ji[:, :, None] * axes[:, None, :], axis=2)
+        reach = CUTOFF_HALF_WIDTHS * np.maximum(JET_S * (s_ji + 1.0), 1.0) + 1.0
+        may = (s_ji > -1.0) & (r_ji <= reach) & (d.T <= cfg.max_range_m)
         for i, m in enumerate(self.members):
             sources = [
                 (thrust[j], p[j], R[j], self.members[j].rotor_radius_m)
                 for j in range(n)
-                if j != i and thrust[j] > 0 and d[i, j] <= cfg.max_range_m and p[j][2] > p[i][2] - 1.0
+                if j != i and thrust[j] > 0 and may[j, i]
             ]
             force = np.zeros(3)
             if sources:

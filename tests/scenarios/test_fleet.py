@@ -1,0 +1,143 @@
+"""Fleets in one world: far apart, each vehicle's run is its single-vehicle run bit for bit; a head-on pair without
+deconfliction collides (CRASHED, naming both); the ``vehicles:`` key's errors name the field."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from cufund.core.config import ConfigError
+from cufund.scenarios.build import build_simulation, run_scenario
+from cufund.scenarios.fleet import build_fleet, vehicle_scenario, vehicle_seed
+from cufund.scenarios.fleet_folder import run_fleet_into_folder
+from cufund.scenarios.schema import ScenarioConfig, load_scenario
+
+TIMING = ("wall_time_s", "real_time_factor", "component_seconds")
+
+
+def _fleet(vehicles, **extra):
+    data = load_scenario("square").to_dict()
+    data.update(name="fleet_test", vehicles=vehicles, **extra)
+    return ScenarioConfig.from_dict(data)
+
+
+def _square_at(name, x, y):
+    wp = [[x, y, 1.5], [x + 1, y, 1.5], [x + 1, y + 1, 1.5], [x, y + 1, 1.5], [x, y, 1.5]]
+    return {"name": name, "start": {"p": [x, y, 0.0]}, "trajectory": {"waypoints": wp}}
+
+
+def _untimed(m):
+    return {k: v for k, v in m.items() if k not in TIMING}
+
+
+def test_far_apart_each_vehicle_is_its_single_run_bit_for_bit():
+    cfg = _fleet([_square_at("uav1", 0, 0), _square_at("uav2", 40, 0), _square_at("uav3", 0, 40)], downwash=True)
+    run = build_fleet(cfg).run()
+    assert run.status == "completed" and run.metrics["fleet_collisions"] == 0
+    assert run.metrics["fleet_min_separation_m"] == pytest.approx(40.0)
+    for name in ("uav1", "uav2", "uav3"):
+        alone = run_scenario(vehicle_scenario(cfg, name))
+        assert alone.config.seed == vehicle_seed(cfg.seed, name)
+        a, b = alone.result.states, run.runs[name].result.states
+        assert set(a) == set(b)
+        for k in a:
+            assert np.array_equal(a[k], b[k]), (name, k)
+        assert _untimed(alone.metrics) == _untimed(run.metrics["vehicles"][name])
+    # the seeds differ per vehicle and do not depend on the other vehicles
+    assert len({vehicle_seed(0, n) for n in ("uav1", "uav2", "uav3")}) == 3
+    two = _fleet([_square_at("uav2", 40, 0)])
+    assert vehicle_scenario(two, "uav2").seed == vehicle_scenario(cfg, "uav2").seed
+
+
+def test_noisy_sensors_far_apart_bit_for_bit():
+    """With sensor noise and an estimator's inputs the per-vehicle streams are the single run's."""
+    base = load_scenario("square_sensors").to_dict()
+    base.update(name="fleet_sensors", duration=6.0)
+    base["vehicles"] = [{"name": "a", "start": {"p": [0, 0, 0]}}, _square_at("b", 30, 0)]
+    cfg = ScenarioConfig.from_dict(base)
+    run = build_fleet(cfg).run()
+    for name in ("a", "b"):
+        alone = run_scenario(vehicle_scenario(cfg, name))
+        for k, v in alone.result.states.items():
+            assert np.array_equal(v, run.runs[name].result.states[k]), (name, k)
+        assert _untimed(alone.metrics) == _untimed(run.metrics["vehicles"][name])
+    # and the two vehicles' noise differs (their own streams, not one shared)
+    ta, tb = (run.runs[n].result.topics for n in ("a", "b"))
+    common = sorted(set(ta) & set(tb))
+    assert common and any(
+        not np.array_equal(np.asarray(ta[t][f]), np.asarray(tb[t][f])) for t in common for f in ta[t] if f != "t"
+    )
+
+
+def test_head_on_pair_collides():
+    a = {"name": "east", "start": {"p": [0, 0, 0]}, "trajectory": {"waypoints": [[0, 0, 1.5], [6, 0, 1.5]]}}
+    b = {"name": "west", "start": {"p": [6, 0, 0]}, "trajectory": {"waypoints": [[6, 0, 1.5], [0, 0, 1.5]]}}
+    run = build_fleet(_fleet([a, b], duration=20.0)).run()
+    assert run.metrics["fleet_collisions"] >= 1
+    assert run.status == "crashed"
+    assert "east" in run.message and "west" in run.message
+    for name, other in (("east", "west"), ("west", "east")):
+        m = run.metrics["vehicles"][name]
+        assert m["status"] == "crashed" and other in m["message"]
+    event = run.metrics["fleet_collision_events"][0]
+    assert set(event["vehicles"]) == {"east", "west"} and 2.0 < event["point_W"][0] < 4.0
+    assert run.metrics["fleet_min_separation_m"] < 0.3
+
+
+def test_fleet_square_scenario(tmp_path):
+    """The built-in fleet_square completes and each vehicle tracks as well as the single-vehicle square."""
+    single = run_scenario(load_scenario("square")).metrics["tracking_rmse_m"]
+    run = run_fleet_into_folder(load_scenario("fleet_square"), tmp_path, plots=False, replay=False)
+    m = json.loads((tmp_path / "metrics.json").read_text())
+    assert run.status == "completed" and m["status"] == "completed"
+    assert set(m["vehicles"]) == {"uav1", "uav2", "uav3"} and m["fleet_collisions"] == 0
+    assert m["fleet_min_separation_m"] == pytest.approx(3.0, abs=0.05)
+    for vm in m["vehicles"].values():
+        assert vm["status"] == "completed"
+        assert vm["tracking_rmse_m"] <= single * 1.05
+    from cufund.logs.mcap_reader import log_topics
+
+    topics = set(log_topics(tmp_path / "run.mcap"))  # each vehicle's messages under its namespace
+    for name in ("uav1", "uav2", "uav3"):
+        assert f"/{name}/control/actuator_command" in topics or any(t.startswith(f"/{name}/") for t in topics)
+    assert not any(t.startswith(("/control", "/truth", "/sensors")) for t in topics)
+
+
+def test_vehicle_access_for_a_driver():
+    fleet = build_fleet(load_scenario("fleet_square"))
+    assert fleet.names == ("uav1", "uav2", "uav3")
+    v = fleet.vehicle("uav2")
+    assert v.simulator is v.built.simulator and v.bus is None  # before the run starts
+    assert v.topic("/sensors/imu") == "/uav2/sensors/imu"
+    assert fleet.advance_to(0.5)
+    assert v.bus is v.simulator.bus
+    assert fleet.t == pytest.approx(0.5) and v.simulator.t == pytest.approx(0.5)
+    with pytest.raises(KeyError, match="uav9"):
+        fleet.vehicle("uav9")
+
+
+@pytest.mark.parametrize(
+    "vehicles, match",
+    [
+        ("uav1", "vehicles must be a list"),
+        ([], "at least one vehicle"),
+        ([{"start": {"p": [0, 0, 0]}}], r"vehicles\[0\].name"),
+        ([{"name": "a"}, {"name": "a"}], "two vehicles are named 'a'"),
+        ([{"name": "a", "start": {"p": [0, 0]}}], "vehicles.a.start.p must be 3 numbers"),
+        ([{"name": "a", "start": {"yaw": 90}}], "radians, not degrees"),
+        ([{"name": "a", "world": "forest"}], "unknown key 'world' in vehicles.a"),
+        ([{"name": "a", "controller": "nosuch"}], "vehicles.a"),
+    ],
+)
+def test_bad_vehicles_named(vehicles, match):
+    with pytest.raises(ConfigError, match=match):
+        cfg = _fleet(vehicles)
+        build_fleet(cfg)
+
+
+def test_single_vehicle_build_refuses_a_fleet():
+    with pytest.raises(ConfigError, match="build_fleet"):
+        build_simulation(load_scenario("fleet_square"))
+    assert "vehicles" not in load_scenario("square").to_dict()  # a single vehicle's config.yaml as before
