@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .link import LinkAddress
+from .px4_links import PX4_SITL_BASE_PORT
 
 __all__ = [
     "API_LOCAL_BASE",
@@ -38,7 +39,7 @@ GCS_LOCAL_BASE = 18570
 """PX4 instance i's ground-station link sends from local port 18570 + i."""
 API_LOCAL_BASE = 14580
 """PX4 instance i's offboard link sends from local port 14580 + i (to 14540 + i)."""
-PX4_SIM_BASE = 4560
+PX4_SIM_BASE = PX4_SITL_BASE_PORT
 """PX4 instance i connects to its simulator on TCP 4560 + i."""
 MAX_VEHICLES = 255
 """MAVLink system ids are 1..255."""

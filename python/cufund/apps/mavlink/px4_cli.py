@@ -108,6 +108,10 @@ def run(args: argparse.Namespace) -> int:
                 raise ConfigError(f"--cpu must be one of the CPUs this process may use {cpus}, got {args.cpu}")
         config = load_scenario(args.scenario, parse_overrides(args.overrides))
         params = Px4BridgeParams(speed=speed, lockstep=args.hitl is None)
+        if config.vehicles is not None:  # a fleet: N SITL instances on TCP 4560 + instance + i (fleet_px4.py)
+            from .fleet_px4 import serve_px4_fleet
+
+            return serve_px4_fleet(args, config, params)
         gcs_address = _gcs(args.gcs) if args.hitl else None
         link = SerialLink(args.hitl, args.baud) if args.hitl else TcpServerLink(args.host, 4560 + args.instance)
         gcs = GcsForward(*gcs_address) if gcs_address is not None else None

@@ -196,7 +196,9 @@ class Px4SimulatorBridge:
     ``simulator`` is the cufund simulator (set the initial state through ``simulator.vehicle`` before
     :meth:`run`); ``stats`` counts what went over the link. ``gcs`` (HITL): a
     :class:`~cufund.apps.mavlink.px4_links.GcsForward` relaying the flight controller's MAVLink to a ground station and
-    back, since the board's USB port is the simulator's.
+    back, since the board's USB port is the simulator's. ``built``: serve this :class:`Built` (a fleet's vehicle,
+    made PX4's world already) instead of building ``config``; :meth:`connect`, advancing ``simulator`` and
+    :meth:`disconnect` are then the caller's (:class:`~cufund.apps.mavlink.fleet_px4.Px4FleetBridge`).
     """
 
     def __init__(
@@ -208,14 +210,18 @@ class Px4SimulatorBridge:
         host: str = "127.0.0.1",
         airframe: Px4Airframe | None = None,
         gcs: GcsForward | None = None,
+        built: Any = None,
     ) -> None:
         self.params = params if params is not None else Px4BridgeParams()
         if not isinstance(self.params, Px4BridgeParams):
             raise TypeError(f"params must be a Px4BridgeParams, got {type(self.params).__name__}")
         if isinstance(instance, bool) or not isinstance(instance, int) or not 0 <= instance <= 60000:
             raise ValueError(f"instance must be an integer in [0, 60000], got {instance!r}")
-        self.config = px4_scenario(config)
-        self.built = build_simulation(self.config, extra_components=())
+        if built is None:
+            self.config = px4_scenario(config)
+            self.built = build_simulation(self.config, extra_components=())
+        else:  # a fleet's vehicle, built already as PX4's world (apps/mavlink/fleet_px4.py)
+            self.config, self.built = built.config, built
         self.simulator = sim = self.built.simulator
         nodes = sim.physics_rate_hz / self.params.record_rate_hz
         if abs(nodes - round(nodes)) > 1e-9 or nodes < 1:
@@ -485,10 +491,7 @@ class Px4SimulatorBridge:
             or duration <= 0
         ):
             raise ValueError(f"duration must be a number of seconds > 0 or None, got {duration!r}")
-        accept = getattr(self.link, "accept", None)
-        if accept is not None and not accept(connect_timeout):
-            raise TimeoutError(f"PX4 did not connect to {self.link.host}:{self.link.port} within {connect_timeout} s")
-        self._reset_link_state()
+        self.connect(connect_timeout)
         sim = self.simulator
         sim.reset()
         end = sim.t + duration if duration is not None else math.inf
@@ -498,10 +501,22 @@ class Px4SimulatorBridge:
                 break
         if sim.status is None:
             sim.stop(RunStatus.COMPLETED, "duration elapsed")
+        self.disconnect()
+        return sim.result()
+
+    def connect(self, connect_timeout: float | None = None) -> None:
+        """Waits for PX4 (TCP: up to ``connect_timeout`` [s], None forever; TimeoutError then) and starts a new
+        session on the link."""
+        accept = getattr(self.link, "accept", None)
+        if accept is not None and not accept(connect_timeout):
+            raise TimeoutError(f"PX4 did not connect to {self.link.host}:{self.link.port} within {connect_timeout} s")
+        self._reset_link_state()
+
+    def disconnect(self) -> None:
+        """Ends the session: PX4 sees the simulator go away (the TCP server stays open until :meth:`close`)."""
         disconnect = getattr(self.link, "disconnect", None)
         if disconnect is not None:
-            disconnect()  # PX4 sees the simulator go away
-        return sim.result()
+            disconnect()
 
     def close(self) -> None:
         """Closes the link (and the TCP server, and the ground-station relay)."""
