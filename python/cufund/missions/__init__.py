@@ -11,6 +11,7 @@ from .commands import (
     parse_command,
 )
 from .events import EventLog
+from .mission_request import MissionRequestError, parse_mission
 from .params import PX4_NAMES, CommanderParams
 
 __all__ = [
@@ -23,5 +24,7 @@ __all__ = [
     "CommanderParams",
     "EventLog",
     "MissionItem",
+    "MissionRequestError",
     "parse_command",
+    "parse_mission",
 ]

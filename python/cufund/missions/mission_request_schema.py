@@ -1,0 +1,476 @@
+"""The typed fleet missions a request becomes, and their one validation for every source (the offline grammar, a
+chat endpoint's JSON, a ground station's form): :func:`mission_from_data` reads the plain data, each mission's
+constructor checks its own fields, and :meth:`Mission.check` checks it against a :class:`FleetContext` (known
+vehicles, waypoints inside the geofence, above the minimum altitude, not too many). Anything refused raises
+:class:`MissionRequestError` with the reason.
+
+The data form (JSON), one object with ``"mission"`` one of :data:`MISSIONS`:
+
+- ``{"mission": "zigzag", "rows": 3, "per_row": 5, "altitude": 10, "area": "field" | [[x, y], ...] | null,
+  "spacing": 2, "vehicles": "all" | ["uav1", ...]}``
+- ``{"mission": "orbit", "center": [x, y], "radius": 3, "altitude": 5, "laps": 1, "vehicles": ...}``
+- ``{"mission": "survey", "area": "field" | [[x, y], ...], "spacing": 2, "altitude": 5, "vehicles": ...}``
+- ``{"mission": "go_home", "vehicles": ...}``
+- ``{"mission": "waypoints", "points": [[x, y, z], ...], "vehicles": ["uav1"]}``
+
+Positions ENU [m] (ground at z = 0), altitudes are heights above ground [m]; omitted fields take the context's
+defaults; ``"area": "selection"`` is the area the caller selected (``area=`` of :func:`mission_from_data`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .commands import Command, parse_command
+from .coverage import lanes, plan_coverage
+from .fleet_context import NAME_PATTERN, FleetContext, MissionRequestError
+from .fleet_polygon import MAX_VERTICES, Polygon, check_polygon, polygon_contains
+
+__all__ = [
+    "MISSIONS",
+    "GoHome",
+    "Mission",
+    "Orbit",
+    "Survey",
+    "Waypoints",
+    "Zigzag",
+    "mission_from_data",
+]
+
+MISSIONS = ("zigzag", "orbit", "survey", "go_home", "waypoints")
+ORBIT_POINTS_PER_LAP = 12
+"""Waypoints per orbit lap (every 30 degrees)."""
+_MAX_COUNT = 10000
+
+
+def _num(where: str, v: Any, lo: float | None = None, positive: bool = False) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or abs(v) > 1e6:
+        raise MissionRequestError(f"{where} must be a finite number (within 1000 km), got {v!r}")
+    if positive and v <= 0:
+        raise MissionRequestError(f"{where} must be > 0, got {v!r}")
+    if lo is not None and v < lo:
+        raise MissionRequestError(f"{where} must be at least {lo:g}, got {v!r}")
+    return float(v)
+
+
+def _int(where: str, v: Any, lo: int, hi: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not float(v).is_integer():
+        raise MissionRequestError(f"{where} must be a whole number, got {v!r}")
+    if not lo <= v <= hi:
+        raise MissionRequestError(f"{where} must be between {lo} and {hi}, got {v!r}")
+    return int(v)
+
+
+def _vec(where: str, v: Any, n: int) -> tuple[float, ...]:
+    if isinstance(v, (str, bytes, Mapping)) or not isinstance(v, Sequence) or len(v) != n:
+        raise MissionRequestError(f"{where} must be a list of {n} numbers [m], got {v!r}"[:300])
+    return tuple(_num(f"{where}[{i}]", c) for i, c in enumerate(v))
+
+
+def _vehicles(v: Any) -> tuple[str, ...]:
+    """``()`` means every vehicle of the fleet."""
+    if v is None or v == "all":
+        return ()
+    if isinstance(v, str):
+        v = [v]
+    if not isinstance(v, Sequence) or len(v) > 1000:
+        raise MissionRequestError(f"vehicles must be 'all' or a list of up to 1000 vehicle names, got {v!r}"[:300])
+    out = []
+    for n in v:
+        if not isinstance(n, str) or not NAME_PATTERN.match(n):
+            raise MissionRequestError(f"vehicle name {n!r} is not a name (letters, digits, _ or -)"[:300])
+        out.append(n)
+    if len(set(out)) != len(out):
+        raise MissionRequestError(f"vehicles repeat: {out}")
+    return tuple(out)
+
+
+def _polygon(where: str, v: Any) -> Polygon:
+    if isinstance(v, Sequence) and not isinstance(v, str) and len(v) > MAX_VERTICES:
+        raise MissionRequestError(f"{where} must have at most {MAX_VERTICES} vertices, got {len(v)}")
+    try:
+        return check_polygon(v, where)
+    except ValueError as e:
+        raise MissionRequestError(str(e)[:300]) from None
+
+
+class Mission:
+    """A validated fleet mission (frozen); :meth:`waypoints` gives each vehicle's waypoints."""
+
+    kind: ClassVar[str]
+    vehicles: tuple[str, ...]
+
+    def flying(self, ctx: FleetContext) -> tuple[str, ...]:
+        """The vehicles that fly it (``vehicles``, or every vehicle of the fleet)."""
+        return self.vehicles or ctx.names
+
+    def plan(self, ctx: FleetContext) -> dict[str, np.ndarray]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def waypoints(self, fleet: Any = None) -> dict[str, np.ndarray]:
+        """``{vehicle: (N, 3) ENU waypoints [m]}`` for ``fleet`` (see :meth:`FleetContext.of`), checked."""
+        ctx = FleetContext.of(fleet)
+        self.check(ctx)
+        return self.plan(ctx)
+
+    def check(self, ctx: FleetContext) -> None:
+        """Refuses (:class:`MissionRequestError` with the reason) a mission that ``ctx`` cannot fly: an unknown
+        vehicle, too many waypoints, a waypoint outside the geofence, below ground or the minimum altitude, or above
+        the maximum."""
+        unknown = [n for n in self.vehicles if n not in ctx.names]
+        if unknown:
+            raise MissionRequestError(f"unknown vehicle {', '.join(unknown)}: the fleet has {', '.join(ctx.names)}")
+        self.precheck(ctx)
+        for name, wp in self.plan(ctx).items():
+            if len(wp) > ctx.max_waypoints:
+                raise MissionRequestError(
+                    f"too many waypoints: {len(wp)} for {name}, at most {ctx.max_waypoints} per vehicle"
+                )
+            z = wp[:, 2]
+            if np.any(z <= 0):
+                raise MissionRequestError(f"below ground: {name}'s waypoints reach z = {z.min():g} m")
+            if np.any(z < ctx.min_altitude - 1e-9):
+                raise MissionRequestError(
+                    f"below the minimum altitude: {name}'s waypoints reach {z.min():g} m, the minimum is "
+                    f"{ctx.min_altitude:g} m"
+                )
+            if np.any(z > ctx.max_altitude + 1e-9):
+                raise MissionRequestError(
+                    f"above the maximum altitude: {name}'s waypoints reach {z.max():g} m, the maximum is "
+                    f"{ctx.max_altitude:g} m"
+                )
+            if ctx.geofence is not None:
+                inside = polygon_contains(ctx.geofence, wp[:, :2], tol=1e-6)
+                if not inside.all():
+                    x, y = wp[int(np.argmin(inside)), :2]
+                    raise MissionRequestError(f"outside the geofence: {name}'s waypoint ({x:g}, {y:g}) m")
+
+    def precheck(self, ctx: FleetContext) -> None:
+        """Checks before planning (sizes that would make planning itself too large)."""
+
+    def to_data(self) -> dict[str, Any]:
+        """The plain data :func:`mission_from_data` reads back."""
+        raise NotImplementedError
+
+    def commands(self, fleet: Any = None) -> dict[str, list[Command]]:
+        """The commander commands that fly it, per vehicle: ``mission_upload`` of the waypoints and
+        ``mission_start`` (a return: ``rtl``)."""
+        return {
+            n: [
+                parse_command({"command": "mission_upload", "items": [list(map(float, p)) for p in wp]}),
+                parse_command({"command": "mission_start"}),
+            ]
+            for n, wp in self.waypoints(fleet).items()
+        }
+
+
+def _area_data(area: Any) -> Any:
+    return area if isinstance(area, str) or area is None else [list(p) for p in area]
+
+
+def _resolve_area(where: str, area: Any, ctx: FleetContext) -> Polygon:
+    if isinstance(area, str):
+        if area not in ctx.fields:
+            known = ", ".join(ctx.fields) or "none"
+            raise MissionRequestError(f"{where}: no field named {area!r} (known fields: {known})")
+        return ctx.fields[area]
+    return area
+
+
+@dataclass(frozen=True)
+class Zigzag(Mission):
+    """``rows`` rows of ``per_row`` waypoints flown back and forth (boustrophedon) at ``altitude`` [m]: over
+    ``area`` (a field's name or a polygon: rows across its width along its longest edge, waypoints at the centres of
+    a rows x per_row grid of it) or, without one, a grid ``spacing`` [m] apart starting at the vehicle's home (rows
+    along +x, stacked along +y). Several vehicles share the rows, each a contiguous block."""
+
+    kind: ClassVar[str] = "zigzag"
+    rows: int
+    per_row: int
+    altitude: float
+    area: str | Polygon | None = None
+    spacing: float | None = None
+    vehicles: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "rows", _int("zigzag rows", self.rows, 1, _MAX_COUNT))
+        object.__setattr__(self, "per_row", _int("zigzag waypoints per row", self.per_row, 1, _MAX_COUNT))
+        object.__setattr__(self, "altitude", _num("zigzag altitude [m]", self.altitude))
+        if self.area is not None and not isinstance(self.area, str):
+            object.__setattr__(self, "area", _polygon("zigzag area", self.area))
+        if self.spacing is not None:
+            object.__setattr__(self, "spacing", _num("zigzag spacing [m]", self.spacing, positive=True))
+        object.__setattr__(self, "vehicles", _vehicles(self.vehicles))
+
+    def precheck(self, ctx: FleetContext) -> None:
+        n = len(self.flying(ctx))
+        if self.rows < n:
+            raise MissionRequestError(f"a zigzag of {self.rows} row(s) cannot be shared by {n} vehicles")
+        if self.rows * self.per_row > ctx.max_waypoints * n:
+            raise MissionRequestError(
+                f"too many waypoints: {self.rows} x {self.per_row} for {n} vehicle(s), at most "
+                f"{ctx.max_waypoints} per vehicle"
+            )
+
+    def plan(self, ctx: FleetContext) -> dict[str, np.ndarray]:
+        names = self.flying(ctx)
+        if self.area is None:
+            s = self.spacing or ctx.default_spacing
+            origin = ctx.home(names[0])
+            rows = [[(origin[0] + j * s, origin[1] + i * s) for j in range(self.per_row)] for i in range(self.rows)]
+        else:
+            poly = np.asarray(_resolve_area("zigzag area", self.area, ctx))
+            offsets, _, u, w = lanes(poly, 1.0)  # the sweep frame only: u along the longest edge, w across
+            pu, pw = poly @ u, poly @ w
+            lo, hi = float(pw.min()), float(pw.max())
+            rows = []
+            for i in range(self.rows):
+                c = lo + (i + 0.5) * (hi - lo) / self.rows
+                cuts = []
+                for k in range(len(poly)):
+                    a, b = k, (k + 1) % len(poly)
+                    if (pw[a] > c) != (pw[b] > c):
+                        cuts.append(pu[a] + (c - pw[a]) / (pw[b] - pw[a]) * (pu[b] - pu[a]))
+                s0, s1 = min(cuts), max(cuts)
+                rows.append(
+                    [tuple((s0 + (j + 0.5) * (s1 - s0) / self.per_row) * u + c * w) for j in range(self.per_row)]
+                )
+        out = {}
+        for name, block in zip(names, np.array_split(np.arange(self.rows), len(names)), strict=True):
+            pts = []
+            for i in block:
+                pts += rows[i] if i % 2 == 0 else rows[i][::-1]
+            out[name] = np.array([(x, y, self.altitude) for x, y in pts], dtype=float)
+        return out
+
+    def to_data(self) -> dict[str, Any]:
+        return {
+            "mission": "zigzag",
+            "rows": self.rows,
+            "per_row": self.per_row,
+            "altitude": self.altitude,
+            "area": _area_data(self.area),
+            "spacing": self.spacing,
+            "vehicles": list(self.vehicles) or "all",
+        }
+
+
+@dataclass(frozen=True)
+class Orbit(Mission):
+    """``laps`` counter-clockwise laps of radius ``radius`` [m] around ``center`` (x, y) [m] at ``altitude`` [m],
+    :data:`ORBIT_POINTS_PER_LAP` waypoints a lap, starting east of the centre; several vehicles fly it spread evenly
+    around the circle."""
+
+    kind: ClassVar[str] = "orbit"
+    center: tuple[float, float]
+    radius: float
+    altitude: float
+    laps: int = 1
+    vehicles: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "center", _vec("orbit center", self.center, 2))
+        object.__setattr__(self, "radius", _num("orbit radius [m]", self.radius, positive=True))
+        object.__setattr__(self, "altitude", _num("orbit altitude [m]", self.altitude))
+        object.__setattr__(self, "laps", _int("orbit laps", self.laps, 1, 100))
+        object.__setattr__(self, "vehicles", _vehicles(self.vehicles))
+
+    def precheck(self, ctx: FleetContext) -> None:
+        n = self.laps * ORBIT_POINTS_PER_LAP + 1
+        if n > ctx.max_waypoints:
+            raise MissionRequestError(
+                f"too many waypoints: {self.laps} laps are {n} waypoints, at most {ctx.max_waypoints} per vehicle"
+            )
+
+    def plan(self, ctx: FleetContext) -> dict[str, np.ndarray]:
+        names = self.flying(ctx)
+        k = np.arange(self.laps * ORBIT_POINTS_PER_LAP + 1)
+        out = {}
+        for i, name in enumerate(names):
+            a = 2 * math.pi * (i / len(names) + k / ORBIT_POINTS_PER_LAP)
+            out[name] = np.stack(
+                [
+                    self.center[0] + self.radius * np.cos(a),
+                    self.center[1] + self.radius * np.sin(a),
+                    np.full(len(a), self.altitude),
+                ],
+                axis=1,
+            )
+        return out
+
+    def to_data(self) -> dict[str, Any]:
+        return {
+            "mission": "orbit",
+            "center": list(self.center),
+            "radius": self.radius,
+            "altitude": self.altitude,
+            "laps": self.laps,
+            "vehicles": list(self.vehicles) or "all",
+        }
+
+
+@dataclass(frozen=True)
+class Survey(Mission):
+    """Coverage of ``area`` (a field's name or a polygon) split between the vehicles, lanes ``spacing`` [m] apart at
+    ``altitude`` [m] (:func:`cufund.missions.coverage.plan_coverage`)."""
+
+    kind: ClassVar[str] = "survey"
+    area: str | Polygon
+    spacing: float
+    altitude: float
+    vehicles: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.area, str):
+            object.__setattr__(self, "area", _polygon("survey area", self.area))
+        object.__setattr__(self, "spacing", _num("survey spacing [m]", self.spacing, lo=0.1))
+        object.__setattr__(self, "altitude", _num("survey altitude [m]", self.altitude))
+        object.__setattr__(self, "vehicles", _vehicles(self.vehicles))
+
+    def precheck(self, ctx: FleetContext) -> None:
+        poly = np.asarray(_resolve_area("survey area", self.area, ctx))
+        extent = float(np.max(np.ptp(poly, axis=0)))
+        n = len(self.flying(ctx))
+        lanes_max = math.ceil(extent * math.sqrt(2) / self.spacing) + 1
+        if lanes_max > 2 * ctx.max_waypoints * n:
+            raise MissionRequestError(
+                f"too many waypoints: a {extent:g} m area at {self.spacing:g} m spacing needs about "
+                f"{2 * lanes_max} waypoints, at most {ctx.max_waypoints} per vehicle for {n} vehicle(s)"
+            )
+        if ctx.geofence is not None:
+            inside = polygon_contains(ctx.geofence, poly, tol=1e-6)
+            if not inside.all():
+                x, y = poly[int(np.argmin(inside))]
+                raise MissionRequestError(f"outside the geofence: the survey area's corner ({x:g}, {y:g}) m")
+
+    def plan(self, ctx: FleetContext) -> dict[str, np.ndarray]:
+        names = self.flying(ctx)
+        poly = _resolve_area("survey area", self.area, ctx)
+        try:
+            cells = plan_coverage(poly, {n: ctx.home(n) for n in names}, self.spacing, self.altitude)
+        except ValueError as e:
+            raise MissionRequestError(f"survey: {e}") from None
+        return {n: np.asarray(cells[n].path, dtype=float) for n in names}
+
+    def to_data(self) -> dict[str, Any]:
+        return {
+            "mission": "survey",
+            "area": _area_data(self.area),
+            "spacing": self.spacing,
+            "altitude": self.altitude,
+            "vehicles": list(self.vehicles) or "all",
+        }
+
+
+@dataclass(frozen=True)
+class GoHome(Mission):
+    """Return home (the commander's ``rtl``); as waypoints: the point ``return_altitude`` above each home."""
+
+    kind: ClassVar[str] = "go_home"
+    vehicles: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "vehicles", _vehicles(self.vehicles))
+
+    def check(self, ctx: FleetContext) -> None:  # going home is never refused for its waypoints
+        unknown = [n for n in self.vehicles if n not in ctx.names]
+        if unknown:
+            raise MissionRequestError(f"unknown vehicle {', '.join(unknown)}: the fleet has {', '.join(ctx.names)}")
+
+    def plan(self, ctx: FleetContext) -> dict[str, np.ndarray]:
+        return {n: (ctx.home(n) + [0.0, 0.0, ctx.return_altitude])[None, :] for n in self.flying(ctx)}
+
+    def commands(self, fleet: Any = None) -> dict[str, list[Command]]:
+        ctx = FleetContext.of(fleet)
+        self.check(ctx)
+        return {n: [parse_command({"command": "rtl"})] for n in self.flying(ctx)}
+
+    def to_data(self) -> dict[str, Any]:
+        return {"mission": "go_home", "vehicles": list(self.vehicles) or "all"}
+
+
+@dataclass(frozen=True)
+class Waypoints(Mission):
+    """``points`` ((x, y, z) [m]) for one vehicle."""
+
+    kind: ClassVar[str] = "waypoints"
+    points: tuple[tuple[float, float, float], ...]
+    vehicles: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        p = self.points
+        if isinstance(p, (str, bytes, Mapping)) or not isinstance(p, Sequence) or not p:
+            raise MissionRequestError(f"waypoints points must be a non-empty list of [x, y, z] [m], got {p!r}"[:300])
+        if len(p) > _MAX_COUNT:
+            raise MissionRequestError(f"too many waypoints: {len(p)}, at most {_MAX_COUNT}")
+        object.__setattr__(self, "points", tuple(_vec(f"points[{i}]", v, 3) for i, v in enumerate(p)))
+        object.__setattr__(self, "vehicles", _vehicles(self.vehicles))
+
+    def precheck(self, ctx: FleetContext) -> None:
+        if len(self.flying(ctx)) != 1:
+            raise MissionRequestError(
+                f"a list of waypoints is for one vehicle: name it (e.g. 'with {ctx.names[0]}') or select one; "
+                f"the fleet has {', '.join(ctx.names)}"
+            )
+        if len(self.points) > ctx.max_waypoints:
+            raise MissionRequestError(
+                f"too many waypoints: {len(self.points)}, at most {ctx.max_waypoints} per vehicle"
+            )
+
+    def plan(self, ctx: FleetContext) -> dict[str, np.ndarray]:
+        return {self.flying(ctx)[0]: np.asarray(self.points, dtype=float)}
+
+    def to_data(self) -> dict[str, Any]:
+        return {"mission": "waypoints", "points": [list(p) for p in self.points], "vehicles": list(self.vehicles)}
+
+
+_FIELDS: dict[str, tuple[type[Mission], tuple[str, ...], tuple[str, ...]]] = {
+    # kind: (class, required keys, optional keys)
+    "zigzag": (Zigzag, ("rows", "per_row"), ("altitude", "area", "spacing", "vehicles")),
+    "orbit": (Orbit, ("center", "radius"), ("altitude", "laps", "vehicles")),
+    "survey": (Survey, (), ("area", "spacing", "altitude", "vehicles")),
+    "go_home": (GoHome, (), ("vehicles",)),
+    "waypoints": (Waypoints, ("points",), ("vehicles",)),
+}
+
+
+def mission_from_data(data: Any, fleet: Any = None, area: Any = None, vehicles: Sequence[str] | None = None) -> Mission:
+    """The mission of ``data`` (the form in the module doc), checked against ``fleet``; ``area`` is the caller's
+    selected polygon (for ``"area": "selection"``, and a survey that names no area), ``vehicles`` the selected
+    vehicles (for data that names none). Refused: :class:`MissionRequestError` with the reason."""
+    ctx = FleetContext.of(fleet)
+    if not isinstance(data, Mapping):
+        raise MissionRequestError(f"a mission must be a JSON object, got {type(data).__name__}")
+    kind = data.get("mission")
+    if kind not in _FIELDS:
+        raise MissionRequestError(f"mission must be one of {', '.join(MISSIONS)}, got {kind!r}"[:300])
+    cls, required, optional = _FIELDS[kind]
+    unknown = [k for k in data if k != "mission" and k not in required + optional]
+    if unknown:
+        raise MissionRequestError(f"{kind}: unknown field(s) {unknown}; allowed: {list(required + optional)}"[:300])
+    missing = [k for k in required if data.get(k) is None]
+    if missing:
+        raise MissionRequestError(f"{kind}: missing {', '.join(missing)}")
+    kw = {k: data[k] for k in required + optional if data.get(k) is not None}
+    if "vehicles" not in kw and vehicles:
+        kw["vehicles"] = list(vehicles)
+    if "altitude" in optional:
+        kw.setdefault("altitude", ctx.default_altitude)
+    if kind == "survey":
+        kw.setdefault("spacing", ctx.default_spacing)
+        kw.setdefault("area", "selection")
+    if kw.get("area") == "selection":
+        if area is None:
+            known = ", ".join(ctx.fields) or "none"
+            raise MissionRequestError(
+                f"{kind}: no area selected: select a polygon on the map or name a field (known fields: {known})"
+            )
+        kw["area"] = area
+    mission = cls(**kw)
+    mission.check(ctx)
+    return mission
