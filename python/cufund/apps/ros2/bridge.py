@@ -57,6 +57,9 @@ class Out:
     """(ROS 2 name, ROS 2 type, QoS) of each ROS 2 topic written."""
     encode: Callable[[Any], list[bytes]]
     """The message -> one CDR payload per entry of ``writes``."""
+    latest_only: bool = False
+    """Publish the newest message at each bridge step instead of every message (the ground truth, which the
+    simulator publishes at every instant a component runs)."""
 
 
 def _ns(stamp: Any) -> int:
@@ -111,10 +114,11 @@ class Ros2Bridge(Component):
         self._scheduled: list[tuple[int, dict[str, Any]]] = []  # (sim ns, command) from trajectories
         self._wall0: float | None = None
         self._started = False
+        self._last_t: dict[str, float] = {}
         self.stats = {"steps": 0, "messages": 0, "bytes": 0, "wait_s": 0.0, "commands": 0}
 
     def setup(self, bus: BusView) -> None:
-        self._subs = [(o, bus.subscribe(o.topic)) for o in self.outs]
+        self._subs = [(o, None if o.latest_only else bus.subscribe(o.topic)) for o in self.outs]
 
     def close(self) -> None:
         if self.dds is not None:
@@ -136,7 +140,15 @@ class Ros2Bridge(Component):
             if ahead > 0:
                 time.sleep(ahead)
         for o, sub in self._subs:
-            for m in sub.take():
+            if sub is None:
+                newest = bus.latest(o.topic)
+                fresh = newest is not None and newest.t > self._last_t.get(o.topic, -math.inf)
+                if fresh:
+                    self._last_t[o.topic] = newest.t
+                messages = [newest] if fresh else []
+            else:
+                messages = sub.take()
+            for m in messages:
                 for (name, _, _), data in zip(o.writes, o.encode(m), strict=True):
                     self._writers[name].write(data)
                     self.stats["messages"] += 1

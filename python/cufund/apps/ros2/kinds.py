@@ -122,6 +122,7 @@ def build_bridge(p: Ros2Params, ctx: BuildContext) -> list[Any]:
                     topic,
                     [(ros_name, "nav_msgs/msg/Odometry", QOS["default"]), ("/tf", "tf2_msgs/msg/TFMessage", QOS["tf"])],
                     odometry,
+                    latest_only=what == "truth",
                 )
             )
     rate = p.rate_hz or (max(imu_rates) if imu_rates else IMU_RATE_FALLBACK_HZ)
