@@ -254,32 +254,30 @@ class FleetSimulator:
         return any(m.viewers for m in self.members)
 
     def _contacts(self, t: float, p: np.ndarray, q: np.ndarray, d: np.ndarray) -> None:
-        n = len(self.members)
-        for i in range(n):
-            for j in range(i + 1, n):
-                if d[i, j] > self._boxes[i].radius + self._boxes[j].radius:
-                    continue  # farther apart than any two points of theirs
-                other = World("vehicle")
-                other.add_mesh(box_mesh_W(self._boxes[j], p[j], q[j]), self._boxes[j].triangles, label=self.names[j])
-                hit = CollisionChecker(other, box_size=self._boxes[i].size).check(p[i], q[i])
-                if hit is None or hit.distance >= 0.0:
-                    continue
-                a, b = self.names[i], self.names[j]
-                self.collisions.append(
-                    FleetCollision(
-                        t, a, b, (float(hit.point_W[0]), float(hit.point_W[1]), float(hit.point_W[2])), -hit.distance
-                    )
+        radii = np.array([b.radius for b in self._boxes])
+        near = np.argwhere(np.triu(d <= radii[:, None] + radii[None, :], 1))  # closer than any two points of theirs
+        for i, j in near.tolist():
+            other = World("vehicle")
+            other.add_mesh(box_mesh_W(self._boxes[j], p[j], q[j]), self._boxes[j].triangles, label=self.names[j])
+            hit = CollisionChecker(other, box_size=self._boxes[i].size).check(p[i], q[i])
+            if hit is None or hit.distance >= 0.0:
+                continue
+            a, b = self.names[i], self.names[j]
+            self.collisions.append(
+                FleetCollision(
+                    t, a, b, (float(hit.point_W[0]), float(hit.point_W[1]), float(hit.point_W[2])), -hit.distance
                 )
-                where = ", ".join(f"{x:.3f}" for x in hit.point_W)
-                for me, them in ((i, b), (j, a)):
-                    sim = self.members[me].simulator
-                    sim.status, sim.message = (
-                        RunStatus.CRASHED,
-                        f"collided with vehicle {them} at ({where}) m at t = {t:.3f} s",
-                    )
-                self.status = RunStatus.CRASHED
-                self.message = f"vehicles {a} and {b} collided at ({where}) m at t = {t:.3f} s"
-                return
+            )
+            where = ", ".join(f"{x:.3f}" for x in hit.point_W)
+            for me, them in ((i, b), (j, a)):
+                sim = self.members[me].simulator
+                sim.status, sim.message = (
+                    RunStatus.CRASHED,
+                    f"collided with vehicle {them} at ({where}) m at t = {t:.3f} s",
+                )
+            self.status = RunStatus.CRASHED
+            self.message = f"vehicles {a} and {b} collided at ({where}) m at t = {t:.3f} s"
+            return
 
     def _apply_downwash(self, p: np.ndarray, q: np.ndarray, d: np.ndarray) -> None:
         cfg = self.downwash

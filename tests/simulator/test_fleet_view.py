@@ -1,0 +1,52 @@
+"""A vehicle's LiDAR in a fleet sees the other vehicles: the forward beam of a 2-D scanner hits the other's box
+where plain geometry puts its near face, and misses when the other is out of range."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cufund.core.messages import PointCloud
+from cufund.core.topics import Topic
+from cufund.sensors.lidar import Lidar, LidarParams
+from cufund.sensors.lidar_component import LidarComponent
+from cufund.sensors.patterns import PlanarPattern
+from cufund.simulator import Simulator
+from cufund.simulator.fleet import FleetMember, FleetSimulator
+from cufund.vehicle import presets
+from cufund.vehicle.quadrotor import Quadrotor
+from cufund.worlds.world import World
+
+BOX = (0.216, 0.216, 0.095)
+
+
+def _forward_range(other_x: float) -> float:
+    world = World("empty")
+    world.add_plane((200.0, 200.0), (0.0, 0.0, 0.0))
+    members = []
+    comps = []
+    for name, x in (("a", 0.0), ("b", other_x)):
+        quad = Quadrotor(presets.cu_astro())
+        quad.hover(np.array([x, 0.0, 1.0]))
+        sim = Simulator(quad, record_topics=[Topic("/sensors/scan", PointCloud)])
+        lidar = Lidar(PlanarPattern(), LidarParams(range_min=0.05, range_max=30.0, range_noise_std=0.0))
+        comp = LidarComponent(lidar, world, "/sensors/scan", rate_hz=40.0, truth_topic="/truth/scan")
+        sim.add(comp)
+        comps.append(comp)
+        members.append(FleetMember(name, sim, box_size=BOX, viewers=[comp], world=world))
+    fleet = FleetSimulator(members, world)
+    fleet.reset()
+    fleet.advance_to(0.1)
+    scans = members[0].simulator.result().topics["/sensors/scan"]
+    pts, ranges = scans["points_L"][-1], scans["ranges"][-1]
+    fwd = np.abs(np.arctan2(pts[:, 1], pts[:, 0])) < np.deg2rad(0.2)
+    return float(ranges[fwd].min()) if np.any(fwd) else float("inf")
+
+
+def test_lidar_sees_the_other_vehicle():
+    # the other's box: its near face at other_x - 0.108 m, the scanner at the body origin
+    assert _forward_range(2.0) == pytest.approx(2.0 - BOX[0] / 2, abs=1e-3)
+
+
+def test_nothing_there_when_out_of_view_range():
+    assert _forward_range(60.0) == float("inf")
