@@ -86,7 +86,11 @@ async def _serve(args: argparse.Namespace, speed: float) -> int:
 
         foxglove = FoxgloveBridge(port=args.foxglove_port)
     try:
-        server = GcsServer(
+        from .fleet_server import fleet_server_for  # a fleet scenario (vehicles:): the fleet's station
+
+        port = DEFAULT_PORT if args.port is None else args.port
+        fleet = fleet_server_for(args.scenario, tuple(args.overrides), speed, args.host, port, args.port is None)
+        server = fleet or GcsServer(
             args.scenario,
             tuple(args.overrides),
             speed,
