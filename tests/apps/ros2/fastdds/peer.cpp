@@ -4,11 +4,11 @@
 //
 //   peer PROFILE.xml DOMAIN info
 //       prints the participant's configuration (transports, locators, peers) as one JSON line and exits.
-//   peer PROFILE.xml DOMAIN sub SECONDS COUNT [--dump DIR] TOPIC=KIND...
+//   peer PROFILE.xml DOMAIN sub SECONDS COUNT [--dump DIR] [--idle S] TOPIC=KIND...
 //       subscribes to each DDS TOPIC (rt/imu) as KIND (imu, points, tf, pose: ROS 2's Imu, PointCloud2,
 //       TFMessage, PoseStamped), prints one JSON line per sample (type name, decoded fields) and, with --dump,
 //       writes the sample's serialized payload as received (encapsulation included) to DIR/<n>.cdr; ends when
-//       every topic has COUNT samples or after SECONDS.
+//       every topic has COUNT samples, after SECONDS, or (--idle) S seconds after the last sample.
 //   peer PROFILE.xml DOMAIN pub SECONDS COUNT TOPIC=KIND [X Y Z]
 //       publishes COUNT samples at 20 Hz once a reader matched (pose: a goal at X Y Z in frame "map"; imu:
 //       sample k stamped k s with angular_velocity (0.1 k, 0.2, 0.3), linear_acceleration (1, 2, 9.81)), waits
@@ -53,6 +53,12 @@ using eprosima::fastrtps::rtps::SerializedPayload_t;
 namespace {
 
 std::mutex out_mutex;
+std::atomic<int64_t> last_sample_ns{0};  // steady clock of the last sample received
+
+int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
 
 void emit(const std::string& line) {
   std::lock_guard<std::mutex> lock(out_mutex);
@@ -246,6 +252,7 @@ class ReaderListener : public DataReaderListener {
       line += f.empty() ? ",\"decoded\":false}" : ",\"decoded\":true," + f + "}";
       emit(line);
       ++received;
+      last_sample_ns = steady_ns();
     }
   }
   void on_subscription_matched(DataReader*, const SubscriptionMatchedStatus& status) override {
@@ -272,7 +279,7 @@ class WriterListener : public DataWriterListener {
 int usage() {
   std::fprintf(stderr,
                "usage: peer PROFILE.xml DOMAIN info\n"
-               "       peer PROFILE.xml DOMAIN sub SECONDS COUNT [--dump DIR] TOPIC=KIND...\n"
+               "       peer PROFILE.xml DOMAIN sub SECONDS COUNT [--dump DIR] [--idle S] TOPIC=KIND...\n"
                "       peer PROFILE.xml DOMAIN pub SECONDS COUNT TOPIC=KIND [X Y Z]\n"
                "KIND: imu, points, tf, pose\n");
   return 2;
@@ -321,10 +328,15 @@ int main(int argc, char** argv) {
     const double seconds = std::atof(argv[4]);
     const int count = std::atoi(argv[5]);
     std::string dump;
+    double idle = 0;
     std::vector<Endpoint> endpoints;
     for (int i = 6; i < argc; ++i) {
       if (std::string(argv[i]) == "--dump" && i + 1 < argc) {
         dump = argv[++i];
+        continue;
+      }
+      if (std::string(argv[i]) == "--idle" && i + 1 < argc) {
+        idle = std::atof(argv[++i]);
         continue;
       }
       Endpoint e;
@@ -358,7 +370,12 @@ int main(int argc, char** argv) {
     while (!done && std::chrono::steady_clock::now() < end) {
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
       done = true;
-      for (auto& l : listeners) done = done && l->received >= count;
+      bool each = true;
+      for (auto& l : listeners) {
+        done = done && l->received >= count;
+        each = each && l->received > 0;
+      }
+      if (idle > 0 && each && steady_ns() - last_sample_ns > static_cast<int64_t>(idle * 1e9)) done = true;
     }
     for (DataReader* r : readers) r->set_listener(nullptr);
     status = done ? 0 : 1;
