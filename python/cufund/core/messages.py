@@ -438,6 +438,48 @@ class PlannerDiagnostics(Message):
 
 
 @message
+class Detections2D(Message):
+    """Objects an image detector found in one camera frame (pixel boxes in that frame's image)."""
+
+    variable_length = True
+    """Its arrays have a row per detection: logs store it as JSON, not as a fixed-size record."""
+
+    t: float
+    """Capture time of the image [s]."""
+    boxes_xyxy: np.ndarray
+    """(k, 4) float32 boxes (u_min, v_min, u_max, v_max) [px], pixel edges (the image spans [0, W] × [0, H])."""
+    scores: np.ndarray
+    """(k,) float32 confidence of each box in [0, 1]."""
+    class_ids: np.ndarray
+    """(k,) int64 class index of each box (into ``class_names``)."""
+    class_names: tuple[str, ...]
+    """The model's class names, by index."""
+    latency_ms: float
+    """Wall time from the image's arrival to this message (pre-processing, inference, NMS) [ms]."""
+
+
+@message
+class Detections3D(Message):
+    """Detected objects placed in the estimated world frame from a depth image (never from ground truth)."""
+
+    variable_length = True
+    """Its arrays have a row per detection: logs store it as JSON, not as a fixed-size record."""
+
+    t: float
+    """Capture time of the image [s]."""
+    centres_W: np.ndarray
+    """(k, 3) centre of each object's visible surface in the world frame [m]."""
+    sizes_m: np.ndarray
+    """(k, 2) width and height of each box at the object's depth [m]."""
+    scores: np.ndarray
+    """(k,) float32 confidence of each detection in [0, 1]."""
+    class_ids: np.ndarray
+    """(k,) int64 class index of each detection (into ``class_names``)."""
+    class_names: tuple[str, ...]
+    """The model's class names, by index."""
+
+
+@message
 class BatteryStatus(Message):
     """A power module's reading of the flight battery (like PX4's ``battery_status``)."""
 
@@ -495,5 +537,9 @@ class Topics:
     MISSION_STATE = Topic("/mission/state", MissionState)
     PLANNER_DIAGNOSTICS = Topic("/planner/diagnostics", PlannerDiagnostics)
     """Per-replan diagnostics of a planner, next to its trajectory updates."""
+    DETECTIONS_2D = Topic("/perception/detections_2d", Detections2D)
+    """An image detector's boxes (:class:`cufund.perception.OnnxDetector`)."""
+    DETECTIONS_3D = Topic("/perception/detections_3d", Detections3D)
+    """An image detector's objects in the estimated world frame, from a depth image."""
     BATTERY = Topic("/battery", BatteryStatus)
     """The power module's :class:`BatteryStatus` (only when the scenario's ``vehicle.battery`` is set)."""

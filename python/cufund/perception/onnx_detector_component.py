@@ -1,0 +1,160 @@
+"""The ONNX detector as a simulator component: boxes in each new camera image and, with a depth image aligned to
+it, the objects' positions in the estimated world frame."""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+
+import numpy as np
+
+from cufund.core.components import BusView, Component, Subscription
+from cufund.core.messages import CameraImage, Detections2D, Detections3D, Odometry, Topics
+from cufund.geometry import Transform, interpolate_poses
+from cufund.sensors.camera import R_CO, CameraIntrinsics
+
+from .onnx_detector import OnnxDetector
+
+__all__ = ["OnnxDetectorComponent", "boxes_to_world"]
+
+_POSES_KEPT = 400
+"""Estimates kept to find the pose at an image's capture time (2 s at 200 Hz)."""
+
+
+def boxes_to_world(
+    boxes_xyxy: np.ndarray,
+    depth: np.ndarray,
+    intrinsics: CameraIntrinsics,
+    T_BC: Transform,
+    p_WB: np.ndarray,
+    R_WB: np.ndarray,
+    image_hw: tuple[int, int],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each box's centre and size in the world from a depth image aligned with the image it was found in.
+
+    The box (pixels of an image of ``image_hw``) is scaled to the depth image's size; its depth is the median of
+    the valid depths in its middle half (width and height); its centre pixel is cast out to that depth through
+    ``intrinsics`` (the depth image's, distortion ignored) and moved to the world with the camera's mounting
+    ``T_BC`` and the body pose (p_WB, R_WB). Returns (centres_W (k, 3) [m], sizes_m (k, 2) [m], valid (k,)),
+    ``valid`` False (and NaN rows) where the box has no valid depth."""
+    h, w = depth.shape
+    sx, sy = w / image_hw[1], h / image_hw[0]
+    b = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4) * np.array([sx, sy, sx, sy])
+    R_WB = np.asarray(R_WB, dtype=float)
+    R_WO = R_WB @ T_BC.R @ R_CO
+    p_WC = np.asarray(p_WB, dtype=float) + R_WB @ np.asarray(T_BC.t)
+    centres = np.full((len(b), 3), np.nan)
+    sizes = np.full((len(b), 2), np.nan)
+    for i, (u0, v0, u1, v1) in enumerate(b):
+        du, dv = (u1 - u0) / 4, (v1 - v0) / 4
+        r0, r1 = int(np.clip(np.floor(v0 + dv), 0, h - 1)), int(np.clip(np.ceil(v1 - dv), 1, h))
+        c0, c1 = int(np.clip(np.floor(u0 + du), 0, w - 1)), int(np.clip(np.ceil(u1 - du), 1, w))
+        patch = depth[r0 : max(r1, r0 + 1), c0 : max(c1, c0 + 1)]
+        z_valid = patch[np.isfinite(patch) & (patch > 0)]
+        if z_valid.size == 0:
+            continue
+        z = float(np.median(z_valid))
+        # pixel edges -> pixel-centre coordinates: the box's centre (u0 + u1) / 2 - 0.5
+        u, v = (u0 + u1) / 2 - 0.5, (v0 + v1) / 2 - 0.5
+        p_O = np.array([(u - intrinsics.cx) / intrinsics.fx * z, (v - intrinsics.cy) / intrinsics.fy * z, z])
+        centres[i] = p_WC + R_WO @ p_O
+        sizes[i] = ((u1 - u0) / intrinsics.fx * z, (v1 - v0) / intrinsics.fy * z)
+    return centres, sizes, np.all(np.isfinite(centres), axis=1)
+
+
+class OnnxDetectorComponent(Component):
+    """Runs ``detector`` on the newest image of ``image_topic`` at ``rate_hz`` (older images not yet processed
+    are skipped) and publishes :class:`~cufund.core.messages.Detections2D` on ``Topics.DETECTIONS_2D`` with the
+    frame's latency (pre-processing, inference, NMS) in ``latency_ms``.
+
+    With ``depth_topic`` (a depth image aligned with the colour image, ``depth_intrinsics`` its camera, mounted at
+    ``T_BC``) it also publishes :class:`~cufund.core.messages.Detections3D` on ``Topics.DETECTIONS_3D``: each box's
+    centre in the world frame from the pose on ``state_topic`` at the image's capture time — the estimator's
+    output (never ground truth); nothing 3-D is published before an estimate covers the image."""
+
+    name = "onnx_detector"
+
+    def __init__(
+        self,
+        detector: OnnxDetector,
+        image_topic: str = Topics.RGB_IMAGE,
+        depth_topic: str | None = None,
+        depth_intrinsics: CameraIntrinsics | None = None,
+        T_BC: Transform | None = None,
+        state_topic: str = Topics.ESTIMATE,
+        rate_hz: float = 10.0,
+        latency_s: float = 0.0,
+    ) -> None:
+        if not isinstance(detector, OnnxDetector):
+            raise ValueError(f"detector must be an OnnxDetector, got {type(detector).__name__}")
+        if depth_topic is not None and depth_intrinsics is None:
+            raise ValueError("depth_intrinsics is needed with depth_topic (the depth camera's pinhole)")
+        if not (np.isfinite(rate_hz) and 0 < rate_hz <= 1000):
+            raise ValueError(f"rate_hz must be in (0, 1000] [Hz], got {rate_hz!r}")
+        if str(state_topic).startswith("/truth/"):
+            raise ValueError(f"state_topic must be an estimate, not ground truth ({state_topic})")
+        self.detector = detector
+        self.image_topic, self.depth_topic, self.state_topic = image_topic, depth_topic, state_topic
+        self.depth_intrinsics, self.T_BC = depth_intrinsics, T_BC or Transform()
+        self.rate_hz, self.latency_s = float(rate_hz), float(latency_s)
+        self.inputs = (image_topic,)
+        self.optional_inputs = (depth_topic, state_topic) if depth_topic is not None else ()
+        self.outputs = (Topics.DETECTIONS_2D, Topics.DETECTIONS_3D) if depth_topic else (Topics.DETECTIONS_2D,)
+        self.frames = 0
+        self.latencies_ms: list[float] = []
+        """Latency of every frame processed [ms] (what each Detections2D carries)."""
+
+    def reset(self) -> None:
+        self.frames = 0
+        self.latencies_ms = []
+        self._poses: deque[Odometry] = deque(maxlen=_POSES_KEPT)
+        self._depth: CameraImage | None = None
+
+    def setup(self, bus: BusView) -> None:
+        self._images: Subscription = bus.subscribe(self.image_topic)
+        self._depths: Subscription | None = bus.subscribe(self.depth_topic) if self.depth_topic else None
+        self._states: Subscription | None = bus.subscribe(self.state_topic) if self.depth_topic else None
+
+    def _pose_at(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
+        if not self._poses or not self._poses[0].t <= t <= self._poses[-1].t:
+            return None
+        ts = np.array([s.t for s in self._poses])
+        i = int(np.clip(np.searchsorted(ts, t), 1, len(ts) - 1)) if len(ts) > 1 else 0
+        pair = list(self._poses)[max(i - 1, 0) : i + 1]  # the estimates either side of t
+        p, R = interpolate_poses(
+            np.array([s.t for s in pair]), np.array([s.p_W for s in pair]), np.array([s.q_WB for s in pair]), [t]
+        )
+        return p[0], R[0]
+
+    def step(self, t: float, bus: BusView) -> None:
+        if self._states is not None:
+            self._poses.extend(self._states.take())
+        images: list[CameraImage] = self._images.take()
+        depths: list[CameraImage] = self._depths.take() if self._depths is not None else []
+        if depths:
+            self._depth = depths[-1]
+        if not images:
+            return
+        t0 = time.perf_counter()
+        msg = images[-1]
+        det = self.detector.detect(msg.image)
+        latency = (time.perf_counter() - t0) * 1e3
+        self.frames += 1
+        self.latencies_ms.append(latency)
+        names = self.detector.names
+        bus.publish(
+            Topics.DETECTIONS_2D, Detections2D(msg.t, det.boxes_xyxy, det.scores, det.class_ids, names, latency)
+        )
+        if self.depth_topic is None or self._depth is None:
+            return
+        pose = self._pose_at(msg.t)
+        if pose is None:
+            return
+        assert self.depth_intrinsics is not None
+        centres, sizes, ok = boxes_to_world(
+            det.boxes_xyxy, self._depth.image, self.depth_intrinsics, self.T_BC, pose[0], pose[1], msg.image.shape[:2]
+        )
+        bus.publish(
+            Topics.DETECTIONS_3D,
+            Detections3D(msg.t, centres[ok], sizes[ok], det.scores[ok], det.class_ids[ok], names),
+        )

@@ -1,0 +1,399 @@
+"""The ONNX detector (issue 26 item 2): a YOLO11n exported by ultralytics from its YAML with seeded random weights
+gives the same boxes as ultralytics' own letterbox, NMS and box scaling; SSD-style and end-to-end layouts decode
+to the boxes put in them; NMS against torchvision's (or a brute-force reference); bad models and images are
+refused with a clear error; the component places boxes in the world from a depth image and the estimate."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+onnx = pytest.importorskip("onnx")
+pytest.importorskip("onnxruntime")
+from onnx import TensorProto, helper, numpy_helper  # noqa: E402
+
+from cufund.core.bus import Bus, BusView  # noqa: E402
+from cufund.core.messages import CameraImage, Detections2D, Detections3D, Odometry, Topics  # noqa: E402
+from cufund.geometry import Transform, quat_to_matrix, yaw_quaternion  # noqa: E402
+from cufund.perception.letterbox import Letterbox, resize_bilinear  # noqa: E402
+from cufund.perception.nms import box_iou, nms  # noqa: E402
+from cufund.perception.onnx_detector import OnnxDetector, load_class_names  # noqa: E402
+from cufund.perception.onnx_detector_component import OnnxDetectorComponent  # noqa: E402
+from cufund.sensors.camera import R_CO, CameraIntrinsics  # noqa: E402
+
+NAMES = {0: "tunnel_frame", 1: "gate", 2: "landing_pad", 3: "person", 4: "car"}
+
+
+# --- small hand-built models ------------------------------------------------------------------------
+def _model(outputs: dict[str, np.ndarray], path: Path, size: int = 64, meta: dict[str, str] | None = None) -> Path:
+    """A model of input 'images' (1, 3, size, size) whose outputs are the given constants (each plus 0 × the
+    input's mean, so the input is used)."""
+    nodes = [
+        helper.make_node("ReduceMean", ["images"], ["m"], keepdims=0),
+        helper.make_node("Mul", ["m", "zero"], ["z"]),
+    ]
+    inits = [numpy_helper.from_array(np.zeros((), np.float32), "zero")]
+    outs = []
+    for name, value in outputs.items():
+        inits.append(numpy_helper.from_array(value.astype(np.float32), f"{name}_c"))
+        nodes.append(helper.make_node("Add", [f"{name}_c", "z"], [name]))
+        outs.append(helper.make_tensor_value_info(name, TensorProto.FLOAT, list(value.shape)))
+    graph = helper.make_graph(
+        nodes, "g", [helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, size, size])], outs, inits
+    )
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    model.ir_version = 8
+    for k, v in (meta or {}).items():
+        model.metadata_props.add(key=k, value=v)
+    onnx.checker.check_model(model)
+    path.write_bytes(model.SerializeToString())
+    return path
+
+
+def test_ssd_layout_boxes_come_back_in_the_original_image(tmp_path):
+    """Two SSD outputs (boxes in input pixels, scores per class): a 128 × 64 image in a 64 × 64 input is scaled by
+    1/2 and padded 16 rows on top, so an input box (10, 20, 30, 40) is (20, 8, 60, 48) in the image."""
+    boxes = np.array([[[10, 20, 30, 40], [11, 21, 31, 41], [0, 16, 64, 48]]], np.float32)
+    scores = np.array([[[0.1, 0.9], [0.2, 0.8], [0.6, 0.3]]], np.float32)  # box 1 overlaps box 0: suppressed
+    det = OnnxDetector(_model({"boxes": boxes, "scores": scores}, tmp_path / "ssd.onnx"), names=["a", "b"])
+    assert det.layout == "ssd" and det.names == ("a", "b")
+    out = det.detect(np.zeros((64, 128, 3), np.uint8))
+    np.testing.assert_allclose(out.boxes_xyxy, [[20, 8, 60, 48], [0, 0, 128, 64]], atol=1e-4)
+    np.testing.assert_allclose(out.scores, [0.9, 0.6], atol=1e-6)
+    assert out.class_ids.tolist() == [1, 0]
+    assert out.latency_ms > 0
+    # normalised boxes (metadata box_units) scale by the input size first
+    norm = _model({"boxes": boxes / 64, "scores": scores}, tmp_path / "n.onnx", meta={"box_units": "normalized"})
+    out2 = OnnxDetector(norm, names=["a", "b"]).detect(np.zeros((64, 128, 3), np.uint8))
+    np.testing.assert_allclose(out2.boxes_xyxy, out.boxes_xyxy, atol=1e-4)
+
+
+def test_end2end_layout_only_thresholds(tmp_path):
+    rows = np.array([[[1, 2, 11, 12, 0.9, 3], [1, 2, 11, 12, 0.8, 3], [5, 5, 6, 6, 0.1, 0]]], np.float32)
+    path = _model({"output0": rows}, tmp_path / "e2e.onnx", meta={"names": repr(NAMES)})
+    det = OnnxDetector(path, conf=0.25)
+    assert det.layout == "end2end" and det.names == tuple(NAMES.values())
+    out = det.detect(np.zeros((64, 64, 3), np.uint8))  # input size: no scaling, no padding
+    np.testing.assert_allclose(out.boxes_xyxy, rows[0, :2, :4])  # no NMS: the model did it
+    assert out.class_ids.tolist() == [3, 3]
+
+
+def test_yolo_layout_decodes_centre_size_boxes(tmp_path):
+    """(1, 4 + nc, N): columns (u_c, v_c, w, h, scores...)."""
+    pred = np.zeros((1, 6, 3), np.float32)
+    pred[0, :, 0] = [20, 30, 10, 20, 0.1, 0.7]  # box (15, 20, 25, 40), class 1
+    pred[0, :, 1] = [21, 30, 10, 20, 0.6, 0.2]  # overlaps box 0 but another class: kept
+    pred[0, :, 2] = [50, 50, 4, 4, 0.2, 0.1]  # below the threshold
+    det = OnnxDetector(_model({"output0": pred}, tmp_path / "y.onnx"), conf=0.25)
+    assert det.layout == "yolo" and det.names == ("class_0", "class_1")
+    out = det.detect(np.zeros((64, 64, 3), np.uint8))
+    np.testing.assert_allclose(out.boxes_xyxy, [[15, 20, 25, 40], [16, 20, 26, 40]])
+    assert out.class_ids.tolist() == [1, 0]
+
+
+# --- bad input ---------------------------------------------------------------------------------------
+def test_unexpected_outputs_are_refused_naming_them(tmp_path):
+    path = _model({"logits": np.zeros((1, 10), np.float32)}, tmp_path / "cls.onnx")
+    with pytest.raises(ValueError, match=r"unexpected outputs \[\[1, 10\]\]; expected one output \(1, 4\+nc, N\)"):
+        OnnxDetector(path)
+    three = {k: np.zeros((1, 5, 4), np.float32) for k in ("a", "b", "c")}
+    with pytest.raises(ValueError, match="unexpected outputs"):
+        OnnxDetector(_model(three, tmp_path / "three.onnx"))
+
+
+def test_hostile_files_are_refused_without_crashing(tmp_path):
+    garbage = tmp_path / "garbage.onnx"
+    garbage.write_bytes(np.random.default_rng(0).bytes(4096))
+    with pytest.raises(ValueError, match="is not a loadable ONNX model"):
+        OnnxDetector(garbage)
+    good = _model({"output0": np.zeros((1, 6, 3), np.float32)}, tmp_path / "good.onnx").read_bytes()
+    cut = tmp_path / "cut.onnx"
+    cut.write_bytes(good[: len(good) // 2])
+    with pytest.raises(ValueError, match="is not a loadable ONNX model"):
+        OnnxDetector(cut)
+    # an initializer whose data is "external" (a file beside the model, here an absolute path): read as bytes,
+    # the model cannot make onnxruntime open it
+    model = onnx.load_from_string(good)
+    t = model.graph.initializer[1]
+    t.ClearField("raw_data")
+    t.data_location = TensorProto.EXTERNAL
+    t.external_data.add(key="location", value="/etc/hostname")
+    ext = tmp_path / "ext.onnx"
+    ext.write_bytes(model.SerializeToString())
+    with pytest.raises(ValueError, match="is not a loadable ONNX model"):
+        OnnxDetector(ext)
+    with pytest.raises(ValueError, match="does not exist"):
+        OnnxDetector(tmp_path / "nowhere.onnx")
+    # metadata names that are code, not a literal
+    evil = _model(
+        {"output0": np.zeros((1, 6, 3), np.float32)}, tmp_path / "evil.onnx", meta={"names": "__import__('os')"}
+    )
+    with pytest.raises(ValueError, match="metadata 'names' is not a list"):
+        OnnxDetector(evil)
+
+
+def test_names_yaml_and_count_checks(tmp_path):
+    path = _model({"output0": np.zeros((1, 6, 3), np.float32)}, tmp_path / "m.onnx")
+    (tmp_path / "data.yaml").write_text("names: {0: frame, 1: gate}\n")
+    assert OnnxDetector(path, names=tmp_path / "data.yaml").names == ("frame", "gate")
+    assert load_class_names(tmp_path / "data.yaml") == ("frame", "gate")
+    (tmp_path / "three.yaml").write_text("names: [a, b, c]\n")
+    with pytest.raises(ValueError, match="3 class names for a model of 2 classes"):
+        OnnxDetector(path, names=tmp_path / "three.yaml")
+    (tmp_path / "gap.yaml").write_text("names: {0: a, 2: b}\n")
+    with pytest.raises(ValueError, match="indices 0..n-1"):
+        load_class_names(tmp_path / "gap.yaml")
+    (tmp_path / "bad.yaml").write_text("names: [a\n")
+    with pytest.raises(ValueError, match="not valid YAML"):
+        load_class_names(tmp_path / "bad.yaml")
+    with pytest.raises(ValueError, match="conf must be a number in"):
+        OnnxDetector(path, conf=1.5)
+
+
+def test_wrong_images_are_refused(tmp_path):
+    det = OnnxDetector(_model({"output0": np.zeros((1, 6, 3), np.float32)}, tmp_path / "m.onnx"))
+    for bad, what in (
+        (np.zeros((64, 64, 3), np.float32), r"\(64, 64, 3\) float32"),
+        (np.zeros((64, 64), np.uint8), r"\(64, 64\) uint8"),
+        (np.zeros((64, 64, 4), np.uint8), r"\(64, 64, 4\) uint8"),
+        ([[0, 0, 0]], "list"),
+        (np.zeros((0, 5, 3), np.uint8), "at least one pixel"),
+    ):
+        with pytest.raises(ValueError, match=rf"image must be an \(H, W, 3\) uint8 RGB array, got {what}|{what}"):
+            det.detect(bad)
+
+
+def test_model_input_must_be_an_image(tmp_path):
+    graph = helper.make_graph(
+        [helper.make_node("Identity", ["x"], ["y"])],
+        "g",
+        [helper.make_tensor_value_info("x", TensorProto.INT64, [1, 3, 8, 8])],
+        [helper.make_tensor_value_info("y", TensorProto.INT64, [1, 3, 8, 8])],
+    )
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    model.ir_version = 8
+    (tmp_path / "int.onnx").write_bytes(model.SerializeToString())
+    with pytest.raises(ValueError, match=r"must be a float tensor \(1, 3, H, W\), got tensor\(int64\)"):
+        OnnxDetector(tmp_path / "int.onnx")
+
+
+# --- NMS and letterbox against references --------------------------------------------------------------
+def _reference_nms(boxes, scores, classes, iou):
+    """Brute force, written from the definition: visit by descending score, keep a box unless a kept box of its
+    class overlaps it by more than ``iou``."""
+    keep = []
+    for i in sorted(range(len(scores)), key=lambda k: -scores[k]):
+        ok = True
+        for j in keep:
+            if classes[j] != classes[i]:
+                continue
+            a, b = boxes[i], boxes[j]
+            iw = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
+            ih = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+            inter = iw * ih
+            union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
+            if inter / union > iou:
+                ok = False
+                break
+        if ok:
+            keep.append(i)
+    return keep
+
+
+def test_nms_matches_the_definition_on_random_boxes():
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        n = int(rng.integers(1, 60))
+        xy = rng.uniform(0, 100, (n, 2))
+        boxes = np.hstack([xy, xy + rng.uniform(5, 40, (n, 2))]).astype(np.float32)
+        scores = rng.permutation(n).astype(np.float32) / n  # distinct
+        classes = rng.integers(0, 3, n)
+        iou = float(rng.uniform(0.2, 0.8))
+        assert nms(boxes, scores, iou, classes).tolist() == _reference_nms(boxes, scores, classes, iou)
+    assert box_iou(np.array([0, 0, 2, 2.0]), np.array([[1, 1, 3, 3.0]]))[0] == pytest.approx(1 / 7)
+
+
+def test_letterbox_geometry():
+    lb = Letterbox.fit((480, 640), (320, 320))  # 1/2: 240 x 320, 40 rows on each side
+    assert (lb.scaled_hw, lb.top, lb.left) == ((240, 320), 40, 0)
+    lb = Letterbox.fit((375, 500), (640, 640))  # 1.28: 480 x 640, 80 rows on each side
+    assert (lb.scaled_hw, lb.top, lb.left) == ((480, 640), 80, 0)
+    lb = Letterbox.fit((101, 50), (64, 64))  # odd padding: round(d / 2 - 0.1) before
+    assert lb.scaled_hw == (64, 32) and lb.left == 16
+    img = np.arange(4 * 4 * 3, dtype=np.uint8).reshape(4, 4, 3)
+    np.testing.assert_array_equal(resize_bilinear(img.repeat(2, 0).repeat(2, 1), (4, 4)), img)
+
+
+# --- ultralytics ---------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def yolo11n(tmp_path_factory):
+    """A YOLO11n (5 classes) built by ultralytics from its own YAML, weights drawn with torch's seed 0 (He-normal
+    convolutions, the class head scaled so its scores spread over [0, 0.6]), exported to ONNX at 320 px."""
+    pytest.importorskip("torch")
+    pytest.importorskip("ultralytics")
+    folder = tmp_path_factory.mktemp("yolo11n")
+    with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mp.setenv("YOLO_OFFLINE", "1")
+        mp.setenv("YOLO_CONFIG_DIR", str(folder / "settings"))
+        mp.chdir(folder)
+        import torch
+        import ultralytics
+        import yaml
+        from ultralytics import YOLO
+
+        cfg = yaml.safe_load((Path(ultralytics.__file__).parent / "cfg/models/11/yolo11.yaml").read_text())
+        cfg["nc"] = len(NAMES)
+        (folder / "yolo11n.yaml").write_text(yaml.safe_dump(cfg))  # 'n' in the name: the nano scale
+        torch.manual_seed(0)
+        model = YOLO(str(folder / "yolo11n.yaml"), task="detect")
+        model.model.names = dict(NAMES)
+        with torch.no_grad():
+            for m in model.model.modules():
+                if isinstance(m, torch.nn.Conv2d):
+                    torch.nn.init.kaiming_normal_(m.weight, nonlinearity="relu")
+            for head in model.model.model[-1].cv3:
+                head[-1].weight.mul_(200.0)
+                head[-1].bias.copy_(torch.randn(len(NAMES)) * 0.5 - 2.0)
+        path = model.export(format="onnx", imgsz=320, opset=17, simplify=False, dynamic=False, verbose=False)
+    return folder / Path(path).name
+
+
+def _ultralytics_reference(
+    model_path: Path, image_rgb: np.ndarray, conf: float, iou: float, x: np.ndarray | None = None
+):
+    """ultralytics' predictor for an exported model, step by step: LetterBox(auto=False) on the BGR image, BGR ->
+    RGB, / 255, the ONNX model, non_max_suppression, scale_boxes. (Its AutoBackend imports torchvision, whose
+    PyPI build does not load with the CPU torch; these are the same functions it calls.)"""
+    import onnxruntime as ort
+    import torch
+    from ultralytics.data.augment import LetterBox
+    from ultralytics.utils.nms import non_max_suppression
+    from ultralytics.utils.ops import scale_boxes
+
+    if x is None:
+        lb = LetterBox((320, 320), auto=False, stride=32)(image=np.ascontiguousarray(image_rgb[..., ::-1]))
+        x = np.ascontiguousarray(lb[..., ::-1].transpose(2, 0, 1)[None]).astype(np.float32) / 255.0
+    sess = ort.InferenceSession(str(model_path), providers=["CPUExecutionProvider"])
+    out = sess.run(None, {sess.get_inputs()[0].name: x})[0]
+    det = non_max_suppression(torch.from_numpy(out), conf, iou, max_det=300)[0]
+    det[:, :4] = scale_boxes((320, 320), det[:, :4], image_rgb.shape[:2])
+    return det.numpy(), x
+
+
+def _images():
+    """Views of labelled objects painted by instance (each object a colour, shaded by its depth), 320 × 240 and
+    doubled pixel for pixel to 640 × 480 (halving those is exact in any bilinear resize, so both pipelines see
+    the same input), and noise."""
+    from cufund.geometry import yaw_quaternion
+    from cufund.perception.dataset_labels import ViewLabeller
+    from cufund.worlds import labelled_objects as lo
+    from cufund.worlds.world import World
+
+    w = World()
+    w.add_plane((40, 40), (0, 0, 0))
+    lo.add_person(w, (5, 0, 0), 0.3, arm_swing=(0.5, -0.3))
+    lo.add_car(w, (8, 2, 0), 1.0)
+    lo.add_gate(w, (10, -2, 0), 0.2)
+    labeller = ViewLabeller(w, CameraIntrinsics.from_fov(320, 240, 1.2), lo.CLASSES)
+    palette = np.array([[90, 90, 90], [200, 60, 60], [40, 60, 190], [30, 170, 60], [150, 200, 230]], np.uint8)
+    out = []
+    for k in range(3):
+        ids = labeller.label((0.0, 0.5 * k, 1.2), yaw_quaternion(-0.1 * k)).instance_ids
+        img = palette[ids]  # the sky (-1) takes the last colour
+        out += [img, img.repeat(2, 0).repeat(2, 1)]
+    rng = np.random.default_rng(1)
+    out.append((rng.random((120, 160, 3)) * 255).astype(np.uint8).repeat(4, 0).repeat(4, 1))
+    return out
+
+
+def test_yolo11n_export_matches_ultralytics_postprocessing(yolo11n):
+    det = OnnxDetector(yolo11n, conf=0.3, iou=0.7)
+    assert det.layout == "yolo" and det.num_classes == 5 and det.input_hw == (320, 320)
+    assert det.names == tuple(NAMES.values())  # from the export's metadata
+    total = 0
+    for img in _images():
+        ours = det.detect(img)
+        ref, x = _ultralytics_reference(yolo11n, img, 0.3, 0.7)
+        np.testing.assert_array_equal(det.preprocess(img)[0], x)  # same letterboxed input, bit for bit
+        assert len(ours) == len(ref)
+        np.testing.assert_allclose(ours.boxes_xyxy, ref[:, :4], atol=1.0)  # the issue's bound: 1 px
+        np.testing.assert_allclose(ours.scores, ref[:, 4], atol=1e-6)
+        assert ours.class_ids.tolist() == ref[:, 5].astype(int).tolist()
+        total += len(ours)
+    assert total > 20  # enough boxes passed the threshold for the comparison to mean something
+
+
+def test_letterbox_of_any_size_matches_ultralytics_to_one_grey_level(yolo11n):
+    """Sizes whose scale is not exact: the input differs from OpenCV's fixed-point resize by at most one grey
+    level, and on ultralytics' own input tensor our decoding, NMS and box scaling give its boxes."""
+    det = OnnxDetector(yolo11n, conf=0.3, iou=0.7)
+    rng = np.random.default_rng(2)
+    for h, w in ((375, 500), (480, 640), (300, 200), (97, 333)):
+        img = (rng.random((h, w, 3)) * 255).astype(np.uint8)
+        ref, x = _ultralytics_reference(yolo11n, img, 0.3, 0.7)
+        ours_x, box = det.preprocess(img)
+        assert ours_x.shape == x.shape == (1, 3, 320, 320)
+        assert np.abs(ours_x - x).max() * 255 <= 1.0 + 1e-4
+        inside = np.zeros((320, 320), bool)
+        inside[box.top : box.top + box.scaled_hw[0], box.left : box.left + box.scaled_hw[1]] = True
+        assert np.all(x[0][:, ~inside] == np.float32(114) / 255) and np.all(ours_x[0][:, ~inside] == x[0][:, ~inside])
+        boxes, scores, classes = det.decode(det.raw(x))
+        boxes = box.boxes_to_source(boxes)
+        assert len(boxes) == len(ref)
+        np.testing.assert_allclose(boxes, ref[:, :4], atol=1e-3)
+        np.testing.assert_allclose(scores, ref[:, 4], atol=1e-6)
+
+
+def test_nms_matches_torchvision_when_it_loads():
+    torch = pytest.importorskip("torch")
+    try:
+        import torchvision
+
+        torchvision.ops.nms(torch.zeros((1, 4)), torch.zeros(1), 0.5)
+    except Exception as e:  # absent, or its compiled ops do not load with this torch (a RuntimeError)
+        pytest.skip(f"torchvision's NMS is not usable here: {type(e).__name__}")
+    rng = np.random.default_rng(5)
+    xy = rng.uniform(0, 100, (200, 2))
+    boxes = np.hstack([xy, xy + rng.uniform(5, 40, (200, 2))]).astype(np.float32)
+    scores = rng.permutation(200).astype(np.float32) / 200
+    classes = rng.integers(0, 4, 200)
+    ref = torchvision.ops.batched_nms(torch.from_numpy(boxes), torch.from_numpy(scores), torch.from_numpy(classes), 0.5)
+    assert nms(boxes, scores, 0.5, classes, max_det=1000).tolist() == ref.tolist()
+
+
+# --- the component ----------------------------------------------------------------------------------------
+def test_component_publishes_2d_and_world_3d_from_depth_and_the_estimate(tmp_path):
+    """A box around pixel centre (40, 24) of a 64 × 64 image with the depth 4 m there: its world position is the
+    camera ray through that pixel at depth 4 m, moved by the estimate's pose (yawed 90°) and the mounting."""
+    rows = np.array([[[36.5, 20.5, 44.5, 28.5, 0.9, 3]]], np.float32)  # centre (40.5, 24.5) in edges
+    det = OnnxDetector(_model({"output0": rows}, tmp_path / "e2e.onnx", meta={"names": repr(NAMES)}))
+    K = CameraIntrinsics(64, 64, 50.0, 50.0, 31.5, 31.5)
+    T_BC = Transform((0.1, 0.0, -0.05), tuple(yaw_quaternion(0.0)))
+    comp = OnnxDetectorComponent(det, depth_topic=Topics.DEPTH_IMAGE, depth_intrinsics=K, T_BC=T_BC)
+    bus = Bus()
+    view = BusView(bus, comp.name, comp.inputs + comp.optional_inputs, comp.outputs, deny_truth=True)
+    comp.reset()
+    comp.setup(view)
+    q = yaw_quaternion(np.pi / 2)
+    for t in (0.0, 0.2):
+        bus.publish(Topics.ESTIMATE, Odometry(t, np.array([1.0, 2.0, 1.5]), np.zeros(3), q, np.zeros(3)))
+    bus.publish(Topics.RGB_IMAGE, CameraImage(0.1, np.zeros((64, 64, 3), np.uint8)))
+    bus.publish(Topics.DEPTH_IMAGE, CameraImage(0.1, np.full((64, 64), 4.0, np.float32)))
+    sub2, sub3 = bus.subscribe(Topics.DETECTIONS_2D), bus.subscribe(Topics.DETECTIONS_3D)
+    comp.step(0.2, view)
+    (d2,), (d3,) = sub2.take(), sub3.take()
+    assert isinstance(d2, Detections2D) and isinstance(d3, Detections3D)
+    assert d2.t == d3.t == 0.1 and d2.class_names[3] == "person" and d2.latency_ms > 0
+    np.testing.assert_allclose(d2.boxes_xyxy, rows[0, :, :4])
+    p_O = np.array([(40.0 - 31.5) / 50 * 4, (24.0 - 31.5) / 50 * 4, 4.0])
+    R_WB = quat_to_matrix(q)
+    expected = np.array([1.0, 2.0, 1.5]) + R_WB @ (np.array(T_BC.t) + T_BC.R @ R_CO @ p_O)
+    np.testing.assert_allclose(d3.centres_W[0], expected, atol=1e-9)
+    np.testing.assert_allclose(d3.sizes_m[0], [8 / 50 * 4, 8 / 50 * 4])
+    assert comp.latencies_ms and comp.frames == 1
+    with pytest.raises(ValueError, match="not ground truth"):
+        OnnxDetectorComponent(det, state_topic=Topics.TRUTH_ODOMETRY)
