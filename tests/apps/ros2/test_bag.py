@@ -314,3 +314,86 @@ def test_bad_input_is_a_clear_error(run, tmp_path, capsys):
         read_rosbag2(bag, ["/clock"])
     assert main(["odometry", str(bag), "--out", str(tmp_path / "o"), "--lidar-topic", "/clock"]) == 2
     assert "which cufund does not read" in capsys.readouterr().err
+
+
+def test_the_standard_messages_are_rosbags_cdr(run, bag):
+    """The bag's (and so the log's and the bridge's) standard messages are byte for byte what rosbags' own CDR
+    serialiser makes of the same values (taken from cufund's exact messages, not from those bytes): the IMU, the
+    truth's and the estimate's PoseStamped, /clock and /tf."""
+    from rosbags.highlevel import AnyReader
+
+    from cufund.logs import read_mcap
+    from cufund.logs.rosbag2_reader import rosbags_typestore
+
+    store = rosbags_typestore()
+    T = store.types
+
+    def header(t, frame):
+        ns = round(t * 1e9)
+        return T["std_msgs/msg/Header"](
+            stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame
+        )
+
+    def vec(v, kind="Vector3"):
+        return T[f"geometry_msgs/msg/{kind}"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+    def quat(q):
+        return T["geometry_msgs/msg/Quaternion"](x=float(q[1]), y=float(q[2]), z=float(q[3]), w=float(q[0]))
+
+    def pose(m, frame):
+        return T["geometry_msgs/msg/PoseStamped"](
+            header=header(m.t, frame),
+            pose=T["geometry_msgs/msg/Pose"](position=vec(m.p_W, "Point"), orientation=quat(m.q_WB)),
+        )
+
+    def tf(m, parent, child):
+        ts = T["geometry_msgs/msg/TransformStamped"](
+            header=header(m.t, parent),
+            child_frame_id=child,
+            transform=T["geometry_msgs/msg/Transform"](translation=vec(m.p_W), rotation=quat(m.q_WB)),
+        )
+        return T["tf2_msgs/msg/TFMessage"](transforms=[ts])
+
+    def imu(m):
+        cov, unknown = np.zeros(9), np.zeros(9)
+        unknown[0] = -1.0
+        return T["sensor_msgs/msg/Imu"](
+            header=header(m.t, "imu"),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=0.0),
+            orientation_covariance=unknown,
+            angular_velocity=vec(m.w_I),
+            angular_velocity_covariance=cov,
+            linear_acceleration=vec(m.f_I),
+            linear_acceleration_covariance=cov,
+        )
+
+    log = run / "run.mcap"
+    exact = {
+        t: [r.message for r in read_mcap(log, topics=[t])]
+        for t in ("/sensors/imu", "/truth/odometry", "/estimator/odometry")
+    }
+    truth, est = exact["/truth/odometry"], exact["/estimator/odometry"]
+    expected = {
+        "/sensors/imu/ros": [(imu(m), "sensor_msgs/msg/Imu") for m in exact["/sensors/imu"]],
+        "/truth/odometry/pose": [(pose(m, "world"), "geometry_msgs/msg/PoseStamped") for m in truth],
+        "/estimator/odometry/pose": [(pose(m, "odom"), "geometry_msgs/msg/PoseStamped") for m in est],
+        "/clock": [
+            (T["rosgraph_msgs/msg/Clock"](clock=header(m.t, "").stamp), "rosgraph_msgs/msg/Clock") for m in truth
+        ],
+    }
+    tf_expected = sorted(
+        [(round(m.t * 1e9), 0, tf(m, "world", "base_link_truth")) for m in truth]
+        + [(round(m.t * 1e9), 1, tf(m, "odom", "base_link")) for m in est],
+        key=lambda e: (e[0], e[1]),
+    )
+    with AnyReader([bag[0]]) as reader:
+        conns = [c for c in reader.connections if c.topic in {*expected, "/tf"}]
+        got: dict[str, list[bytes]] = {}
+        for c, _, raw in reader.messages(connections=conns):
+            got.setdefault(c.topic, []).append(bytes(raw))
+    for topic, msgs in expected.items():
+        assert len(got[topic]) == len(msgs) > 500, topic
+        for raw, (msg, msgtype) in zip(got[topic], msgs, strict=True):
+            assert raw == bytes(store.serialize_cdr(msg, msgtype)), topic
+    serialized = {bytes(store.serialize_cdr(m, "tf2_msgs/msg/TFMessage")) for _, _, m in tf_expected}
+    assert len(got["/tf"]) == len(tf_expected) and set(got["/tf"]) == serialized
