@@ -5,6 +5,7 @@
 const token = new URLSearchParams(location.search).get("token") || "";
 const $ = (id) => document.getElementById(id);
 const state = { names: [], colours: {}, vehicles: {}, trails: {}, selected: new Set(), preview: null, events: 0 };
+window.fleetGcs = { state, toCanvas: (x, y) => (view ? [view.ox + view.sx * x, view.oy - view.sx * y] : null) }; // for tests
 
 async function api(path, body) {
   const init = { headers: { Authorization: "Bearer " + token }, cache: "no-store" };
