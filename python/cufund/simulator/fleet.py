@@ -117,6 +117,9 @@ class FleetSimulator:
         self.view_range_m = float(view_range_m)
         self._boxes = [VehicleBox(m.name, m.box_size) for m in self.members]
         self._rotors_B = [m.simulator.vehicle.params.rotor_positions() for m in self.members]  # type: ignore[union-attr]
+        self._k_f = np.array([m.simulator.vehicle.params.k_f for m in self.members])  # type: ignore[union-attr]
+        self._box_vertices_B = np.array([b.vertices_B for b in self._boxes])  # (n, 8, 3)
+        self._box_triangles = self._boxes[0].triangles  # every box has the same 12 triangles over its 8 corners
         self._started = False
 
     # -- the run -----------------------------------------------------------------------------------------------
@@ -283,15 +286,12 @@ class FleetSimulator:
         cfg = self.downwash
         assert cfg is not None
         n = len(self.members)
-        R = [quat_to_matrix(q[i], normalize=True) for i in range(n)]
-        thrust = []
-        for m in self.members:
-            quad = m.simulator.vehicle
-            w = np.asarray(quad.state.rotor_speeds)  # type: ignore[union-attr]
-            thrust.append(float(quad.params.k_f * np.sum(w * w)))  # type: ignore[union-attr]
+        R = quat_to_matrix(q, normalize=True)  # (n, 3, 3)
+        w = np.array([m.simulator.vehicle.state.rotor_speeds for m in self.members])  # type: ignore[union-attr]
+        thrust = (self._k_f * np.sum(w * w, axis=1)).tolist()
         # which vehicle may be in which jet: s along j's axis (-z_B), r from it; a jet is at most
         # CUTOFF_HALF_WIDTHS * max(d_J / 2, S s) wide (d_J well under 1 m), a vehicle's rotors within 1 m of it
-        axes = np.array([-Rj[:, 2] for Rj in R])
+        axes = -R[:, :, 2]
         rel = p[None, :, :] - p[:, None, :]  # rel[j, i] = p_i - p_j
         s_ji = np.einsum("jik,jk->ji", rel, axes)
         r_ji = np.linalg.norm(rel - s_ji[:, :, None] * axes[:, None, :], axis=2)
@@ -317,13 +317,19 @@ class FleetSimulator:
         return {m.name: self._forces[i].copy() for i, m in enumerate(self.members)}
 
     def _update_views(self, p: np.ndarray, q: np.ndarray, d: np.ndarray) -> None:
+        R = quat_to_matrix(q, normalize=True)
+        corners_W = np.einsum("nvk,nlk->nvl", self._box_vertices_B, R) + p[:, None, :]  # (n, 8, 3)
+        in_range = d <= self.view_range_m
+        np.fill_diagonal(in_range, False)
         for i, m in enumerate(self.members):
             if not m.viewers:
                 continue
-            near = [j for j in range(len(self.members)) if j != i and d[i, j] <= self.view_range_m]
+            near = np.flatnonzero(in_range[i])
             seen: World | None
-            if near:
-                seen = WorldWithVehicles(m.world, [(self._boxes[j], p[j], q[j]) for j in near])
+            if len(near):
+                k = len(near)
+                tris = (self._box_triangles[None] + 8 * np.arange(k)[:, None, None]).reshape(-1, 3)
+                seen = WorldWithVehicles(m.world, corners_W[near].reshape(-1, 3), tris)
             else:
                 seen = m.world
             for c in m.viewers:

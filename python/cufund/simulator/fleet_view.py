@@ -34,14 +34,15 @@ def box_mesh_W(box: VehicleBox, p_W: np.ndarray, q_WB: np.ndarray) -> np.ndarray
 
 class WorldWithVehicles(World):
     """``base``'s objects (same ids, labels, colours, reflectivities) followed by one object, labelled
-    ``vehicles``, of the other vehicles' boxes at the poses they had when this view was made. A view is made again at the fleet's
+    ``vehicles``: the other vehicles' boxes (``vertices_W`` (8 k, 3), ``triangles`` (12 k, 3)) at the poses they
+    had when this view was made (:func:`box_mesh_W`). A view is made again at the fleet's
     ``view_rate_hz``: the others move between views, the world does not."""
 
-    def __init__(self, base: World | None, boxes: list[tuple[VehicleBox, np.ndarray, np.ndarray]]) -> None:
+    def __init__(self, base: World | None, vertices_W: np.ndarray, triangles: np.ndarray) -> None:
         super().__init__(f"{base.name if base is not None else 'world'}+vehicles")
         if base is not None:
             self._objects = list(base.objects)  # the same (frozen) objects: ids 0..n-1 as in the base world
-        if boxes:  # one mesh of all their boxes (one object: cheap to make again at the view rate)
-            vertices = np.concatenate([box_mesh_W(box, p, q) for box, p, q in boxes])
-            triangles = np.concatenate([box.triangles + 8 * k for k, (box, _, _) in enumerate(boxes)])
-            self.add_mesh(vertices, triangles, label="vehicles", color=VEHICLE_COLOR, reflectivity=VEHICLE_REFLECTIVITY)
+        if len(triangles):  # one mesh of all their boxes (one object: cheap to make again at the view rate)
+            self.add_mesh(
+                vertices_W, triangles, label="vehicles", color=VEHICLE_COLOR, reflectivity=VEHICLE_REFLECTIVITY
+            )
