@@ -11,6 +11,7 @@ from cufund.core.registry import Kind, register
 
 from .imu_propagator import ImuPropagator, ImuPropagatorParams
 from .params import LioParams
+from .vio_params import VioCamera, VioParams
 
 _FROM_SCENARIO = {
     "imu": "sensors.<imu> (its kind and T_BI)",
@@ -70,5 +71,67 @@ register(
         _lio,
         None,
         "LiDAR-inertial odometry on GTSAM (sensors: an IMU and a LiDAR; the pad gives origin and yaw, the IMU roll, pitch and biases)",
+    )
+)
+
+
+def vio_params(p: VioParams, ctx: BuildContext) -> tuple[VioParams, Any, list[str]]:
+    """The VIO's params completed from the scenario: the IMU part and mounting, the stereo rig's calibration
+    (the ``stereo_camera`` sensor's stated cameras, never the renderer's truth), the pad and gravity. Returns
+    (params, IMU spec, the two camera topics)."""
+    default = VioParams()
+    for name, source in (
+        ("imu", "sensors.<imu>"),
+        ("cam0", "sensors.<stereo_camera>"),
+        ("cam1", "sensors.<stereo_camera>"),
+        ("p_WB0", "start_p_W"),
+        ("gravity", "vehicle"),
+    ):
+        if getattr(p, name) != getattr(default, name):
+            raise ConfigError(f"estimator.{name}: the VIO takes it from the scenario ({source}); give it once there")
+    _, imu = ctx.sensor_of_type("imu", "", "estimator")
+    _, cam = ctx.sensor_of_type("stereo_camera", "", "estimator")
+    cams = cam.params.cameras(ctx.base_dir, None)
+    if len(cams) < 2:
+        raise ConfigError(f"estimator: the VIO needs a stereo pair, sensors.<stereo_camera> has {len(cams)} camera(s)")
+    rig = []
+    for c in cams[:2]:
+        k = c.intrinsics
+        if getattr(k, "distortion_model", "radtan") != "radtan":
+            raise ConfigError(f"estimator: the VIO reads radtan cameras only, {c.name} is {k.distortion_model}")
+        d = tuple(k.distortion) + (0.0,) * (5 - len(k.distortion))
+        rig.append(VioCamera(k.width, k.height, k.fx, k.fy, k.cx, k.cy, d, c.T_BC))
+    shifts = {c.timeshift_s for c in cams[:2]}
+    if len(shifts) != 1:
+        raise ConfigError("estimator: the VIO needs both stereo cameras on one clock (equal timeshift_cam_imu)")
+    start = ctx.config.start_p_W or (ctx.config.trajectory.waypoints[0][0], ctx.config.trajectory.waypoints[0][1], 0.0)
+    topics = list(cam.params.topics) or ["/sensors/cam0/image", "/sensors/cam1/image"]
+    params = dataclasses.replace(
+        p,
+        imu=ctx.imu_params(),
+        cam0=rig[0],
+        cam1=rig[1],
+        p_WB0=tuple(start),
+        gravity=ctx.vehicle.gravity,
+        time_offset_s=p.time_offset_s + shifts.pop(),
+    )
+    return params, imu, topics[:2]
+
+
+def _vio(p: VioParams, ctx: BuildContext) -> list[Any]:
+    from .vio_estimator import VioEstimator  # GTSAM and OpenCV load only when a scenario uses the VIO
+
+    params, imu, topics = vio_params(p, ctx)
+    return [VioEstimator(params, imu_topic=imu.topic, left_topic=topics[0], right_topic=topics[1])]
+
+
+register(
+    Kind(
+        "estimator",
+        "vio",
+        VioParams,
+        _vio,
+        None,
+        "Stereo visual-inertial odometry on GTSAM (sensors: an IMU and a stereo_camera; the pad gives origin and yaw, the IMU roll, pitch and gyro bias)",
     )
 )
