@@ -141,3 +141,14 @@ def test_single_vehicle_build_refuses_a_fleet():
     with pytest.raises(ConfigError, match="build_fleet"):
         build_simulation(load_scenario("fleet_square"))
     assert "vehicles" not in load_scenario("square").to_dict()  # a single vehicle's config.yaml as before
+
+
+def test_until_done_false_keeps_landed_vehicles_running():
+    """Flown from outside (MAVLink), a vehicle's run does not end when it has landed after its reference."""
+    cfg = _fleet([_square_at("a", 0, 0), _square_at("b", 5, 0)], duration=18.0)
+    ends = build_fleet(cfg)
+    assert not ends.advance_to(17.0)  # both landed (~15.5 s): the fleet's run is over
+    assert ends.simulator.status is not None and ends.simulator.status.value == "completed"
+    goes_on = build_fleet(cfg, until_done=False)
+    assert goes_on.advance_to(17.0) and goes_on.t == pytest.approx(17.0)
+    assert all(goes_on.vehicle(n).simulator.status is None for n in goes_on.names)

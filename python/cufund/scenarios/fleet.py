@@ -186,9 +186,12 @@ def fleet_metrics(sim: FleetSimulator, runs: dict[str, ScenarioRun]) -> dict[str
     return out
 
 
-def build_fleet(config: ScenarioConfig) -> Fleet:
+def build_fleet(config: ScenarioConfig, until_done: bool = True) -> Fleet:
     """The fleet of ``config`` (a scenario with ``vehicles:``): each vehicle built as a single-vehicle scenario
-    (:func:`vehicle_scenario`, validated as any), in the fleet's world."""
+    (:func:`vehicle_scenario`, validated as any), in the fleet's world. With ``until_done`` each vehicle's run ends
+    as a single run's does (landed after its reference, or its mission's end condition); without, it goes on until
+    the fleet is stopped (as ``Simulator.advance_to`` without ``done``: for a vehicle flown from outside, e.g. over
+    MAVLink, which may take off again after landing)."""
     if not config.vehicles:
         raise ConfigError(f"scenario {config.name!r} lists no vehicles; build it with build_simulation")
     vehicles: list[FleetVehicle] = []
@@ -206,7 +209,15 @@ def build_fleet(config: ScenarioConfig) -> Fleet:
         viewers = [c for c in built.simulator.components if base is not None and getattr(c, "world", None) is base]
         radius = config.downwash.radius(vconfig.vehicle_params().arm_length) if config.downwash else 0.0
         members.append(
-            FleetMember(spec.name, built.simulator, done_condition(built), vconfig.collision_box, radius, viewers, base)
+            FleetMember(
+                spec.name,
+                built.simulator,
+                done_condition(built) if until_done else None,
+                vconfig.collision_box,
+                radius,
+                viewers,
+                base,
+            )
         )
         vehicles.append(FleetVehicle(spec.name, built))
     sim = FleetSimulator(members, world, config.downwash)
