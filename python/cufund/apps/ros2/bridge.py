@@ -115,7 +115,7 @@ class Ros2Bridge(Component):
         self._wall0: float | None = None
         self._started = False
         self._last_t: dict[str, float] = {}
-        self.stats = {"steps": 0, "messages": 0, "bytes": 0, "wait_s": 0.0, "commands": 0}
+        self.stats = {"steps": 0, "messages": 0, "bytes": 0, "wait_s": 0.0, "commands": 0, "ready_s": 0.0}
 
     def setup(self, bus: BusView) -> None:
         self._subs = [(o, None if o.latest_only else bus.subscribe(o.topic)) for o in self.outs]
@@ -132,7 +132,9 @@ class Ros2Bridge(Component):
         t_ns = round(t * NS)
         if not self._started:
             self._started = True
+            w0 = time.perf_counter()
             self._wait_ready()
+            self.stats["ready_s"] = time.perf_counter() - w0  # discovery and the nodes' start
             self._tf_static.write(encode.tf(t, self.static_tf))
             self._wall0 = time.perf_counter() - t
         if self.params.realtime and self._wall0 is not None:

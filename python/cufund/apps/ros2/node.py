@@ -36,6 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-ack", action="store_true", help="never answer (a node that does not play lockstep)")
     ap.add_argument("--idle-exit", type=float, default=5.0, help="exit after this long without a message [s]")
     ap.add_argument("--out", help="JSON summary file")
+    ap.add_argument("--raw", action="store_true", help="count the bytes of data topics without decoding them")
     ap.add_argument("--topics", help="comma-separated subset of /clock,/imu,/tf,/tf_static and the LiDAR to read")
     args = ap.parse_args(argv)
 
@@ -72,9 +73,26 @@ def main(argv: list[str] | None = None) -> int:
     types: dict[str, str] = {}
     last = time.monotonic()
     goal_sent = False
+    from cyclonedds._clayer import ddspy_take
+    from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState, WaitSet
+    from cyclonedds.util import duration
+
+    waitset = WaitSet(dds.participant)
+    for r in readers.values():
+        waitset.attach(ReadCondition(r, SampleState.NotRead))
+    order = [k for k in readers if k != "/clock"] + ["/clock"]  # the step's data first, its /clock (answered) last
+    any_state = SampleState.Any | ViewState.Any | InstanceState.Any
     while time.monotonic() - last < args.idle_exit:
         progressed = False
-        for topic, r in readers.items():
+        for topic in order:
+            r = readers[topic]
+            if args.raw and topic not in ("/clock", "/tf_static"):  # bytes only, not decoded (the benchmark)
+                raw = ddspy_take(r._ref, any_state, 1000)
+                for data, info in raw:
+                    if info.valid_data:
+                        progressed = True
+                        got[topic].append(len(data))
+                continue
             for s in r.take(N=1000):
                 if not s.sample_info.valid_data:
                     continue
@@ -134,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
         if progressed:
             last = time.monotonic()
         else:
-            time.sleep(0.0005)
+            waitset.wait(duration(milliseconds=100))
     summary = {"name": args.name, "received": got, "types": types}
     if args.out:
         with open(args.out, "w") as f:
