@@ -34,6 +34,9 @@ def _commander(p: CommanderParams, ctx: BuildContext) -> list[Any]:
         components += ctx.build("controller", dataclasses.replace(spec, kind=other), "controller")
 
     def done(t: float, truth: Any) -> bool:  # a scripted run ends once the script is through and it has landed
+        run_done = getattr(commander, "run_done", None)  # a mission flying through the commander (e.g. fleet)
+        if run_done is not None:
+            return bool(run_done(t))
         return (
             bool(p.script)
             and commander.script_done
@@ -101,3 +104,5 @@ def _tunnel_course_kind() -> None:
 
 _tunnel_course_kind()
 BUILTIN.setdefault("tunnel_course", tunnel_course)  # worlds.load("tunnel_course", seed=...)
+
+from . import fleet_mission  # noqa: E402, F401  (registers the mission kind fleet, which flies through the commander)
