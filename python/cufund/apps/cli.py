@@ -100,6 +100,11 @@ def _parser() -> argparse.ArgumentParser:
     odo.add_argument("log", type=Path, help="a run.mcap written by cufund run, or a ROS 2 bag folder")
     for kind in ("imu", "lidar", "truth"):
         odo.add_argument(f"--{kind}-topic", help=f"a ROS 2 bag's {kind} topic (default: found by its type)")
+    odo.add_argument(
+        "--scenario",
+        type=Path,
+        help="a scenario YAML whose LIO parameters and sensor mountings to use (default: the one recorded in LOG)",
+    )
     odo.add_argument("--out", type=Path, required=True, help="folder for the results")
     allan = sub.add_parser(
         "allan",
@@ -321,6 +326,8 @@ def _odometry(args: argparse.Namespace) -> int:
         bag = is_rosbag2(args.log)
         meta = {k.removeprefix("cufund."): v for k, v in bag_custom_data(args.log).items()} if bag else None
         meta = meta if meta is not None else log_metadata(args.log)
+        if args.scenario is not None:  # the mountings of a user's own drone, for a bag that does not carry them
+            meta["config"] = args.scenario.read_text()
         params, imu, lidar = LioParams(), "/sensors/imu", "/sensors/lidar"
         if "config" in meta:  # the scenario the log was recorded with: its extrinsics and IMU
             cfg = ScenarioConfig.from_dict(load_yaml_text(meta["config"], f"{args.log}: its recorded config"))
