@@ -58,7 +58,9 @@ def person_mesh(
             _limb((0.09 * s, 0.09 * s, 0.7 * s), (0.0, sign * 0.245 * s, shoulder_z - 0.02 * s), -arm_swing[side])
         )
         parts.append(_limb((0.14 * s, 0.14 * s, leg), (0.0, sign * 0.1 * s, hip_z), -leg_swing[side]))
-    return primitives.merge(parts)
+    v, f = primitives.merge(parts)
+    v[:, 2] -= v[:, 2].min()  # a swung leg's corner is the lowest point: on the ground
+    return v, f
 
 
 def lying_person_mesh(height: float = 1.75) -> Mesh:
@@ -171,28 +173,43 @@ def add_tunnel_frame(
     return world.add_tunnel_frame(p, width, height, yaw=yaw, color=color)
 
 
-_SCATTER = {"person": 0.5, "car": 2.3, "landing_pad": 0.9, "gate": 1.0}
-"""Footprint radius [m] kept free around each scattered kind."""
-_HEIGHT = {"person": 1.9, "car": 1.5, "landing_pad": 0.1, "gate": 2.8}
+_SCATTER_KINDS = ("person", "car", "landing_pad", "gate")
+
+
+def _random_mesh(kind: str, rng: np.random.Generator) -> Mesh:
+    if kind == "person":
+        if rng.random() < 0.1:
+            return lying_person_mesh(float(rng.uniform(1.5, 1.9)))
+        arms = rng.uniform(-0.8, 0.8, 2)
+        legs = rng.uniform(-0.4, 0.4, 2)
+        return person_mesh(float(rng.uniform(1.5, 1.9)), (arms[0], arms[1]), (legs[0], legs[1]))
+    if kind == "car":
+        return car_mesh()
+    if kind == "landing_pad":
+        return landing_pad_mesh()
+    return gate_mesh()
 
 
 def scatter(
     world: World,
     rng: np.random.Generator,
     n: int,
-    kinds: tuple[str, ...] = ("person", "car", "landing_pad", "gate"),
+    kinds: tuple[str, ...] = _SCATTER_KINDS,
     region: tuple[tuple[float, float], tuple[float, float]] | None = None,
+    clearance: float = 0.1,
 ) -> list[WorldObject]:
     """Adds ``n`` objects of ``kinds`` (drawn uniformly) on free ground (z = 0) in ``region`` ((x_min, x_max),
-    (y_min, y_max)) [m], by default the world's horizontal bounds less 1 m: a spot is free when vertical rays up
-    from the ground at its centre and around its footprint meet nothing below the object's height (a tree, a
-    wall, a ceiling). People get random poses (one in ten lying), everything random colours and headings.
-    Returns the objects added (fewer than ``n`` when no free spot is found in 50 draws for one)."""
+    (y_min, y_max)) [m], by default the world's horizontal bounds less 1 m. A spot is free when vertical rays up
+    from the ground on a 0.1 m grid over the object's footprint (its rectangle grown by ``clearance`` [m]) meet
+    nothing below the object's top (a tree, a wall, a ceiling, an object placed before) and do not start inside
+    a closed mesh. People get random poses
+    (one in ten lying), everything random colours and headings. Returns the objects added (fewer than ``n``
+    when no free spot is found in 50 draws for one)."""
     if isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 10_000:
         raise ValueError(f"n must be an integer in [0, 10000], got {n!r}")
-    unknown = [k for k in kinds if k not in _SCATTER]
+    unknown = [k for k in kinds if k not in _SCATTER_KINDS]
     if not kinds or unknown:
-        raise ValueError(f"kinds must be among {', '.join(_SCATTER)}, got {list(kinds)!r}")
+        raise ValueError(f"kinds must be among {', '.join(_SCATTER_KINDS)}, got {list(kinds)!r}")
     if region is None:
         lo, hi = world.bounds()
         region = ((lo[0] + 1.0, hi[0] - 1.0), (lo[1] + 1.0, hi[1] - 1.0))
@@ -202,28 +219,26 @@ def scatter(
     added: list[WorldObject] = []
     for _ in range(n):
         kind = kinds[int(rng.integers(len(kinds)))]
-        r, top = _SCATTER[kind], _HEIGHT[kind]
+        v, f = _random_mesh(kind, rng)
+        (ax, ay, _), (bx, by, top) = v.min(0) - clearance, v.max(0) + clearance
+        gx, gy = np.meshgrid(
+            np.linspace(ax, bx, max(int((bx - ax) / 0.1), 1) + 1), np.linspace(ay, by, max(int((by - ay) / 0.1), 1) + 1)
+        )
+        grid = np.stack([gx.ravel(), gy.ravel()], 1)
         for _ in range(50):
-            x, y = rng.uniform(x0, x1), rng.uniform(y0, y1)
-            a = np.linspace(0, 2 * np.pi, 8, endpoint=False)
-            pts = np.vstack([[x, y], np.stack([x + r * np.cos(a), y + r * np.sin(a)], 1)])
-            rays = np.zeros((len(pts), 6), np.float32)
-            rays[:, :2], rays[:, 2], rays[:, 5] = pts, 0.02, 1.0
-            if len(world) and np.any(world.raycast_scene.cast_rays(rays)["t_hit"] < top):
-                continue
-            yaw = float(rng.uniform(-np.pi, np.pi))
-            colour = tuple(float(c) for c in rng.random(3))
-            if kind == "person":
-                lying = bool(rng.random() < 0.1)
-                arms = tuple(float(v) for v in rng.uniform(-0.8, 0.8, 2))
-                legs = tuple(float(v) for v in rng.uniform(-0.4, 0.4, 2))
-                obj = add_person(world, (x, y, 0.0), yaw, float(rng.uniform(1.5, 1.9)), arms, legs, lying, colour)  # type: ignore[arg-type]
-            elif kind == "car":
-                obj = add_car(world, (x, y, 0.0), yaw, colour)
-            elif kind == "landing_pad":
-                obj = add_landing_pad(world, (x, y, 0.0), yaw, color=colour)
-            else:
-                obj = add_gate(world, (x, y, 0.0), yaw, color=colour)
-            added.append(obj)
+            x, y, yaw = rng.uniform(x0, x1), rng.uniform(y0, y1), float(rng.uniform(-np.pi, np.pi))
+            c, s_ = np.cos(yaw), np.sin(yaw)
+            rays = np.zeros((len(grid), 6), np.float32)
+            rays[:, 0] = x + c * grid[:, 0] - s_ * grid[:, 1]
+            rays[:, 1] = y + s_ * grid[:, 0] + c * grid[:, 1]
+            rays[:, 2], rays[:, 5] = 0.02, 1.0
+            if len(world):
+                hit = world.raycast_scene.cast_rays(rays)
+                # blocked: something below the top, or the spot is inside a closed mesh (a trunk, a wall: the ray
+                # leaves it through a face whose outward normal points up, along the ray)
+                if np.any(hit["t_hit"] < top) or np.any(np.isfinite(hit["t_hit"]) & (hit["normals"][:, 2] > 0)):
+                    continue
+            colour = tuple(float(k) for k in rng.random(3))
+            added.append(world.add_mesh(v, f, label=kind, color=colour, position=(x, y, 0.0), yaw=yaw))
             break
     return added

@@ -1,0 +1,242 @@
+"""Labelled data from the renderer (issue 26 item 1): boxes enclose exactly their instance masks, occlusion and
+truncation fractions match pixel counts worked out by hand from the pinhole model (and the object rendered alone
+by the depth camera), and `cufund dataset` writes the same YOLO/COCO files for the same seed."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from cufund.apps.cli import main
+from cufund.geometry import yaw_quaternion
+from cufund.perception.dataset import DatasetParams, Randomisation, write_dataset
+from cufund.perception.dataset_labels import ViewLabeller, upright_box
+from cufund.sensors.camera import CameraIntrinsics, DepthCamera
+from cufund.worlds import labelled_objects as lo
+from cufund.worlds.world import World
+
+# 64 x 48 pinhole, principal point between pixel centres (no pixel centre lies on the axis)
+K = CameraIntrinsics(64, 48, 80.0, 80.0, 31.5, 23.5)
+EYE = (0.0, 0.0, 1.0)  # camera at 1 m looking along +x (the body is the camera: T_BC identity)
+
+
+def _columns(y_left: float, y_right: float, x: float) -> np.ndarray:
+    """Pixel columns whose centre ray (u = cx - fx y / x) meets y in [y_right, y_left] at distance x."""
+    u_lo, u_hi = K.cx - K.fx * y_left / x, K.cx - K.fx * y_right / x
+    return np.arange(math.ceil(u_lo), math.floor(u_hi) + 1)
+
+
+def _rows(z_top: float, z_bottom: float, x: float) -> np.ndarray:
+    v_lo, v_hi = K.cy - K.fy * (z_top - EYE[2]) / x, K.cy - K.fy * (z_bottom - EYE[2]) / x
+    return np.arange(math.ceil(v_lo), math.floor(v_hi) + 1)
+
+
+def _plate(world: World, y: tuple[float, float], z: tuple[float, float], x: float, label: str):
+    """A thin box facing the camera: its near face at distance x, spanning y and z."""
+    size = (0.02, y[1] - y[0], z[1] - z[0])
+    return world.add_box(size, (x + 0.01, (y[0] + y[1]) / 2, (z[0] + z[1]) / 2), label=label)
+
+
+def test_box_and_mask_of_a_plate_from_the_pinhole_model():
+    w = World()
+    target = _plate(w, (-0.53, 0.71), (0.62, 1.37), 10.0, "gate")
+    (obj,) = ViewLabeller(w, K, lo.CLASSES).label(EYE, yaw_quaternion(0.0)).objects
+    cols, rows = _columns(0.71, -0.53, 10.0), _rows(1.37, 0.62, 10.0)
+    assert obj.instance_id == target.id and obj.class_name == "gate" and obj.class_id == lo.CLASSES.index("gate")
+    assert obj.box_xyxy == (cols[0], rows[0], cols[-1] + 1, rows[-1] + 1)
+    assert obj.visible_px == obj.unoccluded_px == len(cols) * len(rows)
+    assert obj.occlusion == 0.0 and obj.truncation == 0.0
+
+
+def test_occlusion_is_the_share_of_the_unoccluded_pixels_hidden():
+    """An unlabelled wall at 5 m covering y in [0.1, 3] hides the target's columns left of u = cx - fx 0.1 / 5."""
+    w = World()
+    target = _plate(w, (-1.0, 1.0), (0.5, 1.5), 10.0, "person")
+    _plate(w, (0.1, 3.0), (0.0, 3.0), 5.0, "wall")
+    labels = ViewLabeller(w, K, lo.CLASSES).label(EYE, yaw_quaternion(0.0))
+    (obj,) = labels.objects  # the wall is no class
+    cols, rows = _columns(1.0, -1.0, 10.0), _rows(1.5, 0.5, 10.0)
+    hidden = cols[cols <= K.cx - K.fx * 0.1 / 5.0]
+    assert 0 < len(hidden) < len(cols)
+    assert obj.unoccluded_px == len(cols) * len(rows)
+    assert obj.visible_px == (len(cols) - len(hidden)) * len(rows) == int((labels.instance_ids == target.id).sum())
+    assert obj.occlusion == pytest.approx(len(hidden) / len(cols), abs=1e-12)
+    # the unoccluded count is what the depth camera sees of the target alone
+    alone = World()
+    _plate(alone, (-1.0, 1.0), (0.5, 1.5), 10.0, "person")
+    depth = DepthCamera(K, depth_max=100.0).render(alone, EYE, yaw_quaternion(0.0))
+    assert isinstance(depth, np.ndarray)
+    assert obj.unoccluded_px == int(np.isfinite(depth).sum())
+    # the box is around the visible part only
+    visible_cols = cols[cols > K.cx - K.fx * 0.1 / 5.0]
+    assert obj.box_xyxy == (visible_cols[0], rows[0], visible_cols[-1] + 1, rows[-1] + 1)
+    assert np.all(labels.class_ids[labels.instance_ids == target.id] == lo.CLASSES.index("person"))
+    assert np.all(labels.class_ids[labels.instance_ids != target.id] == -1)
+
+
+def test_truncation_is_the_share_of_the_object_beyond_the_frame():
+    """A plate spanning u from inside the frame to beyond its right edge (u = 63 is the last column)."""
+    w = World()
+    _plate(w, (-6.0, -2.2), (0.8, 1.2), 10.0, "car")
+    (obj,) = ViewLabeller(w, K, lo.CLASSES).label(EYE, yaw_quaternion(0.0)).objects
+    cols = _columns(-2.2, -6.0, 10.0)
+    inside = cols[cols < K.width]
+    assert 0 < len(inside) < len(cols) and cols[-1] < 2 * K.width  # within the 3x canvas
+    assert obj.truncation == pytest.approx(1 - len(inside) / len(cols), abs=1e-12)
+    assert obj.box_xyxy[2] == K.width and obj.occlusion == 0.0
+
+
+def test_upright_box_of_a_turned_car():
+    w = World()
+    car = lo.add_car(w, (3.0, -2.0, 0.0), yaw=0.4)
+    b = upright_box(car.vertices)
+    np.testing.assert_allclose(b.centre_W[:2], (3.0, -2.0), atol=0.02)
+    assert b.yaw == pytest.approx(0.4, abs=np.deg2rad(0.5))
+    np.testing.assert_allclose(b.size, (4.2, 1.8, 1.45), atol=0.05)
+    corners = b.corners_W()
+    assert corners.shape == (8, 3) and corners[:, 2].min() == pytest.approx(0.0, abs=1e-9)
+
+
+def _world() -> World:
+    w = World("test")
+    w.add_plane((30.0, 30.0), (0.0, 0.0, 0.0))
+    for k in range(3):
+        lo.add_tunnel_frame(w, (4.0 + 2 * k, 0.0, 0.0))
+    w.add_cylinder(0.3, 4.0, (6.0, 3.0, 2.0), label="tree")
+    lo.scatter(w, np.random.default_rng(3), 6)
+    return w
+
+
+def _png(path: Path) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(path))
+
+
+SMALL = CameraIntrinsics.from_fov(160, 120, 1.2)
+FEW = DatasetParams(frames=6, seed=7, min_box_px=1, randomisation=Randomisation(distance_m=(3.0, 9.0)))
+
+
+def test_dataset_boxes_enclose_exactly_their_instance_masks(tmp_path):
+    w = _world()
+    summary = write_dataset(w, tmp_path / "d", FEW, SMALL, source="test")
+    d = tmp_path / "d"
+    coco = json.loads((d / "annotations.json").read_text())
+    assert summary["frames"] == 6 and summary["val"] == 1 and sum(summary["boxes"].values()) == len(coco["annotations"])
+    assert [c["name"] for c in coco["categories"]] == list(lo.CLASSES)
+    assert len(coco["annotations"]) >= 10
+    by_image: dict[int, list[dict]] = {}
+    for a in coco["annotations"]:
+        by_image.setdefault(a["image_id"], []).append(a)
+    for im in coco["images"]:
+        stem = Path(im["file_name"]).stem
+        instance = _png(d / "masks" / f"{stem}_instance.png").astype(np.int64) - 1
+        classes = _png(d / "masks" / f"{stem}_class.png").astype(np.int64) - 1
+        assert instance.shape == (120, 160)
+        anns = by_image.get(im["id"], [])
+        lines = (d / im["file_name"].replace("images/", "labels/").replace(".png", ".txt")).read_text().splitlines()
+        assert len(lines) == len(anns)
+        for a, line in zip(anns, lines, strict=True):
+            mask = instance == a["cufund"]["instance_id"]
+            rows, cols = np.nonzero(mask)
+            x, y, bw, bh = a["bbox"]
+            assert (x, y, x + bw, y + bh) == (cols.min(), rows.min(), cols.max() + 1, rows.max() + 1)
+            assert a["area"] == int(mask.sum()) == a["cufund"]["visible_px"]
+            assert np.all(classes[mask] == a["category_id"] - 1)
+            occ = 1 - a["area"] / a["cufund"]["unoccluded_px"]
+            assert a["cufund"]["occlusion"] == pytest.approx(occ, abs=1e-12)
+            assert w.objects[a["cufund"]["instance_id"]].label == lo.CLASSES[a["category_id"] - 1]
+            c, uc, vc, ww, hh = line.split()
+            assert int(c) == a["category_id"] - 1
+            np.testing.assert_allclose(
+                [float(uc) * 160, float(vc) * 120, float(ww) * 160, float(hh) * 120],
+                [x + bw / 2, y + bh / 2, bw, bh],
+                atol=1e-3,
+            )
+        # every labelled object seen has an annotation (min_box_px = 1)
+        seen = {int(i) for i in np.unique(instance[classes >= 0])}
+        assert seen == {a["cufund"]["instance_id"] for a in anns}
+    data = yaml.safe_load((d / "data.yaml").read_text())
+    assert data["train"] == "images/train" and data["names"] == dict(enumerate(lo.CLASSES))
+    assert len(list((d / "images" / "val").glob("*.png"))) == 1
+
+
+def test_dataset_is_the_same_for_the_same_seed(tmp_path):
+    w = _world()
+    write_dataset(w, tmp_path / "a", FEW, SMALL)
+    write_dataset(w, tmp_path / "b", FEW, SMALL)
+    files = sorted(p.relative_to(tmp_path / "a") for p in (tmp_path / "a").rglob("*") if p.is_file())
+    assert len(files) > 20
+    for f in files:
+        if f.name != "data.yaml":  # its 'path' is the folder
+            assert (tmp_path / "a" / f).read_bytes() == (tmp_path / "b" / f).read_bytes(), f
+    other = DatasetParams(frames=6, seed=8, min_box_px=1, randomisation=FEW.randomisation)
+    write_dataset(w, tmp_path / "c", other, SMALL)
+    assert (tmp_path / "a/images/train/000001.png").read_bytes() != (
+        tmp_path / "c/images/train/000001.png"
+    ).read_bytes()
+
+
+def test_ultralytics_reads_the_dataset(tmp_path, monkeypatch):
+    pytest.importorskip("ultralytics")
+    monkeypatch.setenv("YOLO_OFFLINE", "1")
+    monkeypatch.setenv("YOLO_CONFIG_DIR", str(tmp_path / "settings"))
+    write_dataset(_world(), tmp_path / "d", FEW, SMALL)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        from ultralytics.data.utils import check_det_dataset, verify_image_label
+
+        data = check_det_dataset(str(tmp_path / "d" / "data.yaml"), autodownload=False)
+        assert data["nc"] == len(lo.CLASSES) and list(data["names"].values()) == list(lo.CLASSES)
+        for img in sorted((tmp_path / "d" / "images" / "train").glob("*.png")):
+            label = Path(str(img).replace("/images/", "/labels/")).with_suffix(".txt")
+            out = verify_image_label((str(img), str(label), "", False, len(lo.CLASSES), 0, 0, False))
+            assert out[-1] == "" or "WARNING" not in out[-1], out[-1]  # its message: '' when the pair is valid
+            assert out[0] is not None
+
+
+def test_cli_writes_a_dataset_and_refuses_bad_arguments(tmp_path, capsys):
+    out = tmp_path / "tun"
+    args = ["dataset", "tunnel", "--out", str(out), "--frames", "2", "--width", "96", "--height", "72"]
+    assert main([*args, "--scatter", "2", "--no-progress"]) == 0
+    assert json.loads((out / "dataset.json").read_text())["seed"] == 0
+    assert len(list((out / "images").rglob("*.png"))) == 2
+    assert main(args) == 2
+    assert "exists and is not an empty folder" in capsys.readouterr().err
+    assert main(["dataset", "tunnel", "--out", str(tmp_path / "x"), "--frames", "0"]) == 2
+    assert "frames must be an integer in [1, 1000000], got 0" in capsys.readouterr().err
+    assert main(["dataset", "nowhere", "--out", str(tmp_path / "y")]) == 2
+    assert "unknown scenario 'nowhere'" in capsys.readouterr().err
+    assert main(["dataset", "tunnel", "--out", str(tmp_path / "z"), "--classes", "car"]) == 2
+    assert "holds no object labelled car" in capsys.readouterr().err
+
+
+def test_params_are_checked_naming_the_field():
+    with pytest.raises(ValueError, match=r"randomisation.exposure must be \[min, max\]"):
+        Randomisation(exposure=(2.0, 1.0))
+    with pytest.raises(ValueError, match="negative_fraction must be in"):
+        DatasetParams(negative_fraction=2)
+    with pytest.raises(ValueError, match="classes must be distinct"):
+        DatasetParams(classes=("a", "a"))
+    with pytest.raises(ValueError, match="leg_swing must be 2 angles"):
+        lo.person_mesh(leg_swing=(0.0, 3.0))
+
+
+def test_scattered_objects_stand_on_free_ground():
+    w = World()
+    w.add_plane((20.0, 20.0), (0.0, 0.0, 0.0))
+    trees = [w.add_cylinder(0.4, 6.0, (x, y, 3.0), label="tree") for x in (-4.0, 0.0, 4.0) for y in (-4.0, 0.0, 4.0)]
+    added = lo.scatter(w, np.random.default_rng(0), 8, kinds=("person", "landing_pad"))
+    assert len(added) == 8 and {o.label for o in added} <= {"person", "landing_pad"}
+    for o in added:
+        assert o.vertices[:, 2].min() == pytest.approx(0.0, abs=1e-9)
+        for t in trees:
+            gap = np.hypot(*(o.vertices[:, :2] - t.vertices[:, :2].mean(0)).T).min()
+            assert gap > 0.4  # outside every trunk
