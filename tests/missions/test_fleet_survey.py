@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from cufund.core.config import ConfigError
+from cufund.missions import MissionRequestError, parse_mission
+from cufund.missions.fleet_context import FleetContext
 from cufund.missions.fleet_mission import FleetMissionParams, plan_fleet_mission
 from cufund.scenarios.fleet import build_fleet, vehicle_scenario
 from cufund.scenarios.schema import ScenarioConfig, load_scenario
@@ -17,11 +19,12 @@ from cufund.scenarios.schema import ScenarioConfig, load_scenario
 @pytest.fixture(scope="module")
 def survey():
     cfg = load_scenario("fleet_survey")
-    return cfg, build_fleet(cfg).run()
+    fleet = build_fleet(cfg)
+    return cfg, fleet.run(), fleet
 
 
 def test_three_vehicles_cover_the_field_from_one_request(survey):
-    cfg, run = survey
+    cfg, run, _ = survey
     assert run.status == "completed", run.message
     assert run.metrics["fleet_collisions"] == 0
     assert run.metrics["fleet_min_separation_m"] >= cfg.mission.params.min_separation
@@ -53,6 +56,23 @@ def test_each_vehicle_plans_the_same_fleet_mission():
     for p in plans[1:]:
         assert p.delays == plans[0].delays
         assert all(np.array_equal(p.waypoints[n], plans[0].waypoints[n]) for n in p.waypoints)
+
+
+def test_a_built_fleet_is_the_context_of_a_request(survey):
+    """What a ground station on the fleet does: the request reads the scenario's field, fence and the homes."""
+    cfg, _, fleet = survey
+    ctx = FleetContext.of(fleet)
+    assert ctx.names == ("uav1", "uav2", "uav3") and set(ctx.fields) == {"field"}
+    assert ctx.geofence == tuple(tuple(map(float, p)) for p in cfg.mission.params.geofence)
+    for name in ctx.names:
+        np.testing.assert_allclose(ctx.home(name), cfg.mission.params.homes[name], atol=0.05)
+    planned = plan_fleet_mission(cfg.mission.params).waypoints
+    asked = parse_mission(cfg.mission.params.request, fleet).waypoints(fleet)
+    assert set(asked) == set(planned)
+    for name in planned:
+        np.testing.assert_allclose(asked[name], planned[name])
+    with pytest.raises(MissionRequestError, match="outside the geofence"):
+        parse_mission("orbit (40, 2) at radius 3 m", fleet)
 
 
 def _params(**kw):

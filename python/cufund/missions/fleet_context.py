@@ -120,8 +120,8 @@ class FleetContext:
     def of(cls, fleet: Any = None) -> FleetContext:
         """The context of ``fleet``: a :class:`FleetContext` as is; None the default; a mapping through
         :meth:`from_data`; a built fleet (``names`` and ``vehicle(name)``) with each vehicle's home (its
-        commander's home once armed, else its start) and, if the fleet offers ``mission_context`` (a mapping), the
-        fields, geofence and limits given there."""
+        commander's home once armed, else its start), the fields, geofence and limits of its scenario's ``fleet``
+        mission if it has one, and those of its ``mission_context`` (a mapping) if it offers one."""
         if fleet is None:
             return cls()
         if isinstance(fleet, FleetContext):
@@ -142,7 +142,18 @@ class FleetContext:
                 cfg = getattr(v, "config", None)
                 home = getattr(cfg, "start_p_W", None) if cfg is not None else None
             homes[n] = tuple(home) if home is not None else (0.0, 0.0, 0.0)
-        extra = dict(getattr(fleet, "mission_context", None) or {})
+        extra: dict[str, Any] = {}
+        mission = getattr(getattr(fleet, "config", None), "mission", None)
+        if getattr(mission, "kind", None) == "fleet":  # the scenario's fleet mission: its fields, fence and limits
+            p = mission.params  # type: ignore[union-attr]
+            extra = {
+                "fields": dict(p.fields),
+                "geofence": p.geofence,
+                "min_altitude": p.min_altitude,
+                "max_altitude": p.max_altitude,
+                "max_waypoints": p.max_waypoints,
+            }
+        extra.update(getattr(fleet, "mission_context", None) or {})
         extra.pop("names", None)
         extra.pop("homes", None)
         return cls.from_data({"names": tuple(names), "homes": homes, **extra})
