@@ -4,6 +4,7 @@
 
 namespace cufund::py_bind {
 void define_envs(pybind11::module_& m);  // bindings/envs.cpp
+void define_render(pybind11::module_& m);  // bindings/render.cpp
 }  // namespace cufund::py_bind
 
 PYBIND11_MODULE(_core, m) {
@@ -36,4 +37,6 @@ PYBIND11_MODULE(_core, m) {
   cufund::py_bind::define_logs(logs);
   py::module_ envs = m.def_submodule("envs", "Learning environments on the quadrotor batch (issue 28).");
   cufund::py_bind::define_envs(envs);
+  py::module_ render = m.def_submodule("render", "Camera images: materials, sun light and shadows (issue 25).");
+  cufund::py_bind::define_render(render);
 }

@@ -9,9 +9,10 @@ from . import perception
 from . import esdf
 from . import odometry
 from . import planning
+from . import render
 from . import logs
 from . import envs
-__all__: list[str] = ['control', 'dynamics', 'envs', 'esdf', 'lidar', 'logs', 'odometry', 'perception', 'planning', 'thread_pool_size']
+__all__: list[str] = ['control', 'dynamics', 'envs', 'esdf', 'lidar', 'logs', 'odometry', 'perception', 'planning', 'render', 'thread_pool_size']
 def thread_pool_size() -> int:
     """
     Threads of the shared C++ pool, the caller included (CUFUND_NUM_THREADS, else the CPUs this process may use).

@@ -20,7 +20,7 @@ import numpy as np
 from cufund import _core
 from cufund.core.messages import CameraImage  # noqa: F401 - re-exported: cameras' message
 from cufund.geometry import Transform, quat_from_rotvec, quat_mul, quat_to_matrix
-from cufund.worlds.materials import Material
+from cufund.worlds.materials import material_table
 from cufund.worlds.world import World
 
 from .camera_models import R_CO, CameraIntrinsics
@@ -83,20 +83,18 @@ class _RayCamera:
         rays[:, 3:] = self._dirs_O @ R_WO.T
         return rays, R_WO
 
-    def _rays_moving(
+    def _row_poses(
         self, p: np.ndarray, q: np.ndarray, v_W: np.ndarray, w_B: np.ndarray, row_dt: np.ndarray
-    ) -> np.ndarray:
-        """Rays with each row r taken at the pose propagated ``row_dt[r]`` seconds from (p, q) at constant
-        world velocity ``v_W`` and body rate ``w_B``."""
-        h, w = self.intrinsics.height, self.intrinsics.width
-        rays = np.empty((h, w, 6), np.float32)
-        dirs = self._dirs_O.reshape(h, w, 3)
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(p_WO (H, 3), R_WO (H, 3, 3)) of each row r, taken at the pose propagated ``row_dt[r]`` seconds from
+        (p, q) at constant world velocity ``v_W`` and body rate ``w_B``."""
+        h = self.intrinsics.height
+        row_p, row_R = np.empty((h, 3)), np.empty((h, 3, 3))
         for dt in np.unique(row_dt):
             rows = row_dt == dt
             p_WC, R_WO = self._camera_pose(p + v_W * dt, quat_mul(q, quat_from_rotvec(w_B * dt)))
-            rays[rows, :3] = p_WC
-            rays[rows, 3:] = dirs[rows] @ R_WO.T
-        return rays.reshape(-1, 6)
+            row_p[rows], row_R[rows] = p_WC, R_WO
+        return row_p, row_R
 
 
 def _scene_of(target: object) -> _core.lidar.RaycastScene:
@@ -233,6 +231,8 @@ class RgbCamera(_RayCamera):
         self.exposure_s, self.blur_samples, self.line_time_s = float(exposure_s), int(blur_samples), float(line_time_s)
         self.full_well_e, self.read_noise_dn = float(full_well_e), float(read_noise_dn)
         self.seed = seed
+        self._dirs_O32 = np.ascontiguousarray(self._dirs_O, dtype=np.float32)
+        self._table_key: tuple | None = None
         self.reset()
 
     def reset(self) -> None:
@@ -270,104 +270,91 @@ class RgbCamera(_RayCamera):
         n = self.blur_samples if (moving and self.exposure_s > 0) else 1
         row_dt = self._row_dt()
         h, wd = self.intrinsics.height, self.intrinsics.width
-        acc = np.zeros((h * wd, 3))
+        acc: np.ndarray | None = None
         ids_out = None
         for k in range(n):
             dt = self.exposure_s * ((k + 0.5) / n - 0.5) if n > 1 else 0.0
-            if moving and (dt != 0.0 or self.line_time_s > 0):
-                rays = self._rays_moving(p, q, v, w, row_dt + dt)
-            else:
-                rays = self._rays(p, q)[0]
-            lin, ids = self._shade(world, rays)
-            acc += lin
+            lin, ids = self._shade(world, *self._row_poses(p, q, v, w, row_dt + dt))
+            acc = lin if acc is None else acc + lin
             if k == n // 2:
                 ids_out = ids
-        lin = acc / n
+        assert acc is not None
+        lin = acc / np.float32(n) if n > 1 else acc
         if self.grayscale:
-            lin = lin @ np.array([0.299, 0.587, 0.114])
+            lin = lin @ np.array([0.299, 0.587, 0.114], np.float32)
         if self.full_well_e > 0:
             lam = np.clip(lin, 0.0, 1.0) * self.full_well_e
             lin = self._rng.poisson(lam) / self.full_well_e
         if self.read_noise_dn > 0:
             lin = lin + self._rng.standard_normal(lin.shape) * (self.read_noise_dn / 255.0)
-        img = (np.clip(lin, 0, 1) * 255 + 0.5).astype(np.uint8)
+        img = (np.clip(lin, 0, 1) * np.float32(255) + np.float32(0.5)).astype(np.uint8)
         img = img.reshape(h, wd) if self.grayscale else img.reshape(h, wd, 3)
         if not want_ids:
             return img
         assert ids_out is not None
         return img, ids_out.reshape(h, wd), tuple(world.labels())
 
-    def _shade(self, world: World, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(N, 3) linear colour and (N,) int32 object ids of the rays."""
+    def _shade(self, world: World, row_p: np.ndarray, row_R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) linear colour and (N,) int32 object ids of the view with rows at poses (row_p, row_R), rendered
+        in C++ (cufund._core.render); image-textured objects are coloured here through their UVs."""
         scene = world.raycast_scene
-        hit = scene.cast_rays(rays, nthreads=self.nthreads)
-        ids = _ids(hit["geometry_ids"])
-        seen = ids >= 0
-        normals = hit["normals"]
-        rgb = np.empty((len(rays), 3))
-        rgb[~seen] = self.sky
-        if not seen.any():
-            return rgb, ids
-        idx = np.nonzero(seen)[0]
-        n_W = normals[idx].astype(np.float64)
-        t = hit["t_hit"][idx].astype(np.float64)
-        d = rays[idx, 3:].astype(np.float64)
-        p_hit = rays[idx, :3] + d * t[:, None]
-        albedo = _albedo(world, ids[idx], p_hit, n_W, hit, idx)
-        if not self.shadows:
-            direct = np.abs(n_W @ self.light_W)
-        else:
-            facing = np.where(np.einsum("ij,ij->i", n_W, d) > 0, -1.0, 1.0)
-            n_f = n_W * facing[:, None]
-            direct = np.maximum(n_f @ self.light_W, 0.0)
-            lit = np.nonzero(direct > 0)[0]
-            if len(lit):
-                shadow = np.empty((len(lit), 6), np.float32)
-                eps = 1e-4 * (1.0 + t[lit] * np.linalg.norm(d[lit], axis=1))
-                shadow[:, :3] = p_hit[lit] + n_f[lit] * eps[:, None]
-                shadow[:, 3:] = self.light_W
-                blocked = np.isfinite(scene.cast_rays(shadow, nthreads=self.nthreads, coherent=False)["t_hit"])
-                direct[lit[blocked]] = 0.0
-        rgb[idx] = albedo * (self.ambient + (1 - self.ambient) * direct)[:, None]
+        if self._table_key is None or self._table_key[0] is not scene:
+            self._table_key = (scene, *material_table(world.objects))
+        _, table, tiles, external = self._table_key
+        h, w = self.intrinsics.height, self.intrinsics.width
+        out = _core.render.render_image(
+            scene,
+            self._dirs_O32,
+            row_p,
+            row_R,
+            w,
+            h,
+            table,
+            tiles,
+            self.light_W,
+            self.ambient,
+            self.shadows,
+            self.sky,
+            self.nthreads,
+        )
+        rgb, ids = out["rgb"], out["ids"]
+        if external:
+            sel = np.nonzero(np.isin(ids, external))[0]
+            if len(sel):
+                rgb[sel] = self._image_albedo(world, sel, row_p, row_R) * out["shade"][sel, None]
         return rgb, ids
 
-
-def _albedo(world: World, ids: np.ndarray, p_W: np.ndarray, n_W: np.ndarray, hit: dict, idx: np.ndarray) -> np.ndarray:
-    """(M, 3) albedo at the hits of objects ``ids`` (their materials, or plain colours)."""
-    objects = world.objects
-    out = world.colors()[ids]
-    mats: dict[Material, list[int]] = {}
-    for obj in objects:
-        if obj.material is not None:
-            mats.setdefault(obj.material, []).append(obj.id)
-    if not mats:
-        return out
-    for mat, oids in mats.items():
-        sel = np.nonzero(np.isin(ids, oids))[0]
-        if not len(sel):
-            continue
-        uv_objs = [oid for oid in oids if objects[oid].uvs is not None] if mat.texture == "image" else []
-        if uv_objs:
-            for oid in uv_objs:
-                s = sel[ids[sel] == oid]
-                obj = objects[oid]
-                assert obj.uvs is not None
-                prim = hit["primitive_ids"][idx[s]].astype(np.int64)
-                b = hit["primitive_uvs"][idx[s]].astype(np.float64)
+    def _image_albedo(self, world: World, sel: np.ndarray, row_p: np.ndarray, row_R: np.ndarray) -> np.ndarray:
+        """(M, 3) albedo of image-textured objects at pixels ``sel`` (their rays cast again for UVs)."""
+        rows = sel // self.intrinsics.width
+        rays = np.empty((len(sel), 6), np.float32)
+        rays[:, :3] = row_p[rows]
+        rays[:, 3:] = np.einsum("nij,nj->ni", row_R[rows], self._dirs_O[sel])
+        hit = world.raycast_scene.cast_rays(rays, nthreads=self.nthreads)
+        ids = _ids(hit["geometry_ids"])
+        out = np.zeros((len(sel), 3))
+        for oid in np.unique(ids[ids >= 0]):
+            obj = world.objects[oid]
+            k = np.nonzero(ids == oid)[0]
+            t = hit["t_hit"][k].astype(np.float64)
+            p_W = rays[k, :3] + rays[k, 3:] * t[:, None]
+            n_W = hit["normals"][k].astype(np.float64)
+            mat = obj.material
+            if mat is None:
+                out[k] = obj.color
+                continue
+            uv = None
+            if obj.uvs is not None:
+                prim = hit["primitive_ids"][k].astype(np.int64)
+                b = hit["primitive_uvs"][k].astype(np.float64)
                 tri = obj.triangles[prim]
                 uv = (
                     (1 - b[:, :1] - b[:, 1:]) * obj.uvs[tri[:, 0]]
                     + b[:, :1] * obj.uvs[tri[:, 1]]
                     + b[:, 1:] * obj.uvs[tri[:, 2]]
                 )
-                out[s] = mat.albedo_at(p_W[s], n_W[s], uv)
-            sel = sel[~np.isin(ids[sel], uv_objs)]
-            if not len(sel):
-                continue
-        # each object's texture shifted by its id, so objects sharing a material do not repeat one another
-        offset = (ids[sel, None] * np.array([7.31, 3.17])) % 97.0
-        out[sel] = mat.albedo_at(p_W[sel], n_W[sel], None, offset)
-    return out
+            out[k] = mat.albedo_at(p_W, n_W, uv)
+        return out
 
 
 def save_png(path: str | Path, image: np.ndarray, depth_scale: float = 1000.0) -> None:

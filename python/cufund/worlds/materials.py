@@ -117,28 +117,52 @@ class Material:
         return self.dark + (bright - self.dark) * f[:, None]
 
     def pattern(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """The texture's value in [0, 1] at plane coordinates (a, b) in units of ``scale``."""
-        if self.texture == "checker":
-            return ((np.floor(a) + np.floor(b)) % 2 == 0).astype(float)
-        tile = _noise_tile(self.seed)
-        if self.texture == "noise":
-            return _lookup(tile, a / _CELLS, b / _CELLS)
-        if self.texture == "concrete":
-            fine = _lookup(tile, a / (_CELLS / 4), b / (_CELLS / 4))
-            blotch = _lookup(tile, a / (2 * _CELLS) + 0.37, b / (2 * _CELLS) + 0.61)
-            return np.clip(0.55 + 0.7 * (fine - 0.5) + 0.5 * (blotch - 0.5), 0.0, 1.0)
-        if self.texture == "bark":  # vertical ridges: noise stretched 8x along b
-            return np.clip(0.5 + 1.4 * (_lookup(tile, a / (_CELLS / 4), b / (8 * _CELLS / 4)) - 0.5), 0.0, 1.0)
-        # brick: running bond, bricks scale x scale/3, mortar 8% of the height
-        h = 1.0 / 3.0
-        row = np.floor(b / h)
-        x = a + 0.5 * (row % 2)
-        col = np.floor(x)
-        fu, fv = x - col, b / h - row
-        mortar = (fu < 0.03) | (fv < 0.08)
-        shade = _hash(row, col, self.seed)
-        grain = _lookup(tile, a / (_CELLS / 8), b / (_CELLS / 8))
-        return np.where(mortar, 0.0, 0.55 + 0.3 * shade + 0.3 * (grain - 0.5))
+        """The texture's value in [0, 1] at plane coordinates (a, b) in units of ``scale`` (the renderer's own
+        code, cpp/render/textures.cpp)."""
+        from cufund import _core
+
+        tile = _noise_tile(self.seed) if self.texture in _TILED else np.zeros((1, 1), np.float32)
+        return np.asarray(
+            _core.render.pattern(
+                TEXTURE_CODES[self.texture], np.ravel(a).astype(float), np.ravel(b).astype(float), tile, self.seed
+            )
+        ).reshape(np.shape(a))
+
+
+TEXTURE_CODES = {"none": 0, "checker": 1, "noise": 2, "brick": 3, "bark": 4, "concrete": 5, "image": 6}
+"""The renderer's texture codes (cpp/render/textures.h)."""
+_TILED = ("noise", "brick", "bark", "concrete")
+
+
+def material_table(objects: Any) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The renderer's material rows of world objects (by id), their noise tiles and the ids of objects with
+    image textures (coloured by the caller): (table (G, 13) float64, tiles (T, S, S) float32, external ids)."""
+    rows, seeds, external = [], [], []
+    for obj in objects:
+        m = obj.material
+        row = np.zeros(13)
+        if m is None:
+            row[1:4] = row[4:7] = obj.color
+            row[7] = 1.0
+            row[9] = -1
+        else:
+            row[0] = TEXTURE_CODES[m.texture]
+            row[1:4] = m.albedo
+            row[4:7] = m.dark
+            row[7] = m.scale
+            row[8] = m.seed
+            row[9] = -1
+            if m.texture in _TILED:
+                if m.seed not in seeds:
+                    seeds.append(m.seed)
+                row[9] = seeds.index(m.seed)
+            if m.texture == "image":
+                external.append(obj.id)
+            # each object's texture shifted by its id, so objects sharing a material do not repeat one another
+            row[10:12] = (obj.id * np.array([7.31, 3.17])) % 97.0
+        rows.append(row)
+    tiles = np.stack([_noise_tile(s) for s in seeds]) if seeds else np.zeros((0, 1, 1), np.float32)
+    return np.array(rows, dtype=float).reshape(-1, 13), tiles, external
 
 
 def planar_coords(p_W: np.ndarray, n_W: np.ndarray) -> np.ndarray:
@@ -149,13 +173,6 @@ def planar_coords(p_W: np.ndarray, n_W: np.ndarray) -> np.ndarray:
     out[:, 0] = np.where(axis == 0, p_W[:, 1], p_W[:, 0])
     out[:, 1] = np.where(axis == 2, p_W[:, 1], p_W[:, 2])
     return out
-
-
-def _hash(i: np.ndarray, j: np.ndarray, seed: int) -> np.ndarray:
-    """Deterministic pseudo-random value in [0, 1) per integer lattice cell."""
-    h = (i.astype(np.int64) * 73856093) ^ (j.astype(np.int64) * 19349663) ^ (seed * 83492791 + 1)
-    h = (h ^ (h >> 13)) * 1274126177
-    return ((h ^ (h >> 16)) & 0xFFFF) / 65536.0
 
 
 @functools.lru_cache(maxsize=64)
@@ -180,18 +197,6 @@ def _noise_tile(seed: int) -> np.ndarray:
     tile /= total
     lo, hi = np.percentile(tile, (1, 99))
     return np.clip((tile - lo) / (hi - lo), 0.0, 1.0).astype(np.float32)
-
-
-def _lookup(tile: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Bilinear lookup of a periodic tile at (a, b) in tile periods."""
-    n = tile.shape[0]
-    x, y = np.mod(a, 1.0) * n, np.mod(b, 1.0) * n
-    i0, j0 = np.floor(x).astype(np.int64) % n, np.floor(y).astype(np.int64) % n
-    tx, ty = x - np.floor(x), y - np.floor(y)
-    i1, j1 = (i0 + 1) % n, (j0 + 1) % n
-    top = tile[j0, i0] * (1 - tx) + tile[j0, i1] * tx
-    bot = tile[j1, i0] * (1 - tx) + tile[j1, i1] * tx
-    return top * (1 - ty) + bot * ty
 
 
 def sample_image(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
