@@ -87,6 +87,37 @@ QOS = {
 lockstep answers (reliable, deep: none is lost)."""
 
 
+_DOMAINS: dict[int, list[Any]] = {}
+"""The domains this process configured: id -> [configuration, Domain, participants]. Cyclone configures a domain
+once per process; every participant in it shares that configuration; the last one to close releases it."""
+_DOMAINS_LOCK = threading.Lock()
+
+
+def _open_domain(domain_id: int, config: str) -> Any:
+    with _DOMAINS_LOCK:
+        found = _DOMAINS.get(domain_id)
+        if found is not None:
+            if found[0] != config:
+                raise ValueError(
+                    f"ros2: DDS domain {domain_id} is open in this process with another configuration (expose "
+                    "differs); one process uses one setting per domain"
+                )
+            found[2] += 1
+            return found[1]
+        domain = Domain(domain_id, config)
+        _DOMAINS[domain_id] = [config, domain, 1]
+        return domain
+
+
+def _close_domain(domain_id: int) -> None:
+    with _DOMAINS_LOCK:
+        found = _DOMAINS.get(domain_id)
+        if found is not None:
+            found[2] -= 1
+            if found[2] <= 0:
+                del _DOMAINS[domain_id]
+
+
 class DdsParticipant:
     """One DDS domain participant speaking ROS 2's conventions; writers take CDR bytes, readers give raw samples
     or decoded :mod:`~cufund.apps.ros2.idl` structs."""
@@ -98,9 +129,13 @@ class DdsParticipant:
         self.expose = expose
         self.config = cyclone_config(domain_id, expose)
         try:
-            self._domain = Domain(domain_id, self.config)
+            self._domain = _open_domain(domain_id, self.config)
+        except DDSException as e:
+            raise RuntimeError(f"ros2: could not open DDS domain {domain_id}: {e}") from None
+        try:
             self.participant = DomainParticipant(domain_id)
         except DDSException as e:
+            _close_domain(domain_id)
             raise RuntimeError(f"ros2: could not open DDS domain {domain_id}: {e}") from None
         self._topics: dict[str, Any] = {}
         self._lock = threading.Lock()
@@ -132,6 +167,7 @@ class DdsParticipant:
             self._topics.clear()
             del self.participant
             del self._domain
+            _close_domain(self.domain_id)
 
 
 class RawWriter:

@@ -13,6 +13,7 @@ from cufund.core.messages import Topics
 from cufund.core.registry import Kind
 
 from .config import Ros2Params
+from .external import ExternalParams
 
 __all__ = ["KINDS", "build_bridge", "default_topics"]
 
@@ -129,7 +130,7 @@ def build_bridge(p: Ros2Params, ctx: BuildContext) -> list[Any]:
     return [bridge.Ros2Bridge(p, outs, static_tf, ctx.commander, rate)]
 
 
-KINDS = [
+KINDS: list[Kind] = [
     Kind(
         "bridge",
         "ros2",
@@ -137,4 +138,58 @@ KINDS = [
         build_bridge,
         doc="the ROS 2 bridge over DDS (scenario key ros2: {...}; docs/guides/ros2.md)",
     )
+]
+
+
+def build_external(p: ExternalParams, ctx: BuildContext) -> list[Any]:
+    """A ROS 2 node as the part being built (``ros2_external``): what it reads and writes, by message type."""
+    from cufund.core.topics import Topic
+    from cufund.logs.codecs import sensor_frame
+
+    from . import external
+
+    known: dict[str, type] = {}
+    for t in vars(Topics).values():
+        if isinstance(t, Topic):
+            known[str(t)] = t.type
+    for spec in ctx.config.sensors.values():
+        if spec.topic is not None:
+            known[str(spec.topic)] = spec.topic.type
+    where = ctx.where
+    if not p.node:
+        raise ConfigError(f"{where}.node must name the node (the frame_id of its answers on /cufund/step_ack)")
+    if not p.writes:
+        raise ConfigError(f"{where}.writes must name at least one topic the node publishes")
+    reads, writes = [], []
+    for topic, ros_name in p.reads.items():
+        cls = known.get(topic)
+        enc = external.encoder_for(cls, sensor_frame(topic)) if cls is not None else None
+        if enc is None:
+            raise ConfigError(f"{where}.reads: {topic} ({getattr(cls, '__name__', 'unknown type')}) cannot be sent")
+        reads.append((topic, ros_name, enc[0], enc[1]))
+    estimate = None
+    for topic, ros_name in p.writes.items():
+        cls = known.get(topic)
+        dec = external.decoder_for(cls) if cls is not None else None
+        if dec is None:
+            raise ConfigError(
+                f"{where}.writes: {topic} ({getattr(cls, '__name__', 'unknown type')}) cannot be received; a node "
+                "writes Odometry (nav_msgs/msg/Odometry) or TrajectorySetpoint (quadrotor_msgs/msg/PositionCommand)"
+            )
+        writes.append((topic, ros_name, dec[0], dec[1]))
+        if cls is not None and cls.__name__ == "Odometry":
+            estimate = topic
+    name = f"{where}:{p.node}"
+    if where == "estimator":
+        if estimate is None:
+            raise ConfigError(f"{where}: a ros2_external estimator writes an Odometry topic")
+        c = external.ExternalEstimator(p, reads, writes, name)
+        c.topic = estimate
+        return [c]
+    return [external.ExternalComponent(p, reads, writes, name)]
+
+
+KINDS += [
+    Kind(group, "ros2_external", ExternalParams, build_external, doc="a ROS 2 node over DDS (docs/guides/ros2.md)")
+    for group in ("estimator", "mapper", "planner", "controller")
 ]

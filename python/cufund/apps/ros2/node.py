@@ -36,6 +36,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-ack", action="store_true", help="never answer (a node that does not play lockstep)")
     ap.add_argument("--idle-exit", type=float, default=5.0, help="exit after this long without a message [s]")
     ap.add_argument("--out", help="JSON summary file")
+    ap.add_argument(
+        "--estimator",
+        help="IN:OUT: play an external estimator, answering each geometry_msgs/PoseStamped on IN with a "
+        "nav_msgs/Odometry of that pose (zero twist) on OUT",
+    )
     ap.add_argument("--raw", action="store_true", help="count the bytes of data topics without decoding them")
     ap.add_argument("--topics", help="comma-separated subset of /clock,/imu,/tf,/tf_static and the LiDAR to read")
     args = ap.parse_args(argv)
@@ -51,6 +56,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.topics:
         keep = set(args.topics.split(",")) | {"/clock"}
         readers = {k: v for k, v in readers.items() if k in keep}
+    odom_writer: Any = None
+    pose_in = odom_out = ""
+    if args.estimator:
+        pose_in, odom_out = args.estimator.split(":")
+        readers[pose_in] = dds.reader(pose_in, "geometry_msgs/msg/PoseStamped", QosProfile(depth=1000))
     ack = dds.topic(ACK_TOPIC, "std_msgs/msg/Header")
     from cyclonedds.pub import DataWriter
 
@@ -59,6 +69,10 @@ def main(argv: list[str] | None = None) -> int:
         dds.participant, dds.topic("/goal_pose", "geometry_msgs/msg/PoseStamped"), qos=QOS["default"].qos()
     )
     goal = [float(v) for v in args.goal.split(",")] if args.goal else None
+    if args.estimator:
+        odom_writer = DataWriter(
+            dds.participant, dds.topic(odom_out, "nav_msgs/msg/Odometry"), qos=QOS["default"].qos()
+        )
     # announce once the bridge's publishers have matched (so nothing it publishes is missed)
     t0 = time.monotonic()
     while time.monotonic() - t0 < 30:
@@ -121,6 +135,12 @@ def main(argv: list[str] | None = None) -> int:
                             *(getattr(s.linear_acceleration, a) for a in "xyz"),
                         ]
                     )
+                elif args.estimator and topic == pose_in:
+                    got[topic].append([_ns(s.header.stamp)])
+                    odom = idl.Odometry(
+                        s.header, "base_link", idl.PoseWithCovariance(s.pose), idl.TwistWithCovariance()
+                    )
+                    odom_writer.write(odom)
                 elif topic in ("/tf", "/tf_static"):
                     for tr in s.transforms:
                         v, q = tr.transform.translation, tr.transform.rotation

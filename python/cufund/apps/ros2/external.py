@@ -1,0 +1,245 @@
+"""``ros2_external``: an estimator, mapper, planner or controller that is a ROS 2 node over DDS.
+
+The component runs at ``rate_hz`` like any other. At each step at simulated time t it publishes to the node every
+message that became visible on its ``reads`` since the last step (as the bridge encodes them), then ``/clock`` t,
+then waits until the node has *answered* t (the bridge's contract: a ``std_msgs/msg/Header`` on
+``/cufund/step_ack`` with ``frame_id`` the node's name and ``stamp`` >= t), and publishes on the cufund bus what
+the node sent on its ``writes`` by then (with the part's ``latency_s``). The node announces itself before the first
+step (an answer stamped -1 s). A node silent for ``timeout_s`` of wall-clock time ends the run with
+:class:`~cufund.apps.ros2.bridge.Ros2Timeout` naming it. Like any flight software, it may not read ``/truth/`` topics
+when an estimator is configured (the scenario's wiring check refuses it).
+
+What a node may write, by the cufund topic's message: :class:`~cufund.core.messages.Odometry` from
+``nav_msgs/msg/Odometry`` (pose in the world, twist in the body frame, REP 105), and
+:class:`~cufund.core.messages.TrajectorySetpoint` from ``quadrotor_msgs/msg/PositionCommand``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cufund.core.components import BusView, Component, Estimator
+from cufund.core.config import ConfigError
+from cufund.core.messages import CameraImage, Imu, Odometry, PointCloud, Pose, TrajectorySetpoint
+from cufund.geometry import quat_to_matrix
+
+from .config import ACK_TOPIC
+
+__all__ = ["ExternalComponent", "ExternalEstimator", "ExternalParams", "decoder_for", "encoder_for"]
+
+NS = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class ExternalParams:
+    """A ROS 2 node as a scenario part (kind ``ros2_external`` of estimator, mapper, planner or controller)."""
+
+    node: str = ""
+    """The node's name: the ``frame_id`` of its answers on ``/cufund/step_ack``."""
+    reads: dict[str, str] = field(default_factory=dict)
+    """cufund topic -> the ROS 2 name it is published to the node on (e.g. ``/sensors/imu: /imu``)."""
+    writes: dict[str, str] = field(default_factory=dict)
+    """cufund topic -> the ROS 2 name the node publishes it on (e.g. ``/estimator/odometry: /Odometry``)."""
+    rate_hz: float = 100.0
+    """Steps per simulated second [Hz]."""
+    timeout_s: float = 10.0
+    """Wall-clock time the node may take to answer a step [s]."""
+    domain_id: int = 0
+    """The DDS domain (ROS_DOMAIN_ID)."""
+    expose: bool = False
+    """Let DDS leave this host (default: loopback only)."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.node, str):
+            raise ConfigError(f"ros2_external.node must be the node's name, got {self.node!r}")
+        for key in ("reads", "writes"):
+            value = getattr(self, key)
+            if not isinstance(value, dict) or not all(
+                isinstance(k, str) and k.startswith("/") and isinstance(v, str) and v.startswith("/")
+                for k, v in value.items()
+            ):
+                raise ConfigError(f"ros2_external.{key} must map cufund topics to ROS 2 names (/a: /b), got {value!r}")
+        for key, hi in (("rate_hz", 10_000.0), ("timeout_s", 3600.0)):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not 0 < v <= hi:
+                raise ConfigError(f"ros2_external.{key} must be a number in (0, {hi:g}], got {v!r}")
+            object.__setattr__(self, key, float(v))
+        d = self.domain_id
+        if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d <= 232:
+            raise ConfigError(f"ros2_external.domain_id must be an integer in [0, 232] (ROS_DOMAIN_ID), got {d!r}")
+        if not isinstance(self.expose, bool):
+            raise ConfigError(f"ros2_external.expose must be true or false, got {self.expose!r}")
+
+
+def encoder_for(cls: type, frame: str) -> tuple[str, Callable[[Any], bytes]] | None:
+    """(ROS 2 type, encoder) of a cufund message class published to a node, or None."""
+    from cufund.logs import ros2
+
+    from . import encode
+
+    if cls is Imu:
+        return "sensor_msgs/msg/Imu", encode.imu_encoder(frame)
+    if cls is PointCloud:
+        return "sensor_msgs/msg/PointCloud2", encode.point_cloud_encoder(frame)
+    if cls is CameraImage:
+        return "sensor_msgs/msg/Image", encode.image_encoder(frame)
+    if cls is Odometry:
+        return "nav_msgs/msg/Odometry", encode.odometry_encoder("world", "base_link")
+    if cls is Pose:
+        layout = ros2.pose_stamped_layout("world")
+
+        def pose(m: Any) -> bytes:
+            row = layout.empty(1)
+            encode._stamp(row, m.t)
+            row["pose.position"] = m.p_W
+            row["pose.orientation"] = encode.xyzw(m.q_WB)
+            return row.tobytes()
+
+        return "geometry_msgs/msg/PoseStamped", pose
+    return None
+
+
+def _t(stamp: Any) -> float:
+    return (int(stamp.sec) * NS + int(stamp.nanosec)) / NS
+
+
+def _odometry(s: Any) -> Odometry:
+    o = s.pose.pose.orientation
+    q = np.array([o.w, o.x, o.y, o.z], dtype=float)
+    v_B = np.array([s.twist.twist.linear.x, s.twist.twist.linear.y, s.twist.twist.linear.z], dtype=float)
+    return Odometry(
+        t=_t(s.header.stamp),
+        p_W=np.array([s.pose.pose.position.x, s.pose.pose.position.y, s.pose.pose.position.z], dtype=float),
+        v_W=quat_to_matrix(q, normalize=True) @ v_B,
+        q_WB=q,
+        w_B=np.array([s.twist.twist.angular.x, s.twist.twist.angular.y, s.twist.twist.angular.z], dtype=float),
+    )
+
+
+def _setpoint(s: Any) -> TrajectorySetpoint:
+    return TrajectorySetpoint(
+        t=_t(s.header.stamp),
+        p_W=np.array([s.position.x, s.position.y, s.position.z], dtype=float),
+        v_W=np.array([s.velocity.x, s.velocity.y, s.velocity.z], dtype=float),
+        a_W=np.array([s.acceleration.x, s.acceleration.y, s.acceleration.z], dtype=float),
+        j_W=np.array([s.jerk.x, s.jerk.y, s.jerk.z], dtype=float),
+        yaw=float(s.yaw),
+        yaw_rate=float(s.yaw_dot),
+    )
+
+
+def decoder_for(cls: type) -> tuple[str, Callable[[Any], Any]] | None:
+    """(ROS 2 type, decoder) of what a node publishes for a cufund message class, or None."""
+    if cls is Odometry:
+        return "nav_msgs/msg/Odometry", _odometry
+    if cls is TrajectorySetpoint:
+        return "quadrotor_msgs/msg/PositionCommand", _setpoint
+    return None
+
+
+class ExternalComponent(Component):
+    """See the module doc. ``reads``: (cufund topic, ROS 2 name, ROS 2 type, encoder); ``writes``: (cufund topic,
+    ROS 2 name, ROS 2 type, decoder)."""
+
+    def __init__(
+        self,
+        params: ExternalParams,
+        reads: list[tuple[str, str, str, Callable[[Any], bytes]]],
+        writes: list[tuple[str, str, str, Callable[[Any], Any]]],
+        name: str,
+    ) -> None:
+        self.params = params
+        self.name = name
+        self.rate_hz = params.rate_hz
+        self._reads = reads
+        self._writes = writes
+        self.dds: Any = None
+
+    @property
+    def inputs(self) -> tuple[str, ...]:  # type: ignore[override]
+        return tuple(r[0] for r in self._reads)
+
+    @property
+    def outputs(self) -> tuple[str, ...]:  # type: ignore[override]
+        return tuple(w[0] for w in self._writes)
+
+    def reset(self) -> None:
+        from .dds import QOS, DdsParticipant
+
+        self.close()
+        self.dds = DdsParticipant(self.params.domain_id, self.params.expose)
+        self._writers = [self.dds.writer(name, rtype, QOS["default"]) for _, name, rtype, _ in self._reads]
+        self._readers = [self.dds.reader(name, rtype, QOS["default"]) for _, name, rtype, _ in self._writes]
+        self._clock = self.dds.writer("/clock", "rosgraph_msgs/msg/Clock", QOS["clock"])
+        self._ack = self.dds.reader(ACK_TOPIC, "std_msgs/msg/Header", QOS["ack"])
+        self._answered: int | None = None
+        self._started = False
+        self._last_clock: int | None = None
+
+    def setup(self, bus: BusView) -> None:
+        self._subs = [bus.subscribe(topic) for topic, _, _, _ in self._reads]
+
+    def close(self) -> None:
+        if self.dds is not None:
+            self.dds.close()
+            self.dds = None
+
+    def _take_answers(self) -> None:
+        for s in self._ack.take(N=1000):
+            info = getattr(s, "sample_info", None)
+            if (info is None or info.valid_data) and s.frame_id == self.params.node:
+                ns = int(s.stamp.sec) * NS + int(s.stamp.nanosec)
+                if self._answered is None or ns > self._answered:
+                    self._answered = ns
+
+    def _wait(self, ok: Callable[[], bool], what: str) -> None:
+        from cyclonedds.core import ReadCondition, SampleState, WaitSet
+        from cyclonedds.util import duration
+
+        from .bridge import Ros2Timeout
+
+        if not hasattr(self, "_waitset"):
+            self._waitset = WaitSet(self.dds.participant)
+            self._waitset.attach(ReadCondition(self._ack, SampleState.NotRead))
+        deadline = time.perf_counter() + self.params.timeout_s
+        self._take_answers()
+        while not ok():
+            left = deadline - time.perf_counter()
+            if left <= 0:
+                raise Ros2Timeout(
+                    f"ros2_external {self.name}: node {self.params.node!r} did not {what} on {ACK_TOPIC} within "
+                    f"{self.params.timeout_s:g} s (domain {self.params.domain_id})"
+                )
+            self._waitset.wait(duration(seconds=min(left, 0.05)))
+            self._take_answers()
+
+    def step(self, t: float, bus: BusView) -> None:
+        from . import encode
+
+        t_ns = round(t * NS)
+        if not self._started:
+            self._started = True
+            self._wait(lambda: self._answered is not None, "announce itself")
+        for (_, _, _, enc), writer, sub in zip(self._reads, self._writers, self._subs, strict=True):
+            for m in sub.take():
+                writer.write(enc(m))
+        self._clock.write(encode.clock(t))
+        self._wait(lambda: self._answered is not None and self._answered >= t_ns, f"answer the step at t = {t:.6f} s")
+        for (topic, _, _, dec), reader in zip(self._writes, self._readers, strict=True):
+            for s in reader.take(N=1000):
+                info = getattr(s, "sample_info", None)
+                if info is None or info.valid_data:
+                    bus.publish(topic, dec(s))
+
+
+class ExternalEstimator(ExternalComponent, Estimator):
+    """A ROS 2 node as the estimator: its Odometry output is the state the controllers fly on."""
+
+    def estimate(self, t: float, bus: BusView) -> Odometry | None:  # pragma: no cover - step does it all
+        return None
