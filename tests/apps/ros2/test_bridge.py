@@ -102,3 +102,25 @@ def test_a_pose_goal_from_the_node_flies_the_vehicle_there(tmp_path):
     start = np.asarray(cfg.start_p_W)
     assert np.linalg.norm(p[0] - start) < 0.05
     assert np.linalg.norm(p[-1] - np.asarray(goal)) < 0.2, f"ended at {p[-1]}, goal {goal}"
+
+
+def test_a_px4_offboard_node_arms_and_flies_the_vehicle(tmp_path):
+    # px4_ros_com's offboard_control flow: heartbeat + NED setpoint every step, after 10: DO_SET_MODE offboard, ARM
+    d = domain(8)
+    ned = (0.5, -2.0, -1.5)
+    node, out = start_node(tmp_path, d, "px4", f"--px4-offboard={ned[0]},{ned[1]},{ned[2]}", "--topics", "/clock")
+    cfg = scenario(
+        "vehicle",
+        {"domain_id": d, "lockstep_nodes": ["px4"], "rate_hz": 50.0, "timeout_s": 30},
+        duration=8.0,
+        planner={"kind": "commander"},
+    )
+    run = run_scenario(cfg)
+    finish(node, out)
+    p = run.result.states["p_W"]
+    enu = np.array([ned[1], ned[0], -ned[2]])  # NED -> ENU
+    assert np.linalg.norm(p[-1] - enu) < 0.2, f"ended at {p[-1]}, target {enu}"
+    q = run.result.states["q_WB"][-1]
+    yaw_enu = np.arctan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
+    expected = np.pi / 2 + 3.14  # ENU yaw = pi/2 - NED yaw
+    assert abs(np.angle(np.exp(1j * (yaw_enu - expected)))) < 0.1

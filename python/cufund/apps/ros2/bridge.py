@@ -220,8 +220,7 @@ class Ros2Bridge(Component):
     def _take_commands(self, t_ns: int) -> None:
         if self.commander is None:
             return
-        while self._scheduled and self._scheduled[0][0] <= t_ns:
-            self._submit(self._scheduled.pop(0)[1])
+        self._take_scheduled_now(t_ns)
         for key, reader in self._readers.items():
             for s in reader.take(N=256):
                 info = getattr(s, "sample_info", None)

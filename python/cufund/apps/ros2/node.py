@@ -41,6 +41,11 @@ def main(argv: list[str] | None = None) -> int:
         help="IN:OUT: play an external estimator, answering each geometry_msgs/PoseStamped on IN with a "
         "nav_msgs/Odometry of that pose (zero twist) on OUT",
     )
+    ap.add_argument(
+        "--px4-offboard",
+        help="x,y,z (NED, as px4_ros_com's offboard_control example): each /clock, an OffboardControlMode and a "
+        "TrajectorySetpoint to that position; after 10 of them, VehicleCommand DO_SET_MODE offboard and ARM",
+    )
     ap.add_argument("--raw", action="store_true", help="count the bytes of data topics without decoding them")
     ap.add_argument("--topics", help="comma-separated subset of /clock,/imu,/tf,/tf_static and the LiDAR to read")
     args = ap.parse_args(argv)
@@ -69,6 +74,17 @@ def main(argv: list[str] | None = None) -> int:
         dds.participant, dds.topic("/goal_pose", "geometry_msgs/msg/PoseStamped"), qos=QOS["default"].qos()
     )
     goal = [float(v) for v in args.goal.split(",")] if args.goal else None
+    px4: dict[str, Any] = {}
+    if args.px4_offboard:
+        for key, rtype in (
+            ("mode", "px4_msgs/msg/OffboardControlMode"),
+            ("setpoint", "px4_msgs/msg/TrajectorySetpoint"),
+            ("command", "px4_msgs/msg/VehicleCommand"),
+        ):
+            name = {"mode": "offboard_control_mode", "setpoint": "trajectory_setpoint", "command": "vehicle_command"}
+            px4[key] = DataWriter(dds.participant, dds.topic(f"/fmu/in/{name[key]}", rtype), qos=QOS["default"].qos())
+        px4_target = [float(v) for v in args.px4_offboard.split(",")]
+        px4_count = 0
     if args.estimator:
         odom_writer = DataWriter(
             dds.participant, dds.topic(odom_out, "nav_msgs/msg/Odometry"), qos=QOS["default"].qos()
@@ -124,6 +140,14 @@ def main(argv: list[str] | None = None) -> int:
                             )
                         )
                         goal_sent = True
+                    if px4:
+                        us = t_ns // 1000
+                        px4["mode"].write(idl.OffboardControlMode(timestamp=us, position=True))
+                        px4["setpoint"].write(idl.TrajectorySetpoint(timestamp=us, position=px4_target, yaw=-3.14))  # type: ignore[arg-type]
+                        px4_count += 1
+                        if px4_count == 10:
+                            px4["command"].write(idl.VehicleCommand(us, param1=1.0, param2=6.0, command=176))
+                            px4["command"].write(idl.VehicleCommand(us, param1=1.0, command=400))
                     if not args.no_ack:
                         ack_writer.write(idl.Header(s.clock, args.name))
                 elif topic == "/imu":
