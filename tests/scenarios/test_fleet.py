@@ -11,7 +11,7 @@ import pytest
 from cufund.core.config import ConfigError
 from cufund.scenarios.build import build_simulation, run_scenario
 from cufund.scenarios.fleet import build_fleet, vehicle_scenario, vehicle_seed
-from cufund.scenarios.fleet_folder import run_fleet_into_folder
+from cufund.scenarios.run_folder import run_into_folder
 from cufund.scenarios.schema import ScenarioConfig, load_scenario
 
 TIMING = ("wall_time_s", "real_time_factor", "component_seconds")
@@ -89,7 +89,7 @@ def test_head_on_pair_collides():
 def test_fleet_square_scenario(tmp_path):
     """The built-in fleet_square completes and each vehicle tracks as well as the single-vehicle square."""
     single = run_scenario(load_scenario("square")).metrics["tracking_rmse_m"]
-    run = run_fleet_into_folder(load_scenario("fleet_square"), tmp_path, plots=False, replay=False)
+    run = run_into_folder(load_scenario("fleet_square"), tmp_path, plots=False, replay=False)
     m = json.loads((tmp_path / "metrics.json").read_text())
     assert run.status == "completed" and m["status"] == "completed"
     assert set(m["vehicles"]) == {"uav1", "uav2", "uav3"} and m["fleet_collisions"] == 0
@@ -97,12 +97,14 @@ def test_fleet_square_scenario(tmp_path):
     for vm in m["vehicles"].values():
         assert vm["status"] == "completed"
         assert vm["tracking_rmse_m"] <= single * 1.05
-    from cufund.logs.mcap_reader import log_topics
+    from mcap.reader import make_reader
 
-    topics = set(log_topics(tmp_path / "run.mcap"))  # each vehicle's messages under its namespace
+    with open(tmp_path / "run.mcap", "rb") as f:  # every channel, read without cufund's code
+        topics = {c.topic for c in make_reader(f).get_summary().channels.values()}
     for name in ("uav1", "uav2", "uav3"):
         assert f"/{name}/control/actuator_command" in topics or any(t.startswith(f"/{name}/") for t in topics)
     assert not any(t.startswith(("/control", "/truth", "/sensors")) for t in topics)
+    assert {"/clock", "/tf_static", "/uav1/planner/path", "/uav3/planner/path"} <= topics
 
 
 def test_vehicle_access_for_a_driver():

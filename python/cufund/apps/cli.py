@@ -264,11 +264,12 @@ def _run_scenario(args: argparse.Namespace) -> int:
         if problem:
             raise ConfigError(problem)
         if cfg.vehicles:  # a fleet: several vehicles in one world (docs/guides/fleets.md)
-            from cufund.scenarios.fleet_folder import fleet_summary, run_fleet_into_folder
+            from cufund.scenarios.fleet_folder import fleet_summary
+            from cufund.scenarios.run_folder import run_fleet_into_folder
 
-            run = run_fleet_into_folder(cfg, out, log=not args.no_log, replay=not args.no_replay)
-            print(json.dumps(run.metrics, indent=2, default=str) if args.json else fleet_summary(run, out))
-            return EXIT_COMPLETED if run.status == "completed" else EXIT_NOT_COMPLETED
+            fleet_run = run_fleet_into_folder(cfg, out, log=not args.no_log, replay=not args.no_replay)
+            print(json.dumps(fleet_run.metrics, indent=2, default=str) if args.json else fleet_summary(fleet_run, out))
+            return EXIT_COMPLETED if fleet_run.status == "completed" else EXIT_NOT_COMPLETED
         built = build_simulation(cfg)  # the whole graph validated before anything runs
         try:
             out.mkdir(parents=True, exist_ok=True)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import signal
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +32,7 @@ __all__ = [
     "BuildContext",
     "Built",
     "ScenarioBuildContext",
+    "RunInterrupted",
     "RunSummary",
     "ScenarioRun",
     "build_simulation",
@@ -39,6 +41,32 @@ __all__ = [
     "run_scenario",
     "tracking_metrics",
 ]
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """A run stopped by a signal (``signum``: SIGINT or SIGTERM); a KeyboardInterrupt, so code that lets Ctrl-C
+    through lets it through."""
+
+    received: int | None = None
+    """The signal :meth:`raise_for` was called for (None: none yet). Kept because an exception raised inside a
+    Python callback of compiled code may reach the caller as another type."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = int(signum)
+
+    @classmethod
+    def raise_for(cls, signum: int) -> None:
+        """What a signal handler calls: records ``signum``, then raises."""
+        cls.received = int(signum)
+        raise cls(signum)
+
+    @classmethod
+    def check(cls) -> None:
+        """Raises if a signal came since the run started: the handler's own exception can be swallowed where it
+        lands (compiled code that catches everything around a Python callback), so the run loop checks too."""
+        if cls.received is not None:
+            raise cls(cls.received)
 
 
 class ScenarioBuildContext:
@@ -377,8 +405,6 @@ def done_condition(built: Built) -> Any:
         return (
             t_landed is not None and t >= t_landed and truth.p_W[2] < 0.02 and float(np.linalg.norm(truth.v_W)) < 0.05
         )
-
-    from .run_folder import RunInterrupted
 
     ctx = built.context
     finished = failsafe_done(built.simulator.components, landed if t_landed is not None else ctx.done_condition)

@@ -1,22 +1,17 @@
-"""A fleet's run folder: ``config.yaml`` (the fleet scenario, written before the run), ``metrics.json`` (the fleet's
-figures and each vehicle's under ``vehicles``), ``run.mcap`` (every vehicle's messages under its namespace,
-``/uav1/sensors/imu``), and one sub-folder per vehicle with its own metrics, config (its scenario: ``cufund run``
-on it flies that vehicle alone), figures and replay."""
+"""What a fleet's run folder (:func:`cufund.scenarios.run_folder.run_into_folder`) adds to a single vehicle's: its
+log's namespaces (every vehicle's messages under ``/NAME``: ``/uav1/sensors/imu``), the log's context, and the
+summary ``cufund run`` prints."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from cufund.simulator.fleet import namespaced
 
-from .fleet import Fleet, FleetRun, build_fleet
-from .run_folder import _json_safe, write_config, write_run_folder
-from .schema import ScenarioConfig
+from .fleet import Fleet, FleetRun
 
-__all__ = ["NamespacedLogger", "fleet_summary", "run_fleet_into_folder"]
+__all__ = ["NamespacedLogger", "fleet_summary", "write_fleet_context"]
 
 
 class NamespacedLogger:
@@ -34,52 +29,25 @@ class NamespacedLogger:
         self._write(full, message, log_time_ns, publish_time_ns)
 
 
-def run_fleet_into_folder(
-    config: ScenarioConfig | Fleet, out: str | Path, *, log: bool = True, plots: bool = True, replay: bool = True
-) -> FleetRun:
-    """Builds (unless given a :class:`Fleet`) and runs a fleet into the folder ``out``; returns the run."""
-    import json
+def write_fleet_context(logger: Any, fleet: Fleet) -> None:
+    """The fleet log's ``/tf_static`` (``world`` -> ``odom``), the world's meshes, each vehicle's reference known
+    before the run on ``/NAME/planner/path``, and ``/clock`` at each of the fleet's interaction instants."""
+    from cufund.logs import codecs, ros2
+    from cufund.logs.run_context import write_run_context
 
-    fleet = config if isinstance(config, Fleet) else build_fleet(config)
-    cfg = fleet.config
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    write_config(cfg, out)
-    logger = None
-    if log and cfg.log.mcap:
-        from cufund.logs import McapLogger
+    world = fleet.simulator.members[0].world
+    write_run_context(logger, (), True, world, None)  # truth frames: world -> base_link_NAME_truth_odometry (/tf)
+    for name in fleet.names:
+        reference = fleet.vehicle(name).built.context.reference
+        if reference is not None and hasattr(reference, "sample"):
+            logger.write_encoded(namespaced(name, "/planner/path"), ros2.PATH, codecs.path_of(reference, 0.0), 0)
 
-        logger = McapLogger(
-            out / "run.mcap",
-            metadata={
-                "scenario": cfg.name,
-                "seed": str(cfg.seed),
-                "config": yaml.safe_dump(cfg.to_dict(), sort_keys=False),
-            },
-            compression="zstd",
-        )
-        exclude = set(cfg.log.exclude) | ({"/truth/point_cloud"} if not cfg.log.truth_cloud else set())
-        for name in fleet.names:
-            sim = fleet.vehicle(name).simulator
-            sim.logger = _Excluding(NamespacedLogger(logger, name), exclude)
-    try:
-        run = fleet.run()
-    finally:
-        if logger is not None:
-            logger.close()
-    (out / "metrics.json").write_text(json.dumps(_json_safe(run.metrics), indent=2) + "\n", encoding="utf-8")
-    for name, vrun in run.runs.items():
-        write_run_folder(vrun, out / name, plots=plots, replay=replay)
-    return run
+    def clock(t: float) -> None:
+        ns = round(t * 1e9)
+        data = ros2.CdrWriter().put("i", ns // 1_000_000_000).put("I", ns % 1_000_000_000).bytes()
+        logger.write_encoded("/clock", ros2.CLOCK, data, ns)
 
-
-class _Excluding:
-    def __init__(self, logger: Any, exclude: set[str]) -> None:
-        self._write, self.exclude = logger.write, frozenset(exclude)
-
-    def write(self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int) -> None:
-        if topic not in self.exclude:
-            self._write(topic, message, log_time_ns, publish_time_ns)
+    fleet.simulator.observers.append(clock)
 
 
 def fleet_summary(run: FleetRun, out: Path) -> str:

@@ -16,35 +16,9 @@ from typing import Any
 
 import yaml
 
-from .build import ScenarioRun
+from .build import RunInterrupted, ScenarioRun
 
-__all__ = ["RunInterrupted", "run_into_folder", "world_of", "write_config", "write_run_folder"]
-
-
-class RunInterrupted(KeyboardInterrupt):
-    """A run stopped by a signal (``signum``: SIGINT or SIGTERM); a KeyboardInterrupt, so code that lets Ctrl-C
-    through lets it through."""
-
-    received: int | None = None
-    """The signal :meth:`raise_for` was called for (None: none yet). Kept because an exception raised inside a
-    Python callback of compiled code may reach the caller as another type."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = int(signum)
-
-    @classmethod
-    def raise_for(cls, signum: int) -> None:
-        """What a signal handler calls: records ``signum``, then raises."""
-        cls.received = int(signum)
-        raise cls(signum)
-
-    @classmethod
-    def check(cls) -> None:
-        """Raises if a signal came since the run started: the handler's own exception can be swallowed where it
-        lands (compiled code that catches everything around a Python callback), so the run loop checks too."""
-        if cls.received is not None:
-            raise cls(cls.received)
+__all__ = ["RunInterrupted", "run_fleet_into_folder", "run_into_folder", "world_of", "write_config", "write_run_folder"]
 
 
 def _json_safe(x: Any) -> Any:
@@ -157,6 +131,8 @@ def run_into_folder(
     time reached) and the exception goes on. Returns the run."""
     from .build import Built, build_simulation, run_built
 
+    if getattr(config, "vehicles", None) and not extra_components:  # a fleet (docs/guides/fleets.md)
+        return run_fleet_into_folder(config, out, log=log, plots=plots, replay=replay)
     built = config if isinstance(config, Built) else build_simulation(config, extra_components)
     config = built.config
     out = Path(out)
@@ -205,6 +181,49 @@ def run_into_folder(
         if logger is not None:
             logger.close()
     write_run_folder(run, out, plots=plots, replay=replay)
+    return run
+
+
+def run_fleet_into_folder(
+    config: Any, out: str | Path, *, log: bool = True, plots: bool = True, replay: bool = True
+) -> Any:
+    """Builds (unless given a :class:`cufund.scenarios.fleet.Fleet`) and runs a fleet into ``out``: ``config.yaml``
+    (the fleet scenario, before the run), ``run.mcap`` (each vehicle's messages under ``/NAME``), ``metrics.json``
+    (the fleet's figures, each vehicle's under ``vehicles``) and one folder per vehicle (:func:`write_run_folder`:
+    its metrics, its own scenario as ``config.yaml``, figures, replay). Interrupted: ``metrics.json`` says
+    ``interrupted``. Returns the :class:`cufund.scenarios.fleet.FleetRun`."""
+    from .fleet import Fleet, build_fleet
+    from .fleet_folder import NamespacedLogger, write_fleet_context
+
+    fleet = config if isinstance(config, Fleet) else build_fleet(config)
+    cfg = fleet.config
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_config(cfg, out)
+    logger = None
+    if log and cfg.log.mcap:
+        from cufund.logs import McapLogger
+
+        meta = {"scenario": cfg.name, "seed": str(cfg.seed), "config": yaml.safe_dump(cfg.to_dict(), sort_keys=False)}
+        logger = McapLogger(out / "run.mcap", metadata=meta, compression="zstd")
+        write_fleet_context(logger, fleet)
+        exclude = (*cfg.log.exclude, *(() if cfg.log.truth_cloud else ("/truth/point_cloud",)))
+        for name in fleet.names:
+            fleet.vehicle(name).simulator.logger = _Excluding(NamespacedLogger(logger, name), exclude)
+    RunInterrupted.received = None
+    try:
+        run = fleet.run()
+    except KeyboardInterrupt as exc:
+        signum = exc.signum if isinstance(exc, RunInterrupted) else RunInterrupted.received or signal.SIGINT
+        stopped = {"status": "interrupted", "message": f"stopped by {signal.Signals(signum).name}"}
+        _write_metrics({**stopped, "sim_time_s": float(fleet.t)}, out)
+        raise
+    finally:
+        if logger is not None:
+            logger.close()
+    _write_metrics(run.metrics, out)
+    for name, vrun in run.runs.items():
+        write_run_folder(vrun, out / name, plots=plots, replay=replay)
     return run
 
 

@@ -120,6 +120,8 @@ class FleetSimulator:
         self._k_f = np.array([m.simulator.vehicle.params.k_f for m in self.members])  # type: ignore[union-attr]
         self._box_vertices_B = np.array([b.vertices_B for b in self._boxes])  # (n, 8, 3)
         self._box_triangles = self._boxes[0].triangles  # every box has the same 12 triangles over its 8 corners
+        self.observers: list[Callable[[float], None]] = []
+        """Called with the fleet's time at each interaction instant (e.g. a log's ``/clock``)."""
         self._started = False
 
     # -- the run -----------------------------------------------------------------------------------------------
@@ -232,10 +234,12 @@ class FleetSimulator:
         return p, q
 
     def _interact(self, now_ns: int) -> None:
+        t = now_ns / NS
+        for observe in self.observers:
+            observe(t)
         n = len(self.members)
         if n < 2:
             return
-        t = now_ns / NS
         p, q = self._poses()
         d = np.linalg.norm(p[:, None, :] - p[None, :, :], axis=2)
         iu = np.triu_indices(n, 1)
