@@ -366,14 +366,19 @@ def test_nms_matches_torchvision_when_it_loads():
 
 
 # --- the component ----------------------------------------------------------------------------------------
-def test_component_publishes_2d_and_world_3d_from_depth_and_the_estimate(tmp_path):
+@pytest.mark.parametrize("depth_K", [None, CameraIntrinsics(40, 30, 20.0, 20.0, 19.5, 14.5)])
+def test_component_publishes_2d_and_world_3d_from_depth_and_the_estimate(tmp_path, depth_K):
     """A box around pixel centre (40, 24) of a 64 × 64 image with the depth 4 m there: its world position is the
-    camera ray through that pixel at depth 4 m, moved by the estimate's pose (yawed 90°) and the mounting."""
+    camera ray through that pixel at depth 4 m, moved by the estimate's pose (yawed 90°) and the mounting; the
+    same with a depth camera of other intrinsics at the same centre."""
     rows = np.array([[[36.5, 20.5, 44.5, 28.5, 0.9, 3]]], np.float32)  # centre (40.5, 24.5) in edges
     det = OnnxDetector(_model({"output0": rows}, tmp_path / "e2e.onnx", meta={"names": repr(NAMES)}))
     K = CameraIntrinsics(64, 64, 50.0, 50.0, 31.5, 31.5)
+    Kd = depth_K or K
     T_BC = Transform((0.1, 0.0, -0.05), tuple(yaw_quaternion(0.0)))
-    comp = OnnxDetectorComponent(det, depth_topic=Topics.DEPTH_IMAGE, depth_intrinsics=K, T_BC=T_BC)
+    comp = OnnxDetectorComponent(
+        det, depth_topic=Topics.DEPTH_IMAGE, image_intrinsics=K, depth_intrinsics=Kd, T_BC=T_BC
+    )
     bus = Bus()
     view = BusView(bus, comp.name, comp.inputs + comp.optional_inputs, comp.outputs, deny_truth=True)
     comp.reset()
@@ -382,7 +387,9 @@ def test_component_publishes_2d_and_world_3d_from_depth_and_the_estimate(tmp_pat
     for t in (0.0, 0.2):
         bus.publish(Topics.ESTIMATE, Odometry(t, np.array([1.0, 2.0, 1.5]), np.zeros(3), q, np.zeros(3)))
     bus.publish(Topics.RGB_IMAGE, CameraImage(0.1, np.zeros((64, 64, 3), np.uint8)))
-    bus.publish(Topics.DEPTH_IMAGE, CameraImage(0.1, np.full((64, 64), 4.0, np.float32)))
+    depth = np.full((Kd.height, Kd.width), 4.0, np.float32)
+    depth[0, :] = np.nan  # a missing row away from the box changes nothing
+    bus.publish(Topics.DEPTH_IMAGE, CameraImage(0.1, depth))
     sub2, sub3 = bus.subscribe(Topics.DETECTIONS_2D), bus.subscribe(Topics.DETECTIONS_3D)
     comp.step(0.2, view)
     (d2,), (d3,) = sub2.take(), sub3.take()
@@ -397,3 +404,55 @@ def test_component_publishes_2d_and_world_3d_from_depth_and_the_estimate(tmp_pat
     assert comp.latencies_ms and comp.frames == 1
     with pytest.raises(ValueError, match="not ground truth"):
         OnnxDetectorComponent(det, state_topic=Topics.TRUTH_ODOMETRY)
+
+
+def test_component_waits_for_an_estimate_covering_the_image(tmp_path):
+    rows = np.array([[[0, 0, 8, 8, 0.9, 0]]], np.float32)
+    det = OnnxDetector(_model({"output0": rows}, tmp_path / "e2e.onnx"))
+    K = CameraIntrinsics(64, 64, 50.0, 50.0, 31.5, 31.5)
+    comp = OnnxDetectorComponent(det, depth_topic=Topics.DEPTH_IMAGE, image_intrinsics=K, depth_intrinsics=K)
+    bus = Bus()
+    view = BusView(bus, comp.name, comp.inputs + comp.optional_inputs, comp.outputs, deny_truth=True)
+    comp.reset()
+    comp.setup(view)
+    sub3 = bus.subscribe(Topics.DETECTIONS_3D)
+    bus.publish(Topics.ESTIMATE, Odometry(0.0, np.zeros(3), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3)))
+    bus.publish(Topics.RGB_IMAGE, CameraImage(0.5, np.zeros((64, 64, 3), np.uint8)))
+    bus.publish(Topics.DEPTH_IMAGE, CameraImage(0.5, np.full((64, 64), 2.0, np.float32)))
+    comp.step(0.5, view)
+    assert sub3.take() == []  # the image is newer than every estimate: no pose for it yet
+    with pytest.raises(ValueError, match="image_intrinsics and depth_intrinsics are needed"):
+        OnnxDetectorComponent(det, depth_topic=Topics.DEPTH_IMAGE)
+
+
+def test_scenario_part_perception_onnx_detector(tmp_path):
+    """``perception: {kind: onnx_detector}`` in a scenario: built from the camera sensors (D435 colour and depth,
+    the model path relative to the scenario file), run on the estimate (never ground truth), 2-D and 3-D
+    detections published; a bad model is a ConfigError naming the part."""
+    from cufund.core.config import ConfigError
+    from cufund.scenarios.build import build_simulation, run_built
+    from cufund.scenarios.schema import load_scenario
+
+    rows = np.array([[[300, 220, 340, 260, 0.9, 0]]], np.float32)
+    _model({"output0": rows}, tmp_path / "m.onnx", size=640, meta={"names": repr(NAMES)})
+    (tmp_path / "s.yaml").write_text(
+        "name: detect\nworld: {kind: imav2025_tunnel}\nvehicle: cu_astro\n"
+        "sensors:\n  imu: {kind: icm42688p}\n  pose: {kind: pose, rate_hz: 100.0}\n"
+        "  camera: {kind: d435_rgb, rate_hz: 5}\n  depth: {kind: d435_depth, rate_hz: 5}\n"
+        "estimator: {kind: imu_propagator}\n"
+        "perception: {kind: onnx_detector, model: m.onnx, depth_camera: depth, rate_hz: 5}\n"
+        "trajectory: {waypoints: [[-2, 0, 1], [-1.5, 0, 1]]}\nstart_p_W: [-2, 0, 0]\nduration: 1.0\n"
+        "realism: ideal\n"
+    )
+    cfg = load_scenario(tmp_path / "s.yaml")
+    built = build_simulation(cfg)
+    (comp,) = [c for c in built.simulator.components if isinstance(c, OnnxDetectorComponent)]
+    assert comp.state_topic == Topics.ESTIMATE and comp.image_intrinsics.fx == 615.0
+    run_built(built)
+    assert comp.frames >= 4 and all(ms > 0 for ms in comp.latencies_ms)
+    d3 = built.simulator.bus.latest(Topics.DETECTIONS_3D)
+    assert isinstance(d3, Detections3D) and len(d3.centres_W) == 1  # the tunnel's wall or frames behind the box
+    assert np.all(np.isfinite(d3.centres_W)) and d3.class_names[0] == "tunnel_frame"
+    (tmp_path / "bad.onnx").write_bytes(b"not a model")
+    with pytest.raises(ConfigError, match="perception: model file .* is not a loadable ONNX model"):
+        build_simulation(load_scenario(tmp_path / "s.yaml", ["perception.model=bad.onnx"]))

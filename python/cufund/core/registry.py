@@ -52,7 +52,7 @@ __all__ = [
 ]
 
 ENTRY_POINT_GROUP = "cufund.kinds"
-GROUPS = ("world", "sensor", "estimator", "mapper", "planner", "controller", "mission", "bridge")
+GROUPS = ("world", "sensor", "estimator", "mapper", "perception", "planner", "controller", "mission", "bridge")
 """The parts of a scenario that take a ``kind``."""
 
 _EXTRINSIC_KEY = re.compile(r"T_B[A-Za-z][A-Za-z0-9]*")

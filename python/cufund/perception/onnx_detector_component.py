@@ -24,41 +24,44 @@ _POSES_KEPT = 400
 def boxes_to_world(
     boxes_xyxy: np.ndarray,
     depth: np.ndarray,
-    intrinsics: CameraIntrinsics,
+    image_intrinsics: CameraIntrinsics,
+    depth_intrinsics: CameraIntrinsics,
     T_BC: Transform,
     p_WB: np.ndarray,
     R_WB: np.ndarray,
-    image_hw: tuple[int, int],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each box's centre and size in the world from a depth image aligned with the image it was found in.
+    """Each box's centre and size in the world from a depth image taken from the same camera centre.
 
-    The box (pixels of an image of ``image_hw``) is scaled to the depth image's size; its depth is the median of
-    the valid depths in its middle half (width and height); its centre pixel is cast out to that depth through
-    ``intrinsics`` (the depth image's, distortion ignored) and moved to the world with the camera's mounting
-    ``T_BC`` and the body pose (p_WB, R_WB). Returns (centres_W (k, 3) [m], sizes_m (k, 2) [m], valid (k,)),
-    ``valid`` False (and NaN rows) where the box has no valid depth."""
+    A box (pixel edges in the image of ``image_intrinsics``) becomes directions (x, y) = ((u - cx) / fx, (v - cy)
+    / fy) of its corners and centre (distortion ignored), and so a box in the depth image of ``depth_intrinsics``;
+    its depth z (along the optical axis) is the median of the valid depths in that box's middle half (width and
+    height). The centre is (x z, y z, z) in the optical frame, moved to the world with the mounting ``T_BC`` and
+    the body pose (p_WB, R_WB); the size is the box's width and height at z. Returns (centres_W (k, 3) [m],
+    sizes_m (k, 2) [m], valid (k,)), ``valid`` False (and NaN rows) where the box has no valid depth."""
     h, w = depth.shape
-    sx, sy = w / image_hw[1], h / image_hw[0]
-    b = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4) * np.array([sx, sy, sx, sy])
-    R_WB = np.asarray(R_WB, dtype=float)
-    R_WO = R_WB @ T_BC.R @ R_CO
-    p_WC = np.asarray(p_WB, dtype=float) + R_WB @ np.asarray(T_BC.t)
+    Ki, Kd = image_intrinsics, depth_intrinsics
+    b = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4)
+    # pixel edges -> pixel-centre coordinates (edge u is coordinate u - 0.5) -> directions
+    x = (b[:, [0, 2]] - 0.5 - Ki.cx) / Ki.fx
+    y = (b[:, [1, 3]] - 0.5 - Ki.cy) / Ki.fy
+    ud, vd = x * Kd.fx + Kd.cx + 0.5, y * Kd.fy + Kd.cy + 0.5  # the box in the depth image, pixel edges
+    R_WO = np.asarray(R_WB, dtype=float) @ T_BC.R @ R_CO
+    p_WC = np.asarray(p_WB, dtype=float) + np.asarray(R_WB, dtype=float) @ np.asarray(T_BC.t)
     centres = np.full((len(b), 3), np.nan)
     sizes = np.full((len(b), 2), np.nan)
-    for i, (u0, v0, u1, v1) in enumerate(b):
+    for i in range(len(b)):
+        (u0, u1), (v0, v1) = ud[i], vd[i]
         du, dv = (u1 - u0) / 4, (v1 - v0) / 4
-        r0, r1 = int(np.clip(np.floor(v0 + dv), 0, h - 1)), int(np.clip(np.ceil(v1 - dv), 1, h))
         c0, c1 = int(np.clip(np.floor(u0 + du), 0, w - 1)), int(np.clip(np.ceil(u1 - du), 1, w))
+        r0, r1 = int(np.clip(np.floor(v0 + dv), 0, h - 1)), int(np.clip(np.ceil(v1 - dv), 1, h))
         patch = depth[r0 : max(r1, r0 + 1), c0 : max(c1, c0 + 1)]
         z_valid = patch[np.isfinite(patch) & (patch > 0)]
         if z_valid.size == 0:
             continue
         z = float(np.median(z_valid))
-        # pixel edges -> pixel-centre coordinates: the box's centre (u0 + u1) / 2 - 0.5
-        u, v = (u0 + u1) / 2 - 0.5, (v0 + v1) / 2 - 0.5
-        p_O = np.array([(u - intrinsics.cx) / intrinsics.fx * z, (v - intrinsics.cy) / intrinsics.fy * z, z])
+        p_O = np.array([x[i].mean() * z, y[i].mean() * z, z])
         centres[i] = p_WC + R_WO @ p_O
-        sizes[i] = ((u1 - u0) / intrinsics.fx * z, (v1 - v0) / intrinsics.fy * z)
+        sizes[i] = ((x[i, 1] - x[i, 0]) * z, (y[i, 1] - y[i, 0]) * z)
     return centres, sizes, np.all(np.isfinite(centres), axis=1)
 
 
@@ -67,8 +70,8 @@ class OnnxDetectorComponent(Component):
     are skipped) and publishes :class:`~cufund.core.messages.Detections2D` on ``Topics.DETECTIONS_2D`` with the
     frame's latency (pre-processing, inference, NMS) in ``latency_ms``.
 
-    With ``depth_topic`` (a depth image aligned with the colour image, ``depth_intrinsics`` its camera, mounted at
-    ``T_BC``) it also publishes :class:`~cufund.core.messages.Detections3D` on ``Topics.DETECTIONS_3D``: each box's
+    With ``depth_topic`` (a depth image from the same camera centre, mounted at ``T_BC``; ``image_intrinsics`` and
+    ``depth_intrinsics`` the two cameras' pinholes) it also publishes :class:`~cufund.core.messages.Detections3D` on ``Topics.DETECTIONS_3D``: each box's
     centre in the world frame from the pose on ``state_topic`` at the image's capture time — the estimator's
     output (never ground truth); nothing 3-D is published before an estimate covers the image."""
 
@@ -79,6 +82,7 @@ class OnnxDetectorComponent(Component):
         detector: OnnxDetector,
         image_topic: str = Topics.RGB_IMAGE,
         depth_topic: str | None = None,
+        image_intrinsics: CameraIntrinsics | None = None,
         depth_intrinsics: CameraIntrinsics | None = None,
         T_BC: Transform | None = None,
         state_topic: str = Topics.ESTIMATE,
@@ -87,15 +91,16 @@ class OnnxDetectorComponent(Component):
     ) -> None:
         if not isinstance(detector, OnnxDetector):
             raise ValueError(f"detector must be an OnnxDetector, got {type(detector).__name__}")
-        if depth_topic is not None and depth_intrinsics is None:
-            raise ValueError("depth_intrinsics is needed with depth_topic (the depth camera's pinhole)")
+        if depth_topic is not None and (depth_intrinsics is None or image_intrinsics is None):
+            raise ValueError("image_intrinsics and depth_intrinsics are needed with depth_topic (the two pinholes)")
         if not (np.isfinite(rate_hz) and 0 < rate_hz <= 1000):
             raise ValueError(f"rate_hz must be in (0, 1000] [Hz], got {rate_hz!r}")
         if str(state_topic).startswith("/truth/"):
             raise ValueError(f"state_topic must be an estimate, not ground truth ({state_topic})")
         self.detector = detector
         self.image_topic, self.depth_topic, self.state_topic = image_topic, depth_topic, state_topic
-        self.depth_intrinsics, self.T_BC = depth_intrinsics, T_BC or Transform()
+        self.image_intrinsics, self.depth_intrinsics = image_intrinsics, depth_intrinsics
+        self.T_BC = T_BC or Transform()
         self.rate_hz, self.latency_s = float(rate_hz), float(latency_s)
         self.inputs = (image_topic,)
         self.optional_inputs = (depth_topic, state_topic) if depth_topic is not None else ()
@@ -150,9 +155,9 @@ class OnnxDetectorComponent(Component):
         pose = self._pose_at(msg.t)
         if pose is None:
             return
-        assert self.depth_intrinsics is not None
+        assert self.depth_intrinsics is not None and self.image_intrinsics is not None
         centres, sizes, ok = boxes_to_world(
-            det.boxes_xyxy, self._depth.image, self.depth_intrinsics, self.T_BC, pose[0], pose[1], msg.image.shape[:2]
+            det.boxes_xyxy, self._depth.image, self.image_intrinsics, self.depth_intrinsics, self.T_BC, *pose
         )
         bus.publish(
             Topics.DETECTIONS_3D,

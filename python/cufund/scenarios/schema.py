@@ -56,7 +56,7 @@ _SHORTHAND = {
     ("barometer", "ideal"): "ideal_barometer",
     ("gps", "ideal"): "ideal_gps",
 }
-_PART_GROUPS = ("world", "estimator", "mapper", "planner", "controller", "mission")
+_PART_GROUPS = ("world", "estimator", "mapper", "perception", "planner", "controller", "mission")
 
 
 @dataclass(frozen=True)
@@ -316,6 +316,8 @@ class ScenarioConfig:
     estimator: Any = None
     """An estimator kind, or null: controllers then fly on ground truth."""
     mapper: Any = None
+    perception: Any = None
+    """An image detector (kind onnx_detector) or null: none. docs/guides/detection.md."""
     planner: Any = "waypoints"
     controller: Any = "pid"
     mission: Any = None
