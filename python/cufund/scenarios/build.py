@@ -314,7 +314,7 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
         components.append(monitor)
         record.append(Topics.BATTERY)
         ctx.add_metric_hook(monitor.metrics)  # battery_used_mah, battery_min_voltage_v
-    for group in ("estimator", "mapper", "planner", "controller", "mission"):
+    for group in ("estimator", "mapper", "perception", "planner", "controller", "mission"):
         spec = getattr(config, group)
         if spec is not None:
             components += ctx.build(group, spec, group)
