@@ -1,10 +1,8 @@
 """The scenario's ``vehicles:`` key: several vehicles in one world (docs/guides/fleets.md).
 
 Each entry is ``{name: uav1, start: {p: [x, y, z], yaw: rad}, ...overrides}``; the overrides replace the
-scenario's top-level part of the same key for that vehicle (a whole part, not merged into it): ``vehicle``,
-``sensors``, ``estimator``, ``mapper``, ``planner``, ``controller``, ``mission``, ``trajectory``, ``failsafe``,
-``faults``, ``realism``, ``collision_box``, ``ground_effect``. The world, rates, duration, atmosphere and seed are
-the fleet's. Validated here as plain data; each vehicle's own scenario is made (and validated as any scenario) by
+scenario's top-level part of the same key for that vehicle (a whole part, not merged into it): any of
+:data:`OVERRIDABLE`. The world, rates, duration, atmosphere and seed are the fleet's. Validated here as plain data; each vehicle's own scenario is made (and validated as any scenario) by
 :func:`cufund.scenarios.fleet.vehicle_scenario`.
 """
 
@@ -24,6 +22,7 @@ OVERRIDABLE = (
     "sensors",
     "estimator",
     "mapper",
+    "perception",
     "planner",
     "controller",
     "mission",
