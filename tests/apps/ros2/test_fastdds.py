@@ -313,7 +313,8 @@ def test_cyclone_to_fastdds_types_contents_and_bytes(peer, tmp_path):
     poses = [(1.0 + 0.01 * k, rng.normal(size=3), np.array([0.5, 0.5, 0.5, 0.5])) for k in range(4)]
     dump = tmp_path / "dump"
     dump.mkdir()
-    args = ["sub", "60", "100", "--dump", str(dump), "--idle", "2", "rt/imu=imu", "rt/points=points", "rt/tf=tf"]
+    topics = ["rt/imu=imu,reliable", "rt/points=points,reliable", "rt/tf=tf,reliable"]  # none lost
+    args = ["sub", "60", "100", "--dump", str(dump), "--idle", "2", *topics]
     with running(peer, d, *args, cwd=tmp_path) as p:
         p.wait_for("ready")
         dds = _cyclone(d)

@@ -4,11 +4,12 @@
 //
 //   peer PROFILE.xml DOMAIN info
 //       prints the participant's configuration (transports, locators, peers) as one JSON line and exits.
-//   peer PROFILE.xml DOMAIN sub SECONDS COUNT [--dump DIR] [--idle S] TOPIC=KIND...
+//   peer PROFILE.xml DOMAIN sub SECONDS COUNT [--dump DIR] [--idle S] TOPIC=KIND[,reliable]...
 //       subscribes to each DDS TOPIC (rt/imu) as KIND (imu, points, tf, pose: ROS 2's Imu, PointCloud2,
-//       TFMessage, PoseStamped), prints one JSON line per sample (type name, decoded fields) and, with --dump,
-//       writes the sample's serialized payload as received (encapsulation included) to DIR/<n>.cdr; ends when
-//       every topic has COUNT samples, after SECONDS, or (--idle) S seconds after the last sample.
+//       TFMessage, PoseStamped; best effort, which matches any writer, or reliable), prints one JSON line per sample
+//       (type name, decoded fields) and, with --dump, writes the sample's serialized payload as received (encapsulation
+//       included) to DIR/<n>.cdr; ends when every topic has COUNT samples, after SECONDS, or (--idle) S seconds after
+//       the last sample.
 //   peer PROFILE.xml DOMAIN pub SECONDS COUNT TOPIC=KIND [X Y Z]
 //       publishes COUNT samples at 20 Hz once a reader matched (pose: a goal at X Y Z in frame "map"; imu:
 //       sample k stamped k s with angular_velocity (0.1 k, 0.2, 0.3), linear_acceleration (1, 2, 9.81)), waits
@@ -219,6 +220,7 @@ const std::map<std::string, std::string> TYPE_NAMES = {
 
 struct Endpoint {
   std::string topic, kind;
+  bool reliable = false;  // a reader: reliable (matches only reliable writers) or best effort (matches both)
 };
 
 bool parse_endpoint(const std::string& arg, Endpoint& e) {
@@ -226,6 +228,11 @@ bool parse_endpoint(const std::string& arg, Endpoint& e) {
   if (eq == std::string::npos) return false;
   e.topic = arg.substr(0, eq);
   e.kind = arg.substr(eq + 1);
+  const std::string suffix = ",reliable";
+  if (e.kind.size() > suffix.size() && e.kind.compare(e.kind.size() - suffix.size(), suffix.size(), suffix) == 0) {
+    e.reliable = true;
+    e.kind.resize(e.kind.size() - suffix.size());
+  }
   return TYPE_NAMES.count(e.kind) == 1;
 }
 
@@ -279,7 +286,7 @@ class WriterListener : public DataWriterListener {
 int usage() {
   std::fprintf(stderr,
                "usage: peer PROFILE.xml DOMAIN info\n"
-               "       peer PROFILE.xml DOMAIN sub SECONDS COUNT [--dump DIR] [--idle S] TOPIC=KIND...\n"
+               "       peer PROFILE.xml DOMAIN sub SECONDS COUNT [--dump DIR] [--idle S] TOPIC=KIND[,reliable]...\n"
                "       peer PROFILE.xml DOMAIN pub SECONDS COUNT TOPIC=KIND [X Y Z]\n"
                "KIND: imu, points, tf, pose\n");
   return 2;
@@ -352,7 +359,7 @@ int main(int argc, char** argv) {
       type.register_type(participant);
       Topic* topic = participant->create_topic(e.topic, type.get_type_name(), TOPIC_QOS_DEFAULT);
       DataReaderQos rq = DATAREADER_QOS_DEFAULT;
-      rq.reliability().kind = BEST_EFFORT_RELIABILITY_QOS;  // matches reliable and best-effort writers
+      rq.reliability().kind = e.reliable ? RELIABLE_RELIABILITY_QOS : BEST_EFFORT_RELIABILITY_QOS;
       rq.durability().kind = VOLATILE_DURABILITY_QOS;
       rq.history().kind = KEEP_LAST_HISTORY_QOS;
       rq.history().depth = 100;
