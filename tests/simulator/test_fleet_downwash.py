@@ -101,3 +101,33 @@ def test_off_by_default_and_bad_config_named():
         DownwashConfig.parse({"thrust_loss_coefficient": -1})
     with pytest.raises(ConfigError, match="unknown key 'rho'"):
         DownwashConfig.parse({"rho": 1.2})
+
+
+def test_the_fleet_skips_only_pairs_out_of_every_jet():
+    """The fleet evaluates only the jets that may reach a vehicle; its forces equal every jet summed."""
+    from cufund.geometry import quat_from_rotvec, quat_to_matrix
+    from cufund.worlds.downwash import downwash_force
+
+    rng = np.random.default_rng(3)
+    params = presets.cu_astro()
+    radius = 0.385 * params.arm_length
+    members = []
+    for k in range(8):
+        quad = _hovering(rng.uniform((-1.5, -1.5, 1.0), (1.5, 1.5, 6.0)))
+        quad.state.q[:] = quat_from_rotvec(rng.normal(0, 0.3, 3))
+        members.append(FleetMember(f"v{k}", Simulator(quad), rotor_radius_m=radius))
+    fleet = FleetSimulator(members, downwash=DownwashConfig())
+    fleet.reset()
+    forces = fleet.downwash_forces
+    states = [m.simulator.vehicle.state for m in members]
+    thrust = params.k_f * np.sum(states[0].rotor_speeds ** 2)
+    felt = 0
+    for i, m in enumerate(members):
+        R_i = quat_to_matrix(states[i].q, normalize=True)
+        sources = [
+            (thrust, states[j].p, quat_to_matrix(states[j].q, normalize=True), radius) for j in range(8) if j != i
+        ]
+        expected = downwash_force(DownwashConfig(), sources, states[i].p + params.rotor_positions() @ R_i.T, radius)
+        assert np.allclose(forces[m.name], expected, rtol=1e-12, atol=1e-15), m.name
+        felt += bool(np.any(expected != 0))
+    assert 0 < felt < 8  # some under a jet, some not: both branches exercised

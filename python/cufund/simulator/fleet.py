@@ -34,7 +34,7 @@ from cufund.core.messages import Odometry
 from cufund.core.scheduler import NS
 from cufund.geometry import quat_to_matrix
 from cufund.worlds.collision import CollisionChecker
-from cufund.worlds.downwash import CUTOFF_HALF_WIDTHS, JET_S, DownwashConfig, downwash_force
+from cufund.worlds.downwash import DownwashConfig, downwash_force, jet_reach
 from cufund.worlds.world import World
 
 from .fleet_view import VehicleBox, WorldWithVehicles, box_mesh_W
@@ -117,6 +117,9 @@ class FleetSimulator:
         self.view_range_m = float(view_range_m)
         self._boxes = [VehicleBox(m.name, m.box_size) for m in self.members]
         self._rotors_B = [m.simulator.vehicle.params.rotor_positions() for m in self.members]  # type: ignore[union-attr]
+        self._radii = np.array([m.rotor_radius_m for m in self.members])
+        self._span = np.array([np.max(np.linalg.norm(r, axis=1)) for r in self._rotors_B]) + self._radii + 0.01
+        """How far each vehicle's rotor discs reach from its centre [m] (with 1 cm to spare)."""
         self._k_f = np.array([m.simulator.vehicle.params.k_f for m in self.members])  # type: ignore[union-attr]
         self._box_vertices_B = np.array([b.vertices_B for b in self._boxes])  # (n, 8, 3)
         self._box_triangles = self._boxes[0].triangles  # every box has the same 12 triangles over its 8 corners
@@ -293,14 +296,15 @@ class FleetSimulator:
         R = quat_to_matrix(q, normalize=True)  # (n, 3, 3)
         w = np.array([m.simulator.vehicle.state.rotor_speeds for m in self.members])  # type: ignore[union-attr]
         thrust = (self._k_f * np.sum(w * w, axis=1)).tolist()
-        # which vehicle may be in which jet: s along j's axis (-z_B), r from it; a jet is at most
-        # CUTOFF_HALF_WIDTHS * max(d_J / 2, S s) wide (d_J well under 1 m), a vehicle's rotors within 1 m of it
+        # which vehicle may be in which jet: s along j's axis (-z_B), r from it; i's rotors lie within
+        # self._span[i] of its centre, j's jet within jet_reach(s) of its axis
         axes = -R[:, :, 2]
         rel = p[None, :, :] - p[:, None, :]  # rel[j, i] = p_i - p_j
         s_ji = np.einsum("jik,jk->ji", rel, axes)
         r_ji = np.linalg.norm(rel - s_ji[:, :, None] * axes[:, None, :], axis=2)
-        reach = CUTOFF_HALF_WIDTHS * np.maximum(JET_S * (s_ji + 1.0), 1.0) + 1.0
-        may = (s_ji > -1.0) & (r_ji <= reach) & (d.T <= cfg.max_range_m)
+        span = self._span[None, :]
+        reach = jet_reach(s_ji + span, self._radii[:, None]) + span
+        may = (s_ji > -span) & (r_ji <= reach) & (d.T <= cfg.max_range_m)
         for i, m in enumerate(self.members):
             sources = [
                 (thrust[j], p[j], R[j], self.members[j].rotor_radius_m)

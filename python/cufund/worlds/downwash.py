@@ -36,7 +36,7 @@ import numpy as np
 
 from cufund.core.config import ConfigError, check_real_fields, from_dict
 
-__all__ = ["DownwashConfig", "downwash_force", "jet_speed", "jet_velocity"]
+__all__ = ["DownwashConfig", "downwash_force", "jet_reach", "jet_speed", "jet_velocity"]
 
 JET_B = 5.8
 """Centreline decay constant B of the round jet (Hussein et al. 1994; Pope 2000, Table 5.1)."""
@@ -103,6 +103,14 @@ def jet_speed(thrust_N: float, s: Any, r: Any, rotor_radius_m: float, air_densit
     eta = r / b
     out = u_c * np.exp(-math.log(2.0) * eta * eta)
     return np.where((s > 0) & (eta <= CUTOFF_HALF_WIDTHS), out, 0.0)
+
+
+def jet_reach(s: Any, rotor_radius_m: Any) -> np.ndarray:
+    """How far from its axis the jet of a vehicle with propellers of ``rotor_radius_m`` is non-zero at ``s`` below
+    it [m] (whatever its thrust: d_J = 2 sqrt(2) R follows from momentum theory): ``CUTOFF_HALF_WIDTHS b(s)``."""
+    s = np.asarray(s, dtype=float)
+    radius = np.asarray(rotor_radius_m, dtype=float)
+    return CUTOFF_HALF_WIDTHS * np.maximum(math.sqrt(2.0) * radius, JET_S * np.maximum(s, 0.0))
 
 
 def jet_velocity(
