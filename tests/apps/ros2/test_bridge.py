@@ -124,3 +124,27 @@ def test_a_px4_offboard_node_arms_and_flies_the_vehicle(tmp_path):
     yaw_enu = np.arctan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
     expected = np.pi / 2 + 3.14  # ENU yaw = pi/2 - NED yaw
     assert abs(np.angle(np.exp(1j * (yaw_enu - expected)))) < 0.1
+
+
+def test_a_depth_camera_is_image_raw_and_its_camera_info(tmp_path):
+    from cufund.sensors.camera import d435_depth
+
+    d = domain(9)
+    node, out = start_node(tmp_path, d, "viewer", "--topics", "/clock", "--camera", "depth")
+    cfg = load_scenario("square_lio")
+    data = cfg.to_dict()
+    data.update(duration=0.35, estimator=None)
+    data["sensors"]["depth"] = {"kind": "d435_depth", "rate_hz": 10.0}
+    data["ros2"] = {"domain_id": d, "lockstep_nodes": ["viewer"], "timeout_s": 30}
+    run = run_scenario(ScenarioConfig.from_dict(data, cfg.base_dir))
+    got = finish(node, out)["received"]
+    k = d435_depth()
+    frames = run.result.topics.get("/sensors/depth", {}).get("t", [])
+    images, infos = got["/camera/depth/image_raw"], got["/camera/depth/camera_info"]
+    assert len(images) == len(infos) >= 3
+    assert all(n >= k.width * k.height * 4 for n in images)  # 32FC1
+    stamp, frame, width, height, kk, dist = infos[0]
+    assert (frame, width, height) == ("depth", k.width, k.height)
+    assert kk == [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0] and dist == [0.0] * 5
+    if len(frames):
+        assert stamp == round(frames[0] * NS)

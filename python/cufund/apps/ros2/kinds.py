@@ -44,6 +44,16 @@ def default_topics(ctx: BuildContext) -> dict[str, tuple[str, str]]:
     return out
 
 
+def _intrinsics(spec: Any) -> Any:
+    """The pinhole intrinsics of a camera sensor spec (its params', or the D435's of the d435 kinds), or None."""
+    intr = getattr(spec.params, "intrinsics", None)
+    if intr is None and spec.kind in ("d435_depth", "d435_rgb"):
+        from cufund.sensors.camera import d435_depth, d435_rgb
+
+        intr = d435_depth() if spec.kind == "d435_depth" else d435_rgb()
+    return intr
+
+
 def _one(encoder: Callable[[Any], bytes]) -> Callable[[Any], list[bytes]]:
     return lambda m: [encoder(m)]
 
@@ -94,23 +104,17 @@ def build_bridge(p: Ros2Params, ctx: BuildContext) -> list[Any]:
             else:
                 enc = encode.image_encoder(frame)
                 info_name = ros_name.rsplit("/", 1)[0] + "/camera_info"
-                intr = getattr(spec.params, "intrinsics", None)
+                intr = _intrinsics(spec)
+                writes = [(ros_name, "sensor_msgs/msg/Image", QOS["sensor_data"])]
+                if intr is None:  # a camera kind whose intrinsics the bridge does not know: the image only
+                    outs.append(bridge.Out(topic, writes, _one(enc)))
+                    continue
 
-                def cam(m: Any, e: Any = enc, frame: str = frame, intr: Any = intr) -> list[bytes]:
-                    h, w = m.image.shape[:2]
-                    k = (intr.fx, intr.fy, intr.cx, intr.cy) if intr is not None else (w / 2, w / 2, w / 2, h / 2)
-                    return [e(m), encode.camera_info(m.t, frame, w, h, *k)]
+                def cam(m: Any, e: Any = enc, frame: str = frame, k: Any = intr) -> list[bytes]:
+                    return [e(m), encode.camera_info(m.t, frame, k.width, k.height, k.fx, k.fy, k.cx, k.cy)]
 
-                outs.append(
-                    bridge.Out(
-                        topic,
-                        [
-                            (ros_name, "sensor_msgs/msg/Image", QOS["sensor_data"]),
-                            (info_name, "sensor_msgs/msg/CameraInfo", QOS["sensor_data"]),
-                        ],
-                        cam,
-                    )
-                )
+                writes.append((info_name, "sensor_msgs/msg/CameraInfo", QOS["sensor_data"]))
+                outs.append(bridge.Out(topic, writes, cam))
         else:
             parent, child = ("world", truth_child) if what == "truth" else ("odom", body)
             odo = encode.odometry_encoder(parent, child)

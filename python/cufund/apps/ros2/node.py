@@ -46,6 +46,7 @@ def main(argv: list[str] | None = None) -> int:
         help="x,y,z (NED, as px4_ros_com's offboard_control example): each /clock, an OffboardControlMode and a "
         "TrajectorySetpoint to that position; after 10 of them, VehicleCommand DO_SET_MODE offboard and ARM",
     )
+    ap.add_argument("--camera", help="a camera's name: read /camera/NAME/image_raw (bytes) and camera_info")
     ap.add_argument("--raw", action="store_true", help="count the bytes of data topics without decoding them")
     ap.add_argument("--topics", help="comma-separated subset of /clock,/imu,/tf,/tf_static and the LiDAR to read")
     args = ap.parse_args(argv)
@@ -61,6 +62,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.topics:
         keep = set(args.topics.split(",")) | {"/clock"}
         readers = {k: v for k, v in readers.items() if k in keep}
+    if args.camera:
+        base = f"/camera/{args.camera}"
+        readers[base + "/image_raw"] = dds.reader(
+            base + "/image_raw", "sensor_msgs/msg/Image", QosProfile(False, depth=100)
+        )
+        readers[base + "/camera_info"] = dds.reader(
+            base + "/camera_info", "sensor_msgs/msg/CameraInfo", QosProfile(False, depth=100)
+        )
     odom_writer: Any = None
     pose_in = odom_out = ""
     if args.estimator:
@@ -116,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         progressed = False
         for topic in order:
             r = readers[topic]
-            if args.raw and topic not in ("/clock", "/tf_static"):  # bytes only, not decoded (the benchmark)
+            if (args.raw and topic not in ("/clock", "/tf_static")) or topic.endswith("/image_raw"):  # bytes only
                 raw = ddspy_take(r._ref, any_state, 1000)
                 for data, info in raw:
                     if info.valid_data:
@@ -159,6 +168,8 @@ def main(argv: list[str] | None = None) -> int:
                             *(getattr(s.linear_acceleration, a) for a in "xyz"),
                         ]
                     )
+                elif topic.endswith("/camera_info"):
+                    got[topic].append([_ns(s.header.stamp), s.header.frame_id, s.width, s.height, list(s.k), list(s.d)])
                 elif args.estimator and topic == pose_in:
                     got[topic].append([_ns(s.header.stamp)])
                     odom = idl.Odometry(
