@@ -245,17 +245,33 @@ def test_bags_of_other_drivers_are_read(tmp_path, storage):
         },
     )
     Point = store.types["livox_ros_driver2/msg/CustomPoint"]
-    livox = store.types["livox_ros_driver2/msg/CustomMsg"](
-        header=_header(store, t0, "livox_frame"),
-        timebase=t0,
-        point_num=3,
-        lidar_id=0,
-        rsvd=np.zeros(3, np.uint8),
-        points=[
-            Point(offset_time=int(o), x=float(p[0]), y=float(p[1]), z=float(p[2]), reflectivity=255, tag=0, line=i)
-            for i, (o, p) in enumerate(zip(offsets[:3], xyz[:3], strict=True))
-        ],
-    )
+    n_livox = 1001
+    l_xyz = rng.normal(size=(n_livox, 3)).astype(np.float32)
+    l_off = rng.integers(0, 100_000_000, n_livox)
+    l_refl, l_line = rng.integers(0, 256, n_livox), rng.integers(0, 4, n_livox)
+
+    def custom(timebase, count):
+        return store.types["livox_ros_driver2/msg/CustomMsg"](
+            header=_header(store, timebase, "livox_frame"),
+            timebase=timebase,
+            point_num=count,
+            lidar_id=0,
+            rsvd=np.zeros(3, np.uint8),
+            points=[
+                Point(
+                    offset_time=int(l_off[i]),
+                    x=float(l_xyz[i, 0]),
+                    y=float(l_xyz[i, 1]),
+                    z=float(l_xyz[i, 2]),
+                    reflectivity=int(l_refl[i]),
+                    tag=16,
+                    line=int(l_line[i]),
+                )
+                for i in range(count)
+            ],
+        )
+
+    livox, empty = custom(t0, n_livox), custom(t0 + 100_000_000, 0)
     Vector3 = store.types["geometry_msgs/msg/Vector3"]
     imu = store.types["sensor_msgs/msg/Imu"](
         header=_header(store, t0, "imu_link"),
@@ -273,7 +289,7 @@ def test_bags_of_other_drivers_are_read(tmp_path, storage):
         [
             ("/ouster/points", "sensor_msgs/msg/PointCloud2", [(t0 + 100, ouster)]),
             ("/velodyne_points", "sensor_msgs/msg/PointCloud2", [(t0 + 200, velodyne)]),
-            ("/livox/lidar", "livox_ros_driver2/msg/CustomMsg", [(t0 + 300, livox)]),
+            ("/livox/lidar", "livox_ros_driver2/msg/CustomMsg", [(t0 + 300, livox), (t0 + 100_000_300, empty)]),
             ("/imu/data", "sensor_msgs/msg/Imu", [(t0 + 50, imu)]),
         ],
     )
@@ -284,8 +300,8 @@ def test_bags_of_other_drivers_are_read(tmp_path, storage):
         "/imu/data": "Imu",
     }
     recs = list(read_rosbag2(path))
-    assert [r.topic for r in recs] == ["/imu/data", "/ouster/points", "/velodyne_points", "/livox/lidar"]
-    assert [r.log_time_ns for r in recs] == [t0 + 50, t0 + 100, t0 + 200, t0 + 300]
+    assert [r.topic for r in recs] == ["/imu/data", "/ouster/points", "/velodyne_points", *["/livox/lidar"] * 2]
+    assert [r.log_time_ns for r in recs] == [t0 + 50, t0 + 100, t0 + 200, t0 + 300, t0 + 100_000_300]
     m = recs[0].message
     assert m.t == t0 / 1e9 and m.w_I.tolist() == [0.1, -0.2, 0.3] and m.f_I.tolist() == [0.0, 0.5, 9.81]
     keep = np.arange(50) != 7
@@ -298,9 +314,10 @@ def test_bags_of_other_drivers_are_read(tmp_path, storage):
     assert recs[1].message.channel.tolist() == (np.arange(50) % 16)[keep].tolist()
     np.testing.assert_allclose(recs[1].message.intensity, 0.2)
     c = recs[3].message
-    assert c.t == t0 / 1e9 and c.dt.tolist() == [0.0, 2e-6, 4e-6] and c.channel.tolist() == [0, 1, 2]
-    np.testing.assert_array_equal(c.points_L, xyz[:3])
-    assert c.intensity.tolist() == [1.0, 1.0, 1.0]
+    assert c.t == t0 / 1e9 and c.dt.tolist() == (l_off / 1e9).tolist() and c.channel.tolist() == l_line.tolist()
+    np.testing.assert_array_equal(c.points_L, l_xyz)
+    assert c.intensity.tolist() == (l_refl / 255.0).tolist()
+    assert recs[4].message.t == (t0 + 100_000_000) / 1e9 and len(recs[4].message.dt) == 0
 
 
 def test_bad_input_is_a_clear_error(run, tmp_path, capsys):
