@@ -52,7 +52,10 @@ def test_three_vehicles_cover_the_field_from_one_request(survey):
 
 def test_each_vehicle_plans_the_same_fleet_mission():
     cfg = load_scenario("fleet_survey")
-    plans = [plan_fleet_mission(vehicle_scenario(cfg, n).mission.params) for n in ("uav1", "uav2", "uav3")]
+    plans = [
+        plan_fleet_mission(vehicle_scenario(cfg, n).mission.params, vehicle_scenario(cfg, n).planner.params)
+        for n in ("uav1", "uav2", "uav3")
+    ]
     for p in plans[1:]:
         assert p.delays == plans[0].delays
         assert all(np.array_equal(p.waypoints[n], plans[0].waypoints[n]) for n in p.waypoints)
@@ -66,7 +69,7 @@ def test_a_built_fleet_is_the_context_of_a_request(survey):
     assert ctx.geofence == tuple(tuple(map(float, p)) for p in cfg.mission.params.geofence)
     for name in ctx.names:
         np.testing.assert_allclose(ctx.home(name), cfg.mission.params.homes[name], atol=0.05)
-    planned = plan_fleet_mission(cfg.mission.params).waypoints
+    planned = plan_fleet_mission(cfg.mission.params, cfg.planner.params).waypoints
     asked = parse_mission(cfg.mission.params.request, fleet).waypoints(fleet)
     assert set(asked) == set(planned)
     for name in planned:

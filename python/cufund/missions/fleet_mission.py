@@ -6,13 +6,14 @@ same parameters and makes the same plan: the request read by the offline grammar
 (:func:`~cufund.missions.mission_request_grammar.request_to_data`; free text is refused in a scenario, a chat
 endpoint's answer would not be reproducible), checked against the fleet's ``homes``, ``fields`` and ``geofence``,
 each vehicle's share of the waypoints, and start delays from priority-based time-shifting
-(:func:`~cufund.missions.deconfliction.time_shift`, vehicles in ``homes`` order) of the planned trajectories (home,
-climb, the waypoints, back above home, at ``speed``) so that they keep ``min_separation``. The vehicle then flies its
+(:func:`~cufund.missions.deconfliction.time_shift`, vehicles in ``homes`` order) of the trajectories the commanders
+will fly (:func:`commander_trajectory`: take-off, the jerk-limited legs, the return and landing) so that they keep
+``min_separation``. The vehicle then flies its
 share: at its start time it arms, uploads the waypoints and starts the mission (the commander takes off first), and
 once the mission completes it returns home and lands (``rtl``).
 
-The planned timing is the plan's: the commander's jerk-limited moves (``v_max`` per axis) fly the legs in other times,
-so the delays order the vehicles rather than time them to the second; ``min_separation`` carries the margin.
+The plan models the commander's reference, not the vehicle's tracking lag (each leg ends once the vehicle is within
+``acceptance_radius``): ``min_separation`` carries that margin.
 """
 
 from __future__ import annotations
@@ -28,14 +29,16 @@ from cufund.core.build_context import BuildContext
 from cufund.core.components import BusView, Component
 from cufund.core.config import ConfigError
 from cufund.core.registry import Kind, register
+from cufund.planning.point_to_point import JerkLimitedMove
 
 from .commands import Command, parse_command
 from .deconfliction import Trajectory, time_shift
 from .fleet_context import FleetContext, MissionRequestError
 from .mission_request_grammar import GrammarMiss, request_to_data
 from .mission_request_schema import Mission, mission_from_data
+from .params import CommanderParams
 
-__all__ = ["FleetMissionParams", "FleetMissionRunner", "plan_fleet_mission"]
+__all__ = ["FleetMissionParams", "FleetMissionRunner", "commander_trajectory", "plan_fleet_mission"]
 
 
 @dataclass(frozen=True)
@@ -61,8 +64,6 @@ class FleetMissionParams:
     """Most waypoints per vehicle."""
     min_separation: float = 2.0
     """Separation the planned trajectories keep [m] (time-shifting)."""
-    speed: float = 1.0
-    """Speed of the planned trajectories [m/s] (the commander's ``v_max``)."""
     start_s: float = 1.0
     """When the first vehicle arms and starts [s]."""
     return_home: bool = True
@@ -73,12 +74,10 @@ class FleetMissionParams:
             raise ConfigError("mission.request must be the plain-language request (a non-empty string)")
         if not isinstance(self.homes, Mapping) or not self.homes:
             raise ConfigError("mission.homes must map every vehicle of the fleet to its home [x, y, z] [m]")
-        for name in ("min_separation", "speed", "start_s"):
+        for name in ("min_separation", "start_s"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ConfigError(f"mission.{name} must be a finite number >= 0, got {v!r}")
-        if self.speed <= 0:
-            raise ConfigError(f"mission.speed must be > 0 [m/s], got {self.speed!r}")
         if not isinstance(self.return_home, bool):
             raise ConfigError(f"mission.return_home must be true or false, got {self.return_home!r}")
         if self.vehicle is not None and (not isinstance(self.vehicle, str) or self.vehicle not in self.homes):
@@ -111,10 +110,50 @@ class FleetPlan:
     delays: dict[str, float]
 
 
-def plan_fleet_mission(p: FleetMissionParams) -> FleetPlan:
-    """The plan every vehicle makes from ``p`` (the same for all); ``ConfigError`` with the reason when the request
-    is refused or cannot be deconflicted."""
+def commander_trajectory(
+    home: np.ndarray, waypoints: np.ndarray, params: CommanderParams, return_home: bool, dt: float = 0.1
+) -> Trajectory:
+    """What the commander flies for a mission started on the ground at ``home`` at t = 0, as the commander flies it
+    (:mod:`cufund.missions.commander`): the take-off leg straight up to the first waypoint's height at
+    ``takeoff_speed``, a jerk-limited move to each waypoint from rest (``v_max``, ``a_max``, ``j_max`` per axis),
+    then, with ``return_home``, the return (climb to ``rtl_altitude`` above home if lower, home, down to
+    ``land_alt`` at go-to speed, then down at ``land_speed``); sampled every ``dt`` [s]. The vehicle's tracking lag
+    is not in it."""
+    p = params
+    home = np.asarray(home, dtype=float)
+    first = waypoints[0]
+    legs: list[tuple[np.ndarray, float]] = [
+        (np.array([home[0], home[1], max(first[2], home[2] + 0.5)]), p.takeoff_speed)
+    ]
+    legs += [(np.asarray(w, dtype=float), p.v_max) for w in waypoints]
+    if return_home:
+        z = max(float(waypoints[-1][2]), home[2] + p.rtl_altitude)
+        last = np.asarray(waypoints[-1], dtype=float)
+        legs += [(np.array([last[0], last[1], z]), p.v_max), (np.array([home[0], home[1], z]), p.v_max)]
+        legs.append((np.array([home[0], home[1], home[2] + p.land_alt]), p.v_max))
+    ts, ps = [0.0], [home]
+    t, at = 0.0, home
+    for target, v in legs:
+        if np.linalg.norm(target - at) < 1e-9:
+            continue
+        move = JerkLimitedMove(at, target, v, p.a_max, p.j_max, 0.0, t_start=t)
+        k = np.arange(1, max(1, math.ceil(move.duration / dt)) + 1)
+        tk = t + np.minimum(k * dt, move.duration)
+        ts += list(tk)
+        ps += list(move.sample(tk).p_W)
+        t, at = t + move.duration, target
+    if return_home and at[2] > home[2]:  # the final descent at land_speed
+        ts.append(t + (at[2] - home[2]) / p.land_speed)
+        ps.append(home)
+    return Trajectory(np.asarray(ts), np.asarray(ps))
+
+
+def plan_fleet_mission(p: FleetMissionParams, commander: CommanderParams | None = None) -> FleetPlan:
+    """The plan every vehicle makes from ``p`` with the commander parameters ``commander`` (default
+    :class:`CommanderParams`; give the fleet one planner so that every vehicle makes the same plan); ``ConfigError``
+    with the reason when the request is refused or cannot be deconflicted."""
     ctx = p.context()
+    cp = commander or CommanderParams()
     try:
         data = request_to_data(p.request, ctx)
         mission = mission_from_data(data, ctx)
@@ -126,11 +165,7 @@ def plan_fleet_mission(p: FleetMissionParams) -> FleetPlan:
     except MissionRequestError as e:
         raise ConfigError(f"mission.request refused: {e}") from None
     wps = mission.waypoints(ctx)
-    trajectories = {}
-    for name, wp in wps.items():
-        home = ctx.home(name)
-        path = [home, [home[0], home[1], wp[0][2]], *wp, [home[0], home[1], wp[-1][2]], home]
-        trajectories[name] = Trajectory.from_path(path, p.speed)
+    trajectories = {n: commander_trajectory(ctx.home(n), wp, cp, p.return_home) for n, wp in wps.items()}
     try:
         delays = time_shift(trajectories, p.min_separation, priority=[n for n in ctx.names if n in wps])
     except ValueError as e:
@@ -203,7 +238,7 @@ def build_fleet_mission(p: FleetMissionParams, ctx: BuildContext) -> list[Any]:
     home = p.context().home(me)
     if not np.allclose(start, home, atol=1e-6):
         raise ConfigError(f"mission.homes.{me} {home.tolist()} must be the vehicle's start {start.tolist()}")
-    plan = plan_fleet_mission(p)
+    plan = plan_fleet_mission(p, commander.params)
     ctx.add_metric_hook(
         lambda result: {
             "fleet_mission": {
