@@ -171,12 +171,18 @@ class TunnelCourse:
 def _arena(world: World, p: TunnelCourseParams) -> None:
     sx, sy, sz = p.arena
     cx, wall = sx / 2 - p.arena_lead, 0.1
-    world.add_box((sx + 2 * wall, sy + 2 * wall, wall), (cx, 0.0, -wall / 2), label="floor", color=_FLOOR)
-    world.add_box((sx + 2 * wall, sy + 2 * wall, wall), (cx, 0.0, sz + wall / 2), label="ceiling", color=_WALL)
-    world.add_box((wall, sy, sz), (cx - (sx + wall) / 2, 0.0, sz / 2), label="wall", color=_WALL)
-    world.add_box((wall, sy, sz), (cx + (sx + wall) / 2, 0.0, sz / 2), label="wall", color=_WALL)
-    world.add_box((sx, wall, sz), (cx, -(sy + wall) / 2, sz / 2), label="wall", color=_WALL)
-    world.add_box((sx, wall, sz), (cx, (sy + wall) / 2, sz / 2), label="wall", color=_WALL)
+    from cufund.worlds.builtin import FLOOR_MATERIAL, WALL_MATERIAL  # camera textures
+
+    fm, wm = FLOOR_MATERIAL, WALL_MATERIAL
+
+    world.add_box((sx + 2 * wall, sy + 2 * wall, wall), (cx, 0.0, -wall / 2), label="floor", color=_FLOOR, material=fm)
+    world.add_box(
+        (sx + 2 * wall, sy + 2 * wall, wall), (cx, 0.0, sz + wall / 2), label="ceiling", color=_WALL, material=wm
+    )
+    world.add_box((wall, sy, sz), (cx - (sx + wall) / 2, 0.0, sz / 2), label="wall", color=_WALL, material=wm)
+    world.add_box((wall, sy, sz), (cx + (sx + wall) / 2, 0.0, sz / 2), label="wall", color=_WALL, material=wm)
+    world.add_box((sx, wall, sz), (cx, -(sy + wall) / 2, sz / 2), label="wall", color=_WALL, material=wm)
+    world.add_box((sx, wall, sz), (cx, (sy + wall) / 2, sz / 2), label="wall", color=_WALL, material=wm)
 
 
 def _draw(rng: np.random.Generator, p: TunnelCourseParams) -> list[TunnelFrame]:

@@ -9,10 +9,23 @@ import numpy as np
 
 from cufund.core.registry import load_plugins
 
+from .materials import Material
 from .world import World
 
 WALL = (0.75, 0.75, 0.72)
 FLOOR = (0.45, 0.45, 0.45)
+
+
+def textured(color: tuple[float, float, float], texture: str, scale: float, seed: int) -> Material:
+    """A procedural material whose mean colour is about ``color`` (contrast 0.4: the pattern's mean is ~0.55), so
+    that a textured world keeps the look of its plain colours."""
+    k = 1.0 / (1.0 - 0.4 * 0.45)
+    albedo = (min(1.0, color[0] * k), min(1.0, color[1] * k), min(1.0, color[2] * k))
+    return Material(albedo, texture, scale=scale, contrast=0.4, seed=seed)
+
+
+FLOOR_MATERIAL = textured(FLOOR, "concrete", 0.05, 11)
+WALL_MATERIAL = textured(WALL, "concrete", 0.08, 12)
 
 
 def _arena(
@@ -21,12 +34,15 @@ def _arena(
     """Floor, ceiling and four walls of an indoor arena, inner size (sx, sy, sz) [m], floor at z = 0."""
     sx, sy, sz = size
     cx, cy = centre_xy
-    world.add_box((sx + 2 * wall, sy + 2 * wall, wall), (cx, cy, -wall / 2), label="floor", color=FLOOR)
-    world.add_box((sx + 2 * wall, sy + 2 * wall, wall), (cx, cy, sz + wall / 2), label="ceiling", color=WALL)
-    world.add_box((wall, sy, sz), (cx - (sx + wall) / 2, cy, sz / 2), label="wall", color=WALL)
-    world.add_box((wall, sy, sz), (cx + (sx + wall) / 2, cy, sz / 2), label="wall", color=WALL)
-    world.add_box((sx, wall, sz), (cx, cy - (sy + wall) / 2, sz / 2), label="wall", color=WALL)
-    world.add_box((sx, wall, sz), (cx, cy + (sy + wall) / 2, sz / 2), label="wall", color=WALL)
+    floor, walls = FLOOR_MATERIAL, WALL_MATERIAL  # textures: only cameras see them
+    world.add_box((sx + 2 * wall, sy + 2 * wall, wall), (cx, cy, -wall / 2), label="floor", color=FLOOR, material=floor)
+    world.add_box(
+        (sx + 2 * wall, sy + 2 * wall, wall), (cx, cy, sz + wall / 2), label="ceiling", color=WALL, material=walls
+    )
+    world.add_box((wall, sy, sz), (cx - (sx + wall) / 2, cy, sz / 2), label="wall", color=WALL, material=walls)
+    world.add_box((wall, sy, sz), (cx + (sx + wall) / 2, cy, sz / 2), label="wall", color=WALL, material=walls)
+    world.add_box((sx, wall, sz), (cx, cy - (sy + wall) / 2, sz / 2), label="wall", color=WALL, material=walls)
+    world.add_box((sx, wall, sz), (cx, cy + (sy + wall) / 2, sz / 2), label="wall", color=WALL, material=walls)
 
 
 def imav2025_tunnel() -> World:
@@ -72,7 +88,10 @@ def forest(seed: int = 0, n_trees: int = 120, size: float = 40.0, clearing: floa
             f"{size} m square outside it, got {clearing}"
         )
     world = World("forest")
-    world.add_plane((size + 10.0, size + 10.0), (0.0, 0.0, 0.0), label="ground", color=(0.35, 0.3, 0.2))
+    ground, bark = textured((0.35, 0.3, 0.2), "noise", 0.05, 21), textured((0.4, 0.25, 0.1), "bark", 0.3, 22)
+    world.add_plane(
+        (size + 10.0, size + 10.0), (0.0, 0.0, 0.0), label="ground", color=(0.35, 0.3, 0.2), material=ground
+    )
     rng = np.random.default_rng(seed)
     placed = attempts = 0
     while placed < n_trees:
@@ -86,7 +105,7 @@ def forest(seed: int = 0, n_trees: int = 120, size: float = 40.0, clearing: floa
         if np.hypot(x, y) < clearing:
             continue
         r, h = rng.uniform(0.1, 0.3), rng.uniform(4.0, 10.0)
-        world.add_cylinder(r, h, (x, y, h / 2), label="tree", color=(0.4, 0.25, 0.1), segments=12)
+        world.add_cylinder(r, h, (x, y, h / 2), label="tree", color=(0.4, 0.25, 0.1), segments=12, material=bark)
         placed += 1
     return world
 
