@@ -5,6 +5,7 @@ included), 2 invalid configuration or usage."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -18,7 +19,11 @@ __all__ = ["add_arguments", "run"]
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", help="a built-in scenario name or a YAML file")
     add_overrides(p, help="override a field by its dotted key, e.g. --set seed=3 (repeatable)")
-    p.add_argument("--domain-id", type=int, help="the DDS domain (ROS_DOMAIN_ID); default the scenario's or 0")
+    p.add_argument(
+        "--domain-id",
+        type=int,
+        help="the DDS domain; default the scenario's ros2.domain_id, else $ROS_DOMAIN_ID, else 0",
+    )
     p.add_argument(
         "--lockstep-node",
         action="append",
@@ -49,6 +54,11 @@ def run(args: argparse.Namespace) -> int:
         ros2 = dict(data.get("ros2") or {})
         if args.domain_id is not None:
             ros2["domain_id"] = args.domain_id
+        elif "domain_id" not in ros2 and os.environ.get("ROS_DOMAIN_ID", "").strip():
+            env = os.environ["ROS_DOMAIN_ID"].strip()
+            if not env.isdigit():
+                raise ConfigError(f"ROS_DOMAIN_ID must be an integer in [0, 232], got {env!r}")
+            ros2["domain_id"] = int(env)
         if args.lockstep_node:
             ros2["lockstep_nodes"] = list(args.lockstep_node)
         if args.no_lockstep:
