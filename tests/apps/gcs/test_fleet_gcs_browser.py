@@ -108,3 +108,43 @@ def test_a_refused_request_shows_its_reason(page):
     assert "below" in result.text
     assert not d.find_element(By.ID, "fly").is_enabled()
     assert wait_for(lambda: "mission request refused" in d.find_element(By.ID, "events").text, 5)
+
+
+def test_survey_an_area_drawn_on_the_map_with_all_drones(page):
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    d = page
+    d.find_element(By.ID, "clear-area").click()
+    d.find_element(By.ID, "draw-area").click()
+    canvas = d.find_element(By.ID, "map")
+    w, h = canvas.size["width"], canvas.size["height"]
+    corners = [  # a rectangle in the middle of what the map shows now, on a 0.1 m grid
+        tuple(
+            round(c, 1)
+            for c in d.execute_script("return window.fleetGcs.fromCanvas(arguments[0], arguments[1])", fx * w, fy * h)
+        )
+        for fx, fy in ((0.1, 0.8), (0.9, 0.8), (0.9, 0.2), (0.1, 0.2))
+    ]
+    for x, y in corners:  # each click in the map's transform of the moment (it refits as the area grows)
+        cx, cy = d.execute_script("return window.fleetGcs.toCanvas(arguments[0], arguments[1])", x, y)
+        ActionChains(d).move_to_element_with_offset(canvas, round(cx - w / 2), round(cy - h / 2)).click().perform()
+    area = d.execute_script("return window.fleetGcs.state.area")
+    assert len(area) == 4
+    for (x, y), (ax, ay) in zip(corners, area, strict=True):
+        assert abs(ax - x) < 0.1 and abs(ay - y) < 0.1, area
+    assert d.find_element(By.ID, "area-info").text == "area of 4 corners"
+    d.find_element(By.ID, "draw-area").click()
+    box = d.find_element(By.ID, "mission-text")
+    box.clear()
+    box.send_keys("survey this polygon with all drones")
+    d.find_element(By.ID, "preview").click()
+    result = d.find_element(By.ID, "mission-result")
+    assert wait_for(lambda: result.text.startswith(("preview", "refused")), 10), result.text
+    assert result.text.startswith("preview"), result.text
+    wps = d.execute_script("return window.fleetGcs.state.preview.waypoints")
+    assert sorted(wps) == ["uav1", "uav2", "uav3"]
+    (x0, y0), (x1, y1) = corners[0], corners[2]
+    for wp in wps.values():  # inside the drawn area
+        for x, y, _z in wp:
+            assert x0 - 0.15 <= x <= x1 + 0.15 and y0 - 0.15 <= y <= y1 + 0.15, (corners, wps)
+    assert d.find_element(By.ID, "fly").is_enabled()

@@ -4,8 +4,12 @@
 "use strict";
 const token = new URLSearchParams(location.search).get("token") || "";
 const $ = (id) => document.getElementById(id);
-const state = { names: [], colours: {}, vehicles: {}, trails: {}, selected: new Set(), preview: null, events: 0 };
-window.fleetGcs = { state, toCanvas: (x, y) => (view ? [view.ox + view.sx * x, view.oy - view.sx * y] : null) }; // for tests
+const state = { names: [], colours: {}, vehicles: {}, trails: {}, selected: new Set(), preview: null, events: 0, area: [] };
+window.fleetGcs = { // for tests: the page's state and the map's transform (world [m] <-> canvas [px])
+  state,
+  toCanvas: (x, y) => (view ? [view.ox + view.sx * x, view.oy - view.sx * y] : null),
+  fromCanvas: (cx, cy) => (view ? [(cx - view.ox) / view.sx, (view.oy - cy) / view.sx] : null),
+};
 
 async function api(path, body) {
   const init = { headers: { Authorization: "Bearer " + token }, cache: "no-store" };
@@ -134,6 +138,7 @@ function bounds() {
     for (const p of state.trails[n] || []) pts.push(p);
   }
   if (state.preview) for (const wp of Object.values(state.preview.waypoints)) for (const p of wp) pts.push(p);
+  for (const p of state.area) pts.push(p);
   if (!pts.length) return [-5, -5, 5, 5];
   let [x0, y0, x1, y1] = [Infinity, Infinity, -Infinity, -Infinity];
   for (const p of pts) { x0 = Math.min(x0, p[0]); x1 = Math.max(x1, p[0]); y0 = Math.min(y0, p[1]); y1 = Math.max(y1, p[1]); }
@@ -157,6 +162,16 @@ function draw() {
   g.strokeStyle = "#e6e6e6"; g.lineWidth = 1; g.fillStyle = "#888"; g.font = "10px system-ui";
   for (let x = Math.ceil(x0 / step) * step; x <= x1; x += step) { g.beginPath(); g.moveTo(X(x), 0); g.lineTo(X(x), h); g.stroke(); g.fillText(`${x} m`, X(x) + 2, h - 4); }
   for (let y = Math.ceil(y0 / step) * step; y <= y1; y += step) { g.beginPath(); g.moveTo(0, Y(y)); g.lineTo(w, Y(y)); g.stroke(); g.fillText(`${y} m`, 2, Y(y) - 2); }
+  // the operator's area: a grey polygon, its corners marked
+  if (state.area.length) {
+    g.strokeStyle = "#444"; g.fillStyle = "rgba(0, 0, 0, 0.06)"; g.lineWidth = 1.5;
+    g.beginPath();
+    state.area.forEach((p, i) => (i ? g.lineTo(X(p[0]), Y(p[1])) : g.moveTo(X(p[0]), Y(p[1]))));
+    if (state.area.length > 2) g.closePath();
+    g.fill(); g.stroke();
+    g.fillStyle = "#444";
+    for (const p of state.area) g.fillRect(X(p[0]) - 3, Y(p[1]) - 3, 6, 6);
+  }
   // the previewed mission: dashed, numbered, in each vehicle's colour
   if (state.preview) {
     for (const [n, wp] of Object.entries(state.preview.waypoints)) {
@@ -186,6 +201,13 @@ $("map").addEventListener("click", (e) => {
   if (!view) return;
   const r = $("map").getBoundingClientRect();
   const mx = e.clientX - r.left, my = e.clientY - r.top;
+  if ($("draw-area").checked) { // a corner of the operator's area, in world coordinates [m]
+    state.area.push([+((mx - view.ox) / view.sx).toFixed(2), +((view.oy - my) / view.sx).toFixed(2)]);
+    showArea();
+    setPreview(null);
+    draw();
+    return;
+  }
   let best = null, bestD = 20;
   for (const n of state.names) {
     const p = (state.vehicles[n] || {}).p_W;
@@ -225,11 +247,20 @@ function setPreview(p) {
   draw();
 }
 $("mission-text").addEventListener("input", () => setPreview(null)); // a changed request must be previewed again
+function showArea() {
+  const n = state.area.length;
+  $("area-info").textContent = n === 0 ? "" : n < 3 ? `${n} corner${n > 1 ? "s" : ""} (3 or more make an area)` : `area of ${n} corners`;
+}
+$("clear-area").addEventListener("click", () => { state.area = []; showArea(); setPreview(null); draw(); });
 $("preview").addEventListener("click", async () => {
   const sel = selectedList();
   const res = $("mission-result");
+  res.className = "";
+  res.textContent = "reading the request…";
   try {
-    const r = await api("/api/mission/preview", { text: $("mission-text").value, vehicles: sel.length ? sel : "all" });
+    const body = { text: $("mission-text").value, vehicles: sel.length ? sel : "all" };
+    if (state.area.length >= 3) body.area = state.area;
+    const r = await api("/api/mission/preview", body);
     if (r.ok) {
       res.className = "good";
       res.textContent = `preview ${r.id}: ${r.summary}. Check it on the map, then Fly.`;
