@@ -15,10 +15,12 @@ from . import patterns
 from .allan import AllanFit, allan_deviation, fit_allan
 from .barometer import BAROMETER_PRESETS, BarometerModel, BarometerParams, BarometerSensor, isa_altitude, isa_pressure
 from .camera import CameraImage, CameraIntrinsics, DepthCamera, RgbCamera, d435_depth, d435_rgb, save_png
-from .camera_component import CameraComponent
+from .camera_component import CameraComponent, CameraRigComponent
+from .camera_models import CameraCalibration
 from .geodesy import GeoPoint, enu_to_lla, lla_to_enu
 from .gps import GPS_PRESETS, GpsModel, GpsParams, GpsSensor
 from .imu import IMU_PRESETS, ImuModel, ImuParams, ImuSensor, imu_preset
+from .kalibr import dump_kalibr, load_kalibr
 from .lidar import Lidar, LidarParams, PointCloud, mid360_params
 from .lidar_component import LidarComponent
 from .magnetometer import EarthField, MagnetometerModel, MagnetometerParams, MagnetometerSensor
@@ -52,7 +54,9 @@ __all__ = [
     "BarometerSensor",
     "CameraComponent",
     "CameraImage",
+    "CameraCalibration",
     "CameraIntrinsics",
+    "CameraRigComponent",
     "CsvPattern",
     "DepthCamera",
     "EarthField",
@@ -88,12 +92,14 @@ __all__ = [
     "allan_deviation",
     "d435_depth",
     "d435_rgb",
+    "dump_kalibr",
     "enu_to_lla",
     "fit_allan",
     "imu_preset",
     "isa_altitude",
     "isa_pressure",
     "lla_to_enu",
+    "load_kalibr",
     "mid360_params",
     "patterns",
     "save_png",

@@ -80,7 +80,8 @@ class _RayCamera:
         p_WC, R_WO = self._camera_pose(p, q)
         rays = np.empty((len(self._dirs_O), 6), np.float32)
         rays[:, :3] = p_WC
-        rays[:, 3:] = self._dirs_O @ R_WO.T
+        d = self._dirs_O  # R_WO d as columns times components (no BLAS matmul: its threads fight Embree's)
+        rays[:, 3:] = d[:, :1] * R_WO[:, 0] + d[:, 1:2] * R_WO[:, 1] + d[:, 2:] * R_WO[:, 2]
         return rays, R_WO
 
     def _row_poses(
@@ -281,7 +282,8 @@ class RgbCamera(_RayCamera):
         assert acc is not None
         lin = acc / np.float32(n) if n > 1 else acc
         if self.grayscale:
-            lin = lin @ np.array([0.299, 0.587, 0.114], np.float32)
+            # weighted sum, not a matmul: BLAS's threads fight the renderer's for the cores
+            lin = lin[:, 0] * np.float32(0.299) + lin[:, 1] * np.float32(0.587) + lin[:, 2] * np.float32(0.114)
         if self.full_well_e > 0:
             lam = np.clip(lin, 0.0, 1.0) * self.full_well_e
             lin = self._rng.poisson(lam) / self.full_well_e
