@@ -50,3 +50,13 @@ def test_lidar_sees_the_other_vehicle():
 
 def test_nothing_there_when_out_of_view_range():
     assert _forward_range(60.0) == float("inf")
+
+
+def test_a_fleet_sees_as_far_as_each_vehicles_sensors():
+    from cufund.scenarios.fleet import IMAGE_CAMERA_RANGE_M, sensing_range
+    from cufund.sensors.camera import DepthCamera, RgbCamera
+
+    lidar = LidarComponent(Lidar(PlanarPattern(), LidarParams(range_max=12.0)), World(), "/sensors/scan", rate_hz=40.0)
+    assert sensing_range(lidar) == 12.0
+    assert sensing_range(type("C", (), {"camera": DepthCamera(depth_max=7.0)})()) == 7.0
+    assert sensing_range(type("C", (), {"camera": RgbCamera()})()) == IMAGE_CAMERA_RANGE_M

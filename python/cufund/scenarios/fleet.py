@@ -186,6 +186,23 @@ def fleet_metrics(sim: FleetSimulator, runs: dict[str, ScenarioRun]) -> dict[str
     return out
 
 
+IMAGE_CAMERA_RANGE_M = 100.0
+"""How far an image camera (no depth limit) sees other vehicles in a fleet [m] (a 0.2 m box is a few pixels there)."""
+
+
+def sensing_range(component: Any) -> float:
+    """How far a ray-cast sensor component sees [m]: a LiDAR's ``range_max``, a depth camera's ``depth_max``,
+    else :data:`IMAGE_CAMERA_RANGE_M`."""
+    lidar = getattr(component, "lidar", None)
+    if lidar is not None and hasattr(lidar, "params"):
+        return float(lidar.params.range_max)
+    cameras = getattr(component, "cameras", None) or [getattr(component, "camera", None)]
+    depths = [float(d) for d in (getattr(c, "depth_max", None) for c in cameras) if d is not None]
+    if depths and len(depths) == len(cameras):
+        return max(depths)
+    return IMAGE_CAMERA_RANGE_M
+
+
 def build_fleet(config: ScenarioConfig, until_done: bool = True) -> Fleet:
     """The fleet of ``config`` (a scenario with ``vehicles:``): each vehicle built as a single-vehicle scenario
     (:func:`vehicle_scenario`, validated as any), in the fleet's world. With ``until_done`` each vehicle's run ends
@@ -207,6 +224,7 @@ def build_fleet(config: ScenarioConfig, until_done: bool = True) -> Fleet:
         if world is None:
             world = base
         viewers = [c for c in built.simulator.components if base is not None and getattr(c, "world", None) is base]
+        reach = max((sensing_range(c) for c in viewers), default=None)
         radius = config.downwash.radius(vconfig.vehicle_params().arm_length) if config.downwash else 0.0
         members.append(
             FleetMember(
@@ -217,6 +235,7 @@ def build_fleet(config: ScenarioConfig, until_done: bool = True) -> Fleet:
                 radius,
                 viewers,
                 base,
+                reach,
             )
         )
         vehicles.append(FleetVehicle(spec.name, built))

@@ -13,7 +13,8 @@ physics step for where a call ends: a vehicle's run is the same, bit for bit, wh
   it) as an external force on their plants, held until the next instant;
 * every ``1 / view_rate_hz`` (default 50 Hz) remakes the world each vehicle's ray-cast sensors see: the world with
   the other vehicles' boxes at their current poses (:class:`~cufund.simulator.fleet_view.WorldWithVehicles`), for
-  each vehicle with another within ``view_range_m``; a vehicle with none in range keeps the world itself.
+  each vehicle with another within its sensors' reach (:attr:`FleetMember.view_range_m`, else ``view_range_m``)
+  plus the other's box; a vehicle with none in range keeps the world itself.
 
 A vehicle with no other within reach (none closer than ``view_range_m`` nor under another's jet) therefore runs
 exactly as it runs alone. Physics is stepped vehicle by vehicle (each simulator splits its own steps at its own
@@ -70,6 +71,9 @@ class FleetMember:
     """Components with a ``world`` attribute the fleet points at the world with the others in it."""
     world: World | None = None
     """The world its viewers see when no other vehicle is in range (its own copy of the fleet's world)."""
+    view_range_m: float | None = None
+    """How far its viewers see [m] (e.g. its LiDAR's range_max): others farther away are left out of its view;
+    None: the fleet's ``view_range_m``."""
 
 
 @dataclass(frozen=True)
@@ -327,7 +331,9 @@ class FleetSimulator:
     def _update_views(self, p: np.ndarray, q: np.ndarray, d: np.ndarray) -> None:
         R = quat_to_matrix(q, normalize=True)
         corners_W = np.einsum("nvk,nlk->nvl", self._box_vertices_B, R) + p[:, None, :]  # (n, 8, 3)
-        in_range = d <= self.view_range_m
+        ranges = np.array([self.view_range_m if m.view_range_m is None else m.view_range_m for m in self.members])
+        radii = np.array([b.radius for b in self._boxes])
+        in_range = d <= ranges[:, None] + radii[None, :]
         np.fill_diagonal(in_range, False)
         for i, m in enumerate(self.members):
             if not m.viewers:
