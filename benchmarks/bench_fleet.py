@@ -48,7 +48,8 @@ def build(n: int, threads: int):
         )
         comp = LidarComponent(lidar, member.world, "/sensors/scan", rate_hz=40.0, truth_topic="/truth/scan")
         sim.add(comp)
-        member.viewers.append(comp)  # it sees the other vehicles
+        member.viewers.append(comp)  # it sees the other vehicles within its range
+        member.view_range_m = 30.0
     return fleet
 
 
