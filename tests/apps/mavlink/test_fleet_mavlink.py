@@ -332,3 +332,91 @@ def test_serve_refuses_a_fleet_its_ports_cannot_hold(tmp_path):
     )
     assert p.returncode == 2
     assert "overlap" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_serve_uploads_a_plain_language_mission_each_client_downloads(tmp_path):
+    import yaml
+
+    pytest.importorskip("cufund.missions.mission_request")
+    scenario = tmp_path / "fleet.yaml"
+    scenario.write_text(yaml.safe_dump(fleet_config(2)))
+    port = free_port()
+    gcs = Gcs(port)
+    serve = subprocess.Popen(
+        [
+            str(BIN / "cufund"),
+            "serve",
+            str(scenario),
+            "--mavlink",
+            f"udpout:127.0.0.1:{port}",
+            "--api",
+            "none",
+            "--local-ports",
+            "any",
+            "--duration",
+            "60",
+            "--mission",
+            "zigzag with 3 rows of 5 waypoints at 3 m",
+        ],  # fmt: skip
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    counts = {}
+    try:
+        for sysid in (1, 2):  # MAVLink's mission protocol: each system's count, then its items
+            gcs.wait("HEARTBEAT", lambda m, s=sysid: m.get_srcSystem() == s, 40)
+            gcs.mav.mission_request_list_send(sysid, 1)
+            n = gcs.recv("MISSION_COUNT", 10, cond=lambda m, s=sysid: m.get_srcSystem() == s).count
+            counts[sysid] = n
+            for seq in range(n):
+                gcs.mav.mission_request_int_send(sysid, 1, seq)
+                it = gcs.recv(
+                    "MISSION_ITEM_INT", 10, cond=lambda m, s=sysid, q=seq: m.get_srcSystem() == s and m.seq == q
+                )
+                assert it.frame == 6 and it.z == pytest.approx(3.0, abs=0.01)  # 3 m above home (relative frame)
+            gcs.mav.mission_ack_send(sysid, 1, 0)
+    finally:
+        gcs.close()
+        serve.send_signal(2)
+        log = _kill(serve)
+    # the zigzag's 3 x 5 waypoints shared between the two vehicles, each client seeing its own share
+    assert counts[1] + counts[2] == 15 and min(counts.values()) > 0
+    assert f"uav1: mission of {counts[1]} waypoints uploaded (zigzag)" in log
+    assert f"uav2: mission of {counts[2]} waypoints uploaded (zigzag)" in log
+
+
+def test_serve_refuses_an_unsafe_mission_with_the_reason(tmp_path):
+    import yaml
+
+    pytest.importorskip("cufund.missions.mission_request")
+    scenario = tmp_path / "fleet.yaml"
+    scenario.write_text(yaml.safe_dump(fleet_config(2)))
+    p = subprocess.run(
+        [
+            str(BIN / "cufund"),
+            "serve",
+            str(scenario),
+            "--local-ports",
+            "any",
+            "--mavlink",
+            "none",
+            "--api",
+            f"udpout:127.0.0.1:{free_port()}",
+            "--duration",
+            "1",
+            "--mission",
+            "zigzag with 3 rows of 5 waypoints at 0 m",
+        ],  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 2 and "--mission: refused: below ground" in p.stderr, p.stderr
+    p = subprocess.run(
+        [str(BIN / "cufund"), "serve", "vehicle", "--duration", "1", "--mission", "go back home"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 2 and "--mission is for a fleet scenario" in p.stderr

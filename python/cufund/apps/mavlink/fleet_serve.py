@@ -13,7 +13,7 @@ import threading
 import time
 from typing import Any
 
-__all__ = ["fleet_config", "serve_fleet"]
+__all__ = ["fleet_config", "serve_fleet", "upload_mission"]
 
 
 def fleet_config(scenario: str, overrides: Any) -> Any:
@@ -22,6 +22,61 @@ def fleet_config(scenario: str, overrides: Any) -> Any:
 
     config = load_scenario(scenario, overrides)
     return config if getattr(config, "vehicles", None) is not None else None
+
+
+def upload_mission(live: Any, endpoints: Any, text: str, wait_s: float = 10.0) -> str:
+    """Loads onto each vehicle the waypoints of the mission ``text`` asks for
+    (:func:`cufund.missions.parse_mission`), as a MAVLink plan uploaded by a client would be: its commander's mission
+    and its endpoint's plan (so QGroundControl and MAVSDK download it, and MISSION_CURRENT counts it). Returns ""
+    when every vehicle took it, else why not (the request refused, with the reason, or a vehicle's refusal). Call
+    before ``endpoints.start()``; the vehicles are not started: their clients start the mission."""
+    import time
+
+    import numpy as np
+    from pymavlink.dialects.v20 import common as mavlink
+
+    from cufund.missions import MissionRequestError, parse_mission
+
+    from . import frames
+    from .mission_protocol import MissionItem
+
+    try:
+        mission = parse_mission(text, live.fleet)
+        waypoints = mission.waypoints(live.fleet)
+    except (MissionRequestError, ValueError, TypeError) as e:
+        return f"refused: {e}"
+    for name, wp in waypoints.items():
+        ep, run = endpoints.endpoint(name), live.vehicles[name]
+        end = time.monotonic() + wait_s
+        while run.telemetry().get("p_W") is None and time.monotonic() < end:  # its first state
+            time.sleep(0.01)
+        tel = run.telemetry()
+        home = np.array(tel.get("home_p_W") or tel.get("p_W") or (0.0, 0.0, 0.0), dtype=float)
+        home_amsl = float(ep.origin.enu_to_lla(home)[2])
+        items = []
+        for seq, p in enumerate(np.asarray(wp, dtype=float)):
+            lat, lon, amsl = (float(c) for c in ep.origin.enu_to_lla(p))
+            items.append(
+                MissionItem(
+                    seq,
+                    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                    mavlink.MAV_CMD_NAV_WAYPOINT,
+                    1,
+                    0.0,
+                    0.0,
+                    0.0,
+                    float("nan"),
+                    int(frames.deg_to_e7(lat)),
+                    int(frames.deg_to_e7(lon)),
+                    amsl - home_amsl,
+                )  # fmt: skip
+            )
+        result = ep.plan.accept(items)
+        if result != mavlink.MAV_MISSION_ACCEPTED:
+            return f"{name}: its commander refused the plan (MAV_MISSION_RESULT {result}): {run.telemetry().get('message')}"
+        ep.missions.items = items
+        print(f"{name}: mission of {len(items)} waypoints uploaded ({getattr(mission, 'kind', 'mission')})", flush=True)
+    return ""
 
 
 def serve_fleet(args: argparse.Namespace, config: Any, speed: float) -> int:
@@ -60,6 +115,11 @@ def serve_fleet(args: argparse.Namespace, config: Any, speed: float) -> int:
                     print(f"cufund serve: --link-loss-timeout ({name}): {ack.message}", file=sys.stderr)
                     return 2
         endpoints = FleetEndpoints(live.vehicles, ports, heartbeat_timeout_s=args.heartbeat_timeout)
+        if getattr(args, "mission", None) is not None:
+            refused = upload_mission(live, endpoints, args.mission)
+            if refused:
+                print(f"cufund serve: --mission: {refused}", file=sys.stderr)
+                return 2
         endpoints.start()
         for line in endpoints.describe():
             print(line, flush=True)

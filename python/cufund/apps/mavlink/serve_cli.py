@@ -60,6 +60,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--system-id", type=int, default=1, help="MAVLink system id (default 1; a fleet's vehicle i: this + i)"
     )
     p.add_argument(
+        "--mission",
+        metavar="TEXT",
+        default=None,
+        help="a fleet: upload the mission this plain-language request asks for to its vehicles before serving "
+        "(e.g. 'zigzag with 3 rows of 5 waypoints at 3 m'; clients start it); a refused request exits 2 with why",
+    )
+    p.add_argument(
         "--local-ports",
         choices=("px4", "any"),
         default="px4",
@@ -121,6 +128,9 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if fleet is not None:  # N vehicles: N MAVLink systems on PX4 SITL's multi-instance ports (fleet_ports.py)
         return serve_fleet(args, fleet, speed)
+    if getattr(args, "mission", None) is not None:
+        print("cufund serve: --mission is for a fleet scenario (vehicles:)", file=sys.stderr)
+        return 2
     from ..live import LiveRun
     from .vehicle_endpoint import VehicleEndpoint
 
