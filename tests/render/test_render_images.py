@@ -210,3 +210,26 @@ def test_bad_input_gets_clear_errors(tmp_path):
             cufund.World(), (0, 0, 0), IDENTITY, v_W=(np.nan, 0, 0)
         )
     assert Transform() == CameraCalibration(CameraIntrinsics(8, 8, 4, 4, 3.5, 3.5)).T_BC
+
+
+def test_world_yaml_materials_and_their_errors(tmp_path):
+    from cufund.core.config import ConfigError
+    from cufund.worlds.description import world_from_yaml
+
+    tex = np.full((4, 4, 3), 200, np.uint8)
+    save_png(tmp_path / "poster.png", tex)
+    (tmp_path / "w.yaml").write_text(
+        "objects:\n"
+        "  - {type: box, size: [0.1, 4, 4], position: [3, 0, 0], material: {texture: image, image: poster.png, albedo: [1, 1, 1]}}\n"
+        "  - {type: plane, size: [4, 4], position: [0, 0, -1], material: {texture: brick, scale: 0.25, seed: 2}}\n"
+    )
+    w = world_from_yaml(tmp_path / "w.yaml")
+    assert w.objects[0].material.image == str(tmp_path / "poster.png")
+    assert w.objects[1].material.texture == "brick"
+    img = RgbCamera(CameraIntrinsics(9, 9, 5.0, 5.0, 4.0, 4.0), ambient=1.0).render(w, (0, 0, 0), IDENTITY)
+    np.testing.assert_array_equal(img[4, 4], (200, 200, 200))  # the PNG tiled on the box face
+    (tmp_path / "bad.yaml").write_text(
+        "objects:\n  - {type: box, size: [1, 1, 1], position: [0, 0, 0], material: {shine: 1}}\n"
+    )
+    with pytest.raises(ConfigError, match=r"objects\[0\] \(box\): unknown key 'shine' in material"):
+        world_from_yaml(tmp_path / "bad.yaml")

@@ -75,3 +75,20 @@ def test_vio_room_ids_name_the_objects_seen():
     with pytest.raises(ValueError, match="seed must be an integer"):
         vio_room(-1)
     assert isinstance(cufund.worlds.load("vio_room", seed=1), cufund.World)
+
+
+def test_hw_sync_triggers_frames_on_imu_samples():
+    small = {"width": 16, "height": 12, "fx": 10.0, "fy": 10.0, "cx": 7.5, "cy": 5.5}
+    data = _scenario(intrinsics=small, rate_hz=20.0, hw_sync=True)
+    data["sensors"]["imu"] = {"kind": "icm42688p", "phase_s": 0.0013}
+    built = build_simulation(ScenarioConfig.from_dict(data))
+    sim = built.simulator
+    sim.record_topics = (*sim.record_topics, "/sensors/cam0/image", "/sensors/imu")
+    result = sim.run(0.2)
+    t_cam, t_imu = result.topics["/sensors/cam0/image"]["t"], result.topics["/sensors/imu"]["t"]
+    np.testing.assert_allclose(t_cam, 0.0013 + 0.05 * np.arange(len(t_cam)), atol=1e-12)
+    # every frame's stamp is an IMU sample's
+    assert np.min(np.abs(t_cam[:, None] - t_imu[None, :]), axis=1).max() < 1e-12
+    data["sensors"]["stereo"]["phase_s"] = 0.01
+    with pytest.raises(ConfigError, match="give phase_s or hw_sync, not both"):
+        build_simulation(ScenarioConfig.from_dict(data))

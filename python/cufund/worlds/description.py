@@ -8,9 +8,11 @@
       - {type: sphere, radius: 0.5, position: [2, 2, 1]}
       - {type: tunnel_frame, position: [0, 0, 1], width: 0.5, height: 1.0}
       - {type: mesh, path: chair.obj, position: [1, 1, 0], scale: 0.01}
+      - {type: box, size: [2, 0.1, 1], position: [0, 3, 1], material: {texture: brick, scale: 0.25}}
 
 Each entry's keys are the keyword arguments of the matching ``World.add_*`` method (``mesh``:
-``World.load_mesh``; a relative ``path`` is taken from the YAML file's folder). Unknown types or keys
+``World.load_mesh``; a relative ``path``, or a material's ``image``, is taken from the YAML file's folder;
+``material`` is a :class:`cufund.worlds.materials.Material`'s fields, seen only by cameras). Unknown types or keys
 raise ``ConfigError`` naming them.
 """
 
@@ -63,6 +65,9 @@ def world_from_dict(data: Any, base_dir: str | Path = ".") -> World:
                 raise ConfigError(f"{where}.path must be a file name (string), got {kwargs['path']!r}")
             path = Path(kwargs["path"])
             kwargs["path"] = path if path.is_absolute() else Path(base_dir) / path
+        mat = kwargs.get("material")
+        if isinstance(mat, dict) and isinstance(mat.get("image"), str) and not Path(mat["image"]).is_absolute():
+            kwargs["material"] = {**mat, "image": str(Path(base_dir) / mat["image"])}  # from the YAML's folder
         try:
             method(**kwargs)
         except TypeError as e:  # a missing required key
