@@ -58,3 +58,19 @@ def test_a_node_that_never_answers_is_an_error_naming_it(tmp_path):
         run_scenario(cfg)
     node.kill()
     node.wait()
+
+
+def test_a_second_run_of_the_same_simulation_keeps_the_node(tmp_path):
+    # the participant stays open across runs: the node, which announced itself once, answers the second run too
+    from cufund.scenarios.build import build_simulation
+
+    d = domain(11)
+    node, out = start_node(tmp_path, d, "twice", "--topics", "/clock")
+    cfg = scenario(
+        "vehicle", {"domain_id": d, "lockstep_nodes": ["twice"], "rate_hz": 50.0, "timeout_s": 20}, duration=0.4
+    )
+    sim = build_simulation(cfg).simulator
+    sim.run(0.4)
+    sim.run(0.4)
+    clocks = finish(node, out)["received"]["/clock"]
+    assert len(clocks) >= 40 and len(set(clocks)) >= 20

@@ -91,7 +91,22 @@ class Ros2Bridge(Component):
 
     # -- lifecycle ---------------------------------------------------------------------------------------------
     def reset(self) -> None:
-        self.close()
+        if self.dds is None:
+            self._open()
+        else:  # a new run on the same participant: the nodes stay matched; answers of the last run are dropped
+            self._take_acks()
+            for reader in self._readers.values():
+                reader.take(N=10_000)
+        self._answers: dict[str, int] = {}
+        self._offboard_mode_ns: int | None = None  # sim time of the last OffboardControlMode
+        self._offboard_wanted = False  # VehicleCommand DO_SET_MODE offboard received
+        self._scheduled: list[tuple[int, dict[str, Any]]] = []  # (sim ns, command) from trajectories
+        self._wall0: float | None = None
+        self._started = False
+        self._last_t: dict[str, float] = {}
+        self.stats = {"steps": 0, "messages": 0, "bytes": 0, "wait_s": 0.0, "commands": 0, "ready_s": 0.0}
+
+    def _open(self) -> None:
         p = self.params
         self.dds = DdsParticipant(p.domain_id, p.expose)
         self._writers: dict[str, Any] = {}
@@ -102,20 +117,15 @@ class Ros2Bridge(Component):
         self._clock = self.dds.writer("/clock", "rosgraph_msgs/msg/Clock", QOS["clock"])
         self._tf_static = self.dds.writer("/tf_static", "tf2_msgs/msg/TFMessage", QOS["tf_static"])
         self._ack = self.dds.reader(ACK_TOPIC, "std_msgs/msg/Header", QOS["ack"])
-        self._answers: dict[str, int] = {}
+        self._announced: set[str] = set()  # nodes that answered on this participant
+        self._answers = {}
+        self._waitset: Any = None
         self._readers: dict[str, Any] = {}
         if self.commander is not None:
             names = {**{k: v[0] for k, v in COMMAND_TOPICS.items()}, **p.commands}
             for key, (_, rtype) in COMMAND_TOPICS.items():
                 if names[key]:
                     self._readers[key] = self.dds.reader(names[key], rtype, QOS["default"])
-        self._offboard_mode_ns: int | None = None  # sim time of the last OffboardControlMode
-        self._offboard_wanted = False  # VehicleCommand DO_SET_MODE offboard received
-        self._scheduled: list[tuple[int, dict[str, Any]]] = []  # (sim ns, command) from trajectories
-        self._wall0: float | None = None
-        self._started = False
-        self._last_t: dict[str, float] = {}
-        self.stats = {"steps": 0, "messages": 0, "bytes": 0, "wait_s": 0.0, "commands": 0, "ready_s": 0.0}
 
     def setup(self, bus: BusView) -> None:
         self._subs = [(o, None if o.latest_only else bus.subscribe(o.topic)) for o in self.outs]
@@ -166,6 +176,7 @@ class Ros2Bridge(Component):
             if getattr(s, "sample_info", None) is not None and not s.sample_info.valid_data:
                 continue
             ns = _ns(s.stamp)
+            self._announced.add(s.frame_id)
             if ns >= self._answers.get(s.frame_id, -(2**62)):
                 self._answers[s.frame_id] = ns
 
@@ -175,7 +186,7 @@ class Ros2Bridge(Component):
 
         w0 = time.perf_counter()
         deadline = w0 + self.params.timeout_s
-        if not hasattr(self, "_waitset"):
+        if self._waitset is None:
             self._waitset = WaitSet(self.dds.participant)  # type: ignore[union-attr]
             self._waitset.attach(ReadCondition(self._ack, SampleState.NotRead))
         self._take_acks()
@@ -192,9 +203,9 @@ class Ros2Bridge(Component):
         if not nodes:
             return
         self._wait(
-            lambda: all(n in self._answers for n in nodes),
+            lambda: all(n in self._announced for n in nodes),
             lambda: (
-                f"ros2 lockstep: node(s) {', '.join(n for n in nodes if n not in self._answers)} did not announce "
+                f"ros2 lockstep: node(s) {', '.join(n for n in nodes if n not in self._announced)} did not announce "
                 f"themselves on {ACK_TOPIC} within {self.params.timeout_s:g} s (domain {self.params.domain_id}); "
                 "is the node running, on the same ROS_DOMAIN_ID, and on this host?"
             ),

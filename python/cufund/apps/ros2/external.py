@@ -172,15 +172,20 @@ class ExternalComponent(Component):
     def reset(self) -> None:
         from .dds import QOS, DdsParticipant
 
-        self.close()
-        self.dds = DdsParticipant(self.params.domain_id, self.params.expose)
-        self._writers = [self.dds.writer(name, rtype, QOS["default"]) for _, name, rtype, _ in self._reads]
-        self._readers = [self.dds.reader(name, rtype, QOS["default"]) for _, name, rtype, _ in self._writes]
-        self._clock = self.dds.writer("/clock", "rosgraph_msgs/msg/Clock", QOS["clock"])
-        self._ack = self.dds.reader(ACK_TOPIC, "std_msgs/msg/Header", QOS["ack"])
+        if self.dds is None:
+            self.dds = DdsParticipant(self.params.domain_id, self.params.expose)
+            self._writers = [self.dds.writer(name, rtype, QOS["default"]) for _, name, rtype, _ in self._reads]
+            self._readers = [self.dds.reader(name, rtype, QOS["default"]) for _, name, rtype, _ in self._writes]
+            self._clock = self.dds.writer("/clock", "rosgraph_msgs/msg/Clock", QOS["clock"])
+            self._ack = self.dds.reader(ACK_TOPIC, "std_msgs/msg/Header", QOS["ack"])
+            self._waitset: Any = None
+            self._announced = False
+        else:  # a new run on the same participant: the node stays matched; what it sent for the last run is dropped
+            self._take_answers()
+            for reader in self._readers:
+                reader.take(N=10_000)
         self._answered: int | None = None
         self._started = False
-        self._last_clock: int | None = None
 
     def setup(self, bus: BusView) -> None:
         self._subs = [bus.subscribe(topic) for topic, _, _, _ in self._reads]
@@ -195,6 +200,7 @@ class ExternalComponent(Component):
             info = getattr(s, "sample_info", None)
             if (info is None or info.valid_data) and s.frame_id == self.params.node:
                 ns = int(s.stamp.sec) * NS + int(s.stamp.nanosec)
+                self._announced = True
                 if self._answered is None or ns > self._answered:
                     self._answered = ns
 
@@ -204,7 +210,7 @@ class ExternalComponent(Component):
 
         from .bridge import Ros2Timeout
 
-        if not hasattr(self, "_waitset"):
+        if self._waitset is None:
             self._waitset = WaitSet(self.dds.participant)
             self._waitset.attach(ReadCondition(self._ack, SampleState.NotRead))
         deadline = time.perf_counter() + self.params.timeout_s
@@ -225,7 +231,7 @@ class ExternalComponent(Component):
         t_ns = round(t * NS)
         if not self._started:
             self._started = True
-            self._wait(lambda: self._answered is not None, "announce itself")
+            self._wait(lambda: self._announced, "announce itself")
         for (_, _, _, enc), writer, sub in zip(self._reads, self._writers, self._subs, strict=True):
             for m in sub.take():
                 writer.write(enc(m))
