@@ -43,3 +43,14 @@ def test_a_single_vehicle_scenario_is_not_a_fleet():
         LiveFleet("vehicle", start=False)
     with pytest.raises(ValueError, match="speed"):
         LiveFleet(fleet_config(1), speed=0.0)
+
+
+def test_scripted_commands_are_for_cufund_run_not_a_live_fleet():
+    script = [[0.5, {"command": "arm"}], [1.0, {"command": "takeoff", "altitude": 1.0}]]
+    cfg = fleet_config(2)
+    cfg["planner"] = {"kind": "commander", "script": script}
+    cfg["vehicles"][1]["planner"] = {"kind": "commander", "script": script}  # a vehicle's own planner too
+    live = LiveFleet(cfg, start=False)
+    assert all(v.commander.params.script == () for v in live.vehicles.values())
+    scripted = LiveFleet(cfg, start=False, script=True)
+    assert all(len(v.commander.params.script) == 2 for v in scripted.vehicles.values())
