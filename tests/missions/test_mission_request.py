@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from cufund.missions import MissionRequestError, parse_mission
-from cufund.missions.mission_request import FleetContext, GoHome, Orbit, Survey, Waypoints, Zigzag
+from cufund.missions.mission_request import FleetContext, Formation, GoHome, Orbit, Survey, Waypoints, Zigzag
 from cufund.missions.mission_request_llm import ENV_API_KEY, ENV_BASE_URL, ENV_MODEL, LlmEndpoint
 from cufund.missions.mission_request_schema import mission_from_data
 
@@ -287,3 +287,23 @@ def test_endpoint_configuration_is_checked(monkeypatch):
     ep = LlmEndpoint("http://127.0.0.1:9/v1", "m", timeout_s=5.0)
     with pytest.raises(MissionRequestError, match="cannot be reached"):
         parse_mission("do the thing", FLEET, endpoint=ep)
+
+
+def test_formation_request():
+    ctx = FleetContext(
+        names=("uav1", "uav2", "uav3"), homes={"uav1": (0, -3, 0), "uav2": (3, -3, 0), "uav3": (-3, -3, 0)}
+    )
+    m = parse_mission("fly in a wedge formation through (0, 0) and (20, 0) at 3 m, 3 m apart", ctx)
+    assert isinstance(m, Formation) and (m.shape, m.spacing) == ("wedge", 3.0)
+    wp = m.waypoints(ctx)
+    c, s = 3.0 * math.cos(math.pi / 6), 3.0 * math.sin(math.pi / 6)  # the wedge's arms 30 degrees off the heading
+    np.testing.assert_allclose(wp["uav1"], [[0, 0, 3], [20, 0, 3]], atol=1e-12)
+    np.testing.assert_allclose(wp["uav2"], [[-c, s, 3], [20 - c, s, 3]], atol=1e-12)
+    np.testing.assert_allclose(wp["uav3"], [[-c, -s, 3], [20 - c, -s, 3]], atol=1e-12)
+    # the assembly: each waits at the start for the last to arrive (the commander's default 1 m/s legs from rest)
+    holds = m.holds(ctx)
+    assert min(h[0] for h in holds.values()) == 0.0 and all(np.all(h[1:] == 0) for h in holds.values())
+    assert parse_mission("line abreast along (0, 0) (10, 10) at 4 m", ctx).shape == "line"
+    assert parse_mission("fly in a column formation through (0, 0) (10, 0)", ctx).shape == "column"
+    with pytest.raises(MissionRequestError, match="at least two points"):
+        parse_mission("fly in formation", ctx)

@@ -56,6 +56,9 @@ class FleetContext:
     """Lane spacing of a survey and point spacing of a zigzag without an area, when the request names none [m]."""
     return_altitude: float = 2.0
     """Height above home of a return's last waypoint [m] (the commander's ``rtl`` picks its own)."""
+    commander: Any = None
+    """The vehicles' :class:`~cufund.missions.params.CommanderParams` (how they fly; None: the defaults), for the
+    missions timed across the fleet (a formation's synchronised start)."""
 
     def __post_init__(self) -> None:
         names = tuple(self.names)
@@ -94,6 +97,12 @@ class FleetContext:
             object.__setattr__(self, f, _positive(f, getattr(self, f)))
         if self.max_altitude < self.min_altitude:
             raise MissionRequestError("fleet context: max_altitude must be at least min_altitude")
+        from .params import CommanderParams
+
+        if self.commander is not None and not isinstance(self.commander, CommanderParams):
+            raise MissionRequestError(
+                f"fleet context: commander must be CommanderParams or None, got {self.commander!r}"
+            )
         m = self.max_waypoints
         if isinstance(m, bool) or not isinstance(m, int) or not 1 <= m <= 10000:
             raise MissionRequestError(f"fleet context: max_waypoints must be an integer in [1, 10000], got {m!r}")
@@ -134,9 +143,15 @@ class FleetContext:
                 f"fleet must be a FleetContext, a mapping or a built fleet (names, vehicle(name)), got "
                 f"{type(fleet).__name__}"
             )
+        from .params import CommanderParams
+
         homes = {}
+        commander = None
         for n in names:
             v = fleet.vehicle(n)
+            params = getattr(getattr(v, "commander", None), "params", None)
+            if commander is None and isinstance(params, CommanderParams):
+                commander = params
             home = getattr(getattr(v, "commander", None), "home_p_W", None)
             if home is None or not np.all(np.isfinite(home)):
                 cfg = getattr(v, "config", None)
@@ -156,4 +171,5 @@ class FleetContext:
         extra.update(getattr(fleet, "mission_context", None) or {})
         extra.pop("names", None)
         extra.pop("homes", None)
+        extra.setdefault("commander", commander)
         return cls.from_data({"names": tuple(names), "homes": homes, **extra})

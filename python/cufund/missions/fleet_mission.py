@@ -7,7 +7,7 @@ same parameters and makes the same plan: the request read by the offline grammar
 endpoint's answer would not be reproducible), checked against the fleet's ``homes``, ``fields`` and ``geofence``,
 each vehicle's share of the waypoints, and start delays from priority-based time-shifting
 (:func:`~cufund.missions.deconfliction.time_shift`, vehicles in ``homes`` order) of the trajectories the commanders
-will fly (:func:`commander_trajectory`: take-off, the jerk-limited legs, the return and landing) so that they keep
+will fly (:func:`~cufund.missions.fleet_timing.commander_trajectory`: take-off, the jerk-limited legs, the return and landing) so that they keep
 ``min_separation``. The vehicle then flies its
 share: at its start time it arms, uploads the waypoints and starts the mission (the commander takes off first), and
 once the mission completes it returns home and lands (``rtl``).
@@ -18,6 +18,7 @@ The plan models the commander's reference, not the vehicle's tracking lag (each 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -29,16 +30,16 @@ from cufund.core.build_context import BuildContext
 from cufund.core.components import BusView, Component
 from cufund.core.config import ConfigError
 from cufund.core.registry import Kind, register
-from cufund.planning.point_to_point import JerkLimitedMove
 
 from .commands import Command, parse_command
-from .deconfliction import Trajectory, time_shift
+from .deconfliction import Trajectory, min_separation, time_shift
 from .fleet_context import FleetContext, MissionRequestError
+from .fleet_timing import commander_trajectory
 from .mission_request_grammar import GrammarMiss, request_to_data
-from .mission_request_schema import Mission, mission_from_data
+from .mission_request_schema import Formation, Mission, mission_from_data
 from .params import CommanderParams
 
-__all__ = ["FleetMissionParams", "FleetMissionRunner", "commander_trajectory", "plan_fleet_mission"]
+__all__ = ["FleetMissionParams", "FleetMissionRunner", "plan_fleet_mission"]
 
 
 @dataclass(frozen=True)
@@ -102,58 +103,23 @@ class FleetMissionParams:
 
 @dataclass(frozen=True, eq=False)
 class FleetPlan:
-    """The fleet's plan: the mission, each vehicle's waypoints, planned trajectory and start delay [s]."""
+    """The fleet's plan: the mission, each vehicle's waypoints, planned trajectory (from its mission_start) and start
+    delay [s]."""
 
     mission: Mission
     waypoints: dict[str, np.ndarray]
     trajectories: dict[str, Trajectory]
     delays: dict[str, float]
-
-
-def commander_trajectory(
-    home: np.ndarray, waypoints: np.ndarray, params: CommanderParams, return_home: bool, dt: float = 0.1
-) -> Trajectory:
-    """What the commander flies for a mission started on the ground at ``home`` at t = 0, as the commander flies it
-    (:mod:`cufund.missions.commander`): the take-off leg straight up to the first waypoint's height at
-    ``takeoff_speed``, a jerk-limited move to each waypoint from rest (``v_max``, ``a_max``, ``j_max`` per axis),
-    then, with ``return_home``, the return (climb to ``rtl_altitude`` above home if lower, home, down to
-    ``land_alt`` at go-to speed, then down at ``land_speed``); sampled every ``dt`` [s]. The vehicle's tracking lag
-    is not in it."""
-    p = params
-    home = np.asarray(home, dtype=float)
-    first = waypoints[0]
-    legs: list[tuple[np.ndarray, float]] = [
-        (np.array([home[0], home[1], max(first[2], home[2] + 0.5)]), p.takeoff_speed)
-    ]
-    legs += [(np.asarray(w, dtype=float), p.v_max) for w in waypoints]
-    if return_home:
-        z = max(float(waypoints[-1][2]), home[2] + p.rtl_altitude)
-        last = np.asarray(waypoints[-1], dtype=float)
-        legs += [(np.array([last[0], last[1], z]), p.v_max), (np.array([home[0], home[1], z]), p.v_max)]
-        legs.append((np.array([home[0], home[1], home[2] + p.land_alt]), p.v_max))
-    ts, ps = [0.0], [home]
-    t, at = 0.0, home
-    for target, v in legs:
-        if np.linalg.norm(target - at) < 1e-9:
-            continue
-        move = JerkLimitedMove(at, target, v, p.a_max, p.j_max, 0.0, t_start=t)
-        k = np.arange(1, max(1, math.ceil(move.duration / dt)) + 1)
-        tk = t + np.minimum(k * dt, move.duration)
-        ts += list(tk)
-        ps += list(move.sample(tk).p_W)
-        t, at = t + move.duration, target
-    if return_home and at[2] > home[2]:  # the final descent at land_speed
-        ts.append(t + (at[2] - home[2]) / p.land_speed)
-        ps.append(home)
-    return Trajectory(np.asarray(ts), np.asarray(ps))
+    commands: dict[str, list[Command]]
+    """Each vehicle's commands (the waypoints with the holds the plan timed with these commander parameters)."""
 
 
 def plan_fleet_mission(p: FleetMissionParams, commander: CommanderParams | None = None) -> FleetPlan:
     """The plan every vehicle makes from ``p`` with the commander parameters ``commander`` (default
     :class:`CommanderParams`; give the fleet one planner so that every vehicle makes the same plan); ``ConfigError``
     with the reason when the request is refused or cannot be deconflicted."""
-    ctx = p.context()
     cp = commander or CommanderParams()
+    ctx = dataclasses.replace(p.context(), commander=cp)
     try:
         data = request_to_data(p.request, ctx)
         mission = mission_from_data(data, ctx)
@@ -165,12 +131,26 @@ def plan_fleet_mission(p: FleetMissionParams, commander: CommanderParams | None 
     except MissionRequestError as e:
         raise ConfigError(f"mission.request refused: {e}") from None
     wps = mission.waypoints(ctx)
-    trajectories = {n: commander_trajectory(ctx.home(n), wp, cp, p.return_home) for n, wp in wps.items()}
-    try:
-        delays = time_shift(trajectories, p.min_separation, priority=[n for n in ctx.names if n in wps])
-    except ValueError as e:
-        raise ConfigError(f"mission: the planned trajectories cannot be deconflicted: {e}") from None
-    return FleetPlan(mission, wps, trajectories, delays)
+    holds = mission.holds(ctx)
+    trajectories = {n: commander_trajectory(ctx.home(n), wp, cp, p.return_home, holds[n]) for n, wp in wps.items()}
+    order = [n for n in ctx.names if n in wps]
+    if isinstance(mission, Formation):  # flown in step: a delay would break it; the plan must be apart as it is
+        delays = dict.fromkeys(order, 0.0)
+        for i, a in enumerate(order):
+            for b in order[i + 1 :]:
+                d, t = min_separation(trajectories[a], trajectories[b])
+                if d < p.min_separation:
+                    raise ConfigError(
+                        f"mission: in the formation {a} and {b} come within {d:.2f} m (t = {t:.1f} s after the start), "
+                        f"under mission.min_separation {p.min_separation:g} m: start the vehicles in the formation's "
+                        "order or further apart"
+                    )
+    else:
+        try:
+            delays = time_shift(trajectories, p.min_separation, priority=order)
+        except ValueError as e:
+            raise ConfigError(f"mission: the planned trajectories cannot be deconflicted: {e}") from None
+    return FleetPlan(mission, wps, trajectories, delays, mission.commands(ctx))
 
 
 class FleetMissionRunner(Component):
@@ -257,7 +237,7 @@ def build_fleet_mission(p: FleetMissionParams, ctx: BuildContext) -> list[Any]:
     if me not in plan.waypoints:
         commander.run_done = lambda t: True  # not part of this mission: stays on the ground
         return []
-    commands = plan.mission.commands(p.context())[me]
+    commands = plan.commands[me]
     runner = FleetMissionRunner(commander, commands, p.start_s + plan.delays[me], p.return_home)
     commander.run_done = runner.finished  # the commander kind's end condition asks it (missions/kinds.py)
     return [runner]

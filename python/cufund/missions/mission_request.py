@@ -15,10 +15,11 @@ from typing import Any
 from .fleet_context import FleetContext, MissionRequestError
 from .mission_request_grammar import GrammarMiss, request_to_data
 from .mission_request_llm import LlmEndpoint, propose_mission
-from .mission_request_schema import GoHome, Mission, Orbit, Survey, Waypoints, Zigzag, mission_from_data
+from .mission_request_schema import Formation, GoHome, Mission, Orbit, Survey, Waypoints, Zigzag, mission_from_data
 
 __all__ = [
     "FleetContext",
+    "Formation",
     "GoHome",
     "Mission",
     "MissionRequestError",

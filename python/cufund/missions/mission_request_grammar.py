@@ -12,6 +12,8 @@ What it knows (case and word order are free within reason; "m", "meters" and "me
   map)
 - go home: "go back home", "return to launch", "RTL", "come home"
 - waypoints: "fly to (1, 2, 3) then (4, 5, 3)" (fly to, go to, visit, waypoints)
+- formation: "fly in a wedge formation through (0, 0) and (20, 0) at 3 m, 3 m apart" (wedge or V, line abreast,
+  column)
 
 Vehicles: "all drones" / "the whole fleet" / "every vehicle" (all), or names ("uav2", "drone 2" = the fleet's
 vehicle numbered 2); areas: "this polygon" / "this area" / "the selection" (the caller's selection) or a field's
@@ -154,6 +156,27 @@ def request_to_data(text: str, fleet: Any = None, selection: Any = None) -> dict
         t,
     ):
         return {"mission": "go_home", "vehicles": _vehicles(t, ctx, selection)}
+
+    if re.search(r"\bformation\b|\bline abreast\b|\bin (?:a )?(?:wedge|v|column|single file)\b", t):
+        if re.search(r"\b(?:column|file|trail|in[- ]line|one behind the other)\b", t):
+            shape = "column"
+        elif re.search(r"\b(?:line|abreast|side by side)\b", t):
+            shape = "line"
+        else:
+            shape = "wedge"
+        path = _tuples(t, 3)
+        if not path:
+            alt = _altitude(t)
+            path = [[x, y, alt if alt is not None else ctx.default_altitude] for x, y in _tuples(t, 2)]
+        if len(path) < 2:
+            raise MissionRequestError("a formation flight needs its path: at least two points (x, y) or (x, y, z)")
+        return {
+            "mission": "formation",
+            "path": path,
+            "shape": shape,
+            "spacing": _spacing(t),
+            "vehicles": _vehicles(t, ctx, selection),
+        }
 
     if re.search(r"\b(?:zigzag|lawn\s*mower|boustrophedon|serpentine)\b", t):
         rows = per_row = None

@@ -103,7 +103,7 @@ def propose_mission(text: str, fleet: Any = None, endpoint: LlmEndpoint | None =
     ep = endpoint or LlmEndpoint.from_env()
     if ep is None:
         raise MissionRequestError(
-            f"{text.strip()[:120]!r} is not one of the built-in phrases (zigzag, orbit, survey, go home, fly to), and "
+            f"{text.strip()[:120]!r} is not one of the built-in phrases (zigzag, orbit, survey, go home, fly to, formation), and "
             f"free text needs a chat endpoint: none is configured (set {ENV_BASE_URL} and {ENV_MODEL}, and "
             f"{ENV_API_KEY} if it needs a key)"
         )

@@ -12,6 +12,8 @@ The data form (JSON), one object with ``"mission"`` one of :data:`MISSIONS`:
 - ``{"mission": "survey", "area": "field" | [[x, y], ...], "spacing": 2, "altitude": 5, "vehicles": ...}``
 - ``{"mission": "go_home", "vehicles": ...}``
 - ``{"mission": "waypoints", "points": [[x, y, z], ...], "vehicles": ["uav1"]}``
+- ``{"mission": "formation", "path": [[x, y, z], ...], "shape": "wedge" | "line" | "column", "spacing": 3,
+  "vehicles": ...}``
 
 Positions ENU [m] (ground at z = 0), altitudes are heights above ground [m]; omitted fields take the context's
 defaults; ``"area": "selection"`` is the area the caller selected (``area=`` of :func:`mission_from_data`).
@@ -30,9 +32,12 @@ from .commands import Command, parse_command
 from .coverage import lanes, plan_coverage
 from .fleet_context import NAME_PATTERN, FleetContext, MissionRequestError
 from .fleet_polygon import MAX_VERTICES, Polygon, check_polygon, polygon_contains
+from .fleet_timing import item_arrivals
+from .formation import SHAPES, formation_offsets
 
 __all__ = [
     "MISSIONS",
+    "Formation",
     "GoHome",
     "Mission",
     "Orbit",
@@ -42,7 +47,7 @@ __all__ = [
     "mission_from_data",
 ]
 
-MISSIONS = ("zigzag", "orbit", "survey", "go_home", "waypoints")
+MISSIONS = ("zigzag", "orbit", "survey", "go_home", "waypoints", "formation")
 ORBIT_POINTS_PER_LAP = 12
 """Waypoints per orbit lap (every 30 degrees)."""
 _MAX_COUNT = 10000
@@ -157,15 +162,30 @@ class Mission:
         """The plain data :func:`mission_from_data` reads back."""
         raise NotImplementedError
 
+    def holds(self, ctx: FleetContext) -> dict[str, np.ndarray]:
+        """How long each vehicle waits at each of its waypoints [s] (none but for a formation's assembly)."""
+        return {n: np.zeros(len(wp)) for n, wp in self.plan(ctx).items()}
+
     def commands(self, fleet: Any = None) -> dict[str, list[Command]]:
-        """The commander commands that fly it, per vehicle: ``mission_upload`` of the waypoints and
-        ``mission_start`` (a return: ``rtl``)."""
+        """The commander commands that fly it, per vehicle: ``mission_upload`` of the waypoints (with their
+        :meth:`holds`) and ``mission_start`` (a return: ``rtl``)."""
+        ctx = FleetContext.of(fleet)
+        wps = self.waypoints(ctx)
+        holds = self.holds(ctx)
         return {
             n: [
-                parse_command({"command": "mission_upload", "items": [list(map(float, p)) for p in wp]}),
+                parse_command(
+                    {
+                        "command": "mission_upload",
+                        "items": [
+                            {"p_W": [float(c) for c in p], "hold_s": float(h)}
+                            for p, h in zip(wp, holds[n], strict=True)
+                        ],
+                    }
+                ),
                 parse_command({"command": "mission_start"}),
             ]
-            for n, wp in self.waypoints(fleet).items()
+            for n, wp in wps.items()
         }
 
 
@@ -429,6 +449,69 @@ class Waypoints(Mission):
         return {"mission": "waypoints", "points": [list(p) for p in self.points], "vehicles": list(self.vehicles)}
 
 
+@dataclass(frozen=True)
+class Formation(Mission):
+    """The vehicles fly ``path`` ((x, y, z) [m]) together as a rigid ``shape`` (:data:`~cufund.missions.formation.
+    SHAPES`) with neighbours ``spacing`` [m] apart: a virtual structure (:mod:`cufund.missions.formation`) whose
+    reference point flies the path, oriented along the path's first leg and kept so (a translation: every vehicle's
+    leg is the same move, so the commanders fly them in step). Vehicle k (in the fleet's order) takes slot k; they
+    assemble at the path's start, the earlier ones waiting there (:meth:`holds`) until the last has arrived."""
+
+    kind: ClassVar[str] = "formation"
+    path: tuple[tuple[float, float, float], ...]
+    shape: str = "wedge"
+    spacing: float = 3.0
+    vehicles: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        p = self.path
+        if isinstance(p, (str, bytes, Mapping)) or not isinstance(p, Sequence) or len(p) < 2:
+            raise MissionRequestError(f"formation path must list at least two [x, y, z] [m], got {p!r}"[:300])
+        if len(p) > _MAX_COUNT:
+            raise MissionRequestError(f"too many waypoints: {len(p)}, at most {_MAX_COUNT}")
+        object.__setattr__(self, "path", tuple(_vec(f"path[{i}]", v, 3) for i, v in enumerate(p)))
+        if self.shape not in SHAPES:
+            raise MissionRequestError(f"formation shape must be one of {', '.join(SHAPES)}, got {self.shape!r}"[:300])
+        object.__setattr__(self, "spacing", _num("formation spacing [m]", self.spacing, lo=0.5))
+        object.__setattr__(self, "vehicles", _vehicles(self.vehicles))
+        d = np.asarray(self.path[1][:2]) - np.asarray(self.path[0][:2])
+        if float(np.hypot(*d)) < 1e-6:
+            raise MissionRequestError("formation path: its first leg must move horizontally (it sets the heading)")
+
+    def precheck(self, ctx: FleetContext) -> None:
+        if len(self.path) > ctx.max_waypoints:
+            raise MissionRequestError(f"too many waypoints: {len(self.path)}, at most {ctx.max_waypoints} per vehicle")
+
+    def plan(self, ctx: FleetContext) -> dict[str, np.ndarray]:
+        names = self.flying(ctx)
+        offsets = formation_offsets(self.shape, len(names), self.spacing)
+        d = np.asarray(self.path[1]) - np.asarray(self.path[0])
+        h = math.atan2(d[1], d[0])
+        R = np.array([[math.cos(h), -math.sin(h), 0.0], [math.sin(h), math.cos(h), 0.0], [0.0, 0.0, 1.0]])
+        path = np.asarray(self.path, dtype=float)
+        return {n: path + R @ o for n, o in zip(names, offsets, strict=True)}
+
+    def holds(self, ctx: FleetContext) -> dict[str, np.ndarray]:
+        wps = self.plan(ctx)
+        arrive = {n: float(item_arrivals(ctx.home(n), wp[:1], ctx.commander)[0]) for n, wp in wps.items()}
+        last = max(arrive.values())
+        out = {}
+        for n, wp in wps.items():
+            h = np.zeros(len(wp))
+            h[0] = last - arrive[n]
+            out[n] = h
+        return out
+
+    def to_data(self) -> dict[str, Any]:
+        return {
+            "mission": "formation",
+            "path": [list(p) for p in self.path],
+            "shape": self.shape,
+            "spacing": self.spacing,
+            "vehicles": list(self.vehicles) or "all",
+        }
+
+
 _FIELDS: dict[str, tuple[type[Mission], tuple[str, ...], tuple[str, ...]]] = {
     # kind: (class, required keys, optional keys)
     "zigzag": (Zigzag, ("rows", "per_row"), ("altitude", "area", "spacing", "vehicles")),
@@ -436,6 +519,7 @@ _FIELDS: dict[str, tuple[type[Mission], tuple[str, ...], tuple[str, ...]]] = {
     "survey": (Survey, (), ("area", "spacing", "altitude", "vehicles")),
     "go_home": (GoHome, (), ("vehicles",)),
     "waypoints": (Waypoints, ("points",), ("vehicles",)),
+    "formation": (Formation, ("path",), ("shape", "spacing", "vehicles")),
 }
 
 
