@@ -25,7 +25,8 @@ float tile_lookup(const float* tile, int n, double a, double b);
 // Deterministic value in [0, 1) per integer lattice cell (i, j).
 float cell_hash(std::int64_t i, std::int64_t j, std::uint32_t seed);
 
-// The pattern of `texture` at (a, b) [scale units]; `tile` (n x n) may be null for checker and none.
+// The pattern of `texture` at (a, b) [scale units]; `tile` (n x n) may be null for checker and none. Noise-based
+// textures of different seeds read the same tile at seed-dependent offsets.
 float pattern(Texture texture, double a, double b, const float* tile, int n, std::uint32_t seed);
 
 }  // namespace cufund::render

@@ -22,7 +22,7 @@ import numpy as np
 TEXTURES = ("none", "checker", "noise", "brick", "bark", "concrete", "image")
 MAX_IMAGE_SIDE = 8192
 """Largest side of an image texture [px]."""
-_TILE = 512  # procedural noise tiles: _TILE x _TILE texels, periodic
+_TILE = 256  # the procedural noise tile: _TILE x _TILE texels, periodic (one for all seeds: it stays in cache)
 _CELLS = 32  # base noise cells across a tile
 
 
@@ -66,8 +66,8 @@ class Material:
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not lo <= v <= hi:
                 raise ValueError(f"material.{name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
             object.__setattr__(self, name, float(v))
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
-            raise ValueError(f"material.seed must be an integer >= 0, got {self.seed!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2**32:
+            raise ValueError(f"material.seed must be an integer in [0, 2^32), got {self.seed!r}")
         if self.texture == "image":
             if not isinstance(self.image, (str, Path)) or not str(self.image):
                 raise ValueError("material.image must name a PNG file when texture is image")
@@ -121,7 +121,7 @@ class Material:
         code, cpp/render/textures.cpp)."""
         from cufund import _core
 
-        tile = _noise_tile(self.seed) if self.texture in _TILED else np.zeros((1, 1), np.float32)
+        tile = _noise_tile() if self.texture in _TILED else np.zeros((1, 1), np.float32)
         return np.asarray(
             _core.render.pattern(
                 TEXTURE_CODES[self.texture], np.ravel(a).astype(float), np.ravel(b).astype(float), tile, self.seed
@@ -137,7 +137,7 @@ _TILED = ("noise", "brick", "bark", "concrete")
 def material_table(objects: Any) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """The renderer's material rows of world objects (by id), their noise tiles and the ids of objects with
     image textures (coloured by the caller): (table (G, 13) float64, tiles (T, S, S) float32, external ids)."""
-    rows, seeds, external = [], [], []
+    rows, external = [], []
     for obj in objects:
         m = obj.material
         row = np.zeros(13)
@@ -153,15 +153,13 @@ def material_table(objects: Any) -> tuple[np.ndarray, np.ndarray, list[int]]:
             row[8] = m.seed
             row[9] = -1
             if m.texture in _TILED:
-                if m.seed not in seeds:
-                    seeds.append(m.seed)
-                row[9] = seeds.index(m.seed)
+                row[9] = 0  # the one noise tile; the seed picks where it is read
             if m.texture == "image":
                 external.append(obj.id)
             # each object's texture shifted by its id, so objects sharing a material do not repeat one another
             row[10:12] = (obj.id * np.array([7.31, 3.17])) % 97.0
         rows.append(row)
-    tiles = np.stack([_noise_tile(s) for s in seeds]) if seeds else np.zeros((0, 1, 1), np.float32)
+    tiles = _noise_tile()[None]
     return np.array(rows, dtype=float).reshape(-1, 13), tiles, external
 
 
@@ -175,10 +173,11 @@ def planar_coords(p_W: np.ndarray, n_W: np.ndarray) -> np.ndarray:
     return out
 
 
-@functools.lru_cache(maxsize=64)
-def _noise_tile(seed: int) -> np.ndarray:
-    """A periodic _TILE x _TILE value-noise tile in [0, 1]: octaves of _CELLS, 2 _CELLS, ... cells."""
-    rng = np.random.default_rng(seed)
+@functools.lru_cache(maxsize=1)
+def _noise_tile() -> np.ndarray:
+    """The periodic _TILE x _TILE value-noise tile in [0, 1]: octaves of _CELLS, 2 _CELLS, ... cells (fixed: a
+    texture's seed picks where it reads the tile)."""
+    rng = np.random.default_rng(20251127)
     tile = np.zeros((_TILE, _TILE))
     amp, total = 1.0, 0.0
     cells = _CELLS
