@@ -92,3 +92,13 @@ def test_hw_sync_triggers_frames_on_imu_samples():
     data["sensors"]["stereo"]["phase_s"] = 0.01
     with pytest.raises(ConfigError, match="give phase_s or hw_sync, not both"):
         build_simulation(ScenarioConfig.from_dict(data))
+
+
+def test_a_single_camera_rig_from_one_extrinsic():
+    from cufund.sensors.kinds import StereoCameraParams
+
+    p = StereoCameraParams(extrinsics=[{"p": [0.1, 0.0, 0.05], "q": [1, 0, 0, 0]}], topics=["/sensors/front/image"])
+    (cam,) = p.cameras()
+    assert cam.T_BC.t == (0.1, 0.0, 0.05) and p.camera_topics(1) == ("/sensors/front/image",)
+    with pytest.raises(ConfigError, match="need one topic per camera"):
+        StereoCameraParams(topics=["/a"])

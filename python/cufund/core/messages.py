@@ -219,12 +219,13 @@ class LidarTruth(Message):
 
 @message
 class CameraImage(Message):
-    """One camera frame (global shutter)."""
+    """One camera frame. A rig's cameras (``stereo_camera``) publish one each per trigger, with equal stamps; their
+    calibration is in the sensor's scenario params, not in the message."""
 
     t: float
-    """Capture time [s]."""
+    """Capture time [s]: the centre of the exposure (of the middle row's, under a rolling shutter)."""
     image: np.ndarray
-    """(H, W) float32 depth [m] (NaN = no return) or (H, W, 3) uint8 RGB."""
+    """(H, W) float32 depth [m] (NaN = no return), (H, W, 3) uint8 RGB or (H, W) uint8 grey."""
 
 
 @message

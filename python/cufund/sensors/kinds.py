@@ -371,7 +371,7 @@ class StereoCameraParams:
         if isinstance(self.topics, (str, bytes)) or not all(isinstance(t, str) for t in self.topics):
             raise ConfigError(f"{W}.topics must be a list of topic names, got {self.topics!r}")
         object.__setattr__(self, "topics", tuple(self.topics))
-        n = max(len(self.extrinsics), 2)
+        n = len(self.extrinsics) or 2
         if self.topics and not self.calibration and len(self.topics) != n:
             raise ConfigError(f"{W}.topics: need one topic per camera ({n}), got {self.topics}")
 
