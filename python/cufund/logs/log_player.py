@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 
 from cufund.core.bus import BusView
@@ -19,19 +19,23 @@ __all__ = ["LogPlayer"]
 class LogPlayer(Component):
     """Publishes the messages of a cufund MCAP log (``run.mcap``) or of a ROS 2 bag folder (its IMU, LiDAR and
     odometry messages as cufund messages, :mod:`cufund.logs.rosbag2_reader`) on their topics, each becoming
-    visible at the time it became visible in the recorded run, so that an estimator or mapper re-run on the log sees exactly
-    what it saw closed-loop (run it in a ``Simulator(None)``: no physics).
+    visible at the time it became visible in the recorded run, so that an estimator or mapper re-run on the log
+    sees exactly what it saw closed-loop (run it in a ``Simulator(None)``: no physics).
 
     ``topics``: which logged topics to play (default: every ``/sensors/...`` topic; of a bag, every IMU and LiDAR
-    topic). Truth topics are played only
-    when named, and the player then counts as a truth consumer. The log is streamed: the player schedules the
-    next ``window_s`` of messages each time it runs, so memory stays bounded however long the log.
+    topic). A mapping ``{logged topic: topic to publish it on}`` renames (a bag's ``/imu`` onto ``/sensors/imu``,
+    where cufund's estimators read). Truth topics are played only when named, and the player then counts as a
+    truth consumer. The log is streamed: the player schedules the next ``window_s`` of messages each time it runs,
+    so memory stays bounded however long the log.
     """
 
     name = "log_player"
 
     def __init__(
-        self, path: str | os.PathLike[str], topics: Iterable[str] | None = None, window_s: float = 0.5
+        self,
+        path: str | os.PathLike[str],
+        topics: Iterable[str] | Mapping[str, str] | None = None,
+        window_s: float = 0.5,
     ) -> None:
         self.path = Path(path)
         bag = is_rosbag2(self.path)
@@ -42,7 +46,7 @@ class LogPlayer(Component):
         elif topics is None:
             chosen = [t for t in logged if t.startswith("/sensors/")]
         else:
-            chosen = [str(t) for t in topics]
+            chosen = [str(t) for t in topics]  # a mapping: its keys
             missing = [t for t in chosen if t not in logged]
             if missing:
                 raise ValueError(f"topics: {missing[0]} is not in {self.path} (it has {', '.join(sorted(logged))})")
@@ -50,16 +54,18 @@ class LogPlayer(Component):
             raise ValueError(f"window_s must be > 0 [s], got {window_s!r}")
         from cufund.core import messages
 
-        self.topics = tuple(Topic(t, getattr(messages, logged[t], object)) for t in chosen)
+        self._logged = tuple(chosen)
+        self._renamed = {t: str(topics[t]) for t in chosen} if isinstance(topics, Mapping) else {t: t for t in chosen}
+        self.topics = tuple(Topic(self._renamed[t], getattr(messages, logged[t], object)) for t in chosen)
         self.outputs = self.topics
-        self.reads_truth = any(is_truth(t) for t in chosen)  # type: ignore[misc]
+        self.reads_truth = any(is_truth(t) or is_truth(self._renamed[t]) for t in chosen)  # type: ignore[misc]
         self.rate_hz = 1.0 / window_s
         self.window_ns = round(window_s * 1e9)
         self.played = 0
         """Messages scheduled so far."""
 
     def reset(self) -> None:
-        self._records: Iterator[LogRecord] = self._read(self.path, topics=[str(t) for t in self.topics])
+        self._records: Iterator[LogRecord] = self._read(self.path, topics=list(self._logged))
         self._next: LogRecord | None = None
         self.played = 0
 
@@ -82,12 +88,12 @@ class LogPlayer(Component):
             if rec.log_time_ns > horizon:
                 return
             if rec.log_time_ns >= now:  # what lies before the start is not played
-                bus.publish_at(rec.topic, rec.message, rec.log_time_ns, rec.publish_time_ns)
+                bus.publish_at(self._renamed[rec.topic], rec.message, rec.log_time_ns, rec.publish_time_ns)
                 self.played += 1
             self._next = None
 
     @property
     def first_time(self) -> float:
         """The log time of the first message played [s] (start the simulator there)."""
-        first = next(self._read(self.path, topics=[str(t) for t in self.topics]), None)
+        first = next(self._read(self.path, topics=list(self._logged)), None)
         return 0.0 if first is None else first.log_time_ns / 1e9
