@@ -116,9 +116,8 @@ def main(argv: list[str] | None = None) -> int:
     from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState, WaitSet
     from cyclonedds.util import duration
 
-    waitset = WaitSet(dds.participant)
-    for r in readers.values():
-        waitset.attach(ReadCondition(r, SampleState.NotRead))
+    waitset = WaitSet(dds.participant)  # woken by /clock, written after the step's data: one wake-up a step
+    waitset.attach(ReadCondition(readers["/clock"], SampleState.NotRead))
     order = [k for k in readers if k != "/clock"] + ["/clock"]  # the step's data first, its /clock (answered) last
     any_state = SampleState.Any | ViewState.Any | InstanceState.Any
     while time.monotonic() - last < args.idle_exit:
