@@ -12,6 +12,8 @@ import threading
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as hs
 
 from cufund.missions import MissionRequestError, parse_mission
 from cufund.missions.mission_request import FleetContext, Formation, GoHome, Orbit, Survey, Waypoints, Zigzag
@@ -248,6 +250,9 @@ def test_free_text_goes_to_the_configured_endpoint_and_through_the_same_schema(c
         ('{"mission": "orbit", "center": [4, NaN], "radius": 3}', "NaN"),
         ('{"mission": "orbit", "center": [4, 2], "radius": Infinity}', "Infinity"),
         ('{"mission": "orbit", "center": [4, 2], "radius": 1e999}', "out of range"),
+        ('{"mission": "orbit", "center": [4, 2], "radius": 1' + "0" * 400 + "}", "finite number"),
+        ('{"mission": "zigzag", "rows": 1' + "0" * 400 + ', "per_row": 2}', "whole number"),
+        ('{"mission": "survey", "area": [[0, 0], [1' + "0" * 400 + ", 0], [0, 1]]}", "finite numbers"),
         (json.dumps({"mission": "orbit", "center": [4, 2], "radius": 3, "exec": "rm -rf /"}), "unknown field"),
         (json.dumps({"mission": "self_destruct"}), "mission must be one of"),
         (json.dumps({"mission": "orbit", "center": [400, 2], "radius": 3}), "outside the geofence"),
@@ -307,3 +312,68 @@ def test_formation_request():
     assert parse_mission("fly in a column formation through (0, 0) (10, 0)", ctx).shape == "column"
     with pytest.raises(MissionRequestError, match="at least two points"):
         parse_mission("fly in formation", ctx)
+
+
+# -- robustness: any text, any JSON-like data: a mission or a MissionRequestError, nothing else ----------------------
+
+_WORDS = ["zigzag", "orbit", "survey", "go", "home", "fly", "to", "formation", "wedge", "rows", "waypoints", "radius",
+          "at", "m", "with", "all", "drones", "uav2", "drone", "field", "this", "polygon", "(4, 2)", "(1, 2, 3)", "-5",
+          "1e9", "three", "twenty-five", "nan", "0", "999999", "by", "x", "apart", "spacing", "laps"]  # fmt: skip
+
+
+@settings(max_examples=300, deadline=None)
+@given(hs.one_of(hs.text(max_size=200), hs.lists(hs.sampled_from(_WORDS), max_size=14).map(" ".join)))
+def test_any_text_gives_a_mission_or_a_reason(text):
+    try:
+        m = parse_mission(text, FLEET, area=[(0, 0), (10, 0), (10, 10)])
+    except MissionRequestError as e:
+        assert str(e)
+    else:
+        wp = m.waypoints(FLEET)
+        assert all(np.all(np.isfinite(w)) and len(w) <= FLEET.max_waypoints for w in wp.values())
+
+
+_JSON = hs.recursive(
+    hs.none()
+    | hs.booleans()
+    | hs.integers()
+    | hs.sampled_from([10**400, -(10**30)])
+    | hs.floats()
+    | hs.text(max_size=10),
+    lambda inner: hs.lists(inner, max_size=5) | hs.dictionaries(hs.text(max_size=8), inner, max_size=5),
+    max_leaves=20,
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    hs.sampled_from(["zigzag", "orbit", "survey", "go_home", "waypoints", "formation", None, 3]),
+    hs.dictionaries(
+        hs.sampled_from(
+            [
+                "rows",
+                "per_row",
+                "altitude",
+                "area",
+                "spacing",
+                "vehicles",
+                "center",
+                "radius",
+                "laps",
+                "points",
+                "path",
+                "shape",
+                "extra",
+            ]
+        ),  # fmt: skip
+        _JSON,
+        max_size=6,
+    ),
+)
+def test_any_data_gives_a_mission_or_a_reason(kind, fields):
+    try:
+        m = mission_from_data({"mission": kind, **fields}, FLEET)
+    except MissionRequestError as e:
+        assert str(e)
+    else:
+        assert mission_from_data(m.to_data(), FLEET) == m

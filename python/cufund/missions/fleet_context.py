@@ -26,9 +26,13 @@ class MissionRequestError(ValueError):
 
 
 def _positive(name: str, v: Any) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-        raise MissionRequestError(f"fleet context: {name} must be a finite number > 0, got {v!r}")
-    return float(v)
+    try:
+        f = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
+    except OverflowError:
+        f = math.nan
+    if not math.isfinite(f) or f <= 0:
+        raise MissionRequestError(f"fleet context: {name} must be a finite number > 0, got {str(v)[:40]}")
+    return f
 
 
 @dataclass(frozen=True)

@@ -50,9 +50,13 @@ def check_polygon(value: Any, name: str = "polygon") -> Polygon:
             raise ValueError(f"{name}[{i}] must be [x, y] [m], got {v!r}")
         xy = []
         for c in v:
-            if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c) or abs(c) > 1e6:
-                raise ValueError(f"{name}[{i}] must hold finite numbers within 1000 km [m], got {v!r}")
-            xy.append(float(c))
+            try:
+                f = float(c) if isinstance(c, (int, float)) and not isinstance(c, bool) else math.nan
+            except OverflowError:
+                f = math.nan
+            if not math.isfinite(f) or abs(f) > 1e6:
+                raise ValueError(f"{name}[{i}] must hold finite numbers within 1000 km [m], got {str(v)[:60]}")
+            xy.append(f)
         out.append((xy[0], xy[1]))
     if len(set(out)) != len(out):
         raise ValueError(f"{name} repeats a vertex")

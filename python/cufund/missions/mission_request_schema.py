@@ -53,9 +53,22 @@ ORBIT_POINTS_PER_LAP = 12
 _MAX_COUNT = 10000
 
 
+def _finite(v: Any) -> float | None:
+    """``v`` as a finite float, or None (not a number, a bool, NaN, infinite, an integer too large for a float)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return None
+    try:
+        f = float(v)
+    except OverflowError:
+        return None
+    return f if math.isfinite(f) else None
+
+
 def _num(where: str, v: Any, lo: float | None = None, positive: bool = False) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or abs(v) > 1e6:
-        raise MissionRequestError(f"{where} must be a finite number (within 1000 km), got {v!r}")
+    f = _finite(v)
+    if f is None or abs(f) > 1e6:
+        raise MissionRequestError(f"{where} must be a finite number (within 1000 km), got {str(v)[:40]}")
+    v = f
     if positive and v <= 0:
         raise MissionRequestError(f"{where} must be > 0, got {v!r}")
     if lo is not None and v < lo:
@@ -64,8 +77,9 @@ def _num(where: str, v: Any, lo: float | None = None, positive: bool = False) ->
 
 
 def _int(where: str, v: Any, lo: int, hi: int) -> int:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not float(v).is_integer():
-        raise MissionRequestError(f"{where} must be a whole number, got {v!r}")
+    f = _finite(v)
+    if f is None or not f.is_integer():
+        raise MissionRequestError(f"{where} must be a whole number, got {str(v)[:40]}")
     if not lo <= v <= hi:
         raise MissionRequestError(f"{where} must be between {lo} and {hi}, got {v!r}")
     return int(v)
