@@ -111,3 +111,16 @@ def test_refusals_say_why(gcs, text, reason):
     code, r = http(gcs, "/api/mission/preview", {"text": text})
     assert code == 200 and not r["ok"] and reason in r["reason"], r
     assert state(gcs)["preview"] is None or state(gcs)["preview"]["text"] != text
+
+
+def test_the_map_gets_the_scenarios_field_and_geofence():
+    from cufund.apps.gcs.fleet_server import _areas
+    from cufund.scenarios.fleet import build_fleet
+    from cufund.scenarios.schema import load_scenario
+
+    areas = _areas(build_fleet(load_scenario("fleet_survey")))
+    ((name, field),) = areas["fields"].items()  # the 30 m x 20 m field
+    xs, ys = zip(*field, strict=True)
+    assert (max(xs) - min(xs), max(ys) - min(ys)) == (30.0, 20.0)
+    assert areas["geofence"] is not None and len(areas["geofence"]) >= 3
+    assert _areas(build_fleet(load_scenario("fleet_square"))) == {"fields": {}, "geofence": None}

@@ -147,6 +147,9 @@ class FleetGcsServer:
         self._preview_mission: Any = None
         self._ids = itertools.count(1)
         self._seq = 0
+        self.areas = _areas(self.live.fleet)
+        """The scenario's named fields and geofence, drawn on the map: ``{"fields": {name: [[x, y], ...]},
+        "geofence": [[x, y], ...] | None}``."""
 
     # ---- lifecycle -----------------------------------------------------------------------------------------
     def start(self) -> str:
@@ -193,6 +196,7 @@ class FleetGcsServer:
             "vehicles": jsonable(vehicles),
             "events": list(self._events),
             "preview": self._preview,
+            "areas": self.areas,
         }
 
     def _collect_events(self, name: str, v: Any) -> None:
@@ -309,6 +313,20 @@ class FleetGcsServer:
                 if a and a[-1]["result"] not in ("accepted", "in_progress")
             )
         return out
+
+
+def _areas(fleet: Any) -> dict[str, Any]:
+    """The fleet's named fields and geofence (:class:`cufund.missions.fleet_context.FleetContext`), as plain lists;
+    none when the mission context cannot be read (the request is then refused with the reason at preview)."""
+    try:
+        from cufund.missions.fleet_context import FleetContext
+
+        ctx = FleetContext.of(fleet)
+    except Exception:
+        return {"fields": {}, "geofence": None}
+    fence = None if ctx.geofence is None else [[float(x), float(y)] for x, y in ctx.geofence]
+    fields = {n: [[float(x), float(y)] for x, y in poly] for n, poly in ctx.fields.items()}
+    return {"fields": fields, "geofence": fence}
 
 
 def _command_name(c: Any) -> str:

@@ -102,6 +102,7 @@ async function poll() {
       buildRows();
     }
     state.vehicles = s.vehicles;
+    state.areas = s.areas || { fields: {}, geofence: null };
     $("scenario").textContent = s.scenario;
     $("t").textContent = fmt(s.t, 2);
     $("paused").textContent = s.ended ? `ended: ${s.ended}` : s.paused ? "paused" : "";
@@ -139,6 +140,7 @@ function bounds() {
   }
   if (state.preview) for (const wp of Object.values(state.preview.waypoints)) for (const p of wp) pts.push(p);
   for (const p of state.area) pts.push(p);
+  for (const poly of Object.values((state.areas || {}).fields || {})) for (const p of poly) pts.push(p);
   if (!pts.length) return [-5, -5, 5, 5];
   let [x0, y0, x1, y1] = [Infinity, Infinity, -Infinity, -Infinity];
   for (const p of pts) { x0 = Math.min(x0, p[0]); x1 = Math.max(x1, p[0]); y0 = Math.min(y0, p[1]); y1 = Math.max(y1, p[1]); }
@@ -162,6 +164,14 @@ function draw() {
   g.strokeStyle = "#e6e6e6"; g.lineWidth = 1; g.fillStyle = "#888"; g.font = "10px system-ui";
   for (let x = Math.ceil(x0 / step) * step; x <= x1; x += step) { g.beginPath(); g.moveTo(X(x), 0); g.lineTo(X(x), h); g.stroke(); g.fillText(`${x} m`, X(x) + 2, h - 4); }
   for (let y = Math.ceil(y0 / step) * step; y <= y1; y += step) { g.beginPath(); g.moveTo(0, Y(y)); g.lineTo(w, Y(y)); g.stroke(); g.fillText(`${y} m`, 2, Y(y) - 2); }
+  // the scenario's named fields (green, named) and geofence (orange, dashed)
+  const areas = state.areas || { fields: {}, geofence: null };
+  const outline = (poly) => { g.beginPath(); poly.forEach((p, i) => (i ? g.lineTo(X(p[0]), Y(p[1])) : g.moveTo(X(p[0]), Y(p[1])))); g.closePath(); };
+  if (areas.geofence) { g.strokeStyle = "#e67e00"; g.lineWidth = 1.5; g.setLineDash([8, 5]); outline(areas.geofence); g.stroke(); g.setLineDash([]); }
+  for (const [name, poly] of Object.entries(areas.fields)) {
+    g.strokeStyle = "#3a7d3a"; g.fillStyle = "rgba(58, 125, 58, 0.07)"; g.lineWidth = 1.5; outline(poly); g.fill(); g.stroke();
+    g.fillStyle = "#3a7d3a"; g.font = "11px system-ui"; g.fillText(name, X(poly[0][0]) + 4, Y(poly[0][1]) - 4);
+  }
   // the operator's area: a grey polygon, its corners marked
   if (state.area.length) {
     g.strokeStyle = "#444"; g.fillStyle = "rgba(0, 0, 0, 0.06)"; g.lineWidth = 1.5;
