@@ -134,10 +134,17 @@ def test_each_vehicle_is_its_own_system_on_the_shared_ground_station_port():
 
 def test_fixed_local_ports_are_the_instances_and_a_taken_port_is_named():
     gcs_port, api_base = free_port(), _port_block(2)
+    for p in (18570, 14580, 14581):  # the others the two vehicles take
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            try:
+                probe.bind(("127.0.0.1", p))
+            except OSError:
+                pytest.skip(f"port {p} is in use on this machine (a PX4 instance?)")
     taken = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
         taken.bind(("127.0.0.1", 18571))
     except OSError:
+        taken.close()
         pytest.skip("port 18571 is in use on this machine (a PX4 instance?)")
     try:
         from cufund.apps.live import LiveRun
