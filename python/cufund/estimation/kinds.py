@@ -105,7 +105,7 @@ def vio_params(p: VioParams, ctx: BuildContext) -> tuple[VioParams, Any, list[st
     if len(shifts) != 1:
         raise ConfigError("estimator: the VIO needs both stereo cameras on one clock (equal timeshift_cam_imu)")
     start = ctx.config.start_p_W or (ctx.config.trajectory.waypoints[0][0], ctx.config.trajectory.waypoints[0][1], 0.0)
-    topics = list(cam.params.topics) or ["/sensors/cam0/image", "/sensors/cam1/image"]
+    topics = list(cam.params.camera_topics(len(cams)))
     params = dataclasses.replace(
         p,
         imu=ctx.imu_params(),
