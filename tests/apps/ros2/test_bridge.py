@@ -148,3 +148,16 @@ def test_a_depth_camera_is_image_raw_and_its_camera_info(tmp_path):
     assert kk == [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0] and dist == [0.0] * 5
     if len(frames):
         assert stamp == round(frames[0] * NS)
+
+
+def test_any_cufund_topic_with_a_ros2_message_can_be_mapped(tmp_path):
+    # the motion-capture pose is no default topic; the scenario maps it, the node receives every pose
+    d = domain(12)
+    node, out = start_node(tmp_path, d, "mocap", "--topics", "/clock", "--estimator", "/mocap/pose:/unused")
+    ros2 = {"domain_id": d, "lockstep_nodes": ["mocap"], "rate_hz": 50.0, "topics": {"/sensors/pose": "/mocap/pose"}}
+    run = run_scenario(scenario("vehicle", ros2, duration=1.0))
+    got = finish(node, out)["received"]["/mocap/pose"]
+    poses = np.asarray(run.result.topics["/sensors/pose"]["t"])
+    stamps = np.array([g[0] for g in got])
+    np.testing.assert_array_equal(stamps, np.round(poses[: len(stamps)] * NS).astype(np.int64))
+    assert len(stamps) >= len(poses) - 1 >= 8  # all but one sent after the last step

@@ -46,9 +46,11 @@ def test_bad_ros2_settings_name_the_field(ros2, message):
         _with(ros2)
 
 
-def test_a_topic_the_scenario_does_not_publish_is_refused_when_built():
-    with pytest.raises(ConfigError, match="/sensors/lidar is not a topic the bridge publishes"):
-        build_simulation(_with({"topics": {"/sensors/lidar": "/points"}}))
+def test_a_topic_the_bridge_cannot_publish_is_refused_when_built():
+    with pytest.raises(ConfigError, match="/sensors/lidarr cannot be published: not a topic of this scenario"):
+        build_simulation(_with({"topics": {"/sensors/lidarr": "/points"}}))
+    with pytest.raises(ConfigError, match="/vehicle/status cannot be published: no standard ROS 2 message"):
+        build_simulation(_with({"topics": {"/vehicle/status": "/status"}}))
 
 
 def test_cufund_ros2_exits_1_naming_a_silent_node_and_2_on_bad_input(tmp_path, capsys):

@@ -9,13 +9,24 @@ from typing import Any
 
 import numpy as np
 
-from cufund.core.messages import CameraImage, PointCloud
+from cufund.core.messages import CameraImage, Imu, Odometry, PointCloud, Pose, TrajectoryUpdate
 from cufund.geometry import quat_to_matrix
 from cufund.logs import ros2
 from cufund.logs.cdr import stamp_sec_nsec
-from cufund.logs.codecs import ImageCodec, PointCloud2Codec
+from cufund.logs.codecs import ImageCodec, PointCloud2Codec, path_of
 
-__all__ = ["camera_info", "clock", "imu_encoder", "odometry_encoder", "tf", "xyzw"]
+__all__ = [
+    "camera_info",
+    "clock",
+    "encoder_for",
+    "image_encoder",
+    "imu_encoder",
+    "odometry_encoder",
+    "point_cloud_encoder",
+    "pose_encoder",
+    "tf",
+    "xyzw",
+]
 
 
 def xyzw(q_wxyz: Any) -> list[float]:
@@ -96,3 +107,37 @@ def camera_info(t: float, frame: str, width: int, height: int, fx: float, fy: fl
     w.put("d", fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0)
     w.put("I", 0, 0).put("I", 0, 0, 0, 0).put("?", False)
     return w.bytes()
+
+
+def pose_encoder(frame: str) -> Callable[[Any], bytes]:
+    """``geometry_msgs/msg/PoseStamped`` of a cufund :class:`~cufund.core.messages.Pose` (motion capture) in
+    ``frame``."""
+    layout = ros2.pose_stamped_layout(frame)
+
+    def encode(m: Any) -> bytes:
+        row = layout.empty(1)
+        _stamp(row, m.t)
+        row["pose.position"] = m.p_W
+        row["pose.orientation"] = xyzw(m.q_WB)
+        return row.tobytes()
+
+    return encode
+
+
+def encoder_for(cls: type, frame: str) -> tuple[str, Callable[[Any], bytes]] | None:
+    """(ROS 2 type, encoder) of a cufund message class, or None when there is no standard ROS 2 message for it:
+    an IMU sample, a LiDAR frame, an image, odometry (in ``world``), a motion-capture pose, a planner's trajectory
+    (``nav_msgs/msg/Path`` of its samples, as a log keeps it)."""
+    if cls is Imu:
+        return "sensor_msgs/msg/Imu", imu_encoder(frame)
+    if cls is PointCloud:
+        return "sensor_msgs/msg/PointCloud2", point_cloud_encoder(frame)
+    if cls is CameraImage:
+        return "sensor_msgs/msg/Image", image_encoder(frame)
+    if cls is Odometry:
+        return "nav_msgs/msg/Odometry", odometry_encoder("world", "base_link")
+    if cls is Pose:
+        return "geometry_msgs/msg/PoseStamped", pose_encoder("world")
+    if cls is TrajectoryUpdate:
+        return "nav_msgs/msg/Path", lambda m: path_of(m.trajectory, m.t)
+    return None

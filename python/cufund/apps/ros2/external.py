@@ -26,10 +26,11 @@ import numpy as np
 
 from cufund.core.components import BusView, Component, Estimator
 from cufund.core.config import ConfigError
-from cufund.core.messages import CameraImage, Imu, Odometry, PointCloud, Pose, TrajectorySetpoint
+from cufund.core.messages import Odometry, TrajectorySetpoint
 from cufund.geometry import quat_to_matrix
 
 from .config import ACK_TOPIC
+from .encode import encoder_for
 
 __all__ = ["ExternalComponent", "ExternalEstimator", "ExternalParams", "decoder_for", "encoder_for"]
 
@@ -75,34 +76,6 @@ class ExternalParams:
             raise ConfigError(f"ros2_external.domain_id must be an integer in [0, 232] (ROS_DOMAIN_ID), got {d!r}")
         if not isinstance(self.expose, bool):
             raise ConfigError(f"ros2_external.expose must be true or false, got {self.expose!r}")
-
-
-def encoder_for(cls: type, frame: str) -> tuple[str, Callable[[Any], bytes]] | None:
-    """(ROS 2 type, encoder) of a cufund message class published to a node, or None."""
-    from cufund.logs import ros2
-
-    from . import encode
-
-    if cls is Imu:
-        return "sensor_msgs/msg/Imu", encode.imu_encoder(frame)
-    if cls is PointCloud:
-        return "sensor_msgs/msg/PointCloud2", encode.point_cloud_encoder(frame)
-    if cls is CameraImage:
-        return "sensor_msgs/msg/Image", encode.image_encoder(frame)
-    if cls is Odometry:
-        return "nav_msgs/msg/Odometry", encode.odometry_encoder("world", "base_link")
-    if cls is Pose:
-        layout = ros2.pose_stamped_layout("world")
-
-        def pose(m: Any) -> bytes:
-            row = layout.empty(1)
-            encode._stamp(row, m.t)
-            row["pose.position"] = m.p_W
-            row["pose.orientation"] = encode.xyzw(m.q_WB)
-            return row.tobytes()
-
-        return "geometry_msgs/msg/PoseStamped", pose
-    return None
 
 
 def _t(stamp: Any) -> float:

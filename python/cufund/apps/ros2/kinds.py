@@ -44,6 +44,17 @@ def default_topics(ctx: BuildContext) -> dict[str, tuple[str, str]]:
     return out
 
 
+def topic_types(ctx: BuildContext) -> dict[str, type]:
+    """The message class of each cufund topic a scenario may carry: cufund's standard topics and its sensors'."""
+    from cufund.core.topics import Topic
+
+    known: dict[str, type] = {str(t): t.type for t in vars(Topics).values() if isinstance(t, Topic)}
+    for spec in ctx.config.sensors.values():
+        if spec.topic is not None:
+            known[str(spec.topic)] = spec.topic.type
+    return known
+
+
 def _intrinsics(spec: Any) -> Any:
     """The pinhole intrinsics of a camera sensor spec (its params', or the D435's of the d435 kinds), or None."""
     intr = getattr(spec.params, "intrinsics", None)
@@ -67,12 +78,21 @@ def build_bridge(p: Ros2Params, ctx: BuildContext) -> list[Any]:
     from cufund.logs.codecs import sensor_frame
 
     topics = default_topics(ctx)
-    unknown = sorted(set(p.topics) - set(topics))
-    if unknown:
-        raise ConfigError(
-            f"ros2.topics: {unknown[0]} is not a topic the bridge publishes in this scenario; it publishes "
-            f"{', '.join(sorted(topics))}"
-        )
+    types = topic_types(ctx)
+    extra: list[tuple[str, str, str, Callable[[Any], bytes]]] = []  # any other cufund topic mapped by the scenario
+    for topic, ros_name in p.topics.items():
+        if topic in topics or not ros_name:
+            continue
+        cls = types.get(topic)
+        found = encode.encoder_for(cls, sensor_frame(topic)) if cls is not None else None
+        if found is None:
+            why = (
+                f"no standard ROS 2 message for {cls.__name__}"
+                if cls is not None
+                else f"not a topic of this scenario (its topics: {', '.join(sorted(types))})"
+            )
+            raise ConfigError(f"ros2.topics: {topic} cannot be published: {why}")
+        extra.append((topic, ros_name, found[0], found[1]))
     estimator = ctx.config.estimator is not None
     body = "base_link"
     truth_child = "base_link_truth" if estimator else body
@@ -130,6 +150,8 @@ def build_bridge(p: Ros2Params, ctx: BuildContext) -> list[Any]:
                     latest_only=what == "truth",
                 )
             )
+    for topic, ros_name, rtype, encoder in extra:
+        outs.append(bridge.Out(topic, [(ros_name, rtype, QOS["default"])], _one(encoder)))
     rate = p.rate_hz or (max(imu_rates) if imu_rates else IMU_RATE_FALLBACK_HZ)
     return [bridge.Ros2Bridge(p, outs, static_tf, ctx.commander, rate)]
 
@@ -147,18 +169,12 @@ KINDS: list[Kind] = [
 
 def build_external(p: ExternalParams, ctx: BuildContext) -> list[Any]:
     """A ROS 2 node as the part being built (``ros2_external``): what it reads and writes, by message type."""
-    from cufund.core.topics import Topic
     from cufund.logs.codecs import sensor_frame
 
     from . import external
+    from .encode import encoder_for
 
-    known: dict[str, type] = {}
-    for t in vars(Topics).values():
-        if isinstance(t, Topic):
-            known[str(t)] = t.type
-    for spec in ctx.config.sensors.values():
-        if spec.topic is not None:
-            known[str(spec.topic)] = spec.topic.type
+    known = topic_types(ctx)
     where = ctx.where
     if not p.node:
         raise ConfigError(f"{where}.node must name the node (the frame_id of its answers on /cufund/step_ack)")
@@ -167,7 +183,7 @@ def build_external(p: ExternalParams, ctx: BuildContext) -> list[Any]:
     reads, writes = [], []
     for topic, ros_name in p.reads.items():
         cls = known.get(topic)
-        enc = external.encoder_for(cls, sensor_frame(topic)) if cls is not None else None
+        enc = encoder_for(cls, sensor_frame(topic)) if cls is not None else None
         if enc is None:
             raise ConfigError(f"{where}.reads: {topic} ({getattr(cls, '__name__', 'unknown type')}) cannot be sent")
         reads.append((topic, ros_name, enc[0], enc[1]))
