@@ -124,3 +124,19 @@ def test_the_map_gets_the_scenarios_field_and_geofence():
     assert (max(xs) - min(xs), max(ys) - min(ys)) == (30.0, 20.0)
     assert areas["geofence"] is not None and len(areas["geofence"]) >= 3
     assert _areas(build_fleet(load_scenario("fleet_square"))) == {"fields": {}, "geofence": None}
+
+
+def test_a_fleet_with_its_own_mission_waits_for_start():
+    with GcsProcess("fleet_survey", "--speed", "5") as g:
+        s = state(g)
+        assert s["held"] and s["t"] == pytest.approx(0.01, abs=1e-6)
+        assert all(s["vehicles"][n].get("p_W") for n in s["names"])  # on their pads, seen
+        assert state(g)["t"] == s["t"]  # nothing flies before Start
+        code, r = http(g, "/api/command", {"command": {"command": "start"}})
+        assert code == 200 and r["acks"]["fleet"]["result"] == "accepted"
+        assert wait_for(lambda: state(g)["t"] > 1.0, 10)
+        assert not state(g)["held"]
+        code, r = http(g, "/api/command", {"command": {"command": "start"}})
+        assert r["acks"]["fleet"]["result"] == "denied" and "started" in r["acks"]["fleet"]["message"]
+    with GcsProcess("fleet_survey", "--speed", "5", "--autostart") as g:
+        assert not state(g)["held"] and wait_for(lambda: state(g)["t"] > 1.0, 10)

@@ -89,7 +89,9 @@ async def _serve(args: argparse.Namespace, speed: float) -> int:
         from .fleet_server import fleet_server_for  # a fleet scenario (vehicles:): the fleet's station
 
         port = DEFAULT_PORT if args.port is None else args.port
-        fleet = fleet_server_for(args.scenario, tuple(args.overrides), speed, args.host, port, args.port is None)
+        fleet = fleet_server_for(
+            args.scenario, tuple(args.overrides), speed, args.host, port, args.port is None, args.autostart
+        )
         server = fleet or GcsServer(
             args.scenario,
             tuple(args.overrides),

@@ -12,7 +12,9 @@ the single-vehicle station's guard, :mod:`cufund.apps.gcs.guard`):
   attitude, armed, mode, mission progress, home, battery) without the truth.
 - ``POST /api/command`` ``{"command": {...}, "vehicles": [names] | "all"}`` -> ``{"command", "acks": {name: ack}}``:
   the command to each vehicle named, each vehicle's commander answering for itself (an unknown vehicle is a 400).
-  ``{"command": {"command": "sim_pause" | "sim_resume"}}`` pauses or resumes the whole fleet.
+  ``{"command": {"command": "sim_pause" | "sim_resume"}}`` pauses or resumes the whole fleet; ``start`` starts a
+  fleet held for it (one with a mission of its own, e.g. ``fleet_survey``, waits at its first instant for it unless
+  ``autostart``).
 - ``POST /api/mission/preview`` ``{"text", "vehicles"?, "area"?}`` -> ``{"ok": true, "id", "summary",
   "mission", "waypoints": {name: [[x, y, z], ...]}}`` or ``{"ok": false, "reason"}`` (the request refused, with
   the reason: malformed, unsafe, an unknown vehicle, free text and no chat endpoint).
@@ -56,6 +58,8 @@ FLEET_COLOURS = (
 )
 """Vehicle i's colour: ``FLEET_COLOURS[i % 10]`` (matplotlib's tab10)."""
 ACK_TIMEOUT_S = 3.0
+HELD_AT_S = 0.01
+"""Where a fleet held for Start waits [s of simulated time]: past its first instant, so that it has telemetry."""
 """How long a command waits for a commander's acknowledgement before its reply says ``in_progress``."""
 _FLIGHT_KEYS = (
     "t",
@@ -89,7 +93,13 @@ def fleet_with_commanders(config: Any) -> Any:
 
 
 def fleet_server_for(
-    scenario: str, overrides: tuple[str, ...], speed: float, host: str, port: int, port_fallback: bool
+    scenario: str,
+    overrides: tuple[str, ...],
+    speed: float,
+    host: str,
+    port: int,
+    port_fallback: bool,
+    autostart: bool = False,
 ) -> FleetGcsServer | None:
     """The fleet station for ``scenario`` when it is a fleet (``vehicles:``), else None (the single-vehicle one)."""
     from cufund.scenarios.schema import load_scenario, parse_overrides
@@ -99,7 +109,7 @@ def fleet_server_for(
         return None
     # the commanders first, so that --set planner.* reaches them
     config = fleet_with_commanders(config).with_overrides(parse_overrides(list(overrides)))
-    return FleetGcsServer(config, speed=speed, host=host, port=port, port_fallback=port_fallback)
+    return FleetGcsServer(config, speed=speed, host=host, port=port, port_fallback=port_fallback, autostart=autostart)
 
 
 class FleetGcsServer:
@@ -115,6 +125,7 @@ class FleetGcsServer:
         port: int = 0,
         token: str | None = None,
         port_fallback: bool = False,
+        autostart: bool = False,
     ) -> None:
         from cufund.scenarios.schema import load_scenario, parse_overrides
 
@@ -147,6 +158,8 @@ class FleetGcsServer:
         self._preview_mission: Any = None
         self._ids = itertools.count(1)
         self._seq = 0
+        self.held = getattr(config, "mission", None) is not None and not autostart
+        """A fleet with a mission of its own (``fleet_survey``'s) waits at its first instant for ``start``."""
         self.areas = _areas(self.live.fleet)
         """The scenario's named fields and geofence, drawn on the map: ``{"fields": {name: [[x, y], ...]},
         "geofence": [[x, y], ...] | None}``."""
@@ -170,6 +183,10 @@ class FleetGcsServer:
             wanted = self.port
             self._http, self.port, self.hosts = listen(handlers, self.host, 0)
             self.port_note = f"port {wanted} is in use; serving on port {self.port} instead (choose one with --port)"
+        if self.held:  # its first instant (the vehicles on their pads, their first state), then it waits
+            self.live.fleet.advance_to(HELD_AT_S)
+            self.live._capture()
+            self.live.pause()
         self.live.start()
         shown = "127.0.0.1" if self.host in ("", "0.0.0.0", "::") else self.host
         return f"http://{shown}:{self.port}/?token={self.token}"
@@ -197,6 +214,7 @@ class FleetGcsServer:
             "events": list(self._events),
             "preview": self._preview,
             "areas": self.areas,
+            "held": self.held,
         }
 
     def _collect_events(self, name: str, v: Any) -> None:
@@ -234,7 +252,21 @@ class FleetGcsServer:
         if not isinstance(command, dict) or not isinstance(command.get("command"), str):
             raise TypeError('a command is an object with a \'command\' name, e.g. {"command": "arm"}')
         name = command["command"]
+        if name == "start":  # the held fleet's own mission
+            if not self.held:
+                why = (
+                    "the run has started"
+                    if getattr(self.live.config, "mission", None) is not None
+                    else ("this fleet has no mission of its own: preview one below and Fly it")
+                )
+                return {"command": name, "acks": {"fleet": {"result": "denied", "message": why}}}
+            self.held = False
+            self.live.resume()
+            self._log("fleet", "command", "start: accepted")
+            return {"command": name, "acks": {"fleet": {"result": "accepted", "message": ""}}}
         if name in ("sim_pause", "sim_resume"):
+            if name == "sim_resume":
+                self.held = False  # resumed: started
             (self.live.pause if name == "sim_pause" else self.live.resume)()
             self._log("fleet", "command", f"{name}: accepted")
             return {"command": name, "acks": {"fleet": {"result": "accepted", "message": ""}}}

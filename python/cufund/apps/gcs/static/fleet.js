@@ -105,7 +105,9 @@ async function poll() {
     state.areas = s.areas || { fields: {}, geofence: null };
     $("scenario").textContent = s.scenario;
     $("t").textContent = fmt(s.t, 2);
-    $("paused").textContent = s.ended ? `ended: ${s.ended}` : s.paused ? "paused" : "";
+    $("paused").textContent = s.ended ? `ended: ${s.ended}` : s.held ? "waiting for Start (the scenario's own mission)" : s.paused ? "paused" : "";
+    $("start").disabled = !s.held;
+    $("start").title = s.held ? "start the fleet's own mission" : "the fleet has started";
     for (const n of state.names) {
       const p = (s.vehicles[n] || {}).p_W;
       if (!p) continue;
@@ -248,6 +250,7 @@ for (const b of document.querySelectorAll("button.cmd")) {
 }
 $("pause").addEventListener("click", () => command({ command: "sim_pause" }, "all"));
 $("resume").addEventListener("click", () => command({ command: "sim_resume" }, "all"));
+$("start").addEventListener("click", () => command({ command: "start" }, "all"));
 
 // ---- the mission box: preview first, then Fly --------------------------------------------------------------------
 function setPreview(p) {
