@@ -3,7 +3,7 @@
 #include "thread_pool.h"
 
 namespace cufund::py_bind {
-void define_envs(pybind11::module_& m);  // bindings/envs.cpp
+void define_envs(pybind11::module_& m);    // bindings/envs.cpp
 void define_render(pybind11::module_& m);  // bindings/render.cpp
 }  // namespace cufund::py_bind
 
