@@ -19,7 +19,7 @@ import numpy as np
 
 from cufund import _core
 from cufund.core.messages import CameraImage  # noqa: F401 - re-exported: cameras' message
-from cufund.geometry import Transform, quat_from_rotvec, quat_mul, quat_to_matrix
+from cufund.geometry import Transform, quat_mul, quat_to_matrix
 from cufund.worlds.materials import material_table
 from cufund.worlds.world import World
 
@@ -90,12 +90,46 @@ class _RayCamera:
         """(p_WO (H, 3), R_WO (H, 3, 3)) of each row r, taken at the pose propagated ``row_dt[r]`` seconds from
         (p, q) at constant world velocity ``v_W`` and body rate ``w_B``."""
         h = self.intrinsics.height
-        row_p, row_R = np.empty((h, 3)), np.empty((h, 3, 3))
-        for dt in np.unique(row_dt):
-            rows = row_dt == dt
-            p_WC, R_WO = self._camera_pose(p + v_W * dt, quat_mul(q, quat_from_rotvec(w_B * dt)))
-            row_p[rows], row_R[rows] = p_WC, R_WO
-        return row_p, row_R
+        if not (np.any(row_dt) and (np.any(v_W) or np.any(w_B))):  # every row at (p, q)
+            p_WC, R_WO = self._camera_pose(p, q)
+            return np.broadcast_to(p_WC, (h, 3)), np.broadcast_to(R_WO, (h, 3, 3))
+        # every row at once: q_r = q exp(w_B dt_r) (the rotation vector's exponential), p_r = p + v_W dt_r
+        phi = w_B[None, :] * row_dt[:, None]
+        angle = np.linalg.norm(phi, axis=1)
+        k = np.where(angle > 1e-12, np.sin(angle / 2) / np.where(angle > 1e-12, angle, 1.0), 0.5)
+        dq = np.column_stack([np.cos(angle / 2), phi * k[:, None]])
+        q_rows = _quat_mul_rows(np.broadcast_to(q, (h, 4)), dq)
+        R_WB = _quat_to_matrix_rows(q_rows)
+        R_WO = R_WB @ (self.T_BC.R @ R_CO)  # (H, 3, 3) @ (3, 3): batched 3x3 products, not one BLAS call
+        p_WC = p + v_W * row_dt[:, None] + np.einsum("hij,j->hi", R_WB, np.array(self.T_BC.t))
+        return p_WC, R_WO
+
+
+def _quat_mul_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise Hamilton products of (N, 4) quaternions [w, x, y, z]."""
+    w1, x1, y1, z1 = a.T
+    w2, x2, y2, z2 = b.T
+    return np.column_stack(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ]
+    )
+
+
+def _quat_to_matrix_rows(q: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotation matrices of (N, 4) unit quaternions [w, x, y, z]."""
+    w, x, y, z = q.T
+    return np.stack(
+        [
+            np.column_stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)]),
+            np.column_stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)]),
+            np.column_stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]),
+        ],
+        axis=1,
+    )
 
 
 def _scene_of(target: object) -> _core.lidar.RaycastScene:
