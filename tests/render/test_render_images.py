@@ -89,6 +89,11 @@ def test_rolling_shutter_rows_see_the_scene_at_their_own_time():
     assert first_bright[-1] - first_bright[0] >= 6  # the skew is visible
     still = RgbCamera(K, ambient=1.0, grayscale=True, sky=(0.0, 0.0, 0.0)).render(w, (0, 0, 0), IDENTITY)
     assert len(set(np.argmax(still > 127, axis=1))) == 1  # a global shutter: one edge column
+    # turning at 2 rad/s about z instead: row r looks along yaw = 2 t_r, the edge at u = cx + fx tan(yaw)
+    img = cam.render(w, (0.0, 0.0, 0.0), IDENTITY, w_B=(0.0, 0.0, 2.0))
+    first_bright = np.argmax(img > 127, axis=1)
+    u_edge = K.cx + K.fx * np.tan(2.0 * (np.arange(90) - 44.5) * line)
+    assert np.all(first_bright >= u_edge - 1e-6) and np.all(first_bright < u_edge + 1.0)
 
 
 def test_motion_blur_is_the_mean_of_the_images_over_the_exposure():
