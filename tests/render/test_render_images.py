@@ -85,7 +85,7 @@ def test_rolling_shutter_rows_see_the_scene_at_their_own_time():
     # row r is taken at t_r = (r - 44.5) line: the camera is at y = speed t_r, the edge at u = cx + fx y / d
     u_edge = K.cx + K.fx * speed * (np.arange(90) - 44.5) * line / d
     # the first bright pixel is the first pixel centre at or beyond the edge
-    assert np.all(first_bright >= u_edge - 1e-6) and np.all(first_bright < u_edge + 1.0)
+    assert np.all(first_bright >= u_edge - 1e-3) and np.all(first_bright < u_edge + 1.0)  # float32 rays
     assert first_bright[-1] - first_bright[0] >= 6  # the skew is visible
     still = RgbCamera(K, ambient=1.0, grayscale=True, sky=(0.0, 0.0, 0.0)).render(w, (0, 0, 0), IDENTITY)
     assert len(set(np.argmax(still > 127, axis=1))) == 1  # a global shutter: one edge column
@@ -93,7 +93,7 @@ def test_rolling_shutter_rows_see_the_scene_at_their_own_time():
     img = cam.render(w, (0.0, 0.0, 0.0), IDENTITY, w_B=(0.0, 0.0, 2.0))
     first_bright = np.argmax(img > 127, axis=1)
     u_edge = K.cx + K.fx * np.tan(2.0 * (np.arange(90) - 44.5) * line)
-    assert np.all(first_bright >= u_edge - 1e-6) and np.all(first_bright < u_edge + 1.0)
+    assert np.all(first_bright >= u_edge - 1e-3) and np.all(first_bright < u_edge + 1.0)  # float32 rays
 
 
 def test_motion_blur_is_the_mean_of_the_images_over_the_exposure():
