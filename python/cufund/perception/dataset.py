@@ -15,7 +15,8 @@ label in ``classes``; see :mod:`cufund.worlds.labelled_objects`) and writes, in 
 Every random draw (camera pose, object colours, light, exposure, noise, blur) comes from one
 ``numpy.random.Generator`` seeded with ``seed``: the same call writes the same files. Every tenth frame goes to
 ``val``. A frame looks at a randomly chosen labelled object from a random distance, height and bearing, with
-jitter (the target must be visible, up to 20 draws); ``negative_fraction`` of the frames look anywhere.
+jitter (the camera inside the world's bounds and the target visible, up to 20 views cast);
+``negative_fraction`` of the frames look anywhere.
 """
 
 from __future__ import annotations
@@ -180,8 +181,10 @@ def render_frame(
     targets = [o for o in world.objects if o.label in labeller.classes]
     lo, hi = world.bounds()
     labels: ViewLabels | None = None
+    ids: np.ndarray | None = None
     p = q = None
-    for _ in range(20):
+    casts = 0
+    for _ in range(200):
         if negative or not targets:
             p = np.array([rng.uniform(lo[0], hi[0]), rng.uniform(lo[1], hi[1]), rng.uniform(*rnd.height_m)])
             yaw, pitch = rng.uniform(-np.pi, np.pi), np.deg2rad(rng.uniform(-10.0, 30.0))
@@ -194,13 +197,18 @@ def render_frame(
         c = np.asarray(labeller.box3d(target).centre_W)
         dist, bearing = rng.uniform(*rnd.distance_m), rng.uniform(-np.pi, np.pi)
         p = np.array([c[0] + dist * np.cos(bearing), c[1] + dist * np.sin(bearing), rng.uniform(*rnd.height_m)])
+        if casts < 19 and not np.all((p > lo) & (p < hi)):
+            continue  # outside the world's bounds (beyond an arena's walls): draw again without casting
+        casts += 1
         jitter = np.deg2rad(rng.uniform(*rnd.look_jitter_deg))
         angle = rng.uniform(-np.pi, np.pi)
         q = _look_at(p, c, jitter * np.cos(angle), jitter * np.sin(angle), np.deg2rad(rng.uniform(*rnd.roll_deg)))
-        labels = labeller.label(p, q)
-        if any(o.instance_id == target.id for o in labels.objects):
+        ids = labeller.instance_ids(p, q)
+        if np.any(ids == target.id) or casts >= 20:
             break
-    assert labels is not None and p is not None and q is not None
+    if labels is None:  # looking at a target (seen, or the last draw's)
+        labels = labeller.label(p, q, ids)
+    assert p is not None and q is not None
     elevation = np.deg2rad(rng.uniform(*rnd.light_elevation_deg))
     azimuth = rng.uniform(-np.pi, np.pi)
     light = np.array([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])

@@ -128,8 +128,16 @@ def camera_pose(T_BC: Transform | None, p_W: object, q_WB: object) -> tuple[np.n
 def _rays(origin: np.ndarray, dirs_O: np.ndarray, R_WO: np.ndarray) -> np.ndarray:
     rays = np.empty((len(dirs_O), 6), np.float32)
     rays[:, :3] = origin
-    rays[:, 3:] = dirs_O @ R_WO.T
+    rays[:, 3:] = np.einsum("ij,kj->ik", dirs_O, R_WO)  # dirs_O @ R_WO.T (a skinny matmul is slow in BLAS)
     return rays
+
+
+def _pinhole_directions(K: CameraIntrinsics, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(len(v), len(u), 3) undistorted directions (x_n, y_n, 1) through pixel centres (u, v), any integers (also
+    beyond the image), computed as the intrinsics' own pixel_directions does without distortion."""
+    uu, vv = np.meshgrid(u.astype(float), v.astype(float))
+    x, y = (uu - K.cx) / K.fx, (vv - K.cy) / K.fy
+    return np.stack([x, y, np.ones_like(x)], -1)
 
 
 class ViewLabeller:
@@ -155,11 +163,9 @@ class ViewLabeller:
         index = {name: i for i, name in enumerate(self.classes)}
         self._class_of = np.array([index.get(o.label, INVALID) for o in world.objects] + [INVALID], dtype=np.int16)
         self._dirs_O = intrinsics.pixel_directions().reshape(-1, 3)
-        w, h = intrinsics.width, intrinsics.height
-        self._canvas = CameraIntrinsics(
-            3 * w, 3 * h, intrinsics.fx, intrinsics.fy, intrinsics.cx + w, intrinsics.cy + h
-        )
-        self._canvas_dirs = self._canvas.pixel_directions().reshape(3 * h, 3 * w, 3)
+        self._pinhole = not any(intrinsics.distortion)
+        """Without distortion the 3x canvas's middle is the image, ray for ray: one cast per object gives both its
+        unoccluded pixels and its truncation."""
         self._alone: dict[int, _core.lidar.RaycastScene] = {}
         self._boxes: dict[int, Box3D] = {}
 
@@ -176,15 +182,19 @@ class ViewLabeller:
             self._boxes[obj.id] = upright_box(obj.vertices)
         return self._boxes[obj.id]
 
-    def label(self, p_W: object, q_WB: object) -> ViewLabels:
-        """The labels of the view from body pose (p_W, q_WB)."""
+    def instance_ids(self, p_W: object, q_WB: object) -> np.ndarray:
+        """(H, W) int32 id of the world object hit first at each pixel (-1: nothing) from body pose (p_W, q_WB)."""
         origin, R_WO = camera_pose(self.T_BC, p_W, q_WB)
-        h, w = self.intrinsics.height, self.intrinsics.width
-        rays = _rays(origin, self._dirs_O, R_WO)
-        hit = self.world.raycast_scene.cast_rays(rays, nthreads=self.nthreads)
+        hit = self.world.raycast_scene.cast_rays(_rays(origin, self._dirs_O, R_WO), nthreads=self.nthreads)
         ids = hit["geometry_ids"].astype(np.int64)
         ids[ids == _core.lidar.INVALID_ID] = INVALID
-        instance = ids.reshape(h, w).astype(np.int32)
+        return ids.reshape(self.intrinsics.height, self.intrinsics.width).astype(np.int32)
+
+    def label(self, p_W: object, q_WB: object, instance_ids: np.ndarray | None = None) -> ViewLabels:
+        """The labels of the view from body pose (p_W, q_WB); ``instance_ids``: that view's
+        :meth:`instance_ids` if already cast."""
+        origin, R_WO = camera_pose(self.T_BC, p_W, q_WB)
+        instance = self.instance_ids(p_W, q_WB) if instance_ids is None else instance_ids
         classes = self._class_of[instance]
         objects = []
         for oid in np.unique(instance[classes >= 0]):
@@ -194,8 +204,12 @@ class ViewLabeller:
             box = (int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1)
             visible = int(mask.sum())
             scene = self._scene_alone(obj)
-            alone = np.isfinite(scene.cast_rays(rays, nthreads=self.nthreads)["t_hit"])
-            unoccluded = int(alone.sum())
+            inside, total = self._alone_on_canvas(obj, scene, origin, R_WO)
+            if self._pinhole:
+                unoccluded = inside
+            else:  # the image's own (distorted) rays
+                hits = scene.cast_rays(_rays(origin, self._dirs_O, R_WO), nthreads=self.nthreads)["t_hit"]
+                unoccluded = int(np.isfinite(hits).sum())
             objects.append(
                 ObjectLabel(
                     int(oid),
@@ -205,35 +219,30 @@ class ViewLabeller:
                     visible,
                     unoccluded,
                     float(1.0 - visible / unoccluded) if unoccluded else 0.0,
-                    self._truncation(obj, scene, origin, R_WO),
+                    float(1.0 - inside / total) if total else 0.0,
                     self.box3d(obj),
                 )
             )
         return ViewLabels(instance, classes, tuple(objects))
 
-    def _truncation(
+    def _alone_on_canvas(
         self, obj: WorldObject, scene: _core.lidar.RaycastScene, origin: np.ndarray, R_WO: np.ndarray
-    ) -> float:
-        """1 - (the object's pixels inside the frame) / (its pixels on the 3× canvas), the object alone."""
-        c = self._canvas
-        H, W = c.height, c.width
+    ) -> tuple[int, int]:
+        """(pixels inside the frame, pixels on the 3x pinhole canvas) of the object cast alone."""
+        K = self.intrinsics
+        w, h = K.width, K.height
         p_O = (obj.vertices - origin) @ R_WO
-        if np.all(p_O[:, 2] > 1e-6):  # all in front: its image lies within its vertices' projections
-            uv = c.project(p_O)
-            u0, v0 = (int(np.clip(np.floor(x) - 1, 0, n)) for x, n in ((uv[:, 0].min(), W), (uv[:, 1].min(), H)))
-            u1, v1 = (int(np.clip(np.ceil(x) + 2, 0, n)) for x, n in ((uv[:, 0].max(), W), (uv[:, 1].max(), H)))
-        else:
-            u0, v0, u1, v1 = 0, 0, W, H
+        # canvas pixel range [-w, 2w) x [-h, 2h) in image pixel coordinates
+        u0, v0, u1, v1 = -w, -h, 2 * w, 2 * h
+        if np.all(p_O[:, 2] > 1e-6):  # all in front: its image lies within its vertices' pinhole projections
+            u = K.cx + K.fx * p_O[:, 0] / p_O[:, 2]
+            v = K.cy + K.fy * p_O[:, 1] / p_O[:, 2]
+            u0, u1 = int(np.clip(np.floor(u.min()) - 1, -w, 2 * w)), int(np.clip(np.ceil(u.max()) + 2, -w, 2 * w))
+            v0, v1 = int(np.clip(np.floor(v.min()) - 1, -h, 2 * h)), int(np.clip(np.ceil(v.max()) + 2, -h, 2 * h))
         if u1 <= u0 or v1 <= v0:
-            return 0.0
-        dirs = self._canvas_dirs[v0:v1, u0:u1].reshape(-1, 3)
+            return 0, 0
+        dirs = _pinhole_directions(K, np.arange(u0, u1), np.arange(v0, v1)).reshape(-1, 3)
         alone = np.isfinite(scene.cast_rays(_rays(origin, dirs, R_WO), nthreads=self.nthreads)["t_hit"])
         alone = alone.reshape(v1 - v0, u1 - u0)
-        total = int(alone.sum())
-        if total == 0:
-            return 0.0
-        w, h = self.intrinsics.width, self.intrinsics.height
-        iu0, iv0 = max(w - u0, 0), max(h - v0, 0)
-        iu1, iv1 = max(min(2 * w - u0, u1 - u0), 0), max(min(2 * h - v0, v1 - v0), 0)
-        inside = int(alone[iv0:iv1, iu0:iu1].sum())
-        return float(1.0 - inside / total)
+        inside = alone[max(-v0, 0) : max(h - v0, 0), max(-u0, 0) : max(w - u0, 0)]
+        return int(inside.sum()), int(alone.sum())
