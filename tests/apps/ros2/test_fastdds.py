@@ -90,6 +90,7 @@ class Peer:
         with open(self.stderr, "w") as err:
             self.proc = subprocess.Popen(
                 [str(binary), str(PROFILE), str(domain), *args],
+                stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
                 stderr=err,
                 text=True,
@@ -127,9 +128,16 @@ class Peer:
     def samples(self, topic: str) -> list[dict]:
         return [x for x in self.lines if x["event"] == "sample" and x["topic"] == topic]
 
+    def send(self, line: str) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(line + "\n")
+        self.proc.stdin.flush()
+
     def stop(self) -> None:
         if self.proc.poll() is None:
             self.proc.kill()
+        if self.proc.stdin is not None:
+            self.proc.stdin.close()
         self.proc.wait(timeout=10)
         self._thread.join(timeout=5)
 
@@ -463,8 +471,9 @@ def test_the_bridge_reaches_fastdds(peer, tmp_path):
 
 def test_a_fastdds_goal_flies_the_vehicle(peer, tmp_path):
     """The Fast DDS peer's PoseStamped on /goal_pose (what RViz's goal tool sends) is taken by the bridge: the
-    vehicle takes off and flies there."""
-    from cufund.scenarios.build import run_scenario
+    vehicle takes off and flies there. The goal is volatile, as RViz's: it is sent once the bridge's reader and the
+    peer's writer have matched each other."""
+    from cufund.scenarios.build import build_simulation, run_built
 
     d = _domain(4)
     goal = (-1.0, 1.0, 1.2)
@@ -474,11 +483,28 @@ def test_a_fastdds_goal_flies_the_vehicle(peer, tmp_path):
         duration=12.0,
         planner={"kind": "commander", "takeoff_altitude": 1.2},
     )
-    with running(peer, d, "pub", "30", "1", "rt/goal_pose=pose", *(str(v) for v in goal), cwd=tmp_path) as p:
-        run = run_scenario(cfg)
+    built = build_simulation(cfg)
+    (bridge,) = [c for c in built.simulator.components if c.name == "ros2_bridge"]
+    bridge.reset()  # its participant and readers now (the run's reset keeps them)
+    args = ["pub", "60", "1", "rt/goal_pose=pose", *(str(v) for v in goal), "--go-on-stdin"]
+    with running(peer, d, *args, cwd=tmp_path) as p:
+        p.wait_for("waiting", timeout=30)
+        end = time.monotonic() + 30
+        while not bridge._readers["goal"].get_matched_publications():
+            assert time.monotonic() < end, "the bridge's /goal_pose reader did not match the peer's writer"
+            time.sleep(0.05)
+        runs: list = []
+        flight = threading.Thread(target=lambda: runs.append(run_built(built)))
+        flight.start()  # real time; the run's start drains what the bridge's readers held before it
+        while bridge.stats.get("steps", 0) < 5 and flight.is_alive():
+            time.sleep(0.01)
+        p.send("go")
+        p.wait_for("sent")
+        flight.join(timeout=120)
         assert p.finish() == 0
-        assert p.wait_for("ready")[0]["type"] == "geometry_msgs::msg::dds_::PoseStamped_"
-        assert len(p.wait_for("sent")) == 1
+    (run,) = runs
+    assert p.wait_for("ready")[0]["type"] == "geometry_msgs::msg::dds_::PoseStamped_"
+    assert len(p.wait_for("sent")) == 1
     states = run.result.states["p_W"]
     assert np.linalg.norm(states[0] - np.asarray(cfg.start_p_W)) < 0.05
     assert np.linalg.norm(states[-1] - np.asarray(goal)) < 0.2, f"ended at {states[-1]}, goal {goal}"

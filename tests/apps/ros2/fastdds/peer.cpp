@@ -10,10 +10,12 @@
 //       (type name, decoded fields) and, with --dump, writes the sample's serialized payload as received (encapsulation
 //       included) to DIR/<n>.cdr; ends when every topic has COUNT samples, after SECONDS, or (--idle) S seconds after
 //       the last sample.
-//   peer PROFILE.xml DOMAIN pub SECONDS COUNT TOPIC=KIND [X Y Z]
+//   peer PROFILE.xml DOMAIN pub SECONDS COUNT TOPIC=KIND [X Y Z] [--go-on-stdin]
 //       publishes COUNT samples at 20 Hz once a reader matched (pose: a goal at X Y Z in frame "map"; imu:
 //       sample k stamped k s with angular_velocity (0.1 k, 0.2, 0.3), linear_acceleration (1, 2, 9.81)), waits
-//       for their acknowledgement, prints a JSON line per sample; gives up after SECONDS.
+//       for their acknowledgement, prints a JSON line per sample; gives up after SECONDS. With --go-on-stdin it
+//       prints {"event":"waiting"} once matched and publishes after a line on its standard input (the caller
+//       knows when the reader's side has matched the writer: discovery is not symmetric).
 // Every line is flushed; exit status 0 when the expected samples went through, 1 otherwise, 2 for bad usage.
 
 #include "ros2_msgs.h"
@@ -37,6 +39,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <iostream>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -287,7 +290,7 @@ int usage() {
   std::fprintf(stderr,
                "usage: peer PROFILE.xml DOMAIN info\n"
                "       peer PROFILE.xml DOMAIN sub SECONDS COUNT [--dump DIR] [--idle S] TOPIC=KIND[,reliable]...\n"
-               "       peer PROFILE.xml DOMAIN pub SECONDS COUNT TOPIC=KIND [X Y Z]\n"
+               "       peer PROFILE.xml DOMAIN pub SECONDS COUNT TOPIC=KIND [X Y Z] [--go-on-stdin]\n"
                "KIND: imu, points, tf, pose\n");
   return 2;
 }
@@ -392,7 +395,13 @@ int main(int argc, char** argv) {
     Endpoint e;
     if (!parse_endpoint(argv[6], e) || (e.kind != "pose" && e.kind != "imu")) return usage();
     double xyz[3] = {0, 0, 0};
-    for (int i = 0; i < 3 && 7 + i < argc; ++i) xyz[i] = std::atof(argv[7 + i]);
+    bool go_on_stdin = false;
+    for (int i = 7, k = 0; i < argc; ++i) {
+      if (std::string(argv[i]) == "--go-on-stdin")
+        go_on_stdin = true;
+      else if (k < 3)
+        xyz[k++] = std::atof(argv[i]);
+    }
     TypeSupport type(e.kind == "pose"
                          ? static_cast<TopicDataType*>(new geometry_msgs::msg::dds_::PoseStamped_PubSubType())
                          : static_cast<TopicDataType*>(new sensor_msgs::msg::dds_::Imu_PubSubType()));
@@ -412,6 +421,11 @@ int main(int argc, char** argv) {
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     int sent = 0;
     std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the reader's side of discovery settles
+    if (go_on_stdin && listener.matched > 0) {  // the caller knows when the reader has matched this writer too
+      emit("{\"event\":\"waiting\"}");
+      std::string go;
+      std::getline(std::cin, go);
+    }
     for (int k = 0; k < count && listener.matched > 0 && std::chrono::steady_clock::now() < end; ++k) {
       bool ok;
       if (e.kind == "pose") {
