@@ -83,6 +83,10 @@ RenderResult render(const lidar::RaycastScene& scene, const View& view, const Su
   for (std::size_t k = 0; k < n; ++k)
     if (gid[k] != lidar::kInvalidId && gid[k] >= n_materials) return {RenderStatus::kBadMaterial, gid[k]};
 
+  // each material's seed shift of the shared noise tile, once
+  std::vector<double> shift(2 * n_materials, 0.0);
+  for (std::size_t g = 0; g < n_materials; ++g)
+    if (materials[g].texture != Texture::kChecker) seed_shift(materials[g].seed, shift[2 * g], shift[2 * g + 1]);
   const float* l = light.to_sun;
   direct.resize(n);
   // shading: albedo and the direct term max(0, n.l) (|n.l| without shadows); shadow rays clear it below
@@ -110,7 +114,8 @@ RenderResult render(const lidar::RaycastScene& scene, const View& view, const Su
                                 ? tiles.data + static_cast<std::size_t>(m.tile) * tiles.size * tiles.size
                                 : nullptr;
         if (tile || m.texture == Texture::kChecker)
-          f = pattern(m.texture, (a + m.offset[0]) / m.scale, (b + m.offset[1]) / m.scale, tile, tiles.size, m.seed);
+          f = pattern_shifted(m.texture, (a + m.offset[0]) / m.scale + shift[2 * gid[k]],
+                              (b + m.offset[1]) / m.scale + shift[2 * gid[k] + 1], tile, tiles.size, m.seed);
       }
       for (int i = 0; i < 3; ++i) rgb[i] = m.dark[i] + (m.albedo[i] - m.dark[i]) * f;
       float ndl = nrm[0] * l[0] + nrm[1] * l[1] + nrm[2] * l[2];
