@@ -12,7 +12,7 @@ label in ``classes``; see :mod:`cufund.worlds.labelled_objects`) and writes, in 
   (16-bit: class id + 1, 0 for background);
 - ``dataset.json``: the seed, the randomisation, the classes and the camera (what makes the dataset again).
 
-Every random draw (camera pose, object colours, light, exposure, noise, blur) comes from one
+Every random draw (camera pose, object colours and textures, light, shadows, exposure, noise, blur) comes from one
 ``numpy.random.Generator`` seeded with ``seed``: the same call writes the same files. Every tenth frame goes to
 ``val``. A frame looks at a randomly chosen labelled object from a random distance, height and bearing, with
 jitter (the camera inside the world's bounds and the target visible, up to 20 views cast);
@@ -34,6 +34,7 @@ from cufund.core.config import ConfigError
 from cufund.geometry import quat_from_matrix
 from cufund.sensors.camera import CameraIntrinsics, RgbCamera, d435_rgb, save_png
 from cufund.worlds.labelled_objects import CLASSES
+from cufund.worlds.materials import Material
 from cufund.worlds.world import World
 
 from .dataset_labels import ViewLabeller, ViewLabels
@@ -62,6 +63,13 @@ class Randomisation:
     """Chance that an object gets a new colour drawn uniformly in RGB (else its own, jittered) [-]."""
     colour_jitter: tuple[float, float] = (0.7, 1.3)
     """Factor on each RGB channel of a colour kept [-]."""
+    texture_probability: float = 0.5
+    """Chance that an object gets a procedural texture (checker, noise, brick, concrete or bark, random feature
+    size, contrast and seed; :mod:`cufund.worlds.materials`) over its colour [-]."""
+    texture_scale_m: tuple[float, float] = (0.05, 1.0)
+    """Feature size of a texture, drawn log-uniformly [m]."""
+    shadow_probability: float = 0.5
+    """Chance that a frame is rendered with hard shadows (one shadow ray per pixel) [-]."""
     light_elevation_deg: tuple[float, float] = (20.0, 90.0)
     """Elevation of the light's direction above the horizon [deg] (its azimuth is uniform)."""
     ambient: tuple[float, float] = (0.15, 0.6)
@@ -82,11 +90,13 @@ class Randomisation:
     """Camera roll [deg]."""
 
     def __post_init__(self) -> None:
-        p = self.recolour_probability
-        if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0.0 <= p <= 1.0:
-            raise ConfigError(f"randomisation.recolour_probability must be in [0, 1], got {p!r}")
+        for name in ("recolour_probability", "texture_probability", "shadow_probability"):
+            p = getattr(self, name)
+            if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0.0 <= p <= 1.0:
+                raise ConfigError(f"randomisation.{name} must be in [0, 1], got {p!r}")
         limits = {
             "colour_jitter": (0.0, 10.0),
+            "texture_scale_m": (1e-3, 1e3),
             "light_elevation_deg": (0.0, 90.0),
             "ambient": (0.0, 1.0),
             "exposure": (0.0, 10.0),
@@ -159,14 +169,27 @@ def _gaussian_blur(img: np.ndarray, sigma: float) -> np.ndarray:
     return img
 
 
+_TEXTURES = ("checker", "noise", "brick", "concrete", "bark")
+
+
 def _recoloured(world: World, rng: np.random.Generator, rnd: Randomisation) -> World:
+    """A copy of ``world`` (same objects, same ids) with each object's colour and texture drawn anew."""
     out = World(world.name)
     for o in world.objects:
         if rng.random() < rnd.recolour_probability:
             colour = rng.random(3)
         else:
             colour = np.clip(np.asarray(o.color) * rng.uniform(*rnd.colour_jitter, size=3), 0.0, 1.0)
-        out.add_mesh(o.vertices, o.triangles, o.label, colour, reflectivity=o.reflectivity)
+        material = None
+        if rng.random() < rnd.texture_probability:
+            material = Material(
+                albedo=tuple(float(c) for c in colour),  # type: ignore[arg-type]
+                texture=_TEXTURES[int(rng.integers(len(_TEXTURES)))],
+                scale=float(np.exp(rng.uniform(*np.log(rnd.texture_scale_m)))),
+                contrast=float(rng.uniform(0.2, 0.8)),
+                seed=int(rng.integers(2**32)),
+            )
+        out.add_mesh(o.vertices, o.triangles, o.label, colour, reflectivity=o.reflectivity, material=material)
     return out
 
 
@@ -215,7 +238,10 @@ def render_frame(
     ambient, exposure = rng.uniform(*rnd.ambient), rng.uniform(*rnd.exposure)
     noise, blur = rng.uniform(*rnd.noise_sigma), rng.uniform(*rnd.blur_sigma_px)
     painted = _recoloured(world, rng, rnd)
-    camera = RgbCamera(labeller.intrinsics, labeller.T_BC, light_W=light, ambient=ambient, nthreads=labeller.nthreads)
+    shadows = bool(rng.random() < rnd.shadow_probability)
+    camera = RgbCamera(
+        labeller.intrinsics, labeller.T_BC, light_W=light, ambient=ambient, nthreads=labeller.nthreads, shadows=shadows
+    )
     rendered = camera.render(painted, p, q)
     assert isinstance(rendered, np.ndarray)  # no ids asked for: the image alone
     img = rendered.astype(np.float64) * exposure
@@ -229,6 +255,7 @@ def render_frame(
         "exposure": exposure,
         "noise_sigma": noise,
         "blur_sigma_px": blur,
+        "shadows": shadows,
         "negative": bool(negative or not targets),
     }
     return image, labels, draws
