@@ -15,7 +15,9 @@ def test_vehicles_advance_together_and_answer_for_themselves():
         uav1, uav2 = live.vehicle("uav1"), live.vehicle("uav2")
         assert uav2.submit({"command": "arm"}).result(timeout=5).result == "accepted"
         assert uav2.submit({"command": "takeoff", "altitude": 1.5}).result(timeout=5).result == "accepted"
-        assert uav2.wait_until(lambda t: t["p_W"][2] > 1.4, 20.0)
+        assert uav2.wait_until(
+            lambda t: t.get("p_W") is not None and t["p_W"][2] > 1.4, 20.0
+        )  # (none before the first state)
         t1, t2 = uav1.telemetry(), uav2.telemetry()
         assert not t1["armed"] and t2["armed"]
         assert t1["p_W"][:2] == pytest.approx([0.0, 0.0], abs=0.05) and t1["p_W"][2] < 0.1
