@@ -332,6 +332,15 @@ def _odometry(args: argparse.Namespace) -> int:
         params, imu, lidar = LioParams(), "/sensors/imu", "/sensors/lidar"
         if "config" in meta:  # the scenario the log was recorded with: its extrinsics and IMU
             cfg = ScenarioConfig.from_dict(load_yaml_text(meta["config"], f"{args.log}: its recorded config"))
+            if cfg.estimator is not None and cfg.estimator.kind == "vio" and not bag:  # a log flown on the VIO
+                from cufund.estimation.kinds import vio_params
+                from cufund.estimation.vio_offline import run_vio_on_log
+
+                vp, imu_spec, cams = vio_params(cfg.estimator.params, ScenarioBuildContext(cfg))
+                figures = run_vio_on_log(args.log, vp, args.out, imu_spec.topic, (cams[0], cams[1]))
+                print(json.dumps(figures, indent=2))
+                print(f"odometry folder: {args.out.resolve()}")
+                return EXIT_COMPLETED
             if cfg.estimator is not None and cfg.estimator.kind == "lio":
                 params = cfg.estimator.params
             params, imu_spec, lidar_spec = lio_params(params, ScenarioBuildContext(cfg))

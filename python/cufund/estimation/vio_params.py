@@ -170,13 +170,13 @@ class VioParams:
     """[m] stereo points nearer than this are not used."""
     max_depth: float = 30.0
     """[m] stereo points farther than this are not used."""
-    pixel_sigma: float = 1.0
+    pixel_sigma: float = 0.5
     """Stereo measurement noise per coordinate [px]."""
     robust_k: float = 2.0
     """Huber threshold of the stereo factors, in sigmas."""
     kf_max_interval_s: float = 0.1
     """A frame becomes a keyframe (a smoother state) at least this often [s] ..."""
-    kf_min_parallax_px: float = 10.0
+    kf_min_parallax_px: float = 40.0
     """... or when the tracked features moved this much on average since the last keyframe [px] ..."""
     kf_min_tracked_ratio: float = 0.6
     """... or when fewer than this fraction of the last keyframe's features are still tracked."""

@@ -1,0 +1,52 @@
+"""A recorded square_vio run: ``cufund odometry`` reruns the VIO on its log, and the RMSE it reports is evo's APE
+of the TUM files it writes (issue 25)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+CUFUND = Path(sys.executable).with_name("cufund")
+
+
+@pytest.fixture(scope="module")
+def square_vio_log(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("square_vio") / "run"
+    proc = subprocess.run(
+        [str(CUFUND), "run", "square_vio", "--set", "duration=6", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert (out / "run.mcap").exists(), proc.stdout + proc.stderr
+    return out
+
+
+def test_recorded_square_vio_rmse_equals_evo_ape(square_vio_log, tmp_path):
+    from evo.core import metrics, sync
+    from evo.tools import file_interface
+
+    metrics_online = json.loads((square_vio_log / "metrics.json").read_text())
+    assert metrics_online["odometry_samples"] > 500  # the run flew on the VIO's IMU-rate estimate
+    proc = subprocess.run(
+        [str(CUFUND), "odometry", str(square_vio_log / "run.mcap"), "--out", str(tmp_path / "odo")],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    figures = json.loads((tmp_path / "odo" / "odometry.json").read_text())
+    assert figures["vio_frames"] > 50 and figures["vio_frames_skipped"] == 0 and figures["vio_unpaired_images"] == 0
+    assert figures["odometry_rmse_m"] < 0.05
+    ref = file_interface.read_tum_trajectory_file(str(tmp_path / "odo" / "truth.tum"))
+    est = file_interface.read_tum_trajectory_file(str(tmp_path / "odo" / "estimate.tum"))
+    ref, est = sync.associate_trajectories(ref, est, max_diff=1e-6)
+    ape = metrics.APE(metrics.PoseRelation.translation_part)
+    ape.process_data((ref, est))
+    # TUM files hold 9 decimals: the two agree to well below a micrometre
+    assert ape.get_statistic(metrics.StatisticsType.rmse) == pytest.approx(figures["odometry_rmse_m"], abs=1e-7)
+    assert ape.get_statistic(metrics.StatisticsType.max) == pytest.approx(figures["odometry_max_m"], abs=1e-7)
