@@ -102,3 +102,26 @@ def test_a_single_camera_rig_from_one_extrinsic():
     assert cam.T_BC.t == (0.1, 0.0, 0.05) and p.camera_topics(1) == ("/sensors/front/image",)
     with pytest.raises(ConfigError, match="need one topic per camera"):
         StereoCameraParams(topics=["/a"])
+
+
+def test_the_rig_round_trips_through_the_scenario_dict_and_a_missing_camchain_is_named(tmp_path):
+    import yaml
+
+    ext = [{"p": [0.1, 0.05, 0.0], "q": [1, 0, 0, 0]}, {"p": [0.1, -0.05, 0.0], "q": [0.0, 0.0, 0.0, 1.0]}]
+    eq = {
+        "width": 32,
+        "height": 24,
+        "fx": 20.0,
+        "fy": 20.0,
+        "cx": 15.5,
+        "cy": 11.5,
+        "distortion_model": "equidistant",
+        "distortion": [0.01, 0.0, 0.0, 0.0],
+    }
+    cfg = ScenarioConfig.from_dict(_scenario(extrinsics=ext, intrinsics=eq, shutter="rolling", color="rgb"))
+    again = ScenarioConfig.from_dict(yaml.safe_load(yaml.safe_dump(cfg.to_dict())))
+    assert again.sensors["stereo"].params == cfg.sensors["stereo"].params
+    assert again.sensors["stereo"].params.cameras()[1].T_BC.q == (0.0, 0.0, 0.0, 1.0)
+    cfg = ScenarioConfig.from_dict(_scenario(calibration="missing.yaml"), base_dir=tmp_path)
+    with pytest.raises(ConfigError, match="calibration: no Kalibr camchain file"):
+        build_simulation(cfg)
