@@ -148,12 +148,12 @@ def test_projections_equal_opencv(model):
 
 def _quad_obj(tmp_path, texture_name="tex.png"):
     (tmp_path / "quad.obj").write_text(
-        "mtllib quad.mtl\n"
+        "mtllib materials.mtl\n"
         "v 0 1 -1\nv 0 -1 -1\nv 0 -1 1\nv 0 1 1\n"  # a 2 m square in the x = 0 plane facing -x
         "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
         "usemtl m\nf 1/1 3/3 2/2\nf 1/1 4/4 3/3\n"
     )
-    (tmp_path / "quad.mtl").write_text(f"newmtl m\nKd 1 1 1\nmap_Kd {texture_name}\n")
+    (tmp_path / "materials.mtl").write_text(f"newmtl m\nKd 1 1 1\nmap_Kd {texture_name}\n")  # as mtllib names it
 
 
 def test_an_image_texture_is_read_through_the_obj_uvs(tmp_path):

@@ -321,6 +321,11 @@ def _mesh_texture(mesh: Any, path: Path) -> tuple[np.ndarray | None, Material | 
     if uv.ndim != 2 or uv.shape != (len(mesh.vertices), 2) or not np.all(np.isfinite(uv)):
         raise ValueError(f"mesh file {str(path)!r}: texture coordinates must be one finite (u, v) per vertex")
     mtl = path.with_suffix(".mtl")
+    if path.suffix.lower() == ".obj":  # the MTL the OBJ names (mtllib), else the OBJ's name with .mtl
+        for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+            if line.startswith("mtllib ") and line.split(maxsplit=1)[1].strip():
+                mtl = path.parent / line.split(maxsplit=1)[1].strip()
+                break
     image = None
     if mtl.is_file():
         for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
