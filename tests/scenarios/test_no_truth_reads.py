@@ -34,7 +34,7 @@ from cufund.vehicle.quadrotor import Quadrotor
 from cufund.worlds.collision import CollisionChecker
 from cufund.worlds.world import World, WorldObject
 
-SCENARIOS = ["square_lio", "square_mocap", "square_policy", "forest", "forest_global", "tunnel", "vehicle_lio"]
+SCENARIOS = ["square_lio", "square_mocap", "square_policy", "forest", "forest_global", "tunnel", "vehicle_lio", "square_vio"]
 
 TRUTH_TYPES = (
     World,
@@ -118,7 +118,7 @@ def _flight(built) -> list[tuple[str, Component]]:
 def test_flight_software_reads_no_truth_topic(built):
     sim = built.simulator
     flight = _flight(built)
-    assert any(n in ("lio", "imu_propagator") for n, _ in flight)  # it flies on an estimate
+    assert any(n in ("lio", "vio", "imu_propagator") for n, _ in flight)  # it flies on an estimate
     assert any("controller" in n for n, _ in flight)
     for name, c in flight:
         assert not c.reads_truth, f"{name} ({type(c).__name__}) declares itself a truth consumer"
