@@ -9,9 +9,9 @@ from . import perception
 from . import esdf
 from . import odometry
 from . import planning
-from . import render
 from . import logs
 from . import envs
+from . import render
 __all__: list[str] = ['control', 'dynamics', 'envs', 'esdf', 'lidar', 'logs', 'odometry', 'perception', 'planning', 'render', 'thread_pool_size']
 def thread_pool_size() -> int:
     """
