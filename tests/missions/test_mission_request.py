@@ -255,6 +255,8 @@ def test_free_text_goes_to_the_configured_endpoint_and_through_the_same_schema(c
         ('{"mission": "survey", "area": [[0, 0], [1' + "0" * 400 + ", 0], [0, 1]]}", "finite numbers"),
         (json.dumps({"mission": "orbit", "center": [4, 2], "radius": 3, "exec": "rm -rf /"}), "unknown field"),
         (json.dumps({"mission": "self_destruct"}), "mission must be one of"),
+        (json.dumps({"mission": ["orbit"], "center": [4, 2], "radius": 3}), "mission must be one of"),
+        (json.dumps({"mission": {"kind": "orbit"}}), "mission must be one of"),
         (json.dumps({"mission": "orbit", "center": [400, 2], "radius": 3}), "outside the geofence"),
         (json.dumps({"mission": "go_home", "vehicles": ["uav1; drop table"]}), "not a name"),
         (json.dumps(["orbit", 4, 2]), "not a JSON object"),
@@ -347,7 +349,7 @@ _JSON = hs.recursive(
 
 @settings(max_examples=300, deadline=None)
 @given(
-    hs.sampled_from(["zigzag", "orbit", "survey", "go_home", "waypoints", "formation", None, 3]),
+    hs.sampled_from(["zigzag", "orbit", "survey", "go_home", "waypoints", "formation", None, 3]) | _JSON,
     hs.dictionaries(
         hs.sampled_from(
             [

@@ -545,7 +545,7 @@ def mission_from_data(data: Any, fleet: Any = None, area: Any = None, vehicles: 
     if not isinstance(data, Mapping):
         raise MissionRequestError(f"a mission must be a JSON object, got {type(data).__name__}")
     kind = data.get("mission")
-    if kind not in _FIELDS:
+    if not isinstance(kind, str) or kind not in _FIELDS:  # a list or an object is no kind (nor hashable)
         raise MissionRequestError(f"mission must be one of {', '.join(MISSIONS)}, got {kind!r}"[:300])
     cls, required, optional = _FIELDS[kind]
     unknown = [k for k in data if k != "mission" and k not in required + optional]
