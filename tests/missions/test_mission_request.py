@@ -261,6 +261,7 @@ def test_free_text_goes_to_the_configured_endpoint_and_through_the_same_schema(c
         (json.dumps({"mission": "go_home", "vehicles": ["uav1; drop table"]}), "not a name"),
         (json.dumps(["orbit", 4, 2]), "not a JSON object"),
         ("Sure! I will orbit the barn.", "not valid JSON"),
+        ('{"mission": "orbit", "center": ' + "[" * 50000 + "]" * 50000 + "}", "nested too deeply"),
         (json.dumps({"mission": None, "reason": "I cannot fly to the moon"}), "found no mission"),
     ],
 )
@@ -276,6 +277,9 @@ def test_bad_replies_are_refused(chat):
         parse_mission("do the thing", FLEET)
     chat.raw = b'{"choices": []}'
     with pytest.raises(MissionRequestError, match="not an OpenAI chat completion"):
+        parse_mission("do the thing", FLEET)
+    chat.raw = b"[" * 100000 + b"]" * 100000
+    with pytest.raises(MissionRequestError, match="not an OpenAI chat completion: nested too deeply"):
         parse_mission("do the thing", FLEET)
     chat.raw = b" " * (300 * 1024)
     with pytest.raises(MissionRequestError, match="over .* bytes"):

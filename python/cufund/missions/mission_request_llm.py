@@ -5,7 +5,7 @@ Configured only from the environment, never shipped: ``CUFUND_LLM_BASE_URL`` (e.
 ``{base}/chat/completions`` and nowhere else (no proxy from the environment, no redirects followed); the answer's
 message must be one JSON object in the data form of :mod:`cufund.missions.mission_request_schema`, and
 :func:`cufund.missions.parse_mission` validates it exactly as the grammar's output. Anything else (no endpoint, an
-HTTP or network error, a reply that is too large, not JSON, NaN or infinite numbers) raises
+HTTP or network error, a reply that is too large, not JSON, nested too deeply, NaN or infinite numbers) raises
 :class:`MissionRequestError` saying what.
 """
 
@@ -80,7 +80,10 @@ def _no_constant(name: str) -> Any:
 
 
 def _loads(text: str) -> Any:
-    return json.loads(text, parse_float=_finite, parse_constant=_no_constant)
+    try:
+        return json.loads(text, parse_float=_finite, parse_constant=_no_constant)
+    except RecursionError:  # '[[[[...' within MAX_REPLY_BYTES: the decoder recurses once a level
+        raise ValueError("nested too deeply") from None
 
 
 def _prompt(ctx: FleetContext) -> str:
