@@ -92,6 +92,13 @@ def test_yolo_layout_decodes_centre_size_boxes(tmp_path):
     out = det.detect(np.zeros((64, 64, 3), np.uint8))
     np.testing.assert_allclose(out.boxes_xyxy, [[15, 20, 25, 40], [16, 20, 26, 40]])
     assert out.class_ids.tolist() == [1, 0]
+    # the same anchors first, (1, N, 4 + nc), with more anchors than channels
+    wide = np.zeros((1, 7, 12), np.float32)  # a third class, never scored; 12 anchors
+    wide[:, :6, :3] = pred
+    det_t = OnnxDetector(_model({"output0": wide.transpose(0, 2, 1).copy()}, tmp_path / "t.onnx"), conf=0.25)
+    assert det_t.layout == "yolo" and det_t.num_classes == 3
+    out_t = det_t.detect(np.zeros((64, 64, 3), np.uint8))
+    np.testing.assert_allclose(out_t.boxes_xyxy, out.boxes_xyxy)
 
 
 # --- bad input ---------------------------------------------------------------------------------------

@@ -3,7 +3,8 @@
 The output layout is chosen from the model's outputs:
 
 - ``yolo``: one output (1, 4 + nc, N) — ultralytics' YOLOv8 / YOLO11 export: per anchor a box (centre u, centre
-  v, width, height) in input pixels and nc class scores in [0, 1];
+  v, width, height) in input pixels and nc class scores in [0, 1]; (1, N, 4 + nc), anchors first, when the
+  second dimension is the larger and the last more than 4 (N > 4 + nc, as every real YOLO's is);
 - ``end2end``: one output (1, N, 6) — rows (u_min, v_min, u_max, v_max, score, class) in input pixels, already
   suppressed (YOLOv10 / YOLO26-style exports); only the score threshold applies;
 - ``ssd``: two outputs, boxes (1, N, 4) as (u_min, v_min, u_max, v_max) and scores (1, N, nc) — in input pixels,
@@ -113,6 +114,7 @@ class OnnxDetector:
             raise ValueError(f"nthreads must be an integer in [0, 256], got {nthreads!r}")
         self.conf, self.iou, self.max_det = float(conf), float(iou), int(max_det)
         self.model_path = Path(model)
+        self._anchors_first = False
         self._session = self._open(self.model_path, nthreads)
         meta = self._session.get_modelmeta().custom_metadata_map
         self._input = self._check_input(imgsz, meta)
@@ -187,8 +189,11 @@ class OnnxDetector:
             c, n = _dim(shapes[0][1]), _dim(shapes[0][2])
             if n == 6 and not (end2end == "False" and c is not None and c > 4):
                 return "end2end", None
-            if c is not None and c > 4:
+            if c is not None and c > 4 and (n is None or n <= 4 or c <= n):
                 return "yolo", c - 4
+            if n is not None and n > 4 and c is not None and c > n:  # (1, N, 4 + nc): anchors first
+                self._anchors_first = True
+                return "yolo", n - 4
         if len(outs) == 2 and all(len(s) == 3 for s in shapes):
             b, s = (0, 1) if _dim(shapes[0][2]) == 4 else (1, 0)
             nc = _dim(shapes[s][2])
@@ -251,6 +256,8 @@ class OnnxDetector:
             return rows[:, :4], rows[:, 4], rows[:, 5].astype(np.int64)
         if self.layout == "yolo":
             pred = np.asarray(outputs[0], dtype=np.float32)
+            if self._anchors_first:
+                pred = pred.transpose(0, 2, 1)
             if pred.ndim != 3 or pred.shape[0] != 1 or pred.shape[1] != 4 + (self.num_classes or 0):
                 raise ValueError(
                     f"{self.model_path}: output of shape {pred.shape}, expected (1, {4 + (self.num_classes or 0)}, N)"
