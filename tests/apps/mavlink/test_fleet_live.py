@@ -56,3 +56,15 @@ def test_scripted_commands_are_for_cufund_run_not_a_live_fleet():
     assert all(v.commander.params.script == () for v in live.vehicles.values())
     scripted = LiveFleet(cfg, start=False, script=True)
     assert all(len(v.commander.params.script) == 2 for v in scripted.vehicles.values())
+
+
+def test_a_live_vehicle_outlives_its_scenarios_mission():
+    """A served vehicle's run does not end where ``cufund run``'s would (as a single live run's does not): one left
+    out of the scenario's fleet mission still answers its operator."""
+    live = LiveFleet("fleet_survey", ["mission.request=survey the field with uav1 and uav2 at 4 m"], speed=float("inf"))
+    try:
+        assert live.vehicle("uav1").wait_until(lambda t: t["armed"], 20.0)  # the mission has started
+        ack = live.vehicle("uav3").submit({"command": "arm"}).result(timeout=5)
+        assert ack.result == "accepted" and live.ended is None
+    finally:
+        live.stop()

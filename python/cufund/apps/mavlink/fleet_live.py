@@ -170,7 +170,9 @@ class LiveFleet:
                 config = _without_scripts(config)
             from cufund.scenarios.fleet import build_fleet  # type: ignore[import-not-found, unused-ignore]
 
-            fleet = build_fleet(config)
+            # a live vehicle's run never ends where `cufund run`'s would (landed after its reference, or the
+            # scenario's mission through): as a single LiveRun's, it goes on for its operator until stopped
+            fleet = build_fleet(config, until_done=False)
         self.fleet = fleet
         self.config = config if config is not None else getattr(fleet, "config", None)
         self.names: tuple[str, ...] = tuple(fleet.names)
