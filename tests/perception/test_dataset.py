@@ -240,3 +240,19 @@ def test_scattered_objects_stand_on_free_ground():
         for t in trees:
             gap = np.hypot(*(o.vertices[:, :2] - t.vertices[:, :2].mean(0)).T).min()
             assert gap > 0.4  # outside every trunk
+
+
+def test_a_distorted_camera_counts_the_unoccluded_pixels_through_its_own_rays():
+    """With lens distortion the canvas is not the image: the object alone is cast through the image's own rays,
+    which the depth camera (the same lens) sees too."""
+    Kd = CameraIntrinsics(64, 48, 80.0, 80.0, 31.5, 23.5, distortion=(-0.2, 0.05, 0.001, -0.001, 0.0))
+    w = World()
+    _plate(w, (-1.0, 1.0), (0.5, 1.5), 10.0, "person")
+    _plate(w, (0.1, 3.0), (0.0, 3.0), 5.0, "wall")
+    (obj,) = ViewLabeller(w, Kd, lo.CLASSES).label(EYE, yaw_quaternion(0.0)).objects
+    alone = World()
+    _plate(alone, (-1.0, 1.0), (0.5, 1.5), 10.0, "person")
+    depth = DepthCamera(Kd, depth_max=100.0).render(alone, EYE, yaw_quaternion(0.0))
+    assert isinstance(depth, np.ndarray)
+    assert obj.unoccluded_px == int(np.isfinite(depth).sum()) > obj.visible_px > 0
+    assert obj.occlusion == pytest.approx(1 - obj.visible_px / obj.unoccluded_px)
