@@ -306,7 +306,15 @@ def _iterate(path: Path, reader: Any, connections: list[Any]) -> Iterator[LogRec
     try:
         if not connections:
             return
-        for conn, timestamp, raw in reader.messages(connections=connections):
+        messages = reader.messages(connections=connections)
+        while True:
+            try:
+                item = next(messages, None)
+            except Exception as exc:  # the storage's errors: a damaged chunk or record, a failed decompression
+                raise BagReadError(f"{str(path)!r}: cannot read the bag's messages: {exc}") from exc
+            if item is None:
+                return
+            conn, timestamp, raw = item
             where = f"{str(path)!r}: topic {conn.topic} at {timestamp} ns"
             if conn.msgtype.endswith("/msg/CustomMsg"):  # Livox: read straight from the CDR (numpy)
                 yield LogRecord(conn.topic, timestamp, timestamp, _livox(raw, where))

@@ -458,3 +458,49 @@ def test_the_lio_on_a_played_bag_equals_it_on_the_played_log(run, bag):
     assert len(on_log["t"]) > 300
     for field in ("t", "p_W", "v_W", "q_WB"):
         assert np.asarray(on_bag[field]).tobytes() == np.asarray(on_log[field]).tobytes(), field
+
+
+def _imu_bag(path, storage, n):
+    """A bag written by rosbags of ``n`` sensor_msgs/Imu on /imu (angular_velocity.z = 1000.5 + i)."""
+    from cufund.logs.rosbag2_reader import rosbags_typestore
+
+    T = rosbags_typestore().types
+    Vector3 = T["geometry_msgs/msg/Vector3"]
+    msgs = [
+        T["sensor_msgs/msg/Imu"](
+            header=_header(rosbags_typestore(), 10**9 + i, "imu"),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=0, y=0, z=0, w=1),
+            orientation_covariance=np.zeros(9),
+            angular_velocity=Vector3(x=0.0, y=0.0, z=1000.5 + i),
+            angular_velocity_covariance=np.zeros(9),
+            linear_acceleration=Vector3(x=0.0, y=0.0, z=9.81),
+            linear_acceleration_covariance=np.zeros(9),
+        )
+        for i in range(n)
+    ]
+    _rosbags_bag(path, storage, [("/imu", "sensor_msgs/msg/Imu", [(10**9 + i, m) for i, m in enumerate(msgs)])])
+
+
+def test_a_damaged_bag_is_a_clear_error_while_reading(tmp_path, capsys):
+    """The first record of an MCAP-stored bag with a length past its chunk (a damaged file that still opens) is a
+    BagReadError naming the bag, and `cufund odometry` on it exits 2 with it, not a traceback of rosbags' own."""
+    import struct
+
+    from cufund.logs.rosbag2_reader import BagReadError, read_rosbag2
+
+    path = tmp_path / "damaged"
+    _imu_bag(path, "mcap", 50)
+    assert len(list(read_rosbag2(path))) == 50
+    mcap = next(path.glob("*.mcap"))
+    data = bytearray(mcap.read_bytes())
+    # the first Message record: opcode 0x05, uint64 length, uint16 channel, uint32 sequence, log and publish time
+    at = data.find(struct.pack("<QQ", 10**9, 10**9)) - 15
+    assert data[at] == 0x05 and struct.unpack_from("<Q", data, at + 1)[0] < 1000
+    struct.pack_into("<Q", data, at + 1, 1 << 40)
+    mcap.write_bytes(bytes(data))
+    with pytest.raises(BagReadError, match="cannot read the bag's messages"):
+        list(read_rosbag2(path))
+    capsys.readouterr()
+    args = ["--imu-topic", "/imu", "--lidar-topic", "/imu", "--truth-topic", "/imu"]
+    assert main(["odometry", str(path), "--out", str(tmp_path / "o"), *args]) == 2
+    assert "cannot read the bag's messages" in capsys.readouterr().err
