@@ -137,7 +137,14 @@ def bag_custom_data(path: str | os.PathLike[str]) -> dict[str, str]:
         data = meta["rosbag2_bagfile_information"].get("custom_data") or {}
     except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError) as exc:
         raise BagReadError(f"{str(path)!r}: unreadable metadata.yaml: {exc}") from exc
-    return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else {}
+    if not isinstance(data, dict):
+        return {}
+    # rosbag2's custom_data maps strings to strings: a list or mapping (whose aliases could make its text
+    # exponentially long) is refused before anything is turned into text
+    for k, v in data.items():
+        if isinstance(v, (list, dict)):
+            raise BagReadError(f"{str(path)!r}: metadata.yaml: custom_data {k!r} is not a string")
+    return {str(k): str(v) for k, v in data.items()}
 
 
 def _stamp(header: Any) -> int:

@@ -504,3 +504,26 @@ def test_a_damaged_bag_is_a_clear_error_while_reading(tmp_path, capsys):
     args = ["--imu-topic", "/imu", "--lidar-topic", "/imu", "--truth-topic", "/imu"]
     assert main(["odometry", str(path), "--out", str(tmp_path / "o"), *args]) == 2
     assert "cannot read the bag's messages" in capsys.readouterr().err
+
+
+def test_custom_data_that_is_not_text_is_refused(tmp_path, capsys):
+    """A metadata.yaml whose custom_data holds a list built of aliases (each level ten of the previous: text of
+    10^6 items here, 10^9 and a hang a few lines further) is refused by name before any of it is made text; strings
+    and scalars are read."""
+    from cufund.logs.rosbag2_reader import BagReadError, bag_custom_data
+
+    path = tmp_path / "bag"
+    _imu_bag(path, "sqlite3", 2)
+    meta = (path / "metadata.yaml").read_text()
+    assert "custom_data: null" in meta
+    levels = ["a: &a [x, x, x, x, x, x, x, x, x, x]"]
+    for prev, name in zip("abcde", "bcdef", strict=True):
+        levels.append(f"{name}: &{name} [{', '.join([f'*{prev}'] * 10)}]")
+    laughs = meta.replace("custom_data: null", "custom_data:\n    version: 2\n    " + "\n    ".join(levels))
+    (path / "metadata.yaml").write_text(laughs)
+    with pytest.raises(BagReadError, match="custom_data 'a' is not a string"):
+        bag_custom_data(path)
+    assert main(["odometry", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "custom_data 'a' is not a string" in capsys.readouterr().err
+    (path / "metadata.yaml").write_text(meta.replace("custom_data: null", "custom_data:\n    n: 2\n    s: text"))
+    assert bag_custom_data(path) == {"n": "2", "s": "text"}
