@@ -114,3 +114,29 @@ def test_bad_camchains_get_errors_naming_the_camera_and_key(tmp_path):
     K = CameraIntrinsics(8, 8, 4, 4, 3.5, 3.5, (0.0, 0.0, 0.0, 0.0, 0.1))
     with pytest.raises(ValueError, match="Kalibr's radtan has no k3"):
         dump_kalibr([CameraCalibration(K)], tmp_path / "x.yaml")
+
+
+def test_hostile_camchains_raise_value_errors_only(tmp_path):
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    leaf = st.one_of(st.none(), st.booleans(), st.floats(), st.integers(), st.text(max_size=5))
+    values = st.recursive(leaf, lambda c: st.lists(c, max_size=5) | st.dictionaries(st.text(max_size=8), c, max_size=5))
+    keys = st.sampled_from(["cam0", "cam1", "camera_model", "intrinsics", "T_cam_imu", "resolution", "x"])
+    field = st.sampled_from(list(EUROC_CAM0) + ["T_cam_imu", "T_cn_cnm1"])
+
+    @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+    @given(st.dictionaries(keys, values, max_size=3), st.dictionaries(field, values, max_size=3))
+    def check(top, cam):
+        path = tmp_path / "fuzz.yaml"
+        for data in (top, {"cam0": {**EUROC_CAM0, "T_cam_imu": np.eye(4).tolist(), **cam}}):
+            try:
+                path.write_text(yaml.safe_dump(data))
+            except (yaml.YAMLError, ValueError):
+                continue
+            try:
+                load_kalibr(path)
+            except ValueError:
+                pass
+
+    check()

@@ -88,10 +88,10 @@ def load_kalibr(path: str | Path, T_BI: Transform | None = None) -> tuple[Camera
         if not isinstance(cam, dict):
             raise ValueError(f"{where} must be a mapping, got {cam!r}")
         model = cam.get("camera_model", "pinhole")
-        if model != "pinhole":
+        if not isinstance(model, str) or model != "pinhole":
             raise ValueError(f"{where}.camera_model must be pinhole (omni, eucm, ds are not simulated), got {model!r}")
         dmodel = cam.get("distortion_model", "none")
-        if dmodel not in _MODELS:
+        if not isinstance(dmodel, str) or dmodel not in _MODELS:
             raise ValueError(f"{where}.distortion_model must be one of {', '.join(_MODELS)}, got {dmodel!r}")
         n = 4
         coeffs = _numbers(cam.get("distortion_coeffs", [0.0] * n), n, f"{where}.distortion_coeffs")
