@@ -68,3 +68,14 @@ def test_a_live_vehicle_outlives_its_scenarios_mission():
         assert ack.result == "accepted" and live.ended is None
     finally:
         live.stop()
+
+
+def test_each_vehicles_controller_gains_are_its_parameters():
+    """As on a single served vehicle, the controllers' gains are parameters (PX4's names), each vehicle's own."""
+    with LiveFleet(fleet_config(2), speed=float("inf")) as live:
+        uav1, uav2 = live.vehicle("uav1"), live.vehicle("uav2")
+        before = uav1.submit({"command": "get_params"}).result(timeout=5).data["MC_ROLL_P"]
+        ack = uav2.submit({"command": "set_param", "name": "MC_ROLL_P", "value": before + 1.0}).result(timeout=5)
+        assert ack.result == "accepted", ack
+        assert uav2.submit({"command": "get_params"}).result(timeout=5).data["MC_ROLL_P"] == before + 1.0
+        assert uav1.submit({"command": "get_params"}).result(timeout=5).data["MC_ROLL_P"] == before

@@ -25,6 +25,7 @@ from typing import Any
 
 from cufund.core.messages import Topics
 from cufund.missions.commander import Commander
+from cufund.missions.controller_params import controller_param_provider
 from cufund.missions.events import EventLog
 
 from ..live import _KEEP_BLOCKS, RECORD_HZ, LiveRun
@@ -64,7 +65,16 @@ class FleetVehicleRun(LiveRun):
         self.config = getattr(vehicle, "config", None) or config
         found = [c for c in getattr(sim, "components", ()) if isinstance(c, Commander)]
         self.commander = getattr(vehicle, "commander", None) or (found[0] if found else None)
-        self.events: EventLog = self.commander.events if self.commander is not None else EventLog()
+        self.events: EventLog = (
+            self.commander.events
+            if self.commander is not None
+            else next(
+                (e for c in getattr(sim, "components", ()) if isinstance(e := getattr(c, "events", None), EventLog)),
+                EventLog(),
+            )
+        )  # as LiveRun: without a commander, the failsafe supervisor's
+        if self.commander is not None:  # as LiveRun: the controllers' gains by PX4 name (get_params / set_param)
+            self.commander.param_providers.append(controller_param_provider(getattr(sim, "components", ())))
         self._tap = _Snapshot()  # type: ignore[assignment]
         self._errors: dict[str, int] = {}
         for c in getattr(sim, "components", ()):
