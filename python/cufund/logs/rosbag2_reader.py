@@ -171,8 +171,15 @@ def _cloud(msg: Any, where: str) -> Any:
     if missing:
         raise BagReadError(f"{where}: a PointCloud2 without the field(s) {missing} (it has {sorted(fields)})")
     n, step = int(msg.height) * int(msg.width), int(msg.point_step)
-    if not 0 < step <= 65536 or n * step > len(msg.data) or any(v[1] is None for v in fields.values()):
-        raise BagReadError(f"{where}: a PointCloud2 with bad sizes or datatypes (point_step {step}, {n} points)")
+    if (
+        not 0 < step <= 65536
+        or n * step > len(msg.data)
+        or any(kind is None or offset + np.dtype(kind).itemsize > step for offset, kind in fields.values())
+    ):
+        raise BagReadError(
+            f"{where}: a PointCloud2 with bad sizes, offsets or datatypes (point_step {step}, {n} points, "
+            f"fields {[(f.name, int(f.offset), int(f.datatype)) for f in msg.fields]})"
+        )
     end = ">" if msg.is_bigendian else "<"
     names = list(fields)
     dtype = np.dtype(

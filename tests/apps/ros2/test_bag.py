@@ -527,3 +527,17 @@ def test_custom_data_that_is_not_text_is_refused(tmp_path, capsys):
     assert "custom_data 'a' is not a string" in capsys.readouterr().err
     (path / "metadata.yaml").write_text(meta.replace("custom_data: null", "custom_data:\n    n: 2\n    s: text"))
     assert bag_custom_data(path) == {"n": "2", "s": "text"}
+
+
+def test_a_pointcloud2_field_past_its_point_step_is_refused(tmp_path):
+    """A PointCloud2 whose field lies past its point_step (z at byte 100 of a 12-byte point) is a BagReadError
+    naming the message and its fields, not numpy's error about a dtype."""
+    from cufund.logs.rosbag2_reader import BagReadError, read_rosbag2, rosbags_typestore
+
+    store = rosbags_typestore()
+    cloud = _cloud2(store, 10**9, ["x", "y", "z"], ["<f4"] * 3, {k: np.zeros(4) for k in "xyz"})
+    cloud.fields[2].offset = 100
+    path = tmp_path / "bag"
+    _rosbags_bag(path, "sqlite3", [("/points", "sensor_msgs/msg/PointCloud2", [(10**9, cloud)])])
+    with pytest.raises(BagReadError, match=r"topic /points at 1000000000 ns: .*offsets.*\('z', 100, 7\)"):
+        list(read_rosbag2(path))
