@@ -254,3 +254,24 @@ def test_rendered_textures_equal_the_material_at_the_hit_points(texture):
     expect = mat.albedo_at(p_W, np.tile([-1.0, 0.0, 0.0], (len(p_W), 1)))
     np.testing.assert_allclose(img.reshape(-1, 3) / 255.0, expect, atol=1.0 / 255 + 1e-3)
     assert np.std(img) > 10  # a texture, not a flat colour
+
+
+def test_hostile_png_textures_raise_value_errors_only(tmp_path):
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    good = tmp_path / "good.png"
+    save_png(good, np.zeros((3, 5, 3), np.uint8))
+    png = good.read_bytes()
+
+    @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+    @given(st.integers(0, len(png)), st.binary(max_size=40), st.integers(0, len(png)))
+    def check(at, junk, cut):
+        path = tmp_path / f"t{at}_{cut}_{len(junk)}.png"
+        path.write_bytes((png[:at] + junk + png[at:])[: max(cut, 1)])
+        try:
+            Material(texture="image", image=str(path))
+        except ValueError:
+            pass
+
+    check()

@@ -212,7 +212,7 @@ def sample_image(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
 @functools.lru_cache(maxsize=32)
 def _load_image(path: str) -> np.ndarray:
     """An image texture as (H, W, 3) float in [0, 1]; a clear error for anything but a readable PNG."""
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image
 
     p = Path(path)
     if not p.is_file():
@@ -227,7 +227,10 @@ def _load_image(path: str) -> np.ndarray:
                     f"material.image {path!r} must be between 1x1 and {MAX_IMAGE_SIDE}x{MAX_IMAGE_SIDE} px, got {w}x{h}"
                 )
             arr = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
-    except (UnidentifiedImageError, OSError, SyntaxError, Image.DecompressionBombError) as e:
+    except ValueError:
+        raise
+    except Exception as e:  # Pillow raises many kinds on a hostile file (UnidentifiedImageError, OSError,
+        # SyntaxError, struct.error, EOFError, DecompressionBombError, ...): each is "not a readable PNG"
         raise ValueError(f"material.image {path!r} is not a readable PNG: {type(e).__name__}: {e}") from None
     if arr.shape != (h, w, 3):
         raise ValueError(f"material.image {path!r} decoded to shape {arr.shape}, expected ({h}, {w}, 3)")
