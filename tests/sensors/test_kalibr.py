@@ -140,3 +140,18 @@ def test_hostile_camchains_raise_value_errors_only(tmp_path):
                 pass
 
     check()
+
+
+def test_camera_info_fields_round_trip_and_are_checked():
+    for model, D in (("radtan", (-0.28, 0.07, 0.0002, 1.8e-5, 0.01)), ("equidistant", (0.01, -0.02, 0.003, 0.0))):
+        K = CameraIntrinsics(752, 480, 458.6, 457.3, 367.2, 248.4, D, model)
+        info = K.camera_info()
+        assert info["distortion_model"] == ("plumb_bob" if model == "radtan" else "equidistant")
+        assert info["K"] == [458.6, 0.0, 367.2, 0.0, 457.3, 248.4, 0.0, 0.0, 1.0]
+        assert CameraIntrinsics.from_camera_info(yaml.safe_load(yaml.safe_dump(info))) == K
+    with pytest.raises(ValueError, match=r"camera_info.K must be \[\[fx, 0, cx\]"):
+        CameraIntrinsics.from_camera_info({"width": 8, "height": 8, "K": [1, 2, 3, 4, 5, 6, 7, 8, 9]})
+    with pytest.raises(ValueError, match="distortion_model must be one of"):
+        CameraIntrinsics.from_camera_info(
+            {"width": 8, "height": 8, "K": np.eye(3).ravel().tolist(), "distortion_model": "fov"}
+        )

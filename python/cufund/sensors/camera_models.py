@@ -120,6 +120,29 @@ class CameraIntrinsics:
             "K": [float(x) for x in self.K.ravel()],
         }
 
+    @classmethod
+    def from_camera_info(cls, info: Any) -> CameraIntrinsics:
+        """From ROS ``camera_info`` fields: width, height, K (9 numbers, row-major), D and distortion_model
+        (plumb_bob, radtan or equidistant); the inverse of :meth:`camera_info`."""
+        if not isinstance(info, dict):
+            raise ValueError(f"camera_info must be a mapping with width, height, K, D, distortion_model, got {info!r}")
+        missing = [k for k in ("width", "height", "K") if k not in info]
+        if missing:
+            raise ValueError(f"camera_info: missing key {missing[0]!r}")
+        try:
+            K = np.asarray(info["K"], dtype=float).reshape(3, 3)
+        except (TypeError, ValueError):
+            raise ValueError(f"camera_info.K must be 9 numbers (row-major 3x3), got {info['K']!r}") from None
+        if K[0, 1] != 0.0 or np.any(K[2] != (0.0, 0.0, 1.0)) or K[1, 0] != 0.0:
+            raise ValueError(f"camera_info.K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], got {K.tolist()}")
+        model = info.get("distortion_model", "plumb_bob")
+        models = {"plumb_bob": "radtan", "radtan": "radtan", "equidistant": "equidistant"}
+        if not isinstance(model, str) or model not in models:
+            raise ValueError(f"camera_info.distortion_model must be one of {', '.join(models)}, got {model!r}")
+        n = DISTORTION_MODELS[models[model]]
+        D = info.get("D") or [0.0] * n
+        return cls(info["width"], info["height"], K[0, 0], K[1, 1], K[0, 2], K[1, 2], tuple(D), models[model])
+
     def project(self, p_O: np.ndarray) -> np.ndarray:
         """(N, 3) points in the optical frame (z > 0) -> (N, 2) distorted pixel coordinates (u, v)."""
         p_O = np.asarray(p_O, dtype=float)
