@@ -140,3 +140,51 @@ def test_a_fleet_with_its_own_mission_waits_for_start():
         assert r["acks"]["fleet"]["result"] == "denied" and "started" in r["acks"]["fleet"]["message"]
     with GcsProcess("fleet_survey", "--speed", "5", "--autostart") as g:
         assert not state(g)["held"] and wait_for(lambda: state(g)["t"] > 1.0, 10)
+
+
+def test_the_station_answers_while_a_chat_endpoint_thinks(monkeypatch):
+    """Free text goes to the chat endpoint (up to its 30 s timeout): meanwhile the station still shows the fleet and
+    takes commands (an operator's 'land all' must not wait for a language model)."""
+    import threading
+    import time
+    from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+
+    asked, answer = threading.Event(), threading.Event()
+
+    class SlowChat(BaseHTTPRequestHandler):
+        def do_POST(self) -> None:
+            self.rfile.read(int(self.headers.get("Content-Length", 0)))
+            asked.set()
+            answer.wait(8.0)
+            self.send_response(503)
+            self.end_headers()
+
+        def log_message(self, *args: object) -> None:
+            pass
+
+    chat = ThreadingHTTPServer(("127.0.0.1", 0), SlowChat)
+    threading.Thread(target=chat.serve_forever, daemon=True).start()
+    monkeypatch.setenv("CUFUND_LLM_BASE_URL", f"http://127.0.0.1:{chat.server_address[1]}/v1")
+    monkeypatch.setenv("CUFUND_LLM_MODEL", "slow")
+    try:
+        with GcsProcess("fleet_square", "--speed", "5") as g:
+            out: dict[str, object] = {}
+            ask = threading.Thread(
+                target=lambda: out.update(r=http(g, "/api/mission/preview", {"text": "please dance a little"}))
+            )
+            ask.start()
+            assert asked.wait(15.0), "the request did not reach the chat endpoint"
+            t0 = time.monotonic()
+            code, s = http(g, "/api/state")
+            code2, r = http(g, "/api/command", {"command": {"command": "sim_pause"}})
+            waited = time.monotonic() - t0
+            answer.set()
+            ask.join(20.0)
+            assert code == code2 == 200 and s["names"] == ["uav1", "uav2", "uav3"] and waited < 2.0, waited
+            assert r["acks"]["fleet"]["result"] == "accepted"
+            code, p = out["r"]  # type: ignore[misc]
+            assert code == 200 and not p["ok"] and "HTTP 503" in p["reason"], p
+    finally:
+        answer.set()
+        chat.shutdown()
+        chat.server_close()

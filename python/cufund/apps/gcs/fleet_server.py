@@ -278,10 +278,11 @@ class FleetGcsServer:
         return {"command": name, "acks": acks}
 
     # ---- missions ------------------------------------------------------------------------------------------
-    def preview(self, text: Any, vehicles: Any = None, area: Any = None) -> dict[str, Any]:
+    async def preview(self, text: Any, vehicles: Any = None, area: Any = None) -> dict[str, Any]:
         """The mission ``text`` asks for, as waypoints per vehicle, kept as the one :meth:`fly` may fly; or
-        ``{"ok": False, "reason"}``."""
-        from cufund.missions import MissionRequestError, parse_mission
+        ``{"ok": False, "reason"}``. Read off the server's thread: free text may wait for a chat endpoint (up to
+        its timeout), and the station goes on showing the fleet and taking commands meanwhile."""
+        from cufund.missions import MissionRequestError
 
         if not isinstance(text, str) or not text.strip():
             return {"ok": False, "reason": "type a request, e.g. 'zigzag with 3 rows of 5 waypoints at 3 m'"}
@@ -289,8 +290,8 @@ class FleetGcsServer:
             return {"ok": False, "reason": f"the request is {len(text)} characters long; at most 2000"}
         try:
             selection = None if vehicles in (None, "all") else self._selected(vehicles)
-            mission = parse_mission(text, self.live.fleet, area=area, vehicles=selection)
-            waypoints = mission.waypoints(self.live.fleet)
+            loop = asyncio.get_running_loop()
+            mission, waypoints = await loop.run_in_executor(None, self._understand, text, selection, area)
         except (MissionRequestError, ValueError, TypeError) as exc:
             self._log("fleet", "denied", f"mission request refused: {exc}")
             return {"ok": False, "reason": str(exc)}
@@ -306,6 +307,12 @@ class FleetGcsServer:
         self._preview, self._preview_mission = preview, mission
         self._log("fleet", "mission", f"preview {ident}: {preview['summary']}")
         return preview
+
+    def _understand(self, text: str, selection: list[str] | None, area: Any) -> tuple[Any, dict[str, Any]]:
+        from cufund.missions import parse_mission
+
+        mission = parse_mission(text, self.live.fleet, area=area, vehicles=selection)
+        return mission, mission.waypoints(self.live.fleet)
 
     async def fly(self, ident: Any) -> dict[str, Any]:
         """Flies the mission last previewed, if ``ident`` is its id: per vehicle, arm when disarmed, then its
@@ -416,13 +423,13 @@ class FleetCommandHandler(_FleetGuarded):
 
 
 class FleetPreviewHandler(_FleetGuarded):
-    def post(self) -> None:
+    async def post(self) -> None:
         try:
             data = self.body()
         except (ValueError, TypeError, RecursionError) as exc:
             self.refuse(exc)
             return
-        self.write(self.gcs.preview(data.get("text"), data.get("vehicles"), data.get("area")))
+        self.write(await self.gcs.preview(data.get("text"), data.get("vehicles"), data.get("area")))
 
 
 class FleetFlyHandler(_FleetGuarded):
