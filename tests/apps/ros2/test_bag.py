@@ -541,3 +541,21 @@ def test_a_pointcloud2_field_past_its_point_step_is_refused(tmp_path):
     _rosbags_bag(path, "sqlite3", [("/points", "sensor_msgs/msg/PointCloud2", [(10**9, cloud)])])
     with pytest.raises(BagReadError, match=r"topic /points at 1000000000 ns: .*offsets.*\('z', 100, 7\)"):
         list(read_rosbag2(path))
+
+
+def test_a_log_that_fails_midway_leaves_no_bag(run, tmp_path, capsys):
+    """`cufund bag` on a log that turns out damaged after its start (the last 40 % cut off) exits 2 and leaves no
+    folder behind: a partial bag would read as a complete one (its metadata.yaml written), and a second try would
+    be refused as existing."""
+    log = tmp_path / "cut" / "run.mcap"
+    log.parent.mkdir()
+    data = (run / "run.mcap").read_bytes()
+    log.write_bytes(data[: int(len(data) * 0.6)])
+    from cufund.logs.mcap_reader import TruncatedLogWarning
+
+    out = tmp_path / "bag"
+    capsys.readouterr()
+    with pytest.warns(TruncatedLogWarning):  # the log's metadata is read from the start it keeps
+        assert main(["bag", str(log.parent), "--out", str(out)]) == 2
+    assert "not a complete MCAP log" in capsys.readouterr().err
+    assert not out.exists()

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import struct
 import sys
 from collections.abc import Iterator
@@ -108,8 +109,10 @@ def write_bag(log: str | os.PathLike[str], out: str | os.PathLike[str], storage:
     writer = Writer(out, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin[storage.upper()])
     connections: dict[int, Any] = {}
     counts: dict[str, int] = {}
+    opened = written = False
     try:
         writer.open()
+        opened = True
         for key in ("config", "version", "scenario"):
             if key in meta:
                 writer.set_custom_data(f"cufund.{key}", meta[key])
@@ -139,11 +142,14 @@ def write_bag(log: str | os.PathLike[str], out: str | os.PathLike[str], storage:
                 continue
             writer.write(conn, message.log_time, message.data)
             counts[channel.topic] = counts.get(channel.topic, 0) + 1
+        written = True
     except WriterError as exc:
         raise ValueError(f"writing the bag {str(out)!r}: {exc}") from exc
     finally:
         if writer.storage is not None:
             writer.close()
+        if opened and not written:  # the folder this call made: no partial bag that reads as a complete one
+            shutil.rmtree(out, ignore_errors=True)
     summary.topics = {t: (ty, counts.get(t, 0)) for t, (ty, _) in summary.topics.items()}
     return summary
 
