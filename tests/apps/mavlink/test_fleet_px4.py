@@ -3,6 +3,7 @@ sees a period before every vehicle has reached it), played by Px4Harness as the 
 
 from __future__ import annotations
 
+import os
 import threading
 
 import numpy as np
@@ -155,3 +156,31 @@ def test_cli_refuses_hitl_for_a_fleet(tmp_path, capsys):
     scenario.write_text(yaml.safe_dump(_fleet(2).to_dict()))
     assert main(["px4-sim", str(scenario), "--hitl", "/dev/null", "--speed", "1"]) == 2
     assert "a fleet scenario runs as SITL instances" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="Linux's CPU affinity")
+def test_cli_runs_a_fleet_on_the_cpu_asked_for(tmp_path, capsys, monkeypatch):
+    import socket
+
+    import yaml
+
+    from cufund.apps.cli import main
+
+    pinned: list[set[int]] = []
+    monkeypatch.setattr(os, "sched_setaffinity", lambda pid, cpus: pinned.append(set(cpus)))
+    cpu = sorted(os.sched_getaffinity(0))[-1]
+    scenario = tmp_path / "fleet.yaml"
+    scenario.write_text(yaml.safe_dump(_fleet(2).to_dict()))
+    for _ in range(50):  # two consecutive free TCP ports above 4560
+        with socket.socket() as a, socket.socket() as b:
+            a.bind(("127.0.0.1", 0))
+            base = a.getsockname()[1]
+            try:
+                b.bind(("127.0.0.1", base + 1))
+            except OSError:
+                continue
+        break
+    argv = ["px4-sim", str(scenario), "--instance", str(base - 4560), "--cpu", str(cpu), "--connect-timeout", "0.2"]
+    assert main(argv) == 1  # nobody connects
+    assert pinned == [{cpu}]
+    assert "did not connect" in capsys.readouterr().err

@@ -14,6 +14,7 @@ vehicle 1's, ...): the physics of each vehicle is its own simulator's step, not 
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -182,6 +183,8 @@ def serve_px4_fleet(args: Any, config: ScenarioConfig, params: Px4BridgeParams) 
     except (ConfigError, ValueError, OSError) as e:
         print(f"cufund: {e}", file=sys.stderr)
         return 2
+    if args.cpu is not None:  # as a single vehicle's (px4_cli.run): before any thread starts, they inherit it
+        os.sched_setaffinity(0, {args.cpu})
     for i, (name, b) in enumerate(bridge.bridges.items()):
         vehicle = b.simulator.vehicle
         print(
