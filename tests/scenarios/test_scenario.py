@@ -32,7 +32,7 @@ duration: 5
 
 # (yaml text, the text the message must contain) -- each must exit 2 before the run starts
 INVALID = [
-    ("controller: {kind: lqr}", "controller.kind must be one of geometric, pid, policy, got 'lqr'"),
+    ("controller: {kind: lqr}", "controller.kind must be one of geometric, pid, policy, ros2_external, got 'lqr'"),
     ("estimator: {kind: ekf9000}", "estimator.kind must be one of"),
     ("world: {kind: moon}", "world.kind must be one of"),
     ("planner: teleport", "planner.kind must be one of"),
