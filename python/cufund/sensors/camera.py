@@ -294,7 +294,8 @@ class RgbCamera(_RayCamera):
         """(H, W, 3) uint8 RGB (or (H, W) grey) image of ``world`` seen from body pose (p_W, q_WB) at the frame's
         stamp; ``v_W`` [m/s] and ``w_B`` [rad/s] (world velocity, body rates) move the pose over the exposure and
         readout. With ``want_ids``: (image, ids, labels), ``ids`` (H, W) int32 object id per pixel (-1: nothing)
-        at the stamp's pose and ``labels`` the world's object labels by id (``labels[ids]``)."""
+        of the middle sub-frame (the stamp's pose for an odd ``blur_samples``) and ``labels`` the world's object
+        labels by id (``labels[ids]``)."""
         if not isinstance(world, World):
             raise ValueError(f"world must be a cufund.World (it holds the colours), got {type(world).__name__}")
         p, q = self._pose(p_W, q_WB)
