@@ -17,13 +17,11 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
-import hashlib
 import json
 import os
 import shutil
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -36,7 +34,7 @@ pytest.importorskip("rosbags")
 
 HERE = Path(__file__).parent / "fastdds"
 PROFILE = HERE / "loopback_profile.xml"
-SOURCES = ("CMakeLists.txt", "ros2_msgs.idl", "peer.cpp")
+BUILD = Path(__file__).resolve().parents[3] / "build" / "fastdds-peer"
 NS = 1_000_000_000
 
 
@@ -53,32 +51,27 @@ def _unavailable(reason: str) -> None:
 
 @pytest.fixture(scope="session")
 def peer() -> Path:
-    """The Fast DDS peer, built with cmake into a temporary folder named by the hash of its sources (cached)."""
+    """The Fast DDS peer, built with cmake in the checkout's (git-ignored) build/fastdds-peer: configured once, then
+    each session's build redoes only what changed (a no-op when nothing did), so no stale copies pile up and no
+    binary is taken from a folder anyone could have made under /tmp."""
     if shutil.which("fastddsgen") is None:
         _unavailable("fastddsgen is not installed (make deps installs fastddsgen, libfastrtps-dev, libfastcdr-dev)")
     cmake = shutil.which("cmake", path=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}")
     if cmake is None:
         _unavailable("cmake is not installed")
-    digest = hashlib.sha256(b"".join((HERE / s).read_bytes() for s in SOURCES)).hexdigest()[:16]
-    root = Path(tempfile.gettempdir()) / f"cufund-fastdds-peer-{digest}"
-    binary = root / "peer"
-    root.mkdir(exist_ok=True)
-    with open(root / "lock", "w") as lock:
+    BUILD.mkdir(parents=True, exist_ok=True)
+    with open(BUILD / "lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # one build for concurrent test processes
-        if not binary.exists():
-            build = root / "build"
+        log = BUILD / "build.log"
+        with open(log, "w") as out:
             gen = ["-G", "Ninja"] if shutil.which("ninja", path=f"{Path(cmake).parent}:/usr/bin") else []
-            log = root / "build.log"
-            with open(log, "w") as out:
-                ok = (
-                    subprocess.run([cmake, "-S", HERE, "-B", build, *gen], stdout=out, stderr=out).returncode == 0
-                    and subprocess.run([cmake, "--build", build, "-j", "2"], stdout=out, stderr=out).returncode == 0
-                )
-            if not ok:
-                _unavailable(f"the Fast DDS peer did not build (Fast DDS dev packages missing?): see {log}")
-            shutil.copy2(build / "peer", root / "peer.tmp")
-            os.replace(root / "peer.tmp", binary)
-    return binary
+            ok = (BUILD / "CMakeCache.txt").exists() or (
+                subprocess.run([cmake, "-S", HERE, "-B", BUILD, *gen], stdout=out, stderr=out).returncode == 0
+            )
+            ok = ok and subprocess.run([cmake, "--build", BUILD, "-j", "2"], stdout=out, stderr=out).returncode == 0
+        if not ok:
+            _unavailable(f"the Fast DDS peer did not build (Fast DDS dev packages missing?): see {log}")
+    return BUILD / "peer"
 
 
 class Peer:
