@@ -84,6 +84,7 @@ class VioCore:
             gtsam.noiseModel.mEstimator.Huber.Create(p.robust_k), gtsam.noiseModel.Isotropic.Sigma(3, p.pixel_sigma)
         )
         self._g = np.array([0.0, 0.0, -p.gravity])
+        self._landmark_prior = gtsam.noiseModel.Isotropic.Sigma(3, p.landmark_prior_sigma)
         self._pim_params = self._imu_params()
         isam = gtsam.ISAM2Params()
         isam.setRelinearizeThreshold(p.relinearize_threshold)
@@ -382,7 +383,11 @@ class VioCore:
             self._next_landmark += 1
             self._landmark[tid] = lid
             X_C = self.rig.triangulate(np.array([[uL, v]]), np.array([[uR, v]]))[0]
-            values.insert(L(lid), T_WC[:3, :3] @ X_C + T_WC[:3, 3])
+            X_W = T_WC[:3, :3] @ X_C + T_WC[:3, 3]
+            values.insert(L(lid), X_W)
+            # a weak prior keeps the landmark determined where its stereo factors are not (a point the current
+            # estimate puts behind a camera gives a zero factor, GTSAM's cheirality case)
+            graph.add(gtsam.PriorFactorPoint3(L(lid), X_W, self._landmark_prior))
             graph.add(
                 gtsam.GenericStereoFactor3D(
                     gtsam.StereoPoint2(ouL, ouR, ov),

@@ -116,6 +116,7 @@ _POSITIVE = (
     "ransac_px",
     "pixel_sigma",
     "robust_k",
+    "landmark_prior_sigma",
     "lag_s",
     "kf_max_interval_s",
     "relinearize_threshold",
@@ -174,6 +175,9 @@ class VioParams:
     """Stereo measurement noise per coordinate [px]."""
     robust_k: float = 2.0
     """Huber threshold of the stereo factors, in sigmas."""
+    landmark_prior_sigma: float = 2.0
+    """A weak prior on each new landmark at its stereo triangulation [m]: it keeps a landmark determined when its
+    stereo factors give nothing (GTSAM zeroes a factor whose point lies behind the camera)."""
     kf_max_interval_s: float = 0.1
     """A frame becomes a keyframe (a smoother state) at least this often [s] ..."""
     kf_min_parallax_px: float = 40.0
