@@ -6,22 +6,11 @@ vehicle 0's links, ``--system-id`` vehicle 0's system id. One line per vehicle i
 from __future__ import annotations
 
 import argparse
-import math
-import signal
 import sys
-import threading
 import time
 from typing import Any
 
-__all__ = ["fleet_config", "serve_fleet", "upload_mission"]
-
-
-def fleet_config(scenario: str, overrides: Any) -> Any:
-    """The scenario's config when it is a fleet (it has ``vehicles:``), else None. Errors as ``load_scenario``."""
-    from cufund.scenarios.schema import load_scenario
-
-    config = load_scenario(scenario, overrides)
-    return config if getattr(config, "vehicles", None) is not None else None
+__all__ = ["serve_fleet", "upload_mission"]
 
 
 def upload_mission(live: Any, endpoints: Any, text: str, wait_s: float = 10.0) -> str:
@@ -30,7 +19,6 @@ def upload_mission(live: Any, endpoints: Any, text: str, wait_s: float = 10.0) -
     and its endpoint's plan (so QGroundControl and MAVSDK download it, and MISSION_CURRENT counts it). Returns ""
     when every vehicle took it, else why not (the request refused, with the reason, or a vehicle's refusal). Call
     before ``endpoints.start()``; the vehicles are not started: their clients start the mission."""
-    import time
 
     import numpy as np
     from pymavlink.dialects.v20 import common as mavlink
@@ -84,6 +72,7 @@ def serve_fleet(args: argparse.Namespace, config: Any, speed: float) -> int:
     from .fleet_endpoints import FleetEndpoints
     from .fleet_live import LiveFleet
     from .fleet_ports import FleetPorts
+    from .serve_cli import wait_until_stopped, warn_exposed
 
     def none(url: str | None) -> str | None:
         return None if url is None or url.lower() == "none" else url
@@ -105,7 +94,6 @@ def serve_fleet(args: argparse.Namespace, config: Any, speed: float) -> int:
         print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     endpoints = None
-    previous: dict[signal.Signals, Any] = {}
     try:
         if args.link_loss_timeout is not None:
             cmd = {"command": "set_param", "name": "COM_DL_LOSS_T", "value": float(args.link_loss_timeout)}
@@ -124,30 +112,13 @@ def serve_fleet(args: argparse.Namespace, config: Any, speed: float) -> int:
         for line in endpoints.describe():
             print(line, flush=True)
         print(f"fleet of {len(live.names)}: scenario {args.scenario}, speed {speed:g}", flush=True)
-        for ep in endpoints.endpoints.values():
-            for lk in ep.links:
-                host = lk.local_address[0]
-                if not host.startswith("127."):
-                    print(
-                        f"cufund serve: warning: {lk.address.mode}:{lk.address.host}:{lk.address.port} listens on "
-                        f"{host or '0.0.0.0'}: other machines can command this vehicle",
-                        file=sys.stderr,
-                        flush=True,
-                    )
-        stop = threading.Event()
-        if threading.current_thread() is threading.main_thread():  # (restored on the way out)
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                previous[sig] = signal.signal(sig, lambda *_: stop.set())
-        deadline = math.inf if args.duration is None else time.monotonic() + args.duration
-        while not stop.is_set() and time.monotonic() < deadline:
-            stop.wait(0.2)
+        warn_exposed(lk for ep in endpoints.endpoints.values() for lk in ep.links)
+        wait_until_stopped(args.duration)
         return 0
     except Exception as exc:  # e.g. an address in use
         print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
         if endpoints is not None:
             endpoints.close()
         live.stop()

@@ -14,11 +14,12 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Iterable
 from typing import Any
 
 from ..arguments import add_overrides
 
-__all__ = ["add_arguments", "run"]
+__all__ = ["add_arguments", "run", "wait_until_stopped", "warn_exposed"]
 
 DEFAULT_SCENARIO = "vehicle"
 
@@ -108,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     if not urls:
         print("cufund serve: give at least one of --mavlink and --api", file=sys.stderr)
         return 2
-    from cufund.scenarios.schema import parse_overrides
+    from cufund.scenarios.schema import load_scenario, parse_overrides
 
     from .link import LinkAddress
 
@@ -119,15 +120,15 @@ def run(args: argparse.Namespace) -> int:
     except Exception as exc:  # bad usage: say so, exit 2
         print(f"cufund serve: {exc}", file=sys.stderr)
         return 2
-    from .fleet_serve import fleet_config, serve_fleet
-
     try:
-        fleet = fleet_config(args.scenario, overrides)
+        config = load_scenario(args.scenario, overrides)
     except Exception as exc:  # an invalid scenario: exit 2, no traceback
         print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
-    if fleet is not None:  # N vehicles: N MAVLink systems on PX4 SITL's multi-instance ports (fleet_ports.py)
-        return serve_fleet(args, fleet, speed)
+    if config.vehicles is not None:  # N vehicles: N MAVLink systems on PX4 SITL's multi-instance ports
+        from .fleet_serve import serve_fleet
+
+        return serve_fleet(args, config, speed)
     if getattr(args, "mission", None) is not None:
         print("cufund serve: --mission is for a fleet scenario (vehicles:)", file=sys.stderr)
         return 2
@@ -135,12 +136,11 @@ def run(args: argparse.Namespace) -> int:
     from .vehicle_endpoint import VehicleEndpoint
 
     try:
-        live = LiveRun(args.scenario, overrides, speed, telemetry_hz=args.telemetry_hz)
+        live = LiveRun(config, speed=speed, telemetry_hz=args.telemetry_hz)
     except Exception as exc:  # an invalid scenario: exit 2, no traceback
         print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     endpoint = None
-    previous: dict[signal.Signals, Any] = {}
     try:
         if args.link_loss_timeout is not None:
             ack = live.submit(
@@ -156,29 +156,43 @@ def run(args: argparse.Namespace) -> int:
             for lk in endpoint.links
         )
         print(f"MAVLink vehicle {args.system_id}: {links}; scenario {args.scenario}, speed {speed:g}", flush=True)
-        for lk in endpoint.links:
-            host = lk.local_address[0]
-            if not host.startswith("127."):
-                print(
-                    f"cufund serve: warning: {lk.address.mode}:{lk.address.host}:{lk.address.port} listens on "
-                    f"{host or '0.0.0.0'}: other machines can command this vehicle",
-                    file=sys.stderr,
-                    flush=True,
-                )
-        stop = threading.Event()
-        if threading.current_thread() is threading.main_thread():  # (restored on the way out)
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                previous[sig] = signal.signal(sig, lambda *_: stop.set())
-        deadline = math.inf if args.duration is None else time.monotonic() + args.duration
-        while not stop.is_set() and time.monotonic() < deadline:
-            stop.wait(0.2)
+        warn_exposed(endpoint.links)
+        wait_until_stopped(args.duration)
         return 0
     except Exception as exc:  # e.g. an address in use
         print(f"cufund serve: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
         if endpoint is not None:
             endpoint.close()
         live.stop()
+
+
+def warn_exposed(links: Iterable[Any]) -> None:
+    """A warning on stderr for each of ``links`` bound beyond the loopback interface."""
+    for lk in links:
+        host = lk.local_address[0]
+        if not host.startswith("127."):
+            print(
+                f"cufund serve: warning: {lk.address.mode}:{lk.address.host}:{lk.address.port} listens on "
+                f"{host or '0.0.0.0'}: other machines can command this vehicle",
+                file=sys.stderr,
+                flush=True,
+            )
+
+
+def wait_until_stopped(duration: float | None) -> None:
+    """Returns after ``duration`` wall-clock seconds (None: never) or at Ctrl-C / SIGTERM (the previous handlers
+    restored on the way out)."""
+    stop = threading.Event()
+    previous: dict[signal.Signals, Any] = {}
+    try:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                previous[sig] = signal.signal(sig, lambda *_: stop.set())
+        deadline = math.inf if duration is None else time.monotonic() + duration
+        while not stop.is_set() and time.monotonic() < deadline:
+            stop.wait(0.2)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
