@@ -21,7 +21,7 @@ from cufund.geometry import Transform, quat_to_matrix, yaw_quaternion  # noqa: E
 from cufund.perception.letterbox import Letterbox, resize_bilinear  # noqa: E402
 from cufund.perception.nms import box_iou, nms  # noqa: E402
 from cufund.perception.onnx_detector import OnnxDetector, load_class_names  # noqa: E402
-from cufund.perception.onnx_detector_component import OnnxDetectorComponent  # noqa: E402
+from cufund.perception.onnx_detector_component import OnnxDetectorComponent, boxes_to_world  # noqa: E402
 from cufund.sensors.camera import R_CO, CameraIntrinsics  # noqa: E402
 
 NAMES = {0: "tunnel_frame", 1: "gate", 2: "landing_pad", 3: "person", 4: "car"}
@@ -102,6 +102,43 @@ def test_yolo_layout_decodes_centre_size_boxes(tmp_path):
 
 
 # --- bad input ---------------------------------------------------------------------------------------
+def test_non_finite_outputs_are_dropped_not_published(tmp_path):
+    """A broken model's NaN / infinite boxes or scores never reach the detections (a NaN box made the 3-D
+    placement raise mid-run), nor an end-to-end row whose class is no index into the names."""
+    boxes = np.array([[[np.nan, 20, 30, 40], [1, 2, np.inf, 5], [10, 20, 30, 40], [0, 0, 8, 8]]], np.float32)
+    scores = np.array([[[0.1, 0.9], [0.9, 0.1], [0.8, 0.1], [np.nan, 0.7]]], np.float32)
+    det = OnnxDetector(_model({"boxes": boxes, "scores": scores}, tmp_path / "ssd.onnx"), names=["a", "b"])
+    out = det.detect(np.zeros((64, 64, 3), np.uint8))
+    np.testing.assert_allclose(out.boxes_xyxy, [[10, 20, 30, 40]])
+    rows = np.array(
+        [
+            [
+                [1, 2, 11, 12, 0.9, 1],
+                [np.nan, 2, 11, 12, 0.9, 0],
+                [1, 2, 11, 12, np.nan, 0],
+                [1, 2, 3, 4, 0.9, 5],
+                [1, 2, 3, 4, 0.9, -1],
+                [1, 2, 3, 4, 0.9, 0.5],
+            ]
+        ],
+        np.float32,
+    )
+    e2e = OnnxDetector(_model({"output0": rows}, tmp_path / "e2e.onnx", meta={"names": repr(NAMES)}))
+    out = e2e.detect(np.zeros((64, 64, 3), np.uint8))
+    assert out.class_ids.tolist() == [1] and np.all(np.isfinite(out.boxes_xyxy))
+    K = CameraIntrinsics(64, 64, 50.0, 50.0, 31.5, 31.5)
+    centres, _, ok = boxes_to_world(
+        det.detect(np.zeros((64, 64, 3), np.uint8)).boxes_xyxy,
+        np.full((64, 64), 3.0, np.float32),
+        K,
+        K,
+        Transform(),
+        np.zeros(3),
+        np.eye(3),
+    )
+    assert ok.tolist() == [True] and np.all(np.isfinite(centres))
+
+
 def test_unexpected_outputs_are_refused_naming_them(tmp_path):
     path = _model({"logits": np.zeros((1, 10), np.float32)}, tmp_path / "cls.onnx")
     with pytest.raises(ValueError, match=r"unexpected outputs \[\[1, 10\]\]; expected one output \(1, 4\+nc, N\)"):

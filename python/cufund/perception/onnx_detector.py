@@ -249,10 +249,14 @@ class OnnxDetector:
         return Detections(boxes, scores, classes, (time.perf_counter() - t0) * 1e3)
 
     def decode(self, outputs: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Raw outputs -> (boxes_xyxy in input pixels, scores, class_ids) after the threshold and NMS."""
+        """Raw outputs -> (boxes_xyxy in input pixels, scores, class_ids) after the threshold and NMS. Rows with a
+        non-finite box or score (a broken model's) are dropped, and an end-to-end row whose class is not an index
+        into the names."""
         if self.layout == "end2end":
             rows = np.asarray(outputs[0], dtype=np.float32).reshape(-1, 6)
-            rows = rows[rows[:, 4] > self.conf][: self.max_det]
+            c = rows[:, 5]
+            valid = (c >= 0) & (c == np.floor(c)) & (c < len(self.names) if self.names else True)
+            rows = rows[np.isfinite(rows).all(1) & valid & (rows[:, 4] > self.conf)][: self.max_det]
             return rows[:, :4], rows[:, 4], rows[:, 5].astype(np.int64)
         if self.layout == "yolo":
             pred = np.asarray(outputs[0], dtype=np.float32)
@@ -275,7 +279,7 @@ class OnnxDetector:
                 boxes = boxes * np.array([w, h, w, h], np.float32)
         scores = cls.max(1) if cls.shape[1] else np.zeros(len(cls), np.float32)
         classes = cls.argmax(1) if cls.shape[1] else np.zeros(len(cls), np.int64)
-        keep = scores > self.conf
+        keep = (scores > self.conf) & np.isfinite(boxes).all(1)  # a NaN score is never above it
         boxes, scores, classes = boxes[keep], scores[keep], classes[keep]
         if len(scores) > MAX_NMS:
             top = np.argsort(-scores, kind="stable")[:MAX_NMS]
