@@ -12,12 +12,12 @@ JOBS ?= $(shell nproc)
 BUILD_PACKAGES := python3 python3-venv python3-dev g++ make pkg-config git ca-certificates
 # then the C++ core's libraries; what the open3d wheel loads (OpenGL/EGL, X11, TBB, libusb); chromium and
 # chromium-driver: the headless browser that checks replay.html (tests/apps/test_replay.py) and the later web UIs;
-# mona: needed by later issues; fastddsgen, fastdds-tools, libfastrtps-dev, libfastcdr-dev: the Fast DDS ROS 2 peer
+# mona: needed by later issues; fastddsgen, libfastrtps-dev, libfastcdr-dev: the Fast DDS ROS 2 peer
 # the interop tests build (tests/apps/ros2/fastdds).
 APT_PACKAGES := $(BUILD_PACKAGES) libeigen3-dev libembree-dev libbullet-dev libgtest-dev libbenchmark-dev \
                 liblz4-dev libzstd-dev libdeflate-dev \
                 libusb-1.0-0 libgl1 libegl1 libx11-6 libtbb12 chromium chromium-driver mona clang-format \
-                fastddsgen fastdds-tools libfastrtps-dev libfastcdr-dev
+                fastddsgen libfastrtps-dev libfastcdr-dev
 # Build tools installed into the venv (no build isolation, so rebuilds are incremental).
 BUILD_TOOLS := "scikit-build-core>=0.10" "pybind11>=3.1,<3.2" "cmake>=3.18" ninja
 
