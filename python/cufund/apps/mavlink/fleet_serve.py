@@ -72,7 +72,7 @@ def serve_fleet(args: argparse.Namespace, config: Any, speed: float) -> int:
     from .fleet_endpoints import FleetEndpoints
     from .fleet_live import LiveFleet
     from .fleet_ports import FleetPorts
-    from .serve_cli import wait_until_stopped, warn_exposed
+    from .serve_wait import wait_until_stopped, warn_exposed
 
     def none(url: str | None) -> str | None:
         return None if url is None or url.lower() == "none" else url

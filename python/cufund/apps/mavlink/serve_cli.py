@@ -10,16 +10,12 @@ from __future__ import annotations
 
 import argparse
 import math
-import signal
 import sys
-import threading
-import time
-from collections.abc import Iterable
-from typing import Any
 
 from ..arguments import add_overrides
+from .serve_wait import wait_until_stopped, warn_exposed
 
-__all__ = ["add_arguments", "run", "wait_until_stopped", "warn_exposed"]
+__all__ = ["add_arguments", "run"]
 
 DEFAULT_SCENARIO = "vehicle"
 
@@ -166,33 +162,3 @@ def run(args: argparse.Namespace) -> int:
         if endpoint is not None:
             endpoint.close()
         live.stop()
-
-
-def warn_exposed(links: Iterable[Any]) -> None:
-    """A warning on stderr for each of ``links`` bound beyond the loopback interface."""
-    for lk in links:
-        host = lk.local_address[0]
-        if not host.startswith("127."):
-            print(
-                f"cufund serve: warning: {lk.address.mode}:{lk.address.host}:{lk.address.port} listens on "
-                f"{host or '0.0.0.0'}: other machines can command this vehicle",
-                file=sys.stderr,
-                flush=True,
-            )
-
-
-def wait_until_stopped(duration: float | None) -> None:
-    """Returns after ``duration`` wall-clock seconds (None: never) or at Ctrl-C / SIGTERM (the previous handlers
-    restored on the way out)."""
-    stop = threading.Event()
-    previous: dict[signal.Signals, Any] = {}
-    try:
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                previous[sig] = signal.signal(sig, lambda *_: stop.set())
-        deadline = math.inf if duration is None else time.monotonic() + duration
-        while not stop.is_set() and time.monotonic() < deadline:
-            stop.wait(0.2)
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
