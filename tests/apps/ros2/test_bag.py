@@ -559,3 +559,35 @@ def test_a_log_that_fails_midway_leaves_no_bag(run, tmp_path, capsys):
         assert main(["bag", str(log.parent), "--out", str(out)]) == 2
     assert "not a complete MCAP log" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_hostile_bag_folder_is_refused_without_running_anything(tmp_path):
+    """A metadata.yaml with a Python tag is refused by both YAML readers (rosbags', cufund's custom_data) without
+    calling what it names; a sqlite3 bag with a table of its own is read, one whose topics table lacks ROS 2's
+    columns is a BagReadError."""
+    import sqlite3
+
+    from cufund.logs.rosbag2_reader import BagReadError, bag_custom_data, bag_topics, read_rosbag2
+
+    path = tmp_path / "bag"
+    _imu_bag(path, "sqlite3", 3)
+    meta = (path / "metadata.yaml").read_text()
+    marker = tmp_path / "ran"
+    (path / "metadata.yaml").write_text(f"!!python/object/apply:os.system ['touch {marker}']\n")
+    with pytest.raises(BagReadError, match="python/object/apply"):
+        bag_topics(path)
+    with pytest.raises(BagReadError, match="python/object/apply"):
+        bag_custom_data(path)
+    assert not marker.exists()
+    (path / "metadata.yaml").write_text(meta)
+    (db,) = path.glob("*.db3")
+    con = sqlite3.connect(db)
+    con.execute("CREATE TABLE extra (x)")
+    con.commit()
+    assert len(list(read_rosbag2(path))) == 3
+    con.execute("DROP TABLE topics")
+    con.execute("CREATE TABLE topics (id INTEGER, name TEXT)")
+    con.commit()
+    con.close()
+    with pytest.raises(BagReadError, match="cannot open the ROS 2 bag: .*no such column"):
+        bag_topics(path)
