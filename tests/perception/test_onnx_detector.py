@@ -450,6 +450,20 @@ def test_component_publishes_2d_and_world_3d_from_depth_and_the_estimate(tmp_pat
         OnnxDetectorComponent(det, state_topic=Topics.TRUTH_ODOMETRY)
 
 
+def test_a_box_beyond_a_narrower_depth_image_has_no_depth():
+    """A depth camera of a narrower field of view at the same centre: a box near the colour image's corner falls
+    outside the depth image and gets no position (the depth image's edge pixels are another direction's); a box
+    it overlaps takes the depth of the part it sees."""
+    K = CameraIntrinsics(64, 64, 50.0, 50.0, 31.5, 31.5)
+    Kd = CameraIntrinsics(64, 64, 100.0, 100.0, 31.5, 31.5)  # half the field of view
+    depth = np.full((64, 64), 3.0, np.float32)
+    boxes = np.array([[0.0, 0.0, 6.0, 6.0], [28.0, 28.0, 36.0, 36.0], [10.0, 28.0, 20.0, 36.0]])
+    centres, sizes, ok = boxes_to_world(boxes, depth, K, Kd, Transform(), np.zeros(3), np.eye(3))
+    assert ok.tolist() == [False, True, True]
+    assert np.all(np.isnan(centres[0])) and np.all(np.isnan(sizes[0]))
+    np.testing.assert_allclose(centres[1:, 0], 3.0)  # the optical axis is the body's x (R_CO), depth 3 m
+
+
 def test_component_waits_for_an_estimate_covering_the_image(tmp_path):
     rows = np.array([[[0, 0, 8, 8, 0.9, 0]]], np.float32)
     det = OnnxDetector(_model({"output0": rows}, tmp_path / "e2e.onnx"))

@@ -37,7 +37,8 @@ def boxes_to_world(
     its depth z (along the optical axis) is the median of the valid depths in that box's middle half (width and
     height). The centre is (x z, y z, z) in the optical frame, moved to the world with the mounting ``T_BC`` and
     the body pose (p_WB, R_WB); the size is the box's width and height at z. Returns (centres_W (k, 3) [m],
-    sizes_m (k, 2) [m], valid (k,)), ``valid`` False (and NaN rows) where the box has no valid depth."""
+    sizes_m (k, 2) [m], valid (k,)), ``valid`` False (and NaN rows) where the box has no valid depth (also where
+    its middle half lies beyond the depth image)."""
     h, w = depth.shape
     Ki, Kd = image_intrinsics, depth_intrinsics
     b = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4)
@@ -52,9 +53,12 @@ def boxes_to_world(
     for i in range(len(b)):
         (u0, u1), (v0, v1) = ud[i], vd[i]
         du, dv = (u1 - u0) / 4, (v1 - v0) / 4
-        c0, c1 = int(np.clip(np.floor(u0 + du), 0, w - 1)), int(np.clip(np.ceil(u1 - du), 1, w))
-        r0, r1 = int(np.clip(np.floor(v0 + dv), 0, h - 1)), int(np.clip(np.ceil(v1 - dv), 1, h))
-        patch = depth[r0 : max(r1, r0 + 1), c0 : max(c1, c0 + 1)]
+        c0, r0 = int(np.floor(u0 + du)), int(np.floor(v0 + dv))
+        c1, r1 = max(int(np.ceil(u1 - du)), c0 + 1), max(int(np.ceil(v1 - dv)), r0 + 1)  # at least one pixel
+        c0, c1, r0, r1 = max(c0, 0), min(c1, w), max(r0, 0), min(r1, h)
+        if c1 <= c0 or r1 <= r0:
+            continue  # its middle lies beyond the depth image (a narrower field of view): no depth seen for it
+        patch = depth[r0:r1, c0:c1]
         z_valid = patch[np.isfinite(patch) & (patch > 0)]
         if z_valid.size == 0:
             continue
