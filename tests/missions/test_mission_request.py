@@ -9,6 +9,7 @@ import http.server
 import json
 import math
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as hs
 
 from cufund.missions import MissionRequestError, parse_mission
+from cufund.missions.fleet_polygon import polygon_contains
 from cufund.missions.mission_request import FleetContext, Formation, GoHome, Orbit, Survey, Waypoints, Zigzag
 from cufund.missions.mission_request_llm import ENV_API_KEY, ENV_BASE_URL, ENV_MODEL, LlmEndpoint
 from cufund.missions.mission_request_schema import mission_from_data
@@ -67,6 +69,22 @@ def test_zigzag_over_the_field_at_10_m():
     # a 3 x 5 grid of the 30 m x 20 m field's cells, at their centres, rows along its long side
     rows = [[(3.0 + 6.0 * j, 20.0 / 6 * (2 * i + 1)) for j in range(5)] for i in range(3)]
     np.testing.assert_allclose(m.waypoints(ONE)["uav1"], _boustrophedon(rows, 10.0), atol=1e-9)
+
+
+def test_a_zigzag_over_a_vast_polygon_is_planned_at_once():
+    """Its rows come from the polygon's extent, not from a sweep at some lane spacing: a 2000 km wide area (from a
+    chat endpoint, say) is refused or planned in milliseconds, not swept by two million 1 m lanes first."""
+    r = 1e6
+    area = [[r * math.cos(2 * math.pi * k / 40), r * math.sin(2 * math.pi * k / 40)] for k in range(40)]
+    data = {"mission": "zigzag", "rows": 3, "per_row": 5, "altitude": 10, "area": area}
+    t0 = time.perf_counter()
+    wp = mission_from_data(data).waypoints()["uav1"]
+    assert time.perf_counter() - t0 < 5.0
+    assert wp.shape == (15, 3) and np.all(wp[:, 2] == 10.0)
+    assert np.ptp(wp[:, :2], axis=0).max() > r  # the rows span the polygon
+    assert polygon_contains(area, wp[:, :2]).all()
+    with pytest.raises(MissionRequestError, match="outside the geofence"):
+        mission_from_data(data, ONE)
 
 
 def test_a_fleet_shares_the_zigzag_rows():

@@ -23,7 +23,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .fleet_polygon import Polygon, check_polygon, clip_band
 
-__all__ = ["CoverageCell", "lanes", "path_length", "plan_coverage"]
+__all__ = ["CoverageCell", "lanes", "path_length", "plan_coverage", "sweep_frame"]
 
 
 @dataclass(frozen=True)
@@ -58,9 +58,7 @@ def lanes(
     intervals along ``u`` inside the polygon. The first and last lanes lie ``spacing / 2`` inside the polygon's
     extent along ``w`` and the lanes are evenly spaced at most ``spacing`` apart."""
     poly = np.asarray(polygon, dtype=float)
-    th = _headings(poly)[0] if heading is None else float(heading)
-    u = np.array([math.cos(th), math.sin(th)])
-    w = np.array([-math.sin(th), math.cos(th)])
+    u, w = sweep_frame(poly, heading)
     pw, pu = poly @ w, poly @ u
     lo, hi = float(pw.min()), float(pw.max())
     width = hi - lo
@@ -81,6 +79,13 @@ def lanes(
         s.sort()
         pieces.append([(s[k], s[k + 1]) for k in range(0, len(s) - 1, 2) if s[k + 1] - s[k] > 1e-9])
     return offsets, pieces, u, w
+
+
+def sweep_frame(polygon: ArrayLike, heading: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(u, w)``: the lane direction along ``heading`` [rad] (default: the polygon's longest edge) and the sweep
+    direction across it (unit vectors), as :func:`lanes` uses them."""
+    th = _headings(np.asarray(polygon, dtype=float))[0] if heading is None else float(heading)
+    return np.array([math.cos(th), math.sin(th)]), np.array([-math.sin(th), math.cos(th)])
 
 
 def _headings(poly: np.ndarray) -> list[float]:

@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .commands import Command, parse_command
-from .coverage import lanes, plan_coverage
+from .coverage import plan_coverage, sweep_frame
 from .fleet_context import NAME_PATTERN, FleetContext, MissionRequestError
 from .fleet_polygon import MAX_VERTICES, Polygon, check_polygon, polygon_contains
 from .fleet_timing import item_arrivals
@@ -259,7 +259,7 @@ class Zigzag(Mission):
             rows = [[(origin[0] + j * s, origin[1] + i * s) for j in range(self.per_row)] for i in range(self.rows)]
         else:
             poly = np.asarray(_resolve_area("zigzag area", self.area, ctx))
-            offsets, _, u, w = lanes(poly, 1.0)  # the sweep frame only: u along the longest edge, w across
+            u, w = sweep_frame(poly)  # u along the longest edge, w across
             pu, pw = poly @ u, poly @ w
             lo, hi = float(pw.min()), float(pw.max())
             rows = []
