@@ -188,3 +188,17 @@ def test_the_station_answers_while_a_chat_endpoint_thinks(monkeypatch):
         answer.set()
         chat.shutdown()
         chat.server_close()
+
+
+def test_the_station_takes_overrides_as_the_command_line_does():
+    """``FleetGcsServer(name, overrides)`` gives fleet_square its commanders before the overrides, as
+    ``cufund gcs fleet_square --set planner.auto_disarm_s=0`` does (the overrides reached the waypoints planner)."""
+    from cufund.apps.gcs.fleet_server import FleetGcsServer
+
+    g = FleetGcsServer("fleet_square", ("planner.auto_disarm_s=0",))
+    try:
+        assert [v.commander.params.auto_disarm_s for v in g.live.vehicles.values()] == [0.0, 0.0, 0.0]
+    finally:
+        g.stop()
+    with pytest.raises(ValueError, match="not a fleet"):
+        FleetGcsServer("vehicle")

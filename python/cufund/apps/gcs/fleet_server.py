@@ -102,14 +102,21 @@ def fleet_server_for(
     autostart: bool = False,
 ) -> FleetGcsServer | None:
     """The fleet station for ``scenario`` when it is a fleet (``vehicles:``), else None (the single-vehicle one)."""
+    config = _station_config(scenario, overrides)
+    if config is None:
+        return None
+    return FleetGcsServer(config, speed=speed, host=host, port=port, port_fallback=port_fallback, autostart=autostart)
+
+
+def _station_config(scenario: str | Path, overrides: Any) -> Any:
+    """The scenario ``scenario`` as the station flies it: with its commanders (:func:`fleet_with_commanders`), then
+    ``overrides``, so that ``--set planner.*`` reaches them; None when it is not a fleet."""
     from cufund.scenarios.schema import load_scenario, parse_overrides
 
     config = load_scenario(scenario)
     if getattr(config, "vehicles", None) is None:
         return None
-    # the commanders first, so that --set planner.* reaches them
-    config = fleet_with_commanders(config).with_overrides(parse_overrides(list(overrides)))
-    return FleetGcsServer(config, speed=speed, host=host, port=port, port_fallback=port_fallback, autostart=autostart)
+    return fleet_with_commanders(config).with_overrides(parse_overrides(list(overrides)))
 
 
 class FleetGcsServer:
@@ -127,20 +134,13 @@ class FleetGcsServer:
         port_fallback: bool = False,
         autostart: bool = False,
     ) -> None:
-        from cufund.scenarios.schema import load_scenario, parse_overrides
-
         from ..mavlink.fleet_live import LiveFleet
 
         self.speed = parse_speed(speed)
-        config = (
-            scenario
-            if not isinstance(scenario, (str, Path))
-            else load_scenario(scenario, parse_overrides(list(overrides)))
-        )
+        config = _station_config(scenario, overrides) if isinstance(scenario, (str, Path)) else scenario
         if getattr(config, "vehicles", None) is None:
-            raise ValueError(
-                f"scenario {config.name!r} is not a fleet (no 'vehicles:'): use the single-vehicle station"
-            )
+            name = getattr(config, "name", scenario)
+            raise ValueError(f"scenario {name!r} is not a fleet (no 'vehicles:'): use the single-vehicle station")
         self.scenario = config.name
         self.live = LiveFleet(fleet_with_commanders(config), speed=self.speed, start=False)
         self.names = self.live.names
