@@ -182,6 +182,24 @@ def test_dataset_is_the_same_for_the_same_seed(tmp_path):
     ).read_bytes()
 
 
+def test_a_flat_world_is_seen_from_above_its_objects(tmp_path):
+    """A ground with landing pads (the world 6 cm high) and a car: cameras at 0.4-4 m are above the world's
+    top, which is no wall (every draw was refused, and the frame failed with no camera pose), so heights above
+    the car's roof are drawn too."""
+    w = World("flat")
+    w.add_plane((30.0, 30.0), (0.0, 0.0, 0.0))
+    lo.add_landing_pad(w, (2.0, 1.0, 0.0))
+    lo.add_landing_pad(w, (-3.0, -2.0, 0.0))
+    params = DatasetParams(frames=4, seed=1, negative_fraction=0.0, min_box_px=1)
+    summary = write_dataset(w, tmp_path / "pads", params, SMALL)
+    assert summary["boxes"]["landing_pad"] >= 4
+    lo.add_car(w, (6.0, 5.0, 0.0))
+    many = DatasetParams(frames=12, seed=2, negative_fraction=0.0, min_box_px=1)
+    write_dataset(w, tmp_path / "car", many, SMALL)
+    heights = [f["p_W"][2] for f in json.loads((tmp_path / "car" / "dataset.json").read_text())["frames"]]
+    assert max(heights) > 1.45  # above the car's roof, the world's top
+
+
 def test_ultralytics_reads_the_dataset(tmp_path, monkeypatch):
     pytest.importorskip("ultralytics")
     monkeypatch.setenv("YOLO_OFFLINE", "1")

@@ -15,7 +15,7 @@ label in ``classes``; see :mod:`cufund.worlds.labelled_objects`) and writes, in 
 Every random draw (camera pose, object colours and textures, light, shadows, exposure, noise, blur) comes from one
 ``numpy.random.Generator`` seeded with ``seed``: the same call writes the same files. Every tenth frame goes to
 ``val``. A frame looks at a randomly chosen labelled object from a random distance, height and bearing, with
-jitter (the camera inside the world's bounds and the target visible, up to 20 views cast);
+jitter (the camera inside the world's horizontal bounds and the target visible, up to 20 views cast);
 ``negative_fraction`` of the frames look anywhere.
 """
 
@@ -207,7 +207,7 @@ def render_frame(
     ids: np.ndarray | None = None
     p = q = None
     casts = 0
-    for _ in range(200):
+    for draw in range(200):
         if negative or not targets:
             p = np.array([rng.uniform(lo[0], hi[0]), rng.uniform(lo[1], hi[1]), rng.uniform(*rnd.height_m)])
             yaw, pitch = rng.uniform(-np.pi, np.pi), np.deg2rad(rng.uniform(-10.0, 30.0))
@@ -220,8 +220,8 @@ def render_frame(
         c = np.asarray(labeller.box3d(target).centre_W)
         dist, bearing = rng.uniform(*rnd.distance_m), rng.uniform(-np.pi, np.pi)
         p = np.array([c[0] + dist * np.cos(bearing), c[1] + dist * np.sin(bearing), rng.uniform(*rnd.height_m)])
-        if casts < 19 and not np.all((p > lo) & (p < hi)):
-            continue  # outside the world's bounds (beyond an arena's walls): draw again without casting
+        if casts < 19 and draw < 199 and not np.all((p[:2] > lo[:2]) & (p[:2] < hi[:2])):
+            continue  # beyond the world's horizontal bounds (an arena's walls): draw again without casting
         casts += 1
         jitter = np.deg2rad(rng.uniform(*rnd.look_jitter_deg))
         angle = rng.uniform(-np.pi, np.pi)
