@@ -158,13 +158,15 @@ def test_hostile_files_are_refused_without_crashing(tmp_path):
     cut.write_bytes(good[: len(good) // 2])
     with pytest.raises(ValueError, match="is not a loadable ONNX model"):
         OnnxDetector(cut)
-    # an initializer whose data is "external" (a file beside the model, here an absolute path): read as bytes,
-    # the model cannot make onnxruntime open it
+    # an initializer whose data is "external": a file beside the model, out of its folder and back (onnxruntime
+    # refuses an absolute path itself, but opens this one for a model loaded from its path); read as bytes, the
+    # model cannot make onnxruntime open it
     model = onnx.load_from_string(good)
     t = model.graph.initializer[1]
     t.ClearField("raw_data")
     t.data_location = TensorProto.EXTERNAL
-    t.external_data.add(key="location", value="/etc/hostname")
+    (tmp_path / "weights.bin").write_bytes(np.zeros((1, 6, 3), np.float32).tobytes())
+    t.external_data.add(key="location", value=f"../{tmp_path.name}/weights.bin")
     ext = tmp_path / "ext.onnx"
     ext.write_bytes(model.SerializeToString())
     with pytest.raises(ValueError, match="is not a loadable ONNX model"):
