@@ -53,6 +53,8 @@ def test_the_fleet_is_listed_in_its_colours(gcs):
 
 def test_the_guard_of_the_single_station(gcs):
     assert http(gcs, "/api/state", token=False)[0] == 403
+    assert http(gcs, "/api/state", headers={"Host": "rebound.example:80"})[0] == 403  # DNS rebinding
+    assert http(gcs, "/", headers={"Host": "rebound.example:80"})[0] == 403
     code, _ = http(gcs, "/api/command", {"command": {"command": "arm"}}, headers={"Origin": "http://evil.example"})
     assert code == 403
     assert http(gcs, "/api/command", b"{not json")[0] == 400
