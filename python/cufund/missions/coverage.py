@@ -25,6 +25,9 @@ from .fleet_polygon import Polygon, check_polygon, clip_band
 
 __all__ = ["CoverageCell", "lanes", "path_length", "plan_coverage", "sweep_frame"]
 
+_LANE_BLOCK = 1024
+"""Lanes intersected with the polygon's edges at once (a block is ``_LANE_BLOCK`` x vertices floats)."""
+
 
 @dataclass(frozen=True)
 class CoverageCell:
@@ -68,16 +71,16 @@ def lanes(
     else:
         offsets = lo + 0.5 * spacing + np.arange(n) * (width - spacing) / (n - 1)
     pieces: list[list[tuple[float, float]]] = []
-    m = len(poly)
-    for c in offsets:
-        s: list[float] = []
-        for i in range(m):
-            a, b = i, (i + 1) % m
-            if (pw[a] > c) != (pw[b] > c):
-                f = (c - pw[a]) / (pw[b] - pw[a])
-                s.append(float(pu[a] + f * (pu[b] - pu[a])))
-        s.sort()
-        pieces.append([(s[k], s[k + 1]) for k in range(0, len(s) - 1, 2) if s[k + 1] - s[k] > 1e-9])
+    wa, wb = pw, np.roll(pw, -1)  # edge k runs from vertex k to k + 1
+    ua, ub = pu, np.roll(pu, -1)
+    for c in np.array_split(offsets, max(1, len(offsets) // _LANE_BLOCK)):  # lanes x edges, in bounded blocks
+        c = c[:, None]
+        cross = (wa > c) != (wb > c)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            at = ua + (c - wa) / (wb - wa) * (ub - ua)  # where each edge crosses each lane, along u
+        for row, hit in zip(at, cross, strict=True):
+            s = np.sort(row[hit]).tolist()
+            pieces.append([(s[k], s[k + 1]) for k in range(0, len(s) - 1, 2) if s[k + 1] - s[k] > 1e-9])
     return offsets, pieces, u, w
 
 
@@ -109,19 +112,15 @@ def _partition(costs: np.ndarray, gaps: np.ndarray, parts: int) -> tuple[list[tu
     pre = np.concatenate([[0.0], np.cumsum(costs)])
     pre_gap = np.concatenate([[0.0], np.cumsum(gaps)])  # gaps[k]: lane k -> k + 1
 
-    def cost(i: int, j: int) -> float:  # lanes i..j inclusive
-        return float(pre[j + 1] - pre[i] + pre_gap[j] - pre_gap[i])
-
-    inf = math.inf
-    best = np.full((parts + 1, n + 1), inf)
+    best = np.full((parts + 1, n + 1), math.inf)
     cut = np.zeros((parts + 1, n + 1), dtype=int)
     best[0, 0] = 0.0
     for p in range(1, parts + 1):
         for j in range(p, n + 1):  # the first j lanes in p groups
-            for i in range(p - 1, j):  # the last group is lanes i..j-1
-                v = max(best[p - 1, i], cost(i, j - 1))
-                if v < best[p, j]:
-                    best[p, j], cut[p, j] = v, i
+            i = np.arange(p - 1, j)  # the last group is lanes i..j-1
+            v = np.maximum(best[p - 1, i], pre[j] - pre[i] + pre_gap[j - 1] - pre_gap[i])
+            k = int(np.argmin(v))  # the first of the best
+            best[p, j], cut[p, j] = v[k], i[k]
     groups = []
     j = n
     for p in range(parts, 0, -1):
