@@ -62,6 +62,17 @@ def test_listening_links_take_one_port_each_and_overlaps_are_refused():
         FleetPorts(gcs="tcp:1.2.3.4:5")
 
 
+def test_a_vehicle_never_sends_to_another_vehicles_own_port():
+    """PX4's rule runs out at 40 vehicles: vehicle 41's offboard link would send to 14540 + 40 = 14580, vehicle 1's
+    local port (its client would be vehicle 41). Such a fleet is refused naming the way out."""
+    assert len(FleetPorts().all(40)) == 40
+    with pytest.raises(ValueError, match="14580.*--local-ports any"):
+        FleetPorts().all(41)
+    assert len(FleetPorts(px4_local_ports=False).all(100)) == 100  # the kernel's ports: no clash
+    with pytest.raises(ValueError, match="15000"):  # a link sending to another's listening port
+        FleetPorts(gcs="udpin:127.0.0.1:15000", api="udpout:127.0.0.1:14999").all(2)
+
+
 def _port_block(n: int) -> int:
     """A base port with base .. base + n - 1 free for UDP on 127.0.0.1."""
     for _ in range(200):

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .link import LinkAddress
+from .link import LinkAddress, _is_loopback
 from .px4_links import PX4_SITL_BASE_PORT
 
 __all__ = [
@@ -114,6 +114,21 @@ class FleetPorts:
             raise ValueError(
                 f"the links of {count} vehicles overlap (ground station {self.gcs!r}, API {self.api!r}): give "
                 "base ports at least the fleet's size apart"
+            )
+        # a link sending on this machine to a port one of the fleet's own sockets holds would be that vehicle's
+        # client (PX4's rule at 41 vehicles: the offboard link to 14540 + 40 = 14580, vehicle 0's local port)
+        remote = [
+            (v.index, a.port)
+            for v in out
+            for url, _ in v.links
+            if (a := LinkAddress.parse(url)).mode == "udpout" and _is_loopback(a.host)
+        ]
+        clash = [(i, port) for i, port in remote if port in taken]
+        if clash:
+            i, port = clash[0]
+            raise ValueError(
+                f"vehicle {i + 1} of {count} would send to 127.0.0.1:{port}, a port the fleet's own links hold: "
+                "use --local-ports any (FleetPorts(px4_local_ports=False)) or base ports further apart"
             )
         return out
 
