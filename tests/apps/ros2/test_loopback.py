@@ -1,12 +1,15 @@
 """The bridge's DDS stays on this host by default: Cyclone DDS is given the loopback interface, no multicast and
 unicast peers on 127.0.0.1, and the sockets it opens show it (read from /proc/net/udp): the sending socket is bound
 to 127.0.0.1, none listens on the domain's multicast discovery port, and none is bound to another interface's
-address. (Cyclone binds its unicast receive sockets to the wildcard address whatever the interface, a known
-limitation: eclipse-cyclonedds/cyclonedds#1923, #2090; the locators it advertises are 127.0.0.1 only.)"""
+address. Cyclone binds its unicast receive sockets to the wildcard address whatever the interface (no option
+changes it: eclipse-cyclonedds/cyclonedds#1923, #2090), so the bridge binds those to the loopback device: every
+socket of the participant is bound to 127.0.0.1 or to the device lo, where the kernel gives it only this host's
+own traffic."""
 
 from __future__ import annotations
 
 import os
+import socket
 import xml.etree.ElementTree as ET
 
 import pytest
@@ -27,6 +30,25 @@ def _socket_inodes() -> set[str]:
             continue
         if link.startswith("socket:["):
             out.add(link[8:-1])
+    return out
+
+
+def _devices() -> dict[tuple[str, int], bytes]:
+    """(address, port) -> the device (SO_BINDTODEVICE) of this process's IPv4/IPv6 UDP sockets."""
+    out = {}
+    for fd in os.listdir("/proc/self/fd"):
+        try:
+            if not os.readlink(f"/proc/self/fd/{fd}").startswith("socket:["):
+                continue
+            s = socket.socket(fileno=int(fd))
+        except OSError:
+            continue
+        try:
+            if s.type == socket.SOCK_DGRAM and s.family in (socket.AF_INET, socket.AF_INET6):
+                addr, port = s.getsockname()[:2]
+                out[(addr, port)] = s.getsockopt(socket.SOL_SOCKET, socket.SO_BINDTODEVICE, 16).rstrip(b"\0")
+        finally:
+            s.detach()
     return out
 
 
@@ -62,6 +84,7 @@ def test_the_sockets_are_on_loopback_and_no_multicast_port_is_bound():
         dds.writer("/imu", "sensor_msgs/msg/Imu", QOS["sensor_data"])
         dds.reader("/goal_pose", "geometry_msgs/msg/PoseStamped", QOS["default"])
         opened = [s for s in _udp_sockets() if s not in before]
+        devices = _devices()
     finally:
         dds.close()
     assert opened, "the participant opened no UDP socket"
@@ -76,3 +99,8 @@ def test_the_sockets_are_on_loopback_and_no_multicast_port_is_bound():
     for addr, port in opened:
         if addr in wildcard:
             assert 7410 + 250 * DOMAIN <= port < 7412 + 250 * DOMAIN + 64, f"unexpected listening port {port}"
+    # and every socket is on loopback: 127.0.0.1, or the wildcard address bound to the device lo
+    for addr, port in opened:
+        if addr != loopback:
+            device = devices[("0.0.0.0" if addr == wildcard[0] else "::", port)]
+            assert device == b"lo", f"port {port} listens on every interface (device {device!r})"

@@ -1,10 +1,14 @@
 """The bridge's DDS participant: Cyclone DDS configured for this host only, ROS 2's topic and QoS conventions.
 
 Safe by default: :func:`cyclone_config` binds Cyclone DDS to the loopback interface, turns multicast off and
-discovers peers by unicast on 127.0.0.1 only (what ROS 2's ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` does);
-``expose=True`` (the ``--expose`` flag, ``ros2.expose``) leaves Cyclone's defaults (every interface, multicast
-discovery). The configuration is passed to the domain explicitly, never read from the environment, so a stray
-``CYCLONEDDS_URI`` cannot widen it.
+discovers peers by unicast on 127.0.0.1 only (what ROS 2's ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` does).
+Cyclone binds its unicast receive sockets to the wildcard address whatever its configuration (no option changes
+that, as of Cyclone 11; eclipse-cyclonedds/cyclonedds#1923), and would take what another host sends to this host's
+ports; on Linux the domain's wildcard sockets are therefore bound to the loopback device (``SO_BINDTODEVICE lo``:
+the kernel then drops what arrives on any other interface; :func:`confine_to_loopback`). ``expose=True`` (the
+``--expose`` flag, ``ros2.expose``) leaves Cyclone's defaults (every interface, multicast discovery). The
+configuration is passed to the domain explicitly, never read from the environment, so a stray ``CYCLONEDDS_URI``
+cannot widen it.
 
 ROS 2 on DDS: topic ``/a/b`` is the DDS topic ``rt/a/b``; type ``pkg/msg/T`` is ``pkg::msg::dds_::T_``
 (:func:`cufund.apps.ros2.idl.dds_type_name`); samples are plain (XCDR1) little-endian CDR, as rmw_cyclonedds and
@@ -13,7 +17,10 @@ rmw_fastrtps write them.
 
 from __future__ import annotations
 
+import os
+import socket
 import threading
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,7 +33,7 @@ from cyclonedds.topic import Topic
 
 from . import idl
 
-__all__ = ["QOS", "DdsParticipant", "QosProfile", "cyclone_config", "dds_topic_name"]
+__all__ = ["QOS", "DdsParticipant", "QosProfile", "confine_to_loopback", "cyclone_config", "dds_topic_name"]
 
 MAX_PARTICIPANTS = 32
 """Participants per host and domain the loopback configuration discovers (participant indices 0..31)."""
@@ -87,13 +94,65 @@ QOS = {
 lockstep answers (reliable, deep: none is lost)."""
 
 
+def _socket_fds() -> set[int]:
+    """This process's socket file descriptors (Linux: /proc/self/fd; elsewhere none)."""
+    out: set[int] = set()
+    try:
+        names = os.listdir("/proc/self/fd")
+    except OSError:
+        return out
+    for fd in names:
+        try:
+            if os.readlink(f"/proc/self/fd/{fd}").startswith("socket:"):
+                out.add(int(fd))
+        except OSError:
+            continue
+    return out
+
+
+def confine_to_loopback(domain_id: int, fds: set[int]) -> list[int]:
+    """Bind the UDP sockets among ``fds`` that listen on the wildcard address at one of the domain's ports
+    (7400 + 250 d ..) to the loopback device, so that the kernel gives them only what arrives over ``lo`` (this
+    host's own traffic). Returns the ports confined; a socket that cannot be confined (no ``SO_BINDTODEVICE`` on
+    this platform, or refused) is a warning, as the docs say."""
+    base = 7400 + 250 * domain_id
+    confined = []
+    for fd in sorted(fds):
+        try:
+            s = socket.socket(fileno=fd)
+        except OSError:
+            continue
+        try:
+            if s.type != socket.SOCK_DGRAM or s.family not in (socket.AF_INET, socket.AF_INET6):
+                continue
+            addr, port = s.getsockname()[:2]
+            if addr not in ("0.0.0.0", "::") or not base <= port < base + 250:
+                continue
+            try:
+                s.setsockopt(socket.SOL_SOCKET, socket.SO_BINDTODEVICE, b"lo")
+            except (AttributeError, OSError) as e:
+                warnings.warn(
+                    f"ros2: DDS port {port} listens on every interface and could not be bound to the loopback "
+                    f"device ({e}); other hosts can send to it",
+                    RuntimeWarning,
+                    stacklevel=3,
+                )
+                continue
+            confined.append(port)
+        except OSError:
+            continue
+        finally:
+            s.detach()
+    return confined
+
+
 _DOMAINS: dict[int, list[Any]] = {}
 """The domains this process configured: id -> [configuration, Domain, participants]. Cyclone configures a domain
 once per process; every participant in it shares that configuration; the last one to close releases it."""
 _DOMAINS_LOCK = threading.Lock()
 
 
-def _open_domain(domain_id: int, config: str) -> Any:
+def _open_domain(domain_id: int, config: str, loopback: bool) -> Any:
     with _DOMAINS_LOCK:
         found = _DOMAINS.get(domain_id)
         if found is not None:
@@ -104,7 +163,10 @@ def _open_domain(domain_id: int, config: str) -> Any:
                 )
             found[2] += 1
             return found[1]
+        before = _socket_fds()
         domain = Domain(domain_id, config)
+        if loopback:  # the wildcard sockets Cyclone just opened for the domain
+            confine_to_loopback(domain_id, _socket_fds() - before)
         _DOMAINS[domain_id] = [config, domain, 1]
         return domain
 
@@ -129,7 +191,7 @@ class DdsParticipant:
         self.expose = expose
         self.config = cyclone_config(domain_id, expose)
         try:
-            self._domain = _open_domain(domain_id, self.config)
+            self._domain = _open_domain(domain_id, self.config, loopback=not expose)
         except DDSException as e:
             raise RuntimeError(f"ros2: could not open DDS domain {domain_id}: {e}") from None
         try:
