@@ -28,9 +28,11 @@ NAMES = {0: "tunnel_frame", 1: "gate", 2: "landing_pad", 3: "person", 4: "car"}
 
 
 # --- small hand-built models ------------------------------------------------------------------------
-def _model(outputs: dict[str, np.ndarray], path: Path, size: int = 64, meta: dict[str, str] | None = None) -> Path:
-    """A model of input 'images' (1, 3, size, size) whose outputs are the given constants (each plus 0 × the
-    input's mean, so the input is used)."""
+def _model(
+    outputs: dict[str, np.ndarray], path: Path, size: int | str = 64, meta: dict[str, str] | None = None
+) -> Path:
+    """A model of input 'images' (1, 3, size, size) (a str: dynamic) whose outputs are the given constants (each
+    plus 0 × the input's mean, so the input is used)."""
     nodes = [
         helper.make_node("ReduceMean", ["images"], ["m"], keepdims=0),
         helper.make_node("Mul", ["m", "zero"], ["z"]),
@@ -179,6 +181,22 @@ def test_hostile_files_are_refused_without_crashing(tmp_path):
     )
     with pytest.raises(ValueError, match="metadata 'names' is not a list"):
         OnnxDetector(evil)
+    # metadata that costs ~100 times its length to parse is refused unparsed; a literal too deep to parse, in
+    # the metadata imgsz of a dynamic input, is no MemoryError (the model then needs imgsz given)
+    huge = _model(
+        {"output0": np.zeros((1, 6, 3), np.float32)}, tmp_path / "huge.onnx", meta={"names": "[" + "1," * 600_000 + "]"}
+    )
+    with pytest.raises(ValueError, match="metadata 'names' is not a list .* more than 1048576"):
+        OnnxDetector(huge)
+    deep = _model(
+        {"output0": np.zeros((1, 6, 3), np.float32)},
+        tmp_path / "deep.onnx",
+        size="s",
+        meta={"imgsz": "-" * 100_000 + "1"},
+    )
+    with pytest.raises(ValueError, match="input size is dynamic"):
+        OnnxDetector(deep)
+    assert OnnxDetector(deep, imgsz=(64, 64)).input_hw == (64, 64)
 
 
 def test_names_yaml_and_count_checks(tmp_path):
@@ -195,6 +213,9 @@ def test_names_yaml_and_count_checks(tmp_path):
     (tmp_path / "bad.yaml").write_text("names: [a\n")
     with pytest.raises(ValueError, match="not valid YAML"):
         load_class_names(tmp_path / "bad.yaml")
+    (tmp_path / "big.yaml").write_text("names: [" + "a, " * 400_000 + "]\n")
+    with pytest.raises(ValueError, match="is 1200010 bytes, more than the 1048576 allowed"):
+        load_class_names(tmp_path / "big.yaml")
     with pytest.raises(ValueError, match="conf must be a number in"):
         OnnxDetector(path, conf=1.5)
 

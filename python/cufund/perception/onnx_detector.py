@@ -31,6 +31,9 @@ from .nms import nms
 
 MAX_MODEL_BYTES = 512 * 1024 * 1024
 """Largest model file read [bytes]."""
+MAX_METADATA_CHARS = 1 << 20
+"""Longest metadata value parsed as a literal (``names``, ``imgsz``) [characters], and largest names YAML file
+[bytes]: parsing costs ~100 times the text's length in memory."""
 MAX_NMS = 30000
 """Candidates above the score threshold kept (highest first) before NMS, as ultralytics."""
 LAYOUTS = ("yolo", "end2end", "ssd")
@@ -58,6 +61,10 @@ def load_class_names(path: str | Path) -> tuple[str, ...]:
     p = Path(path)
     if not p.is_file():
         raise ValueError(f"names file {str(p)!r} does not exist")
+    if p.stat().st_size > MAX_METADATA_CHARS:
+        raise ValueError(
+            f"names file {str(p)!r} is {p.stat().st_size} bytes, more than the {MAX_METADATA_CHARS} allowed"
+        )
     try:
         doc = yaml.safe_load(p.read_text(encoding="utf-8"))
     except (yaml.YAMLError, UnicodeDecodeError) as e:
@@ -80,6 +87,18 @@ def _names_from(value: Any, where: str) -> tuple[str, ...]:
     if not names or not all(isinstance(n, str) and n for n in names):
         raise ValueError(f"{where} must be non-empty strings, got {names[:10]!r}")
     return tuple(names)
+
+
+def _metadata_literal(text: str) -> Any:
+    """The Python literal in a metadata value (ultralytics writes its dicts and lists as their repr), parsed by
+    ``ast.literal_eval`` (no code runs); ValueError (the reason) when it is none or longer than
+    :data:`MAX_METADATA_CHARS`."""
+    if len(text) > MAX_METADATA_CHARS:
+        raise ValueError(f"{len(text)} characters, more than {MAX_METADATA_CHARS}")
+    try:
+        return ast.literal_eval(text)
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+        raise ValueError("not a Python literal") from None
 
 
 def _dim(d: Any) -> int | None:
@@ -161,8 +180,8 @@ class OnnxDetector:
         if h is None or w is None:
             if imgsz is None and "imgsz" in meta:
                 try:
-                    imgsz = tuple(ast.literal_eval(meta["imgsz"]))
-                except (ValueError, SyntaxError, TypeError):
+                    imgsz = tuple(_metadata_literal(meta["imgsz"]))
+                except (ValueError, TypeError):
                     imgsz = None
             if imgsz is None:
                 raise ValueError(f"{self.model_path}: its input size is dynamic ({i.shape}): give imgsz=(H, W)")
@@ -209,9 +228,11 @@ class OnnxDetector:
             out = _names_from(names, "names")
         elif "names" in meta:
             try:
-                parsed = ast.literal_eval(meta["names"])
-            except (ValueError, SyntaxError, MemoryError, RecursionError):
-                raise ValueError(f"{self.model_path}: metadata 'names' is not a list or {{index: name}}") from None
+                parsed = _metadata_literal(meta["names"])
+            except ValueError as e:
+                raise ValueError(
+                    f"{self.model_path}: metadata 'names' is not a list or {{index: name}} ({e})"
+                ) from None
             out = _names_from(parsed, f"{self.model_path}: metadata names")
         else:
             out = tuple(f"class_{i}" for i in range(self.num_classes or 0))
