@@ -18,6 +18,7 @@ from hypothesis import strategies as hs
 
 from cufund.missions import MissionRequestError, parse_mission
 from cufund.missions.fleet_polygon import polygon_contains
+from cufund.missions.fleet_timing import commander_trajectory
 from cufund.missions.mission_request import FleetContext, Formation, GoHome, Orbit, Survey, Waypoints, Zigzag
 from cufund.missions.mission_request_llm import ENV_API_KEY, ENV_BASE_URL, ENV_MODEL, LlmEndpoint
 from cufund.missions.mission_request_schema import mission_from_data
@@ -332,6 +333,13 @@ def test_formation_request():
     # the assembly: each waits at the start for the last to arrive (the commander's default 1 m/s legs from rest)
     holds = m.holds(ctx)
     assert min(h[0] for h in holds.values()) == 0.0 and all(np.all(h[1:] == 0) for h in holds.values())
+    assert max(h[0] for h in holds.values()) > 1.0  # their flights to the start differ: the early ones wait
+    # ... so that, as the commanders fly it, all leave the start at the same moment
+    leave = []
+    for n in ctx.names:
+        tr = commander_trajectory(ctx.home(n), wp[n], None, False, holds[n])
+        leave.append(tr.t[np.all(np.abs(tr.p - wp[n][0]) < 1e-9, axis=1)].max())
+    assert np.ptp(leave) < 1e-9, leave
     assert parse_mission("line abreast along (0, 0) (10, 10) at 4 m", ctx).shape == "line"
     assert parse_mission("fly in a column formation through (0, 0) (10, 0)", ctx).shape == "column"
     with pytest.raises(MissionRequestError, match="at least two points"):
