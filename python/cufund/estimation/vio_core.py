@@ -410,7 +410,7 @@ class VioCore:
         try:
             self._smoother.update(graph, values, stamps)
         except RuntimeError as e:  # an ill-posed window (GTSAM's indeterminate system): start again from here
-            self._restart(pred, k, str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__)
+            self._restart(pred, k, " ".join(str(e).split())[:160] or type(e).__name__)
             return math.nan
         est = self._smoother.calculateEstimate()
         R, pos = pose3_parts(est.atPose3(X(k)))
@@ -459,9 +459,9 @@ class VioCore:
         x = pose3(s.R_WI, s.p_W)
         b = gtsam.imuBias.ConstantBias(s.bias_acc, s.bias_gyr)
         graph.add(
-            gtsam.PriorFactorPose3(X(k), x, gtsam.noiseModel.Diagonal.Sigmas(np.r_[np.full(3, 0.01), np.full(3, 0.05)]))
+            gtsam.PriorFactorPose3(X(k), x, gtsam.noiseModel.Diagonal.Sigmas(np.r_[np.full(3, 1e-3), np.full(3, 1e-3)]))
         )
-        graph.add(gtsam.PriorFactorVector(V(k), s.v_W, gtsam.noiseModel.Isotropic.Sigma(3, 0.1)))
+        graph.add(gtsam.PriorFactorVector(V(k), s.v_W, gtsam.noiseModel.Isotropic.Sigma(3, 1e-2)))
         sig = np.r_[np.full(3, p.accel_bias_sigma), np.full(3, p.gyro_bias_sigma)]
         graph.add(gtsam.PriorFactorConstantBias(B(k), b, gtsam.noiseModel.Diagonal.Sigmas(sig)))
         values.insert(X(k), x)
