@@ -3,13 +3,13 @@ it, the objects' positions in the estimated world frame."""
 
 from __future__ import annotations
 
-import time
 from collections import deque
 
 import numpy as np
 
 from cufund.core.components import BusView, Component, Subscription
 from cufund.core.messages import CameraImage, Detections2D, Detections3D, Odometry, Topics
+from cufund.core.topics import is_truth
 from cufund.geometry import Transform, interpolate_poses
 from cufund.sensors.camera import R_CO, CameraIntrinsics
 
@@ -99,7 +99,7 @@ class OnnxDetectorComponent(Component):
             raise ValueError("image_intrinsics and depth_intrinsics are needed with depth_topic (the two pinholes)")
         if not (np.isfinite(rate_hz) and 0 < rate_hz <= 1000):
             raise ValueError(f"rate_hz must be in (0, 1000] [Hz], got {rate_hz!r}")
-        if str(state_topic).startswith("/truth/"):
+        if is_truth(str(state_topic)):
             raise ValueError(f"state_topic must be an estimate, not ground truth ({state_topic})")
         self.detector = detector
         self.image_topic, self.depth_topic, self.state_topic = image_topic, depth_topic, state_topic
@@ -144,15 +144,13 @@ class OnnxDetectorComponent(Component):
             self._depth = depths[-1]
         if not images:
             return
-        t0 = time.perf_counter()
         msg = images[-1]
         det = self.detector.detect(msg.image)
-        latency = (time.perf_counter() - t0) * 1e3
         self.frames += 1
-        self.latencies_ms.append(latency)
+        self.latencies_ms.append(det.latency_ms)
         names = self.detector.names
         bus.publish(
-            Topics.DETECTIONS_2D, Detections2D(msg.t, det.boxes_xyxy, det.scores, det.class_ids, names, latency)
+            Topics.DETECTIONS_2D, Detections2D(msg.t, det.boxes_xyxy, det.scores, det.class_ids, names, det.latency_ms)
         )
         if self.depth_topic is None or self._depth is None:
             return
