@@ -107,6 +107,9 @@ def is_rosbag2(path: str | os.PathLike[str]) -> bool:
 def _open(path: Path) -> Any:
     if not is_rosbag2(path):
         raise BagReadError(f"{str(path)!r} is not a ROS 2 bag (a folder with metadata.yaml)")
+    odd = sorted(p.name for p in path.iterdir() if p.exists() and not (p.is_file() or p.is_dir()))
+    if odd:  # a FIFO would block its reader for ever, a device never end
+        raise BagReadError(f"{str(path)!r}: {', '.join(odd)} is not a regular file")
     try:
         from rosbags.highlevel import AnyReader, AnyReaderError
     except ImportError as exc:

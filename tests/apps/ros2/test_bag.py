@@ -591,3 +591,40 @@ def test_a_hostile_bag_folder_is_refused_without_running_anything(tmp_path):
     con.close()
     with pytest.raises(BagReadError, match="cannot open the ROS 2 bag: .*no such column"):
         bag_topics(path)
+
+
+@pytest.mark.parametrize("storage", STORAGES)
+def test_a_bag_whose_storage_is_a_fifo_is_refused_at_once(tmp_path, storage):
+    """A bag folder whose storage file is a FIFO (or a link to a device) is a BagReadError naming it: opening the
+    FIFO blocked the reader for ever."""
+    import os
+    import threading
+
+    from cufund.logs.rosbag2_reader import BagReadError, bag_topics
+
+    path = tmp_path / "bag"
+    _imu_bag(path, storage, 2)
+    (db,) = [p for p in path.iterdir() if p.name != "metadata.yaml"]
+    db.unlink()
+    os.mkfifo(db)
+    errors: list[BaseException] = []
+
+    def read() -> None:
+        try:
+            bag_topics(path)
+        except BaseException as exc:
+            errors.append(exc)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    reader.join(timeout=20)
+    if reader.is_alive():  # blocked in open(): a writer coming and going lets it go on
+        os.close(os.open(db, os.O_WRONLY | os.O_NONBLOCK))
+        reader.join(timeout=20)
+        pytest.fail("reading a bag whose storage is a FIFO blocked")
+    (error,) = errors
+    assert isinstance(error, BagReadError) and f"{db.name} is not a regular file" in str(error)
+    db.unlink()
+    db.symlink_to("/dev/zero")
+    with pytest.raises(BagReadError, match="is not a regular file"):
+        bag_topics(path)
