@@ -202,6 +202,7 @@ class _FakeChat:
         self.content = "{}"
         self.raw = None
         self.status = 200
+        self.drip_s = 0.0  # > 0: the body one byte at a time, this long apart
         owner = self
 
         class Handler(http.server.BaseHTTPRequestHandler):
@@ -215,7 +216,16 @@ class _FakeChat:
                 self.send_header("Content-Type", "application/json")
                 self.send_header("Content-Length", str(len(out)))
                 self.end_headers()
-                self.wfile.write(out)
+                if not owner.drip_s:
+                    self.wfile.write(out)
+                    return
+                try:
+                    for b in out:
+                        self.wfile.write(bytes([b]))
+                        self.wfile.flush()
+                        time.sleep(owner.drip_s)
+                except OSError:
+                    pass  # the client gave up
 
             def log_message(self, *args):
                 pass
@@ -306,6 +316,17 @@ def test_bad_replies_are_refused(chat):
     chat.raw, chat.status = b"{}", 500
     with pytest.raises(MissionRequestError, match="HTTP 500"):
         parse_mission("do the thing", FLEET)
+
+
+def test_a_reply_dripping_in_is_cut_off_at_the_timeout(chat):
+    """Each byte within the socket timeout, the whole far beyond it: refused once timeout_s has passed."""
+    chat.content = json.dumps({"mission": "go_home"})
+    chat.drip_s = 0.05  # ~80 bytes: 4 s
+    ep = LlmEndpoint(chat.url, "test-model", timeout_s=0.5)
+    t0 = time.monotonic()
+    with pytest.raises(MissionRequestError, match="took longer than 0.5 s"):
+        parse_mission("do the thing", FLEET, endpoint=ep)
+    assert time.monotonic() - t0 < 2.5
 
 
 def test_endpoint_configuration_is_checked(monkeypatch):

@@ -15,6 +15,7 @@ import json
 import math
 import os
 import re
+import time
 import urllib.error
 import urllib.parse
 import urllib.request
@@ -41,7 +42,8 @@ class _NoRedirect(urllib.request.HTTPRedirectHandler):
 @dataclass(frozen=True)
 class LlmEndpoint:
     """An OpenAI-compatible chat endpoint: ``base_url`` (http or https, up to the ``/chat/completions`` path),
-    ``model``, ``api_key`` (or empty) and the request ``timeout_s``."""
+    ``model``, ``api_key`` (or empty) and ``timeout_s``, the longest wait for the reply [s] (each read, and the
+    whole body)."""
 
     base_url: str
     model: str
@@ -123,9 +125,20 @@ def propose_mission(text: str, fleet: Any = None, endpoint: LlmEndpoint | None =
         headers["Authorization"] = f"Bearer {ep.api_key}"
     opener = urllib.request.build_opener(urllib.request.ProxyHandler({}), _NoRedirect())
     request = urllib.request.Request(ep.url, data=body, headers=headers, method="POST")
+    deadline = time.monotonic() + ep.timeout_s
     try:
         with opener.open(request, timeout=ep.timeout_s) as reply:
-            raw = reply.read(MAX_REPLY_BYTES + 1)
+            chunks: list[bytes] = []
+            size = 0
+            while size <= MAX_REPLY_BYTES:  # timeout_s bounds each socket read; this, the whole reply
+                chunk = reply.read1(64 * 1024)
+                if not chunk:
+                    break
+                chunks.append(chunk)
+                size += len(chunk)
+                if time.monotonic() > deadline:
+                    raise MissionRequestError(f"the chat endpoint took longer than {ep.timeout_s:g} s to answer")
+            raw = b"".join(chunks)
     except urllib.error.HTTPError as e:
         raise MissionRequestError(f"the chat endpoint answered HTTP {e.code} {e.reason}") from None
     except (urllib.error.URLError, OSError) as e:
