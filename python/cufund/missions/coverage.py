@@ -117,10 +117,10 @@ def _partition(costs: np.ndarray, gaps: np.ndarray, parts: int) -> tuple[list[tu
     best[0, 0] = 0.0
     for p in range(1, parts + 1):
         for j in range(p, n + 1):  # the first j lanes in p groups
-            i = np.arange(p - 1, j)  # the last group is lanes i..j-1
-            v = np.maximum(best[p - 1, i], pre[j] - pre[i] + pre_gap[j - 1] - pre_gap[i])
+            first = np.arange(p - 1, j)  # the last group is lanes first..j-1
+            v = np.maximum(best[p - 1, first], pre[j] - pre[first] + pre_gap[j - 1] - pre_gap[first])
             k = int(np.argmin(v))  # the first of the best
-            best[p, j], cut[p, j] = v[k], i[k]
+            best[p, j], cut[p, j] = v[k], first[k]
     groups = []
     j = n
     for p in range(parts, 0, -1):
