@@ -79,3 +79,22 @@ def test_each_vehicles_controller_gains_are_its_parameters():
         assert ack.result == "accepted", ack
         assert uav2.submit({"command": "get_params"}).result(timeout=5).data["MC_ROLL_P"] == before + 1.0
         assert uav1.submit({"command": "get_params"}).result(timeout=5).data["MC_ROLL_P"] == before
+
+
+def test_a_crashed_vehicle_says_so_and_the_others_fly_on():
+    """A vehicle whose own run ends (a crash) ends as a single live run does: an event, and commands answered as
+    failed with the reason instead of waiting forever; the rest of the fleet goes on."""
+    from cufund.simulator import RunStatus
+
+    with LiveFleet(fleet_config(2), speed=float("inf")) as live:
+        uav1, uav2 = live.vehicle("uav1"), live.vehicle("uav2")
+        assert uav2.wait_until(lambda t: t.get("p_W") is not None, 10.0)
+        live.pause()
+        uav2.simulator.stop(RunStatus.CRASHED, "hit a tree")
+        live.resume()
+        assert uav2.wait_until(lambda t: t["ended"] is not None, 5.0)
+        ack = uav2.submit({"command": "arm"}).result(timeout=5)
+        assert ack.result == "failed" and "hit a tree" in ack.message
+        assert uav2.events.since(0)[-1]["kind"] == "crash"
+        assert uav1.submit({"command": "arm"}).result(timeout=5).result == "accepted"
+        assert live.ended is None and uav1.telemetry()["ended"] is None

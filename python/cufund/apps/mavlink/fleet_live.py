@@ -76,6 +76,7 @@ class FleetVehicleRun(LiveRun):
         if self.commander is not None:  # as LiveRun: the controllers' gains by PX4 name (get_params / set_param)
             self.commander.param_providers.append(controller_param_provider(getattr(sim, "components", ())))
         self._tap = _Snapshot()  # type: ignore[assignment]
+        self._own_end: str | None = None
         self._errors: dict[str, int] = {}
         for c in getattr(sim, "components", ()):
             self._guard(c)
@@ -96,11 +97,23 @@ class FleetVehicleRun(LiveRun):
     # the fleet's state, read where LiveRun keeps its own
     @property
     def ended(self) -> str | None:
-        return self.fleet.ended
+        """Why this vehicle's run ended: the fleet's, or its own (a crash) while the others fly on."""
+        return self.fleet.ended or self._own_end
 
     @ended.setter
     def ended(self, value: str | None) -> None:  # LiveRun.__init__ is not run; nothing sets it per vehicle
         pass
+
+    def _finish(self) -> None:
+        """Its own run has ended (its simulator's status is set: a crash): as a single live run's end, an event
+        and its commander's queued commands failed, so that its clients hear why."""
+        sim = self.simulator
+        status = getattr(sim.status, "value", str(sim.status))
+        self._own_end = f"{status}: {sim.message}"
+        self.events.append(float(sim.t), _end_kind(status), self._own_end)
+        if self.commander is not None:
+            self.commander.cancel_pending(f"the run has ended ({self._own_end})")
+        self._notify(force=True)
 
     @property
     def _speed(self) -> float:  # type: ignore[override]
@@ -308,6 +321,9 @@ class LiveFleet:
                 alive = fleet.advance_to(target)
                 self._capture()
                 for v in self.vehicles.values():
+                    if v._own_end is None and getattr(v.simulator, "status", None) is not None:
+                        v._finish()
+                for v in self.vehicles.values():
                     rows = getattr(v.simulator, "_rows", None)
                     if rows is not None and len(rows) > _KEEP_BLOCKS:
                         del rows[: len(rows) - _KEEP_BLOCKS]
@@ -319,7 +335,8 @@ class LiveFleet:
                 for v in self.vehicles.values():
                     v._notify()
                 if alive is False:
-                    self._end(f"{_status(fleet)}", "ended")
+                    status = getattr(getattr(fleet, "simulator", fleet), "status", None)
+                    self._end(_status(fleet), _end_kind(getattr(status, "value", "")))
                     break
         except Exception as e:
             self._end(f"error: {type(e).__name__}: {e}", "error")
@@ -333,8 +350,14 @@ class LiveFleet:
     def _end(self, why: str, kind: str) -> None:
         self.ended = why
         for v in self.vehicles.values():
-            v.events.append(float(self.fleet.t), kind, why)
-            v._notify(force=True)
+            if v._own_end is None:  # (one that ended on its own has said why)
+                v.events.append(float(self.fleet.t), kind, why)
+                v._notify(force=True)
+
+
+def _end_kind(status: str) -> str:
+    """The event kind of a run ending with ``status`` (as :class:`LiveRun`'s)."""
+    return "crash" if status in ("crashed", "diverged") else "ended"
 
 
 def _status(fleet: Any) -> str:
