@@ -125,8 +125,12 @@ class FleetSimulator:
         self._span = np.array([np.max(np.linalg.norm(r, axis=1)) for r in self._rotors_B]) + self._radii + 0.01
         """How far each vehicle's rotor discs reach from its centre [m] (with 1 cm to spare)."""
         self._k_f = np.array([m.simulator.vehicle.params.k_f for m in self.members])  # type: ignore[union-attr]
+        self._box_radii = np.array([b.radius for b in self._boxes])
+        self._pairs = np.triu_indices(len(self.members), 1)  # (i, j) of every pair i < j
         self._box_vertices_B = np.array([b.vertices_B for b in self._boxes])  # (n, 8, 3)
-        self._box_triangles = self._boxes[0].triangles  # every box has the same 12 triangles over its 8 corners
+        box_triangles = self._boxes[0].triangles  # every box has the same 12 triangles over its 8 corners
+        self._view_triangles = (box_triangles[None] + 8 * np.arange(len(self._boxes))[:, None, None]).reshape(-1, 3)
+        """The triangles of n boxes' corners listed one box after another (a view of k boxes: the first 12 k)."""
         self.observers: list[Callable[[float], None]] = []
         """Called with the fleet's time at each interaction instant (e.g. a log's ``/clock``)."""
         self._started = False
@@ -249,7 +253,7 @@ class FleetSimulator:
             return
         p, q = self._poses()
         d = np.linalg.norm(p[:, None, :] - p[None, :, :], axis=2)
-        iu = np.triu_indices(n, 1)
+        iu = self._pairs
         k = int(np.argmin(d[iu]))
         i, j = int(iu[0][k]), int(iu[1][k])
         if d[i, j] < self.min_separation_m:
@@ -258,17 +262,21 @@ class FleetSimulator:
         self._contacts(t, p, q, d)
         if self.status is not None:
             return
+        views = self._k % self.view_every == 0 and self.viewers_any
+        if self.downwash is None and not views:
+            return
+        R = quat_to_matrix(q, normalize=True)  # (n, 3, 3)
         if self.downwash is not None:
-            self._apply_downwash(p, q, d)
-        if self.viewers_any and (self._k % self.view_every == 0):
-            self._update_views(p, q, d)
+            self._apply_downwash(p, R, d)
+        if views:
+            self._update_views(p, R, d)
 
     @property
     def viewers_any(self) -> bool:
         return any(m.viewers for m in self.members)
 
     def _contacts(self, t: float, p: np.ndarray, q: np.ndarray, d: np.ndarray) -> None:
-        radii = np.array([b.radius for b in self._boxes])
+        radii = self._box_radii
         near = np.argwhere(np.triu(d <= radii[:, None] + radii[None, :], 1))  # closer than any two points of theirs
         for i, j in near.tolist():
             other = World("vehicle")
@@ -293,13 +301,11 @@ class FleetSimulator:
             self.message = f"vehicles {a} and {b} collided at ({where}) m at t = {t:.3f} s"
             return
 
-    def _apply_downwash(self, p: np.ndarray, q: np.ndarray, d: np.ndarray) -> None:
+    def _apply_downwash(self, p: np.ndarray, R: np.ndarray, d: np.ndarray) -> None:
         cfg = self.downwash
         assert cfg is not None
-        n = len(self.members)
-        R = quat_to_matrix(q, normalize=True)  # (n, 3, 3)
         w = np.array([m.simulator.vehicle.state.rotor_speeds for m in self.members])  # type: ignore[union-attr]
-        thrust = (self._k_f * np.sum(w * w, axis=1)).tolist()
+        thrust = self._k_f * np.sum(w * w, axis=1)
         # which vehicle may be in which jet: s along j's axis (-z_B), r from it; i's rotors lie within
         # self._span[i] of its centre, j's jet within jet_reach(s) of its axis
         axes = -R[:, :, 2]
@@ -308,12 +314,17 @@ class FleetSimulator:
         r_ji = np.linalg.norm(rel - s_ji[:, :, None] * axes[:, None, :], axis=2)
         span = self._span[None, :]
         reach = jet_reach(s_ji + span, self._radii[:, None]) + span
-        may = (s_ji > -span) & (r_ji <= reach) & (d.T <= cfg.max_range_m)
-        for i, m in enumerate(self.members):
+        may = (s_ji > -span) & (r_ji <= reach) & (d.T <= cfg.max_range_m) & (thrust > 0)[:, None]
+        np.fill_diagonal(may, False)
+        # only the vehicles some jet may reach, and those a jet reached at the last instant (back to no force)
+        todo = np.flatnonzero(may.any(axis=0) | self._forces.any(axis=1))
+        if not len(todo):
+            return
+        thrust_of = thrust.tolist()
+        for i in todo.tolist():
+            m = self.members[i]
             sources = [
-                (thrust[j], p[j], R[j], self.members[j].rotor_radius_m)
-                for j in range(n)
-                if j != i and thrust[j] > 0 and may[j, i]
+                (thrust_of[j], p[j], R[j], self.members[j].rotor_radius_m) for j in np.flatnonzero(may[:, i]).tolist()
             ]
             force = np.zeros(3)
             if sources:
@@ -328,12 +339,10 @@ class FleetSimulator:
         """The downwash force [N, world] each vehicle is under now."""
         return {m.name: self._forces[i].copy() for i, m in enumerate(self.members)}
 
-    def _update_views(self, p: np.ndarray, q: np.ndarray, d: np.ndarray) -> None:
-        R = quat_to_matrix(q, normalize=True)
+    def _update_views(self, p: np.ndarray, R: np.ndarray, d: np.ndarray) -> None:
         corners_W = np.einsum("nvk,nlk->nvl", self._box_vertices_B, R) + p[:, None, :]  # (n, 8, 3)
         ranges = np.array([self.view_range_m if m.view_range_m is None else m.view_range_m for m in self.members])
-        radii = np.array([b.radius for b in self._boxes])
-        in_range = d <= ranges[:, None] + radii[None, :]
+        in_range = d <= ranges[:, None] + self._box_radii[None, :]
         np.fill_diagonal(in_range, False)
         for i, m in enumerate(self.members):
             if not m.viewers:
@@ -341,8 +350,7 @@ class FleetSimulator:
             near = np.flatnonzero(in_range[i])
             seen: World | None
             if len(near):
-                k = len(near)
-                tris = (self._box_triangles[None] + 8 * np.arange(k)[:, None, None]).reshape(-1, 3)
+                tris = self._view_triangles[: 12 * len(near)]
                 seen = WorldWithVehicles(m.world, corners_W[near].reshape(-1, 3), tris)
             else:
                 seen = m.world
