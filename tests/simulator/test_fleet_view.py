@@ -20,7 +20,7 @@ from cufund.worlds.world import World
 BOX = (0.216, 0.216, 0.095)
 
 
-def _forward_range(other_x: float) -> float:
+def _forward_range(other_x: float, view_range_m: float | None = None) -> float:
     world = World("empty")
     world.add_plane((200.0, 200.0), (0.0, 0.0, 0.0))
     members = []
@@ -33,7 +33,7 @@ def _forward_range(other_x: float) -> float:
         comp = LidarComponent(lidar, world, "/sensors/scan", rate_hz=40.0, truth_topic="/truth/scan")
         sim.add(comp)
         comps.append(comp)
-        members.append(FleetMember(name, sim, box_size=BOX, viewers=[comp], world=world))
+        members.append(FleetMember(name, sim, box_size=BOX, viewers=[comp], world=world, view_range_m=view_range_m))
     fleet = FleetSimulator(members, world)
     fleet.reset()
     fleet.advance_to(0.1)
@@ -49,7 +49,10 @@ def test_lidar_sees_the_other_vehicle():
 
 
 def test_nothing_there_when_out_of_view_range():
-    assert _forward_range(60.0) == float("inf")
+    assert _forward_range(60.0) == float("inf")  # beyond the LiDAR's 30 m
+    # within the LiDAR's reach but beyond the vehicle's view range: left out of its view
+    assert _forward_range(15.0, view_range_m=20.0) == pytest.approx(15.0 - BOX[0] / 2, abs=1e-3)
+    assert _forward_range(25.0, view_range_m=20.0) == float("inf")
 
 
 def test_a_fleet_sees_as_far_as_each_vehicles_sensors():
