@@ -32,7 +32,7 @@ import pytest
 pytest.importorskip("cyclonedds")
 pytest.importorskip("rosbags")
 
-HERE = Path(__file__).parent / "fastdds"
+HERE = Path(__file__).resolve().parent / "fastdds"
 PROFILE = HERE / "loopback_profile.xml"
 BUILD = Path(__file__).resolve().parents[3] / "build" / "fastdds-peer"
 NS = 1_000_000_000
@@ -65,9 +65,12 @@ def peer() -> Path:
         log = BUILD / "build.log"
         with open(log, "w") as out:
             gen = ["-G", "Ninja"] if shutil.which("ninja", path=f"{Path(cmake).parent}:/usr/bin") else []
-            ok = (BUILD / "CMakeCache.txt").exists() or (
-                subprocess.run([cmake, "-S", HERE, "-B", BUILD, *gen], stdout=out, stderr=out).returncode == 0
-            )
+            cache = BUILD / "CMakeCache.txt"
+            ok = cache.exists() and f"CMAKE_HOME_DIRECTORY:INTERNAL={HERE}\n" in cache.read_text()
+            if not ok:  # not configured yet, or from the sources of a checkout since moved
+                cache.unlink(missing_ok=True)
+                shutil.rmtree(BUILD / "CMakeFiles", ignore_errors=True)
+                ok = subprocess.run([cmake, "-S", HERE, "-B", BUILD, *gen], stdout=out, stderr=out).returncode == 0
             ok = ok and subprocess.run([cmake, "--build", BUILD, "-j", "2"], stdout=out, stderr=out).returncode == 0
         if not ok:
             _unavailable(f"the Fast DDS peer did not build (Fast DDS dev packages missing?): see {log}")
