@@ -537,3 +537,7 @@ def test_scenario_part_perception_onnx_detector(tmp_path):
     (tmp_path / "bad.onnx").write_bytes(b"not a model")
     with pytest.raises(ConfigError, match="perception: model file .* is not a loadable ONNX model"):
         build_simulation(load_scenario(tmp_path / "s.yaml", ["perception.model=bad.onnx"]))
+    # a depth camera mounted elsewhere than the image camera: the boxes' rays would be turned with its mounting
+    for key in ("sensors.depth.T_BC.p=[0.0,0.05,0.0]", "sensors.camera.T_BC.q=[0.9659258,0.0,0.0,0.258819]"):
+        with pytest.raises(ConfigError, match="depth_camera must be mounted as perception.camera"):
+            build_simulation(load_scenario(tmp_path / "s.yaml", [key]))

@@ -7,9 +7,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from cufund.core.build_context import BuildContext
 from cufund.core.config import ConfigError, check_at_most
 from cufund.core.registry import Kind, register
+from cufund.geometry import Transform
 from cufund.sensors.camera import CameraIntrinsics, d435_depth, d435_rgb
 
 from .onnx_detector import OnnxDetector
@@ -29,7 +32,8 @@ class OnnxDetectorParams:
     camera: str = ""
     """The image sensor's name (default: the only camera, or the one called ``camera``)."""
     depth_camera: str | None = None
-    """A depth camera at the same centre: with it, the detections are also placed in the world (Detections3D)."""
+    """A depth camera mounted as ``camera`` (the same stated T_BC, else a ConfigError): with it, the detections are
+    also placed in the world (Detections3D)."""
     conf: float = 0.25
     """Score threshold [-]."""
     iou: float = 0.7
@@ -91,6 +95,14 @@ def _onnx_detector(p: OnnxDetectorParams, ctx: BuildContext) -> list[Any]:
     if p.depth_camera is None:
         return [OnnxDetectorComponent(detector, image_topic=image.topic, rate_hz=p.rate_hz)]
     _, depth = ctx.sensor_of_type("camera", p.depth_camera, "perception.depth_camera")
+    T_image, T_depth = image.extrinsic or Transform(), depth.extrinsic or Transform()
+    offset = T_image.inverse() @ T_depth
+    if np.linalg.norm(offset.t) > 1e-6 or abs(offset.q[0]) < 1.0 - 1e-12:
+        # the boxes' rays are the image camera's, turned into the world with one mounting
+        raise ConfigError(
+            f"perception.depth_camera must be mounted as perception.camera (the same T_BC: the same centre and "
+            f"axes), got {T_depth} and {T_image}"
+        )
     return [
         OnnxDetectorComponent(
             detector,
