@@ -166,6 +166,26 @@ def test_dataset_boxes_enclose_exactly_their_instance_masks(tmp_path):
     assert len(list((d / "images" / "val").glob("*.png"))) == 1
 
 
+def test_the_labels_are_the_rendered_images_own_pixels():
+    """The labels come from the labeller's own cast, the image from the renderer (the recoloured copy of the
+    world): the renderer's object id at every pixel is the label's instance id, for views at targets and
+    negatives."""
+    from cufund.perception.dataset import render_frame
+    from cufund.sensors.camera import RgbCamera
+
+    w = _world()
+    labeller = ViewLabeller(w, SMALL, lo.CLASSES)
+    rng = np.random.default_rng(5)
+    seen = 0
+    for k in range(4):
+        _, labels, draws = render_frame(w, labeller, rng, Randomisation(), negative=k == 0)
+        out = RgbCamera(SMALL).render(w, draws["p_W"], draws["q_WB"], want_ids=True)
+        assert isinstance(out, tuple)
+        np.testing.assert_array_equal(out[1], labels.instance_ids)
+        seen += len(labels.objects)
+    assert seen >= 4
+
+
 def test_dataset_is_the_same_for_the_same_seed(tmp_path):
     w = _world()
     write_dataset(w, tmp_path / "a", FEW, SMALL)
