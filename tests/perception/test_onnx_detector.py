@@ -436,8 +436,9 @@ def test_nms_matches_torchvision_when_it_loads():
 @pytest.mark.parametrize("depth_K", [None, CameraIntrinsics(40, 30, 20.0, 20.0, 19.5, 14.5)])
 def test_component_publishes_2d_and_world_3d_from_depth_and_the_estimate(tmp_path, depth_K):
     """A box around pixel centre (40, 24) of a 64 × 64 image with the depth 4 m there: its world position is the
-    camera ray through that pixel at depth 4 m, moved by the estimate's pose (yawed 90°) and the mounting; the
-    same with a depth camera of other intrinsics at the same centre."""
+    camera ray through that pixel at depth 4 m, moved by the estimate's pose at the image's capture time (yawed
+    90°, between two estimates) and the mounting; the same with a depth camera of other intrinsics at the same
+    centre."""
     rows = np.array([[[36.5, 20.5, 44.5, 28.5, 0.9, 3]]], np.float32)  # centre (40.5, 24.5) in edges
     det = OnnxDetector(_model({"output0": rows}, tmp_path / "e2e.onnx", meta={"names": repr(NAMES)}))
     K = CameraIntrinsics(64, 64, 50.0, 50.0, 31.5, 31.5)
@@ -451,8 +452,8 @@ def test_component_publishes_2d_and_world_3d_from_depth_and_the_estimate(tmp_pat
     comp.reset()
     comp.setup(view)
     q = yaw_quaternion(np.pi / 2)
-    for t in (0.0, 0.2):
-        bus.publish(Topics.ESTIMATE, Odometry(t, np.array([1.0, 2.0, 1.5]), np.zeros(3), q, np.zeros(3)))
+    for t, y in ((0.0, 1.8), (0.2, 2.2)):  # at the image's capture time 0.1: (1, 2, 1.5), interpolated
+        bus.publish(Topics.ESTIMATE, Odometry(t, np.array([1.0, y, 1.5]), np.zeros(3), q, np.zeros(3)))
     bus.publish(Topics.RGB_IMAGE, CameraImage(0.1, np.zeros((64, 64, 3), np.uint8)))
     depth = np.full((Kd.height, Kd.width), 4.0, np.float32)
     depth[0, :] = np.nan  # a missing row away from the box changes nothing
