@@ -154,3 +154,39 @@ def test_until_done_false_keeps_landed_vehicles_running():
     goes_on = build_fleet(cfg, until_done=False)
     assert goes_on.advance_to(17.0) and goes_on.t == pytest.approx(17.0)
     assert all(goes_on.vehicle(n).simulator.status is None for n in goes_on.names)
+
+
+def test_fleet_log_frames_are_each_vehicles_own(tmp_path):
+    """In a fleet's log each vehicle's sensor and body frames are under its name (uav1/imu, uav2/imu), and every frame
+    a message names resolves to world through /tf and /tf_static."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    base = load_scenario("square_sensors").to_dict()
+    base.update(name="fleet_frames", duration=1.0)
+    base["vehicles"] = [{"name": "uav1", "start": {"p": [0, 0, 0]}}, _square_at("uav2", 5, 0)]
+    run_into_folder(ScenarioConfig.from_dict(base), tmp_path, plots=False, replay=False)
+    parents: dict[str, str] = {}
+    named: dict[str, set[str]] = {}
+    factory = DecoderFactory()
+    with open(tmp_path / "run.mcap", "rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages():
+            if channel.message_encoding != "cdr":
+                continue
+            msg = factory.decoder_for("cdr", schema)(message.data)
+            for tf in getattr(msg, "transforms", ()):
+                assert parents.setdefault(tf.child_frame_id, tf.header.frame_id) == tf.header.frame_id
+            header = getattr(msg, "header", None)
+            frames = named.setdefault(channel.topic, set())
+            if header is not None:
+                frames.add(header.frame_id)
+            if getattr(msg, "child_frame_id", ""):
+                frames.add(msg.child_frame_id)
+    assert named["/uav1/sensors/imu/ros"] == {"uav1/imu"} and named["/uav2/sensors/imu/ros"] == {"uav2/imu"}
+    assert named["/uav2/truth/odometry/ros"] == {"world", "uav2/base_link_truth"}
+    for frame in set().union(*named.values()):
+        seen = set()
+        while frame != "world":
+            assert frame in parents and frame not in seen, f"frame {frame} does not resolve to world ({parents})"
+            seen.add(frame)
+            frame = parents[frame]

@@ -177,15 +177,38 @@ _QUATERNION = (("{0}", 0, "q_wb", 1, 3), ("{0}", 3, "q_wb", 0, 1))  # [w, x, y, 
 _STAMP = (("header.stamp.sec", "header.stamp.nanosec", "t"),)
 
 
+VEHICLE_TOPIC_ROOTS = ("/sensors/", "/truth/", "/estimator/")
+"""Where a vehicle's sensor, truth and estimate topics start; a fleet's log has them under the vehicle's name."""
+
+
+def vehicle_namespace(topic: str) -> tuple[str, str]:
+    """(vehicle, topic of the vehicle) of a topic in a fleet's log, ``/uav1/sensors/imu``: ``("uav1",
+    "/sensors/imu")``; a single vehicle's topic (one starting with :data:`VEHICLE_TOPIC_ROOTS`): ``("", topic)``."""
+    name = str(topic)
+    i = name.find("/", 1)
+    if i > 1 and not name.startswith(VEHICLE_TOPIC_ROOTS) and name.startswith(VEHICLE_TOPIC_ROOTS, i):
+        return name[1:i], name[i:]
+    return "", name
+
+
+def _in_namespace(vehicle: str, frame: str) -> str:
+    return f"{vehicle}/{frame}" if vehicle and frame != WORLD_FRAME else frame
+
+
 def odometry_frames(topic: str) -> tuple[str, str]:
-    """(parent, child) frame of the standard views of an odometry ``topic``."""
-    return ODOMETRY_FRAMES.get(str(topic), (WORLD_FRAME, "base_link" + str(topic).replace("/", "_")))
+    """(parent, child) frame of the standard views of an odometry ``topic``; a fleet vehicle's under its name
+    (``/uav1/estimator/odometry``: ``uav1/odom`` -> ``uav1/base_link``)."""
+    vehicle, own = vehicle_namespace(topic)
+    parent, child = ODOMETRY_FRAMES.get(own, (WORLD_FRAME, "base_link" + own.replace("/", "_")))
+    return _in_namespace(vehicle, parent), _in_namespace(vehicle, child)
 
 
 def sensor_frame(topic: str) -> str:
     """The frame a sensor topic's messages are in: the topic's last name (``/sensors/lidar``: ``lidar``), which is
-    the sensor's name in a scenario (its default topic is ``/sensors/<name>``)."""
-    return str(topic).rstrip("/").rsplit("/", 1)[-1] or "sensor"
+    the sensor's name in a scenario (its default topic is ``/sensors/<name>``); a fleet vehicle's under its name
+    (``/uav1/sensors/imu``: ``uav1/imu``)."""
+    vehicle, own = vehicle_namespace(topic)
+    return _in_namespace(vehicle, own.rstrip("/").rsplit("/", 1)[-1] or "sensor")
 
 
 def _odometry_views(topic: str) -> tuple[View, ...]:

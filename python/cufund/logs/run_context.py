@@ -29,15 +29,19 @@ __all__ = ["write_run_context"]
 _IDENTITY = ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
 
 
-def static_transforms(sensors: Iterable[tuple[str, Any, Any]], has_estimator: bool) -> list[tuple[str, str, Any, Any]]:
+def static_transforms(
+    sensors: Iterable[tuple[str, Any, Any]], has_estimator: bool, vehicle: str = ""
+) -> list[tuple[str, str, Any, Any]]:
     """(parent, child, translation, q [w, x, y, z]) of ``/tf_static`` for ``sensors`` (frame name, translation
-    (3,) or None, q_BX or None)."""
-    transforms: list[tuple[str, str, Any, Any]] = [("world", "odom", *_IDENTITY)]
+    (3,) or None, q_BX or None); a fleet ``vehicle``'s frames under its name (``uav1/odom``, ``uav1/base_link``,
+    as :func:`cufund.logs.codecs.odometry_frames` names them)."""
+    ns = f"{vehicle}/" if vehicle else ""
+    transforms: list[tuple[str, str, Any, Any]] = [("world", f"{ns}odom", *_IDENTITY)]
     if not has_estimator:
-        transforms.append(("base_link_truth", "base_link", *_IDENTITY))
+        transforms.append((f"{ns}base_link_truth", f"{ns}base_link", *_IDENTITY))
     for frame, p, q in sensors:
         transforms.append(
-            ("base_link", frame, _IDENTITY[0] if p is None else tuple(p), _IDENTITY[1] if q is None else tuple(q))
+            (f"{ns}base_link", frame, _IDENTITY[0] if p is None else tuple(p), _IDENTITY[1] if q is None else tuple(q))
         )
     return transforms
 
@@ -48,14 +52,16 @@ def write_run_context(
     has_estimator: bool,
     world: Any = None,
     reference: Any = None,
+    transforms: list[tuple[str, str, Any, Any]] | None = None,
 ) -> None:
-    """Writes ``/tf_static``, (with a ``world``, a :class:`cufund.worlds.World`) ``/world/scene`` and (with a
-    ``reference`` trajectory known before the run) ``/planner/path`` at time 0."""
+    """Writes ``/tf_static`` (``transforms``, default :func:`static_transforms` of ``sensors``), (with a ``world``,
+    a :class:`cufund.worlds.World`) ``/world/scene`` and (with a ``reference`` trajectory known before the run)
+    ``/planner/path`` at time 0."""
     if reference is not None and hasattr(reference, "sample"):
         logger.write_encoded("/planner/path", ros2.PATH, codecs.path_of(reference, 0.0), 0)
-    logger.write_encoded(
-        "/tf_static", ros2.TF_MESSAGE, ros2.tf_message(0.0, static_transforms(sensors, has_estimator)), 0
-    )
+    if transforms is None:
+        transforms = static_transforms(sensors, has_estimator)
+    logger.write_encoded("/tf_static", ros2.TF_MESSAGE, ros2.tf_message(0.0, transforms), 0)
     if world is not None and len(world.objects):
         logger.write_encoded(
             "/world/scene",

@@ -30,13 +30,20 @@ class NamespacedLogger:
 
 
 def write_fleet_context(logger: Any, fleet: Fleet) -> None:
-    """The fleet log's ``/tf_static`` (``world`` -> ``odom``), the world's meshes, each vehicle's reference known
-    before the run on ``/NAME/planner/path``, and ``/clock`` at each of the fleet's interaction instants."""
+    """The fleet log's ``/tf_static`` (each vehicle's frames under its name: ``world`` -> ``uav1/odom``,
+    ``uav1/base_link`` -> ``uav1/imu``, ...), the world's meshes, each vehicle's reference known before the run on
+    ``/NAME/planner/path``, and ``/clock`` at each of the fleet's interaction instants."""
     from cufund.logs import codecs, ros2
-    from cufund.logs.run_context import write_run_context
+    from cufund.logs.run_context import static_transforms, write_run_context
 
+    from .run_folder import _sensor_frames
+
+    transforms = []
+    for name in fleet.names:
+        config = fleet.vehicle(name).config
+        transforms += static_transforms(_sensor_frames(config, name), config.estimator is not None, name)
     world = fleet.simulator.members[0].world
-    write_run_context(logger, (), True, world, None)  # truth frames: world -> base_link_NAME_truth_odometry (/tf)
+    write_run_context(logger, (), True, world, None, transforms)
     for name in fleet.names:
         reference = fleet.vehicle(name).built.context.reference
         if reference is not None and hasattr(reference, "sample"):
