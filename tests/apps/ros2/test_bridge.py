@@ -161,3 +161,37 @@ def test_any_cufund_topic_with_a_ros2_message_can_be_mapped(tmp_path):
     stamps = np.array([g[0] for g in got])
     np.testing.assert_array_equal(stamps, np.round(poses[: len(stamps)] * NS).astype(np.int64))
     assert len(stamps) >= len(poses) - 1 >= 8  # all but one sent after the last step
+
+
+def test_a_topic_nobody_reads_is_not_encoded():
+    # without a matched reader a volatile sample reaches no one: the bridge does not serialise it (a LiDAR cloud or
+    # an image each frame, the truth and /tf each step); once a reader has matched, every sample is encoded
+    from cufund.apps.ros2.dds import DdsParticipant, QosProfile
+    from cufund.scenarios.build import build_simulation
+
+    d = domain(13)
+    cfg = scenario("vehicle", {"domain_id": d, "lockstep": False, "rate_hz": 50.0}, duration=0.3)
+    sim = build_simulation(cfg).simulator
+    bridge = next(c for c in sim.components if type(c).__name__ == "Ros2Bridge")
+    encoded: dict[str, int] = {}
+
+    def counting(o):
+        def encode(m):
+            encoded[o.topic] = encoded.get(o.topic, 0) + 1
+            return inner(m)
+
+        inner = o.encode
+        return encode
+
+    for o in bridge.outs:
+        o.encode = counting(o)
+    sim.run(0.3)
+    assert encoded == {} and bridge.stats["messages"] == 0 and bridge.stats["steps"] >= 10
+    peer = DdsParticipant(d)  # in this process: matched as soon as the bridge's writer exists
+    try:
+        reader = peer.reader("/imu", "sensor_msgs/msg/Imu", QosProfile(reliable=False, depth=1000))
+        sim.run(0.3)
+        got = [s for s in reader.take(N=1000) if s.sample_info.valid_data]
+    finally:
+        peer.close()
+    assert set(encoded) == {"/sensors/imu"} and len(got) == encoded["/sensors/imu"] == bridge.stats["messages"] > 10

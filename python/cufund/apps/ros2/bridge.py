@@ -114,6 +114,7 @@ class Ros2Bridge(Component):
             for name, rtype, qos in o.writes:
                 if name not in self._writers:
                     self._writers[name] = self.dds.writer(name, rtype, qos)
+        self._out_writers = [[self._writers[name] for name, _, _ in o.writes] for o in self.outs]
         self._clock = self.dds.writer("/clock", "rosgraph_msgs/msg/Clock", QOS["clock"])
         self._tf_static = self.dds.writer("/tf_static", "tf2_msgs/msg/TFMessage", QOS["tf_static"])
         self._ack = self.dds.reader(ACK_TOPIC, "std_msgs/msg/Header", QOS["ack"])
@@ -151,7 +152,7 @@ class Ros2Bridge(Component):
             ahead = self._wall0 + t - time.perf_counter()
             if ahead > 0:
                 time.sleep(ahead)
-        for o, sub in self._subs:
+        for (o, sub), writers in zip(self._subs, self._out_writers, strict=True):
             if sub is None:
                 newest = bus.latest(o.topic)
                 fresh = newest is not None and newest.t > self._last_t.get(o.topic, -math.inf)
@@ -160,9 +161,11 @@ class Ros2Bridge(Component):
                 messages = [newest] if fresh else []
             else:
                 messages = sub.take()
+            if not messages or not any(w.matched() for w in writers):
+                continue  # nobody reads it: not encoded (a volatile sample reaches only the readers matched by then)
             for m in messages:
-                for (name, _, _), data in zip(o.writes, o.encode(m), strict=True):
-                    self._writers[name].write(data)
+                for w, data in zip(writers, o.encode(m), strict=True):
+                    w.write(data)
                     self.stats["messages"] += 1
                     self.stats["bytes"] += len(data)
         self._clock.write(encode.clock(t))
