@@ -59,3 +59,10 @@ def test_a_missing_external_node_is_an_error_naming_it():
     cfg = _config(domain(7), "absent", timeout_s=1.0)
     with pytest.raises(Ros2Timeout, match="absent"):
         run_scenario(cfg)
+
+
+@pytest.mark.parametrize("name", ["odom", "/odom/", "/a//b", 3])
+def test_a_ros2_name_dds_would_refuse_is_refused_with_the_scenario(name):
+    # not at the run's start, where the participant's topic would raise ValueError
+    with pytest.raises(ConfigError, match="ros2_external.writes./estimator/odometry must be an absolute ROS 2"):
+        _config(domain(8), "n", writes={"/estimator/odometry": name})

@@ -29,7 +29,7 @@ from cufund.core.config import ConfigError
 from cufund.core.messages import Odometry, TrajectorySetpoint
 from cufund.geometry import quat_to_matrix
 
-from .config import ACK_TOPIC
+from .config import ACK_TOPIC, _name
 from .encode import encoder_for
 
 __all__ = ["ExternalComponent", "ExternalEstimator", "ExternalParams", "decoder_for", "encoder_for"]
@@ -61,11 +61,10 @@ class ExternalParams:
             raise ConfigError(f"ros2_external.node must be the node's name, got {self.node!r}")
         for key in ("reads", "writes"):
             value = getattr(self, key)
-            if not isinstance(value, dict) or not all(
-                isinstance(k, str) and k.startswith("/") and isinstance(v, str) and v.startswith("/")
-                for k, v in value.items()
-            ):
+            if not isinstance(value, dict) or not all(isinstance(k, str) and k.startswith("/") for k in value):
                 raise ConfigError(f"ros2_external.{key} must map cufund topics to ROS 2 names (/a: /b), got {value!r}")
+            for k, v in value.items():  # a name DDS would refuse only when the run starts is refused here
+                _name(v, f"ros2_external.{key}.{k}")
         for key, hi in (("rate_hz", 10_000.0), ("timeout_s", 3600.0)):
             v = getattr(self, key)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not 0 < v <= hi:
