@@ -313,10 +313,30 @@ def read_rosbag2(path: str | os.PathLike[str], topics: Iterable[str] | str | Non
                         f"topic {t} of {str(path)!r} is a {present[t]}, which cufund does not read "
                         f"(it reads {', '.join(ROS2_TYPES)})"
                     )
+        connections = [c for c in reader.connections if c.topic in wanted]
+        _check_livox(path, reader.typestore, connections)
     except BaseException:
         reader.close()
         raise
-    return _iterate(path, reader, [c for c in reader.connections if c.topic in wanted])
+    return _iterate(path, reader, connections)
+
+
+_LIVOX_TYPES = ("livox_ros_driver2/msg/CustomMsg", "livox_ros_driver/msg/CustomMsg")
+
+
+def _check_livox(path: Path, typestore: Any, connections: list[Any]) -> None:
+    """:func:`_livox` reads the driver's own ``CustomMsg`` layout: a bag whose definition of it (or of its
+    ``CustomPoint``) differs is refused rather than misread."""
+    ours = None
+    for c in connections:
+        if c.msgtype in _LIVOX_TYPES:
+            ours = ours or rosbags_typestore()
+            for name in (c.msgtype, c.msgtype.replace("/CustomMsg", "/CustomPoint")):
+                if typestore.fielddefs.get(name) != ours.fielddefs[name]:
+                    raise BagReadError(
+                        f"{str(path)!r}: topic {c.topic}: the bag's definition of {name} is not the Livox "
+                        "driver's, the only layout cufund reads (LIVOX_MSGS)"
+                    )
 
 
 def _iterate(path: Path, reader: Any, connections: list[Any]) -> Iterator[LogRecord]:
@@ -333,7 +353,7 @@ def _iterate(path: Path, reader: Any, connections: list[Any]) -> Iterator[LogRec
                 return
             conn, timestamp, raw = item
             where = f"{str(path)!r}: topic {conn.topic} at {timestamp} ns"
-            if conn.msgtype.endswith("/msg/CustomMsg"):  # Livox: read straight from the CDR (numpy)
+            if conn.msgtype in _LIVOX_TYPES:  # Livox: read straight from the CDR (numpy)
                 yield LogRecord(conn.topic, timestamp, timestamp, _livox(raw, where))
                 continue
             try:

@@ -628,3 +628,33 @@ def test_a_bag_whose_storage_is_a_fifo_is_refused_at_once(tmp_path, storage):
     db.symlink_to("/dev/zero")
     with pytest.raises(BagReadError, match="is not a regular file"):
         bag_topics(path)
+
+
+def test_a_livox_custommsg_of_another_definition_is_refused(tmp_path):
+    """A bag whose own livox_ros_driver2 CustomPoint definition has another layout (a fork's extra float32) is a
+    BagReadError naming it: the fast reader assumes the driver's 19-byte point and read such points as garbage."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import get_types_from_msg
+
+    from cufund.logs.rosbag2_reader import LIVOX_MSGS, BagReadError, read_rosbag2, rosbags_typestore
+
+    store = rosbags_typestore()
+    point = "livox_ros_driver2/msg/CustomPoint"
+    fork = get_types_from_msg(LIVOX_MSGS[point].replace("uint8 line", "float32 noise\nuint8 line"), point)
+    store.fielddefs.pop(point)
+    store.register(fork)
+    Point, Msg = store.types[point], store.types["livox_ros_driver2/msg/CustomMsg"]
+    msg = Msg(
+        header=_header(store, 10**9, "livox_frame"),
+        timebase=10**9,
+        point_num=2,
+        lidar_id=0,
+        rsvd=np.zeros(3, np.uint8),
+        points=[Point(offset_time=k, x=1.0, y=2.0, z=3.0, reflectivity=9, tag=0, noise=0.5, line=1) for k in (0, 1)],
+    )
+    path = tmp_path / "bag"
+    with Writer(path, version=9) as w:
+        conn = w.add_connection("/livox/lidar", "livox_ros_driver2/msg/CustomMsg", typestore=store)
+        w.write(conn, 10**9, store.serialize_cdr(msg, "livox_ros_driver2/msg/CustomMsg"))
+    with pytest.raises(BagReadError, match="definition of livox_ros_driver2/msg/CustomPoint is not the Livox"):
+        list(read_rosbag2(path))
