@@ -156,10 +156,13 @@ function draw() {
   if (c.width !== w || c.height !== h) { c.width = w; c.height = h; }
   const g = c.getContext("2d");
   g.clearRect(0, 0, w, h);
-  const [x0, y0, x1, y1] = bounds();
-  const sx = Math.min(w / (x1 - x0), h / (y1 - y0));
-  const ox = w / 2 - sx * (x0 + x1) / 2, oy = h / 2 + sx * (y0 + y1) / 2;
-  view = { sx, ox, oy };
+  if (!(view && $("draw-area").checked && view.w === w && view.h === h)) { // the map holds still while an area is drawn
+    const [bx0, by0, bx1, by1] = bounds();
+    const s = Math.min(w / (bx1 - bx0), h / (by1 - by0));
+    view = { sx: s, ox: w / 2 - s * (bx0 + bx1) / 2, oy: h / 2 + s * (by0 + by1) / 2, w, h };
+  }
+  const { sx, ox, oy } = view;
+  const x0 = -ox / sx, x1 = (w - ox) / sx, y0 = (oy - h) / sx, y1 = oy / sx; // what the canvas shows [m]
   const X = (x) => ox + sx * x, Y = (y) => oy - sx * y;
   // grid: 1, 2, 5, 10 ... m
   const step = [1, 2, 5, 10, 20, 50, 100].find((s) => s * sx >= 40) || 200;
