@@ -66,14 +66,17 @@ def peer() -> Path:
         with open(log, "w") as out:
             gen = ["-G", "Ninja"] if shutil.which("ninja", path=f"{Path(cmake).parent}:/usr/bin") else []
             cache = BUILD / "CMakeCache.txt"
-            ok = cache.exists() and f"CMAKE_HOME_DIRECTORY:INTERNAL={HERE}\n" in cache.read_text()
-            if not ok:  # not configured yet, or from the sources of a checkout since moved
-                cache.unlink(missing_ok=True)
+            if not (cache.exists() and f"CMAKE_HOME_DIRECTORY:INTERNAL={HERE}\n" in cache.read_text()):
+                cache.unlink(missing_ok=True)  # not configured yet, or from the sources of a checkout since moved
                 shutil.rmtree(BUILD / "CMakeFiles", ignore_errors=True)
-                ok = subprocess.run([cmake, "-S", HERE, "-B", BUILD, *gen], stdout=out, stderr=out).returncode == 0
-            ok = ok and subprocess.run([cmake, "--build", BUILD, "-j", "2"], stdout=out, stderr=out).returncode == 0
-        if not ok:
-            _unavailable(f"the Fast DDS peer did not build (Fast DDS dev packages missing?): see {log}")
+                if subprocess.run([cmake, "-S", HERE, "-B", BUILD, *gen], stdout=out, stderr=out).returncode:
+                    cache.unlink(missing_ok=True)
+                    _unavailable(
+                        f"the Fast DDS peer's packages were not found by cmake (Fast DDS dev packages?): {log}"
+                    )
+            built = subprocess.run([cmake, "--build", BUILD, "-j", "2"], stdout=out, stderr=out).returncode == 0
+        if not built:  # its packages are there: a compile error in the peer is a failure, not a skip
+            pytest.fail(f"the Fast DDS peer did not build: {log}:\n{log.read_text()[-3000:]}")
     return BUILD / "peer"
 
 
