@@ -190,3 +190,36 @@ def test_fleet_log_frames_are_each_vehicles_own(tmp_path):
             assert frame in parents and frame not in seen, f"frame {frame} does not resolve to world ({parents})"
             seen.add(frame)
             frame = parents[frame]
+
+
+def test_a_fleet_stopped_by_a_signal_come_back_as_another_exception_finishes_its_folder(tmp_path):
+    """As a single run's (tests/security/test_killed_run.py): the signal the handler recorded makes the fleet's run
+    interrupted even when its exception reached the run as another type (metrics.json, RunInterrupted raised)."""
+    import signal
+
+    from cufund.core.components import Component
+    from cufund.scenarios.build import RunInterrupted
+    from cufund.scenarios.run_folder import run_fleet_into_folder
+
+    class Converting(Component):
+        name = "converting"
+        rate_hz = 10.0
+
+        def step(self, t, bus):
+            if t >= 0.5:
+                try:
+                    RunInterrupted.raise_for(signal.SIGTERM)
+                except RunInterrupted:
+                    raise RuntimeError("an error a compiled layer made of it") from None
+
+    fleet = build_fleet(_fleet([_square_at("a", 0, 0), _square_at("b", 5, 0)], duration=5.0))
+    fleet.vehicle("b").simulator.add(Converting())
+    try:
+        with pytest.raises(RunInterrupted) as stop:
+            run_fleet_into_folder(fleet, tmp_path, plots=False, replay=False)
+    finally:
+        RunInterrupted.received = None
+    assert stop.value.signum == signal.SIGTERM and isinstance(stop.value.__cause__, RuntimeError)
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics == {"status": "interrupted", "message": "stopped by SIGTERM", "sim_time_s": metrics["sim_time_s"]}
+    assert 0.4 <= metrics["sim_time_s"] < 1.0

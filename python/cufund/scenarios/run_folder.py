@@ -158,30 +158,37 @@ def run_into_folder(
     try:
         run = run_built(built, progress=progress)
     except BaseException as exc:
-        signum = exc.signum if isinstance(exc, RunInterrupted) else RunInterrupted.received
-        if signum is None and not isinstance(exc, KeyboardInterrupt):
-            raise
-        signum = signal.SIGINT if signum is None else signum  # a plain KeyboardInterrupt: Ctrl-C
-        metrics: dict[str, Any] = {
-            "status": "interrupted",
-            "message": f"stopped by {signal.Signals(signum).name}",
-            "sim_time_s": float(built.simulator.t),
-        }
-        if logger is not None:
-            try:
-                logger.close()
-            except Exception as close_error:  # the folder is finished whatever the log says
-                metrics["log_error"] = f"{type(close_error).__name__}: {close_error}"
-            logger = None
-        _write_metrics(metrics, out)
-        if isinstance(exc, KeyboardInterrupt):
-            raise
-        raise RunInterrupted(signum) from exc  # the signal's exception came back as another type
+        _finish_interrupted(exc, built.simulator.t, out, logger)
+        raise
     finally:
         if logger is not None:
-            logger.close()
+            logger.close()  # idempotent
     write_run_folder(run, out, plots=plots, replay=replay)
     return run
+
+
+def _finish_interrupted(exc: BaseException, sim_time_s: float, out: Path, logger: Any) -> None:
+    """Called with the exception that ended a run into ``out``: when a signal stopped it (``exc`` a
+    KeyboardInterrupt, or another type the signal's exception came back as), closes the log and writes
+    ``metrics.json`` with status ``interrupted`` and the simulated time reached, and for another type raises
+    :class:`RunInterrupted` from it; otherwise does nothing (the caller re-raises ``exc``)."""
+    signum = exc.signum if isinstance(exc, RunInterrupted) else RunInterrupted.received
+    if signum is None and not isinstance(exc, KeyboardInterrupt):
+        return
+    signum = signal.SIGINT if signum is None else signum  # a plain KeyboardInterrupt: Ctrl-C
+    metrics: dict[str, Any] = {
+        "status": "interrupted",
+        "message": f"stopped by {signal.Signals(signum).name}",
+        "sim_time_s": float(sim_time_s),
+    }
+    if logger is not None:
+        try:
+            logger.close()
+        except Exception as close_error:  # the folder is finished whatever the log says
+            metrics["log_error"] = f"{type(close_error).__name__}: {close_error}"
+    _write_metrics(metrics, out)
+    if not isinstance(exc, KeyboardInterrupt):
+        raise RunInterrupted(signum) from exc  # the signal's exception came back as another type
 
 
 def run_fleet_into_folder(
@@ -213,10 +220,8 @@ def run_fleet_into_folder(
     RunInterrupted.received = None
     try:
         run = fleet.run()
-    except KeyboardInterrupt as exc:
-        signum = exc.signum if isinstance(exc, RunInterrupted) else RunInterrupted.received or signal.SIGINT
-        stopped = {"status": "interrupted", "message": f"stopped by {signal.Signals(signum).name}"}
-        _write_metrics({**stopped, "sim_time_s": float(fleet.t)}, out)
+    except BaseException as exc:
+        _finish_interrupted(exc, fleet.t, out, logger)
         raise
     finally:
         if logger is not None:
