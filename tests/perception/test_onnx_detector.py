@@ -538,6 +538,12 @@ def test_scenario_part_perception_onnx_detector(tmp_path):
     (tmp_path / "bad.onnx").write_bytes(b"not a model")
     with pytest.raises(ConfigError, match="perception: model file .* is not a loadable ONNX model"):
         build_simulation(load_scenario(tmp_path / "s.yaml", ["perception.model=bad.onnx"]))
+    # the two cameras swapped: depths fed to the detector (refused at every frame mid-run), grey levels read as
+    # metres
+    with pytest.raises(ConfigError, match="perception.camera: 'depth' is a depth camera"):
+        build_simulation(load_scenario(tmp_path / "s.yaml", ["perception.camera=depth"]))
+    with pytest.raises(ConfigError, match="perception.depth_camera: 'camera' is a colour camera"):
+        build_simulation(load_scenario(tmp_path / "s.yaml", ["perception.depth_camera=camera"]))
     # a depth camera mounted elsewhere than the image camera: the boxes' rays would be turned with its mounting
     for key in ("sensors.depth.T_BC.p=[0.0,0.05,0.0]", "sensors.camera.T_BC.q=[0.9659258,0.0,0.0,0.258819]"):
         with pytest.raises(ConfigError, match="depth_camera must be mounted as perception.camera"):

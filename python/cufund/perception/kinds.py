@@ -80,7 +80,9 @@ def _path(value: str, ctx: BuildContext) -> str:
 def _onnx_detector(p: OnnxDetectorParams, ctx: BuildContext) -> list[Any]:
     if not p.model:
         raise ConfigError("perception.model must name an .onnx file (the model is required)")
-    _, image = ctx.sensor_of_type("camera", p.camera, "perception.camera")
+    name, image = ctx.sensor_of_type("camera", p.camera, "perception.camera")
+    if image.kind == "d435_depth":  # its images are depths [m], not colour: every frame would be refused mid-run
+        raise ConfigError(f"perception.camera: {name!r} is a depth camera ({image.kind}); name the colour camera")
     try:
         detector = OnnxDetector(
             _path(p.model, ctx),
@@ -94,7 +96,9 @@ def _onnx_detector(p: OnnxDetectorParams, ctx: BuildContext) -> list[Any]:
         raise ConfigError(f"perception: {e}") from None
     if p.depth_camera is None:
         return [OnnxDetectorComponent(detector, image_topic=image.topic, rate_hz=p.rate_hz)]
-    _, depth = ctx.sensor_of_type("camera", p.depth_camera, "perception.depth_camera")
+    depth_name, depth = ctx.sensor_of_type("camera", p.depth_camera, "perception.depth_camera")
+    if depth.kind == "d435_rgb":  # grey levels would be read as metres
+        raise ConfigError(f"perception.depth_camera: {depth_name!r} is a colour camera ({depth.kind}), not a depth one")
     T_image, T_depth = image.extrinsic or Transform(), depth.extrinsic or Transform()
     offset = T_image.inverse() @ T_depth
     if np.linalg.norm(offset.t) > 1e-6 or abs(offset.q[0]) < 1.0 - 1e-12:
