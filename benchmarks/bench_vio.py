@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import pickle
 import sys
 import time
@@ -30,7 +31,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from cufund.estimation.evaluation import odometry_errors
+from cufund.estimation.evaluation import aligned_ate, odometry_errors
 from cufund.estimation.vio_core import VioCore
 from cufund.estimation.vio_params import VioCamera, VioParams
 from cufund.estimation.vio_synthetic import TexturedRoom, hover_then, synthesize
@@ -77,15 +78,15 @@ def generate(duration: float):
     return run
 
 
-def run_vio(run) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float]]:
+def run_vio(run) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[float, float]]]:
     """(t, p, q) of cufund's VIO at every IMU sample (its output), and its wall time per stereo frame [ms]."""
     core = VioCore(VioParams(cam0=CAM0, cam1=CAM1, p_WB0=START, imu=imu_preset("icm42688p")))
     fi, ts, ps, qs, ms = 0, [], [], [], []
     for t, f, w in run.imu:
         while fi < len(run.frames) and run.frames[fi][0] < t:
-            w0 = time.perf_counter()
+            w0, c0 = time.perf_counter(), time.process_time()
             core.add_frame(*run.frames[fi])
-            ms.append((time.perf_counter() - w0) * 1e3)
+            ms.append(((time.perf_counter() - w0) * 1e3, (time.process_time() - c0) * 1e3))
             fi += 1
         o = core.add_imu(t, f, w)
         if o is not None:  # the IMU-rate output the controllers fly on
@@ -152,7 +153,9 @@ class StereoVoBaseline:
             if len(m) >= 6:
                 X = P[[x.queryIdx for x in m]]
                 uv = pl[[x.trainIdx for x in m]]
-                ok, rvec, tvec, inl = cv2.solvePnPRansac(X, uv, self.K, None, reprojectionError=1.5, iterationsCount=200)
+                ok, rvec, tvec, inl = cv2.solvePnPRansac(
+                    X, uv, self.K, None, reprojectionError=1.5, iterationsCount=200
+                )
                 if ok and inl is not None and len(inl) >= 6:
                     i = inl.reshape(-1)
                     inliers = len(i)
@@ -166,21 +169,23 @@ class StereoVoBaseline:
         return self.T_WO @ np.linalg.inv(self.T_BO)
 
 
-def run_peer(run) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float]]:
+def run_peer(run) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[float, float]]]:
     vo = StereoVoBaseline(CAM0, 0.11, CAM0.T_BC)
     vo.start(quat_to_matrix(run.truth_q[0]), run.truth_p[0])
     ts, ps, qs, ms = [], [], [], []
     for t, left, right in run.frames:
-        w0 = time.perf_counter()
+        w0, c0 = time.perf_counter(), time.process_time()
         T = vo.process(left, right)
-        ms.append((time.perf_counter() - w0) * 1e3)
+        ms.append(((time.perf_counter() - w0) * 1e3, (time.process_time() - c0) * 1e3))
         ts.append(t)
         ps.append(T[:3, 3].copy())
         qs.append(quat_from_matrix(T[:3, :3]))
     return np.array(ts), np.array(ps), np.array(qs), ms
 
 
-def run_orbslam(run, vocabulary: str, workdir: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float]]:
+def run_orbslam(
+    run, vocabulary: str, workdir: Path
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[float, float]]]:
     """ORB-SLAM3 stereo-inertial through orbslam3-python (its vocabulary given)."""
     import orbslam3
 
@@ -192,7 +197,7 @@ def run_orbslam(run, vocabulary: str, workdir: Path) -> tuple[np.ndarray, np.nda
     rows = ", ".join(f"{v:.9f}" for v in T_BO.reshape(-1))
     settings.write_text(
         "%YAML:1.0\n"
-        'File.version: "1.0"\nCamera.type: "PinHole"\n'
+        'File.version: "1.0"\nCamera.type: "Rectified"\n'
         f"Camera1.fx: {CAM0.fx}\nCamera1.fy: {CAM0.fy}\nCamera1.cx: {CAM0.cx}\nCamera1.cy: {CAM0.cy}\n"
         "Camera1.k1: 0.0\nCamera1.k2: 0.0\nCamera1.p1: 0.0\nCamera1.p2: 0.0\n"
         f"Camera.width: {CAM0.width}\nCamera.height: {CAM0.height}\nCamera.fps: 20\nCamera.RGB: 0\n"
@@ -214,11 +219,11 @@ def run_orbslam(run, vocabulary: str, workdir: Path) -> tuple[np.ndarray, np.nda
         batch = []
         while ii < len(run.imu) and run.imu[ii][0] <= t:
             ti, f, w = run.imu[ii]
-            batch.append([float(f[0]), float(f[1]), float(f[2]), float(w[0]), float(w[1]), float(w[2]), float(ti)])
+            batch.append((float(f[0]), float(f[1]), float(f[2]), float(w[0]), float(w[1]), float(w[2]), float(ti)))
             ii += 1
-        w0 = time.perf_counter()
+        w0, c0 = time.perf_counter(), time.process_time()
         slam.process_stereo_inertial_enhanced(left, right, t, batch)
-        ms.append((time.perf_counter() - w0) * 1e3)
+        ms.append(((time.perf_counter() - w0) * 1e3, (time.process_time() - c0) * 1e3))
         T = slam.get_frame_pose()
         if T is None or np.asarray(T).shape != (4, 4):
             continue
@@ -231,9 +236,12 @@ def run_orbslam(run, vocabulary: str, workdir: Path) -> tuple[np.ndarray, np.nda
 
 
 def errors(run, t: np.ndarray, p: np.ndarray, q: np.ndarray) -> dict[str, float]:
+    """Unaligned figures (the estimate's world frame is the pad's) and evo's aligned ATE (SE(3) Umeyama)."""
     keep = t >= 1.0
     i = np.searchsorted(run.truth_t, t[keep] - 1e-9)
-    return odometry_errors(p[keep], q[keep], run.truth_p[i], run.truth_q[i])
+    e = odometry_errors(p[keep], q[keep], run.truth_p[i], run.truth_q[i])
+    e["ate_aligned_m"] = aligned_ate(p[keep], run.truth_p[i])
+    return e
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -241,6 +249,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--cache", type=Path, default=None, help="keep the generated flight here (pickle) and reuse it")
     ap.add_argument("--orbslam", default="", help="ORB-SLAM3 vocabulary file: run ORB-SLAM3 stereo-inertial too")
+    ap.add_argument(
+        "--orbslam-path",
+        default="",
+        help="folder orbslam3-python was installed into when not in the venv (pip install --target DIR "
+        "orbslam3-python: its wheel brings its own numpy and OpenCV, kept out of the venv); appended to sys.path",
+    )
     args = ap.parse_args(argv)
     w0 = time.perf_counter()
     if args.cache is not None and args.cache.exists():
@@ -259,22 +273,30 @@ def main(argv: list[str] | None = None) -> int:
         ("cufund VIO (stereo + IMU, GTSAM)", run_vio(run)),
         ("OpenCV stereo VO (PnP RANSAC, no IMU)", run_peer(run)),
     ]
+    if args.orbslam_path:
+        sys.path.append(args.orbslam_path)
     if args.orbslam:
         try:
             rows.append(("ORB-SLAM3 stereo-inertial", run_orbslam(run, args.orbslam, Path("/tmp"))))
         except Exception as e:  # report and go on with the others
             print(f"ORB-SLAM3: {type(e).__name__}: {e}", file=sys.stderr)
+    print(f"load average: {' '.join(f'{x:.1f}' for x in os.getloadavg())} on {os.cpu_count()} cores")
     print(
-        f"{'estimator':42s} {'pos RMSE [cm]':>14s} {'max [cm]':>9s} {'rot RMSE [deg]':>15s} {'ms/frame (median)':>18s} {'frames':>7s}"
+        f"{'estimator':40s} {'pos RMSE cm':>11s} {'max cm':>7s} {'rot RMSE deg':>12s} {'ATE aligned cm':>14s} "
+        f"{'wall ms/frame':>13s} {'CPU ms/frame':>12s} {'outputs':>8s}"
     )
     for name, (t, p, q, ms) in rows:
         if len(t) == 0:
-            print(f"{name:42s} {'no output':>14s}")
+            print(f"{name:40s} {'no output':>11s}")
             continue
         e = errors(run, t, p, q)
+        own_frame = name != "ORB-SLAM3 stereo-inertial"  # ORB-SLAM3's world frame is its own: aligned only
+        wall, cpu = np.median(np.array(ms), axis=0)
         print(
-            f"{name:42s} {e['odometry_rmse_m'] * 100:14.2f} {e['odometry_max_m'] * 100:9.2f} "
-            f"{e['odometry_rot_rmse_deg']:15.3f} {np.median(ms):18.1f} {len(t):7d}"
+            f"{name:40s} {e['odometry_rmse_m'] * 100 if own_frame else math.nan:11.2f} "
+            f"{e['odometry_max_m'] * 100 if own_frame else math.nan:7.2f} "
+            f"{e['odometry_rot_rmse_deg'] if own_frame else math.nan:12.3f} {e['ate_aligned_m'] * 100:14.2f} "
+            f"{wall:13.1f} {cpu:12.1f} {len(t):8d}"
         )
     return 0
 
