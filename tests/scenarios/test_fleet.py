@@ -139,6 +139,16 @@ def test_bad_vehicles_named(vehicles, match):
         build_fleet(cfg)
 
 
+def test_start_yaw_is_checked_as_a_vehicles_is():
+    """The scenario's start_yaw and a vehicle's start.yaw take the same headings, [-2 pi, 2 pi] [rad]."""
+    data = load_scenario("square").to_dict()
+    assert ScenarioConfig.from_dict({**data, "start_yaw": -2 * np.pi}).start_yaw == -2 * np.pi
+    with pytest.raises(ConfigError, match="start_yaw must be a heading in"):
+        ScenarioConfig.from_dict({**data, "start_yaw": 6.5})
+    with pytest.raises(ConfigError, match="radians, not degrees"):
+        _fleet([{"name": "a", "start": {"yaw": 6.5}}])
+
+
 def test_single_vehicle_build_refuses_a_fleet():
     with pytest.raises(ConfigError, match="build_fleet"):
         build_simulation(load_scenario("fleet_square"))

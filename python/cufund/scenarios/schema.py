@@ -415,7 +415,12 @@ class ScenarioConfig:
         object.__setattr__(self, "vehicles", parse_vehicles(self.vehicles))
         object.__setattr__(self, "downwash", DownwashConfig.parse(self.downwash))
         yaw = self.start_yaw
-        if isinstance(yaw, bool) or not isinstance(yaw, (int, float)) or not math.isfinite(yaw) or abs(yaw) > 7:
+        if (
+            isinstance(yaw, bool)
+            or not isinstance(yaw, (int, float))
+            or not math.isfinite(yaw)
+            or abs(yaw) > 2 * math.pi
+        ):
             raise ConfigError(f"start_yaw must be a heading in [-2 pi, 2 pi] [rad], got {yaw!r}")
         object.__setattr__(self, "start_yaw", float(yaw))
         try:
