@@ -318,6 +318,20 @@ def test_bad_replies_are_refused(chat):
         parse_mission("do the thing", FLEET)
 
 
+def test_a_fence_around_blanks_is_refused_at_once(chat):
+    """A message of a code fence and thousands of blanks is no JSON, found out in milliseconds (a backtracking
+    pattern took minutes over it)."""
+    chat.content = "```" + " " * 5000 + "x"
+    t0 = time.monotonic()
+    with pytest.raises(MissionRequestError, match="not valid JSON"):
+        parse_mission("do the thing", FLEET)
+    assert time.monotonic() - t0 < 5.0
+    chat.content = "  ```json \n" + json.dumps({"mission": "go_home"}) + "\n```  "
+    assert parse_mission("do the thing", FLEET) == GoHome()
+    chat.content = "``` " + json.dumps({"mission": "go_home", "vehicles": ["uav2"]}) + "```"
+    assert parse_mission("do the thing", FLEET) == GoHome(vehicles=("uav2",))
+
+
 def test_a_reply_dripping_in_is_cut_off_at_the_timeout(chat):
     """Each byte within the socket timeout, the whole far beyond it: refused once timeout_s has passed."""
     chat.content = json.dumps({"mission": "go_home"})
