@@ -213,9 +213,13 @@ def test_names_yaml_and_count_checks(tmp_path):
     (tmp_path / "bad.yaml").write_text("names: [a\n")
     with pytest.raises(ValueError, match="not valid YAML"):
         load_class_names(tmp_path / "bad.yaml")
-    (tmp_path / "big.yaml").write_text("names: [" + "a, " * 400_000 + "]\n")
-    with pytest.raises(ValueError, match="is 1200010 bytes, more than the 1048576 allowed"):
-        load_class_names(tmp_path / "big.yaml")
+    # read as every cufund YAML file: bounded depth (PyYAML's own recursion let a RecursionError out)
+    (tmp_path / "deep.yaml").write_text("names: " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(ValueError, match="not valid YAML: .* nesting deeper than yaml_max_depth"):
+        load_class_names(tmp_path / "deep.yaml")
+    (tmp_path / "twice.yaml").write_text("names: [a]\nnames: [b]\n")
+    with pytest.raises(ValueError, match="duplicate key 'names'"):
+        load_class_names(tmp_path / "twice.yaml")
     with pytest.raises(ValueError, match="conf must be a number in"):
         OnnxDetector(path, conf=1.5)
 

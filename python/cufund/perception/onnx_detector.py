@@ -24,7 +24,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
+
+from cufund.core.config import ConfigError, load_yaml
 
 from .letterbox import Letterbox
 from .nms import nms
@@ -32,8 +33,8 @@ from .nms import nms
 MAX_MODEL_BYTES = 512 * 1024 * 1024
 """Largest model file read [bytes]."""
 MAX_METADATA_CHARS = 1 << 20
-"""Longest metadata value parsed as a literal (``names``, ``imgsz``) [characters], and largest names YAML file
-[bytes]: parsing costs ~100 times the text's length in memory."""
+"""Longest metadata value parsed as a literal (``names``, ``imgsz``) [characters]: parsing costs ~100 times its
+length in memory."""
 MAX_NMS = 30000
 """Candidates above the score threshold kept (highest first) before NMS, as ultralytics."""
 LAYOUTS = ("yolo", "end2end", "ssd")
@@ -57,17 +58,15 @@ class Detections:
 
 
 def load_class_names(path: str | Path) -> tuple[str, ...]:
-    """Class names from a YAML file whose ``names`` is a list, or a mapping {index: name} with indices 0..n-1."""
+    """Class names from a YAML file whose ``names`` is a list, or a mapping {index: name} with indices 0..n-1. Read
+    as every cufund YAML file (:func:`cufund.core.config.load_yaml`: plain data, its size, depth and aliases
+    bounded); a ValueError when it is not such a file."""
     p = Path(path)
     if not p.is_file():
         raise ValueError(f"names file {str(p)!r} does not exist")
-    if p.stat().st_size > MAX_METADATA_CHARS:
-        raise ValueError(
-            f"names file {str(p)!r} is {p.stat().st_size} bytes, more than the {MAX_METADATA_CHARS} allowed"
-        )
     try:
-        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as e:
+        doc = load_yaml(p)
+    except ConfigError as e:
         raise ValueError(f"names file {str(p)!r} is not valid YAML: {e}") from None
     if not isinstance(doc, dict) or "names" not in doc:
         raise ValueError(f"names file {str(p)!r} must be a mapping with a 'names' key (a list or {{index: name}})")
