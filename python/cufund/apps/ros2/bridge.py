@@ -33,6 +33,7 @@ import numpy as np
 from cufund.core.components import BusView, Component
 
 from . import encode
+from .answers import Ros2Timeout, StepAnswers
 from .config import ACK_TOPIC, COMMAND_TOPICS, Ros2Params
 from .dds import QOS, DdsParticipant, QosProfile
 
@@ -41,10 +42,6 @@ __all__ = ["Out", "Ros2Bridge", "Ros2Timeout"]
 NS = 1_000_000_000
 OFFBOARD_LOSS_S = 0.5
 """PX4's COM_OF_LOSS_T: offboard setpoints count only while OffboardControlMode came this recently [s]."""
-
-
-class Ros2Timeout(RuntimeError):
-    """A lockstep node did not answer within ``timeout_s``."""
 
 
 @dataclass
@@ -94,10 +91,9 @@ class Ros2Bridge(Component):
         if self.dds is None:
             self._open()
         else:  # a new run on the same participant: the nodes stay matched; answers of the last run are dropped
-            self._take_acks()
+            self._answers.new_run()
             for reader in self._readers.values():
                 reader.take(N=10_000)
-        self._answers: dict[str, int] = {}
         self._offboard_mode_ns: int | None = None  # sim time of the last OffboardControlMode
         self._offboard_wanted = False  # VehicleCommand DO_SET_MODE offboard received
         self._scheduled: list[tuple[int, dict[str, Any]]] = []  # (sim ns, command) from trajectories
@@ -117,10 +113,7 @@ class Ros2Bridge(Component):
         self._out_writers = [[self._writers[name] for name, _, _ in o.writes] for o in self.outs]
         self._clock = self.dds.writer("/clock", "rosgraph_msgs/msg/Clock", QOS["clock"])
         self._tf_static = self.dds.writer("/tf_static", "tf2_msgs/msg/TFMessage", QOS["tf_static"])
-        self._ack = self.dds.reader(ACK_TOPIC, "std_msgs/msg/Header", QOS["ack"])
-        self._announced: set[str] = set()  # nodes that answered on this participant
-        self._answers = {}
-        self._waitset: Any = None
+        self._answers = StepAnswers(self.dds, p.timeout_s)
         self._readers: dict[str, Any] = {}
         if self.commander is not None:
             names = {**{k: v[0] for k, v in COMMAND_TOPICS.items()}, **p.commands}
@@ -174,53 +167,29 @@ class Ros2Bridge(Component):
         self._take_commands(t_ns)
         self.stats["steps"] += 1
 
-    def _take_acks(self) -> None:
-        for s in self._ack.take(N=1000):
-            if getattr(s, "sample_info", None) is not None and not s.sample_info.valid_data:
-                continue
-            ns = _ns(s.stamp)
-            self._announced.add(s.frame_id)
-            if ns >= self._answers.get(s.frame_id, -(2**62)):
-                self._answers[s.frame_id] = ns
-
     def _wait(self, ok: Callable[[], bool], what: Callable[[], str]) -> None:
-        from cyclonedds.core import ReadCondition, SampleState, WaitSet
-        from cyclonedds.util import duration
-
-        w0 = time.perf_counter()
-        deadline = w0 + self.params.timeout_s
-        if self._waitset is None:
-            self._waitset = WaitSet(self.dds.participant)  # type: ignore[union-attr]
-            self._waitset.attach(ReadCondition(self._ack, SampleState.NotRead))
-        self._take_acks()
-        while not ok():
-            left = deadline - time.perf_counter()
-            if left <= 0:
-                raise Ros2Timeout(what())
-            self._waitset.wait(duration(seconds=min(left, 0.05)))
-            self._take_acks()
-        self.stats["wait_s"] += time.perf_counter() - w0
+        self.stats["wait_s"] += self._answers.wait(ok, what)
 
     def _wait_ready(self) -> None:
         nodes = self.params.lockstep_nodes if self.params.lockstep else ()
         if not nodes:
             return
+        announced = self._answers.announced
         self._wait(
-            lambda: all(n in self._announced for n in nodes),
+            lambda: all(n in announced for n in nodes),
             lambda: (
-                f"ros2 lockstep: node(s) {', '.join(n for n in nodes if n not in self._announced)} did not announce "
+                f"ros2 lockstep: node(s) {', '.join(n for n in nodes if n not in announced)} did not announce "
                 f"themselves on {ACK_TOPIC} within {self.params.timeout_s:g} s (domain {self.params.domain_id}); "
                 "is the node running, on the same ROS_DOMAIN_ID, and on this host?"
             ),
         )
 
     def _wait_answers(self, t_ns: int, t: float) -> None:
-        nodes = self.params.lockstep_nodes
-        floor = -(2**62)
+        nodes, answered = self.params.lockstep_nodes, self._answers.answered
         self._wait(
-            lambda: all(self._answers.get(n, floor) >= t_ns for n in nodes),
+            lambda: all(answered(n, t_ns) for n in nodes),
             lambda: (
-                f"ros2 lockstep: node(s) {', '.join(n for n in nodes if self._answers.get(n, floor) < t_ns)} did not "
+                f"ros2 lockstep: node(s) {', '.join(n for n in nodes if not answered(n, t_ns))} did not "
                 f"answer the step at t = {t:.6f} s on {ACK_TOPIC} within {self.params.timeout_s:g} s"
             ),
         )

@@ -17,7 +17,6 @@ What a node may write, by the cufund topic's message: :class:`~cufund.core.messa
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -142,6 +141,7 @@ class ExternalComponent(Component):
         return tuple(w[0] for w in self._writes)
 
     def reset(self) -> None:
+        from .answers import StepAnswers
         from .dds import QOS, DdsParticipant
 
         if self.dds is None:
@@ -149,14 +149,11 @@ class ExternalComponent(Component):
             self._writers = [self.dds.writer(name, rtype, QOS["default"]) for _, name, rtype, _ in self._reads]
             self._readers = [self.dds.reader(name, rtype, QOS["default"]) for _, name, rtype, _ in self._writes]
             self._clock = self.dds.writer("/clock", "rosgraph_msgs/msg/Clock", QOS["clock"])
-            self._ack = self.dds.reader(ACK_TOPIC, "std_msgs/msg/Header", QOS["ack"])
-            self._waitset: Any = None
-            self._announced = False
+            self._answers = StepAnswers(self.dds, self.params.timeout_s)
         else:  # a new run on the same participant: the node stays matched; what it sent for the last run is dropped
-            self._take_answers()
+            self._answers.new_run()
             for reader in self._readers:
                 reader.take(N=10_000)
-        self._answered: int | None = None
         self._started = False
 
     def setup(self, bus: BusView) -> None:
@@ -167,35 +164,15 @@ class ExternalComponent(Component):
             self.dds.close()
             self.dds = None
 
-    def _take_answers(self) -> None:
-        for s in self._ack.take(N=1000):
-            info = getattr(s, "sample_info", None)
-            if (info is None or info.valid_data) and s.frame_id == self.params.node:
-                ns = int(s.stamp.sec) * NS + int(s.stamp.nanosec)
-                self._announced = True
-                if self._answered is None or ns > self._answered:
-                    self._answered = ns
-
     def _wait(self, ok: Callable[[], bool], what: str) -> None:
-        from cyclonedds.core import ReadCondition, SampleState, WaitSet
-        from cyclonedds.util import duration
-
-        from .bridge import Ros2Timeout
-
-        if self._waitset is None:
-            self._waitset = WaitSet(self.dds.participant)
-            self._waitset.attach(ReadCondition(self._ack, SampleState.NotRead))
-        deadline = time.perf_counter() + self.params.timeout_s
-        self._take_answers()
-        while not ok():
-            left = deadline - time.perf_counter()
-            if left <= 0:
-                raise Ros2Timeout(
-                    f"ros2_external {self.name}: node {self.params.node!r} did not {what} on {ACK_TOPIC} within "
-                    f"{self.params.timeout_s:g} s (domain {self.params.domain_id})"
-                )
-            self._waitset.wait(duration(seconds=min(left, 0.05)))
-            self._take_answers()
+        p = self.params
+        self._answers.wait(
+            ok,
+            lambda: (
+                f"ros2_external {self.name}: node {p.node!r} did not {what} on {ACK_TOPIC} within {p.timeout_s:g} s "
+                f"(domain {p.domain_id})"
+            ),
+        )
 
     def step(self, t: float, bus: BusView) -> None:
         from . import encode
@@ -203,12 +180,12 @@ class ExternalComponent(Component):
         t_ns = round(t * NS)
         if not self._started:
             self._started = True
-            self._wait(lambda: self._announced, "announce itself")
+            self._wait(lambda: self.params.node in self._answers.announced, "announce itself")
         for (_, _, _, enc), writer, sub in zip(self._reads, self._writers, self._subs, strict=True):
             for m in sub.take():
                 writer.write(enc(m))
         self._clock.write(encode.clock(t))
-        self._wait(lambda: self._answered is not None and self._answered >= t_ns, f"answer the step at t = {t:.6f} s")
+        self._wait(lambda: self._answers.answered(self.params.node, t_ns), f"answer the step at t = {t:.6f} s")
         for (topic, _, _, dec), reader in zip(self._writes, self._readers, strict=True):
             for s in reader.take(N=1000):
                 info = getattr(s, "sample_info", None)
