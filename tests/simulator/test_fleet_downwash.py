@@ -63,6 +63,18 @@ def test_thrust_loss_below_another_follows_the_curve(dz):
     assert abs(high.accel_W[2]) < 1e-3
 
 
+def test_a_new_run_starts_without_the_last_runs_downwash():
+    """The plant holds the downwash the fleet set on it; a reset or a new run takes it off before setting the new."""
+    fleet, members, *_ = _pair((0, 0, 2.0), (0, 0, 3.0))
+    low = members[0].simulator.vehicle
+    force = fleet.downwash_forces["low"]
+    assert force[2] < 0 and np.array_equal(low.force_ext_W, force)
+    fleet.reset()
+    assert np.array_equal(low.force_ext_W, force)
+    fleet.run(0.01)
+    assert np.array_equal(low.force_ext_W, fleet.downwash_forces["low"])
+
+
 def test_far_field_decays_as_the_inverse_square():
     """Centreline speed ~ 1/s, so the force on a vehicle well below goes as 1/s^2."""
     f = {}

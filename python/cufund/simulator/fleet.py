@@ -137,7 +137,11 @@ class FleetSimulator:
 
     # -- the run -----------------------------------------------------------------------------------------------
     def reset(self) -> None:
-        """Starts a run of every vehicle from its plant's current state (each simulator's :meth:`reset`)."""
+        """Starts a run of every vehicle from its plant's current state (each simulator's :meth:`reset`), without
+        the downwash the last run left on the plants."""
+        for m, force in zip(self.members, getattr(self, "_forces", ()), strict=False):
+            if force.any():
+                m.simulator.vehicle.force_ext_W[:] -= force  # type: ignore[union-attr]
         for m in self.members:
             m.simulator.reset()
         t0 = {m.simulator.t_start_ns for m in self.members}
