@@ -413,6 +413,11 @@ class ScenarioConfig:
         object.__setattr__(self, "atmosphere", AtmosphereConfig.parse(self.atmosphere))
         object.__setattr__(self, "ground_effect", GroundEffectConfig.parse(self.ground_effect))
         object.__setattr__(self, "vehicles", parse_vehicles(self.vehicles))
+        if self.vehicles and self.ros2 is not None:  # each vehicle's scenario would get a bridge of its own
+            raise ConfigError(
+                "ros2: the ROS 2 bridge serves one vehicle under ROS 2's plain names (/imu, /clock, /goal_pose); "
+                "a fleet (vehicles:) would publish every vehicle on them and fly every one to each goal"
+            )
         object.__setattr__(self, "downwash", DownwashConfig.parse(self.downwash))
         yaw = self.start_yaw
         if (

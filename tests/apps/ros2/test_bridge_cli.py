@@ -46,6 +46,15 @@ def test_bad_ros2_settings_name_the_field(ros2, message):
         _with(ros2)
 
 
+def test_a_fleet_is_not_bridged():
+    # each vehicle's scenario inherits the fleet's parts: three bridges on one domain, every goal to every vehicle
+    cfg = load_scenario("fleet_survey")
+    data = cfg.to_dict()
+    data["ros2"] = {"domain_id": 9}
+    with pytest.raises(ConfigError, match="ros2: the ROS 2 bridge serves one vehicle"):
+        ScenarioConfig.from_dict(data, cfg.base_dir)
+
+
 def test_a_topic_the_bridge_cannot_publish_is_refused_when_built():
     with pytest.raises(ConfigError, match="/sensors/lidarr cannot be published: not a topic of this scenario"):
         build_simulation(_with({"topics": {"/sensors/lidarr": "/points"}}))
