@@ -88,6 +88,17 @@ def test_a_zigzag_over_a_vast_polygon_is_planned_at_once():
         mission_from_data(data, ONE)
 
 
+def test_a_long_strip_is_surveyed_and_a_vast_area_refused():
+    """The waypoint limit is checked on the fewest lanes a sweep needs: a 1.5 km x 4 m strip at 2 m spacing is two
+    lanes along it (4 waypoints), not refused for the 1000-odd lanes a sweep across it would be."""
+    strip = [(0.0, 0.0), (1500.0, 0.0), (1500.0, 4.0), (0.0, 4.0)]
+    wp = mission_from_data({"mission": "survey", "area": strip, "spacing": 2.0})
+    np.testing.assert_array_equal(wp.waypoints()["uav1"], [[0, 1, 5], [1500, 1, 5], [1500, 3, 5], [0, 3, 5]])
+    square = [(0.0, 0.0), (2000.0, 0.0), (2000.0, 2000.0), (0.0, 2000.0)]
+    with pytest.raises(MissionRequestError, match=r"too many waypoints: .* at least 4000 waypoints \(2000 lanes\)"):
+        mission_from_data({"mission": "survey", "area": square, "spacing": 1.0}, FleetContext(names=("a", "b")))
+
+
 def test_a_fleet_shares_the_zigzag_rows():
     wp = parse_mission("zigzag over the field with 3 rows of 5 waypoints at 10 m", FLEET).waypoints(FLEET)
     one = parse_mission("zigzag over the field with 3 rows of 5 waypoints at 10 m", ONE).waypoints(ONE)["uav1"]

@@ -23,7 +23,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .fleet_polygon import Polygon, check_polygon, clip_band
 
-__all__ = ["CoverageCell", "lanes", "path_length", "plan_coverage", "sweep_frame"]
+__all__ = ["CoverageCell", "fewest_lanes", "lanes", "path_length", "plan_coverage", "sweep_frame"]
 
 _LANE_BLOCK = 1024
 """Lanes intersected with the polygon's edges at once (a block is ``_LANE_BLOCK`` x vertices floats)."""
@@ -65,7 +65,7 @@ def lanes(
     pw, pu = poly @ w, poly @ u
     lo, hi = float(pw.min()), float(pw.max())
     width = hi - lo
-    n = max(1, math.ceil(width / spacing - 1e-9))
+    n = _lane_count(width, spacing)
     if n == 1:
         offsets = np.array([0.5 * (lo + hi)])
     else:
@@ -82,6 +82,18 @@ def lanes(
             s = np.sort(row[hit]).tolist()
             pieces.append([(s[k], s[k + 1]) for k in range(0, len(s) - 1, 2) if s[k + 1] - s[k] > 1e-9])
     return offsets, pieces, u, w
+
+
+def _lane_count(width: float, spacing: float) -> int:
+    return max(1, math.ceil(width / spacing - 1e-9))
+
+
+def fewest_lanes(polygon: ArrayLike, spacing: float) -> int:
+    """The fewest lanes any sweep :func:`plan_coverage` tries (along an edge or its perpendicular) needs: each lane
+    is at least two waypoints, so a coverage of ``polygon`` has at least twice as many (a bound that costs no
+    sweep)."""
+    poly = np.asarray(polygon, dtype=float)
+    return min(_lane_count(float(np.ptp(poly @ sweep_frame(poly, th)[1])), spacing) for th in _headings(poly))
 
 
 def sweep_frame(polygon: ArrayLike, heading: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -149,10 +161,12 @@ def plan_coverage(
     spacing: float,
     altitude: float,
     heading: float | None = None,
+    max_lanes: int | None = None,
 ) -> dict[str, CoverageCell]:
     """Split the coverage of ``polygon`` between the vehicles of ``homes`` (name -> home ``(x, y[, z])`` [m]); see
-    the module doc. ``ValueError`` names what is wrong (a bad polygon, spacing or altitude, more vehicles than
-    lanes)."""
+    the module doc. ``max_lanes``: sweeps of more lanes are not tried (their paths would be too long to fly anyway;
+    default: all are). ``ValueError`` names what is wrong (a bad polygon, spacing or altitude, more vehicles than
+    lanes, no sweep within ``max_lanes``)."""
     poly = np.asarray(check_polygon(polygon), dtype=float)
     for name, v in (("spacing", spacing), ("altitude", altitude)):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
@@ -164,7 +178,12 @@ def plan_coverage(
         raise ValueError("coverage needs at least one vehicle")
     candidates = _headings(poly) if heading is None else [float(heading)]
     best = None
+    too_many = 0
     for th in candidates:  # the sweep whose longest share is shortest (ties: the first, along the longest edge)
+        pw = poly @ sweep_frame(poly, th)[1]
+        if max_lanes is not None and _lane_count(float(pw.max() - pw.min()), spacing) > max_lanes:
+            too_many += 1  # not swept at all: a sliver's sweep across it would be millions of lanes
+            continue
         offsets, pieces, u, w = lanes(poly, float(spacing), th)
         keep = [k for k, p in enumerate(pieces) if p]
         offsets, pieces = offsets[keep], [pieces[k] for k in keep]
@@ -175,6 +194,8 @@ def plan_coverage(
         groups, makespan = _partition(costs, gaps, len(names))
         if best is None or makespan < best[0] - 1e-9:
             best = (makespan, offsets, pieces, u, w, groups)
+    if best is None and too_many == len(candidates):
+        raise ValueError(f"every sweep of the area at lane spacing {spacing} m needs more than {max_lanes} lanes")
     if best is None:
         raise ValueError(f"the area is too narrow for {len(names)} vehicles at lane spacing {spacing} m")
     _, offsets, pieces, u, w, groups = best

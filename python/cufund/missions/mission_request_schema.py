@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .commands import Command, parse_command
-from .coverage import plan_coverage, sweep_frame
+from .coverage import fewest_lanes, plan_coverage, sweep_frame
 from .fleet_context import NAME_PATTERN, FleetContext, MissionRequestError
 from .fleet_polygon import MAX_VERTICES, Polygon, check_polygon, polygon_contains
 from .fleet_timing import item_arrivals
@@ -368,13 +368,12 @@ class Survey(Mission):
 
     def precheck(self, ctx: FleetContext) -> None:
         poly = np.asarray(_resolve_area("survey area", self.area, ctx))
-        extent = float(np.max(np.ptp(poly, axis=0)))
         n = len(self.flying(ctx))
-        lanes_max = math.ceil(extent * math.sqrt(2) / self.spacing) + 1
-        if lanes_max > 2 * ctx.max_waypoints * n:
+        fewest = fewest_lanes(poly, self.spacing)
+        if 2 * fewest > ctx.max_waypoints * n:  # two waypoints a lane at least
             raise MissionRequestError(
-                f"too many waypoints: a {extent:g} m area at {self.spacing:g} m spacing needs about "
-                f"{2 * lanes_max} waypoints, at most {ctx.max_waypoints} per vehicle for {n} vehicle(s)"
+                f"too many waypoints: the area at {self.spacing:g} m spacing needs at least {2 * fewest} "
+                f"waypoints ({fewest} lanes), at most {ctx.max_waypoints} per vehicle for {n} vehicle(s)"
             )
         if ctx.geofence is not None:
             inside = polygon_contains(ctx.geofence, poly, tol=1e-6)
@@ -386,7 +385,13 @@ class Survey(Mission):
         names = self.flying(ctx)
         poly = _resolve_area("survey area", self.area, ctx)
         try:
-            cells = plan_coverage(poly, {n: ctx.home(n) for n in names}, self.spacing, self.altitude)
+            cells = plan_coverage(
+                poly,
+                {n: ctx.home(n) for n in names},
+                self.spacing,
+                self.altitude,
+                max_lanes=ctx.max_waypoints * len(names) // 2,  # a sweep of more could not be flown
+            )
         except ValueError as e:
             raise MissionRequestError(f"survey: {e}") from None
         return {n: np.asarray(cells[n].path, dtype=float) for n in names}
