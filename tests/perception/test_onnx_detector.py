@@ -507,6 +507,14 @@ def test_component_waits_for_an_estimate_covering_the_image(tmp_path):
     bus.publish(Topics.DEPTH_IMAGE, CameraImage(0.5, np.full((64, 64), 2.0, np.float32)))
     comp.step(0.5, view)
     assert sub3.take() == []  # the image is newer than every estimate: no pose for it yet
+    # the estimator's output for 0.5 arrives later (its latency): the frame is placed then, with its own stamp
+    bus.publish(Topics.ESTIMATE, Odometry(0.6, np.ones(3), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3)))
+    comp.step(0.6, view)
+    (d3,) = sub3.take()
+    assert d3.t == 0.5 and len(d3.centres_W) == 1
+    x = ((0 - 0.5 - 31.5) / 50 + (8 - 0.5 - 31.5) / 50) / 2  # the box's centre direction, both axes
+    p_W = np.full(3, 0.5 / 0.6)  # the pose interpolated at the capture time
+    np.testing.assert_allclose(d3.centres_W[0], p_W + R_CO @ np.array([x * 2, x * 2, 2.0]), atol=1e-9)
     with pytest.raises(ValueError, match="image_intrinsics and depth_intrinsics are needed"):
         OnnxDetectorComponent(det, depth_topic=Topics.DEPTH_IMAGE)
 

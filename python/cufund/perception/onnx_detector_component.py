@@ -13,12 +13,14 @@ from cufund.core.topics import is_truth
 from cufund.geometry import Transform, interpolate_poses
 from cufund.sensors.camera import R_CO, CameraIntrinsics
 
-from .onnx_detector import OnnxDetector
+from .onnx_detector import Detections, OnnxDetector
 
 __all__ = ["OnnxDetectorComponent", "boxes_to_world"]
 
 _POSES_KEPT = 400
 """Estimates kept to find the pose at an image's capture time (2 s at 200 Hz)."""
+_PENDING_KEPT = 8
+"""Frames kept waiting for an estimate at or after their capture time (older ones are dropped)."""
 
 
 def boxes_to_world(
@@ -77,7 +79,8 @@ class OnnxDetectorComponent(Component):
     With ``depth_topic`` (a depth image from the same camera centre, mounted at ``T_BC``; ``image_intrinsics`` and
     ``depth_intrinsics`` the two cameras' pinholes) it also publishes :class:`~cufund.core.messages.Detections3D` on ``Topics.DETECTIONS_3D``: each box's
     centre in the world frame from the pose on ``state_topic`` at the image's capture time — the estimator's
-    output (never ground truth); nothing 3-D is published before an estimate covers the image."""
+    output (never ground truth). A frame newer than the newest estimate (an estimator with latency) waits for one
+    at or after its capture time, and is published (with its capture stamp) at the first step that has it."""
 
     name = "onnx_detector"
 
@@ -118,6 +121,8 @@ class OnnxDetectorComponent(Component):
         self.latencies_ms = []
         self._poses: deque[Odometry] = deque(maxlen=_POSES_KEPT)
         self._depth: CameraImage | None = None
+        self._pending: deque[tuple[float, Detections, np.ndarray]] = deque(maxlen=_PENDING_KEPT)
+        """(capture time, detections, depth image) of frames not yet placed in the world."""
 
     def setup(self, bus: BusView) -> None:
         self._images: Subscription = bus.subscribe(self.image_topic)
@@ -142,26 +147,31 @@ class OnnxDetectorComponent(Component):
         depths: list[CameraImage] = self._depths.take() if self._depths is not None else []
         if depths:
             self._depth = depths[-1]
-        if not images:
-            return
-        msg = images[-1]
-        det = self.detector.detect(msg.image)
-        self.frames += 1
-        self.latencies_ms.append(det.latency_ms)
-        names = self.detector.names
-        bus.publish(
-            Topics.DETECTIONS_2D, Detections2D(msg.t, det.boxes_xyxy, det.scores, det.class_ids, names, det.latency_ms)
-        )
-        if self.depth_topic is None or self._depth is None:
-            return
-        pose = self._pose_at(msg.t)
-        if pose is None:
-            return
-        assert self.depth_intrinsics is not None and self.image_intrinsics is not None
-        centres, sizes, ok = boxes_to_world(
-            det.boxes_xyxy, self._depth.image, self.image_intrinsics, self.depth_intrinsics, self.T_BC, *pose
-        )
-        bus.publish(
-            Topics.DETECTIONS_3D,
-            Detections3D(msg.t, centres[ok], sizes[ok], det.scores[ok], det.class_ids[ok], names),
-        )
+        if images:
+            msg = images[-1]
+            det = self.detector.detect(msg.image)
+            self.frames += 1
+            self.latencies_ms.append(det.latency_ms)
+            bus.publish(
+                Topics.DETECTIONS_2D,
+                Detections2D(msg.t, det.boxes_xyxy, det.scores, det.class_ids, self.detector.names, det.latency_ms),
+            )
+            if self._depth is not None:
+                self._pending.append((msg.t, det, self._depth.image))
+        self._place_pending(bus)
+
+    def _place_pending(self, bus: BusView) -> None:
+        """Publishes the Detections3D of the waiting frames an estimate now covers, oldest first."""
+        while self._pending and self._poses and self._pending[0][0] <= self._poses[-1].t:
+            t, det, depth = self._pending.popleft()
+            pose = self._pose_at(t)
+            if pose is None:  # older than every estimate kept
+                continue
+            assert self.depth_intrinsics is not None and self.image_intrinsics is not None
+            centres, sizes, ok = boxes_to_world(
+                det.boxes_xyxy, depth, self.image_intrinsics, self.depth_intrinsics, self.T_BC, *pose
+            )
+            bus.publish(
+                Topics.DETECTIONS_3D,
+                Detections3D(t, centres[ok], sizes[ok], det.scores[ok], det.class_ids[ok], self.detector.names),
+            )
