@@ -99,6 +99,18 @@ def test_a_long_strip_is_surveyed_and_a_vast_area_refused():
         mission_from_data({"mission": "survey", "area": square, "spacing": 1.0}, FleetContext(names=("a", "b")))
 
 
+def test_a_zigzag_over_a_u_shaped_area_keeps_its_waypoints_in_it():
+    """A row that crosses the U's gap spreads its waypoints over its two pieces inside (1, 3 | 9, 11), none in
+    the gap between the arms."""
+    u_shape = [(0.0, 0.0), (12.0, 0.0), (12.0, 12.0), (8.0, 12.0), (8.0, 4.0), (4.0, 4.0), (4.0, 12.0), (0.0, 12.0)]
+    m = mission_from_data({"mission": "zigzag", "rows": 3, "per_row": 4, "area": u_shape, "altitude": 3})
+    rows = [[(1.5, 2.0), (4.5, 2.0), (7.5, 2.0), (10.5, 2.0)], [(1.0, 6.0), (3.0, 6.0), (9.0, 6.0), (11.0, 6.0)],
+            [(1.0, 10.0), (3.0, 10.0), (9.0, 10.0), (11.0, 10.0)]]  # fmt: skip
+    wp = m.waypoints()["uav1"]
+    np.testing.assert_allclose(wp, _boustrophedon(rows, 3.0), atol=1e-9)
+    assert polygon_contains(u_shape, wp[:, :2]).all()
+
+
 def test_a_fleet_shares_the_zigzag_rows():
     wp = parse_mission("zigzag over the field with 3 rows of 5 waypoints at 10 m", FLEET).waypoints(FLEET)
     one = parse_mission("zigzag over the field with 3 rows of 5 waypoints at 10 m", ONE).waypoints(ONE)["uav1"]

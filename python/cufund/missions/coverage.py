@@ -23,7 +23,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .fleet_polygon import Polygon, check_polygon, clip_band
 
-__all__ = ["CoverageCell", "fewest_lanes", "lanes", "path_length", "plan_coverage", "sweep_frame"]
+__all__ = ["CoverageCell", "crossings", "fewest_lanes", "lanes", "path_length", "plan_coverage", "sweep_frame"]
 
 _LANE_BLOCK = 1024
 """Lanes intersected with the polygon's edges at once (a block is ``_LANE_BLOCK`` x vertices floats)."""
@@ -62,7 +62,7 @@ def lanes(
     extent along ``w`` and the lanes are evenly spaced at most ``spacing`` apart."""
     poly = np.asarray(polygon, dtype=float)
     u, w = sweep_frame(poly, heading)
-    pw, pu = poly @ w, poly @ u
+    pw = poly @ w
     lo, hi = float(pw.min()), float(pw.max())
     width = hi - lo
     n = _lane_count(width, spacing)
@@ -70,18 +70,26 @@ def lanes(
         offsets = np.array([0.5 * (lo + hi)])
     else:
         offsets = lo + 0.5 * spacing + np.arange(n) * (width - spacing) / (n - 1)
+    return offsets, crossings(poly, u, w, offsets), u, w
+
+
+def crossings(polygon: ArrayLike, u: np.ndarray, w: np.ndarray, offsets: np.ndarray) -> list[list[tuple[float, float]]]:
+    """For each line ``w . p = offsets[k]`` across ``polygon``, its ``(s0, s1)`` intervals along ``u`` inside the
+    polygon, in ascending order (several where it crosses a non-convex polygon more than once)."""
+    poly = np.asarray(polygon, dtype=float)
+    pw, pu = poly @ w, poly @ u
     pieces: list[list[tuple[float, float]]] = []
     wa, wb = pw, np.roll(pw, -1)  # edge k runs from vertex k to k + 1
     ua, ub = pu, np.roll(pu, -1)
-    for c in np.array_split(offsets, max(1, len(offsets) // _LANE_BLOCK)):  # lanes x edges, in bounded blocks
+    for c in np.array_split(offsets, max(1, len(offsets) // _LANE_BLOCK)):  # lines x edges, in bounded blocks
         c = c[:, None]
         cross = (wa > c) != (wb > c)
         with np.errstate(divide="ignore", invalid="ignore"):
-            at = ua + (c - wa) / (wb - wa) * (ub - ua)  # where each edge crosses each lane, along u
+            at = ua + (c - wa) / (wb - wa) * (ub - ua)  # where each edge crosses each line, along u
         for row, hit in zip(at, cross, strict=True):
             s = np.sort(row[hit]).tolist()
             pieces.append([(s[k], s[k + 1]) for k in range(0, len(s) - 1, 2) if s[k + 1] - s[k] > 1e-9])
-    return offsets, pieces, u, w
+    return pieces
 
 
 def _lane_count(width: float, spacing: float) -> int:

@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .commands import Command, parse_command
-from .coverage import fewest_lanes, plan_coverage, sweep_frame
+from .coverage import crossings, fewest_lanes, plan_coverage, sweep_frame
 from .fleet_context import NAME_PATTERN, FleetContext, MissionRequestError
 from .fleet_polygon import MAX_VERTICES, Polygon, check_polygon, polygon_contains
 from .fleet_timing import item_arrivals
@@ -219,8 +219,9 @@ def _resolve_area(where: str, area: Any, ctx: FleetContext) -> Polygon:
 @dataclass(frozen=True)
 class Zigzag(Mission):
     """``rows`` rows of ``per_row`` waypoints flown back and forth (boustrophedon) at ``altitude`` [m]: over
-    ``area`` (a field's name or a polygon: rows across its width along its longest edge, waypoints at the centres of
-    a rows x per_row grid of it) or, without one, a grid ``spacing`` [m] apart starting at the vehicle's home (rows
+    ``area`` (a field's name or a polygon: rows across its width along its longest edge, each row's waypoints at
+    the centres of per_row equal parts of its length inside the area, so a row across a non-convex area's gap has
+    none in it) or, without one, a grid ``spacing`` [m] apart starting at the vehicle's home (rows
     along +x, stacked along +y). Several vehicles share the rows, each a contiguous block."""
 
     kind: ClassVar[str] = "zigzag"
@@ -260,20 +261,21 @@ class Zigzag(Mission):
         else:
             poly = np.asarray(_resolve_area("zigzag area", self.area, ctx))
             u, w = sweep_frame(poly)  # u along the longest edge, w across
-            pu, pw = poly @ u, poly @ w
+            pw = poly @ w
             lo, hi = float(pw.min()), float(pw.max())
+            centres = lo + (np.arange(self.rows) + 0.5) * (hi - lo) / self.rows
             rows = []
-            for i in range(self.rows):
-                c = lo + (i + 0.5) * (hi - lo) / self.rows
-                cuts = []
-                for k in range(len(poly)):
-                    a, b = k, (k + 1) % len(poly)
-                    if (pw[a] > c) != (pw[b] > c):
-                        cuts.append(pu[a] + (c - pw[a]) / (pw[b] - pw[a]) * (pu[b] - pu[a]))
-                s0, s1 = min(cuts), max(cuts)
-                rows.append(
-                    [tuple((s0 + (j + 0.5) * (s1 - s0) / self.per_row) * u + c * w) for j in range(self.per_row)]
-                )
+            for c, pieces in zip(centres, crossings(poly, u, w, centres), strict=True):
+                inside = sum(b - a for a, b in pieces)
+                row = []
+                for j in range(self.per_row):  # the centres of per_row equal parts of the row's length inside
+                    t = (j + 0.5) * inside / self.per_row
+                    for k, (a, b) in enumerate(pieces):
+                        if t <= b - a or k == len(pieces) - 1:
+                            break
+                        t -= b - a  # past this piece: on to the next, across the gap
+                    row.append(tuple((a + t) * u + c * w))
+                rows.append(row)
         out = {}
         for name, block in zip(names, np.array_split(np.arange(self.rows), len(names)), strict=True):
             pts = []
