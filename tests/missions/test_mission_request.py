@@ -225,6 +225,7 @@ class _FakeChat:
         self.content = "{}"
         self.raw = None
         self.status = 200
+        self.reason = None  # the status line's reason phrase (None: the standard one)
         self.drip_s = 0.0  # > 0: the body one byte at a time, this long apart
         owner = self
 
@@ -235,7 +236,7 @@ class _FakeChat:
                 out = owner.raw if owner.raw is not None else json.dumps(
                     {"choices": [{"message": {"role": "assistant", "content": owner.content}}]}
                 ).encode()  # fmt: skip
-                self.send_response(owner.status)
+                self.send_response(owner.status, owner.reason)
                 self.send_header("Content-Type", "application/json")
                 self.send_header("Content-Length", str(len(out)))
                 self.end_headers()
@@ -339,6 +340,10 @@ def test_bad_replies_are_refused(chat):
     chat.raw, chat.status = b"{}", 500
     with pytest.raises(MissionRequestError, match="HTTP 500"):
         parse_mission("do the thing", FLEET)
+    chat.reason = "Internal Server Error " + "x" * 60000  # the whole status line is the server's to choose
+    with pytest.raises(MissionRequestError, match="HTTP 500 Internal Server Error x") as refused:
+        parse_mission("do the thing", FLEET)
+    assert len(str(refused.value)) <= 300
 
 
 def test_a_fence_around_blanks_is_refused_at_once(chat):

@@ -150,7 +150,8 @@ def propose_mission(text: str, fleet: Any = None, endpoint: LlmEndpoint | None =
                     raise MissionRequestError(f"the chat endpoint took longer than {ep.timeout_s:g} s to answer")
             raw = b"".join(chunks)
     except urllib.error.HTTPError as e:
-        raise MissionRequestError(f"the chat endpoint answered HTTP {e.code} {e.reason}") from None
+        e.close()  # it holds the reply's connection
+        raise MissionRequestError(f"the chat endpoint answered HTTP {e.code} {e.reason}"[:300]) from None
     except (urllib.error.URLError, OSError) as e:
         reason = getattr(e, "reason", e)
         raise MissionRequestError(f"the chat endpoint at {ep.url} cannot be reached: {reason}") from None
