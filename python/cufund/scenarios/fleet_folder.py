@@ -36,12 +36,12 @@ def write_fleet_context(logger: Any, fleet: Fleet) -> None:
     from cufund.logs import codecs, ros2
     from cufund.logs.run_context import static_transforms, write_run_context
 
-    from .run_folder import _sensor_frames
+    from .sensor_frames import sensor_frames
 
     transforms = []
     for name in fleet.names:
         config = fleet.vehicle(name).config
-        transforms += static_transforms(_sensor_frames(config, name), config.estimator is not None, name)
+        transforms += static_transforms(sensor_frames(config, name), config.estimator is not None, name)
     world = fleet.simulator.members[0].world
     write_run_context(logger, (), True, world, None, transforms)
     for name in fleet.names:

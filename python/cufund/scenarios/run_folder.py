@@ -232,27 +232,14 @@ def run_fleet_into_folder(
     return run
 
 
-def _sensor_frames(config: Any, vehicle: str = "") -> list[tuple[str, Any, Any]]:
-    """(frame, translation, q_BX) of each sensor of ``config`` (its frame as the log names it: a fleet
-    ``vehicle``'s under its name)."""
-    from cufund.logs.codecs import sensor_frame
-    from cufund.simulator.fleet import namespaced
-
-    sensors = []
-    for spec in (config.sensors or {}).values():
-        if spec is not None and spec.topic is not None:
-            e = spec.extrinsic
-            topic = namespaced(vehicle, str(spec.topic)) if vehicle else str(spec.topic)
-            sensors.append((sensor_frame(topic), None if e is None else e.t, None if e is None else e.q))
-    return sensors
-
-
 def _log_context(logger: Any, built: Any) -> None:
     """The log's ``/tf_static`` (base_link -> each sensor's frame from its extrinsic) and the world's meshes."""
     from cufund.logs.run_context import write_run_context
 
+    from .sensor_frames import sensor_frames
+
     config, ctx = built.config, built.context
-    write_run_context(logger, _sensor_frames(config), config.estimator is not None, ctx.world, ctx.reference)
+    write_run_context(logger, sensor_frames(config), config.estimator is not None, ctx.world, ctx.reference)
 
 
 class _Excluding:
