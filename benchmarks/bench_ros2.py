@@ -60,8 +60,8 @@ def round_trips(duration: float = 20.0) -> None:
     print(
         f"lockstep: {steps} IMU steps (200 Hz) answered by the node in {wall:.2f} s wall after it announced itself: "
         f"{steps / wall:,.0f} steps/s with the whole simulation ({duration / wall:.1f}x real time); the simulation "
-        f"alone takes {sim_wall:.2f} s, so the bridge's round trips (publish IMU, truth, /tf, /clock; wait for the "
-        f"answer) run at {steps / max(bridge_s, 1e-9):,.0f}/s (waiting {stats['wait_s']:.2f} s in all)"
+        f"alone takes {sim_wall:.2f} s, so the bridge's round trips (publish the IMU sample and /clock, which the node "
+        f"reads, wait for the answer; the truth and /tf, which no one reads, are not encoded) run at {steps / max(bridge_s, 1e-9):,.0f}/s (waiting {stats['wait_s']:.2f} s in all)"
     )
 
 
