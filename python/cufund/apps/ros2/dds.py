@@ -113,8 +113,8 @@ def _socket_fds() -> set[int]:
 def confine_to_loopback(domain_id: int, fds: set[int]) -> list[int]:
     """Bind the UDP sockets among ``fds`` that listen on the wildcard address at one of the domain's ports
     (7400 + 250 d ..) to the loopback device, so that the kernel gives them only what arrives over ``lo`` (this
-    host's own traffic). Returns the ports confined; a socket that cannot be confined (no ``SO_BINDTODEVICE`` on
-    this platform, or refused) is a warning, as the docs say."""
+    host's own traffic). Linux only (``fds`` from /proc/self/fd); returns the ports confined. A socket the kernel
+    will not confine is a warning, as the docs say."""
     base = 7400 + 250 * domain_id
     confined = []
     for fd in sorted(fds):
