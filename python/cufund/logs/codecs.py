@@ -203,12 +203,20 @@ def odometry_frames(topic: str) -> tuple[str, str]:
     return _in_namespace(vehicle, parent), _in_namespace(vehicle, child)
 
 
+IMAGE_TOPIC_NAMES = ("image", "image_raw")
+"""A camera's image topic ends in one of these after the camera's name (``/sensors/cam0/image``)."""
+
+
 def sensor_frame(topic: str) -> str:
     """The frame a sensor topic's messages are in: the topic's last name (``/sensors/lidar``: ``lidar``), which is
-    the sensor's name in a scenario (its default topic is ``/sensors/<name>``); a fleet vehicle's under its name
-    (``/uav1/sensors/imu``: ``uav1/imu``)."""
+    the sensor's name in a scenario (its default topic is ``/sensors/<name>``), or for an image topic the camera's
+    name before it (``/sensors/cam0/image``: ``cam0``, each camera of a rig its own frame); a fleet vehicle's under
+    its name (``/uav1/sensors/imu``: ``uav1/imu``)."""
     vehicle, own = vehicle_namespace(topic)
-    return _in_namespace(vehicle, own.rstrip("/").rsplit("/", 1)[-1] or "sensor")
+    names = [n for n in own.split("/") if n]
+    if len(names) >= 2 and names[-1] in IMAGE_TOPIC_NAMES and f"/{names[-2]}/" not in VEHICLE_TOPIC_ROOTS:
+        names.pop()
+    return _in_namespace(vehicle, names[-1] if names else "sensor")
 
 
 def _odometry_views(topic: str) -> tuple[View, ...]:
