@@ -174,6 +174,25 @@ def test_an_image_texture_is_read_through_the_obj_uvs(tmp_path):
     np.testing.assert_array_equal(img[26, 26], (255, 255, 255))
 
 
+def test_an_obj_naming_a_file_outside_its_folder_is_refused(tmp_path):
+    save_png(tmp_path / "outside.png", np.full((2, 2, 3), 200, np.uint8))
+    (tmp_path / "outside.mtl").write_text("newmtl m\nmap_Kd tex.png\n")
+    mesh = tmp_path / "mesh"
+    mesh.mkdir()
+    save_png(mesh / "tex.png", np.zeros((2, 2, 3), np.uint8))
+    for name in ("../outside.png", str(tmp_path / "outside.png")):  # up and out, and an absolute path
+        _quad_obj(mesh, name)
+        with pytest.raises(ValueError, match=r"quad.obj.*map_Kd .* lies outside the mesh's folder"):
+            cufund.World().load_mesh(mesh / "quad.obj")
+    _quad_obj(mesh)
+    for name in ("../outside.mtl", str(tmp_path / "outside.mtl")):
+        (mesh / "quad.obj").write_text((mesh / "quad.obj").read_text().replace("materials.mtl", name))
+        with pytest.raises(ValueError, match=r"quad.obj.*mtllib .* lies outside the mesh's folder"):
+            cufund.World().load_mesh(mesh / "quad.obj")
+        _quad_obj(mesh)
+    assert cufund.World().load_mesh(mesh / "quad.obj").material is not None  # inside: read
+
+
 def test_shot_and_read_noise_have_the_expected_spread_and_are_seeded():
     K = CameraIntrinsics(100, 100, 50.0, 50.0, 49.5, 49.5)
     w = cufund.World()

@@ -320,19 +320,31 @@ def _mesh_texture(mesh: Any, path: Path) -> tuple[np.ndarray | None, Material | 
     uv = np.asarray(uv, dtype=float)
     if uv.ndim != 2 or uv.shape != (len(mesh.vertices), 2) or not np.all(np.isfinite(uv)):
         raise ValueError(f"mesh file {str(path)!r}: texture coordinates must be one finite (u, v) per vertex")
+    folder = path.parent.resolve()
+
+    def inside(name: str, what: str) -> Path:
+        # as trimesh's resolver: a file the mesh names lies in the mesh's folder (an absolute path or ../ that
+        # leaves it is refused, not read)
+        p = (folder / name).resolve()
+        if not p.is_relative_to(folder):
+            raise ValueError(f"mesh file {str(path)!r}: {what} {name!r} lies outside the mesh's folder")
+        return p
+
     mtl = path.with_suffix(".mtl")
     if path.suffix.lower() == ".obj":  # the MTL the OBJ names (mtllib), else the OBJ's name with .mtl
-        for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
-            if line.startswith("mtllib ") and line.split(maxsplit=1)[1].strip():
-                mtl = path.parent / line.split(maxsplit=1)[1].strip()
-                break
+        with path.open("r", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                if line.startswith("mtllib ") and line.split(maxsplit=1)[1].strip():
+                    mtl = inside(line.split(maxsplit=1)[1].strip(), "mtllib")
+                    break
     image = None
     if mtl.is_file():
-        for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
-            parts = line.split()
-            if len(parts) >= 2 and parts[0] == "map_Kd":
-                image = (path.parent / parts[-1]).resolve()
-                break
+        with mtl.open("r", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                parts = line.split()
+                if len(parts) >= 2 and parts[0] == "map_Kd":
+                    image = inside(parts[-1], "its MTL's map_Kd")
+                    break
     if image is None:
         return uv, None
     try:
