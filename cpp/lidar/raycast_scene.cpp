@@ -195,6 +195,51 @@ bool looks_coherent(const float* rays, std::size_t n) {
   return same * 2 > total;
 }
 
+// The first non-finite or zero-direction ray of a batch (kOk when there is none).
+SceneResult check_rays(const float* rays, std::size_t n) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const float* r = rays + 6 * i;
+    if (!(std::isfinite(r[0]) && std::isfinite(r[1]) && std::isfinite(r[2]) && std::isfinite(r[3]) &&
+          std::isfinite(r[4]) && std::isfinite(r[5]))) {
+      return {SceneStatus::kNonFiniteRay, i, kInvalidId};
+    }
+    if (r[3] == 0.0f && r[4] == 0.0f && r[5] == 0.0f) return {SceneStatus::kZeroDirection, i, kInvalidId};
+  }
+  return {};
+}
+
+// Any-hit query of rays [begin, end) in 8-wide packets: occluded[i] = 1 where ray i hits anything.
+void occluded_packets8(RTCScene scene, const float* rays, std::size_t begin, std::size_t end, std::uint8_t* occluded) {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // a hint only: the answers are the same either way
+  alignas(32) int valid[8];
+  alignas(32) RTCRay8 ray;
+  for (std::size_t b = begin; b < end; b += 8) {
+    const int m = static_cast<int>(std::min<std::size_t>(8, end - b));
+    for (int k = 0; k < 8; ++k) {
+      const bool on = k < m;
+      valid[k] = on ? -1 : 0;
+      const float* r = rays + 6 * (on ? b + k : b);
+      ray.org_x[k] = r[0];
+      ray.org_y[k] = r[1];
+      ray.org_z[k] = r[2];
+      ray.dir_x[k] = r[3];
+      ray.dir_y[k] = r[4];
+      ray.dir_z[k] = r[5];
+      ray.tnear[k] = 0.0f;
+      ray.tfar[k] = kInf;
+      ray.time[k] = 0.0f;
+      ray.mask[k] = 0xFFFFFFFFu;
+      ray.id[k] = 0;
+      ray.flags[k] = 0;
+    }
+    rtcOccluded8(valid, scene, &ctx, &ray);
+    // Embree sets tfar to -inf on an occluded ray
+    for (int k = 0; k < m; ++k) occluded[b + k] = ray.tfar[k] < 0.0f ? 1 : 0;
+  }
+}
+
 }  // namespace
 
 struct RaycastScene::Impl {
@@ -276,14 +321,7 @@ SceneResult RaycastScene::add_triangles(const float* vertices, std::size_t nv, c
 
 SceneResult RaycastScene::cast_rays(const float* rays, std::size_t n, const RayHits& out, int nthreads,
                                     RayOrder order) const {
-  for (std::size_t i = 0; i < n; ++i) {
-    const float* r = rays + 6 * i;
-    if (!(std::isfinite(r[0]) && std::isfinite(r[1]) && std::isfinite(r[2]) && std::isfinite(r[3]) &&
-          std::isfinite(r[4]) && std::isfinite(r[5]))) {
-      return {SceneStatus::kNonFiniteRay, i, kInvalidId};
-    }
-    if (r[3] == 0.0f && r[4] == 0.0f && r[5] == 0.0f) return {SceneStatus::kZeroDirection, i, kInvalidId};
-  }
+  if (const SceneResult bad = check_rays(rays, n); bad.status != SceneStatus::kOk) return bad;
   ForkSafeSection no_fork;  // a child must not inherit the scene's locks held
   std::shared_lock<std::shared_mutex> no_additions(impl_->scene_mutex);
   impl_->commit();
@@ -347,6 +385,18 @@ void RaycastScene::cast_rays_ordered(const float* rays, std::size_t n, const std
                   [&](std::size_t begin, std::size_t end, std::size_t) {
                     cast_packets8(scene, rays, begin, end, out, order, true);
                   });
+}
+
+SceneResult RaycastScene::occluded(const float* rays, std::size_t n, std::uint8_t* occluded, int nthreads) const {
+  if (const SceneResult bad = check_rays(rays, n); bad.status != SceneStatus::kOk) return bad;
+  ForkSafeSection no_fork;  // a child must not inherit the scene's locks held
+  std::shared_lock<std::shared_mutex> no_additions(impl_->scene_mutex);
+  impl_->commit();
+  RTCScene scene = impl_->scene;
+  parallel_chunks(
+      static_cast<std::ptrdiff_t>(n), kChunk, nthreads,
+      [&](std::size_t begin, std::size_t end, std::size_t) { occluded_packets8(scene, rays, begin, end, occluded); });
+  return {};
 }
 
 std::size_t RaycastScene::num_geometries() const { return impl_->geometries; }

@@ -78,6 +78,12 @@ class RaycastScene {
   void cast_rays_ordered(const float* rays, std::size_t n, const std::uint32_t* order, const RayHits& out,
                          int nthreads = 0) const;
 
+  // Whether each of the n rays (as cast_rays takes them) hits anything in [0, +inf): occluded[i] = 1 or 0.
+  // An any-hit query (Embree's rtcOccluded, 8-wide packets of consecutive rays, marked coherent): it stops
+  // at the first triangle found, where cast_rays looks for the closest (shadow rays need no more). Rays are
+  // checked as by cast_rays: a non-finite or zero-direction ray returns its status and index, nothing written.
+  SceneResult occluded(const float* rays, std::size_t n, std::uint8_t* occluded, int nthreads = 0) const;
+
   std::size_t num_geometries() const;
   std::size_t num_triangles() const;
 

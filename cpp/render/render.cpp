@@ -42,13 +42,14 @@ RenderResult render(const lidar::RaycastScene& scene, const View& view, const Su
 
   // the caller's scratch, kept for its next frame (references: the pool's workers must see the caller's buffers,
   // not their own thread_local ones)
-  thread_local std::vector<float> tl_rays, tl_t_hit, tl_normals, tl_shadow_rays, tl_shadow_t, tl_direct;
+  thread_local std::vector<float> tl_rays, tl_t_hit, tl_normals, tl_shadow_rays, tl_direct;
   thread_local std::vector<std::uint32_t> tl_gid, tl_shadow_of;
+  thread_local std::vector<std::uint8_t> tl_shadowed;
   auto& rays = tl_rays;
   auto& t_hit = tl_t_hit;
   auto& normals = tl_normals;
   auto& shadow_rays = tl_shadow_rays;
-  auto& shadow_t = tl_shadow_t;
+  auto& shadowed = tl_shadowed;
   auto& direct = tl_direct;
   auto& gid = tl_gid;
   auto& shadow_of = tl_shadow_of;
@@ -136,7 +137,7 @@ RenderResult render(const lidar::RaycastScene& scene, const View& view, const Su
     const std::size_t m = shadow_of.size();
     if (m > 0) {
       shadow_rays.resize(6 * m);
-      shadow_t.resize(m);
+      shadowed.resize(m);
       constexpr std::size_t kShadowChunk = 4096;
       pool.parallel_for((m + kShadowChunk - 1) / kShadowChunk, nthreads, [&](std::size_t c) {
         for (std::size_t j = c * kShadowChunk; j < std::min(m, (c + 1) * kShadowChunk); ++j) {
@@ -153,12 +154,11 @@ RenderResult render(const lidar::RaycastScene& scene, const View& view, const Su
           }
         }
       });
-      lidar::RayHits sh;
-      sh.t_hit = shadow_t.data();
-      const auto r = scene.cast_rays(shadow_rays.data(), m, sh, nthreads, lidar::RayOrder::kCoherent);
+      // any hit towards the sun shadows the pixel: an occlusion query, not a closest-hit cast
+      const auto r = scene.occluded(shadow_rays.data(), m, shadowed.data(), nthreads);
       if (r.status != lidar::SceneStatus::kOk) return {RenderStatus::kBadView, r.index};
       for (std::size_t j = 0; j < m; ++j)
-        if (std::isfinite(shadow_t[j])) direct[shadow_of[j]] = 0.0f;
+        if (shadowed[j]) direct[shadow_of[j]] = 0.0f;
     }
   }
   const float amb = light.ambient;

@@ -153,6 +153,35 @@ TEST(RaycastScene, PacketAndSingleRayPathsAgree) {
   for (std::size_t i = 0; i < n; ++i) ASSERT_NEAR(s.t[i], p.t[i], 1e-6f * s.t[i]) << i;
 }
 
+TEST(RaycastScene, OccludedIsWhetherCastRaysHits) {
+  RaycastScene scene;
+  Mesh a = box(0.5f, 0.5f, 0, 1.5f, 2.5f, 1);
+  Mesh b = box(-2, -1, -1, -1, 1, 3);
+  scene.add_triangles(a.v.data(), 8, a.t.data(), 12);
+  scene.add_triangles(b.v.data(), 8, b.t.data(), 12);
+  std::mt19937 rng(5);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  const std::size_t n = 3001;  // rays from scattered origins, not a multiple of the packet width
+  std::vector<float> rays(6 * n);
+  for (float& x : rays) x = g(rng);
+  Result hit(n);
+  scene.cast_rays(rays.data(), n, hit.hits(), 1, RayOrder::kIncoherent);
+  std::vector<std::uint8_t> occ(n, 7);
+  ASSERT_EQ(scene.occluded(rays.data(), n, occ.data(), 2).status, SceneStatus::kOk);
+  std::size_t hits = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    ASSERT_EQ(occ[i], std::isfinite(hit.t[i]) ? 1 : 0) << i;
+    hits += occ[i];
+  }
+  EXPECT_GT(hits, n / 10);  // both answers occur
+  EXPECT_LT(hits, n - n / 10);
+
+  std::vector<float> bad = {0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0};
+  const SceneResult r = scene.occluded(bad.data(), 2, occ.data());
+  EXPECT_EQ(r.status, SceneStatus::kZeroDirection);
+  EXPECT_EQ(r.index, 1u);
+}
+
 // UV sphere of radius r around the origin: rings x segs quads split in two.
 Mesh uv_sphere(float r, int rings, int segs) {
   Mesh m;
