@@ -275,6 +275,20 @@ def test_rendered_textures_equal_the_material_at_the_hit_points(texture):
     assert np.std(img) > 10  # a texture, not a flat colour
 
 
+def test_an_image_texture_is_kept_at_three_bytes_a_texel(tmp_path):
+    from PIL import Image
+
+    from cufund.worlds.materials import _load_image
+
+    big = tmp_path / "big.png"
+    Image.new("RGB", (2048, 2048), (10, 20, 255)).save(big)  # a few kB on disk: 48 MB as float32
+    assert big.stat().st_size < 100_000
+    m = Material(texture="image", image=str(big), albedo=(1.0, 1.0, 1.0))
+    assert _load_image(str(big)).nbytes == 2048 * 2048 * 3
+    rgb = m.albedo_at(np.zeros((2, 3)), np.array([[1.0, 0, 0]] * 2), np.array([[0.1, 0.2], [0.9, 0.7]]))
+    np.testing.assert_array_equal(rgb, np.float32([10, 20, 255]) / np.float32(255.0) * np.ones((2, 1)))
+
+
 def test_hostile_png_textures_raise_value_errors_only(tmp_path):
     from hypothesis import HealthCheck, given, settings
     from hypothesis import strategies as st

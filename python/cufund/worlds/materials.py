@@ -199,19 +199,20 @@ def _noise_tile() -> np.ndarray:
 
 
 def sample_image(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """(N, 3) colour in [0, 1] of an (H, W, 3) float image at texture coordinates ``uv`` (N, 2): u to the right,
-    v up from the bottom row (OBJ's convention), repeating outside [0, 1); nearest texel."""
+    """(N, 3) float32 colour in [0, 1] of an (H, W, 3) uint8 image at texture coordinates ``uv`` (N, 2): u to the
+    right, v up from the bottom row (OBJ's convention), repeating outside [0, 1); nearest texel."""
     h, w = img.shape[:2]
     u = np.mod(uv[:, 0], 1.0)
     v = np.mod(uv[:, 1], 1.0)
     col = np.minimum((u * w).astype(np.int64), w - 1)
     row = np.minimum(((1.0 - v) * h).astype(np.int64), h - 1)
-    return img[row, col]
+    return img[row, col].astype(np.float32) / np.float32(255.0)
 
 
 @functools.lru_cache(maxsize=32)
 def _load_image(path: str) -> np.ndarray:
-    """An image texture as (H, W, 3) float in [0, 1]; a clear error for anything but a readable PNG."""
+    """An image texture as (H, W, 3) uint8 (3 bytes a texel: a 8192 x 8192 PNG of a few kB is 200 MB cached, not
+    800 MB as float32); a clear error for anything but a readable PNG."""
     from PIL import Image
 
     p = Path(path)
@@ -226,7 +227,7 @@ def _load_image(path: str) -> np.ndarray:
                 raise ValueError(
                     f"material.image {path!r} must be between 1x1 and {MAX_IMAGE_SIDE}x{MAX_IMAGE_SIDE} px, got {w}x{h}"
                 )
-            arr = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+            arr = np.asarray(im.convert("RGB"), dtype=np.uint8)
     except ValueError:
         raise
     except Exception as e:  # Pillow raises many kinds on a hostile file (UnidentifiedImageError, OSError,
@@ -238,5 +239,5 @@ def _load_image(path: str) -> np.ndarray:
 
 
 def image_texture(path: str | Path) -> np.ndarray:
-    """The decoded (H, W, 3) float image of a PNG texture (cached)."""
-    return _load_image(str(path))
+    """The decoded (H, W, 3) float32 image in [0, 1] of a PNG texture (its uint8 texels cached)."""
+    return _load_image(str(path)).astype(np.float32) / np.float32(255.0)
