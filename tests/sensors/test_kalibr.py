@@ -1,6 +1,8 @@
 """Kalibr camchain YAML: read, written, read back; EuRoC's published cam0 calibration gives the mounting its sensor.yaml
 states; bad files get errors naming the camera and key."""
 
+import time
+
 import numpy as np
 import pytest
 import yaml
@@ -140,6 +142,25 @@ def test_hostile_camchains_raise_value_errors_only(tmp_path):
                 pass
 
     check()
+
+
+def test_deep_and_alias_bomb_camchains_are_refused_at_once(tmp_path):
+    deep = tmp_path / "deep.yaml"
+    deep.write_text("cam0: {intrinsics: " + "[" * 5000 + "]" * 5000 + "}\n")  # RecursionError before
+    with pytest.raises(ValueError, match=r"deep.yaml: nesting deeper than yaml_max_depth"):
+        load_kalibr(deep)
+    # intrinsics of 10^9 numbers through aliases (8 levels of ten): minutes and gigabytes before
+    levels = "".join(f"  x{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * 10) + "]\n" for i in range(1, 9))
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text("cam0:\n  x0: &a0 [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n" + levels + "  intrinsics: *a8\n")
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match=r"bomb.yaml: .*alias"):
+        load_kalibr(bomb)
+    assert time.perf_counter() - t0 < 5.0
+    dup = tmp_path / "dup.yaml"
+    dup.write_text(yaml.safe_dump({"cam0": EUROC_CAM0}) + "cam0: {}\n")
+    with pytest.raises(ValueError, match=r"cam0 may be given only once"):
+        load_kalibr(dup)
 
 
 def test_camera_info_fields_round_trip_and_are_checked():

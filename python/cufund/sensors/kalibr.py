@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from cufund.core.config import load_yaml
 from cufund.geometry import Transform, homogeneous, quat_from_matrix
 
 from .camera_models import R_CO, CameraCalibration, CameraIntrinsics, transform_from_matrix
@@ -62,10 +63,9 @@ def load_kalibr(path: str | Path, T_BI: Transform | None = None) -> tuple[Camera
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"no Kalibr camchain file at {str(path)!r}")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as e:
-        raise ValueError(f"{path}: not a readable YAML file: {e}") from None
+    # cufund's YAML reader, as for every file it reads: bounded size, nesting and aliases, duplicate keys refused
+    # (a ConfigError, a ValueError, naming the file)
+    data = load_yaml(path)
     if not isinstance(data, dict) or not data:
         raise ValueError(
             f"{path}: a Kalibr camchain is a mapping cam0: {{...}}, cam1: {{...}}, got {type(data).__name__}"
