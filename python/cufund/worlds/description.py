@@ -24,6 +24,7 @@ from typing import Any
 
 from cufund.core.config import ConfigError, load_yaml
 
+from .materials import Material
 from .world import World
 
 _ADDERS = {
@@ -65,10 +66,9 @@ def world_from_dict(data: Any, base_dir: str | Path = ".") -> World:
                 raise ConfigError(f"{where}.path must be a file name (string), got {kwargs['path']!r}")
             path = Path(kwargs["path"])
             kwargs["path"] = path if path.is_absolute() else Path(base_dir) / path
-        mat = kwargs.get("material")
-        if isinstance(mat, dict) and isinstance(mat.get("image"), str) and not Path(mat["image"]).is_absolute():
-            kwargs["material"] = {**mat, "image": str(Path(base_dir) / mat["image"])}  # from the YAML's folder
         try:
+            if kwargs.get("material") is not None:  # a relative image from the YAML's folder
+                kwargs["material"] = Material.of(kwargs["material"], base_dir)
             method(**kwargs)
         except TypeError as e:  # a missing required key
             raise ConfigError(f"{where} ({kind}): {e}") from e
