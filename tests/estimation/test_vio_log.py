@@ -23,7 +23,22 @@ def square_vio_log(tmp_path_factory) -> Path:
         timeout=900,
     )
     assert (out / "run.mcap").exists(), proc.stdout + proc.stderr
+    (out.parent / "stdout.txt").write_text(proc.stdout)
     return out
+
+
+def test_square_vio_reports_stereo_frames_not_lidar_scans(square_vio_log):
+    from cufund.core.messages import VioDiagnostics
+    from cufund.logs.mcap_reader import read_mcap
+
+    metrics = json.loads((square_vio_log / "metrics.json").read_text())
+    assert metrics["vio_frames"] > 50 and metrics["vio_ms_per_frame_median"] > 0
+    assert not any(k.startswith("lio_") for k in metrics), sorted(metrics)
+    summary = (square_vio_log.parent / "stdout.txt").read_text()
+    assert "stereo VIO" in summary and "ms per frame" in summary and "LiDAR" not in summary, summary
+    diag = [r.message for r in read_mcap(square_vio_log / "run.mcap", topics=["/estimator/diagnostics"])]
+    assert len(diag) > 50 and all(isinstance(d, VioDiagnostics) for d in diag)
+    assert sum(d.keyframe for d in diag) > 5 and max(d.tracked for d in diag) > 50
 
 
 def test_recorded_square_vio_rmse_equals_evo_ape(square_vio_log, tmp_path):

@@ -90,10 +90,11 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("list", help="list the built-in scenarios and registered kinds")
     odo = sub.add_parser(
         "odometry",
-        help="run the LiDAR-inertial odometry open loop on a run.mcap log or a ROS 2 bag",
+        help="run the LiDAR- or visual-inertial odometry open loop on a run.mcap log or a ROS 2 bag",
         description="Runs the LIO on the IMU and LiDAR messages of LOG (with the extrinsics of the "
-        "scenario recorded in it) and writes odometry.json (errors against the log's "
-        "ground truth), odometry.png and TUM files (estimate.tum, truth.tum) for evo. LOG may be a ROS 2 bag "
+        "scenario recorded in it; a log flown with estimator kind vio: the VIO on its IMU and stereo images) and "
+        "writes odometry.json (errors against the log's ground truth), odometry.png (LIO) and TUM files "
+        "(estimate.tum, truth.tum) for evo. LOG may be a ROS 2 bag "
         "folder (sensor_msgs/Imu, sensor_msgs/PointCloud2 or Livox CustomMsg, truth as nav_msgs/Odometry or "
         "geometry_msgs/PoseStamped; docs/guides/ros2.md).",
     )

@@ -228,8 +228,17 @@ class CameraImage(Message):
     """(H, W) float32 depth [m] (NaN = no return), (H, W, 3) uint8 RGB or (H, W) uint8 grey."""
 
 
+class EstimatorDiagnostics(Message):
+    """Base of an odometry's per-frame report on ``/estimator/diagnostics`` (:class:`OdometryDiagnostics` a LiDAR
+    one's, :class:`VioDiagnostics` a visual-inertial one's). Every kind has ``t`` [s], ``time_ms``, ``cpu_ms``,
+    ``skipped`` ('' when the frame added a constraint), ``healthy`` and ``reason``: what failsafes, the ground
+    station and the run's metrics read."""
+
+    __slots__ = ()
+
+
 @message
-class OdometryDiagnostics(Message):
+class OdometryDiagnostics(EstimatorDiagnostics):
     """How an odometry processed one LiDAR frame (published per frame next to the estimate)."""
 
     variable_length = True
@@ -256,6 +265,43 @@ class OdometryDiagnostics(Message):
     healthy: bool = True
     """False while the estimate should not be trusted for precise flight (no LiDAR constraint for a while, the
     IMU and the LiDAR disagreeing, re-locking after either): hold position or land."""
+    reason: str = ""
+    """Why it is not healthy ('' when it is)."""
+
+
+@message
+class VioDiagnostics(EstimatorDiagnostics):
+    """How a visual-inertial odometry processed one stereo frame (published per frame next to the estimate, on the
+    topic a LiDAR odometry's :class:`OdometryDiagnostics` use: ``t``, ``time_ms``, ``cpu_ms``, ``skipped``,
+    ``healthy`` and ``reason`` mean the same in both)."""
+
+    t: float
+    """The frame's stamp on the IMU's clock [s]."""
+    tracked: int
+    """Features carried over from the previous frame (after the temporal RANSAC)."""
+    inliers: int
+    """Temporal RANSAC inliers."""
+    stereo: int
+    """Features with a stereo match on the epipolar line."""
+    parallax_px: float
+    """Mean displacement of the tracked features since the last keyframe [px]."""
+    keyframe: bool
+    """Whether the frame became a keyframe of the smoother."""
+    landmarks: int
+    """Landmarks in the smoother's window."""
+    time_ms: float
+    """Wall time spent on the frame [ms]."""
+    cpu_ms: float
+    """Process CPU time spent on the frame (all threads) [ms]."""
+    time_offset_s: float
+    """Online camera-IMU time offset estimate [s] (t_imu = t_cam + offset; 0 until observable)."""
+    sigma_p_m: float
+    """Position standard deviation of the newest keyframe (largest axis) [m] (NaN when not computed)."""
+    skipped: str = ""
+    """Why the frame added no visual constraint ('' when it did)."""
+    healthy: bool = True
+    """False while the estimate should not be trusted for precise flight (no visual constraint for a while,
+    re-locking after it, a smoother restart): hold position or land."""
     reason: str = ""
     """Why it is not healthy ('' when it is)."""
 
@@ -510,7 +556,7 @@ class Topics:
     ESTIMATE = Topic("/estimator/odometry", Odometry)
     """The estimator's state at its output rate (IMU rate for the built-in ones): what the attitude and position
     loops, mappers and planners use once an estimator is attached."""
-    ESTIMATOR_DIAGNOSTICS = Topic("/estimator/diagnostics", OdometryDiagnostics)
+    ESTIMATOR_DIAGNOSTICS = Topic("/estimator/diagnostics", EstimatorDiagnostics)
     """Per-frame diagnostics of a LiDAR odometry."""
     TRAJECTORY_SETPOINT = Topic("/setpoint/trajectory", TrajectorySetpoint)
     TRAJECTORY_UPDATE = Topic("/planner/trajectory", TrajectoryUpdate)

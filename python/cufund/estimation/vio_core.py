@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 from typing import Any
 
 import gtsam
@@ -21,7 +20,7 @@ import numpy as np
 from gtsam.symbol_shorthand import B, L, V, X
 
 from cufund import _core
-from cufund.core.messages import Odometry
+from cufund.core.messages import Odometry, VioDiagnostics
 from cufund.geometry import attitude_from_up_and_yaw, quat_from_matrix, quat_to_matrix
 
 from .boundary import pose3, pose3_parts
@@ -29,38 +28,10 @@ from .lio_core import NavEstimate, _ImuBuffer, _so3_log
 from .vio_frontend import StereoFrame, StereoFrontEnd, StereoRig
 from .vio_params import VioParams
 
-__all__ = ["VioCore", "FrameDiagnostics"]
+__all__ = ["VioCore"]
 
 _MIN_ADVANCE_S = 0.02
 """A keyframe must come at least this long after the previous one [s] (a shorter IMU factor is too stiff)."""
-
-
-@dataclass(frozen=True)
-class FrameDiagnostics:
-    """One stereo frame's processing."""
-
-    t: float
-    tracked: int
-    """Features carried over from the previous frame (after the temporal RANSAC)."""
-    inliers: int
-    """Temporal RANSAC inliers."""
-    stereo: int
-    """Features with a stereo match on the epipolar line."""
-    parallax_px: float
-    """Mean displacement of the tracked features since the last keyframe [px]."""
-    keyframe: bool
-    landmarks: int
-    """Landmarks in the smoother's window."""
-    time_ms: float
-    cpu_ms: float
-    time_offset_s: float
-    """Online camera-IMU time offset estimate [s] (t_imu = t_cam + offset; 0 until observable)."""
-    sigma_p_m: float
-    """Position standard deviation of the newest keyframe (largest axis) [m] (NaN on other frames)."""
-    skipped: str = ""
-    """Why the frame added no visual constraint ('' when it did)."""
-    healthy: bool = True
-    reason: str = ""
 
 
 class VioCore:
@@ -106,7 +77,7 @@ class VioCore:
         self._td_num = 0.0
         self._sigma_t = -math.inf
         self._td_den = 0.0
-        self.diagnostics: list[FrameDiagnostics] = []
+        self.diagnostics: list[VioDiagnostics] = []
         self.skipped_imu = 0
         self.skipped_frames = 0
         self.restarts = 0
@@ -290,7 +261,7 @@ class VioCore:
             skipped = f"smoother restarted ({self.restart_reasons[-1]})"
         healthy, reason = self._health(t, skipped)
         self.diagnostics.append(
-            FrameDiagnostics(
+            VioDiagnostics(
                 t,
                 fr.tracked,
                 fr.inliers,

@@ -3,11 +3,10 @@
 Reads every IMU sample and both cameras' images (``CameraImage`` with identical stamps on the left and right
 topics), pairs them by stamp, and publishes the body ``Odometry`` at IMU rate on the estimate topic, like the
 LIO, so controllers, mappers and missions fly on it unchanged. A stereo frame is processed once an IMU sample
-past its stamp has arrived. Per frame an ``OdometryDiagnostics`` goes to ``/estimator/diagnostics``: ``points``
-= features tracked from the previous frame, ``inliers`` = temporal RANSAC inliers, ``iterations`` = landmarks in
-the smoother's window, ``eigenvalues`` = [parallax px, camera-IMU time offset s, position sigma m (NaN when not
-computed)], ``time_ms``/``cpu_ms``, ``skipped`` ('' when the frame added a visual constraint), ``healthy``,
-``reason``.
+past its stamp has arrived. Per frame a ``VioDiagnostics`` goes to ``/estimator/diagnostics`` (tracked features,
+inliers, parallax, landmarks, time offset, position sigma, time; ``skipped``, ``healthy`` and ``reason`` as the
+LIO's), and while no frame adds a visual constraint for longer than ``health_max_gap_s``, an unhealthy one every
+0.1 s.
 """
 
 from __future__ import annotations
@@ -15,10 +14,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
-
 from cufund.core.components import Estimator
-from cufund.core.messages import Odometry, OdometryDiagnostics, Topics
+from cufund.core.messages import Odometry, Topics, VioDiagnostics
 
 from .vio_core import VioCore
 from .vio_params import VioParams
@@ -70,40 +67,28 @@ class VioEstimator(Estimator):
         imu, left, right = (s.take() for s in self._subs)
         self.feed(left, right, imu)
         for d in self.core.diagnostics[self._diagnosed :]:
-            bus.publish(
-                Topics.ESTIMATOR_DIAGNOSTICS,
-                OdometryDiagnostics(
-                    d.t,
-                    d.tracked,
-                    d.inliers,
-                    d.landmarks,
-                    np.array([d.parallax_px, d.time_offset_s, d.sigma_p_m]),
-                    np.zeros((0, 6)),
-                    d.time_ms,
-                    d.cpu_ms,
-                    d.skipped,
-                    d.healthy,
-                    d.reason,
-                ),
-            )
+            bus.publish(Topics.ESTIMATOR_DIAGNOSTICS, d)
         self._diagnosed = len(self.core.diagnostics)
         gap = self.core.visual_gap(t)
         if gap is not None and gap > self.params.health_max_gap_s and t - self._gap_reported >= _GAP_REPORT_S:
             self._gap_reported = t
             bus.publish(
                 Topics.ESTIMATOR_DIAGNOSTICS,
-                OdometryDiagnostics(
-                    t,
-                    0,
-                    0,
-                    0,
-                    np.zeros(0),
-                    np.zeros((0, 6)),
-                    0.0,
-                    0.0,
-                    "no camera frame",
-                    False,
-                    f"no visual constraint for {gap:.2f} s: IMU only",
+                VioDiagnostics(
+                    t=t,
+                    tracked=0,
+                    inliers=0,
+                    stereo=0,
+                    parallax_px=0.0,
+                    keyframe=False,
+                    landmarks=0,
+                    time_ms=0.0,
+                    cpu_ms=0.0,
+                    time_offset_s=self.core.time_offset_s,
+                    sigma_p_m=math.nan,
+                    skipped="no camera frame",
+                    healthy=False,
+                    reason=f"no visual constraint for {gap:.2f} s: IMU only",
                 ),
             )
         return self._latest

@@ -416,6 +416,23 @@ def done_condition(built: Built) -> Any:
     return done
 
 
+_LIO_METRICS = (
+    "lio_ms_per_scan_median",
+    "lio_ms_per_scan_p99",
+    "lio_cpu_ms_per_scan_median",
+    "lio_scans",
+    "lio_unhealthy_reports",
+)
+_VIO_METRICS = (
+    "vio_ms_per_frame_median",
+    "vio_ms_per_frame_p99",
+    "vio_cpu_ms_per_frame_median",
+    "vio_frames",
+    "vio_unhealthy_reports",
+)
+"""The keys of an odometry's timing figures: a LiDAR one's per scan, a visual-inertial one's per stereo frame."""
+
+
 def measure_run(built: Built, result: SimulationResult) -> ScenarioRun:
     """The metrics of a built scenario's finished run (:func:`run_built`)."""
     config, ctx = built.config, built.context
@@ -429,19 +446,20 @@ def measure_run(built: Built, result: SimulationResult) -> ScenarioRun:
     if config.estimator is not None:
         metrics.update(odometry_metrics(result))
         diag = result.topics.get(str(Topics.ESTIMATOR_DIAGNOSTICS))
-        if diag:
-            used = np.asarray([s == "" for s in diag["skipped"]], dtype=bool)  # frames with a LiDAR constraint
+        if diag:  # a LiDAR odometry's per scan, a visual-inertial one's (VioDiagnostics: tracked) per stereo frame
+            median, p99, cpu, count, unhealthy = _VIO_METRICS if "tracked" in diag else _LIO_METRICS
+            used = np.asarray([s == "" for s in diag["skipped"]], dtype=bool)  # frames with a LiDAR/visual constraint
             ms = np.asarray(diag["time_ms"], dtype=float)[used]
             if len(ms):
                 metrics.update(
                     {
-                        "lio_ms_per_scan_median": float(np.median(ms)),
-                        "lio_ms_per_scan_p99": float(np.percentile(ms, 99)),
-                        "lio_cpu_ms_per_scan_median": float(np.median(np.asarray(diag["cpu_ms"], dtype=float)[used])),
+                        median: float(np.median(ms)),
+                        p99: float(np.percentile(ms, 99)),
+                        cpu: float(np.median(np.asarray(diag["cpu_ms"], dtype=float)[used])),
                     }
                 )
-            metrics["lio_scans"] = int(len(ms))
-            metrics["lio_unhealthy_reports"] = int(np.count_nonzero(~np.asarray(diag["healthy"], dtype=bool)))
+            metrics[count] = int(len(ms))
+            metrics[unhealthy] = int(np.count_nonzero(~np.asarray(diag["healthy"], dtype=bool)))
     for hook in ctx.metric_hooks:  # last: a part may refine a generic figure (e.g. over its flight window only)
         metrics.update(hook(result))
     return ScenarioRun(config, result, ctx.reference, ctx.tracking_path, metrics, list(ctx.output_hooks))

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from cufund.core.messages import Topics, TunnelEstimate
+from cufund.core.messages import Topics, TunnelEstimate, VioDiagnostics
 from cufund.geometry import quat_to_matrix
 from cufund.planning.mission_spec import Region
 
@@ -215,14 +215,15 @@ class GcsSession:
     def poll(self) -> dict[str, Any]:
         """Reads the run's telemetry; extends the flown path and the history. Returns the telemetry."""
         tel = jsonable(self.live.telemetry())
-        diag = self.live.latest(Topics.ESTIMATOR_DIAGNOSTICS)  # a LiDAR odometry's word on its newest frame
+        diag = self.live.latest(Topics.ESTIMATOR_DIAGNOSTICS)  # an odometry's word on its newest frame
         if diag is not None and isinstance(tel.get("estimator"), dict) and isinstance(tel.get("t"), (int, float)):
-            tel["estimator"]["lidar"] = {
+            vio = isinstance(diag, VioDiagnostics)  # a visual-inertial one's stereo frame, else a LiDAR scan
+            tel["estimator"]["vision" if vio else "lidar"] = {
                 "healthy": bool(diag.healthy),
                 "reason": str(diag.reason),
                 "age_s": round(float(tel["t"]) - float(diag.t), 3),
                 "inliers": int(diag.inliers),
-                "points": int(diag.points),
+                ("tracked" if vio else "points"): int(diag.tracked if vio else diag.points),
                 "skipped": str(diag.skipped),
             }
         state = self.live.latest(Topics.MISSION_STATE)  # a scenario's own mission (the tunnel's state machine)

@@ -173,8 +173,9 @@
     if (typeof e !== "object") return {text: String(e), ok: Boolean(e)};
     const age = typeof e.age_s === "number" ? (e.age_s < 1 ? `${Math.round(1000 * e.age_s)} ms old` : `${e.age_s.toFixed(1)} s old`) : "";
     if (e.source) return {text: `ok (${e.source})`, ok: e.ok !== false};
-    const l = e.lidar;  // a LiDAR odometry's diagnostics of its newest frame
-    const lidar = !l ? "" : l.skipped ? `; LiDAR frame skipped: ${l.skipped}` : `; LiDAR ${l.inliers}/${l.points} points matched`;
+    const l = e.lidar || e.vision;  // a LiDAR (or visual-inertial) odometry's diagnostics of its newest frame
+    const lidar = !l ? "" : e.vision ? (l.skipped ? `; camera frame skipped: ${l.skipped}` : `; ${l.inliers}/${l.tracked} features tracked`)
+      : l.skipped ? `; LiDAR frame skipped: ${l.skipped}` : `; LiDAR ${l.inliers}/${l.points} points matched`;
     if (e.ok && (!l || l.healthy)) return {text: "ok" + (age ? `, estimate ${age}` : "") + lidar, ok: true};
     const why = l && !l.healthy ? (l.reason || "the odometry says unhealthy") : (age ? `estimate ${age}` : "no estimate yet");
     return {text: "NOT OK: " + why, ok: false};
