@@ -33,8 +33,6 @@ __all__ = [
 ]
 
 _FRAME_COLOR = (0.9, 0.4, 0.1)
-_WALL = (0.75, 0.75, 0.72)
-_FLOOR = (0.45, 0.45, 0.45)
 
 
 def _pair(name: str, v: Any, lo: float = 0.0) -> tuple[float, float]:
@@ -169,20 +167,11 @@ class TunnelCourse:
 
 
 def _arena(world: World, p: TunnelCourseParams) -> None:
-    sx, sy, sz = p.arena
-    cx, wall = sx / 2 - p.arena_lead, 0.1
-    from cufund.worlds.builtin import FLOOR_MATERIAL, WALL_MATERIAL  # camera textures
+    """The built-in worlds' textured arena (floor, ceiling, four walls), starting arena_lead before x = 0."""
+    from cufund.worlds.builtin import arena
 
-    fm, wm = FLOOR_MATERIAL, WALL_MATERIAL
-
-    world.add_box((sx + 2 * wall, sy + 2 * wall, wall), (cx, 0.0, -wall / 2), label="floor", color=_FLOOR, material=fm)
-    world.add_box(
-        (sx + 2 * wall, sy + 2 * wall, wall), (cx, 0.0, sz + wall / 2), label="ceiling", color=_WALL, material=wm
-    )
-    world.add_box((wall, sy, sz), (cx - (sx + wall) / 2, 0.0, sz / 2), label="wall", color=_WALL, material=wm)
-    world.add_box((wall, sy, sz), (cx + (sx + wall) / 2, 0.0, sz / 2), label="wall", color=_WALL, material=wm)
-    world.add_box((sx, wall, sz), (cx, -(sy + wall) / 2, sz / 2), label="wall", color=_WALL, material=wm)
-    world.add_box((sx, wall, sz), (cx, (sy + wall) / 2, sz / 2), label="wall", color=_WALL, material=wm)
+    sx = p.arena[0]
+    arena(world, p.arena, centre_xy=(sx / 2 - p.arena_lead, 0.0))
 
 
 def _draw(rng: np.random.Generator, p: TunnelCourseParams) -> list[TunnelFrame]:

@@ -28,7 +28,7 @@ FLOOR_MATERIAL = textured(FLOOR, "concrete", 0.05, 11)
 WALL_MATERIAL = textured(WALL, "concrete", 0.08, 12)
 
 
-def _arena(
+def arena(
     world: World, size: tuple[float, float, float], centre_xy: tuple[float, float] = (0.0, 0.0), wall: float = 0.1
 ) -> None:
     """Floor, ceiling and four walls of an indoor arena, inner size (sx, sy, sz) [m], floor at z = 0."""
@@ -53,7 +53,7 @@ def imav2025_tunnel() -> World:
     on y = 0. The vehicle starts around x = -2 m and flies along +x.
     """
     world = World("imav2025_tunnel")
-    _arena(world, (12.0, 8.0, 4.0), centre_xy=(1.0, 0.0))
+    arena(world, (12.0, 8.0, 4.0), centre_xy=(1.0, 0.0))
     bar = 0.05
     for k in range(5):
         world.add_tunnel_frame((0.5 * k, 0.0, bar + 0.5), width=0.5, height=1.0, depth=bar, thickness=bar)
