@@ -260,3 +260,20 @@ def test_smoother_failure_restarts_and_recovers(flight):
     assert bad and "smoother restarted" in bad[0].reason
     assert len(bad) <= 5 and all(x.healthy for x in core.diagnostics if x.t > bad[-1].t)
     assert err.max() < 0.05
+
+
+def test_vio_on_a_scenario_without_cameras_names_the_rig_to_add():
+    """``cufund run tunnel --set estimator.kind=vio``: the tunnel has a LiDAR, no camera; the error says what to add
+    (and the rig it names is one the VIO builds on)."""
+    from cufund.estimation.kinds import vio_params
+    from cufund.scenarios.build import ScenarioBuildContext
+    from cufund.scenarios.schema import load_scenario
+
+    cfg = load_scenario("tunnel", ["estimator.kind=vio"])
+    with pytest.raises(ConfigError, match=r"add one, e\.g\. --set sensors\.stereo\.kind=stereo_camera --set"):
+        vio_params(cfg.estimator.params, ScenarioBuildContext(cfg))
+    cfg = load_scenario(
+        "tunnel", ["estimator.kind=vio", "sensors.stereo.kind=stereo_camera", "sensors.stereo.hw_sync=true"]
+    )
+    params, _, topics = vio_params(cfg.estimator.params, ScenarioBuildContext(cfg))
+    assert topics == ["/sensors/cam0/image", "/sensors/cam1/image"] and params.cam1.T_BC.t[1] < 0

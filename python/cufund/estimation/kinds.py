@@ -90,6 +90,11 @@ def vio_params(p: VioParams, ctx: BuildContext) -> tuple[VioParams, Any, list[st
         if getattr(p, name) != getattr(default, name):
             raise ConfigError(f"estimator.{name}: the VIO takes it from the scenario ({source}); give it once there")
     _, imu = ctx.sensor_of_type("imu", "", "estimator")
+    if not any(s is not None and s.sensor_type == "stereo_camera" for s in (ctx.config.sensors or {}).values()):
+        raise ConfigError(
+            "estimator: the VIO needs a stereo_camera sensor (this scenario has none); add one, e.g. "
+            "--set sensors.stereo.kind=stereo_camera --set sensors.stereo.hw_sync=true"
+        )
     _, cam = ctx.sensor_of_type("stereo_camera", "", "estimator")
     cams = cam.params.cameras(ctx.base_dir, None)
     if len(cams) < 2:
