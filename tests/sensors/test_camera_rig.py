@@ -8,6 +8,7 @@ from cufund.core.config import ConfigError
 from cufund.scenarios import build_simulation
 from cufund.scenarios.schema import ScenarioConfig
 from cufund.sensors.camera import RgbCamera
+from cufund.sensors.camera_component import CameraRigComponent
 from cufund.sensors.camera_models import CameraIntrinsics
 from cufund.worlds.vio_room import vio_room
 
@@ -125,3 +126,29 @@ def test_the_rig_round_trips_through_the_scenario_dict_and_a_missing_camchain_is
     cfg = ScenarioConfig.from_dict(_scenario(calibration="missing.yaml"), base_dir=tmp_path)
     with pytest.raises(ConfigError, match="calibration: no Kalibr camchain file"):
         build_simulation(cfg)
+
+
+def test_each_cameras_noise_stream_derives_from_the_scenario_seed():
+    small = {"width": 32, "height": 24, "fx": 20.0, "fy": 20.0, "cx": 15.5, "cy": 11.5}
+
+    seeds = []
+
+    def images(seed):
+        data = _scenario(intrinsics=small, rate_hz=20.0, full_well_e=500.0, read_noise_dn=2.0)
+        data["seed"] = seed
+        sim = build_simulation(ScenarioConfig.from_dict(data)).simulator
+        (rig,) = [c for c in sim.components if isinstance(c, CameraRigComponent)]
+        seeds.append([cam.seed for cam in rig.cameras])
+        sim.record_topics = (*sim.record_topics, "/sensors/cam0/image", "/sensors/cam1/image")
+        topics = sim.run(0.1).topics
+        return [topics[f"/sensors/cam{i}/image"]["image"].astype(int) for i in (0, 1)]
+
+    a0, a1 = images(1)
+    b0, b1 = images(1)
+    c0, _ = images(2)
+    np.testing.assert_array_equal(a0, b0)  # same seed: the same images
+    np.testing.assert_array_equal(a1, b1)
+    assert np.any(a0 != c0)  # another scenario seed: other noise
+    assert np.std(a0[0] - c0[0]) > 1.0
+    # each camera its own stream, from the scenario seed and its name
+    assert seeds[0] == seeds[1] and seeds[0][0] != seeds[0][1] and seeds[2][0] not in seeds[0]
