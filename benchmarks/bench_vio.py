@@ -15,7 +15,7 @@ ORB-SLAM3 needs its ORB vocabulary (ORBvoc.txt, not shipped in the wheel and not
 Errors: position RMSE (unaligned: every estimator's world frame is the pad's) and rotation RMSE at every output
 after the 1 s still start (the VIO's at IMU rate, the peers' at the camera frames), and the median wall time per stereo frame. One table.
 
-    .venv/bin/python benchmarks/bench_vio.py [--duration 60] [--cache /tmp/vio_bench.pkl] [--orbslam VOC]
+    .venv/bin/python benchmarks/bench_vio.py [--duration 60] [--cache /tmp/vio_bench.npz] [--orbslam VOC]
 """
 
 from __future__ import annotations
@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import pickle
 import sys
 import time
 from pathlib import Path
@@ -34,7 +33,7 @@ import numpy as np
 from cufund.estimation.evaluation import aligned_ate, odometry_errors
 from cufund.estimation.vio_core import VioCore
 from cufund.estimation.vio_params import VioCamera, VioParams
-from cufund.estimation.vio_synthetic import TexturedRoom, hover_then, synthesize
+from cufund.estimation.vio_synthetic import SyntheticRun, TexturedRoom, hover_then, synthesize
 from cufund.geometry import Transform, quat_from_matrix, quat_to_matrix
 from cufund.sensors.imu import imu_preset
 
@@ -244,10 +243,41 @@ def errors(run, t: np.ndarray, p: np.ndarray, q: np.ndarray) -> dict[str, float]
     return e
 
 
+def save_run(path: Path, run: SyntheticRun) -> None:
+    """The flight as plain arrays (``.npz``): a cache file that loading cannot make run anything (no pickle)."""
+    with open(path, "wb") as f:  # a file object: np.savez appends no ".npz" to the name
+        np.savez(
+            f,
+            imu_t=np.array([s[0] for s in run.imu]),
+            imu_f=np.array([s[1] for s in run.imu]),
+            imu_w=np.array([s[2] for s in run.imu]),
+            frame_t=np.array([fr[0] for fr in run.frames]),
+            left=np.stack([fr[1] for fr in run.frames]),
+            right=np.stack([fr[2] for fr in run.frames]),
+            truth_t=run.truth_t,
+            truth_p=run.truth_p,
+            truth_q=run.truth_q,
+        )
+
+
+def load_run(path: Path) -> SyntheticRun:
+    """The flight :func:`save_run` wrote."""
+    with np.load(path, allow_pickle=False) as z:
+        return SyntheticRun(
+            imu=list(zip(z["imu_t"].tolist(), z["imu_f"], z["imu_w"], strict=True)),
+            frames=list(zip(z["frame_t"].tolist(), z["left"], z["right"], strict=True)),
+            truth_t=z["truth_t"],
+            truth_p=z["truth_p"],
+            truth_q=z["truth_q"],
+        )
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--duration", type=float, default=60.0)
-    ap.add_argument("--cache", type=Path, default=None, help="keep the generated flight here (pickle) and reuse it")
+    ap.add_argument(
+        "--cache", type=Path, default=None, help="keep the generated flight here (.npz, arrays only) and reuse it"
+    )
     ap.add_argument("--orbslam", default="", help="ORB-SLAM3 vocabulary file: run ORB-SLAM3 stereo-inertial too")
     ap.add_argument(
         "--orbslam-path",
@@ -258,11 +288,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     w0 = time.perf_counter()
     if args.cache is not None and args.cache.exists():
-        run = pickle.loads(args.cache.read_bytes())
+        run = load_run(args.cache)
     else:
         run = generate(args.duration)
         if args.cache is not None:
-            args.cache.write_bytes(pickle.dumps(run))
+            save_run(args.cache, run)
     print(
         f"flight: {args.duration:.0f} s, {len(run.frames)} stereo frames 640x480, {len(run.imu)} IMU samples "
         f"(generated in {time.perf_counter() - w0:.0f} s)"
