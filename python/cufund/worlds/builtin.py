@@ -10,6 +10,7 @@ import numpy as np
 from cufund.core.registry import load_plugins
 
 from .materials import Material
+from .vio_room import vio_room
 from .world import World
 
 WALL = (0.75, 0.75, 0.72)
@@ -127,16 +128,8 @@ BUILTIN: dict[str, Callable[..., World]] = {
     "empty": empty,
     "forest": forest,
     "corridor": corridor,
+    "vio_room": vio_room,
 }
-
-
-def _vio_room(seed: int = 0) -> World:
-    from .vio_room import vio_room
-
-    return vio_room(seed)
-
-
-BUILTIN["vio_room"] = _vio_room
 
 
 def load(name: str, **kwargs: object) -> World:
