@@ -65,3 +65,16 @@ def test_recorded_square_vio_rmse_equals_evo_ape(square_vio_log, tmp_path):
     # TUM files hold 9 decimals: the two agree to well below a micrometre
     assert ape.get_statistic(metrics.StatisticsType.rmse) == pytest.approx(figures["odometry_rmse_m"], abs=1e-7)
     assert ape.get_statistic(metrics.StatisticsType.max) == pytest.approx(figures["odometry_max_m"], abs=1e-7)
+
+
+def test_odometry_on_a_bag_of_a_vio_run_names_the_run_mcap(square_vio_log, tmp_path):
+    pytest.importorskip("rosbags")
+    bag = tmp_path / "bag"
+    proc = subprocess.run(
+        [str(CUFUND), "bag", str(square_vio_log), "--out", str(bag)], capture_output=True, text=True, timeout=600
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    proc = subprocess.run(
+        [str(CUFUND), "odometry", str(bag), "--out", str(tmp_path / "odo")], capture_output=True, text=True, timeout=600
+    )
+    assert proc.returncode != 0 and "flown on the VIO" in proc.stderr and "run.mcap" in proc.stderr, proc.stderr

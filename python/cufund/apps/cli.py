@@ -333,7 +333,12 @@ def _odometry(args: argparse.Namespace) -> int:
         params, imu, lidar = LioParams(), "/sensors/imu", "/sensors/lidar"
         if "config" in meta:  # the scenario the log was recorded with: its extrinsics and IMU
             cfg = ScenarioConfig.from_dict(load_yaml_text(meta["config"], f"{args.log}: its recorded config"))
-            if cfg.estimator is not None and cfg.estimator.kind == "vio" and not bag:  # a log flown on the VIO
+            if cfg.estimator is not None and cfg.estimator.kind == "vio" and bag:
+                raise ConfigError(
+                    f"{args.log}: a run flown on the VIO; cufund odometry reruns it on the run's run.mcap (a ROS 2 "
+                    "bag's sensor_msgs/Image are not read)"
+                )
+            if cfg.estimator is not None and cfg.estimator.kind == "vio":  # a log flown on the VIO
                 from cufund.estimation.kinds import vio_params
                 from cufund.estimation.vio_offline import run_vio_on_log
 
