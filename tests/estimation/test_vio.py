@@ -3,6 +3,7 @@ synthetic flight (its RMSE against evo's APE), a flight into a textureless wall,
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import gtsam
@@ -277,3 +278,12 @@ def test_vio_on_a_scenario_without_cameras_names_the_rig_to_add():
     )
     params, _, topics = vio_params(cfg.estimator.params, ScenarioBuildContext(cfg))
     assert topics == ["/sensors/cam0/image", "/sensors/cam1/image"] and params.cam1.T_BC.t[1] < 0
+
+
+def test_online_time_offset_finds_a_camera_clock_shift(flight):
+    """Frames stamped 10 ms early on the camera's clock (t_imu = t_cam + 0.01): the online estimate finds the
+    offset (on the synchronised flight it stays near 0, test_flight_accuracy_and_rmse_equals_evo_ape)."""
+    core = VioCore(_params(p_WB0=(0.0, 0.0, 1.5)))
+    shifted = dataclasses.replace(flight, frames=[(t - 0.01, a, b) for t, a, b in flight.frames])
+    _run(core, shifted)
+    assert core.time_offset_s == pytest.approx(0.01, abs=0.003)
