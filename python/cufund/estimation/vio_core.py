@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any
 
 import gtsam
 import numpy as np
@@ -417,8 +416,9 @@ class VioCore:
         return sigma
 
     def _restart(self, s: NavEstimate, k: int, why: str) -> None:
-        """A new smoother whose first state is ``s`` (the IMU's prediction) with loose priors: the estimate goes
-        on from where it was, the landmarks start again."""
+        """A new smoother whose first state is ``s`` (the IMU's prediction) with tight priors (1 mrad, 1 mm, 1 cm/s;
+        loose ones left the bias indeterminate and restarted every keyframe): the estimate goes on from where it
+        was, the landmarks start again."""
         p = self.params
         self.restarts += 1
         self.restart_reasons.append(why)
@@ -488,6 +488,3 @@ class VioCore:
     @property
     def estimate(self) -> NavEstimate | None:
         return self._now
-
-    def smoother_keys(self) -> Any:
-        return self._smoother.calculateEstimate()
