@@ -287,3 +287,18 @@ def test_online_time_offset_finds_a_camera_clock_shift(flight):
     shifted = dataclasses.replace(flight, frames=[(t - 0.01, a, b) for t, a, b in flight.frames])
     _run(core, shifted)
     assert core.time_offset_s == pytest.approx(0.01, abs=0.003)
+
+
+def test_the_pad_heading_is_the_scenarios_start_yaw():
+    """A vehicle standing at start_yaw on the pad: the odometry's world frame takes that heading, as it takes the
+    pad's position from start_p_W (the VIO's and the LIO's alike); an estimator's own pad_yaw still wins."""
+    from cufund.estimation.kinds import lio_params, vio_params
+    from cufund.scenarios.build import ScenarioBuildContext
+    from cufund.scenarios.schema import load_scenario
+
+    cfg = load_scenario("square_vio", ["start_yaw=1.0"])
+    assert vio_params(cfg.estimator.params, ScenarioBuildContext(cfg))[0].pad_yaw == 1.0
+    cfg = load_scenario("square_vio", ["start_yaw=1.0", "estimator.pad_yaw=0.5"])
+    assert vio_params(cfg.estimator.params, ScenarioBuildContext(cfg))[0].pad_yaw == 0.5
+    cfg = load_scenario("square_lio", ["start_yaw=1.0"])
+    assert lio_params(cfg.estimator.params, ScenarioBuildContext(cfg))[0].pad_yaw == 1.0

@@ -40,6 +40,14 @@ register(
 )
 
 
+def _pad(pad_yaw: float, default_yaw: float, ctx: BuildContext) -> tuple[tuple[float, float, float], float]:
+    """The pad an odometry starts on, as the scenario states it: its position (``start_p_W``, else below the first
+    waypoint) and heading (an estimator's own ``pad_yaw`` when given, else ``start_yaw``, where the vehicle stands)."""
+    c = ctx.config
+    start = c.start_p_W or (c.trajectory.waypoints[0][0], c.trajectory.waypoints[0][1], 0.0)
+    return tuple(start), (pad_yaw if pad_yaw != default_yaw else float(c.start_yaw))
+
+
 def lio_params(p: LioParams, ctx: BuildContext) -> tuple[LioParams, Any, Any]:
     """The LIO's params completed from the scenario (IMU part and mounting, LiDAR extrinsic, pad position,
     gravity: each given once, in the scenario), with the IMU and LiDAR specs."""
@@ -49,9 +57,14 @@ def lio_params(p: LioParams, ctx: BuildContext) -> tuple[LioParams, Any, Any]:
             raise ConfigError(f"estimator.{name}: the LIO takes it from the scenario ({source}); give it once there")
     _, imu = ctx.sensor_of_type("imu", "", "estimator")
     _, lidar = ctx.sensor_of_type("lidar", "", "estimator")
-    start = ctx.config.start_p_W or (ctx.config.trajectory.waypoints[0][0], ctx.config.trajectory.waypoints[0][1], 0.0)
+    start, pad_yaw = _pad(p.pad_yaw, default.pad_yaw, ctx)
     params = dataclasses.replace(
-        p, imu=ctx.imu_params(), T_BL=lidar.extrinsic or default.T_BL, p_WB0=tuple(start), gravity=ctx.vehicle.gravity
+        p,
+        imu=ctx.imu_params(),
+        T_BL=lidar.extrinsic or default.T_BL,
+        p_WB0=start,
+        pad_yaw=pad_yaw,
+        gravity=ctx.vehicle.gravity,
     )
     return params, imu, lidar
 
@@ -109,14 +122,15 @@ def vio_params(p: VioParams, ctx: BuildContext) -> tuple[VioParams, Any, list[st
     shifts = {c.timeshift_s for c in cams[:2]}
     if len(shifts) != 1:
         raise ConfigError("estimator: the VIO needs both stereo cameras on one clock (equal timeshift_cam_imu)")
-    start = ctx.config.start_p_W or (ctx.config.trajectory.waypoints[0][0], ctx.config.trajectory.waypoints[0][1], 0.0)
+    start, pad_yaw = _pad(p.pad_yaw, default.pad_yaw, ctx)
     topics = list(cam.params.camera_topics(len(cams)))
     params = dataclasses.replace(
         p,
         imu=ctx.imu_params(),
         cam0=rig[0],
         cam1=rig[1],
-        p_WB0=tuple(start),
+        p_WB0=start,
+        pad_yaw=pad_yaw,
         gravity=ctx.vehicle.gravity,
         time_offset_s=p.time_offset_s + shifts.pop(),
     )
