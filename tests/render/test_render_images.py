@@ -193,6 +193,37 @@ def test_an_obj_naming_a_file_outside_its_folder_is_refused(tmp_path):
     assert cufund.World().load_mesh(mesh / "quad.obj").material is not None  # inside: read
 
 
+def test_an_obj_whose_mtl_or_texture_is_a_fifo_loads_at_once(tmp_path):
+    import os
+    import threading
+    import time
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    done = threading.Event()
+
+    def unblock():  # after 10 s, readers blocked on the FIFO get end-of-file (nothing happens if none waits)
+        wait = 10.0
+        while not done.wait(wait):
+            wait = 0.1
+            try:
+                os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+            except OSError:
+                pass
+
+    threading.Thread(target=unblock, daemon=True).start()
+    try:
+        _quad_obj(tmp_path, "fifo")  # map_Kd names the FIFO
+        t0 = time.monotonic()
+        with pytest.raises(ValueError, match=r"quad.obj.*map_Kd.*no image file"):
+            cufund.World().load_mesh(tmp_path / "quad.obj")
+        (tmp_path / "quad.obj").write_text((tmp_path / "quad.obj").read_text().replace("materials.mtl", "fifo"))
+        assert cufund.World().load_mesh(tmp_path / "quad.obj").material is None  # mtllib names it: no MTL
+        assert time.monotonic() - t0 < 5.0  # trimesh opened the FIFO and waited (for ever without a writer)
+    finally:
+        done.set()
+
+
 def test_shot_and_read_noise_have_the_expected_spread_and_are_seeded():
     K = CameraIntrinsics(100, 100, 50.0, 50.0, 49.5, 49.5)
     w = cufund.World()
