@@ -229,7 +229,7 @@ class World:
             _check_obj_faces(path)
         # an OBJ's MTL and texture are read by _mesh_texture alone (in the mesh's folder, regular files only):
         # trimesh's own read opened whatever mtllib named (a FIFO blocked it for ever) and decoded the image again
-        only_geometry = {"skip_materials": True} if path.suffix.lower() == ".obj" else {}
+        only_geometry: dict[str, Any] = {"skip_materials": True} if path.suffix.lower() == ".obj" else {}
         try:
             mesh: Any = trimesh.load(path, force="mesh", process=False, **only_geometry)
             faces, vertices = np.asarray(mesh.faces), np.asarray(mesh.vertices, dtype=float)
