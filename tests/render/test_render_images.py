@@ -291,17 +291,22 @@ def test_world_yaml_materials_and_their_errors(tmp_path):
 
 
 @pytest.mark.parametrize("texture", ["noise", "brick", "bark", "concrete"])
-def test_rendered_textures_equal_the_material_at_the_hit_points(texture):
+@pytest.mark.parametrize("object_id", [0, 3])
+def test_rendered_textures_equal_the_material_at_the_hit_points(texture, object_id):
     K = CameraIntrinsics(64, 48, 40.0, 40.0, 31.5, 23.5)
     mat = Material((0.9, 0.6, 0.3), texture, scale=0.2, contrast=0.8, seed=5)
     w = cufund.World()
-    w.add_box((0.1, 20.0, 20.0), (3.05, 0.0, 1.0), material=mat)  # object 0: no per-object shift
+    for _ in range(object_id):  # out of sight, behind the camera
+        w.add_box((0.1, 0.1, 0.1), (-5.0, 0.0, 1.0), material=mat)
+    w.add_box((0.1, 20.0, 20.0), (3.05, 0.0, 1.0), material=mat)
+    # each object's texture is shifted by its id (object 0: not at all)
+    offset = np.asarray(object_id * np.array([7.31, 3.17]) % 97.0)
     img = RgbCamera(K, ambient=1.0).render(w, (0.0, 0.0, 1.0), IDENTITY)
     depth = DepthCamera(K, depth_max=100.0).render(w, (0.0, 0.0, 1.0), IDENTITY)
     # hit points from the depth image: optical (x, y, 1) * depth -> world (z_O, -x_O, -y_O) + camera position
     d_O = K.pixel_directions() * depth[..., None]
     p_W = np.stack([d_O[..., 2], -d_O[..., 0], 1.0 - d_O[..., 1]], -1).reshape(-1, 3)
-    expect = mat.albedo_at(p_W, np.tile([-1.0, 0.0, 0.0], (len(p_W), 1)))
+    expect = mat.albedo_at(p_W, np.tile([-1.0, 0.0, 0.0], (len(p_W), 1)), offset=offset)
     np.testing.assert_allclose(img.reshape(-1, 3) / 255.0, expect, atol=1.0 / 255 + 1e-3)
     assert np.std(img) > 10  # a texture, not a flat colour
 
