@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CdrField", "CdrLayout", "MessageLayout", "infer_message_layout", "stamp_sec_nsec"]
+__all__ = ["CdrField", "CdrLayout", "MessageLayout", "infer_message_layout", "stamp_sec_nsec", "stamp_sec_nsec_of"]
 
 CDR_LE_HEADER = b"\x00\x01\x00\x00"
 _ROS_TYPES = {
@@ -129,6 +129,16 @@ def stamp_sec_nsec(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ns = np.nan_to_num(ns, nan=0.0, posinf=0.0, neginf=0.0).astype(np.int64)
     sec = np.floor_divide(ns, 1_000_000_000)
     return np.clip(sec, -(2**31), 2**31 - 1).astype(np.int32), (ns - sec * 1_000_000_000).astype(np.uint32)
+
+
+def stamp_sec_nsec_of(t: float) -> tuple[int, int]:
+    """:func:`stamp_sec_nsec` of one stamp ``t`` [s] in plain Python (~20x faster than through a 1-element array):
+    the same float product and round-half-even, NaN and infinities 0, seconds clipped to int32."""
+    ns_f = float(t) * 1e9
+    if ns_f != ns_f or ns_f in (math.inf, -math.inf):
+        return 0, 0
+    sec, nsec = divmod(round(ns_f), 1_000_000_000)
+    return min(max(sec, -(2**31)), 2**31 - 1), nsec
 
 
 @dataclass(frozen=True)

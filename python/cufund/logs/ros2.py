@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from .cdr import CdrField, CdrLayout, stamp_sec_nsec
+from .cdr import CdrField, CdrLayout, stamp_sec_nsec, stamp_sec_nsec_of
 
 __all__ = [
     "CLOCK",
@@ -272,8 +272,8 @@ class CdrWriter:
         return self
 
     def header(self, t: float, frame: str) -> CdrWriter:
-        sec, nsec = stamp_sec_nsec(np.array([t]))
-        return self.put("i", int(sec[0])).put("I", int(nsec[0])).string(frame)
+        sec, nsec = stamp_sec_nsec_of(t)
+        return self.put("i", sec).put("I", nsec).string(frame)
 
     def bytes(self) -> bytes:
         return b"".join(self.parts)

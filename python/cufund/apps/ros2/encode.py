@@ -12,7 +12,7 @@ import numpy as np
 from cufund.core.messages import CameraImage, Imu, Odometry, PointCloud, Pose, TrajectoryUpdate
 from cufund.geometry import quat_to_matrix
 from cufund.logs import ros2
-from cufund.logs.cdr import stamp_sec_nsec
+from cufund.logs.cdr import stamp_sec_nsec_of
 from cufund.logs.codecs import ImageCodec, PointCloud2Codec, path_of
 
 __all__ = [
@@ -36,8 +36,7 @@ def xyzw(q_wxyz: Any) -> list[float]:
 
 
 def _stamp(row: np.ndarray, t: float, sec: str = "header.stamp.sec", nsec: str = "header.stamp.nanosec") -> None:
-    s, n = stamp_sec_nsec(np.array([t]))
-    row[sec], row[nsec] = s[0], n[0]
+    row[sec], row[nsec] = stamp_sec_nsec_of(t)
 
 
 _CLOCK = ros2.clock_layout()
