@@ -84,6 +84,11 @@ class VioCore:
         self.restart_reasons: list[str] = []
         self.last_visual_t: float | None = None
         self._good = p.health_relock_frames
+        self.reprojection_px = math.nan
+        self.imu_chi2 = math.nan
+        """Chi-square of the newest keyframe's IMU factor at the smoother's estimate (NaN: none yet)."""
+        self._chi2_recent: list[float] = []
+        """Median stereo reprojection residual of the newest keyframe's observations [px] (NaN: none yet)."""
 
     def _imu_params(self) -> gtsam.PreintegrationCombinedParams:
         """The IMU factors' noise from the IMU's datasheet spec (zeros of an ideal part become small densities)."""
@@ -316,7 +321,8 @@ class VioCore:
         )
         for h, a, w in zip(pdt, pacc, pgyr, strict=True):
             pim.integrateMeasurement(a, w, float(h))
-        graph.add(gtsam.CombinedImuFactor(X(k - 1), V(k - 1), X(k), V(k), B(k - 1), B(k), pim))
+        imu_factor = gtsam.CombinedImuFactor(X(k - 1), V(k - 1), X(k), V(k), B(k - 1), B(k), pim)
+        graph.add(imu_factor)
         values.insert(X(k), pose3(pred.R_WI, pred.p_W))
         values.insert(V(k), pred.v_W)
         values.insert(B(k), gtsam.imuBias.ConstantBias(prev.bias_acc, prev.bias_gyr))
@@ -327,6 +333,7 @@ class VioCore:
         T_WI[:3, :3], T_WI[:3, 3] = pred.R_WI, pred.p_W
         T_WC = T_WI @ self._T_I_R0
         stereo = fr.stereo
+        new_factors: list[gtsam.GenericStereoFactor3D] = []  # re-observations of landmarks (the consistency check)
         pending: dict[int, tuple[int, float, float, float]] = {}
         lo_t = fr.t - p.lag_s + 0.05  # landmarks whose newest keyframe is older leave the window with it
         for i in np.flatnonzero(stereo).tolist():
@@ -336,11 +343,11 @@ class VioCore:
             meas = gtsam.StereoPoint2(uL, uR, v)
             lid = self._landmark.get(tid)
             if lid is not None and lid in self._in_window and self._landmark_t.get(lid, -math.inf) >= lo_t:
-                graph.add(
-                    gtsam.GenericStereoFactor3D(
-                        meas, self._noise, X(k), L(lid), self._K, False, False, self._body_P_cam
-                    )
+                fac = gtsam.GenericStereoFactor3D(
+                    meas, self._noise, X(k), L(lid), self._K, False, False, self._body_P_cam
                 )
+                graph.add(fac)
+                new_factors.append(fac)
                 stamps.insert((L(lid), fr.t))
                 self._landmark_t[lid] = fr.t
                 continue
@@ -389,6 +396,11 @@ class VioCore:
             fr.t, R, pos, np.asarray(est.atVector(V(k))), np.asarray(bias.accelerometer()), np.asarray(bias.gyroscope())
         )
         self._k = k
+        self.reprojection_px = self._reprojection(new_factors, est)
+        if est.exists(X(k - 1)) and est.exists(V(k - 1)) and est.exists(B(k - 1)):
+            # the IMU factor's residual at the fused estimate: small when the camera's motion is the IMU's
+            self.imu_chi2 = 2.0 * imu_factor.error(est)
+            self._chi2_recent = [*self._chi2_recent, self.imu_chi2][-p.health_chi2_keyframes :]
         # landmarks the smoother marginalised
         gone = [lid for lid in self._in_window if self._landmark_t[lid] < lo_t or not est.exists(L(lid))]
         for lid in gone:
@@ -414,6 +426,13 @@ class VioCore:
         self._catch_up()
         self._imu.prune(fr.t - 0.5)
         return sigma
+
+    @staticmethod
+    def _reprojection(factors: list, est: gtsam.Values) -> float:
+        """The median stereo reprojection residual [px] of the newest keyframe's observations at the smoother's
+        estimate (NaN without any): the visual measurements' disagreement with the IMU-constrained solution."""
+        r = [float(np.linalg.norm(f.unwhitenedError(est))) for f in factors if all(est.exists(key) for key in f.keys())]
+        return float(np.median(r)) if r else math.nan
 
     def _restart(self, s: NavEstimate, k: int, why: str) -> None:
         """A new smoother whose first state is ``s`` (the IMU's prediction) with tight priors (1 mrad, 1 mm, 1 cm/s;
@@ -443,6 +462,7 @@ class VioCore:
         self._smoother.update(graph, values, stamps)
         self._node, self._k = s, k
         self._landmark, self._pending, self._in_window, self._landmark_t = {}, {}, set(), {}
+        self._chi2_recent = []
         self._catch_up()
 
     def _catch_up(self) -> None:
@@ -463,6 +483,15 @@ class VioCore:
             return False, f"no visual constraint: {skipped} (IMU only for {blind:.2f} s)"
         gap = None if self.last_visual_t is None else t - self.last_visual_t
         self.last_visual_t = t
+        if p.health_max_imu_chi2 is not None and len(self._chi2_recent) >= p.health_chi2_keyframes:
+            chi2 = float(np.median(self._chi2_recent))  # one correction (texture back after a gap) is no disagreement
+            if chi2 > p.health_max_imu_chi2:
+                self._good = 0
+                return False, (
+                    f"visual and inertial motion disagree: the IMU factors' median chi-square over the last "
+                    f"{len(self._chi2_recent)} keyframes is {chi2:.3g} (limit {p.health_max_imu_chi2:g}; a wrong "
+                    f"stereo baseline or extrinsic, or drifting tracks)"
+                )
         if gap is not None and gap > p.health_max_gap_s:
             self._good = 0
         self._good += 1

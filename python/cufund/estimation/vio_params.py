@@ -202,6 +202,15 @@ class VioParams:
     """No trusted visual constraint for longer than this: unhealthy (IMU only) [s]."""
     health_relock_frames: int = 3
     """Good frames in a row needed to be healthy again."""
+    health_max_imu_chi2: float | None = None
+    """The consistency check: unhealthy when the IMU factors' chi-square at the smoother's estimate, averaged over
+    the last ``health_chi2_keyframes`` keyframes (the median: a single correction when texture returns after a gap
+    is no disagreement), exceeds this (the camera's motion is not the IMU's: a wrong stereo
+    baseline or extrinsic, drifting tracks; the inlier count does not see it). None: off (the default; its scale
+    depends on how well the IMU spec matches the part: about 0.01 on a correct rig in the synthetic room,
+    0.5 with a baseline 25 % too long)."""
+    health_chi2_keyframes: int = 10
+    """Keyframes averaged by that check."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "imu", nested(ImuParams, self.imu, "VioParams.imu"))
@@ -225,10 +234,13 @@ class VioParams:
             ("klt_levels", 0),
             ("health_min_inliers", 3),
             ("health_relock_frames", 1),
+            ("health_chi2_keyframes", 1),
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
                 raise ConfigError(f"VioParams.{name} must be an integer >= {lo}, got {v!r}")
+        if self.health_max_imu_chi2 is not None:
+            check_real_fields(self, "VioParams", positive=True, names=("health_max_imu_chi2",))
         check_at_most(self, "VioParams", max_features=5000, klt_window_px=101, klt_levels=8, kf_min_tracked_ratio=1.0)
         if not isinstance(self.estimate_time_offset, bool):
             raise ConfigError("VioParams.estimate_time_offset must be true or false")
