@@ -1,8 +1,15 @@
 """Visual-inertial odometry benchmark (issue 25; not a timed test).
 
 Generates once a 60 s aggressive flight (EuRoC-like: up to about 2 m/s and 90 deg/s; stereo 640x480 at 20 Hz, IMU at
-200 Hz with the ICM-42688-P's datasheet noise and small calibrated-residual biases) in a textured room rendered
-exactly (:mod:`cufund.estimation.vio_synthetic`), and runs on the same data:
+200 Hz with the ICM-42688-P's datasheet noise and small calibrated-residual biases) and runs on the same data:
+
+* ``--world vio_room`` (the default): the built-in ``vio_room`` world (posters, shelves, brick and concrete, sun and
+  shadows) rendered by cufund's C++ renderer with the ``stereo_camera`` kind's default rig (grey, 11 cm baseline,
+  shadows on, no sensor noise), the images a ``square_vio`` flight gets;
+* ``--world synthetic``: the noise-textured box room of :mod:`cufund.estimation.vio_synthetic` (exact ray casting
+  in numpy), same size, same rig.
+
+The estimators:
 
 * cufund's VIO (``VioCore``: KLT + GTSAM fixed-lag smoother, stereo + IMU);
 * a peer: ORB-SLAM3 stereo-inertial through PyPI ``orbslam3-python`` when it imports (``--orbslam``, see below),
@@ -15,7 +22,8 @@ ORB-SLAM3 needs its ORB vocabulary (ORBvoc.txt, not shipped in the wheel and not
 Errors: position RMSE (unaligned: every estimator's world frame is the pad's) and rotation RMSE at every output
 after the 1 s still start (the VIO's at IMU rate, the peers' at the camera frames), and the median wall time per stereo frame. One table.
 
-    .venv/bin/python benchmarks/bench_vio.py [--duration 60] [--cache /tmp/vio_bench.npz] [--orbslam VOC]
+    .venv/bin/python benchmarks/bench_vio.py [--world vio_room|synthetic] [--duration 60] [--cache /tmp/vio.npz]
+        [--orbslam VOC]
 """
 
 from __future__ import annotations
@@ -35,10 +43,26 @@ from cufund.estimation.vio_core import VioCore
 from cufund.estimation.vio_params import VioCamera, VioParams
 from cufund.estimation.vio_synthetic import SyntheticRun, TexturedRoom, hover_then, synthesize
 from cufund.geometry import Transform, quat_from_matrix, quat_to_matrix
+from cufund.sensors.camera import RgbCamera
 from cufund.sensors.imu import imu_preset
+from cufund.sensors.kinds import StereoCameraParams
+from cufund.worlds.vio_room import vio_room
 
-CAM0 = VioCamera(640, 480, 400.0, 400.0, 319.5, 239.5, T_BC=Transform((0.1, 0.055, 0.0)))
-CAM1 = VioCamera(640, 480, 400.0, 400.0, 319.5, 239.5, T_BC=Transform((0.1, -0.055, 0.0)))
+RIG = StereoCameraParams()
+"""The stereo_camera kind's default rig (square_vio's): 640x480, 11 cm baseline, grey, shadows."""
+CAM0, CAM1 = (
+    VioCamera(
+        c.intrinsics.width,
+        c.intrinsics.height,
+        c.intrinsics.fx,
+        c.intrinsics.fy,
+        c.intrinsics.cx,
+        c.intrinsics.cy,
+        T_BC=c.T_BC,
+    )
+    for c in RIG.cameras()[:2]
+)
+WORLDS = ("vio_room", "synthetic")
 START = (0.0, 0.0, 1.4)
 ACCEL_BIAS = (0.02, -0.015, 0.01)
 """What a calibration leaves [m/s^2] (about 2 mg), unknown to the estimators."""
@@ -58,14 +82,43 @@ def aggressive(t: float) -> tuple[float, float, float, float, float, float]:
     )
 
 
-def generate(duration: float):
+class RenderedRoom:
+    """The ``vio_room`` world through cufund's renderer, as ``synthesize`` asks a room for an image: the grey image
+    of a camera (its intrinsics) at an optical-frame pose (x right, y down, z forward)."""
+
+    _R_CO = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+    """Optical frame -> camera frame (FLU, the renderer's)."""
+
+    def __init__(self, seed: int = 0) -> None:
+        self.world = vio_room(seed)
+        self.camera = RgbCamera(
+            RIG.intrinsics,
+            None,  # the pose given is the camera's own
+            light_W=RIG.light_W,
+            ambient=RIG.ambient,
+            shadows=RIG.shadows,
+            grayscale=True,
+            full_well_e=RIG.full_well_e,
+            read_noise_dn=RIG.read_noise_dn,
+        )
+
+    def render(self, R_WO: np.ndarray, p_WO: np.ndarray, cam: VioCamera) -> np.ndarray:
+        k = RIG.intrinsics
+        if (cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy) != (k.width, k.height, k.fx, k.fy, k.cx, k.cy):
+            raise ValueError("RenderedRoom renders the rig's intrinsics only")
+        image = self.camera.render(self.world, p_WO, quat_from_matrix(R_WO @ self._R_CO.T))
+        assert isinstance(image, np.ndarray)
+        return image
+
+
+def generate(duration: float, world: str = "vio_room"):
     imu = imu_preset("icm42688p")
     run = synthesize(
         hover_then(aggressive, START, t_static=1.5, t_ramp=2.0),
         duration,
         CAM0,
         CAM1,
-        TexturedRoom(seed=7),
+        RenderedRoom() if world == "vio_room" else TexturedRoom(seed=7),
         imu_hz=200.0,
         cam_hz=20.0,
         accel_noise=imu.accel.white_noise_density,
@@ -169,7 +222,7 @@ class StereoVoBaseline:
 
 
 def run_peer(run) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[float, float]]]:
-    vo = StereoVoBaseline(CAM0, 0.11, CAM0.T_BC)
+    vo = StereoVoBaseline(CAM0, RIG.baseline, CAM0.T_BC)
     vo.start(quat_to_matrix(run.truth_q[0]), run.truth_p[0])
     ts, ps, qs, ms = [], [], [], []
     for t, left, right in run.frames:
@@ -200,7 +253,7 @@ def run_orbslam(
         f"Camera1.fx: {CAM0.fx}\nCamera1.fy: {CAM0.fy}\nCamera1.cx: {CAM0.cx}\nCamera1.cy: {CAM0.cy}\n"
         "Camera1.k1: 0.0\nCamera1.k2: 0.0\nCamera1.p1: 0.0\nCamera1.p2: 0.0\n"
         f"Camera.width: {CAM0.width}\nCamera.height: {CAM0.height}\nCamera.fps: 20\nCamera.RGB: 0\n"
-        "Stereo.ThDepth: 60.0\nStereo.b: 0.11\n"
+        f"Stereo.ThDepth: 60.0\nStereo.b: {RIG.baseline}\n"
         f"IMU.T_b_c1: !!opencv-matrix\n  rows: 4\n  cols: 4\n  dt: f\n  data: [{rows}]\n"
         f"IMU.NoiseGyro: {imu.gyro.white_noise_density}\nIMU.NoiseAcc: {imu.accel.white_noise_density}\n"
         f"IMU.GyroWalk: {imu.gyro.bias_random_walk}\nIMU.AccWalk: {imu.accel.bias_random_walk}\nIMU.Frequency: 200.0\n"
@@ -243,7 +296,7 @@ def errors(run, t: np.ndarray, p: np.ndarray, q: np.ndarray) -> dict[str, float]
     return e
 
 
-def save_run(path: Path, run: SyntheticRun) -> None:
+def save_run(path: Path, run: SyntheticRun, world: str) -> None:
     """The flight as plain arrays (``.npz``): a cache file that loading cannot make run anything (no pickle)."""
     with open(path, "wb") as f:  # a file object: np.savez appends no ".npz" to the name
         np.savez(
@@ -257,12 +310,16 @@ def save_run(path: Path, run: SyntheticRun) -> None:
             truth_t=run.truth_t,
             truth_p=run.truth_p,
             truth_q=run.truth_q,
+            world=np.array(world),
         )
 
 
-def load_run(path: Path) -> SyntheticRun:
-    """The flight :func:`save_run` wrote."""
+def load_run(path: Path, world: str) -> SyntheticRun:
+    """The flight :func:`save_run` wrote (a ValueError when it was flown in another world)."""
     with np.load(path, allow_pickle=False) as z:
+        cached = str(z["world"]) if "world" in z.files else "synthetic"
+        if cached != world:
+            raise ValueError(f"{path} holds a flight in {cached!r}, not {world!r}: give another --cache")
         return SyntheticRun(
             imu=list(zip(z["imu_t"].tolist(), z["imu_f"], z["imu_w"], strict=True)),
             frames=list(zip(z["frame_t"].tolist(), z["left"], z["right"], strict=True)),
@@ -274,6 +331,7 @@ def load_run(path: Path) -> SyntheticRun:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--world", choices=WORLDS, default="vio_room", help="where the flight is rendered (see above)")
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument(
         "--cache", type=Path, default=None, help="keep the generated flight here (.npz, arrays only) and reuse it"
@@ -288,13 +346,17 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     w0 = time.perf_counter()
     if args.cache is not None and args.cache.exists():
-        run = load_run(args.cache)
+        try:
+            run = load_run(args.cache, args.world)
+        except ValueError as e:
+            ap.error(str(e))
     else:
-        run = generate(args.duration)
+        run = generate(args.duration, args.world)
         if args.cache is not None:
-            save_run(args.cache, run)
+            save_run(args.cache, run, args.world)
     print(
-        f"flight: {args.duration:.0f} s, {len(run.frames)} stereo frames 640x480, {len(run.imu)} IMU samples "
+        f"flight in {args.world}: {run.truth_t[-1]:.0f} s, {len(run.frames)} stereo frames 640x480, "
+        f"{len(run.imu)} IMU samples "
         f"(generated in {time.perf_counter() - w0:.0f} s)"
     )
     v = np.gradient(run.truth_p, run.truth_t, axis=0)
