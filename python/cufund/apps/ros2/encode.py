@@ -5,6 +5,7 @@ truth's body-frame twist, a camera's ``camera_info``)."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,9 @@ from cufund.logs.cdr import stamp_sec_nsec_of
 from cufund.logs.codecs import ImageCodec, PointCloud2Codec, path_of
 
 __all__ = [
+    "CameraInfo",
     "camera_info",
+    "camera_info_of",
     "clock",
     "encoder_for",
     "image_encoder",
@@ -24,7 +27,9 @@ __all__ = [
     "odometry_encoder",
     "point_cloud_encoder",
     "pose_encoder",
+    "stereo_camera_infos",
     "tf",
+    "unrectified_camera_info",
     "xyzw",
 ]
 
@@ -99,13 +104,101 @@ def image_encoder(frame: str) -> Callable[[Any], bytes]:
 
 def camera_info(t: float, frame: str, width: int, height: int, fx: float, fy: float, cx: float, cy: float) -> bytes:
     """``sensor_msgs/msg/CameraInfo`` of an ideal pinhole (``plumb_bob``, no distortion)."""
-    w = ros2.CdrWriter().header(t, frame).put("I", int(height), int(width)).string("plumb_bob")
-    w.put("I", 5).put("d", 0.0, 0.0, 0.0, 0.0, 0.0)
-    w.put("d", fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0)
-    w.put("d", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
-    w.put("d", fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0)
+    K = [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]
+    P = [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+    return camera_info_of(t, frame, CameraInfo(int(width), int(height), "plumb_bob", (0.0,) * 5, K, _EYE3, P))
+
+
+_EYE3 = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+
+
+@dataclass(frozen=True)
+class CameraInfo:
+    """The calibration fields of a ``sensor_msgs/msg/CameraInfo`` (row-major K, R, P)."""
+
+    width: int
+    height: int
+    distortion_model: str
+    D: tuple[float, ...]
+    K: list[float]
+    R: list[float]
+    P: list[float]
+
+
+def camera_info_of(t: float, frame: str, info: CameraInfo) -> bytes:
+    """``sensor_msgs/msg/CameraInfo`` of ``info`` at ``t`` in ``frame`` (no binning, full-image ROI)."""
+    w = ros2.CdrWriter().header(t, frame).put("I", info.height, info.width).string(info.distortion_model)
+    w.put("I", len(info.D))
+    if info.D:
+        w.put("d", *info.D)
+    w.put("d", *info.K).put("d", *info.R).put("d", *info.P)
     w.put("I", 0, 0).put("I", 0, 0, 0, 0).put("?", False)
     return w.bytes()
+
+
+def unrectified_camera_info(intrinsics: Any) -> CameraInfo:
+    """The ``camera_info`` of one camera (:class:`cufund.sensors.camera_models.CameraIntrinsics`) on its own: its
+    K and D, R identity, P = [K | 0]."""
+    info = intrinsics.camera_info()
+    K = info["K"]
+    P = [*K[0:3], 0.0, *K[3:6], 0.0, *K[6:9], 0.0]
+    return CameraInfo(intrinsics.width, intrinsics.height, info["distortion_model"], tuple(info["D"]), K, _EYE3, P)
+
+
+def stereo_camera_infos(left: Any, right: Any) -> tuple[CameraInfo, CameraInfo]:
+    """The ``camera_info`` of a calibrated stereo pair (:class:`cufund.sensors.camera_models.CameraCalibration`
+    of the left and the right camera, mounted ``T_BC`` on the body), as ROS's stereo drivers and
+    ``camera_calibration`` give them: each camera's raw K and D, R its rectification rotation and P the rectified
+    projection (OpenCV's ``stereoRectify``, zero disparity at infinity), the right one's ``P[3] = -fx' B`` with the
+    baseline B [m] (a point in the left rectified optical frame projects with P into each rectified image)."""
+    import cv2
+
+    from cufund.geometry import homogeneous
+    from cufund.sensors.camera_models import R_CO
+
+    cams = (left, right)
+    T_BO = []
+    for cam in cams:
+        T = homogeneous(cam.T_BC)
+        T[:3, :3] = T[:3, :3] @ R_CO
+        T_BO.append(T)
+    T_O1O0 = np.linalg.inv(T_BO[1]) @ T_BO[0]  # left optical -> right optical
+    i0, i1 = left.intrinsics, right.intrinsics
+    if (i0.width, i0.height) != (i1.width, i1.height):
+        raise ValueError(
+            f"stereo camera_info: the cameras' image sizes differ ({i0.width}x{i0.height}, {i1.width}x{i1.height})"
+        )
+    if np.linalg.norm(T_O1O0[:3, 3]) < 1e-6:
+        raise ValueError("stereo camera_info: the two cameras are at the same place (no baseline)")
+    size = (i0.width, i0.height)
+    D0, D1 = np.asarray(i0.distortion, float), np.asarray(i1.distortion, float)
+    R, T = T_O1O0[:3, :3].copy(), T_O1O0[:3, 3:].copy()
+    if i0.distortion_model == i1.distortion_model == "equidistant":
+        R1, R2, P1, P2, _ = cv2.fisheye.stereoRectify(
+            i0.K, D0, i1.K, D1, size, R, T, flags=cv2.CALIB_ZERO_DISPARITY, balance=0.0
+        )
+    elif i0.distortion_model == i1.distortion_model == "radtan":
+        R1, R2, P1, P2, *_ = cv2.stereoRectify(i0.K, D0, i1.K, D1, size, R, T, flags=cv2.CALIB_ZERO_DISPARITY, alpha=0)
+    else:
+        raise ValueError(
+            f"stereo camera_info: both cameras need the same distortion model, got {i0.distortion_model} and "
+            f"{i1.distortion_model}"
+        )
+    out = []
+    for intr, Rr, Pp in ((i0, R1, P1), (i1, R2, P2)):
+        info = intr.camera_info()
+        out.append(
+            CameraInfo(
+                intr.width,
+                intr.height,
+                info["distortion_model"],
+                tuple(info["D"]),
+                info["K"],
+                [float(x) for x in np.asarray(Rr).ravel()],
+                [float(x) for x in np.asarray(Pp).ravel()],
+            )
+        )
+    return out[0], out[1]
 
 
 def pose_encoder(frame: str) -> Callable[[Any], bytes]:

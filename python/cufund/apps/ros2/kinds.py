@@ -38,6 +38,8 @@ def default_topics(ctx: BuildContext) -> dict[str, tuple[str, str]]:
             out[str(spec.topic)] = ("/livox/lidar" if single else f"/{name}/lidar", "lidar")
         elif st == "camera":
             out[str(spec.topic)] = (f"/camera/{name}/image_raw", "camera")
+        elif st == "stereo_camera":
+            out[str(spec.topic)] = ("/stereo" if single else f"/stereo/{name}", "stereo")
     out[str(Topics.TRUTH_ODOMETRY)] = ("/truth/odom", "truth")
     if ctx.config.estimator is not None:
         out[str(Topics.ESTIMATE)] = ("/estimator/odom", "estimate")
@@ -69,6 +71,53 @@ def _one(encoder: Callable[[Any], bytes]) -> Callable[[Any], list[bytes]]:
     return lambda m: [encoder(m)]
 
 
+OPTICAL_SUFFIX = "_optical_frame"
+"""A camera's optical frame (x right, y down, z forward; its images' ``frame_id``) is its frame's name with this."""
+
+
+def _stereo_outs(base: str, ctx: BuildContext, spec: Any, static_tf: list[tuple[str, str, Any, Any]]) -> list[Any]:
+    """A ``stereo_camera`` rig as ROS 2 stereo drivers publish it: ``<base>/left/image_raw`` and
+    ``<base>/left/camera_info``, ``<base>/right/...`` (``<base>`` the rig's ROS 2 name, ``/stereo`` by default; a
+    rig of other than two cameras: ``<base>/cam<i>/...`` with unrectified camera_info), the images in each camera's
+    optical frame (``cam0_optical_frame``, a child of ``cam0`` in ``static_tf``), camera_info from the rig's
+    calibration (:func:`cufund.apps.ros2.encode.stereo_camera_infos`)."""
+    from cufund.geometry import quat_from_matrix
+    from cufund.logs.codecs import sensor_frame
+    from cufund.sensors.camera_models import R_CO
+
+    from . import bridge, encode
+    from .dds import QOS
+
+    rig = spec.params.cameras(getattr(ctx.config, "base_dir", None))
+    cam_topics = spec.params.camera_topics(len(rig))
+    if len(rig) == 2:
+        try:
+            infos: list[Any] = list(encode.stereo_camera_infos(*rig))
+        except ValueError as e:
+            raise ConfigError(f"ros2: the {spec.kind} rig {spec.topic}: {e}") from None
+        sides = ["left", "right"]
+    else:
+        infos = [encode.unrectified_camera_info(c.intrinsics) for c in rig]
+        sides = [f"cam{i}" for i in range(len(rig))]
+    q_CO = tuple(float(x) for x in quat_from_matrix(R_CO))
+    outs = []
+    for topic, side, info in zip(cam_topics, sides, infos, strict=True):
+        frame = sensor_frame(topic)
+        optical = frame + OPTICAL_SUFFIX
+        static_tf.append((frame, optical, (0.0, 0.0, 0.0), q_CO))
+        image = encode.image_encoder(optical)
+
+        def both(m: Any, image: Any = image, optical: str = optical, info: Any = info) -> list[bytes]:
+            return [image(m), encode.camera_info_of(m.t, optical, info)]
+
+        writes = [
+            (f"{base}/{side}/image_raw", "sensor_msgs/msg/Image", QOS["sensor_data"]),
+            (f"{base}/{side}/camera_info", "sensor_msgs/msg/CameraInfo", QOS["sensor_data"]),
+        ]
+        outs.append(bridge.Out(topic, writes, both))
+    return outs
+
+
 def build_bridge(p: Ros2Params, ctx: BuildContext) -> list[Any]:
     try:
         from . import bridge, encode
@@ -76,6 +125,11 @@ def build_bridge(p: Ros2Params, ctx: BuildContext) -> list[Any]:
     except ImportError as e:  # pragma: no cover - depends on the installation
         raise ConfigError(f"ros2 needs Cyclone DDS's Python binding: pip install 'cufund[ros2]' ({e})") from None
     from cufund.logs.codecs import sensor_frame
+    from cufund.logs.run_context import static_transforms
+    from cufund.scenarios.sensor_frames import sensor_frames
+
+    def spec_of(topic: str) -> Any:
+        return next(s for s in ctx.config.sensors.values() if str(s.topic) == topic)
 
     topics = default_topics(ctx)
     types = topic_types(ctx)
@@ -95,11 +149,10 @@ def build_bridge(p: Ros2Params, ctx: BuildContext) -> list[Any]:
         extra.append((topic, ros_name, found[0], found[1]))
     estimator = ctx.config.estimator is not None
     body = "base_link"
-    truth_child = "base_link_truth" if estimator else body
     outs: list[bridge.Out] = []
-    static_tf: list[tuple[str, str, Any, Any]] = []
-    if estimator:
-        static_tf.append(("world", "odom", (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)))
+    # /tf_static as the run's log has it (one source): world -> odom, base_link_truth -> base_link without an
+    # estimator, base_link -> each sensor's frame at its stated mounting (each camera of a rig its own)
+    static_tf = static_transforms(sensor_frames(ctx.config), estimator)
     imu_rates = []
     for topic, (ros_name, what) in topics.items():
         ros_name = p.topics.get(topic, ros_name)
@@ -108,10 +161,6 @@ def build_bridge(p: Ros2Params, ctx: BuildContext) -> list[Any]:
         if what in ("imu", "lidar", "camera"):
             name, spec = next((n, s) for n, s in ctx.config.sensors.items() if str(s.topic) == topic)
             frame = sensor_frame(topic)
-            if spec.extrinsic is not None:
-                static_tf.append((body, frame, tuple(spec.extrinsic.t), tuple(spec.extrinsic.q)))
-            else:
-                static_tf.append((body, frame, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)))
             if what == "imu":
                 rate = getattr(spec.params, "rate_hz", None)
                 if rate:
@@ -135,8 +184,10 @@ def build_bridge(p: Ros2Params, ctx: BuildContext) -> list[Any]:
 
                 writes.append((info_name, "sensor_msgs/msg/CameraInfo", QOS["sensor_data"]))
                 outs.append(bridge.Out(topic, writes, cam))
+        elif what == "stereo":
+            outs += _stereo_outs(ros_name, ctx, spec_of(topic), static_tf)
         else:
-            parent, child = ("world", truth_child) if what == "truth" else ("odom", body)
+            parent, child = ("world", "base_link_truth") if what == "truth" else ("odom", body)
             odo = encode.odometry_encoder(parent, child)
 
             def odometry(m: Any, odo: Any = odo, parent: str = parent, child: str = child) -> list[bytes]:
