@@ -102,6 +102,7 @@ class LogCore {
       const std::vector<std::string>& absent,
       const std::vector<
           std::tuple<std::uint16_t, py::bytes, std::vector<std::tuple<std::size_t, std::size_t, std::size_t>>,
+                     std::vector<std::tuple<std::size_t, std::size_t, std::size_t>>,
                      std::vector<std::tuple<std::size_t, std::size_t, std::size_t>>>>& views,
       std::size_t limit, py::object slow) {
     auto t = std::make_unique<FixedTopic>();
@@ -128,7 +129,7 @@ class LogCore {
     }
     for (const auto& n : absent) t->absent.push_back(py::str(n));
     auto specs = std::make_shared<std::vector<ViewSpec>>();
-    for (const auto& [view_channel, view_template, copies, stamps] : views) {
+    for (const auto& [view_channel, view_template, copies, stamps, rotations] : views) {
       ViewSpec v;
       v.channel = view_channel;
       const std::string vt = view_template;
@@ -143,6 +144,12 @@ class LogCore {
           throw py::value_error("views: stamp outside a row");
         }
         v.stamps.push_back({sec, nsec, src});
+      }
+      for (const auto& [dst, src_v, src_q] : rotations) {
+        if (dst + 24 > v.row_template.size() || src_v + 24 > size || src_q + 32 > size) {
+          throw py::value_error("views: rotation outside a row");
+        }
+        v.rotations.push_back({dst, src_v, src_q});
       }
       specs->push_back(std::move(v));
     }
@@ -469,7 +476,8 @@ void define_logs(py::module_& m) {
            py::arg("limit"), py::arg("slow"),
            "Registers a topic of fixed-size messages (scalars: (attr, 'd'|'q'|'?', offset); arrays: (attr, dtype, "
            "nbytes, offset); absent: attrs that must be None; views: (channel, template, copies (dst, src, "
-           "bytes), stamps (sec, nsec, src t)); slow(message, log, publish) -> (row, log, publish)); its slot.")
+           "bytes), stamps (sec, nsec, src t), rotations (dst, src v, src q [w, x, y, z]): dst = R(q)^T v); "
+           "slow(message, log, publish) -> (row, log, publish)); its slot.")
       .def_property_readonly("write", &fast_writer,
                              "write(topic, message, log_time_ns, publish_time_ns) as a plain builtin.")
       .def("add_with_sequence", &LogCore::add_with_sequence, py::arg("slot"), py::arg("message"), py::arg("log"),

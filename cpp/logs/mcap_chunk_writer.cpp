@@ -76,6 +76,13 @@ void append_messages(Bytes& raw, const Block& b, std::uint16_t channel, const Vi
       put_at(dst + s.dst_sec, sec);
       put_at(dst + s.dst_nsec, nsec);
     }
+    for (const auto& r : view->rotations) {
+      double q[4], v[3], out[3];
+      std::memcpy(q, payload + r.src_q, sizeof q);
+      std::memcpy(v, payload + r.src_v, sizeof v);
+      rotate_inverse(q, v, out);
+      std::memcpy(dst + r.dst, out, sizeof out);
+    }
   }
 }
 
@@ -120,6 +127,21 @@ void stamp_sec_nsec(double t, std::int32_t* sec, std::uint32_t* nsec) {
   if (ns % 1000000000 < 0) --s;  // floor
   *nsec = static_cast<std::uint32_t>(ns - s * 1000000000);
   *sec = static_cast<std::int32_t>(std::clamp<std::int64_t>(s, INT32_MIN, INT32_MAX));
+}
+
+void rotate_inverse(const double q[4], const double v[3], double out[3]) {
+  const double n = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  if (!(n > 0.0) || !std::isfinite(n)) {
+    out[0] = out[1] = out[2] = std::nan("");
+    return;
+  }
+  // R^T v with the conjugate's vector part u = -q_xyz / n: t = 2 u x v, R^T v = v + w t + u x t
+  const double w = q[0] / n, u[3] = {-q[1] / n, -q[2] / n, -q[3] / n};
+  const double t[3] = {2.0 * (u[1] * v[2] - u[2] * v[1]), 2.0 * (u[2] * v[0] - u[0] * v[2]),
+                       2.0 * (u[0] * v[1] - u[1] * v[0])};
+  out[0] = v[0] + w * t[0] + (u[1] * t[2] - u[2] * t[1]);
+  out[1] = v[1] + w * t[1] + (u[2] * t[0] - u[0] * t[2]);
+  out[2] = v[2] + w * t[2] + (u[0] * t[1] - u[1] * t[0]);
 }
 
 std::vector<std::uint8_t> encode_chunk(const Block& block, Compression compression, std::uint64_t position,

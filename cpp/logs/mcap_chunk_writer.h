@@ -50,8 +50,9 @@ Compression compression_from_name(const std::string& name);
 const char* compression_name(Compression c);
 
 // A companion channel whose messages are derived from a topic's fixed-size rows (a Foxglove pose or transform
-// from an odometry row): each message is `row_template` with bytes copied from the source row and CDR stamps
-// (int32 sec, uint32 nanosec) computed from a float64 time [s] in it.
+// from an odometry row): each message is `row_template` with bytes copied from the source row, CDR stamps
+// (int32 sec, uint32 nanosec) computed from a float64 time [s] in it, and vectors rotated into a body frame
+// (an odometry's world velocity as nav_msgs/Odometry's twist in the child frame).
 struct ViewSpec {
   struct Copy {
     std::size_t dst, src, bytes;
@@ -59,11 +60,21 @@ struct ViewSpec {
   struct Stamp {
     std::size_t dst_sec, dst_nsec, src_t;
   };
+  // dst (3 float64) = R(q)^T v: v (3 float64) at src_v, q (4 float64, [w, x, y, z], normalised here) at src_q;
+  // NaN when q is zero or not finite.
+  struct Rotate {
+    std::size_t dst, src_v, src_q;
+  };
   std::uint16_t channel = 0;
   std::vector<std::uint8_t> row_template;
   std::vector<Copy> copies;
   std::vector<Stamp> stamps;
+  std::vector<Rotate> rotations;
 };
+
+// v rotated by the inverse of the rotation of quaternion q [w, x, y, z] (normalised first): R(q)^T v, the vector
+// of the rotated frame whose world vector is v. NaN when |q| is 0 or not finite.
+void rotate_inverse(const double q[4], const double v[3], double out[3]);
 
 // The stamp of a ROS builtin_interfaces/Time from t [s]: t * 1e9 rounded half to even, non-finite -> 0,
 // seconds floored and clipped to int32 (cufund.logs.cdr.stamp_sec_nsec, value for value).

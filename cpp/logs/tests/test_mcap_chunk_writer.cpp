@@ -44,6 +44,22 @@ TEST(StampSecNsec, RoundsHalfToEvenAndFloorsNegativeTimes) {
   EXPECT_EQ(sec, INT32_MAX);
 }
 
+TEST(RotateInverse, IsTheTransposedRotationOfTheNormalisedQuaternion) {
+  // 90 deg about z, scaled by 2: R^T maps world x to body -y, world y to body x; z unchanged
+  const double s = std::sqrt(0.5);
+  const double q[4] = {2 * s, 0.0, 0.0, 2 * s}, v[3] = {1.0, 2.0, 3.0};
+  double out[3];
+  rotate_inverse(q, v, out);
+  EXPECT_NEAR(out[0], 2.0, 1e-15);
+  EXPECT_NEAR(out[1], -1.0, 1e-15);
+  EXPECT_NEAR(out[2], 3.0, 1e-15);
+  const double zero[4] = {0.0, 0.0, 0.0, 0.0}, bad[4] = {std::nan(""), 0.0, 0.0, 1.0};
+  for (const double* qq : {zero, bad}) {
+    rotate_inverse(qq, v, out);
+    EXPECT_TRUE(std::isnan(out[0]) && std::isnan(out[1]) && std::isnan(out[2]));
+  }
+}
+
 TEST(EncodeChunk, MessagesViewsAndIndexesAreWhereTheRecordsSay) {
   Block b;
   b.channel = 3;

@@ -41,8 +41,11 @@ WORLD_FRAME = "world"
 class View:
     """A companion channel derived from a topic's CDR rows for Foxglove (not read back): each message is the view's
     template with ``copies`` (destination field, its first element, source field, its first element, elements)
-    taken from the source row and ``stamps`` (destination sec and nanosec fields, source float64 time field
-    [s]) converted as :func:`cufund.logs.cdr.stamp_sec_nsec` does. Built by the logger's C++ writer thread."""
+    taken from the source row, ``stamps`` (destination sec and nanosec fields, source float64 time field
+    [s]) converted as :func:`cufund.logs.cdr.stamp_sec_nsec` does, and ``rotations`` (destination float64[3]
+    field, source float64[3] vector field, source float64[4] quaternion field [w, x, y, z]): the vector rotated
+    into the quaternion's frame, ``R(q)^T v`` (q normalised; NaN for a zero quaternion). Built by the logger's
+    C++ writer thread."""
 
     suffix: str
     schema_name: str
@@ -52,6 +55,7 @@ class View:
     stamps: tuple[tuple[str, str, str], ...]
     absolute: bool = False
     """``suffix`` is the channel's whole topic (``/tf``, ``/clock``: shared by every source), not a suffix."""
+    rotations: tuple[tuple[str, str, str], ...] = ()
 
     def topic(self, source: str) -> str:
         """The view's channel topic for source topic ``source``."""
@@ -60,8 +64,11 @@ class View:
     schema_encoding = "ros2msg"
     message_encoding = "cdr"
 
-    def spec(self, source: CdrLayout) -> tuple[bytes, list[tuple[int, int, int]], list[tuple[int, int, int]]]:
-        """(template row, byte copies (dst, src, bytes), stamps (sec, nsec, src t offsets)) against ``source``."""
+    def spec(
+        self, source: CdrLayout
+    ) -> tuple[bytes, list[tuple[int, int, int]], list[tuple[int, int, int]], list[tuple[int, int, int]]]:
+        """(template row, byte copies (dst, src, bytes), stamps (sec, nsec, src t offsets), rotations (dst, src
+        vector, src quaternion offsets)) against ``source``."""
 
         def at(layout: CdrLayout, field: str, element: int) -> tuple[int, int]:
             fields = layout.dtype.fields
@@ -81,7 +88,15 @@ class View:
             (at(self.layout, sec, 0)[0], at(self.layout, nsec, 0)[0], at(source, t, 0)[0])
             for sec, nsec, t in self.stamps
         ]
-        return self.layout.template.tobytes(), copies, stamps
+        rotations = []
+        for dst_field, v_field, q_field in self.rotations:
+            for layout, field, count in ((self.layout, dst_field, 3), (source, v_field, 3), (source, q_field, 4)):
+                fields = layout.dtype.fields
+                assert fields is not None  # a structured dtype
+                if fields[field][0] != np.dtype(("<f8", (count,))):
+                    raise ValueError(f"view {self.suffix}: {field} is not a float64[{count}]")
+            rotations.append((at(self.layout, dst_field, 0)[0], at(source, v_field, 0)[0], at(source, q_field, 0)[0]))
+        return self.layout.template.tobytes(), copies, stamps, rotations
 
 
 class Codec:
@@ -236,7 +251,10 @@ def _odometry_views(topic: str) -> tuple[View, ...]:
     if str(topic) == "/truth/odometry":  # at every physics instant: its pose and /tf say it all, and /clock ticks
         views.append(View("/clock", *ros2.CLOCK, ros2.clock_layout(), (), (("clock.sec", "clock.nanosec", "t"),), True))
     else:
-        views.insert(0, View("/ros", *ros2.ODOMETRY, ros2.odometry_layout(parent, child), odometry, _STAMP))
+        twist = (("twist.linear", "v_w", "q_wb"),)  # REP 105: the twist in the child (body) frame, v_B = R_WB^T v_W
+        views.insert(
+            0, View("/ros", *ros2.ODOMETRY, ros2.odometry_layout(parent, child), odometry, _STAMP, False, twist)
+        )
     return tuple(views)
 
 
