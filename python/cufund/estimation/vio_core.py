@@ -4,7 +4,9 @@ State: the IMU frame's pose, velocity and biases at each keyframe in GTSAM's ``I
 (``lag_s``; older states and the landmarks seen only by them are marginalised); ``CombinedImuFactor`` between
 consecutive keyframes from every IMU sample (noise from the IMU's datasheet spec, as the LIO's); a landmark per
 stereo feature track seen in two keyframes, with a robust ``GenericStereoFactor3D`` per keyframe observation
-(rectified left camera at ``T_I_R0``). Static initialisation on the pad as the LIO's: gravity direction and
+(rectified left camera at ``T_I_R0``); without a right camera (mono + IMU) a landmark per track whose rays from two
+keyframes part by ``mono_min_parallax_deg``, with a ``GenericProjectionFactorCal3_S2`` per keyframe observation,
+the scale from the IMU factors. Static initialisation on the pad as the LIO's: gravity direction and
 gyroscope bias from the first still second, the pad's position and yaw define the world frame. Between
 keyframes the estimate is propagated through each IMU sample (the IMU-rate output).
 """
@@ -49,10 +51,17 @@ class VioCore:
         self._T_I_R0 = T_I_R0
         self._body_P_cam = gtsam.Pose3(T_I_R0)
         K = self.rig.K_rect
-        self._K = gtsam.Cal3_S2Stereo(K[0, 0], K[1, 1], 0.0, K[0, 2], K[1, 2], self.rig.baseline)
+        self.mono = self.rig.mono
+        self._K = gtsam.Cal3_S2Stereo(K[0, 0], K[1, 1], 0.0, K[0, 2], K[1, 2], max(self.rig.baseline, 1e-3))
+        self._K_mono = gtsam.Cal3_S2(K[0, 0], K[1, 1], 0.0, K[0, 2], K[1, 2])
         self._noise = gtsam.noiseModel.Robust.Create(
             gtsam.noiseModel.mEstimator.Huber.Create(p.robust_k), gtsam.noiseModel.Isotropic.Sigma(3, p.pixel_sigma)
         )
+        self._noise_mono = gtsam.noiseModel.Robust.Create(
+            gtsam.noiseModel.mEstimator.Huber.Create(p.robust_k), gtsam.noiseModel.Isotropic.Sigma(2, p.pixel_sigma)
+        )
+        self._obs: dict[int, list[tuple[int, float, np.ndarray, np.ndarray]]] = {}
+        """Monocular: track id -> its keyframe observations (k, t, rectified pixel, T_WR0) before it is a landmark."""
         self._g = np.array([0.0, 0.0, -p.gravity])
         self._landmark_prior = gtsam.noiseModel.Isotropic.Sigma(3, p.landmark_prior_sigma)
         self._pim_params = self._imu_params()
@@ -220,9 +229,10 @@ class VioCore:
         ]
 
     # ---------------------------------------------------------------- frames
-    def add_frame(self, t: float, left: np.ndarray, right: np.ndarray) -> Odometry | None:
-        """One stereo frame stamped t [s] (camera clock; ``time_offset_s`` shifts it to the IMU's). A frame not
-        after the previous one is counted in ``skipped_frames``; a wrong image is a ValueError."""
+    def add_frame(self, t: float, left: np.ndarray, right: np.ndarray | None = None) -> Odometry | None:
+        """One stereo frame stamped t [s] (camera clock; ``time_offset_s`` shifts it to the IMU's), or one
+        monocular image (``right`` None, with a rig without cam1). A frame not after the previous one is counted
+        in ``skipped_frames``; a wrong image is a ValueError."""
         cpu, wall = time.process_time(), time.perf_counter()
         if not math.isfinite(t):
             raise ValueError(f"t must be finite [s], got {t!r}")
@@ -253,7 +263,7 @@ class VioCore:
             or ratio < p.kf_min_tracked_ratio
         ) and t - self._node.t >= _MIN_ADVANCE_S
         visual_ok = fr.inliers >= p.health_min_inliers or (
-            self.last_visual_t is None and int(fr.stereo.sum()) >= p.health_min_inliers
+            self.last_visual_t is None and int(fr.stereo.sum() if not self.mono else fr.tracked) >= p.health_min_inliers
         )
         sigma = math.nan
         restarts = self.restarts
@@ -336,6 +346,9 @@ class VioCore:
         new_factors: list[gtsam.GenericStereoFactor3D] = []  # re-observations of landmarks (the consistency check)
         pending: dict[int, tuple[int, float, float, float]] = {}
         lo_t = fr.t - p.lag_s + 0.05  # landmarks whose newest keyframe is older leave the window with it
+        if self.mono:
+            self._mono_factors(fr, k, T_WC, lo_t, graph, values, stamps, new_factors)
+            stereo = np.zeros(0, dtype=bool)
         for i in np.flatnonzero(stereo).tolist():
             tid = int(fr.ids[i])
             uL, v = float(fr.uv_left[i, 0]), float(fr.uv_left[i, 1])
@@ -427,6 +440,82 @@ class VioCore:
         self._imu.prune(fr.t - 0.5)
         return sigma
 
+    def _mono_factors(
+        self,
+        fr: StereoFrame,
+        k: int,
+        T_WC: np.ndarray,
+        lo_t: float,
+        graph: gtsam.NonlinearFactorGraph,
+        values: gtsam.Values,
+        stamps: gtsam.FixedLagSmootherKeyTimestampMap,
+        new_factors: list,
+    ) -> None:
+        """Monocular keyframe k (its predicted camera pose T_WC): a projection factor per re-observed landmark; a
+        track seen from keyframes in the window whose rays part by ``mono_min_parallax_deg`` becomes a landmark,
+        triangulated (closest point of the two rays, in front of both cameras within the depth range) from its
+        first and this observation, with a factor per keyframe observation and the weak prior. The scale of the
+        landmarks and the motion comes from the IMU factors."""
+        p = self.params
+        K = self.rig.K_rect
+        cos_min = math.cos(math.radians(p.mono_min_parallax_deg))
+        obs_next: dict[int, list[tuple[int, float, np.ndarray, np.ndarray]]] = {}
+
+        def factor(uv: np.ndarray, kk: int, lid: int) -> gtsam.NonlinearFactor:
+            return gtsam.GenericProjectionFactorCal3_S2(
+                gtsam.Point2(float(uv[0]), float(uv[1])),
+                self._noise_mono,
+                X(kk),
+                L(lid),
+                self._K_mono,
+                self._body_P_cam,
+            )
+
+        for i, tid in enumerate(fr.ids.tolist()):
+            uv = fr.uv_left[i].astype(float)
+            lid = self._landmark.get(tid)
+            if lid is not None and lid in self._in_window and self._landmark_t.get(lid, -math.inf) >= lo_t:
+                fac = factor(uv, k, lid)
+                graph.add(fac)
+                new_factors.append(fac)
+                stamps.insert((L(lid), fr.t))
+                self._landmark_t[lid] = fr.t
+                continue
+            obs = [o for o in self._obs.get(tid, []) if o[1] >= lo_t]
+            obs.append((k, fr.t, uv, T_WC))
+            _, _, uv0, T0 = obs[0]
+            b0 = T0[:3, :3] @ np.array([(uv0[0] - K[0, 2]) / K[0, 0], (uv0[1] - K[1, 2]) / K[1, 1], 1.0])
+            b1 = T_WC[:3, :3] @ np.array([(uv[0] - K[0, 2]) / K[0, 0], (uv[1] - K[1, 2]) / K[1, 1], 1.0])
+            b0, b1 = b0 / np.linalg.norm(b0), b1 / np.linalg.norm(b1)
+            c = float(b0 @ b1)
+            if len(obs) < 2 or c > cos_min:
+                obs_next[tid] = obs
+                continue
+            # closest points of the rays c0 + s b0 and c1 + u b1
+            c0, c1 = T0[:3, 3], T_WC[:3, 3]
+            d = c1 - c0
+            den = 1.0 - c * c
+            s0 = (d @ b0 - c * (d @ b1)) / den
+            s1 = (c * (d @ b0) - d @ b1) / den
+            if not (p.min_depth < s0 < p.max_depth and p.min_depth < s1 < p.max_depth):
+                obs_next[tid] = obs
+                continue
+            X_W = 0.5 * (c0 + s0 * b0 + c1 + s1 * b1)
+            lid = self._next_landmark
+            self._next_landmark += 1
+            self._landmark[tid] = lid
+            values.insert(L(lid), X_W)
+            graph.add(gtsam.PriorFactorPoint3(L(lid), X_W, self._landmark_prior))
+            for kk, _, uvk, _ in obs:
+                fac = factor(uvk, kk, lid)
+                graph.add(fac)
+                if kk == k:
+                    new_factors.append(fac)
+            stamps.insert((L(lid), fr.t))
+            self._landmark_t[lid] = fr.t
+            self._in_window.add(lid)
+        self._obs = obs_next
+
     @staticmethod
     def _reprojection(factors: list, est: gtsam.Values) -> float:
         """The median stereo reprojection residual [px] of the newest keyframe's observations at the smoother's
@@ -462,7 +551,7 @@ class VioCore:
         self._smoother.update(graph, values, stamps)
         self._node, self._k = s, k
         self._landmark, self._pending, self._in_window, self._landmark_t = {}, {}, set(), {}
-        self._chi2_recent = []
+        self._obs, self._chi2_recent = {}, []
         self._catch_up()
 
     def _catch_up(self) -> None:

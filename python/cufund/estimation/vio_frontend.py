@@ -30,19 +30,27 @@ _R_CO = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
 class StereoRig:
     """Rectification of the calibrated pair: ``T_B_R0`` (rectified left optical frame -> body), ``K_rect``
-    (fx, fy, cx, cy of both rectified cameras) and ``baseline`` [m]."""
+    (fx, fy, cx, cy of both rectified cameras) and ``baseline`` [m]. Without ``cam1`` (``mono``): cam0
+    undistorted, ``K_rect`` its K, baseline 0."""
 
     def __init__(self, params: VioParams) -> None:
         c0, c1 = params.cam0, params.cam1
-        assert c1 is not None  # VioParams refuses a missing right camera
         self.size = (c0.width, c0.height)
+        self.K0, self.D0 = c0.K, np.asarray(c0.distortion)
+        self.mono = c1 is None
+        if c1 is None:  # monocular: the undistorted camera itself
+            self.R1: np.ndarray = np.eye(3)
+            self.P1: np.ndarray = np.hstack([self.K0, np.zeros((3, 1))])
+            self.K_rect, self.baseline = self.K0.copy(), 0.0
+            self.T_B_R0 = homogeneous(c0.T_BC)
+            self.T_B_R0[:3, :3] = self.T_B_R0[:3, :3] @ _R_CO
+            return
         T_BO = []
         for cam in (c0, c1):
             T = homogeneous(cam.T_BC)
             T[:3, :3] = T[:3, :3] @ _R_CO
             T_BO.append(T)
         T_O1O0 = np.linalg.inv(T_BO[1]) @ T_BO[0]
-        self.K0, self.D0 = c0.K, np.asarray(c0.distortion)
         self.K1, self.D1 = c1.K, np.asarray(c1.distortion)
         if np.linalg.norm(T_O1O0[:3, 3]) < 1e-3:
             raise ValueError("the stereo cameras are less than 1 mm apart: no baseline to triangulate on")
@@ -140,13 +148,16 @@ class StereoFrontEnd:
         self._X_prev: dict[int, np.ndarray] = {}  # stereo points of the previous frame (rectified left frame)
         self._next_id = 0
 
-    def process(self, t: float, left: np.ndarray, right: np.ndarray) -> StereoFrame:
+    def process(self, t: float, left: np.ndarray, right: np.ndarray | None = None) -> StereoFrame:
+        """A stereo frame, or a monocular one (``right`` None, which a monocular rig requires)."""
         import time
 
         wall = time.perf_counter()
         p, rig = self.params, self.rig
         g0 = to_gray(left, rig.size, "left image")
-        g1 = to_gray(right, rig.size, "right image")
+        if (right is None) != rig.mono:
+            raise ValueError("right image: a stereo rig needs one, a monocular rig (no cam1) takes None")
+        g1 = to_gray(right, rig.size, "right image") if right is not None else None
         w, h = rig.size
         ids, raw = self._ids, self._raw
         pyr0 = g0
@@ -208,7 +219,7 @@ class StereoFrontEnd:
         # stereo matches on the epipolar line
         uvl = rig.rectify(raw)
         uvr = np.full_like(uvl, np.nan)
-        if len(raw):
+        if len(raw) and g1 is not None:
             guess = raw.copy()
             m1, st, err = cv2.calcOpticalFlowPyrLK(
                 pyr0, g1, raw.reshape(-1, 1, 2), guess.reshape(-1, 1, 2), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **self._lk

@@ -122,6 +122,7 @@ _POSITIVE = (
     "relinearize_threshold",
     "covariance_every_s",
     "health_max_gap_s",
+    "mono_min_parallax_deg",
     "max_depth",
     "min_depth",
 )
@@ -138,7 +139,8 @@ class VioParams:
     cam1: VioCamera | None = field(
         default_factory=lambda: VioCamera(T_BC=Transform((0.0, -0.1, 0.0), (1.0, 0.0, 0.0, 0.0)))
     )
-    """Right camera of a stereo pair; None: monocular + IMU (not implemented: a ConfigError)."""
+    """Right camera of a stereo pair; None: monocular + IMU (landmarks triangulated from keyframes with
+    ``mono_min_parallax_deg`` of parallax, the scale from the IMU factors)."""
     p_WB0: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """The pad: the body's position there is the world frame's origin [m]."""
     pad_yaw: float = 0.0
@@ -178,6 +180,9 @@ class VioParams:
     landmark_prior_sigma: float = 2.0
     """A weak prior on each new landmark at its stereo triangulation [m]: it keeps a landmark determined when its
     stereo factors give nothing (GTSAM zeroes a factor whose point lies behind the camera)."""
+    mono_min_parallax_deg: float = 2.0
+    """Monocular: a track becomes a landmark once its rays from two keyframes in the window part by this angle
+    [deg] (a smaller one triangulates a depth the pixel noise decides)."""
     kf_max_interval_s: float = 0.1
     """A frame becomes a keyframe (a smoother state) at least this often [s] ..."""
     kf_min_parallax_px: float = 40.0
@@ -215,13 +220,10 @@ class VioParams:
     def __post_init__(self) -> None:
         object.__setattr__(self, "imu", nested(ImuParams, self.imu, "VioParams.imu"))
         object.__setattr__(self, "cam0", nested(VioCamera, self.cam0, "VioParams.cam0"))
-        if self.cam1 is None:
-            raise ConfigError(
-                "VioParams.cam1: monocular VIO is not implemented yet; give the right camera of a stereo pair"
-            )
-        object.__setattr__(self, "cam1", nested(VioCamera, self.cam1, "VioParams.cam1"))
-        if (self.cam1.width, self.cam1.height) != (self.cam0.width, self.cam0.height):
-            raise ConfigError("VioParams.cam1 must have cam0's resolution")
+        if self.cam1 is not None:
+            object.__setattr__(self, "cam1", nested(VioCamera, self.cam1, "VioParams.cam1"))
+            if (self.cam1.width, self.cam1.height) != (self.cam0.width, self.cam0.height):
+                raise ConfigError("VioParams.cam1 must have cam0's resolution")
         check_real_fields(self, "VioParams", positive=True, names=_POSITIVE)
         check_real_fields(self, "VioParams", names=("kf_min_parallax_px", "kf_min_tracked_ratio", "time_offset_s"))
         if self.init_duration_s < 1.0:
