@@ -17,6 +17,7 @@ from cufund.core.messages import Odometry, Topics
 from cufund.core.registry import lookup
 from cufund.geometry import quat_mul, yaw_quaternion
 from cufund.missions.failsafe_build import failsafe_components, failsafe_done
+from cufund.missions.land_detector import land_detector_components, land_detector_done
 from cufund.sensors.faults import fault_summary, inject_faults
 from cufund.sensors.power_monitor import PowerMonitor
 from cufund.simulator import SimulationResult, Simulator
@@ -319,6 +320,7 @@ def build_simulation(config: ScenarioConfig, extra_components: tuple = (), logge
         if spec is not None:
             components += ctx.build(group, spec, group)
     components += failsafe_components(config.failsafe or None, ctx, components)  # takes over the reference
+    components += land_detector_components(ctx, components)  # a follower's landing: touchdown, disarm
     if config.ros2 is not None:  # the ROS 2 bridge (cufund.apps.ros2, registered as the bridge kind ros2)
         components += ctx.build("bridge", config.ros2, "ros2")
     if config.estimator is not None:
@@ -408,6 +410,7 @@ def done_condition(built: Built) -> Any:
 
     ctx = built.context
     finished = failsafe_done(built.simulator.components, landed if t_landed is not None else ctx.done_condition)
+    finished = land_detector_done(built.simulator.components, finished)
 
     def done(t: float, truth: Odometry) -> bool:
         RunInterrupted.check()  # a SIGINT / SIGTERM whose exception was swallowed where it landed
