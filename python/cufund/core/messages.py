@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import enum
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import MISSING, dataclass, fields
 from typing import Any, ClassVar, TypeVar, dataclass_transform
 
 import numpy as np
@@ -63,16 +63,25 @@ def message(cls: type[_M]) -> type[_M]:
 
         cls.__post_init__ = __post_init__  # type: ignore[attr-defined]
     cls = dataclass(frozen=True, slots=True)(cls)
-    names = [f.name for f in fields(cls)]  # type: ignore[arg-type]  # a dataclass from the line above
+    all_fields = fields(cls)  # type: ignore[arg-type]  # a dataclass from the line above
+    names = [f.name for f in all_fields]
     # trusted(...): the message from arrays the caller guarantees are read-only and unshared (no checks, no
     # copies), for producers of many messages per second like the simulator's ground truth. Generated with one
-    # plain assignment per field: a loop over the fields costs more than the message itself.
+    # plain assignment per field: a loop over the fields costs more than the message itself. Fields with a
+    # default (None, a number) keep it.
+    env: dict[str, Any] = {"_new": object.__new__, "_set": object.__setattr__, "_cls": cls}
+    params = []
+    for i, f in enumerate(all_fields):
+        if f.default is MISSING:
+            params.append(f.name)
+        else:
+            env[f"_d{i}"] = f.default
+            params.append(f"{f.name}=_d{i}")
     src = (
-        f"def trusted({', '.join(names)}):\n    obj = _new(_cls)\n"
+        f"def trusted({', '.join(params)}):\n    obj = _new(_cls)\n"
         + "".join(f"    _set(obj, {n!r}, {n})\n" for n in names)
         + "    return obj\n"
     )
-    env: dict[str, Any] = {"_new": object.__new__, "_set": object.__setattr__, "_cls": cls}
     exec(src, env)
     cls.trusted = staticmethod(env["trusted"])
     return cls
@@ -109,6 +118,13 @@ class Odometry(Message):
     """Angular acceleration [rad/s^2], (3,): set on ground truth, else None."""
     rotor_speeds: np.ndarray | None = None
     """True rotor speeds [rad/s], (4,) in PX4's numbering: set on ground truth (what shakes an IMU), else None."""
+    pose_cov_W: np.ndarray | None = None
+    """(6, 6) covariance of the pose an estimator claims: position p_W [m] and attitude error as a rotation vector
+    about the world axes [rad] (true q_WB = Exp(dtheta_W) * q_WB), in ROS's ``PoseWithCovariance`` order (x, y, z,
+    rotation about x, y, z: fixed axes of the parent frame); None: unknown (the truth, an estimator without one)."""
+    twist_cov_B: np.ndarray | None = None
+    """(6, 6) covariance of the velocity and body rate in the body frame: v_B = R_WB^T v_W [m/s] then w_B [rad/s],
+    ROS's ``TwistWithCovariance`` in the child frame (REP 105); None: unknown."""
 
 
 @message

@@ -18,6 +18,10 @@ Delayed corrections: the filter keeps each IMU sample with the state and covaria
 
 Nothing is known before the first pose: the filter starts there (its position and attitude, zero velocity and
 biases with the prior sigmas of :class:`ImuPropagatorParams`) and publishes nothing before. No truth is read.
+
+Each estimate carries its covariances (``Odometry.pose_cov_W``, ``twist_cov_B``): the error covariance mapped to
+first order to ROS's ``nav_msgs/Odometry`` frames and order (the attitude error about the world axes, the velocity in
+the body), the rate's including the gyro's white noise on its one sample.
 The IMU is taken at the centre of mass: a lever arm ``p_BI`` is ignored (documented limit).
 """
 
@@ -261,4 +265,22 @@ class ImuPropagator(Estimator):
         x = self._x
         if x is None:
             return None
-        return Odometry(x.t, x.p.copy(), x.v.copy(), x.q.copy(), self._w_B - x.b_g)
+        w_B = self._w_B - x.b_g
+        pose_cov, twist_cov = self._output_covariances(x)
+        return Odometry(x.t, x.p.copy(), x.v.copy(), x.q.copy(), w_B, pose_cov_W=pose_cov, twist_cov_B=twist_cov)
+
+    def _output_covariances(self, x: _State) -> tuple[np.ndarray, np.ndarray]:
+        """The published estimate's covariances from the error covariance P, to first order: pose (dp_W, dtheta_W =
+        R_WB dtheta_B) and twist (dv_B = R_WB^T dv_W + [v_B]x dtheta_B, dw_B = -db_g plus the gyro's white noise
+        on the one sample the rate comes from: density^2 * rate_hz)."""
+        R = quat_to_matrix(x.q)
+        J = np.zeros((12, 15))
+        J[0:3, 0:3] = np.eye(3)
+        J[3:6, 6:9] = R
+        J[6:9, 3:6] = R.T
+        J[6:9, 6:9] = _skew(R.T @ x.v)
+        J[9:12, 12:15] = -np.eye(3)
+        C = J @ x.P @ J.T
+        C[9:12, 9:12] += np.eye(3) * (self.params.gyro_noise_density**2 * self.rate_hz)
+        C = 0.5 * (C + C.T)
+        return C[0:6, 0:6].copy(), C[6:12, 6:12].copy()

@@ -47,6 +47,12 @@ OPTIONAL_ARRAY_SHAPES: dict[tuple[str, str], tuple[int, ...]] = {
 """Shapes of optional array fields of cufund messages, so that a topic whose first message has ``None`` there
 still gets a fixed layout."""
 
+KEPT_WHEN_FIRST_SET: frozenset[tuple[str, str]] = frozenset({("Odometry", "pose_cov_W"), ("Odometry", "twist_cov_B")})
+"""Optional array fields of cufund messages that a topic's rows hold only when its first message sets them: an
+estimate's covariances (an estimator gives them from its first output or never; the truth, logged at every physics
+step, does not carry 576 bytes of nothing per row). Set later on a topic whose first message had None: a
+ValueError naming the field."""
+
 
 @dataclass(frozen=True)
 class CdrField:
@@ -163,6 +169,9 @@ class MessageLayout:
         fields = [CdrField(c.ros_name, c.code, int(np.prod(c.shape)) if c.shape else 0) for c in columns]
         fields += [CdrField(f"has_{c.ros_name}", "b1") for c in columns if c.optional]
         self.layout = CdrLayout(fields)
+        kept = {c.attr for c in columns}
+        self.left_out = tuple(a for c, a in sorted(KEPT_WHEN_FIRST_SET) if c == cls.__name__ and a not in kept)
+        """:data:`KEPT_WHEN_FIRST_SET` fields the topic's rows have no room for (None in its first message)."""
         self._columns = [itemgetter(i) for i in range(len(columns))]
         self._all = _getter([c.attr for c in columns])
 
@@ -175,7 +184,7 @@ class MessageLayout:
         fields = self.layout.dtype.fields
         assert fields is not None  # a structured dtype
         template = self.layout.empty(1)
-        scalars, arrays, absent = [], [], []
+        scalars, arrays, absent = [], [], list(self.left_out)
         for c in self.columns:
             if not c.shape:
                 scalars.append((c.attr, _STRUCT_CODES[c.code], fields[c.ros_name][1]))
@@ -191,6 +200,12 @@ class MessageLayout:
     def row(self, message: Any, topic: str) -> bytes:
         """The checked path: one message's CDR row (ValueError naming the field when a shape or dtype differs
         from the topic's first message)."""
+        for attr in self.left_out:
+            if getattr(message, attr, None) is not None:
+                raise ValueError(
+                    f"topic {topic!r}: field {attr!r} is set but was None in the topic's first message, so the log "
+                    "has no room for it: set it from a topic's first message on, or never"
+                )
         return self._rows([self._all(message)], topic).tobytes()
 
     def describe(self) -> list[list[Any]]:
@@ -330,6 +345,8 @@ def infer_message_layout(cls: type, first: Any) -> MessageLayout | None:
             columns.append(_Column(field.name, ros_name, "i8", (), False))
         elif base is np.ndarray:
             value = getattr(first, field.name, None)
+            if value is None and optional and (cls.__name__, field.name) in KEPT_WHEN_FIRST_SET:
+                continue  # no room in this topic's rows (see KEPT_WHEN_FIRST_SET)
             if value is not None:
                 shape = tuple(value.shape) if isinstance(value, np.ndarray) else None
             else:

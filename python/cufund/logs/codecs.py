@@ -234,7 +234,7 @@ def sensor_frame(topic: str) -> str:
     return _in_namespace(vehicle, names[-1] if names else "sensor")
 
 
-def _odometry_views(topic: str) -> tuple[View, ...]:
+def _odometry_views(topic: str, source: CdrLayout) -> tuple[View, ...]:
     parent, child = odometry_frames(topic)
     q = _QUATERNION
     odometry = (
@@ -242,6 +242,13 @@ def _odometry_views(topic: str) -> tuple[View, ...]:
         *((d.format("pose.orientation"), a, b, c, e) for d, a, b, c, e in q),
         ("twist.angular", 0, "w_b", 0, 3),
     )
+    # the estimator's covariances when its topic's rows hold them (row-major 6 x 6, ROS's order and frames); else,
+    # or in a row without them, all zero: "covariance unknown" (REP 145's convention; -1 would say "no pose")
+    names = source.dtype.names or ()
+    odometry += tuple(
+        (dst, 0, src, 0, 36) for dst, src in (("pose.covariance", "pose_cov_w"), ("twist.covariance", "twist_cov_b"))
+        if src in names
+    )  # fmt: skip
     pose = (("pose.position", 0, "p_w", 0, 3), *((d.format("pose.orientation"), a, b, c, e) for d, a, b, c, e in q))
     tf = (("translation", 0, "p_w", 0, 3), *((d.format("rotation"), a, b, c, e) for d, a, b, c, e in q))
     views = [
@@ -655,7 +662,7 @@ def codec_for(topic: str, message: Any) -> Codec:
     if layout is not None:
         views: tuple[View, ...] = ()
         if cufund and name == "Odometry":
-            views = _odometry_views(topic)
+            views = _odometry_views(topic, layout.layout)
         elif cufund and name == "Imu":
             views = _imu_views(topic)
         elif cufund and name == "GpsFix":
