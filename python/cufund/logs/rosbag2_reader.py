@@ -17,7 +17,8 @@ carries are used first). Each message is converted by its ROS 2 type; other type
   ``timebase`` [ns], each point's ``offset_time`` [ns] after it, ``reflectivity``/255, ``line``. Their ``.msg``
   definitions ship here as text (:data:`LIVOX_MSGS`) for bags that do not carry them.
 - ``nav_msgs/msg/Odometry`` -> :class:`cufund.core.messages.Odometry` (pose in the parent frame, twist rotated from
-  the child frame to the parent frame); ``geometry_msgs/msg/PoseStamped`` -> :class:`cufund.core.messages.Pose`.
+  the child frame to the parent frame, covariances as ``pose_cov_W``/``twist_cov_B`` unless they say unknown: all
+  zero or -1 first); ``geometry_msgs/msg/PoseStamped`` -> :class:`cufund.core.messages.Pose`.
   Quaternions become cufund's [w, x, y, z].
 
 Records come in bag-timestamp order (a bag's timestamp is when the recorder received the message; a cufund bag's
@@ -162,6 +163,15 @@ def _vec(v: Any) -> np.ndarray:
     return np.array([v.x, v.y, v.z], dtype=np.float64)
 
 
+def _covariance(c: Any) -> np.ndarray | None:
+    """A ``float64[36]`` covariance as (6, 6), or None when it says unknown (all zero, or -1 first: REP 145) or is
+    not finite."""
+    c = np.asarray(c, dtype=np.float64)
+    if c.shape != (36,) or not np.isfinite(c).all() or not c.any() or c[0] < 0:
+        return None
+    return c.reshape(6, 6)
+
+
 _DATATYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 
 
@@ -286,6 +296,8 @@ def _convert(msgtype: str, msg: Any, where: str) -> Any:
             v_W=np.asarray(quat_to_matrix(q, normalize=True), float) @ _vec(msg.twist.twist.linear),
             q_WB=q,
             w_B=_vec(msg.twist.twist.angular),
+            pose_cov_W=_covariance(msg.pose.covariance),
+            twist_cov_B=_covariance(msg.twist.covariance),
         )
     if msgtype == "geometry_msgs/msg/PoseStamped":
         return messages.Pose(t=_stamp(msg.header) / 1e9, p_W=_vec(msg.pose.position), q_WB=_wxyz(msg.pose.orientation))
