@@ -11,7 +11,7 @@ Generates once a 60 s aggressive flight (EuRoC-like: up to about 2 m/s and 90 de
 
 The estimators:
 
-* cufund's VIO (``VioCore``: KLT + GTSAM fixed-lag smoother, stereo + IMU);
+* cufund's VIO (``VioCore``: KLT + GTSAM fixed-lag smoother), stereo + IMU and mono + IMU (the left images);
 * a peer: ORB-SLAM3 stereo-inertial through PyPI ``orbslam3-python`` when it imports (``--orbslam``, see below),
   and always an OpenCV stereo visual odometry baseline (ORB features, stereo triangulation, PnP RANSAC frame to
   frame, no IMU; started at the true pad pose, an advantage the VIO does not get).
@@ -130,14 +130,15 @@ def generate(duration: float, world: str = "vio_room"):
     return run
 
 
-def run_vio(run) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[float, float]]]:
-    """(t, p, q) of cufund's VIO at every IMU sample (its output), and its wall time per stereo frame [ms]."""
-    core = VioCore(VioParams(cam0=CAM0, cam1=CAM1, p_WB0=START, imu=imu_preset("icm42688p")))
+def run_vio(run, mono: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[float, float]]]:
+    """(t, p, q) of cufund's VIO at every IMU sample (its output), and its wall time per stereo frame [ms]; with
+    ``mono`` on the left images alone (mono + IMU)."""
+    core = VioCore(VioParams(cam0=CAM0, cam1=None if mono else CAM1, p_WB0=START, imu=imu_preset("icm42688p")))
     fi, ts, ps, qs, ms = 0, [], [], [], []
     for t, f, w in run.imu:
         while fi < len(run.frames) and run.frames[fi][0] < t:
             w0, c0 = time.perf_counter(), time.process_time()
-            core.add_frame(*run.frames[fi])
+            core.add_frame(*(run.frames[fi][:2] if mono else run.frames[fi]))
             ms.append(((time.perf_counter() - w0) * 1e3, (time.process_time() - c0) * 1e3))
             fi += 1
         o = core.add_imu(t, f, w)
@@ -363,6 +364,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  peak speed {np.linalg.norm(v, axis=1).max():.2f} m/s")
     rows = [
         ("cufund VIO (stereo + IMU, GTSAM)", run_vio(run)),
+        ("cufund VIO (mono + IMU, GTSAM)", run_vio(run, mono=True)),
         ("OpenCV stereo VO (PnP RANSAC, no IMU)", run_peer(run)),
     ]
     if args.orbslam_path:
