@@ -58,6 +58,8 @@ def test_pymavlink_flies_the_learned_policy_through_cufund_serve():
         ack = g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 30.0 + ALT)
         assert ack.result == M.MAV_RESULT_ACCEPTED
         g.wait("GLOBAL_POSITION_INT", lambda m: abs(m.relative_alt / 1e3 - ALT) < TOL_M, 40)
+        # arrived: at the point above home in all three axes (the climb's sideways transient has settled)
+        g.wait("LOCAL_POSITION_NED", lambda m: abs(-m.z - ALT) < TOL_M / 2 and math.hypot(m.x, m.y) < TOL_M / 2, 20)
         # holding: over the next 2 s of telemetry the vehicle stays near the point above home (NED from home)
         end = time.monotonic() + 2.0
         while time.monotonic() < end:
