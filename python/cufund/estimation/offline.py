@@ -8,17 +8,15 @@ interpolated at the output's stamp, unaligned and as evo's aligned APE from take
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from cufund.core.messages import Topics
 from cufund.geometry import yaw_of
 
-from .evaluation import aligned_ate, flight_window, odometry_errors, write_tum
+from .open_loop import against_truth, write_open_loop
 from .params import LioParams
 
 __all__ = ["run_on_log"]
@@ -67,52 +65,14 @@ def run_on_log(
             f"{path}: no estimate: the log needs {truth_topic} (the pad pose), {imu_topic} for at least "
             f"the initialisation time and {lidar_topic}"
         )
-    t = np.array([o.t for o in outputs])
-    p = np.array([o.p_W for o in outputs])
-    q = np.array([o.q_WB for o in outputs])
-    tt, order = np.unique(np.array(truth_t), return_index=True)
-    tp, tq = np.array(truth_p)[order], np.array(truth_q)[order]
-    inside = (t >= tt[0]) & (t <= tt[-1])
-    t, p, q = t[inside], p[inside], q[inside]
-    p_true = np.column_stack([np.interp(t, tt, tp[:, i]) for i in range(3)])
-    q_true = Slerp(tt, Rotation.from_quat(tq[:, [1, 2, 3, 0]]))(t).as_quat()[:, [3, 0, 1, 2]]
-    figures: dict[str, Any] = odometry_errors(p, q, p_true, q_true)
-    flying = flight_window(p_true[:, 2])
-    figures["odometry_ate_aligned_m"] = (
-        aligned_ate(p[flying], p_true[flying]) if flying.stop - flying.start >= 3 else None
-    )
+    track, figures = against_truth(outputs, truth_t, truth_p, truth_q)
     ms = np.array([d.time_ms for d in est.diagnostics if not d.skipped])
     figures["lio_ms_per_scan_median"] = float(np.median(ms)) if len(ms) else None
     figures["lio_ms_per_scan_p99"] = float(np.percentile(ms, 99)) if len(ms) else None
-    figures["odometry_samples"] = int(len(t))
+    figures["odometry_samples"] = int(len(track.t))
     figures["lio_scans"] = int(len(ms))
     figures["lio_scans_skipped"] = int(est.core.skipped_scans)
     figures["lio_scans_degenerate"] = int(sum(1 for d in est.diagnostics if d.degenerate_directions))
     if out_dir is not None:
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "odometry.json").write_text(json.dumps(figures, indent=2) + "\n")
-        write_tum(out / "estimate.tum", t, p, q)
-        write_tum(out / "truth.tum", t, p_true, q_true)
-        _plot(out / "odometry.png", t, p, p_true)
+        write_open_loop(out_dir, figures, track, "LIO estimate")
     return figures
-
-
-def _plot(path: Path, t: np.ndarray, p: np.ndarray, p_true: np.ndarray) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(4, 1, figsize=(8, 9), sharex=True)
-    for i, name in enumerate("xyz"):
-        axes[i].plot(t, p_true[:, i], "k-", lw=1.2, label="truth")
-        axes[i].plot(t, p[:, i], "r--", lw=1.0, label="LIO estimate")
-        axes[i].set_ylabel(f"{name} [m]")
-    axes[0].legend(loc="best")
-    axes[3].plot(t, np.linalg.norm(p - p_true, axis=1) * 1e3, "b-", lw=1.0)
-    axes[3].set_ylabel("|error| [mm]")
-    axes[3].set_xlabel("t [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)

@@ -7,17 +7,15 @@ The log's first true state gives the estimator what a pad gives a real vehicle: 
 from __future__ import annotations
 
 import dataclasses
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from cufund.core.messages import Topics
 from cufund.geometry import yaw_of
 
-from .evaluation import aligned_ate, flight_window, odometry_errors, write_tum
+from .open_loop import against_truth, write_open_loop
 from .vio_params import VioParams
 
 __all__ = ["run_vio_on_log"]
@@ -69,25 +67,12 @@ def run_vio_on_log(
             f"{path}: no estimate: the log needs {truth_topic} (the pad pose), {imu_topic} for at least the "
             f"initialisation time and the images of {left_topic} and {right_topic}"
         )
-    t = np.array([o.t for o in outputs])
-    p = np.array([o.p_W for o in outputs])
-    q = np.array([o.q_WB for o in outputs])
-    tt, order = np.unique(np.array(truth_t), return_index=True)
-    tp, tq = np.array(truth_p)[order], np.array(truth_q)[order]
-    inside = (t >= tt[0]) & (t <= tt[-1])
-    t, p, q = t[inside], p[inside], q[inside]
-    p_true = np.column_stack([np.interp(t, tt, tp[:, i]) for i in range(3)])
-    q_true = Slerp(tt, Rotation.from_quat(tq[:, [1, 2, 3, 0]]))(t).as_quat()[:, [3, 0, 1, 2]]
-    figures: dict[str, Any] = odometry_errors(p, q, p_true, q_true)
-    flying = flight_window(p_true[:, 2])
-    figures["odometry_ate_aligned_m"] = (
-        aligned_ate(p[flying], p_true[flying]) if flying.stop - flying.start >= 3 else None
-    )
+    track, figures = against_truth(outputs, truth_t, truth_p, truth_q)
     diag = est.core.diagnostics
     ms = np.array([d.time_ms for d in diag])
     figures["vio_ms_per_frame_median"] = float(np.median(ms)) if len(ms) else None
     figures["vio_cpu_ms_per_frame_median"] = float(np.median([d.cpu_ms for d in diag])) if diag else None
-    figures["odometry_samples"] = int(len(t))
+    figures["odometry_samples"] = int(len(track.t))
     figures["vio_frames"] = len(diag)
     figures["vio_keyframes"] = int(sum(d.keyframe for d in diag))
     figures["vio_unhealthy_frames"] = int(sum(not d.healthy for d in diag))
@@ -95,9 +80,5 @@ def run_vio_on_log(
     figures["vio_frames_skipped"] = est.core.skipped_frames
     figures["vio_unpaired_images"] = est.unpaired_images
     if out_dir is not None:
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "odometry.json").write_text(json.dumps(figures, indent=2) + "\n")
-        write_tum(out / "estimate.tum", t, p, q)
-        write_tum(out / "truth.tum", t, p_true, q_true)
+        write_open_loop(out_dir, figures, track, "VIO estimate")
     return figures
