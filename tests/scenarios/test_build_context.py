@@ -107,8 +107,12 @@ def test_the_commander_gates_the_controllers_built_after_it():
         if getattr(c, "armable", False) and "/vehicle/status" in {str(t) for t in c.optional_inputs}
     }
     assert gated == {"PositionController", "AttitudeController", "RateController", "GeometricController"}, gated
-    # no commander and no failsafe supervisor (whose flight termination disarms): never gated
+    # no commander and no failsafe supervisor (whose flight termination disarms): gated only by the land detector
+    # (whose touchdown disarms) of the trajectory follower's landing, and never without a follower
     plain = build_simulation(ScenarioConfig.from_dict({"controller": "pid", "failsafe": "off"}))
-    assert not any(getattr(c, "armable", False) for c in plain.simulator.components)
     assert plain.context.commander is None
+    names = [type(c).__name__ for c in plain.simulator.components]
+    assert names.count("LandDetectorComponent") == 1 and names.count("TrajectoryFollower") == 1, names
+    bare = build_simulation(ScenarioConfig.from_dict({"controller": "pid", "failsafe": "off", "planner": None}))
+    assert not any(getattr(c, "armable", False) for c in bare.simulator.components)
     assert isinstance(ctx, ScenarioBuildContext) and not hasattr(ctx, "__dict__")
