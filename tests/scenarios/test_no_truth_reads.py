@@ -34,7 +34,16 @@ from cufund.vehicle.quadrotor import Quadrotor
 from cufund.worlds.collision import CollisionChecker
 from cufund.worlds.world import World, WorldObject
 
-SCENARIOS = ["square_lio", "square_mocap", "square_policy", "forest", "forest_global", "tunnel", "vehicle_lio", "square_vio"]
+SCENARIOS = [
+    "square_lio",
+    "square_mocap",
+    "square_policy",
+    "forest",
+    "forest_global",
+    "tunnel",
+    "vehicle_lio",
+    "square_vio",
+]
 
 TRUTH_TYPES = (
     World,
