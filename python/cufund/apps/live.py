@@ -13,7 +13,6 @@ an event). A crash or collision ends the run with a ``crash`` event.
 
 from __future__ import annotations
 
-import collections
 import dataclasses
 import math
 import threading
@@ -22,7 +21,7 @@ import traceback
 from collections.abc import Callable, Iterable
 from concurrent.futures import Future
 from pathlib import Path
-from typing import Any, Self
+from typing import Any
 
 import numpy as np
 
@@ -36,9 +35,10 @@ from cufund.missions.events import EventLog
 from cufund.scenarios.build import build_simulation
 from cufund.scenarios.schema import ScenarioConfig, load_scenario
 
-__all__ = ["LiveRun"]
+from .paced_loop import SPEED_MAX, SPEED_MIN, PacedLoop
 
-SPEED_MIN, SPEED_MAX = 0.1, 10.0
+__all__ = ["SPEED_MAX", "SPEED_MIN", "LiveRun"]
+
 RECORD_HZ = 200.0
 """Rate of the true-state record of a live run [Hz]."""
 _KEEP_BLOCKS = 64
@@ -83,7 +83,7 @@ class _Tap(Component):
         self.snapshot = (t, snap)
 
 
-class LiveRun:
+class LiveRun(PacedLoop):
     """Builds ``scenario_or_config`` (a built-in name, a YAML path, a dict or a :class:`ScenarioConfig`, with
     ``overrides`` as for ``cufund run --set``) and runs it in a background thread at ``speed`` x real time
     (``math.inf``: as fast as possible). Starts at once unless ``start=False``. The commander's scripted
@@ -106,7 +106,7 @@ class LiveRun:
         script: bool = False,
         extra_components: Iterable[Component] = (),
     ) -> None:
-        self._speed = self._check_speed(speed)
+        self._init_pacing(speed)
         self.config = self._config(scenario_or_config, overrides)
         if not script and self.config.planner is not None and hasattr(self.config.planner.params, "script"):
             # a live vehicle waits for its operator: the scenario's scripted commands are for `cufund run`
@@ -134,16 +134,8 @@ class LiveRun:
         self._errors: dict[str, int] = {}
         for c in sim.components:
             self._guard(c)
-        self._paused = False
-        self._stop = threading.Event()
-        self._wake = threading.Condition()
         self._listeners: list[list[Any]] = []
         self._listeners_lock = threading.Lock()
-        self.ended: str | None = None
-        """Why the run ended (None while it runs)."""
-        self._thread: threading.Thread | None = None
-        self._wall_started = 0.0
-        self._rate_window: collections.deque[tuple[float, float]] = collections.deque(maxlen=400)
         vp = self.built.context.vehicle
         self._max_thrust = 4.0 * vp.k_f * vp.rotor_speed_max**2
         self._estimated = self.config.estimator is not None
@@ -171,17 +163,6 @@ class LiveRun:
             f"scenario_or_config must be a scenario name, a path, a dict or a ScenarioConfig, got {type(src).__name__}"
         )
 
-    @staticmethod
-    def _check_speed(x: Any) -> float:
-        if (
-            isinstance(x, bool)
-            or not isinstance(x, (int, float))
-            or math.isnan(x)
-            or not (x == math.inf or SPEED_MIN <= x <= SPEED_MAX)
-        ):
-            raise ValueError(f"speed must be in [{SPEED_MIN}, {SPEED_MAX}] or math.inf, got {x!r}")
-        return float(x)
-
     def _guard(self, c: Component) -> None:
         """Wraps ``c.step`` so that an exception becomes an event (and the commander holds) instead of a crash."""
         step = c.step
@@ -208,61 +189,7 @@ class LiveRun:
 
         c.step = guarded  # type: ignore[method-assign]
 
-    # -- control of the run ----------------------------------------------------------------------------------
-    def start(self) -> Self:
-        if self._thread is None:
-            self._thread = threading.Thread(target=self._loop, name="cufund-live", daemon=True)
-            self._wall_started = time.perf_counter()
-            self._thread.start()
-        return self
-
-    def pause(self) -> None:
-        with self._wake:
-            self._paused = True
-            self._wake.notify_all()
-
-    def resume(self) -> None:
-        with self._wake:
-            self._paused = False
-            self._wake.notify_all()
-
-    @property
-    def paused(self) -> bool:
-        return self._paused
-
-    @property
-    def speed(self) -> float:
-        return self._speed
-
-    def set_speed(self, x: float) -> None:
-        """Simulated seconds per wall-clock second: 0.1 to 10, or ``math.inf`` (as fast as possible)."""
-        x = self._check_speed(x)
-        with self._wake:
-            self._speed = x
-            self._wake.notify_all()
-
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
-
-    def stop(self, timeout: float = 10.0) -> None:
-        """Ends the run and joins the simulation thread; queued commands fail."""
-        self._stop.set()
-        with self._wake:
-            self._wake.notify_all()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout)
-        if self.ended is None:
-            self.ended = "stopped"
-        if self.commander is not None:
-            self.commander.cancel_pending("the run has ended")
-
-    def __enter__(self) -> Self:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
+    # -- control of the run (start, pause, resume, set_speed, stop: PacedLoop's) ---------------------------
     def wait_until(self, predicate: Callable[[dict[str, Any]], bool], timeout: float) -> bool:
         """Polls ``predicate(telemetry())`` until it holds (True) or ``timeout`` wall seconds pass (False)."""
         end = time.monotonic() + timeout
@@ -288,57 +215,33 @@ class LiveRun:
             self._wake.notify_all()
         return fut
 
-    # -- the simulation thread ---------------------------------------------------------------------------------
-    def _loop(self) -> None:
+    # -- the simulation thread (PacedLoop's loop, with these hooks) ----------------------------------------------
+    def _sim_t(self) -> float:
+        return float(self.simulator.t)
+
+    def _advance_to(self, t: float) -> bool:
+        return bool(self.simulator.advance_to(t))
+
+    def _after_advance(self) -> None:
+        rows = getattr(self.simulator, "_rows", None)
+        if rows is not None and len(rows) > _KEEP_BLOCKS:
+            del rows[: len(rows) - _KEEP_BLOCKS]
+
+    def _notify_listeners(self) -> None:
+        self._notify()
+
+    def _while_paused(self, t: float) -> None:
+        if self.commander is not None:
+            self.commander.process_pending(t)
+
+    def _end_of_run(self) -> tuple[str, str]:
         sim = self.simulator
-        try:
-            wall0, sim0 = time.perf_counter(), sim.t
-            speed = self._speed
-            while not self._stop.is_set():
-                with self._wake:
-                    if self._paused:
-                        self._wake.wait(0.05)
-                        wall0, sim0 = time.perf_counter(), sim.t
-                        if self.commander is not None:  # answer commands while paused (applied at this time)
-                            self.commander.process_pending(sim.t)
-                        continue
-                    if self._speed != speed:
-                        speed, wall0, sim0 = self._speed, time.perf_counter(), sim.t
-                if speed == math.inf:
-                    target = sim.t + 0.05
-                else:
-                    target = sim0 + (time.perf_counter() - wall0) * speed
-                    if target - sim.t > 0.5:  # cannot keep up: do not try to catch up, go on from here
-                        wall0, sim0 = time.perf_counter() - 0.05 / speed, sim.t
-                        target = sim.t + 0.05
-                    target = min(target, sim.t + 0.05)
-                    if target - sim.t < 0.001:
-                        with self._wake:
-                            self._wake.wait(min(0.005, max(0.001, (0.002 - (target - sim.t)) / speed)))
-                        continue
-                alive = sim.advance_to(target)
-                rows = getattr(sim, "_rows", None)
-                if rows is not None and len(rows) > _KEEP_BLOCKS:
-                    del rows[: len(rows) - _KEEP_BLOCKS]
-                now = time.perf_counter()
-                window = self._rate_window
-                window.append((now, sim.t))
-                while len(window) > 2 and now - window[0][0] > 2.0:
-                    window.popleft()
-                self._notify()
-                if not alive:
-                    self._end(
-                        f"{sim.status.value if sim.status else 'ended'}: {sim.message}",
-                        "crash" if sim.status is not None and sim.status.value in ("crashed", "diverged") else "ended",
-                    )
-                    break
-        except Exception as e:
-            self._end(f"error: {type(e).__name__}: {e}", "error")
-        finally:
-            if self.ended is None:
-                self.ended = "stopped"
-            if self.commander is not None:
-                self.commander.cancel_pending(f"the run has ended ({self.ended})")
+        status = sim.status.value if sim.status is not None else ""
+        return f"{status or 'ended'}: {sim.message}", "crash" if status in ("crashed", "diverged") else "ended"
+
+    def _cancel_pending(self, why: str) -> None:
+        if self.commander is not None:
+            self.commander.cancel_pending(why)
 
     def _end(self, why: str, kind: str) -> None:
         self.ended = why
@@ -400,12 +303,8 @@ class LiveRun:
             "speed": None if self._speed == math.inf else self._speed,
             "paused": self._paused,
             "ended": self.ended,
-            "real_time_factor": None,
         }
-        window = list(self._rate_window)
-        if len(window) >= 2 and window[-1][0] > window[0][0] and not self._paused:
-            out["real_time_factor"] = (window[-1][1] - window[0][1]) / (window[-1][0] - window[0][0])
-        # real_time_factor: simulated seconds per wall second over the last ~2 s
+        out["real_time_factor"] = self.real_time_factor()  # simulated s per wall s over the last ~2 s
         c = self.commander
         if c is not None:
             out.update(

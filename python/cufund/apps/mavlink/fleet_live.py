@@ -15,10 +15,7 @@ the topics its telemetry reads, so that a reader in another thread sees one inst
 
 from __future__ import annotations
 
-import collections
-import math
 import threading
-import time
 from collections.abc import Iterable
 from concurrent.futures import Future
 from typing import Any
@@ -29,6 +26,7 @@ from cufund.missions.controller_params import controller_param_provider
 from cufund.missions.events import EventLog
 
 from ..live import _KEEP_BLOCKS, RECORD_HZ, LiveRun
+from ..paced_loop import PacedLoop
 
 __all__ = ["FleetVehicleRun", "LiveFleet"]
 
@@ -163,7 +161,7 @@ def _vehicle_params(vehicle: Any) -> Any:
     return sim.vehicle.params
 
 
-class LiveFleet:
+class LiveFleet(PacedLoop):
     """Builds the fleet scenario ``scenario_or_config`` (as :class:`LiveRun` takes it; or flies ``fleet`` given
     built) and runs it at ``speed`` x real time (``math.inf``: as fast as it goes), every vehicle advanced to the
     same time before any goes further. ``vehicles`` maps each name to its :class:`FleetVehicleRun`, in fleet
@@ -179,7 +177,7 @@ class LiveFleet:
         fleet: Any = None,
         script: bool = False,
     ) -> None:
-        self._speed = LiveRun._check_speed(speed)
+        self._init_pacing(speed)
         config = None
         if fleet is None:
             if scenario_or_config is None:
@@ -199,13 +197,6 @@ class LiveFleet:
         self.fleet = fleet
         self.config = config if config is not None else getattr(fleet, "config", None)
         self.names: tuple[str, ...] = tuple(fleet.names)
-        self._paused = False
-        self._stop = threading.Event()
-        self._wake = threading.Condition()
-        self._rate_window: collections.deque[tuple[float, float]] = collections.deque(maxlen=400)
-        self._thread: threading.Thread | None = None
-        self.ended: str | None = None
-        """Why the fleet's run ended (None while it runs)."""
         self.vehicles: dict[str, FleetVehicleRun] = {
             n: FleetVehicleRun(self, n, fleet.vehicle(n), self.config) for n in self.names
         }
@@ -213,68 +204,18 @@ class LiveFleet:
         if start:
             self.start()
 
-    # -- control -----------------------------------------------------------------------------------------------
+    # -- control (start, pause, resume, set_speed, stop: PacedLoop's) --------------------------------------------
+    _thread_name = "cufund-live-fleet"
+
     @property
     def t(self) -> float:
         return float(self.fleet.t)
-
-    @property
-    def speed(self) -> float:
-        return self._speed
-
-    @property
-    def paused(self) -> bool:
-        return self._paused
-
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
 
     def vehicle(self, name: str) -> FleetVehicleRun:
         try:
             return self.vehicles[name]
         except KeyError:
             raise KeyError(f"no vehicle {name!r} in this fleet; it has {list(self.names)}") from None
-
-    def start(self) -> LiveFleet:
-        if self._thread is None:
-            self._thread = threading.Thread(target=self._loop, name="cufund-live-fleet", daemon=True)
-            self._thread.start()
-        return self
-
-    def pause(self) -> None:
-        with self._wake:
-            self._paused = True
-            self._wake.notify_all()
-
-    def resume(self) -> None:
-        with self._wake:
-            self._paused = False
-            self._wake.notify_all()
-
-    def set_speed(self, x: float) -> None:
-        x = LiveRun._check_speed(x)
-        with self._wake:
-            self._speed = x
-            self._wake.notify_all()
-
-    def stop(self, timeout: float = 10.0) -> None:
-        self._stop.set()
-        with self._wake:
-            self._wake.notify_all()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout)
-        if self.ended is None:
-            self.ended = "stopped"
-        for v in self.vehicles.values():
-            if v.commander is not None:
-                v.commander.cancel_pending("the run has ended")
-
-    def __enter__(self) -> LiveFleet:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
 
     def submit_all(self, cmd: Any) -> dict[str, Future]:
         """``cmd`` to every vehicle (each checks it as its own :meth:`LiveRun.submit` does): a Future per name."""
@@ -290,62 +231,40 @@ class LiveFleet:
         for v in self.vehicles.values():
             v._capture(t)
 
-    def _loop(self) -> None:
-        fleet = self.fleet
-        try:
-            wall0, sim0 = time.perf_counter(), fleet.t
-            speed = self._speed
-            while not self._stop.is_set():
-                with self._wake:
-                    if self._paused:
-                        self._wake.wait(0.05)
-                        wall0, sim0 = time.perf_counter(), fleet.t
-                        for v in self.vehicles.values():  # answer commands while paused
-                            if v.commander is not None:
-                                v.commander.process_pending(fleet.t)
-                        continue
-                    if self._speed != speed:
-                        speed, wall0, sim0 = self._speed, time.perf_counter(), fleet.t
-                if speed == math.inf:
-                    target = fleet.t + 0.05
-                else:
-                    target = sim0 + (time.perf_counter() - wall0) * speed
-                    if target - fleet.t > 0.5:  # cannot keep up: go on from here
-                        wall0, sim0 = time.perf_counter() - 0.05 / speed, fleet.t
-                        target = fleet.t + 0.05
-                    target = min(target, fleet.t + 0.05)
-                    if target - fleet.t < 0.001:
-                        with self._wake:
-                            self._wake.wait(min(0.005, max(0.001, (0.002 - (target - fleet.t)) / speed)))
-                        continue
-                alive = fleet.advance_to(target)
-                self._capture()
-                for v in self.vehicles.values():
-                    if v._own_end is None and getattr(v.simulator, "status", None) is not None:
-                        v._finish()
-                for v in self.vehicles.values():
-                    rows = getattr(v.simulator, "_rows", None)
-                    if rows is not None and len(rows) > _KEEP_BLOCKS:
-                        del rows[: len(rows) - _KEEP_BLOCKS]
-                now = time.perf_counter()
-                window = self._rate_window
-                window.append((now, float(fleet.t)))
-                while len(window) > 2 and now - window[0][0] > 2.0:
-                    window.popleft()
-                for v in self.vehicles.values():
-                    v._notify()
-                if alive is False:
-                    status = getattr(getattr(fleet, "simulator", fleet), "status", None)
-                    self._end(_status(fleet), _end_kind(getattr(status, "value", "")))
-                    break
-        except Exception as e:
-            self._end(f"error: {type(e).__name__}: {e}", "error")
-        finally:
-            if self.ended is None:
-                self.ended = "stopped"
-            for v in self.vehicles.values():
-                if v.commander is not None:
-                    v.commander.cancel_pending(f"the run has ended ({self.ended})")
+    # PacedLoop's loop, with these hooks
+    def _sim_t(self) -> float:
+        return float(self.fleet.t)
+
+    def _advance_to(self, t: float) -> bool:
+        return self.fleet.advance_to(t) is not False
+
+    def _after_advance(self) -> None:
+        self._capture()
+        for v in self.vehicles.values():
+            if v._own_end is None and getattr(v.simulator, "status", None) is not None:
+                v._finish()
+        for v in self.vehicles.values():
+            rows = getattr(v.simulator, "_rows", None)
+            if rows is not None and len(rows) > _KEEP_BLOCKS:
+                del rows[: len(rows) - _KEEP_BLOCKS]
+
+    def _notify_listeners(self) -> None:
+        for v in self.vehicles.values():
+            v._notify()
+
+    def _while_paused(self, t: float) -> None:
+        for v in self.vehicles.values():
+            if v.commander is not None:
+                v.commander.process_pending(t)
+
+    def _end_of_run(self) -> tuple[str, str]:
+        status = getattr(getattr(self.fleet, "simulator", self.fleet), "status", None)
+        return _status(self.fleet), _end_kind(getattr(status, "value", ""))
+
+    def _cancel_pending(self, why: str) -> None:
+        for v in self.vehicles.values():
+            if v.commander is not None:
+                v.commander.cancel_pending(why)
 
     def _end(self, why: str, kind: str) -> None:
         self.ended = why
