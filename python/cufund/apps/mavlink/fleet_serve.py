@@ -72,7 +72,7 @@ def serve_fleet(args: argparse.Namespace, config: Any, speed: float) -> int:
     from .fleet_endpoints import FleetEndpoints
     from .fleet_live import LiveFleet
     from .fleet_ports import FleetPorts
-    from .serve_wait import wait_until_stopped, warn_exposed
+    from .serve_wait import set_link_loss_timeout, wait_until_stopped, warn_exposed
 
     def none(url: str | None) -> str | None:
         return None if url is None or url.lower() == "none" else url
@@ -96,12 +96,10 @@ def serve_fleet(args: argparse.Namespace, config: Any, speed: float) -> int:
     endpoints = None
     try:
         if args.link_loss_timeout is not None:
-            cmd = {"command": "set_param", "name": "COM_DL_LOSS_T", "value": float(args.link_loss_timeout)}
-            for name, fut in live.submit_all(cmd).items():
-                ack = fut.result(timeout=10.0)
-                if ack.result != "accepted":
-                    print(f"cufund serve: --link-loss-timeout ({name}): {ack.message}", file=sys.stderr)
-                    return 2
+            refused = set_link_loss_timeout(live.vehicles, args.link_loss_timeout)
+            if refused:
+                print(f"cufund serve: {refused}", file=sys.stderr)
+                return 2
         endpoints = FleetEndpoints(live.vehicles, ports, heartbeat_timeout_s=args.heartbeat_timeout)
         if getattr(args, "mission", None) is not None:
             refused = upload_mission(live, endpoints, args.mission)

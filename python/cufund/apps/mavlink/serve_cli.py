@@ -13,7 +13,7 @@ import math
 import sys
 
 from ..arguments import add_overrides
-from .serve_wait import wait_until_stopped, warn_exposed
+from .serve_wait import set_link_loss_timeout, wait_until_stopped, warn_exposed
 
 __all__ = ["add_arguments", "run"]
 
@@ -139,11 +139,9 @@ def run(args: argparse.Namespace) -> int:
     endpoint = None
     try:
         if args.link_loss_timeout is not None:
-            ack = live.submit(
-                {"command": "set_param", "name": "COM_DL_LOSS_T", "value": float(args.link_loss_timeout)}
-            ).result(timeout=10.0)
-            if ack.result != "accepted":
-                print(f"cufund serve: --link-loss-timeout: {ack.message}", file=sys.stderr)
+            refused = set_link_loss_timeout({"": live}, args.link_loss_timeout)
+            if refused:
+                print(f"cufund serve: {refused}", file=sys.stderr)
                 return 2
         endpoint = VehicleEndpoint(live, urls, system_id=args.system_id, heartbeat_timeout_s=args.heartbeat_timeout)
         endpoint.start()

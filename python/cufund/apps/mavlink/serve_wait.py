@@ -1,5 +1,5 @@
-"""What a served vehicle or fleet does while it runs: warn when a link is exposed beyond loopback, wait for the end
-(shared by :mod:`.serve_cli` and :mod:`.fleet_serve`)."""
+"""What a served vehicle or fleet does around its run: set the link-loss timeout it was given, warn when a link is
+exposed beyond loopback, wait for the end (shared by :mod:`.serve_cli` and :mod:`.fleet_serve`)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,18 @@ import threading
 import time
 from collections.abc import Iterable
 from typing import Any
+
+
+def set_link_loss_timeout(runs: dict[str, Any], timeout_s: float) -> str:
+    """Sets PX4's ``COM_DL_LOSS_T`` to ``timeout_s`` [s] on each live run of ``runs`` (by name; "" for a single
+    vehicle) through its commander, as a ground station's PARAM_SET would. Returns "" when every one took it, else
+    the first refusal (``--link-loss-timeout (name): why``)."""
+    cmd = {"command": "set_param", "name": "COM_DL_LOSS_T", "value": float(timeout_s)}
+    for name, run in runs.items():
+        ack = run.submit(cmd).result(timeout=10.0)
+        if ack.result != "accepted":
+            return f"--link-loss-timeout{f' ({name})' if name else ''}: {ack.message}"
+    return ""
 
 
 def warn_exposed(links: Iterable[Any]) -> None:
