@@ -34,6 +34,12 @@ class OnnxDetectorParams:
     depth_camera: str | None = None
     """A depth camera mounted as ``camera`` (the same stated T_BC, else a ConfigError): with it, the detections are
     also placed in the world (Detections3D)."""
+    stereo_camera: str | None = None
+    """Instead of ``camera`` and ``depth_camera``: a ``stereo_camera`` rig's name; boxes are found in its first
+    camera's (left) images and placed in the world from their disparity in the second's (right), the pair
+    rectified (the same pinhole, no distortion, parallel axes, as stated in the rig's params)."""
+    max_disparity: int = 96
+    """With ``stereo_camera``: largest disparity searched [px] (the nearest depth is fx B / max_disparity)."""
     conf: float = 0.25
     """Score threshold [-]."""
     iou: float = 0.7
@@ -56,7 +62,7 @@ class OnnxDetectorParams:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
             raise ConfigError(f"perception.rate_hz must be a finite number > 0 [Hz], got {v!r}")
         check_at_most(self, "perception", rate_hz=1e3)
-        for name, lo, hi in (("max_det", 1, 100_000), ("nthreads", 0, 256)):
+        for name, lo, hi in (("max_det", 1, 100_000), ("nthreads", 0, 256), ("max_disparity", 2, 4096)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
                 raise ConfigError(f"perception.{name} must be an integer in [{lo}, {hi}], got {v!r}")
@@ -77,14 +83,9 @@ def _path(value: str, ctx: BuildContext) -> str:
     return str(p if p.is_absolute() or ctx.base_dir is None else Path(ctx.base_dir) / p)
 
 
-def _onnx_detector(p: OnnxDetectorParams, ctx: BuildContext) -> list[Any]:
-    if not p.model:
-        raise ConfigError("perception.model must name an .onnx file (the model is required)")
-    name, image = ctx.sensor_of_type("camera", p.camera, "perception.camera")
-    if image.kind == "d435_depth":  # its images are depths [m], not colour: every frame would be refused mid-run
-        raise ConfigError(f"perception.camera: {name!r} is a depth camera ({image.kind}); name the colour camera")
+def _detector(p: OnnxDetectorParams, ctx: BuildContext) -> OnnxDetector:
     try:
-        detector = OnnxDetector(
+        return OnnxDetector(
             _path(p.model, ctx),
             names=None if p.names is None else _path(p.names, ctx),
             conf=p.conf,
@@ -94,6 +95,19 @@ def _onnx_detector(p: OnnxDetectorParams, ctx: BuildContext) -> list[Any]:
         )
     except ValueError as e:
         raise ConfigError(f"perception: {e}") from None
+
+
+def _onnx_detector(p: OnnxDetectorParams, ctx: BuildContext) -> list[Any]:
+    if not p.model:
+        raise ConfigError("perception.model must name an .onnx file (the model is required)")
+    if p.stereo_camera is not None:  # the left image, placed from the pair's disparities
+        from .stereo_depth_build import stereo_detector
+
+        return stereo_detector(p, ctx, _detector(p, ctx))
+    name, image = ctx.sensor_of_type("camera", p.camera, "perception.camera")
+    if image.kind == "d435_depth":  # its images are depths [m], not colour: every frame would be refused mid-run
+        raise ConfigError(f"perception.camera: {name!r} is a depth camera ({image.kind}); name the colour camera")
+    detector = _detector(p, ctx)
     if p.depth_camera is None:
         return [OnnxDetectorComponent(detector, image_topic=image.topic, rate_hz=p.rate_hz)]
     depth_name, depth = ctx.sensor_of_type("camera", p.depth_camera, "perception.depth_camera")
