@@ -6,11 +6,9 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import os
 import re
 import socket
 import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -20,8 +18,7 @@ import pytest
 from cufund.apps.mavlink.fleet_endpoints import FleetEndpoints
 from cufund.apps.mavlink.fleet_ports import FleetPorts
 from mavlink_support import OPEN_FIELD, SPEED, Gcs, free_port
-
-BIN = Path(sys.executable).parent
+from process_support import BIN, ProcessOutput, cufund_serve, kill, mavproxy
 
 # PX4 v1.14 ROMFS/px4fmu_common/init.d-posix/px4-rc.mavlink and rcS, for instance i (px4_sitl -i i):
 #   udp_gcs_port_local=$((18570+px4_instance))       (remote: QGroundControl's 14550)
@@ -182,17 +179,6 @@ def test_fixed_local_ports_are_the_instances_and_a_taken_port_is_named():
 mavsdk = pytest.importorskip("mavsdk_grpc")
 
 
-def _kill(p: subprocess.Popen) -> str:
-    if p.poll() is None:
-        p.terminate()
-    try:
-        out = p.communicate(timeout=5)[0]
-    except subprocess.TimeoutExpired:
-        p.kill()
-        out = p.communicate()[0]
-    return out or ""
-
-
 async def _first(stream, cond, timeout: float):
     async def scan():
         async for x in stream:
@@ -248,7 +234,7 @@ def test_mavsdk_flies_two_vehicles_of_one_fleet():
             for r, climb in zip(results, (1.5, 2.5), strict=True):
                 assert r[1] == pytest.approx(climb, abs=0.3)
     finally:
-        logs = [_kill(s) for s in servers]
+        logs = [kill(s) for s in servers]
     for i, log in enumerate(logs):
         assert "System discovered" in log, log[-2000:]
         assert f"(system ID: {i + 1})" in log, log[-2000:]  # server i found vehicle i, and only it
@@ -257,50 +243,17 @@ def test_mavsdk_flies_two_vehicles_of_one_fleet():
 
 def test_mavproxy_lists_both_vehicles_of_cufund_serve(tmp_path):
     import yaml
-    from test_mavlink_clients import _Output
 
     scenario = tmp_path / "fleet.yaml"
     scenario.write_text(yaml.safe_dump(fleet_config(2)))
     port = free_port()
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    serve = subprocess.Popen(
-        [
-            str(BIN / "cufund"),
-            "serve",
-            str(scenario),
-            "--mavlink",
-            f"udpout:127.0.0.1:{port}",
-            "--api",
-            "none",
-            "--local-ports",
-            "any",
-            "--speed",
-            str(SPEED),
-            "--duration",
-            "60",
-        ],  # fmt: skip
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env=env,
-    )
-    proxy = subprocess.Popen(
-        [
-            str(BIN / "mavproxy.py"),
-            f"--master=udpin:127.0.0.1:{port}",
-            "--mav20",
-            f"--state-basedir={tmp_path}",
-            "--default-modules=link,cmdlong,arm,mode",
-        ],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env=env,
-        cwd=tmp_path,
-    )
+    serve = cufund_serve(
+        str(scenario), "--mavlink", f"udpout:127.0.0.1:{port}", "--api", "none", "--local-ports", "any",
+        "--speed", str(SPEED), "--duration", "60",
+    )  # fmt: skip
+    proxy = mavproxy(port, tmp_path)
     try:
-        out = _Output(proxy)
+        out = ProcessOutput(proxy)
         seen = {out.expect(r"Detected vehicle [12]:1 on link 0", 40)}
         seen.add(out.expect(r"Detected vehicle [12]:1 on link 0", 30))
         assert seen == {"Detected vehicle 1:1 on link 0", "Detected vehicle 2:1 on link 0"}
@@ -308,17 +261,9 @@ def test_mavproxy_lists_both_vehicles_of_cufund_serve(tmp_path):
         proxy.stdin.flush()  # type: ignore[union-attr]
         out.expect(r"Sending to:\s+\{1, 2\}", 10)
     finally:
-        proxy.terminate()
-        try:
-            proxy.wait(5)
-        except subprocess.TimeoutExpired:
-            proxy.kill()
-            proxy.wait(5)
-        for f in (proxy.stdin, proxy.stdout):
-            if f is not None:
-                f.close()
+        kill(proxy, pumped=True)
         serve.send_signal(2)
-        log = _kill(serve)
+        log = kill(serve)
     assert serve.returncode == 0, log
     for sysid in (1, 2):
         assert re.search(
@@ -360,26 +305,10 @@ def test_serve_uploads_a_plain_language_mission_each_client_downloads(tmp_path):
     scenario.write_text(yaml.safe_dump(fleet_config(2)))
     port = free_port()
     gcs = Gcs(port)
-    serve = subprocess.Popen(
-        [
-            str(BIN / "cufund"),
-            "serve",
-            str(scenario),
-            "--mavlink",
-            f"udpout:127.0.0.1:{port}",
-            "--api",
-            "none",
-            "--local-ports",
-            "any",
-            "--duration",
-            "60",
-            "--mission",
-            "zigzag with 3 rows of 5 waypoints at 3 m",
-        ],  # fmt: skip
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    serve = cufund_serve(
+        str(scenario), "--mavlink", f"udpout:127.0.0.1:{port}", "--api", "none", "--local-ports", "any",
+        "--duration", "60", "--mission", "zigzag with 3 rows of 5 waypoints at 3 m",
+    )  # fmt: skip
     counts = {}
     try:
         for sysid in (1, 2):  # MAVLink's mission protocol: each system's count, then its items
@@ -397,7 +326,7 @@ def test_serve_uploads_a_plain_language_mission_each_client_downloads(tmp_path):
     finally:
         gcs.close()
         serve.send_signal(2)
-        log = _kill(serve)
+        log = kill(serve)
     # the zigzag's 3 x 5 waypoints shared between the two vehicles, each client seeing its own share
     assert counts[1] + counts[2] == 15 and min(counts.values()) > 0
     assert f"uav1: mission of {counts[1]} waypoints uploaded (zigzag)" in log

@@ -5,14 +5,9 @@ from __future__ import annotations
 
 import asyncio
 import math
-import os
-import queue
 import re
 import socket
 import subprocess
-import sys
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -20,31 +15,13 @@ import pytest
 
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla
 from mavlink_support import SPEED, free_port, vehicle
+from process_support import ProcessOutput, cufund_serve, kill, mavproxy
 
 mavsdk = pytest.importorskip("mavsdk_grpc")
 from mavsdk_grpc.mission import MissionItem, MissionPlan  # noqa: E402  (after the importorskip)
 from mavsdk_grpc.offboard import PositionNedYaw  # noqa: E402
 
 HOME = GeoPoint(22.4196, 114.2068, 30.0)
-BIN = Path(sys.executable).parent
-
-
-def _kill(p: subprocess.Popen, pumped: bool = False) -> str:
-    """Stops ``p`` (terminate, then kill) and closes its pipes; its remaining output unless another thread reads
-    it (``pumped``)."""
-    if p.poll() is None:
-        p.terminate()
-    try:
-        out = "" if pumped else p.communicate(timeout=5)[0]
-        p.wait(5)
-    except subprocess.TimeoutExpired:
-        p.kill()
-        out = "" if pumped else p.communicate()[0]
-        p.wait(5)
-    for f in (p.stdin, p.stdout):
-        if f is not None:
-            f.close()
-    return out or ""
 
 
 def _item(lat: float, lon: float, rel_alt: float) -> MissionItem:
@@ -146,80 +123,18 @@ def test_mavsdk_connects_takes_off_flies_a_mission_offboard_and_lands():
                 assert np.min(np.linalg.norm(track - w, axis=1)) < 0.25
             assert live.telemetry()["landed"] and not live.telemetry()["armed"]
     finally:
-        log = _kill(server)
+        log = kill(server)
     assert "System discovered" in log
-
-
-class _Output:
-    """A subprocess's merged output, searched in order with timeouts (prompts share lines with messages, so the
-    search goes by position in the text, not by line)."""
-
-    def __init__(self, p: subprocess.Popen) -> None:
-        self.q: queue.Queue[str] = queue.Queue()
-        self.text = ""
-        self.pos = 0
-        threading.Thread(target=self._pump, args=(p,), daemon=True).start()
-
-    def _pump(self, p: subprocess.Popen) -> None:
-        for line in p.stdout:  # type: ignore[union-attr]
-            self.q.put(line)
-
-    def expect(self, pattern: str, timeout: float) -> str:
-        end = time.monotonic() + timeout
-        rx = re.compile(pattern)
-        while True:
-            m = rx.search(self.text, self.pos)
-            if m:
-                self.pos = m.end()
-                return m.group(0)
-            try:
-                self.text += self.q.get(timeout=max(end - time.monotonic(), 0.01))
-            except queue.Empty:
-                if time.monotonic() >= end:
-                    raise AssertionError(
-                        f"{pattern!r} not seen within {timeout} s; output:\n{self.text[-3000:]}"
-                    ) from None
 
 
 def test_mavproxy_drives_cufund_serve(tmp_path):
     port = free_port()
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    serve = subprocess.Popen(
-        [
-            str(BIN / "cufund"),
-            "serve",
-            "vehicle",
-            "--mavlink",
-            f"udpout:127.0.0.1:{port}",
-            "--api",
-            "none",
-            "--speed",
-            str(SPEED),
-            "--duration",
-            "60",
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env=env,
+    serve = cufund_serve(
+        "vehicle", "--mavlink", f"udpout:127.0.0.1:{port}", "--api", "none", "--speed", str(SPEED), "--duration", "60"
     )
-    proxy = subprocess.Popen(
-        [
-            str(BIN / "mavproxy.py"),
-            f"--master=udpin:127.0.0.1:{port}",
-            "--mav20",
-            f"--state-basedir={tmp_path}",
-            "--default-modules=link,cmdlong,arm,mode",
-        ],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env=env,
-        cwd=tmp_path,
-    )
+    proxy = mavproxy(port, tmp_path)
     try:
-        out = _Output(proxy)
+        out = ProcessOutput(proxy)
 
         def do(cmd: str) -> None:
             proxy.stdin.write(cmd + "\n")  # type: ignore[union-attr]
@@ -244,7 +159,7 @@ def test_mavproxy_drives_cufund_serve(tmp_path):
         do("long DO_SET_MODE 1 1 0")  # MANUAL: no sticks here, refused
         out.expect(r"DO_SET_MODE: DENIED", 10)
     finally:
-        _kill(proxy, pumped=True)
+        kill(proxy, pumped=True)
         serve.send_signal(2)
-        log = _kill(serve)
+        log = kill(serve)
     assert re.search(r"MAVLink vehicle 1: udpout:127.0.0.1:\d+ \(local 127.0.0.1:\d+\)", log)

@@ -5,11 +5,8 @@ process; a pymavlink ground station on 127.0.0.1 arms it, takes off to 1.5 m, se
 from __future__ import annotations
 
 import math
-import os
 import subprocess
-import sys
 import time
-from pathlib import Path
 
 import pytest
 from pymavlink import mavutil
@@ -17,9 +14,9 @@ from pymavlink import mavutil
 pytest.importorskip("onnxruntime")
 
 from mavlink_support import SPEED, Gcs, free_port
+from process_support import cufund_serve
 
 M = mavutil.mavlink
-BIN = Path(sys.executable).parent
 ALT = 1.5
 TOL_M = 0.2
 """How near the target the policy holds: over MAVLink it held 1.60 m for 1.5 m and 7 cm off home (its steady
@@ -28,27 +25,10 @@ error in the env is 11.5 cm, docs/guides/learning.md); 5 cm is not reached."""
 
 def test_pymavlink_flies_the_learned_policy_through_cufund_serve():
     port = free_port()
-    serve = subprocess.Popen(
-        [
-            str(BIN / "cufund"),
-            "serve",
-            "square_policy",
-            "--set",
-            "planner={kind: commander}",
-            "--mavlink",
-            f"udpout:127.0.0.1:{port}",
-            "--api",
-            "none",
-            "--speed",
-            str(SPEED),
-            "--duration",
-            "120",
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )
+    serve = cufund_serve(
+        "square_policy", "--set", "planner={kind: commander}", "--mavlink", f"udpout:127.0.0.1:{port}",
+        "--api", "none", "--speed", str(SPEED), "--duration", "120",
+    )  # fmt: skip
     g = Gcs(port)
     try:
         g.recv("HEARTBEAT", 60.0)
