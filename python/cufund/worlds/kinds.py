@@ -138,3 +138,4 @@ register(
         "an 8 x 6 x 3 m textured room (posters, shelves, brick and concrete) for visual odometry",
     )
 )
+from . import search_forest  # noqa: E402, F401  (registers the world kind search_forest)

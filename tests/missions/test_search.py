@@ -1,0 +1,177 @@
+"""The search mission (issue 26): association gating, two-view confirmation, the metrics against hand-computed
+cases, the coverage reference and the world's people."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cufund.core.bus import Bus, BusView
+from cufund.core.config import ConfigError
+from cufund.core.messages import Detections3D, Odometry, Topics
+from cufund.missions.search import SearchMission, SearchParams, search_reference
+from cufund.missions.search_tracks import SearchTracker, SearchTrackParams, search_metrics
+from cufund.worlds.search_forest import people_positions, search_forest
+
+PARAMS = SearchTrackParams(gate_m=2.0, min_baseline_m=3.0, agree_m=1.5)
+
+
+# --- metrics ------------------------------------------------------------------------------------------------
+def test_metrics_hand_computed():
+    """People at (0,0,0), (10,0,0), (0,10,0); finds at (0.3,0.4,0) (0.5 m off the first), (10,1.2,0) (1.2 m off
+    the second), (30,30,0) (nothing near): 2 of 3 finds right, 2 of 3 people found, errors 0.5 and 1.2 m."""
+    people = np.array([[0, 0, 0], [10, 0, 0], [0, 10, 0]], float)
+    found = np.array([[0.3, 0.4, 0], [10, 1.2, 0], [30, 30, 0]], float)
+    m = search_metrics(found, people, match_m=2.0, t_found=42.5)
+    assert m["search_precision"] == pytest.approx(2 / 3)
+    assert m["search_recall"] == pytest.approx(2 / 3)
+    assert m["search_position_error_m"] == pytest.approx([0.5, 1.2])
+    assert m["search_time_s"] == 42.5
+
+
+def test_metrics_pair_one_to_one_and_gate():
+    """Two finds near one person: only one counts (precision 1/2); a find 2.5 m off with match_m 2 counts for
+    nothing; no finds: precision 1 (nothing claimed), recall 0, no time."""
+    people = np.array([[0, 0, 0]], float)
+    m = search_metrics(np.array([[0.2, 0, 0], [0, 0.3, 0]]), people, 2.0)
+    assert (m["search_precision"], m["search_recall"], m["search_position_error_m"]) == (0.5, 1.0, [0.2])
+    m = search_metrics(np.array([[2.5, 0, 0]]), people, 2.0)
+    assert (m["search_precision"], m["search_recall"], m["search_position_error_m"]) == (0.0, 0.0, [])
+    m = search_metrics(np.zeros((0, 3)), people, 2.0)
+    assert (m["search_precision"], m["search_recall"], m["search_time_s"]) == (1.0, 0.0, None)
+
+
+def test_metrics_pairing_is_the_best_one_to_one_not_greedy():
+    """Finds A (0.9, 0) and B (-0.9, 0); people P (0, 0) and Q (-2.5, 0), match 2 m: greedy nearest-first would pair
+    A-P or B-P and leave the other unmatched; the assignment pairs A-P (0.9) and B-Q (1.6): both count."""
+    m = search_metrics(np.array([[0.9, 0, 0], [-0.9, 0, 0]]), np.array([[0, 0, 0], [-2.5, 0, 0]]), 2.0)
+    assert m["search_precision"] == 1.0 and m["search_recall"] == 1.0
+    assert m["search_position_error_m"] == pytest.approx([0.9, 1.6])
+
+
+# --- association and two-view confirmation -------------------------------------------------------------------
+def test_one_view_is_not_confirmed():
+    tr = SearchTracker(PARAMS)
+    tr.add(0.0, [5, 5, 0.8], [0, 0, 12])
+    assert len(tr.tracks) == 1 and tr.confirmed() == [] and len(tr.found()) == 0
+
+
+def test_two_close_views_are_not_confirmed():
+    """Many detections that agree, all from camera positions within 2 m of each other (< 3 m): not confirmed."""
+    tr = SearchTracker(PARAMS)
+    for k in range(10):
+        tr.add(0.1 * k, [5, 5, 0.8], [0.2 * k, 0, 12])
+    assert len(tr.tracks) == 1 and tr.confirmed() == []
+
+
+def test_two_separated_views_that_agree_are_confirmed():
+    """Views from cameras 4 m apart, positions 0.6 m apart: confirmed at the second, found at their mean."""
+    tr = SearchTracker(PARAMS)
+    tr.add(1.0, [5.0, 5.0, 0.8], [0, 0, 12])
+    tr.add(2.5, [5.6, 5.0, 0.8], [4, 0, 12])
+    (track,) = tr.confirmed()
+    assert track.confirmed_at == 2.5
+    np.testing.assert_allclose(tr.found(), [[5.3, 5.0, 0.8]])
+
+
+def test_separated_views_that_disagree_are_not_confirmed():
+    """Cameras 4 m apart, positions 1.8 m apart (> agree 1.5 m, within the 2 m gate): one track, not confirmed;
+    the third view agreeing with the first from far enough confirms it."""
+    tr = SearchTracker(PARAMS)
+    tr.add(1.0, [5.0, 5.0, 0.8], [0, 0, 12])
+    tr.add(2.0, [6.8, 5.0, 0.8], [4, 0, 12])
+    assert len(tr.tracks) == 1 and tr.confirmed() == []
+    tr.add(3.0, [5.2, 5.0, 0.8], [8, 0, 12])
+    assert len(tr.confirmed()) == 1
+
+
+def test_association_gates_by_distance():
+    """A detection 2.5 m from a track (gate 2 m) starts a new one; 1.9 m away joins the nearest track."""
+    tr = SearchTracker(PARAMS)
+    a = tr.add(0.0, [0, 0, 0], [0, -10, 12])
+    b = tr.add(0.1, [2.5, 0, 0], [0, -10, 12])
+    assert a is not b and len(tr.tracks) == 2
+    c = tr.add(0.2, [0.6, 1.8, 0], [5, -10, 12])  # 1.9 m from a's mean, 2.6 m from b's
+    assert c is a and len(a.positions) == 2
+    d = tr.add(0.3, [2.2, 0.3, 0], [5, -10, 12])  # nearer b
+    assert d is b
+    with pytest.raises(ValueError, match="p_W must be 3 finite numbers"):
+        tr.add(0.4, [np.nan, 0, 0], [0, 0, 0])
+    with pytest.raises(ValueError, match="gate_m must be a finite number > 0"):
+        SearchTrackParams(gate_m=0.0)
+
+
+# --- the flight-software component ----------------------------------------------------------------------------
+def test_mission_takes_person_detections_with_the_camera_at_the_capture_time():
+    """Detections3D of two classes: only 'person' ones scored >= min_score go to the tracker, each with the
+    estimate's position at its stamp; two views from estimates 4 m apart confirm one find."""
+    m = SearchMission(SearchParams())
+    bus = Bus()
+    view = BusView(bus, m.name, m.inputs + m.optional_inputs, m.outputs, deny_truth=True)
+    m.reset()
+    m.setup(view)
+    q = np.array([1.0, 0, 0, 0])
+    for t in np.arange(0.0, 2.01, 0.1):
+        bus.publish(Topics.ESTIMATE, Odometry(t, np.array([2.0 * t, 0, 12]), np.zeros(3), q, np.zeros(3)))
+    names = ("person", "car")
+    for t, x in ((0.0, 5.0), (2.0, 5.4)):  # cameras at x = 0 and 4 m
+        c = np.array([[x, 5.0, 0.8], [9.0, 9.0, 0.5], [20.0, 20.0, 0.8]])
+        bus.publish(
+            Topics.DETECTIONS_3D,
+            Detections3D(t, c, np.ones((3, 2)), np.array([0.9, 0.9, 0.1], np.float32), np.array([0, 1, 0]), names),
+        )
+    m.step(2.0, view)
+    assert m.detections == 2 and len(m.tracker.tracks) == 1
+    (track,) = m.tracker.confirmed()
+    np.testing.assert_allclose(track.cameras, [[0, 0, 12], [4, 0, 12]], atol=1e-9)
+    (f,) = m.found()
+    assert f["p_W"] == pytest.approx([5.2, 5.0, 0.8]) and f["confirmed_at_s"] == 2.0 and f["detections"] == 2
+
+
+# --- the reference and the world ------------------------------------------------------------------------------
+def test_reference_climbs_covers_the_area_facing_along_each_lane_and_lands():
+    p = SearchParams(area=((-10, -6), (10, -6), (10, 6), (-10, 6)), altitude=12.0, spacing=4.0)
+    ref, path = search_reference(p, np.array([1.0, 2.0, 0.0]))
+    assert len(path) == 6  # 3 lanes 4 m apart over 12 m, each two waypoints
+    np.testing.assert_allclose(sorted(set(path[:, 1].round(6))), [-4.0, 0.0, 4.0])
+    t = np.arange(ref.t_start, ref.t_end, 0.01)
+    s = ref.sample(t)
+    assert np.all(np.isfinite(s.p_W)) and s.p_W[:, 2].max() == pytest.approx(12.0)
+    np.testing.assert_allclose(s.p_W[0], [1, 2, 0], atol=1e-9)
+    np.testing.assert_allclose(ref.sample(ref.t_end).p_W[0], [1, 2, 0], atol=1e-6)
+    moving = np.linalg.norm(s.v_W[:, :2], axis=1) > 0.5
+    heading = np.arctan2(s.v_W[moving, 1], s.v_W[moving, 0])
+    yaw_err = np.abs(np.remainder(s.yaw[moving] - heading + np.pi, 2 * np.pi) - np.pi)
+    assert yaw_err.max() < 1e-6  # the camera looks along every leg while the vehicle moves
+    assert np.abs(np.diff(s.yaw)).max() < 0.02  # no step in yaw (0.8 rad/s peak x 10 ms)
+    # every lane's ends are flown through at altitude
+    for w in path:
+        assert np.min(np.linalg.norm(s.p_W - w, axis=1)) < 1e-3
+    assert np.linalg.norm(s.v_W, axis=1).max() <= p.v_max + 1e-6
+
+
+def test_params_are_checked():
+    with pytest.raises(ConfigError, match="mission.altitude"):
+        SearchParams(altitude=-1.0)
+    with pytest.raises(ConfigError, match="mission.area"):
+        SearchParams(area=((0, 0), (1, 1)))
+    with pytest.raises(ConfigError, match="mission.tracks"):
+        SearchParams(tracks={"gate_m": -1})  # type: ignore[arg-type]
+
+
+def test_search_forest_places_k_separated_people_some_beside_trunks():
+    """K people, seeded (same seed, same places), at least about 'separation' apart, inside the margin; the
+    share asked for stands within beside_m (+ half a person) of a trunk."""
+    w = search_forest(seed=3, people=6, beside_trees=0.5, separation=4.0)
+    people = people_positions(w)
+    assert people.shape == (6, 3)
+    np.testing.assert_allclose(people, people_positions(search_forest(seed=3, people=6, beside_trees=0.5)))
+    assert not np.allclose(people, people_positions(search_forest(seed=4, people=6, beside_trees=0.5)))
+    d = np.linalg.norm(people[:, None, :2] - people[None, :, :2], axis=2) + np.eye(6) * 99
+    assert d.min() > 4.0 - 2 * 1.5  # drawn squares' centres 4 m apart, each person within 1.5 m of its centre
+    assert np.all(np.abs(people[:, :2]) <= 20 - 4 + 1e-9)
+    trunks = np.array([o.vertices.mean(0)[:2] for o in w.objects if o.label == "tree"])
+    near = [np.min(np.linalg.norm(trunks - p[:2], axis=1)) for p in people]
+    assert sum(n < 1.0 * math.sqrt(2) + 1.0 for n in near) >= 3
