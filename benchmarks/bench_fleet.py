@@ -32,7 +32,7 @@ def fleet_config(n: int, spacing: float = 4.0):
     return ScenarioConfig.from_dict(data)
 
 
-def build(n: int, threads: int):
+def build(n: int, threads: int, batched_physics: bool = True):
     from cufund.geometry import Transform
     from cufund.scenarios.fleet import build_fleet
     from cufund.sensors.lidar import Lidar, LidarParams
@@ -40,6 +40,7 @@ def build(n: int, threads: int):
     from cufund.sensors.patterns import PlanarPattern
 
     fleet = build_fleet(fleet_config(n))
+    fleet.simulator.batched_physics = batched_physics
     for name, member in zip(fleet.names, fleet.simulator.members, strict=True):
         sim = fleet.vehicle(name).simulator
         lidar = Lidar(
@@ -59,15 +60,22 @@ def main() -> None:
     ap.add_argument("--n", type=int, nargs="+", default=[1, 10, 100])
     ap.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per fleet (from take-off)")
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument(
+        "--physics",
+        choices=("batched", "each"),
+        default="batched",
+        help="all vehicles' physics steps in one C++ call per round (the default), or each simulator its own",
+    )
     args = ap.parse_args()
-    print(f"cores: {os.cpu_count()}, ray-cast threads: {args.threads}")
+    print(f"cores: {os.cpu_count()}, ray-cast threads: {args.threads}, physics: {args.physics}")
+    print(f"load average (1, 5, 15 min): {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
     print(
         f"{'N':>5} {'build s':>8} {'sim s':>7} {'wall s':>8} {'RTF':>8} {'ms / vehicle-s':>15}"
         f" {'CPU s':>8} {'CPU RTF':>8} {'CPU ms / vehicle-s':>19}"
     )
     for n in args.n:
         b0 = time.perf_counter()
-        fleet = build(n, args.threads)
+        fleet = build(n, args.threads, args.physics == "batched")
         built_s = time.perf_counter() - b0
         w0, c0 = time.perf_counter(), time.process_time()
         fleet.simulator.reset()

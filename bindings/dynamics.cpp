@@ -451,6 +451,56 @@ void define_dynamics(py::module_& m) {
           "Advance by dt [s] holding rotor_speed_cmd (N, 4) [rad/s]; nthreads 0 = all cores. Concurrent calls from "
           "several threads run one after the other (an internal lock).");
   m.def(
+      "step_batches",
+      [](const py::sequence& batches, const py::handle& dt_obj, const py::handle& cmd_obj,
+         const py::handle& nthreads_obj) {
+        const int nthreads = threads_arg(nthreads_obj);
+        const auto n = static_cast<py::ssize_t>(py::len(batches));
+        std::vector<BatchStep> steps(static_cast<std::size_t>(n));
+        std::vector<py::ssize_t> first_row(static_cast<std::size_t>(n));
+        py::ssize_t rows = 0;
+        for (py::ssize_t k = 0; k < n; ++k) {
+          py::handle b = batches[k];
+          if (!py::isinstance<QuadrotorBatch>(b)) {
+            throw py::type_error("batches[" + std::to_string(k) + "] must be a QuadrotorBatch, got " + type_name(b));
+          }
+          steps[k].batch = &b.cast<QuadrotorBatch&>();
+          for (py::ssize_t j = 0; j < k; ++j) {
+            if (steps[j].batch == steps[k].batch) {
+              throw py::value_error("batches must be distinct, got the same batch at " + std::to_string(j) + " and " +
+                                    std::to_string(k));
+            }
+          }
+          first_row[k] = rows;
+          rows += static_cast<py::ssize_t>(steps[k].batch->size());
+        }
+        auto dt = as_float64(dt_obj, "dt", {n});
+        auto cmd = as_float64(cmd_obj, "rotor_speed_cmd", {rows, kNumRotors});
+        for (py::ssize_t k = 0; k < n; ++k) {
+          steps[k].dt = dt.data()[k];
+          steps[k].cmd = cmd.data() + first_row[k] * kNumRotors;
+        }
+        StepResult r;
+        std::size_t failed = 0;
+        {
+          py::gil_scoped_release release;
+          r = step_batches(steps.data(), steps.size(), nthreads, &failed);
+        }
+        if (r.status == StepStatus::kOk) return;
+        const auto size = static_cast<py::ssize_t>(steps[failed].batch->size());
+        py::array_t<double> own_cmd({size, static_cast<py::ssize_t>(kNumRotors)}, steps[failed].cmd);
+        try {
+          raise_step_error(r, steps[failed].dt, own_cmd, steps[failed].batch->size());
+        } catch (const py::value_error& e) {
+          throw py::value_error("batches[" + std::to_string(failed) + "]: " + e.what());
+        }
+      },
+      py::arg("batches"), py::arg("dt"), py::arg("rotor_speed_cmd"), py::arg("nthreads") = 1,
+      "Steps several QuadrotorBatch objects in one call (the GIL released): batches[k] by dt[k] (n,) [s] holding its "
+      "rows of rotor_speed_cmd (sum of the sizes, 4) [rad/s] (the batches' rows one after the other), each exactly "
+      "as batches[k].step(dt[k], its rows, 1) (bit for bit); nthreads threads over the batches (0 = all cores). "
+      "Every batch is stepped; the first failure raises ValueError naming batches[k].");
+  m.def(
       "set_max_step_substeps",
       [](const py::handle& n) { QuadrotorBatch::set_max_substeps(int_arg(n, "n", 1, 1000000000)); }, py::arg("n"),
       "Most RK4 sub-steps one QuadrotorBatch.step may take (process-wide).");

@@ -337,4 +337,21 @@ StepResult QuadrotorBatch::step(double dt, const double* cmd, int nthreads) {
   return result;
 }
 
+StepResult step_batches(const BatchStep* steps, std::size_t n, int nthreads, std::size_t* failed) {
+  std::vector<StepResult> results(n);
+  if (n == 1 || nthreads == 1) {
+    for (std::size_t k = 0; k < n; ++k) results[k] = steps[k].batch->step(steps[k].dt, steps[k].cmd, 1);
+  } else {
+    ThreadPool::instance().parallel_for(
+        n, nthreads, [&](std::size_t k) { results[k] = steps[k].batch->step(steps[k].dt, steps[k].cmd, 1); });
+  }
+  for (std::size_t k = 0; k < n; ++k) {
+    if (results[k].status != StepStatus::kOk) {
+      if (failed != nullptr) *failed = k;
+      return results[k];
+    }
+  }
+  return StepResult{};
+}
+
 }  // namespace cufund

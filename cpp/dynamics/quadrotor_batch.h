@@ -115,4 +115,19 @@ class QuadrotorBatch {
   mutable std::mutex mutex_;
 };
 
+// One step of one batch within step_batches: advance `batch` by dt [s] holding cmd (row-major (size, 4) [rad/s]).
+struct BatchStep {
+  QuadrotorBatch* batch = nullptr;
+  double dt = 0.0;
+  const double* cmd = nullptr;
+};
+
+// Several batches (each its own parameters, state and time: e.g. the vehicles of a fleet, one batch each) stepped
+// in one call: steps[k].batch->step(steps[k].dt, steps[k].cmd, 1) for every k, on at most nthreads threads over
+// the batches (<= 0: all cores). Each batch is stepped by exactly that call (the same arithmetic, on one thread),
+// so the result equals stepping them one by one, bit for bit, on any thread count. Every batch is stepped even when
+// another fails; returns the first failure in k order (kOk when none) with its k in *failed (when not null).
+// The batches must be distinct (a batch listed twice is stepped twice, in no defined order).
+StepResult step_batches(const BatchStep* steps, std::size_t n, int nthreads = 1, std::size_t* failed = nullptr);
+
 }  // namespace cufund

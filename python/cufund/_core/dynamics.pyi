@@ -6,7 +6,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['AtmosphereParams', 'CollisionWorld', 'GroundEffectParams', 'GustEvent', 'QuadrotorBatch', 'QuadrotorParams', 'RotorLayout', 'WindShear', 'allocation_matrix', 'allocation_matrix_inverse', 'atmosphere_grid_wind', 'dryden_scales', 'max_step_substeps', 'rotor_positions', 'rotor_spins', 'set_max_step_substeps', 'validate_atmosphere', 'validate_ground_effect', 'validate_params']
+__all__: list[str] = ['AtmosphereParams', 'CollisionWorld', 'GroundEffectParams', 'GustEvent', 'QuadrotorBatch', 'QuadrotorParams', 'RotorLayout', 'WindShear', 'allocation_matrix', 'allocation_matrix_inverse', 'atmosphere_grid_wind', 'dryden_scales', 'max_step_substeps', 'rotor_positions', 'rotor_spins', 'set_max_step_substeps', 'step_batches', 'validate_atmosphere', 'validate_ground_effect', 'validate_params']
 class GroundEffectParams:
     """
     Ground and ceiling effect constants (cpp/dynamics/ground_effect.h); use cufund.vehicle.ground_effect.GroundEffectConfig.
@@ -546,6 +546,10 @@ def rotor_spins(params: QuadrotorParams) -> typing.Annotated[numpy.typing.NDArra
 def set_max_step_substeps(n: typing.Any) -> None:
     """
     Most RK4 sub-steps one QuadrotorBatch.step may take (process-wide).
+    """
+def step_batches(batches: collections.abc.Sequence, dt: typing.Any, rotor_speed_cmd: typing.Any, nthreads: typing.Any = 1) -> None:
+    """
+    Steps several QuadrotorBatch objects in one call (the GIL released): batches[k] by dt[k] (n,) [s] holding its rows of rotor_speed_cmd (sum of the sizes, 4) [rad/s] (the batches' rows one after the other), each exactly as batches[k].step(dt[k], its rows, 1) (bit for bit); nthreads threads over the batches (0 = all cores). Every batch is stepped; the first failure raises ValueError naming batches[k].
     """
 def validate_atmosphere(params: AtmosphereParams) -> str:
     """

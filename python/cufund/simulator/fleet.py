@@ -17,13 +17,26 @@ physics step for where a call ends: a vehicle's run is the same, bit for bit, wh
   plus the other's box; a vehicle with none in range keeps the world itself.
 
 A vehicle with no other within reach (none closer than ``view_range_m`` nor under another's jet) therefore runs
-exactly as it runs alone. Physics is stepped vehicle by vehicle (each simulator splits its own steps at its own
-events), not in one batched call.
+exactly as it runs alone.
+
+**Batched physics** (``batched_physics=True``, the default). Each simulator steps its plant on its own physics grid,
+split at its own events (a component's run, a message becoming visible), so two vehicles' steps need not coincide;
+stepping every vehicle over the union of all their step boundaries would change each one's arithmetic (two RK4
+steps where alone it takes one) and lose the bit-for-bit equality with its single run. So the fleet advances its
+vehicles in rounds: in a round each vehicle whose run is open and whose next step ends at or before the fleet's next
+instant runs its events and node checks and hands out its next step, (dt, rotor-speed command), exactly the step it
+takes alone (``Simulator._advance(..., one_step=True)`` with the plant's ``fast_step`` standing in as a recorder),
+and one C++ call (``cufund._core.dynamics.step_batches``, the GIL released) integrates all the steps of the round,
+each vehicle by its own ``QuadrotorBatch.step(dt, cmd, 1)``: the same arithmetic, bit for bit. Vehicles with the same
+schedule (one scenario's stack) step together in every round; others take their own steps in the rounds they need.
+Nothing couples the vehicles between two interaction instants, so the order of the rounds changes nothing. A plant
+that steps through Python (a wind *function*, a surface probe) takes its step inside its round, alone.
 """
 
 from __future__ import annotations
 
 import math
+import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -31,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from cufund import _core
 from cufund.core.messages import Odometry
 from cufund.core.scheduler import NS
 from cufund.geometry import quat_to_matrix
@@ -98,6 +112,7 @@ class FleetSimulator:
         interaction_rate_hz: float = 250.0,
         view_rate_hz: float = 50.0,
         view_range_m: float = 50.0,
+        batched_physics: bool = True,
     ) -> None:
         if not members:
             raise ValueError("a fleet needs at least one vehicle")
@@ -131,6 +146,13 @@ class FleetSimulator:
         box_triangles = self._boxes[0].triangles  # every box has the same 12 triangles over its 8 corners
         self._view_triangles = (box_triangles[None] + 8 * np.arange(len(self._boxes))[:, None, None]).reshape(-1, 3)
         """The triangles of n boxes' corners listed one box after another (a view of k boxes: the first 12 k)."""
+        if not isinstance(batched_physics, bool):
+            raise ValueError(f"batched_physics must be True or False, got {batched_physics!r}")
+        self.batched_physics = batched_physics
+        """All vehicles' physics steps in one C++ call per round (see the module's docstring); False: each
+        simulator steps its own plant (the same numbers, one call per vehicle-step)."""
+        self.physics_seconds = 0.0
+        """Wall time in the batched physics calls [s]."""
         self.observers: list[Callable[[float], None]] = []
         """Called with the fleet's time at each interaction instant (e.g. a log's ``/clock``)."""
         self._started = False
@@ -156,6 +178,10 @@ class FleetSimulator:
         self.min_separation_at: tuple[float, str, str] | None = None
         self._forces = np.zeros((len(self.members), 3))
         self._wall = 0.0
+        self.physics_seconds = 0.0
+        self._steps: list[tuple[Any, float, Any, int]] = []
+        """The round's recorded steps: (the plant's C++ batch, dt [s], rotor-speed command, vehicle index)."""
+        self._recorders: list[Callable[[float, Any, int], None]] = []
         self._started = True
         self._interact(self._now_ns)
 
@@ -187,10 +213,13 @@ class FleetSimulator:
             while self._now_ns < end_ns and self.status is None:
                 grid = self.t_start_ns + (self._k + 1) * self.step_ns
                 target = min(grid, end_ns)
-                for m in self.members:
-                    sim = m.simulator
-                    if sim.status is None:
-                        sim.advance_to(target / NS, m.done)
+                if self.batched_physics:
+                    self._advance_batched(target)
+                else:
+                    for m in self.members:
+                        sim = m.simulator
+                        if sim.status is None:
+                            sim.advance_to(target / NS, m.done)
                 self._now_ns = target
                 if target == grid:
                     self._k += 1
@@ -198,8 +227,73 @@ class FleetSimulator:
                 if all(m.simulator.status is not None for m in self.members) and self.status is None:
                     self.status, self.message = self._worst()
         finally:
-            self._wall += time.perf_counter() - wall0
+            wall = time.perf_counter() - wall0
+            self._wall += wall
+            if self.batched_physics:  # the simulators ran inside the fleet's rounds: each took the fleet's time
+                for m in self.members:
+                    m.simulator._wall += wall
         return self.status is None
+
+    def _advance_batched(self, end_ns: int) -> None:
+        """Every open vehicle up to ``end_ns`` (as its ``advance_to`` would take it there), in rounds of one physics
+        step each, each round's steps in one ``step_batches`` call (see the module's docstring)."""
+        steps = self._steps
+        recorders = self._recorders
+        if not recorders:
+            record = steps.append
+
+            def recorder(i: int, core: Any) -> Callable[[float, Any, int], None]:
+                def step(dt: float, cmd: Any, nthreads: int) -> None:  # what the simulator calls its plant's step
+                    record((core, dt, cmd, i))
+
+                return step
+
+            recorders = self._recorders = [
+                recorder(i, m.simulator.vehicle._batch._core)  # type: ignore[union-attr]
+                for i, m in enumerate(self.members)
+            ]
+        sims = [m.simulator for m in self.members]
+        done = [m.done for m in self.members]
+        pending = [i for i, sim in enumerate(sims) if sim.status is None and sim._now_ns < end_ns]
+        while pending:
+            steps.clear()
+            moved = []
+            try:
+                for i in pending:
+                    sim, quad = sims[i], sims[i].vehicle
+                    now = sim._now_ns
+                    own = quad.fast_step  # type: ignore[union-attr]
+                    if own is not None and own is quad._step:  # type: ignore[union-attr]  # the bare C++ step
+                        quad.fast_step = recorders[i]  # type: ignore[union-attr]
+                        try:
+                            sim._advance(end_ns, done[i], False, True)
+                        finally:
+                            if quad.fast_step is recorders[i]:  # type: ignore[union-attr]  # (unless reset meanwhile)
+                                quad.fast_step = own  # type: ignore[union-attr]
+                    else:  # a plant stepped through Python (a wind function, a probe): it steps itself
+                        sim._advance(end_ns, done[i], False, True)
+                    if sim._now_ns != now:  # it took a step (recorded, or its own)
+                        moved.append(i)
+            finally:
+                if steps:
+                    self._step_all(steps)
+            pending = [i for i in moved if sims[i].status is None and sims[i]._now_ns < end_ns]
+
+    def _step_all(self, steps: list[tuple[Any, float, Any, int]]) -> None:
+        """One C++ call integrating the round's recorded steps (plants stepped through Python are already done)."""
+        w0 = time.perf_counter()
+        try:
+            _core.dynamics.step_batches(
+                [s[0] for s in steps], np.array([s[1] for s in steps]), np.array([s[2] for s in steps]), 1
+            )
+        except ValueError as e:  # name the vehicle, as its own simulator's step would have raised it
+            match = re.match(r"batches\[(\d+)\]: (.*)", str(e), re.S)
+            if match is None:
+                raise
+            name = self.names[steps[int(match.group(1))][3]]
+            raise ValueError(f"vehicle {name}: {match.group(2)}") from None
+        finally:
+            self.physics_seconds += time.perf_counter() - w0
 
     def run(self, duration: float) -> dict[str, SimulationResult]:
         """A new run of ``duration`` [s] (or until it ends); each vehicle's result by name. A vehicle whose own

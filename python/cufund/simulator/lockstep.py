@@ -453,7 +453,11 @@ class Simulator:
             self._wall += time.perf_counter() - wall0
         return self.status is None
 
-    def _advance(self, end_ns: int, done: Callable[[float, Odometry], bool] | None, progress: bool) -> None:
+    def _advance(
+        self, end_ns: int, done: Callable[[float, Odometry], bool] | None, progress: bool, one_step: bool = False
+    ) -> None:
+        """The run up to ``end_ns``; with ``one_step``, it returns after the first physics step (the fleet's batched
+        physics, :mod:`cufund.simulator.fleet`, steps every vehicle once per call)."""
         quad, bus, slots, physics = self.vehicle, self.bus, self._slots, self._physics
         truth_topic, actuator = Topics.TRUTH_ODOMETRY, str(Topics.ACTUATOR_COMMAND)
         latest, next_visible, deliver = bus.latest, bus.next_visible_ns, bus.deliver
@@ -538,6 +542,8 @@ class Simulator:
                         chars = int(bar) // 10
                         sys.stderr.write(f"\r[{'#' * chars}{'.' * (40 - chars)}] {now / NS:7.2f} s")
                         sys.stderr.flush()
+                if one_step:
+                    break
         finally:
             physics.k, physics.next_ns = p_k, p_next
             self._physics_seconds = physics_seconds
