@@ -78,6 +78,11 @@ void define_envs(py::module_& m) {
       .def_readwrite("gyro_turn_on", &EnvTaskParams::gyro_turn_on)
       .def_readwrite("rate_d_cutoff_hz", &EnvTaskParams::rate_d_cutoff_hz)
       .def_readwrite("rate_i_scale", &EnvTaskParams::rate_i_scale)
+      .def_readwrite("segment_s", &EnvTaskParams::segment_s)
+      .def_readwrite("hold_s", &EnvTaskParams::hold_s)
+      .def_readwrite("waypoint_jitter", &EnvTaskParams::waypoint_jitter)
+      .def_readwrite("lookahead", &EnvTaskParams::lookahead)
+      .def_readwrite("w_smooth", &EnvTaskParams::w_smooth)
       .def(
           "set_rate_gains",
           [](EnvTaskParams& t, const Eigen::Vector3d& k_p, const Eigen::Vector3d& k_i, const Eigen::Vector3d& k_d,
@@ -168,6 +173,26 @@ void define_envs(py::module_& m) {
                              [](const EnvBatch& e) { return py::array_t<int>(e.size(), e.episode_steps().data()); })
       .def_property_readonly("latency",
                              [](const EnvBatch& e) { return py::array_t<int>(e.size(), e.latency().data()); })
+      .def(
+          "reference",
+          [](const EnvBatch& e, std::int64_t i, double t) {
+            if (!e.task().reference()) throw py::value_error("the task has no timed reference (segment_s is [0, 0])");
+            if (i < 0 || static_cast<std::size_t>(i) >= e.size()) throw py::index_error("env index out of range");
+            py::array_t<double> out(9);
+            e.reference_at(static_cast<std::size_t>(i), t, out.mutable_data());
+            return out;
+          },
+          py::arg("env"), py::arg("t"),
+          "Reference mode: env's reference p_W, v_W, a_W (9,) at time t [s] of its episode.")
+      .def(
+          "waypoints",
+          [](const EnvBatch& e, std::int64_t i) {
+            if (!e.task().reference()) throw py::value_error("the task has no timed reference (segment_s is [0, 0])");
+            if (i < 0 || static_cast<std::size_t>(i) >= e.size()) throw py::index_error("env index out of range");
+            const std::vector<double> w = e.waypoints(static_cast<std::size_t>(i));
+            return py::array_t<double>({static_cast<py::ssize_t>(w.size() / 3), py::ssize_t(3)}, w.data());
+          },
+          py::arg("env"), "Reference mode: env's waypoints (K, 3) as jittered at its last reset.")
       .def_property_readonly("drawn_scales", [](const EnvBatch& e) {
         return py::array_t<double>({static_cast<py::ssize_t>(e.size()), py::ssize_t(5)}, e.drawn_scales().data());
       });

@@ -116,6 +116,19 @@ std::string validate(const EnvTaskParams& t) {
     e << "position_noise must be a range [lo, hi] with 0 <= lo <= hi [m]";
   else if (!range_ok(t.velocity_noise, 0.0))
     e << "velocity_noise must be a range [lo, hi] with 0 <= lo <= hi";
+  else if (!range_ok(t.segment_s, 0.0) || (t.segment_s[1] > 0 && t.segment_s[0] <= 0))
+    e << "segment_s must be a range [lo, hi] with 0 < lo <= hi [s], or [0, 0] (no timed reference)";
+  else if (!range_ok(t.hold_s, 0.0))
+    e << "hold_s must be a range [lo, hi] with 0 <= lo <= hi [s]";
+  else if (t.waypoint_jitter.size() != 3 || !(t.waypoint_jitter[0] >= 0 && t.waypoint_jitter[1] >= 0 &&
+                                               t.waypoint_jitter[2] >= 0 && std::isfinite(t.waypoint_jitter[0]) &&
+                                               std::isfinite(t.waypoint_jitter[1]) &&
+                                               std::isfinite(t.waypoint_jitter[2])))
+    e << "waypoint_jitter must be 3 finite numbers >= 0 [m]";
+  else if (!(std::isfinite(t.lookahead) && t.lookahead >= 0))
+    e << "lookahead must be a finite number >= 0 [s], got " << t.lookahead;
+  else if (!(std::isfinite(t.w_smooth) && t.w_smooth >= 0))
+    e << "w_smooth must be a finite number >= 0, got " << t.w_smooth;
   for (double x : t.targets) {
     if (!std::isfinite(x)) return "targets must be finite numbers";
   }
@@ -141,6 +154,13 @@ EnvBatch::EnvBatch(const QuadrotorParams& params, const EnvTaskParams& task, std
     }
   }
   a_prev_.assign(4 * n, 0.0);
+  a_last_.assign(4 * n, 0.0);
+  if (task.reference()) {
+    const std::size_t K = static_cast<std::size_t>(task.n_targets());
+    wp_.assign(3 * K * n, 0.0);
+    seg_.assign(2 * (K - 1) * n, 0.0);
+    ref_.assign(9 * n, 0.0);
+  }
   ring_ = static_cast<int>(task.latency_steps[1]) + 1;
   history_.assign(4 * n * ring_, 0.0);
   applied_.assign(4 * n, 0.0);
@@ -220,7 +240,22 @@ void EnvBatch::reset_env(std::size_t i) {
     gyro_bias_[6 * i + k] = t.imu_noise ? g.normal() * t.gyro_turn_on : 0.0;
     gyro_bias_[6 * i + 3 + k] = 0.0;
   }
+  if (t.reference()) {  // drawn last: the other tasks' streams are unchanged
+    const int K = t.n_targets();
+    double* wp = &wp_[3 * K * i];
+    for (int k = 0; k < K; ++k) {
+      for (int j = 0; j < 3; ++j) wp[3 * k + j] = t.targets[4 * k + j] + g.uniform(-1, 1) * t.waypoint_jitter[j];
+    }
+    double* seg = seg_.data() + 2 * (K - 1) * i;
+    for (int k = 0; k + 1 < K; ++k) {
+      seg[2 * k] = g.uniform(t.hold_s[0], t.hold_s[1]);
+      seg[2 * k + 1] = g.uniform(t.segment_s[0], t.segment_s[1]);
+    }
+    for (int j = 0; j < 3; ++j) b.row(QuadrotorBatch::kP + j)[i] += wp[j] - t.targets[j];  // around the first
+    reference_at(i, 0.0, &ref_[9 * i]);
+  }
   std::fill(&a_prev_[4 * i], &a_prev_[4 * i] + 4, 0.0);
+  std::fill(&a_last_[4 * i], &a_last_[4 * i] + 4, 0.0);
   std::fill(&history_[4 * i * ring_], &history_[4 * (i + 1) * ring_], 0.0);
   head_[i] = 0;
   steps_[i] = 0;
@@ -228,6 +263,40 @@ void EnvBatch::reset_env(std::size_t i) {
   done_[i] = 0;
   if (!rate_.empty()) {
     rate_[i].reset();
+  }
+}
+
+// Minimum-jerk segments: s = (t - t0) / T, p = a + (b - a) (10 s^3 - 15 s^4 + 6 s^5).
+void EnvBatch::reference_at(std::size_t i, double t, double out[9]) const {
+  const int K = task_.n_targets();
+  const double* wp = wp_.data() + 3 * K * i;
+  const double* seg = seg_.data() + 2 * (K - 1) * i;
+  double t0 = 0.0;
+  int rest = K - 1;  // the waypoint the reference rests at (past the last segment: the last)
+  for (int k = 0; k + 1 < K; ++k) {
+    const double hold = seg[2 * k], T = seg[2 * k + 1];
+    if (t < t0 + hold) {
+      rest = k;
+      break;
+    }
+    if (t < t0 + hold + T) {
+      const double s = (t - t0 - hold) / T, s2 = s * s, s3 = s2 * s;
+      const double f = s3 * (10.0 - 15.0 * s + 6.0 * s2);
+      const double df = 30.0 * s2 * (1.0 - 2.0 * s + s2) / T;
+      const double ddf = 60.0 * s * (1.0 - 3.0 * s + 2.0 * s2) / (T * T);
+      for (int j = 0; j < 3; ++j) {
+        const double dl = wp[3 * (k + 1) + j] - wp[3 * k + j];
+        out[j] = wp[3 * k + j] + dl * f;
+        out[3 + j] = dl * df;
+        out[6 + j] = dl * ddf;
+      }
+      return;
+    }
+    t0 += hold + T;
+  }
+  for (int j = 0; j < 3; ++j) {
+    out[j] = wp[3 * rest + j];
+    out[3 + j] = out[6 + j] = 0.0;
   }
 }
 
@@ -243,6 +312,13 @@ void EnvBatch::observe(std::size_t i, float* out) {
   int o = 0;
   for (int k = 0; k < t.n_ahead; ++k) {
     const double* tg = &t.targets[4 * std::min(index_[i] + k, K - 1)];
+    double ahead[3];
+    if (t.reference()) {  // policy_observation.lookahead_targets
+      const double* r = &ref_[9 * i];
+      const double tau = k * t.lookahead;
+      for (int j = 0; j < 3; ++j) ahead[j] = r[j] + r[3 + j] * tau + 0.5 * r[6 + j] * tau * tau;
+      tg = ahead;
+    }
     for (int j = 0; j < 3; ++j) {
       double rel = tg[j] - p[j];
       if (pos_noise) rel += sp * rng_[i].normal();
@@ -400,6 +476,7 @@ void EnvBatch::step(const double* actions, float* obs, double* reward, bool* ter
     }
   }
   // The given actions (clipped) enter each env's delay line; the applied one is `latency` steps old.
+  if (task_.w_smooth > 0) std::copy(a_prev_.begin(), a_prev_.end(), a_last_.begin());
   for (std::size_t k = 0; k < 4 * n_; ++k) a_prev_[k] = std::clamp(actions[k], -1.0, 1.0);
   if (ring_ == 1) {
     std::copy(a_prev_.begin(), a_prev_.end(), applied_.begin());
@@ -440,7 +517,21 @@ void EnvBatch::finish_block(std::size_t begin, std::size_t end, float* obs, doub
   const int* index = index_.data();
   const double* ap = a_prev_.data();
   const std::size_t m = end - begin;
-  for (std::size_t j = 0; j < m; ++j) {
+  if (task_.reference()) {  // the reference at the step's end; the distance and speed relative to it
+    for (std::size_t j = 0; j < m; ++j) {
+      const std::size_t i = begin + j;
+      double* r = &ref_[9 * i];
+      reference_at(i, (steps_[i] + 1) * task_.dt, r);
+      const double ex = r[0] - px[i], ey = r[1] - py[i], ez = r[2] - pz[i];
+      d[j] = std::sqrt(ex * ex + ey * ey + ez * ez);
+      const double ux = vx[i] - r[3], uy = vy[i] - r[4], uz = vz[i] - r[5];
+      speed[j] = std::sqrt(ux * ux + uy * uy + uz * uz);
+      rate[j] = std::sqrt(wx[i] * wx[i] + wy[i] * wy[i] + wz[i] * wz[i]);
+      const double* a = ap + 4 * i;
+      a2[j] = a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3];
+    }
+  }
+  for (std::size_t j = 0; j < m && !task_.reference(); ++j) {
     const std::size_t i = begin + j;
     const double* tg = targets + 4 * index[i];
     const double ex = tg[0] - px[i], ey = tg[1] - py[i], ez = tg[2] - pz[i];
@@ -475,8 +566,15 @@ void EnvBatch::finish(std::size_t i, float* o, double* reward, bool* terminated,
     for (int k = 0; k < 3; ++k) p[k] = b.row(QuadrotorBatch::kP + k)[i];
     const double* tg = &t.targets[4 * index_[i]];
     double r = t.alive - t.w_position * d - t.w_velocity * speed - t.w_rate * rate - t.w_action * a2;
+    if (t.w_smooth > 0) {
+      const double* a = &a_prev_[4 * i];
+      const double* l = &a_last_[4 * i];
+      double s2 = 0.0;
+      for (int k = 0; k < 4; ++k) s2 += (a[k] - l[k]) * (a[k] - l[k]);
+      r -= t.w_smooth * s2;
+    }
     bool crash = false, success = false;
-    if (t.task != EnvTask::kHover) {
+    if (t.task != EnvTask::kHover && !t.reference()) {
       const double* pp = &prev_p_[3 * i];  // where the step started
       const double d_prev = std::sqrt((tg[0] - pp[0]) * (tg[0] - pp[0]) + (tg[1] - pp[1]) * (tg[1] - pp[1]) +
                                       (tg[2] - pp[2]) * (tg[2] - pp[2]));

@@ -46,6 +46,16 @@ struct EnvTaskParams {
   RateControlGains rate_gains{Eigen::Vector3d(25, 25, 12), Eigen::Vector3d(10, 10, 5), Eigen::Vector3d(0.2, 0.2, 0),
                               0.0, 30.0};
   double rate_d_cutoff_hz = 30.0, rate_i_scale = 6.981317007977318;
+  // Waypoints with a timed reference (off while segment_s[1] == 0): the target is a point that moves from
+  // waypoint to waypoint on minimum-jerk segments of a duration drawn in segment_s [s], resting hold_s [s] at each
+  // waypoint before it leaves; each episode moves every waypoint by a uniform draw in +- waypoint_jitter [m] per
+  // axis. Target block k of the observation is the reference extrapolated k * lookahead [s] ahead,
+  // p + v tau + 0.5 a tau tau; the reward's distance is to the reference point and its velocity term to the
+  // reference velocity; no progress or reached bonus, no success (the episode runs to truncation).
+  std::vector<double> segment_s{0, 0}, hold_s{0, 0}, waypoint_jitter{0, 0, 0};
+  double lookahead = 0.0;
+  double w_smooth = 0.0;  // per unit of |a - a_prev|^2 (every task)
+  bool reference() const { return task == EnvTask::kWaypoints && segment_s[1] > 0; }
 
   int target_dim() const { return task == EnvTask::kGates ? 6 : 3; }
   int obs_size() const { return n_ahead * target_dim() + 19; }
@@ -98,6 +108,13 @@ class EnvBatch {
   const std::vector<int>& latency() const { return latency_; }
   // Per env, 5 numbers drawn at the last reset: the scales of mass, inertia, k_f, tau_m and drag.
   const std::vector<double>& drawn_scales() const { return scales_; }
+  // Reference mode: env i's reference position, velocity and acceleration (9) at time t [s] of its episode.
+  void reference_at(std::size_t i, double t, double out[9]) const;
+  // Reference mode: env i's waypoints (K x 3) as jittered at its last reset.
+  std::vector<double> waypoints(std::size_t i) const {
+    const std::size_t K = task_.n_targets();
+    return std::vector<double>(wp_.begin() + 3 * K * i, wp_.begin() + 3 * K * (i + 1));
+  }
 
  private:
   struct Rng {
@@ -130,6 +147,9 @@ class EnvBatch {
   std::vector<Rng> rng_;
   std::vector<DynamicsConstants> constants_;  // per env, with physical randomisation only
   std::vector<RateControl> rate_;
+  std::vector<double> wp_, seg_;  // reference mode: per env K x 3 waypoints, (K - 1) x 2 hold and move durations
+  std::vector<double> ref_;       // reference mode: per env p, v, a of the reference at the current step
+  std::vector<double> a_last_;    // the action before a_prev_ (the smoothness penalty)
   std::vector<double> a_prev_, history_, applied_, cmd_, prev_p_, gyro_bias_, noise_std_, scales_;
   std::vector<int> index_, steps_, latency_, head_;
   int ring_ = 1;  // delay-line length: the largest latency + 1

@@ -221,3 +221,34 @@ def test_a_scenario_flies_the_policy_kind_on_the_estimate_through_the_rate_loop(
     assert pc[0].last_action is not None  # it ran
     p = np.asarray(run.result.states["p_W"])
     assert np.all(np.abs(p[:, :2]) < 0.2) and np.all(p[:, 2] < 0.5), (p.min(axis=0), p.max(axis=0))
+
+
+def test_a_timed_reference_policy_sees_the_setpoint_extrapolated_ahead(tmp_path):
+    """A policy trained on a timed reference (lookahead_s in policy.yaml) gets, in target block k, the setpoint
+    moved k * lookahead_s ahead at its velocity and acceleration (p + v tau + a tau^2 / 2, by hand here), as the
+    environment built it in training; without lookahead_s every block is the setpoint itself."""
+    tau = 0.25
+    for lookahead in (tau, 0.0):
+        m = _manifest(n_targets=3, obs_dim=po.observation_size(3, 3), lookahead_s=lookahead)
+        _export(tmp_path, m)
+        sess, manifest, _ = load_policy(tmp_path)
+        assert manifest.lookahead_s == lookahead
+        ctrl = PolicyController(sess, manifest, ActionDecoder(presets.crazyflie(), manifest))
+        ctrl.active_state_topic = Topics.ESTIMATE
+        bus = Bus()
+        view = _step(ctrl, bus, 0.0)
+        p_V = np.array([0.2, 0.1, 1.2])
+        bus.publish(Topics.ESTIMATE, Odometry(0.0, p_V, np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3)))
+        p, v, a = np.array([1.0, 2.0, 1.5]), np.array([0.5, -1.0, 0.0]), np.array([2.0, 0.0, -4.0])
+        bus.publish(Topics.TRAJECTORY_SETPOINT, TrajectorySetpoint(0.0, p, v, a, np.zeros(3), 0.0, 0.0))
+        ctrl.step(0.0, view)
+        blocks = ctrl.last_obs[:9].reshape(3, 3)
+        for k in range(3):
+            t = k * lookahead
+            want = np.array([p[j] + v[j] * t + a[j] * t * t / 2 for j in range(3)]) - p_V
+            np.testing.assert_allclose(blocks[k], want, rtol=0, atol=1e-6)
+
+
+def test_a_negative_lookahead_is_refused_naming_the_field():
+    with pytest.raises(ConfigError, match="lookahead_s"):
+        _manifest(lookahead_s=-0.1)

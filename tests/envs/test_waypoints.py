@@ -61,3 +61,107 @@ def test_progress_towards_the_waypoint_pays_and_away_costs() -> None:
         rewards.append(v.step(np.zeros((1, 4)))[1][0])
     # 1 m/s for 10 ms: about 1 cm of progress either way, worth progress * 0.01 each
     assert rewards[0] - rewards[1] > 2 * 10.0 * 0.009
+
+
+# The timed reference (segment_s): the target moves from waypoint to waypoint on minimum-jerk segments.
+
+_TIMED = {
+    "segment_s": [1.0, 2.0],
+    "hold_s": [0.2, 0.6],
+    "waypoint_jitter_m": [0.3, 0.2, 0.1],
+    "lookahead_s": 0.25,
+    "n_ahead": 3,
+}
+
+
+def _min_jerk(a: np.ndarray, b: np.ndarray, T: float, s: float) -> np.ndarray:
+    """p, v, acc (9,) at time s into a rest-to-rest quintic from a to b in T, its coefficients solved from the six
+    boundary conditions (independent of the closed form the C++ uses)."""
+    M = np.array(
+        [
+            [1, 0, 0, 0, 0, 0],
+            [0, 1, 0, 0, 0, 0],
+            [0, 0, 2, 0, 0, 0],
+            [1, T, T**2, T**3, T**4, T**5],
+            [0, 1, 2 * T, 3 * T**2, 4 * T**3, 5 * T**4],
+            [0, 0, 2, 6 * T, 12 * T**2, 20 * T**3],
+        ]
+    )
+    out = np.empty(9)
+    for j in range(3):
+        c = np.linalg.solve(M, [a[j], 0, 0, b[j], 0, 0])
+        poly = np.polynomial.Polynomial(c)
+        out[j], out[3 + j], out[6 + j] = poly(s), poly.deriv(1)(s), poly.deriv(2)(s)
+    return out
+
+
+def test_timed_reference_rests_then_follows_a_minimum_jerk_segment() -> None:
+    v = gymnasium.make_vec("cufund/Waypoints-v0", num_envs=3, **_TIMED)
+    v.reset(seed=4)
+    for env in range(3):
+        wp = v.waypoints(env)
+        nominal = np.asarray(v.config.targets)
+        assert np.all(np.abs(wp - nominal) <= np.asarray(_TIMED["waypoint_jitter_m"]) + 1e-12)
+        assert np.any(wp != nominal)
+        # the first waypoint is held from t = 0; find where the reference leaves it and arrives at the second
+        ts = np.arange(0.0, 3.0, 1e-3)
+        pos = np.array([v.reference(env, t)[:3] for t in ts])
+        moving = np.linalg.norm(pos - wp[0], axis=1) > 0
+        t_leave = ts[np.argmax(moving)] - 1e-3
+        at_next = np.linalg.norm(pos - wp[1], axis=1) == 0
+        t_arrive = ts[np.argmax(at_next)]
+        assert 0.2 - 2e-3 <= t_leave <= 0.6 + 2e-3 and 1.0 - 2e-3 <= t_arrive - t_leave <= 2.0 + 2e-3
+        T = t_arrive - t_leave
+        for f in (0.1, 0.37, 0.5, 0.8):  # in the middle of the segment: the quintic, to the time grid's resolution
+            got = v.reference(env, t_leave + f * T)
+            want = _min_jerk(wp[0], wp[1], T, f * T)
+            np.testing.assert_allclose(got, want, atol=0.02 * max(1.0, np.abs(want).max()))
+        # long after the last segment: resting at the last waypoint
+        np.testing.assert_array_equal(v.reference(env, 100.0), np.concatenate([wp[-1], np.zeros(6)]))
+
+
+def test_timed_reference_observation_and_reward_by_hand() -> None:
+    from cufund.control import policy_observation as po
+
+    smooth = 0.3
+    v = gymnasium.make_vec(
+        "cufund/Waypoints-v0", num_envs=2, action_mode="thrust_rates", rewards={"smoothness": smooth}, **_TIMED
+    )
+    obs, _ = v.reset(seed=7)
+    a_prev = np.zeros((2, 4))
+    rng = np.random.default_rng(0)
+    w = v.config.rewards
+    for step in range(1, 150):
+        a = rng.uniform(-0.05, 0.05, (2, 4))
+        obs, r, te, tr, _ = v.step(a)
+        assert not te.any() and not tr.any()
+        b = v.batch
+        for env in range(2):
+            ref = v.reference(env, step * v.config.dt)
+            tg = po.lookahead_targets(ref[:3], ref[3:6], ref[6:], 3, _TIMED["lookahead_s"])
+            want_obs = po.build_observation(tg, b.p[env], b.v[env], b.q[env], b.w[env], a[env])
+            np.testing.assert_array_equal(obs[env], want_obs)
+            d = np.linalg.norm(ref[:3] - b.p[env])
+            want = (
+                w.alive
+                - w.position * d
+                - w.velocity * np.linalg.norm(b.v[env] - ref[3:6])
+                - w.rate * np.linalg.norm(b.w[env])
+                - w.action * np.sum(a[env] ** 2)
+                - smooth * np.sum((a[env] - a_prev[env]) ** 2)
+            )
+            assert abs(r[env] - want) < 1e-9
+        a_prev = a
+
+
+def test_timed_reference_is_refused_where_it_means_nothing() -> None:
+    import pytest
+
+    from cufund.core.config import ConfigError
+
+    with pytest.raises(ConfigError, match="segment_s"):
+        gymnasium.make_vec("cufund/Hover-v0", num_envs=1, segment_s=[1.0, 2.0])
+    with pytest.raises(ConfigError, match="segment_s"):
+        gymnasium.make_vec("cufund/Waypoints-v0", num_envs=1, segment_s=[0.0, 2.0])
+    with pytest.raises(ConfigError, match="waypoint_jitter_m"):
+        gymnasium.make_vec("cufund/Waypoints-v0", num_envs=1, waypoint_jitter_m=[0.1, -0.1, 0.0])

@@ -90,6 +90,12 @@ class EnvTaskParams:
     def gyro_white(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
     @property
+    def hold_s(self) -> list[float]:
+        ...
+    @hold_s.setter
+    def hold_s(self, arg0: collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex]) -> None:
+        ...
+    @property
     def inertia(self) -> list[float]:
         ...
     @inertia.setter
@@ -100,6 +106,12 @@ class EnvTaskParams:
         ...
     @latency_steps.setter
     def latency_steps(self, arg0: collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex]) -> None:
+        ...
+    @property
+    def lookahead(self) -> float:
+        ...
+    @lookahead.setter
+    def lookahead(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
     @property
     def mass(self) -> list[float]:
@@ -183,6 +195,12 @@ class EnvTaskParams:
     def reached(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
     @property
+    def segment_s(self) -> list[float]:
+        ...
+    @segment_s.setter
+    def segment_s(self, arg0: collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex]) -> None:
+        ...
+    @property
     def spawn_center(self) -> list[float]:
         ...
     @spawn_center.setter
@@ -261,10 +279,22 @@ class EnvTaskParams:
     def w_rate(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
     @property
+    def w_smooth(self) -> float:
+        ...
+    @w_smooth.setter
+    def w_smooth(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
     def w_velocity(self) -> float:
         ...
     @w_velocity.setter
     def w_velocity(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def waypoint_jitter(self) -> list[float]:
+        ...
+    @waypoint_jitter.setter
+    def waypoint_jitter(self, arg0: collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex]) -> None:
         ...
     @property
     def wind(self) -> list[float]:
@@ -282,6 +312,10 @@ class EnvBatch:
         """
         Ends the episodes of the envs where mask (N,) is True: the next step resets them.
         """
+    def reference(self, env: typing.SupportsInt | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        Reference mode: env's reference p_W, v_W, a_W (9,) at time t [s] of its episode.
+        """
     def reset(self, seed: typing.SupportsInt | typing.SupportsIndex | None = None) -> numpy.typing.NDArray[numpy.float32]:
         """
         Resets every env (seeding env i's stream with seed + i when given); obs.
@@ -289,6 +323,10 @@ class EnvBatch:
     def step(self, actions: typing.Any, nthreads: typing.SupportsInt | typing.SupportsIndex = 0) -> tuple[numpy.typing.NDArray[numpy.float32], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.bool], numpy.typing.NDArray[numpy.bool]]:
         """
         One step of every env: (obs, reward, terminated, truncated); next-step autoreset.
+        """
+    def waypoints(self, env: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        Reference mode: env's waypoints (K, 3) as jittered at its last reset.
         """
     @property
     def batch(self) -> cufund._core.dynamics.QuadrotorBatch:

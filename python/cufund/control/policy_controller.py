@@ -15,7 +15,9 @@ commands as the environments do (:mod:`cufund.control.policy_action`):
 
 Targets (``targets:``): ``setpoint`` (default) puts the latest ``TrajectorySetpoint`` position in every target
 block, so the policy holds a point that moves along the scenario's reference (what a policy sees past the last
-waypoint in training); ``waypoints`` flies the scenario's ``trajectory.waypoints`` as the ``Waypoints`` task does
+waypoint in training); a policy trained on a timed reference (its ``policy.yaml`` has ``lookahead_s`` > 0) gets
+block k the setpoint extrapolated k * lookahead_s ahead from its velocity and acceleration, as in training
+(:func:`cufund.control.policy_observation.lookahead_targets`); ``waypoints`` flies the scenario's ``trajectory.waypoints`` as the ``Waypoints`` task does
 (the next ``n_targets`` in order, the current one counted reached within ``reach_radius``).
 
 The model is refused at build time, naming the field, when its ``policy.yaml`` does not match what this controller
@@ -197,6 +199,8 @@ class PolicyController(Controller):
         sp = bus.latest(Topics.TRAJECTORY_SETPOINT)
         if sp is None:
             return None
+        if self.manifest.lookahead_s > 0:  # a timed-reference policy: the setpoint extrapolated as in training
+            return po.lookahead_targets(sp.p_W, sp.v_W, sp.a_W, k, self.manifest.lookahead_s)
         return np.repeat(np.asarray(sp.p_W, dtype=np.float64)[None, :], k, axis=0)
 
     def update(self, t: float, state: Odometry, bus: BusView) -> None:

@@ -55,6 +55,9 @@ class PolicyManifest:
     """velocity: the velocity loop's gain [1/s] (cufund.envs')."""
     attitude_gain: float = 10.0
     """velocity: the tilt loop's gain [1/s] (cufund.envs')."""
+    lookahead_s: float = 0.0
+    """A timed-reference waypoints policy: target block k is the reference extrapolated k * lookahead_s [s] ahead
+    (the task's; 0: every block the same point)."""
     algo: str = "ppo"
     library: str = "skrl"
     env_steps: int = 0
@@ -71,6 +74,10 @@ class PolicyManifest:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ConfigError(f"policy.yaml: {name} must be a finite number > 0, got {v!r}")
             object.__setattr__(self, name, float(v))
+        v = self.lookahead_s
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            raise ConfigError(f"policy.yaml: lookahead_s must be a finite number >= 0, got {v!r}")
+        object.__setattr__(self, "lookahead_s", float(v))
         for name in ("n_targets", "target_dim", "obs_dim", "act_dim", "seed", "env_steps", "obs_layout_version"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:

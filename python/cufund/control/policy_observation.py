@@ -30,6 +30,7 @@ __all__ = [
     "BASE_SIZE",
     "LAYOUT_VERSION",
     "build_observation",
+    "lookahead_targets",
     "observation_size",
     "rotation_rows",
     "slices",
@@ -118,3 +119,19 @@ def build_observation(
     out[:, sl["w_B"]] = np.atleast_2d(w_B)
     out[:, sl["a_prev"]] = np.atleast_2d(a_prev)
     return out[0] if single else out
+
+
+def lookahead_targets(
+    p_W: np.ndarray, v_W: np.ndarray, a_W: np.ndarray, n_targets: int, lookahead_s: float
+) -> np.ndarray:
+    """The target blocks' points (n_targets, 3) of a timed reference at p_W, v_W, a_W (3,) [m, m/s, m/s^2]: block k
+    is the reference extrapolated tau = k * lookahead_s [s] ahead, ``p + v tau + 0.5 a tau tau`` (in this order, as
+    the environments' C++ computes it)."""
+    p = np.asarray(p_W, dtype=np.float64).reshape(3)
+    v = np.asarray(v_W, dtype=np.float64).reshape(3)
+    a = np.asarray(a_W, dtype=np.float64).reshape(3)
+    out = np.empty((n_targets, 3))
+    for k in range(n_targets):
+        tau = k * lookahead_s
+        out[k] = p + v * tau + 0.5 * a * tau * tau
+    return out

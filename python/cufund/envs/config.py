@@ -113,6 +113,8 @@ class Rewards:
     """On reaching a waypoint or passing a gate []."""
     crash: float = 10.0
     """Subtracted on a crash or leaving the bounds (the step that terminates) []."""
+    smoothness: float = 0.0
+    """Per unit of |a - a_prev|^2, the change of action in the step (0: off) []."""
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -170,6 +172,18 @@ class TaskConfig:
     IMU preset ``imu``, sampled at the env step (``cufund.sensors.noise.ErrorProcess``'s model)."""
     imu: str = "bmi088"
     """The IMU preset whose gyro noise ``imu_noise`` uses (cufund.sensors.imu.IMU_PRESETS)."""
+    segment_s: tuple[float, float] = (0.0, 0.0)
+    """Waypoints with a timed reference: the target is a point moving from waypoint to waypoint on minimum-jerk
+    segments, each taking a duration drawn in [low, high] [s] per episode; [0, 0] (the default) is off (the
+    target switches to the next waypoint on arrival)."""
+    hold_s: tuple[float, float] = (0.0, 0.0)
+    """Timed reference: the rest at each waypoint before the reference leaves it, drawn in [low, high] [s]."""
+    waypoint_jitter_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Timed reference: every waypoint moves by a uniform draw in +- this per axis [m] at each reset (the spawn
+    box moves with the first)."""
+    lookahead_s: float = 0.0
+    """Timed reference: target block k is the reference extrapolated k * lookahead_s ahead, p + v tau + a tau^2 / 2
+    (block 0 the reference itself; the policy controller builds the same from the trajectory setpoint)."""
     rewards: Rewards = field(default_factory=Rewards)
     randomisation: Randomisation = field(default_factory=Randomisation)
 
@@ -211,8 +225,24 @@ class TaskConfig:
             raise ConfigError(f"imu must be an IMU preset ({', '.join(IMU_PRESETS)}), got {self.imu!r}")
         if not isinstance(self.imu_noise, bool):
             raise ConfigError(f"imu_noise must be true or false, got {self.imu_noise!r}")
+        object.__setattr__(self, "segment_s", _range("segment_s", self.segment_s))
+        object.__setattr__(self, "hold_s", _range("hold_s", self.hold_s))
+        object.__setattr__(self, "waypoint_jitter_m", _vec("waypoint_jitter_m", self.waypoint_jitter_m, 3))
+        if any(x < 0 for x in self.waypoint_jitter_m):
+            raise ConfigError(f"waypoint_jitter_m must be >= 0 per axis [m], got {self.waypoint_jitter_m!r}")
+        object.__setattr__(self, "lookahead_s", _positive("lookahead_s", self.lookahead_s, True))
+        if self.timed_reference:
+            if self.task != "waypoints":
+                raise ConfigError(f"segment_s (a timed reference) is for the waypoints task, not {self.task!r}")
+            if self.segment_s[0] <= 0:
+                raise ConfigError(f"segment_s must be [low, high] with 0 < low <= high [s], got {self.segment_s!r}")
         object.__setattr__(self, "rewards", nested(Rewards, self.rewards, "rewards"))
         object.__setattr__(self, "randomisation", nested(Randomisation, self.randomisation, "randomisation"))
+
+    @property
+    def timed_reference(self) -> bool:
+        """True when the waypoints are flown along a timed reference (``segment_s`` not [0, 0])."""
+        return self.segment_s[1] > 0
 
     @property
     def max_steps(self) -> int:

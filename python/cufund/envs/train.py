@@ -47,6 +47,7 @@ __all__ = [
 ]
 
 ALGOS = ("ppo",)
+LR_SCHEDULES = ("constant", "linear", "kl_adaptive")
 
 
 @dataclass(frozen=True)
@@ -79,6 +80,17 @@ class TrainConfig:
     value_loss_scale: float = 1.0
     init_log_std: float = -0.5
     """Initial log standard deviation of the Gaussian policy (per action, in the action's units)."""
+    grad_norm_clip: float = 0.5
+    """Gradients are clipped to this global norm (0: not clipped)."""
+    lr_schedule: str = "constant"
+    """``constant``; ``linear``: from ``learning_rate`` down to ``learning_rate * lr_final`` at the last step (a
+    late update cannot undo what was learned: at a fixed rate, long runs rose, then fell and diverged); or
+    ``kl_adaptive``: skrl's KLAdaptiveLR, the learning rate divided by 1.5 when an update's KL divergence exceeds
+    2 ``kl_threshold`` and multiplied by 1.5 below half of it (within [1e-6, 1e-2])."""
+    lr_final: float = 0.1
+    """``linear``: the last learning rate as a fraction of ``learning_rate``."""
+    kl_threshold: float = 0.008
+    """``kl_adaptive``: the KL divergence the learning rate is steered to."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.task, str) or not self.task:
@@ -109,10 +121,22 @@ class TrainConfig:
             "ratio_clip",
             "value_loss_scale",
             "init_log_std",
+            "grad_norm_clip",
+            "kl_threshold",
+            "lr_final",
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ConfigError(f"train.{name} must be a finite number, got {v!r}")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ConfigError(f"train.lr_schedule must be one of {list(LR_SCHEDULES)}, got {self.lr_schedule!r}")
+        if not 0 < self.lr_final <= 1:
+            raise ConfigError(f"train.lr_final must be in (0, 1], got {self.lr_final!r}")
+        if self.grad_norm_clip < 0 or self.kl_threshold <= 0:
+            raise ConfigError(
+                f"train.grad_norm_clip must be >= 0 and train.kl_threshold > 0, got {self.grad_norm_clip!r}, "
+                f"{self.kl_threshold!r}"
+            )
         if not 0 < self.learning_rate < 1:
             raise ConfigError(f"train.learning_rate must be in (0, 1), got {self.learning_rate!r}")
         if not 0 <= self.discount_factor <= 1 or not 0 <= self.gae_lambda <= 1:
@@ -307,6 +331,7 @@ def train(
     from skrl.envs.wrappers.jax import wrap_env
     from skrl.memories.jax import RandomMemory
     from skrl.resources.preprocessors.jax import RunningStandardScaler
+    from skrl.resources.schedulers.jax import KLAdaptiveLR
     from skrl.trainers.jax import SequentialTrainer
 
     say = log or (lambda _s: None)
@@ -328,6 +353,15 @@ def train(
     device = env.device
     models = _models(env.observation_space, env.action_space, device, cfg.hidden, cfg.init_log_std)
     memory = RandomMemory(memory_size=cfg.rollouts, num_envs=env.num_envs, device=device)
+    timesteps = -(-cfg.steps // cfg.num_envs)
+    scheduler: Any = None
+    scheduler_kwargs: Any = {}
+    if cfg.lr_schedule == "kl_adaptive":
+        scheduler, scheduler_kwargs = KLAdaptiveLR, {"kl_threshold": cfg.kl_threshold}
+    elif cfg.lr_schedule == "linear":  # one schedule per network (each keeps its own state)
+        scheduler = (linear_lr, linear_lr)
+        kw = {"total": timesteps, "final": cfg.lr_final}
+        scheduler_kwargs = (kw, dict(kw))
     agent_cfg = PPO_CFG(
         rollouts=cfg.rollouts,
         learning_epochs=cfg.learning_epochs,
@@ -339,6 +373,9 @@ def train(
         value_clip=cfg.ratio_clip,
         entropy_loss_scale=cfg.entropy_loss_scale,
         value_loss_scale=cfg.value_loss_scale,
+        grad_norm_clip=cfg.grad_norm_clip,
+        learning_rate_scheduler=scheduler,
+        learning_rate_scheduler_kwargs=scheduler_kwargs,
         time_limit_bootstrap=True,
         observation_preprocessor=RunningStandardScaler,
         observation_preprocessor_kwargs={"size": env.observation_space, "device": device},
@@ -356,7 +393,6 @@ def train(
         device=device,
         cfg=agent_cfg,
     )
-    timesteps = -(-cfg.steps // cfg.num_envs)
     trainer = SequentialTrainer(
         env=env,
         agents=agent,
@@ -403,6 +439,7 @@ def train(
         max_speed=float(task.max_speed),
         velocity_gain=float(flown.velocity_gain),
         attitude_gain=float(flown.attitude_gain),
+        lookahead_s=float(task.lookahead_s) if task.timed_reference else 0.0,
         algo=cfg.algo,
         library=f"skrl {_skrl().__version__} (JAX)",
         env_steps=env_steps,
@@ -430,6 +467,20 @@ def train(
     )
     venv.close()
     return result, agent
+
+
+def linear_lr(*, total: int, final: float) -> Callable[[int], float]:
+    """A learning-rate schedule for skrl's agents, which multiply their rate by the schedule's value after every
+    update: the ratio that takes the rate along ``1 - (1 - final) t / total`` (t the trainer's timestep)."""
+    state = {"f": 1.0}
+
+    def schedule(timestep: int) -> float:
+        f = max(final, 1.0 - (1.0 - final) * (timestep + 1) / max(total, 1))
+        ratio = f / state["f"]
+        state["f"] = f
+        return ratio
+
+    return schedule
 
 
 def _skrl() -> Any:

@@ -68,6 +68,9 @@ def task_params(cfg: TaskConfig) -> Any:
     r = cfg.rewards
     t.w_position, t.w_velocity, t.w_rate, t.w_action = r.position, r.velocity, r.rate, r.action
     t.alive, t.progress, t.reached, t.crash = r.alive, r.progress, r.reached, r.crash
+    t.w_smooth = r.smoothness
+    t.segment_s, t.hold_s = list(cfg.segment_s), list(cfg.hold_s)
+    t.waypoint_jitter, t.lookahead = list(cfg.waypoint_jitter_m), cfg.lookahead_s
     d = cfg.randomisation
     t.mass, t.inertia, t.motor_constant, t.motor_lag = (
         list(d.mass),
@@ -160,6 +163,15 @@ class CufundVectorEnv(VectorEnv):
         """Per env, the index of the current target (waypoint or gate)."""
         return np.asarray(self._core.target_index)
 
+    def reference(self, env: int, t: float) -> np.ndarray:
+        """A timed-reference waypoints task: env ``env``'s reference p_W, v_W, a_W (9,) at time ``t`` [s] of its
+        episode."""
+        return np.asarray(self._core.reference(int(env), float(t)))
+
+    def waypoints(self, env: int) -> np.ndarray:
+        """A timed-reference waypoints task: env ``env``'s waypoints (K, 3) as moved at its last reset."""
+        return np.asarray(self._core.waypoints(int(env)))
+
 
 class HoverEnv(CufundVectorEnv):
     """Hover-v0: hold the point ``c = targets[0]`` (default (0, 0, 1) m, a Crazyflie).
@@ -190,6 +202,16 @@ class WaypointsEnv(CufundVectorEnv):
 
     Terminated: reaching the last waypoint (a success), or a crash (d > ``bound_m``, z < ``crash_z``, non-finite).
     Truncated after ``episode_s * control_hz`` steps.
+
+    With a timed reference (``segment_s`` not [0, 0]), the target is a point r(t) that rests ``hold_s`` at each
+    waypoint (each moved by +- ``waypoint_jitter_m`` per episode) and moves on to the next on a minimum-jerk segment
+    of ``segment_s``; target block k is r + v_r tau + a_r tau^2 / 2 with tau = k * ``lookahead_s``
+    (:func:`cufund.control.policy_observation.lookahead_targets`), and with d = |r - p_W|::
+
+        r = alive - position * d - velocity * |v_W - v_r| - rate * |w_B| - action * |a|^2 [- crash on a crash]
+
+    no progress or reached terms, no success: the episode runs to truncation. ``rewards.smoothness`` (every task)
+    subtracts smoothness * |a - a_prev|^2.
     """
 
     task_name = "waypoints"
