@@ -29,6 +29,7 @@ from cufund.core.topics import is_truth
 from cufund.missions.tunnel_course import TunnelCourse
 from cufund.scenarios import load_scenario
 from cufund.scenarios.build import ScenarioBuildContext, build_simulation
+from cufund.scenarios.fleet import build_fleet
 from cufund.simulator import Simulator
 from cufund.vehicle.quadrotor import Quadrotor
 from cufund.worlds.collision import CollisionChecker
@@ -43,6 +44,7 @@ SCENARIOS = [
     "tunnel",
     "vehicle_lio",
     "square_vio",
+    "fleet_formation:uav2",  # a formation follower, flown in its fleet (it hears the leader's estimate)
 ]
 
 TRUTH_TYPES = (
@@ -115,6 +117,11 @@ def _truth_held(root: Any, limit: int = 200_000) -> list[str]:
 
 @pytest.fixture(scope="module", params=SCENARIOS)
 def built(request):
+    name, _, vehicle = request.param.partition(":")
+    if vehicle:  # one vehicle of a fleet, built and run with the others
+        fleet = build_fleet(load_scenario(name))
+        fleet.simulator.run(2.0)
+        return fleet.vehicle(vehicle).built
     b = build_simulation(load_scenario(request.param))
     b.simulator.run(2.0)
     return b

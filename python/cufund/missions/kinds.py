@@ -106,4 +106,5 @@ _tunnel_course_kind()
 BUILTIN.setdefault("tunnel_course", tunnel_course)  # worlds.load("tunnel_course", seed=...)
 
 from . import fleet_mission  # noqa: E402, F401  (registers the mission kind fleet, which flies through the commander)
+from . import formation_follower as _formation_follower  # noqa: E402, F401  (registers the planner kind)
 from . import search as _search  # noqa: E402, F401  (registers the mission kind search)

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from cufund.core.config import ConfigError
+from cufund.missions.formation_link import connect_formation_links
 from cufund.simulator import RunStatus
 from cufund.simulator.fleet import FleetMember, FleetSimulator, namespaced
 
@@ -240,7 +241,7 @@ def build_fleet(config: ScenarioConfig, until_done: bool = True) -> Fleet:
         )
         vehicles.append(FleetVehicle(spec.name, built))
     sim = FleetSimulator(members, world, config.downwash)
-    return Fleet(config, vehicles, sim)
+    return connect_formation_links(Fleet(config, vehicles, sim))  # followers hear their leaders' estimates
 
 
 def run_fleet(config: ScenarioConfig, duration: float | None = None) -> FleetRun:
