@@ -227,6 +227,10 @@ def run_fleet_into_folder(
         if logger is not None:
             logger.close()
     _write_metrics(run.metrics, out)
+    if plots:  # fleet.png: every vehicle in one top view, and the separations over time
+        from cufund.viz.fleet_plot import write_fleet_figure
+
+        write_fleet_figure(run, out)
     for name, vrun in run.runs.items():
         write_run_folder(vrun, out / name, plots=plots, replay=replay)
     return run
