@@ -35,6 +35,8 @@ def _detector(ctx: BuildContext, p: TunnelMissionParams, start: np.ndarray) -> A
     and ordering them from the pad."""
     from cufund.perception import TunnelDetector, TunnelDetectorParams
 
+    if ctx.config.perception is not None and ctx.config.perception.kind == "camera":
+        return None  # the perception part publishes the frames from the cameras (perception/camera_tunnel*.py)
     _, lidar = ctx.sensor_of_type("lidar", "", "mission")
     return TunnelDetector(
         TunnelDetectorParams(), T_BL=lidar.extrinsic, cloud_topic=lidar.topic, expected=p.frames, origin_W=start
@@ -70,7 +72,7 @@ def _tunnel(p: TunnelMissionParams, ctx: BuildContext) -> list[Any]:
         commander.attach_mission(mission)
         ctx.add_metric_hook(lambda result: tunnel_metrics(result, mission, course) if mission.t_end is not None else {})
         detector = _detector(ctx, p, start)
-        return [detector, mission]
+        return [c for c in (detector, mission) if c is not None]
     mission = TunnelMission(p, start, yaw=0.0)
     follower = TrajectoryFollower(
         mission.initial, rate_hz=cfg.rates.trajectory_hz, block=32, update_topic=Topics.TRAJECTORY_UPDATE
@@ -89,7 +91,7 @@ def _tunnel(p: TunnelMissionParams, ctx: BuildContext) -> list[Any]:
     ctx.add_metric_hook(lambda result: tunnel_metrics(result, mission, course))
     detector = _detector(ctx, p, start)
     ctx.add_output_hook(lambda run, out, **kw: write_tunnel_outputs(run, out, mission, course, detector, **kw))
-    return [detector, mission, follower]
+    return [c for c in (detector, mission, follower) if c is not None]
 
 
 register(

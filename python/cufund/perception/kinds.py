@@ -147,3 +147,5 @@ register(
 )
 
 __all__ = ["OnnxDetectorParams"]
+
+from . import camera_tunnel_kind  # noqa: E402, F401  (registers the perception kind camera: the camera-only tunnel)

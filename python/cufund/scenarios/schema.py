@@ -400,6 +400,9 @@ class ScenarioConfig:
         if dup:
             raise ConfigError(f"sensors: two sensors publish on {dup[0]}; give one a different topic")
         object.__setattr__(self, "sensors", parsed)
+        from .camera_tunnel import camera_only
+
+        camera_only(self, parse_part)  # perception: camera -> no LiDAR, a forward stereo rig
         object.__setattr__(self, "trajectory", nested(TrajectoryConfig, self.trajectory, "trajectory"))
         object.__setattr__(self, "rates", nested(RatesConfig, self.rates, "rates"))
         object.__setattr__(self, "log", nested(LogConfig, self.log, "log"))

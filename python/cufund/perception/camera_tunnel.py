@@ -1,0 +1,236 @@
+"""A tunnel frame's opening from a rectified stereo pair and its 2-D box in the left image (issue 26, item 4a).
+
+A frame's box (pixel edges, as a detector gives it) has the frame's vertical bars along its left and right
+edges. Each bar's disparity is found by matching its strip (the bar and two pixels right of it, over the middle
+70 % of the box's rows; the pixels left of a bar are hidden by it in the right image) along the same rows of the
+right image
+(:func:`~cufund.perception.stereo_depth.box_disparities`: normalised cross-correlation, sub-pixel), over the
+disparities a frame of the box's height can have (an opening between ``min_opening`` and ``max_opening``), and
+matched back from the right image into the left (a left-right check): the frames' bars are plain and alike, and
+a dense matcher confuses one with another. With z = fx B / d, the box's left and right edges at its middle
+row become the bars' outer faces in the camera frame, and in the world frame with the body pose given (the
+estimate at the image's stamp, never the truth). The frame stands upright: its plane's normal is horizontal,
+across the line between the two faces. The box's top and bottom edges (on the nearer bar's column, whose corner
+is the box's top) meet the faces' plane at the frame's outer top and bottom, so the opening's size is the outer
+size less two bars, and its centre the middle of the four points moved half a bar (the bars' depth) along the
+normal.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cufund.core.config import ConfigError
+from cufund.geometry import Transform
+from cufund.sensors.camera import R_CO, CameraIntrinsics
+
+from .stereo_depth import box_disparities
+
+__all__ = ["CameraTunnelParams", "FrameMeasurement", "frame_from_box"]
+
+
+@dataclass(frozen=True)
+class CameraTunnelParams:
+    """How frames are measured from a stereo pair. Lengths [m], pixels [px]."""
+
+    bar: float = 0.05
+    """Thickness and depth of the frames' bars (the competition's rules) [m]."""
+    max_disparity: int = 96
+    """Largest disparity searched [px] (the nearest frame measured is fx B / max_disparity away)."""
+    edge_margin_px: float = 2.0
+    """A box within this of the image's border is truncated: not measured [px]."""
+    min_box_px: float = 16.0
+    """Smallest box side measured [px]."""
+    band: float = 0.1
+    """Width of the strip matched inside each vertical edge, as a share of the box's width (at least 4 px) [-]."""
+    max_range: float = 6.0
+    """Frames farther than this are not measured (the depth's noise grows as its square) [m]."""
+    max_yaw_deg: float = 60.0
+    """A frame measured turned by more than this from the camera's view is taken for a mismatch [deg]."""
+    min_opening: float = 0.3
+    """Smallest opening width or height measured (the rules' 0.5 m less a margin) [m]. With ``max_opening`` it
+    bounds the disparity searched: a box ``h`` px tall is a frame fy (opening + 2 bars) / h away."""
+    max_opening: float = 2.0
+    """Largest opening width or height measured (the rules' 1.5 m and a margin) [m]."""
+
+    def __post_init__(self) -> None:
+        for name in ("bar", "edge_margin_px", "min_box_px", "band", "max_range", "max_yaw_deg", "min_opening"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ConfigError(f"perception.{name} must be a finite number >= 0, got {v!r}")
+        if not 0.0 < self.band <= 0.5:
+            raise ConfigError(f"perception.band must be in (0, 0.5] (a share of the box's width), got {self.band!r}")
+        if not self.min_opening < self.max_opening <= 100.0 or self.max_yaw_deg >= 90.0:
+            raise ConfigError(
+                f"perception: need min_opening < max_opening <= 100 m and max_yaw_deg < 90, got {self.min_opening}, "
+                f"{self.max_opening}, {self.max_yaw_deg}"
+            )
+        if self.bar <= 0 or self.max_range <= 0:
+            raise ConfigError(
+                f"perception.bar and perception.max_range must be > 0 [m], got {self.bar}, {self.max_range}"
+            )
+        v = self.max_disparity
+        if isinstance(v, bool) or not isinstance(v, int) or not 2 <= v <= 4096:
+            raise ConfigError(f"perception.max_disparity must be an integer in [2, 4096] [px], got {v!r}")
+
+
+@dataclass(frozen=True)
+class FrameMeasurement:
+    """One frame measured in one stereo pair, in the world frame of the pose given."""
+
+    centre_W: np.ndarray
+    """(3,) the opening's centre [m]."""
+    normal_W: np.ndarray
+    """(3,) unit horizontal normal of the frame's plane, pointing away from the camera [-]."""
+    width: float
+    """Opening width [m]."""
+    height: float
+    """Opening height [m]."""
+    depth: float
+    """Mean distance of the two bars from the camera along its optical axis [m]."""
+    points_W: np.ndarray
+    """(4, 3) the frame's outer left, right, top and bottom points found [m]."""
+
+
+_LR_TOLERANCE_PX = 1.0
+"""Largest difference between a strip's disparity and its match's matched back [px]."""
+_RIGHT_PX = 2.0
+"""Pixels right of each bar in its strip (the bar's right edge; what lies just left of a bar in the left image is
+hidden by it in the right image, so no pixel left of a bar is matched)."""
+
+
+def _bar_strips(box: tuple[float, float, float, float], band_px: tuple[float, float]) -> np.ndarray:
+    """Boxes whose middle halves (what :func:`~.stereo_depth.box_disparities` matches) are the strips of the box's
+    left and right bars: ``band_px`` (left, right) wide inside the box's edge and ``_RIGHT_PX`` right of the bar,
+    over the middle 70 % of the box's rows."""
+    u0, v0, u1, v1 = box
+    cv, hh = 0.5 * (v0 + v1), 0.35 * (v1 - v0)
+    out = []
+    for a, b in ((u0, u0 + band_px[0] + _RIGHT_PX), (u1 - band_px[1], u1 + _RIGHT_PX)):
+        cu, hw = 0.5 * (a + b), 0.5 * (b - a)
+        out.append((cu - 2 * hw, cv - 2 * hh, cu + 2 * hw, cv + 2 * hh))
+    return np.array(out)
+
+
+def _match(
+    left: np.ndarray, right: np.ndarray, strips: np.ndarray, span: tuple[float, float], check: bool = True
+) -> tuple[float, float] | None:
+    """The disparities of the two strips searched over ``span`` (min, max) [px] only: the right image shifted by
+    the least disparity, :func:`~.stereo_depth.box_disparities` over the rest. None if either finds no match
+    (also at an end of the span)."""
+    lo, hi = max(int(math.floor(span[0])) - 2, 0), int(math.ceil(span[1])) + 2  # a peak at an end is refused
+    if hi - lo < 2:
+        return None
+    shifted = np.zeros_like(np.asarray(right))
+    shifted[:, lo:] = np.asarray(right)[:, : shifted.shape[1] - lo]  # disparity d in right is d - lo in shifted
+    disp, ok = box_disparities(left, shifted, strips, hi - lo)
+    if not np.all(ok):
+        return None
+    d = disp + lo
+    if not check:
+        return float(d[0]), float(d[1])
+    # left-right check: each strip's match in the right image, matched back into the left one (both mirrored, so
+    # the right image is the left of the pair), must come back to the strip (plain bars repeat)
+    w = np.asarray(left).shape[1]
+    back = np.stack([w - (strips[:, 2] - d), strips[:, 1], w - (strips[:, 0] - d), strips[:, 3]], axis=1)
+    rev, ok = box_disparities(np.asarray(right)[:, ::-1], np.asarray(left)[:, ::-1], back, hi + 2)
+    if check and (not np.all(ok) or np.any(np.abs(rev - d) > _LR_TOLERANCE_PX)):
+        return None
+    return float(d[0]), float(d[1])
+
+
+def frame_from_box(
+    box_xyxy: np.ndarray,
+    left: np.ndarray,
+    right: np.ndarray,
+    K: CameraIntrinsics,
+    baseline: float,
+    T_BC: Transform,
+    p_WB: np.ndarray,
+    R_WB: np.ndarray,
+    params: CameraTunnelParams | None = None,
+) -> FrameMeasurement | None:
+    """The frame in the box ``box_xyxy`` (u_min, v_min, u_max, v_max pixel edges of the ``left`` image) from the
+    rectified pair (``left``, ``right``), the left camera ``K`` mounted at ``T_BC`` (the right one ``baseline``
+    [m] to its right), the body at ``p_WB``, ``R_WB``. None when the box is truncated by the image's border, too
+    small, too far, seen edge-on, or either bar's strip finds no match in the right image."""
+    p = CameraTunnelParams() if params is None else params
+    h, w = np.asarray(left).shape[:2]
+    u0, v0, u1, v1 = (float(x) for x in np.asarray(box_xyxy, dtype=float).reshape(4))
+    m = p.edge_margin_px
+    if not all(math.isfinite(x) for x in (u0, v0, u1, v1)):
+        return None
+    if u0 < m or v0 < m or u1 > w - m or v1 > h - m or min(u1 - u0, v1 - v0) < p.min_box_px:
+        return None
+    # the frame's outer height is 2 bars more than an opening in [min_opening, max_opening]: the disparity of a box
+    # (v1 - v0) px tall lies in B (v1 - v0) / outer height (plain bars repeat: elsewhere they match as well)
+    span = (
+        baseline * (v1 - v0) * K.fx / K.fy / (p.max_opening + 2 * p.bar),
+        min(baseline * (v1 - v0) * K.fx / K.fy / (p.min_opening + 2 * p.bar), float(p.max_disparity)),
+    )
+    band = max(4.0, p.band * (u1 - u0))
+    disp = _match(left, right, _bar_strips((u0, v0, u1, v1), (band, band)), span, check=False)  # coarse
+    if disp is None:
+        return None
+    # again on the bars alone (their width in pixels at the depth found, fx bar / z = d bar / B): what is seen
+    # through the opening, farther, no longer pulls the match; checked left-right
+    bars = (max(3.0, disp[0] * p.bar / baseline), max(3.0, disp[1] * p.bar / baseline))
+    disp = _match(left, right, _bar_strips((u0, v0, u1, v1), bars), span)
+    if disp is None:
+        return None
+    z_left, z_right = (K.fx * baseline / float(d) for d in disp)
+    depth = 0.5 * (z_left + z_right)
+    if depth > p.max_range:
+        return None
+    R_WO = R_WB @ T_BC.R @ R_CO
+    o_W = np.asarray(p_WB, dtype=float) + R_WB @ np.asarray(T_BC.t, dtype=float)
+
+    def ray(u: float, v: float) -> np.ndarray:
+        return R_WO @ np.array([(u - K.cx) / K.fx, (v - K.cy) / K.fy, 1.0])  # z = 1 along the optical axis
+
+    vm = 0.5 * (v0 + v1)
+    e_left, e_right = o_W + z_left * ray(u0, vm), o_W + z_right * ray(u1, vm)  # the bars' outer faces
+    across = e_right - e_left
+    across[2] = 0.0
+    if np.linalg.norm(across) < 1e-6:
+        return None
+    across /= np.linalg.norm(across)
+    n = np.array([across[1], -across[0], 0.0])  # horizontal, across the line left bar -> right bar
+    view = R_WO[:, 2].copy()
+    view[2] = 0.0
+    if float(n @ view) < 0:
+        n = -n
+    offset = 0.5 * float((e_left + e_right) @ n)  # the plane of the bars' faces (the box's edges are theirs)
+
+    def on_plane(u: float, v: float) -> np.ndarray | None:
+        r = ray(u, v)
+        if float(r @ n) <= 0.05 * float(np.linalg.norm(r)):  # seen edge-on
+            return None
+        return o_W + (offset - float(o_W @ n)) / float(r @ n) * r
+
+    u_near = u0 if z_left <= z_right else u1  # the nearer side's corner is the box's top (and bottom) edge
+    corners = [on_plane(u0, vm), on_plane(u1, vm), on_plane(u_near, v0), on_plane(u_near, v1)]
+    if any(c is None for c in corners):
+        return None
+    el, er, top, bottom = (np.asarray(c) for c in corners)
+    if (
+        float(np.degrees(np.arccos(min(1.0, abs(float(n @ view)) / max(float(np.linalg.norm(view)), 1e-12)))))
+        > p.max_yaw_deg
+    ):
+        return None  # the two bars' depths disagree more than a frame turned by max_yaw_deg: a mismatch
+    centre = 0.5 * (el + er) + 0.5 * p.bar * n  # the frame's plane: half a bar behind its faces
+    centre[2] = 0.5 * (top[2] + bottom[2])
+    width, height = float(np.linalg.norm((er - el)[:2])) - 2 * p.bar, float(top[2] - bottom[2]) - 2 * p.bar
+    if not (p.min_opening <= width <= p.max_opening and p.min_opening <= height <= p.max_opening):
+        return None
+    return FrameMeasurement(
+        centre_W=centre,
+        normal_W=n,
+        width=width,
+        height=height,
+        depth=depth,
+        points_W=np.stack([el, er, top, bottom]),
+    )
