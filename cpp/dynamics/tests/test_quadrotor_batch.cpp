@@ -304,5 +304,66 @@ TEST(QuadrotorBatch, ConcurrentStepsFromManyThreadsEqualTheSameStepsInSequence) 
   }
 }
 
+// step_batches: several batches (each its own step length, a fleet's vehicles) in one call equal each batch's own
+// step bit for bit, on any thread count; a failing batch is named and the others are still stepped.
+TEST(QuadrotorBatch, StepBatchesIsEachBatchsOwnStep) {
+  const std::vector<std::size_t> sizes = {1, 3, 1, 2};
+  const std::vector<double> dts = {1e-3, 2.5e-4, 7e-3, 1e-3};
+  auto make = [&](std::vector<B>& out) {
+    for (std::size_t k = 0; k < sizes.size(); ++k) {
+      out.emplace_back(small_quad(), sizes[k]);
+      for (std::size_t i = 0; i < sizes[k]; ++i) {
+        set_row(out[k], B::kP, {0.1 * k, -0.2 * i, 5.0}, i);
+        set_row(out[k], B::kW, {0.3 * i, 0.1 * k, -0.2}, i);
+      }
+    }
+  };
+  for (int nthreads : {1, 2, 0}) {
+    std::vector<B> together, alone;
+    together.reserve(sizes.size());
+    alone.reserve(sizes.size());
+    make(together);
+    make(alone);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(0.8, 1.2);
+    const double w = together[0].hover_rotor_speed();
+    for (int s = 0; s < 30; ++s) {
+      std::vector<std::vector<double>> cmds(sizes.size());
+      std::vector<BatchStep> steps;
+      for (std::size_t k = 0; k < sizes.size(); ++k) {
+        for (std::size_t j = 0; j < 4 * sizes[k]; ++j) cmds[k].push_back(w * u(rng));
+        steps.push_back({&together[k], dts[k], cmds[k].data()});
+      }
+      ASSERT_EQ(step_batches(steps.data(), steps.size(), nthreads).status, StepStatus::kOk);
+      for (std::size_t k = 0; k < sizes.size(); ++k) {
+        ASSERT_EQ(alone[k].step(dts[k], cmds[k].data(), 1).status, StepStatus::kOk);
+      }
+    }
+    for (std::size_t k = 0; k < sizes.size(); ++k) {
+      EXPECT_EQ(together[k].time(), alone[k].time());
+      for (int r = 0; r < B::kRows; ++r) {
+        for (std::size_t i = 0; i < sizes[k]; ++i) {
+          ASSERT_EQ(std::memcmp(&together[k].row(r)[i], &alone[k].row(r)[i], sizeof(double)), 0)
+              << "threads " << nthreads << " batch " << k << " row " << r << " vehicle " << i;
+        }
+      }
+    }
+  }
+  B a(small_quad(), 1), b(small_quad(), 1);
+  set_row(a, B::kP, {0.0, 0.0, 5.0});
+  set_row(b, B::kP, {0.0, 0.0, 5.0});
+  const std::vector<double> good(4, a.hover_rotor_speed());
+  std::vector<double> bad = good;
+  bad[2] = std::nan("");
+  const BatchStep steps[] = {{&a, 1e-3, good.data()}, {&b, 1e-3, bad.data()}};
+  std::size_t failed = 99;
+  const StepResult r = step_batches(steps, 2, 1, &failed);
+  EXPECT_EQ(r.status, StepStatus::kNonFiniteCommand);
+  EXPECT_EQ(r.index, 2);
+  EXPECT_EQ(failed, 1u);
+  EXPECT_EQ(a.time(), 1e-3);  // the good one stepped
+  EXPECT_EQ(b.time(), 0.0);
+}
+
 }  // namespace
 }  // namespace cufund
