@@ -20,6 +20,7 @@ along-track (the leader's heading, + ahead) and cross-track (+ left) parts and t
 from __future__ import annotations
 
 import math
+from array import array
 from typing import Any
 
 import numpy as np
@@ -79,7 +80,8 @@ class FormationLink:
         self._buses: tuple[Any, Any] | None = None
         self.view: BusView | None = None
         self.sent = 0
-        self._rows: list[tuple[float, Any, Any, Any]] = []
+        self._rows = array("d")
+        """11 doubles per interaction instant: t, the leader's true p (3) and q (4), the follower's true p (3)."""
 
     def __call__(self, t: float) -> None:
         lb, fb = self._leader.bus, self._follower.bus
@@ -91,7 +93,7 @@ class FormationLink:
             self.view = BusView(lb, f"formation_link:{self.follower_name}", [Topics.ESTIMATE], [], deny_truth=True)
             self._next_ns = now
             self.sent = 0
-            self._rows = []
+            self._rows = array("d")
         if now >= self._next_ns:
             msg = self.view.latest(Topics.ESTIMATE)  # type: ignore[union-attr]
             if msg is not None:
@@ -100,7 +102,10 @@ class FormationLink:
             while self._next_ns <= now:
                 self._next_ns += self._period_ns
         ls, fs = self._leader.simulator.vehicle.state, self._follower.simulator.vehicle.state  # harness: metrics
-        self._rows.append((t, np.array(ls.p), np.array(ls.q), np.array(fs.p)))
+        self._rows.append(t)
+        self._rows.extend(ls.p)
+        self._rows.extend(ls.q)
+        self._rows.extend(fs.p)
 
     def metrics(self, result: Any = None) -> dict[str, Any]:
         """The follower's formation figures (see the module doc)."""
@@ -112,9 +117,10 @@ class FormationLink:
             "formation_error_along_mean_m": None,
             "formation_error_cross_mean_m": None,
         }
-        if not self._rows:
+        s = self.samples()
+        if not len(s["t"]):
             return out
-        _, p_L, q_L, p_F = (np.array(c) for c in zip(*self._rows, strict=True))
+        p_L, q_L, p_F = s["p_L"], s["q_L"], s["p_F"]
         flying = p_L[:, 2] > self.params.airborne_height_m
         if not flying.any():
             return out
@@ -130,10 +136,8 @@ class FormationLink:
 
     def samples(self) -> dict[str, np.ndarray]:
         """The recorded instants: ``t`` (K,) [s], ``p_L``, ``q_L``, ``p_F`` (K, 3 or 4), truth (for tests, plots)."""
-        if not self._rows:
-            return {"t": np.zeros(0), "p_L": np.zeros((0, 3)), "q_L": np.zeros((0, 4)), "p_F": np.zeros((0, 3))}
-        t, p_L, q_L, p_F = (np.array(c) for c in zip(*self._rows, strict=True))
-        return {"t": t, "p_L": p_L, "q_L": q_L, "p_F": p_F}
+        rows = np.frombuffer(self._rows, dtype=float).reshape(-1, 11).copy()
+        return {"t": rows[:, 0], "p_L": rows[:, 1:4], "q_L": rows[:, 4:8], "p_F": rows[:, 8:11]}
 
 
 def connect_formation_links(fleet: Any) -> Any:
