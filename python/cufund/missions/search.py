@@ -61,6 +61,12 @@ class SearchParams:
     """Peak yaw rate of the turns between legs [rad/s]."""
     target: str = "person"
     """The class searched for (a name of the detector's model)."""
+    max_height_m: float = 1.6
+    """Detections placed higher than this above the take-off point are ignored [m]: people stand or lie on the
+    ground (a flat area is assumed; a standing person's box centre is about 0.9 m up), while a box whose middle
+    shows a trunk in front of the person is placed on the trunk, nearer and so higher along the ray."""
+    min_height_m: float = -0.5
+    """Detections placed lower than this (below the ground) are ignored [m]."""
     tracks: SearchTrackParams = SearchTrackParams()
     """Association and two-view confirmation (:class:`~cufund.missions.search_tracks.SearchTrackParams`)."""
     match_m: float = 2.0
@@ -71,10 +77,14 @@ class SearchParams:
             object.__setattr__(self, "area", tuple(tuple(float(c) for c in v) for v in check_polygon(self.area)))
         except (TypeError, ValueError) as e:
             raise ConfigError(f"mission.area: {e}") from None
-        for name in ("altitude", "spacing", "v_max", "a_max", "j_max", "climb_v_max", "yaw_rate", "match_m"):
+        names = ("altitude", "spacing", "v_max", "a_max", "j_max", "climb_v_max", "yaw_rate", "match_m", "max_height_m")
+        for name in names:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ConfigError(f"mission.{name} must be a finite number > 0, got {v!r}")
+        v = self.min_height_m
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not -1e3 < v < self.max_height_m:
+            raise ConfigError(f"mission.min_height_m must be a number below max_height_m [m], got {v!r}")
         h = self.heading
         if h is not None and (isinstance(h, bool) or not isinstance(h, (int, float)) or not math.isfinite(h)):
             raise ConfigError(f"mission.heading must be an angle [rad] or null, got {h!r}")
@@ -195,14 +205,22 @@ def search_reference(p: SearchParams, start_W: np.ndarray, yaw0: float = 0.0) ->
 
 
 class SearchMission(Component):
-    """Flight software: each ``Detections3D`` of class ``target`` (scored at least ``tracks.min_score``) goes to
-    the :class:`~cufund.missions.search_tracks.SearchTracker` with the camera's position at its capture time taken
+    """Flight software: each ``Detections3D`` of class ``target`` (scored at least ``tracks.min_score``, placed
+    between ``min_height_m`` and ``max_height_m`` above ``ground_z``, the take-off point's height) goes to the
+    :class:`~cufund.missions.search_tracks.SearchTracker` with the camera's position at its capture time taken
     from the estimate (the body's position; the camera sits centimetres from it)."""
 
     name = "search_mission"
 
-    def __init__(self, params: SearchParams, state_topic: str = Topics.ESTIMATE, rate_hz: float = 20.0) -> None:
+    def __init__(
+        self,
+        params: SearchParams,
+        ground_z: float = 0.0,
+        state_topic: str = Topics.ESTIMATE,
+        rate_hz: float = 20.0,
+    ) -> None:
         self.params = params
+        self.ground_z = float(ground_z)
         self.state_topic = state_topic
         self.rate_hz = float(rate_hz)
         self.inputs = (Topics.DETECTIONS_3D, state_topic)
@@ -239,7 +257,12 @@ class SearchMission(Component):
                 continue
             k = names.index(self.params.target)
             for p_W, cls, score in zip(msg.centres_W, msg.class_ids, msg.scores, strict=True):
-                if int(cls) == k and float(score) >= self.params.tracks.min_score and np.all(np.isfinite(p_W)):
+                if (
+                    int(cls) == k
+                    and float(score) >= self.params.tracks.min_score
+                    and np.all(np.isfinite(p_W))
+                    and self.params.min_height_m <= p_W[2] - self.ground_z <= self.params.max_height_m
+                ):
                     self.tracker.add(msg.t, p_W, camera)
                     self.detections += 1
 
@@ -276,7 +299,7 @@ def _search(p: SearchParams, ctx: BuildContext) -> list[Any]:
     reference, path = search_reference(p, start, float(cfg.start_yaw or 0.0))
     follower = TrajectoryFollower(reference, rate_hz=cfg.rates.trajectory_hz)
     ctx.set_reference(reference)
-    mission = SearchMission(p)
+    mission = SearchMission(p, ground_z=float(start[2]))
 
     def metrics(result: Any) -> dict[str, Any]:
         world = ctx.truth_world_for_metrics()  # the metric's alone (after the run): the mission never sees it
