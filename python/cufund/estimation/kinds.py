@@ -88,11 +88,41 @@ register(
 )
 
 
-def vio_params(p: VioParams, ctx: BuildContext) -> tuple[VioParams, Any, list[str]]:
+@dataclasses.dataclass(frozen=True)
+class _DefaultRig:
+    """The part the ``vio`` kind mounts on a scenario without a ``stereo_camera`` (a ``PartView``): the
+    ``stereo_camera`` kind's default rig (640x480 grey at 20 Hz, 11 cm baseline, 0.1 m ahead of the body origin,
+    looking along body x), triggered on the IMU's samples."""
+
+    params: Any
+    kind: str = "stereo_camera"
+    latency_s: float = 0.0
+    phase_s: float = 0.0
+    topic: Any = None
+    extrinsic: Any = None
+    sensor_type: str | None = "stereo_camera"
+
+
+DEFAULT_RIG_NAME = "stereo"
+"""``sensors.<this>``: where the default rig is built (its seeds and truth reads are that sensor's)."""
+
+
+def _has_rig(ctx: BuildContext) -> bool:
+    return any(s is not None and s.sensor_type == "stereo_camera" for s in (ctx.config.sensors or {}).values())
+
+
+def default_rig() -> _DefaultRig:
+    from cufund.sensors.kinds import StereoCameraParams
+
+    return _DefaultRig(StereoCameraParams(hw_sync=True))
+
+
+def vio_params(p: VioParams, ctx: BuildContext, rig_part: Any = None) -> tuple[VioParams, Any, list[str]]:
     """The VIO's params completed from the scenario: the IMU part and mounting, the stereo rig's calibration
-    (the ``stereo_camera`` sensor's stated cameras, never the renderer's truth), the pad and gravity. Returns
-    (params, IMU spec, the two camera topics)."""
+    (the ``stereo_camera`` sensor's stated cameras, never the renderer's truth; ``rig_part`` when given, else the
+    scenario's), the pad and gravity. Returns (params, IMU spec, the camera topics: two, or one for ``mono``)."""
     default = VioParams()
+    mono = p.cameras == "mono"
     for name, source in (
         ("imu", "sensors.<imu>"),
         ("cam0", "sensors.<stereo_camera>"),
@@ -100,48 +130,70 @@ def vio_params(p: VioParams, ctx: BuildContext) -> tuple[VioParams, Any, list[st
         ("p_WB0", "start_p_W"),
         ("gravity", "vehicle"),
     ):
-        if getattr(p, name) != getattr(default, name):
+        if getattr(p, name) != getattr(default, name) and not (mono and name == "cam1"):
             raise ConfigError(f"estimator.{name}: the VIO takes it from the scenario ({source}); give it once there")
     _, imu = ctx.sensor_of_type("imu", "", "estimator")
-    if not any(s is not None and s.sensor_type == "stereo_camera" for s in (ctx.config.sensors or {}).values()):
+    if rig_part is None:
+        if not _has_rig(ctx):
+            raise ConfigError(
+                "estimator: the VIO needs a stereo_camera sensor (this scenario has none); add one, e.g. "
+                "--set sensors.stereo.kind=stereo_camera --set sensors.stereo.hw_sync=true"
+            )
+        _, rig_part = ctx.sensor_of_type("stereo_camera", "", "estimator")
+    cams = rig_part.params.cameras(ctx.base_dir, None)
+    if len(cams) < (1 if mono else 2):
         raise ConfigError(
-            "estimator: the VIO needs a stereo_camera sensor (this scenario has none); add one, e.g. "
-            "--set sensors.stereo.kind=stereo_camera --set sensors.stereo.hw_sync=true"
+            f"estimator: the VIO needs a stereo pair (or cameras: mono), sensors.<stereo_camera> has {len(cams)} "
+            "camera(s)"
         )
-    _, cam = ctx.sensor_of_type("stereo_camera", "", "estimator")
-    cams = cam.params.cameras(ctx.base_dir, None)
-    if len(cams) < 2:
-        raise ConfigError(f"estimator: the VIO needs a stereo pair, sensors.<stereo_camera> has {len(cams)} camera(s)")
+    used = cams[:1] if mono else cams[:2]
     rig = []
-    for c in cams[:2]:
+    for c in used:
         k = c.intrinsics
         if getattr(k, "distortion_model", "radtan") != "radtan":
             raise ConfigError(f"estimator: the VIO reads radtan cameras only, {c.name} is {k.distortion_model}")
         d = tuple(k.distortion) + (0.0,) * (5 - len(k.distortion))
         rig.append(VioCamera(k.width, k.height, k.fx, k.fy, k.cx, k.cy, d, c.T_BC))
-    shifts = {c.timeshift_s for c in cams[:2]}
+    shifts = {c.timeshift_s for c in used}
     if len(shifts) != 1:
         raise ConfigError("estimator: the VIO needs both stereo cameras on one clock (equal timeshift_cam_imu)")
     start, pad_yaw = _pad(p.pad_yaw, default.pad_yaw, ctx)
-    topics = list(cam.params.camera_topics(len(cams)))
+    topics = list(rig_part.params.camera_topics(len(cams)))
     params = dataclasses.replace(
         p,
         imu=ctx.imu_params(),
         cam0=rig[0],
-        cam1=rig[1],
+        cam1=None if mono else rig[1],
         p_WB0=start,
         pad_yaw=pad_yaw,
         gravity=ctx.vehicle.gravity,
         time_offset_s=p.time_offset_s + shifts.pop(),
     )
-    return params, imu, topics[:2]
+    return params, imu, topics[: len(used)]
 
 
 def _vio(p: VioParams, ctx: BuildContext) -> list[Any]:
+    """The VIO on the scenario's stereo_camera; on a scenario without one (the tunnel: a LiDAR for the frame
+    detector), on the default rig (:func:`default_rig`), built here as ``sensors.stereo``."""
     from .vio_estimator import VioEstimator  # GTSAM and OpenCV load only when a scenario uses the VIO
 
-    params, imu, topics = vio_params(p, ctx)
-    return [VioEstimator(params, imu_topic=imu.topic, left_topic=topics[0], right_topic=topics[1])]
+    parts: list[Any] = []
+    rig_part = None
+    if not _has_rig(ctx):
+        if DEFAULT_RIG_NAME in (ctx.config.sensors or {}):
+            raise ConfigError(
+                f"estimator: the VIO needs a stereo_camera sensor; sensors.{DEFAULT_RIG_NAME} is a "
+                f"{ctx.config.sensors[DEFAULT_RIG_NAME].sensor_type}: add a stereo_camera under another name"
+            )
+        rig_part = default_rig()
+        parts = ctx.build("sensor", rig_part, f"sensors.{DEFAULT_RIG_NAME}")
+    params, imu, topics = vio_params(p, ctx, rig_part)
+    return [
+        *parts,
+        VioEstimator(
+            params, imu_topic=imu.topic, left_topic=topics[0], right_topic=topics[1] if len(topics) > 1 else None
+        ),
+    ]
 
 
 register(
@@ -151,6 +203,6 @@ register(
         VioParams,
         _vio,
         None,
-        "Stereo visual-inertial odometry on GTSAM (sensors: an IMU and a stereo_camera; the pad gives origin and yaw, the IMU roll, pitch and gyro bias)",
+        "Stereo (or cameras: mono) visual-inertial odometry on GTSAM (sensors: an IMU and a stereo_camera, else the default rig is mounted; the pad gives origin and yaw, the IMU roll, pitch and gyro bias)",
     )
 )

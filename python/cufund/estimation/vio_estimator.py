@@ -1,7 +1,7 @@
 """``VioEstimator``: :class:`VioCore` as a :class:`cufund.Estimator` (registry kind ``vio``).
 
 Reads every IMU sample and both cameras' images (``CameraImage`` with identical stamps on the left and right
-topics), pairs them by stamp, and publishes the body ``Odometry`` at IMU rate on the estimate topic, like the
+topics; with ``cameras: mono`` the left topic alone), pairs them by stamp, and publishes the body ``Odometry`` at IMU rate on the estimate topic, like the
 LIO, so controllers, mappers and missions fly on it unchanged. A stereo frame is processed once an IMU sample
 past its stamp has arrived. Per frame a ``VioDiagnostics`` goes to ``/estimator/diagnostics`` (tracked features,
 inliers, parallax, landmarks, time offset, position sigma, time; ``skipped``, ``healthy`` and ``reason`` as the
@@ -28,7 +28,7 @@ _MAX_UNPAIRED = 20
 
 
 class VioEstimator(Estimator):
-    """Stereo visual-inertial odometry on GTSAM (see :mod:`cufund.estimation.vio_core`)."""
+    """Stereo (or mono) visual-inertial odometry on GTSAM (see :mod:`cufund.estimation.vio_core`)."""
 
     name = "vio"
 
@@ -37,14 +37,18 @@ class VioEstimator(Estimator):
         params: VioParams | dict | None = None,
         imu_topic: str = str(Topics.IMU),
         left_topic: str = "/sensors/cam0/image",
-        right_topic: str = "/sensors/cam1/image",
+        right_topic: str | None = "/sensors/cam1/image",
     ) -> None:
         if isinstance(params, dict):
             params = VioParams.from_dict(params)
         self.params = params or VioParams()
         self.rate_hz = float(self.params.imu.rate_hz)
+        if self.params.cameras == "mono":
+            right_topic = None  # mono + IMU: the left camera alone
+        elif right_topic is None:
+            raise ValueError("VioEstimator: a stereo VIO needs right_topic (or params cameras: mono)")
         self.imu_topic, self.left_topic, self.right_topic = imu_topic, left_topic, right_topic
-        self.inputs = (imu_topic, left_topic, right_topic)
+        self.inputs = (imu_topic, left_topic) if right_topic is None else (imu_topic, left_topic, right_topic)
         self.extra_outputs = (Topics.ESTIMATOR_DIAGNOSTICS,)
         self.reset()
 
@@ -54,17 +58,18 @@ class VioEstimator(Estimator):
         self._right: dict[float, Any] = {}
         self._frames: list[tuple[float, Any, Any]] = []
         self._latest: Odometry | None = None
-        self._subs: tuple[Any, Any, Any] | None = None
+        self._subs: tuple[Any, Any, Any | None] | None = None
         self._diagnosed = 0
         self._gap_reported = -math.inf
         self.unpaired_images = 0
 
     def setup(self, bus) -> None:
-        self._subs = (bus.subscribe(self.imu_topic), bus.subscribe(self.left_topic), bus.subscribe(self.right_topic))
+        right = bus.subscribe(self.right_topic) if self.right_topic is not None else None
+        self._subs = (bus.subscribe(self.imu_topic), bus.subscribe(self.left_topic), right)
 
     def estimate(self, t: float, bus) -> Odometry | None:
         assert self._subs is not None
-        imu, left, right = (s.take() for s in self._subs)
+        imu, left, right = (s.take() if s is not None else [] for s in self._subs)
         self.feed(left, right, imu)
         for d in self.core.diagnostics[self._diagnosed :]:
             bus.publish(Topics.ESTIMATOR_DIAGNOSTICS, d)
@@ -94,8 +99,11 @@ class VioEstimator(Estimator):
         return self._latest
 
     def feed(self, left: list, right: list, imus: list) -> list[Odometry]:
-        """Pairs images by stamp, then integrates IMU samples in order, processing each stereo frame once a
-        sample past its stamp arrives. Returns the IMU-rate outputs."""
+        """Pairs images by stamp (mono: the left images alone), then integrates IMU samples in order, processing
+        each frame once a sample past its stamp arrives. Returns the IMU-rate outputs."""
+        if self.right_topic is None:
+            self._frames += [(float(msg.t), msg.image, None) for msg in left]
+            left = []
         for msg in left:
             self._left[float(msg.t)] = msg.image
         for msg in right:

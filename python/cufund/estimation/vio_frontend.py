@@ -12,6 +12,7 @@ camera R0, with ``K_rect`` and baseline ``baseline``), which is what GTSAM's ``S
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -138,6 +139,7 @@ class StereoFrontEnd:
             "maxLevel": p.klt_levels,
             "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01),
         }
+        self._maps: tuple | None = None
         self.reset()
 
     def reset(self) -> None:
@@ -218,22 +220,132 @@ class StereoFrontEnd:
                 raw = np.concatenate([raw, new])
         # stereo matches on the epipolar line
         uvl = rig.rectify(raw)
-        uvr = np.full_like(uvl, np.nan)
-        if len(raw) and g1 is not None:
-            guess = raw.copy()
-            m1, st, err = cv2.calcOpticalFlowPyrLK(
-                pyr0, g1, raw.reshape(-1, 1, 2), guess.reshape(-1, 1, 2), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **self._lk
-            )
-            m1 = m1.reshape(-1, 2)
-            ok = (st.reshape(-1) == 1) & (err.reshape(-1) < p.klt_max_error)
-            r1 = rig.rectify(m1)
-            disp = uvl[:, 0] - r1[:, 0]
-            fb = rig.K_rect[0, 0] * rig.baseline
-            ok &= np.abs(uvl[:, 1] - r1[:, 1]) < p.stereo_epipolar_px
-            ok &= (disp > fb / p.max_depth) & (disp < fb / p.min_depth)
-            uvr[ok] = r1[ok]
+        uvr = self._stereo(pyr0, g1, raw, uvl) if g1 is not None else np.full_like(uvl, np.nan)
         st_mask = ~np.isnan(uvr[:, 0])
         X = rig.triangulate(uvl[st_mask], uvr[st_mask]) if st_mask.any() else np.zeros((0, 3))
         self._X_prev = dict(zip(ids[st_mask].tolist(), X, strict=True))
         self._ids, self._raw, self._prev_pyr = ids, raw.astype(np.float32), pyr0
         return StereoFrame(t, ids.copy(), uvl, uvr, tracked, inliers, R_cur_prev, (time.perf_counter() - wall) * 1e3)
+
+    def _stereo(self, g0: np.ndarray, g1: np.ndarray, raw: np.ndarray, uvl: np.ndarray) -> np.ndarray:
+        """Rectified right pixels (N, 2) of the left features ``raw`` (rectified ``uvl``), NaN where no match
+        passes. Each feature is searched along its rectified row over the disparity range (normalised
+        cross-correlation of a ``stereo_patch_px`` patch): the best score must reach ``stereo_min_ncc`` and beat
+        every other peak by ``stereo_ncc_margin`` (a repetitive texture's ambiguous match is dropped, not guessed);
+        KLT refines it to sub-pixel and it is kept only when KLT tracks it back to the feature within
+        ``stereo_fb_px``. The right patch is searched back along the row the same way and must find the feature
+        (a left-right check: a pattern cut by the image border looks unique from one side only). KLT alone from a zero-disparity guess (before) reached no match for near objects (a
+        disparity beyond its pyramid) and settled on another patch of the same row for about two matches in three
+        in the tunnel's frames: a wrong depth the epipolar check cannot see."""
+        p, rig = self.params, self.rig
+        n = len(raw)
+        uvr = np.full((n, 2), np.nan)
+        if n == 0:
+            return uvr
+        fb_max = rig.K_rect[0, 0] * rig.baseline
+        d_lo, d_hi = fb_max / p.max_depth, fb_max / p.min_depth
+        # the row search, in the rectified pair
+        gr0, gr1 = self._rectified(g0, g1)
+        found, guess_l, guess_r = [], [], []
+        for i in range(n):
+            ui, vi = int(round(float(uvl[i, 0]))), int(round(float(uvl[i, 1])))
+            ur = self._row_peak(gr0, gr1, ui, vi, ui - d_hi, ui - d_lo)
+            if ur is None:
+                continue
+            back = self._row_peak(gr1, gr0, ur, vi, ur + d_lo, ur + d_hi)  # and from the right image back
+            if back is None or abs(back - ui) > 1:
+                continue  # the peak seen from the right is another one: a repetitive or out-of-view patch
+            found.append(i)
+            guess_l.append((ui, vi))
+            guess_r.append((ur, vi))
+        if not found:
+            return uvr
+        idx = np.array(found)
+        pl = np.asarray(guess_l, dtype=np.float32) + (uvl[idx] - np.round(uvl[idx])).astype(np.float32)
+        pr = np.asarray(guess_r, dtype=np.float32) + (pl - np.asarray(guess_l, dtype=np.float32))
+        lk0 = {**self._lk, "maxLevel": 0}  # the search put it within a pixel: no pyramid to jump elsewhere
+        m, st, err = cv2.calcOpticalFlowPyrLK(
+            gr0, gr1, pl.reshape(-1, 1, 2), pr.reshape(-1, 1, 2).copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **lk0
+        )
+        m = m.reshape(-1, 2)
+        ok2 = self._checked(gr0, gr1, pl, m, st, err, pl.astype(np.float64), d_lo, d_hi, lk0, rectified=True)
+        ok2 &= np.abs(m[:, 0] - pr[:, 0]) < 1.5  # KLT stayed on the searched peak
+        uvr[idx[ok2]] = m[ok2].astype(np.float64) + (uvl[idx[ok2]] - pl[ok2])
+        return uvr
+
+    def _row_peak(self, src: np.ndarray, dst: np.ndarray, u: int, v: int, u_lo: float, u_hi: float) -> int | None:
+        """The column in ``dst``'s row ``v`` between ``u_lo`` and ``u_hi`` whose patch best correlates with
+        ``src``'s patch at (u, v), or None when the best score is below ``stereo_min_ncc`` or another peak (outside
+        the best one's lobe) comes within ``stereo_ncc_margin`` of it."""
+        p = self.params
+        r = p.stereo_patch_px // 2
+        h, w = dst.shape
+        if not (r <= u < w - r and r <= v < h - r):
+            return None
+        lo = max(int(math.floor(u_lo)) - r, 0)
+        hi = min(int(math.ceil(u_hi)) + r + 1, w)
+        if hi - lo < 2 * r + 3:
+            return None
+        score = cv2.matchTemplate(
+            dst[v - r : v + r + 1, lo:hi], src[v - r : v + r + 1, u - r : u + r + 1], cv2.TM_CCOEFF_NORMED
+        ).reshape(-1)
+        j = int(np.argmax(score))
+        best = float(score[j])
+        if best < p.stereo_min_ncc:
+            return None
+        a, b = j, j  # the peak's own lobe: down both sides while the score falls
+        while a > 0 and score[a - 1] < score[a]:
+            a -= 1
+        while b < len(score) - 1 and score[b + 1] < score[b]:
+            b += 1
+        others = np.concatenate([score[:a], score[b + 1 :]])
+        if len(others) and float(others.max()) > best - p.stereo_ncc_margin:
+            return None  # ambiguous: a repetitive texture or a featureless row
+        return lo + j + r
+
+    def _checked(
+        self,
+        g0: np.ndarray,
+        g1: np.ndarray,
+        src: np.ndarray,
+        m1: np.ndarray,
+        st: np.ndarray,
+        err: np.ndarray,
+        uvl: np.ndarray,
+        d_lo: float,
+        d_hi: float,
+        lk: dict[str, Any],
+        rectified: bool = False,
+    ) -> np.ndarray:
+        """Mask of the left-to-right matches ``m1`` of ``src`` that KLT found, that lie on their epipolar row
+        within the disparity range, and that KLT tracks back to ``src`` within ``stereo_fb_px``."""
+        p = self.params
+        ok = (st.reshape(-1) == 1) & (err.reshape(-1) < p.klt_max_error)
+        r1 = m1.astype(np.float64) if rectified else self.rig.rectify(m1, right=True)
+        disp = uvl[:, 0] - r1[:, 0]
+        ok &= np.abs(uvl[:, 1] - r1[:, 1]) < p.stereo_epipolar_px
+        ok &= (disp > d_lo) & (disp < d_hi)
+        if ok.any():
+            sel = np.flatnonzero(ok)
+            back, st2, _ = cv2.calcOpticalFlowPyrLK(
+                g1,
+                g0,
+                m1[sel].reshape(-1, 1, 2).astype(np.float32),
+                src[sel].reshape(-1, 1, 2).astype(np.float32).copy(),
+                flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+                **lk,
+            )
+            fb = np.linalg.norm(back.reshape(-1, 2) - src[sel], axis=1)
+            ok[sel] = (st2.reshape(-1) == 1) & (fb < p.stereo_fb_px)
+        return ok
+
+    def _rectified(self, g0: np.ndarray, g1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Both images rectified (rows are epipolar lines); the maps are made once."""
+        if self._maps is None:
+            rig = self.rig
+            self._maps = tuple(
+                cv2.initUndistortRectifyMap(K, D, R, P, rig.size, cv2.CV_16SC2)
+                for K, D, R, P in ((rig.K0, rig.D0, rig.R1, rig.P1), (rig.K1, rig.D1, rig.R2, rig.P2))
+            )
+        (a0, a1), (b0, b1) = self._maps
+        return cv2.remap(g0, a0, a1, cv2.INTER_LINEAR), cv2.remap(g1, b0, b1, cv2.INTER_LINEAR)

@@ -113,6 +113,9 @@ _POSITIVE = (
     "min_feature_distance_px",
     "klt_max_error",
     "stereo_epipolar_px",
+    "stereo_fb_px",
+    "stereo_min_ncc",
+    "stereo_ncc_margin",
     "ransac_px",
     "pixel_sigma",
     "robust_k",
@@ -141,6 +144,9 @@ class VioParams:
     )
     """Right camera of a stereo pair; None: monocular + IMU (landmarks triangulated from keyframes with
     ``mono_min_parallax_deg`` of parallax, the scale from the IMU factors)."""
+    cameras: str = "stereo"
+    """``stereo``: both cameras of the rig (cam0 left, cam1 right); ``mono``: cam0 alone with the IMU (cam1 is then
+    None; a scenario's ``stereo_camera`` rig gives its left camera). A ``cam1`` of None also means ``mono``."""
     p_WB0: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """The pad: the body's position there is the world frame's origin [m]."""
     pad_yaw: float = 0.0
@@ -167,6 +173,16 @@ class VioParams:
     """KLT tracks whose error is above this are dropped."""
     stereo_epipolar_px: float = 1.5
     """Stereo matches further than this from the epipolar line (rectified rows) are rejected [px]."""
+    stereo_fb_px: float = 0.5
+    """A stereo match is kept only if KLT tracks it back from the right image to within this of the left
+    feature [px] (a match that slid onto another patch of the row does not come back)."""
+    stereo_patch_px: int = 11
+    """Side of the patch the row search correlates, for features KLT did not match [px] (odd)."""
+    stereo_min_ncc: float = 0.5
+    """The row search's best normalised cross-correlation must reach this, in (0, 1] ..."""
+    stereo_ncc_margin: float = 0.05
+    """... and beat every other peak on the row (outside its own lobe) by this: an ambiguous match (a repetitive
+    texture) is dropped."""
     ransac_px: float = 1.5
     """Reprojection threshold of the temporal RANSAC (PnP on the previous frame's stereo points) [px]."""
     min_depth: float = 0.2
@@ -220,6 +236,12 @@ class VioParams:
     def __post_init__(self) -> None:
         object.__setattr__(self, "imu", nested(ImuParams, self.imu, "VioParams.imu"))
         object.__setattr__(self, "cam0", nested(VioCamera, self.cam0, "VioParams.cam0"))
+        if self.cameras not in ("stereo", "mono"):
+            raise ConfigError(f"VioParams.cameras must be 'stereo' or 'mono', got {self.cameras!r}")
+        if self.cameras == "mono":
+            object.__setattr__(self, "cam1", None)
+        elif self.cam1 is None:
+            object.__setattr__(self, "cameras", "mono")
         if self.cam1 is not None:
             object.__setattr__(self, "cam1", nested(VioCamera, self.cam1, "VioParams.cam1"))
             if (self.cam1.width, self.cam1.height) != (self.cam0.width, self.cam0.height):
@@ -234,6 +256,7 @@ class VioParams:
             ("max_features", 8),
             ("klt_window_px", 5),
             ("klt_levels", 0),
+            ("stereo_patch_px", 3),
             ("health_min_inliers", 3),
             ("health_relock_frames", 1),
             ("health_chi2_keyframes", 1),
@@ -243,7 +266,18 @@ class VioParams:
                 raise ConfigError(f"VioParams.{name} must be an integer >= {lo}, got {v!r}")
         if self.health_max_imu_chi2 is not None:
             check_real_fields(self, "VioParams", positive=True, names=("health_max_imu_chi2",))
-        check_at_most(self, "VioParams", max_features=5000, klt_window_px=101, klt_levels=8, kf_min_tracked_ratio=1.0)
+        check_at_most(
+            self,
+            "VioParams",
+            max_features=5000,
+            klt_window_px=101,
+            klt_levels=8,
+            kf_min_tracked_ratio=1.0,
+            stereo_patch_px=101,
+            stereo_min_ncc=1.0,
+        )
+        if self.stereo_patch_px % 2 == 0:
+            raise ConfigError(f"VioParams.stereo_patch_px must be odd, got {self.stereo_patch_px}")
         if not isinstance(self.estimate_time_offset, bool):
             raise ConfigError("VioParams.estimate_time_offset must be true or false")
         p = np.asarray(self.p_WB0, dtype=float)
