@@ -320,6 +320,12 @@ Add meshes with ``add_triangles``, then ``cast_rays``; the acceleration structur
 first cast after a change. Casting is multithreaded and releases the GIL.
 )doc")
       .def(py::init<>())
+      .def(py::init([](const RaycastScene& base) {
+             return std::make_unique<RaycastScene>(RaycastScene::Instancing{}, base);
+           }),
+           py::arg("base"), py::keep_alive<1, 2>(),
+           "A scene starting with base's geometries as one instance (shared, not copied): a hit on base's geometry g "
+           "reports id g, meshes added here take the ids after base's. base must not change while this scene is used.")
       .def_property_readonly_static(
           "INVALID_ID", [](py::object) { return lidar::kInvalidId; },
           "geometry_ids / primitive_ids of a ray that hit nothing (4294967295).")

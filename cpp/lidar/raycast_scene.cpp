@@ -253,9 +253,16 @@ struct RaycastScene::Impl {
   mutable float lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
   // Embree forbids changing a scene while it is traversed: casts share this lock, additions own it.
   mutable std::shared_mutex scene_mutex;
+  // The instanced base's Embree scene (retained), or null.
+  RTCScene base_scene = nullptr;
 
-  Impl() {
-    device = rtcNewDevice(nullptr);
+  explicit Impl(RTCDevice shared = nullptr) {
+    if (shared != nullptr) {
+      rtcRetainDevice(shared);
+      device = shared;
+    } else {
+      device = rtcNewDevice(nullptr);
+    }
     if (!device)
       throw std::runtime_error("Embree: rtcNewDevice failed (error " +
                                std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) + ")");
@@ -267,6 +274,7 @@ struct RaycastScene::Impl {
   }
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
+    if (base_scene) rtcReleaseScene(base_scene);
     if (device) rtcReleaseDevice(device);
   }
   void commit() const {
@@ -287,6 +295,28 @@ struct RaycastScene::Impl {
 };
 
 RaycastScene::RaycastScene() : impl_(std::make_unique<Impl>()) {}
+
+RaycastScene::RaycastScene(Instancing, const RaycastScene& base) : impl_(std::make_unique<Impl>(base.impl_->device)) {
+  const std::size_t n = base.num_geometries();
+  if (n == 0) return;
+  {
+    std::shared_lock<std::shared_mutex> no_additions(base.impl_->scene_mutex);
+    base.impl_->commit();
+  }
+  rtcRetainScene(base.impl_->scene);
+  impl_->base_scene = base.impl_->scene;
+  RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_INSTANCE);
+  rtcSetGeometryInstancedScene(g, base.impl_->scene);
+  const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};  // 3x4 column-major: no rotation, no offset
+  rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
+  rtcCommitGeometry(g);
+  // A hit inside the instance reports base's own geometry id (the instance's id goes to instID, which nothing reads),
+  // so the instance takes id 0 (ids below n are otherwise unused here) and added meshes n, n + 1, ...
+  rtcAttachGeometryByID(impl_->scene, g, 0);
+  rtcReleaseGeometry(g);
+  impl_->geometries = n;
+  impl_->triangles = base.num_triangles();
+}
 RaycastScene::~RaycastScene() = default;
 RaycastScene::RaycastScene(RaycastScene&&) noexcept = default;
 RaycastScene& RaycastScene::operator=(RaycastScene&&) noexcept = default;
@@ -310,7 +340,9 @@ SceneResult RaycastScene::add_triangles(const float* vertices, std::size_t nv, c
   rtcCommitGeometry(g);
   ForkSafeSection no_fork;  // a child must not inherit the scene's locks held
   std::unique_lock<std::shared_mutex> no_casts(impl_->scene_mutex);
-  const unsigned id = rtcAttachGeometry(impl_->scene, g);
+  // ids 0, 1, 2, ... in order (after an instanced base's: see the constructor)
+  const auto id = static_cast<unsigned>(impl_->geometries);
+  rtcAttachGeometryByID(impl_->scene, g, id);
   rtcReleaseGeometry(g);
   std::lock_guard<std::mutex> lock(impl_->commit_mutex);
   impl_->dirty = true;

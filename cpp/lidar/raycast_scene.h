@@ -53,6 +53,15 @@ enum class RayOrder {
 class RaycastScene {
  public:
   RaycastScene();
+  // A scene that starts with `base`'s geometries as one Embree instance (identity transform, sharing base's device
+  // and acceleration structure instead of copying its triangles): a hit on base's geometry g reports geometry id g,
+  // and geometries added here take the ids base.num_geometries(), base.num_geometries() + 1, ... as if base's meshes
+  // had been added first. Made and cast again cheaply whatever base's size (a fleet's view of the other vehicles in
+  // a large world). base is committed here and must outlive this scene and not change while it is used; the hits
+  // equal those of the copied meshes (the identity transform is exact), though Embree does not promise the last bits
+  // of every distance across the two structures.
+  struct Instancing {};
+  RaycastScene(Instancing, const RaycastScene& base);
   ~RaycastScene();
   RaycastScene(const RaycastScene&) = delete;
   RaycastScene& operator=(const RaycastScene&) = delete;

@@ -63,3 +63,56 @@ def test_a_fleet_sees_as_far_as_each_vehicles_sensors():
     assert sensing_range(lidar) == 12.0
     assert sensing_range(type("C", (), {"camera": DepthCamera(depth_max=7.0)})()) == 7.0
     assert sensing_range(type("C", (), {"camera": RgbCamera()})()) == IMAGE_CAMERA_RANGE_M
+
+
+def _scattered_world() -> World:
+    world = World("scattered")
+    world.add_plane((60.0, 60.0), (0.0, 0.0, 0.0))
+    rng = np.random.default_rng(4)
+    for _ in range(40):
+        size = tuple(rng.uniform(0.3, 2.0, size=3))
+        # clear of the floor: coplanar faces would make ties, which either structure may break either way
+        lift = size[2] / 2 + 0.05
+        world.add_box(size, position=tuple(rng.uniform(-20, 20, size=2)) + (lift,), yaw=float(rng.uniform(-3, 3)))
+    return world
+
+
+def test_a_view_shares_the_worlds_scene_and_casts_as_the_copied_meshes():
+    """A view's scene instances the world's (not copied), and every ray reports what the flattened world with the
+    boxes as its last object reports: distance, object id, triangle, barycentrics and normal, bit for bit."""
+    from cufund import _core
+    from cufund.simulator.fleet_view import VehicleBox, WorldWithVehicles, box_mesh_W
+
+    base = _scattered_world()
+    box = VehicleBox("b", BOX)
+    poses = [((2.0, 1.0, 1.0), (1.0, 0.0, 0.0, 0.0)), ((-5.0, 3.0, 0.6), (0.9, 0.1, -0.2, 0.3))]
+    vertices = np.concatenate([box_mesh_W(box, np.array(p), np.array(q) / np.linalg.norm(q)) for p, q in poses])
+    triangles = np.concatenate([box.triangles, box.triangles + 8])
+    view = WorldWithVehicles(base, vertices, triangles)
+    assert base._scene is None
+    assert view.raycast_scene is not None  # made from the base's scene (built now, once), not copies of its meshes
+    assert base._scene is not None
+    flat = World("flat")
+    for obj in base.objects:
+        flat.add_mesh(obj.vertices, obj.triangles, label=obj.label)
+    flat.add_mesh(vertices, triangles, label="vehicles")
+    rng = np.random.default_rng(5)
+    n = 50000
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    rays = np.hstack([rng.uniform([-20, -20, 0.2], [20, 20, 3], size=(n, 3)), d]).astype(np.float32)
+    vehicles_id = len(base.objects)
+    for coherent in (None, True, False):
+        a = view.raycast_scene.cast_rays(rays, nthreads=1, coherent=coherent)
+        b = flat.raycast_scene.cast_rays(rays, nthreads=1, coherent=coherent)
+        for key in b:
+            assert np.array_equal(a[key], b[key]), (coherent, key)
+    assert np.count_nonzero(b["geometry_ids"] == vehicles_id) > 0  # the boxes are hit, under their own id
+    assert np.count_nonzero(b["geometry_ids"] < vehicles_id) > n // 4
+    scene = base._scene
+    for _ in range(3):  # more views of the same world share its one scene
+        assert WorldWithVehicles(base, vertices, triangles).raycast_scene is not scene
+    assert base._scene is scene
+    # an empty base: the view is its boxes alone
+    alone = WorldWithVehicles(World("none"), vertices, triangles).raycast_scene.cast_rays(rays[:2000], nthreads=1)
+    assert set(np.unique(alone["geometry_ids"]).tolist()) <= {0, _core.lidar.RaycastScene.INVALID_ID}

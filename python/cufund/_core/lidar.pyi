@@ -14,8 +14,14 @@ class RaycastScene:
     first cast after a change. Casting is multithreaded and releases the GIL.
     """
     INVALID_ID: typing.ClassVar[int] = 4294967295
+    @typing.overload
     def __init__(self) -> None:
         ...
+    @typing.overload
+    def __init__(self, base: RaycastScene) -> None:
+        """
+        A scene starting with base's geometries as one instance (shared, not copied): a hit on base's geometry g reports id g, meshes added here take the ids after base's. base must not change while this scene is used.
+        """
     def add_triangles(self, vertices: typing.Any, triangles: typing.Any) -> int:
         """
         Adds a mesh and returns its geometry id (0, 1, 2, ... in order of addition).
