@@ -165,3 +165,17 @@ def test_perception_camera_takes_the_lidar_off_and_puts_a_stereo_rig_on():
     default = load_scenario("tunnel")
     assert "lidar" in {s.sensor_type for s in default.sensors.values()} and default.perception is None
     assert default.mapper is not None
+
+
+def test_the_part_refuses_a_grey_rig_and_a_missing_model_by_name(tmp_path):
+    """The camera kind's build: a grey rig is refused naming its colour key; a model that is not a file is
+    refused naming perception.model."""
+    from cufund.scenarios.build import build_simulation
+
+    base = ["perception=camera", "estimator.kind=vio"]
+    grey = load_scenario("tunnel", [*base, "sensors.stereo.kind=stereo_camera", "sensors.stereo.color=gray"])
+    with pytest.raises(ConfigError, match=r"sensors\.stereo\.color: rgb"):
+        build_simulation(grey)
+    missing = load_scenario("tunnel", [*base, f"perception.model={tmp_path / 'none.onnx'}"])
+    with pytest.raises(ConfigError, match=r"perception\.model: .*none\.onnx is not a file"):
+        build_simulation(missing)
