@@ -1,6 +1,7 @@
 """How well an exported hover policy holds its point (issue 28): 100 random starts of Hover-v0 (the task's spawn
 box, tilt, speed and spin; the policy's vehicle and action mode) flown 10 s each by the ONNX policy through
-onnxruntime. Prints how many stay up, the per-start RMS position error over the 10 s (the approach included) and,
+onnxruntime (a timed-reference Waypoints-v0 policy flies the same starts with Hover-v0's point as its one waypoint).
+Prints how many stay up, the per-start RMS position error over the 10 s (the approach included) and,
 over the last 5 s of the starts that stayed up, the mean/RMS/worst distance to the point and the share of starts
 whose mean is below 5 cm (the issue's target).
 
@@ -31,9 +32,22 @@ def main() -> None:
     m = PolicyManifest.read(args.policy / "policy.yaml")
     act = onnx_actor(args.policy / "policy.onnx")
     n = args.starts
-    env = make_env(
-        "cufund/Hover-v0", n, {"action_mode": m.action_mode, "vehicle": m.vehicle, "episode_s": args.seconds}
-    )
+    kwargs = {"action_mode": m.action_mode, "vehicle": m.vehicle, "episode_s": args.seconds}
+    task = "cufund/Hover-v0"
+    if m.lookahead_s > 0:  # a timed-reference waypoints policy: Hover-v0's point, spawn box and bound as its one
+        # waypoint (the reference rests there, every target block the point)
+        hover = make_env(task, 1, kwargs).config
+        task = "cufund/Waypoints-v0"
+        kwargs.update(
+            targets=[list(hover.targets[0])],
+            n_ahead=m.n_targets,
+            lookahead_s=m.lookahead_s,
+            segment_s=[1.0, 1.0],
+            **{
+                k: getattr(hover, k) for k in ("spawn_extent", "spawn_speed", "spawn_tilt_deg", "spawn_rate", "bound_m")
+            },
+        )
+    env = make_env(task, n, kwargs)
     obs, _ = env.reset(seed=args.seed)
     point = np.asarray(env.config.targets[0][:3])
     steps = env.config.max_steps

@@ -18,6 +18,7 @@ from cufund.envs.train import (
     TrainConfig,
     evaluate_policy,
     library_actions,
+    linear_lr,
     make_env,
     onnx_actor,
     train,
@@ -91,6 +92,9 @@ def test_random_baseline_is_seeded():
         ({"learning_rate": float("nan")}, "train.learning_rate"),
         ({"discount_factor": 1.5}, "train.discount_factor"),
         ({"mini_batches": 10_000, "num_envs": 2, "rollouts": 2}, "train.mini_batches"),
+        ({"lr_schedule": "cosine"}, "train.lr_schedule"),
+        ({"lr_final": 0.0}, "train.lr_final"),
+        ({"grad_norm_clip": -1.0}, "train.grad_norm_clip"),
     ],
 )
 def test_bad_config_names_the_field(kw, field):
@@ -117,3 +121,14 @@ def test_cli_refuses_bad_input_with_exit_2(tmp_path, capsys):
     assert "stepz" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["train", "Hover"])  # --out is required
+
+
+def test_linear_schedule_multiplies_the_rate_along_the_line():
+    """skrl multiplies its learning rate by the schedule's value after each update: the running product follows
+    1 - (1 - final) t / total and stays at final past the end."""
+    total, final = 1000, 0.1
+    sched = linear_lr(total=total, final=final)
+    lr = 1.0
+    for t in range(0, 1200, 32):  # an update every 32 steps, as rollouts=32
+        lr *= sched(t)
+        assert lr == pytest.approx(max(final, 1.0 - (1.0 - final) * (t + 1) / total), rel=1e-12)
