@@ -63,8 +63,6 @@ class PacedLoop:
         self.ended: str | None = None
         """Why the run ended (None while it runs)."""
 
-    _check_speed = staticmethod(check_speed)
-
     # -- hooks ---------------------------------------------------------------------------------------------------
     def _sim_t(self) -> float:
         raise NotImplementedError
