@@ -45,6 +45,11 @@ _KEEP_BLOCKS = 64
 """Record blocks (4096 rows each) a live run keeps."""
 
 
+def _end_kind(status: str) -> str:
+    """The event kind of a run (or a fleet vehicle's run) ending with simulator status ``status``."""
+    return "crash" if status in ("crashed", "diverged") else "ended"
+
+
 def _rpy(q: np.ndarray) -> list[float]:
     """Roll, pitch, yaw [rad] (ZYX Euler angles of body to world)."""
     return list(euler_zyx(q))
@@ -237,7 +242,7 @@ class LiveRun(PacedLoop):
     def _end_of_run(self) -> tuple[str, str]:
         sim = self.simulator
         status = sim.status.value if sim.status is not None else ""
-        return f"{status or 'ended'}: {sim.message}", "crash" if status in ("crashed", "diverged") else "ended"
+        return f"{status or 'ended'}: {sim.message}", _end_kind(status)
 
     def _cancel_pending(self, why: str) -> None:
         if self.commander is not None:

@@ -25,7 +25,7 @@ from cufund.missions.commander import Commander
 from cufund.missions.controller_params import controller_param_provider
 from cufund.missions.events import EventLog
 
-from ..live import _KEEP_BLOCKS, RECORD_HZ, LiveRun
+from ..live import RECORD_HZ, LiveRun, _end_kind
 from ..paced_loop import PacedLoop
 
 __all__ = ["FleetVehicleRun", "LiveFleet"]
@@ -244,9 +244,7 @@ class LiveFleet(PacedLoop):
             if v._own_end is None and getattr(v.simulator, "status", None) is not None:
                 v._finish()
         for v in self.vehicles.values():
-            rows = getattr(v.simulator, "_rows", None)
-            if rows is not None and len(rows) > _KEEP_BLOCKS:
-                del rows[: len(rows) - _KEEP_BLOCKS]
+            v._after_advance()  # LiveRun's: its true-state record trimmed
 
     def _notify_listeners(self) -> None:
         for v in self.vehicles.values():
@@ -272,11 +270,6 @@ class LiveFleet(PacedLoop):
             if v._own_end is None:  # (one that ended on its own has said why)
                 v.events.append(float(self.fleet.t), kind, why)
                 v._notify(force=True)
-
-
-def _end_kind(status: str) -> str:
-    """The event kind of a run ending with ``status`` (as :class:`LiveRun`'s)."""
-    return "crash" if status in ("crashed", "diverged") else "ended"
 
 
 def _status(fleet: Any) -> str:
