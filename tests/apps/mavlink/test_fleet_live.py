@@ -98,3 +98,21 @@ def test_a_crashed_vehicle_says_so_and_the_others_fly_on():
         assert uav2.events.since(0)[-1]["kind"] == "crash"
         assert uav1.submit({"command": "arm"}).result(timeout=5).result == "accepted"
         assert live.ended is None and uav1.telemetry()["ended"] is None
+
+
+def test_a_paused_fleet_answers_each_vehicles_commands_and_takes_a_new_speed():
+    """The fleet's pacing is PacedLoop's: paused, no vehicle advances, yet each one's commands are answered (its
+    commander processes them at the paused instant); a new speed is every vehicle's."""
+    with LiveFleet(fleet_config(2), speed=float("inf")) as live:
+        uav1, uav2 = live.vehicle("uav1"), live.vehicle("uav2")
+        assert uav1.wait_until(lambda t: t.get("p_W") is not None and t["t"] > 0.2, 10.0)
+        live.pause()
+        time.sleep(0.2)
+        t_paused = live.t
+        acks = live.submit_all({"command": "arm"})
+        assert all(f.result(timeout=5).result == "accepted" for f in acks.values())
+        assert live.t == t_paused and uav1.telemetry()["armed"] and uav2.telemetry()["armed"]
+        live.set_speed(2.0)
+        assert uav1.speed == uav2.speed == 2.0 and uav2.telemetry()["speed"] == 2.0
+        live.resume()
+        assert uav2.wait_until(lambda t: t["t"] > t_paused, 5.0)
