@@ -153,6 +153,11 @@ _SERVERS = {
         "cufund.apps.dataset_cli",
         "render a labelled detection dataset of a scenario's world (YOLO + COCO, domain randomisation, seeded)",
     ),
+    "train-detector": (
+        "cufund.apps.train_detector_cli",
+        "train a small detector from scratch on `cufund dataset` folders (torch on the CPU) and export it to "
+        "ONNX for the onnx_detector",
+    ),
     "bag": (
         "cufund.apps.ros2.bag",
         "write a run's log as a ROS 2 bag (rosbag2, sqlite3 or mcap storage) for ros2 bag play, rosbags, Foxglove",
