@@ -92,6 +92,59 @@ TEST(RaycastScene, GeometryIdsCountFromZeroAndNearestWins) {
   EXPECT_EQ(scene.num_triangles(), 24u);
 }
 
+// A scene instancing another reports the base's own geometry ids and its own meshes after them, with the hits of a
+// scene holding copies of all the meshes (boxes kept apart: no coplanar faces, no ties).
+TEST(RaycastScene, InstancedBaseCastsAsCopiedMeshes) {
+  std::vector<Mesh> base_meshes, own_meshes;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> at(-20.0f, 20.0f), size(0.3f, 2.0f);
+  for (int k = 0; k < 30; ++k) {
+    const float x = at(rng), y = at(rng), z = 0.1f * static_cast<float>(k), sx = size(rng), sy = size(rng);
+    (k < 25 ? base_meshes : own_meshes).push_back(box(x, y, z, x + sx, y + sy, z + 1.0f + 0.01f * k));
+  }
+  RaycastScene base, copied;
+  for (const Mesh& m : base_meshes) {
+    ASSERT_EQ(base.add_triangles(m.v.data(), 8, m.t.data(), 12).status, SceneStatus::kOk);
+    copied.add_triangles(m.v.data(), 8, m.t.data(), 12);
+  }
+  RaycastScene view(RaycastScene::Instancing{}, base);
+  EXPECT_EQ(view.num_geometries(), base_meshes.size());
+  for (std::size_t k = 0; k < own_meshes.size(); ++k) {
+    const Mesh& m = own_meshes[k];
+    EXPECT_EQ(view.add_triangles(m.v.data(), 8, m.t.data(), 12).id, base_meshes.size() + k);
+    copied.add_triangles(m.v.data(), 8, m.t.data(), 12);
+  }
+  EXPECT_EQ(view.num_geometries(), copied.num_geometries());
+  EXPECT_EQ(view.num_triangles(), copied.num_triangles());
+  const std::size_t n = 20000;
+  std::vector<float> rays(6 * n);
+  std::normal_distribution<float> dir(0.0f, 1.0f);
+  for (std::size_t i = 0; i < n; ++i) {
+    rays[6 * i] = at(rng);
+    rays[6 * i + 1] = at(rng);
+    rays[6 * i + 2] = 1.5f;
+    for (int k = 3; k < 6; ++k) rays[6 * i + k] = dir(rng);
+  }
+  std::size_t own_hits = 0;
+  for (RayOrder order : {RayOrder::kIncoherent, RayOrder::kCoherent, RayOrder::kSorted}) {
+    Result a(n), b(n);
+    ASSERT_EQ(view.cast_rays(rays.data(), n, a.hits(), 1, order).status, SceneStatus::kOk);
+    ASSERT_EQ(copied.cast_rays(rays.data(), n, b.hits(), 1, order).status, SceneStatus::kOk);
+    EXPECT_EQ(std::memcmp(a.t.data(), b.t.data(), n * sizeof(float)), 0);
+    EXPECT_EQ(a.g, b.g);
+    EXPECT_EQ(a.p, b.p);
+    EXPECT_EQ(std::memcmp(a.uv.data(), b.uv.data(), 2 * n * sizeof(float)), 0);
+    EXPECT_EQ(std::memcmp(a.n.data(), b.n.data(), 3 * n * sizeof(float)), 0);
+    own_hits = static_cast<std::size_t>(
+        std::count_if(a.g.begin(), a.g.end(), [&](std::uint32_t g) { return g >= 25 && g != kInvalidId; }));
+  }
+  EXPECT_GT(own_hits, 100u);  // both the base's and the view's own meshes are hit
+  // an empty base: the view holds its own meshes only, from id 0
+  RaycastScene empty;
+  RaycastScene alone(RaycastScene::Instancing{}, empty);
+  EXPECT_EQ(alone.add_triangles(own_meshes[0].v.data(), 8, own_meshes[0].t.data(), 12).id, 0u);
+}
+
 TEST(RaycastScene, PlaneRangesMatchAnalyticForManyRays) {
   // Ground plane z = 0 (two big triangles), rays from (0, 0, h) downwards at random angles:
   // t = h / -dz exactly.
