@@ -182,5 +182,5 @@ def test_a_leader_without_an_estimator_or_unknown_is_refused():
         build_fleet(ScenarioConfig.from_dict(data))
     data = _column(0.0).to_dict()
     data["vehicles"][0]["estimator"] = None
-    with pytest.raises(ConfigError, match="estimator"):
+    with pytest.raises(ConfigError, match="leader 'uav1' has no estimator"):  # not the follower's own check
         build_fleet(ScenarioConfig.from_dict(data))
