@@ -184,3 +184,20 @@ def test_a_leader_without_an_estimator_or_unknown_is_refused():
     data["vehicles"][0]["estimator"] = None
     with pytest.raises(ConfigError, match="leader 'uav1' has no estimator"):  # not the follower's own check
         build_fleet(ScenarioConfig.from_dict(data))
+
+
+def test_a_live_fleet_keeps_only_the_links_newest_instants():
+    """A live fleet may fly for hours: its links keep about the newest instants (as its vehicles' records), a run's
+    keep all (its metrics need them)."""
+    from cufund.apps.mavlink.fleet_live import LiveFleet
+
+    fleet = build_fleet(_column(0.0))
+    link = fleet.formation_links["uav2"]
+    assert link.keep_rows is None
+    link.keep_rows = 100
+    fleet.advance_to(3.0)
+    t = link.samples()["t"]
+    assert 100 <= len(t) <= 200 and t[-1] == pytest.approx(3.0, abs=0.004)
+    np.testing.assert_allclose(np.diff(t), 0.004, atol=1e-9)  # the newest ones, whole instants, in order
+    live = LiveFleet(_column(0.0), start=False)
+    assert live.fleet.formation_links["uav2"].keep_rows == 300_000  # 20 minutes at 250 Hz

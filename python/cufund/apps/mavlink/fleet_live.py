@@ -38,6 +38,8 @@ _TELEMETRY_TOPICS = (
     Topics.BATTERY,
 )
 """What :meth:`LiveRun.telemetry` reads of a vehicle's bus."""
+_KEEP_LINK_INSTANTS = 300_000
+"""Instants a formation link of a live fleet keeps of its truth samples (20 minutes at the fleet's 250 Hz)."""
 
 
 class _Snapshot:
@@ -195,6 +197,8 @@ class LiveFleet(PacedLoop):
             # scenario's mission through): as a single LiveRun's, it goes on for its operator until stopped
             fleet = build_fleet(config, until_done=False)
         self.fleet = fleet
+        for link in getattr(fleet, "formation_links", {}).values():  # as the vehicles' records, the last ~20 min
+            link.keep_rows = _KEEP_LINK_INSTANTS
         self.config = config if config is not None else getattr(fleet, "config", None)
         self.names: tuple[str, ...] = tuple(fleet.names)
         self.vehicles: dict[str, FleetVehicleRun] = {
