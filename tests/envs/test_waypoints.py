@@ -6,7 +6,7 @@ from __future__ import annotations
 import gymnasium
 import numpy as np
 
-import cufund.envs  # noqa: F401
+import cufund.envs
 
 
 def _place(v: gymnasium.vector.VectorEnv, p: tuple[float, float, float], vel: tuple[float, float, float]) -> None:
