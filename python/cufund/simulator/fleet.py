@@ -25,7 +25,7 @@ stepping every vehicle over the union of all their step boundaries would change 
 steps where alone it takes one) and lose the bit-for-bit equality with its single run. So the fleet advances its
 vehicles in rounds: in a round each vehicle whose run is open and whose next step ends at or before the fleet's next
 instant runs its events and node checks and hands out its next step, (dt, rotor-speed command), exactly the step it
-takes alone (``Simulator._advance(..., one_step=True)`` with the plant's ``fast_step`` standing in as a recorder),
+takes alone (``Simulator._advance(..., defer=recorder)``: the simulator hands its step to the fleet),
 and one C++ call (``cufund._core.dynamics.step_batches``, the GIL released) integrates all the steps of the round,
 each vehicle by its own ``QuadrotorBatch.step(dt, cmd, 1)``: the same arithmetic, bit for bit. Vehicles with the same
 schedule (one scenario's stack) step together in every round; others take their own steps in the rounds they need.
@@ -181,7 +181,7 @@ class FleetSimulator:
         self.physics_seconds = 0.0
         self._steps: list[tuple[Any, float, Any, int]] = []
         """The round's recorded steps: (the plant's C++ batch, dt [s], rotor-speed command, vehicle index)."""
-        self._recorders: list[Callable[[float, Any, int], None]] = []
+        self._recorders: list[Callable[[float, Any], None]] = []
         self._started = True
         self._interact(self._now_ns)
 
@@ -242,8 +242,8 @@ class FleetSimulator:
         if not recorders:
             record = steps.append
 
-            def recorder(i: int, core: Any) -> Callable[[float, Any, int], None]:
-                def step(dt: float, cmd: Any, nthreads: int) -> None:  # what the simulator calls its plant's step
+            def recorder(i: int, core: Any) -> Callable[[float, Any], None]:
+                def step(dt: float, cmd: Any) -> None:  # the step the simulator hands out instead of taking it
                     record((core, dt, cmd, i))
 
                 return step
@@ -260,18 +260,11 @@ class FleetSimulator:
             moved = []
             try:
                 for i in pending:
-                    sim, quad = sims[i], sims[i].vehicle
+                    sim = sims[i]
                     now = sim._now_ns
-                    own = quad.fast_step  # type: ignore[union-attr]
-                    if own is not None and own is quad._step:  # type: ignore[union-attr]  # the bare C++ step
-                        quad.fast_step = recorders[i]  # type: ignore[union-attr]
-                        try:
-                            sim._advance(end_ns, done[i], False, True)
-                        finally:
-                            if quad.fast_step is recorders[i]:  # type: ignore[union-attr]  # (unless reset meanwhile)
-                                quad.fast_step = own  # type: ignore[union-attr]
-                    else:  # a plant stepped through Python (a wind function, a probe): it steps itself
-                        sim._advance(end_ns, done[i], False, True)
+                    # its events and node checks, then its next step recorded (or taken, a plant stepped through
+                    # Python: a wind function, a probe)
+                    sim._advance(end_ns, done[i], False, recorders[i])
                     if sim._now_ns != now:  # it took a step (recorded, or its own)
                         moved.append(i)
             finally:

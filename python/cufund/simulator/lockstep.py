@@ -454,10 +454,16 @@ class Simulator:
         return self.status is None
 
     def _advance(
-        self, end_ns: int, done: Callable[[float, Odometry], bool] | None, progress: bool, one_step: bool = False
+        self,
+        end_ns: int,
+        done: Callable[[float, Odometry], bool] | None,
+        progress: bool,
+        defer: Callable[[float, Any], None] | None = None,
     ) -> None:
-        """The run up to ``end_ns``; with ``one_step``, it returns after the first physics step (the fleet's batched
-        physics, :mod:`cufund.simulator.fleet`, steps every vehicle once per call)."""
+        """The run up to ``end_ns``; with ``defer``, it returns after the first physics step, and hands that step
+        ``(dt, rotor_speed_cmd)`` to ``defer`` instead of taking it when the plant's step is the bare C++ step (the
+        fleet's batched physics, :mod:`cufund.simulator.fleet`, integrates every vehicle's in one call); a plant
+        stepped through Python (a wind function, a surface probe) takes it itself."""
         quad, bus, slots, physics = self.vehicle, self.bus, self._slots, self._physics
         truth_topic, actuator = Topics.TRUTH_ODOMETRY, str(Topics.ACTUATOR_COMMAND)
         latest, next_visible, deliver = bus.latest, bus.next_visible_ns, bus.deliver
@@ -525,7 +531,10 @@ class Simulator:
                     w0 = perf()
                     core_step = quad.fast_step if fast else None  # None while a wind function is set
                     if core_step is not None:
-                        core_step((target - now) / NS, cmd, 1)
+                        if defer is not None and core_step is quad._step:
+                            defer((target - now) / NS, cmd)
+                        else:
+                            core_step((target - now) / NS, cmd, 1)
                     else:
                         quad.step((target - now) / NS, cmd)
                     physics_seconds += perf() - w0
@@ -542,7 +551,7 @@ class Simulator:
                         chars = int(bar) // 10
                         sys.stderr.write(f"\r[{'#' * chars}{'.' * (40 - chars)}] {now / NS:7.2f} s")
                         sys.stderr.flush()
-                if one_step:
+                if defer is not None:
                     break
         finally:
             physics.k, physics.next_ns = p_k, p_next
