@@ -458,9 +458,13 @@ void define_dynamics(py::module_& m) {
         const auto n = static_cast<py::ssize_t>(py::len(batches));
         std::vector<BatchStep> steps(static_cast<std::size_t>(n));
         std::vector<py::ssize_t> first_row(static_cast<std::size_t>(n));
+        // Own a reference to each batch for the call: a sequence's item may be made on access (or dropped from the
+        // sequence while the GIL is released), and the raw pointers below must stay valid until the step is done.
+        std::vector<py::object> held(static_cast<std::size_t>(n));
         py::ssize_t rows = 0;
         for (py::ssize_t k = 0; k < n; ++k) {
-          py::handle b = batches[k];
+          held[k] = batches[k];
+          py::handle b = held[k];
           if (!py::isinstance<QuadrotorBatch>(b)) {
             throw py::type_error("batches[" + std::to_string(k) + "] must be a QuadrotorBatch, got " + type_name(b));
           }

@@ -5,6 +5,8 @@ plant, and each far-apart vehicle as it runs alone."""
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import pytest
 
@@ -61,6 +63,36 @@ def test_step_batches_errors_name_the_batch_and_step_the_others():
         _core.dynamics.step_batches([a._core, "b"], np.array([1e-3, 1e-3]), cmd, 1)
     with pytest.raises(ValueError, match=r"rotor_speed_cmd must have shape \(2, 4\)"):
         _core.dynamics.step_batches([a._core, b._core], np.array([1e-3, 1e-3]), cmd[:1], 1)
+
+
+def test_step_batches_holds_each_batch_for_the_call():
+    """A sequence may make its items on access: each batch must stay alive until it is stepped (the call holds a
+    reference to each, not a pointer into an item already released; without it, the batch was freed before the step
+    and the step wrote into freed memory)."""
+    params = presets.crazyflie()
+    refs: list[weakref.ref] = []
+    alive_at_dt: list[bool] = []
+
+    class Fresh:  # a sequence whose items exist only while someone holds them
+        def __len__(self) -> int:
+            return 2
+
+        def __getitem__(self, k: int):
+            if not 0 <= k < 2:
+                raise IndexError(k)
+            core = _core.dynamics.QuadrotorBatch(params.to_core(), 1)
+            refs.append(weakref.ref(core))
+            return core
+
+    class Dt:  # read after the batches: are they still alive then?
+        def __array__(self, dtype=None, copy=None):
+            alive_at_dt.append(all(r() is not None for r in refs))
+            return np.array([1e-3, 1e-3])
+
+    cmd = np.full((2, 4), params.hover_rotor_speed)
+    _core.dynamics.step_batches(Fresh(), Dt(), cmd, 1)
+    assert len(refs) == 2 and alive_at_dt == [True]
+    assert all(r() is None for r in refs)  # and released after the call
 
 
 def _square_at(name, x, y, **overrides):
