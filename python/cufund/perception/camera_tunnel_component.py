@@ -25,6 +25,8 @@ _POSES_KEPT = 400
 """Estimates kept to find the pose at an image's capture time (2 s at 200 Hz)."""
 _IMAGES_KEPT = 6
 """Left and right images kept, waiting for their detections."""
+_MIN_HITS = 2
+"""Measurements a tracked frame needs before it is published (a one-off mismatch is not a frame)."""
 _PENDING_KEPT = 8
 """Detections kept waiting for an estimate at or after their capture time."""
 
@@ -60,8 +62,9 @@ class CameraTunnelDetector(Component):
     the images' stamp (never ground truth; a frame newer than the newest estimate waits for it). A measurement
     joins the track whose centre is nearest within ``associate_m``, else starts one; a track is the weighted mean
     of its measurements (1 / depth^4). Each processed frame publishes a :class:`TunnelEstimate` on
-    ``Topics.TUNNEL_ESTIMATE``: the tracks in flying order from ``origin_W`` (the first estimate's position by
-    default), with ``expected`` at most that many (those seen most often), confidence 1 - 0.5^hits."""
+    ``Topics.TUNNEL_ESTIMATE``: the tracks measured at least twice, in flying order from ``origin_W`` (the first
+    estimate's position by default), with ``expected`` at most that many (those seen most often), confidence
+    1 - 0.5^hits."""
 
     name = "camera_tunnel_detector"
 
@@ -175,8 +178,9 @@ class CameraTunnelDetector(Component):
             self.frames_measured += 1
 
     def frames(self) -> list[FrameDetection]:
-        """The tracked frames in flying order (``expected`` at most: those seen most often)."""
-        tracks = self.tracks
+        """The tracked frames measured at least twice, in flying order (``expected`` at most: those seen most
+        often)."""
+        tracks = [tr for tr in self.tracks if tr.hits >= _MIN_HITS]
         if self.expected is not None and len(tracks) > self.expected:
             best = sorted(range(len(tracks)), key=lambda k: (-tracks[k].hits, k))[: self.expected]
             tracks = [tracks[k] for k in sorted(best)]
