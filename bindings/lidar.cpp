@@ -74,6 +74,7 @@ py::array_t<std::uint32_t, py::array::c_style> triangles_array(const py::handle&
       break;
     case SceneStatus::kNonFiniteRay: os << " must be finite, got a NaN or inf in ray " << r.index; break;
     case SceneStatus::kZeroDirection: os << " must have non-zero directions, got (0, 0, 0) in ray " << r.index; break;
+    case SceneStatus::kInstanced: os << " cannot be added: another RaycastScene instances this one"; break;
     case SceneStatus::kOk: os << ": ok"; break;
   }
   throw py::value_error(os.str());
@@ -325,7 +326,8 @@ first cast after a change. Casting is multithreaded and releases the GIL.
            }),
            py::arg("base"), py::keep_alive<1, 2>(),
            "A scene starting with base's geometries as one instance (shared, not copied): a hit on base's geometry g "
-           "reports id g, meshes added here take the ids after base's. base must not change while this scene is used.")
+           "reports id g, meshes added here take the ids after base's. base can no longer change (its add_triangles "
+           "raises ValueError).")
       .def_property_readonly_static(
           "INVALID_ID", [](py::object) { return lidar::kInvalidId; },
           "geometry_ids / primitive_ids of a ray that hit nothing (4294967295).")

@@ -6,6 +6,7 @@
 #include <embree3/rtcore.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -255,6 +256,8 @@ struct RaycastScene::Impl {
   mutable std::shared_mutex scene_mutex;
   // The instanced base's Embree scene (retained), or null.
   RTCScene base_scene = nullptr;
+  // Another scene instances this one: additions are refused (set under scene_mutex, read under it).
+  std::atomic<bool> instanced{false};
 
   explicit Impl(RTCDevice shared = nullptr) {
     if (shared != nullptr) {
@@ -301,6 +304,7 @@ RaycastScene::RaycastScene(Instancing, const RaycastScene& base) : impl_(std::ma
   if (n == 0) return;
   {
     std::shared_lock<std::shared_mutex> no_additions(base.impl_->scene_mutex);
+    base.impl_->instanced = true;
     base.impl_->commit();
   }
   rtcRetainScene(base.impl_->scene);
@@ -340,6 +344,10 @@ SceneResult RaycastScene::add_triangles(const float* vertices, std::size_t nv, c
   rtcCommitGeometry(g);
   ForkSafeSection no_fork;  // a child must not inherit the scene's locks held
   std::unique_lock<std::shared_mutex> no_casts(impl_->scene_mutex);
+  if (impl_->instanced) {
+    rtcReleaseGeometry(g);
+    return {SceneStatus::kInstanced, 0, kInvalidId};
+  }
   // ids 0, 1, 2, ... in order (after an instanced base's: see the constructor)
   const auto id = static_cast<unsigned>(impl_->geometries);
   rtcAttachGeometryByID(impl_->scene, g, id);

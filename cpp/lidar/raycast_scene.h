@@ -18,6 +18,7 @@ enum class SceneStatus {
   kIndexOutOfRange,  // index: the triangle
   kNonFiniteRay,     // index: the ray (origin or direction not finite)
   kZeroDirection,    // index: the ray (direction of zero length)
+  kInstanced,        // add_triangles on a scene another scene instances (it can no longer change)
 };
 
 struct SceneResult {
@@ -57,7 +58,8 @@ class RaycastScene {
   // and acceleration structure instead of copying its triangles): a hit on base's geometry g reports geometry id g,
   // and geometries added here take the ids base.num_geometries(), base.num_geometries() + 1, ... as if base's meshes
   // had been added first. Made and cast again cheaply whatever base's size (a fleet's view of the other vehicles in
-  // a large world). base is committed here and must outlive this scene and not change while it is used; the hits
+  // a large world). base is committed here and can no longer change (its add_triangles returns kInstanced: Embree
+  // must not rebuild a scene another one traverses); base must outlive this scene. The hits
   // equal those of the copied meshes (the identity transform is exact), though Embree does not promise the last bits
   // of every distance across the two structures.
   struct Instancing {};

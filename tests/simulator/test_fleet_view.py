@@ -113,6 +113,11 @@ def test_a_view_shares_the_worlds_scene_and_casts_as_the_copied_meshes():
     for _ in range(3):  # more views of the same world share its one scene
         assert WorldWithVehicles(base, vertices, triangles).raycast_scene is not scene
     assert base._scene is scene
+    # the shared scene cannot change under its views (Embree must not rebuild a scene another one traverses)
+    n_base = scene.num_geometries
+    with pytest.raises(ValueError, match="triangles cannot be added: another RaycastScene instances this one"):
+        scene.add_triangles(vertices.astype(np.float32), triangles)
+    assert scene.num_geometries == n_base
     # an empty base: the view is its boxes alone
     alone = WorldWithVehicles(World("none"), vertices, triangles).raycast_scene.cast_rays(rays[:2000], nthreads=1)
     assert set(np.unique(alone["geometry_ids"]).tolist()) <= {0, _core.lidar.RaycastScene.INVALID_ID}

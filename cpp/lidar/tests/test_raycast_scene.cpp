@@ -139,6 +139,9 @@ TEST(RaycastScene, InstancedBaseCastsAsCopiedMeshes) {
         std::count_if(a.g.begin(), a.g.end(), [&](std::uint32_t g) { return g >= 25 && g != kInvalidId; }));
   }
   EXPECT_GT(own_hits, 100u);  // both the base's and the view's own meshes are hit
+  // the base can no longer change (Embree must not rebuild a scene the view traverses): refused, nothing added
+  EXPECT_EQ(base.add_triangles(own_meshes[0].v.data(), 8, own_meshes[0].t.data(), 12).status, SceneStatus::kInstanced);
+  EXPECT_EQ(base.num_geometries(), base_meshes.size());
   // an empty base: the view holds its own meshes only, from id 0
   RaycastScene empty;
   RaycastScene alone(RaycastScene::Instancing{}, empty);
