@@ -138,3 +138,25 @@ def test_batched_physics_flag_is_checked():
     fleet = build_fleet(_mixed_schedules())
     with pytest.raises(ValueError, match="batched_physics must be True or False, got 1"):
         FleetSimulator(fleet.simulator.members, batched_physics=1)  # type: ignore[arg-type]
+
+
+def test_a_batched_fleets_failing_step_names_the_vehicle():
+    """A step the integrator refuses (here a NaN command) is raised naming the fleet's vehicle, not the row of the
+    round's step_batches call."""
+    from cufund.simulator import Simulator
+    from cufund.simulator.fleet import FleetMember, FleetSimulator
+    from cufund.vehicle.quadrotor import Quadrotor
+
+    def hovering(p_W):
+        quad = Quadrotor(presets.crazyflie())
+        quad.hover(np.array(p_W, dtype=float))
+        return quad
+
+    fleet = FleetSimulator(
+        [FleetMember(name, Simulator(hovering([9.0 * k, 0.0, 5.0]))) for k, name in enumerate(("a", "b", "c"))]
+    )
+    fleet.reset()
+    fleet.members[1].simulator._cmd[2] = np.nan  # b's held command (no controller replaces it)
+    with pytest.raises(ValueError, match=r"^vehicle b: rotor_speed_cmd must be finite .* rotor 3"):
+        fleet.advance_to(0.01)
+    assert fleet.members[2].simulator.vehicle.t > 0  # the others of the round were stepped
