@@ -58,7 +58,8 @@ class VioCore:
             gtsam.noiseModel.mEstimator.Huber.Create(p.robust_k), gtsam.noiseModel.Isotropic.Sigma(3, p.pixel_sigma)
         )
         self._noise_mono = gtsam.noiseModel.Robust.Create(
-            gtsam.noiseModel.mEstimator.Huber.Create(p.robust_k), gtsam.noiseModel.Isotropic.Sigma(2, p.pixel_sigma)
+            gtsam.noiseModel.mEstimator.Huber.Create(p.robust_k),
+            gtsam.noiseModel.Isotropic.Sigma(2, p.mono_pixel_sigma),
         )
         self._obs: dict[int, list[tuple[int, float, np.ndarray, np.ndarray]]] = {}
         """Monocular: track id -> its keyframe observations (k, t, rectified pixel, T_WR0) before it is a landmark."""
