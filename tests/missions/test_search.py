@@ -105,8 +105,9 @@ def test_association_gates_by_distance():
 
 # --- the flight-software component ----------------------------------------------------------------------------
 def test_mission_takes_person_detections_with_the_camera_at_the_capture_time():
-    """Detections3D of two classes: only 'person' ones scored >= min_score go to the tracker, each with the
-    estimate's position at its stamp; two views from estimates 4 m apart confirm one find."""
+    """Detections3D of two classes: only 'person' ones scored >= min_score and placed within the height band
+    (-0.5 to 1.6 m above the take-off point) go to the tracker, each with the estimate's position at its stamp;
+    two views from estimates 4 m apart confirm one find."""
     m = SearchMission(SearchParams())
     bus = Bus()
     view = BusView(bus, m.name, m.inputs + m.optional_inputs, m.outputs, deny_truth=True)
@@ -117,11 +118,9 @@ def test_mission_takes_person_detections_with_the_camera_at_the_capture_time():
         bus.publish(Topics.ESTIMATE, Odometry(t, np.array([2.0 * t, 0, 12]), np.zeros(3), q, np.zeros(3)))
     names = ("person", "car")
     for t, x in ((0.0, 5.0), (2.0, 5.4)):  # cameras at x = 0 and 4 m
-        c = np.array([[x, 5.0, 0.8], [9.0, 9.0, 0.5], [20.0, 20.0, 0.8]])
-        bus.publish(
-            Topics.DETECTIONS_3D,
-            Detections3D(t, c, np.ones((3, 2)), np.array([0.9, 0.9, 0.1], np.float32), np.array([0, 1, 0]), names),
-        )
+        c = np.array([[x, 5.0, 0.8], [9.0, 9.0, 0.5], [20.0, 20.0, 0.8], [30.0, 5.0, 2.0], [30.0, 9.0, -0.6]])
+        scores = np.array([0.9, 0.9, 0.1, 0.9, 0.9], np.float32)  # a car, a low score, above and below the band
+        bus.publish(Topics.DETECTIONS_3D, Detections3D(t, c, np.ones((5, 2)), scores, np.array([0, 1, 0, 0, 0]), names))
     m.step(2.0, view)
     assert m.detections == 2 and len(m.tracker.tracks) == 1
     (track,) = m.tracker.confirmed()
@@ -133,7 +132,7 @@ def test_mission_takes_person_detections_with_the_camera_at_the_capture_time():
 # --- the reference and the world ------------------------------------------------------------------------------
 def test_reference_climbs_covers_the_area_facing_along_each_lane_and_lands():
     p = SearchParams(area=((-10, -6), (10, -6), (10, 6), (-10, 6)), altitude=12.0, spacing=4.0)
-    ref, path = search_reference(p, np.array([1.0, 2.0, 0.0]))
+    ref, path, (t0, t1) = search_reference(p, np.array([1.0, 2.0, 0.0]))
     assert len(path) == 6  # 3 lanes 4 m apart over 12 m, each two waypoints
     np.testing.assert_allclose(sorted(set(path[:, 1].round(6))), [-4.0, 0.0, 4.0])
     t = np.arange(ref.t_start, ref.t_end, 0.01)
@@ -150,6 +149,37 @@ def test_reference_climbs_covers_the_area_facing_along_each_lane_and_lands():
     for w in path:
         assert np.min(np.linalg.norm(s.p_W - w, axis=1)) < 1e-3
     assert np.linalg.norm(s.v_W, axis=1).max() <= p.v_max + 1e-6
+    # the search window: from the arrival at the first lane's start to the end of the last lane
+    np.testing.assert_allclose(ref.sample(t0).p_W[0], path[0], atol=1e-6)
+    np.testing.assert_allclose(ref.sample(t1).p_W[0], path[-1], atol=1e-6)
+    lanes = (t >= t0) & (t <= t1)
+    assert np.all(np.abs(s.p_W[lanes, 2] - 12.0) < 1e-6) and 0 < t0 < t1 < ref.t_end
+
+
+def test_lanes_run_lead_m_beyond_the_area_and_finds_outside_it_are_ignored():
+    """lead_m 5: each lane's ends lie 5 m beyond the area's edges along the lane; a detection 1.5 m outside the
+    area (margin 1 m) is ignored, one 0.5 m outside counts; one captured after the search window is ignored."""
+    p = SearchParams(area=((-10, -6), (10, -6), (10, 6), (-10, 6)), spacing=4.0, heading=0.0, lead_m=5.0)
+    _, path, _ = search_reference(p, np.zeros(3))
+    np.testing.assert_allclose(sorted(set(np.abs(path[:, 0]).round(6))), [15.0])
+    m = SearchMission(p, window=(0.2, 0.8))
+    bus = Bus()
+    view = BusView(bus, m.name, m.inputs + m.optional_inputs, m.outputs, deny_truth=True)
+    m.reset()
+    m.setup(view)
+    for t in (0.0, 1.0):
+        bus.publish(
+            Topics.ESTIMATE, Odometry(t, np.array([0.0, 0, 12]), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3))
+        )
+    c = np.array([[11.5, 0.0, 0.8], [10.5, 0.0, 0.8]])
+    bus.publish(
+        Topics.DETECTIONS_3D,
+        Detections3D(0.5, c, np.ones((2, 2)), np.full(2, 0.9, np.float32), np.zeros(2, int), ("person",)),
+    )
+    late = Detections3D(0.9, c[1:], np.ones((1, 2)), np.full(1, 0.9, np.float32), np.zeros(1, int), ("person",))
+    bus.publish(Topics.DETECTIONS_3D, late)  # after the window (going home): ignored
+    m.step(1.0, view)
+    assert m.detections == 1 and m.tracker.tracks[0].positions[0][0] == 10.5
 
 
 def test_params_are_checked():

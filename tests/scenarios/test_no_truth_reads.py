@@ -44,6 +44,7 @@ SCENARIOS = [
     "tunnel",
     "vehicle_lio",
     "square_vio",
+    "search",
     "fleet_formation:uav2",  # a formation follower, flown in its fleet (it hears the leader's estimate)
 ]
 

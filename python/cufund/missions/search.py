@@ -28,7 +28,7 @@ from cufund.planning.trajectory import TrajectorySamples
 from cufund.planning.trajectory_follower import TrajectoryFollower
 
 from .coverage import plan_coverage
-from .fleet_polygon import check_polygon
+from .fleet_polygon import check_polygon, polygon_contains
 from .search_tracks import SearchTracker, SearchTrackParams, search_metrics
 
 __all__ = ["SearchMission", "SearchParams", "StraightMove", "YawTurn", "search_reference"]
@@ -42,7 +42,13 @@ class SearchParams:
     """Where and how to search. Lengths [m], speeds [m/s], times [s]."""
 
     area: tuple[tuple[float, float], ...] = ((-16.0, -16.0), (16.0, -16.0), (16.0, 16.0), (-16.0, 16.0))
-    """The polygon searched ((x, y), ...) [m]."""
+    """The polygon searched ((x, y), ...) [m]: the lanes cover it, and detections placed outside it (farther than
+    ``area_margin_m``) are ignored."""
+    lead_m: float = 0.0
+    """Each lane runs this far beyond the area at both ends [m]: a forward camera pitched down sees the ground from
+    some metres ahead of the vehicle, so a lane that starts at the area's edge would miss the strip behind it."""
+    area_margin_m: float = 1.0
+    """Detections up to this far outside the area still count [m]."""
     altitude: float = 12.0
     """Flight altitude above the start (above the trees) [m]."""
     spacing: float = 8.0
@@ -82,6 +88,10 @@ class SearchParams:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ConfigError(f"mission.{name} must be a finite number > 0, got {v!r}")
+        for name in ("lead_m", "area_margin_m"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ConfigError(f"mission.{name} must be a finite number >= 0 [m], got {v!r}")
         v = self.min_height_m
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not -1e3 < v < self.max_height_m:
             raise ConfigError(f"mission.min_height_m must be a number below max_height_m [m], got {v!r}")
@@ -175,9 +185,12 @@ class StraightMove:
         )
 
 
-def search_reference(p: SearchParams, start_W: np.ndarray, yaw0: float = 0.0) -> tuple[TrajectorySequence, np.ndarray]:
-    """The search's reference: climb to ``altitude`` above ``start_W``, then each leg of the coverage path (turn
-    to face along it, fly it, stop), back above the start, land. Returns (reference, coverage waypoints (n, 3))."""
+def search_reference(
+    p: SearchParams, start_W: np.ndarray, yaw0: float = 0.0
+) -> tuple[TrajectorySequence, np.ndarray, tuple[float, float]]:
+    """The search's reference: climb to ``altitude`` above ``start_W``, then each leg of the coverage path, its
+    lanes ``lead_m`` longer at both ends (turn to face along it, fly it, stop), back above the start, land. Returns
+    (reference, coverage waypoints (n, 3), (t0, t1): when the coverage starts, at altitude, and ends [s])."""
     start = np.asarray(start_W, dtype=float)
     try:
         cell = plan_coverage(p.area, {"search": start}, p.spacing, p.altitude, heading=p.heading, max_lanes=1000)
@@ -185,10 +198,19 @@ def search_reference(p: SearchParams, start_W: np.ndarray, yaw0: float = 0.0) ->
         raise ConfigError(f"mission: {e}") from None
     path = np.array(cell["search"].path, dtype=float)
     path[:, 2] = start[2] + p.altitude
+    for k in range(0, len(path) - 1, 2):  # each lane (piece) is a pair of waypoints: run it lead_m longer at both ends
+        d = path[k + 1] - path[k]
+        u = d / max(float(np.linalg.norm(d)), 1e-9)
+        path[k] -= p.lead_m * u
+        path[k + 1] += p.lead_m * u
     top = start + np.array([0.0, 0.0, p.altitude])
     parts: list[Any] = []
     t, yaw, here = 0.0, float(yaw0), start
-    for goal, v in ((top, p.climb_v_max), *((w, p.v_max) for w in path), (top, p.v_max), (start, p.climb_v_max)):
+    legs = [(top, p.climb_v_max), *((w, p.v_max) for w in path), (top, p.v_max), (start, p.climb_v_max)]
+    window = [0.0, 0.0]
+    for k, (goal, v) in enumerate(legs):
+        if k == 2:  # the first lane begins (after the climb and the transit to its start)
+            window[0] = t
         d = goal - here
         if np.linalg.norm(d[:2]) > 1e-6:  # a horizontal leg: face along it first
             heading = math.atan2(d[1], d[0])
@@ -201,12 +223,15 @@ def search_reference(p: SearchParams, start_W: np.ndarray, yaw0: float = 0.0) ->
         if v == p.climb_v_max and goal is top:
             parts.append(Hold(here, 1.0, yaw, t_start=t))
             t = parts[-1].t_end
-    return TrajectorySequence(parts), path
+        if k == len(path):  # at the end of the last lane
+            window[1] = t
+    return TrajectorySequence(parts), path, (window[0], window[1])
 
 
 class SearchMission(Component):
     """Flight software: each ``Detections3D`` of class ``target`` (scored at least ``tracks.min_score``, placed
-    between ``min_height_m`` and ``max_height_m`` above ``ground_z``, the take-off point's height) goes to the
+    between ``min_height_m`` and ``max_height_m`` above ``ground_z``, the take-off point's height, and inside the
+    area or within ``area_margin_m`` of it, captured while the lanes are flown: within ``window`` [s]) goes to the
     :class:`~cufund.missions.search_tracks.SearchTracker` with the camera's position at its capture time taken
     from the estimate (the body's position; the camera sits centimetres from it)."""
 
@@ -216,11 +241,13 @@ class SearchMission(Component):
         self,
         params: SearchParams,
         ground_z: float = 0.0,
+        window: tuple[float, float] = (0.0, math.inf),
         state_topic: str = Topics.ESTIMATE,
         rate_hz: float = 20.0,
     ) -> None:
         self.params = params
         self.ground_z = float(ground_z)
+        self.window = (float(window[0]), float(window[1]))
         self.state_topic = state_topic
         self.rate_hz = float(rate_hz)
         self.inputs = (Topics.DETECTIONS_3D, state_topic)
@@ -249,6 +276,8 @@ class SearchMission(Component):
         self._pending.extend(self._dets.take())
         while self._pending and self._poses and self._pending[0].t <= self._poses[-1].t:
             msg = self._pending.popleft()
+            if not self.window[0] <= msg.t <= self.window[1]:
+                continue  # climbing, in transit to the first lane, going home or landing: not searching
             camera = self._camera_at(msg.t)
             if camera is None:
                 continue
@@ -262,6 +291,7 @@ class SearchMission(Component):
                     and float(score) >= self.params.tracks.min_score
                     and np.all(np.isfinite(p_W))
                     and self.params.min_height_m <= p_W[2] - self.ground_z <= self.params.max_height_m
+                    and polygon_contains(self.params.area, p_W[:2], tol=self.params.area_margin_m)[0]
                 ):
                     self.tracker.add(msg.t, p_W, camera)
                     self.detections += 1
@@ -296,10 +326,10 @@ def _search(p: SearchParams, ctx: BuildContext) -> list[Any]:
             "mission (search) needs detections in the world: set perception (e.g. onnx_detector with a depth camera or a stereo pair)"
         )
     start = np.array(cfg.start_p_W if cfg.start_p_W is not None else (0.0, 0.0, 0.0), dtype=float)
-    reference, path = search_reference(p, start, float(cfg.start_yaw or 0.0))
+    reference, path, window = search_reference(p, start, float(cfg.start_yaw or 0.0))
     follower = TrajectoryFollower(reference, rate_hz=cfg.rates.trajectory_hz)
     ctx.set_reference(reference)
-    mission = SearchMission(p, ground_z=float(start[2]))
+    mission = SearchMission(p, ground_z=float(start[2]), window=window)
 
     def metrics(result: Any) -> dict[str, Any]:
         world = ctx.truth_world_for_metrics()  # the metric's alone (after the run): the mission never sees it
