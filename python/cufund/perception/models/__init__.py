@@ -1,7 +1,8 @@
 """The detection models cufund trains and ships (``cufund train-detector`` on ``cufund dataset`` output; each
 ``<name>.onnx`` beside its training config ``<name>.yaml``: dataset commands, seeds, epochs, input size).
 
-- ``people_cars_pads``: person, car, landing_pad (the forest, scattered objects).
+- ``people_cars_pads``: person, car, landing_pad (the forest, scattered objects);
+- ``frames_gates``: tunnel_frame, gate (the tunnel, scattered objects).
 
 Both take a 240 x 320 letterboxed RGB input (a 640 x 480 image halved) and give ultralytics' YOLOv8 export
 layout; run them with :class:`cufund.perception.onnx_detector.OnnxDetector` (onnxruntime only).
@@ -13,7 +14,7 @@ from pathlib import Path
 
 __all__ = ["SHIPPED", "model_path"]
 
-SHIPPED = ("people_cars_pads",)
+SHIPPED = ("people_cars_pads", "frames_gates")
 """Names of the shipped models."""
 
 
