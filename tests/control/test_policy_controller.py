@@ -252,3 +252,21 @@ def test_a_timed_reference_policy_sees_the_setpoint_extrapolated_ahead(tmp_path)
 def test_a_negative_lookahead_is_refused_naming_the_field():
     with pytest.raises(ConfigError, match="lookahead_s"):
         _manifest(lookahead_s=-0.1)
+
+
+def test_a_timed_reference_policy_is_refused_on_the_scenarios_waypoints(tmp_path):
+    """targets: waypoints feeds the next waypoints, which a timed-reference policy (lookahead_s > 0) never saw: its
+    blocks were a moving point and its extrapolations. Refused at build time, naming the key; an untimed policy
+    flies them."""
+    wp = ((0.0, 0.0, 1.0), (1.0, 0.0, 1.0), (1.0, 1.0, 1.0))
+    for lookahead in (0.2, 0.0):
+        m = _manifest(n_targets=3, obs_dim=po.observation_size(3, 3), lookahead_s=lookahead)
+        _export(tmp_path, m)
+        sess, manifest, _ = load_policy(tmp_path)
+        decoder = ActionDecoder(presets.crazyflie(), manifest)
+        if lookahead > 0:
+            with pytest.raises(ConfigError, match="controller.targets: waypoints.*lookahead_s 0.2"):
+                PolicyController(sess, manifest, decoder, targets="waypoints", waypoints=wp)
+            PolicyController(sess, manifest, decoder, targets="setpoint")
+        else:
+            PolicyController(sess, manifest, decoder, targets="waypoints", waypoints=wp)

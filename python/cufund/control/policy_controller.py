@@ -153,6 +153,12 @@ class PolicyController(Controller):
     ) -> None:
         if targets == "waypoints" and not waypoints:
             raise ConfigError("controller.targets: waypoints needs the scenario's trajectory.waypoints")
+        if targets == "waypoints" and manifest.lookahead_s > 0:
+            raise ConfigError(
+                f"controller.targets: waypoints, but the policy was trained on a timed reference (lookahead_s "
+                f"{manifest.lookahead_s:g} in its policy.yaml): its target blocks are a moving point and its "
+                "extrapolations, not the next waypoints; fly it with targets: setpoint"
+            )
         self.session = session
         self.manifest = manifest
         self.decoder = decoder
