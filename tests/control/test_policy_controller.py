@@ -270,3 +270,13 @@ def test_a_timed_reference_policy_is_refused_on_the_scenarios_waypoints(tmp_path
             PolicyController(sess, manifest, decoder, targets="setpoint")
         else:
             PolicyController(sess, manifest, decoder, targets="waypoints", waypoints=wp)
+
+
+def test_a_gates_policy_is_refused_at_build_time(tmp_path):
+    """A Gates-v0 policy's target blocks carry the gate normal (target_dim 6); the controller builds positions only:
+    refused when built, naming target_dim (before, it was built and its first step failed inside onnxruntime)."""
+    m = _manifest(task="cufund/Gates-v0", n_targets=2, target_dim=6, obs_dim=po.observation_size(2, 6))
+    _export(tmp_path, m)
+    sess, manifest, _ = load_policy(tmp_path)
+    with pytest.raises(ConfigError, match="target_dim is 6"):
+        PolicyController(sess, manifest, ActionDecoder(presets.crazyflie(), manifest))

@@ -21,8 +21,8 @@ block k the setpoint extrapolated k * lookahead_s ahead from its velocity and ac
 (the next ``n_targets`` in order, the current one counted reached within ``reach_radius``).
 
 The model is refused at build time, naming the field, when its ``policy.yaml`` does not match what this controller
-builds: the observation layout or its version, the observation or action size, or a vehicle preset other than the
-scenario's.
+builds: the observation layout or its version, the observation or action size, target blocks of other than 3
+numbers (a Gates policy's), or a vehicle preset other than the scenario's.
 """
 
 from __future__ import annotations
@@ -153,6 +153,11 @@ class PolicyController(Controller):
     ) -> None:
         if targets == "waypoints" and not waypoints:
             raise ConfigError("controller.targets: waypoints needs the scenario's trajectory.waypoints")
+        if manifest.target_dim != 3:
+            raise ConfigError(
+                f"policy.yaml: target_dim is {manifest.target_dim} ({manifest.task}), but the policy controller builds "
+                "target blocks of 3 (positions; no gate normals)"
+            )
         if targets == "waypoints" and manifest.lookahead_s > 0:
             raise ConfigError(
                 f"controller.targets: waypoints, but the policy was trained on a timed reference (lookahead_s "
