@@ -300,10 +300,13 @@ struct RaycastScene::Impl {
 RaycastScene::RaycastScene() : impl_(std::make_unique<Impl>()) {}
 
 RaycastScene::RaycastScene(Instancing, const RaycastScene& base) : impl_(std::make_unique<Impl>(base.impl_->device)) {
-  const std::size_t n = base.num_geometries();
-  if (n == 0) return;
+  std::size_t n = 0, triangles = 0;
   {
+    // base's counts, its freeze and its commit under one lock: no addition slips in between (its id would be taken)
     std::shared_lock<std::shared_mutex> no_additions(base.impl_->scene_mutex);
+    n = base.impl_->geometries;
+    triangles = base.impl_->triangles;
+    if (n == 0) return;
     base.impl_->instanced = true;
     base.impl_->commit();
   }
@@ -319,7 +322,7 @@ RaycastScene::RaycastScene(Instancing, const RaycastScene& base) : impl_(std::ma
   rtcAttachGeometryByID(impl_->scene, g, 0);
   rtcReleaseGeometry(g);
   impl_->geometries = n;
-  impl_->triangles = base.num_triangles();
+  impl_->triangles = triangles;
 }
 RaycastScene::~RaycastScene() = default;
 RaycastScene::RaycastScene(RaycastScene&&) noexcept = default;
