@@ -80,6 +80,7 @@ def test_onnx_graph_is_the_mlp_it_was_given(tmp_path):
         ("obs_dim: 22", "obs_dim"),
         ("act_dim: 4", "act_dim"),
         ("action_mode: rotor_speeds", "action_mode"),
+        ("format: cufund-policy/1", "format"),
     ],
 )
 def test_refuses_a_manifest_that_does_not_match_naming_the_field(tmp_path, edit, field):
@@ -93,6 +94,7 @@ def test_refuses_a_manifest_that_does_not_match_naming_the_field(tmp_path, edit,
         "obs_dim": "25",
         "act_dim": "3",
         "action_mode": "jetpack",
+        "format": "cufund-policy/2",
     }[key]
     assert f"{key}: " in text
     lines = [f"{key}: {bad}" if ln.startswith(f"{key}: ") else ln for ln in text.splitlines()]

@@ -16,9 +16,11 @@ from cufund.core.config import ConfigError
 
 from . import policy_observation as po
 
-__all__ = ["ACTION_MODES", "OBS_LAYOUT", "OBS_LAYOUT_VERSION", "PolicyManifest"]
+__all__ = ["ACTION_MODES", "FORMAT", "OBS_LAYOUT", "OBS_LAYOUT_VERSION", "PolicyManifest"]
 
 ACTION_MODES = ("rotor_speeds", "thrust_rates", "velocity")
+FORMAT = "cufund-policy/1"
+"""The manifest's own format: a policy.yaml of another one is refused."""
 OBS_LAYOUT = "cufund.policy_observation"
 """The name of the observation layout (:mod:`cufund.control.policy_observation`)."""
 OBS_LAYOUT_VERSION = po.LAYOUT_VERSION
@@ -62,7 +64,7 @@ class PolicyManifest:
     library: str = "skrl"
     env_steps: int = 0
     """Environment steps it was trained for."""
-    format: str = "cufund-policy/1"
+    format: str = FORMAT
 
     def __post_init__(self) -> None:
         if self.action_mode not in ACTION_MODES:
@@ -86,6 +88,8 @@ class PolicyManifest:
     def check_layout(self, where: str = "policy.yaml") -> None:
         """Raises :class:`ConfigError` naming the first field that does not match the observation this version of
         cufund builds (:mod:`cufund.control.policy_observation`)."""
+        if self.format != FORMAT:
+            raise ConfigError(f"{where}: format is {self.format!r}, this cufund reads {FORMAT!r}")
         if self.obs_layout != OBS_LAYOUT:
             raise ConfigError(f"{where}: obs_layout is {self.obs_layout!r}, expected {OBS_LAYOUT!r}")
         if self.obs_layout_version != OBS_LAYOUT_VERSION:
