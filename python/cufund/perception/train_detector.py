@@ -220,15 +220,18 @@ def train_detector(
     """Trains on the ``train`` split of ``datasets``, exports ``out`` (ONNX) and returns a summary (losses per
     epoch, time, the config). The torch weights are saved beside ``out`` (``.pt``) after every epoch; ``init``: such
     a file to start from (a run continued). Needs torch and onnx (``pip install 'cufund[detect-train]'``)."""
+    out = Path(out)
+    if out.suffix != ".onnx":
+        raise ValueError(f"--out must name a .onnx file, got {str(out)!r}")
+    for folder in datasets:  # usage errors first, with or without torch
+        if not (Path(folder) / "data.yaml").is_file():
+            raise ValueError(f"dataset {str(folder)!r} has no data.yaml (write one with `cufund dataset`)")
     try:
         import torch
     except ImportError:
         raise ValueError("cufund train-detector needs torch and onnx: pip install 'cufund[detect-train]'") from None
     from . import train_detector_model as tdm
 
-    out = Path(out)
-    if out.suffix != ".onnx":
-        raise ValueError(f"--out must name a .onnx file, got {str(out)!r}")
     out.parent.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
     torch.set_num_threads(cfg.threads)
