@@ -165,6 +165,10 @@ def test_timed_reference_is_refused_where_it_means_nothing() -> None:
         gymnasium.make_vec("cufund/Waypoints-v0", num_envs=1, segment_s=[0.0, 2.0])
     with pytest.raises(ConfigError, match="waypoint_jitter_m"):
         gymnasium.make_vec("cufund/Waypoints-v0", num_envs=1, waypoint_jitter_m=[0.1, -0.1, 0.0])
+    # the timed reference's other keys without segment_s would be ignored: refused, naming the key
+    for key, value in (("lookahead_s", 0.2), ("hold_s", [0.5, 1.0]), ("waypoint_jitter_m", [0.0, 0.3, 0.0])):
+        with pytest.raises(ConfigError, match=f"{key} is for a timed reference"):
+            gymnasium.make_vec("cufund/Waypoints-v0", num_envs=1, **{key: value})
 
 
 def test_the_shipped_waypoints_policy_tracks_its_timed_reference() -> None:

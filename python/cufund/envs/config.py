@@ -236,6 +236,14 @@ class TaskConfig:
                 raise ConfigError(f"segment_s (a timed reference) is for the waypoints task, not {self.task!r}")
             if self.segment_s[0] <= 0:
                 raise ConfigError(f"segment_s must be [low, high] with 0 < low <= high [s], got {self.segment_s!r}")
+        else:  # the timed reference's other keys mean nothing without it: refused rather than ignored
+            for name, on in (
+                ("hold_s", self.hold_s[1] > 0),
+                ("waypoint_jitter_m", any(x > 0 for x in self.waypoint_jitter_m)),
+                ("lookahead_s", self.lookahead_s > 0),
+            ):
+                if on:
+                    raise ConfigError(f"{name} is for a timed reference: set segment_s too (now [0, 0], off)")
         object.__setattr__(self, "rewards", nested(Rewards, self.rewards, "rewards"))
         object.__setattr__(self, "randomisation", nested(Randomisation, self.randomisation, "randomisation"))
 
