@@ -124,11 +124,15 @@ def test_cli_refuses_bad_input_with_exit_2(tmp_path, capsys):
 
 
 def test_linear_schedule_multiplies_the_rate_along_the_line():
-    """skrl multiplies its learning rate by the schedule's value after each update: the running product follows
-    1 - (1 - final) t / total and stays at final past the end."""
+    """skrl's PPO multiplies its learning rate by the schedule's value after every learning epoch of an update (so
+    several times at one timestep), one schedule per network: the running product follows 1 - (1 - final) t / total
+    and stays at final past the end."""
     total, final = 1000, 0.1
-    sched = linear_lr(total=total, final=final)
-    lr = 1.0
+    policy, value = linear_lr(total=total, final=final), linear_lr(total=total, final=final)
+    lr_policy = lr_value = 1.0
     for t in range(0, 1200, 32):  # an update every 32 steps, as rollouts=32
-        lr *= sched(t)
-        assert lr == pytest.approx(max(final, 1.0 - (1.0 - final) * (t + 1) / total), rel=1e-12)
+        for _ in range(5):  # learning_epochs=5
+            lr_policy *= policy(t)
+            lr_value *= value(t)
+        want = max(final, 1.0 - (1.0 - final) * (t + 1) / total)
+        assert lr_policy == pytest.approx(want, rel=1e-12) and lr_value == pytest.approx(want, rel=1e-12)
