@@ -7,7 +7,8 @@ Layout of one observation (float32, SI units, frames as named)::
     [ target block 0 | target block 1 | ... | target block K-1 | v_W (3) | R_WB (9, row-major) | w_B (3) | a_prev (4) ]
 
 - target block k, ``target_dim`` = 3: ``p_k - p_W``, the k-th next target's position relative to the vehicle in
-  the world frame [m] (hover: the hover point; waypoints: the next waypoints in order);
+  the world frame [m] (hover: the hover point; waypoints: the next waypoints in order, or, along a timed reference,
+  the reference extrapolated k * lookahead_s ahead: :func:`lookahead_targets`);
 - target block k, ``target_dim`` = 6: the same 3 followed by the gate's normal ``x_G`` in the world frame (the
   direction it is to be flown through; gates);
 - ``v_W`` the velocity [m/s], world ENU;
