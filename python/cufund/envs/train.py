@@ -439,7 +439,7 @@ def train(
         max_speed=float(task.max_speed),
         velocity_gain=float(flown.velocity_gain),
         attitude_gain=float(flown.attitude_gain),
-        lookahead_s=float(task.lookahead_s) if task.timed_reference else 0.0,
+        lookahead_s=float(task.lookahead_s),  # 0 unless a timed reference (TaskConfig refuses it otherwise)
         algo=cfg.algo,
         library=f"skrl {_skrl().__version__} (JAX)",
         env_steps=env_steps,
