@@ -46,6 +46,7 @@ SCENARIOS = [
     "square_vio",
     "search",
     "fleet_formation:uav2",  # a formation follower, flown in its fleet (it hears the leader's estimate)
+    "tunnel+perception=camera,estimator.kind=vio",  # the tunnel on cameras alone: stereo VIO, detector, no LiDAR
 ]
 
 TRUTH_TYPES = (
@@ -123,7 +124,8 @@ def built(request):
         fleet = build_fleet(load_scenario(name))
         fleet.simulator.run(2.0)
         return fleet.vehicle(vehicle).built
-    b = build_simulation(load_scenario(request.param))
+    name, _, sets = request.param.partition("+")  # overrides, as --set gives them
+    b = build_simulation(load_scenario(name, sets.split(",") if sets else []))
     b.simulator.run(2.0)
     return b
 
