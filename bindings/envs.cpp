@@ -3,11 +3,144 @@
 #include <stdexcept>
 
 #include "env_batch.h"
+#include "prism_cast.h"
 #include "pybind_common.h"
 
 namespace cufund::py_bind {
 
+using envs::check_scene;
+using envs::Pinhole;
+using envs::prism_depth_cast;
+using envs::PrismScene;
+using envs::PrismSceneCheck;
+using envs::PrismSceneStatus;
+
+// The analytic depth caster (prism_cast.h): vertical convex prisms and horizontal rectangles.
+void define_prism_cast(py::module_& m) {
+  py::class_<PrismScene>(
+      m, "PrismScene", "Vertical convex prisms and horizontal rectangles for prism_depth_cast (cpp/envs/prism_cast.h).")
+      .def(py::init([](const py::handle& planes_obj, const py::handle& begin_obj, const py::handle& prisms_obj,
+                       const py::handle& rects_obj) {
+             py::array pa = checked_array(planes_obj, "planes");
+             if (pa.ndim() != 2 || pa.shape(1) != 3)
+               throw py::value_error("planes must have shape (K, 3), got " + shape_str(pa));
+             auto planes = as_float64(planes_obj, "planes", {pa.shape(0), 3});
+             py::array pr = checked_array(prisms_obj, "prisms");
+             if (pr.ndim() != 2 || pr.shape(1) != 6)
+               throw py::value_error("prisms must have shape (P, 6), got " + shape_str(pr));
+             const py::ssize_t n = pr.shape(0);
+             auto prisms = as_float64(prisms_obj, "prisms", {n, 6});
+             py::array ba = checked_array(begin_obj, "plane_begin");
+             if (ba.dtype().kind() != 'i' && ba.dtype().kind() != 'u') {
+               throw py::value_error("plane_begin must have an integer dtype, got " + std::string(py::str(ba.dtype())));
+             }
+             if (ba.ndim() != 1 || ba.shape(0) != n + 1) {
+               throw py::value_error("plane_begin must have shape (" + std::to_string(n + 1) + ",), got " +
+                                     shape_str(ba));
+             }
+             auto begin = contiguous<std::int64_t>(ba, "plane_begin");
+             py::array ra = checked_array(rects_obj, "rects");
+             if (ra.ndim() != 2 || ra.shape(1) != 5)
+               throw py::value_error("rects must have shape (M, 5), got " + shape_str(ra));
+             auto rects = as_float64(rects_obj, "rects", {ra.shape(0), 5});
+             PrismScene s;
+             s.plane_begin.clear();
+             for (py::ssize_t j = 0; j <= n; ++j) {
+               if (begin.data()[j] < 0) throw py::value_error("plane_begin must be >= 0");
+               s.plane_begin.push_back(static_cast<std::size_t>(begin.data()[j]));
+             }
+             for (py::ssize_t k = 0; k < pa.shape(0); ++k) {
+               s.nx.push_back(static_cast<float>(planes.data()[3 * k]));
+               s.ny.push_back(static_cast<float>(planes.data()[3 * k + 1]));
+               s.c.push_back(planes.data()[3 * k + 2]);
+             }
+             for (py::ssize_t j = 0; j < n; ++j) {
+               const double* v = prisms.data() + 6 * j;
+               s.zmin.push_back(v[0]), s.zmax.push_back(v[1]), s.box_x0.push_back(v[2]), s.box_x1.push_back(v[3]);
+               s.box_y0.push_back(v[4]), s.box_y1.push_back(v[5]);
+             }
+             for (py::ssize_t j = 0; j < ra.shape(0); ++j) {
+               const double* v = rects.data() + 5 * j;
+               s.rect_z.push_back(v[0]), s.rect_x0.push_back(v[1]), s.rect_x1.push_back(v[2]);
+               s.rect_y0.push_back(v[3]), s.rect_y1.push_back(v[4]);
+             }
+             const PrismSceneCheck c = check_scene(s);
+             if (c.status == PrismSceneStatus::kBadPrism) {
+               throw py::value_error("prism " + std::to_string(c.index) +
+                                     ": planes (nx, ny, c) must be finite with (nx, ny) != 0, plane_begin increasing "
+                                     "from 0 to K, and (zmin, zmax, x0, x1, y0, y1) finite with min <= max");
+             }
+             if (c.status == PrismSceneStatus::kBadRect) {
+               throw py::value_error("rect " + std::to_string(c.index) +
+                                     ": (z, x0, x1, y0, y1) must be finite with x0 <= x1 and y0 <= y1");
+             }
+             return s;
+           }),
+           py::arg("planes"), py::arg("plane_begin"), py::arg("prisms"), py::arg("rects"),
+           "planes (K, 3) (nx, ny, c): inside nx x + ny y <= c; prism j's planes plane_begin[j]:plane_begin[j + 1]; "
+           "prisms (P, 6) (zmin, zmax, x0, x1, y0, y1: its z extent and xy bounding box) [m]; rects (M, 5) "
+           "(z, x0, x1, y0, y1) [m].")
+      .def_property_readonly("num_prisms", &PrismScene::prisms)
+      .def_property_readonly("num_rects", &PrismScene::rects);
+  m.def(
+      "prism_depth_cast",
+      [](const PrismScene& scene, const py::handle& d_S_obj, const py::handle& p_obj, const py::handle& q_obj,
+         int width, int height, double focal, double range_min, double range_max, double miss_value, double noise_std,
+         double noise_per_m, double dropout, std::int64_t seed, std::int64_t frame, const py::handle& nthreads_obj) {
+        const int nthreads = threads_arg(nthreads_obj);
+        if (width < 1 || height < 1) throw py::value_error("width and height must be >= 1");
+        if (!(std::isfinite(focal) && focal > 0)) throw py::value_error("focal must be a finite number > 0 [px]");
+        const py::ssize_t r = static_cast<py::ssize_t>(width) * height;
+        auto d = contiguous<float>(checked_array(d_S_obj, "d_S"), "d_S");
+        if (d.ndim() != 2 || d.shape(0) != r || d.shape(1) != 3) {
+          throw py::value_error("d_S must have shape " + expected_shape_str({r, 3}) + ", got " + shape_str(d));
+        }
+        py::array pa = checked_array(p_obj, "p_WS");
+        if (pa.ndim() != 2 || pa.shape(1) != 3)
+          throw py::value_error("p_WS must have shape (N, 3), got " + shape_str(pa));
+        const py::ssize_t n = pa.shape(0);
+        auto p = as_float64(p_obj, "p_WS", {n, 3});
+        auto q = as_float64(q_obj, "q_WS", {n, 4});
+        if (!(range_min >= 0 && range_max >= range_min)) throw py::value_error("need 0 <= range_min <= range_max");
+        if (!(noise_std >= 0 && noise_per_m >= 0 && dropout >= 0 && dropout < 1)) {
+          throw py::value_error("noise_std, noise_per_m must be >= 0 and dropout in [0, 1)");
+        }
+        if (seed < 0 || frame < 0) throw py::value_error("seed and frame must be >= 0");
+        lidar::BatchRangeModel model;
+        model.range_min = static_cast<float>(range_min);
+        model.range_max = static_cast<float>(range_max);
+        model.miss_value = static_cast<float>(miss_value);
+        model.noise_std = noise_std;
+        model.noise_per_m = noise_per_m;
+        model.dropout = dropout;
+        model.seed = static_cast<std::uint64_t>(seed);
+        model.frame = static_cast<std::uint64_t>(frame);
+        py::array_t<float> out({n, r});
+        lidar::BatchResult res;
+        {
+          py::gil_scoped_release release;
+          res = prism_depth_cast(scene, {p.data(), q.data(), static_cast<std::size_t>(n)}, d.data(),
+                                 {width, height, focal}, model, out.mutable_data(), nthreads);
+        }
+        if (res.status != lidar::BatchStatus::kOk) {
+          throw py::value_error("p_WS, q_WS (finite, q non-zero) and d_S (finite, non-zero) checked: item " +
+                                std::to_string(res.index) + " is not");
+        }
+        return out;
+      },
+      py::arg("scene"), py::arg("d_S"), py::arg("p_WS"), py::arg("q_WS"), py::kw_only(), py::arg("width"),
+      py::arg("height"), py::arg("focal"), py::arg("range_min") = 0.0,
+      py::arg("range_max") = std::numeric_limits<double>::infinity(),
+      py::arg("miss_value") = std::numeric_limits<double>::infinity(), py::arg("noise_std") = 0.0,
+      py::arg("noise_per_m") = 0.0, py::arg("dropout") = 0.0, py::arg("seed") = 0, py::arg("frame") = 0,
+      py::arg("nthreads") = 0,
+      "(N, width * height) float32 depths of N pinhole cameras (d_S the camera's rays, DepthCameraSpec.directions()) "
+      "in a PrismScene, GIL released: what cufund._core.lidar.batch_cast returns for the scene's meshes (no boxes), "
+      "within float rounding, with the same range model and noise streams.");
+}
+
 void define_envs(py::module_& m) {
+  define_prism_cast(m);
   m.def(
       "velocity_command",
       [](const std::array<double, 4>& a, const std::array<double, 3>& v_W, const std::array<double, 4>& q_WB,

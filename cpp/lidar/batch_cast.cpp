@@ -166,8 +166,6 @@ BatchResult batch_cast(const RaycastScene& scene, const SensorPoses& poses, cons
   if (res.status == BatchStatus::kOk) res = check_directions(d_S, r);
   if (res.status == BatchStatus::kOk) res = check_boxes(boxes, poses.n);
   if (res.status != BatchStatus::kOk) return res;
-  const bool noisy = model.noise_std > 0 || model.noise_per_m > 0;
-  const bool drops = model.dropout > 0;
   ForkSafeSection no_fork;
   parallel_chunks(static_cast<std::ptrdiff_t>(poses.n), 1, nthreads, [&](std::size_t i, std::size_t, std::size_t) {
     thread_local std::vector<float> rays;
@@ -212,21 +210,33 @@ BatchResult batch_cast(const RaycastScene& scene, const SensorPoses& poses, cons
         }
       }
     }
-    SplitMix64 rng{stream_key(model.seed + i, model.frame)};
-    for (std::size_t k = 0; k < r; ++k) {
-      float v = t[k];
-      bool valid = v >= model.range_min && v <= model.range_max;
-      // Draws for every ray, hit or not: a frame's draws do not depend on the scene.
-      if (drops && rng.uniform() < model.dropout) valid = false;
-      if (noisy) {
-        const double u1 = rng.uniform(), u2 = rng.uniform();
-        const double z = std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2);
-        if (valid) v = static_cast<float>(std::max(0.0, v + (model.noise_std + model.noise_per_m * v) * z));
-      }
-      t[k] = valid ? v : model.miss_value;
-    }
+    apply_range_model(model, i, t, r);
   });
   return {};
+}
+
+void apply_range_model(const BatchRangeModel& model, std::size_t i, float* t, std::size_t r) {
+  const bool noisy = model.noise_std > 0 || model.noise_per_m > 0;
+  const bool drops = model.dropout > 0;
+  SplitMix64 rng{stream_key(model.seed + i, model.frame)};
+  for (std::size_t k = 0; k < r; ++k) {
+    float v = t[k];
+    bool valid = v >= model.range_min && v <= model.range_max;
+    // Draws for every ray, hit or not: a frame's draws do not depend on the scene.
+    if (drops && rng.uniform() < model.dropout) valid = false;
+    if (noisy) {
+      const double u1 = rng.uniform(), u2 = rng.uniform();
+      const double z = std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2);
+      if (valid) v = static_cast<float>(std::max(0.0, v + (model.noise_std + model.noise_per_m * v) * z));
+    }
+    t[k] = valid ? v : model.miss_value;
+  }
+}
+
+BatchResult check_sensor_input(const SensorPoses& poses, const float* d_S, std::size_t r) {
+  BatchResult res = check_poses(poses);
+  if (res.status == BatchStatus::kOk) res = check_directions(d_S, r);
+  return res;
 }
 
 }  // namespace cufund::lidar

@@ -72,6 +72,13 @@ BatchResult batch_rays(const SensorPoses& poses, const float* d_S, std::size_t r
 BatchResult batch_cast(const RaycastScene& scene, const SensorPoses& poses, const float* d_S, std::size_t r,
                        const VehicleBoxes& boxes, const BatchRangeModel& model, float* out, int nthreads = 0);
 
+// Applies the range model to sensor i's distances t (r) in place: out of range and misses -> miss_value, noise and
+// dropout from the stream of (seed + i, frame). batch_cast's last stage, shared by other casters.
+void apply_range_model(const BatchRangeModel& model, std::size_t i, float* t, std::size_t r);
+
+// batch_cast's checks of the poses and the r directions (kOk, or the first bad one).
+BatchResult check_sensor_input(const SensorPoses& poses, const float* d_S, std::size_t r);
+
 // Distance along (o + t d) to the first point of the oriented box (centre c, unit quaternion q [w, x, y, z],
 // half extents h), 0 when o is inside, +inf when the ray misses it (slab test in the box's frame).
 double ray_box_distance(const double o[3], const double d[3], const double c[3], const double q[4], const double h[3]);

@@ -7,7 +7,21 @@ import cufund._core.dynamics
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['EnvBatch', 'EnvTaskParams', 'velocity_command']
+__all__: list[str] = ['EnvBatch', 'EnvTaskParams', 'PrismScene', 'prism_depth_cast', 'velocity_command']
+class PrismScene:
+    """
+    Vertical convex prisms and horizontal rectangles for prism_depth_cast (cpp/envs/prism_cast.h).
+    """
+    def __init__(self, planes: typing.Any, plane_begin: typing.Any, prisms: typing.Any, rects: typing.Any) -> None:
+        """
+        planes (K, 3) (nx, ny, c): inside nx x + ny y <= c; prism j's planes plane_begin[j]:plane_begin[j + 1]; prisms (P, 6) (zmin, zmax, x0, x1, y0, y1: its z extent and xy bounding box) [m]; rects (M, 5) (z, x0, x1, y0, y1) [m].
+        """
+    @property
+    def num_prisms(self) -> int:
+        ...
+    @property
+    def num_rects(self) -> int:
+        ...
 class EnvTaskParams:
     """
     A task as cpp/envs reads it (built by cufund.envs from TaskConfig).
@@ -351,6 +365,10 @@ class EnvBatch:
     @property
     def target_index(self) -> numpy.typing.NDArray[numpy.int32]:
         ...
+def prism_depth_cast(scene: PrismScene, d_S: typing.Any, p_WS: typing.Any, q_WS: typing.Any, *, width: typing.SupportsInt | typing.SupportsIndex, height: typing.SupportsInt | typing.SupportsIndex, focal: typing.SupportsFloat | typing.SupportsIndex, range_min: typing.SupportsFloat | typing.SupportsIndex = 0.0, range_max: typing.SupportsFloat | typing.SupportsIndex = ..., miss_value: typing.SupportsFloat | typing.SupportsIndex = ..., noise_std: typing.SupportsFloat | typing.SupportsIndex = 0.0, noise_per_m: typing.SupportsFloat | typing.SupportsIndex = 0.0, dropout: typing.SupportsFloat | typing.SupportsIndex = 0.0, seed: typing.SupportsInt | typing.SupportsIndex = 0, frame: typing.SupportsInt | typing.SupportsIndex = 0, nthreads: typing.Any = 0) -> numpy.typing.NDArray[numpy.float32]:
+    """
+    (N, width * height) float32 depths of N pinhole cameras (d_S the camera's rays, DepthCameraSpec.directions()) in a PrismScene, GIL released: what cufund._core.lidar.batch_cast returns for the scene's meshes (no boxes), within float rounding, with the same range model and noise streams.
+    """
 def velocity_command(a: typing.Annotated[collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex], "FixedSize(4)"], v_W: typing.Annotated[collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex], "FixedSize(3)"], q_WB: typing.Annotated[collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex], "FixedSize(4)"], mass: typing.SupportsFloat | typing.SupportsIndex, gravity: typing.SupportsFloat | typing.SupportsIndex, max_thrust: typing.SupportsFloat | typing.SupportsIndex, max_speed: typing.SupportsFloat | typing.SupportsIndex, max_rate: typing.SupportsFloat | typing.SupportsIndex, velocity_gain: typing.SupportsFloat | typing.SupportsIndex, attitude_gain: typing.SupportsFloat | typing.SupportsIndex) -> tuple[float, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]]:
     """
     The velocity action mode's (collective thrust [N], body-rate setpoint [rad/s] (3,)) for action a (4,): the envs' formula, shared by the policy controller.
