@@ -41,7 +41,8 @@ def test_observation_is_the_batched_cast_at_the_vehicles_poses() -> None:
     assert obs["depth"].shape == (4, 1, 24, 32) and obs["depth"].dtype == np.float32
     b = env.batch
     ref = BatchRangeSensor(env.world.raycast_scene, DepthCameraSpec(width=32, height=24, fov_deg=80.0))
-    np.testing.assert_array_equal(obs["depth"][:, 0], ref.observe(np.asarray(b.p), np.asarray(b.q)))
+    # The forest's depth is cast analytically (test_depth_prism.py): Embree's within float rounding.
+    np.testing.assert_allclose(obs["depth"][:, 0], ref.observe(np.asarray(b.p), np.asarray(b.q)), rtol=0, atol=1e-4)
     assert obs["depth"].max() <= 20.0 and obs["depth"].min() > 0.0
     # spawned around the start, west of the forest, the goal ahead in the state
     np.testing.assert_allclose(np.asarray(b.p).mean(0), [-11.5, 0.0, 1.5], atol=3.0)

@@ -10,8 +10,9 @@ The task (python/cufund/envs/tasks/forest_avoid.yaml) is the C++ batch's hover t
 - **goal**: within ``reach_radius`` of it terminates the episode, reward ``+ reached``.
 
 Observation: a dict of ``state`` (the :mod:`cufund.control.policy_observation` layout) and ``depth`` (1, H, W)
-(a :class:`~cufund.envs.observation_sensors.DepthCameraSpec`, 64 x 64 by default) or ``lidar`` (R,) ranges (a
-:class:`~cufund.envs.observation_sensors.LidarSpec`), cast for every env in one C++ call; a miss reads the
+(a :class:`~cufund.envs.observation_sensors.DepthCameraSpec`, 64 x 64 by default; cast by the exact analytic
+prism caster, the forest being trunks on a ground quad) or ``lidar`` (R,) ranges (a
+:class:`~cufund.envs.observation_sensors.LidarSpec`; Embree), cast for every env in one C++ call; a miss reads the
 sensor's range_max. Every env flies in the same forest (``forest`` = :class:`ForestParams`), which stays put
 across resets; the sensor noise, off by default, is seeded by the reset seed.
 """
@@ -32,7 +33,7 @@ from cufund.worlds.collision import CollisionChecker
 from cufund.worlds.world import World
 
 from .config import TaskConfig
-from .observation_sensors import BatchRangeSensor, DepthCameraSpec, LidarSpec, SensorSpec, sensor_spec
+from .observation_sensors import BatchRangeSensor, DepthCameraSpec, LidarSpec, SensorSpec, prism_scene, sensor_spec
 from .vector_env import CufundVectorEnv, task_params
 
 __all__ = ["ForestAvoidEnv", "ForestAvoidSingleEnv", "ForestParams", "WorldCollisions"]
@@ -113,7 +114,9 @@ class ForestAvoidEnv(CufundVectorEnv):
         else:
             raise ConfigError(f"sensor must be 'depth', 'lidar' or a sensor spec, got {sensor!r}")
         self.sensor_key = "depth" if isinstance(spec, DepthCameraSpec) else "lidar"
-        self.sensor = BatchRangeSensor(self.world.raycast_scene, spec, nthreads=nthreads)
+        # The forest is trunks (capped n-gon prisms) on a ground quad: a depth camera is cast analytically.
+        prisms = prism_scene(self.world) if self.sensor_key == "depth" else None
+        self.sensor = BatchRangeSensor(self.world.raycast_scene, spec, nthreads=nthreads, prisms=prisms)
         self.collisions = WorldCollisions(self.world, vehicle_radius)
         shape = (1, *spec.shape) if self.sensor_key == "depth" else spec.shape
         self.single_observation_space = gymnasium.spaces.Dict(

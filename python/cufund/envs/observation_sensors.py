@@ -5,6 +5,10 @@ own +x, like the body). :meth:`BatchRangeSensor.observe` takes the N body poses 
 (N, R) ranges, cast with Embree by :func:`cufund._core.lidar.batch_cast` (GIL released, threads over vehicles,
 each vehicle's rays in the 8-wide coherent packets of ``RaycastScene.cast_rays(coherent=True)``: bit for bit
 its hits). Optionally the vehicles' boxes are in the cast, so that each sensor sees the others (not itself).
+A depth camera in a world of vertical convex prisms and horizontal rectangles only (the forest: capped n-gon
+trunks on a ground quad; :func:`prism_scene` recognises it) is cast by the exact analytic caster
+:func:`cufund._core.envs.prism_depth_cast` instead (cpp/envs/prism_cast.h: the same depths within float rounding,
+several times faster); any other world, a LiDAR, or vehicle boxes use Embree.
 
 - Depth: the distance along the optical axis (+x of the sensor) of the first surface through each pixel's centre,
   rows top to bottom and columns left to right as an image (pixel (v, u) looks along (1, -x_n, -y_n) with
@@ -33,7 +37,15 @@ from cufund.geometry import quat_conjugate, quat_mul
 from cufund.sensors import patterns
 from cufund.sensors.lidar import LidarParams
 
-__all__ = ["BatchRangeSensor", "DepthCameraSpec", "LidarSpec", "SensorSpec", "VehicleBoxes", "sensor_poses"]
+__all__ = [
+    "BatchRangeSensor",
+    "DepthCameraSpec",
+    "LidarSpec",
+    "SensorSpec",
+    "VehicleBoxes",
+    "prism_scene",
+    "sensor_poses",
+]
 
 _PATTERNS: dict[str, Callable[[], patterns.ScanPattern]] = {
     "mid360": patterns.mid360,
@@ -216,9 +228,111 @@ def sensor_poses(
     return p + rotated, quat_mul(q, qs)
 
 
+def _hull(xy: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull of 2-D points (Andrew's monotone chain; collinear points dropped)."""
+    pts = sorted(set(map(tuple, xy.tolist())))
+    if len(pts) < 3:
+        return np.asarray(pts)
+
+    def half(seq: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        out: list[tuple[float, float]] = []
+        for p in seq:
+            while len(out) >= 2:
+                (ax, ay), (bx, by) = out[-2], out[-1]
+                if (bx - ax) * (p[1] - ay) - (by - ay) * (p[0] - ax) > 0:
+                    break
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(pts[::-1])
+    return np.asarray(lower[:-1] + upper[:-1])
+
+
+def _prism(v: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, tuple[float, ...]] | None:
+    """(planes (K, 3) (nx, ny, c), (zmin, zmax, x0, x1, y0, y1)) when the mesh is the surface of a vertical convex
+    prism (every vertex on its bottom or top cap, every triangle on one of its faces, their areas summing to its
+    surface), else None."""
+    z = v[:, 2]
+    z0, z1 = float(z.min()), float(z.max())
+    if not z1 > z0 or not np.all((z == z0) | (z == z1)):
+        return None
+    hull = _hull(v[:, :2])
+    if len(hull) < 3:
+        return None
+    e = np.roll(hull, -1, axis=0) - hull
+    length = np.hypot(e[:, 0], e[:, 1])
+    # Outward for a counter-clockwise hull; rounded to float32 as the caster stores them, c from the rounded normal.
+    n = (np.stack([e[:, 1], -e[:, 0]], 1) / length[:, None]).astype(np.float32).astype(np.float64)
+    c = np.einsum("ij,ij->i", n, hull)
+    scale = max(1.0, float(np.abs(v).max()))
+    tol = 1e-6 * scale
+    if np.any(v[:, :2] @ n.T - c > tol):
+        return None
+    a, b, d = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
+    on_cap = ((a[:, 2] == b[:, 2]) & (b[:, 2] == d[:, 2])).astype(bool)
+    dist = np.abs(np.stack([a[:, :2] @ n.T - c, b[:, :2] @ n.T - c, d[:, :2] @ n.T - c]))  # (3, T, K)
+    on_side = np.any(np.all(dist <= tol, axis=0), axis=1)
+    if not np.all(on_cap | on_side):
+        return None
+    area = 0.5 * np.linalg.norm(np.cross(b - a, d - a), axis=1).sum()
+    poly = 0.5 * float(np.sum(hull[:, 0] * np.roll(hull[:, 1], -1) - np.roll(hull[:, 0], -1) * hull[:, 1]))
+    if abs(area - (2.0 * poly + length.sum() * (z1 - z0))) > 1e-6 * max(1.0, area):
+        return None
+    lo, hi = v.min(0), v.max(0)
+    return np.column_stack([n, c]), (z0, z1, float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
+
+
+def _rect(v: np.ndarray, tri: np.ndarray) -> tuple[float, ...] | None:
+    """(z, x0, x1, y0, y1) when the mesh is an axis-aligned horizontal rectangle covered once, else None."""
+    if not np.all(v[:, 2] == v[0, 2]):
+        return None
+    lo, hi = v[:, :2].min(0), v[:, :2].max(0)
+    if not np.all(np.isin(v[:, 0], (lo[0], hi[0])) & np.isin(v[:, 1], (lo[1], hi[1]))):
+        return None
+    a, b, d = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
+    ab, ad = b[:, :2] - a[:, :2], d[:, :2] - a[:, :2]
+    area = 0.5 * np.abs(ab[:, 0] * ad[:, 1] - ab[:, 1] * ad[:, 0]).sum()
+    if abs(area - float(np.prod(hi - lo))) > 1e-9 * max(1.0, area):
+        return None
+    return (float(v[0, 2]), float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
+
+
+def prism_scene(world: Any) -> _core.envs.PrismScene | None:
+    """The world's meshes as a :class:`cufund._core.envs.PrismScene` for the analytic depth caster, or None when
+    one of them is neither a vertical convex prism nor an axis-aligned horizontal rectangle (then Embree casts).
+    The vertices are taken as Embree stores them (float32), so both cast the same surfaces."""
+    planes: list[np.ndarray] = []
+    begin = [0]
+    prisms: list[tuple[float, ...]] = []
+    rects: list[tuple[float, ...]] = []
+    for o in world.objects:
+        v = np.asarray(o.vertices, dtype=np.float32).astype(np.float64)
+        tri = np.asarray(o.triangles, dtype=np.int64)
+        if len(tri) == 0:
+            continue
+        rect = _rect(v, tri)
+        if rect is not None:
+            rects.append(rect)
+            continue
+        prism = _prism(v, tri)
+        if prism is None:
+            return None
+        planes.append(prism[0])
+        begin.append(begin[-1] + len(prism[0]))
+        prisms.append(prism[1])
+    return _core.envs.PrismScene(
+        np.concatenate(planes) if planes else np.zeros((0, 3)),
+        np.asarray(begin, dtype=np.int64),
+        np.asarray(prisms, dtype=np.float64).reshape(-1, 6),
+        np.asarray(rects, dtype=np.float64).reshape(-1, 5),
+    )
+
+
 class BatchRangeSensor:
     """One :data:`SensorSpec` sensor on each of N vehicles in the world of ``scene`` (a
-    :class:`cufund._core.lidar.RaycastScene`, e.g. ``World.raycast_scene``)."""
+    :class:`cufund._core.lidar.RaycastScene`, e.g. ``World.raycast_scene``). With ``prisms`` (:func:`prism_scene`
+    of the same world), a depth camera without boxes is cast by the analytic caster."""
 
     def __init__(
         self,
@@ -227,6 +341,7 @@ class BatchRangeSensor:
         boxes: VehicleBoxes | None = None,
         seed: int = 0,
         nthreads: int = 0,
+        prisms: _core.envs.PrismScene | None = None,
     ) -> None:
         if not isinstance(spec, (DepthCameraSpec, LidarSpec)):
             raise ConfigError(f"spec must be a DepthCameraSpec or a LidarSpec, got {type(spec).__name__}")
@@ -237,6 +352,7 @@ class BatchRangeSensor:
         self.nthreads = _whole("nthreads", nthreads, 0, 1 << 20)
         self.d_S = spec.directions()
         self.shape = spec.shape
+        self.prisms = prisms if isinstance(spec, DepthCameraSpec) and boxes is None else None
 
     def observe(
         self, p_WB: np.ndarray, q_WB: np.ndarray, frame: int = 0, present: np.ndarray | None = None
@@ -248,6 +364,27 @@ class BatchRangeSensor:
         p_WB = np.asarray(p_WB, dtype=np.float64).reshape(-1, 3)
         q_WB = np.asarray(q_WB, dtype=np.float64).reshape(-1, 4)
         p_WS, q_WS = sensor_poses(p_WB, q_WB, s.p_BS, s.q_BS)
+        if self.prisms is not None:
+            assert isinstance(s, DepthCameraSpec)
+            depth = _core.envs.prism_depth_cast(
+                self.prisms,
+                self.d_S,
+                p_WS,
+                q_WS,
+                width=s.width,
+                height=s.height,
+                focal=s.focal_px,
+                range_min=s.range_min,
+                range_max=s.range_max,
+                miss_value=s.range_max,
+                noise_std=s.range_noise_std,
+                noise_per_m=s.range_noise_per_m,
+                dropout=s.dropout,
+                seed=self.seed,
+                frame=int(frame),
+                nthreads=self.nthreads,
+            )
+            return depth.reshape((len(p_WB), *self.shape))
         box: dict[str, Any] = {}
         if self.boxes is not None:
             n = len(p_WB)
