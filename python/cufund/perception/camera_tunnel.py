@@ -27,7 +27,7 @@ from cufund.core.config import ConfigError
 from cufund.geometry import Transform
 from cufund.sensors.camera import R_CO, CameraIntrinsics
 
-from .stereo_depth import box_disparities
+from .stereo_depth import _grey, box_disparities
 
 __all__ = ["CameraTunnelParams", "FrameMeasurement", "frame_from_box"]
 
@@ -172,6 +172,7 @@ def frame_from_box(
         min(baseline * (v1 - v0) * K.fx / K.fy / (p.min_opening + 2 * p.bar), float(p.max_disparity)),
     )
     band = max(4.0, p.band * (u1 - u0))
+    left, right = _grey(left), _grey(right)  # once: each of the three matches below would convert a colour pair
     disp = _match(left, right, _bar_strips((u0, v0, u1, v1), (band, band)), span, check=False)  # coarse
     if disp is None:
         return None
