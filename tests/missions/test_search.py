@@ -205,3 +205,38 @@ def test_search_forest_places_k_separated_people_some_beside_trunks():
     trunks = np.array([o.vertices.mean(0)[:2] for o in w.objects if o.label == "tree"])
     near = [np.min(np.linalg.norm(trunks - p[:2], axis=1)) for p in people]
     assert sum(n < 1.0 * math.sqrt(2) + 1.0 for n in near) >= 3
+
+
+# --- end to end ---------------------------------------------------------------------------------------------
+SHORT = [
+    "world.people=1",
+    "world.size=20.0",
+    "world.margin=7.0",
+    "mission.area=[[-5, -3], [5, -3], [5, 3], [-5, 3]]",
+    "duration=80.0",
+]
+"""A shortened search (one person in a 20 m forest, one lane; docs/guides/search.md runs it too): the built-in
+one takes minutes."""
+
+
+def test_search_end_to_end_shortened(tmp_path):
+    """`search` shortened, with the shipped people model on the stereo pair and the estimate: the run completes,
+    the person is found from two views (recall 1, precision 1) within 1 m and found_people.json holds the find
+    (test_no_truth_reads checks the built-in scenario reads no truth)."""
+    import json
+
+    from cufund.scenarios.build import build_simulation
+    from cufund.scenarios.run_folder import run_into_folder
+    from cufund.scenarios.schema import load_scenario
+
+    built = build_simulation(load_scenario("search", SHORT))
+    run = run_into_folder(built, tmp_path, log=False, replay=False, progress=False)
+    m = run.metrics
+    assert run.result.status.value == "completed"
+    assert m["search_people"] == 1
+    search = {k: v for k, v in m.items() if k.startswith("search")}
+    assert m["search_recall"] == 1.0 and m["search_precision"] == 1.0, search
+    assert len(m["search_position_error_m"]) == 1 and max(m["search_position_error_m"]) < 1.0
+    assert 0 < m["search_time_s"] < run.result.sim_time_s
+    found = json.loads((tmp_path / "found_people.json").read_text())["found"]
+    assert len(found) == 1 and found[0]["detections"] >= 2
