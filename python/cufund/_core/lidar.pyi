@@ -20,7 +20,7 @@ class RaycastScene:
     @typing.overload
     def __init__(self, base: RaycastScene) -> None:
         """
-        A scene starting with base's geometries as one instance (shared, not copied): a hit on base's geometry g reports id g, meshes added here take the ids after base's. base must not change while this scene is used.
+        A scene starting with base's geometries as one instance (shared, not copied): a hit on base's geometry g reports id g, meshes added here take the ids after base's. base can no longer change (its add_triangles raises ValueError).
         """
     def add_triangles(self, vertices: typing.Any, triangles: typing.Any) -> int:
         """
