@@ -71,7 +71,7 @@ _LINES: list[tuple[str, list[tuple[str, str, str]]]] = [
         [("", "lio_scans", "scans"), ("median", "lio_ms_per_scan_median", "ms per scan")],
     ),
     (
-        "stereo VIO",
+        "VIO",
         [("", "vio_frames", "frames"), ("median", "vio_ms_per_frame_median", "ms per frame")],
     ),
     (
