@@ -91,9 +91,22 @@ void define_prism_cast(py::module_& m) {
         if (width < 1 || height < 1) throw py::value_error("width and height must be >= 1");
         if (!(std::isfinite(focal) && focal > 0)) throw py::value_error("focal must be a finite number > 0 [px]");
         const py::ssize_t r = static_cast<py::ssize_t>(width) * height;
-        auto d = contiguous<float>(checked_array(d_S_obj, "d_S"), "d_S");
+        py::array da = checked_array(d_S_obj, "d_S");
+        if (da.dtype().kind() != 'f' && da.dtype().kind() != 'i' && da.dtype().kind() != 'u') {
+          throw py::value_error("d_S must have a real numeric dtype (float32 preferred), got " +
+                                std::string(py::str(da.dtype())));
+        }
+        auto d = contiguous<float>(da, "d_S");
         if (d.ndim() != 2 || d.shape(0) != r || d.shape(1) != 3) {
           throw py::value_error("d_S must have shape " + expected_shape_str({r, 3}) + ", got " + shape_str(d));
+        }
+        // The caster culls by the pixels (width, height, focal) map a prism to: rays of another camera would be
+        // cast against the wrong prisms.
+        const std::size_t bad = envs::first_non_pinhole_ray(d.data(), {width, height, focal});
+        if (bad != static_cast<std::size_t>(r)) {
+          throw py::value_error("d_S must be the rays (1, -x_n, -y_n) of the " + std::to_string(width) + " x " +
+                                std::to_string(height) + " pinhole of focal " + std::to_string(focal) +
+                                " px (DepthCameraSpec.directions()): ray " + std::to_string(bad) + " is not");
         }
         py::array pa = checked_array(p_obj, "p_WS");
         if (pa.ndim() != 2 || pa.shape(1) != 3)

@@ -208,6 +208,23 @@ PrismSceneCheck check_scene(const PrismScene& s) {
   return {};
 }
 
+std::size_t first_non_pinhole_ray(const float* d_S, const Pinhole& cam) {
+  const std::size_t r = static_cast<std::size_t>(cam.width) * static_cast<std::size_t>(cam.height);
+  constexpr float kTol = 4 * std::numeric_limits<float>::epsilon();
+  for (int v = 0; v < cam.height; ++v) {
+    for (int u = 0; u < cam.width; ++u) {
+      const std::size_t k = static_cast<std::size_t>(v) * cam.width + u;
+      const float e[3] = {1.0f, static_cast<float>(-((u + 0.5 - cam.width / 2.0) / cam.focal)),
+                          static_cast<float>(-((v + 0.5 - cam.height / 2.0) / cam.focal))};
+      for (int a = 0; a < 3; ++a) {
+        // written as !(<=) so that a NaN is refused too
+        if (!(std::abs(d_S[3 * k + a] - e[a]) <= kTol * std::max(1.0f, std::abs(e[a])))) return k;
+      }
+    }
+  }
+  return r;
+}
+
 lidar::BatchResult prism_depth_cast(const PrismScene& scene, const lidar::SensorPoses& poses, const float* d_S,
                                     const Pinhole& cam, const lidar::BatchRangeModel& model, float* out, int nthreads) {
   const std::size_t r = static_cast<std::size_t>(cam.width) * static_cast<std::size_t>(cam.height);

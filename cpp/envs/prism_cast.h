@@ -49,6 +49,11 @@ struct Pinhole {
   double focal = 0.0;  // [px]
 };
 
+// The first of d_S's width * height rays that is not cam's (1, -x_n, -y_n) within float rounding (the float32
+// DepthCameraSpec.directions() rounds), or width * height when all are. prism_depth_cast culls each prism by the
+// pixels cam maps it to, so its d_S must pass this check (the binding refuses others).
+std::size_t first_non_pinhole_ray(const float* d_S, const Pinhole& cam);
+
 // Writes out (N, height * width) float32 depths (distance along each d_S ray) per the range model, as
 // lidar::batch_cast(RaycastScene of the scene's meshes, poses, d_S, no boxes, model) does. The input is checked
 // first (poses, directions); nothing is written on bad input. nthreads <= 0: every core.

@@ -121,6 +121,21 @@ def test_bad_input_is_named() -> None:
         _core.envs.prism_depth_cast(
             scene, np.ones((3, 3), np.float32), np.zeros((1, 3)), [[1.0, 0, 0, 0]], width=4, height=4, focal=2.0
         )
+    # The caster culls by the pixels (width, height, focal) map a prism to: other rays are refused, not cast.
+    other = DepthCameraSpec(width=4, height=4, fov_deg=60.0)
+    with pytest.raises(ValueError, match="d_S must be the rays"):
+        _core.envs.prism_depth_cast(
+            scene, other.directions(), np.zeros((1, 3)), [[1.0, 0, 0, 0]], width=4, height=4, focal=spec.focal_px
+        )
+    wide = DepthCameraSpec(width=8, height=2)
+    with pytest.raises(ValueError, match="d_S must be the rays"):
+        _core.envs.prism_depth_cast(
+            scene, wide.directions(), np.zeros((1, 3)), [[1.0, 0, 0, 0]], width=2, height=8, focal=wide.focal_px
+        )
+    with pytest.raises(ValueError, match="d_S must have a real numeric dtype"):
+        _core.envs.prism_depth_cast(
+            scene, spec.directions().astype(str), np.zeros((1, 3)), [[1.0, 0, 0, 0]], width=4, height=4, focal=2.0
+        )
     with pytest.raises(ValueError, match="item 0"):
         _core.envs.prism_depth_cast(
             scene, spec.directions(), [[np.nan, 0, 0]], [[1.0, 0, 0, 0]], width=4, height=4, focal=2.0
