@@ -27,7 +27,7 @@ HELD_OUT = {
 }
 FRAMES = 60
 # measured on this held-out set, below issue 26's target: the shipped model is too weak (see its YAML)
-BELOW_TARGET = {"people_cars_pads": 0.29, "frames_gates": 0.36}
+BELOW_TARGET = {"people_cars_pads": 0.32, "frames_gates": 0.37}
 
 
 def _held_out(tmp_path: Path, name: str) -> Path:
