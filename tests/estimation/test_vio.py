@@ -267,22 +267,22 @@ def test_smoother_failure_restarts_and_recovers(flight):
     assert err.max() < 0.05
 
 
-def test_vio_params_without_a_rig_names_the_rig_to_add():
-    """``vio_params`` on the tunnel (a LiDAR, no camera) and no rig given: the error says what to add (and the rig it
-    names is one the VIO builds on). The ``vio`` kind itself mounts its default rig there
-    (test_vio_stereo.test_tunnel_on_vio_mounts_the_default_rig)."""
+def test_vio_params_without_a_rig_reads_the_default_rig():
+    """``vio_params`` on the tunnel (a LiDAR, no camera): the calibration and topics of the default rig the ``vio``
+    kind mounts there (test_vio_stereo.test_tunnel_on_vio_mounts_the_default_rig), which ``cufund odometry`` reads
+    for such a log (it raised 'the VIO needs a stereo_camera sensor'); the same as that rig stated in the scenario."""
     from cufund.estimation.kinds import vio_params
     from cufund.scenarios.build import ScenarioBuildContext
     from cufund.scenarios.schema import load_scenario
 
     cfg = load_scenario("tunnel", ["estimator.kind=vio"])
-    with pytest.raises(ConfigError, match=r"add one, e\.g\. --set sensors\.stereo\.kind=stereo_camera --set"):
-        vio_params(cfg.estimator.params, ScenarioBuildContext(cfg))
+    default = vio_params(cfg.estimator.params, ScenarioBuildContext(cfg))
     cfg = load_scenario(
         "tunnel", ["estimator.kind=vio", "sensors.stereo.kind=stereo_camera", "sensors.stereo.hw_sync=true"]
     )
     params, _, topics = vio_params(cfg.estimator.params, ScenarioBuildContext(cfg))
     assert topics == ["/sensors/cam0/image", "/sensors/cam1/image"] and params.cam1.T_BC.t[1] < 0
+    assert default[0] == params and default[2] == topics
 
 
 def test_online_time_offset_finds_a_camera_clock_shift(flight):

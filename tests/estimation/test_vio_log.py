@@ -78,3 +78,30 @@ def test_odometry_on_a_bag_of_a_vio_run_names_the_run_mcap(square_vio_log, tmp_p
         [str(CUFUND), "odometry", str(bag), "--out", str(tmp_path / "odo")], capture_output=True, text=True, timeout=600
     )
     assert proc.returncode != 0 and "flown on the VIO" in proc.stderr and "run.mcap" in proc.stderr, proc.stderr
+
+
+@pytest.mark.parametrize("change", ["no stereo_camera", "cameras: mono"])
+def test_odometry_reruns_a_vio_log_on_the_default_rig_and_on_mono(square_vio_log, tmp_path, change):
+    """``cufund odometry`` on a log flown on the VIO whose scenario states no stereo_camera (``cufund run tunnel
+    --set estimator.kind=vio``: the vio kind mounted its default rig, here the same as square_vio's) or flew
+    ``cameras: mono``: it reruns the VIO as it flew (before: 'the VIO needs a stereo_camera sensor', and an
+    IndexError traceback for mono)."""
+    import yaml
+
+    cfg = yaml.safe_load((square_vio_log / "config.yaml").read_text())
+    if change == "no stereo_camera":
+        del cfg["sensors"]["stereo"]
+    else:
+        cfg["estimator"]["cameras"] = "mono"
+    scenario = tmp_path / "scenario.yaml"
+    scenario.write_text(yaml.safe_dump(cfg))
+    out = tmp_path / "odo"
+    proc = subprocess.run(
+        [str(CUFUND), "odometry", str(square_vio_log / "run.mcap"), "--scenario", str(scenario), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    figures = json.loads((out / "odometry.json").read_text())
+    assert figures["vio_frames"] > 50 and figures["odometry_rmse_m"] < 0.1, figures

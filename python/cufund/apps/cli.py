@@ -348,7 +348,7 @@ def _odometry(args: argparse.Namespace) -> int:
                 from cufund.estimation.vio_offline import run_vio_on_log
 
                 vp, imu_spec, cams = vio_params(cfg.estimator.params, ScenarioBuildContext(cfg))
-                figures = run_vio_on_log(args.log, vp, args.out, imu_spec.topic, (cams[0], cams[1]))
+                figures = run_vio_on_log(args.log, vp, args.out, imu_spec.topic, tuple(cams))
                 print(json.dumps(figures, indent=2))
                 print(f"odometry folder: {args.out.resolve()}")
                 return EXIT_COMPLETED

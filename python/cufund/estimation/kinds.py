@@ -117,10 +117,11 @@ def default_rig() -> _DefaultRig:
     return _DefaultRig(StereoCameraParams(hw_sync=True))
 
 
-def vio_params(p: VioParams, ctx: BuildContext, rig_part: Any = None) -> tuple[VioParams, Any, list[str]]:
+def vio_params(p: VioParams, ctx: BuildContext) -> tuple[VioParams, Any, list[str]]:
     """The VIO's params completed from the scenario: the IMU part and mounting, the stereo rig's calibration
-    (the ``stereo_camera`` sensor's stated cameras, never the renderer's truth; ``rig_part`` when given, else the
-    scenario's), the pad and gravity. Returns (params, IMU spec, the camera topics: two, or one for ``mono``)."""
+    (the ``stereo_camera`` sensor's stated cameras, never the renderer's truth; on a scenario without one, the
+    default rig's, which the ``vio`` kind mounts there), the pad and gravity. Returns (params, IMU spec, the camera
+    topics: two, or one for ``mono``). ``cufund odometry`` calls it on a log's recorded scenario."""
     default = VioParams()
     mono = p.cameras == "mono"
     for name, source in (
@@ -133,13 +134,7 @@ def vio_params(p: VioParams, ctx: BuildContext, rig_part: Any = None) -> tuple[V
         if getattr(p, name) != getattr(default, name) and not (mono and name == "cam1"):
             raise ConfigError(f"estimator.{name}: the VIO takes it from the scenario ({source}); give it once there")
     _, imu = ctx.sensor_of_type("imu", "", "estimator")
-    if rig_part is None:
-        if not _has_rig(ctx):
-            raise ConfigError(
-                "estimator: the VIO needs a stereo_camera sensor (this scenario has none); add one, e.g. "
-                "--set sensors.stereo.kind=stereo_camera --set sensors.stereo.hw_sync=true"
-            )
-        _, rig_part = ctx.sensor_of_type("stereo_camera", "", "estimator")
+    rig_part = ctx.sensor_of_type("stereo_camera", "", "estimator")[1] if _has_rig(ctx) else default_rig()
     cams = rig_part.params.cameras(ctx.base_dir, None)
     if len(cams) < (1 if mono else 2):
         raise ConfigError(
@@ -178,16 +173,14 @@ def _vio(p: VioParams, ctx: BuildContext) -> list[Any]:
     from .vio_estimator import VioEstimator  # GTSAM and OpenCV load only when a scenario uses the VIO
 
     parts: list[Any] = []
-    rig_part = None
     if not _has_rig(ctx):
         if DEFAULT_RIG_NAME in (ctx.config.sensors or {}):
             raise ConfigError(
                 f"estimator: the VIO needs a stereo_camera sensor; sensors.{DEFAULT_RIG_NAME} is a "
                 f"{ctx.config.sensors[DEFAULT_RIG_NAME].sensor_type}: add a stereo_camera under another name"
             )
-        rig_part = default_rig()
-        parts = ctx.build("sensor", rig_part, f"sensors.{DEFAULT_RIG_NAME}")
-    params, imu, topics = vio_params(p, ctx, rig_part)
+        parts = ctx.build("sensor", default_rig(), f"sensors.{DEFAULT_RIG_NAME}")
+    params, imu, topics = vio_params(p, ctx)
     return [
         *parts,
         VioEstimator(

@@ -26,23 +26,25 @@ def run_vio_on_log(
     params: VioParams,
     out_dir: str | Path | None = None,
     imu_topic: str = str(Topics.IMU),
-    camera_topics: tuple[str, str] = ("/sensors/cam0/image", "/sensors/cam1/image"),
+    camera_topics: tuple[str, ...] = ("/sensors/cam0/image", "/sensors/cam1/image"),
     truth_topic: str = str(Topics.TRUTH_ODOMETRY),
 ) -> dict[str, Any]:
     """Runs :class:`VioEstimator` on the log's IMU samples and stereo images in log-time order; returns the
     figures (``odometry_*``, ``vio_ms_per_frame_median``, ``vio_frames``, ``vio_unhealthy_frames``,
-    ``vio_time_offset_s``). With ``out_dir``: ``odometry.json``, ``estimate.tum`` and ``truth.tum`` there."""
+    ``vio_time_offset_s``). ``camera_topics``: left and right, or the left alone (``cameras: mono``). With
+    ``out_dir``: ``odometry.json``, ``estimate.tum`` and ``truth.tum`` there."""
     from cufund.logs.mcap_reader import read_mcap
 
     from .vio_estimator import VioEstimator
 
-    left_topic, right_topic = camera_topics
+    left_topic, right_topic = camera_topics[0], (camera_topics[1] if len(camera_topics) > 1 else None)
     truth_t, truth_p, truth_q = [], [], []
     est: VioEstimator | None = None
     outputs: list[Any] = []
     left: list[Any] = []
     right: list[Any] = []
-    for rec in read_mcap(path, topics=[imu_topic, left_topic, right_topic, truth_topic]):
+    topics = [imu_topic, *camera_topics, truth_topic]
+    for rec in read_mcap(path, topics=topics):
         msg = rec.message
         if rec.topic == truth_topic:
             truth_t.append(msg.t)
@@ -65,7 +67,7 @@ def run_vio_on_log(
     if est is None or not outputs:
         raise ValueError(
             f"{path}: no estimate: the log needs {truth_topic} (the pad pose), {imu_topic} for at least the "
-            f"initialisation time and the images of {left_topic} and {right_topic}"
+            f"initialisation time and the images of {' and '.join(camera_topics)}"
         )
     track, figures = against_truth(outputs, truth_t, truth_p, truth_q)
     diag = est.core.diagnostics
