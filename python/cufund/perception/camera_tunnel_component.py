@@ -60,8 +60,8 @@ class CameraTunnelDetector(Component):
     the left images of ``left_topic``) with the right image of the same stamp on ``right_topic``
     (:func:`~.camera_tunnel.frame_from_box`), in the world frame of the estimate on ``state_topic`` interpolated to
     the images' stamp (never ground truth; a frame newer than the newest estimate waits for it). A measurement
-    joins the track whose centre is nearest within ``associate_m``, else starts one; a track is the weighted mean
-    of its measurements (1 / depth^4). Each processed frame publishes a :class:`TunnelEstimate` on
+    joins the track whose centre is nearest within ``associate_m`` horizontally, else starts one; a track is the
+    weighted mean of its measurements (1 / depth^4). Each processed frame publishes a :class:`TunnelEstimate` on
     ``Topics.TUNNEL_ESTIMATE``: the tracks measured at least twice, in flying order from ``origin_W`` (the first
     estimate's position by default), with ``expected`` at most that many (those seen most often), confidence
     1 - 0.5^hits."""
@@ -161,7 +161,9 @@ class CameraTunnelDetector(Component):
 
     def _associate(self, found: list[FrameMeasurement]) -> None:
         for m in found:
-            near = [(float(np.linalg.norm(tr.centre_W - m.centre_W)), k) for k, tr in enumerate(self.tracks)]
+            # horizontally: frames stand upright on the floor (no frame's centre lies above another's), and a box
+            # whose top or bottom edge is off moves the measured centre up or down, not to another frame
+            near = [(float(np.linalg.norm((tr.centre_W - m.centre_W)[:2])), k) for k, tr in enumerate(self.tracks)]
             dist, k = min(near, default=(np.inf, -1))
             if dist <= self.associate_m:
                 self.tracks[k].add(m)

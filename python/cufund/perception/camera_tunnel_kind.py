@@ -43,7 +43,7 @@ class CameraPerceptionParams:
     nthreads: int = 0
     """onnxruntime's threads (0: its default)."""
     associate_m: float = 0.35
-    """A measurement farther than this from every tracked frame's centre starts a new frame [m]."""
+    """A measurement farther than this horizontally from every tracked frame's centre starts a new frame [m]."""
     bar: float = 0.05
     """Thickness and depth of the frames' bars (the competition's rules) [m]."""
     max_range: float = 6.0
