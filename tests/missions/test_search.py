@@ -219,6 +219,24 @@ SHORT = [
 one takes minutes."""
 
 
+def test_search_scenario_has_one_setpoint_publisher():
+    """The built-in search publishes trajectory setpoints from the mission's follower alone (the default
+    ``waypoints`` planner's follower also flew its 1 m square beside it: two streams on one topic, the land
+    detector watching the square's follower), and a scenario giving the search a planner is refused."""
+    from cufund.missions.land_detector import LandDetectorComponent
+    from cufund.scenarios.build import build_simulation
+    from cufund.scenarios.schema import load_scenario
+
+    built = build_simulation(load_scenario("search", SHORT))
+    comps = built.simulator.components
+    writers = [c for c in comps if str(Topics.TRAJECTORY_SETPOINT) in map(str, getattr(c, "writes", c.outputs))]
+    assert len(writers) == 1, [type(c).__name__ for c in writers]
+    (detector,) = [c for c in comps if isinstance(c, LandDetectorComponent)]
+    assert detector.follower is writers[0]
+    with pytest.raises(ConfigError, match="set planner: null"):
+        build_simulation(load_scenario("search", [*SHORT, "planner=waypoints"]))
+
+
 def test_search_end_to_end_shortened(tmp_path):
     """`search` shortened, with the shipped people model on the stereo pair and the estimate: the run completes,
     the person is found from two views (recall 1, precision 1) within 1 m and found_people.json holds the find

@@ -325,6 +325,8 @@ def _search(p: SearchParams, ctx: BuildContext) -> list[Any]:
         raise ConfigError(
             "mission (search) needs detections in the world: set perception (e.g. onnx_detector with a depth camera or a stereo pair)"
         )
+    if cfg.planner is not None:  # its follower would publish trajectory setpoints beside the mission's own
+        raise ConfigError("mission (search) flies its own reference: set planner: null")
     start = np.array(cfg.start_p_W if cfg.start_p_W is not None else (0.0, 0.0, 0.0), dtype=float)
     reference, path, window = search_reference(p, start, float(cfg.start_yaw or 0.0))
     follower = TrajectoryFollower(reference, rate_hz=cfg.rates.trajectory_hz)
