@@ -211,14 +211,23 @@ PrismSceneCheck check_scene(const PrismScene& s) {
 std::size_t first_non_pinhole_ray(const float* d_S, const Pinhole& cam) {
   const std::size_t r = static_cast<std::size_t>(cam.width) * static_cast<std::size_t>(cam.height);
   constexpr float kTol = 4 * std::numeric_limits<float>::epsilon();
+  // Each column's -x_n and each row's -y_n once (checked on every call: no division per pixel).
+  thread_local std::vector<float> col, row;
+  col.resize(static_cast<std::size_t>(cam.width));
+  row.resize(static_cast<std::size_t>(cam.height));
+  for (int u = 0; u < cam.width; ++u) col[u] = static_cast<float>(-((u + 0.5 - cam.width / 2.0) / cam.focal));
+  for (int v = 0; v < cam.height; ++v) row[v] = static_cast<float>(-((v + 0.5 - cam.height / 2.0) / cam.focal));
+  // written as <= so that a NaN is refused too; a row's test is one branch-free loop, its bad ray found after
+  auto near = [&](float d, float e) { return std::abs(d - e) <= kTol * std::max(1.0f, std::abs(e)); };
   for (int v = 0; v < cam.height; ++v) {
+    const float* d = d_S + 3 * static_cast<std::size_t>(v) * cam.width;
+    bool ok = true;
+    for (int u = 0; u < cam.width; ++u)
+      ok &= near(d[3 * u], 1.0f) & near(d[3 * u + 1], col[u]) & near(d[3 * u + 2], row[v]);
+    if (ok) continue;
     for (int u = 0; u < cam.width; ++u) {
-      const std::size_t k = static_cast<std::size_t>(v) * cam.width + u;
-      const float e[3] = {1.0f, static_cast<float>(-((u + 0.5 - cam.width / 2.0) / cam.focal)),
-                          static_cast<float>(-((v + 0.5 - cam.height / 2.0) / cam.focal))};
-      for (int a = 0; a < 3; ++a) {
-        // written as !(<=) so that a NaN is refused too
-        if (!(std::abs(d_S[3 * k + a] - e[a]) <= kTol * std::max(1.0f, std::abs(e[a])))) return k;
+      if (!(near(d[3 * u], 1.0f) && near(d[3 * u + 1], col[u]) && near(d[3 * u + 2], row[v]))) {
+        return static_cast<std::size_t>(v) * cam.width + u;
       }
     }
   }
