@@ -5,6 +5,7 @@ cars and landing pads."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +60,13 @@ def test_shipped_model_files(name):
     cfg = load_yaml(p.with_suffix(".yaml"))
     seeds = {d["seed"] for d in cfg["datasets"]}
     assert HELD_OUT[name][1] not in seeds, "the held-out seed was used in training"
+    # the training record in the model names its inputs as the YAML does, not the trainer's machine's paths
+    import onnxruntime as ort
+
+    meta = ort.InferenceSession(str(p), providers=["CPUExecutionProvider"]).get_modelmeta().custom_metadata_map
+    train = json.loads(meta["train_config"])
+    recorded = [*train["datasets"], train["init"] or ""]
+    assert not [d for d in recorded if Path(d).is_absolute()], f"absolute paths in {name}'s train_config: {recorded}"
 
 
 @pytest.mark.parametrize("name", SHIPPED)
