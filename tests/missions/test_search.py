@@ -191,9 +191,8 @@ def test_params_are_checked():
         SearchParams(tracks={"gate_m": -1})  # type: ignore[arg-type]
 
 
-def test_search_forest_places_k_separated_people_some_beside_trunks():
-    """K people, seeded (same seed, same places), at least about 'separation' apart, inside the margin; the
-    share asked for stands within beside_m (+ half a person) of a trunk."""
+def test_search_forest_places_k_separated_people():
+    """K people, seeded (same seed, same places), at least about 'separation' apart, inside the margin."""
     w = search_forest(seed=3, people=6, beside_trees=0.5, separation=4.0)
     people = people_positions(w)
     assert people.shape == (6, 3)
@@ -202,9 +201,23 @@ def test_search_forest_places_k_separated_people_some_beside_trunks():
     d = np.linalg.norm(people[:, None, :2] - people[None, :, :2], axis=2) + np.eye(6) * 99
     assert d.min() > 4.0 - 2 * 1.5  # drawn squares' centres 4 m apart, each person within 1.5 m of its centre
     assert np.all(np.abs(people[:, :2]) <= 20 - 4 + 1e-9)
-    trunks = np.array([o.vertices.mean(0)[:2] for o in w.objects if o.label == "tree"])
-    near = [np.min(np.linalg.norm(trunks - p[:2], axis=1)) for p in people]
-    assert sum(n < 1.0 * math.sqrt(2) + 1.0 for n in near) >= 3
+
+
+def _gap_to_trunks(world) -> np.ndarray:
+    """Each person's (in placement order) nearest mesh vertex to a trunk's axis, horizontally [m]."""
+    trunks = np.array([o.vertices.mean(0)[:2] for o in world.objects if o.label == "tree"])
+    people = [o.vertices[:, :2] for o in world.objects if o.label == "person"]
+    return np.array([np.linalg.norm(v[:, None] - trunks[None], axis=2).min() for v in people])
+
+
+def test_search_forest_places_the_share_asked_for_beside_a_trunk():
+    """beside_trees 0.5 of 6 people, beside_m 0.5: the first 3 placed stand within the 0.5 m square about a
+    trunk's axis (a vertex within its half-diagonal); placed at random instead (beside_trees 0), one of the same
+    seed's first 3 is not (the check tells the two apart: the forest has a trunk every ~11 m^2)."""
+    bound = 0.5 * math.sqrt(2) + 0.1
+    gaps = _gap_to_trunks(search_forest(seed=3, people=6, beside_trees=0.5, beside_m=0.5))
+    assert np.all(gaps[:3] <= bound), gaps
+    assert not np.all(_gap_to_trunks(search_forest(seed=3, people=6, beside_trees=0.0, beside_m=0.5))[:3] <= bound)
 
 
 # --- end to end ---------------------------------------------------------------------------------------------
