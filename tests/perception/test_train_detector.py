@@ -67,6 +67,23 @@ def test_letterboxed_labels_follow_the_image(tiny_dataset):
     assert d.names == ("person", "car", "landing_pad") and d.images.shape[1:] == (240, 320, 3)
 
 
+def test_data_yaml_naming_images_elsewhere_is_refused(tmp_path, tiny_dataset):
+    """A data.yaml whose train: names images outside its folder (here another dataset's, whose labels this folder
+    does not hold) is refused, not read as images without boxes."""
+    import os
+
+    import yaml
+
+    folder = tmp_path / "elsewhere"
+    folder.mkdir()
+    doc = yaml.safe_load((tiny_dataset / "data.yaml").read_text())
+    images = tiny_dataset / "images" / "train"
+    for rel in (str(images), os.path.relpath(images, folder)):
+        (folder / "data.yaml").write_text(yaml.safe_dump(doc | {"train": rel}))
+        with pytest.raises(ValueError, match="images/train"):
+            load_yolo_dataset([folder], "train", (240, 320))
+
+
 def test_assignment_centre_sampling():
     torch = pytest.importorskip("torch")
     from cufund.perception import train_detector_model as tdm

@@ -126,7 +126,10 @@ def load_yolo_dataset(
     folders: Sequence[str | Path], split: str, imgsz: tuple[int, int], limit: int | None = None
 ) -> YoloImages:
     """The ``split`` ("train" or "val") images of YOLO-layout dataset folders (each with ``data.yaml``, as ``cufund
-    dataset`` writes), letterboxed to ``imgsz``. All folders must have the same class names."""
+    dataset`` writes), letterboxed to ``imgsz``. All folders must have the same class names. Images and labels are
+    read from the folder's ``images/<split>`` and ``labels/<split>`` (the layout ``cufund dataset`` writes); a
+    ``data.yaml`` whose ``<split>`` names another place (outside the folder, or images whose labels would not be
+    found) is refused."""
     if split not in ("train", "val"):
         raise ValueError(f"split must be 'train' or 'val', got {split!r}")
     names: tuple[str, ...] | None = None
@@ -142,8 +145,11 @@ def load_yolo_dataset(
         names = these
         doc = load_yaml(data)
         rel = doc.get(split, f"images/{split}") if isinstance(doc, dict) else f"images/{split}"
-        image_dir = root / str(rel)
-        for image in sorted(image_dir.glob("*.png")):
+        if Path(str(rel)) != Path("images", split):
+            raise ValueError(
+                f"{data}: {split}: must be images/{split} (the layout `cufund dataset` writes), got {rel!r}"
+            )
+        for image in sorted((root / "images" / split).glob("*.png")):
             label = root / "labels" / split / (image.stem + ".txt")
             files.append((image, label))
     if names is None:
