@@ -114,9 +114,13 @@ void define_prism_cast(py::module_& m) {
         const py::ssize_t n = pa.shape(0);
         auto p = as_float64(p_obj, "p_WS", {n, 3});
         auto q = as_float64(q_obj, "q_WS", {n, 4});
-        if (!(range_min >= 0 && range_max >= range_min)) throw py::value_error("need 0 <= range_min <= range_max");
-        if (!(noise_std >= 0 && noise_per_m >= 0 && dropout >= 0 && dropout < 1)) {
-          throw py::value_error("noise_std, noise_per_m must be >= 0 and dropout in [0, 1)");
+        // batch_cast's bounds: range_max may be inf, range_min and the noise terms must be finite
+        if (!(std::isfinite(range_min) && range_min >= 0 && range_max >= range_min)) {
+          throw py::value_error("need 0 <= range_min <= range_max, range_min finite");
+        }
+        if (!(std::isfinite(noise_std) && std::isfinite(noise_per_m) && noise_std >= 0 && noise_per_m >= 0 &&
+              dropout >= 0 && dropout < 1)) {
+          throw py::value_error("noise_std, noise_per_m must be finite and >= 0 and dropout in [0, 1)");
         }
         if (seed < 0 || frame < 0) throw py::value_error("seed and frame must be >= 0");
         lidar::BatchRangeModel model;

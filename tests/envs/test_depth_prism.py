@@ -153,6 +153,16 @@ def test_bad_input_is_named() -> None:
         _core.envs.prism_depth_cast(
             scene, spec.directions().astype(str), np.zeros((1, 3)), [[1.0, 0, 0, 0]], width=4, height=4, focal=2.0
         )
+    # batch_cast's bounds on the range model: an infinite noise or range_min is refused, not cast
+    for bad in ({"noise_std": np.inf}, {"noise_per_m": np.inf}, {"range_min": np.inf}):
+        with pytest.raises(ValueError, match="finite"):
+            _core.envs.prism_depth_cast(
+                scene, spec.directions(), np.zeros((1, 3)), [[1.0, 0, 0, 0]], width=4, height=4, focal=2.0, **bad
+            )
+        with pytest.raises(ValueError, match="finite"):
+            _core.lidar.batch_cast(
+                ForestParams().build().raycast_scene, spec.directions(), np.zeros((1, 3)), [[1.0, 0, 0, 0]], **bad
+            )
     with pytest.raises(ValueError, match="item 0"):
         _core.envs.prism_depth_cast(
             scene, spec.directions(), [[np.nan, 0, 0]], [[1.0, 0, 0, 0]], width=4, height=4, focal=2.0
