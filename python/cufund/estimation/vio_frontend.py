@@ -4,9 +4,10 @@ Per frame: the left image's features are tracked from the previous left image (p
 ``cv2.calcOpticalFlowPyrLK``); tracks whose previous frame had a stereo point go through a temporal RANSAC
 (``cv2.solvePnPRansac`` of the previous stereo points against the new left observations: its outliers are
 dropped, its rotation is the frame-to-frame visual rotation); new corners (``cv2.goodFeaturesToTrack``) fill the
-image up to ``max_features``; every feature is matched into the right image by KLT and kept as a stereo
-observation only if it lies on its epipolar line (the same row of the rectified pair, to ``stereo_epipolar_px``)
-at a disparity within the depth range. Observations leave in rectified pixel coordinates (the rectified left
+image up to ``max_features``; every feature is searched along its row of the rectified pair over the depth
+range's disparities (:meth:`StereoFrontEnd._stereo`: normalised cross-correlation, an unambiguous peak, a
+left-right check, KLT sub-pixel refinement tracked back to the feature) and kept as a stereo observation only if
+it passes. Observations leave in rectified pixel coordinates (the rectified left
 camera R0, with ``K_rect`` and baseline ``baseline``), which is what GTSAM's ``StereoPoint2`` expects.
 """
 
@@ -234,9 +235,10 @@ class StereoFrontEnd:
         every other peak by ``stereo_ncc_margin`` (a repetitive texture's ambiguous match is dropped, not guessed);
         KLT refines it to sub-pixel and it is kept only when KLT tracks it back to the feature within
         ``stereo_fb_px``. The right patch is searched back along the row the same way and must find the feature
-        (a left-right check: a pattern cut by the image border looks unique from one side only). KLT alone from a zero-disparity guess (before) reached no match for near objects (a
-        disparity beyond its pyramid) and settled on another patch of the same row for about two matches in three
-        in the tunnel's frames: a wrong depth the epipolar check cannot see."""
+        (a left-right check: a pattern cut by the image border looks unique from one side only). KLT alone from a
+        zero-disparity guess reached no match for near objects (a disparity beyond its pyramid) and settled on
+        another patch of the same row for about two matches in three in the tunnel's frames: a wrong depth the
+        epipolar check cannot see."""
         p, rig = self.params, self.rig
         n = len(raw)
         uvr = np.full((n, 2), np.nan)
@@ -268,7 +270,7 @@ class StereoFrontEnd:
             gr0, gr1, pl.reshape(-1, 1, 2), pr.reshape(-1, 1, 2).copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **lk0
         )
         m = m.reshape(-1, 2)
-        ok2 = self._checked(gr0, gr1, pl, m, st, err, pl.astype(np.float64), d_lo, d_hi, lk0, rectified=True)
+        ok2 = self._checked(gr0, gr1, pl, m, st, err, d_lo, d_hi, lk0)
         ok2 &= np.abs(m[:, 0] - pr[:, 0]) < 1.5  # KLT stayed on the searched peak
         uvr[idx[ok2]] = m[ok2].astype(np.float64) + (uvl[idx[ok2]] - pl[ok2])
         return uvr
@@ -311,17 +313,16 @@ class StereoFrontEnd:
         m1: np.ndarray,
         st: np.ndarray,
         err: np.ndarray,
-        uvl: np.ndarray,
         d_lo: float,
         d_hi: float,
         lk: dict[str, Any],
-        rectified: bool = False,
     ) -> np.ndarray:
-        """Mask of the left-to-right matches ``m1`` of ``src`` that KLT found, that lie on their epipolar row
-        within the disparity range, and that KLT tracks back to ``src`` within ``stereo_fb_px``."""
+        """Mask of the left-to-right matches ``m1`` of ``src`` (both in the rectified pair ``g0``, ``g1``) that KLT
+        found, that lie on their epipolar row within the disparity range, and that KLT tracks back to ``src``
+        within ``stereo_fb_px``."""
         p = self.params
         ok = (st.reshape(-1) == 1) & (err.reshape(-1) < p.klt_max_error)
-        r1 = m1.astype(np.float64) if rectified else self.rig.rectify(m1, right=True)
+        uvl, r1 = src.astype(np.float64), m1.astype(np.float64)
         disp = uvl[:, 0] - r1[:, 0]
         ok &= np.abs(uvl[:, 1] - r1[:, 1]) < p.stereo_epipolar_px
         ok &= (disp > d_lo) & (disp < d_hi)

@@ -178,7 +178,7 @@ class VioParams:
     """A stereo match is kept only if KLT tracks it back from the right image to within this of the left
     feature [px] (a match that slid onto another patch of the row does not come back)."""
     stereo_patch_px: int = 11
-    """Side of the patch the row search correlates, for features KLT did not match [px] (odd)."""
+    """Side of the patch the stereo row search correlates [px] (odd)."""
     stereo_min_ncc: float = 0.5
     """The row search's best normalised cross-correlation must reach this, in (0, 1] ..."""
     stereo_ncc_margin: float = 0.05
