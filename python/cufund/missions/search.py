@@ -19,7 +19,7 @@ import numpy as np
 
 from cufund.core.build_context import BuildContext
 from cufund.core.components import BusView, Component, Subscription
-from cufund.core.config import ConfigError, nested
+from cufund.core.config import ConfigError, check_real_fields, nested
 from cufund.core.messages import Detections3D, Odometry, Topics
 from cufund.core.registry import Kind, register
 from cufund.planning.point_to_point import JerkLimitedMove
@@ -84,14 +84,8 @@ class SearchParams:
         except (TypeError, ValueError) as e:
             raise ConfigError(f"mission.area: {e}") from None
         names = ("altitude", "spacing", "v_max", "a_max", "j_max", "climb_v_max", "yaw_rate", "match_m", "max_height_m")
-        for name in names:
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise ConfigError(f"mission.{name} must be a finite number > 0, got {v!r}")
-        for name in ("lead_m", "area_margin_m"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ConfigError(f"mission.{name} must be a finite number >= 0 [m], got {v!r}")
+        check_real_fields(self, "mission", positive=True, names=names)
+        check_real_fields(self, "mission", unit=" [m]", names=("lead_m", "area_margin_m"))
         v = self.min_height_m
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not -1e3 < v < self.max_height_m:
             raise ConfigError(f"mission.min_height_m must be a number below max_height_m [m], got {v!r}")
