@@ -49,6 +49,29 @@ def test_cli_usage_errors_exit_2(tmp_path, capsys, tiny_dataset):
     assert "--imgsz" in capsys.readouterr().err
 
 
+class _Opens:
+    """A pickle that, loaded without weights_only, would create a file (``open(path, "w")``)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def __reduce__(self):
+        return (open, (str(self.path), "w"))
+
+
+def test_init_that_is_not_weights_exits_2_and_runs_nothing(tmp_path, tiny_dataset, capsys):
+    torch = pytest.importorskip("torch")
+    marker = tmp_path / "ran"
+    text, evil = tmp_path / "text.pt", tmp_path / "evil.pt"
+    text.write_text("not weights")
+    torch.save({"x": _Opens(marker)}, evil)
+    for init in (text, evil):
+        args = ["train-detector", str(tiny_dataset), "--out", str(tmp_path / "m.onnx"), "--init", str(init)]
+        assert main([*args, "--epochs", "1", "--threads", "1", "--no-progress"]) == 2
+        assert "init weights" in capsys.readouterr().err
+    assert not marker.exists()
+
+
 def test_letterboxed_labels_follow_the_image(tiny_dataset):
     """Boxes are scaled into the 240 x 320 input as the image is: 160 x 120 doubled, no padding."""
     d = load_yolo_dataset([tiny_dataset], "train", (240, 320))

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import pickle
 import tempfile
 import time
 import warnings
@@ -252,7 +253,7 @@ def train_detector(
     if init is not None:
         try:
             model.load_state_dict(torch.load(Path(init), map_location="cpu", weights_only=True))
-        except (OSError, RuntimeError, KeyError) as e:
+        except (OSError, RuntimeError, KeyError, EOFError, pickle.UnpicklingError) as e:  # weights_only: not weights
             raise ValueError(f"init weights {str(init)!r} do not fit this model: {str(e)[:200]}") from None
     points, strides = tdm.grid_points(cfg.crop or cfg.imgsz)
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
