@@ -44,11 +44,12 @@ def test_metrics_pair_one_to_one_and_gate():
 
 
 def test_metrics_pairing_is_the_best_one_to_one_not_greedy():
-    """Finds A (0.9, 0) and B (-0.9, 0); people P (0, 0) and Q (-2.5, 0), match 2 m: greedy nearest-first would pair
-    A-P or B-P and leave the other unmatched; the assignment pairs A-P (0.9) and B-Q (1.6): both count."""
-    m = search_metrics(np.array([[0.9, 0, 0], [-0.9, 0, 0]]), np.array([[0, 0, 0], [-2.5, 0, 0]]), 2.0)
+    """Finds A (0.5, 0) and B (-1.5, 0); people P (0, 0) and Q (2, 0), match 2 m: the nearest pair is A-P (0.5 m),
+    so greedy matching (nearest pair first, or each find in turn taking its nearest person) pairs it and leaves B
+    3.5 m from Q, unmatched; the one-to-one assignment pairs A-Q (1.5) and B-P (1.5): both count."""
+    m = search_metrics(np.array([[0.5, 0, 0], [-1.5, 0, 0]]), np.array([[0, 0, 0], [2, 0, 0]]), 2.0)
     assert m["search_precision"] == 1.0 and m["search_recall"] == 1.0
-    assert m["search_position_error_m"] == pytest.approx([0.9, 1.6])
+    assert m["search_position_error_m"] == pytest.approx([1.5, 1.5])
 
 
 # --- association and two-view confirmation -------------------------------------------------------------------
