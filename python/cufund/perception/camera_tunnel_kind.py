@@ -17,7 +17,7 @@ from .camera_tunnel import CameraTunnelParams
 from .camera_tunnel_component import CameraTunnelDetector
 from .onnx_detector import OnnxDetector
 from .onnx_detector_component import OnnxDetectorComponent
-from .stereo_depth import stereo_baseline
+from .stereo_depth_build import colour_stereo_rig
 
 __all__ = ["CameraPerceptionParams", "SHIPPED_FRAMES_MODEL"]
 
@@ -69,21 +69,8 @@ class CameraPerceptionParams:
 
 
 def _camera(p: CameraPerceptionParams, ctx: BuildContext) -> list[Any]:
-    name, rig = ctx.sensor_of_type("stereo_camera", p.stereo_camera, "perception.stereo_camera")
-    params = rig.params
-    if getattr(params, "color", "rgb") != "rgb":
-        raise ConfigError(
-            f"perception (camera): the frames model needs colour images; set sensors.{name}.color: rgb "
-            f"(got {params.color})"
-        )
-    cams = params.cameras(ctx.base_dir)
-    if len(cams) < 2:
-        raise ConfigError(f"perception.stereo_camera: {name!r} has {len(cams)} camera(s); a pair is needed")
-    topics = params.camera_topics(len(cams))
-    try:
-        baseline = stereo_baseline(cams[0].intrinsics, cams[1].intrinsics, cams[0].T_BC, cams[1].T_BC)
-    except ValueError as e:
-        raise ConfigError(f"perception.stereo_camera ({name}): {e}") from None
+    rig = colour_stereo_rig(ctx, p.stereo_camera)  # colour, a pair, rectified: ConfigError naming the key
+    cams, topics, baseline = rig.cameras, rig.topics, rig.baseline_m
     model = Path(p.model) if p.model else SHIPPED_FRAMES_MODEL
     if p.model and not model.is_absolute() and ctx.base_dir is not None:
         model = Path(ctx.base_dir) / model
