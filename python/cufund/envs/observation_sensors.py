@@ -364,25 +364,22 @@ class BatchRangeSensor:
         p_WB = np.asarray(p_WB, dtype=np.float64).reshape(-1, 3)
         q_WB = np.asarray(q_WB, dtype=np.float64).reshape(-1, 4)
         p_WS, q_WS = sensor_poses(p_WB, q_WB, s.p_BS, s.q_BS)
+        # the range model and the noise streams, the same for both casters
+        model: dict[str, Any] = {
+            "range_min": s.range_min,
+            "range_max": s.range_max,
+            "miss_value": s.range_max,
+            "noise_std": s.range_noise_std,
+            "noise_per_m": s.range_noise_per_m,
+            "dropout": s.dropout,
+            "seed": self.seed,
+            "frame": int(frame),
+            "nthreads": self.nthreads,
+        }
         if self.prisms is not None:
             assert isinstance(s, DepthCameraSpec)
             depth = _core.envs.prism_depth_cast(
-                self.prisms,
-                self.d_S,
-                p_WS,
-                q_WS,
-                width=s.width,
-                height=s.height,
-                focal=s.focal_px,
-                range_min=s.range_min,
-                range_max=s.range_max,
-                miss_value=s.range_max,
-                noise_std=s.range_noise_std,
-                noise_per_m=s.range_noise_per_m,
-                dropout=s.dropout,
-                seed=self.seed,
-                frame=int(frame),
-                nthreads=self.nthreads,
+                self.prisms, self.d_S, p_WS, q_WS, width=s.width, height=s.height, focal=s.focal_px, **model
             )
             return depth.reshape((len(p_WB), *self.shape))
         box: dict[str, Any] = {}
@@ -397,20 +394,5 @@ class BatchRangeSensor:
                 "box_half_extents": np.broadcast_to(np.asarray(self.boxes.half_extents), (int(keep.sum()), 3)),
                 "box_owner": owner,
             }
-        out = _core.lidar.batch_cast(
-            self.scene,
-            self.d_S,
-            p_WS,
-            q_WS,
-            range_min=s.range_min,
-            range_max=s.range_max,
-            miss_value=s.range_max,
-            noise_std=s.range_noise_std,
-            noise_per_m=s.range_noise_per_m,
-            dropout=s.dropout,
-            seed=self.seed,
-            frame=int(frame),
-            nthreads=self.nthreads,
-            **box,
-        )
+        out = _core.lidar.batch_cast(self.scene, self.d_S, p_WS, q_WS, **model, **box)
         return out.reshape((len(p_WB), *self.shape))
