@@ -162,7 +162,7 @@ def test_slot_velocity_includes_the_leaders_turn():
 @pytest.mark.parametrize(
     ("change", "match"),
     [
-        ({"leader": ""}, "planner.leader"),
+        ({"leader": 3}, "planner.leader"),
         ({"offset": [1, 2]}, "planner.offset"),
         ({"comm_latency_s": -0.1}, "comm_latency_s"),
         ({"comm_rate_hz": 0}, "comm_rate_hz"),
@@ -179,6 +179,9 @@ def test_a_leader_without_an_estimator_or_unknown_is_refused():
     data = _column(0.0).to_dict()
     data["vehicles"][1]["planner"]["leader"] = "uav9"
     with pytest.raises(ConfigError, match="uav9"):
+        build_fleet(ScenarioConfig.from_dict(data))
+    data["vehicles"][1]["planner"]["leader"] = ""  # none named: refused when built (the params build bare)
+    with pytest.raises(ConfigError, match="planner.leader must name the leader"):
         build_fleet(ScenarioConfig.from_dict(data))
     data = _column(0.0).to_dict()
     data["vehicles"][0]["estimator"] = None

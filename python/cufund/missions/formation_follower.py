@@ -67,8 +67,8 @@ class FormationFollowerParams:
     """... and as landed again once it is below this height [m] (and slower than 0.1 m/s)."""
 
     def __post_init__(self) -> None:
-        if not isinstance(self.leader, str) or not self.leader:
-            raise ConfigError("planner.leader must name the leader vehicle (a vehicle of the scenario's vehicles)")
+        if not isinstance(self.leader, str):  # given at build (empty by default, as every kind's params build bare)
+            raise ConfigError(f"planner.leader must be a vehicle's name, got {self.leader!r}")
         object.__setattr__(self, "offset", vector3("planner.offset", self.offset, " [m]", finite=True))
         for name, lo in (("comm_rate_hz", 0.0), ("airborne_height_m", 0.0), ("landed_height_m", 0.0)):
             v = getattr(self, name)
@@ -153,6 +153,8 @@ class FormationFollower(Planner):
 
 def _formation_follower(p: FormationFollowerParams, ctx: BuildContext) -> list[Any]:
     cfg = ctx.config
+    if not p.leader:
+        raise ConfigError("planner.leader must name the leader vehicle (a vehicle of the scenario's vehicles)")
     if cfg.estimator is None:
         raise ConfigError(
             "planner (formation_follower): the follower needs an estimator (estimator:); it flies on its own estimate"
