@@ -120,10 +120,10 @@ std::string validate(const EnvTaskParams& t) {
     e << "segment_s must be a range [lo, hi] with 0 < lo <= hi [s], or [0, 0] (no timed reference)";
   else if (!range_ok(t.hold_s, 0.0))
     e << "hold_s must be a range [lo, hi] with 0 <= lo <= hi [s]";
-  else if (t.waypoint_jitter.size() != 3 || !(t.waypoint_jitter[0] >= 0 && t.waypoint_jitter[1] >= 0 &&
-                                               t.waypoint_jitter[2] >= 0 && std::isfinite(t.waypoint_jitter[0]) &&
-                                               std::isfinite(t.waypoint_jitter[1]) &&
-                                               std::isfinite(t.waypoint_jitter[2])))
+  else if (t.waypoint_jitter.size() != 3 ||
+           !(t.waypoint_jitter[0] >= 0 && t.waypoint_jitter[1] >= 0 && t.waypoint_jitter[2] >= 0 &&
+             std::isfinite(t.waypoint_jitter[0]) && std::isfinite(t.waypoint_jitter[1]) &&
+             std::isfinite(t.waypoint_jitter[2])))
     e << "waypoint_jitter must be 3 finite numbers >= 0 [m]";
   else if (!(std::isfinite(t.lookahead) && t.lookahead >= 0))
     e << "lookahead must be a finite number >= 0 [s], got " << t.lookahead;
