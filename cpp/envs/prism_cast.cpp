@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "rotation.h"
+#include "target_clones.h"
 #include "thread_pool.h"
 
 namespace cufund::envs {
@@ -13,21 +15,6 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
 bool finite(double v) { return std::isfinite(v); }
-
-// Row-major R_WS of a quaternion [w, x, y, z] (normalised here), as lidar::batch_cast's rays use it.
-void rotation(const double* q_in, double R[9]) {
-  const double n = std::sqrt(q_in[0] * q_in[0] + q_in[1] * q_in[1] + q_in[2] * q_in[2] + q_in[3] * q_in[3]);
-  const double w = q_in[0] / n, x = q_in[1] / n, y = q_in[2] / n, z = q_in[3] / n;
-  R[0] = 1 - 2 * (y * y + z * z);
-  R[1] = 2 * (x * y - w * z);
-  R[2] = 2 * (x * z + w * y);
-  R[3] = 2 * (x * y + w * z);
-  R[4] = 1 - 2 * (x * x + z * z);
-  R[5] = 2 * (y * z - w * x);
-  R[6] = 2 * (x * z - w * y);
-  R[7] = 2 * (y * z + w * x);
-  R[8] = 1 - 2 * (x * x + y * y);
-}
 
 struct Buffers {
   std::vector<float> dx, dy, dz, best, tn, tf;
@@ -82,16 +69,14 @@ bool pixel_span(const double c_S[8][3], const Pinhole& cam, int* u0, int* u1, in
 }
 
 // Compiled for several instruction sets, picked at load time (the ray loops are the SIMD lanes).
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(CUFUND_NO_TARGET_CLONES)
-__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#endif
+CUFUND_TARGET_CLONES
 void cast_one(const PrismScene& s, const double* p_WS, const double* q_WS, const float* d_S, const Pinhole& cam,
               double reach, float* out, Buffers& b) {
   const int W = cam.width, H = cam.height;
   const std::size_t r = static_cast<std::size_t>(W) * H;
   b.resize(r);
   double R[9];
-  rotation(q_WS, R);
+  quat_to_rotation(q_WS, R);  // R_WS, as lidar::batch_cast's rays use it
   const float o[3] = {static_cast<float>(p_WS[0]), static_cast<float>(p_WS[1]), static_cast<float>(p_WS[2])};
   const double od[3] = {o[0], o[1], o[2]};
   // World directions, column-major (index u * H + v), rounded as lidar::batch_cast's rays are.

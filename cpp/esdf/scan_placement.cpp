@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "parallel.h"
+#include "rotation.h"
 
 namespace cufund::esdf {
 
@@ -20,19 +21,6 @@ void interval(const PoseKnots& k, double t, std::ptrdiff_t* i, double* s) {
   }
   const double t0 = k.t[*i], t1 = k.t[*i + 1];
   *s = std::clamp((t - t0) / (t1 - t0), 0.0, 1.0);
-}
-
-void quat_to_matrix(const double q[4], double* R) {
-  const double w = q[0], x = q[1], y = q[2], z = q[3];
-  R[0] = 1 - 2 * (y * y + z * z);
-  R[1] = 2 * (x * y - w * z);
-  R[2] = 2 * (x * z + w * y);
-  R[3] = 2 * (x * y + w * z);
-  R[4] = 1 - 2 * (x * x + z * z);
-  R[5] = 2 * (y * z - w * x);
-  R[6] = 2 * (x * z - w * y);
-  R[7] = 2 * (y * z + w * x);
-  R[8] = 1 - 2 * (x * x + y * y);
 }
 
 }  // namespace
@@ -60,9 +48,7 @@ RigidTransform body_pose_at(const PoseKnots& k, double t, std::ptrdiff_t* hint) 
     for (int a = 0; a < 3; ++a) T.t[a] = (1 - s) * p0[a] + s * p0[a + 3];
     for (int a = 0; a < 4; ++a) q[a] = (1 - s) * q0[a] + s * (sign * q1[a]);
   }
-  const double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-  for (double& v : q) v /= norm;
-  quat_to_matrix(q, T.R.data());
+  quat_to_rotation(q, T.R.data());  // normalises q (the interpolated one is off the unit sphere)
   return T;
 }
 

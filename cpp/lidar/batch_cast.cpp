@@ -1,5 +1,6 @@
 #include "batch_cast.h"
 
+#include "rotation.h"
 #include "thread_pool.h"
 
 #include <algorithm>
@@ -13,21 +14,6 @@ namespace {
 
 constexpr double kInfD = std::numeric_limits<double>::infinity();
 
-// Row-major R(q) of a unit quaternion [w, x, y, z] (normalised here; the caller checked it is non-zero).
-void rotation(const double* q_in, double R[9]) {
-  const double n = std::sqrt(q_in[0] * q_in[0] + q_in[1] * q_in[1] + q_in[2] * q_in[2] + q_in[3] * q_in[3]);
-  const double w = q_in[0] / n, x = q_in[1] / n, y = q_in[2] / n, z = q_in[3] / n;
-  R[0] = 1 - 2 * (y * y + z * z);
-  R[1] = 2 * (x * y - w * z);
-  R[2] = 2 * (x * z + w * y);
-  R[3] = 2 * (x * y + w * z);
-  R[4] = 1 - 2 * (x * x + z * z);
-  R[5] = 2 * (y * z - w * x);
-  R[6] = 2 * (x * z - w * y);
-  R[7] = 2 * (y * z + w * x);
-  R[8] = 1 - 2 * (x * x + y * y);
-}
-
 bool finite_n(const double* p, int n) {
   for (int k = 0; k < n; ++k)
     if (!std::isfinite(p[k])) return false;
@@ -39,7 +25,7 @@ bool zero_quaternion(const double* q) { return q[0] == 0 && q[1] == 0 && q[2] ==
 // The rays of sensor i: rows (p_WS, R_WS d_S[r]) in float32.
 void sensor_rays(const SensorPoses& poses, std::size_t i, const float* d_S, std::size_t r, float* rays) {
   double R[9];
-  rotation(poses.q_WS + 4 * i, R);
+  quat_to_rotation(poses.q_WS + 4 * i, R);
   const double* p = poses.p_WS + 3 * i;
   const float o[3] = {static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2])};
   for (std::size_t k = 0; k < r; ++k) {
@@ -141,7 +127,7 @@ double slab(const double o[3], const double d[3], const double h[3]) {
 
 double ray_box_distance(const double o[3], const double d[3], const double c[3], const double q[4], const double h[3]) {
   double R[9];
-  rotation(q, R);
+  quat_to_rotation(q, R);
   const double v[3] = {o[0] - c[0], o[1] - c[1], o[2] - c[2]};
   double o_B[3], d_B[3];
   for (int a = 0; a < 3; ++a) {
@@ -192,7 +178,7 @@ BatchResult batch_cast(const RaycastScene& scene, const SensorPoses& poses, cons
         if (reach > static_cast<double>(model.range_max)) continue;
         BoxView b;
         double R[9];
-        rotation(boxes.q_WB + 4 * j, R);
+        quat_to_rotation(boxes.q_WB + 4 * j, R);
         for (int a = 0; a < 3; ++a) {
           for (int k = 0; k < 3; ++k) b.Rt[3 * a + k] = R[3 * k + a];
           b.o_B[a] = R[a] * v[0] + R[3 + a] * v[1] + R[6 + a] * v[2];
