@@ -9,6 +9,7 @@
 
 #include "quadrotor_dynamics.h"
 
+#include "target_clones.h"
 #include "thread_pool.h"
 
 namespace cufund {
@@ -79,11 +80,9 @@ CUFUND_INLINE void load(const DynamicsConstants& c, const Rows& p, const double*
 // SIMD lanes. Compiled for several instruction sets and picked at load time where the compiler can.
 // Returns false when the new state or its accelerations hold a NaN or inf (inputs beyond the model).
 template <bool kGround, bool kGroundEffect>
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(CUFUND_NO_TARGET_CLONES)
-__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#endif
-bool integrate_range(const DynamicsConstants& constants, double* __restrict state, std::size_t n, std::size_t begin,
-                     std::size_t end, const double* __restrict cmd, double h, int substeps) {
+CUFUND_TARGET_CLONES bool integrate_range(const DynamicsConstants& constants, double* __restrict state, std::size_t n,
+                                          std::size_t begin, std::size_t end, const double* __restrict cmd, double h,
+                                          int substeps) {
   const DynamicsConstants c = constants;  // a local copy: provably not aliased by the state stores
   Rows p;
   CUFUND_UNROLL
