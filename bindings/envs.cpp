@@ -5,6 +5,7 @@
 #include "env_batch.h"
 #include "prism_cast.h"
 #include "pybind_common.h"
+#include "range_model_args.h"
 
 namespace cufund::py_bind {
 
@@ -85,8 +86,9 @@ void define_prism_cast(py::module_& m) {
   m.def(
       "prism_depth_cast",
       [](const PrismScene& scene, const py::handle& d_S_obj, const py::handle& p_obj, const py::handle& q_obj,
-         int width, int height, double focal, double range_min, double range_max, double miss_value, double noise_std,
-         double noise_per_m, double dropout, std::int64_t seed, std::int64_t frame, const py::handle& nthreads_obj) {
+         int width, int height, double focal, const py::handle& range_min, const py::handle& range_max,
+         const py::handle& miss_value, const py::handle& noise_std, const py::handle& noise_per_m,
+         const py::handle& dropout, const py::handle& seed, const py::handle& frame, const py::handle& nthreads_obj) {
         const int nthreads = threads_arg(nthreads_obj);
         if (width < 1 || height < 1) throw py::value_error("width and height must be >= 1");
         if (!(std::isfinite(focal) && focal > 0)) throw py::value_error("focal must be a finite number > 0 [px]");
@@ -114,24 +116,8 @@ void define_prism_cast(py::module_& m) {
         const py::ssize_t n = pa.shape(0);
         auto p = as_float64(p_obj, "p_WS", {n, 3});
         auto q = as_float64(q_obj, "q_WS", {n, 4});
-        // batch_cast's bounds: range_max may be inf, range_min and the noise terms must be finite
-        if (!(std::isfinite(range_min) && range_min >= 0 && range_max >= range_min)) {
-          throw py::value_error("need 0 <= range_min <= range_max, range_min finite");
-        }
-        if (!(std::isfinite(noise_std) && std::isfinite(noise_per_m) && noise_std >= 0 && noise_per_m >= 0 &&
-              dropout >= 0 && dropout < 1)) {
-          throw py::value_error("noise_std, noise_per_m must be finite and >= 0 and dropout in [0, 1)");
-        }
-        if (seed < 0 || frame < 0) throw py::value_error("seed and frame must be >= 0");
-        lidar::BatchRangeModel model;
-        model.range_min = static_cast<float>(range_min);
-        model.range_max = static_cast<float>(range_max);
-        model.miss_value = static_cast<float>(miss_value);
-        model.noise_std = noise_std;
-        model.noise_per_m = noise_per_m;
-        model.dropout = dropout;
-        model.seed = static_cast<std::uint64_t>(seed);
-        model.frame = static_cast<std::uint64_t>(frame);
+        const lidar::BatchRangeModel model =
+            batch_range_model_arg({range_min, range_max, miss_value, noise_std, noise_per_m, dropout, seed, frame});
         py::array_t<float> out({n, r});
         lidar::BatchResult res;
         {

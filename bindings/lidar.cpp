@@ -7,6 +7,7 @@
 #include "batch_cast.h"
 #include "lidar_frame.h"
 #include "pybind_common.h"
+#include "range_model_args.h"
 #include "raycast_scene.h"
 #include "scan_pattern.h"
 #include "scan_rays.h"
@@ -134,13 +135,6 @@ py::array_t<double, py::array::c_style> optional_rows(const py::handle& obj, con
   auto a = as_float64(obj, field, {n});
   require_finite(a.data(), n, field);
   return a;
-}
-
-// A real scalar >= 0 (finite unless allow_inf), else ValueError naming it.
-double nonnegative_arg(const py::handle& obj, const char* field, bool allow_inf = false) {
-  const double x = allow_inf ? real_arg(obj, field) : finite_arg(obj, field);
-  if (!(x >= 0.0)) throw py::value_error(std::string(field) + " must be >= 0, got " + std::string(py::repr(obj)));
-  return x;
 }
 
 // The optional realism terms of the range model (RangeModel past n_reflectivity), with their draw arrays.
@@ -601,18 +595,8 @@ d_S: (R, 3) sensor-frame directions (float32); p_WS (N, 3) [m]; q_WS (N, 4) [w, 
             boxes.owner = owner.data();
           }
         }
-        lidar::BatchRangeModel model;
-        model.range_min = static_cast<float>(nonnegative_arg(range_min, "range_min"));
-        model.range_max = static_cast<float>(nonnegative_arg(range_max, "range_max", true));
-        if (!(model.range_max >= model.range_min)) throw py::value_error("range_max must be >= range_min");
-        model.miss_value = static_cast<float>(real_arg(miss_value, "miss_value"));
-        model.noise_std = nonnegative_arg(noise_std, "noise_std");
-        model.noise_per_m = nonnegative_arg(noise_per_m, "noise_per_m");
-        model.dropout = nonnegative_arg(dropout, "dropout");
-        if (!(model.dropout < 1.0))
-          throw py::value_error("dropout must be in [0, 1), got " + std::string(py::repr(dropout)));
-        model.seed = static_cast<std::uint64_t>(int_arg(seed, "seed", 0, std::numeric_limits<std::int64_t>::max()));
-        model.frame = static_cast<std::uint64_t>(int_arg(frame, "frame", 0, std::numeric_limits<std::int64_t>::max()));
+        const lidar::BatchRangeModel model =
+            batch_range_model_arg({range_min, range_max, miss_value, noise_std, noise_per_m, dropout, seed, frame});
         py::array_t<float> out({n, r});
         lidar::BatchResult res;
         {

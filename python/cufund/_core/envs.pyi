@@ -365,7 +365,7 @@ class EnvBatch:
     @property
     def target_index(self) -> numpy.typing.NDArray[numpy.int32]:
         ...
-def prism_depth_cast(scene: PrismScene, d_S: typing.Any, p_WS: typing.Any, q_WS: typing.Any, *, width: typing.SupportsInt | typing.SupportsIndex, height: typing.SupportsInt | typing.SupportsIndex, focal: typing.SupportsFloat | typing.SupportsIndex, range_min: typing.SupportsFloat | typing.SupportsIndex = 0.0, range_max: typing.SupportsFloat | typing.SupportsIndex = ..., miss_value: typing.SupportsFloat | typing.SupportsIndex = ..., noise_std: typing.SupportsFloat | typing.SupportsIndex = 0.0, noise_per_m: typing.SupportsFloat | typing.SupportsIndex = 0.0, dropout: typing.SupportsFloat | typing.SupportsIndex = 0.0, seed: typing.SupportsInt | typing.SupportsIndex = 0, frame: typing.SupportsInt | typing.SupportsIndex = 0, nthreads: typing.Any = 0) -> numpy.typing.NDArray[numpy.float32]:
+def prism_depth_cast(scene: PrismScene, d_S: typing.Any, p_WS: typing.Any, q_WS: typing.Any, *, width: typing.SupportsInt | typing.SupportsIndex, height: typing.SupportsInt | typing.SupportsIndex, focal: typing.SupportsFloat | typing.SupportsIndex, range_min: typing.Any = 0.0, range_max: typing.Any = ..., miss_value: typing.Any = ..., noise_std: typing.Any = 0.0, noise_per_m: typing.Any = 0.0, dropout: typing.Any = 0.0, seed: typing.Any = 0, frame: typing.Any = 0, nthreads: typing.Any = 0) -> numpy.typing.NDArray[numpy.float32]:
     """
     (N, width * height) float32 depths of N pinhole cameras (d_S the camera's rays, DepthCameraSpec.directions()) in a PrismScene, GIL released: what cufund._core.lidar.batch_cast returns for the scene's meshes (no boxes), within float rounding, with the same range model and noise streams.
     """
