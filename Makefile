@@ -67,7 +67,7 @@ test-cpp: $(CPP_BUILD)/build.ninja
 	$(VENV)/bin/ctest --test-dir $(CPP_BUILD) --output-on-failure -j $(JOBS)
 
 test-python: $(VENV)/.installed
-	$(VPY) -m pytest -q
+	$(VPY) -m pytest -q --durations=25
 
 # The gtests and the Python suite against an ASan + UBSan build (not part of `make test`). The Python
 # suite imports a sanitised cufund._core (build/sanitize-py) through a symlink tree of python/cufund,
