@@ -157,6 +157,26 @@ def test_reference_climbs_covers_the_area_facing_along_each_lane_and_lands():
     assert np.all(np.abs(s.p_W[lanes, 2] - 12.0) < 1e-6) and 0 < t0 < t1 < ref.t_end
 
 
+def test_turn_between_legs_is_a_hold_turning_the_short_way_at_the_peak_rate():
+    """planning.sequence.Hold.turn (the search's turn between legs): from 170 deg to -170 deg is a 20 deg turn the
+    short way; the position holds, the rate peaks at yaw_rate, integrates (trapezoid) to the turn and is 0 at both
+    ends; a Hold without yaw_end keeps its heading."""
+    from cufund.planning.sequence import Hold
+
+    p = np.array([1.0, 2.0, 12.0])
+    h = Hold.turn(p, math.radians(170), math.radians(-170), 0.8, t_start=3.0)
+    t = np.linspace(h.t_start - 0.5, h.t_end + 0.5, 20001)
+    s = h.sample(t)
+    np.testing.assert_allclose(s.p_W, np.tile(p, (len(t), 1)))
+    assert np.abs(s.yaw_rate).max() == pytest.approx(0.8, rel=1e-6)
+    assert np.trapezoid(s.yaw_rate, t) == pytest.approx(math.radians(20), rel=1e-6)
+    assert s.yaw[-1] - s.yaw[0] == pytest.approx(math.radians(20), rel=1e-9) and s.yaw_rate[[0, -1]].tolist() == [0, 0]
+    still = Hold(p, 2.0, 0.3).sample(np.array([0.0, 1.0]))
+    assert still.yaw.tolist() == [0.3, 0.3] and still.yaw_rate.tolist() == [0.0, 0.0]
+    with pytest.raises(ValueError, match="yaw_rate"):
+        Hold.turn(p, 0.0, 1.0, 0.0)
+
+
 def test_lanes_run_lead_m_beyond_the_area_and_finds_outside_it_are_ignored():
     """lead_m 5: each lane's ends lie 5 m beyond the area's edges along the lane; a detection 1.5 m outside the
     area (margin 1 m) is ignored, one 0.5 m outside counts; one captured after the search window is ignored."""

@@ -20,8 +20,9 @@ import numpy as np
 from cufund.core.build_context import BuildContext
 from cufund.core.components import BusView, Component, Subscription
 from cufund.core.config import ConfigError, check_real_fields, nested
-from cufund.core.messages import Detections3D, Odometry, Topics
+from cufund.core.messages import Detections3D, Topics
 from cufund.core.registry import Kind, register
+from cufund.perception.pose_history import PoseHistory
 from cufund.planning.point_to_point import JerkLimitedMove
 from cufund.planning.sequence import Hold, TrajectorySequence
 from cufund.planning.trajectory import TrajectorySamples
@@ -31,7 +32,7 @@ from .coverage import plan_coverage
 from .fleet_polygon import check_polygon, polygon_contains
 from .search_tracks import SearchTracker, SearchTrackParams, search_metrics
 
-__all__ = ["SearchMission", "SearchParams", "StraightMove", "YawTurn", "search_reference"]
+__all__ = ["SearchMission", "SearchParams", "StraightMove", "search_reference"]
 
 _POSES_KEPT = 400
 """Estimates kept to find the camera's position at a detection's capture time (2 s at 200 Hz)."""
@@ -98,41 +99,6 @@ class SearchParams:
             object.__setattr__(self, "tracks", nested(SearchTrackParams, self.tracks, "mission.tracks"))
         except ValueError as e:
             raise ConfigError(f"mission.tracks: {e}") from None
-
-
-class YawTurn:
-    """Hold ``p_W`` [m] while the heading turns from ``yaw0`` to ``yaw1`` [rad] (the shorter way) with a
-    smooth (cosine) rate profile peaking at ``yaw_rate`` [rad/s]; starts at ``t_start`` [s]."""
-
-    def __init__(self, p_W: np.ndarray, yaw0: float, yaw1: float, yaw_rate: float, t_start: float = 0.0) -> None:
-        self.p_W = np.asarray(p_W, dtype=float)
-        self.yaw0 = float(yaw0)
-        self.delta = math.remainder(float(yaw1) - self.yaw0, 2 * math.pi)
-        self._duration = max(math.pi * abs(self.delta) / (2 * yaw_rate), 1e-3)  # peak rate of the cosine profile
-        self.t_start = float(t_start)
-
-    @property
-    def duration(self) -> float:
-        return self._duration
-
-    @property
-    def t_end(self) -> float:
-        return self.t_start + self._duration
-
-    def sample(self, t: np.ndarray | float) -> TrajectorySamples:
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        s = np.clip((t - self.t_start) / self._duration, 0.0, 1.0)
-        z = np.zeros((t.shape[0], 3))
-        inside = (s > 0) & (s < 1)
-        return TrajectorySamples(
-            t=t,
-            p_W=np.tile(self.p_W, (t.shape[0], 1)),
-            v_W=z,
-            a_W=z.copy(),
-            j_W=z.copy(),
-            yaw=self.yaw0 + self.delta * 0.5 * (1 - np.cos(np.pi * s)),
-            yaw_rate=np.where(inside, self.delta * 0.5 * np.pi * np.sin(np.pi * s) / self._duration, 0.0),
-        )
 
 
 class StraightMove:
@@ -209,7 +175,7 @@ def search_reference(
         if np.linalg.norm(d[:2]) > 1e-6:  # a horizontal leg: face along it first
             heading = math.atan2(d[1], d[0])
             if abs(math.remainder(heading - yaw, 2 * math.pi)) > 1e-6:
-                parts.append(YawTurn(here, yaw, heading, p.yaw_rate, t_start=t))
+                parts.append(Hold.turn(here, yaw, heading, p.yaw_rate, t_start=t))
                 t, yaw = parts[-1].t_end, yaw + math.remainder(heading - yaw, 2 * math.pi)
         if np.linalg.norm(d) > 1e-6:
             parts.append(StraightMove(here, goal, v, p.a_max, p.j_max, yaw, t_start=t))
@@ -250,7 +216,7 @@ class SearchMission(Component):
 
     def reset(self) -> None:
         self.tracker = SearchTracker(self.params.tracks)
-        self._poses: deque[Odometry] = deque(maxlen=_POSES_KEPT)
+        self._poses = PoseHistory(maxlen=_POSES_KEPT)
         self._pending: deque[Detections3D] = deque(maxlen=64)
         self.detections = 0
 
@@ -258,21 +224,15 @@ class SearchMission(Component):
         self._dets: Subscription = bus.subscribe(Topics.DETECTIONS_3D)
         self._states: Subscription = bus.subscribe(self.state_topic)
 
-    def _camera_at(self, t: float) -> np.ndarray | None:
-        if not self._poses or not self._poses[0].t <= t <= self._poses[-1].t:
-            return None
-        ts = np.array([s.t for s in self._poses])
-        i = int(np.argmin(np.abs(ts - t)))
-        return np.asarray(self._poses[i].p_W, dtype=float)
-
     def step(self, t: float, bus: BusView) -> None:
         self._poses.extend(self._states.take())
         self._pending.extend(self._dets.take())
-        while self._pending and self._poses and self._pending[0].t <= self._poses[-1].t:
+        t_last = self._poses.t_last
+        while self._pending and t_last is not None and self._pending[0].t <= t_last:
             msg = self._pending.popleft()
             if not self.window[0] <= msg.t <= self.window[1]:
                 continue  # climbing, in transit to the first lane, going home or landing: not searching
-            camera = self._camera_at(msg.t)
+            camera = self._poses.position_at(msg.t)
             if camera is None:
                 continue
             names = tuple(msg.class_names)

@@ -8,12 +8,13 @@ from collections import deque
 import numpy as np
 
 from cufund.core.components import BusView, Component, Subscription
-from cufund.core.messages import CameraImage, Detections2D, Detections3D, Odometry, Topics
+from cufund.core.messages import CameraImage, Detections2D, Detections3D, Topics
 from cufund.core.topics import is_truth
-from cufund.geometry import Transform, interpolate_poses
+from cufund.geometry import Transform
 from cufund.sensors.camera import R_CO, CameraIntrinsics
 
 from .onnx_detector import Detections, OnnxDetector
+from .pose_history import PoseHistory
 from .stereo_depth import box_disparities
 
 __all__ = [
@@ -209,7 +210,7 @@ class OnnxDetectorComponent(Component):
     def reset(self) -> None:
         self.frames = 0
         self.latencies_ms = []
-        self._poses: deque[Odometry] = deque(maxlen=_POSES_KEPT)
+        self._poses = PoseHistory(maxlen=_POSES_KEPT)
         self._depth: CameraImage | None = None
         self._rights: deque[CameraImage] = deque(maxlen=4)
         self._pending: deque[tuple[float, Detections, np.ndarray]] = deque(maxlen=_PENDING_KEPT)
@@ -220,17 +221,6 @@ class OnnxDetectorComponent(Component):
         second = self.depth_topic or self.right_topic
         self._seconds: Subscription | None = bus.subscribe(second) if second else None
         self._states: Subscription | None = bus.subscribe(self.state_topic) if second else None
-
-    def _pose_at(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
-        if not self._poses or not self._poses[0].t <= t <= self._poses[-1].t:
-            return None
-        ts = np.array([s.t for s in self._poses])
-        i = int(np.clip(np.searchsorted(ts, t), 1, len(ts) - 1)) if len(ts) > 1 else 0
-        pair = list(self._poses)[max(i - 1, 0) : i + 1]  # the estimates either side of t
-        p, R = interpolate_poses(
-            np.array([s.t for s in pair]), np.array([s.p_W for s in pair]), np.array([s.q_WB for s in pair]), [t]
-        )
-        return p[0], R[0]
 
     def _depths(self, msg: CameraImage, det: Detections) -> np.ndarray | None:
         """Each box's depth [m] in the frame ``msg``, or None when there is nothing to take it from."""
@@ -272,9 +262,10 @@ class OnnxDetectorComponent(Component):
 
     def _place_pending(self, bus: BusView) -> None:
         """Publishes the Detections3D of the waiting frames an estimate now covers, oldest first."""
-        while self._pending and self._poses and self._pending[0][0] <= self._poses[-1].t:
+        t_last = self._poses.t_last
+        while self._pending and t_last is not None and self._pending[0][0] <= t_last:
             t, det, z = self._pending.popleft()
-            pose = self._pose_at(t)
+            pose = self._poses.at(t)
             if pose is None:  # older than every estimate kept
                 continue
             assert self.image_intrinsics is not None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import bisect
+import math
 from collections.abc import Sequence
 from itertools import pairwise
 
@@ -14,15 +15,32 @@ __all__ = ["Hold", "TrajectorySequence"]
 
 
 class Hold:
-    """Stay at ``p_W`` [m] with heading ``yaw`` [rad] from ``t_start`` for ``duration`` [s]."""
+    """Stay at ``p_W`` [m] with heading ``yaw`` [rad] from ``t_start`` for ``duration`` [s]; with ``yaw_end``
+    [rad], turn from ``yaw`` to it meanwhile (the shorter way) with a smooth (cosine) rate profile
+    (:meth:`turn` sets the duration from a peak yaw rate)."""
 
-    def __init__(self, p_W: np.ndarray, duration: float, yaw: float = 0.0, t_start: float = 0.0) -> None:
+    def __init__(
+        self, p_W: np.ndarray, duration: float, yaw: float = 0.0, t_start: float = 0.0, yaw_end: float | None = None
+    ) -> None:
         self.p_W = np.asarray(p_W, dtype=float)
         if self.p_W.shape != (3,) or not np.all(np.isfinite(self.p_W)):
             raise ValueError(f"p_W must be 3 finite numbers [m], got {p_W}")
         if not (np.isfinite(duration) and duration >= 0):
             raise ValueError(f"duration must be a finite number >= 0 [s], got {duration!r}")
         self._duration, self.yaw, self.t_start = float(duration), float(yaw), float(t_start)
+        self.delta = 0.0 if yaw_end is None else math.remainder(float(yaw_end) - self.yaw, 2 * math.pi)
+        """The turn [rad] (0: none)."""
+        if not math.isfinite(self.delta) or (self.delta != 0.0 and self._duration <= 0):
+            raise ValueError(f"yaw_end must be a finite angle [rad] and a turn needs duration > 0, got {yaw_end!r}")
+
+    @classmethod
+    def turn(cls, p_W: np.ndarray, yaw: float, yaw_end: float, yaw_rate: float, t_start: float = 0.0) -> Hold:
+        """Hold ``p_W`` while the heading turns from ``yaw`` to ``yaw_end`` [rad] (the shorter way), the cosine
+        rate profile peaking at ``yaw_rate`` [rad/s]."""
+        if not (np.isfinite(yaw_rate) and yaw_rate > 0):
+            raise ValueError(f"yaw_rate must be a finite number > 0 [rad/s], got {yaw_rate!r}")
+        delta = math.remainder(float(yaw_end) - float(yaw), 2 * math.pi)
+        return cls(p_W, max(math.pi * abs(delta) / (2 * yaw_rate), 1e-3), yaw, t_start, yaw_end=yaw_end)
 
     @property
     def duration(self) -> float:
@@ -35,14 +53,15 @@ class Hold:
     def sample(self, t: np.ndarray | float) -> TrajectorySamples:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         z = np.zeros((t.shape[0], 3))
+        if self.delta == 0.0:
+            yaw, yaw_rate = np.full(t.shape[0], self.yaw), np.zeros(t.shape[0])
+        else:
+            s = np.clip((t - self.t_start) / self._duration, 0.0, 1.0)
+            yaw = self.yaw + self.delta * 0.5 * (1 - np.cos(np.pi * s))
+            inside = (s > 0) & (s < 1)
+            yaw_rate = np.where(inside, self.delta * 0.5 * np.pi * np.sin(np.pi * s) / self._duration, 0.0)
         return TrajectorySamples(
-            t=t,
-            p_W=np.tile(self.p_W, (t.shape[0], 1)),
-            v_W=z,
-            a_W=z.copy(),
-            j_W=z.copy(),
-            yaw=np.full(t.shape[0], self.yaw),
-            yaw_rate=np.zeros(t.shape[0]),
+            t=t, p_W=np.tile(self.p_W, (t.shape[0], 1)), v_W=z, a_W=z.copy(), j_W=z.copy(), yaw=yaw, yaw_rate=yaw_rate
         )
 
 

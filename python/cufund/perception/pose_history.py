@@ -1,0 +1,116 @@
+"""The recent estimates of a vehicle's pose, looked up at an image's capture time: a detector places its boxes, and
+a mission its camera, with the pose at the stamp of the image they came from, which lies between two estimates."""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+from collections.abc import Iterable
+from typing import Protocol
+
+import numpy as np
+
+from cufund.geometry import quat_to_matrix
+
+__all__ = ["PoseHistory", "slerp"]
+
+_NLERP_BELOW = 1e-6
+"""Below this angle between two quaternions [rad] slerp's sin(theta) is ill-conditioned: interpolate linearly and
+normalise (the same rotation to well below 1e-12)."""
+
+
+class _Pose(Protocol):
+    t: float
+    p_W: np.ndarray
+    q_WB: np.ndarray
+
+
+def slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
+    """The unit quaternion [w, x, y, z] a fraction ``s`` in [0, 1] of the way from ``q0`` to ``q1`` along the
+    shorter great arc (constant angular rate)."""
+    q0 = np.asarray(q0, dtype=float) / np.linalg.norm(q0)
+    q1 = np.asarray(q1, dtype=float) / np.linalg.norm(q1)
+    dot = float(np.dot(q0, q1))
+    if dot < 0.0:  # q and -q are one rotation: go the short way round
+        q1, dot = -q1, -dot
+    theta = math.acos(min(dot, 1.0))
+    if theta < _NLERP_BELOW:
+        q = (1.0 - s) * q0 + s * q1
+    else:
+        q = (math.sin((1.0 - s) * theta) * q0 + math.sin(s * theta) * q1) / math.sin(theta)
+    return np.asarray(q / np.linalg.norm(q))
+
+
+class PoseHistory:
+    """The last ``maxlen`` poses (t [s], p_W [m], q_WB [w, x, y, z]) in time order, and the pose at any time
+    they span: position linear, rotation by :func:`slerp` between the two estimates either side of it."""
+
+    def __init__(self, maxlen: int = 400) -> None:
+        if isinstance(maxlen, bool) or not isinstance(maxlen, (int, np.integer)) or maxlen < 1:
+            raise ValueError(f"maxlen must be an integer >= 1 (poses kept), got {maxlen!r}")
+        self.maxlen = int(maxlen)
+        self._t: deque[float] = deque(maxlen=self.maxlen)
+        self._p: deque[np.ndarray] = deque(maxlen=self.maxlen)
+        self._q: deque[np.ndarray] = deque(maxlen=self.maxlen)
+
+    def __len__(self) -> int:
+        return len(self._t)
+
+    def clear(self) -> None:
+        self._t.clear()
+        self._p.clear()
+        self._q.clear()
+
+    @property
+    def t_first(self) -> float | None:
+        """The oldest stamp kept [s] (None: empty)."""
+        return self._t[0] if self._t else None
+
+    @property
+    def t_last(self) -> float | None:
+        """The newest stamp kept [s] (None: empty)."""
+        return self._t[-1] if self._t else None
+
+    def append(self, t: float, p_W: np.ndarray, q_WB: np.ndarray) -> None:
+        """Keeps one pose (the oldest goes once ``maxlen`` are kept). Stamps must not go back in time; a
+        non-finite or misshapen input, or a quaternion far from unit length, is a ``ValueError`` naming it."""
+        t = float(t)
+        p = np.asarray(p_W, dtype=float).reshape(-1)
+        q = np.asarray(q_WB, dtype=float).reshape(-1)
+        if not math.isfinite(t):
+            raise ValueError(f"t must be a finite time [s], got {t!r}")
+        if self._t and t < self._t[-1]:
+            raise ValueError(f"t must not go back in time: {t} s after {self._t[-1]} s")
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"p_W must be 3 finite numbers [m], got {p.tolist()}")
+        if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(float(np.linalg.norm(q)) - 1.0) > 1e-3:
+            raise ValueError(f"q_WB must be a unit quaternion [w, x, y, z], got {q.tolist()}")
+        self._t.append(t)
+        self._p.append(p)
+        self._q.append(q / np.linalg.norm(q))
+
+    def extend(self, poses: Iterable[_Pose]) -> None:
+        """Appends messages that carry ``t``, ``p_W`` and ``q_WB`` (e.g. :class:`~cufund.core.messages.Odometry`)."""
+        for m in poses:
+            self.append(m.t, m.p_W, m.q_WB)
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """(p_W (3,) [m], R_WB (3, 3)) at time ``t`` [s], interpolated between the poses either side of it;
+        None when ``t`` lies outside the span kept (older than the oldest, newer than the newest) or is not
+        finite."""
+        t = float(t)
+        if not self._t or not self._t[0] <= t <= self._t[-1]:
+            return None
+        i = bisect.bisect_right(self._t, t)  # first stamp after t; 1 <= i <= len
+        if i == len(self._t):  # t is the newest stamp
+            return self._p[-1].copy(), quat_to_matrix(self._q[-1])
+        t0, t1 = self._t[i - 1], self._t[i]
+        s = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
+        p = (1.0 - s) * self._p[i - 1] + s * self._p[i]
+        return p, quat_to_matrix(slerp(self._q[i - 1], self._q[i], s))
+
+    def position_at(self, t: float) -> np.ndarray | None:
+        """p_W (3,) [m] at time ``t`` [s] (see :meth:`at`)."""
+        pose = self.at(t)
+        return None if pose is None else pose[0]
