@@ -110,6 +110,15 @@ class TunnelMissionParams:
     health_wait_s: float = 3.0
     """Superseded by the failsafe supervisor's COM_POS_FS_DELAY + COM_FAIL_ACT_T (the tunnel kind refuses another
     value and names those) [s]."""
+    through: str = "all"
+    """How the course is flown. ``all``: wait at the align point until every expected frame is detected, confident
+    and stable, then one plan through all of them (a LiDAR sees the whole course from there). ``stepwise``: enter
+    as soon as the first frame is, then frame by frame: each hop goes through the next frame to a rest point just
+    past it, where the mission waits (``detect_timeout_s``) for the one after (a forward camera sees the frames
+    one by one; ``perception: camera`` selects it)."""
+    next_min_m: float = 0.3
+    """Stepwise: a detected frame is taken as the next one only when its centre lies at least this far beyond the
+    last passed frame's plane (the nearest such frame) [m]."""
 
     def __post_init__(self) -> None:
         if isinstance(self.frames, bool) or not isinstance(self.frames, int) or self.frames < 1:
@@ -137,6 +146,7 @@ class TunnelMissionParams:
             "stale_s",
             "lidar_silence_s",
             "health_wait_s",
+            "next_min_m",
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and float(v) > 0):
@@ -148,6 +158,8 @@ class TunnelMissionParams:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and float(v) >= 0):
                 raise ConfigError(f"mission.{name} must be a finite number >= 0, got {v!r}")
             object.__setattr__(self, name, float(v))
+        if self.through not in ("all", "stepwise"):
+            raise ConfigError(f"mission.through must be 'all' or 'stepwise', got {self.through!r}")
         if self.init_s < 1.0:
             raise ConfigError(f"mission.init_s must be >= 1 s (the LIO's static initialisation), got {self.init_s!r}")
 
@@ -232,6 +244,13 @@ class TunnelMission(Planner):
         self._best = 0
         self._last: np.ndarray | None = None
         self._published = -1
+        self.heading = self.yaw
+        """The yaw the reference holds at rest [rad] (stepwise: the last passed frame's heading)."""
+        self.passed: _Detections | None = None
+        """Stepwise: the detections of the frames passed so far, as each hop planned through them."""
+        self._target: _Detections | None = None  # stepwise: the frame the current hop goes through
+        self._last_hop = False
+        self._failsafe_urgent = False
 
     # -- helpers ---------------------------------------------------------------------------------------------
     def _enter(self, t: float, state: str, reason: str, bus: BusView) -> None:
@@ -258,9 +277,9 @@ class TunnelMission(Planner):
 
     def _land(self, t: float, t_r: float, p: np.ndarray, bus: BusView) -> None:
         pp = self.params
-        hold = Hold(p, pp.hold_s, self.yaw, t_start=t_r)
+        hold = Hold(p, pp.hold_s, self.heading, t_start=t_r)
         down, self.t_end = landing(
-            p, float(self.pad_W[2]), pp.move_v_max, pp.move_a_max, pp.move_j_max, self.yaw, hold.t_end
+            p, float(self.pad_W[2]), pp.move_v_max, pp.move_a_max, pp.move_j_max, self.heading, hold.t_end
         )
         self._publish(t, TrajectorySequence([hold, *down.parts]), bus)
 
@@ -282,7 +301,10 @@ class TunnelMission(Planner):
         healthy, _ = self.health.update(t)
         if self.state in ("done", "aborted"):
             return
-        at_rest = self.state == "detect" or (self.state in ("align", "enter") and t_r >= self._t_leg_end)
+        at_rest = self.state in ("detect", "wait") or (self.state in ("align", "enter") and t_r >= self._t_leg_end)
+        if self._failsafe is not None and pp.through == "stepwise":
+            self._failsafe_stepwise(t, t_r, bus)
+            return
         if self._failsafe is not None:  # the failsafe supervisor lands the vehicle (outside the course)
             back = self._align_point(self.used) if self.state == "enter" and self.used is not None else None
             self._abort(t, t_r, f"failsafe: {self._failsafe[1]}", bus, back_W=back)
@@ -298,6 +320,9 @@ class TunnelMission(Planner):
         if self.state == "takeoff":
             if t_r >= self._t_leg_end:
                 self._enter(t, "detect", "", bus)
+            return
+        if pp.through == "stepwise" and self.state != "land":
+            self._update_stepwise(t, t_r, state, est, bus)
             return
         if self.state == "detect":  # the first frame, confident and stable: fly onto its axis
             d = self.complete or self.first
@@ -364,9 +389,13 @@ class TunnelMission(Planner):
                 if self.state != "through"
                 else "the mission keeps its path through the course"
             )
+        stepwise_hop = self.params.through == "stepwise" and self.state in ("enter", "through")
+        if stepwise_hop and not self._last_hop and not urgent:  # backs out once at rest past the frame
+            self._failsafe, self._failsafe_urgent = (action, reason), False
+            return "the mission ends its hop past the frame, then backs out of the course and lands before it"
         if self.state in ("through", "land") and not urgent:
             return "the mission's path through the course ends in a landing beyond the last frame"
-        self._failsafe = (action, reason)
+        self._failsafe, self._failsafe_urgent = (action, reason), bool(urgent)
         return "the tunnel mission lands instead of returning through the course" if action == "rtl" else ""
 
     def _latch(self, est: TunnelEstimate) -> None:
@@ -404,8 +433,8 @@ class TunnelMission(Planner):
         """A jerk-limited straight move at rest from the reference's position to ``goal``, then hold there."""
         pp = self.params
         p = self.reference.sample(float(t_r)).p_W[0]
-        mv = JerkLimitedMove(p, goal, pp.move_v_max, pp.move_a_max, pp.move_j_max, self.yaw, t_start=t_r)
-        self._publish(t, TrajectorySequence([mv, Hold(goal, _FOREVER, self.yaw, t_start=mv.t_end)]), bus)
+        mv = JerkLimitedMove(p, goal, pp.move_v_max, pp.move_a_max, pp.move_j_max, self.heading, t_start=t_r)
+        self._publish(t, TrajectorySequence([mv, Hold(goal, _FOREVER, self.heading, t_start=mv.t_end)]), bus)
         self._t_leg_end = mv.t_end
 
     def _confident(self, est: TunnelEstimate | None, k: int) -> _Detections | None:
@@ -444,16 +473,21 @@ class TunnelMission(Planner):
         n = d.normals[k] / max(np.linalg.norm(d.normals[k]), 1e-12)
         return d.centres[k] - a * n, d.centres[k] + a * n
 
-    def _plan(self, t: float, t_r: float, leg: str, waypoints: np.ndarray, d: _Detections) -> PlanRecord:
+    def _plan(
+        self, t: float, t_r: float, leg: str, waypoints: np.ndarray, d: _Detections, yaw: np.ndarray | None = None
+    ) -> PlanRecord:
+        """A min-snap plan through ``waypoints`` (holding :attr:`yaw`, or ``yaw`` per waypoint [rad]) checked against
+        the bars of ``d``."""
         import time
 
         pp = self.params
         w0 = time.perf_counter()
         keep = np.concatenate([[True], np.linalg.norm(np.diff(waypoints, axis=0), axis=1) > 0.05])  # no tiny legs
         waypoints = waypoints[keep]
+        psi = np.full(waypoints.shape[0], self.yaw) if yaw is None else np.asarray(yaw, dtype=float)[keep]
         rec = PlanRecord(t, leg, False, "", waypoints)
         try:
-            res = self.planner.plan(waypoints, np.full(waypoints.shape[0], self.yaw), t_start=t_r)
+            res = self.planner.plan(waypoints, psi, t_start=t_r)
         except (ValueError, np.linalg.LinAlgError) as e:
             rec.reason = f"min-snap failed: {e}"
         else:
@@ -545,6 +579,229 @@ class TunnelMission(Planner):
         self._publish(t, TrajectorySequence([tr, Hold(end, _FOREVER, self.yaw, t_start=tr.t_end)]), bus)
         self._t_leg_end = tr.t_end
         self._enter(t, "through", "", bus)
+
+    # -- stepwise: frame by frame (``through: stepwise``) -------------------------------------------------------
+    def _update_stepwise(self, t: float, t_r: float, state: Odometry, est: TunnelEstimate | None, bus: BusView) -> None:
+        """The states after take-off in stepwise mode: detect (the first frame) -> align (onto its axis) -> enter
+        (the hop through it) -> wait (past it, for the next frame) -> through (the hop through that one) -> wait
+        ... -> through (the last frame, on to ``exit_m`` beyond it) -> land."""
+        pp = self.params
+        if self.state == "detect":  # the first frame, confident and stable: fly onto its axis
+            d = self._stable_next()
+            if d is not None:
+                self._align_stepwise(t, t_r, d, bus)
+            elif t - self._t_state > pp.detect_timeout_s:
+                self._abort(
+                    t,
+                    t_r,
+                    f"frame 1 of {pp.frames} not detected, confident and stable in {pp.detect_timeout_s:g} s",
+                    bus,
+                )
+            return
+        if self.state == "align":  # on the first frame's axis: its newest stable detection, after hold_s there
+            if t_r < self._t_leg_end + pp.hold_s:
+                return
+            d = self._stable_next()
+            if d is not None:
+                self._hop(t, t_r, d, bus)
+            elif t_r - self._t_leg_end > pp.detect_timeout_s:
+                self._abort(t, t_r, f"frame 1 of {pp.frames} not stable in {pp.detect_timeout_s:g} s", bus)
+            return
+        if self.state in ("enter", "through"):  # a hop through the target frame
+            self._count_progress(state)
+            if t_r < self._t_leg_end:
+                return
+            self._pass_target()
+            if self._last_hop:
+                self.progress = pp.frames
+                self._land(t, t_r, self.reference.sample(float(t_r)).p_W[0], bus)
+                self._enter(t, "land", "", bus)
+                return
+            k = self._n_passed()
+            self._enter(t, "wait", f"for frame {k + 1} of {pp.frames}", bus)
+            return
+        if self.state == "wait":  # at rest past the last passed frame: the next one, confident and stable
+            d = self._stable_next()
+            if d is not None:
+                self._hop(t, t_r, d, bus)
+            elif t - self._t_state > pp.detect_timeout_s:
+                k = self._n_passed()
+                self._back_out(
+                    t,
+                    t_r,
+                    f"frame {k + 1} of {pp.frames} not detected, confident and stable in {pp.detect_timeout_s:g} s "
+                    f"past frame {k}",
+                    bus,
+                )
+
+    def _n_passed(self) -> int:
+        return 0 if self.passed is None else int(self.passed.centres.shape[0])
+
+    def _pass_target(self) -> None:
+        """The hop's frame is passed (the reference is at rest past it): it joins :attr:`passed`, once."""
+        d = self._target
+        if d is None:
+            return
+        self._target = None
+        if self.passed is None:
+            self.passed = d
+        else:
+            self.passed = _Detections(
+                np.concatenate([self.passed.centres, d.centres]),
+                np.concatenate([self.passed.normals, d.normals]),
+                np.concatenate([self.passed.sizes, d.sizes]),
+            )
+        self.progress = max(self.progress, self._n_passed())
+
+    def _next_in(self, est: TunnelEstimate) -> _Detections | None:
+        """The frame the mission flies through next, as ``est`` has it (confident): before the course, the
+        estimate's first frame (the nearest the pad); past a frame, the confident frame nearest the last passed
+        one among those at least ``next_min_m`` beyond its plane. None if there is none."""
+        pp = self.params
+        conf = np.asarray(est.confidence, dtype=float).reshape(-1)
+        c = np.asarray(est.centres_W, dtype=float).reshape(-1, 3)
+        n = np.asarray(est.normals_W, dtype=float).reshape(-1, 3)
+        s = np.asarray(est.opening_sizes, dtype=float).reshape(-1, 2)
+        if self.passed is None:
+            k = 0 if conf.shape[0] > 0 and conf[0] >= pp.min_confidence else -1
+        else:
+            c_l, n_l = self.passed.centres[-1], self.passed.normals[-1] / np.linalg.norm(self.passed.normals[-1])
+            ok = (conf >= pp.min_confidence) & ((c - c_l) @ n_l >= pp.next_min_m)
+            k = int(np.argmin(np.where(ok, np.linalg.norm(c - c_l, axis=1), np.inf))) if ok.any() else -1
+        if k < 0:
+            return None
+        return _Detections(c[k : k + 1].copy(), n[k : k + 1].copy(), s[k : k + 1].copy())
+
+    def _stable_next(self) -> _Detections | None:
+        """The next frame (:meth:`_next_in`) when the newest ``stable_updates + 1`` estimates all hold it, each
+        centre within ``stable_m`` of the one before; else None."""
+        pp = self.params
+        recent = self.detections[-(pp.stable_updates + 1) :]
+        if len(recent) < pp.stable_updates + 1:
+            return None
+        picks = [self._next_in(e) for _, e in recent]
+        if any(d is None for d in picks):
+            return None
+        cs = np.array([d.centres[0] for d in picks if d is not None])
+        if float(np.max(np.linalg.norm(np.diff(cs, axis=0), axis=1))) >= pp.stable_m:
+            return None
+        return picks[-1]
+
+    def _facing(self, d: _Detections, p: np.ndarray) -> tuple[_Detections, float]:
+        """``d`` (one frame) with its normal horizontal, unit and pointing away from ``p`` (the way through), and
+        its heading nearest :attr:`heading` [rad]."""
+        n = np.array([d.normals[0, 0], d.normals[0, 1], 0.0])
+        n = n / max(float(np.linalg.norm(n)), 1e-12)
+        if float((d.centres[0] - p) @ n) < 0:
+            n = -n
+        psi = math.atan2(n[1], n[0])
+        psi = self.heading + math.remainder(psi - self.heading, 2 * math.pi)
+        return _Detections(d.centres.copy(), n[None, :], d.sizes.copy()), psi
+
+    def _align_stepwise(self, t: float, t_r: float, d: _Detections, bus: BusView) -> None:
+        """Onto the first frame's axis, ``align_m`` before it, turning to face along it (a min-snap leg checked
+        against its bars)."""
+        narrow = self._narrow(d)
+        if narrow:
+            self._abort(t, t_r, narrow, bus)
+            return
+        p = self.reference.sample(float(t_r)).p_W[0]
+        d, psi = self._facing(d, p)
+        goal = self._align_point(d)
+        rec = self._plan(t, t_r, "align", np.array([p, goal]), d, yaw=np.array([self.heading, psi]))
+        if not rec.ok:
+            self._abort(t, t_r, f"no safe path onto the first frame's axis: {rec.reason}", bus)
+            return
+        self.used = d
+        self._publish_leg(t, rec.trajectory, psi, bus)
+        self._enter(t, "align", "", bus)
+
+    def _publish_leg(self, t: float, tr: Any, psi: float, bus: BusView) -> None:
+        end = tr.sample(tr.t_end).p_W[0]
+        self._publish(t, TrajectorySequence([tr, Hold(end, _FOREVER, psi, t_start=tr.t_end)]), bus)
+        self.heading, self._t_leg_end = psi, tr.t_end
+
+    def _hop(self, t: float, t_r: float, target: _Detections, bus: BusView) -> None:
+        """From rest (at the align point, or past the last passed frame) through ``target``'s opening along its
+        normal to a rest point on its axis past it (the last frame: ``exit_m`` beyond it), yawing to face along
+        it; checked against the bars of every passed frame and the target. Never back through a passed frame."""
+        pp = self.params
+        k = self._n_passed()  # the target is frame k + 1
+        inside = k > 0
+        narrow = self._narrow(target)
+        if narrow:
+            msg = narrow.replace("opening 1", f"opening {k + 1}")
+            (self._back_out if inside else self._abort)(t, t_r, msg, bus)
+            return
+        p = self.reference.sample(float(t_r)).p_W[0]
+        target, psi = self._facing(target, p)
+        d = (
+            target
+            if self.passed is None
+            else _Detections(
+                np.concatenate([self.passed.centres, target.centres]),
+                np.concatenate([self.passed.normals, target.normals]),
+                np.concatenate([self.passed.sizes, target.sizes]),
+            )
+        )
+        before, after = self._axis_points(d, k)
+        c, n = target.centres[0], target.normals[0]
+        ahead = float((p - c) @ n)  # < 0: before the frame
+        via = [c + ahead * n] if not inside and ahead < float((before - c) @ n) - 0.05 else []
+        last = k + 1 >= pp.frames
+        pts = [p, *via, before, c, after] + ([c + pp.exit_m * n] if last else [])
+        leg = "through" if inside else "enter"
+        rec = self._plan(t, t_r, leg, np.array(pts), d, yaw=np.array([self.heading] + [psi] * (len(pts) - 1)))
+        if not rec.ok:
+            if inside:
+                self._back_out(t, t_r, f"no safe path through frame {k + 1}: {rec.reason}", bus)
+            else:
+                self._abort(t, t_r, f"no safe path into the first frame: {rec.reason}", bus)
+            return
+        self._target, self.used, self._last_hop = target, d, last
+        self._publish_leg(t, rec.trajectory, psi, bus)
+        self._enter(t, leg, f"frame {k + 1} of {pp.frames}", bus)
+
+    def _back_out(self, t: float, t_r: float, reason: str, bus: BusView) -> None:
+        """Abort from rest inside the course: back out through the passed frames' openings (their axis points in
+        reverse, the heading kept) to the first frame's align point and land there, before the course; if that
+        path fails the plan check, land where it is (and say so)."""
+        d = self.passed
+        if d is None:
+            self._abort(t, t_r, reason, bus)
+            return
+        p = self.reference.sample(float(t_r)).p_W[0]
+        pts = [p]
+        for j in reversed(range(d.centres.shape[0])):
+            before, after = self._axis_points(d, j)
+            pts += [after, d.centres[j], before]
+        pts.append(self._align_point(d))
+        rec = self._plan(t, t_r, "back_out", np.array(pts), d, yaw=np.full(len(pts), self.heading))
+        if not rec.ok:
+            self._abort(t, t_r, f"{reason}; no safe path back out ({rec.reason}): landed where it was", bus)
+            return
+        tr = rec.trajectory
+        self._publish_leg(t, tr, self.heading, bus)
+        self._land(t, tr.t_end, tr.sample(tr.t_end).p_W[0], bus)
+        self._enter(t, "aborted", reason, bus)
+
+    def _failsafe_stepwise(self, t: float, t_r: float, bus: BusView) -> None:
+        """A failsafe's land request in stepwise mode: before the course as in ``all``; inside it, at rest past a
+        frame, back out and land before the course (a hop is finished first unless the request is urgent)."""
+        assert self._failsafe is not None
+        reason = f"failsafe: {self._failsafe[1]}"
+        hop = self.state in ("enter", "through")
+        if hop and t_r < self._t_leg_end:
+            if not self._failsafe_urgent:
+                return  # the hop ends at rest past its frame: back out from there
+            self._abort(t, t_r, reason, bus)  # urgent (e.g. a motor failure): land at once
+            return
+        if hop:
+            self._pass_target()
+        if self.passed is not None:
+            self._back_out(t, t_r, reason, bus)
+        else:
+            self._abort(t, t_r, reason, bus)
 
     def start(self, t: float, pad_W: Any) -> None:
         """The operator's start (a mission built ``wait_for_start``, flown by a commander that samples

@@ -5,6 +5,7 @@ log's sensor frames, the run folder) sees the same sensors."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 from cufund.core.config import ConfigError
@@ -39,3 +40,6 @@ def camera_only(config: Any, parse_part: Callable[..., Any]) -> None:
     object.__setattr__(config, "sensors", sensors)
     if config.mapper is not None and config.mapper.kind == "esdf":  # it maps LiDAR clouds
         object.__setattr__(config, "mapper", None)
+    m = config.mission
+    if m is not None and m.kind == "tunnel" and m.params.through == "all":  # the camera sees the frames one by one
+        object.__setattr__(config, "mission", replace(m, params=replace(m.params, through="stepwise")))
