@@ -90,7 +90,9 @@ def test_the_component_tracks_a_frame_over_an_approach_to_2_cm_and_3_deg(seed):
     course = tunnel_course_layout(seed, TunnelCourseParams(n_frames=1))
     frame = course.frames[0]
     bus = Bus()
-    comp = CameraTunnelDetector(K, B, T_LEFT, "/l", "/r", expected=5, origin_W=(-3.0, 0.0, 0.0))
+    comp = CameraTunnelDetector(
+        K, B, T_LEFT, "/l", "/r", params=CameraTunnelParams(refine=False), expected=5, origin_W=(-3.0, 0.0, 0.0)
+    )  # an oracle box is the frame's: no refinement (test_camera_tunnel_refine.py feeds the model's boxes)
     view = BusView(bus, comp.name, comp.inputs + comp.optional_inputs, comp.outputs, deny_truth=True)
     comp.reset()
     comp.setup(view)

@@ -16,7 +16,7 @@ from cufund.core.topics import is_truth
 from cufund.geometry import Transform, interpolate_poses
 from cufund.sensors.camera import CameraIntrinsics
 
-from .camera_tunnel import CameraTunnelParams, FrameMeasurement, frame_from_box
+from .camera_tunnel import CameraTunnelParams, FrameMeasurement, measure_frame
 from .detection import FrameDetection, order_along_course
 
 __all__ = ["CameraTunnelDetector"]
@@ -58,7 +58,7 @@ class _Track:
 class CameraTunnelDetector(Component):
     """Measures the boxes of class ``class_name`` in each :class:`Detections2D` on ``detections_topic`` (found in
     the left images of ``left_topic``) with the right image of the same stamp on ``right_topic``
-    (:func:`~.camera_tunnel.frame_from_box`), in the world frame of the estimate on ``state_topic`` interpolated to
+    (:func:`~.camera_tunnel.measure_frame`: the box refined to the frame's edges, then measured), in the world frame of the estimate on ``state_topic`` interpolated to
     the images' stamp (never ground truth; a frame newer than the newest estimate waits for it). A measurement
     joins the track whose centre is nearest within ``associate_m`` horizontally, else starts one; a track is the
     weighted mean of its measurements (1 / depth^4). Each processed frame publishes a :class:`TunnelEstimate` on
@@ -154,7 +154,7 @@ class CameraTunnelDetector(Component):
         for box, score, cid in zip(det.boxes_xyxy, det.scores, det.class_ids, strict=True):
             if not 0 <= int(cid) < len(names) or names[int(cid)] != self.class_name or float(score) < self.min_score:
                 continue
-            m = frame_from_box(box, left, right, self.K, self.baseline_m, self.T_BC, p_WB, R_WB, self.params)
+            m = measure_frame(box, left, right, self.K, self.baseline_m, self.T_BC, p_WB, R_WB, self.params)
             if m is not None:
                 out.append(m)
         return out

@@ -1,0 +1,170 @@
+"""The camera-only tunnel from the shipped frames model's own boxes (issue 26, item 4a): the model's boxes are off
+by several pixels, the bar strips need the frame's edges within one or two. ``measure_frame`` refines each box to
+the frame's bars, top and bottom in the pair first (``camera_tunnel_refine``). Rendered pairs lit as the flown rig
+is (shadows, ambient 0.35), the shipped ONNX model run on the left image, the result checked against the world's
+true frames."""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+
+import numpy as np
+import pytest
+
+from cufund.core.bus import Bus, BusView
+from cufund.core.messages import CameraImage, Detections2D, Odometry, Topics, TunnelEstimate
+from cufund.geometry import Transform, quat_to_matrix
+from cufund.missions.tunnel_course import TunnelCourseParams, paper_tunnel_course, tunnel_course_layout
+from cufund.perception.camera_tunnel import CameraTunnelParams, measure_frame
+from cufund.perception.camera_tunnel_component import CameraTunnelDetector
+from cufund.perception.camera_tunnel_kind import SHIPPED_FRAMES_MODEL
+from cufund.perception.camera_tunnel_refine import refine_frame_box
+from cufund.perception.onnx_detector import OnnxDetector
+from cufund.sensors.camera import CameraIntrinsics, RgbCamera
+
+pytest.importorskip("onnxruntime")
+
+K = CameraIntrinsics(640, 480, 400.0, 400.0, 319.5, 239.5)  # the stereo_camera kind's default rig
+B = 0.11
+T_LEFT, T_RIGHT = Transform((0.1, B / 2, 0.0)), Transform((0.1, -B / 2, 0.0))
+LEFT = RgbCamera(K, T_LEFT, ambient=0.35, shadows=True)  # lit as the flown rig (sensors.stereo's defaults)
+RIGHT = RgbCamera(K, T_RIGHT, ambient=0.35, shadows=True)
+
+
+@cache
+def _detector() -> OnnxDetector:
+    return OnnxDetector(str(SHIPPED_FRAMES_MODEL), conf=0.25)
+
+
+def _course(name: str):
+    return paper_tunnel_course() if name == "paper" else tunnel_course_layout(int(name), TunnelCourseParams(n_frames=1))
+
+
+def _approach(frame, distances):
+    """Poses on the frame's axis (5 cm aside, at its centre's height, 0.5 m at least) at ``distances`` before it,
+    with a hover's small tilts."""
+    rng = np.random.default_rng(1)
+    for dist in distances:
+        p = np.asarray(frame.centre_W) - dist * frame.axis_W + np.array([0.0, 0.05, 0.0])
+        p[2] = max(frame.centre_W[2], 0.5)
+        roll, pitch = rng.normal(0.0, 0.02, 2)
+        q = np.array([1.0, roll / 2, pitch / 2, 0.0])
+        yield p, q / np.linalg.norm(q)
+
+
+def _angle_deg(n, axis) -> float:
+    return math.degrees(math.acos(min(1.0, abs(float(np.dot(n, axis))))))
+
+
+def _track(name: str, refine: bool) -> tuple[TunnelEstimate, int]:
+    """The component fed an approach from 3.5 to 1.5 m (nine pairs) with the shipped model's boxes (score >= 0.25)
+    on the bus and the true pose as the estimate; (its last TunnelEstimate, boxes measured)."""
+    course = _course(name)
+    frame = course.frames[0]
+    bus = Bus()
+    comp = CameraTunnelDetector(
+        K,
+        B,
+        T_LEFT,
+        "/l",
+        "/r",
+        params=CameraTunnelParams(refine=refine),
+        min_score=0.25,
+        expected=5,
+        origin_W=np.asarray(frame.centre_W) - 4.0 * frame.axis_W,
+    )
+    view = BusView(bus, comp.name, comp.inputs + comp.optional_inputs, comp.outputs, deny_truth=True)
+    comp.reset()
+    comp.setup(view)
+    out = bus.subscribe(Topics.TUNNEL_ESTIMATE)
+    for k, (p, q) in enumerate(_approach(frame, np.linspace(3.5, 1.5, 9))):
+        t = 0.1 * (k + 1)
+        left, right = LEFT.render(course.world, p, q), RIGHT.render(course.world, p, q)
+        d = _detector().detect(left)
+        det = Detections2D(t, d.boxes_xyxy, d.scores, d.class_ids, _detector().names, d.latency_ms)
+        for s in (t - 0.01, t + 0.01):
+            bus.publish(Topics.ESTIMATE, Odometry(s, p, np.zeros(3), q, np.zeros(3)))
+        bus.publish("/l", CameraImage(t, left))
+        bus.publish("/r", CameraImage(t, right))
+        bus.publish(Topics.DETECTIONS_2D, det)
+        comp.step(t, view)
+    return out.take()[-1], comp.frames_measured
+
+
+@pytest.mark.parametrize("name", ["paper", "0", "1", "4", "7"])
+def test_the_models_boxes_refined_track_the_first_frame_to_3_cm_and_3_deg(name):
+    """The shipped model's boxes, refined, over an approach from 3.5 to 1.5 m before the first frame of the paper's
+    layout and of generated ones: the tracked frame nearest the true one is within 3 cm and 3 deg, and no tracked
+    frame is more than 10 cm from a true one (a refinement that is not sure gives nothing)."""
+    est, measured = _track(name, refine=True)
+    frame = _course(name).frames[0]
+    assert measured >= 4 and est.centres_W.shape[0] >= 1
+    err = np.linalg.norm(est.centres_W - np.asarray(frame.centre_W), axis=1)
+    k = int(np.argmin(err))
+    assert err[k] < 0.03, (err, est.centres_W)
+    assert _angle_deg(est.normals_W[k], frame.axis_W) < 3.0
+    true = np.array([f.centre_W for f in _course(name).frames])
+    assert all(np.min(np.linalg.norm(true - c, axis=1)) < 0.10 for c in est.centres_W)
+
+
+@pytest.mark.parametrize("name", ["paper", "0", "4", "7"])
+def test_without_the_refinement_the_models_boxes_do_not_give_the_frame(name):
+    """The same approaches measured on the model's boxes as they are: the frame is not within 3 cm and 3 deg
+    (these four were off by 3.1 to 15 cm, or 3.6 to 4.1 deg when within 3.1 cm), or some measurement lands
+    more than 10 cm from every frame, or nothing is tracked: the refinement is what makes them good."""
+    est, _ = _track(name, refine=False)
+    frames = _course(name).frames
+    if est.centres_W.shape[0] == 0:
+        return
+    err = np.linalg.norm(est.centres_W - np.asarray(frames[0].centre_W), axis=1)
+    k = int(np.argmin(err))
+    good = err[k] < 0.03 and _angle_deg(est.normals_W[k], frames[0].axis_W) < 3.0
+    true = np.array([f.centre_W for f in frames])
+    stray = any(np.min(np.linalg.norm(true - c, axis=1)) > 0.10 for c in est.centres_W)
+    assert not good or stray, (err, est.centres_W)
+
+
+def test_one_pair_at_two_metres_from_the_models_box():
+    """One pair 2 m before the paper layout's first frame: each of the model's boxes of it is refined to the frame's
+    silhouette (the outer edges within a pixel and a half of the renderer's instance ids at the middle row), and the
+    centre measured from it is within 3 cm across the view (along it a pixel of disparity is 9 cm)."""
+    course = paper_tunnel_course()
+    frame = course.frames[0]
+    p, q = next(_approach(frame, [2.0]))
+    left, ids, labels = LEFT.render(course.world, p, q, want_ids=True)
+    right = RIGHT.render(course.world, p, q)
+    inst = min((i for i in np.unique(ids) if i >= 0 and labels[i] == "tunnel_frame"), key=int)  # the first frame
+    rows = np.nonzero((ids == inst).any(axis=1))[0]
+    mid = int(rows.mean())
+    cols = np.nonzero(ids[mid] == inst)[0]
+    d = _detector().detect(left)
+    boxes = [b for b, c in zip(d.boxes_xyxy, d.class_ids, strict=True) if _detector().names[int(c)] == "tunnel_frame"]
+    near = [b for b in boxes if abs(b[0] - cols.min()) < 25 and abs(b[2] - cols.max() - 1) < 25]
+    assert near
+    measured = 0
+    for box in near:
+        m = measure_frame(box, left, right, K, B, T_LEFT, p, quat_to_matrix(q))
+        if m is None:
+            continue
+        measured += 1
+        err = m.centre_W - np.asarray(frame.centre_W)
+        along = float(err @ frame.axis_W)
+        assert np.linalg.norm(err - along * frame.axis_W) < 0.03, err
+        assert abs(along) < 0.12, err
+    assert measured >= 1
+    span = (3.0, 60.0)
+    r = refine_frame_box(near[0], left, right, B, 0.05, span, K.fx, K.cx, K.cy)
+    assert r is not None
+    assert abs(r.box_xyxy[0] - cols.min()) < 1.5 and abs(r.box_xyxy[2] - (cols.max() + 1)) < 1.5
+
+
+def test_a_box_of_nothing_gives_nothing():
+    """A box around plain wall (no bars) gives no measurement, refined or not."""
+    course = paper_tunnel_course()
+    frame = course.frames[0]
+    p, q = next(_approach(frame, [2.0]))
+    left, right = LEFT.render(course.world, p, q), RIGHT.render(course.world, p, q)
+    wall = np.array([20.0, 20.0, 120.0, 150.0])
+    assert measure_frame(wall, left, right, K, B, T_LEFT, p, quat_to_matrix(q)) is None
+    assert refine_frame_box(wall, left, right, B, 0.05, (3.0, 60.0), K.fx, K.cx, K.cy) is None
