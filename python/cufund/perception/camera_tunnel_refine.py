@@ -226,17 +226,68 @@ def refine_frame_box(
     module). The frame's top corners must be level, and its bottom corners (the frames stand upright): a pair of
     two frames' bars, or another frame's bottom bar, is not."""
     up = np.array([0.0, -1.0, 0.0]) if up_O is None else np.asarray(up_O, dtype=float) / np.linalg.norm(up_O)
-    L, R = _image(left), _image(right)
-    h_img, w_img = L[0].shape[:2]
     u0, v0, u1, v1 = (float(x) for x in np.asarray(box_xyxy, dtype=float).reshape(4))
     w, h = u1 - u0, v1 - v0
     mu, mv = max(10.0, margin * w), max(10.0, 2.5 * margin * h)
+    reach = mu + 2.0 * span[1] * bar / baseline + 4.0  # a run whose outer edge is within mu, and its width
+    # only the part of the pair searched (converting whole images took most of the time)
+    H, W = np.asarray(left).shape[:2]
+    ox, oy = max(int(math.floor(u0 - reach - span[1] - 8.0)), 0), max(int(math.floor(v0 - mv - 2.0)), 0)
+    ox1, oy1 = min(int(math.ceil(u1 + reach + 8.0)), W), min(int(math.ceil(v1 + mv + 2.0)), H)
+    if ox1 - ox < 8 or oy1 - oy < 8:
+        return None
+    L, R = _image(np.asarray(left)[oy:oy1, ox:ox1]), _image(np.asarray(right)[oy:oy1, ox:ox1])
+    found = _refine(
+        (u0 - ox, v0 - oy, u1 - ox, v1 - oy),
+        L,
+        R,
+        baseline,
+        bar,
+        span,
+        fx,
+        cx - ox,
+        cy - oy,
+        up,
+        mu,
+        mv,
+        reach,
+        max_yaw_deg,
+    )
+    if found is None:
+        return None
+    bx, (t0, t1), (b0, b1) = found.box_xyxy, found.top, found.bottom
+    return RefinedBox(
+        (bx[0] + ox, bx[1] + oy, bx[2] + ox, bx[3] + oy),
+        found.disparities,
+        (t0 + oy - t1 * ox, t1),
+        (b0 + oy - b1 * ox, b1),
+    )
+
+
+def _refine(
+    box: tuple[float, float, float, float],
+    L: tuple[np.ndarray, np.ndarray],
+    R: tuple[np.ndarray, np.ndarray],
+    baseline: float,
+    bar: float,
+    span: tuple[float, float],
+    fx: float,
+    cx: float,
+    cy: float,
+    up: np.ndarray,
+    mu: float,
+    mv: float,
+    reach: float,
+    max_yaw_deg: float,
+) -> RefinedBox | None:
+    """:func:`refine_frame_box` in the part of the pair searched (pixel coordinates in it)."""
+    h_img, w_img = L[0].shape[:2]
+    u0, v0, u1, v1 = box
+    h = v1 - v0
     rows = slice(int(round(v0 + _BAND * h)), int(round(v1 - _BAND * h)))
     if rows.stop - rows.start < 3:
         return None
     B_over_bar = baseline / bar
-
-    reach = mu + 2.0 * span[1] / B_over_bar + 4.0  # a run whose outer edge is within mu, and its width
 
     sides = {}
     for side, edge in (("left", u0), ("right", u1)):
