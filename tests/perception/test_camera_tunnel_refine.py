@@ -168,3 +168,17 @@ def test_a_box_of_nothing_gives_nothing():
     wall = np.array([20.0, 20.0, 120.0, 150.0])
     assert measure_frame(wall, left, right, K, B, T_LEFT, p, quat_to_matrix(q)) is None
     assert refine_frame_box(wall, left, right, B, 0.05, (3.0, 60.0), K.fx, K.cx, K.cy) is None
+
+
+def test_bad_refinement_settings_are_refused_by_name():
+    from cufund.core.config import ConfigError
+    from cufund.scenarios.schema import load_scenario
+
+    with pytest.raises(ConfigError, match="perception.refine must be true or false"):
+        CameraTunnelParams(refine=3)
+    with pytest.raises(ConfigError, match="refine_max_yaw_deg"):
+        CameraTunnelParams(refine_max_yaw_deg=float("nan"))
+    with pytest.raises(ConfigError, match="perception.refine"):
+        load_scenario("tunnel", ["perception=camera", "estimator.kind=vio", "perception.refine=3"])
+    cfg = load_scenario("tunnel", ["perception=camera", "estimator.kind=vio", "perception.refine=false"])
+    assert cfg.perception.params.geometry().refine is False

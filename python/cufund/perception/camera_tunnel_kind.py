@@ -50,6 +50,9 @@ class CameraPerceptionParams:
     """Frames farther than this are not measured [m]."""
     max_disparity: int = 96
     """Largest disparity searched [px] (nearest frame measured: fx B / max_disparity)."""
+    refine: bool = True
+    """Refine each of the detector's boxes to the frame's bars, top and bottom in the pair before measuring it
+    (:mod:`.camera_tunnel_refine`); false: the boxes' edges are taken as the frame's."""
 
     def __post_init__(self) -> None:
         for name in ("model", "stereo_camera", "class_name"):
@@ -65,7 +68,9 @@ class CameraPerceptionParams:
         self.geometry()  # bar, max_range, max_disparity checked there
 
     def geometry(self) -> CameraTunnelParams:
-        return CameraTunnelParams(bar=self.bar, max_range=self.max_range, max_disparity=self.max_disparity)
+        return CameraTunnelParams(
+            bar=self.bar, max_range=self.max_range, max_disparity=self.max_disparity, refine=self.refine
+        )
 
 
 def _camera(p: CameraPerceptionParams, ctx: BuildContext) -> list[Any]:
