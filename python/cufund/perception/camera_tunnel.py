@@ -121,6 +121,8 @@ strips are matched by the edges' contrast. Over six approaches (paper layout, ge
 the shipped model's boxes, tracked: the strips alone (from 0 px) 4.5 cm and 4.5 deg, (from 1.5 px) 1.2 cm and
 2.0 deg; the outer edges' disparities alone 1.1 cm and 1.5 deg (3.6 deg on seed 7); their mean 1.1 cm and 1.5 deg
 (at most 1.7 cm and 3.7 deg, seed 3)."""
+_AGREE_PX = 1.0
+"""Largest difference between a refined bar's disparity from its outer edges and from its strip [px]."""
 _RIGHT_PX = 2.0
 """Pixels right of each bar in its strip (the bar's right edge; what lies just left of a bar in the left image is
 hidden by it in the right image, so no pixel left of a bar is matched)."""
@@ -228,16 +230,24 @@ def measure_frame(
         )
         if refined is None:
             return None
-        # the bars' disparities from their outer edges in both images, averaged with the strips' where those match
-        # (the strips of plain bars seen nested, or merged with another frame's, fail their left-right check)
+        # the bars' disparities from their outer edges in both images and from their strips (started outside the
+        # edges, so that the edges' contrast is in them): where both are found they must agree, and are averaged.
+        # Where the strips fail their left-right check (plain bars seen nested or merged), the edges' alone, if
+        # the right image's runs are each one bar wide at their disparity (a run of several frames' bars merged
+        # may have its outer edge matched to another run's: frames measured 1 m too far so in a flight).
         box = np.array(refined.box_xyxy)
-        disp = refined.disparities
         padded = (box[0] - _STRIP_PAD_PX, box[1], box[2] + _STRIP_PAD_PX, box[3])
-        strips = _strip_disparities(
-            padded, _grey(left), _grey(right), baseline, disparity_span(box[3] - box[1], K, baseline, p), p
-        )
-        if strips is not None:
-            disp = (0.5 * (disp[0] + strips[0]), 0.5 * (disp[1] + strips[1]))
+        span = disparity_span(box[3] - box[1], K, baseline, p)
+        strips = _strip_disparities(padded, _grey(left), _grey(right), baseline, span, p)
+        edges = refined.disparities
+        if strips is None:
+            if not refined.single:
+                return None
+            disp = edges
+        elif max(abs(strips[0] - edges[0]), abs(strips[1] - edges[1])) > _AGREE_PX:
+            return None
+        else:
+            disp = (0.5 * (edges[0] + strips[0]), 0.5 * (edges[1] + strips[1]))
         return frame_from_box(box, left, right, K, baseline, T_BC, p_WB, R_WB, p, disparities=disp)
     return frame_from_box(box, left, right, K, baseline, T_BC, p_WB, R_WB, p)
 

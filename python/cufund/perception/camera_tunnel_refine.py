@@ -61,6 +61,9 @@ class RefinedBox:
     """The top line v = top[0] + top[1] u [px]."""
     bottom: tuple[float, float]
     """The bottom line v = bottom[0] + bottom[1] u [px]."""
+    single: bool = True
+    """Whether both bars' runs in the right image are as wide as one bar at their disparity (not several frames'
+    bars merged, whose outer edge may be matched to another run's)."""
 
 
 @dataclass(frozen=True)
@@ -136,19 +139,25 @@ def _runs(img: tuple[np.ndarray, np.ndarray], rows: slice, c0: int, c1: int, sid
     return out
 
 
-def _disparities(bar: _Bar, right_bars: list[_Bar], B_over_bar: float, span: tuple[float, float]) -> list[float]:
-    """The outer edges' differences to the runs of the right image that may be ``bar`` (module step 2), the run
-    of the most alike width first (a run merged with another frame's bar beside it differs in width)."""
+def _disparities(
+    bar: _Bar, right_bars: list[_Bar], B_over_bar: float, span: tuple[float, float]
+) -> list[tuple[float, bool]]:
+    """The outer edges' differences to the runs of the right image that may be ``bar`` (module step 2), each with
+    whether that run is as wide as one bar seen at that disparity (its face, up to its side face more); those
+    first, then the run of the most alike width (a run of several frames' bars merged is wider, and merges
+    differently in the other image)."""
     w = abs(bar.inner - bar.outer)
     hi = min(span[1], B_over_bar * (w + 1.5))  # a bar's silhouette is at least its face: fx bar / z = d bar / B
     found = []
     for r in right_bars:
         d = bar.outer - r.outer
         wr = abs(r.inner - r.outer)
-        if not span[0] <= d <= hi or wr < d / B_over_bar - 1.5 or np.linalg.norm(r.colour - bar.colour) > bar.tol:
+        face = d / B_over_bar
+        if not span[0] <= d <= hi or wr < face - 1.5 or np.linalg.norm(r.colour - bar.colour) > bar.tol:
             continue
-        found.append((abs(wr - w), d))
-    return [d for _, d in sorted(found)]
+        single = wr <= 1.45 * face + 1.5
+        found.append((not single, abs(wr - w), d))
+    return [(d, not merged) for merged, _, d in sorted(found)]
 
 
 def _column_runs(mask: np.ndarray) -> list[list[tuple[int, int]]]:
@@ -261,6 +270,7 @@ def refine_frame_box(
         found.disparities,
         (t0 + oy - t1 * ox, t1),
         (b0 + oy - b1 * ox, b1),
+        found.single,
     )
 
 
@@ -295,12 +305,14 @@ def _refine(
         c0, c1 = max(int(math.floor(lo)), 0), min(int(math.ceil(hi)), w_img)
         lbars = [b for b in _runs(L, rows, c0, c1, side) if abs(b.outer - edge) <= mu]
         rbars = _runs(R, rows, max(c0 - int(math.ceil(span[1])) - 2, 0), c1, side)
-        sides[side] = [(b, k, d) for b in lbars for k, d in enumerate(_disparities(b, rbars, B_over_bar, span))]
+        sides[side] = [
+            (b, k, d, single) for b in lbars for k, (d, single) in enumerate(_disparities(b, rbars, B_over_bar, span))
+        ]
     best = None
     mid = (rows.start + rows.stop) // 2
     window = (max(int(math.floor(v0 - mv)), 0), min(int(math.ceil(v1 + mv)), h_img))
-    for lb, kl, dl in sides["left"]:
-        for rb, kr, dr in sides["right"]:
+    for lb, kl, dl, single_l in sides["left"]:
+        for rb, kr, dr, single_r in sides["right"]:
             if rb.inner - lb.inner < 4:
                 continue
             # the frame's turn from the two bars' outer edges at their depths: a pair of two frames' bars is
@@ -322,7 +334,7 @@ def _refine(
             # nearest the detector's box; of one pair of bars, the right-image runs of the most alike widths
             cost = (abs(box[0] - u0) + abs(box[2] - u1) + abs(box[1] - v0) + abs(box[3] - v1), kl + kr)
             if best is None or cost < best[0]:
-                best = (cost, RefinedBox(box, (dl, dr), top, bottom))
+                best = (cost, RefinedBox(box, (dl, dr), top, bottom, single_l and single_r))
     return None if best is None else best[1]
 
 
