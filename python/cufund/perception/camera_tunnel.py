@@ -214,8 +214,9 @@ def measure_frame(
 ) -> FrameMeasurement | None:
     """:func:`frame_from_box` on a detector's box refined to the frame's own edges first
     (:func:`~.camera_tunnel_refine.refine_frame_box`, with ``params.refine``): a detector's box edges are off by
-    several pixels, the bar strips need them within one or two. None when the refinement finds no frame (or two
-    that fit alike) or the measurement refuses it."""
+    several pixels, the bar strips need them within one or two. The bars' disparities are found from their outer
+    edges in both images and from their strips; both must agree (see below). None when the refinement finds no
+    frame, the two disparities disagree, or the measurement refuses it."""
     p = CameraTunnelParams() if params is None else params
     box = np.asarray(box_xyxy, dtype=float).reshape(4)
     if p.refine:

@@ -13,7 +13,8 @@ run of columns whose pixels agree down the rows. In an enlarged window around ea
    bar's face wide at their disparity, whose outer edge lies at a disparity the box's height and the run's width
    allow (a bar's silhouette is at least its face, fx bar / z = d bar / B, wide). The disparity is the outer edges'
    difference: what lies just outside a frame's outer edge is farther, so the edge is the bar's own silhouette in
-   both images. Every such run is a candidate, the most alike in width first.
+   both images. Every such run is a candidate: first those one bar wide at their disparity, then the most alike in
+   width (a run of several frames' bars merged is wider, and merges differently in the other image).
 3. **Top and bottom.** The bars' top ends: where their faces' middle columns stop being bar-coloured at the
    frame's disparity in both images (a bar of a frame behind, stacked above it in the left image, lies elsewhere in
    the right one); the top line joins them, and the top bar must run along it between the bars and end at the
