@@ -241,3 +241,17 @@ def test_stepwise_waits_until_the_next_frame_is_stable():
     hop = next(r for r in m.plans if r.leg == "through")
     assert hop.t >= t_wait[0] + 3.0 + 2 * DT * EST_EVERY  # the third unchanged estimate after the jitter ended
     np.testing.assert_allclose(m.passed.centres[1], CENTRES[1], atol=1e-12)
+
+
+def test_stepwise_does_not_skip_an_undetected_frame_beyond_the_rules_gap():
+    """Frame 2 is never shown, frame 3 is (2.2 m past frame 1, more than max_gap_m 2 m): past frame 1 the
+    mission waits, never plans towards frame 3 (an undetected frame must lie between), times out and backs out.
+    With max_gap_m 3 m the same estimates take frame 3 as the next one (what the guard prevents)."""
+    m, flown, _, _ = _fly(STEPWISE, lambda t, m: [0, 2])
+    assert m.state == "aborted" and m.reason.startswith("frame 2 of 3 not detected"), m.reason
+    assert [r.leg for r in m.plans] == ["align", "enter", "back_out"]
+    assert np.max((flown - CENTRES[1]) @ NORMALS[1]) < -0.1  # never reached frame 2's plane
+    loose = TunnelMissionParams(frames=3, through="stepwise", detect_timeout_s=6.0, max_gap_m=3.0)
+    m, _, _, _ = _fly(loose, lambda t, m: [0, 2])
+    assert [r.leg for r in m.plans][:3] == ["align", "enter", "through"]
+    np.testing.assert_allclose(m.used.centres[-1], CENTRES[2])

@@ -119,6 +119,10 @@ class TunnelMissionParams:
     next_min_m: float = 0.3
     """Stepwise: a detected frame is taken as the next one only when its centre lies at least this far beyond the
     last passed frame's plane (the nearest such frame) [m]."""
+    max_gap_m: float = 2.0
+    """Stepwise: the largest distance between consecutive frames' centres the course's rules allow (the generated
+    courses: 1.5 m ahead, 0.3 m aside, 0.2 m up or down) and a margin: a detected frame farther than this from the
+    last passed one is not taken as the next (an undetected frame lies between) [m]."""
 
     def __post_init__(self) -> None:
         if isinstance(self.frames, bool) or not isinstance(self.frames, int) or self.frames < 1:
@@ -147,6 +151,7 @@ class TunnelMissionParams:
             "lidar_silence_s",
             "health_wait_s",
             "next_min_m",
+            "max_gap_m",
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and float(v) > 0):
@@ -656,7 +661,8 @@ class TunnelMission(Planner):
     def _next_in(self, est: TunnelEstimate) -> _Detections | None:
         """The frame the mission flies through next, as ``est`` has it (confident): before the course, the
         estimate's first frame (the nearest the pad); past a frame, the confident frame nearest the last passed
-        one among those at least ``next_min_m`` beyond its plane. None if there is none."""
+        one among those at least ``next_min_m`` beyond its plane and at most ``max_gap_m`` from it. None if there
+        is none."""
         pp = self.params
         conf = np.asarray(est.confidence, dtype=float).reshape(-1)
         c = np.asarray(est.centres_W, dtype=float).reshape(-1, 3)
@@ -666,8 +672,9 @@ class TunnelMission(Planner):
             k = 0 if conf.shape[0] > 0 and conf[0] >= pp.min_confidence else -1
         else:
             c_l, n_l = self.passed.centres[-1], self.passed.normals[-1] / np.linalg.norm(self.passed.normals[-1])
-            ok = (conf >= pp.min_confidence) & ((c - c_l) @ n_l >= pp.next_min_m)
-            k = int(np.argmin(np.where(ok, np.linalg.norm(c - c_l, axis=1), np.inf))) if ok.any() else -1
+            gap = np.linalg.norm(c - c_l, axis=1)
+            ok = (conf >= pp.min_confidence) & ((c - c_l) @ n_l >= pp.next_min_m) & (gap <= pp.max_gap_m)
+            k = int(np.argmin(np.where(ok, gap, np.inf))) if ok.any() else -1
         if k < 0:
             return None
         return _Detections(c[k : k + 1].copy(), n[k : k + 1].copy(), s[k : k + 1].copy())
