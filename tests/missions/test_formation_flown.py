@@ -92,37 +92,55 @@ def _column(latency: float, extrapolate: bool = False, **follower) -> ScenarioCo
     return ScenarioConfig.from_dict(data)
 
 
-def _cruise_lag(config: ScenarioConfig) -> tuple[float, float]:
-    """The follower's mean along-track error [m] while the leader cruises (true speed within 2 % of 2 m/s), and
-    the leader's mean speed then [m/s]."""
-    fleet = build_fleet(config)
-    run = fleet.run()
-    assert run.status == "completed", run.message
-    s = fleet.formation_links["uav2"].samples()
-    v = np.gradient(s["p_L"][:, 0], s["t"])
-    cruise = (np.abs(v - 2.0) < 0.04) & (s["p_L"][:, 2] > 1.9)
-    assert cruise.sum() > 500  # > 2 s at 250 Hz
-    _, along, _ = formation_errors(s["p_L"][cruise], s["q_L"][cruise], s["p_F"][cruise], np.array([-3.0, 0, 0]))
-    return float(along.mean()), float(v[cruise].mean())
+# The latency tests' three followers of one leader, flown in one fleet: (comm_latency_s, extrapolate, lateral
+# offset [m]). Each is 3 m behind the leader and 4 m from the others, so their along-track lags are those of three
+# separate columns (uav2's to the bit; the others' differ by their own sensor draws).
+COLUMN_FOLLOWERS = {"uav2": (0.0, False, 0.0), "uav3": (0.3, False, 4.0), "uav4": (0.3, True, -4.0)}
+
+
+def _columns() -> ScenarioConfig:
+    """:func:`_column`'s leader and its followers as COLUMN_FOLLOWERS says."""
+    data = _column(0.0).to_dict()
+    planner = data["vehicles"][1]["planner"]
+    data["vehicles"] = [data["vehicles"][0]] + [
+        {"name": name, "start": {"p": [-3, y, 0]},
+         "planner": {**planner, "offset": [-3, y, 0], "comm_latency_s": latency, "extrapolate": extrapolate}}
+        for name, (latency, extrapolate, y) in COLUMN_FOLLOWERS.items()
+    ]  # fmt: skip
+    return ScenarioConfig.from_dict(data)
 
 
 @pytest.fixture(scope="module")
-def lag_no_latency():
-    return _cruise_lag(_column(0.0))
+def cruise_lags() -> dict[str, tuple[float, float]]:
+    """Each follower's mean along-track error [m] while the leader cruises (true speed within 2 % of 2 m/s), and
+    the leader's mean speed then [m/s]."""
+    fleet = build_fleet(_columns())
+    run = fleet.run()
+    assert run.status == "completed", run.message
+    lags = {}
+    for name, (_, _, y) in COLUMN_FOLLOWERS.items():
+        s = fleet.formation_links[name].samples()
+        v = np.gradient(s["p_L"][:, 0], s["t"])
+        cruise = (np.abs(v - 2.0) < 0.04) & (s["p_L"][:, 2] > 1.9)
+        assert cruise.sum() > 500  # > 2 s at 250 Hz
+        offset = np.array([-3.0, y, 0])
+        _, along, _ = formation_errors(s["p_L"][cruise], s["q_L"][cruise], s["p_F"][cruise], offset)
+        lags[name] = (float(along.mean()), float(v[cruise].mean()))
+    return lags
 
 
-def test_latency_makes_the_follower_lag_by_speed_times_latency(lag_no_latency):
-    lag0, v = lag_no_latency
-    lag3, _ = _cruise_lag(_column(0.3))
+def test_latency_makes_the_follower_lag_by_speed_times_latency(cruise_lags):
+    lag0, v = cruise_lags["uav2"]
+    lag3, _ = cruise_lags["uav3"]
     # hand estimate: the message's age grows by the latency, so the lag by v * 0.3 s = 0.6 m
     assert lag3 - lag0 == pytest.approx(-v * 0.3, rel=0.1), (lag0, lag3)
     # without latency the lag is about v times half the 50 Hz broadcast period (0.02 m) plus the tracking lag
     assert -0.1 < lag0 < 0.0, lag0
 
 
-def test_prediction_takes_the_latency_out(lag_no_latency):
-    lag0, _ = lag_no_latency
-    lag, _ = _cruise_lag(_column(0.3, extrapolate=True))
+def test_prediction_takes_the_latency_out(cruise_lags):
+    lag0, _ = cruise_lags["uav2"]
+    lag, _ = cruise_lags["uav4"]
     assert abs(lag - lag0) < 0.06, (lag0, lag)  # constant velocity: the prediction is exact up to tracking
 
 
