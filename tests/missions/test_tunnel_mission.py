@@ -58,12 +58,8 @@ def test_unflyable_layout_is_rejected_before_flight(tmp_path, capsys):
 
 # -- flights ------------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def paper_run(tmp_path_factory):
-    from cufund.scenarios.run_folder import run_into_folder
-
-    out = tmp_path_factory.mktemp("tunnel")
-    run = run_into_folder(load_scenario("tunnel"), out, log=True, replay=True)
-    return run, out
+def paper_run(tunnel_run):
+    return tunnel_run  # the shipped scenario's flight, shared with the other tests of it (tests/conftest.py)
 
 
 def test_paper_layout_succeeds_within_the_targets(paper_run):

@@ -116,8 +116,8 @@ def test_commander_flight_geofence_returns_through_the_commander():
     assert np.hypot(*(_rest(run)[:2] - np.array([-2.0, 0.0]))) < 0.1 and not commander.armed
 
 
-def test_tunnel_without_triggers_sees_no_failsafe():
-    run = run_scenario(load_scenario("tunnel"))
+def test_tunnel_without_triggers_sees_no_failsafe(tunnel_run):
+    run, _ = tunnel_run  # the shipped scenario's flight (tests/conftest.py)
     assert run.metrics["failsafe_events"] == [] and run.metrics["success"] is True
 
 
