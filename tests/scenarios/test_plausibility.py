@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cufund.apps.cli import main as cli_main
 from cufund.core.config import ConfigError, load_yaml_text
 from cufund.scenarios.plausibility import SPEED_CEILING, checked_fields, field_units, reach
 from cufund.scenarios.schema import TrajectoryConfig, available_scenarios, load_scenario
@@ -22,6 +23,13 @@ CUFUND = Path(sys.executable).with_name("cufund")
 
 def _cufund(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run([str(CUFUND), *args], capture_output=True, text=True, timeout=300, check=False, cwd=cwd)
+
+
+def _cli(*args: str, capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    """``cufund *args`` in this process (the console script returns main's code): (exit code, stderr). The process
+    itself is run once, by test_a_sweep_spec_with_a_duplicate_key_exits_2 (a second of start-up per case)."""
+    code = cli_main(list(args))
+    return code, capsys.readouterr().err
 
 
 SQUARE_WITH = """\
@@ -45,13 +53,14 @@ CASES = [
 
 
 @pytest.mark.parametrize(("extra", "field", "words"), CASES, ids=[c[1] for c in CASES])
-def test_a_surely_mistaken_scenario_file_exits_2_naming_the_field(tmp_path, extra, field, words):
+def test_a_surely_mistaken_scenario_file_exits_2_naming_the_field(tmp_path, monkeypatch, capsys, extra, field, words):
+    monkeypatch.chdir(tmp_path)
     path = tmp_path / "s.yaml"
     path.write_text(SQUARE_WITH.format(extra=extra), encoding="utf-8")
-    done = _cufund("run", str(path), "--out", str(tmp_path / "run"), cwd=tmp_path)
-    assert done.returncode == 2, done.stderr
-    assert field in done.stderr and words in done.stderr, done.stderr
-    assert "Traceback" not in done.stderr
+    code, err = _cli("run", str(path), "--out", str(tmp_path / "run"), capsys=capsys)
+    assert code == 2, err
+    assert field in err and words in err, err
+    assert "Traceback" not in err
     assert not (tmp_path / "run").exists()  # refused before anything ran
 
 
@@ -62,9 +71,10 @@ def test_a_surely_mistaken_scenario_file_exits_2_naming_the_field(tmp_path, extr
         ("controller.geometric.i_max=1000", "controller.geometric.i_max"),
     ],
 )
-def test_set_overrides_are_checked_as_files_are(tmp_path, override, field):
-    done = _cufund("run", "square", "--set", override, "--out", str(tmp_path / "run"), cwd=tmp_path)
-    assert done.returncode == 2 and field in done.stderr, done.stderr
+def test_set_overrides_are_checked_as_files_are(tmp_path, monkeypatch, capsys, override, field):
+    monkeypatch.chdir(tmp_path)
+    code, err = _cli("run", "square", "--set", override, "--out", str(tmp_path / "run"), capsys=capsys)
+    assert code == 2 and field in err, err
 
 
 def test_a_kinds_documented_radian_field_is_found_without_being_listed():
@@ -163,6 +173,7 @@ def test_a_sweep_spec_with_a_duplicate_key_exits_2(tmp_path):
     spec.write_text("scenario: square\ngrid:\n  seed: [1, 2]\n  seed: [3]\n", encoding="utf-8")
     done = _cufund("sweep", str(spec), "--out", str(tmp_path / "out"), cwd=tmp_path)
     assert done.returncode == 2 and "duplicate key 'seed' at line 4" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr
     assert "grid.seed may be given only once" in done.stderr
 
 
