@@ -163,6 +163,23 @@ def test_bad_input_is_named() -> None:
             _core.lidar.batch_cast(
                 ForestParams().build().raycast_scene, spec.directions(), np.zeros((1, 3)), [[1.0, 0, 0, 0]], **bad
             )
+    # ... read by the one parser both casters share: the same error, naming the argument
+    named = [
+        ({"dropout": 1.0}, ValueError, r"dropout must be in \[0, 1\)"),
+        ({"range_min": 2.0, "range_max": 1.0}, ValueError, "range_max must be >= range_min"),
+        ({"seed": -1}, ValueError, "seed must be an integer in"),
+        ({"frame": 1.5}, TypeError, "frame must be an integer"),
+        ({"noise_std": "0.1"}, TypeError, "noise_std must be a real number"),
+    ]
+    for bad, error, match in named:
+        with pytest.raises(error, match=match):
+            _core.envs.prism_depth_cast(
+                scene, spec.directions(), np.zeros((1, 3)), [[1.0, 0, 0, 0]], width=4, height=4, focal=2.0, **bad
+            )
+        with pytest.raises(error, match=match):
+            _core.lidar.batch_cast(
+                ForestParams().build().raycast_scene, spec.directions(), np.zeros((1, 3)), [[1.0, 0, 0, 0]], **bad
+            )
     with pytest.raises(ValueError, match="item 0"):
         _core.envs.prism_depth_cast(
             scene, spec.directions(), [[np.nan, 0, 0]], [[1.0, 0, 0, 0]], width=4, height=4, focal=2.0
