@@ -255,3 +255,12 @@ def test_stepwise_does_not_skip_an_undetected_frame_beyond_the_rules_gap():
     m, _, _, _ = _fly(loose, lambda t, m: [0, 2])
     assert [r.leg for r in m.plans][:3] == ["align", "enter", "through"]
     np.testing.assert_allclose(m.used.centres[-1], CENTRES[2])
+
+
+def test_perception_camera_selects_stepwise_and_the_lidar_tunnel_keeps_all():
+    from cufund.scenarios import load_scenario
+
+    assert load_scenario("tunnel").mission.params.through == "all"
+    cam = load_scenario("tunnel", ["perception=camera", "estimator.kind=vio"])
+    assert cam.mission.params.through == "stepwise"
+    assert cam.mission.params.frames == 5  # the rest of the mission as the scenario has it
