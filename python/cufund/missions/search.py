@@ -74,6 +74,10 @@ class SearchParams:
     shows a trunk in front of the person is placed on the trunk, nearer and so higher along the ray."""
     min_height_m: float = -0.5
     """Detections placed lower than this (below the ground) are ignored [m]."""
+    max_box_m: float | None = None
+    """Detections whose box, at its depth, is taller or wider than this are ignored [m] (null: no limit): a
+    person (at most about 2 m tall, seen from above at a slant, or lying) spans well under this in the image
+    plane, while a patch of ground or a trunk the detector takes for one often spans more."""
     tracks: SearchTrackParams = SearchTrackParams()
     """Association and two-view confirmation (:class:`~cufund.missions.search_tracks.SearchTrackParams`)."""
     match_m: float = 2.0
@@ -87,6 +91,8 @@ class SearchParams:
         names = ("altitude", "spacing", "v_max", "a_max", "j_max", "climb_v_max", "yaw_rate", "match_m", "max_height_m")
         check_real_fields(self, "mission", positive=True, names=names)
         check_real_fields(self, "mission", unit=" [m]", names=("lead_m", "area_margin_m"))
+        if self.max_box_m is not None:
+            check_real_fields(self, "mission", positive=True, names=("max_box_m",))
         v = self.min_height_m
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not -1e3 < v < self.max_height_m:
             raise ConfigError(f"mission.min_height_m must be a number below max_height_m [m], got {v!r}")
@@ -239,15 +245,17 @@ class SearchMission(Component):
             if self.params.target not in names:
                 continue
             k = names.index(self.params.target)
-            for p_W, cls, score in zip(msg.centres_W, msg.class_ids, msg.scores, strict=True):
+            box_max = self.params.max_box_m if self.params.max_box_m is not None else math.inf
+            for p_W, size, cls, score in zip(msg.centres_W, msg.sizes_m, msg.class_ids, msg.scores, strict=True):
                 if (
                     int(cls) == k
                     and float(score) >= self.params.tracks.min_score
+                    and float(np.max(size)) <= box_max
                     and np.all(np.isfinite(p_W))
                     and self.params.min_height_m <= p_W[2] - self.ground_z <= self.params.max_height_m
                     and polygon_contains(self.params.area, p_W[:2], tol=self.params.area_margin_m)[0]
                 ):
-                    self.tracker.add(msg.t, p_W, camera)
+                    self.tracker.add(msg.t, p_W, camera, float(score))
                     self.detections += 1
 
     def found(self) -> list[dict[str, Any]]:

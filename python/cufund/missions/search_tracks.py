@@ -30,7 +30,15 @@ class SearchTrackParams:
     agree_m: float = 1.5
     """Two views confirm only if their positions are within this of each other [m]."""
     min_score: float = 0.3
-    """Detections scored below this are ignored [-]."""
+    """Detections scored below this are ignored [-]: they neither start nor join a track."""
+    confirm_score: float | None = None
+    """A detection scored at least this is a strong one [-] (at least ``min_score``); null: every detection
+    kept is strong."""
+    min_strong: int = 1
+    """A track is confirmed only once it holds at least this many strong detections (and two views that agree
+    from far enough apart, of any score): a second, higher threshold for confirming than for tracking, so a
+    person seen weakly from many places is tracked across them while an object the detector scores high only
+    now and then is not confirmed."""
 
     def __post_init__(self) -> None:
         for name in ("gate_m", "min_baseline_m", "agree_m"):
@@ -40,6 +48,12 @@ class SearchTrackParams:
         v = self.min_score
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
             raise ValueError(f"min_score must be a number in [0, 1], got {v!r}")
+        v = self.confirm_score
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not self.min_score <= v <= 1):
+            raise ValueError(f"confirm_score must be a number in [min_score, 1] or null, got {v!r}")
+        v = self.min_strong
+        if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= 1000:
+            raise ValueError(f"min_strong must be an integer in [1, 1000] (detections), got {v!r}")
 
 
 @dataclass
@@ -49,6 +63,10 @@ class Track:
     positions: list[np.ndarray] = field(default_factory=list)
     cameras: list[np.ndarray] = field(default_factory=list)
     times: list[float] = field(default_factory=list)
+    strong: int = 0
+    """How many of its detections are strong (scored at least ``confirm_score``)."""
+    two_views: bool = False
+    """Whether two of its detections agree from views far enough apart."""
     confirmed_at: float | None = None
     """Time [s] of the detection that confirmed it (None: not confirmed)."""
 
@@ -64,9 +82,10 @@ class SearchTracker:
         self.params = params or SearchTrackParams()
         self.tracks: list[Track] = []
 
-    def add(self, t: float, p_W: np.ndarray, camera_W: np.ndarray) -> Track:
-        """Adds one detection at ``p_W`` seen at time ``t`` [s] from a camera at ``camera_W`` [m]; returns its
-        track. Non-finite input is a ``ValueError`` naming it."""
+    def add(self, t: float, p_W: np.ndarray, camera_W: np.ndarray, score: float = 1.0) -> Track:
+        """Adds one detection at ``p_W`` seen at time ``t`` [s] from a camera at ``camera_W`` [m], scored
+        ``score`` [-] (the caller drops those below ``min_score``); returns its track. Non-finite input is a
+        ``ValueError`` naming it."""
         p = np.asarray(p_W, dtype=float).reshape(-1)
         c = np.asarray(camera_W, dtype=float).reshape(-1)
         for name, x in (("p_W", p), ("camera_W", c)):
@@ -80,7 +99,11 @@ class SearchTracker:
         if best is None:
             best = Track()
             self.tracks.append(best)
-        if best.confirmed_at is None and self._confirms(best, p, c):
+        if not best.two_views and self._confirms(best, p, c):
+            best.two_views = True
+        if self.params.confirm_score is None or float(score) >= self.params.confirm_score:
+            best.strong += 1
+        if best.confirmed_at is None and best.two_views and best.strong >= self.params.min_strong:
             best.confirmed_at = float(t)
         best.positions.append(p)
         best.cameras.append(c)
