@@ -88,6 +88,43 @@ def test_separated_views_that_disagree_are_not_confirmed():
     assert len(tr.confirmed()) == 1
 
 
+def test_confirmation_waits_for_enough_strong_detections():
+    """confirm_score 0.5, min_strong 2: two weak views 4 m apart that agree are tracked but not confirmed; one
+    strong view more is not enough, the second strong one confirms (at its time); weak views still join the
+    track (they extend it) and the find is the mean of all of them. Without confirm_score the two weak views
+    confirm at once (the default: every detection kept is strong)."""
+    p = SearchTrackParams(gate_m=2.0, min_baseline_m=3.0, agree_m=1.5, min_score=0.2, confirm_score=0.5, min_strong=2)
+    tr = SearchTracker(p)
+    tr.add(1.0, [5.0, 5.0, 0.8], [0, 0, 12], score=0.3)
+    tr.add(2.0, [5.2, 5.0, 0.8], [4, 0, 12], score=0.3)
+    (track,) = tr.tracks
+    assert track.two_views and track.strong == 0 and tr.confirmed() == []
+    tr.add(3.0, [5.4, 5.0, 0.8], [5, 0, 12], score=0.6)
+    assert tr.confirmed() == []
+    tr.add(4.0, [5.6, 5.0, 0.8], [6, 0, 12], score=0.5)
+    assert [k.confirmed_at for k in tr.confirmed()] == [4.0]
+    np.testing.assert_allclose(tr.found(), [[5.3, 5.0, 0.8]])
+    plain = SearchTracker(SearchTrackParams(min_score=0.2))
+    plain.add(1.0, [5.0, 5.0, 0.8], [0, 0, 12], score=0.3)
+    plain.add(2.0, [5.2, 5.0, 0.8], [4, 0, 12], score=0.3)
+    assert [k.confirmed_at for k in plain.confirmed()] == [2.0]
+
+
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        ({"min_score": 0.4, "confirm_score": 0.3}, "confirm_score must be a number in \\[min_score, 1\\]"),
+        ({"confirm_score": 1.5}, "confirm_score"),
+        ({"min_strong": 0}, "min_strong must be an integer in \\[1, 1000\\]"),
+        ({"min_strong": 2.5}, "min_strong"),
+        ({"min_strong": True}, "min_strong"),
+    ],
+)
+def test_confirmation_params_are_checked(kw: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        SearchTrackParams(**kw)
+
+
 def test_association_gates_by_distance():
     """A detection 2.5 m from a track (gate 2 m) starts a new one; 1.9 m away joins the nearest track."""
     tr = SearchTracker(PARAMS)
@@ -157,6 +194,28 @@ def test_reference_climbs_covers_the_area_facing_along_each_lane_and_lands():
     assert np.all(np.abs(s.p_W[lanes, 2] - 12.0) < 1e-6) and 0 < t0 < t1 < ref.t_end
 
 
+def test_mission_ignores_boxes_larger_than_max_box_m():
+    """max_box_m 2.4: a person box 2.6 m tall (or 2.5 m wide) at its depth is ignored, one 2.3 m x 1.0 m is
+    kept; with no limit (the default) all three count."""
+    for limit, kept in ((2.4, 1), (None, 3)):
+        m = SearchMission(SearchParams(max_box_m=limit))
+        bus = Bus()
+        view = BusView(bus, m.name, m.inputs + m.optional_inputs, m.outputs, deny_truth=True)
+        m.reset()
+        m.setup(view)
+        for t in (0.0, 1.0):
+            q = np.array([1.0, 0, 0, 0])
+            bus.publish(Topics.ESTIMATE, Odometry(t, np.array([0.0, 0, 12]), np.zeros(3), q, np.zeros(3)))
+        c = np.array([[5.0, 5.0, 0.8], [-5.0, 5.0, 0.8], [5.0, -5.0, 0.8]])
+        sizes = np.array([[1.0, 2.3], [1.0, 2.6], [2.5, 1.0]])
+        bus.publish(
+            Topics.DETECTIONS_3D,
+            Detections3D(0.5, c, sizes, np.full(3, 0.9, np.float32), np.zeros(3, int), ("person",)),
+        )
+        m.step(1.0, view)
+        assert m.detections == kept
+
+
 def test_turn_between_legs_is_a_hold_turning_the_short_way_at_the_peak_rate():
     """planning.sequence.Hold.turn (the search's turn between legs): from 170 deg to -170 deg is a 20 deg turn the
     short way; the position holds, the rate peaks at yaw_rate, integrates (trapezoid) to the turn and is 0 at both
@@ -210,6 +269,8 @@ def test_params_are_checked():
         SearchParams(area=((0, 0), (1, 1)))
     with pytest.raises(ConfigError, match="mission.tracks"):
         SearchParams(tracks={"gate_m": -1})  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="mission.max_box_m must be a finite number > 0"):
+        SearchParams(max_box_m=0.0)
 
 
 def test_search_forest_places_k_separated_people():
