@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
-from cufund.perception.pose_history import PoseHistory, slerp
+from cufund.core.messages import Odometry
+from cufund.perception.pose_history import PoseHistory, pose_at, slerp
 
 
 def _wxyz(r: Rotation) -> np.ndarray:
@@ -32,6 +33,21 @@ def test_lookup_matches_scipy_slerp_and_linear_position() -> None:
         np.testing.assert_allclose(R, ref([t]).as_matrix()[0], atol=1e-9)
         np.testing.assert_allclose(p, [np.interp(t, ts, ps[:, k]) for k in range(3)], atol=1e-9)
     np.testing.assert_allclose(h.position_at(ts[3]), ps[3], atol=1e-12)
+
+
+def test_pose_at_reads_a_sequence_of_estimates_as_the_history_does() -> None:
+    """pose_at on a list of Odometry messages (a component's own deque) gives what PoseHistory gives."""
+    rng = np.random.default_rng(7)
+    ts = np.cumsum(rng.uniform(0.001, 0.01, 50))
+    qs = _wxyz(Rotation.random(50, random_state=8))
+    msgs = [Odometry(t, rng.normal(size=3), np.zeros(3), q, np.zeros(3)) for t, q in zip(ts, qs, strict=True)]
+    h = PoseHistory()
+    h.extend(msgs)
+    for t in rng.uniform(ts[0], ts[-1], 50):
+        (p, R), (hp, hR) = pose_at(msgs, t), h.at(t)  # type: ignore[misc]
+        np.testing.assert_allclose(p, hp, atol=1e-12)
+        np.testing.assert_allclose(R, hR, atol=1e-12)
+    assert pose_at(msgs, ts[0] - 1e-3) is None and pose_at([], 0.0) is None
 
 
 def test_slerp_keeps_a_constant_rate_where_nlerp_would_not() -> None:

@@ -13,11 +13,12 @@ import numpy as np
 from cufund.core.components import BusView, Component, Subscription
 from cufund.core.messages import CameraImage, Detections2D, Odometry, Topics, TunnelEstimate
 from cufund.core.topics import is_truth
-from cufund.geometry import Transform, interpolate_poses
+from cufund.geometry import Transform
 from cufund.sensors.camera import CameraIntrinsics
 
 from .camera_tunnel import CameraTunnelParams, FrameMeasurement, measure_frame
 from .detection import FrameDetection, order_along_course
+from .pose_history import pose_at
 
 __all__ = ["CameraTunnelDetector"]
 
@@ -135,15 +136,7 @@ class CameraTunnelDetector(Component):
         self._state_sub: Subscription = bus.subscribe(self.state_topic)
 
     def _pose_at(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
-        if not self._poses or not self._poses[0].t <= t <= self._poses[-1].t:
-            return None
-        ts = np.array([s.t for s in self._poses])
-        i = int(np.clip(np.searchsorted(ts, t), 1, len(ts) - 1)) if len(ts) > 1 else 0
-        pair = list(self._poses)[max(i - 1, 0) : i + 1]
-        p, R = interpolate_poses(
-            np.array([s.t for s in pair]), np.array([s.p_W for s in pair]), np.array([s.q_WB for s in pair]), [t]
-        )
-        return p[0], R[0]
+        return pose_at(self._poses, t)
 
     def measure(
         self, det: Detections2D, left: np.ndarray, right: np.ndarray, p_WB: np.ndarray, R_WB: np.ndarray
