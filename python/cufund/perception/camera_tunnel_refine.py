@@ -17,10 +17,11 @@ run of columns whose pixels agree down the rows. In an enlarged window around ea
    width (a run of several frames' bars merged is wider, and merges differently in the other image).
 3. **Top and bottom.** The bars' top ends: where their faces' middle columns stop being bar-coloured at the
    frame's disparity in both images (a bar of a frame behind, stacked above it in the left image, lies elsewhere in
-   the right one); the top line joins them, and the top bar must run along it between the bars and end at the
-   outer edges. The bottom bar: in the columns between the bars, the lowest bar-coloured run as thick as a bar at
-   the frame's disparity (frames behind stand farther and are seen higher), on one line over half the columns at
-   least, meeting both vertical bars and ending at the outer edges; else the next one up.
+   the right one); the top line joins them, and the top bar must run along it between the bars (a longer top bar
+   of a frame behind may lie along it in the image). The bottom bar: in the columns between the bars, the lowest
+   bar-coloured run as thick as a bar at the frame's disparity (frames behind stand farther and are seen higher),
+   on one line over half the columns at least, meeting both vertical bars and ending at the outer edges; else the
+   next one up.
 4. **A frame.** The pair's outer edges at their depths must make a frame turned by at most ``max_yaw_deg`` from
    the view, and its top corners must lie at one height, and its bottom corners (frames stand upright; the world's
    up from the estimate): two frames' bars, or another frame's bottom bar, are refused so.
@@ -420,8 +421,6 @@ def _outline(
                 return False
         return True
 
-    if outside(top, 0.5) > 0.5:
-        return None
     # the bottom bar: each column's bar-coloured runs below the middle as thick as a bar at the frame's disparity
     # (thicker: merged with another frame's bar); the lowest (frames behind stand farther, seen higher) whose line
     # ends at the outer edges, else the next one up
