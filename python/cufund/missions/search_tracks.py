@@ -3,9 +3,10 @@ of its detections were seen from views far enough apart and agree, and the metri
 the people really placed (the metric alone reads those).
 
 Association (gating by distance): a detection joins the track whose mean position is nearest, if within
-``gate_m``; otherwise it starts a new track. Confirmation (two views): a track is confirmed once it holds two
-detections whose camera positions are at least ``min_baseline_m`` apart and whose positions agree within
-``agree_m``; its position is then the mean of its detections' positions.
+``gate_m``; otherwise it starts a new track. Confirmation (two views and enough evidence): a track is confirmed
+once it holds two detections whose camera positions are at least ``min_baseline_m`` apart and whose positions
+agree within ``agree_m``, and at least ``min_strong`` detections scored ``confirm_score`` or more (by default every
+detection is strong and one suffices); its position is then the mean of its detections' positions.
 """
 
 from __future__ import annotations
