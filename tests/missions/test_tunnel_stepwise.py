@@ -134,26 +134,39 @@ def test_stepwise_never_plans_through_a_frame_not_yet_detected():
 
 
 def test_stepwise_enters_with_only_the_first_frame_where_all_waits():
-    """Only frame 1 is ever shown: stepwise enters and passes it, then times out waiting for frame 2 and backs out
-    through frame 1 to land before the course; ``all`` (the default) never enters."""
+    """Only frame 1 is ever shown: stepwise enters and passes it, then times out waiting for frame 2 and lands
+    where it rests past frame 1 (the descent clear of its bars); ``all`` (the default) never enters."""
     only_first = lambda t, m: [0]  # noqa: E731
-    m, flown, yaw, _ = _fly(STEPWISE, only_first)
+    m, flown, _, _ = _fly(STEPWISE, only_first)
     assert m.state == "aborted"
     assert m.reason.startswith("frame 2 of 3 not detected, confident and stable in 6 s past frame 1"), m.reason
     states = [s for _, s, _ in m.transitions]
     assert states == ["initialise", "takeoff", "detect", "align", "enter", "wait", "aborted"]
-    i_wait = int(round(m.transitions[5][0] / DT))
-    assert passages(flown[:i_wait], CENTRES[:1], NORMALS[:1], SIZES[:1]) != [None]  # it went through frame 1
-    back = passages(flown[i_wait:], CENTRES[:1], -NORMALS[:1], SIZES[:1])  # and back out through it
-    assert back != [None]
-    assert (flown[-1] - CENTRES[0]) @ NORMALS[0] < -0.5 and flown[-1][2] < 0.05  # landed before the course
+    assert passages(flown, CENTRES[:1], NORMALS[:1], SIZES[:1]) != [None]  # it went through frame 1
+    assert 0.2 < (flown[-1] - CENTRES[0]) @ NORMALS[0] < 0.5 and flown[-1][2] < 0.05  # landed past it
+    assert np.max((flown - CENTRES[1]) @ NORMALS[1]) < -0.1  # never reached frame 2's plane
     assert frame_boxes(CENTRES, NORMALS, SIZES, 0.05).distance(flown).min() > 0.17
-    assert m.plans[-1].leg == "back_out" and m.plans[-1].ok
+    assert [r.leg for r in m.plans] == ["align", "enter"]
 
     a, flown_a, _, _ = _fly(TunnelMissionParams(frames=3, detect_timeout_s=6.0), only_first)
     assert a.state == "aborted" and a.reason.startswith("detected 1 of 3 frames"), a.reason
     assert "enter" not in [s for _, s, _ in a.transitions]
     assert np.max((flown_a - CENTRES[0]) @ NORMALS[0]) < -0.4  # never nearer than the creep point
+
+
+def test_stepwise_backs_out_when_the_descent_is_not_clear(monkeypatch):
+    """Where landing in place would come within clearance of a bar (forced here), the abort backs out through
+    the passed openings in reverse and lands before the course."""
+    monkeypatch.setattr(TunnelMission, "_descent_clear", lambda self, p, d: False)
+    m, flown, _, _ = _fly(STEPWISE, lambda t, m: [0, 1] if m.progress >= 1 or m.state != "wait" else [0])
+    assert m.state == "aborted" and m.reason.startswith("frame 3 of 3 not detected"), m.reason
+    i_wait = int(round(m.transitions[-2][0] / DT))
+    assert passages(flown[i_wait:], CENTRES[:2][::-1], -NORMALS[:2][::-1], SIZES[:2]) != [None, None]
+    idx = passages(flown[i_wait:], CENTRES[:2], -NORMALS[:2], SIZES[:2])
+    assert idx[1] < idx[0]  # back through frame 2, then frame 1
+    assert (flown[-1] - CENTRES[0]) @ NORMALS[0] < -0.5 and flown[-1][2] < 0.05  # landed before the course
+    assert frame_boxes(CENTRES, NORMALS, SIZES, 0.05).distance(flown).min() > 0.17
+    assert m.plans[-1].leg == "back_out" and m.plans[-1].ok
 
 
 def test_default_mode_still_plans_through_every_frame_at_once():
@@ -177,31 +190,29 @@ def test_stepwise_counts_the_rules_frames_not_the_estimates():
     assert (flown[-1] - CENTRES[1]) @ NORMALS[1] > 0.9
 
 
-def test_stepwise_failsafe_while_waiting_backs_out_of_the_course():
-    """A failsafe's land request while waiting past frame 2: it backs out through frames 2 and 1 and lands before
-    the course (as the ``all`` mode lands outside it)."""
+def test_stepwise_failsafe_while_waiting_lands_clear_of_the_frames():
+    """A failsafe's land request while waiting past frame 2 lands there, clear of the bars; during a hop a
+    (non-urgent) request is deferred to the rest point past the frame."""
     asked: list[str] = []
 
     def failsafe_in_second_wait(t: float, m: TunnelMission) -> None:
         if m.state == "wait" and m.progress == 2 and not asked:
             asked.append(m.failsafe(t, "land", "battery low", False))
 
-    shown = lambda t, m: [0, 1] if m.progress < 2 or m.state != "wait" else [0, 1]  # noqa: E731
-    m, flown, yaw, _ = _fly(STEPWISE, shown, on_step=failsafe_in_second_wait)
+    m, flown, _, _ = _fly(STEPWISE, lambda t, m: [0, 1], on_step=failsafe_in_second_wait)
     assert asked == [""] and m.state == "aborted" and m.reason == "failsafe: battery low"
-    assert (flown[-1] - CENTRES[0]) @ NORMALS[0] < -0.5 and flown[-1][2] < 0.05
+    assert 0.15 < (flown[-1] - CENTRES[1]) @ NORMALS[1] < 0.5 and flown[-1][2] < 0.05
     assert frame_boxes(CENTRES, NORMALS, SIZES, 0.05).distance(flown).min() > 0.17
-    # during a hop a (non-urgent) request is deferred to the rest point past the frame
     hop: list[str] = []
 
     def failsafe_in_hop(t: float, m: TunnelMission) -> None:
         if m.state == "through" and not hop:
             hop.append(m.failsafe(t, "land", "battery low", False))
 
-    m, flown, yaw, _ = _fly(STEPWISE, lambda t, m: [0, 1, 2], on_step=failsafe_in_hop)
-    assert hop and "backs out" in hop[0] and m.state == "aborted"
+    m, flown, _, _ = _fly(STEPWISE, lambda t, m: [0, 1, 2], on_step=failsafe_in_hop)
+    assert hop and "lands" in hop[0] and m.state == "aborted"
     assert m.progress == 2  # frame 2's hop was finished first
-    assert (flown[-1] - CENTRES[0]) @ NORMALS[0] < -0.5
+    assert 0.15 < (flown[-1] - CENTRES[1]) @ NORMALS[1] < 0.5 and flown[-1][2] < 0.05
 
 
 def test_through_is_checked():
@@ -245,11 +256,11 @@ def test_stepwise_waits_until_the_next_frame_is_stable():
 
 def test_stepwise_does_not_skip_an_undetected_frame_beyond_the_rules_gap():
     """Frame 2 is never shown, frame 3 is (2.2 m past frame 1, more than max_gap_m 2 m): past frame 1 the
-    mission waits, never plans towards frame 3 (an undetected frame must lie between), times out and backs out.
+    mission waits, never plans towards frame 3 (an undetected frame must lie between), times out and lands.
     With max_gap_m 3 m the same estimates take frame 3 as the next one (what the guard prevents)."""
     m, flown, _, _ = _fly(STEPWISE, lambda t, m: [0, 2])
     assert m.state == "aborted" and m.reason.startswith("frame 2 of 3 not detected"), m.reason
-    assert [r.leg for r in m.plans] == ["align", "enter", "back_out"]
+    assert [r.leg for r in m.plans] == ["align", "enter"]
     assert np.max((flown - CENTRES[1]) @ NORMALS[1]) < -0.1  # never reached frame 2's plane
     loose = TunnelMissionParams(frames=3, through="stepwise", detect_timeout_s=6.0, max_gap_m=3.0)
     m, _, _, _ = _fly(loose, lambda t, m: [0, 2])

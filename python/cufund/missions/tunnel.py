@@ -25,6 +25,13 @@ same :class:`~.failsafe_health.EstimatorHealth`) lands it (outside the course) u
 the LIO propagates on the IMU) and the spell is recorded; an estimate older than ``stale_s`` lands at once.
 ``done`` / ``aborted`` (with the reason).
 
+``through: stepwise`` (a forward camera, which sees the frames one by one) enters once the first frame is confident
+and stable and flies frame by frame: ``enter`` and ``through`` are hops through one frame each to a rest point on its
+axis past it, facing along it; ``wait`` holds there until the next frame (the nearest confident one ``next_min_m``
+beyond the last passed frame's plane, within ``max_gap_m``) is stable (``detect_timeout_s``: none -> ``aborted``,
+landing there when the descent is clear of the passed bars, else backing out of the course); the last hop goes on
+``exit_m`` beyond the last frame and lands.
+
 Every plan is a minimum-snap trajectory kept within ``corridor`` of its waypoint polyline (waypoints inserted
 where it strays) and checked against the *detected* frames' bars (:mod:`.tunnel_geometry`): a plan that comes
 closer than ``clearance`` to one is never flown. The mission never reads ground truth.
@@ -397,7 +404,7 @@ class TunnelMission(Planner):
         stepwise_hop = self.params.through == "stepwise" and self.state in ("enter", "through")
         if stepwise_hop and not self._last_hop and not urgent:  # backs out once at rest past the frame
             self._failsafe, self._failsafe_urgent = (action, reason), False
-            return "the mission ends its hop past the frame, then backs out of the course and lands before it"
+            return "the mission ends its hop past the frame, then lands there (clear of the bars) or backs out of the course"
         if self.state in ("through", "land") and not urgent:
             return "the mission's path through the course ends in a landing beyond the last frame"
         self._failsafe, self._failsafe_urgent = (action, reason), bool(urgent)
@@ -769,15 +776,28 @@ class TunnelMission(Planner):
         self._publish_leg(t, rec.trajectory, psi, bus)
         self._enter(t, leg, f"frame {k + 1} of {pp.frames}", bus)
 
+    def _descent_clear(self, p: np.ndarray, d: _Detections) -> bool:
+        """A straight descent from ``p`` to the pad's height keeps ``clearance`` from the bars of ``d``."""
+        down = p + np.linspace(0.0, 1.0, 50)[:, None] * np.array([0.0, 0.0, float(self.pad_W[2]) - p[2]])
+        return float(frame_boxes(d.centres, d.normals, d.sizes, self.params.bar).distance(down).min()) >= (
+            self.params.clearance
+        )
+
     def _back_out(self, t: float, t_r: float, reason: str, bus: BusView) -> None:
-        """Abort from rest inside the course: back out through the passed frames' openings (their axis points in
-        reverse, the heading kept) to the first frame's align point and land there, before the course; if that
-        path fails the plan check, land where it is (and say so)."""
+        """Abort from rest inside the course (past a frame): land where it is when the descent keeps ``clearance``
+        from every passed frame's bars (the rest point is on the frame's axis past it, the rules put the next frame
+        0.5 m or more beyond); else back out through the passed frames' openings (their axis points in reverse,
+        the heading kept) to the first frame's align point and land there; if that path fails the plan check too,
+        land where it is (and say so). Flown on VIO, a back-out through 0.5 m openings after a long hover met a
+        bar: the estimate had drifted 14 cm across them."""
         d = self.passed
         if d is None:
             self._abort(t, t_r, reason, bus)
             return
         p = self.reference.sample(float(t_r)).p_W[0]
+        if self._descent_clear(p, d):
+            self._abort(t, t_r, reason, bus)
+            return
         pts = [p]
         for j in reversed(range(d.centres.shape[0])):
             before, after = self._axis_points(d, j)
@@ -794,7 +814,7 @@ class TunnelMission(Planner):
 
     def _failsafe_stepwise(self, t: float, t_r: float, bus: BusView) -> None:
         """A failsafe's land request in stepwise mode: before the course as in ``all``; inside it, at rest past a
-        frame, back out and land before the course (a hop is finished first unless the request is urgent)."""
+        frame, as a timeout there (:meth:`_back_out`; a hop is finished first unless the request is urgent)."""
         assert self._failsafe is not None
         reason = f"failsafe: {self._failsafe[1]}"
         hop = self.state in ("enter", "through")
