@@ -367,12 +367,12 @@ def _images():
     return fx.images({"views": fx.render_views()})
 
 
-def _assert_same_detections(ours, rows: np.ndarray) -> None:
+def _assert_same_detections(ours, rows: np.ndarray, score_atol: float = 1e-6) -> None:
     """cufund's detections against ultralytics' rows (x1, y1, x2, y2, score, class): the same count, boxes within
-    the issue's 1 px, scores within 1e-6, the same classes in the same order."""
+    the issue's 1 px, scores within ``score_atol``, the same classes in the same order."""
     assert len(ours) == len(rows)
     np.testing.assert_allclose(ours.boxes_xyxy, rows[:, :4], atol=1.0)
-    np.testing.assert_allclose(ours.scores, rows[:, 4], atol=1e-6)
+    np.testing.assert_allclose(ours.scores, rows[:, 4], atol=score_atol)
     assert ours.class_ids.tolist() == rows[:, 5].astype(int).tolist()
 
 
@@ -448,6 +448,32 @@ def _assert_letterbox_within_one_grey_level(det: OnnxDetector, img: np.ndarray, 
 
 
 # --- the recorded ultralytics predictions (no torch, no ultralytics) ----------------------------------------
+RECORDED_SCORE_ATOL = 1e-5
+"""Scores against the recorded ones: onnxruntime on another machine (other kernels, another summation order)
+gives other float32 roundings, which the heads' gains amplify: its own graph optimisation levels put this model's
+scores up to 1.8e-6 and its boxes up to 1e-3 px apart (the live comparisons, one session, agree to the bit)."""
+RECORDED_ODD_BOX_ATOL = 1e-2
+"""Boxes of the odd sizes against the recorded ones [px] (the same reason)."""
+
+
+@pytest.fixture(params=["all", "basic"])
+def ort_optimization(request, monkeypatch):
+    """onnxruntime's graph optimisation at its default level ("all") or at "basic" (no layout transformation or
+    convolution fusions: the outputs rounded as another machine's kernels may round them)."""
+    if request.param == "basic":
+        import onnxruntime as ort
+
+        session = ort.InferenceSession
+
+        def basic(model, options=None, *args, **kwargs):
+            options = options if options is not None else ort.SessionOptions()
+            options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_BASIC
+            return session(model, options, *args, **kwargs)
+
+        monkeypatch.setattr(ort, "InferenceSession", basic)
+    return request.param
+
+
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
     """The fixture module, its references and the refilled model (checked to be the model they were made on)."""
@@ -463,10 +489,10 @@ def recorded(tmp_path_factory):
     return fx, ref, path
 
 
-def test_yolo11n_matches_the_recorded_ultralytics_predictor(recorded):
+def test_yolo11n_matches_the_recorded_ultralytics_predictor(recorded, ort_optimization):
     """On the images the fixture stores: cufund's letterboxed input is ultralytics' bit for bit, and its
-    detections are ultralytics' (1 px, 1e-6, the same classes and count), with NMS suppressing over a third of the candidates
-    (so a broken NMS shows)."""
+    detections are ultralytics' (1 px, :data:`RECORDED_SCORE_ATOL`, the same classes and count), with NMS
+    suppressing over a third of the candidates (so a broken NMS shows)."""
     fx, ref, path = recorded
     det = OnnxDetector(path, conf=fx.CONF, iou=fx.IOU)
     assert det.layout == "yolo" and det.num_classes == 5 and det.input_hw == (fx.IMGSZ, fx.IMGSZ)
@@ -476,13 +502,13 @@ def test_yolo11n_matches_the_recorded_ultralytics_predictor(recorded):
         x, _ = det.preprocess(img)
         np.testing.assert_array_equal(x * 255, ref[f"input_{i}"].astype(np.float32), err_msg=f"image {i}")
         rows = ref[f"rows_{i}"]
-        _assert_same_detections(det.detect(img), rows)
+        _assert_same_detections(det.detect(img), rows, RECORDED_SCORE_ATOL)
         total += len(rows)
         candidates += int((det.raw(x)[0][0, 4:].max(0) > fx.CONF).sum())
     assert total > 20 and candidates > 1.5 * total
 
 
-def test_odd_sizes_match_the_recorded_ultralytics_predictor(recorded):
+def test_odd_sizes_match_the_recorded_ultralytics_predictor(recorded, ort_optimization):
     """Sizes whose scale is not exact: cufund's input within one grey level of ultralytics' (the padding the
     same), and on ultralytics' own input cufund's decoding, NMS and box scaling give its boxes."""
     fx, ref, path = recorded
@@ -494,8 +520,8 @@ def test_odd_sizes_match_the_recorded_ultralytics_predictor(recorded):
         boxes = det.preprocess(img)[1].boxes_to_source(boxes)
         rows = ref[f"odd_rows_{i}"]
         assert len(boxes) == len(rows) > 0, img.shape
-        np.testing.assert_allclose(boxes, rows[:, :4], atol=1e-3)
-        np.testing.assert_allclose(scores, rows[:, 4], atol=1e-6)
+        np.testing.assert_allclose(boxes, rows[:, :4], atol=RECORDED_ODD_BOX_ATOL)
+        np.testing.assert_allclose(scores, rows[:, 4], atol=RECORDED_SCORE_ATOL)
         assert classes.tolist() == rows[:, 5].astype(int).tolist()
 
 
