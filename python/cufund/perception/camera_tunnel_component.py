@@ -57,7 +57,8 @@ class _Track:
 
 
 class CameraTunnelDetector(Component):
-    """Measures the boxes of class ``class_name`` in each :class:`Detections2D` on ``detections_topic`` (found in
+    """Measures the boxes of class ``class_name`` (one name or a tuple: a model may give a frame another class's
+    label; every box must still be refined to a frame) in each :class:`Detections2D` on ``detections_topic`` (found in
     the left images of ``left_topic``) with the right image of the same stamp on ``right_topic``
     (:func:`~.camera_tunnel.measure_frame`: the box refined to the frame's edges, then measured), in the world frame of the estimate on ``state_topic`` interpolated to
     the images' stamp (never ground truth; a frame newer than the newest estimate waits for it). A measurement
@@ -79,7 +80,7 @@ class CameraTunnelDetector(Component):
         params: CameraTunnelParams | None = None,
         detections_topic: str = Topics.DETECTIONS_2D,
         state_topic: str = Topics.ESTIMATE,
-        class_name: str = "tunnel_frame",
+        class_name: str | tuple[str, ...] = "tunnel_frame",
         min_score: float = 0.5,
         associate_m: float = 0.35,
         expected: int | None = None,
@@ -95,6 +96,9 @@ class CameraTunnelDetector(Component):
             raise ValueError(f"state_topic must be an estimate, not ground truth ({state_topic})")
         if expected is not None and (isinstance(expected, bool) or not isinstance(expected, int) or expected < 1):
             raise ValueError(f"expected must be None or an integer >= 1 (frames), got {expected!r}")
+        names = (class_name,) if isinstance(class_name, str) else tuple(class_name)
+        if not names or not all(isinstance(n, str) and n for n in names):
+            raise ValueError(f"class_name must be a class name or a tuple of them, got {class_name!r}")
         if not 0.0 <= float(min_score) <= 1.0:
             raise ValueError(f"min_score must be in [0, 1], got {min_score!r}")
         if not (np.isfinite(associate_m) and associate_m > 0):
@@ -107,7 +111,7 @@ class CameraTunnelDetector(Component):
         self.K, self.baseline_m, self.T_BC = intrinsics, float(baseline_m), T_BC
         self.params = CameraTunnelParams() if params is None else params
         self.left_topic, self.right_topic, self.detections_topic = left_topic, right_topic, detections_topic
-        self.state_topic, self.class_name = state_topic, class_name
+        self.state_topic, self.class_names = state_topic, names
         self.min_score, self.associate_m, self.expected = float(min_score), float(associate_m), expected
         self.inputs = (detections_topic, left_topic, right_topic)
         self.optional_inputs = (state_topic,)
@@ -141,11 +145,15 @@ class CameraTunnelDetector(Component):
     def measure(
         self, det: Detections2D, left: np.ndarray, right: np.ndarray, p_WB: np.ndarray, R_WB: np.ndarray
     ) -> list[FrameMeasurement]:
-        """The frames in one pair's detections (boxes of ``class_name`` scoring at least ``min_score``)."""
+        """The frames in one pair's detections (boxes of a class in ``class_name`` scoring at least ``min_score``)."""
         names = tuple(det.class_names)
         out = []
         for box, score, cid in zip(det.boxes_xyxy, det.scores, det.class_ids, strict=True):
-            if not 0 <= int(cid) < len(names) or names[int(cid)] != self.class_name or float(score) < self.min_score:
+            if (
+                not 0 <= int(cid) < len(names)
+                or names[int(cid)] not in self.class_names
+                or float(score) < self.min_score
+            ):
                 continue
             m = measure_frame(box, left, right, self.K, self.baseline_m, self.T_BC, p_WB, R_WB, self.params)
             if m is not None:

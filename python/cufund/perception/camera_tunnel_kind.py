@@ -36,6 +36,10 @@ class CameraPerceptionParams:
     """The stereo_camera rig's name (default: the only one)."""
     class_name: str = "tunnel_frame"
     """The model's class of the frames."""
+    also_classes: tuple[str, ...] = ("gate",)
+    """The model's other classes whose boxes are measured as frames too: the shipped model labels most frames seen
+    from inside the course ``gate`` (in a flown paper layout every box past the first frame was); each box must
+    still be refined to a frame's bars, top and bottom, which nothing else in a tunnel course passes."""
     conf: float = 0.5
     """Smallest score of a frame's box [-]."""
     rate_hz: float = 5.0
@@ -58,6 +62,10 @@ class CameraPerceptionParams:
         for name in ("model", "stereo_camera", "class_name"):
             if not isinstance(getattr(self, name), str):
                 raise ConfigError(f"perception.{name} must be a string, got {getattr(self, name)!r}")
+        if isinstance(self.also_classes, list):  # from YAML
+            object.__setattr__(self, "also_classes", tuple(self.also_classes))
+        if not isinstance(self.also_classes, tuple) or not all(isinstance(c, str) for c in self.also_classes):
+            raise ConfigError(f"perception.also_classes must be a list of class names, got {self.also_classes!r}")
         for name, lo, hi in (("conf", 0.0, 1.0), ("rate_hz", 1e-3, 100.0), ("associate_m", 1e-3, 10.0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo <= v <= hi:
@@ -90,6 +98,12 @@ def _camera(p: CameraPerceptionParams, ctx: BuildContext) -> list[Any]:
         raise ConfigError(f"perception: {e}") from None
     if p.class_name not in detector.names:
         raise ConfigError(f"perception.class_name: {p.class_name!r} is not a class of {model.name} ({detector.names})")
+    for c in p.also_classes:
+        if c not in detector.names:
+            raise ConfigError(
+                f"perception.also_classes: {c!r} is not a class of {model.name} ({detector.names}); "
+                "perception.also_classes=[] measures the class_name boxes alone"
+            )
     cfg = ctx.config
     mission = getattr(cfg, "mission", None)
     expected = getattr(mission.params, "frames", None) if mission is not None and mission.kind == "tunnel" else None
@@ -102,7 +116,7 @@ def _camera(p: CameraPerceptionParams, ctx: BuildContext) -> list[Any]:
             topics[0],
             topics[1],
             params=p.geometry(),
-            class_name=p.class_name,
+            class_name=(p.class_name, *(c for c in p.also_classes if c != p.class_name)),
             min_score=p.conf,
             associate_m=p.associate_m,
             expected=expected,
