@@ -44,10 +44,11 @@ def _fly(
     shown: Callable[[float, TunnelMission], list[int]],
     t_max: float = 150.0,
     on_step: Callable[[float, TunnelMission], None] | None = None,
+    estimate: Callable[[float, list[int]], TunnelEstimate] = _estimate,
 ) -> tuple[TunnelMission, np.ndarray, np.ndarray, list[tuple[float, list[int]]]]:
     """Steps the mission at 20 Hz with a state estimate that is its own reference (perfect tracking) and an
-    estimate of the frames ``shown(t, mission)`` every 0.2 s. Returns the mission, the flown positions (N, 3)
-    and yaws (N,) and the frames shown at each plan's time."""
+    estimate (``estimate``) of the frames ``shown(t, mission)`` every 0.2 s. Returns the mission, the flown
+    positions (N, 3) and yaws (N,) and the frames shown at each plan's time."""
     m = TunnelMission(params, PAD)
     m.active_state_topic = Topics.ESTIMATE
     bus = Bus()
@@ -64,7 +65,7 @@ def _fly(
         bus.publish(Topics.ESTIMATE, Odometry(t, p.copy(), s.v_W[0].copy(), q, np.zeros(3)))
         now = shown(t, m)
         if i % EST_EVERY == 0:
-            bus.publish(Topics.TUNNEL_ESTIMATE, _estimate(t, now))
+            bus.publish(Topics.TUNNEL_ESTIMATE, estimate(t, now))
         n_plans = len(m.plans)
         m.step(t, view)
         shown_at_plan += [(t, list(now))] * (len(m.plans) - n_plans)
@@ -228,10 +229,9 @@ def test_stepwise_waits_until_the_next_frame_is_stable():
     wait past frame 1, then holds still: the hop through it is planned only after stable_updates (3) unchanged
     estimates, through the still centre."""
     t_wait: list[float] = []
-    real = _estimate
 
     def jitter_estimate(t: float, shown: list[int]) -> TunnelEstimate:
-        e = real(t, shown)
+        e = _estimate(t, shown)
         if len(shown) > 1 and t_wait and t < t_wait[0] + 3.0:
             c = e.centres_W.copy()
             c[1, 1] += 0.03 * (round(t / (DT * EST_EVERY)) % 2)
@@ -243,11 +243,7 @@ def test_stepwise_waits_until_the_next_frame_is_stable():
             t_wait.append(t)
         return [0, 1] if t_wait else [0]
 
-    globals()["_estimate"] = jitter_estimate
-    try:
-        m, _, _, _ = _fly(TunnelMissionParams(frames=2, through="stepwise"), shown)
-    finally:
-        globals()["_estimate"] = real
+    m, _, _, _ = _fly(TunnelMissionParams(frames=2, through="stepwise"), shown, estimate=jitter_estimate)
     assert m.state == "done"
     hop = next(r for r in m.plans if r.leg == "through")
     assert hop.t >= t_wait[0] + 3.0 + 2 * DT * EST_EVERY  # the third unchanged estimate after the jitter ended
@@ -266,6 +262,28 @@ def test_stepwise_does_not_skip_an_undetected_frame_beyond_the_rules_gap():
     m, _, _, _ = _fly(loose, lambda t, m: [0, 2])
     assert [r.leg for r in m.plans][:3] == ["align", "enter", "through"]
     np.testing.assert_allclose(m.used.centres[-1], CENTRES[2])
+
+
+def test_stepwise_waits_for_a_nearer_frame_not_yet_confident():
+    """Frame 2 is detected but below min_confidence, frame 3 (2.2 m past frame 1, within max_gap_m 3 m here) is
+    confident: the next frame is frame 2, waited for (never a hop through it to frame 3, its bars unchecked); once
+    frame 2 is confident the mission flies through both in order."""
+    loose = TunnelMissionParams(frames=3, through="stepwise", detect_timeout_s=6.0, max_gap_m=3.0)
+
+    def unsure_frame_2(t: float, shown: list[int]) -> TunnelEstimate:
+        e = _estimate(t, shown)
+        conf = e.confidence.copy()
+        conf[1] = 0.1  # < min_confidence (0.2)
+        return TunnelEstimate(e.t, e.centres_W, e.normals_W, e.opening_sizes, conf, e.scans)
+
+    m, flown, _, _ = _fly(loose, lambda t, m: [0, 1, 2], estimate=unsure_frame_2)
+    assert m.state == "aborted" and m.reason.startswith("frame 2 of 3 not detected"), m.reason
+    assert [r.leg for r in m.plans] == ["align", "enter"]
+    assert np.max((flown - CENTRES[1]) @ NORMALS[1]) < -0.1  # never reached frame 2's plane
+    m, flown, _, _ = _fly(loose, lambda t, m: [0, 1, 2])
+    assert m.state == "done" and [r.leg for r in m.plans] == ["align", "enter", "through", "through"]
+    idx = passages(flown, CENTRES, NORMALS, SIZES)
+    assert None not in idx and idx == sorted(idx), idx
 
 
 def test_perception_camera_selects_stepwise_and_the_lidar_tunnel_keeps_all():

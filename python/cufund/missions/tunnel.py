@@ -27,8 +27,8 @@ the LIO propagates on the IMU) and the spell is recorded; an estimate older than
 
 ``through: stepwise`` (a forward camera, which sees the frames one by one) enters once the first frame is confident
 and stable and flies frame by frame: ``enter`` and ``through`` are hops through one frame each to a rest point on its
-axis past it, facing along it; ``wait`` holds there until the next frame (the nearest confident one ``next_min_m``
-beyond the last passed frame's plane, within ``max_gap_m``) is stable (``detect_timeout_s``: none -> ``aborted``,
+axis past it, facing along it; ``wait`` holds there until the next frame (the nearest one ``next_min_m`` beyond the
+last passed frame's plane, within ``max_gap_m``) is confident and stable (``detect_timeout_s``: none -> ``aborted``,
 landing there when the descent is clear of the passed bars, else backing out of the course); the last hop goes on
 ``exit_m`` beyond the last frame and lands.
 
@@ -666,10 +666,10 @@ class TunnelMission(Planner):
         self.progress = max(self.progress, self._n_passed())
 
     def _next_in(self, est: TunnelEstimate) -> _Detections | None:
-        """The frame the mission flies through next, as ``est`` has it (confident): before the course, the
-        estimate's first frame (the nearest the pad); past a frame, the confident frame nearest the last passed
-        one among those at least ``next_min_m`` beyond its plane and at most ``max_gap_m`` from it. None if there
-        is none."""
+        """The frame the mission flies through next, as ``est`` has it: before the course, the estimate's first
+        frame (the nearest the pad); past a frame, the detected frame nearest the last passed one among those at
+        least ``next_min_m`` beyond its plane. None unless that frame is confident and at most ``max_gap_m`` from
+        the last passed one (a nearer frame not yet confident is waited for, never flown through unchecked)."""
         pp = self.params
         conf = np.asarray(est.confidence, dtype=float).reshape(-1)
         c = np.asarray(est.centres_W, dtype=float).reshape(-1, 3)
@@ -680,8 +680,10 @@ class TunnelMission(Planner):
         else:
             c_l, n_l = self.passed.centres[-1], self.passed.normals[-1] / np.linalg.norm(self.passed.normals[-1])
             gap = np.linalg.norm(c - c_l, axis=1)
-            ok = (conf >= pp.min_confidence) & ((c - c_l) @ n_l >= pp.next_min_m) & (gap <= pp.max_gap_m)
-            k = int(np.argmin(np.where(ok, gap, np.inf))) if ok.any() else -1
+            ahead = (c - c_l) @ n_l >= pp.next_min_m
+            k = int(np.argmin(np.where(ahead, gap, np.inf))) if ahead.any() else -1
+            if k >= 0 and (conf[k] < pp.min_confidence or gap[k] > pp.max_gap_m):
+                k = -1
         if k < 0:
             return None
         return _Detections(c[k : k + 1].copy(), n[k : k + 1].copy(), s[k : k + 1].copy())
