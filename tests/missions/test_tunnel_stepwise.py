@@ -48,7 +48,7 @@ def _fly(
 ) -> tuple[TunnelMission, np.ndarray, np.ndarray, list[tuple[float, list[int]]]]:
     """Steps the mission at 20 Hz with a state estimate that is its own reference (perfect tracking) and an
     estimate (``estimate``) of the frames ``shown(t, mission)`` every 0.2 s. Returns the mission, the flown
-    positions (N, 3) and yaws (N,) and the frames shown at each plan's time."""
+    positions (N, 3) and yaws (N,) and the frames of the newest published estimate at each plan's time."""
     m = TunnelMission(params, PAD)
     m.active_state_topic = Topics.ESTIMATE
     bus = Bus()
@@ -57,6 +57,7 @@ def _fly(
     m.setup(view)
     q = np.array([1.0, 0.0, 0.0, 0.0])
     flown, shown_at_plan = [], []
+    published: list[int] = []
     for i in range(int(t_max / DT)):
         t = i * DT
         s = m.reference.sample(t)
@@ -66,9 +67,10 @@ def _fly(
         now = shown(t, m)
         if i % EST_EVERY == 0:
             bus.publish(Topics.TUNNEL_ESTIMATE, estimate(t, now))
+            published = list(now)
         n_plans = len(m.plans)
         m.step(t, view)
-        shown_at_plan += [(t, list(now))] * (len(m.plans) - n_plans)
+        shown_at_plan += [(t, published)] * (len(m.plans) - n_plans)
         if on_step is not None:
             on_step(t, m)
         if m.finished and m.t_end is not None and t > m.t_end + 1.0:
