@@ -197,6 +197,14 @@ class _Detections:
     normals: np.ndarray
     sizes: np.ndarray
 
+    def __add__(self, other: _Detections) -> _Detections:
+        """These frames, then ``other``'s."""
+        return _Detections(
+            np.concatenate([self.centres, other.centres]),
+            np.concatenate([self.normals, other.normals]),
+            np.concatenate([self.sizes, other.sizes]),
+        )
+
 
 class TunnelMission(Planner):
     """The state machine (see the module docstring). ``pad_W`` is the pad position, ``yaw`` the heading held
@@ -655,14 +663,7 @@ class TunnelMission(Planner):
         if d is None:
             return
         self._target = None
-        if self.passed is None:
-            self.passed = d
-        else:
-            self.passed = _Detections(
-                np.concatenate([self.passed.centres, d.centres]),
-                np.concatenate([self.passed.normals, d.normals]),
-                np.concatenate([self.passed.sizes, d.sizes]),
-            )
+        self.passed = d if self.passed is None else self.passed + d
         self.progress = max(self.progress, self._n_passed())
 
     def _next_in(self, est: TunnelEstimate) -> _Detections | None:
@@ -670,21 +671,20 @@ class TunnelMission(Planner):
         frame (the nearest the pad); past a frame, the detected frame nearest the last passed one among those at
         least ``next_min_m`` beyond its plane. None unless that frame is confident and at most ``max_gap_m`` from
         the last passed one (a nearer frame not yet confident is waited for, never flown through unchecked)."""
+        if self.passed is None:
+            return self._confident(est, 1)
         pp = self.params
         conf = np.asarray(est.confidence, dtype=float).reshape(-1)
         c = np.asarray(est.centres_W, dtype=float).reshape(-1, 3)
         n = np.asarray(est.normals_W, dtype=float).reshape(-1, 3)
         s = np.asarray(est.opening_sizes, dtype=float).reshape(-1, 2)
-        if self.passed is None:
-            k = 0 if conf.shape[0] > 0 and conf[0] >= pp.min_confidence else -1
-        else:
-            c_l, n_l = self.passed.centres[-1], self.passed.normals[-1] / np.linalg.norm(self.passed.normals[-1])
-            gap = np.linalg.norm(c - c_l, axis=1)
-            ahead = (c - c_l) @ n_l >= pp.next_min_m
-            k = int(np.argmin(np.where(ahead, gap, np.inf))) if ahead.any() else -1
-            if k >= 0 and (conf[k] < pp.min_confidence or gap[k] > pp.max_gap_m):
-                k = -1
-        if k < 0:
+        c_l, n_l = self.passed.centres[-1], self.passed.normals[-1] / np.linalg.norm(self.passed.normals[-1])
+        gap = np.linalg.norm(c - c_l, axis=1)
+        ahead = (c - c_l) @ n_l >= pp.next_min_m
+        if not ahead.any():
+            return None
+        k = int(np.argmin(np.where(ahead, gap, np.inf)))
+        if conf[k] < pp.min_confidence or gap[k] > pp.max_gap_m:
             return None
         return _Detections(c[k : k + 1].copy(), n[k : k + 1].copy(), s[k : k + 1].copy())
 
@@ -751,15 +751,7 @@ class TunnelMission(Planner):
             return
         p = self.reference.sample(float(t_r)).p_W[0]
         target, psi = self._facing(target, p)
-        d = (
-            target
-            if self.passed is None
-            else _Detections(
-                np.concatenate([self.passed.centres, target.centres]),
-                np.concatenate([self.passed.normals, target.normals]),
-                np.concatenate([self.passed.sizes, target.sizes]),
-            )
-        )
+        d = target if self.passed is None else self.passed + target
         before, after = self._axis_points(d, k)
         c, n = target.centres[0], target.normals[0]
         ahead = float((p - c) @ n)  # < 0: before the frame
