@@ -295,3 +295,8 @@ def test_perception_camera_selects_stepwise_and_the_lidar_tunnel_keeps_all():
     cam = load_scenario("tunnel", ["perception=camera", "estimator.kind=vio"])
     assert cam.mission.params.through == "stepwise"
     assert cam.mission.params.frames == 5  # the rest of the mission as the scenario has it
+    # a copy with overrides goes through to_dict, which writes through: all: it is overridden, not refused
+    lidar = load_scenario("tunnel")
+    assert lidar.to_dict()["mission"]["through"] == "all"
+    cam = lidar.with_overrides({"perception": "camera", "estimator": {"kind": "vio"}})
+    assert cam.mission.params.through == "stepwise"

@@ -21,8 +21,9 @@ VIO wants it)."""
 def camera_only(config: Any, parse_part: Callable[..., Any]) -> None:
     """With ``perception.kind == camera``: the scenario's LiDARs and the ESDF mapper that reads them are removed,
     and ``sensors.stereo`` (:data:`CAMERA_RIG`) is added unless a stereo_camera is there (a ConfigError for an
-    estimator that needs a LiDAR). Any other scenario is left as it is. ``config`` is a ScenarioConfig being
-    validated (its parts already parsed), ``parse_part`` the schema's (which imports this module)."""
+    estimator that needs a LiDAR), and a tunnel mission flies ``through: stepwise``. Any other scenario is left
+    as it is. ``config`` is a ScenarioConfig being validated (its parts already parsed), ``parse_part`` the
+    schema's (which imports this module)."""
     spec = getattr(config, "perception", None)
     if spec is None or spec.kind != "camera":
         return
@@ -41,5 +42,8 @@ def camera_only(config: Any, parse_part: Callable[..., Any]) -> None:
     if config.mapper is not None and config.mapper.kind == "esdf":  # it maps LiDAR clouds
         object.__setattr__(config, "mapper", None)
     m = config.mission
-    if m is not None and m.kind == "tunnel" and m.params.through == "all":  # the camera sees the frames one by one
+    # the camera sees the frames one by one. An explicit through: all is overridden too, not refused: the parsed
+    # params cannot tell it from the default, and the scenario's own round trips write every key (with_overrides,
+    # a sweep over perception, a vehicle's scenario and a run's config.yaml all carry through: all).
+    if m is not None and m.kind == "tunnel" and m.params.through == "all":
         object.__setattr__(config, "mission", replace(m, params=replace(m.params, through="stepwise")))
