@@ -129,7 +129,10 @@ class TunnelMissionParams:
     max_gap_m: float = 2.0
     """Stepwise: the largest distance between consecutive frames' centres the course's rules allow (the generated
     courses: 1.5 m ahead, 0.3 m aside, 0.2 m up or down) and a margin: a detected frame farther than this from the
-    last passed one is not taken as the next (an undetected frame lies between) [m]."""
+    last passed one is not taken as the next (an undetected frame lies between) [m]. A frame nearer than this may
+    still have an undetected one between (the rules' spacing, 0.5-1.5 m, puts the frame after next 1.0 m on or
+    more): the hop to it is checked against the detected bars only, crosses the hidden frame's plane unchecked
+    and counts one frame short. Below 1.0 m that cannot happen, but every wider gap then ends the flight."""
 
     def __post_init__(self) -> None:
         if isinstance(self.frames, bool) or not isinstance(self.frames, int) or self.frames < 1:
