@@ -10,6 +10,7 @@ from collections.abc import Iterable, Sequence
 from typing import NamedTuple, Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cufund.geometry import quat_to_matrix
 
@@ -35,19 +36,20 @@ class _Stamped(NamedTuple):
     q_WB: np.ndarray
 
 
-def slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
+def slerp(q0: ArrayLike, q1: ArrayLike, s: float) -> np.ndarray:
     """The unit quaternion [w, x, y, z] a fraction ``s`` in [0, 1] of the way from ``q0`` to ``q1`` along the
     shorter great arc (constant angular rate)."""
-    q0 = np.asarray(q0, dtype=float) / np.linalg.norm(q0)
-    q1 = np.asarray(q1, dtype=float) / np.linalg.norm(q1)
-    dot = float(np.dot(q0, q1))
+    a = np.asarray(q0, dtype=float)
+    b = np.asarray(q1, dtype=float)
+    a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
+    dot = float(np.dot(a, b))
     if dot < 0.0:  # q and -q are one rotation: go the short way round
-        q1, dot = -q1, -dot
+        b, dot = -b, -dot
     theta = math.acos(min(dot, 1.0))
     if theta < _NLERP_BELOW:
-        q = (1.0 - s) * q0 + s * q1
+        q = (1.0 - s) * a + s * b
     else:
-        q = (math.sin((1.0 - s) * theta) * q0 + math.sin(s * theta) * q1) / math.sin(theta)
+        q = (math.sin((1.0 - s) * theta) * a + math.sin(s * theta) * b) / math.sin(theta)
     return np.asarray(q / np.linalg.norm(q))
 
 
@@ -94,7 +96,7 @@ class PoseHistory:
         """The newest stamp kept [s] (None: empty)."""
         return self._poses[-1].t if self._poses else None
 
-    def append(self, t: float, p_W: np.ndarray, q_WB: np.ndarray) -> None:
+    def append(self, t: float, p_W: ArrayLike, q_WB: ArrayLike) -> None:
         """Keeps one pose (the oldest goes once ``maxlen`` are kept). Stamps must not go back in time; a
         non-finite or misshapen input, or a quaternion far from unit length, is a ``ValueError`` naming it."""
         t = float(t)
