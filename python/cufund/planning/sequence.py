@@ -28,10 +28,10 @@ class Hold:
         if not (np.isfinite(duration) and duration >= 0):
             raise ValueError(f"duration must be a finite number >= 0 [s], got {duration!r}")
         self._duration, self.yaw, self.t_start = float(duration), float(yaw), float(t_start)
-        self.delta = 0.0 if yaw_end is None else math.remainder(float(yaw_end) - self.yaw, 2 * math.pi)
+        self.delta = 0.0 if yaw_end is None else _turn(self.yaw, float(yaw_end))
         """The turn [rad] (0: none)."""
-        if not math.isfinite(self.delta) or (self.delta != 0.0 and self._duration <= 0):
-            raise ValueError(f"yaw_end must be a finite angle [rad] and a turn needs duration > 0, got {yaw_end!r}")
+        if self.delta != 0.0 and self._duration <= 0:
+            raise ValueError(f"a turn needs duration > 0 [s], got {duration!r}")
 
     @classmethod
     def turn(cls, p_W: np.ndarray, yaw: float, yaw_end: float, yaw_rate: float, t_start: float = 0.0) -> Hold:
@@ -39,7 +39,7 @@ class Hold:
         rate profile peaking at ``yaw_rate`` [rad/s]."""
         if not (np.isfinite(yaw_rate) and yaw_rate > 0):
             raise ValueError(f"yaw_rate must be a finite number > 0 [rad/s], got {yaw_rate!r}")
-        delta = math.remainder(float(yaw_end) - float(yaw), 2 * math.pi)
+        delta = _turn(float(yaw), float(yaw_end))
         return cls(p_W, max(math.pi * abs(delta) / (2 * yaw_rate), 1e-3), yaw, t_start, yaw_end=yaw_end)
 
     @property
@@ -63,6 +63,13 @@ class Hold:
         return TrajectorySamples(
             t=t, p_W=np.tile(self.p_W, (t.shape[0], 1)), v_W=z, a_W=z.copy(), j_W=z.copy(), yaw=yaw, yaw_rate=yaw_rate
         )
+
+
+def _turn(yaw: float, yaw_end: float) -> float:
+    """The shorter turn from ``yaw`` to ``yaw_end`` [rad]; a ValueError naming them unless both are finite."""
+    if not (math.isfinite(yaw) and math.isfinite(yaw_end)):
+        raise ValueError(f"a turn's yaw and yaw_end must be finite angles [rad], got {yaw!r} and {yaw_end!r}")
+    return math.remainder(yaw_end - yaw, 2 * math.pi)
 
 
 class TrajectorySequence:
