@@ -597,10 +597,7 @@ class TunnelMission(Planner):
             return
         self.used = d
         self.progress = 1
-        tr = rec.trajectory
-        end = tr.sample(tr.t_end).p_W[0]
-        self._publish(t, TrajectorySequence([tr, Hold(end, _FOREVER, self.yaw, t_start=tr.t_end)]), bus)
-        self._t_leg_end = tr.t_end
+        self._publish_leg(t, rec.trajectory, self.yaw, bus)
         self._enter(t, "through", "", bus)
 
     # -- stepwise: frame by frame (``through: stepwise``) -------------------------------------------------------
@@ -736,6 +733,7 @@ class TunnelMission(Planner):
         self._enter(t, "align", "", bus)
 
     def _publish_leg(self, t: float, tr: Any, psi: float, bus: BusView) -> None:
+        """Fly ``tr``, then hold its end facing ``psi`` (the new :attr:`heading`) [rad]."""
         end = tr.sample(tr.t_end).p_W[0]
         self._publish(t, TrajectorySequence([tr, Hold(end, _FOREVER, psi, t_start=tr.t_end)]), bus)
         self.heading, self._t_leg_end = psi, tr.t_end
