@@ -98,3 +98,16 @@ def test_bad_poses_are_refused_naming_the_field(args: tuple, field: str) -> None
 def test_a_bad_length_is_refused(maxlen: object) -> None:
     with pytest.raises(ValueError, match="maxlen"):
         PoseHistory(maxlen=maxlen)  # type: ignore[arg-type]
+
+
+def test_extend_skips_stale_and_repeated_estimates_from_the_bus() -> None:
+    """A bus may hand over an estimate older than (or as old as) the newest kept: extend skips it (append refuses)."""
+    q = [1.0, 0.0, 0.0, 0.0]
+    z = np.zeros(3)
+    msgs = [Odometry(t, np.array([t, 0.0, 0.0]), z, np.array(q), z) for t in (0.0, 1.0, 0.5, 1.0, 2.0)]
+    h = PoseHistory()
+    h.extend(msgs)
+    assert len(h) == 3 and (h.t_first, h.t_last) == (0.0, 2.0)
+    np.testing.assert_allclose(h.position_at(0.75), [0.75, 0, 0])  # the stale 0.5 s estimate did not enter
+    with pytest.raises(ValueError, match="back in time"):
+        h.append(1.5, [0, 0, 0], q)

@@ -113,8 +113,12 @@ class PoseHistory:
         self._poses.append(_Stamped(t, p, q / np.linalg.norm(q)))
 
     def extend(self, poses: Iterable[_Pose]) -> None:
-        """Appends messages that carry ``t``, ``p_W`` and ``q_WB`` (e.g. :class:`~cufund.core.messages.Odometry`)."""
+        """Appends messages that carry ``t``, ``p_W`` and ``q_WB`` (e.g. :class:`~cufund.core.messages.Odometry`),
+        skipping any not newer than the newest kept (a stale or repeated estimate from the bus is not an error;
+        :meth:`append` refuses one)."""
         for m in poses:
+            if self._poses and float(m.t) <= self._poses[-1].t:
+                continue
             self.append(m.t, m.p_W, m.q_WB)
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
