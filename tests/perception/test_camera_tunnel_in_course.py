@@ -105,6 +105,7 @@ def test_no_measurement_from_inside_the_course_is_off_a_true_frame(name, k, s):
     measurement lies within 10 cm of a true frame's centre, its normal within 20 deg of that frame's axis (a wrong
     frame is worse than none: nothing is placed where there is no frame)."""
     found = _measure(name, k, s, ("tunnel_frame", "gate"), 0.25)
+    assert found  # a frame ahead is measured from every one of these views
     for m in found:
         j, err = _nearest(name, m.centre_W)
         assert err < 0.10, (j, err, m.centre_W)
