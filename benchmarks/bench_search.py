@@ -45,12 +45,9 @@ def _one(job: tuple[int, list[str]]) -> dict[str, Any]:
 
 
 def _counts(m: dict[str, Any]) -> tuple[int, int, int]:
-    """(finds, right finds, people) of one run's metrics."""
+    """(finds, right finds, people) of one run's metrics (none of a run that raised)."""
     right = len(m.get("search_position_error_m") or [])
-    people = int(m.get("search_people") or 0)
-    p = m.get("search_precision")
-    finds = right if not p else round(right / p)  # precision = right / finds (1.0 with no finds)
-    return finds, right, people
+    return int(m.get("search_finds") or 0), right, int(m.get("search_people") or 0)
 
 
 def _row(m: dict[str, Any]) -> str:

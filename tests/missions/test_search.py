@@ -346,10 +346,29 @@ def test_search_end_to_end_shortened(tmp_path):
     run = run_into_folder(built, tmp_path, log=False, replay=False, progress=False)
     m = run.metrics
     assert run.result.status.value == "completed"
-    assert m["search_people"] == 1
+    assert m["search_people"] == 1 and m["search_finds"] == 1
     search = {k: v for k, v in m.items() if k.startswith("search")}
     assert m["search_recall"] == 1.0 and m["search_precision"] == 1.0, search
     assert len(m["search_position_error_m"]) == 1 and max(m["search_position_error_m"]) < 1.0
     assert 0 < m["search_time_s"] < run.result.sim_time_s
     found = json.loads((tmp_path / "found_people.json").read_text())["found"]
     assert len(found) == 1 and found[0]["detections"] >= 2
+
+
+def test_benchmark_totals_count_every_find():
+    """benchmarks/bench_search.py pools the finds from each run's search_finds: a seed whose 3 finds are all wrong
+    (precision 0) counts 3 finds (its finds were derived from right / precision, and so counted none), one with no
+    finds none, and a run that raised nothing."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_search.py"
+    spec = importlib.util.spec_from_file_location("bench_search", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    wrong = {"search_precision": 0.0, "search_position_error_m": [], "search_people": 5, "search_finds": 3}
+    assert bench._counts(wrong) == (3, 0, 5)
+    none = {"search_precision": 1.0, "search_position_error_m": [], "search_people": 5, "search_finds": 0}
+    assert bench._counts(none) == (0, 0, 5)
+    assert bench._counts({"status": "exception: ValueError: x"}) == (0, 0, 0)

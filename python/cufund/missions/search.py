@@ -304,6 +304,7 @@ def _search(p: SearchParams, ctx: BuildContext) -> list[Any]:
             np.array([f["p_W"] for f in found]).reshape(-1, 3), people, p.match_m, max(times) if times else None
         )
         m["search_people"] = len(people)
+        m["search_finds"] = len(found)
         m["search_detections"] = mission.detections
         m["search_tracks"] = len(mission.tracker.tracks)
         return m
