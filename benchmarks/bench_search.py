@@ -74,6 +74,16 @@ def main() -> int:
         ap.error(f"--jobs must be 1 or 2 (the machine's 2 cores are shared), got {args.jobs}")
     if args.seeds < 1:
         ap.error(f"--seeds must be >= 1, got {args.seeds}")
+    from cufund.core.config import ConfigError
+    from cufund.scenarios import load_scenario, parse_overrides
+
+    try:  # refused here, not once per seed in the workers
+        if "seed" in parse_overrides(args.overrides):
+            ap.error("--set seed=... would fly every run on one seed: use --first and --seeds")
+        for seed in (args.first, args.first + args.seeds - 1):
+            load_scenario("search", parse_overrides([f"seed={seed}", *args.overrides]))
+    except ConfigError as e:
+        ap.error(str(e))
     jobs = [(s, args.overrides) for s in range(args.first, args.first + args.seeds)]
     print(
         f"search benchmark: seeds {args.first}..{args.first + args.seeds - 1}, {args.jobs} job(s), "

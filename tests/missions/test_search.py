@@ -355,10 +355,8 @@ def test_search_end_to_end_shortened(tmp_path):
     assert len(found) == 1 and found[0]["detections"] >= 2
 
 
-def test_benchmark_totals_count_every_find():
-    """benchmarks/bench_search.py pools the finds from each run's search_finds: a seed whose 3 finds are all wrong
-    (precision 0) counts 3 finds (its finds were derived from right / precision, and so counted none), one with no
-    finds none, and a run that raised nothing."""
+def _bench_search():
+    """benchmarks/bench_search.py as a module (benchmarks/ is no package)."""
     import importlib.util
     from pathlib import Path
 
@@ -367,8 +365,37 @@ def test_benchmark_totals_count_every_find():
     assert spec is not None and spec.loader is not None
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
+    return bench
+
+
+def test_benchmark_totals_count_every_find():
+    """benchmarks/bench_search.py pools the finds from each run's search_finds: a seed whose 3 finds are all wrong
+    (precision 0) counts 3 finds (its finds were derived from right / precision, and so counted none), one with no
+    finds none, and a run that raised nothing."""
+    bench = _bench_search()
     wrong = {"search_precision": 0.0, "search_position_error_m": [], "search_people": 5, "search_finds": 3}
     assert bench._counts(wrong) == (3, 0, 5)
     none = {"search_precision": 1.0, "search_position_error_m": [], "search_people": 5, "search_finds": 0}
     assert bench._counts(none) == (0, 0, 5)
     assert bench._counts({"status": "exception: ValueError: x"}) == (0, 0, 0)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--set", "nope=1"], "unknown key 'nope'"),
+        (["--set", "mission.max_box_m=0"], "mission.max_box_m"),
+        (["--set", "seed=3"], "--first and --seeds"),
+        (["--first", "-1"], "seed must be an integer"),
+        (["--jobs", "3"], "--jobs"),
+    ],
+)
+def test_benchmark_refuses_bad_arguments_before_flying(argv, message, monkeypatch, capsys):
+    """A bad --set (an unknown key, a refused value, the seed every run would share) or seed range exits 2 naming
+    it before any run starts (a bad --set failed in every worker, one exception row per seed, and exited 0)."""
+    bench = _bench_search()
+    monkeypatch.setattr("sys.argv", ["bench_search.py", *argv])
+    monkeypatch.setattr(bench.mp, "get_context", lambda *a: pytest.fail("a run was started"))
+    with pytest.raises(SystemExit) as e:
+        bench.main()
+    assert e.value.code == 2 and message in capsys.readouterr().err
