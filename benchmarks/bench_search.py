@@ -28,9 +28,13 @@ from typing import Any
 import numpy as np
 
 
+def _nice() -> None:
+    """Each worker process lowers its priority once (os.nice adds: a worker flies several seeds)."""
+    os.nice(10)
+
+
 def _one(job: tuple[int, list[str]]) -> dict[str, Any]:
     seed, overrides = job
-    os.nice(10)
     from cufund.scenarios import load_scenario, parse_overrides
     from cufund.scenarios.build import run_scenario
 
@@ -92,7 +96,7 @@ def main() -> int:
     )
     t0 = time.perf_counter()
     results = []
-    with mp.get_context("spawn").Pool(args.jobs) as pool:
+    with mp.get_context("spawn").Pool(args.jobs, initializer=_nice) as pool:
         for m in pool.imap_unordered(_one, jobs):
             results.append(m)
             print(f"  seed {m['seed']} done: {_row(m)}", flush=True)
