@@ -343,7 +343,7 @@ def test_search_end_to_end_shortened(tmp_path):
     from cufund.scenarios.schema import load_scenario
 
     built = build_simulation(load_scenario("search", SHORT))
-    run = run_into_folder(built, tmp_path, log=False, replay=False, progress=False)
+    run = run_into_folder(built, tmp_path, log=False, plots=False, replay=False, progress=False)  # found_people.json
     m = run.metrics
     assert run.result.status.value == "completed"
     assert m["search_people"] == 1 and m["search_finds"] == 1
