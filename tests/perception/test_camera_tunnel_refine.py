@@ -182,3 +182,28 @@ def test_bad_refinement_settings_are_refused_by_name():
         load_scenario("tunnel", ["perception=camera", "estimator.kind=vio", "perception.refine=3"])
     cfg = load_scenario("tunnel", ["perception=camera", "estimator.kind=vio", "perception.refine=false"])
     assert cfg.perception.params.geometry().refine is False
+
+
+# (generated layout, distance before its first frame [m], one of the shipped model's boxes there): boxes whose
+# refinement finds the bars of two frames, or of a frame behind, and that each of the refinement's refusals (module
+# step 3 and 4) turns away. Measured without the refusal named, they were off every true frame by:
+REFUSED = [
+    ("1", 2.0, (277.9, 135.2, 414.6, 313.4)),  # top and bottom corners level: 38 cm
+    ("2", 4.0, (392.9, 180.3, 494.5, 303.9)),  # top bar under the top line, top ends in both images: 28 cm
+    ("3", 3.0, (419.7, 145.3, 493.9, 357.0)),  # top bar under the top line: 57 cm
+    ("6", 4.0, (254.5, 159.3, 342.5, 290.5)),  # bottom bar ending at the outer edges: 30 cm
+]
+
+
+@pytest.mark.parametrize(("name", "dist", "box"), REFUSED)
+def test_boxes_of_two_frames_bars_give_no_phantom_frame(name, dist, box):
+    """Approaching a generated layout's first frame (all five frames standing, so frames behind are in view): these
+    boxes of the shipped model give no measurement, or one within 10 cm of a true frame, never a frame where there
+    is none (each was 28-57 cm off with one of the refusals removed)."""
+    course = tunnel_course_layout(int(name))
+    distances = [5.0, 4.5, 4.0, 3.0, 2.0]  # the poses drawn in this order (their tilts)
+    p, q = list(_approach(course.frames[0], distances))[distances.index(dist)]
+    left, right = LEFT.render(course.world, p, q), RIGHT.render(course.world, p, q)
+    m = measure_frame(np.array(box), left, right, K, B, T_LEFT, p, quat_to_matrix(q))
+    true = np.array([f.centre_W for f in course.frames])
+    assert m is None or np.min(np.linalg.norm(true - m.centre_W, axis=1)) < 0.10, m
