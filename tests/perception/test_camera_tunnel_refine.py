@@ -219,3 +219,20 @@ def test_boxes_of_two_frames_bars_give_no_phantom_frame(name, order, dist, aside
     m = measure_frame(np.array(box), left, right, K, B, T_LEFT, p, quat_to_matrix(q))
     true = np.array([f.centre_W for f in course.frames])
     assert m is None or np.min(np.linalg.norm(true - m.centre_W, axis=1)) < 0.10, m
+
+
+def test_a_rig_without_square_pixels_is_refused_while_refining():
+    """The refinement takes one focal length for the bars' widths and the corners' level check: a rig whose
+    cameras have fx != fy is refused naming perception.refine, and builds with the refinement off."""
+    from cufund.core.config import ConfigError
+    from cufund.scenarios.build import build_simulation
+    from cufund.scenarios.schema import load_scenario
+
+    rig = (
+        "sensors.stereo={kind: stereo_camera, color: rgb, hw_sync: true, "
+        "intrinsics: {width: 640, height: 480, fx: 400, fy: 380, cx: 319.5, cy: 239.5}}"
+    )
+    base = ["perception=camera", "estimator.kind=vio", rig]
+    with pytest.raises(ConfigError, match=r"perception\.refine: .*square pixels.*fx 400 px, fy 380 px"):
+        build_simulation(load_scenario("tunnel", base))
+    build_simulation(load_scenario("tunnel", [*base, "perception.refine=false"]))

@@ -84,6 +84,12 @@ class CameraPerceptionParams:
 def _camera(p: CameraPerceptionParams, ctx: BuildContext) -> list[Any]:
     rig = colour_stereo_rig(ctx, p.stereo_camera)  # colour, a pair, rectified: ConfigError naming the key
     cams, topics, baseline = rig.cameras, rig.topics, rig.baseline_m
+    K = cams[0].intrinsics
+    if p.refine and not math.isclose(K.fx, K.fy, rel_tol=1e-6):  # the refinement's bar widths and level corners
+        raise ConfigError(
+            f"perception.refine: the box refinement needs square pixels (fx = fy), and sensors.{rig.name}'s "
+            f"cameras have fx {K.fx:g} px, fy {K.fy:g} px; give equal focal lengths or set perception.refine: false"
+        )
     model = Path(p.model) if p.model else SHIPPED_FRAMES_MODEL
     if p.model and not model.is_absolute() and ctx.base_dir is not None:
         model = Path(ctx.base_dir) / model
