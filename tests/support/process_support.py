@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import queue
 import re
+import signal
 import subprocess
 import sys
 import threading
@@ -60,6 +61,22 @@ def kill(p: subprocess.Popen, pumped: bool = False) -> str:
         p.kill()
         out = "" if pumped else p.communicate()[0]
         p.wait(5)
+    for f in (p.stdin, p.stdout):
+        if f is not None:
+            f.close()
+    return out or ""
+
+
+def interrupt(p: subprocess.Popen, timeout: float = 15.0) -> str:
+    """Stops ``p`` as Ctrl-C does (SIGINT) and gives it ``timeout`` s to exit by itself, so that its exit code is
+    its own (a SIGTERM sent at once could land in its shutdown and make it -15); then as :func:`kill`. Its
+    remaining output (not for a process whose output another thread reads)."""
+    if p.poll() is None:
+        p.send_signal(signal.SIGINT)
+    try:
+        out = p.communicate(timeout=timeout)[0]
+    except subprocess.TimeoutExpired:
+        return kill(p)
     for f in (p.stdin, p.stdout):
         if f is not None:
             f.close()

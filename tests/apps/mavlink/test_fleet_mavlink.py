@@ -18,7 +18,7 @@ import pytest
 from cufund.apps.mavlink.fleet_endpoints import FleetEndpoints
 from cufund.apps.mavlink.fleet_ports import FleetPorts
 from mavlink_support import OPEN_FIELD, SPEED, Gcs, free_port
-from process_support import BIN, ProcessOutput, cufund_serve, kill, mavproxy
+from process_support import BIN, ProcessOutput, cufund_serve, interrupt, kill, mavproxy
 
 # PX4 v1.14 ROMFS/px4fmu_common/init.d-posix/px4-rc.mavlink and rcS, for instance i (px4_sitl -i i):
 #   udp_gcs_port_local=$((18570+px4_instance))       (remote: QGroundControl's 14550)
@@ -262,8 +262,7 @@ def test_mavproxy_lists_both_vehicles_of_cufund_serve(tmp_path):
         out.expect(r"Sending to:\s+\{1, 2\}", 10)
     finally:
         kill(proxy, pumped=True)
-        serve.send_signal(2)
-        log = kill(serve)
+        log = interrupt(serve)
     assert serve.returncode == 0, log
     for sysid in (1, 2):
         assert re.search(
@@ -325,8 +324,7 @@ def test_serve_uploads_a_plain_language_mission_each_client_downloads(tmp_path):
             gcs.mav.mission_ack_send(sysid, 1, 0)
     finally:
         gcs.close()
-        serve.send_signal(2)
-        log = kill(serve)
+        log = interrupt(serve)
     # the zigzag's 3 x 5 waypoints shared between the two vehicles, each client seeing its own share
     assert counts[1] + counts[2] == 15 and min(counts.values()) > 0
     assert f"uav1: mission of {counts[1]} waypoints uploaded (zigzag)" in log

@@ -15,7 +15,7 @@ import pytest
 
 from cufund.sensors.geodesy import GeoPoint, enu_to_lla
 from mavlink_support import SPEED, free_port, vehicle
-from process_support import ProcessOutput, cufund_serve, kill, mavproxy
+from process_support import ProcessOutput, cufund_serve, interrupt, kill, mavproxy
 
 mavsdk = pytest.importorskip("mavsdk_grpc")
 from mavsdk_grpc.mission import MissionItem, MissionPlan  # noqa: E402  (after the importorskip)
@@ -160,6 +160,5 @@ def test_mavproxy_drives_cufund_serve(tmp_path):
         out.expect(r"DO_SET_MODE: DENIED", 10)
     finally:
         kill(proxy, pumped=True)
-        serve.send_signal(2)
-        log = kill(serve)
+        log = interrupt(serve)
     assert re.search(r"MAVLink vehicle 1: udpout:127.0.0.1:\d+ \(local 127.0.0.1:\d+\)", log)
