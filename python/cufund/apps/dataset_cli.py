@@ -1,4 +1,4 @@
-"""``cufund dataset SCENARIO --out DIR --frames N [--seed S]``: renders a labelled detection dataset of a
+"""``cufund dataset SCENARIO --out DIR --frames N [--seed S] [--randomisation FILE]``: renders a labelled detection dataset of a
 scenario's world (YOLO and COCO, with domain randomisation; :mod:`cufund.perception.dataset`). Exit codes: 0
 written, 2 invalid configuration or usage (a message naming the field), 130 interrupted."""
 
@@ -40,13 +40,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--hfov-deg", type=float, default=None, help="horizontal field of view [deg] (default: D435 RGB's 55)"
     )
+    p.add_argument(
+        "--randomisation",
+        type=Path,
+        default=None,
+        help="a YAML mapping of randomisation ranges overriding the defaults, e.g. height_m: [8, 16] "
+        "(keys: cufund.perception.dataset.Randomisation)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress line")
     add_overrides(p, help="override a scenario field by its dotted key, e.g. --set world.seed=3 (repeatable)")
 
 
 def run(args: argparse.Namespace) -> int:
     try:
-        from cufund.perception.dataset import DatasetParams, write_dataset
+        from cufund.core.config import from_dict, load_yaml
+        from cufund.perception.dataset import DatasetParams, Randomisation, write_dataset
         from cufund.scenarios.run_folder import world_of
         from cufund.scenarios.schema import load_scenario, parse_overrides
         from cufund.sensors.camera import CameraIntrinsics, d435_rgb
@@ -60,7 +68,11 @@ def run(args: argparse.Namespace) -> int:
             rng = np.random.default_rng([int(args.seed), 0x5CA7])  # its own stream: the frames' draws unchanged
             scatter(world, rng, int(args.scatter))
         classes = CLASSES if args.classes is None else tuple(c.strip() for c in args.classes.split(","))
-        params = DatasetParams(frames=args.frames, seed=args.seed, classes=classes)
+        randomisation = Randomisation()
+        if args.randomisation is not None:
+            doc = load_yaml(args.randomisation)
+            randomisation = from_dict(Randomisation, {} if doc is None else doc, f"{args.randomisation}: randomisation")
+        params = DatasetParams(frames=args.frames, seed=args.seed, classes=classes, randomisation=randomisation)
         if args.hfov_deg is None and (args.width, args.height) == (640, 480):
             intrinsics = d435_rgb()
         else:
