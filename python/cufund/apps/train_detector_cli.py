@@ -39,7 +39,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--imgsz", default=None, help="input size H,W or N [px], multiples of 16 (default 240,320)")
     p.add_argument("--seed", type=int, default=None, help="seed of the weights, shuffling and augmentation (default 0)")
     p.add_argument("--threads", type=int, default=None, help="torch threads (default 2)")
-    p.add_argument("--init", type=Path, default=None, help="torch weights (.pt, saved beside a model) to start from")
+    p.add_argument(
+        "--init",
+        type=Path,
+        default=None,
+        help="weights to start from: the .pt saved beside a model, or a .onnx this command exported "
+        "(e.g. a shipped model, to fine-tune it)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no per-epoch lines")
 
 

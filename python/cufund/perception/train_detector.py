@@ -217,6 +217,11 @@ def _augment(
     return np.ascontiguousarray(x.transpose(2, 0, 1)), classes, b
 
 
+CALIBRATION_IMAGES = 64
+"""Training images (drawn with the run's seed) whose statistics set the batch normalisations of a model started
+from an exported ONNX (:mod:`cufund.perception.train_detector_init`)."""
+
+
 def train_detector(
     datasets: Sequence[str | Path],
     out: str | Path,
@@ -226,7 +231,8 @@ def train_detector(
 ) -> dict[str, Any]:
     """Trains on the ``train`` split of ``datasets``, exports ``out`` (ONNX) and returns a summary (losses per
     epoch, time, the config). The torch weights are saved beside ``out`` (``.pt``) after every epoch; ``init``: such
-    a file to start from (a run continued). Needs torch and onnx (``pip install 'cufund[detect-train]'``)."""
+    a file to start from (a run continued), or a ``.onnx`` this function exported (fine-tuning a shipped model:
+    :mod:`cufund.perception.train_detector_init`). Needs torch and onnx (``pip install 'cufund[detect-train]'``)."""
     out = Path(out)
     if out.suffix != ".onnx":
         raise ValueError(f"--out must name a .onnx file, got {str(out)!r}")
@@ -250,7 +256,11 @@ def train_detector(
         log(f"{n} training images, classes {list(data.names)}, input {cfg.imgsz[0]} x {cfg.imgsz[1]}")
     model = tdm.Detector(len(data.names), cfg.width, cfg.depth)
     weights = out.with_suffix(".pt")
-    if init is not None:
+    if init is not None and Path(init).suffix.lower() == ".onnx":  # a model this command exported: BN refolded
+        from .train_detector_init import load_exported_weights
+
+        load_exported_weights(model, init, data.images[rng.permutation(n)[:CALIBRATION_IMAGES]])
+    elif init is not None:
         try:
             model.load_state_dict(torch.load(Path(init), map_location="cpu", weights_only=True))
         except (OSError, RuntimeError, KeyError, EOFError, pickle.UnpicklingError) as e:  # weights_only: not weights
