@@ -95,6 +95,7 @@ def load_exported_weights(model: Any, path: str | Path, images: np.ndarray) -> N
                 assert conv.bias is not None
                 conv.bias.copy_(torch.from_numpy(bias))
             else:  # the identity plus b_f until calibrated: the eval network is the exported one
+                assert bn.running_mean is not None and bn.running_var is not None  # track_running_stats
                 bn.running_mean.zero_()
                 bn.running_var.fill_(1.0 - bn.eps)
                 bn.weight.fill_(1.0)
@@ -130,6 +131,7 @@ def load_exported_weights(model: Any, path: str | Path, images: np.ndarray) -> N
             c = bn.num_features
             m1, m2 = stats[k][:c] / stats[k][-1], stats[k][c : 2 * c] / stats[k][-1]
             var = torch.clamp(m2 - m1 * m1, min=1e-6)
+            assert bn.running_mean is not None and bn.running_var is not None
             bn.running_mean.copy_(m1.float())
             bn.running_var.copy_(var.float())
             bn.weight.copy_(torch.sqrt(var + bn.eps).float())
