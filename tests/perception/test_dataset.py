@@ -294,3 +294,110 @@ def test_a_distorted_camera_counts_the_unoccluded_pixels_through_its_own_rays():
     assert isinstance(depth, np.ndarray)
     assert obj.unoccluded_px == int(np.isfinite(depth).sum()) > obj.visible_px > 0
     assert obj.occlusion == pytest.approx(1 - obj.visible_px / obj.unoccluded_px)
+
+
+# --- course views ------------------------------------------------------------------------------------------
+FLIGHT_SMALL = CameraIntrinsics(160, 120, 100.0, 100.0, 79.5, 59.5)
+"""The flight camera (640 x 480, fx = fy = 400 px) at a quarter of its size: the same field of view."""
+
+
+def _course_dataset(tmp_path: Path, seed: int = 301, frames: int = 10, **kwargs):
+    from cufund.missions.tunnel_course import tunnel_course_layout
+
+    layout = tunnel_course_layout(seed)
+    params = DatasetParams(frames=frames, seed=4, min_box_px=1, negative_fraction=0.0, views="course", **kwargs)
+    out = tmp_path / f"course_{seed}"
+    write_dataset(layout.world, out, params, FLIGHT_SMALL, course=layout.frames)
+    return layout, out
+
+
+def test_a_course_view_sees_the_frame_it_aims_at_from_where_the_vehicle_flies(tmp_path):
+    """Each view stands on frame k's axis (within the jitter) between 3 m before it and 0.2 m past frame k-1, at
+    the opening's height, facing along the course; frame k is in the image (the renderer's own ids at that pose)
+    and in the labels; the views hold nested frames (more than one frame in most images)."""
+    from cufund.geometry import quat_to_matrix
+    from cufund.sensors.camera import RgbCamera
+
+    layout, out = _course_dataset(tmp_path)
+    meta = json.loads((out / "dataset.json").read_text())
+    coco = json.loads((out / "annotations.json").read_text())
+    assert meta["views"] == "course" and len(meta["course_frames"]) == len(layout.frames) == 5
+    aimed = set()
+    several = 0
+    for i, f in enumerate(meta["frames"]):
+        k = f["course_frame"]
+        aimed.add(k)
+        frame = layout.frames[k]
+        c, axis = np.asarray(frame.centre_W), frame.axis_W
+        across = np.array([-axis[1], axis[0], 0.0])
+        p = np.asarray(f["p_W"])
+        before = float((c - p) @ axis)
+        near = 0.3 if k == 0 else max(0.3, float((c - np.asarray(layout.frames[k - 1].centre_W)) @ axis) - 0.2)
+        assert near - 1e-9 <= before <= 3.0 + 1e-9
+        assert abs(float((p - c) @ across)) <= 0.25 + 1e-9
+        assert abs(p[2] - c[2]) <= 0.25 + 1e-9
+        x_B = quat_to_matrix(np.asarray(f["q_WB"]))[:, 0]  # the camera's view direction
+        heading = math.atan2(x_B[1], x_B[0])
+        assert abs(math.remainder(heading - frame.yaw, 2 * math.pi)) <= math.radians(15.0) + 1e-6
+        assert abs(x_B[2]) <= math.sin(math.radians(5.0)) + 1e-9
+        # the frame aimed at: its mesh is the world object centred on its opening
+        oid = min(layout.world.objects, key=lambda o: np.linalg.norm(o.vertices.mean(0) - c)).id
+        rendered = RgbCamera(FLIGHT_SMALL).render(layout.world, p, f["q_WB"], want_ids=True)
+        assert isinstance(rendered, tuple) and np.any(rendered[1] == oid)
+        instances = {a["cufund"]["instance_id"] for a in coco["annotations"] if a["image_id"] == i + 1}
+        assert oid in instances
+        frames_seen = {j for j in instances if layout.world.objects[j].vertices[:, 2].max() > 0.4}
+        several += len(frames_seen) > 1
+    assert len(aimed) >= 3 and several >= 7
+
+
+def test_random_views_are_unchanged_by_course_views(tmp_path):
+    """views='random' (the default) writes the files it wrote before course views existed: the same as the
+    default parameters, with no course record in dataset.json."""
+    w = _world()
+    write_dataset(w, tmp_path / "a", FEW, SMALL)
+    explicit = DatasetParams(frames=6, seed=7, min_box_px=1, randomisation=FEW.randomisation, views="random")
+    write_dataset(w, tmp_path / "b", explicit, SMALL)
+    files = sorted(p.relative_to(tmp_path / "a") for p in (tmp_path / "a").rglob("*") if p.is_file())
+    for f in files:
+        if f.name != "data.yaml":
+            assert (tmp_path / "a" / f).read_bytes() == (tmp_path / "b" / f).read_bytes(), f
+    meta = json.loads((tmp_path / "a" / "dataset.json").read_text())
+    assert "views" not in meta and "course_frames" not in meta
+    assert all("course_frame" not in f for f in meta["frames"])
+
+
+def test_course_views_refuse_bad_values_naming_them(tmp_path, capsys):
+    from cufund.core.config import ConfigError
+    from cufund.missions.tunnel_course import TunnelFrame, tunnel_course_layout
+    from cufund.perception.dataset import CourseViews
+
+    with pytest.raises(ConfigError, match="views must be one of random, course, got 'orbit'"):
+        DatasetParams(views="orbit")
+    with pytest.raises(ConfigError, match=r"randomisation.course.distance_m must be \[min, max\]"):
+        CourseViews(distance_m=(3.0, 1.0))
+    with pytest.raises(ConfigError, match=r"course.lateral_m must be a number in \[0, 10\], got -0.1"):
+        CourseViews(lateral_m=-0.1)
+    layout = tunnel_course_layout(301)
+    params = DatasetParams(frames=1, views="course")
+    with pytest.raises(ConfigError, match="views: course needs the world's course"):
+        write_dataset(layout.world, tmp_path / "a", params, FLIGHT_SMALL)
+    with pytest.raises(ConfigError, match="a course was given, but views is 'random'"):
+        write_dataset(layout.world, tmp_path / "b", DatasetParams(frames=1), FLIGHT_SMALL, course=layout.frames)
+    elsewhere = [TunnelFrame((20.0, 0.0, 1.0), 0.0, 0.5, 0.5)]
+    with pytest.raises(ConfigError, match=r"course\[0\] \(centre_W \[20.0, 0.0, 1.0\]\) is no object of the world"):
+        write_dataset(layout.world, tmp_path / "c", params, FLIGHT_SMALL, course=elsewhere)
+    with pytest.raises(ConfigError, match=r"course\[0\].yaw must be a finite number"):
+        write_dataset(layout.world, tmp_path / "d", params, FLIGHT_SMALL, course=[TunnelFrame((0, 0, 1), None, 1, 1)])
+    assert main(["dataset", "square_lio", "--out", str(tmp_path / "e"), "--views", "course", "--no-progress"]) == 2
+    assert "--views course needs a scenario on the tunnel_course world; 'square_lio' is not" in capsys.readouterr().err
+
+
+def test_cli_course_views_use_the_flight_camera(tmp_path):
+    out = tmp_path / "c"
+    args = ["dataset", "tunnel", "--out", str(out), "--frames", "1", "--views", "course", "--no-progress"]
+    assert main([*args, "--set", "world.seed=301"]) == 0
+    meta = json.loads((out / "dataset.json").read_text())
+    cam = meta["camera"]
+    assert (cam["width"], cam["height"], cam["fx"], cam["fy"]) == (640, 480, 400.0, 400.0)
+    assert meta["views"] == "course" and len(meta["course_frames"]) == 5

@@ -1,4 +1,4 @@
-"""``cufund dataset SCENARIO --out DIR --frames N [--seed S] [--randomisation FILE]``: renders a labelled detection dataset of a
+"""``cufund dataset SCENARIO --out DIR --frames N [--seed S] [--randomisation FILE] [--views course]``: renders a labelled detection dataset of a
 scenario's world (YOLO and COCO, with domain randomisation; :mod:`cufund.perception.dataset`). Exit codes: 0
 written, 2 invalid configuration or usage (a message naming the field), 130 interrupted."""
 
@@ -47,6 +47,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="a YAML mapping of randomisation ranges overriding the defaults, e.g. height_m: [8, 16] "
         "(keys: cufund.perception.dataset.Randomisation)",
     )
+    p.add_argument(
+        "--views",
+        choices=("random", "course"),
+        default="random",
+        help="random: views around single labelled objects (default); course: views as the vehicle has them flying "
+        "a tunnel_course world's frames, in the flight camera (the stereo_camera rig's 640 x 480, fx = fy = 400 px, "
+        "unless --width/--height/--hfov-deg say otherwise)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress line")
     add_overrides(p, help="override a scenario field by its dotted key, e.g. --set world.seed=3 (repeatable)")
 
@@ -72,8 +80,24 @@ def run(args: argparse.Namespace) -> int:
         if args.randomisation is not None:
             doc = load_yaml(args.randomisation)
             randomisation = from_dict(Randomisation, {} if doc is None else doc, f"{args.randomisation}: randomisation")
-        params = DatasetParams(frames=args.frames, seed=args.seed, classes=classes, randomisation=randomisation)
-        if args.hfov_deg is None and (args.width, args.height) == (640, 480):
+        params = DatasetParams(
+            frames=args.frames, seed=args.seed, classes=classes, randomisation=randomisation, views=args.views
+        )
+        course = None
+        if args.views == "course":
+            from cufund.missions.tunnel_kind import course_of
+
+            layout = course_of(config)
+            if layout is None:
+                raise ConfigError(
+                    f"--views course needs a scenario on the tunnel_course world; {args.scenario!r} is not"
+                )
+            course = layout.frames
+        if args.views == "course" and args.hfov_deg is None and (args.width, args.height) == (640, 480):
+            from cufund.sensors.kinds import StereoCameraParams
+
+            intrinsics = StereoCameraParams().intrinsics  # the flight camera (perception: camera's rig)
+        elif args.hfov_deg is None and (args.width, args.height) == (640, 480):
             intrinsics = d435_rgb()
         else:
             hfov = 55.0 if args.hfov_deg is None else args.hfov_deg
@@ -84,7 +108,9 @@ def run(args: argparse.Namespace) -> int:
             def progress(k: int) -> None:
                 print(f"\rframes {k}/{args.frames}", end="" if k < args.frames else "\n", file=sys.stderr)
 
-        summary = write_dataset(world, args.out, params, intrinsics, source=str(args.scenario), progress=progress)
+        summary = write_dataset(
+            world, args.out, params, intrinsics, source=str(args.scenario), progress=progress, course=course
+        )
     except KeyboardInterrupt:
         print("cufund: interrupted", file=sys.stderr)
         return 130

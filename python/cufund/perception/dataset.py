@@ -17,12 +17,19 @@ Every random draw (camera pose, object colours and textures, light, shadows, exp
 ``val``. A frame looks at a randomly chosen labelled object from a random distance, height and bearing, with
 jitter (the camera inside the world's horizontal bounds and the target visible, up to 20 views cast);
 ``negative_fraction`` of the frames look anywhere.
+
+With ``views="course"`` (:class:`CourseViews`) a frame is a view the vehicle has flying a course instead: the
+world's frames in flying order are given (``course``), a frame k is drawn, and the camera stands on its axis
+between 3 m before it and just past frame k-1, at the opening's height, jittered sideways, up and down and in
+yaw, pitch and roll, facing along the course. Such views hold what the random views around single objects never
+do: frames nested in each other and partly hidden, frames seen through frames, frames cut by the image.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,7 +46,10 @@ from cufund.worlds.world import World
 
 from .dataset_labels import ViewLabeller, ViewLabels
 
-__all__ = ["DatasetParams", "Randomisation", "render_frame", "write_dataset"]
+__all__ = ["VIEWS", "Course", "CourseViews", "DatasetParams", "Randomisation", "render_frame", "write_dataset"]
+
+VIEWS = ("random", "course")
+"""How the camera poses are drawn: around single labelled objects, or as flying a course."""
 
 VAL_EVERY = 10
 """Every VAL_EVERY-th frame (0, 10, 20, ...) goes to the validation split."""
@@ -112,6 +122,45 @@ class Randomisation:
 
 
 @dataclass(frozen=True)
+class CourseViews:
+    """Camera poses of ``views="course"``, about frame k of the course (its opening's centre c, axis a: the
+    direction flown through). Each range is drawn uniformly."""
+
+    distance_m: tuple[float, float] = (0.3, 3.0)
+    """Camera distance before frame k along its axis [m]; the nearest is also at most ``past_previous_m`` past
+    frame k-1's plane (the first frame: this range alone)."""
+    past_previous_m: float = 0.2
+    """How far past frame k-1 the nearest view of frame k stands (where the vehicle rests between frames) [m]."""
+    lateral_m: float = 0.25
+    """Largest sideways offset from the axis [m]."""
+    vertical_m: float = 0.25
+    """Largest offset up or down from the opening's centre height [m]."""
+    min_height_m: float = 0.3
+    """Lowest camera height above the ground [m]."""
+    yaw_deg: float = 15.0
+    """Largest turn of the view from the axis' heading [deg]."""
+    pitch_deg: float = 5.0
+    """Largest pitch [deg]."""
+    roll_deg: float = 5.0
+    """Largest roll [deg]."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "distance_m", _range("course.distance_m", self.distance_m, 0.0, 100.0))
+        for name, hi in (
+            ("past_previous_m", 10.0),
+            ("lateral_m", 10.0),
+            ("vertical_m", 10.0),
+            ("min_height_m", 100.0),
+            ("yaw_deg", 180.0),
+            ("pitch_deg", 90.0),
+            ("roll_deg", 180.0),
+        ):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= hi:
+                raise ConfigError(f"course.{name} must be a number in [0, {hi:g}], got {v!r}")
+
+
+@dataclass(frozen=True)
 class DatasetParams:
     frames: int = 100
     """Images rendered [-]."""
@@ -124,8 +173,17 @@ class DatasetParams:
     negative_fraction: float = 0.1
     """Share of frames that look anywhere rather than at an object [-]."""
     randomisation: Randomisation = dataclasses.field(default_factory=Randomisation)
+    views: str = "random"
+    """How the camera poses are drawn (:data:`VIEWS`): ``random`` around single labelled objects, ``course``
+    as the vehicle has them flying the course given to :func:`write_dataset`."""
+    course: CourseViews = dataclasses.field(default_factory=CourseViews)
+    """The course views' ranges (with ``views="course"``)."""
 
     def __post_init__(self) -> None:
+        if self.views not in VIEWS:
+            raise ConfigError(f"views must be one of {', '.join(VIEWS)}, got {self.views!r}")
+        if not isinstance(self.course, CourseViews):
+            raise ConfigError(f"course must be a CourseViews, got {type(self.course).__name__}")
         for name, lo, hi in (("frames", 1, 1_000_000), ("seed", 0, 2**63 - 1), ("min_box_px", 1, 10_000)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
@@ -193,20 +251,81 @@ def _recoloured(world: World, rng: np.random.Generator, rnd: Randomisation) -> W
     return out
 
 
+class Course:
+    """A course's frames in flying order as the course views need them: each frame's opening centre and
+    heading, and the world object that is the frame (the labelled object whose upright box is centred on the
+    opening, within 5 cm).
+
+    ``frames``: objects with ``centre_W`` (3 numbers [m]) and ``yaw`` (the heading flown through [rad]), e.g.
+    :class:`cufund.missions.tunnel_course.TunnelFrame`."""
+
+    def __init__(self, world: World, frames: Sequence[Any], labeller: ViewLabeller, views: CourseViews) -> None:
+        if isinstance(frames, (str, bytes)) or not isinstance(frames, Sequence) or not frames:
+            raise ConfigError(f"course must be a non-empty list of frames in flying order, got {frames!r}")
+        centres, yaws, ids = [], [], []
+        boxes = [(o.id, np.asarray(labeller.box3d(o).centre_W)) for o in world.objects]
+        for k, f in enumerate(frames):
+            try:
+                c = np.asarray(getattr(f, "centre_W", None), dtype=float)
+            except (TypeError, ValueError):
+                c = np.empty(0)
+            yaw = getattr(f, "yaw", None)
+            if c.shape != (3,) or not np.all(np.isfinite(c)):
+                raise ConfigError(
+                    f"course[{k}].centre_W must be 3 finite numbers [m], got {getattr(f, 'centre_W', None)!r}"
+                )
+            if isinstance(yaw, bool) or not isinstance(yaw, (int, float)) or not np.isfinite(yaw):
+                raise ConfigError(f"course[{k}].yaw must be a finite number [rad], got {yaw!r}")
+            gaps = [(float(np.linalg.norm(b - c)), oid) for oid, b in boxes]
+            gap, oid = min(gaps) if gaps else (np.inf, -1)
+            if gap > 0.05:
+                raise ConfigError(
+                    f"course[{k}] (centre_W {c.round(3).tolist()}) is no object of the world {world.name!r}: "
+                    "the course must be the world's own"
+                )
+            centres.append(c)
+            yaws.append(float(yaw))
+            ids.append(oid)
+        self.centres_W, self.yaws, self.object_ids = np.array(centres), np.array(yaws), ids
+        self.views = views
+
+    def __len__(self) -> int:
+        return len(self.yaws)
+
+    def pose(self, k: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """(p_W, q_WB) of a camera flying towards frame k (see :class:`CourseViews`)."""
+        v = self.views
+        c, yaw = self.centres_W[k], self.yaws[k]
+        axis, across = np.array([np.cos(yaw), np.sin(yaw), 0.0]), np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+        near, far = v.distance_m
+        if k > 0:  # not beyond just past the previous frame
+            spacing = float((c - self.centres_W[k - 1]) @ axis)
+            near = min(max(near, spacing - v.past_previous_m), far)
+        p = c - rng.uniform(near, far) * axis + rng.uniform(-v.lateral_m, v.lateral_m) * across
+        p[2] = max(c[2] + rng.uniform(-v.vertical_m, v.vertical_m), v.min_height_m)
+        heading = yaw + np.deg2rad(rng.uniform(-v.yaw_deg, v.yaw_deg))
+        pitch = np.deg2rad(rng.uniform(-v.pitch_deg, v.pitch_deg))
+        roll = np.deg2rad(rng.uniform(-v.roll_deg, v.roll_deg))
+        return p, _look_at(p, p + np.array([np.cos(heading), np.sin(heading), 0.0]), 0.0, pitch, roll)
+
+
 def render_frame(
     world: World,
     labeller: ViewLabeller,
     rng: np.random.Generator,
     rnd: Randomisation,
     negative: bool,
+    course: Course | None = None,
 ) -> tuple[np.ndarray, ViewLabels, dict[str, Any]]:
-    """One randomised frame: (H, W, 3) uint8 image, its labels, and the draws that made it."""
+    """One randomised frame: (H, W, 3) uint8 image, its labels, and the draws that made it. With ``course``,
+    a course view (of a frame it sees, up to 20 views cast) unless ``negative``."""
     targets = [o for o in world.objects if o.label in labeller.classes]
     lo, hi = world.bounds()
     labels: ViewLabels | None = None
     ids: np.ndarray | None = None
     p = q = None
     casts = 0
+    aimed: int | None = None
     for draw in range(200):
         if negative or not targets:
             p = np.array([rng.uniform(lo[0], hi[0]), rng.uniform(lo[1], hi[1]), rng.uniform(*rnd.height_m)])
@@ -216,6 +335,14 @@ def render_frame(
             )
             labels = labeller.label(p, q)
             break
+        if course is not None:
+            aimed = int(rng.integers(len(course)))
+            p, q = course.pose(aimed, rng)
+            casts += 1
+            ids = labeller.instance_ids(p, q)
+            if np.any(ids == course.object_ids[aimed]) or casts >= 20:
+                break
+            continue
         target = targets[int(rng.integers(len(targets)))]
         c = np.asarray(labeller.box3d(target).centre_W)
         dist, bearing = rng.uniform(*rnd.distance_m), rng.uniform(-np.pi, np.pi)
@@ -258,7 +385,16 @@ def render_frame(
         "shadows": shadows,
         "negative": bool(negative or not targets),
     }
+    if aimed is not None:
+        draws["course_frame"] = aimed
     return image, labels, draws
+
+
+def _course_meta(params: DatasetParams, course: Course) -> dict[str, Any]:
+    """dataset.json's record of course views (absent from a dataset of random views, whose files stay as they
+    were before course views existed)."""
+    frames = [{"centre_W": c.tolist(), "yaw": float(y)} for c, y in zip(course.centres_W, course.yaws, strict=True)]
+    return {"views": params.views, "course": dataclasses.asdict(params.course), "course_frames": frames}
 
 
 # --- the dataset -----------------------------------------------------------------------------------
@@ -270,12 +406,18 @@ def write_dataset(
     source: str = "",
     nthreads: int = 0,
     progress: Any = None,
+    course: Sequence[Any] | None = None,
 ) -> dict[str, Any]:
     """Writes the dataset of ``world`` into ``out`` (created; must be empty if it exists) and returns a summary
     (frames per split, boxes per class). ``source`` is recorded (e.g. the scenario's name); ``progress``, if
-    given, is called with the number of frames done."""
+    given, is called with the number of frames done. ``course``: with ``params.views == "course"``, the world's
+    frames in flying order (see :class:`Course`), e.g. ``TunnelCourse.frames``."""
     if not isinstance(params, DatasetParams):
         raise ValueError(f"params must be a DatasetParams, got {type(params).__name__}")
+    if params.views == "course" and course is None:
+        raise ConfigError("views: course needs the world's course (its frames in flying order), and none was given")
+    if params.views != "course" and course is not None:
+        raise ConfigError(f"a course was given, but views is {params.views!r}: set views to 'course' to use it")
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ConfigError(f"--out {str(out)!r} exists and is not an empty folder")
@@ -290,6 +432,7 @@ def write_dataset(
     (out / "masks").mkdir(exist_ok=True)
     rng = np.random.default_rng(params.seed)
     labeller = ViewLabeller(world, intrinsics, params.classes, nthreads=nthreads)
+    flown = None if course is None else Course(world, course, labeller, params.course)
     W, H = intrinsics.width, intrinsics.height
     coco: dict[str, Any] = {
         "info": {"description": f"cufund dataset of {source or world.name}", "seed": params.seed},
@@ -301,7 +444,7 @@ def write_dataset(
     frames_meta = []
     for k in range(params.frames):
         negative = bool(rng.random() < params.negative_fraction)
-        image, labels, draws = render_frame(world, labeller, rng, params.randomisation, negative)
+        image, labels, draws = render_frame(world, labeller, rng, params.randomisation, negative, flown)
         split = "val" if k % VAL_EVERY == 0 else "train"
         stem = f"{k:06d}"
         save_png(out / "images" / split / f"{stem}.png", image)
@@ -361,6 +504,7 @@ def write_dataset(
         "min_box_px": params.min_box_px,
         "negative_fraction": params.negative_fraction,
         "randomisation": dataclasses.asdict(params.randomisation),
+        **({} if flown is None else _course_meta(params, flown)),
         "camera": dataclasses.asdict(intrinsics),
         "summary": summary,
         "frames": frames_meta,
