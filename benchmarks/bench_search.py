@@ -4,6 +4,7 @@ seed and in total, position errors, wall time and real-time factor.
     .venv/bin/python benchmarks/bench_search.py                  # seeds 0..19, two processes
     .venv/bin/python benchmarks/bench_search.py --seeds 5 --first 100 --jobs 1
     .venv/bin/python benchmarks/bench_search.py --set perception.conf=0.35 --json /tmp/search.json
+    .venv/bin/python benchmarks/bench_search.py --out /tmp/search_runs   # + each run's folder (run.mcap)
 
 Seed K flies ``cufund run search --seed K`` (layout K of the trees and people, and its own sensor noise,
 calibration and plant draws under the scenario's ``realistic`` profile). Each run is the full stack (rendered
@@ -33,14 +34,19 @@ def _nice() -> None:
     os.nice(10)
 
 
-def _one(job: tuple[int, list[str]]) -> dict[str, Any]:
-    seed, overrides = job
+def _one(job: tuple[int, list[str], str | None]) -> dict[str, Any]:
+    seed, overrides, out = job
     from cufund.scenarios import load_scenario, parse_overrides
     from cufund.scenarios.build import run_scenario
+    from cufund.scenarios.run_folder import run_into_folder
 
     t0 = time.perf_counter()
     try:
-        run = run_scenario(load_scenario("search", parse_overrides([f"seed={seed}", *overrides])))
+        config = load_scenario("search", parse_overrides([f"seed={seed}", *overrides]))
+        if out is None:
+            run = run_scenario(config)
+        else:  # the run folder (run.mcap: its detections and estimates can be replayed through the mission)
+            run = run_into_folder(config, os.path.join(out, f"seed_{seed}"), plots=False, replay=False)
         m = dict(run.metrics)
     except Exception as e:  # one failed run is a row of the table, not the end of the benchmark
         m = {"status": f"exception: {type(e).__name__}: {e}"}
@@ -73,6 +79,11 @@ def main() -> int:
     ap.add_argument("--jobs", type=int, default=2, help="processes in parallel (default 2, at most 2)")
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--json", help="write every run's search metrics here")
+    ap.add_argument(
+        "--out",
+        help="write each run's folder here (seed_K/: run.mcap, metrics.json, found_people.json), e.g. to replay "
+        "the logged detections through the mission with other settings",
+    )
     args = ap.parse_args()
     if not 1 <= args.jobs <= 2:
         ap.error(f"--jobs must be 1 or 2 (the machine's 2 cores are shared), got {args.jobs}")
@@ -88,7 +99,7 @@ def main() -> int:
             load_scenario("search", parse_overrides([f"seed={seed}", *args.overrides]))
     except ConfigError as e:
         ap.error(str(e))
-    jobs = [(s, args.overrides) for s in range(args.first, args.first + args.seeds)]
+    jobs = [(s, args.overrides, args.out) for s in range(args.first, args.first + args.seeds)]
     print(
         f"search benchmark: seeds {args.first}..{args.first + args.seeds - 1}, {args.jobs} job(s), "
         f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.1f} {' '.join(args.overrides)}",
