@@ -126,8 +126,9 @@ AHEAD = [
 @pytest.mark.parametrize(("name", "k", "s", "j"), AHEAD)
 def test_the_next_whole_frame_is_measured_from_between_the_last_two(name, k, s, j):
     """From between frames k and k+1, frame k+2 (or, where it is cut by the image, the first whole frame behind it)
-    is measured from the model's boxes, frames and gates: the measurement nearest it within 3 cm and 4 deg. Read as
-    ``tunnel_frame`` boxes alone (the component before), it is not measured at all."""
+    is measured from the model's boxes, frames and gates: the measurement nearest it within 3 cm and 4 deg. (The
+    model shipped before 18b418c labelled these frames ``gate`` only, so ``tunnel_frame`` boxes alone measured none
+    of them; the fine-tuned model labels most of them ``tunnel_frame``.)"""
     frame = _course(name).frames[j]
     extent = _frame_extent(name, k, s, j)
     assert extent is not None
@@ -139,8 +140,6 @@ def test_the_next_whole_frame_is_measured_from_between_the_last_two(name, k, s, 
     m = found[int(np.argmin(errs))]
     assert min(errs) < 0.03, (errs, m.centre_W, frame.centre_W)
     assert _angle_deg(m.normal_W, frame.axis_W) < 4.0
-    frames_only = _measure(name, k, s, "tunnel_frame", 0.25)
-    assert all(float(np.linalg.norm(f.centre_W - np.asarray(frame.centre_W))) > 0.10 for f in frames_only)
 
 
 def test_the_paper_layouts_frame_k_plus_2_is_cut_by_the_image_and_not_measured():

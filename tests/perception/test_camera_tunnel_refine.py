@@ -236,3 +236,110 @@ def test_a_rig_without_square_pixels_is_refused_while_refining():
     with pytest.raises(ConfigError, match=r"perception\.refine: .*square pixels.*fx 400 px, fy 380 px"):
         build_simulation(load_scenario("tunnel", base))
     build_simulation(load_scenario("tunnel", [*base, "perception.refine=false"]))
+
+
+# A big frame standing just behind a small one (generated layouts): from before the small frame the big one's
+# vertical bars and top are seen beside and above the small one's, but the two bottom bars lie across each other
+# in the image, so no bottom bar of the big frame is found; measured with the rules' square opening's bottom
+# (``partial_min_width``), confirmed at its two corners.
+
+
+def _on_axis(course, a: int, b: int, dist: float):
+    """The camera level on frame a's axis at its opening's height, facing along it, ``dist`` before frame b's
+    centre along frame a's heading."""
+    fa, fb = course.frames[a], course.frames[b]
+    ax = np.asarray(fa.axis_W)
+    across = np.cross([0.0, 0.0, 1.0], ax)
+    p = np.asarray(fb.centre_W) - dist * ax
+    p = p - float((p - np.asarray(fa.centre_W)) @ across) * across
+    p[2] = fa.centre_W[2]
+    return p, np.array([math.cos(fa.yaw / 2), 0.0, 0.0, math.sin(fa.yaw / 2)])
+
+
+def _outer_box(frame, p, q) -> np.ndarray:
+    """The frame's outer corners projected into the left image: (u0, v0, u1, v1) [px]."""
+    from cufund.sensors.camera import R_CO
+
+    R_WB = quat_to_matrix(q)
+    R_WO, o_W = R_WB @ T_LEFT.R @ R_CO, p + R_WB @ np.asarray(T_LEFT.t)
+    across = np.cross([0.0, 0.0, 1.0], frame.axis_W)
+    uv = []
+    for i in (-1.0, 1.0):
+        for j in (-1.0, 1.0):
+            X = R_WO.T @ (
+                np.asarray(frame.centre_W)
+                + i * (frame.width / 2 + 0.05) * across
+                + np.array([0.0, 0.0, j * (frame.height / 2 + 0.05)])
+                - o_W
+            )
+            uv.append([K.fx * X[0] / X[2] + K.cx, K.fy * X[1] / X[2] + K.cy])
+    uv = np.array(uv)
+    return np.array([uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
+
+
+def _pair_on_axis(name: str, a: int, b: int, dist: float):
+    course = tunnel_course_layout(int(name))
+    p, q = _on_axis(course, a, b, dist)
+    return course, p, q, LEFT.render(course.world, p, q), RIGHT.render(course.world, p, q)
+
+
+@pytest.mark.parametrize(("name", "a", "b", "dist"), [("1", 1, 2, 1.8), ("3", 0, 1, 1.6), ("3", 0, 1, 1.8)])
+def test_a_big_frame_behind_a_small_one_is_measured_from_its_bars_and_top(name, a, b, dist):
+    """Seed 1's frame 3 (1.5 m opening) stands 0.53 m behind frame 2 (0.5 x 1 m), seed 3's frame 2 0.6 m behind
+    frame 1 (0.5 x 1 m, on legs). Seen from before the small frame on its axis, the big frame's projected outline
+    and that outline loosened by up to 10 px as a detector's box is (three draws) are measured as partial (the
+    bottom bars lie across each other in the image), within 4 cm of the true centre, the opening within 5 cm of
+    1.5 x 1.5 m. Without the square bottom (partial_min_width 0), not at all."""
+    course, p, q, left, right = _pair_on_axis(name, a, b, dist)
+    frame = course.frames[b]
+    exact = _outer_box(frame, p, q)
+    rng = np.random.default_rng(5)
+    off = CameraTunnelParams(partial_min_width=0.0)
+    for box in [exact] + [exact + rng.uniform(-10.0, 10.0, 4) for _ in range(3)]:
+        m = measure_frame(box, left, right, K, B, T_LEFT, p, quat_to_matrix(q))
+        assert m is not None and m.partial, box
+        assert np.linalg.norm(m.centre_W - np.asarray(frame.centre_W)) < 0.04, (box, m.centre_W)
+        assert abs(m.width - 1.5) < 0.05 and abs(m.height - 1.5) < 0.05, (m.width, m.height)
+        assert measure_frame(box, left, right, K, B, T_LEFT, p, quat_to_matrix(q), off) is None
+
+
+@pytest.mark.parametrize(("name", "a", "b", "dist"), [("1", 1, 2, d) for d in (1.5, 1.8, 2.2)] + [("3", 0, 1, 1.8)])
+def test_the_partial_route_gives_no_wrong_frame(name, a, b, dist):
+    """Every box of the shipped model (score >= 0.25) in views before a big frame standing behind a small one gives
+    no measurement or one within 10 cm of a true frame."""
+    course, p, q, left, right = _pair_on_axis(name, a, b, dist)
+    true = np.array([f.centre_W for f in course.frames])
+    for box in _detector().detect(left).boxes_xyxy:
+        m = measure_frame(box, left, right, K, B, T_LEFT, p, quat_to_matrix(q))
+        assert m is None or np.min(np.linalg.norm(true - m.centre_W, axis=1)) < 0.10, (box, m)
+
+
+def test_a_far_partial_frame_is_refused():
+    """Seed 1, 2.2 m before frame 3 on frame 2's axis: frame 5 (1 m opening, 4 m away, seen through frames 2-4) is
+    measured partial 10 cm or more off its centre from its loosened outline with partial_max_range 6 m (a pixel of
+    disparity is 36 cm there); by default (2.5 m) it is not measured partial."""
+    course, p, q, left, right = _pair_on_axis("1", 1, 2, 2.2)
+    frame = course.frames[4]
+    exact = _outer_box(frame, p, q)
+    rng = np.random.default_rng(5)
+    far = CameraTunnelParams(partial_max_range=6.0)
+    worst = 0.0
+    for box in [exact] + [exact + rng.uniform(-10.0, 10.0, 4) for _ in range(5)]:
+        m = measure_frame(box, left, right, K, B, T_LEFT, p, quat_to_matrix(q), far)
+        if m is not None and m.partial:
+            worst = max(worst, float(np.linalg.norm(m.centre_W - np.asarray(frame.centre_W))))
+        m = measure_frame(box, left, right, K, B, T_LEFT, p, quat_to_matrix(q))
+        assert m is None or not m.partial
+    assert worst > 0.10
+
+
+def test_bad_partial_settings_are_refused_by_name():
+    from cufund.core.config import ConfigError
+    from cufund.scenarios.schema import load_scenario
+
+    with pytest.raises(ConfigError, match="partial_min_width"):
+        CameraTunnelParams(partial_min_width=-1.0)
+    with pytest.raises(ConfigError, match="perception.partial_max_range"):
+        load_scenario("tunnel", ["perception=camera", "estimator.kind=vio", "perception.partial_max_range=nan"])
+    cfg = load_scenario("tunnel", ["perception=camera", "estimator.kind=vio", "perception.partial_min_width=0"])
+    assert cfg.perception.params.geometry().partial_min_width == 0.0

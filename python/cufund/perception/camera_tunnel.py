@@ -18,6 +18,7 @@ normal.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -62,6 +63,15 @@ class CameraTunnelParams:
     refine_max_yaw_deg: float = 40.0
     """A refined pair of bars making a frame turned by more than this from the view is taken for two frames' bars
     (the generated courses turn by at most 15 deg from frame to frame, 30 deg at the entrance) [deg]."""
+    partial_min_width: float = 0.9
+    """With ``refine``: a frame whose bars and top are found but whose bottom bar is not (merged in the image with
+    a nearer frame's bar across it: a big frame seen behind a small one) is measured with the bottom of the rules'
+    square opening (openings 1 m wide or more are square) when its opening is at least this wide and that bottom
+    is confirmed at both corners in the pair (:attr:`FrameMeasurement.partial`) [m]. 0: never."""
+    partial_max_range: float = 2.5
+    """Such a frame farther than this is not measured: a pixel of disparity is 14 cm at 2.5 m (fx 400, 11 cm
+    baseline), and a frame seen far behind a small one (a 1 m frame 4 m away, 22 cm off) has no bottom bar to check
+    its depth by [m]."""
 
     def __post_init__(self) -> None:
         for name in (
@@ -73,6 +83,8 @@ class CameraTunnelParams:
             "max_yaw_deg",
             "min_opening",
             "refine_max_yaw_deg",
+            "partial_min_width",
+            "partial_max_range",
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
@@ -111,6 +123,9 @@ class FrameMeasurement:
     """Mean distance of the two bars from the camera along its optical axis [m]."""
     points_W: np.ndarray
     """(4, 3) the frame's outer left, right, top and bottom points found [m]."""
+    partial: bool = False
+    """The bottom bar was not found; the bottom is the rules' square opening's, confirmed at its corners
+    (:attr:`CameraTunnelParams.partial_min_width`)."""
 
 
 _LR_TOLERANCE_PX = 1.0
@@ -227,7 +242,18 @@ def measure_frame(
         span = (0.7 * lo, min(1.3 * hi, float(p.max_disparity)))
         up_O = (np.asarray(R_WB, dtype=float) @ T_BC.R @ R_CO).T @ np.array([0.0, 0.0, 1.0])  # from the estimate
         refined = refine_frame_box(
-            box, left, right, baseline, p.bar, span, K.fx, K.cx, K.cy, up_O, max_yaw_deg=p.refine_max_yaw_deg
+            box,
+            left,
+            right,
+            baseline,
+            p.bar,
+            span,
+            K.fx,
+            K.cx,
+            K.cy,
+            up_O,
+            max_yaw_deg=p.refine_max_yaw_deg,
+            partial_min_width=p.partial_min_width,
         )
         if refined is None:
             return None
@@ -249,7 +275,12 @@ def measure_frame(
             return None
         else:
             disp = (0.5 * (edges[0] + strips[0]), 0.5 * (edges[1] + strips[1]))
-        return frame_from_box(box, left, right, K, baseline, T_BC, p_WB, R_WB, p, disparities=disp)
+        m = frame_from_box(box, left, right, K, baseline, T_BC, p_WB, R_WB, p, disparities=disp)
+        if m is None or not refined.partial:
+            return m
+        if m.width < p.partial_min_width or m.depth > p.partial_max_range:  # (the strips' disparities too)
+            return None
+        return dataclasses.replace(m, partial=True)
     return frame_from_box(box, left, right, K, baseline, T_BC, p_WB, R_WB, p)
 
 

@@ -57,6 +57,12 @@ class CameraPerceptionParams:
     refine: bool = True
     """Refine each of the detector's boxes to the frame's bars, top and bottom in the pair before measuring it
     (:mod:`.camera_tunnel_refine`); false: the boxes' edges are taken as the frame's."""
+    partial_min_width: float = 0.9
+    """With ``refine``: a frame whose bars and top are found but not its bottom bar (merged with a nearer frame's
+    bar across it) is measured with the rules' square opening's bottom, confirmed at its corners, when its opening
+    is at least this wide (openings 1 m wide or more are square) [m]; 0: never."""
+    partial_max_range: float = 2.5
+    """Such a frame farther than this is not measured [m]."""
 
     def __post_init__(self) -> None:
         for name in ("model", "stereo_camera", "class_name"):
@@ -77,7 +83,12 @@ class CameraPerceptionParams:
 
     def geometry(self) -> CameraTunnelParams:
         return CameraTunnelParams(
-            bar=self.bar, max_range=self.max_range, max_disparity=self.max_disparity, refine=self.refine
+            bar=self.bar,
+            max_range=self.max_range,
+            max_disparity=self.max_disparity,
+            refine=self.refine,
+            partial_min_width=self.partial_min_width,
+            partial_max_range=self.partial_max_range,
         )
 
 

@@ -66,6 +66,9 @@ class RefinedBox:
     single: bool = True
     """Whether both bars' runs in the right image are as wide as one bar at their disparity (not several frames'
     bars merged, whose outer edge may be matched to another run's)."""
+    partial: bool = False
+    """Whether the bottom bar was not found (merged with a nearer frame's bar across it) and the bottom is the
+    rules' square opening's, confirmed at the two bottom corners (``partial_min_width``)."""
 
 
 @dataclass(frozen=True)
@@ -233,6 +236,7 @@ def refine_frame_box(
     up_O: np.ndarray | None = None,
     margin: float = 0.2,
     max_yaw_deg: float = 40.0,
+    partial_min_width: float = 0.0,
 ) -> RefinedBox | None:
     """The frame's outline near the loose box ``box_xyxy`` (u_min, v_min, u_max, v_max pixel edges of the ``left``
     image) in the rectified pair (``left``, ``right``: (H, W) grey or (H, W, 3) RGB) whose right camera is
@@ -244,7 +248,14 @@ def refine_frame_box(
     twice that of its height (a detector's box is looser there). A pair of bars whose outer edges make a frame turned
     by more than ``max_yaw_deg`` from the view is refused (two frames' bars). None when no pair fits (see the
     module). The frame's top corners must be level, and its bottom corners (the frames stand upright): a pair of
-    two frames' bars, or another frame's bottom bar, is not."""
+    two frames' bars, or another frame's bottom bar, is not.
+
+    ``partial_min_width`` > 0 [m]: a pair of bars with their top found (ends in both images, level, the top bar
+    along the top line) whose bottom bar is not (merged with a nearer frame's bar across it: a big frame seen
+    behind a small one) is kept when its opening is at least this wide, its bottom where the rules' square
+    opening puts it (openings 1 m wide or more are square), and that bottom confirmed at both corners: within the
+    image, bar-coloured just inside each vertical bar at the frame's disparity in both images, and not outside
+    the outer edges (:attr:`RefinedBox.partial`). Such an outline is kept only if no whole one is found."""
     up = np.array([0.0, -1.0, 0.0]) if up_O is None else np.asarray(up_O, dtype=float) / np.linalg.norm(up_O)
     u0, v0, u1, v1 = (float(x) for x in np.asarray(box_xyxy, dtype=float).reshape(4))
     w, h = u1 - u0, v1 - v0
@@ -254,6 +265,8 @@ def refine_frame_box(
     H, W = np.asarray(left).shape[:2]
     ox, oy = max(int(math.floor(u0 - reach - span[1] - 8.0)), 0), max(int(math.floor(v0 - mv - 2.0)), 0)
     ox1, oy1 = min(int(math.ceil(u1 + reach + 8.0)), W), min(int(math.ceil(v1 + mv + 2.0)), H)
+    if partial_min_width > 0:  # a square frame's bottom corners may lie below the window searched
+        oy1 = H
     if ox1 - ox < 8 or oy1 - oy < 8:
         return None
     L, R = _image(np.asarray(left)[oy:oy1, ox:ox1]), _image(np.asarray(right)[oy:oy1, ox:ox1])
@@ -272,6 +285,7 @@ def refine_frame_box(
         mv,
         reach,
         max_yaw_deg,
+        partial_min_width,
     )
     if found is None:
         return None
@@ -282,6 +296,7 @@ def refine_frame_box(
         (t0 + oy - t1 * ox, t1),
         (b0 + oy - b1 * ox, b1),
         found.single,
+        found.partial,
     )
 
 
@@ -300,6 +315,7 @@ def _refine(
     mv: float,
     reach: float,
     max_yaw_deg: float,
+    partial_min_width: float = 0.0,
 ) -> RefinedBox | None:
     """:func:`refine_frame_box` in the part of the pair searched (pixel coordinates in it)."""
     h_img, w_img = L[0].shape[:2]
@@ -319,7 +335,7 @@ def _refine(
         sides[side] = [
             (b, k, d, single) for b in lbars for k, (d, single) in enumerate(_disparities(b, rbars, B_over_bar, span))
         ]
-    best = None
+    best: tuple[tuple[bool, float, int], RefinedBox] | None = None
     mid = (rows.start + rows.stop) // 2
     window = (max(int(math.floor(v0 - mv)), 0), min(int(math.ceil(v1 + mv)), h_img))
     for lb, kl, dl, single_l in sides["left"]:
@@ -332,10 +348,17 @@ def _refine(
             x_l, x_r = (lb.outer - cx) * z_l / fx, (rb.outer - cx) * z_r / fx
             if math.degrees(math.atan2(abs(z_r - z_l), max(x_r - x_l, 1e-9))) > max_yaw_deg:
                 continue
-            cand = _outline(L, R, (lb, dl), (rb, dr), mid, window, B_over_bar)
+            outer_m = math.hypot(x_r - x_l, z_r - z_l)  # the outer width [m]
+            partial = partial_min_width > 0 and outer_m - 2.0 * bar >= partial_min_width
+            cand = _outline(L, R, (lb, dl), (rb, dr), mid, window, B_over_bar, partial)
             if cand is None:
                 continue
-            top, bottom = cand
+            top, found_bottom = cand
+            bottom = found_bottom
+            if bottom is None:  # the square opening's bottom, confirmed at its corners
+                bottom = _square_bottom(L, R, top, (lb, dl, z_l), (rb, dr, z_r), outer_m, fx, cx, cy, up, B_over_bar)
+                if bottom is None:
+                    continue
             if not _level(top, bottom, (lb.outer, z_l), (rb.outer, z_r), fx, cx, cy, up, fx * baseline):
                 continue
             u_near = lb.outer if dl >= dr else rb.outer  # the nearer bar's corner is the box's top and bottom
@@ -343,9 +366,13 @@ def _refine(
             if box[3] - box[1] < 8:
                 continue
             # nearest the detector's box; of one pair of bars, the right-image runs of the most alike widths
-            cost = (abs(box[0] - u0) + abs(box[2] - u1) + abs(box[1] - v0) + abs(box[3] - v1), kl + kr)
+            cost = (
+                found_bottom is None,  # a whole outline first
+                abs(box[0] - u0) + abs(box[2] - u1) + abs(box[1] - v0) + abs(box[3] - v1),
+                kl + kr,
+            )
             if best is None or cost < best[0]:
-                best = (cost, RefinedBox(box, (dl, dr), top, bottom, single_l and single_r))
+                best = (cost, RefinedBox(box, (dl, dr), top, bottom, single_l and single_r, found_bottom is None))
     return None if best is None else best[1]
 
 
@@ -357,9 +384,11 @@ def _outline(
     mid: int,
     window: tuple[int, int],
     B_over_bar: float,
-) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    partial: bool = False,
+) -> tuple[tuple[float, float], tuple[float, float] | None] | None:
     """The top and bottom lines of the frame whose bars are ``lb`` and ``rb`` (each with its disparity), searched
-    in rows ``window`` (module step 3)."""
+    in rows ``window`` (module step 3). ``partial``: the top line with None for the bottom when the top is found
+    and the bottom bar is not."""
     (bl, dl), (br, dr) = lb, rb
     colour, tol = 0.5 * (bl.colour + br.colour), min(bl.tol, br.tol)
     if np.linalg.norm(bl.colour - br.colour) > tol:
@@ -441,14 +470,65 @@ def _outline(
     for _ in range(3):
         pts = np.array([(u, ends[-1]) for u, ends in zip(us, runs, strict=True) if ends])
         if len(pts) < _MIN_BOTTOM * (cb - ca):
-            return None
+            return (top, None) if partial else None
         bottom = _fit(pts[:, 0], pts[:, 1])
         if bottom is None:
-            return None
+            return (top, None) if partial else None
         on = np.abs(pts[:, 1] - bottom[0] - bottom[1] * pts[:, 0]) <= 1.0
         if on.sum() >= _MIN_BOTTOM * (cb - ca) and outside(bottom, -0.5) <= 0.5 and meets(bottom, runs):
             # on one line over most of the columns (not legs), from bar to bar, ending at the outer edges
             return top, bottom
         line = bottom
         runs = [[e for e in ends if abs(e - line[0] - line[1] * u) > 2.0] for u, ends in zip(us, runs, strict=True)]
-    return None
+    return (top, None) if partial else None
+
+
+def _square_bottom(
+    L: tuple[np.ndarray, np.ndarray],
+    R: tuple[np.ndarray, np.ndarray],
+    top: tuple[float, float],
+    lb: tuple[_Bar, float, float],
+    rb: tuple[_Bar, float, float],
+    outer_m: float,
+    f: float,
+    cx: float,
+    cy: float,
+    up: np.ndarray,
+    B_over_bar: float,
+) -> tuple[float, float] | None:
+    """The bottom line of a square frame (outer height ``outer_m``, its outer width [m]) whose bars are ``lb`` and
+    ``rb`` (each with its disparity and depth) and whose top line is ``top``: its bottom corners below the top
+    ones by ``outer_m`` along ``up``, projected. None unless both corners are in the image and confirmed: just inside
+    each vertical bar, over the bottom bar's rows, bar-coloured in the left image and at the frame's disparity in
+    the right one; just outside the outer edges, not (a longer bar is another frame's)."""
+    h_img, w_img = L[1].shape[:2]
+    (bl, dl, zl), (br, dr, zr) = lb, rb
+    colour, tol = 0.5 * (bl.colour + br.colour), min(bl.tol, br.tol)
+    corners = []
+    for bar, z, d, sign in ((bl, zl, dl, 1.0), (br, zr, dr, -1.0)):
+        u = bar.outer
+        v = top[0] + top[1] * u
+        X = z * np.array([(u - cx) / f, (v - cy) / f, 1.0]) - outer_m * up  # the bottom corner
+        if X[2] <= 0.05:
+            return None
+        ub, vb = cx + f * X[0] / X[2], cy + f * X[1] / X[2]
+        th = d / B_over_bar  # a bar's face [px]
+        if not (2.0 <= vb - th and vb + 2.0 < h_img):
+            return None  # not seen: nothing confirms it
+        rows = np.arange(int(math.floor(vb - 0.75 * th)), int(math.ceil(vb - 0.25 * th)))
+        cols = np.arange(int(math.floor(ub + sign * 1.5 * th)), int(math.floor(ub + sign * 3.0 * th)), int(sign))
+        outside = np.arange(int(math.floor(ub - sign * 2.0)), int(math.floor(ub - sign * 5.0)), -int(sign))
+        rc = np.round(cols - d).astype(int)
+        if rows.size == 0 or cols.size == 0 or min(cols.min(), rc.min(), outside.min()) < 0:
+            return None
+        if max(cols.max(), outside.max()) >= w_img:
+            return None
+        inside_l = _norm(L[1][np.ix_(rows, cols)] - colour) < tol
+        inside_r = _norm(R[1][np.ix_(rows, rc)] - colour) < tol
+        out_l = _norm(L[1][np.ix_(rows, outside)] - colour) < tol
+        if inside_l.mean() < 0.8 or inside_r.mean() < 0.8 or out_l.mean() > 0.5:
+            return None
+        corners.append((ub, vb))
+    (ua, va), (ub_, vb_) = corners
+    slope = (vb_ - va) / (ub_ - ua)
+    return va - slope * ua, slope
