@@ -28,7 +28,7 @@ HELD_OUT = {
 }
 FRAMES = 80
 """Held-out frames per model: the 80 on which SHIPPED_MAP and each model's YAML (``held_out``) were measured."""
-SHIPPED_MAP = {"people_cars_pads": 0.32, "frames_gates": 0.47}
+SHIPPED_MAP = {"people_cars_pads": 0.32, "frames_gates": 0.58}
 """mAP@0.5 of the shipped models as measured on this held-out set: BELOW issue 26's targets (the models are too
 weak, see each model's YAML and docs/guides/detection.md). The test holds each model to what it was shipped with
 (a retrained model must not score less) and names the target it misses."""
@@ -101,7 +101,7 @@ COURSE_WORLD_SEEDS = (401, 402, 403)
 """Generated tunnel layouts never trained on, seen as the vehicle sees them flying (``--views course``)."""
 COURSE_FRAMES = 40
 """Course views per layout (the dataset's seed is the layout's)."""
-COURSE_MAP = 0.32
+COURSE_MAP = 0.45
 """tunnel_frame mAP@0.5 of the shipped frames_gates on those views (frames_gates.yaml, ``held_out_course``); the
 model before the course views were trained on scored 0.094."""
 
