@@ -28,7 +28,7 @@ HELD_OUT = {
 }
 FRAMES = 80
 """Held-out frames per model: the 80 on which SHIPPED_MAP and each model's YAML (``held_out``) were measured."""
-SHIPPED_MAP = {"people_cars_pads": 0.32, "frames_gates": 0.58}
+SHIPPED_MAP = {"people_cars_pads": 0.38, "frames_gates": 0.58}
 """mAP@0.5 of the shipped models as measured on this held-out set: BELOW issue 26's targets (the models are too
 weak, see each model's YAML and docs/guides/detection.md). The test holds each model to what it was shipped with
 (a retrained model must not score less) and names the target it misses."""
