@@ -28,6 +28,12 @@ _IMAGES_KEPT = 6
 """Left and right images kept, waiting for their detections."""
 _MIN_HITS = 2
 """Measurements a tracked frame needs before it is published (a one-off mismatch is not a frame)."""
+_SAME_WIDTH_M = 0.25
+"""A measurement within ``associate_m`` of a tracked frame whose opening's width differs from the track's by more
+than this is dropped, neither joining the track nor starting one: its bars are two frames' (the rules' widths differ
+by 0.5 m). Flown on seed 3, two frames' bars measured as a 1 m wide frame 18-26 cm beside a 0.5 m one joined its
+track and moved it 11.5 cm across its opening. Widths only: a height is less sure (a frame measured 1.49 m tall
+instead of 1 m, first, would have kept every later right measurement out) [m]."""
 _PENDING_KEPT = 8
 """Detections kept waiting for an estimate at or after their capture time."""
 
@@ -123,6 +129,8 @@ class CameraTunnelDetector(Component):
         self.tracks: list[_Track] = []
         self.frames_measured = 0
         """Boxes measured into frames so far."""
+        self.mismatched = 0
+        """Measurements dropped: another opening width near a tracked frame (:data:`_SAME_WIDTH_M`)."""
         self.images_processed = 0
         self.update_seconds = 0.0
         """Wall time spent measuring frames so far [s]."""
@@ -167,6 +175,9 @@ class CameraTunnelDetector(Component):
             near = [(float(np.linalg.norm((tr.centre_W - m.centre_W)[:2])), k) for k, tr in enumerate(self.tracks)]
             dist, k = min(near, default=(np.inf, -1))
             if dist <= self.associate_m:
+                if abs(m.width - float(self.tracks[k].size[0])) > _SAME_WIDTH_M:
+                    self.mismatched += 1  # another width this near a tracked frame: two frames' bars, dropped
+                    continue
                 self.tracks[k].add(m)
             else:
                 self.tracks.append(
