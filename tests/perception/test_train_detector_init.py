@@ -113,6 +113,8 @@ def test_files_that_do_not_fit_are_refused(tmp_path, tiny_dataset, exported, cap
     other = tmp_path / "wide.onnx"
     cfg = TrainDetectorConfig(imgsz=HW, width=(16, 32, 64))
     export_onnx(tdm.Detector(len(CLASSES), cfg.width).eval(), other, CLASSES, cfg, {})
+    swapped = tmp_path / "swapped.onnx"  # same network, the classes in another order
+    export_onnx(tdm.Detector(3).eval(), swapped, ("car", "person", "landing_pad"), TrainDetectorConfig(imgsz=HW), {})
     two = tmp_path / "two.onnx"
     export_onnx(tdm.Detector(2).eval(), two, ("person", "car"), TrainDetectorConfig(imgsz=HW), {})
     garbage = tmp_path / "garbage.onnx"
@@ -127,6 +129,7 @@ def test_files_that_do_not_fit_are_refused(tmp_path, tiny_dataset, exported, cap
     onnx.save(proto, str(external))
     for path, says in (
         (other, "convolution 0"),
+        (swapped, "the datasets' classes"),
         (two, "convolution"),
         (garbage, "not an ONNX model"),
         (external, "external file"),

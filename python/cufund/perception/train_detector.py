@@ -257,9 +257,19 @@ def train_detector(
     model = tdm.Detector(len(data.names), cfg.width, cfg.depth)
     weights = out.with_suffix(".pt")
     if init is not None and Path(init).suffix.lower() == ".onnx":  # a model this command exported: BN refolded
+        from .onnx_detector import OnnxDetector
         from .train_detector_init import load_exported_weights
 
         load_exported_weights(model, init, data.images[rng.permutation(n)[:CALIBRATION_IMAGES]])
+        # read as weights first (external-data tensors refused there), then its classes checked
+        try:
+            init_names = OnnxDetector(init, nthreads=1).names
+        except (ValueError, OSError) as e:  # not a detector the onnx_detector runs: refused
+            raise ValueError(f"init weights {str(init)!r} are not a detection model: {str(e)[:200]}") from None
+        if tuple(init_names) != tuple(data.names):  # same count, other classes or order: the heads would mislabel
+            raise ValueError(
+                f"init weights {str(init)!r} detect {list(init_names)}, the datasets' classes are {list(data.names)}"
+            )
     elif init is not None:
         try:
             model.load_state_dict(torch.load(Path(init), map_location="cpu", weights_only=True))
